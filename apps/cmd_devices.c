@@ -1,0 +1,59 @@
+/* smplpix devices: list OpenCL devices; with --warmup, build all kernels for the chosen device
+ * and report cold vs warm start-up (program cache). */
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+
+static const char *kind_name(spx_device_kind k) {
+  return k == SPX_DEVICE_GPU ? "gpu" : k == SPX_DEVICE_CPU ? "cpu" : "other";
+}
+
+int spx_cmd_devices(int argc, char **argv) {
+  const char *spec = NULL;
+  int warm = 0, bad = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *v;
+    if (!strcmp(argv[i], "--help")) {
+      printf("usage: smplpix devices [--warmup] [--device cpu|gpu|P:D]\n"
+             "Lists OpenCL devices; --warmup builds every kernel on the chosen device (filling the\n"
+             "program-binary cache) and prints how long that took and how much came from the cache.\n");
+      return SPX_EXIT_OK;
+    } else if (!strcmp(argv[i], "--warmup")) {
+      warm = 1;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
+      spec = v;
+    } else {
+      return spx_cli_usage("devices", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+    }
+  }
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("devices", "out of memory");
+  int rc = SPX_EXIT_OK;
+  spx_device_info infos[32];
+  int n = 0;
+  if (spx_device_list(ctx, infos, 32, &n)) {
+    rc = spx_cli_error("devices", ctx);
+    goto done;
+  }
+  for (int i = 0; i < n && i < 32; i++)
+    printf("%d:%d  %-5s %s | %s | driver %s | %u CU | %.1f GiB\n", infos[i].platform_index, infos[i].device_index,
+           kind_name(infos[i].kind), infos[i].name, infos[i].platform, infos[i].driver, infos[i].compute_units,
+           (double)infos[i].global_mem / (1 << 30));
+  if (warm) {
+    if ((rc = spx_cli_open_device("devices", ctx, spec))) goto done;
+    spx_device_info info;
+    spx_device_get_info(ctx, &info);
+    if (spx_device_warmup(ctx)) {
+      rc = spx_cli_error("devices", ctx);
+      goto done;
+    }
+    spx_cache_stats cs;
+    spx_device_cache_stats(ctx, &cs);
+    printf("warmup on %d:%d %s: %d programs compiled, %d loaded from cache, %d cached, %.3f s\n",
+           info.platform_index, info.device_index, info.name, cs.compiled, cs.loaded, cs.stored, cs.build_seconds);
+  }
+done:
+  spx_ctx_destroy(ctx);
+  return rc;
+}

@@ -1,0 +1,77 @@
+/* smplpix: one tool, many subcommands. */
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+
+static const spx_command commands[] = {
+    {"devices", "list OpenCL devices and warm the kernel cache", spx_cmd_devices},
+};
+#define NCOMMANDS (sizeof commands / sizeof commands[0])
+
+int spx_cli_error(const char *cmd, spx_ctx *ctx) {
+  const char *m = spx_ctx_message(ctx);
+  fprintf(stderr, "smplpix %s: error: %s\n", cmd, (m && *m) ? m : "unknown error");
+  return SPX_EXIT_ERROR;
+}
+
+int spx_cli_errorf(const char *cmd, const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  fprintf(stderr, "smplpix %s: error: ", cmd);
+  vfprintf(stderr, fmt, ap);
+  fputc('\n', stderr);
+  va_end(ap);
+  return SPX_EXIT_ERROR;
+}
+
+int spx_cli_usage(const char *cmd, const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  fprintf(stderr, "smplpix %s: ", cmd);
+  vfprintf(stderr, fmt, ap);
+  fprintf(stderr, " (see `smplpix %s --help`)\n", cmd);
+  va_end(ap);
+  return SPX_EXIT_USAGE;
+}
+
+int spx_cli_open_device(const char *cmd, spx_ctx *ctx, const char *spec) {
+  if (spx_device_open(ctx, spec) != SPX_OK) return spx_cli_error(cmd, ctx);
+  return SPX_EXIT_OK;
+}
+
+const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *bad) {
+  if (strcmp(argv[*i], name)) return NULL;
+  if (*i + 1 >= argc) {
+    *bad = 1;
+    return NULL;
+  }
+  return argv[++*i];
+}
+
+static void usage(FILE *fp) {
+  fprintf(fp, "usage: smplpix <command> [options]   (smplpix <command> --help for details)\n\ncommands:\n");
+  for (size_t i = 0; i < NCOMMANDS; i++) fprintf(fp, "  %-10s %s\n", commands[i].name, commands[i].summary);
+  fprintf(fp, "\nenvironment: SPX_DEVICE=cpu|gpu|P:D  SPX_KERNEL_DIR=dir  SPX_CACHE_DIR=dir  SPX_NO_CACHE=1\n");
+}
+
+int main(int argc, char **argv) {
+  if (argc < 2) {
+    usage(stderr);
+    return SPX_EXIT_USAGE;
+  }
+  if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
+    usage(stdout);
+    return SPX_EXIT_OK;
+  }
+  if (!strcmp(argv[1], "--version")) {
+    printf("smplpix %s\n", spx_version());
+    return SPX_EXIT_OK;
+  }
+  for (size_t i = 0; i < NCOMMANDS; i++)
+    if (!strcmp(argv[1], commands[i].name)) return commands[i].run(argc - 1, argv + 1);
+  fprintf(stderr, "smplpix: unknown command '%s'\n", argv[1]);
+  usage(stderr);
+  return SPX_EXIT_USAGE;
+}

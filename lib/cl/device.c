@@ -1,0 +1,202 @@
+/* Platform/device choice, context and in-order queue. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cl/cl_internal.h"
+
+#define SPX_MAX_PLATFORMS 16
+#define SPX_MAX_DEVICES 32
+
+static void fill_info(cl_platform_id p, cl_device_id d, int pi, int di, spx_device_info *o) {
+  memset(o, 0, sizeof *o);
+  clGetPlatformInfo(p, CL_PLATFORM_NAME, sizeof o->platform - 1, o->platform, NULL);
+  clGetDeviceInfo(d, CL_DEVICE_NAME, sizeof o->name - 1, o->name, NULL);
+  clGetDeviceInfo(d, CL_DRIVER_VERSION, sizeof o->driver - 1, o->driver, NULL);
+  clGetDeviceInfo(d, CL_DEVICE_VERSION, sizeof o->version - 1, o->version, NULL);
+  cl_device_type t = 0;
+  clGetDeviceInfo(d, CL_DEVICE_TYPE, sizeof t, &t, NULL);
+  o->kind = (t & CL_DEVICE_TYPE_GPU) ? SPX_DEVICE_GPU : (t & CL_DEVICE_TYPE_CPU) ? SPX_DEVICE_CPU : SPX_DEVICE_OTHER;
+  o->platform_index = pi;
+  o->device_index = di;
+  cl_uint cu = 0;
+  clGetDeviceInfo(d, CL_DEVICE_MAX_COMPUTE_UNITS, sizeof cu, &cu, NULL);
+  o->compute_units = cu;
+  clGetDeviceInfo(d, CL_DEVICE_MAX_WORK_GROUP_SIZE, sizeof o->max_work_group, &o->max_work_group, NULL);
+  cl_ulong v = 0;
+  clGetDeviceInfo(d, CL_DEVICE_GLOBAL_MEM_SIZE, sizeof v, &v, NULL);
+  o->global_mem = v;
+  clGetDeviceInfo(d, CL_DEVICE_LOCAL_MEM_SIZE, sizeof v, &v, NULL);
+  o->local_mem = v;
+  clGetDeviceInfo(d, CL_DEVICE_MAX_MEM_ALLOC_SIZE, sizeof v, &v, NULL);
+  o->max_alloc = v;
+  cl_device_fp_config fp = 0;
+  clGetDeviceInfo(d, CL_DEVICE_DOUBLE_FP_CONFIG, sizeof fp, &fp, NULL);
+  o->fp64 = fp != 0;
+}
+
+/* Walk all platforms/devices; calls visit() for each; stops early when it returns nonzero. */
+typedef int (*visit_fn)(void *u, cl_platform_id p, cl_device_id d, int pi, int di);
+static spx_status for_each_device(spx_ctx *ctx, visit_fn visit, void *u) {
+  cl_platform_id plats[SPX_MAX_PLATFORMS];
+  cl_uint np = 0;
+  cl_int err = clGetPlatformIDs(SPX_MAX_PLATFORMS, plats, &np);
+  if (err == -1001 /* CL_PLATFORM_NOT_FOUND_KHR */ || (err == CL_SUCCESS && np == 0))
+    return spx_fail(ctx, SPX_E_NODEV,
+                    "no OpenCL platform found (is an ICD such as pocl-opencl-icd installed? see /etc/OpenCL/vendors)");
+  if (err != CL_SUCCESS) return spx_cl_check(ctx, err, "clGetPlatformIDs");
+  if (np > SPX_MAX_PLATFORMS) np = SPX_MAX_PLATFORMS;
+  for (cl_uint pi = 0; pi < np; pi++) {
+    cl_device_id devs[SPX_MAX_DEVICES];
+    cl_uint nd = 0;
+    if (clGetDeviceIDs(plats[pi], CL_DEVICE_TYPE_ALL, SPX_MAX_DEVICES, devs, &nd) != CL_SUCCESS) continue;
+    if (nd > SPX_MAX_DEVICES) nd = SPX_MAX_DEVICES;
+    for (cl_uint di = 0; di < nd; di++)
+      if (visit(u, plats[pi], devs[di], (int)pi, (int)di)) return SPX_OK;
+  }
+  return SPX_OK;
+}
+
+struct list_state {
+  spx_device_info *out;
+  int max, count;
+};
+static int list_visit(void *u, cl_platform_id p, cl_device_id d, int pi, int di) {
+  struct list_state *s = u;
+  if (s->out && s->count < s->max) fill_info(p, d, pi, di, &s->out[s->count]);
+  s->count++;
+  return 0;
+}
+
+spx_status spx_device_list(spx_ctx *ctx, spx_device_info *out, int max, int *count) {
+  struct list_state s = {out, max, 0};
+  spx_status st = for_each_device(ctx, list_visit, &s);
+  if (count) *count = s.count;
+  return st;
+}
+
+struct pick_state {
+  int want_kind; /* 0 = any */
+  int want_p, want_d; /* -1 = any */
+  cl_platform_id p;
+  cl_device_id d;
+  int pi, di, found;
+};
+static int pick_visit(void *u, cl_platform_id p, cl_device_id d, int pi, int di) {
+  struct pick_state *s = u;
+  if (s->want_p >= 0 && (pi != s->want_p || di != s->want_d)) return 0;
+  if (s->want_kind) {
+    cl_device_type t = 0;
+    clGetDeviceInfo(d, CL_DEVICE_TYPE, sizeof t, &t, NULL);
+    if (s->want_kind == SPX_DEVICE_GPU && !(t & CL_DEVICE_TYPE_GPU)) return 0;
+    if (s->want_kind == SPX_DEVICE_CPU && !(t & CL_DEVICE_TYPE_CPU)) return 0;
+  }
+  s->p = p;
+  s->d = d;
+  s->pi = pi;
+  s->di = di;
+  s->found = 1;
+  return 1;
+}
+
+static spx_status pick(spx_ctx *ctx, const char *spec, struct pick_state *s) {
+  memset(s, 0, sizeof *s);
+  s->want_p = s->want_d = -1;
+  if (spec && *spec) {
+    int p, d;
+    char tail;
+    if (!strcmp(spec, "cpu")) s->want_kind = SPX_DEVICE_CPU;
+    else if (!strcmp(spec, "gpu")) s->want_kind = SPX_DEVICE_GPU;
+    else if (sscanf(spec, "%d:%d%c", &p, &d, &tail) == 2 && p >= 0 && d >= 0) {
+      s->want_p = p;
+      s->want_d = d;
+    } else
+      return spx_fail(ctx, SPX_E_ARG, "SPX_DEVICE=\"%s\": expected cpu, gpu or PLATFORM:DEVICE indices", spec);
+    spx_status st = for_each_device(ctx, pick_visit, s);
+    if (st) return st;
+    if (!s->found)
+      return spx_fail(ctx, SPX_E_NODEV, "no OpenCL device matches \"%s\" (run `smplpix devices` to list them)", spec);
+    return SPX_OK;
+  }
+  s->want_kind = SPX_DEVICE_GPU;
+  spx_status st = for_each_device(ctx, pick_visit, s);
+  if (st || s->found) return st;
+  s->want_kind = SPX_DEVICE_CPU;
+  st = for_each_device(ctx, pick_visit, s);
+  if (st || s->found) return st;
+  s->want_kind = 0;
+  st = for_each_device(ctx, pick_visit, s);
+  if (st) return st;
+  if (!s->found) return spx_fail(ctx, SPX_E_NODEV, "no OpenCL device found on any platform");
+  return SPX_OK;
+}
+
+void spx_cl_build_options(spx_ctx *ctx); /* tuning.c */
+
+spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
+  if (!ctx) return SPX_E_ARG;
+  if (ctx->have_device) spx_cl_close(ctx);
+  if (!spec) spec = getenv("SPX_DEVICE");
+  struct pick_state s;
+  spx_status st = pick(ctx, spec, &s);
+  if (st) return st;
+  cl_int err;
+  cl_context_properties props[] = {CL_CONTEXT_PLATFORM, (cl_context_properties)s.p, 0};
+  ctx->context = clCreateContext(props, 1, &s.d, NULL, NULL, &err);
+  if (err != CL_SUCCESS) return spx_cl_check(ctx, err, "clCreateContext");
+  ctx->queue = clCreateCommandQueue(ctx->context, s.d, 0, &err);
+  if (err != CL_SUCCESS) {
+    clReleaseContext(ctx->context);
+    ctx->context = NULL;
+    return spx_cl_check(ctx, err, "clCreateCommandQueue");
+  }
+  ctx->platform = s.p;
+  ctx->device = s.d;
+  fill_info(s.p, s.d, s.pi, s.di, &ctx->info);
+  ctx->have_device = 1;
+  memset(&ctx->cache, 0, sizeof ctx->cache);
+  spx_cl_build_options(ctx);
+  return SPX_OK;
+}
+
+int spx_device_is_open(const spx_ctx *ctx) { return ctx && ctx->have_device; }
+
+spx_status spx_cl_require(spx_ctx *ctx, const char *what) {
+  if (!ctx) return SPX_E_ARG;
+  if (!ctx->have_device)
+    return spx_fail(ctx, SPX_E_STATE, "%s: no OpenCL device is open (call spx_device_open first)", what);
+  return SPX_OK;
+}
+
+spx_status spx_device_get_info(spx_ctx *ctx, spx_device_info *out) {
+  spx_status st = spx_cl_require(ctx, "spx_device_get_info");
+  if (st) return st;
+  *out = ctx->info;
+  return SPX_OK;
+}
+
+spx_status spx_device_finish(spx_ctx *ctx) {
+  spx_status st = spx_cl_require(ctx, "spx_device_finish");
+  if (st) return st;
+  return spx_cl_check(ctx, clFinish(ctx->queue), "clFinish");
+}
+
+spx_status spx_device_cache_stats(spx_ctx *ctx, spx_cache_stats *out) {
+  spx_status st = spx_cl_require(ctx, "spx_device_cache_stats");
+  if (st) return st;
+  *out = ctx->cache;
+  return SPX_OK;
+}
+
+void spx_cl_close(spx_ctx *ctx) {
+  if (!ctx || !ctx->have_device) return;
+  if (ctx->queue) clFinish(ctx->queue);
+  for (int i = 0; i < ctx->nkernels; i++) clReleaseKernel(ctx->kernels[i].kernel);
+  for (int i = 0; i < ctx->nprograms; i++) clReleaseProgram(ctx->programs[i].prog);
+  if (ctx->queue) clReleaseCommandQueue(ctx->queue);
+  if (ctx->context) clReleaseContext(ctx->context);
+  ctx->nkernels = ctx->nprograms = 0;
+  ctx->queue = NULL;
+  ctx->context = NULL;
+  ctx->have_device = 0;
+}

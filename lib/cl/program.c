@@ -1,0 +1,275 @@
+/* Program creation: embedded (or $SPX_KERNEL_DIR) sources, shared prelude, build options with
+ * per-device tunables, and an on-disk program-binary cache keyed by source + options + device
+ * + driver. Writes are atomic (temp + rename); any cache problem silently falls back to
+ * compiling from source. */
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "cl/cl_internal.h"
+
+struct spx_embedded_kernel {
+  const char *name;
+  const char *src;
+  size_t len;
+};
+extern const struct spx_embedded_kernel spx_embedded_kernels[];
+
+#define SPX_PRELUDE "prelude.h"
+#define SPX_MAX_SOURCE (16u << 20)
+
+/* Source text of a kernel file: from $SPX_KERNEL_DIR when set, else the embedded copy. */
+static spx_status load_source(spx_ctx *ctx, const char *name, char **out, size_t *len) {
+  const char *dir = getenv("SPX_KERNEL_DIR");
+  if (dir && *dir) {
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    unsigned char *data;
+    spx_status st = spx_read_file(ctx, path, SPX_MAX_SOURCE, &data, len);
+    if (st) return spx_fail(ctx, st, "SPX_KERNEL_DIR: %s", spx_ctx_message(ctx));
+    *out = (char *)data;
+    return SPX_OK;
+  }
+  for (const struct spx_embedded_kernel *k = spx_embedded_kernels; k->name; k++) {
+    if (strcmp(k->name, name)) continue;
+    *out = malloc(k->len + 1);
+    if (!*out) return spx_fail(ctx, SPX_E_NOMEM, "kernel source %s: out of memory", name);
+    memcpy(*out, k->src, k->len);
+    (*out)[k->len] = 0;
+    *len = k->len;
+    return SPX_OK;
+  }
+  return spx_fail(ctx, SPX_E_ARG, "no kernel file named %s is built into this library", name);
+}
+
+static int cache_disabled(void) {
+  const char *v = getenv("SPX_NO_CACHE");
+  return v && *v && strcmp(v, "0");
+}
+
+static int cache_dir(char *out, size_t cap) {
+  const char *d = getenv("SPX_CACHE_DIR");
+  if (d && *d) {
+    snprintf(out, cap, "%s", d);
+  } else if ((d = getenv("XDG_CACHE_HOME")) && *d) {
+    snprintf(out, cap, "%s/smplpix", d);
+  } else if ((d = getenv("HOME")) && *d) {
+    snprintf(out, cap, "%s/.cache/smplpix", d);
+  } else {
+    return 0;
+  }
+  /* create the leaf and, for the default, its parent; failures surface later as misses */
+  char parent[4096];
+  snprintf(parent, sizeof parent, "%s", out);
+  char *slash = strrchr(parent, '/');
+  if (slash && slash != parent) {
+    *slash = 0;
+    mkdir(parent, 0755);
+  }
+  mkdir(out, 0755);
+  return 1;
+}
+
+#define SPX_CACHE_MAGIC "SPXCLBIN\x01"
+#define SPX_CACHE_MAGIC_LEN 9
+
+struct cache_key {
+  uint64_t h[2];
+};
+
+static struct cache_key make_key(const spx_ctx *ctx, const char *src, size_t len, const char *opts) {
+  struct cache_key k;
+  const spx_device_info *i = &ctx->info;
+  uint64_t seeds[2] = {SPX_FNV_SEED, 0x9e3779b97f4a7c15ULL};
+  for (int j = 0; j < 2; j++) {
+    uint64_t h = seeds[j];
+    h = spx_hash64(src, len, h);
+    h = spx_hash64(opts, strlen(opts) + 1, h);
+    h = spx_hash64(i->platform, strlen(i->platform) + 1, h);
+    h = spx_hash64(i->name, strlen(i->name) + 1, h);
+    h = spx_hash64(i->driver, strlen(i->driver) + 1, h);
+    h = spx_hash64(i->version, strlen(i->version) + 1, h);
+    k.h[j] = h;
+  }
+  return k;
+}
+
+static void cache_path(char *out, size_t cap, const char *dir, const char *name, struct cache_key k) {
+  snprintf(out, cap, "%s/%s-%016llx%016llx.bin", dir, name, (unsigned long long)k.h[0], (unsigned long long)k.h[1]);
+}
+
+/* Try to create + build the program from a cached binary. Returns NULL on any problem. */
+static cl_program cache_load(spx_ctx *ctx, const char *path, struct cache_key key, const char *opts) {
+  unsigned char *data = NULL;
+  size_t n = 0;
+  cl_program prog = NULL;
+  if (spx_read_file(NULL, path, 512u << 20, &data, &n) != SPX_OK) return NULL;
+  size_t hdr = SPX_CACHE_MAGIC_LEN + sizeof key + sizeof(uint64_t) * 2;
+  if (n < hdr || memcmp(data, SPX_CACHE_MAGIC, SPX_CACHE_MAGIC_LEN)) goto done;
+  struct cache_key stored;
+  memcpy(&stored, data + SPX_CACHE_MAGIC_LEN, sizeof stored);
+  uint64_t blen, bhash;
+  memcpy(&blen, data + SPX_CACHE_MAGIC_LEN + sizeof key, sizeof blen);
+  memcpy(&bhash, data + SPX_CACHE_MAGIC_LEN + sizeof key + sizeof blen, sizeof bhash);
+  if (memcmp(&stored, &key, sizeof key) || blen != n - hdr || blen == 0) goto done;
+  const unsigned char *bin = data + hdr;
+  if (spx_hash64(bin, blen, SPX_FNV_SEED) != bhash) goto done;
+  size_t len = blen;
+  cl_int bstatus = CL_SUCCESS, err;
+  prog = clCreateProgramWithBinary(ctx->context, 1, &ctx->device, &len, &bin, &bstatus, &err);
+  if (err != CL_SUCCESS || bstatus != CL_SUCCESS) {
+    if (prog) clReleaseProgram(prog);
+    prog = NULL;
+    goto done;
+  }
+  if (clBuildProgram(prog, 1, &ctx->device, opts, NULL, NULL) != CL_SUCCESS) {
+    clReleaseProgram(prog);
+    prog = NULL;
+  }
+done:
+  free(data);
+  return prog;
+}
+
+static void cache_store(spx_ctx *ctx, cl_program prog, const char *path, struct cache_key key) {
+  size_t blen = 0;
+  if (clGetProgramInfo(prog, CL_PROGRAM_BINARY_SIZES, sizeof blen, &blen, NULL) != CL_SUCCESS || blen == 0) return;
+  unsigned char *bin = malloc(blen);
+  if (!bin) return;
+  if (clGetProgramInfo(prog, CL_PROGRAM_BINARIES, sizeof bin, &bin, NULL) == CL_SUCCESS) {
+    spx_atomic_file af;
+    if (spx_atomic_open(NULL, path, &af) == SPX_OK) {
+      uint64_t l = blen, h = spx_hash64(bin, blen, SPX_FNV_SEED);
+      fwrite(SPX_CACHE_MAGIC, 1, SPX_CACHE_MAGIC_LEN, af.fp);
+      fwrite(&key, sizeof key, 1, af.fp);
+      fwrite(&l, sizeof l, 1, af.fp);
+      fwrite(&h, sizeof h, 1, af.fp);
+      fwrite(bin, 1, blen, af.fp);
+      if (spx_atomic_commit(NULL, &af) == SPX_OK) ctx->cache.stored++;
+    }
+  }
+  free(bin);
+}
+
+static spx_status build_from_source(spx_ctx *ctx, const char *name, const char *src, size_t len, const char *opts,
+                                    cl_program *out) {
+  cl_int err;
+  cl_program prog = clCreateProgramWithSource(ctx->context, 1, &src, &len, &err);
+  if (err != CL_SUCCESS) return spx_cl_check(ctx, err, "clCreateProgramWithSource");
+  err = clBuildProgram(prog, 1, &ctx->device, opts, NULL, NULL);
+  if (err != CL_SUCCESS) {
+    size_t loglen = 0;
+    char log[768] = "";
+    clGetProgramBuildInfo(prog, ctx->device, CL_PROGRAM_BUILD_LOG, 0, NULL, &loglen);
+    if (loglen) {
+      char *full = malloc(loglen + 1);
+      if (full && clGetProgramBuildInfo(prog, ctx->device, CL_PROGRAM_BUILD_LOG, loglen, full, NULL) == CL_SUCCESS) {
+        full[loglen] = 0;
+        /* the first error line is the useful one */
+        const char *e = strstr(full, "error");
+        snprintf(log, sizeof log, "%s", e ? e : full);
+      }
+      free(full);
+    }
+    clReleaseProgram(prog);
+    return spx_fail(ctx, SPX_E_CL, "kernels/%s: build failed (%s): %s", name, spx_cl_error_name(err), log);
+  }
+  *out = prog;
+  return SPX_OK;
+}
+
+static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
+  for (int i = 0; i < ctx->nprograms; i++)
+    if (!strcmp(ctx->programs[i].name, name)) {
+      *out = ctx->programs[i].prog;
+      return SPX_OK;
+    }
+  if (ctx->nprograms == SPX_MAX_PROGRAMS) return spx_fail(ctx, SPX_E_STATE, "too many kernel programs");
+  if (strlen(name) >= sizeof ctx->programs[0].name) return spx_fail(ctx, SPX_E_ARG, "kernel file name too long");
+
+  char *prelude = NULL, *body = NULL, *src = NULL;
+  size_t plen = 0, blen = 0;
+  spx_status st = load_source(ctx, SPX_PRELUDE, &prelude, &plen);
+  if (st) goto done;
+  st = load_source(ctx, name, &body, &blen);
+  if (st) goto done;
+  char line[96];
+  int ll = snprintf(line, sizeof line, "\n#line 1 \"%s\"\n", name);
+  size_t len = plen + (size_t)ll + blen;
+  src = malloc(len + 1);
+  if (!src) {
+    st = spx_fail(ctx, SPX_E_NOMEM, "kernel source %s: out of memory", name);
+    goto done;
+  }
+  memcpy(src, prelude, plen);
+  memcpy(src + plen, line, (size_t)ll);
+  memcpy(src + plen + ll, body, blen);
+  src[len] = 0;
+
+  double t0 = spx_now();
+  cl_program prog = NULL;
+  char dir[4096], path[4400];
+  int use_cache = !cache_disabled() && cache_dir(dir, sizeof dir);
+  struct cache_key key = make_key(ctx, src, len, ctx->build_options);
+  if (use_cache) {
+    cache_path(path, sizeof path, dir, name, key);
+    prog = cache_load(ctx, path, key, ctx->build_options);
+    if (prog) ctx->cache.loaded++;
+  }
+  if (!prog) {
+    st = build_from_source(ctx, name, src, len, ctx->build_options, &prog);
+    if (st) goto done;
+    ctx->cache.compiled++;
+    if (use_cache) cache_store(ctx, prog, path, key);
+  }
+  ctx->cache.build_seconds += spx_now() - t0;
+  snprintf(ctx->programs[ctx->nprograms].name, sizeof ctx->programs[0].name, "%s", name);
+  ctx->programs[ctx->nprograms].prog = prog;
+  ctx->nprograms++;
+  *out = prog;
+done:
+  free(prelude);
+  free(body);
+  free(src);
+  return st;
+}
+
+spx_status spx_cl_kernel(spx_ctx *ctx, const char *program, const char *kernel, cl_kernel *out) {
+  spx_status st = spx_cl_require(ctx, kernel);
+  if (st) return st;
+  for (int i = 0; i < ctx->nkernels; i++)
+    if (!strcmp(ctx->kernels[i].name, kernel) && !strcmp(ctx->kernels[i].program, program)) {
+      *out = ctx->kernels[i].kernel;
+      return SPX_OK;
+    }
+  if (ctx->nkernels == SPX_MAX_KERNELS) return spx_fail(ctx, SPX_E_STATE, "too many kernels");
+  cl_program prog;
+  st = get_program(ctx, program, &prog);
+  if (st) return st;
+  cl_int err;
+  cl_kernel k = clCreateKernel(prog, kernel, &err);
+  if (err != CL_SUCCESS) return spx_fail(ctx, SPX_E_CL, "kernels/%s: no kernel %s (%s)", program, kernel, spx_cl_error_name(err));
+  struct spx_cl_kernel_entry *e = &ctx->kernels[ctx->nkernels++];
+  snprintf(e->name, sizeof e->name, "%s", kernel);
+  for (int i = 0; i < ctx->nprograms; i++)
+    if (ctx->programs[i].prog == prog) e->program = ctx->programs[i].name;
+  e->kernel = k;
+  *out = k;
+  return SPX_OK;
+}
+
+spx_status spx_device_warmup(spx_ctx *ctx) {
+  spx_status st = spx_cl_require(ctx, "spx_device_warmup");
+  if (st) return st;
+  for (const struct spx_embedded_kernel *k = spx_embedded_kernels; k->name; k++) {
+    size_t n = strlen(k->name);
+    if (n < 3 || strcmp(k->name + n - 3, ".cl")) continue;
+    cl_program p;
+    st = get_program(ctx, k->name, &p);
+    if (st) return st;
+  }
+  return SPX_OK;
+}

@@ -1,0 +1,112 @@
+/* Checked buffers, copies and launches; OpenCL error names. */
+#include <stdio.h>
+#include <string.h>
+
+#include "cl/cl_internal.h"
+
+const char *spx_cl_error_name(cl_int e) {
+  switch (e) {
+#define C(x) case x: return #x;
+    C(CL_SUCCESS) C(CL_DEVICE_NOT_FOUND) C(CL_DEVICE_NOT_AVAILABLE) C(CL_COMPILER_NOT_AVAILABLE)
+    C(CL_MEM_OBJECT_ALLOCATION_FAILURE) C(CL_OUT_OF_RESOURCES) C(CL_OUT_OF_HOST_MEMORY)
+    C(CL_PROFILING_INFO_NOT_AVAILABLE) C(CL_MEM_COPY_OVERLAP) C(CL_IMAGE_FORMAT_MISMATCH)
+    C(CL_IMAGE_FORMAT_NOT_SUPPORTED) C(CL_BUILD_PROGRAM_FAILURE) C(CL_MAP_FAILURE)
+    C(CL_MISALIGNED_SUB_BUFFER_OFFSET) C(CL_COMPILE_PROGRAM_FAILURE) C(CL_LINKER_NOT_AVAILABLE)
+    C(CL_LINK_PROGRAM_FAILURE) C(CL_INVALID_VALUE) C(CL_INVALID_DEVICE_TYPE) C(CL_INVALID_PLATFORM)
+    C(CL_INVALID_DEVICE) C(CL_INVALID_CONTEXT) C(CL_INVALID_QUEUE_PROPERTIES) C(CL_INVALID_COMMAND_QUEUE)
+    C(CL_INVALID_HOST_PTR) C(CL_INVALID_MEM_OBJECT) C(CL_INVALID_BINARY) C(CL_INVALID_BUILD_OPTIONS)
+    C(CL_INVALID_PROGRAM) C(CL_INVALID_PROGRAM_EXECUTABLE) C(CL_INVALID_KERNEL_NAME)
+    C(CL_INVALID_KERNEL_DEFINITION) C(CL_INVALID_KERNEL) C(CL_INVALID_ARG_INDEX) C(CL_INVALID_ARG_VALUE)
+    C(CL_INVALID_ARG_SIZE) C(CL_INVALID_KERNEL_ARGS) C(CL_INVALID_WORK_DIMENSION)
+    C(CL_INVALID_WORK_GROUP_SIZE) C(CL_INVALID_WORK_ITEM_SIZE) C(CL_INVALID_GLOBAL_OFFSET)
+    C(CL_INVALID_EVENT_WAIT_LIST) C(CL_INVALID_EVENT) C(CL_INVALID_OPERATION) C(CL_INVALID_BUFFER_SIZE)
+    C(CL_INVALID_GLOBAL_WORK_SIZE)
+#undef C
+  default: return "CL_UNKNOWN_ERROR";
+  }
+}
+
+spx_status spx_cl_check(spx_ctx *ctx, cl_int err, const char *what) {
+  if (err == CL_SUCCESS) return SPX_OK;
+  spx_status st = (err == CL_MEM_OBJECT_ALLOCATION_FAILURE || err == CL_OUT_OF_RESOURCES ||
+                   err == CL_INVALID_BUFFER_SIZE)
+                      ? SPX_E_DEVMEM
+                      : SPX_E_CL;
+  return spx_fail(ctx, st, "%s: %s (%d)", what, spx_cl_error_name(err), (int)err);
+}
+
+static void fmt_bytes(char *buf, size_t cap, double b) {
+  if (b >= 1 << 30) snprintf(buf, cap, "%.2f GiB", b / (1 << 30));
+  else if (b >= 1 << 20) snprintf(buf, cap, "%.1f MiB", b / (1 << 20));
+  else snprintf(buf, cap, "%.0f bytes", b);
+}
+
+spx_status spx_cl_alloc(spx_ctx *ctx, size_t bytes, const char *what, cl_mem *out) {
+  *out = NULL;
+  spx_status st = spx_cl_require(ctx, what);
+  if (st) return st;
+  char sz[64], lim[64];
+  fmt_bytes(sz, sizeof sz, (double)bytes);
+  if (bytes == 0) bytes = 4;
+  if (bytes > ctx->info.max_alloc) {
+    fmt_bytes(lim, sizeof lim, (double)ctx->info.max_alloc);
+    return spx_fail(ctx, SPX_E_DEVMEM, "%s: needs a %s device buffer, more than the device's largest allocation (%s)",
+                    what, sz, lim);
+  }
+  cl_int err;
+  *out = clCreateBuffer(ctx->context, CL_MEM_READ_WRITE, bytes, NULL, &err);
+  if (err != CL_SUCCESS) {
+    *out = NULL;
+    return spx_fail(ctx, SPX_E_DEVMEM, "%s: allocating %s on the device failed (%s)", what, sz, spx_cl_error_name(err));
+  }
+  return SPX_OK;
+}
+
+void spx_cl_free(cl_mem *m) {
+  if (*m) clReleaseMemObject(*m);
+  *m = NULL;
+}
+
+spx_status spx_cl_buf_ensure(spx_ctx *ctx, spx_cl_buf *b, size_t bytes, const char *what) {
+  if (b->mem && b->bytes >= bytes) return SPX_OK;
+  spx_cl_buf_release(b);
+  spx_status st = spx_cl_alloc(ctx, bytes, what, &b->mem);
+  if (st == SPX_OK) b->bytes = bytes;
+  return st;
+}
+
+void spx_cl_buf_release(spx_cl_buf *b) {
+  spx_cl_free(&b->mem);
+  b->bytes = 0;
+}
+
+spx_status spx_cl_write(spx_ctx *ctx, cl_mem m, size_t offset, size_t bytes, const void *src) {
+  if (bytes == 0) return SPX_OK;
+  return spx_cl_check(ctx, clEnqueueWriteBuffer(ctx->queue, m, CL_TRUE, offset, bytes, src, 0, NULL, NULL),
+                      "clEnqueueWriteBuffer");
+}
+
+spx_status spx_cl_read(spx_ctx *ctx, cl_mem m, size_t offset, size_t bytes, void *dst) {
+  if (bytes == 0) return SPX_OK;
+  return spx_cl_check(ctx, clEnqueueReadBuffer(ctx->queue, m, CL_TRUE, offset, bytes, dst, 0, NULL, NULL),
+                      "clEnqueueReadBuffer");
+}
+
+spx_status spx_cl_fill_f32(spx_ctx *ctx, cl_mem m, size_t offset_elems, size_t count, float value) {
+  if (count == 0) return SPX_OK;
+  return spx_cl_check(ctx,
+                      clEnqueueFillBuffer(ctx->queue, m, &value, sizeof value, offset_elems * sizeof(float),
+                                          count * sizeof(float), 0, NULL, NULL),
+                      "clEnqueueFillBuffer");
+}
+
+spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *global, const size_t *local,
+                      const char *what) {
+  size_t g[3];
+  for (cl_uint i = 0; i < dims; i++) {
+    g[i] = global[i];
+    if (local && local[i]) g[i] = (g[i] + local[i] - 1) / local[i] * local[i];
+    if (g[i] == 0) return SPX_OK; /* nothing to do */
+  }
+  return spx_cl_check(ctx, clEnqueueNDRangeKernel(ctx->queue, k, dims, NULL, g, local, 0, NULL, NULL), what);
+}

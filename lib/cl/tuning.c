@@ -1,0 +1,33 @@
+/* Per-device-class tunables. Each row is passed to every kernel program as -D<name>=<value>
+ * and is readable on the host with spx_cl_tune(), so launch sizes and kernel code agree.
+ * Add a row here when a kernel grows a tunable; keep CPU and GPU values measured. */
+#include <stdio.h>
+#include <string.h>
+
+#include "cl/cl_internal.h"
+
+struct spx_tunable {
+  const char *name;
+  int cpu, gpu; /* other device kinds use the GPU value */
+};
+
+static const struct spx_tunable spx_tunables[] = {
+    /* generic 1-D work-group size for elementwise kernels */
+    {"SPX_WG", 64, 256},
+};
+
+int spx_cl_tune(const spx_ctx *ctx, const char *name) {
+  int cpu = ctx->info.kind == SPX_DEVICE_CPU;
+  for (size_t i = 0; i < sizeof spx_tunables / sizeof spx_tunables[0]; i++)
+    if (!strcmp(spx_tunables[i].name, name)) return cpu ? spx_tunables[i].cpu : spx_tunables[i].gpu;
+  return 0;
+}
+
+void spx_cl_build_options(spx_ctx *ctx) {
+  char *o = ctx->build_options;
+  size_t cap = sizeof ctx->build_options, n = 0;
+  n += (size_t)snprintf(o + n, cap - n, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1",
+                        ctx->info.kind == SPX_DEVICE_CPU ? "CPU" : "GPU");
+  for (size_t i = 0; i < sizeof spx_tunables / sizeof spx_tunables[0] && n < cap; i++)
+    n += (size_t)snprintf(o + n, cap - n, " -D%s=%d", spx_tunables[i].name, spx_cl_tune(ctx, spx_tunables[i].name));
+}

@@ -1,0 +1,65 @@
+/* Context lifetime and error recording. */
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cl/cl_internal.h"
+#include "core/internal.h"
+
+const char *spx_status_name(spx_status s) {
+  switch (s) {
+  case SPX_OK: return "SPX_OK";
+  case SPX_E_ARG: return "SPX_E_ARG";
+  case SPX_E_IO: return "SPX_E_IO";
+  case SPX_E_FORMAT: return "SPX_E_FORMAT";
+  case SPX_E_NOMEM: return "SPX_E_NOMEM";
+  case SPX_E_CL: return "SPX_E_CL";
+  case SPX_E_NODEV: return "SPX_E_NODEV";
+  case SPX_E_DEVMEM: return "SPX_E_DEVMEM";
+  case SPX_E_UNSUPPORTED: return "SPX_E_UNSUPPORTED";
+  case SPX_E_NUMERIC: return "SPX_E_NUMERIC";
+  case SPX_E_CAMERA: return "SPX_E_CAMERA";
+  case SPX_E_STATE: return "SPX_E_STATE";
+  case SPX_E_INTERRUPTED: return "SPX_E_INTERRUPTED";
+  }
+  return "SPX_E_UNKNOWN";
+}
+
+const char *spx_version(void) { return "0.1.0"; }
+
+spx_status spx_ctx_create(spx_ctx **out) {
+  if (!out) return SPX_E_ARG;
+  spx_ctx *c = calloc(1, sizeof *c);
+  if (!c) return SPX_E_NOMEM;
+  *out = c;
+  return SPX_OK;
+}
+
+void spx_ctx_destroy(spx_ctx *ctx) {
+  if (!ctx) return;
+  spx_cl_close(ctx);
+  free(ctx);
+}
+
+const char *spx_ctx_message(const spx_ctx *ctx) { return ctx ? ctx->msg : ""; }
+spx_status spx_ctx_last_status(const spx_ctx *ctx) { return ctx ? ctx->last : SPX_OK; }
+void spx_ctx_clear_error(spx_ctx *ctx) {
+  if (!ctx) return;
+  ctx->msg[0] = 0;
+  ctx->last = SPX_OK;
+}
+
+spx_status spx_fail(spx_ctx *ctx, spx_status st, const char *fmt, ...) {
+  if (ctx) {
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(ctx->msg, sizeof ctx->msg, fmt, ap);
+    va_end(ap);
+    /* one line: fold any newline (e.g. from a compiler log excerpt) into spaces */
+    for (char *p = ctx->msg; *p; p++)
+      if (*p == '\n' || *p == '\r') *p = ' ';
+    ctx->last = st;
+  }
+  return st;
+}

@@ -1,0 +1,151 @@
+/* Small host utilities: checked sizes, whole-file reads, atomic writes, hashing, time. */
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "core/internal.h"
+
+int spx_mul_size(size_t a, size_t b, size_t *out) {
+  if (a != 0 && b > SIZE_MAX / a) return 0;
+  *out = a * b;
+  return 1;
+}
+
+void *spx_alloc_array(spx_ctx *ctx, size_t a, size_t b, const char *what) {
+  size_t n;
+  if (!spx_mul_size(a, b, &n)) {
+    spx_fail(ctx, SPX_E_NOMEM, "%s: size %zu x %zu overflows", what, a, b);
+    return NULL;
+  }
+  void *p = malloc(n ? n : 1);
+  if (!p) spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate %zu bytes", what, n);
+  return p;
+}
+
+spx_status spx_read_file(spx_ctx *ctx, const char *path, size_t max_bytes, unsigned char **data, size_t *size) {
+  *data = NULL;
+  *size = 0;
+  FILE *fp = fopen(path, "rb");
+  if (!fp) return spx_fail(ctx, SPX_E_IO, "%s: cannot open: %s", path, strerror(errno));
+  spx_status st = SPX_OK;
+  unsigned char *buf = NULL;
+  struct stat sb;
+  if (fstat(fileno(fp), &sb) != 0 || !S_ISREG(sb.st_mode)) {
+    st = spx_fail(ctx, SPX_E_IO, "%s: not a regular file", path);
+    goto done;
+  }
+  if ((uint64_t)sb.st_size > max_bytes) {
+    st = spx_fail(ctx, SPX_E_FORMAT, "%s: file is %lld bytes, more than the %zu allowed", path,
+                  (long long)sb.st_size, max_bytes);
+    goto done;
+  }
+  size_t n = (size_t)sb.st_size;
+  buf = malloc(n + 1);
+  if (!buf) {
+    st = spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate %zu bytes", path, n + 1);
+    goto done;
+  }
+  if (n && fread(buf, 1, n, fp) != n) {
+    st = spx_fail(ctx, SPX_E_IO, "%s: read error", path);
+    goto done;
+  }
+  buf[n] = 0; /* convenience terminator for text parsers */
+  *data = buf;
+  *size = n;
+  buf = NULL;
+done:
+  free(buf);
+  fclose(fp);
+  return st;
+}
+
+char *spx_temp_path_for(const char *path) {
+  size_t n = strlen(path) + 48;
+  char *t = malloc(n);
+  if (!t) return NULL;
+  static unsigned counter;
+  snprintf(t, n, "%s.tmp.%ld.%u", path, (long)getpid(), counter++);
+  return t;
+}
+
+spx_status spx_rename_over(spx_ctx *ctx, const char *tmp, const char *path) {
+  if (rename(tmp, path) != 0) {
+    int e = errno;
+    remove(tmp);
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot rename temporary file into place: %s", path, strerror(e));
+  }
+  return SPX_OK;
+}
+
+spx_status spx_atomic_open(spx_ctx *ctx, const char *path, spx_atomic_file *af) {
+  memset(af, 0, sizeof *af);
+  af->final_path = strdup(path);
+  af->tmp_path = spx_temp_path_for(path);
+  if (!af->final_path || !af->tmp_path) {
+    spx_atomic_abort(af);
+    return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", path);
+  }
+  af->fp = fopen(af->tmp_path, "wb");
+  if (!af->fp) {
+    int e = errno;
+    spx_atomic_abort(af);
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot create: %s", path, strerror(e));
+  }
+  return SPX_OK;
+}
+
+spx_status spx_atomic_commit(spx_ctx *ctx, spx_atomic_file *af) {
+  spx_status st = SPX_OK;
+  int bad = ferror(af->fp);
+  if (fflush(af->fp) != 0) bad = 1;
+  if (fclose(af->fp) != 0) bad = 1;
+  af->fp = NULL;
+  if (bad) {
+    st = spx_fail(ctx, SPX_E_IO, "%s: write failed (disk full?)", af->final_path);
+    remove(af->tmp_path);
+  } else {
+    st = spx_rename_over(ctx, af->tmp_path, af->final_path);
+  }
+  free(af->final_path);
+  free(af->tmp_path);
+  af->final_path = af->tmp_path = NULL;
+  return st;
+}
+
+void spx_atomic_abort(spx_atomic_file *af) {
+  if (af->fp) fclose(af->fp);
+  if (af->tmp_path) remove(af->tmp_path);
+  free(af->final_path);
+  free(af->tmp_path);
+  memset(af, 0, sizeof *af);
+}
+
+void spx_path_ext(const char *path, char *ext, size_t cap) {
+  const char *slash = strrchr(path, '/');
+  const char *dot = strrchr(path, '.');
+  ext[0] = 0;
+  if (!dot || (slash && dot < slash) || cap == 0) return;
+  size_t i = 0;
+  for (const char *p = dot + 1; *p && i + 1 < cap; p++, i++)
+    ext[i] = (char)((*p >= 'A' && *p <= 'Z') ? *p - 'A' + 'a' : *p);
+  ext[i] = 0;
+}
+
+uint64_t spx_hash64(const void *data, size_t n, uint64_t h) {
+  const unsigned char *p = data;
+  for (size_t i = 0; i < n; i++) {
+    h ^= p[i];
+    h *= 0x100000001b3ULL;
+  }
+  return h;
+}
+
+double spx_now(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}

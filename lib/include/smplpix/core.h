@@ -1,0 +1,55 @@
+/* smplpix core: status codes and the context that carries error messages and the device. */
+#ifndef SMPLPIX_CORE_H
+#define SMPLPIX_CORE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SPX_VERSION_MAJOR 0
+#define SPX_VERSION_MINOR 1
+#define SPX_VERSION_PATCH 0
+
+/* Every fallible call returns a status; negative values are errors. The context keeps a
+ * human-readable message for the last error (which file, which line/key, what was expected). */
+typedef enum spx_status {
+  SPX_OK = 0,
+  SPX_E_ARG = -1,         /* invalid argument (caller error) */
+  SPX_E_IO = -2,          /* file could not be opened/read/written */
+  SPX_E_FORMAT = -3,      /* malformed or unsupported file content */
+  SPX_E_NOMEM = -4,       /* host allocation failed */
+  SPX_E_CL = -5,          /* an OpenCL call failed */
+  SPX_E_NODEV = -6,       /* no OpenCL platform/device matches */
+  SPX_E_DEVMEM = -7,      /* device allocation failed (out of device memory) */
+  SPX_E_UNSUPPORTED = -8, /* feature not supported by this build/device */
+  SPX_E_NUMERIC = -9,     /* NaN/Inf or otherwise invalid numbers in input */
+  SPX_E_CAMERA = -10,     /* impossible camera (K, R, size) */
+  SPX_E_STATE = -11,      /* call not valid in the current state (e.g. no device open) */
+  SPX_E_INTERRUPTED = -12 /* stopped by request (e.g. SIGINT) */
+} spx_status;
+
+/* Short constant name of a status ("SPX_E_FORMAT"). */
+const char *spx_status_name(spx_status s);
+
+typedef struct spx_ctx spx_ctx;
+
+/* Create a context. Cheap: no device is opened until spx_device_open(). */
+spx_status spx_ctx_create(spx_ctx **out);
+void spx_ctx_destroy(spx_ctx *ctx);
+
+/* Message of the last error recorded in ctx ("" if none). Valid until the next call on ctx. */
+const char *spx_ctx_message(const spx_ctx *ctx);
+/* Status of the last error recorded in ctx (SPX_OK if none). */
+spx_status spx_ctx_last_status(const spx_ctx *ctx);
+void spx_ctx_clear_error(spx_ctx *ctx);
+
+/* Library version string "MAJOR.MINOR.PATCH". */
+const char *spx_version(void);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

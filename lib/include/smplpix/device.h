@@ -1,0 +1,53 @@
+/* smplpix device: choose and open an OpenCL device, program-binary cache. */
+#ifndef SMPLPIX_DEVICE_H
+#define SMPLPIX_DEVICE_H
+
+#include "smplpix/core.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum spx_device_kind { SPX_DEVICE_CPU = 1, SPX_DEVICE_GPU = 2, SPX_DEVICE_OTHER = 3 } spx_device_kind;
+
+typedef struct spx_device_info {
+  char platform[256];
+  char name[256];
+  char driver[128];
+  char version[128];
+  spx_device_kind kind;
+  int platform_index, device_index;
+  unsigned compute_units;
+  size_t max_work_group;
+  uint64_t global_mem, local_mem, max_alloc;
+  int fp64;
+} spx_device_info;
+
+/* Open a device on ctx. spec: NULL → $SPX_DEVICE, else default (first GPU, else first CPU).
+ * Accepted specs: "cpu", "gpu", "P:D" (platform and device indices). */
+spx_status spx_device_open(spx_ctx *ctx, const char *spec);
+int spx_device_is_open(const spx_ctx *ctx);
+spx_status spx_device_get_info(spx_ctx *ctx, spx_device_info *out);
+/* Wait for all queued device work. */
+spx_status spx_device_finish(spx_ctx *ctx);
+
+/* Enumerate all OpenCL devices on all platforms (no context needed). Writes up to max
+ * entries to out (may be NULL) and the total to *count. */
+spx_status spx_device_list(spx_ctx *ctx, spx_device_info *out, int max, int *count);
+
+/* Compile (or load from the cache) every embedded kernel program now, instead of lazily. */
+spx_status spx_device_warmup(spx_ctx *ctx);
+
+/* Program-binary cache statistics since the device was opened. */
+typedef struct spx_cache_stats {
+  int compiled;   /* programs built from source */
+  int loaded;     /* programs loaded from the on-disk binary cache */
+  int stored;     /* binaries written to the cache */
+  double build_seconds; /* wall time spent creating programs (compile or load) */
+} spx_cache_stats;
+spx_status spx_device_cache_stats(spx_ctx *ctx, spx_cache_stats *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,22 @@
+#!/bin/sh
+# Install the Debian packages smplpix needs, if any are missing (as root; otherwise print the
+# command to run). Used by `make demo` / `make test`; safe to run repeatedly.
+set -eu
+PKGS="build-essential cmake pkg-config ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd \
+libopenexr-dev libpng-dev zlib1g-dev libcjson-dev libceres-dev libeigen3-dev libnanoflann-dev clang \
+libclang-rt-dev python3"
+[ "${1:-}" = "--extra" ] && PKGS="$PKGS ${2:-}"
+missing=""
+for p in $PKGS; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
+done
+[ -z "$missing" ] && exit 0
+if [ "$(id -u)" -ne 0 ]; then
+  echo "smplpix: missing Debian packages:$missing" >&2
+  echo "smplpix: run as root, or: sudo apt-get install -y$missing" >&2
+  exit 1
+fi
+echo "smplpix: installing$missing" >&2
+export DEBIAN_FRONTEND=noninteractive
+apt-get update -qq
+apt-get install -y -qq --no-install-recommends $missing >/dev/null

@@ -1,0 +1,105 @@
+/* Minimal test harness: CHECK macros, a per-executable tally, "N passed, N failed" at the end.
+ * A test executable defines test functions and calls SPX_RUN(fn) from main, then returns
+ * spx_test_summary(). */
+#ifndef SPX_TEST_H
+#define SPX_TEST_H
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int spx_t_pass, spx_t_fail, spx_t_cur_fail;
+static const char *spx_t_name = "";
+
+#define CHECK(cond)                                                                                 \
+  do {                                                                                              \
+    if (cond) {                                                                                     \
+      spx_t_pass++;                                                                                 \
+    } else {                                                                                        \
+      spx_t_fail++;                                                                                 \
+      spx_t_cur_fail++;                                                                             \
+      fprintf(stderr, "  FAIL %s:%d in %s: %s\n", __FILE__, __LINE__, spx_t_name, #cond);           \
+    }                                                                                               \
+  } while (0)
+
+#define CHECK_MSG(cond, ...)                                                                        \
+  do {                                                                                              \
+    if (cond) {                                                                                     \
+      spx_t_pass++;                                                                                 \
+    } else {                                                                                        \
+      spx_t_fail++;                                                                                 \
+      spx_t_cur_fail++;                                                                             \
+      fprintf(stderr, "  FAIL %s:%d in %s: %s: ", __FILE__, __LINE__, spx_t_name, #cond);           \
+      fprintf(stderr, __VA_ARGS__);                                                                 \
+      fputc('\n', stderr);                                                                          \
+    }                                                                                               \
+  } while (0)
+
+/* |a-b| <= atol + rtol*|b| */
+#define CHECK_NEAR(a, b, atol, rtol)                                                                \
+  CHECK_MSG(fabs((double)(a) - (double)(b)) <= (atol) + (rtol)*fabs((double)(b)), "%.9g vs %.9g", \
+            (double)(a), (double)(b))
+
+/* a status call that must succeed; prints the context message otherwise */
+#define CHECK_OK(ctx, call)                                                                         \
+  do {                                                                                              \
+    spx_status spx_t_st = (call);                                                                   \
+    CHECK_MSG(spx_t_st == SPX_OK, "%s: %s", spx_status_name(spx_t_st), spx_ctx_message(ctx));     \
+  } while (0)
+
+#define SPX_RUN(fn)                                                                                 \
+  do {                                                                                              \
+    spx_t_name = #fn;                                                                               \
+    spx_t_cur_fail = 0;                                                                             \
+    fn();                                                                                           \
+    fprintf(stderr, "%s %s\n", spx_t_cur_fail ? "[FAIL]" : "[ ok ]", #fn);                         \
+  } while (0)
+
+static inline int spx_test_summary(void) {
+  printf("%d passed, %d failed\n", spx_t_pass, spx_t_fail);
+  return spx_t_fail ? 1 : 0;
+}
+
+/* Deterministic PRNG for tests (xorshift64*). */
+static inline unsigned long long spx_t_rng_next(unsigned long long *s) {
+  *s ^= *s >> 12;
+  *s ^= *s << 25;
+  *s ^= *s >> 27;
+  return *s * 2685821657736338717ULL;
+}
+static inline double spx_t_uniform(unsigned long long *s) {
+  return (double)(spx_t_rng_next(s) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+/* Scratch directory for files a test writes ($SPX_TEST_TMP, set by ctest). */
+static inline const char *spx_t_tmpdir(void) {
+  const char *d = getenv("SPX_TEST_TMP");
+  return d && *d ? d : "/tmp";
+}
+static inline void spx_t_path(char *out, size_t cap, const char *name) {
+  snprintf(out, cap, "%s/%s", spx_t_tmpdir(), name);
+}
+
+/* Path of the smplpix tool ($SPX_TOOL, set by ctest). */
+static inline const char *spx_t_tool(void) {
+  const char *t = getenv("SPX_TOOL");
+  return t && *t ? t : "smplpix";
+}
+
+/* Run a shell command; returns its exit status (or -1). */
+static inline int spx_t_system(const char *cmd) {
+  int r = system(cmd);
+  if (r == -1) return -1;
+  if ((r & 0x7f) != 0) return 128 + (r & 0x7f); /* killed by signal */
+  return (r >> 8) & 0xff;
+}
+
+static inline int spx_t_file_exists(const char *path) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return 0;
+  fclose(f);
+  return 1;
+}
+
+#endif
