@@ -26,6 +26,32 @@ const char *spx_status_name(spx_status s) {
   return "SPX_E_UNKNOWN";
 }
 
+size_t spx_dtype_size(spx_dtype t) {
+  switch (t) {
+  case SPX_U8: case SPX_I8: case SPX_BOOL: return 1;
+  case SPX_F16: return 2;
+  case SPX_F32: case SPX_I32: case SPX_U32: return 4;
+  case SPX_F64: case SPX_I64: case SPX_U64: return 8;
+  }
+  return 0;
+}
+
+const char *spx_dtype_name(spx_dtype t) {
+  switch (t) {
+  case SPX_F32: return "f32";
+  case SPX_F64: return "f64";
+  case SPX_U8: return "u8";
+  case SPX_I32: return "i32";
+  case SPX_I64: return "i64";
+  case SPX_U32: return "u32";
+  case SPX_I8: return "i8";
+  case SPX_U64: return "u64";
+  case SPX_F16: return "f16";
+  case SPX_BOOL: return "bool";
+  }
+  return "?";
+}
+
 const char *spx_version(void) { return "0.1.0"; }
 
 spx_status spx_ctx_create(spx_ctx **out) {

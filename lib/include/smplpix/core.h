@@ -46,6 +46,23 @@ const char *spx_ctx_message(const spx_ctx *ctx);
 spx_status spx_ctx_last_status(const spx_ctx *ctx);
 void spx_ctx_clear_error(spx_ctx *ctx);
 
+/* Element types of arrays in files (.npy, .npz, safetensors). */
+typedef enum spx_dtype {
+  SPX_F32 = 1,
+  SPX_F64 = 2,
+  SPX_U8 = 3,
+  SPX_I32 = 4,
+  SPX_I64 = 5,
+  SPX_U32 = 6,
+  SPX_I8 = 7,
+  SPX_U64 = 8,
+  SPX_F16 = 9,
+  SPX_BOOL = 10
+} spx_dtype;
+/* Bytes per element (0 for an unknown dtype) and short name ("f32"). */
+size_t spx_dtype_size(spx_dtype t);
+const char *spx_dtype_name(spx_dtype t);
+
 /* Library version string "MAJOR.MINOR.PATCH". */
 const char *spx_version(void);
 
