@@ -20,6 +20,8 @@ static const struct spx_tunable spx_tunables[] = {
     {"CONV_TM", 8, 8},
     {"CONV_TN", 3, 4},
     {"CONV_LWS", 1, 64},
+    /* conv2d: inputs up to this many KiB (and smaller than the weights) run pixel-tile-fastest */
+    {"CONV_XCACHE", 2048, 2048},
     /* conv2d backward weights: tile of out-channels x weight columns; q-chunk of the split reduction */
     {"CONV_DW_TM", 4, 4},
     {"CONV_DW_TN", 4, 4},
