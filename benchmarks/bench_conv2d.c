@@ -104,6 +104,8 @@ int main(int argc, char **argv) {
   cpu_ms_sum = 0;
   for (size_t i = 0; i < sizeof shapes / sizeof shapes[0]; i++) {
     const shape *s = &shapes[i];
+    const char *only = getenv("SPX_BENCH_ONLY"); /* e.g. "12": shapes 1 and 2 */
+    if (only && !strchr(only, '0' + (int)i)) continue;
     double ms[3], cpu[3];
     for (int m = 0; m < 3; m++)
       if (time_op(ctx, s, m, reps, &ms[m], &cpu[m])) return fail(ctx, s->name);

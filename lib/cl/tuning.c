@@ -23,9 +23,9 @@ static const struct spx_tunable spx_tunables[] = {
     /* conv2d: inputs up to this many KiB (and smaller than the weights) run pixel-tile-fastest */
     {"CONV_XCACHE", 2048, 2048},
     /* conv2d backward weights: tile of out-channels x weight columns; q-chunk of the split reduction */
-    {"CONV_DW_TM", 4, 4},
+    {"CONV_DW_TM", 6, 4},
     {"CONV_DW_TN", 4, 4},
-    {"CONV_DW_QC", 4096, 1024},
+    {"CONV_DW_QC", 2048, 1024},
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", 16, 256},
 };
