@@ -26,6 +26,10 @@ static const struct spx_tunable spx_tunables[] = {
     {"CONV_DW_TM", 6, 4},
     {"CONV_DW_TN", 4, 4},
     {"CONV_DW_QC", 2048, 1024},
+    /* conv2d backward weights: column tiles per work-item, walked per block of CONV_DW_QB q */
+    {"CONV_DW_G", 8, 1},
+    {"CONV_DW_QB", 256, 1024},
+    {"CONV_DW_LWS", 1, 64}, /* work-group size along the column tiles (CPU: 1, keeps private arrays small) */
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", 16, 256},
 };

@@ -248,8 +248,10 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
                SPX_ARG(kr, 8, plane) | SPX_ARG(kr, 9, qd) | SPX_ARG(kr, 10, qc);
     if (g->s > 2) e |= SPX_ARG(kr, 11, g->s);
     if ((st = spx_cl_check(ctx, e, name))) goto done;
-    size_t gl[3] = {((size_t)kdim + dtn - 1) / dtn, ((size_t)g->cout + dtm - 1) / dtm, (size_t)nchunks};
-    if ((st = spx_cl_run(ctx, kr, 3, gl, NULL, name))) goto done;
+    size_t per = (size_t)dtn * spx_cl_tune(ctx, "CONV_DW_G");
+    size_t gl[3] = {((size_t)kdim + per - 1) / per, ((size_t)g->cout + dtm - 1) / dtm, (size_t)nchunks};
+    size_t lo[3] = {(size_t)spx_cl_tune(ctx, "CONV_DW_LWS"), 1, 1};
+    if ((st = spx_cl_run(ctx, kr, 3, gl, lo, name))) goto done;
   }
   {
     cl_kernel kr;
