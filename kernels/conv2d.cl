@@ -15,7 +15,12 @@
  * Backward data = this same forward kernel on dy dilated by the stride and padded by k-1-pad,
  * with weights flipped and transposed (spx_conv2d_pack flip=1), accumulating into dx.
  * Backward weights = GEMM over (n, q) with the reduction split into fixed chunks (partials,
- * then a fixed-order sum): no atomics, bit-identical every run. */
+ * then a fixed-order sum): no atomics, bit-identical every run.
+ *
+ * Next steps (not done): Winograd F(2x2,3x3) for the 3x3 stride-1 layers (2.25x fewer
+ * multiplies), and a local-memory (shared x and weight tiles) variant of conv_fwd for GPUs;
+ * the GPU configuration (CONV_VW = 1, interleaved pixels) is register-tiled and coalesced but
+ * keeps its operands in global memory / caches. */
 #ifndef CONV_VW
 #define CONV_VW 1
 #endif
