@@ -20,6 +20,9 @@ static const struct spx_tunable spx_tunables[] = {
     {"CONV_TM", 8, 8},
     {"CONV_TN", 3, 4},
     {"CONV_LWS", 1, 64},
+    /* conv2d forward: channel tiles per work-item, walked per block of CONV_CB input channels */
+    {"CONV_CT", 4, 1},
+    {"CONV_CB", 16, 1048576},
     /* conv2d: inputs up to this many KiB (and smaller than the weights) run pixel-tile-fastest */
     {"CONV_XCACHE", 2048, 2048},
     /* conv2d backward weights: tile of out-channels x weight columns; q-chunk of the split reduction */
