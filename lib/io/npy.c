@@ -6,8 +6,8 @@
  * byte-swapped on load. Headers over 64 KiB, Fortran order, structured or object dtypes,
  * more than SPX_NPY_MAX_DIMS dimensions, shapes whose byte size overflows, and data sections
  * that are shorter or longer than product(shape) * itemsize are rejected.
- * Writer: format 1.0, little endian, header padded with spaces so the data starts at a
- * multiple of 64 bytes (as NumPy does). Assumes a little-endian host (x86, ARM). */
+ * Writer: format 1.0, little endian, header laid out byte for byte as NumPy's np.save
+ * writes it (spare growth room, padded so the data starts at a multiple of 64 bytes). Assumes a little-endian host (x86, ARM). */
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -306,8 +306,14 @@ spx_status spx_npy_save(spx_ctx *ctx, const char *path, const spx_array *a) {
   for (int i = 0; i < a->ndim; i++)
     len += snprintf(hdr + len, sizeof hdr - (size_t)len, i ? ", %lld" : "%lld", (long long)a->shape[i]);
   len += snprintf(hdr + len, sizeof hdr - (size_t)len, "%s), }", a->ndim == 1 ? "," : "");
-  int total = 10 + len + 1;
-  int pad = (64 - total % 64) % 64;
+  /* like NumPy's format.py: spare room for the first axis to grow to 21 digits, then pad so
+   * the data starts at a multiple of 64 (a full 64 when already aligned), then '\n' */
+  if (a->ndim > 0) {
+    char digits[24];
+    int nd = snprintf(digits, sizeof digits, "%lld", (long long)a->shape[0]);
+    for (int i = nd; i < 21; i++) hdr[len++] = ' ';
+  }
+  int pad = 64 - (10 + len + 1) % 64;
   memset(hdr + len, ' ', (size_t)pad);
   len += pad;
   hdr[len++] = '\n';
