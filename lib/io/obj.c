@@ -130,10 +130,6 @@ spx_status spx_mesh_parse_obj(spx_ctx *ctx, const char *name, const void *data, 
     st = spx_fail(ctx, SPX_E_FORMAT, "%s: more than 2^31 vertices", name);
     goto done;
   }
-  if (cv == 0) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: no vertices (no 'v' lines)", name);
-    goto done;
-  }
   m.pos = spx_alloc_array(ctx, (size_t)cv, 3 * sizeof(float), name);
   if (!m.pos) { st = SPX_E_NOMEM; goto done; }
   if (cvt) {
@@ -282,6 +278,10 @@ spx_status spx_mesh_parse_obj(spx_ctx *ctx, const char *name, const void *data, 
     p = next;
   }
 
+  if (nv == 0) {
+    st = spx_fail(ctx, SPX_E_FORMAT, "%s: no vertices (no 'v' lines)", name);
+    goto done;
+  }
   m.nv = (int32_t)nv;
   m.nf = (int32_t)(faces.n / 3);
   m.faces = faces.v;
@@ -295,8 +295,8 @@ spx_status spx_mesh_parse_obj(spx_ctx *ctx, const char *name, const void *data, 
       st = spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: vertex color %g is outside 0-255", name, cmax_line, cmax);
       goto done;
     }
-    float sc = cmax > 1 ? 1.0f / 255.0f : 1.0f;
-    for (int64_t i = 0; i < nv * 3; i++) m.col[i] = m.col[i] < 0 ? 1.0f : m.col[i] * sc;
+    float sc = cmax > 1 ? 255.0f : 1.0f;
+    for (int64_t i = 0; i < nv * 3; i++) m.col[i] = m.col[i] < 0 ? 1.0f : m.col[i] / sc;
   }
   if (uv_mode == 1 && m.nf > 0) {
     m.nuv = (int32_t)nvt;
