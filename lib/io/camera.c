@@ -70,9 +70,9 @@ static spx_status get_num(spx_ctx *ctx, const char *name, const char *pre, const
 static spx_status get_size(spx_ctx *ctx, const char *name, const char *pre, const cJSON *o, const char *key, int32_t *out) {
   const cJSON *j = cJSON_GetObjectItemCaseSensitive(o, key);
   if (!j) return spx_fail(ctx, SPX_E_FORMAT, "%s: %s%s: expected an integer, key is missing", name, pre, key);
-  double v = 0;
-  spx_status st = get_num(ctx, name, pre, key, j, &v);
-  if (st) return st;
+  if (!cJSON_IsNumber(j)) return spx_fail(ctx, SPX_E_FORMAT, "%s: %s%s: expected an integer", name, pre, key);
+  double v = j->valuedouble;
+  if (!isfinite(v)) return spx_fail(ctx, SPX_E_NUMERIC, "%s: %s%s: value is not finite", name, pre, key);
   if (v != floor(v)) return spx_fail(ctx, SPX_E_FORMAT, "%s: %s%s: expected an integer, found %g", name, pre, key, v);
   if (v <= 0 || v > SPX_CAMERA_MAX_SIZE)
     return spx_fail(ctx, SPX_E_CAMERA, "%s: %s%s: %g is outside 1..%d", name, pre, key, v, SPX_CAMERA_MAX_SIZE);
@@ -174,6 +174,17 @@ spx_status spx_camera_load(spx_ctx *ctx, const char *path, spx_camera **cams, in
   return st;
 }
 
+/* cJSON's own printer accepts a 1-ulp error; write the shortest text that parses back to
+ * exactly the same double instead (numbers are finite here: validated before saving). */
+static cJSON *exact_number(double v) {
+  char buf[40];
+  for (int prec = 15; prec <= 17; prec++) {
+    snprintf(buf, sizeof buf, "%.*g", prec, v);
+    if (strtod(buf, NULL) == v) break;
+  }
+  return cJSON_CreateRaw(buf);
+}
+
 static cJSON *mat_json(const double *v, int rows, int cols) {
   cJSON *a = cJSON_CreateArray();
   if (!a) return NULL;
@@ -185,7 +196,7 @@ static cJSON *mat_json(const double *v, int rows, int cols) {
       goto fail;
     }
     for (int c = 0; c < cols; c++) {
-      cJSON *x = cJSON_CreateNumber(v[r * cols + c]);
+      cJSON *x = exact_number(v[r * cols + c]);
       if (!x || !cJSON_AddItemToArray(row, x)) {
         cJSON_Delete(x);
         goto fail;
