@@ -17,7 +17,7 @@
 #include "io/mesh_internal.h"
 
 #define PLY_MAX_ELEMS 64
-#define PLY_MAX_PROPS 64
+#define PLY_MAX_PROPS 256
 #define SPX_PLY_MAX_POLY 65536
 
 typedef enum { T_NONE = 0, T_I8, T_U8, T_I16, T_U16, T_I32, T_U32, T_F32, T_F64 } ply_type;
@@ -49,8 +49,8 @@ typedef struct ply_prop {
 typedef struct ply_elem {
   char name[64];
   int64_t count;
-  ply_prop props[PLY_MAX_PROPS];
-  int nprops;
+  ply_prop *props; /* grown as declared; freed by the parser */
+  int nprops, cap;
 } ply_elem;
 
 typedef struct ply_reader {
@@ -219,6 +219,13 @@ static spx_status ply_header(spx_ctx *ctx, const char *name, const unsigned char
       if (e->nprops == PLY_MAX_PROPS)
         return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: more than %d properties in element '%s'", name, line, PLY_MAX_PROPS,
                         e->name);
+      if (e->nprops == e->cap) {
+        int cap = e->cap ? e->cap * 2 : 8;
+        ply_prop *np = realloc(e->props, (size_t)cap * sizeof *np);
+        if (!np) return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", name);
+        e->props = np;
+        e->cap = cap;
+      }
       ply_prop *p = &e->props[e->nprops];
       memset(p, 0, sizeof *p);
       if (nt >= 2 && strcmp(tok[1], "list") == 0) {
@@ -437,6 +444,7 @@ done:
   spx_mesh_free(&m);
   free(faces.v);
   free(poly.v);
+  for (int i = 0; i < nel; i++) free(el[i].props);
   free(el);
   return st;
 }
