@@ -52,6 +52,29 @@ static void test_roundtrip(void) {
       spx_mesh_free(&r);
       spx_mesh_free(&m);
     }
+  /* per-corner UVs (nuv != nv) travel as a face texcoord list */
+  for (int fmt = SPX_MESH_PLY_ASCII; fmt <= SPX_MESH_PLY_BINARY; fmt++) {
+    spx_mesh m, r;
+    t_grid_mesh(&m, 1);
+    free(m.uv);
+    m.nuv = 24;
+    m.uv = malloc(48 * sizeof(float));
+    for (int i = 0; i < 48; i++) m.uv[i] = (float)i / 47.0f;
+    for (int i = 0; i < 24; i++) m.face_uv[i] = 23 - i;
+    char p[512];
+    snprintf(p, sizeof p, "%s/corner_uv_%d.ply", spx_t_tmpdir(), fmt);
+    CHECK_OK(ctx, spx_mesh_save(ctx, p, &m, (spx_mesh_format)fmt));
+    CHECK_OK(ctx, spx_mesh_load(ctx, p, &r));
+    CHECK(r.nf == 8 && r.nuv == 24 && r.face_uv && r.uv);
+    if (r.face_uv && r.uv && r.nf == 8) {
+      int same = 1;
+      for (int c = 0; c < 24; c++)
+        for (int k = 0; k < 2; k++) same &= r.uv[r.face_uv[c] * 2 + k] == m.uv[m.face_uv[c] * 2 + k];
+      CHECK(same);
+    }
+    spx_mesh_free(&r);
+    spx_mesh_free(&m);
+  }
   /* AUTO on .ply writes binary little endian */
   spx_mesh m;
   t_grid_mesh(&m, 0);
@@ -206,6 +229,10 @@ static void test_bad(void) {
       {"ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar float x\nend_header\n", "must not be a list", NULL,
        SPX_E_FORMAT},
       {"ply\nformat ascii 1.0\nelement blob 5\nend_header\n", "no properties", NULL, SPX_E_FORMAT},
+      {"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+       "element face 1\nproperty list uchar int vertex_indices\nproperty list uchar float texcoord\nend_header\n"
+       "0 0 0\n1 0 0\n0 1 0\n3 0 1 2 4 0 0 1 0\n",
+       ":14:", "texcoord list has 4 values for a face with 3 corners", SPX_E_FORMAT},
   };
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
     spx_mesh m;

@@ -6,7 +6,9 @@
  * 65535, floats are taken as they are; s t / u v / texture_u texture_v (per-vertex UVs, which
  * become uv with face_uv = faces). Face property: a list named vertex_indices or vertex_index
  * (polygons are fan-triangulated). All PLY scalar types and their sized aliases (int8 ...
- * float64) are accepted anywhere. Per-face "texcoord" lists are skipped (not read).
+ * float64) are accepted anywhere. A face list "texcoord" (u v per corner, as MeshLab writes it)
+ * gives per-corner UVs and takes precedence over per-vertex ones. The writer uses per-vertex
+ * s t when the UVs are per vertex (nuv == nv, face_uv == faces), else a face texcoord list.
  * Every element count is checked against the bytes left in the file before anything is
  * allocated; list lengths are bounded the same way (and faces to SPX_PLY_MAX_POLY corners). */
 #include <errno.h>
@@ -17,7 +19,7 @@
 #include "io/mesh_internal.h"
 
 #define PLY_MAX_ELEMS 64
-#define PLY_MAX_PROPS 64
+#define PLY_MAX_PROPS 256
 #define SPX_PLY_MAX_POLY 65536
 
 typedef enum { T_NONE = 0, T_I8, T_U8, T_I16, T_U16, T_I32, T_U32, T_F32, T_F64 } ply_type;
@@ -37,7 +39,7 @@ static ply_type ply_type_of(const char *s) {
 }
 
 /* What a property means to us. */
-enum { R_NONE = 0, R_X, R_Y, R_Z, R_NX, R_NY, R_NZ, R_R, R_G, R_B, R_U, R_V, R_FACE };
+enum { R_NONE = 0, R_X, R_Y, R_Z, R_NX, R_NY, R_NZ, R_R, R_G, R_B, R_U, R_V, R_FACE, R_FTC };
 
 typedef struct ply_prop {
   char name[64];
@@ -49,8 +51,8 @@ typedef struct ply_prop {
 typedef struct ply_elem {
   char name[64];
   int64_t count;
-  ply_prop props[PLY_MAX_PROPS];
-  int nprops;
+  ply_prop *props; /* grown as declared; freed by the parser */
+  int nprops, cap;
 } ply_elem;
 
 typedef struct ply_reader {
@@ -76,6 +78,7 @@ static int role_of(const char *elem, const char *prop) {
       if (strcmp(prop, map[i].n) == 0) return map[i].r;
   } else if (strcmp(elem, "face") == 0) {
     if (strcmp(prop, "vertex_indices") == 0 || strcmp(prop, "vertex_index") == 0) return R_FACE;
+    if (strcmp(prop, "texcoord") == 0) return R_FTC;
   }
   return R_NONE;
 }
@@ -157,6 +160,27 @@ static spx_status ply_read(ply_reader *r, ply_type t, double *out) {
   return SPX_OK;
 }
 
+typedef struct fvec {
+  float *v;
+  size_t n, cap;
+} fvec;
+static spx_status fvec_push(spx_ctx *ctx, const char *name, fvec *a, const float *vals, size_t k) {
+  if (a->n + k > a->cap) {
+    size_t cap = a->cap ? a->cap : 64;
+    while (cap < a->n + k) {
+      if (cap > SIZE_MAX / 2 / sizeof(float)) return spx_fail(ctx, SPX_E_NOMEM, "%s: texcoord array too large", name);
+      cap *= 2;
+    }
+    float *nv = realloc(a->v, cap * sizeof(float));
+    if (!nv) return spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate %zu texcoords", name, cap);
+    a->v = nv;
+    a->cap = cap;
+  }
+  if (k) memcpy(a->v + a->n, vals, k * sizeof(float));
+  a->n += k;
+  return SPX_OK;
+}
+
 static int is_int_type(ply_type t) { return t != T_F32 && t != T_F64; }
 
 /* Parse the header; on success *body points after "end_header\n". */
@@ -219,6 +243,13 @@ static spx_status ply_header(spx_ctx *ctx, const char *name, const unsigned char
       if (e->nprops == PLY_MAX_PROPS)
         return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: more than %d properties in element '%s'", name, line, PLY_MAX_PROPS,
                         e->name);
+      if (e->nprops == e->cap) {
+        int cap = e->cap ? e->cap * 2 : 8;
+        ply_prop *np = realloc(e->props, (size_t)cap * sizeof *np);
+        if (!np) return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", name);
+        e->props = np;
+        e->cap = cap;
+      }
       ply_prop *p = &e->props[e->nprops];
       memset(p, 0, sizeof *p);
       if (nt >= 2 && strcmp(tok[1], "list") == 0) {
@@ -242,7 +273,9 @@ static spx_status ply_header(spx_ctx *ctx, const char *name, const unsigned char
         return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: face property '%s' must be a list", name, line, p->name);
       if (p->role == R_FACE && !is_int_type(p->type))
         return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: face indices must be integers", name, line);
-      if (p->role != R_NONE && p->role != R_FACE && p->is_list)
+      if (p->role == R_FTC && !p->is_list)
+        return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: face property 'texcoord' must be a list", name, line);
+      if (p->role != R_NONE && p->role != R_FACE && p->role != R_FTC && p->is_list)
         return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: vertex property '%s' must not be a list", name, line, p->name);
       for (int i = 0; i < e->nprops; i++)
         if (strcmp(e->props[i].name, p->name) == 0)
@@ -266,7 +299,8 @@ spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, 
   ply_elem *el = calloc(PLY_MAX_ELEMS, sizeof *el);
   if (!el) return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", name);
   spx_mesh m = {0};
-  spx_ivec faces = {0}, poly = {0};
+  spx_ivec faces = {0}, poly = {0}, fuv = {0};
+  fvec tc = {0}, uvs = {0}; /* one face's texcoord list; all per-corner texcoords */
   int nel = 0, binary = 0;
   size_t body = 0;
   spx_status st = ply_header(ctx, name, data, size, el, &nel, &binary, &body);
@@ -304,7 +338,7 @@ spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, 
     st = spx_fail(ctx, SPX_E_FORMAT, "%s: more than 2^31 elements", name);
     goto done;
   }
-  int have[R_FACE + 1] = {0};
+  int have[R_FTC + 1] = {0};
   for (int k = 0; k < ve->nprops; k++) have[ve->props[k].role] = 1;
   for (int r = R_X; r <= R_Z; r++)
     if (!have[r]) {
@@ -314,9 +348,12 @@ spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, 
   int has_n = have[R_NX] && have[R_NY] && have[R_NZ];
   int has_c = have[R_R] && have[R_G] && have[R_B];
   int has_uv = have[R_U] && have[R_V];
-  int have_face_list = 0;
+  int have_face_list = 0, has_ftc = 0;
   if (fe)
-    for (int k = 0; k < fe->nprops; k++) have_face_list |= fe->props[k].role == R_FACE;
+    for (int k = 0; k < fe->nprops; k++) {
+      have_face_list |= fe->props[k].role == R_FACE;
+      has_ftc |= fe->props[k].role == R_FTC;
+    }
   if (fe && fe->count > 0 && !have_face_list) {
     st = spx_fail(ctx, SPX_E_FORMAT, "%s: face element has no vertex_indices list", name);
     goto done;
@@ -338,6 +375,8 @@ spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, 
     ply_elem *e = &el[ei];
     int is_v = e == ve, is_f = e == fe;
     for (int64_t row = 0; row < e->count; row++) {
+      poly.n = 0;
+      tc.n = 0;
       for (int k = 0; k < e->nprops; k++) {
         ply_prop *p = &e->props[k];
         double v;
@@ -382,7 +421,7 @@ spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, 
           goto done;
         }
         size_t n = (size_t)cnt;
-        int use = is_f && p->role == R_FACE;
+        int use = is_f && p->role == R_FACE, use_tc = is_f && p->role == R_FTC;
         if (use) {
           if (n < 3 || n > SPX_PLY_MAX_POLY) {
             char msg[96];
@@ -390,10 +429,17 @@ spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, 
             st = where_fail(&r, SPX_E_FORMAT, msg);
             goto done;
           }
-          poly.n = 0;
+        }
+        if (use_tc && n > 2 * (size_t)SPX_PLY_MAX_POLY) {
+          st = where_fail(&r, SPX_E_FORMAT, "texcoord list too long");
+          goto done;
         }
         for (size_t j = 0; j < n; j++) {
           if ((st = ply_read(&r, p->type, &v))) goto done;
+          if (use_tc) {
+            float fv = (float)v;
+            if ((st = fvec_push(ctx, name, &tc, &fv, 1))) goto done;
+          }
           if (!use) continue;
           if (v < 0 || v >= (double)nv) {
             char msg[96];
@@ -404,16 +450,29 @@ spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, 
           int32_t vi = (int32_t)v;
           if ((st = spx_ivec_push(ctx, name, &poly, &vi, 1))) goto done;
         }
-        if (use) {
-          for (size_t j = 1; j + 1 < n; j++) {
-            int32_t tri[3] = {poly.v[0], poly.v[j], poly.v[j + 1]};
-            if ((st = spx_ivec_push(ctx, name, &faces, tri, 3))) goto done;
-          }
-          if (faces.n / 3 > INT32_MAX) {
-            st = where_fail(&r, SPX_E_FORMAT, "more than 2^31 triangles");
-            goto done;
-          }
+      }
+      if (!is_f) continue;
+      /* end of a face row: fan-triangulate the corners (and their texcoords) */
+      size_t n = poly.n;
+      if (has_ftc && tc.n != 2 * n) {
+        char msg[128];
+        snprintf(msg, sizeof msg, "texcoord list has %zu values for a face with %zu corners (need %zu)", tc.n, n, 2 * n);
+        st = where_fail(&r, SPX_E_FORMAT, msg);
+        goto done;
+      }
+      size_t base = uvs.n / 2;
+      if (has_ftc && (st = fvec_push(ctx, name, &uvs, tc.v, tc.n))) goto done;
+      for (size_t j = 1; j + 1 < n; j++) {
+        int32_t tri[3] = {poly.v[0], poly.v[j], poly.v[j + 1]};
+        if ((st = spx_ivec_push(ctx, name, &faces, tri, 3))) goto done;
+        if (has_ftc) {
+          int32_t tt[3] = {(int32_t)base, (int32_t)(base + j), (int32_t)(base + j + 1)};
+          if ((st = spx_ivec_push(ctx, name, &fuv, tt, 3))) goto done;
         }
+      }
+      if (faces.n / 3 > INT32_MAX || uvs.n / 2 > INT32_MAX) {
+        st = where_fail(&r, SPX_E_FORMAT, "more than 2^31 triangles or texture coordinates");
+        goto done;
       }
     }
   }
@@ -422,7 +481,14 @@ spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, 
     m.faces = faces.v;
     faces.v = NULL;
   }
-  if (m.uv) {
+  if (has_ftc && m.nf) { /* per-corner texcoords win over per-vertex ones */
+    free(m.uv);
+    m.uv = uvs.v;
+    uvs.v = NULL;
+    m.nuv = (int32_t)(uvs.n / 2);
+    m.face_uv = fuv.v;
+    fuv.v = NULL;
+  } else if (m.uv) {
     m.nuv = m.nv;
     if (m.nf) {
       m.face_uv = spx_alloc_array(ctx, (size_t)m.nf, 3 * sizeof(int32_t), name);
@@ -437,6 +503,10 @@ done:
   spx_mesh_free(&m);
   free(faces.v);
   free(poly.v);
+  free(fuv.v);
+  free(tc.v);
+  free(uvs.v);
+  for (int i = 0; i < nel; i++) free(el[i].props);
   free(el);
   return st;
 }
@@ -453,7 +523,7 @@ static void put_f32(FILE *fp, float f) {
 }
 
 /* UVs are written per vertex (s t) when they are per vertex: nuv == nv and face_uv is NULL or
- * equal to faces. Other UV layouts are not written. */
+ * equal to faces; otherwise as a per-face texcoord list. */
 static int uv_per_vertex(const spx_mesh *m) {
   if (!m->uv || m->nuv != m->nv) return 0;
   if (!m->face_uv) return 1;
@@ -468,7 +538,9 @@ spx_status spx_ply_write(spx_ctx *ctx, const char *name, const spx_mesh *m, FILE
   if (m->nrm) fputs("property float nx\nproperty float ny\nproperty float nz\n", fp);
   if (m->col) fputs("property uchar red\nproperty uchar green\nproperty uchar blue\n", fp);
   if (wuv) fputs("property float s\nproperty float t\n", fp);
+  int wtc = !wuv && m->uv && m->face_uv && m->nf > 0; /* per-corner UVs: a face texcoord list */
   if (m->nf > 0) fprintf(fp, "element face %d\nproperty list uchar int vertex_indices\n", m->nf);
+  if (wtc) fputs("property list uchar float texcoord\n", fp);
   fputs("end_header\n", fp);
   for (int32_t i = 0; i < m->nv; i++) {
     size_t b3 = (size_t)i * 3, b2 = (size_t)i * 2;
@@ -500,11 +572,24 @@ spx_status spx_ply_write(spx_ctx *ctx, const char *name, const spx_mesh *m, FILE
   }
   for (int32_t f = 0; f < m->nf; f++) {
     const int32_t *t = m->faces + (size_t)f * 3;
+    const int32_t *tu = wtc ? m->face_uv + (size_t)f * 3 : NULL;
     if (binary) {
       fputc(3, fp);
       for (int k = 0; k < 3; k++) put_u32(fp, (uint32_t)t[k]);
+      if (tu) {
+        fputc(6, fp);
+        for (int k = 0; k < 3; k++) {
+          put_f32(fp, m->uv[(size_t)tu[k] * 2]);
+          put_f32(fp, m->uv[(size_t)tu[k] * 2 + 1]);
+        }
+      }
     } else {
-      fprintf(fp, "3 %d %d %d\n", t[0], t[1], t[2]);
+      fprintf(fp, "3 %d %d %d", t[0], t[1], t[2]);
+      if (tu) {
+        fputs(" 6", fp);
+        for (int k = 0; k < 3; k++) fprintf(fp, " %.9g %.9g", m->uv[(size_t)tu[k] * 2], m->uv[(size_t)tu[k] * 2 + 1]);
+      }
+      fputc('\n', fp);
     }
   }
   if (ferror(fp)) return spx_fail(ctx, SPX_E_IO, "%s: write failed", name);
