@@ -25,19 +25,24 @@ def rodrigues(r):
     return np.eye(3) + np.sin(t) * Kx + (1 - np.cos(t)) * Kx @ Kx
 
 
+def f32(a):
+    """The library stores every model array as float32; compute from exactly those values."""
+    return np.asarray(a).astype(np.float32).astype(np.float64)
+
+
 def lbs(m, betas, pose, trans):
-    vt = m["v_template"].astype(np.float64)
+    vt = f32(m["v_template"])
     N = vt.shape[0]
-    sd = m["shapedirs"].astype(np.float64)[:, :, : len(betas)]
+    sd = f32(m["shapedirs"])[:, :, : len(betas)]
     v_shaped = vt + np.einsum("ncs,s->nc", sd, betas)
-    J = m["J_regressor"].astype(np.float64) @ v_shaped
+    J = f32(m["J_regressor"]) @ v_shaped
     K = J.shape[0]
     parents = m["kintree_table"][0].astype(np.int64)
     R = np.stack([rodrigues(pose[k]) for k in range(K)])
     v_posed = v_shaped.copy()
     if "posedirs" in m:
         pf = (R[1:] - np.eye(3)).reshape(-1)
-        v_posed += np.einsum("ncp,p->nc", m["posedirs"].astype(np.float64), pf)
+        v_posed += np.einsum("ncp,p->nc", f32(m["posedirs"]), pf)
     A = np.zeros((K, 4, 4))
     for k in range(K):
         local = np.eye(4)
@@ -51,7 +56,7 @@ def lbs(m, betas, pose, trans):
         unrest = np.eye(4)
         unrest[:3, 3] = -J[k]
         G[k] = A[k] @ unrest
-    W = m["weights"].astype(np.float64)
+    W = f32(m["weights"])
     T = np.einsum("nk,kab->nab", W, G)
     vh = np.concatenate([v_posed, np.ones((N, 1))], axis=1)
     verts = np.einsum("nab,nb->na", T, vh)[:, :3] + trans
