@@ -8,7 +8,7 @@
 #include "cl/cl_internal.h"
 
 struct spx_body_dev {
-  spx_ctx *ctx; /* the context the buffers belong to */
+  cl_context clctx; /* the OpenCL context the buffers belong to (retained, so its handle stays unique) */
   cl_mem vt, sd, pd, w, jt, jd, par;
   spx_cl_buf betas, pose, trans, vbase, jb, R, G, joints, verts;
 };
@@ -19,6 +19,7 @@ void spx_body_dev_free(spx_body_dev *d) {
   spx_cl_free(&d->jt), spx_cl_free(&d->jd), spx_cl_free(&d->par);
   spx_cl_buf *bufs[] = {&d->betas, &d->pose, &d->trans, &d->vbase, &d->jb, &d->R, &d->G, &d->joints, &d->verts};
   for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) spx_cl_buf_release(bufs[i]);
+  if (d->clctx) clReleaseContext(d->clctx);
   free(d);
 }
 
@@ -31,12 +32,17 @@ static spx_status upload(spx_ctx *ctx, const void *src, size_t bytes, const char
 spx_status spx_body_dev_ensure(spx_ctx *ctx, spx_body_model *m) {
   spx_status st = spx_cl_require(ctx, "body forward");
   if (st) return st;
-  if (m->dev && m->dev->ctx == ctx) return SPX_OK;
+  if (m->dev && m->dev->clctx == ctx->context) return SPX_OK;
   spx_body_dev_free(m->dev);
   m->dev = calloc(1, sizeof *m->dev);
   if (!m->dev) return spx_fail(ctx, SPX_E_NOMEM, "body: out of memory");
   spx_body_dev *d = m->dev;
-  d->ctx = ctx;
+  if ((st = spx_cl_check(ctx, clRetainContext(ctx->context), "clRetainContext"))) {
+    spx_body_dev_free(m->dev);
+    m->dev = NULL;
+    return st;
+  }
+  d->clctx = ctx->context;
   size_t N = (size_t)m->nv, K = (size_t)m->nj, S = (size_t)m->nbetas, P = (size_t)m->nposedirs;
   float *jt = malloc(K * 3 * sizeof(float)), *jd = malloc((K * 3 * S + 1) * sizeof(float));
   if (!jt || !jd) {

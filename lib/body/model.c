@@ -193,7 +193,7 @@ static spx_status load_from(spx_ctx *ctx, const spx_npz *z, spx_body_model *m) {
       int64_t sf[2] = {P, 3 * N};
       float *t;
       if ((st = read_f32(ctx, z, "posedirs", 2, sf, &t))) return st;
-      m->posedirs = spx_alloc_array(ctx, (size_t)(3 * N), (size_t)(P ? P : 1), "posedirs");
+      m->posedirs = spx_alloc_array(ctx, (size_t)(3 * N) * (size_t)(P ? P : 1), sizeof(float), "posedirs");
       if (!m->posedirs) {
         free(t);
         return SPX_E_NOMEM;

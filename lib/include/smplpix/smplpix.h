@@ -4,5 +4,8 @@
 
 #include "smplpix/core.h"
 #include "smplpix/device.h"
+#include "smplpix/npz.h"
+#include "smplpix/body.h"
+#include "smplpix/bvh.h"
 
 #endif
