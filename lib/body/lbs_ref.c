@@ -157,6 +157,96 @@ spx_status spx_body_forward_ref(spx_ctx *ctx, const spx_body_model *m, const spx
 
 int32_t spx_body_nparams(const spx_body_model *m, int32_t nbetas) { return 3 * m->nj + nbetas + 3; }
 
+/* Per-joint derivative data shared by the vertex and joint Jacobians: omega[j*9 + c*3 ..] is the
+ * world rotation axis of d/d pose[j][c]; dtg[(j*3 + d)*nb + s] = d tg_j[d] / d beta_s;
+ * anc[k*K + j] = 1 when j is k or an ancestor of k. */
+typedef struct jac_prep {
+  double *omega, *dtg;
+  unsigned char *anc;
+} jac_prep;
+
+static void jac_prep_free(jac_prep *jp) { free(jp->omega), free(jp->dtg), free(jp->anc); }
+
+static spx_status jac_prepare(spx_ctx *ctx, const spx_body_model *m, const spx_body_params *p, const spx_body_chain *c,
+                              jac_prep *jp) {
+  int32_t K = m->nj, S = m->nbetas, nb = p->nbetas;
+  jp->omega = malloc((size_t)K * 9 * sizeof(double));
+  jp->dtg = malloc((size_t)K * 3 * (size_t)(nb ? nb : 1) * sizeof(double));
+  jp->anc = malloc((size_t)K * (size_t)K);
+  if (!jp->omega || !jp->dtg || !jp->anc) {
+    jac_prep_free(jp);
+    return spx_fail(ctx, SPX_E_NOMEM, "body jacobian: out of memory for %d joints", K);
+  }
+  double *omega = jp->omega, *dtg = jp->dtg;
+  unsigned char *anc = jp->anc;
+  for (int32_t j = 0; j < K; j++) {
+    for (int cc = 0; cc < 3; cc++) {
+      double Rt[9], Sk[9], wl[3];
+      for (int r = 0; r < 3; r++)
+        for (int q = 0; q < 3; q++) Rt[r * 3 + q] = c->R[j * 9 + q * 3 + r];
+      mat3_mul(c->dR + j * 27 + cc * 9, Rt, Sk);
+      wl[0] = 0.5 * (Sk[7] - Sk[5]), wl[1] = 0.5 * (Sk[2] - Sk[6]), wl[2] = 0.5 * (Sk[3] - Sk[1]);
+      if (m->parents[j] >= 0) mat3_vec(c->Rg + m->parents[j] * 9, wl, omega + j * 9 + cc * 3);
+      else memcpy(omega + j * 9 + cc * 3, wl, sizeof wl);
+    }
+    int32_t par = m->parents[j];
+    for (int32_t s = 0; s < nb; s++) {
+      double dj[3], o[3];
+      for (int d = 0; d < 3; d++)
+        dj[d] = m->J_shapedirs[(j * 3 + d) * S + s] - (par >= 0 ? m->J_shapedirs[(par * 3 + d) * S + s] : 0.0);
+      if (par >= 0) {
+        mat3_vec(c->Rg + par * 9, dj, o);
+        for (int d = 0; d < 3; d++) dtg[(j * 3 + d) * nb + s] = o[d] + dtg[(par * 3 + d) * nb + s];
+      } else {
+        for (int d = 0; d < 3; d++) dtg[(j * 3 + d) * nb + s] = dj[d];
+      }
+    }
+    for (int32_t q = 0; q < K; q++) anc[j * K + q] = 0;
+    anc[j * K + j] = 1;
+    if (par >= 0)
+      for (int32_t q = 0; q < K; q++) anc[j * K + q] |= anc[par * K + q];
+  }
+  return SPX_OK;
+}
+
+spx_status spx_body_joint_jacobian(spx_ctx *ctx, const spx_body_model *m, const spx_body_params *p, double *joints,
+                                   double *jac) {
+  spx_status st = spx_body_check_params(ctx, m, p);
+  if (st) return st;
+  if (!jac) return spx_fail(ctx, SPX_E_ARG, "body joint jacobian: NULL jac");
+  spx_body_chain c;
+  if ((st = spx_body_chain_compute(ctx, m, p, 1, &c))) return st;
+  jac_prep jp;
+  if ((st = jac_prepare(ctx, m, p, &c, &jp))) {
+    spx_body_chain_free(&c);
+    return st;
+  }
+  int32_t K = m->nj, nb = p->nbetas;
+  size_t ncol = (size_t)spx_body_nparams(m, nb);
+  memset(jac, 0, (size_t)K * 3 * ncol * sizeof(double));
+  for (int32_t k = 0; k < K; k++) {
+    double *J0 = jac + (size_t)k * 3 * ncol;
+    if (joints)
+      for (int d = 0; d < 3; d++) joints[k * 3 + d] = c.tg[k * 3 + d] + (p->trans ? p->trans[d] : 0.0);
+    /* tg_k moves with every strict ancestor's rotation: omega x (tg_k - tg_j) */
+    for (int32_t j = 0; j < K; j++) {
+      if (j == k || !jp.anc[k * K + j]) continue;
+      double arm[3] = {c.tg[k * 3] - c.tg[j * 3], c.tg[k * 3 + 1] - c.tg[j * 3 + 1], c.tg[k * 3 + 2] - c.tg[j * 3 + 2]};
+      for (int cc = 0; cc < 3; cc++) {
+        double o[3];
+        cross(jp.omega + j * 9 + cc * 3, arm, o);
+        for (int d = 0; d < 3; d++) J0[(size_t)d * ncol + (size_t)(j * 3 + cc)] = o[d];
+      }
+    }
+    for (int32_t s = 0; s < nb; s++)
+      for (int d = 0; d < 3; d++) J0[(size_t)d * ncol + (size_t)(3 * K + s)] = jp.dtg[(k * 3 + d) * nb + s];
+    for (int d = 0; d < 3; d++) J0[(size_t)d * ncol + (size_t)(3 * K + nb + d)] = 1.0;
+  }
+  jac_prep_free(&jp);
+  spx_body_chain_free(&c);
+  return SPX_OK;
+}
+
 spx_status spx_body_jacobian(spx_ctx *ctx, const spx_body_model *m, const spx_body_params *p, int32_t nidx,
                              const int32_t *vidx, double *verts, double *jac) {
   spx_status st = spx_body_check_params(ctx, m, p);
@@ -169,41 +259,13 @@ spx_status spx_body_jacobian(spx_ctx *ctx, const spx_body_model *m, const spx_bo
   if ((st = spx_body_chain_compute(ctx, m, p, 1, &c))) return st;
   int32_t K = m->nj, S = m->nbetas, nb = p->nbetas, P = m->nposedirs;
   size_t ncol = (size_t)spx_body_nparams(m, nb);
-  /* per joint: world rotation axes w_jc = Rg_parent * vec(dR_jc R_j^T); dJ/dbeta; d tg/dbeta */
-  double *omega = malloc((size_t)K * 9 * sizeof(double));
-  double *dtg = malloc((size_t)K * 3 * (size_t)(nb ? nb : 1) * sizeof(double));
-  unsigned char *anc = malloc((size_t)K * (size_t)K); /* anc[k*K + j]: j is k or an ancestor of k */
-  if (!omega || !dtg || !anc) {
-    st = spx_fail(ctx, SPX_E_NOMEM, "body jacobian: out of memory");
-    goto done;
+  jac_prep jp;
+  if ((st = jac_prepare(ctx, m, p, &c, &jp))) {
+    spx_body_chain_free(&c);
+    return st;
   }
-  for (int32_t j = 0; j < K; j++) {
-    for (int cc = 0; cc < 3; cc++) {
-      double Rt[9], Sk[9], wl[3];
-      for (int r = 0; r < 3; r++)
-        for (int q = 0; q < 3; q++) Rt[r * 3 + q] = c.R[j * 9 + q * 3 + r];
-      mat3_mul(c.dR + j * 27 + cc * 9, Rt, Sk);
-      wl[0] = 0.5 * (Sk[7] - Sk[5]), wl[1] = 0.5 * (Sk[2] - Sk[6]), wl[2] = 0.5 * (Sk[3] - Sk[1]);
-      if (m->parents[j] >= 0) mat3_vec(c.Rg + m->parents[j] * 9, wl, omega + j * 9 + cc * 3);
-      else memcpy(omega + j * 9 + cc * 3, wl, sizeof wl);
-    }
-    int32_t par = m->parents[j];
-    for (int32_t s = 0; s < nb; s++) {
-      double dj[3], o[3];
-      for (int d = 0; d < 3; d++)
-        dj[d] = m->J_shapedirs[(j * 3 + d) * S + s] - (par >= 0 ? m->J_shapedirs[(par * 3 + d) * S + s] : 0.0);
-      if (par >= 0) {
-        mat3_vec(c.Rg + par * 9, dj, o);
-        for (int d = 0; d < 3; d++) dtg[(j * 3 + d) * nb + s] = o[d] + dtg[(par * 3 + d) * nb + s];
-      } else {
-        for (int d = 0; d < 3; d++) dtg[(j * 3 + d) * nb + s] = dj[d];
-      }
-    }
-    for (int32_t q = 0; q < K; q++) anc[j * K + q] = 0;
-    anc[j * K + j] = 1;
-    if (par >= 0)
-      for (int32_t q = 0; q < K; q++) anc[j * K + q] |= anc[par * K + q];
-  }
+  double *omega = jp.omega, *dtg = jp.dtg;
+  unsigned char *anc = jp.anc;
   for (int32_t q = 0; q < nidx; q++) {
     int32_t i = vidx ? vidx[q] : q;
     double vp[3], M[9], t[3], x[3];
@@ -254,8 +316,7 @@ spx_status spx_body_jacobian(spx_ctx *ctx, const spx_body_model *m, const spx_bo
         }
     for (int d = 0; d < 3; d++) J0[(size_t)d * ncol + (size_t)(3 * K + nb + d)] = 1.0;
   }
-done:
-  free(omega), free(dtg), free(anc);
+  jac_prep_free(&jp);
   spx_body_chain_free(&c);
   return st;
 }

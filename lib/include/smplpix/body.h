@@ -76,6 +76,11 @@ int32_t spx_body_nparams(const spx_body_model *m, int32_t nbetas);
 spx_status spx_body_jacobian(spx_ctx *ctx, const spx_body_model *m, const spx_body_params *p, int32_t nidx,
                              const int32_t *vidx, double *verts, double *jac);
 
+/* Analytic Jacobian of the posed joints (as in spx_body_forward_ref): joints (optional) nj*3,
+ * jac (nj*3) x spx_body_nparams, same column order. */
+spx_status spx_body_joint_jacobian(spx_ctx *ctx, const spx_body_model *m, const spx_body_params *p, double *joints,
+                                   double *jac);
+
 /* Inverse skinning: from posed vertices (nv*3, e.g. a registration with free vertices) and the
  * pose/shape/trans in p, the template that p would pose onto them: each vertex's blended
  * transform is inverted and the pose correctives subtracted; with remove_shape the shape blend
