@@ -4,7 +4,17 @@
 
 #include "smplpix/core.h"
 #include "smplpix/device.h"
+
+#include "smplpix/camera.h"
 #include "smplpix/image.h"
+#include "smplpix/mesh.h"
+#include "smplpix/npy.h"
+#include "smplpix/npz.h"
 #include "smplpix/safetensors.h"
+#include "smplpix/bvh.h"
+
+#include "smplpix/render.h"
+
+#include "smplpix/body.h"
 
 #endif
