@@ -5,7 +5,7 @@
  *   i0 = min((int)src, in - 1), i1 = i0 + (i0 < in - 1), l1 = clamp(src - i0, 0, 1), l0 = 1 - l1
  *   y = l0h * (l0w * x[h0,w0] + l1w * x[h0,w1]) + l1h * (l0w * x[h1,w0] + l1w * x[h1,w1])
  * The scales are computed on the host (float) and passed in. Backward is a gather: each input
- * pixel sums the weighted dy of the output pixels that read it (rows 2i-4 .. 2i+5 cover every
+ * pixel sums the weighted dy of the output pixels that read it (rows 2i-2 .. 2i+3 cover every
  * reader for both modes, see lib/nn/upsample.c), so no atomics and deterministic results. */
 
 inline void spx_up_src(int d, int in, float scale, int align, int *i0, int *i1, float *l0, float *l1) {
@@ -21,18 +21,18 @@ inline void spx_up_src(int d, int in, float scale, int align, int *i0, int *i1, 
   *l0 = 1.0f - l;
 }
 
-__kernel void spx_upsample2x_fwd(__global const float *x, int xo, __global float *y, int yo, int nc, int h, int w,
-                                 float sh, float sw, int align) {
+/* range (ow, oh, planes) */
+__kernel void spx_upsample2x_fwd(__global const float *x, int xo, __global float *y, int yo, int h, int w, float sh,
+                                 float sw, int align) {
   int oh = 2 * h, ow = 2 * w;
-  int i = SPX_GID0;
-  if (i >= nc * oh * ow) return;
-  int ox = i % ow, oy = (i / ow) % oh, p = i / (ow * oh);
+  int ox = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
+  if (ox >= ow || oy >= oh) return;
   int h0, h1, w0, w1;
   float lh0, lh1, lw0, lw1;
   spx_up_src(oy, h, sh, align, &h0, &h1, &lh0, &lh1);
   spx_up_src(ox, w, sw, align, &w0, &w1, &lw0, &lw1);
   __global const float *q = x + xo + p * h * w;
-  y[yo + i] = lh0 * (lw0 * q[h0 * w + w0] + lw1 * q[h0 * w + w1]) + lh1 * (lw0 * q[h1 * w + w0] + lw1 * q[h1 * w + w1]);
+  y[yo + (p * oh + oy) * ow + ox] = lh0 * (lw0 * q[h0 * w + w0] + lw1 * q[h0 * w + w1]) + lh1 * (lw0 * q[h1 * w + w0] + lw1 * q[h1 * w + w1]);
 }
 
 /* weight with which output coordinate d reads input coordinate i */
@@ -43,25 +43,35 @@ inline float spx_up_weight(int d, int i, int in, float scale, int align) {
   return (i0 == i ? l0 : 0.0f) + (i1 == i ? l1 : 0.0f);
 }
 
-__kernel void spx_upsample2x_bwd(__global const float *dy, int go, __global float *dx, int xo, int nc, int h, int w,
-                                 float sh, float sw, int align) {
+/* The (at most 6) output coordinates that can read input coordinate i, with their weights;
+ * returns the first one in *d0 and writes the weights to wt[0..5] (0 for those that do not). */
+inline void spx_up_readers(int i, int in, int out, float scale, int align, int *d0, float *wt) {
+  int a = 2 * i - 2;
+  *d0 = a;
+  for (int k = 0; k < 6; k++) {
+    int d = a + k;
+    wt[k] = (d >= 0 && d < out) ? spx_up_weight(d, i, in, scale, align) : 0.0f;
+  }
+}
+
+/* range (w, h, planes). Readers of input row i are output rows 2i-2 .. 2i+3 (lib/nn/upsample.c). */
+__kernel void spx_upsample2x_bwd(__global const float *dy, int go, __global float *dx, int xo, int h, int w, float sh,
+                                 float sw, int align) {
   int oh = 2 * h, ow = 2 * w;
-  int i = SPX_GID0;
-  if (i >= nc * h * w) return;
-  int ix = i % w, iy = (i / w) % h, p = i / (w * h);
-  int ya = max(0, 2 * iy - 4), yb = min(oh - 1, 2 * iy + 5);
-  int xa = max(0, 2 * ix - 4), xb = min(ow - 1, 2 * ix + 5);
-  float wx[10];
-  for (int ox = xa; ox <= xb; ox++) wx[ox - xa] = spx_up_weight(ox, ix, w, sw, align);
+  int ix = get_global_id(0), iy = get_global_id(1), p = get_global_id(2);
+  if (ix >= w || iy >= h) return;
+  int y0, x0;
+  float wy[6], wx[6];
+  spx_up_readers(iy, h, oh, sh, align, &y0, wy);
+  spx_up_readers(ix, w, ow, sw, align, &x0, wx);
   __global const float *g = dy + go + p * oh * ow;
   float acc = 0.0f;
-  for (int oy = ya; oy <= yb; oy++) {
-    float wy = spx_up_weight(oy, iy, h, sh, align);
-    if (wy == 0.0f) continue;
+  for (int a = 0; a < 6; a++) {
+    if (wy[a] == 0.0f) continue;
     float row = 0.0f;
-    for (int ox = xa; ox <= xb; ox++)
-      if (wx[ox - xa] != 0.0f) row += wx[ox - xa] * g[oy * ow + ox];
-    acc += wy * row;
+    for (int b = 0; b < 6; b++)
+      if (wx[b] != 0.0f) row += wx[b] * g[(y0 + a) * ow + x0 + b];
+    acc += wy[a] * row;
   }
-  dx[xo + i] += acc;
+  dx[xo + (p * h + iy) * w + ix] += acc;
 }

@@ -14,11 +14,17 @@ struct spx_tunable {
 static const struct spx_tunable spx_tunables[] = {
     /* generic 1-D work-group size for elementwise kernels */
     {"SPX_WG", 64, 256},
-    /* batch norm: one work-group per channel (power of two), kernels/batchnorm.cl */
-    {"SPX_BN_WG", 64, 256},
-    /* generic reductions (kernels/loss.cl): work-group size (power of two) and the number of
-     * groups of the first stage (fixed, so results do not depend on the launch) */
-    {"SPX_RED_WG", 64, 256},
+    /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,
+     * upsample, batch-norm eval (lib/nn/nn_internal.h spx_nn_run3d) */
+    {"SPX_WG2_X", 64, 32},
+    {"SPX_WG2_Y", 1, 8},
+    /* batch norm: one work-group per channel (power of two). 1 = one work-item walks the
+     * channel contiguously with 8-lane vector accumulators (CPU); >1 = strided + tree (GPU) */
+    {"SPX_BN_WG", 1, 256},
+    /* generic reductions (kernels/loss.cl): work-group size (power of two; 1 = contiguous
+     * chunk per group, vectorised, for CPUs) and the number of groups of the first stage
+     * (fixed, so results do not depend on the launch) */
+    {"SPX_RED_WG", 1, 256},
     {"SPX_RED_GROUPS", 32, 256},
 };
 
