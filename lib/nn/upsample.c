@@ -1,11 +1,12 @@
 /* Launchers for kernels/upsample.cl.
- * Why output rows 2i-2 .. 2i+3 hold every output that reads input row i (the backward gather
+ * Why output rows 2i-1 .. 2i+3 hold every output that reads input row i (the backward gather
  * window): output d reads rows floor(src) and floor(src)+1, so it reads i only if
  * i-1 < src < i+1. align_corners=false: src = d/2 - 1/4, so 2i-1.5 < d < 2i+2.5, i.e.
  * d in [2i-1, 2i+2]. align_corners=true: src = d s with s = (in-1)/(2in-1) < 1/2, so
- * d > (i-1)/s >= 2i-2 and d < (i+1)/s = 2i+2 + (i+1)/(in-1) <= 2i+4 (in >= 2; for in == 1 every
- * output reads row 0 and there are only rows 0 and 1). Float rounding of src moves it by
- * ~d*eps, far less than the margins (i-1)/(2in-1) of these bounds. */
+ * d > (i-1)/s >= 2i-2 (so d >= 2i-1; for i = 1, d = 0 has src = 0 exactly and reads row 1 with
+ * weight 0) and d < (i+1)/s = 2i+2 + (i+1)/(in-1) <= 2i+4 (in >= 2; for in == 1 every output
+ * reads row 0 and there are only rows 0 and 1). Float rounding of src moves it by ~d*eps, far
+ * less than the margins (~1/(2in) relative) of these bounds. */
 #include "nn/upsample.h"
 
 #include "nn/nn_internal.h"
