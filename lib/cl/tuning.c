@@ -25,10 +25,31 @@ static const struct spx_tunable spx_tunables[] = {
     /* projection (kernels/project.cl): up to this many projected points (B*C*N) the fused path
      * runs (project+background fill, then one single-work-group sort+unique+scatter launch) */
     {"SPX_PROJ_FAST_MAX", 32768, 8192},
+    /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,
+     * upsample, batch-norm eval (lib/nn/nn_internal.h spx_nn_run3d) */
+    {"SPX_WG2_X", 64, 32},
+    {"SPX_WG2_Y", 1, 8},
+    /* batch norm: one work-group per channel (power of two). 1 = one work-item walks the
+     * channel contiguously with 8-lane vector accumulators (CPU); >1 = strided + tree (GPU) */
+    {"SPX_BN_WG", 1, 256},
+    /* generic reductions (kernels/loss.cl): work-group size (power of two; 1 = contiguous
+     * chunk per group, vectorised, for CPUs) and the number of groups of the first stage
+     * (fixed, so results do not depend on the launch) */
+    {"SPX_RED_WG", 1, 256},
+    {"SPX_RED_GROUPS", 32, 256},
 };
 
+/* Which column applies: the device's own class, unless SPX_TUNE_CLASS=cpu|gpu overrides it (so
+ * the GPU code paths and launch shapes can be tested on PoCL). */
+static int tune_cpu_column(const spx_ctx *ctx) {
+  const char *c = getenv("SPX_TUNE_CLASS");
+  if (c && !strcmp(c, "gpu")) return 0;
+  if (c && !strcmp(c, "cpu")) return 1;
+  return ctx->info.kind == SPX_DEVICE_CPU;
+}
+
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {
-  int cpu = ctx->info.kind == SPX_DEVICE_CPU;
+  int cpu = ctx->tune_cpu;
   for (size_t i = 0; i < sizeof spx_tunables / sizeof spx_tunables[0]; i++)
     if (!strcmp(spx_tunables[i].name, name)) return cpu ? spx_tunables[i].cpu : spx_tunables[i].gpu;
   return 0;
@@ -37,8 +58,8 @@ int spx_cl_tune(const spx_ctx *ctx, const char *name) {
 void spx_cl_build_options(spx_ctx *ctx) {
   char *o = ctx->build_options;
   size_t cap = sizeof ctx->build_options, n = 0;
-  n += (size_t)snprintf(o + n, cap - n, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1",
-                        ctx->info.kind == SPX_DEVICE_CPU ? "CPU" : "GPU");
+  ctx->tune_cpu = tune_cpu_column(ctx);
+  n += (size_t)snprintf(o + n, cap - n, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1", ctx->tune_cpu ? "CPU" : "GPU");
   for (size_t i = 0; i < sizeof spx_tunables / sizeof spx_tunables[0] && n < cap; i++)
     n += (size_t)snprintf(o + n, cap - n, " -D%s=%d", spx_tunables[i].name, spx_cl_tune(ctx, spx_tunables[i].name));
   /* Bit-exact kernels (projection) need a correctly rounded fp32 '/'. When the device offers it,
