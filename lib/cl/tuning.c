@@ -14,6 +14,8 @@ struct spx_tunable {
 static const struct spx_tunable spx_tunables[] = {
     /* generic 1-D work-group size for elementwise kernels */
     {"SPX_WG", 64, 256},
+    /* mesh rasterizer: screen tile side in pixels (one work-group of TILE² items per tile) */
+    {"SPX_RASTER_TILE", 8, 16},
 };
 
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {

@@ -1,0 +1,184 @@
+/* Mesh rasterizer on the device (kernels/raster.cl): per-vertex projection, per-face setup
+ * with clipping, binning into SPX_RASTER_TILE² screen tiles (count → scan → fill), one
+ * work-group per tile with deferred shading. Plain-C reference: raster_ref.c. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "cl/cl_internal.h"
+#include "render/raster_internal.h"
+
+struct spx_rasterizer {
+  spx_ctx *ctx;
+  spx_cl_buf pos, col, faces, uv, face_uv, tex;
+  spx_cl_buf vh, vs;                         /* per vertex */
+  spx_cl_buf rab, rc, rz, rbb, rbary;        /* per triangle record */
+  size_t rec_cap;                            /* records the buffers hold */
+  spx_cl_buf tile_count, tile_start, cursor; /* per tile */
+  spx_cl_buf counters, bins, hi, out, win;
+};
+
+spx_status spx_rasterizer_create(spx_ctx *ctx, spx_rasterizer **out) {
+  *out = NULL;
+  spx_status st = spx_cl_require(ctx, "spx_rasterizer_create");
+  if (st) return st;
+  spx_rasterizer *r = calloc(1, sizeof *r);
+  if (!r) return spx_fail(ctx, SPX_E_NOMEM, "spx_rasterizer_create: out of memory");
+  r->ctx = ctx;
+  *out = r;
+  return SPX_OK;
+}
+
+void spx_rasterizer_destroy(spx_rasterizer *r) {
+  if (!r) return;
+  spx_cl_buf *bufs[] = {&r->pos, &r->col, &r->faces, &r->uv, &r->face_uv, &r->tex, &r->vh,
+                        &r->vs, &r->rab, &r->rc, &r->rz, &r->rbb, &r->rbary, &r->tile_count,
+                        &r->tile_start, &r->cursor, &r->counters, &r->bins, &r->hi, &r->out, &r->win};
+  for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) spx_cl_buf_release(bufs[i]);
+  free(r);
+}
+
+static spx_status upload(spx_ctx *ctx, spx_cl_buf *b, const void *src, size_t bytes, const char *what) {
+  spx_status st = spx_cl_buf_ensure(ctx, b, bytes ? bytes : 4, what);
+  if (st == SPX_OK && src) st = spx_cl_write(ctx, b->mem, 0, bytes, src);
+  return st;
+}
+
+static spx_status ensure_records(spx_ctx *ctx, spx_rasterizer *r, size_t n) {
+  spx_status st;
+  if ((st = spx_cl_buf_ensure(ctx, &r->rab, n * 32, "raster records")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->rc, n * 32, "raster records")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->rz, n * 16, "raster records")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->rbb, n * 16, "raster records")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->rbary, n * 32, "raster records")))
+    return st;
+  r->rec_cap = n;
+  return SPX_OK;
+}
+
+static spx_status zero_ints(spx_ctx *ctx, cl_mem m, size_t n) { return spx_cl_fill_f32(ctx, m, 0, n, 0.0f); }
+
+spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a, float *out, int32_t *faces_out) {
+  spx_status st = spx_raster_check_args(ctx, "spx_raster", a, faces_out);
+  if (st) return st;
+  if (!r || !out) return spx_fail(ctx, SPX_E_ARG, "spx_raster: rasterizer or out is NULL");
+  if ((st = spx_cl_require(ctx, "spx_raster"))) return st;
+  cl_kernel kv, ks, kscan, kbin, kt, kd;
+  if ((st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_vert", &kv)) ||
+      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_setup", &ks)) ||
+      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_scan", &kscan)) ||
+      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_bin", &kbin)) ||
+      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_tile", &kt)) ||
+      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_down", &kd)))
+    return st;
+
+  const int TS = spx_cl_tune(ctx, "SPX_RASTER_TILE"), WG = spx_cl_tune(ctx, "SPX_WG");
+  spx_rcam c0;
+  spx_raster_camera(a, 0, &c0);
+  const int W = c0.W, H = c0.H, W1 = a->cams[0].width, H1 = a->cams[0].height;
+  const int tiles_x = (W + TS - 1) / TS, tiles_y = (H + TS - 1) / TS, ntiles = tiles_x * tiles_y;
+  const size_t nv = (size_t)a->nverts, nf = (size_t)a->nfaces, img = (size_t)W1 * H1 * 4;
+  const int has_col = a->col != NULL, has_tex = a->tex != NULL, has_win = faces_out != NULL;
+
+  if ((st = upload(ctx, &r->pos, a->pos, nv * 12, "raster positions")) ||
+      (st = upload(ctx, &r->col, a->col, has_col ? nv * 12 : 0, "raster colors")) ||
+      (st = upload(ctx, &r->faces, a->faces, nf * 12, "raster faces")) ||
+      (st = upload(ctx, &r->uv, a->uv, has_tex ? (size_t)a->nuv * 8 : 0, "raster uv")) ||
+      (st = upload(ctx, &r->face_uv, a->face_uv, has_tex ? nf * 12 : 0, "raster face uv")) ||
+      (st = upload(ctx, &r->tex, a->tex,
+                   has_tex ? (size_t)a->tex_width * a->tex_height * a->tex_channels * 4 : 0, "raster texture")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->vh, (nv ? nv : 1) * 16, "raster vertices")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->vs, (nv ? nv : 1) * 16, "raster vertices")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->tile_count, (size_t)ntiles * 4, "raster tiles")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->tile_start, (size_t)(ntiles + 1) * 4, "raster tiles")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->cursor, (size_t)ntiles * 4, "raster tiles")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->counters, 16, "raster counters")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->out, img * a->ncams * 4, "raster output")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->win, has_win ? (size_t)W * H * a->ncams * 4 : 4, "raster face ids")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->hi, a->aa > 1 ? (size_t)W * H * 16 : 4, "raster supersampled image")))
+    return st;
+  if (r->rec_cap < nf + 64 || !r->rab.mem) {
+    size_t want = nf + (nf / 16 > 256 ? nf / 16 : 256);
+    if ((st = ensure_records(ctx, r, want > r->rec_cap ? want : r->rec_cap))) return st;
+  }
+
+  for (int cam = 0; cam < a->ncams; cam++) {
+    spx_rcam c;
+    spx_raster_camera(a, cam, &c);
+    cl_float16 cm;
+    for (int i = 0; i < 9; i++) cm.s[i] = c.R[i];
+    cm.s[9] = c.t[0], cm.s[10] = c.t[1], cm.s[11] = c.t[2];
+    cm.s[12] = c.fx, cm.s[13] = c.k01, cm.s[14] = c.cx, cm.s[15] = c.fy;
+    cl_float4 c2 = {{c.cy, c.znear, (float)W, (float)H}};
+    cl_int nvi = a->nverts, nfi = a->nfaces, Wi = W, Hi = H, txi = tiles_x, cull = (cl_int)a->cull;
+    cl_int e = SPX_ARG(kv, 0, r->pos.mem) | SPX_ARG(kv, 1, nvi) | SPX_ARG(kv, 2, cm) | SPX_ARG(kv, 3, c2) |
+               SPX_ARG(kv, 4, r->vh.mem) | SPX_ARG(kv, 5, r->vs.mem);
+    if ((st = spx_cl_check(ctx, e, "spx_raster_vert"))) return st;
+    size_t lw = (size_t)WG, g = nv;
+    if ((st = spx_cl_run(ctx, kv, 1, &g, &lw, "spx_raster_vert"))) return st;
+
+    cl_int counters[4];
+    for (int attempt = 0;; attempt++) {
+      cl_int cap = (cl_int)r->rec_cap;
+      if ((st = zero_ints(ctx, r->tile_count.mem, (size_t)ntiles)) || (st = zero_ints(ctx, r->counters.mem, 4)))
+        return st;
+      e = SPX_ARG(ks, 0, r->faces.mem) | SPX_ARG(ks, 1, nfi) | SPX_ARG(ks, 2, r->vh.mem) |
+          SPX_ARG(ks, 3, r->vs.mem) | SPX_ARG(ks, 4, c2) | SPX_ARG(ks, 5, Wi) | SPX_ARG(ks, 6, Hi) |
+          SPX_ARG(ks, 7, txi) | SPX_ARG(ks, 8, cull) | SPX_ARG(ks, 9, cap) | SPX_ARG(ks, 10, r->rab.mem) |
+          SPX_ARG(ks, 11, r->rc.mem) | SPX_ARG(ks, 12, r->rz.mem) | SPX_ARG(ks, 13, r->rbb.mem) |
+          SPX_ARG(ks, 14, r->rbary.mem) | SPX_ARG(ks, 15, r->tile_count.mem) | SPX_ARG(ks, 16, r->counters.mem);
+      if ((st = spx_cl_check(ctx, e, "spx_raster_setup"))) return st;
+      g = nf;
+      if ((st = spx_cl_run(ctx, ks, 1, &g, &lw, "spx_raster_setup"))) return st;
+      if ((st = spx_cl_read(ctx, r->counters.mem, 0, sizeof counters, counters))) return st;
+      if (counters[0] < 0 || counters[1] < 0)
+        return spx_fail(ctx, SPX_E_ARG, "spx_raster: more than 2^31 triangle-tile pairs");
+      if (nf + (size_t)counters[0] <= r->rec_cap) break;
+      if (attempt) return spx_fail(ctx, SPX_E_STATE, "spx_raster: clipped triangle count changed between runs");
+      if ((st = ensure_records(ctx, r, nf + (size_t)counters[0] + 256))) return st;
+    }
+    cl_int nrec = (cl_int)(nf + (size_t)counters[0]), ntl = ntiles;
+    if ((st = spx_cl_buf_ensure(ctx, &r->bins, ((size_t)counters[1] + 1) * 4, "raster bins"))) return st;
+
+    e = SPX_ARG(kscan, 0, r->tile_count.mem) | SPX_ARG(kscan, 1, ntl) | SPX_ARG(kscan, 2, r->tile_start.mem) |
+        SPX_ARG(kscan, 3, r->cursor.mem);
+    if ((st = spx_cl_check(ctx, e, "spx_raster_scan"))) return st;
+    g = lw;
+    if ((st = spx_cl_run(ctx, kscan, 1, &g, &lw, "spx_raster_scan"))) return st;
+
+    e = SPX_ARG(kbin, 0, r->rbb.mem) | SPX_ARG(kbin, 1, nrec) | SPX_ARG(kbin, 2, txi) |
+        SPX_ARG(kbin, 3, r->cursor.mem) | SPX_ARG(kbin, 4, r->bins.mem);
+    if ((st = spx_cl_check(ctx, e, "spx_raster_bin"))) return st;
+    g = (size_t)nrec;
+    if ((st = spx_cl_run(ctx, kbin, 1, &g, &lw, "spx_raster_bin"))) return st;
+
+    cl_int tw = a->tex_width, th = a->tex_height, tc = a->tex_channels, wrap = (cl_int)a->wrap;
+    cl_int hc = has_col, ht = has_tex, hw = has_win;
+    cl_int mode = a->aa > 1 ? 2 : (a->layout == SPX_LAYOUT_NCHW ? 1 : 0);
+    cl_long out_off = a->aa > 1 ? 0 : (cl_long)(img * cam), win_off = (cl_long)((size_t)W * H * cam);
+    cl_mem dst = a->aa > 1 ? r->hi.mem : r->out.mem;
+    e = SPX_ARG(kt, 0, r->tile_start.mem) | SPX_ARG(kt, 1, r->bins.mem) | SPX_ARG(kt, 2, r->rab.mem) |
+        SPX_ARG(kt, 3, r->rc.mem) | SPX_ARG(kt, 4, r->rz.mem) | SPX_ARG(kt, 5, r->rbary.mem) |
+        SPX_ARG(kt, 6, Wi) | SPX_ARG(kt, 7, Hi) | SPX_ARG(kt, 8, txi) | SPX_ARG(kt, 9, r->faces.mem) |
+        SPX_ARG(kt, 10, r->col.mem) | SPX_ARG(kt, 11, hc) | SPX_ARG(kt, 12, r->uv.mem) |
+        SPX_ARG(kt, 13, r->face_uv.mem) | SPX_ARG(kt, 14, r->tex.mem) | SPX_ARG(kt, 15, tw) |
+        SPX_ARG(kt, 16, th) | SPX_ARG(kt, 17, tc) | SPX_ARG(kt, 18, wrap) | SPX_ARG(kt, 19, ht) |
+        SPX_ARG(kt, 20, dst) | SPX_ARG(kt, 21, out_off) | SPX_ARG(kt, 22, mode) | SPX_ARG(kt, 23, r->win.mem) |
+        SPX_ARG(kt, 24, win_off) | SPX_ARG(kt, 25, hw);
+    if ((st = spx_cl_check(ctx, e, "spx_raster_tile"))) return st;
+    size_t tl = (size_t)TS * TS, tg = (size_t)ntiles * tl;
+    if ((st = spx_cl_run(ctx, kt, 1, &tg, &tl, "spx_raster_tile"))) return st;
+
+    if (a->aa > 1) {
+      cl_int w1 = W1, h1 = H1, nchw = a->layout == SPX_LAYOUT_NCHW;
+      cl_long off = (cl_long)(img * cam);
+      e = SPX_ARG(kd, 0, r->hi.mem) | SPX_ARG(kd, 1, w1) | SPX_ARG(kd, 2, h1) | SPX_ARG(kd, 3, r->out.mem) |
+          SPX_ARG(kd, 4, off) | SPX_ARG(kd, 5, nchw);
+      if ((st = spx_cl_check(ctx, e, "spx_raster_down"))) return st;
+      g = (size_t)W1 * H1;
+      if ((st = spx_cl_run(ctx, kd, 1, &g, &lw, "spx_raster_down"))) return st;
+    }
+  }
+  if ((st = spx_cl_read(ctx, r->out.mem, 0, img * a->ncams * 4, out))) return st;
+  if (has_win && (st = spx_cl_read(ctx, r->win.mem, 0, (size_t)W * H * a->ncams * 4, faces_out))) return st;
+  return SPX_OK;
+}
