@@ -364,6 +364,36 @@ static void test_near_clip(void) {
   free(ids);
 }
 
+/* Many faces crossing the near plane: each yields two sub-triangles, more than the records the
+ * device reserves at first, so the setup pass must grow its buffers and run again. */
+static void test_clip_overflow(void) {
+  spx_rasterizer *r2;
+  CHECK_OK(ctx, spx_rasterizer_create(ctx, &r2));
+  unsigned long long s = 777;
+  enum { NF = 3000 };
+  float *pos = malloc(sizeof(float) * 9 * NF), *col = malloc(sizeof(float) * 9 * NF);
+  int32_t *faces = malloc(sizeof(int32_t) * 3 * NF);
+  for (int f = 0; f < NF; f++)
+    for (int k = 0; k < 3; k++) {
+      float *p = pos + 9 * f + 3 * k;
+      p[0] = (float)(spx_t_uniform(&s) * 2 - 1), p[1] = (float)(spx_t_uniform(&s) * 2 - 1);
+      p[2] = k == 0 ? -1.0f : (float)(1 + spx_t_uniform(&s));
+      for (int c = 0; c < 3; c++) col[9 * f + 3 * k + c] = (float)spx_t_uniform(&s);
+      faces[3 * f + k] = 3 * f + k;
+    }
+  spx_camera cam = cam_simple(64, 48, 30, 32, 24);
+  spx_raster_args a = base_args(3 * NF, pos, col, NF, faces, &cam);
+  spx_rasterizer *keep = R;
+  R = r2;
+  compare(&a, "clip overflow", NULL, NULL);
+  compare(&a, "clip overflow again", NULL, NULL);
+  R = keep;
+  spx_rasterizer_destroy(r2);
+  free(pos);
+  free(col);
+  free(faces);
+}
+
 static void test_texture(void) {
   /* texture with R = column index, G = row index (linear: bilinear reproduces it exactly) */
   enum { TW = 8, TH = 4 };
@@ -549,6 +579,7 @@ int main(void) {
   SPX_RUN(test_watertight);
   SPX_RUN(test_degenerate_and_winding);
   SPX_RUN(test_near_clip);
+  SPX_RUN(test_clip_overflow);
   SPX_RUN(test_texture);
   SPX_RUN(test_aa);
   SPX_RUN(test_multi_camera);
