@@ -115,10 +115,10 @@ inline void emit(int slot, int cap, int face, int cull, int W, int H, int tiles_
   int tx0 = px0 / TS, tx1 = px1 / TS, ty0 = py0 / TS, ty1 = py1 / TS;
   for (int ty = ty0; ty <= ty1; ty++)
     for (int tx = tx0; tx <= tx1; tx++) atomic_inc(&tile_count[ty * tiles_x + tx]);
-  atomic_add(&counters[1], (tx1 - tx0 + 1) * (ty1 - ty0 + 1));
 }
 
-/* counters[0]: extra records claimed by clipped faces; counters[1]: total bin entries. */
+/* counters[0]: extra records claimed by clipped faces (counters[1], the total bin entries, is
+ * written by spx_raster_scan). */
 __kernel void spx_raster_setup(__global const int *faces, int nf, __global const float4 *vh,
                                __global const int4 *vs, float4 c2, int W, int H, int tiles_x, int cull, int cap,
                                __global int8 *rab, __global long4 *rc, __global float4 *rz, __global int4 *rbb,
@@ -201,7 +201,8 @@ __kernel void spx_raster_setup(__global const int *faces, int nf, __global const
 /* Exclusive scan of the tile counts by one work-group of SPX_WG items. start has ntiles + 1
  * entries; cursor gets a copy of the starts (the bin kernel's fill positions). */
 __kernel __attribute__((reqd_work_group_size(SPX_WG, 1, 1))) void
-spx_raster_scan(__global const int *cnt, int n, __global int *start, __global int *cursor) {
+spx_raster_scan(__global const int *cnt, int n, __global int *start, __global int *cursor,
+                __global int *counters) {
   __local int tmp[SPX_WG];
   int l = (int)get_local_id(0);
   int carry = 0;
@@ -222,7 +223,10 @@ spx_raster_scan(__global const int *cnt, int n, __global int *start, __global in
     carry += tmp[SPX_WG - 1];
     barrier(CLK_LOCAL_MEM_FENCE);
   }
-  if (l == 0) start[n] = carry;
+  if (l == 0) {
+    start[n] = carry;
+    counters[1] = carry;
+  }
 }
 
 __kernel void spx_raster_bin(__global const int4 *rbb, int nrec, int tiles_x, __global int *cursor,
@@ -266,42 +270,18 @@ inline float3 sample_tex(__global const float *tex, int tw, int th, int tc, int 
   return r;
 }
 
-/* One work-group per tile. mode: 0 = write HWC, 1 = write NCHW (at out + out_off), 2 = write
- * the supersampled float4 image for spx_raster_down. win (when has_win): face per pixel. */
-__kernel __attribute__((reqd_work_group_size(TS * TS, 1, 1))) void
-spx_raster_tile(__global const int *tile_start, __global const int *bins, __global const int8 *rab,
-                __global const long4 *rc, __global const float4 *rz, __global const float8 *rbary, int W, int H,
-                int tiles_x, __global const int *faces, __global const float *col, int has_col,
-                __global const float *uv, __global const int *face_uv, __global const float *tex, int tw, int th,
-                int tc, int wrap, int has_tex, __global float *out, long out_off, int mode, __global int *win,
-                long win_off, int has_win) {
-  int tile = (int)get_group_id(0), l = (int)get_local_id(0);
-  int x = (tile % tiles_x) * TS + l % TS, y = (tile / tiles_x) * TS + l / TS;
+/* Shade pixel (x, y) with its winning record bid (or background when bid < 0) and write it.
+ * mode: 0 = HWC, 1 = NCHW (at out + out_off), 2 = the supersampled float4 image for
+ * spx_raster_down. win (when has_win): the face per pixel, -1 for background. */
+inline void shade_write(int x, int y, int bid, __global const int8 *rab, __global const long4 *rc,
+                        __global const float4 *rz, __global const float8 *rbary, int W, int H,
+                        __global const int *faces, __global const float *col, int has_col, __global const float *uv,
+                        __global const int *face_uv, __global const float *tex, int tw, int th, int tc, int wrap,
+                        int has_tex, __global float *out, long out_off, int mode, __global int *win, long win_off,
+                        int has_win) {
   long px = (long)x * 256 + 128, py = (long)y * 256 + 128;
-  float bz = 0.0f;
-  int bf = INT_MAX, bid = -1;
-  int s = tile_start[tile], e = tile_start[tile + 1];
-  for (int i = s; i < e; i++) {
-    int id = bins[i];
-    int8 ab = rab[id];
-    long4 c = rc[id];
-    long e0 = (long)ab.s0 * px + (long)ab.s1 * py + c.x;
-    long e1 = (long)ab.s2 * px + (long)ab.s3 * py + c.y;
-    long e2 = (long)ab.s4 * px + (long)ab.s5 * py + c.z;
-    if ((e0 | e1 | e2) >= 0) {
-      float4 z4 = rz[id];
-      float z = (((float)(e0 + (ab.s7 & 1)) * z4.x + (float)(e1 + ((ab.s7 >> 1) & 1)) * z4.y) +
-                 (float)(e2 + ((ab.s7 >> 2) & 1)) * z4.z) *
-                z4.w;
-      if (z > bz || (z == bz && ab.s6 < bf)) {
-        bz = z;
-        bf = ab.s6;
-        bid = id;
-      }
-    }
-  }
-  if (x >= W || y >= H) return;
   float4 o = (float4)(1.0f, 1.0f, 1.0f, 1.0f);
+  int f = -1;
   if (bid >= 0) {
     int8 ab = rab[bid];
     long4 c = rc[bid];
@@ -324,7 +304,7 @@ spx_raster_tile(__global const int *tile_start, __global const int *bins, __glob
     } else {
       B = (float3)(w0 * inv, w1 * inv, w2 * inv);
     }
-    int f = ab.s6;
+    f = ab.s6;
     int v0 = faces[3 * f], v1 = faces[3 * f + 1], v2 = faces[3 * f + 2];
     if (has_col) {
       o.x = (B.x * col[3 * v0] + B.y * col[3 * v1]) + B.z * col[3 * v2];
@@ -350,7 +330,129 @@ spx_raster_tile(__global const int *tile_start, __global const int *bins, __glob
   } else {
     vstore4(o, 0, out + out_off + 4 * p);
   }
-  if (has_win) win[win_off + p] = bid >= 0 ? bf : -1;
+  if (has_win) win[win_off + p] = f;
+}
+
+/* Write the background (1,1,1,1) at pixel p (and face -1). */
+inline void write_bg(size_t p, int W, int H, __global float *out, long out_off, int mode, __global int *win,
+                     long win_off, int has_win) {
+  if (mode == 1) {
+    size_t hw = (size_t)W * H;
+    out[out_off + p] = 1.0f;
+    out[out_off + hw + p] = 1.0f;
+    out[out_off + 2 * hw + p] = 1.0f;
+    out[out_off + 3 * hw + p] = 1.0f;
+  } else {
+    vstore4((float4)(1.0f, 1.0f, 1.0f, 1.0f), 0, out + out_off + 4 * p);
+  }
+  if (has_win) win[win_off + p] = -1;
+}
+
+/* The z-test of one covered pixel: inverse depth from the exact edge values, fixed order. */
+#define SPX_ZTEST(e0, e1, e2, ab, id, bz, bf, bid)                                                   \
+  do {                                                                                               \
+    float4 z4 = rz[id];                                                                              \
+    float z = (((float)((e0) + ((ab).s7 & 1)) * z4.x + (float)((e1) + (((ab).s7 >> 1) & 1)) * z4.y) + \
+               (float)((e2) + (((ab).s7 >> 2) & 1)) * z4.z) *                                        \
+              z4.w;                                                                                  \
+    if (z > (bz) || (z == (bz) && (ab).s6 < (bf))) {                                                 \
+      (bz) = z;                                                                                      \
+      (bf) = (ab).s6;                                                                                \
+      (bid) = (id);                                                                                  \
+    }                                                                                                \
+  } while (0)
+
+/* Tile kernels write background pixels directly and append covered ones as (pixel, record) to
+ * cover[], counted in counters[2]; spx_raster_shade then shades only those. */
+#define SPX_TILE_ARGS                                                                                          \
+  __global const int *tile_start, __global const int *bins, __global const int8 *rab, __global const long4 *rc, \
+      __global const float4 *rz, __global const int4 *rbb, int W, int H, int tiles_x, __global int2 *cover,     \
+      __global int *counters, __global float *out, long out_off, int mode, __global int *win, long win_off,      \
+      int has_win
+
+/* GPU form: one work-group per tile, one work-item per pixel; every work-item walks the tile's
+ * list (the same records: broadcast loads), skipping triangles whose bbox misses its pixel. */
+__kernel __attribute__((reqd_work_group_size(TS * TS, 1, 1))) void spx_raster_tile(SPX_TILE_ARGS) {
+  __local int lcount, lbase;
+  int tile = (int)get_group_id(0), l = (int)get_local_id(0);
+  int x = (tile % tiles_x) * TS + l % TS, y = (tile / tiles_x) * TS + l / TS;
+  long px = (long)x * 256 + 128, py = (long)y * 256 + 128;
+  float bz = 0.0f;
+  int bf = INT_MAX, bid = -1;
+  if (l == 0) lcount = 0;
+  int s = tile_start[tile], e = tile_start[tile + 1];
+  for (int i = s; i < e; i++) {
+    int id = bins[i];
+    int4 bb = rbb[id];
+    if (x < bb.x || x > bb.z || y < bb.y || y > bb.w) continue;
+    int8 ab = rab[id];
+    long4 c = rc[id];
+    long e0 = (long)ab.s0 * px + (long)ab.s1 * py + c.x;
+    long e1 = (long)ab.s2 * px + (long)ab.s3 * py + c.y;
+    long e2 = (long)ab.s4 * px + (long)ab.s5 * py + c.z;
+    if ((e0 | e1 | e2) >= 0) SPX_ZTEST(e0, e1, e2, ab, id, bz, bf, bid);
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  int in = x < W && y < H, slot = -1;
+  if (in && bid >= 0) slot = atomic_inc(&lcount);
+  else if (in) write_bg((size_t)y * W + x, W, H, out, out_off, mode, win, win_off, has_win);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (l == 0) lbase = lcount ? atomic_add(&counters[2], lcount) : 0;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (slot >= 0) cover[lbase + slot] = (int2)(y * W + x, bid);
+}
+
+/* CPU form: one work-group per tile, one work-item per tile row; each walks the tile's list and
+ * only the pixels of its row inside the triangle's bbox, stepping the edge values by A (exact
+ * integers: the same values as evaluating each pixel). The row's z-buffer is private. */
+__kernel __attribute__((reqd_work_group_size(TS, 1, 1))) void spx_raster_tile_rows(SPX_TILE_ARGS) {
+  int tile = (int)get_group_id(0), ly = (int)get_local_id(0);
+  int x0 = (tile % tiles_x) * TS, y = (tile / tiles_x) * TS + ly;
+  long py = (long)y * 256 + 128;
+  float bz[TS];
+  int bf[TS], bid[TS];
+  for (int k = 0; k < TS; k++) bz[k] = 0.0f, bf[k] = INT_MAX, bid[k] = -1;
+  int s = tile_start[tile], e = tile_start[tile + 1];
+  for (int i = s; i < e; i++) {
+    int id = bins[i];
+    int4 bb = rbb[id];
+    if (y < bb.y || y > bb.w) continue;
+    int xa = max(bb.x, x0), xb = min(bb.z, x0 + TS - 1);
+    int8 ab = rab[id];
+    long4 c = rc[id];
+    long px = (long)xa * 256 + 128;
+    long e0 = (long)ab.s0 * px + (long)ab.s1 * py + c.x;
+    long e1 = (long)ab.s2 * px + (long)ab.s3 * py + c.y;
+    long e2 = (long)ab.s4 * px + (long)ab.s5 * py + c.z;
+    long d0 = (long)ab.s0 * 256, d1 = (long)ab.s2 * 256, d2 = (long)ab.s4 * 256;
+    for (int x = xa; x <= xb; x++, e0 += d0, e1 += d1, e2 += d2)
+      if ((e0 | e1 | e2) >= 0) SPX_ZTEST(e0, e1, e2, ab, id, bz[x - x0], bf[x - x0], bid[x - x0]);
+  }
+  if (y >= H) return;
+  int n = 0;
+  for (int k = 0; k < TS && x0 + k < W; k++) {
+    if (bid[k] >= 0) n++;
+    else write_bg((size_t)y * W + x0 + k, W, H, out, out_off, mode, win, win_off, has_win);
+  }
+  if (!n) return;
+  int base = atomic_add(&counters[2], n);
+  for (int k = 0; k < TS && x0 + k < W; k++)
+    if (bid[k] >= 0) cover[base++] = (int2)(y * W + x0 + k, bid[k]);
+}
+
+/* Shade the covered pixels (grid-stride over cover[0 .. counters[2])). */
+__kernel void spx_raster_shade(__global const int2 *cover, __global const int *counters, __global const int8 *rab,
+                               __global const long4 *rc, __global const float4 *rz, __global const float8 *rbary,
+                               int W, int H, __global const int *faces, __global const float *col, int has_col,
+                               __global const float *uv, __global const int *face_uv, __global const float *tex,
+                               int tw, int th, int tc, int wrap, int has_tex, __global float *out, long out_off,
+                               int mode, __global int *win, long win_off, int has_win) {
+  int n = counters[2], step = (int)get_global_size(0);
+  for (int i = SPX_GID0; i < n; i += step) {
+    int2 c = cover[i];
+    shade_write(c.x % W, c.x / W, c.y, rab, rc, rz, rbary, W, H, faces, col, has_col, uv, face_uv, tex, tw, th, tc,
+                wrap, has_tex, out, out_off, mode, win, win_off, has_win);
+  }
 }
 
 /* aa = 2: out pixel = mean of the 2x2 block of the supersampled HWC float4 image. */

@@ -15,7 +15,11 @@ static const struct spx_tunable spx_tunables[] = {
     /* generic 1-D work-group size for elementwise kernels */
     {"SPX_WG", 64, 256},
     /* mesh rasterizer: screen tile side in pixels (one work-group of TILE² items per tile) */
-    {"SPX_RASTER_TILE", 8, 16},
+    {"SPX_RASTER_TILE", 16, 16},
+    /* mesh rasterizer tile kernel: 1 = a work-item per tile row (CPU), 0 = per pixel (GPU) */
+    {"SPX_RASTER_ROWS", 1, 0},
+    /* mesh rasterizer shading: work-items of the grid-stride loop over covered pixels */
+    {"SPX_RASTER_SHADE_ITEMS", 256, 65536},
 };
 
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {

@@ -6,6 +6,18 @@
 
 #include "cl/cl_internal.h"
 #include "render/raster_internal.h"
+#include <stdio.h>
+#include <time.h>
+static double prof_t0, prof_c0;
+static void prof(spx_ctx *ctx, const char *what) {
+  if (!getenv("SPX_RASTER_PROFILE")) return;
+  clFinish(ctx->queue);
+  struct timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  double t = spx_now(), c = ts.tv_sec + ts.tv_nsec * 1e-9;
+  if (*what) fprintf(stderr, "  %-8s %.3f ms %.3f\n", what, (t - prof_t0) * 1e3, (c - prof_c0) * 1e3);
+  prof_t0 = t, prof_c0 = c;
+}
 
 struct spx_rasterizer {
   spx_ctx *ctx;
@@ -14,7 +26,7 @@ struct spx_rasterizer {
   spx_cl_buf rab, rc, rz, rbb, rbary;        /* per triangle record */
   size_t rec_cap;                            /* records the buffers hold */
   spx_cl_buf tile_count, tile_start, cursor; /* per tile */
-  spx_cl_buf counters, bins, hi, out, win;
+  spx_cl_buf counters, bins, cover, hi, out, win;
 };
 
 spx_status spx_rasterizer_create(spx_ctx *ctx, spx_rasterizer **out) {
@@ -32,7 +44,7 @@ void spx_rasterizer_destroy(spx_rasterizer *r) {
   if (!r) return;
   spx_cl_buf *bufs[] = {&r->pos, &r->col, &r->faces, &r->uv, &r->face_uv, &r->tex, &r->vh,
                         &r->vs, &r->rab, &r->rc, &r->rz, &r->rbb, &r->rbary, &r->tile_count,
-                        &r->tile_start, &r->cursor, &r->counters, &r->bins, &r->hi, &r->out, &r->win};
+                        &r->tile_start, &r->cursor, &r->counters, &r->bins, &r->cover, &r->hi, &r->out, &r->win};
   for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) spx_cl_buf_release(bufs[i]);
   free(r);
 }
@@ -62,12 +74,17 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
   if (st) return st;
   if (!r || !out) return spx_fail(ctx, SPX_E_ARG, "spx_raster: rasterizer or out is NULL");
   if ((st = spx_cl_require(ctx, "spx_raster"))) return st;
-  cl_kernel kv, ks, kscan, kbin, kt, kd;
+  cl_kernel kv, ks, kscan, kbin, kt, ksh, kd;
+  /* tile kernel form: rows (CPU) or pixels (GPU); SPX_RASTER_ROWS=0/1 overrides (tests) */
+  int rows = spx_cl_tune(ctx, "SPX_RASTER_ROWS");
+  const char *env_rows = getenv("SPX_RASTER_ROWS");
+  if (env_rows && *env_rows) rows = atoi(env_rows) != 0;
   if ((st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_vert", &kv)) ||
       (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_setup", &ks)) ||
       (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_scan", &kscan)) ||
       (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_bin", &kbin)) ||
-      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_tile", &kt)) ||
+      (st = spx_cl_kernel(ctx, "raster.cl", rows ? "spx_raster_tile_rows" : "spx_raster_tile", &kt)) ||
+      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_shade", &ksh)) ||
       (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_down", &kd)))
     return st;
 
@@ -79,6 +96,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
   const size_t nv = (size_t)a->nverts, nf = (size_t)a->nfaces, img = (size_t)W1 * H1 * 4;
   const int has_col = a->col != NULL, has_tex = a->tex != NULL, has_win = faces_out != NULL;
 
+  prof(ctx, "");
   if ((st = upload(ctx, &r->pos, a->pos, nv * 12, "raster positions")) ||
       (st = upload(ctx, &r->col, a->col, has_col ? nv * 12 : 0, "raster colors")) ||
       (st = upload(ctx, &r->faces, a->faces, nf * 12, "raster faces")) ||
@@ -94,8 +112,10 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
       (st = spx_cl_buf_ensure(ctx, &r->counters, 16, "raster counters")) ||
       (st = spx_cl_buf_ensure(ctx, &r->out, img * a->ncams * 4, "raster output")) ||
       (st = spx_cl_buf_ensure(ctx, &r->win, has_win ? (size_t)W * H * a->ncams * 4 : 4, "raster face ids")) ||
+      (st = spx_cl_buf_ensure(ctx, &r->cover, (size_t)W * H * 8, "raster covered pixels")) ||
       (st = spx_cl_buf_ensure(ctx, &r->hi, a->aa > 1 ? (size_t)W * H * 16 : 4, "raster supersampled image")))
     return st;
+  prof(ctx, "upload");
   if (r->rec_cap < nf + 64 || !r->rab.mem) {
     size_t want = nf + (nf / 16 > 256 ? nf / 16 : 256);
     if ((st = ensure_records(ctx, r, want > r->rec_cap ? want : r->rec_cap))) return st;
@@ -115,8 +135,9 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
     if ((st = spx_cl_check(ctx, e, "spx_raster_vert"))) return st;
     size_t lw = (size_t)WG, g = nv;
     if ((st = spx_cl_run(ctx, kv, 1, &g, &lw, "spx_raster_vert"))) return st;
+    prof(ctx, "spx_raster_vert");
 
-    cl_int counters[4];
+    cl_int counters[4], ntl = ntiles;
     for (int attempt = 0;; attempt++) {
       cl_int cap = (cl_int)r->rec_cap;
       if ((st = zero_ints(ctx, r->tile_count.mem, (size_t)ntiles)) || (st = zero_ints(ctx, r->counters.mem, 4)))
@@ -129,27 +150,31 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
       if ((st = spx_cl_check(ctx, e, "spx_raster_setup"))) return st;
       g = nf;
       if ((st = spx_cl_run(ctx, ks, 1, &g, &lw, "spx_raster_setup"))) return st;
+      prof(ctx, "spx_raster_setup");
+      /* tile starts; the scan also writes the total bin entries into counters[1] */
+      e = SPX_ARG(kscan, 0, r->tile_count.mem) | SPX_ARG(kscan, 1, ntl) | SPX_ARG(kscan, 2, r->tile_start.mem) |
+          SPX_ARG(kscan, 3, r->cursor.mem) | SPX_ARG(kscan, 4, r->counters.mem);
+      if ((st = spx_cl_check(ctx, e, "spx_raster_scan"))) return st;
+      g = lw;
+      if ((st = spx_cl_run(ctx, kscan, 1, &g, &lw, "spx_raster_scan"))) return st;
+      prof(ctx, "spx_raster_scan");
       if ((st = spx_cl_read(ctx, r->counters.mem, 0, sizeof counters, counters))) return st;
+      prof(ctx, "counters-read");
       if (counters[0] < 0 || counters[1] < 0)
         return spx_fail(ctx, SPX_E_ARG, "spx_raster: more than 2^31 triangle-tile pairs");
       if (nf + (size_t)counters[0] <= r->rec_cap) break;
       if (attempt) return spx_fail(ctx, SPX_E_STATE, "spx_raster: clipped triangle count changed between runs");
       if ((st = ensure_records(ctx, r, nf + (size_t)counters[0] + 256))) return st;
     }
-    cl_int nrec = (cl_int)(nf + (size_t)counters[0]), ntl = ntiles;
+    cl_int nrec = (cl_int)(nf + (size_t)counters[0]);
     if ((st = spx_cl_buf_ensure(ctx, &r->bins, ((size_t)counters[1] + 1) * 4, "raster bins"))) return st;
-
-    e = SPX_ARG(kscan, 0, r->tile_count.mem) | SPX_ARG(kscan, 1, ntl) | SPX_ARG(kscan, 2, r->tile_start.mem) |
-        SPX_ARG(kscan, 3, r->cursor.mem);
-    if ((st = spx_cl_check(ctx, e, "spx_raster_scan"))) return st;
-    g = lw;
-    if ((st = spx_cl_run(ctx, kscan, 1, &g, &lw, "spx_raster_scan"))) return st;
 
     e = SPX_ARG(kbin, 0, r->rbb.mem) | SPX_ARG(kbin, 1, nrec) | SPX_ARG(kbin, 2, txi) |
         SPX_ARG(kbin, 3, r->cursor.mem) | SPX_ARG(kbin, 4, r->bins.mem);
     if ((st = spx_cl_check(ctx, e, "spx_raster_bin"))) return st;
     g = (size_t)nrec;
     if ((st = spx_cl_run(ctx, kbin, 1, &g, &lw, "spx_raster_bin"))) return st;
+    prof(ctx, "spx_raster_bin");
 
     cl_int tw = a->tex_width, th = a->tex_height, tc = a->tex_channels, wrap = (cl_int)a->wrap;
     cl_int hc = has_col, ht = has_tex, hw = has_win;
@@ -157,16 +182,27 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
     cl_long out_off = a->aa > 1 ? 0 : (cl_long)(img * cam), win_off = (cl_long)((size_t)W * H * cam);
     cl_mem dst = a->aa > 1 ? r->hi.mem : r->out.mem;
     e = SPX_ARG(kt, 0, r->tile_start.mem) | SPX_ARG(kt, 1, r->bins.mem) | SPX_ARG(kt, 2, r->rab.mem) |
-        SPX_ARG(kt, 3, r->rc.mem) | SPX_ARG(kt, 4, r->rz.mem) | SPX_ARG(kt, 5, r->rbary.mem) |
-        SPX_ARG(kt, 6, Wi) | SPX_ARG(kt, 7, Hi) | SPX_ARG(kt, 8, txi) | SPX_ARG(kt, 9, r->faces.mem) |
-        SPX_ARG(kt, 10, r->col.mem) | SPX_ARG(kt, 11, hc) | SPX_ARG(kt, 12, r->uv.mem) |
-        SPX_ARG(kt, 13, r->face_uv.mem) | SPX_ARG(kt, 14, r->tex.mem) | SPX_ARG(kt, 15, tw) |
-        SPX_ARG(kt, 16, th) | SPX_ARG(kt, 17, tc) | SPX_ARG(kt, 18, wrap) | SPX_ARG(kt, 19, ht) |
-        SPX_ARG(kt, 20, dst) | SPX_ARG(kt, 21, out_off) | SPX_ARG(kt, 22, mode) | SPX_ARG(kt, 23, r->win.mem) |
-        SPX_ARG(kt, 24, win_off) | SPX_ARG(kt, 25, hw);
+        SPX_ARG(kt, 3, r->rc.mem) | SPX_ARG(kt, 4, r->rz.mem) | SPX_ARG(kt, 5, r->rbb.mem) |
+        SPX_ARG(kt, 6, Wi) | SPX_ARG(kt, 7, Hi) | SPX_ARG(kt, 8, txi) | SPX_ARG(kt, 9, r->cover.mem) |
+        SPX_ARG(kt, 10, r->counters.mem) | SPX_ARG(kt, 11, dst) | SPX_ARG(kt, 12, out_off) |
+        SPX_ARG(kt, 13, mode) | SPX_ARG(kt, 14, r->win.mem) | SPX_ARG(kt, 15, win_off) | SPX_ARG(kt, 16, hw);
     if ((st = spx_cl_check(ctx, e, "spx_raster_tile"))) return st;
-    size_t tl = (size_t)TS * TS, tg = (size_t)ntiles * tl;
+    size_t tl = rows ? (size_t)TS : (size_t)TS * TS, tg = (size_t)ntiles * tl;
     if ((st = spx_cl_run(ctx, kt, 1, &tg, &tl, "spx_raster_tile"))) return st;
+    prof(ctx, "spx_raster_tile");
+
+    e = SPX_ARG(ksh, 0, r->cover.mem) | SPX_ARG(ksh, 1, r->counters.mem) | SPX_ARG(ksh, 2, r->rab.mem) |
+        SPX_ARG(ksh, 3, r->rc.mem) | SPX_ARG(ksh, 4, r->rz.mem) | SPX_ARG(ksh, 5, r->rbary.mem) |
+        SPX_ARG(ksh, 6, Wi) | SPX_ARG(ksh, 7, Hi) | SPX_ARG(ksh, 8, r->faces.mem) | SPX_ARG(ksh, 9, r->col.mem) |
+        SPX_ARG(ksh, 10, hc) | SPX_ARG(ksh, 11, r->uv.mem) | SPX_ARG(ksh, 12, r->face_uv.mem) |
+        SPX_ARG(ksh, 13, r->tex.mem) | SPX_ARG(ksh, 14, tw) | SPX_ARG(ksh, 15, th) | SPX_ARG(ksh, 16, tc) |
+        SPX_ARG(ksh, 17, wrap) | SPX_ARG(ksh, 18, ht) | SPX_ARG(ksh, 19, dst) | SPX_ARG(ksh, 20, out_off) |
+        SPX_ARG(ksh, 21, mode) | SPX_ARG(ksh, 22, r->win.mem) | SPX_ARG(ksh, 23, win_off) | SPX_ARG(ksh, 24, hw);
+    if ((st = spx_cl_check(ctx, e, "spx_raster_shade"))) return st;
+    /* grid-stride: a fixed number of work-items, each shading covered pixels in turn */
+    g = (size_t)spx_cl_tune(ctx, "SPX_RASTER_SHADE_ITEMS");
+    if ((st = spx_cl_run(ctx, ksh, 1, &g, &lw, "spx_raster_shade"))) return st;
+    prof(ctx, "spx_raster_shade");
 
     if (a->aa > 1) {
       cl_int w1 = W1, h1 = H1, nchw = a->layout == SPX_LAYOUT_NCHW;
@@ -176,9 +212,11 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
       if ((st = spx_cl_check(ctx, e, "spx_raster_down"))) return st;
       g = (size_t)W1 * H1;
       if ((st = spx_cl_run(ctx, kd, 1, &g, &lw, "spx_raster_down"))) return st;
+    prof(ctx, "spx_raster_down");
     }
   }
   if ((st = spx_cl_read(ctx, r->out.mem, 0, img * a->ncams * 4, out))) return st;
+  prof(ctx, "readback");
   if (has_win && (st = spx_cl_read(ctx, r->win.mem, 0, (size_t)W * H * a->ncams * 4, faces_out))) return st;
   return SPX_OK;
 }
