@@ -402,42 +402,49 @@ __kernel __attribute__((reqd_work_group_size(TS * TS, 1, 1))) void spx_raster_ti
   if (slot >= 0) cover[lbase + slot] = (int2)(y * W + x, bid);
 }
 
-/* CPU form: one work-group per tile, one work-item per tile row; each walks the tile's list and
- * only the pixels of its row inside the triangle's bbox, stepping the edge values by A (exact
- * integers: the same values as evaluating each pixel). The row's z-buffer is private. */
-__kernel __attribute__((reqd_work_group_size(TS, 1, 1))) void spx_raster_tile_rows(SPX_TILE_ARGS) {
-  int tile = (int)get_group_id(0), ly = (int)get_local_id(0);
-  int x0 = (tile % tiles_x) * TS, y = (tile / tiles_x) * TS + ly;
-  long py = (long)y * 256 + 128;
-  float bz[TS];
-  int bf[TS], bid[TS];
-  for (int k = 0; k < TS; k++) bz[k] = 0.0f, bf[k] = INT_MAX, bid[k] = -1;
+/* CPU form: one work-item (and work-group) per tile; it walks the tile's list once and only
+ * the pixels of each triangle's bbox inside the tile, stepping the edge values by A and B
+ * (exact integers: the same values as evaluating each pixel). The tile's z-buffer is private. */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1))) void spx_raster_tile_rows(SPX_TILE_ARGS) {
+  int tile = (int)get_group_id(0);
+  int x0 = (tile % tiles_x) * TS, y0 = (tile / tiles_x) * TS;
+  float bz[TS * TS];
+  int bf[TS * TS], bid[TS * TS];
+  for (int k = 0; k < TS * TS; k++) bz[k] = 0.0f, bf[k] = INT_MAX, bid[k] = -1;
   int s = tile_start[tile], e = tile_start[tile + 1];
   for (int i = s; i < e; i++) {
     int id = bins[i];
     int4 bb = rbb[id];
-    if (y < bb.y || y > bb.w) continue;
-    int xa = max(bb.x, x0), xb = min(bb.z, x0 + TS - 1);
+    int xa = max(bb.x, x0), xb = min(bb.z, x0 + TS - 1), ya = max(bb.y, y0), yb = min(bb.w, y0 + TS - 1);
     int8 ab = rab[id];
     long4 c = rc[id];
-    long px = (long)xa * 256 + 128;
-    long e0 = (long)ab.s0 * px + (long)ab.s1 * py + c.x;
-    long e1 = (long)ab.s2 * px + (long)ab.s3 * py + c.y;
-    long e2 = (long)ab.s4 * px + (long)ab.s5 * py + c.z;
-    long d0 = (long)ab.s0 * 256, d1 = (long)ab.s2 * 256, d2 = (long)ab.s4 * 256;
-    for (int x = xa; x <= xb; x++, e0 += d0, e1 += d1, e2 += d2)
-      if ((e0 | e1 | e2) >= 0) SPX_ZTEST(e0, e1, e2, ab, id, bz[x - x0], bf[x - x0], bid[x - x0]);
+    long px = (long)xa * 256 + 128, py = (long)ya * 256 + 128;
+    long r0 = (long)ab.s0 * px + (long)ab.s1 * py + c.x;
+    long r1 = (long)ab.s2 * px + (long)ab.s3 * py + c.y;
+    long r2 = (long)ab.s4 * px + (long)ab.s5 * py + c.z;
+    long dx0 = (long)ab.s0 * 256, dx1 = (long)ab.s2 * 256, dx2 = (long)ab.s4 * 256;
+    long dy0 = (long)ab.s1 * 256, dy1 = (long)ab.s3 * 256, dy2 = (long)ab.s5 * 256;
+    for (int y = ya; y <= yb; y++, r0 += dy0, r1 += dy1, r2 += dy2) {
+      long e0 = r0, e1 = r1, e2 = r2;
+      int row = (y - y0) * TS - x0;
+      for (int x = xa; x <= xb; x++, e0 += dx0, e1 += dx1, e2 += dx2)
+        if ((e0 | e1 | e2) >= 0) SPX_ZTEST(e0, e1, e2, ab, id, bz[row + x], bf[row + x], bid[row + x]);
+    }
   }
-  if (y >= H) return;
   int n = 0;
-  for (int k = 0; k < TS && x0 + k < W; k++) {
-    if (bid[k] >= 0) n++;
-    else write_bg((size_t)y * W + x0 + k, W, H, out, out_off, mode, win, win_off, has_win);
-  }
+  for (int y = y0; y < min(y0 + TS, H); y++)
+    for (int x = x0; x < min(x0 + TS, W); x++) {
+      int k = (y - y0) * TS + (x - x0);
+      if (bid[k] >= 0) n++;
+      else write_bg((size_t)y * W + x, W, H, out, out_off, mode, win, win_off, has_win);
+    }
   if (!n) return;
   int base = atomic_add(&counters[2], n);
-  for (int k = 0; k < TS && x0 + k < W; k++)
-    if (bid[k] >= 0) cover[base++] = (int2)(y * W + x0 + k, bid[k]);
+  for (int y = y0; y < min(y0 + TS, H); y++)
+    for (int x = x0; x < min(x0 + TS, W); x++) {
+      int k = (y - y0) * TS + (x - x0);
+      if (bid[k] >= 0) cover[base++] = (int2)(y * W + x, bid[k]);
+    }
 }
 
 /* Shade the covered pixels (grid-stride over cover[0 .. counters[2])). */

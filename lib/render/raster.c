@@ -187,7 +187,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
         SPX_ARG(kt, 10, r->counters.mem) | SPX_ARG(kt, 11, dst) | SPX_ARG(kt, 12, out_off) |
         SPX_ARG(kt, 13, mode) | SPX_ARG(kt, 14, r->win.mem) | SPX_ARG(kt, 15, win_off) | SPX_ARG(kt, 16, hw);
     if ((st = spx_cl_check(ctx, e, "spx_raster_tile"))) return st;
-    size_t tl = rows ? (size_t)TS : (size_t)TS * TS, tg = (size_t)ntiles * tl;
+    size_t tl = rows ? 1 : (size_t)TS * TS, tg = (size_t)ntiles * tl;
     if ((st = spx_cl_run(ctx, kt, 1, &tg, &tl, "spx_raster_tile"))) return st;
     prof(ctx, "spx_raster_tile");
 
