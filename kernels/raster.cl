@@ -22,6 +22,9 @@
 #define SPX_RASTER_TILE 8
 #endif
 #define TS SPX_RASTER_TILE
+#ifndef SPX_RASTER_CHUNK
+#define SPX_RASTER_CHUNK 1
+#endif
 #define GUARD 1048576.0f
 #define SNAP_MAX 536870911.0f
 #define MAXPOLY 9
@@ -78,10 +81,22 @@ __kernel void spx_raster_vert(__global const float *pos, int nv, float16 cm, flo
  *   rbb  int4   pixel bbox (x0,y0,x1,y1) clamped to the image; x0 > x1 = no triangle
  *   rbary float8 (b0.1, b0.2, b1.1, b1.2, b2.1, b2.2) barycentrics of clipped corners (b.0 = 1-b.1-b.2) */
 
+/* Per-tile counting with run aggregation: consecutive hits of one tile (the common case for
+ * neighbouring small faces) cost one atomic. run = {tile, count}; flush with tile = -1. */
+inline void count_tile(__global int *tile_count, int *run, int t) {
+  if (t == run[0]) {
+    run[1]++;
+    return;
+  }
+  if (run[1]) atomic_add(&tile_count[run[0]], run[1]);
+  run[0] = t;
+  run[1] = t >= 0 ? 1 : 0;
+}
+
 inline void emit(int slot, int cap, int face, int cull, int W, int H, int tiles_x, int X0, int Y0, int X1, int Y1,
                  int X2, int Y2, float i0, float i1, float i2, int clipped, float8 bary, __global int8 *rab,
                  __global long4 *rc, __global float4 *rz, __global int4 *rbb, __global float8 *rbary,
-                 __global int *tile_count, __global int *counters) {
+                 __global int *tile_count, __global int *counters, int *run) {
   long A2 = (long)(X1 - X0) * (long)(Y2 - Y0) - (long)(Y1 - Y0) * (long)(X2 - X0);
   if (A2 == 0) return;
   if ((cull == 1 && A2 > 0) || (cull == 2 && A2 < 0)) return;
@@ -114,17 +129,15 @@ inline void emit(int slot, int cap, int face, int cull, int W, int H, int tiles_
   if (clipped) rbary[slot] = bary;
   int tx0 = px0 / TS, tx1 = px1 / TS, ty0 = py0 / TS, ty1 = py1 / TS;
   for (int ty = ty0; ty <= ty1; ty++)
-    for (int tx = tx0; tx <= tx1; tx++) atomic_inc(&tile_count[ty * tiles_x + tx]);
+    for (int tx = tx0; tx <= tx1; tx++) count_tile(tile_count, run, ty * tiles_x + tx);
 }
 
 /* counters[0]: extra records claimed by clipped faces (counters[1], the total bin entries, is
  * written by spx_raster_scan). */
-__kernel void spx_raster_setup(__global const int *faces, int nf, __global const float4 *vh,
-                               __global const int4 *vs, float4 c2, int W, int H, int tiles_x, int cull, int cap,
-                               __global int8 *rab, __global long4 *rc, __global float4 *rz, __global int4 *rbb,
-                               __global float8 *rbary, __global int *tile_count, __global int *counters) {
-  int f = SPX_GID0;
-  if (f >= nf) return;
+inline void setup_face(int f, __global const int *faces, int nf, __global const float4 *vh,
+                       __global const int4 *vs, float4 c2, int W, int H, int tiles_x, int cull, int cap,
+                       __global int8 *rab, __global long4 *rc, __global float4 *rz, __global int4 *rbb,
+                       __global float8 *rbary, __global int *tile_count, __global int *counters, int *run) {
   int ia = faces[3 * f], ib = faces[3 * f + 1], ic = faces[3 * f + 2];
   int4 sa = vs[ia], sb = vs[ib], sc = vs[ic];
   rbb[f] = (int4)(1, 1, 0, 0); /* empty unless emit() writes slot f */
@@ -133,7 +146,7 @@ __kernel void spx_raster_setup(__global const int *faces, int nf, __global const
   float8 id8 = (float8)(0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f);
   if (!ocu) {
     emit(f, cap, f, cull, W, H, tiles_x, sa.x, sa.y, sb.x, sb.y, sc.x, sc.y, vh[ia].w, vh[ib].w, vh[ic].w, 0, id8,
-         rab, rc, rz, rbb, rbary, tile_count, counters);
+         rab, rc, rz, rbb, rbary, tile_count, counters, run);
     return;
   }
   /* Sutherland-Hodgman against the planes the face crosses, in (u',v',d) space, carrying the
@@ -194,8 +207,23 @@ __kernel void spx_raster_setup(__global const int *faces, int nf, __global const
     int slot = first ? f : nf + atomic_inc(&counters[0]);
     first = 0;
     emit(slot, cap, f, cull, W, H, tiles_x, X[0], Y[0], X[k], Y[k], X[k + 1], Y[k + 1], iv[0], iv[k], iv[k + 1], 1,
-         bary, rab, rc, rz, rbb, rbary, tile_count, counters);
+         bary, rab, rc, rz, rbb, rbary, tile_count, counters, run);
   }
+}
+
+/* One work-item per SPX_RASTER_CHUNK consecutive faces (chunks > 1 let the CPU aggregate the
+ * tile counts of neighbouring faces). */
+__kernel void spx_raster_setup(__global const int *faces, int nf, __global const float4 *vh,
+                               __global const int4 *vs, float4 c2, int W, int H, int tiles_x, int cull, int cap,
+                               __global int8 *rab, __global long4 *rc, __global float4 *rz, __global int4 *rbb,
+                               __global float8 *rbary, __global int *tile_count, __global int *counters) {
+  int f0 = SPX_GID0 * SPX_RASTER_CHUNK;
+  if (f0 >= nf) return;
+  int run[2] = {-1, 0};
+  for (int f = f0; f < min(f0 + SPX_RASTER_CHUNK, nf); f++)
+    setup_face(f, faces, nf, vh, vs, c2, W, H, tiles_x, cull, cap, rab, rc, rz, rbb, rbary, tile_count, counters,
+               run);
+  count_tile(tile_count, run, -1);
 }
 
 /* Exclusive scan of the tile counts by one work-group of SPX_WG items. start has ntiles + 1
@@ -229,14 +257,37 @@ spx_raster_scan(__global const int *cnt, int n, __global int *start, __global in
   }
 }
 
+/* One work-item per SPX_RASTER_CHUNK consecutive records; a run of consecutive single-tile
+ * records of the same tile claims its bin slots with one atomic. */
+inline void flush_bins(__global int *cursor, __global int *bins, int t, int first, int n) {
+  if (!n) return;
+  int base = atomic_add(&cursor[t], n);
+  for (int k = 0; k < n; k++) bins[base + k] = first + k;
+}
+
 __kernel void spx_raster_bin(__global const int4 *rbb, int nrec, int tiles_x, __global int *cursor,
                              __global int *bins) {
-  int id = SPX_GID0;
-  if (id >= nrec) return;
-  int4 bb = rbb[id];
-  if (bb.x > bb.z) return;
-  for (int ty = bb.y / TS; ty <= bb.w / TS; ty++)
-    for (int tx = bb.x / TS; tx <= bb.z / TS; tx++) bins[atomic_inc(&cursor[ty * tiles_x + tx])] = id;
+  int r0 = SPX_GID0 * SPX_RASTER_CHUNK;
+  if (r0 >= nrec) return;
+  int rt = -1, rfirst = 0, rn = 0;
+  for (int id = r0; id < min(r0 + SPX_RASTER_CHUNK, nrec); id++) {
+    int4 bb = rbb[id];
+    if (bb.x > bb.z) continue;
+    int tx0 = bb.x / TS, tx1 = bb.z / TS, ty0 = bb.y / TS, ty1 = bb.w / TS;
+    if (tx0 == tx1 && ty0 == ty1) {
+      int t = ty0 * tiles_x + tx0;
+      if (t == rt && id == rfirst + rn) {
+        rn++;
+        continue;
+      }
+      flush_bins(cursor, bins, rt, rfirst, rn);
+      rt = t, rfirst = id, rn = 1;
+      continue;
+    }
+    for (int ty = ty0; ty <= ty1; ty++)
+      for (int tx = tx0; tx <= tx1; tx++) bins[atomic_inc(&cursor[ty * tiles_x + tx])] = id;
+  }
+  flush_bins(cursor, bins, rt, rfirst, rn);
 }
 
 inline int imod(int a, int n) {

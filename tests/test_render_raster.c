@@ -459,6 +459,12 @@ static void test_texture(void) {
   b.wrap = SPX_WRAP_CLAMP;
   b.layout = SPX_LAYOUT_NCHW;
   compare(&b, "textured sphere clamp", NULL, NULL);
+  /* static_id: topology and texture stay resident; a second call (moved vertices) still matches */
+  b.static_id = 42;
+  compare(&b, "textured sphere resident 1", NULL, NULL);
+  for (int i = 0; i < nv * 3; i++) pos[i] *= 0.9f;
+  compare(&b, "textured sphere resident 2", NULL, NULL);
+  b.static_id = 0;
   free(suv);
   free(pos);
   free(col);

@@ -18,6 +18,8 @@ static const struct spx_tunable spx_tunables[] = {
     {"SPX_RASTER_TILE", 16, 16},
     /* mesh rasterizer tile kernel: 1 = a work-item per tile row (CPU), 0 = per pixel (GPU) */
     {"SPX_RASTER_ROWS", 1, 0},
+    /* mesh rasterizer setup/binning: consecutive faces per work-item (CPU: aggregate tile counts) */
+    {"SPX_RASTER_CHUNK", 64, 1},
     /* mesh rasterizer shading: work-items of the grid-stride loop over covered pixels */
     {"SPX_RASTER_SHADE_ITEMS", 256, 65536},
 };

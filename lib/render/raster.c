@@ -25,6 +25,8 @@ struct spx_rasterizer {
   spx_cl_buf vh, vs;                         /* per vertex */
   spx_cl_buf rab, rc, rz, rbb, rbary;        /* per triangle record */
   size_t rec_cap;                            /* records the buffers hold */
+  uint32_t static_id;                        /* static_id of the resident faces/uv/texture, 0: none */
+  size_t static_sizes[4];
   spx_cl_buf tile_count, tile_start, cursor; /* per tile */
   spx_cl_buf counters, bins, cover, hi, out, win;
 };
@@ -89,6 +91,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
     return st;
 
   const int TS = spx_cl_tune(ctx, "SPX_RASTER_TILE"), WG = spx_cl_tune(ctx, "SPX_WG");
+  const int chunk = spx_cl_tune(ctx, "SPX_RASTER_CHUNK");
   spx_rcam c0;
   spx_raster_camera(a, 0, &c0);
   const int W = c0.W, H = c0.H, W1 = a->cams[0].width, H1 = a->cams[0].height;
@@ -97,13 +100,19 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
   const int has_col = a->col != NULL, has_tex = a->tex != NULL, has_win = faces_out != NULL;
 
   prof(ctx, "");
+  size_t sizes[4] = {nf * 12, has_tex ? (size_t)a->nuv * 8 : 0, has_tex ? nf * 12 : 0,
+                     has_tex ? (size_t)a->tex_width * a->tex_height * a->tex_channels * 4 : 0};
+  int resident = a->static_id && a->static_id == r->static_id && !memcmp(sizes, r->static_sizes, sizeof sizes);
+  r->static_id = 0;
+  if (!resident && ((st = upload(ctx, &r->faces, a->faces, sizes[0], "raster faces")) ||
+                    (st = upload(ctx, &r->uv, a->uv, sizes[1], "raster uv")) ||
+                    (st = upload(ctx, &r->face_uv, a->face_uv, sizes[2], "raster face uv")) ||
+                    (st = upload(ctx, &r->tex, a->tex, sizes[3], "raster texture"))))
+    return st;
+  r->static_id = a->static_id;
+  memcpy(r->static_sizes, sizes, sizeof sizes);
   if ((st = upload(ctx, &r->pos, a->pos, nv * 12, "raster positions")) ||
       (st = upload(ctx, &r->col, a->col, has_col ? nv * 12 : 0, "raster colors")) ||
-      (st = upload(ctx, &r->faces, a->faces, nf * 12, "raster faces")) ||
-      (st = upload(ctx, &r->uv, a->uv, has_tex ? (size_t)a->nuv * 8 : 0, "raster uv")) ||
-      (st = upload(ctx, &r->face_uv, a->face_uv, has_tex ? nf * 12 : 0, "raster face uv")) ||
-      (st = upload(ctx, &r->tex, a->tex,
-                   has_tex ? (size_t)a->tex_width * a->tex_height * a->tex_channels * 4 : 0, "raster texture")) ||
       (st = spx_cl_buf_ensure(ctx, &r->vh, (nv ? nv : 1) * 16, "raster vertices")) ||
       (st = spx_cl_buf_ensure(ctx, &r->vs, (nv ? nv : 1) * 16, "raster vertices")) ||
       (st = spx_cl_buf_ensure(ctx, &r->tile_count, (size_t)ntiles * 4, "raster tiles")) ||
@@ -148,7 +157,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
           SPX_ARG(ks, 11, r->rc.mem) | SPX_ARG(ks, 12, r->rz.mem) | SPX_ARG(ks, 13, r->rbb.mem) |
           SPX_ARG(ks, 14, r->rbary.mem) | SPX_ARG(ks, 15, r->tile_count.mem) | SPX_ARG(ks, 16, r->counters.mem);
       if ((st = spx_cl_check(ctx, e, "spx_raster_setup"))) return st;
-      g = nf;
+      g = (nf + (size_t)chunk - 1) / (size_t)chunk;
       if ((st = spx_cl_run(ctx, ks, 1, &g, &lw, "spx_raster_setup"))) return st;
       prof(ctx, "spx_raster_setup");
       /* tile starts; the scan also writes the total bin entries into counters[1] */
@@ -172,7 +181,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
     e = SPX_ARG(kbin, 0, r->rbb.mem) | SPX_ARG(kbin, 1, nrec) | SPX_ARG(kbin, 2, txi) |
         SPX_ARG(kbin, 3, r->cursor.mem) | SPX_ARG(kbin, 4, r->bins.mem);
     if ((st = spx_cl_check(ctx, e, "spx_raster_bin"))) return st;
-    g = (size_t)nrec;
+    g = ((size_t)nrec + (size_t)chunk - 1) / (size_t)chunk;
     if ((st = spx_cl_run(ctx, kbin, 1, &g, &lw, "spx_raster_bin"))) return st;
     prof(ctx, "spx_raster_bin");
 

@@ -62,6 +62,10 @@ typedef struct spx_raster_args {
   spx_cull cull;
   float znear;            /* 0 → SPX_RASTER_ZNEAR */
   spx_layout layout;
+  /* nonzero: the caller promises that faces, uv, face_uv and tex hold the same contents as in
+   * the previous spx_raster call on this rasterizer with the same static_id, so they stay on the
+   * device (positions and colors are always uploaded). 0: everything is uploaded every call. */
+  uint32_t static_id;
 } spx_raster_args;
 
 /* Reusable device state: kernels, grow-only scratch buffers. */
