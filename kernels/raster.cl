@@ -1,16 +1,22 @@
 /* Mesh rasterizer (the classic baseline; semantics in lib/include/smplpix/raster.h, host code in
  * lib/render/raster.c, plain-C reference in lib/render/raster_ref.c — same arithmetic,
  * operation for operation). Pipeline per camera:
- *   spx_raster_vert   one work-item per vertex: (u',v',d), clip outcode, snapped position, 1/d
- *   spx_raster_setup  one per face: clip if needed, edge equations, pixel bbox, per-tile counts
- *   spx_raster_scan   one work-group: tile counts → tile starts (+ fill cursors)
- *   spx_raster_bin    one per triangle record: write its id into each tile it overlaps
- *   spx_raster_tile   one work-group per SPX_RASTER_TILE² tile, one work-item per pixel: z-test
- *                     the tile's triangles (order-independent: nearest, then smallest face), then
- *                     shade the winner (deferred) and write the pixel
- *   spx_raster_down   2x2 box filter for aa = 2
- * Division that decides coverage is correctly rounded (through double when the device has it),
- * so snapped coordinates are the same bits as the reference's float division. */
+ *   spx_raster_vert    one work-item per vertex: (u',v',d), clip outcode, snapped position, 1/d
+ *   spx_raster_setup   per face (or chunk of faces): clip if needed, edge equations, pixel bbox,
+ *                      per-tile counts
+ *   spx_raster_scan    one work-group: tile counts → tile starts, fill cursors, total
+ *   spx_raster_bin     per record (or chunk): write its id into each tile it overlaps
+ *   spx_raster_tile    GPU: one work-group per SPX_RASTER_TILE² tile, a work-item per pixel
+ *   spx_raster_tile_serial  CPU: one work-item per tile, bbox-limited edge stepping
+ *                      both: z-test the tile's triangles with an order-independent rule (nearest,
+ *                      then smallest face — the same result as drawing in face order), write the
+ *                      background, append covered pixels to a list
+ *   spx_raster_shade   covered pixels only: perspective-correct colour/texture, depth
+ *   spx_raster_down    2x2 box filter for aa = 2
+ * Coverage is exact integer arithmetic on vertices snapped to 1/256 pixel. The divisions that
+ * decide snapped positions are correctly rounded (through double when the device has
+ * cl_khr_fp64; otherwise the device's float division, exact on PoCL, not guaranteed elsewhere),
+ * so they are the same bits as the reference's float division. */
 #ifdef cl_khr_fp64
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #define SPX_DIV(a, b) ((float)((double)(a) / (double)(b)))
@@ -22,9 +28,7 @@
 #define SPX_RASTER_TILE 8
 #endif
 #define TS SPX_RASTER_TILE
-#ifndef SPX_RASTER_CHUNK
-#define SPX_RASTER_CHUNK 1
-#endif
+
 #define GUARD 1048576.0f
 #define SNAP_MAX 536870911.0f
 #define MAXPOLY 9
@@ -211,16 +215,17 @@ inline void setup_face(int f, __global const int *faces, int nf, __global const 
   }
 }
 
-/* One work-item per SPX_RASTER_CHUNK consecutive faces (chunks > 1 let the CPU aggregate the
+/* One work-item per `chunk` consecutive faces (chunks > 1 let the CPU aggregate the
  * tile counts of neighbouring faces). */
 __kernel void spx_raster_setup(__global const int *faces, int nf, __global const float4 *vh,
                                __global const int4 *vs, float4 c2, int W, int H, int tiles_x, int cull, int cap,
                                __global int8 *rab, __global long4 *rc, __global float4 *rz, __global int4 *rbb,
-                               __global float8 *rbary, __global int *tile_count, __global int *counters) {
-  int f0 = SPX_GID0 * SPX_RASTER_CHUNK;
+                               __global float8 *rbary, __global int *tile_count, __global int *counters,
+                               int chunk) {
+  int f0 = SPX_GID0 * chunk;
   if (f0 >= nf) return;
   int run[2] = {-1, 0};
-  for (int f = f0; f < min(f0 + SPX_RASTER_CHUNK, nf); f++)
+  for (int f = f0; f < min(f0 + chunk, nf); f++)
     setup_face(f, faces, nf, vh, vs, c2, W, H, tiles_x, cull, cap, rab, rc, rz, rbb, rbary, tile_count, counters,
                run);
   count_tile(tile_count, run, -1);
@@ -257,7 +262,7 @@ spx_raster_scan(__global const int *cnt, int n, __global int *start, __global in
   }
 }
 
-/* One work-item per SPX_RASTER_CHUNK consecutive records; a run of consecutive single-tile
+/* One work-item per `chunk` consecutive records; a run of consecutive single-tile
  * records of the same tile claims its bin slots with one atomic. */
 inline void flush_bins(__global int *cursor, __global int *bins, int t, int first, int n) {
   if (!n) return;
@@ -266,11 +271,11 @@ inline void flush_bins(__global int *cursor, __global int *bins, int t, int firs
 }
 
 __kernel void spx_raster_bin(__global const int4 *rbb, int nrec, int tiles_x, __global int *cursor,
-                             __global int *bins) {
-  int r0 = SPX_GID0 * SPX_RASTER_CHUNK;
+                             __global int *bins, int chunk) {
+  int r0 = SPX_GID0 * chunk;
   if (r0 >= nrec) return;
   int rt = -1, rfirst = 0, rn = 0;
-  for (int id = r0; id < min(r0 + SPX_RASTER_CHUNK, nrec); id++) {
+  for (int id = r0; id < min(r0 + chunk, nrec); id++) {
     int4 bb = rbb[id];
     if (bb.x > bb.z) continue;
     int tx0 = bb.x / TS, tx1 = bb.z / TS, ty0 = bb.y / TS, ty1 = bb.w / TS;
@@ -456,7 +461,7 @@ __kernel __attribute__((reqd_work_group_size(TS * TS, 1, 1))) void spx_raster_ti
 /* CPU form: one work-item (and work-group) per tile; it walks the tile's list once and only
  * the pixels of each triangle's bbox inside the tile, stepping the edge values by A and B
  * (exact integers: the same values as evaluating each pixel). The tile's z-buffer is private. */
-__kernel __attribute__((reqd_work_group_size(1, 1, 1))) void spx_raster_tile_rows(SPX_TILE_ARGS) {
+__kernel __attribute__((reqd_work_group_size(1, 1, 1))) void spx_raster_tile_serial(SPX_TILE_ARGS) {
   int tile = (int)get_group_id(0);
   int x0 = (tile % tiles_x) * TS, y0 = (tile / tiles_x) * TS;
   float bz[TS * TS];

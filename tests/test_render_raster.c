@@ -590,6 +590,17 @@ int main(void) {
   SPX_RUN(test_aa);
   SPX_RUN(test_multi_camera);
   SPX_RUN(test_errors);
+  /* the other device's forms: per-pixel tile kernel (GPU) and one face per setup work-item */
+  const char *forms[][2] = {{"0", "1"}};
+  for (int i = 0; i < 1; i++) {
+    setenv("SPX_RASTER_SERIAL", forms[i][0], 1);
+    setenv("SPX_RASTER_CHUNK", forms[i][1], 1);
+    fprintf(stderr, "SPX_RASTER_SERIAL=%s SPX_RASTER_CHUNK=%s\n", forms[i][0], forms[i][1]);
+    SPX_RUN(test_random_meshes);
+    SPX_RUN(test_watertight);
+    SPX_RUN(test_clip_overflow);
+    SPX_RUN(test_aa);
+  }
   spx_rasterizer_destroy(R);
   spx_ctx_destroy(ctx);
   return spx_test_summary();

@@ -16,8 +16,8 @@ static const struct spx_tunable spx_tunables[] = {
     {"SPX_WG", 64, 256},
     /* mesh rasterizer: screen tile side in pixels (one work-group of TILE² items per tile) */
     {"SPX_RASTER_TILE", 16, 16},
-    /* mesh rasterizer tile kernel: 1 = a work-item per tile row (CPU), 0 = per pixel (GPU) */
-    {"SPX_RASTER_ROWS", 1, 0},
+    /* mesh rasterizer tile kernel: 1 = one work-item walks a whole tile (CPU), 0 = one per pixel (GPU) */
+    {"SPX_RASTER_SERIAL", 1, 0},
     /* mesh rasterizer setup/binning: consecutive faces per work-item (CPU: aggregate tile counts) */
     {"SPX_RASTER_CHUNK", 64, 1},
     /* mesh rasterizer shading: work-items of the grid-stride loop over covered pixels */

@@ -77,21 +77,24 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
   if (!r || !out) return spx_fail(ctx, SPX_E_ARG, "spx_raster: rasterizer or out is NULL");
   if ((st = spx_cl_require(ctx, "spx_raster"))) return st;
   cl_kernel kv, ks, kscan, kbin, kt, ksh, kd;
-  /* tile kernel form: rows (CPU) or pixels (GPU); SPX_RASTER_ROWS=0/1 overrides (tests) */
-  int rows = spx_cl_tune(ctx, "SPX_RASTER_ROWS");
-  const char *env_rows = getenv("SPX_RASTER_ROWS");
-  if (env_rows && *env_rows) rows = atoi(env_rows) != 0;
+  /* tile kernel form: per tile (CPU) or per pixel (GPU); SPX_RASTER_SERIAL=0/1 and
+   * SPX_RASTER_CHUNK=n override the device's tunables (tests run both forms) */
+  int serial = spx_cl_tune(ctx, "SPX_RASTER_SERIAL");
+  const char *env_serial = getenv("SPX_RASTER_SERIAL");
+  if (env_serial && *env_serial) serial = atoi(env_serial) != 0;
   if ((st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_vert", &kv)) ||
       (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_setup", &ks)) ||
       (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_scan", &kscan)) ||
       (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_bin", &kbin)) ||
-      (st = spx_cl_kernel(ctx, "raster.cl", rows ? "spx_raster_tile_rows" : "spx_raster_tile", &kt)) ||
+      (st = spx_cl_kernel(ctx, "raster.cl", serial ? "spx_raster_tile_serial" : "spx_raster_tile", &kt)) ||
       (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_shade", &ksh)) ||
       (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_down", &kd)))
     return st;
 
   const int TS = spx_cl_tune(ctx, "SPX_RASTER_TILE"), WG = spx_cl_tune(ctx, "SPX_WG");
-  const int chunk = spx_cl_tune(ctx, "SPX_RASTER_CHUNK");
+  cl_int chunk = spx_cl_tune(ctx, "SPX_RASTER_CHUNK");
+  const char *env_chunk = getenv("SPX_RASTER_CHUNK");
+  if (env_chunk && atoi(env_chunk) > 0) chunk = atoi(env_chunk);
   spx_rcam c0;
   spx_raster_camera(a, 0, &c0);
   const int W = c0.W, H = c0.H, W1 = a->cams[0].width, H1 = a->cams[0].height;
@@ -155,7 +158,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
           SPX_ARG(ks, 3, r->vs.mem) | SPX_ARG(ks, 4, c2) | SPX_ARG(ks, 5, Wi) | SPX_ARG(ks, 6, Hi) |
           SPX_ARG(ks, 7, txi) | SPX_ARG(ks, 8, cull) | SPX_ARG(ks, 9, cap) | SPX_ARG(ks, 10, r->rab.mem) |
           SPX_ARG(ks, 11, r->rc.mem) | SPX_ARG(ks, 12, r->rz.mem) | SPX_ARG(ks, 13, r->rbb.mem) |
-          SPX_ARG(ks, 14, r->rbary.mem) | SPX_ARG(ks, 15, r->tile_count.mem) | SPX_ARG(ks, 16, r->counters.mem);
+          SPX_ARG(ks, 14, r->rbary.mem) | SPX_ARG(ks, 15, r->tile_count.mem) | SPX_ARG(ks, 16, r->counters.mem) | SPX_ARG(ks, 17, chunk);
       if ((st = spx_cl_check(ctx, e, "spx_raster_setup"))) return st;
       g = (nf + (size_t)chunk - 1) / (size_t)chunk;
       if ((st = spx_cl_run(ctx, ks, 1, &g, &lw, "spx_raster_setup"))) return st;
@@ -179,7 +182,8 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
     if ((st = spx_cl_buf_ensure(ctx, &r->bins, ((size_t)counters[1] + 1) * 4, "raster bins"))) return st;
 
     e = SPX_ARG(kbin, 0, r->rbb.mem) | SPX_ARG(kbin, 1, nrec) | SPX_ARG(kbin, 2, txi) |
-        SPX_ARG(kbin, 3, r->cursor.mem) | SPX_ARG(kbin, 4, r->bins.mem);
+        SPX_ARG(kbin, 3, r->cursor.mem) | SPX_ARG(kbin, 4, r->bins.mem) |
+        SPX_ARG(kbin, 5, chunk);
     if ((st = spx_cl_check(ctx, e, "spx_raster_bin"))) return st;
     g = ((size_t)nrec + (size_t)chunk - 1) / (size_t)chunk;
     if ((st = spx_cl_run(ctx, kbin, 1, &g, &lw, "spx_raster_bin"))) return st;
@@ -196,7 +200,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
         SPX_ARG(kt, 10, r->counters.mem) | SPX_ARG(kt, 11, dst) | SPX_ARG(kt, 12, out_off) |
         SPX_ARG(kt, 13, mode) | SPX_ARG(kt, 14, r->win.mem) | SPX_ARG(kt, 15, win_off) | SPX_ARG(kt, 16, hw);
     if ((st = spx_cl_check(ctx, e, "spx_raster_tile"))) return st;
-    size_t tl = rows ? 1 : (size_t)TS * TS, tg = (size_t)ntiles * tl;
+    size_t tl = serial ? 1 : (size_t)TS * TS, tg = (size_t)ntiles * tl;
     if ((st = spx_cl_run(ctx, kt, 1, &tg, &tl, "spx_raster_tile"))) return st;
     prof(ctx, "spx_raster_tile");
 
