@@ -3,6 +3,9 @@
  * textured + AA 2x. Times spx_raster (upload of positions and colors + all kernels + read-back;
  * faces, uv and texture stay resident like GL buffer/texture objects; median of N frames)
  * against the single-threaded plain-C reference in the same run, and checks they agree.
+ * The peer: the same frames through OpenGL ES 3 / EGL (Mesa llvmpipe here, loaded at run time;
+ * raster_gl_peer.h), float RGBA target (R,G,B,depth like ours), or an 8-bit colour target with
+ * SPX_BENCH_GL_RGBA8=1. SPX_BENCH_NO_GL=1 skips it; SPX_BENCH_ONLY=LEVEL:MODE runs one row.
  * Usage: bench_raster [frames (default 21)] [mesh.obj] */
 #include <math.h>
 #include <stdio.h>
@@ -12,6 +15,7 @@
 #include "core/internal.h"
 #include "smplpix/smplpix.h"
 #include "smplpix/mesh.h"
+#include "raster_gl_peer.h"
 
 static int cmp_d(const void *a, const void *b) {
   double x = *(const double *)a, y = *(const double *)b;
@@ -66,8 +70,8 @@ int main(int argc, char **argv) {
     }
 
   printf("device: %s (%s)\n", info.name, info.platform);
-  printf("%-8s %7s %7s  %-12s %10s %10s %7s  %s\n", "mesh", "verts", "faces", "mode", "device ms", "ref ms",
-         "ref/dev", "check");
+  printf("%-8s %7s %7s  %-12s %9s %9s %7s %9s %7s  %s\n", "mesh", "verts", "faces", "mode", "device ms", "ref ms",
+         "ref/dev", "GL ms", "GL/dev", "check");
   for (int level = 0; level <= 2; level++) {
     spx_mesh m;
     memset(&m, 0, sizeof m);
@@ -113,15 +117,41 @@ int main(int argc, char **argv) {
         if (spx_raster_ref(ctx, &a, o2, NULL)) DIE("raster_ref");
         tr[f] = spx_now() - t0;
       }
+      /* the GL peer (llvmpipe here), same frames, same camera */
+      double mg = 0;
+      size_t gl_diff = 0;
+      char why[256] = "";
+      glp g;
+      memset(&g, 0, sizeof g);
+      if (!getenv("SPX_BENCH_NO_GL") && glp_init(&g, 410, 308, a.aa, why, sizeof why) &&
+          glp_setup(&g, m.nv, m.nf, m.faces, mode ? uv : NULL, TW, TH, mode ? tex : NULL, &cam)) {
+        float *o3 = malloc(n * 4);
+        double *tg = malloc(sizeof(double) * frames);
+        for (int w = 0; w < 3; w++) glp_frame(&g, m.pos, col, o3);
+        for (int f = 0; f < frames; f++) {
+          double t0 = spx_now();
+          glp_frame(&g, m.pos, col, o3);
+          tg[f] = spx_now() - t0;
+        }
+        mg = median(tg, frames) * 1e3;
+        if (!g.rgba8) /* background depth is exactly 1 in both */
+          for (size_t i = 3; i < n; i += 4) gl_diff += (o3[i] == 1.0f) != (o2[i] == 1.0f);
+        free(o3);
+        free(tg);
+      } else if (level == 0 && mode == 0) {
+        printf("(no GL peer: %s)\n", why);
+      }
+      glp_free(&g);
       double worst = 0;
       size_t drawn = 0;
       for (size_t i = 0; i < n; i++) worst = fmax(worst, fabs((double)o1[i] - o2[i]));
       for (size_t i = 3; i < n; i += 4) drawn += o2[i] != 1.0f;
       double md = median(td, frames) * 1e3, mr = median(tr, frames) * 1e3;
       static const char *names[] = {"colors", "textured", "textured+aa2"};
-      printf("%-8s %7d %7d  %-12s %10.2f %10.2f %7.2f  max|dev-ref| %.1e, %zu px drawn\n",
-             level == 0 ? "body" : level == 1 ? "body-s1" : "body-s2", m.nv, m.nf, names[mode], md, mr, mr / md,
-             worst, drawn);
+      printf("%-8s %7d %7d  %-12s %9.2f %9.2f %7.2f %9.2f %7.2f  max|dev-ref| %.1e, %zu px drawn, %zu px "
+             "coverage differ from GL\n",
+             level == 0 ? "body" : level == 1 ? "body-s1" : "body-s2", m.nv, m.nf, names[mode], md, mr, mr / md, mg,
+             mg / md, worst, drawn, gl_diff);
       fflush(stdout);
       free(o1);
       free(o2);
