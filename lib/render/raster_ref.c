@@ -68,8 +68,8 @@ spx_status spx_raster_check_args(spx_ctx *ctx, const char *fn, const spx_raster_
     if (a->wrap != SPX_WRAP_REPEAT && a->wrap != SPX_WRAP_CLAMP)
       return spx_fail(ctx, SPX_E_ARG, "%s: unknown wrap mode %d", fn, (int)a->wrap);
     if (!finite_all(a->uv, (size_t)a->nuv * 2)) return spx_fail(ctx, SPX_E_NUMERIC, "%s: uv has NaN or Inf", fn);
-    if (!finite_all(a->tex, (size_t)a->tex_width * a->tex_height * a->tex_channels))
-      return spx_fail(ctx, SPX_E_NUMERIC, "%s: texture has NaN or Inf", fn);
+    /* texel values are not checked (a NaN texel gives NaN colours, nothing worse): a large
+     * resident texture is not scanned every frame */
     for (size_t i = 0; i < (size_t)a->nfaces * 3; i++)
       if (a->face_uv[i] < 0 || a->face_uv[i] >= a->nuv)
         return spx_fail(ctx, SPX_E_ARG, "%s: face %zu: uv index %d outside 0..%d", fn, i / 3, (int)a->face_uv[i],
