@@ -72,8 +72,9 @@ __kernel void spx_raster_vert(__global const float *pos, int nv, float16 cm, flo
     s.y = snap(SPX_DIV(h.y, h.z));
     id = SPX_DIV(1.0f, h.z);
   }
-  vh[i] = (float4)(h, id);
-  vs[i] = s;
+  s.w = as_int(id);
+  vh[i] = (float4)(h, 0.0f);
+  vs[i] = s; /* (X, Y, outcode, bits of 1/d): all an unclipped face needs, one 16-byte load */
 }
 
 /* Triangle records (struct of arrays, index = face for a face's first sub-triangle, nf + k for
@@ -149,7 +150,7 @@ inline void setup_face(int f, __global const int *faces, int nf, __global const 
   if (oci) return;
   float8 id8 = (float8)(0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f);
   if (!ocu) {
-    emit(f, cap, f, cull, W, H, tiles_x, sa.x, sa.y, sb.x, sb.y, sc.x, sc.y, vh[ia].w, vh[ib].w, vh[ic].w, 0, id8,
+    emit(f, cap, f, cull, W, H, tiles_x, sa.x, sa.y, sb.x, sb.y, sc.x, sc.y, as_float(sa.w), as_float(sb.w), as_float(sc.w), 0, id8,
          rab, rc, rz, rbb, rbary, tile_count, counters, run);
     return;
   }
@@ -236,29 +237,29 @@ __kernel void spx_raster_setup(__global const int *faces, int nf, __global const
 __kernel __attribute__((reqd_work_group_size(SPX_WG, 1, 1))) void
 spx_raster_scan(__global const int *cnt, int n, __global int *start, __global int *cursor,
                 __global int *counters) {
-  __local int tmp[SPX_WG];
+  __local long tmp[SPX_WG];
   int l = (int)get_local_id(0);
-  int carry = 0;
+  long carry = 0; /* 64-bit: a total past INT_MAX is reported as -1 instead of wrapping */
   for (int base = 0; base < n; base += SPX_WG) {
-    int v = base + l < n ? cnt[base + l] : 0;
+    long v = base + l < n ? cnt[base + l] : 0;
     tmp[l] = v;
     barrier(CLK_LOCAL_MEM_FENCE);
     for (int off = 1; off < SPX_WG; off <<= 1) {
-      int t = l >= off ? tmp[l - off] : 0;
+      long t = l >= off ? tmp[l - off] : 0;
       barrier(CLK_LOCAL_MEM_FENCE);
       tmp[l] += t;
       barrier(CLK_LOCAL_MEM_FENCE);
     }
     if (base + l < n) {
-      start[base + l] = carry + tmp[l] - v;
-      cursor[base + l] = carry + tmp[l] - v;
+      start[base + l] = (int)(carry + tmp[l] - v);
+      cursor[base + l] = (int)(carry + tmp[l] - v);
     }
     carry += tmp[SPX_WG - 1];
     barrier(CLK_LOCAL_MEM_FENCE);
   }
   if (l == 0) {
-    start[n] = carry;
-    counters[1] = carry;
+    start[n] = (int)carry;
+    counters[1] = carry > INT_MAX ? -1 : (int)carry;
   }
 }
 
