@@ -17,7 +17,12 @@
  * decide snapped positions are correctly rounded (through double when the device has
  * cl_khr_fp64; otherwise the device's float division, exact on PoCL, not guaranteed elsewhere),
  * so they are the same bits as the reference's float division. */
-#ifdef cl_khr_fp64
+/* Correctly rounded division: the device's '/' when the build asked for it (SPX_CR_DIV=1 with
+ * -cl-fp32-correctly-rounded-divide-sqrt, see lib/cl/tuning.c), else through double (the
+ * binary64 quotient rounded to binary32 is the correctly rounded one), else plain '/'. */
+#if defined(SPX_CR_DIV) && SPX_CR_DIV && !defined(SPX_FORCE_DIV_FALLBACK)
+#define SPX_DIV(a, b) ((a) / (b))
+#elif defined(cl_khr_fp64)
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #define SPX_DIV(a, b) ((float)((double)(a) / (double)(b)))
 #else
@@ -33,15 +38,17 @@
 #define SNAP_MAX 536870911.0f
 #define MAXPOLY 9
 
-/* camera: cm.s0-s8 = R, s9-sb = t, sc = fx, sd = K01, se = cx, sf = fy; c2 = (cy, znear, W, H) */
+/* camera: cm.s0-s8 = R, s9-sb = t, sc-sf = K00 K01 K02 K10; ck = (K11, K12, K20, K21, K22, znear, W, H)
+ * (K scaled by aa in its first two rows). Arithmetic as the projection (kernels/project.cl):
+ *   p_r = ((R[r][0]*x + R[r][1]*y) + R[r][2]*z) + t[r],  q_r = (K[r][0]*p0 + K[r][1]*p1) + K[r][2]*p2 */
 
-inline float plane_dist(int j, float3 h, float4 c2) {
+inline float plane_dist(int j, float3 h, float8 ck) {
   switch (j) {
-  case 0: return h.z - c2.y;
+  case 0: return h.z - ck.s5;
   case 1: return h.x + GUARD * h.z;
-  case 2: return (c2.z + GUARD) * h.z - h.x;
+  case 2: return (ck.s6 + GUARD) * h.z - h.x;
   case 3: return h.y + GUARD * h.z;
-  default: return (c2.w + GUARD) * h.z - h.y;
+  default: return (ck.s7 + GUARD) * h.z - h.y;
   }
 }
 
@@ -53,7 +60,7 @@ inline int snap(float u) {
 
 inline int floor_div256(int a) { return a >= 0 ? a / 256 : -((-a + 255) / 256); }
 
-__kernel void spx_raster_vert(__global const float *pos, int nv, float16 cm, float4 c2, __global float4 *vh,
+__kernel void spx_raster_vert(__global const float *pos, int nv, float16 cm, float8 ck, __global float4 *vh,
                               __global int4 *vs) {
   int i = SPX_GID0;
   if (i >= nv) return;
@@ -61,10 +68,11 @@ __kernel void spx_raster_vert(__global const float *pos, int nv, float16 cm, flo
   float p0 = ((cm.s0 * x + cm.s1 * y) + cm.s2 * z) + cm.s9;
   float p1 = ((cm.s3 * x + cm.s4 * y) + cm.s5 * z) + cm.sa;
   float p2 = ((cm.s6 * x + cm.s7 * y) + cm.s8 * z) + cm.sb;
-  float3 h = (float3)((cm.sc * p0 + cm.sd * p1) + cm.se * p2, cm.sf * p1 + c2.x * p2, p2);
+  float3 h = (float3)((cm.sc * p0 + cm.sd * p1) + cm.se * p2, (cm.sf * p0 + ck.s0 * p1) + ck.s1 * p2,
+                      (ck.s2 * p0 + ck.s3 * p1) + ck.s4 * p2);
   int oc = 0;
   for (int j = 0; j < 5; j++)
-    if (plane_dist(j, h, c2) < 0.0f) oc |= 1 << j;
+    if (plane_dist(j, h, ck) < 0.0f) oc |= 1 << j;
   int4 s = (int4)(0, 0, oc, 0);
   float id = 0.0f;
   if (!oc) {
@@ -140,7 +148,7 @@ inline void emit(int slot, int cap, int face, int cull, int W, int H, int tiles_
 /* counters[0]: extra records claimed by clipped faces (counters[1], the total bin entries, is
  * written by spx_raster_scan). */
 inline void setup_face(int f, __global const int *faces, int nf, __global const float4 *vh,
-                       __global const int4 *vs, float4 c2, int W, int H, int tiles_x, int cull, int cap,
+                       __global const int4 *vs, float8 ck, int W, int H, int tiles_x, int cull, int cap,
                        __global int8 *rab, __global long4 *rc, __global float4 *rz, __global int4 *rbb,
                        __global float8 *rbary, __global int *tile_count, __global int *counters, int *run) {
   int ia = faces[3 * f], ib = faces[3 * f + 1], ic = faces[3 * f + 2];
@@ -166,7 +174,7 @@ inline void setup_face(int f, __global const int *faces, int nf, __global const 
     int m = 0, nx = cur ^ 1;
     for (int k = 0; k < n; k++) {
       int p = k == 0 ? n - 1 : k - 1;
-      float dp = plane_dist(j, ph[cur][p], c2), dc = plane_dist(j, ph[cur][k], c2);
+      float dp = plane_dist(j, ph[cur][p], ck), dc = plane_dist(j, ph[cur][k], ck);
       int inp = dp >= 0.0f, inc = dc >= 0.0f;
       if (inc != inp) {
         int ii = inc ? k : p, io = inc ? p : k;
@@ -219,7 +227,7 @@ inline void setup_face(int f, __global const int *faces, int nf, __global const 
 /* One work-item per `chunk` consecutive faces (chunks > 1 let the CPU aggregate the
  * tile counts of neighbouring faces). */
 __kernel void spx_raster_setup(__global const int *faces, int nf, __global const float4 *vh,
-                               __global const int4 *vs, float4 c2, int W, int H, int tiles_x, int cull, int cap,
+                               __global const int4 *vs, float8 ck, int W, int H, int tiles_x, int cull, int cap,
                                __global int8 *rab, __global long4 *rc, __global float4 *rz, __global int4 *rbb,
                                __global float8 *rbary, __global int *tile_count, __global int *counters,
                                int chunk) {
@@ -227,7 +235,7 @@ __kernel void spx_raster_setup(__global const int *faces, int nf, __global const
   if (f0 >= nf) return;
   int run[2] = {-1, 0};
   for (int f = f0; f < min(f0 + chunk, nf); f++)
-    setup_face(f, faces, nf, vh, vs, c2, W, H, tiles_x, cull, cap, rab, rc, rz, rbb, rbary, tile_count, counters,
+    setup_face(f, faces, nf, vh, vs, ck, W, H, tiles_x, cull, cap, rab, rc, rz, rbb, rbary, tile_count, counters,
                run);
   count_tile(tile_count, run, -1);
 }

@@ -139,10 +139,10 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
     cl_float16 cm;
     for (int i = 0; i < 9; i++) cm.s[i] = c.R[i];
     cm.s[9] = c.t[0], cm.s[10] = c.t[1], cm.s[11] = c.t[2];
-    cm.s[12] = c.fx, cm.s[13] = c.k01, cm.s[14] = c.cx, cm.s[15] = c.fy;
-    cl_float4 c2 = {{c.cy, c.znear, (float)W, (float)H}};
+    for (int i = 0; i < 4; i++) cm.s[12 + i] = c.K[i];
+    cl_float8 ck = {{c.K[4], c.K[5], c.K[6], c.K[7], c.K[8], c.znear, (float)W, (float)H}};
     cl_int nvi = a->nverts, nfi = a->nfaces, Wi = W, Hi = H, txi = tiles_x, cull = (cl_int)a->cull;
-    cl_int e = SPX_ARG(kv, 0, r->pos.mem) | SPX_ARG(kv, 1, nvi) | SPX_ARG(kv, 2, cm) | SPX_ARG(kv, 3, c2) |
+    cl_int e = SPX_ARG(kv, 0, r->pos.mem) | SPX_ARG(kv, 1, nvi) | SPX_ARG(kv, 2, cm) | SPX_ARG(kv, 3, ck) |
                SPX_ARG(kv, 4, r->vh.mem) | SPX_ARG(kv, 5, r->vs.mem);
     if ((st = spx_cl_check(ctx, e, "spx_raster_vert"))) return st;
     size_t lw = (size_t)WG, g = nv;
@@ -155,7 +155,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
       if ((st = zero_ints(ctx, r->tile_count.mem, (size_t)ntiles)) || (st = zero_ints(ctx, r->counters.mem, 4)))
         return st;
       e = SPX_ARG(ks, 0, r->faces.mem) | SPX_ARG(ks, 1, nfi) | SPX_ARG(ks, 2, r->vh.mem) |
-          SPX_ARG(ks, 3, r->vs.mem) | SPX_ARG(ks, 4, c2) | SPX_ARG(ks, 5, Wi) | SPX_ARG(ks, 6, Hi) |
+          SPX_ARG(ks, 3, r->vs.mem) | SPX_ARG(ks, 4, ck) | SPX_ARG(ks, 5, Wi) | SPX_ARG(ks, 6, Hi) |
           SPX_ARG(ks, 7, txi) | SPX_ARG(ks, 8, cull) | SPX_ARG(ks, 9, cap) | SPX_ARG(ks, 10, r->rab.mem) |
           SPX_ARG(ks, 11, r->rc.mem) | SPX_ARG(ks, 12, r->rz.mem) | SPX_ARG(ks, 13, r->rbb.mem) |
           SPX_ARG(ks, 14, r->rbary.mem) | SPX_ARG(ks, 15, r->tile_count.mem) | SPX_ARG(ks, 16, r->counters.mem) | SPX_ARG(ks, 17, chunk);

@@ -10,7 +10,7 @@
 /* A camera in the float form both paths use (K scaled by aa, size multiplied by aa). */
 typedef struct spx_rcam {
   float R[9], t[3];
-  float fx, k01, cx, fy, cy;
+  float K[9]; /* rows 0 and 1 scaled by aa */
   float znear;
   int32_t W, H; /* render size (aa * camera size) */
 } spx_rcam;

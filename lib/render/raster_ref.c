@@ -4,6 +4,7 @@
  * for bit; see smplpix/raster.h for the semantics. */
 #include <limits.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -36,19 +37,12 @@ spx_status spx_raster_check_args(spx_ctx *ctx, const char *fn, const spx_raster_
   if (!(a->znear >= 0.0f) || !isfinite(a->znear) || (a->znear != 0.0f && a->znear < 1e-12f))
     return spx_fail(ctx, SPX_E_ARG, "%s: znear must be 0 (default) or a finite value >= 1e-12", fn);
   for (int c = 0; c < a->ncams; c++) {
-    const spx_camera *k = &a->cams[c];
-    if (k->width <= 0 || k->height <= 0 || k->width > SPX_CAMERA_MAX_SIZE || k->height > SPX_CAMERA_MAX_SIZE)
-      return spx_fail(ctx, SPX_E_CAMERA, "%s: camera %d: size %dx%d outside 1..%d", fn, c, (int)k->width,
-                      (int)k->height, SPX_CAMERA_MAX_SIZE);
-    if (k->width != a->cams[0].width || k->height != a->cams[0].height)
+    char name[64];
+    snprintf(name, sizeof name, "%s: camera %d", fn, c);
+    spx_status st = spx_camera_validate(ctx, name, &a->cams[c]); /* the projection's camera rules */
+    if (st) return st;
+    if (a->cams[c].width != a->cams[0].width || a->cams[c].height != a->cams[0].height)
       return spx_fail(ctx, SPX_E_CAMERA, "%s: camera %d: size differs from camera 0", fn, c);
-    for (int i = 0; i < 9; i++)
-      if (!isfinite(k->K[i / 3][i % 3]) || !isfinite(k->R[i / 3][i % 3]))
-        return spx_fail(ctx, SPX_E_CAMERA, "%s: camera %d: K or R not finite", fn, c);
-    if (!isfinite(k->t[0]) || !isfinite(k->t[1]) || !isfinite(k->t[2]))
-      return spx_fail(ctx, SPX_E_CAMERA, "%s: camera %d: t not finite", fn, c);
-    if (!(k->K[0][0] > 0) || !(k->K[1][1] > 0))
-      return spx_fail(ctx, SPX_E_CAMERA, "%s: camera %d: focal lengths must be positive", fn, c);
   }
   size_t n3;
   if (!spx_mul_size((size_t)a->nverts, 3, &n3)) return spx_fail(ctx, SPX_E_ARG, "%s: nverts too large", fn);
@@ -87,11 +81,7 @@ void spx_raster_camera(const spx_raster_args *a, int cam, spx_rcam *o) {
   float s = (float)a->aa;
   for (int i = 0; i < 9; i++) o->R[i] = (float)c->R[i / 3][i % 3];
   for (int i = 0; i < 3; i++) o->t[i] = (float)c->t[i];
-  o->fx = (float)c->K[0][0] * s;
-  o->k01 = (float)c->K[0][1] * s;
-  o->cx = (float)c->K[0][2] * s;
-  o->fy = (float)c->K[1][1] * s;
-  o->cy = (float)c->K[1][2] * s;
+  for (int i = 0; i < 9; i++) o->K[i] = (float)c->K[i / 3][i % 3] * (i < 6 ? s : 1.0f);
   o->znear = a->znear > 0 ? a->znear : SPX_RASTER_ZNEAR;
   o->W = c->width * a->aa;
   o->H = c->height * a->aa;
@@ -103,9 +93,9 @@ static void project(const spx_rcam *c, const float *x, float h[3]) {
   float p0 = ((c->R[0] * x[0] + c->R[1] * x[1]) + c->R[2] * x[2]) + c->t[0];
   float p1 = ((c->R[3] * x[0] + c->R[4] * x[1]) + c->R[5] * x[2]) + c->t[1];
   float p2 = ((c->R[6] * x[0] + c->R[7] * x[1]) + c->R[8] * x[2]) + c->t[2];
-  h[0] = (c->fx * p0 + c->k01 * p1) + c->cx * p2;
-  h[1] = c->fy * p1 + c->cy * p2;
-  h[2] = p2;
+  h[0] = (c->K[0] * p0 + c->K[1] * p1) + c->K[2] * p2;
+  h[1] = (c->K[3] * p0 + c->K[4] * p1) + c->K[5] * p2;
+  h[2] = (c->K[6] * p0 + c->K[7] * p1) + c->K[8] * p2;
 }
 
 static float plane_dist(int j, const float h[3], const spx_rcam *c) {

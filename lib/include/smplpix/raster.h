@@ -2,9 +2,9 @@
  * output as the point projection (render.h): RGB-D images, background (1,1,1,1), HWC or NCHW.
  *
  * Semantics (identical in spx_raster and spx_raster_ref; coverage and winners bit for bit):
- *  - Vertices: p = R x + t, (u', v', d) = K p in float with the projection's arithmetic order:
- *    p_i = ((R_i0 x + R_i1 y) + R_i2 z) + t_i, u' = (K00 p0 + K01 p1) + K02 p2,
- *    v' = K11 p1 + K12 p2, d = p2; u = u'/d, v = v'/d (correctly rounded division).
+ *  - Vertices: p = R x + t, (u', v', d) = K p in float with the projection's arithmetic
+ *    (kernels/project.cl): p_r = ((R_r0 x + R_r1 y) + R_r2 z) + t_r,
+ *    q_r = (K_r0 p0 + K_r1 p1) + K_r2 p2 = (u', v', d); u = u'/d, v = v'/d correctly rounded.
  *  - Clipping: triangles are clipped (Sutherland-Hodgman, in (u',v',d) space) against the near
  *    plane d >= znear (default SPX_RASTER_ZNEAR) and a guard band SPX_RASTER_GUARD pixels
  *    around the image, then fan-triangulated; attributes follow the original triangle.
