@@ -2,6 +2,7 @@
  * and is readable on the host with spx_cl_tune(), so launch sizes and kernel code agree.
  * Add a row here when a kernel grows a tunable; keep CPU and GPU values measured. */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "cl/cl_internal.h"
@@ -14,7 +15,7 @@ struct spx_tunable {
 static const struct spx_tunable spx_tunables[] = {
     /* generic 1-D work-group size for elementwise kernels */
     {"SPX_WG", 64, 256},
-    /* mesh rasterizer: screen tile side in pixels (one work-group of TILE² items per tile) */
+    /* mesh rasterizer (kernels/raster.cl): screen tile side in pixels */
     {"SPX_RASTER_TILE", 16, 16},
     /* mesh rasterizer tile kernel: 1 = one work-item walks a whole tile (CPU), 0 = one per pixel (GPU) */
     {"SPX_RASTER_SERIAL", 1, 0},
@@ -22,6 +23,16 @@ static const struct spx_tunable spx_tunables[] = {
     {"SPX_RASTER_CHUNK", 64, 1},
     /* mesh rasterizer shading: work-items of the grid-stride loop over covered pixels */
     {"SPX_RASTER_SHADE_ITEMS", 256, 65536},
+    /* radix sort (kernels/radix_sort.cl): digit bits per pass, work-group size, keys per
+     * work-item; local memory of the scatter = 4 * 2^BITS * WG bytes */
+    {"SPX_SORT_BITS", 8, 4},
+    {"SPX_SORT_WG", 64, 256},
+    {"SPX_SORT_ITEMS", 16, 4},
+    /* up to this many keys, the whole sort runs in one work-group launch (no scan passes) */
+    {"SPX_SORT_SINGLE_MAX", 32768, 8192},
+    /* projection (kernels/project.cl): up to this many projected points (B*C*N) the fused path
+     * runs (project+background fill, then one single-work-group sort+unique+scatter launch) */
+    {"SPX_PROJ_FAST_MAX", 32768, 8192},
 };
 
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {
@@ -38,4 +49,18 @@ void spx_cl_build_options(spx_ctx *ctx) {
                         ctx->info.kind == SPX_DEVICE_CPU ? "CPU" : "GPU");
   for (size_t i = 0; i < sizeof spx_tunables / sizeof spx_tunables[0] && n < cap; i++)
     n += (size_t)snprintf(o + n, cap - n, " -D%s=%d", spx_tunables[i].name, spx_cl_tune(ctx, spx_tunables[i].name));
+  /* Bit-exact kernels (projection) need a correctly rounded fp32 '/'. When the device offers it,
+   * ask for it; otherwise kernels see SPX_CR_DIV=0 and divide in double (a/b computed in binary64
+   * and rounded to binary32 is the correctly rounded binary32 quotient, since 53 >= 2*24+2). */
+  cl_device_fp_config fp = 0;
+  int cr = clGetDeviceInfo(ctx->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS &&
+           (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT);
+  ctx->cr_div = cr;
+  if (n < cap)
+    n += (size_t)snprintf(o + n, cap - n, cr ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
+  if (n < cap && getenv("SPX_FORCE_DIV_FALLBACK") && ctx->info.fp64) {
+    /* testing hook: exercise the double-division path on a device that has both */
+    ctx->cr_div = 0;
+    snprintf(o + n, cap - n, " -DSPX_FORCE_DIV_FALLBACK=1");
+  }
 }
