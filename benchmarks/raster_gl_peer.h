@@ -2,7 +2,8 @@
  * machine Mesa's llvmpipe), loaded at run time with dlopen so the benchmark builds and runs
  * without it. Per frame, like spx_raster: upload positions and colors, draw (indices, uv and
  * texture resident), read back an RGBA float image (R,G,B, interpolated camera depth). The
- * camera is the same pinhole model, written as a clip-space transform in the vertex shader. */
+ * camera is the same pinhole model, written as a clip-space transform in the vertex shader.
+ * Textures: float RGB, bilinear, repeat (as ours; no mipmaps). */
 #ifndef SPX_RASTER_GL_PEER_H
 #define SPX_RASTER_GL_PEER_H
 
@@ -202,22 +203,36 @@ static int glp_setup(glp *g, int nv, int nf, const int32_t *faces, const float *
   g->glBufferData(0x8893, (intptr_t)nf * 12, faces, 0x88E4 /* STATIC */);
   g->glUniform1i(g->glGetUniformLocation(g->prog, "textured"), tex != NULL);
   if (tex) {
-    unsigned char *t8 = malloc((size_t)tw * th * 4);
-    if (!t8) return 0;
-    for (size_t i = 0; i < (size_t)tw * th; i++) /* GL's first row is v = 0 (bottom): flip */
+    /* GL's first texture row is v = 0 (the bottom): flip. Float RGB like ours, or RGBA8 with
+     * SPX_BENCH_GL_RGBA8 (the lighter configuration) */
+    size_t ntx = (size_t)tw * th;
+    unsigned char *t8 = malloc(ntx * 4);
+    float *tf = malloc(ntx * 3 * sizeof(float));
+    if (!t8 || !tf) {
+      free(t8);
+      free(tf);
+      return 0;
+    }
+    for (size_t i = 0; i < ntx; i++) {
+      size_t x = i % (size_t)tw, y = i / (size_t)tw, src = ((size_t)(th - 1 - y) * tw + x) * 3;
       for (int ch = 0; ch < 4; ch++) {
-        size_t x = i % (size_t)tw, y = i / (size_t)tw, src = ((size_t)(th - 1 - y) * tw + x) * 3 + (size_t)ch;
-        float v = ch < 3 ? tex[src] : 1.0f;
+        float v = ch < 3 ? tex[src + (size_t)ch] : 1.0f;
         t8[i * 4 + (size_t)ch] = (unsigned char)(v <= 0 ? 0 : v >= 1 ? 255 : v * 255.0f + 0.5f);
+        if (ch < 3) tf[i * 3 + (size_t)ch] = v;
       }
+    }
     g->glBindTexture(0x0DE1 /* TEXTURE_2D */, g->tex);
-    g->glTexImage2D(0x0DE1, 0, 0x8058 /* RGBA8 */, tw, th, 0, 0x1908 /* RGBA */, 0x1401 /* UNSIGNED_BYTE */, t8);
+    if (g->rgba8)
+      g->glTexImage2D(0x0DE1, 0, 0x8058 /* RGBA8 */, tw, th, 0, 0x1908 /* RGBA */, 0x1401 /* UNSIGNED_BYTE */, t8);
+    else
+      g->glTexImage2D(0x0DE1, 0, 0x8815 /* RGB32F */, tw, th, 0, 0x1907 /* RGB */, 0x1406 /* FLOAT */, tf);
+    free(t8);
+    free(tf);
     g->glTexParameteri(0x0DE1, 0x2801 /* MIN_FILTER */, 0x2601 /* LINEAR */);
     g->glTexParameteri(0x0DE1, 0x2800 /* MAG_FILTER */, 0x2601);
     g->glTexParameteri(0x0DE1, 0x2802 /* WRAP_S */, 0x2901 /* REPEAT */);
     g->glTexParameteri(0x0DE1, 0x2803 /* WRAP_T */, 0x2901);
     g->glUniform1i(g->glGetUniformLocation(g->prog, "tex"), 0);
-    free(t8);
   }
   float cam[17];
   for (int i = 0; i < 9; i++) cam[i] = (float)c->R[i / 3][i % 3];
