@@ -22,7 +22,7 @@ static const struct spx_tunable spx_tunables[] = {
     /* mesh rasterizer setup/binning: consecutive faces per work-item (CPU: aggregate tile counts) */
     {"SPX_RASTER_CHUNK", 64, 1},
     /* mesh rasterizer shading: work-items of the grid-stride loop over covered pixels */
-    {"SPX_RASTER_SHADE_ITEMS", 256, 65536},
+    {"SPX_RASTER_SHADE_ITEMS", 65536, 65536},
     /* radix sort (kernels/radix_sort.cl): digit bits per pass, work-group size, keys per
      * work-item; local memory of the scatter = 4 * 2^BITS * WG bytes */
     {"SPX_SORT_BITS", 8, 4},
