@@ -1,23 +1,12 @@
 /* Mesh rasterizer on the device (kernels/raster.cl): per-vertex projection, per-face setup
  * with clipping, binning into SPX_RASTER_TILE² screen tiles (count → scan → fill), one
  * work-group per tile with deferred shading. Plain-C reference: raster_ref.c. */
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cl/cl_internal.h"
 #include "render/raster_internal.h"
-#include <stdio.h>
-#include <time.h>
-static double prof_t0, prof_c0;
-static void prof(spx_ctx *ctx, const char *what) {
-  if (!getenv("SPX_RASTER_PROFILE")) return;
-  clFinish(ctx->queue);
-  struct timespec ts;
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  double t = spx_now(), c = ts.tv_sec + ts.tv_nsec * 1e-9;
-  if (*what) fprintf(stderr, "  %-8s %.3f ms %.3f\n", what, (t - prof_t0) * 1e3, (c - prof_c0) * 1e3);
-  prof_t0 = t, prof_c0 = c;
-}
 
 struct spx_rasterizer {
   spx_ctx *ctx;
@@ -29,7 +18,17 @@ struct spx_rasterizer {
   size_t static_sizes[4];
   spx_cl_buf tile_count, tile_start, cursor; /* per tile */
   spx_cl_buf counters, bins, cover, hi, out, win;
+  int profile;     /* $SPX_RASTER_PROFILE set: finish and print the wall time of each stage */
+  double prof_t0;
 };
+
+static void prof(spx_ctx *ctx, spx_rasterizer *r, const char *what) {
+  if (!r->profile) return;
+  clFinish(ctx->queue);
+  double t = spx_now();
+  if (*what) fprintf(stderr, "  %-8s %.3f ms\n", what, (t - r->prof_t0) * 1e3);
+  r->prof_t0 = t;
+}
 
 spx_status spx_rasterizer_create(spx_ctx *ctx, spx_rasterizer **out) {
   *out = NULL;
@@ -59,6 +58,7 @@ static spx_status upload(spx_ctx *ctx, spx_cl_buf *b, const void *src, size_t by
 
 static spx_status ensure_records(spx_ctx *ctx, spx_rasterizer *r, size_t n) {
   spx_status st;
+  r->rec_cap = 0; /* until all five are there (a failed growth leaves one released) */
   if ((st = spx_cl_buf_ensure(ctx, &r->rab, n * 32, "raster records")) ||
       (st = spx_cl_buf_ensure(ctx, &r->rc, n * 32, "raster records")) ||
       (st = spx_cl_buf_ensure(ctx, &r->rz, n * 16, "raster records")) ||
@@ -101,8 +101,10 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
   const int tiles_x = (W + TS - 1) / TS, tiles_y = (H + TS - 1) / TS, ntiles = tiles_x * tiles_y;
   const size_t nv = (size_t)a->nverts, nf = (size_t)a->nfaces, img = (size_t)W1 * H1 * 4;
   const int has_col = a->col != NULL, has_tex = a->tex != NULL, has_win = faces_out != NULL;
+  const char *env_prof = getenv("SPX_RASTER_PROFILE");
+  r->profile = env_prof && *env_prof && strcmp(env_prof, "0");
 
-  prof(ctx, "");
+  prof(ctx, r, "");
   size_t sizes[4] = {nf * 12, has_tex ? (size_t)a->nuv * 8 : 0, has_tex ? nf * 12 : 0,
                      has_tex ? (size_t)a->tex_width * a->tex_height * a->tex_channels * 4 : 0};
   int resident = a->static_id && a->static_id == r->static_id && !memcmp(sizes, r->static_sizes, sizeof sizes);
@@ -127,8 +129,8 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
       (st = spx_cl_buf_ensure(ctx, &r->cover, (size_t)W * H * 8, "raster covered pixels")) ||
       (st = spx_cl_buf_ensure(ctx, &r->hi, a->aa > 1 ? (size_t)W * H * 16 : 4, "raster supersampled image")))
     return st;
-  prof(ctx, "upload");
-  if (r->rec_cap < nf + 64 || !r->rab.mem) {
+  prof(ctx, r, "upload");
+  if (r->rec_cap < nf + 64) {
     size_t want = nf + (nf / 16 > 256 ? nf / 16 : 256);
     if ((st = ensure_records(ctx, r, want > r->rec_cap ? want : r->rec_cap))) return st;
   }
@@ -147,7 +149,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
     if ((st = spx_cl_check(ctx, e, "spx_raster_vert"))) return st;
     size_t lw = (size_t)WG, g = nv;
     if ((st = spx_cl_run(ctx, kv, 1, &g, &lw, "spx_raster_vert"))) return st;
-    prof(ctx, "spx_raster_vert");
+    prof(ctx, r, "spx_raster_vert");
 
     cl_int counters[4], ntl = ntiles;
     for (int attempt = 0;; attempt++) {
@@ -162,16 +164,16 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
       if ((st = spx_cl_check(ctx, e, "spx_raster_setup"))) return st;
       g = (nf + (size_t)chunk - 1) / (size_t)chunk;
       if ((st = spx_cl_run(ctx, ks, 1, &g, &lw, "spx_raster_setup"))) return st;
-      prof(ctx, "spx_raster_setup");
+      prof(ctx, r, "spx_raster_setup");
       /* tile starts; the scan also writes the total bin entries into counters[1] */
       e = SPX_ARG(kscan, 0, r->tile_count.mem) | SPX_ARG(kscan, 1, ntl) | SPX_ARG(kscan, 2, r->tile_start.mem) |
           SPX_ARG(kscan, 3, r->cursor.mem) | SPX_ARG(kscan, 4, r->counters.mem);
       if ((st = spx_cl_check(ctx, e, "spx_raster_scan"))) return st;
       g = lw;
       if ((st = spx_cl_run(ctx, kscan, 1, &g, &lw, "spx_raster_scan"))) return st;
-      prof(ctx, "spx_raster_scan");
+      prof(ctx, r, "spx_raster_scan");
       if ((st = spx_cl_read(ctx, r->counters.mem, 0, sizeof counters, counters))) return st;
-      prof(ctx, "counters-read");
+      prof(ctx, r, "counters-read");
       if (counters[0] < 0 || counters[1] < 0)
         return spx_fail(ctx, SPX_E_ARG, "spx_raster: more than 2^31 triangle-tile pairs");
       if (nf + (size_t)counters[0] <= r->rec_cap) break;
@@ -187,7 +189,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
     if ((st = spx_cl_check(ctx, e, "spx_raster_bin"))) return st;
     g = ((size_t)nrec + (size_t)chunk - 1) / (size_t)chunk;
     if ((st = spx_cl_run(ctx, kbin, 1, &g, &lw, "spx_raster_bin"))) return st;
-    prof(ctx, "spx_raster_bin");
+    prof(ctx, r, "spx_raster_bin");
 
     cl_int tw = a->tex_width, th = a->tex_height, tc = a->tex_channels, wrap = (cl_int)a->wrap;
     cl_int hc = has_col, ht = has_tex, hw = has_win;
@@ -202,7 +204,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
     if ((st = spx_cl_check(ctx, e, "spx_raster_tile"))) return st;
     size_t tl = serial ? 1 : (size_t)TS * TS, tg = (size_t)ntiles * tl;
     if ((st = spx_cl_run(ctx, kt, 1, &tg, &tl, "spx_raster_tile"))) return st;
-    prof(ctx, "spx_raster_tile");
+    prof(ctx, r, "spx_raster_tile");
 
     e = SPX_ARG(ksh, 0, r->cover.mem) | SPX_ARG(ksh, 1, r->counters.mem) | SPX_ARG(ksh, 2, r->rab.mem) |
         SPX_ARG(ksh, 3, r->rc.mem) | SPX_ARG(ksh, 4, r->rz.mem) | SPX_ARG(ksh, 5, r->rbary.mem) |
@@ -215,7 +217,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
     /* grid-stride: a fixed number of work-items, each shading covered pixels in turn */
     g = (size_t)spx_cl_tune(ctx, "SPX_RASTER_SHADE_ITEMS");
     if ((st = spx_cl_run(ctx, ksh, 1, &g, &lw, "spx_raster_shade"))) return st;
-    prof(ctx, "spx_raster_shade");
+    prof(ctx, r, "spx_raster_shade");
 
     if (a->aa > 1) {
       cl_int w1 = W1, h1 = H1, nchw = a->layout == SPX_LAYOUT_NCHW;
@@ -225,11 +227,11 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
       if ((st = spx_cl_check(ctx, e, "spx_raster_down"))) return st;
       g = (size_t)W1 * H1;
       if ((st = spx_cl_run(ctx, kd, 1, &g, &lw, "spx_raster_down"))) return st;
-    prof(ctx, "spx_raster_down");
+    prof(ctx, r, "spx_raster_down");
     }
   }
   if ((st = spx_cl_read(ctx, r->out.mem, 0, img * a->ncams * 4, out))) return st;
-  prof(ctx, "readback");
+  prof(ctx, r, "readback");
   if (has_win && (st = spx_cl_read(ctx, r->win.mem, 0, (size_t)W * H * a->ncams * 4, faces_out))) return st;
   return SPX_OK;
 }
