@@ -147,6 +147,16 @@ int main(int argc, char **argv) {
         printf("(no GL peer: %s)\n", why);
       }
       glp_free(&g);
+      const char *dump = getenv("SPX_BENCH_DUMP"); /* DIR: raw HWC float32 images of each row */
+      if (dump && *dump) {
+        char dpath[4096];
+        snprintf(dpath, sizeof dpath, "%s/raster_l%d_m%d.f32", dump, level, mode);
+        FILE *fp = fopen(dpath, "wb");
+        if (fp) {
+          fwrite(o1, 4, n, fp);
+          fclose(fp);
+        }
+      }
       double worst = 0;
       size_t drawn = 0;
       for (size_t i = 0; i < n; i++) worst = fmax(worst, fabs((double)o1[i] - o2[i]));
