@@ -15,6 +15,14 @@ struct spx_tunable {
 static const struct spx_tunable spx_tunables[] = {
     /* generic 1-D work-group size for elementwise kernels */
     {"SPX_WG", 64, 256},
+    /* mesh rasterizer (kernels/raster.cl): screen tile side in pixels */
+    {"SPX_RASTER_TILE", 16, 16},
+    /* mesh rasterizer tile kernel: 1 = one work-item walks a whole tile (CPU), 0 = one per pixel (GPU) */
+    {"SPX_RASTER_SERIAL", 1, 0},
+    /* mesh rasterizer setup/binning: consecutive faces per work-item (CPU: aggregate tile counts) */
+    {"SPX_RASTER_CHUNK", 64, 1},
+    /* mesh rasterizer shading: work-items of the grid-stride loop over covered pixels */
+    {"SPX_RASTER_SHADE_ITEMS", 65536, 65536},
     /* radix sort (kernels/radix_sort.cl): digit bits per pass, work-group size, keys per
      * work-item; local memory of the scatter = 4 * 2^BITS * WG bytes */
     {"SPX_SORT_BITS", 8, 4},
