@@ -14,6 +14,14 @@ struct spx_tunable {
 static const struct spx_tunable spx_tunables[] = {
     /* generic 1-D work-group size for elementwise kernels */
     {"SPX_WG", 64, 256},
+    /* mesh rasterizer: screen tile side in pixels (one work-group of TILE² items per tile) */
+    {"SPX_RASTER_TILE", 16, 16},
+    /* mesh rasterizer tile kernel: 1 = one work-item walks a whole tile (CPU), 0 = one per pixel (GPU) */
+    {"SPX_RASTER_SERIAL", 1, 0},
+    /* mesh rasterizer setup/binning: consecutive faces per work-item (CPU: aggregate tile counts) */
+    {"SPX_RASTER_CHUNK", 64, 1},
+    /* mesh rasterizer shading: work-items of the grid-stride loop over covered pixels */
+    {"SPX_RASTER_SHADE_ITEMS", 256, 65536},
 };
 
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {

@@ -4,6 +4,7 @@
 
 #include "smplpix/core.h"
 #include "smplpix/device.h"
+#include "smplpix/raster.h"
 
 #include "smplpix/camera.h"
 #include "smplpix/image.h"
