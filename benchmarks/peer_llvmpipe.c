@@ -21,7 +21,7 @@ struct peer_llvmpipe {
   int unused;
 };
 peer_llvmpipe *peer_llvmpipe_open(char *err, size_t cap) {
-  say(err, cap, "built without EGL/OpenGL (libegl-dev and libgl-dev not found by CMake)");
+  say(err, cap, "built without EGL (SPX_BENCH_LLVMPIPE=OFF, or libegl-dev / libgl-dev missing when CMake ran)");
   return NULL;
 }
 const char *peer_llvmpipe_renderer(const peer_llvmpipe *p) { return ""; }
@@ -154,7 +154,7 @@ static EGLDisplay open_display(char *err, size_t cap, const char **how) {
   PFNEGLGETPLATFORMDISPLAYEXTPROC get_platform_display =
       (PFNEGLGETPLATFORMDISPLAYEXTPROC)eglGetProcAddress("eglGetPlatformDisplayEXT");
   if (!get_platform_display || !has_ext(cext, "EGL_EXT_platform_base")) {
-    say(err, cap, "EGL has no EGL_EXT_platform_base (eglGetPlatformDisplayEXT)");
+    say(err, cap, "EGL has no EGL_EXT_platform_base (no EGL driver? Debian: libegl-mesa0)");
     return EGL_NO_DISPLAY;
   }
   if (has_ext(cext, "EGL_MESA_platform_surfaceless")) {
@@ -283,7 +283,8 @@ peer_llvmpipe *peer_llvmpipe_open(char *err, size_t cap) {
     goto fail;
   }
   int no_config = has_ext(dext, "EGL_KHR_no_config_context");
-  for (int gles = 0; gles < 2 && p->ctx == EGL_NO_CONTEXT; gles++) {
+  const char *api = getenv("PEER_LLVMPIPE_API"); /* "gles": skip desktop GL (tests the fallback) */
+  for (int gles = api && !strcmp(api, "gles"); gles < 2 && p->ctx == EGL_NO_CONTEXT; gles++) {
     p->ctx = make_context(p, gles, no_config);
     p->gles = gles;
   }
@@ -432,7 +433,8 @@ static GLuint make_rb(peer_llvmpipe *p, GLenum fmt, GLenum attach, int w, int h)
 /* RGBA32F + depth if it is complete, else RGBA8 + RGBA8 (depth bits) + depth. */
 static int make_target(peer_llvmpipe *p, int w, int h, char *err, size_t cap) {
   drop_target(p);
-  for (int flt = 1; flt >= 0; flt--) {
+  const char *tgt = getenv("PEER_LLVMPIPE_TARGET"); /* "rgba8": skip RGBA32F (tests the fallback) */
+  for (int flt = tgt && !strcmp(tgt, "rgba8") ? 0 : 1; flt >= 0; flt--) {
     p->glGenFramebuffers(1, &p->fbo);
     p->glBindFramebuffer(GL_FRAMEBUFFER, p->fbo);
     p->rb_col = make_rb(p, flt ? GL_RGBA32F : GL_RGBA8, GL_COLOR_ATTACHMENT0, w, h);

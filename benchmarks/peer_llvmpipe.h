@@ -15,7 +15,8 @@
  * renderable, RGBA8 colour + a second RGBA8 attachment holding the bits of the float depth
  * (exact), so the output has the same meaning either way (colour then quantised to 1/255).
  * The GL depth range is fitted to the mesh's bounding sphere every frame. Benchmark code, not
- * library code. When built without EGL (no SPX_HAVE_EGL), peer_llvmpipe_open fails with a reason. */
+ * library code. When built without EGL (no SPX_HAVE_EGL), peer_llvmpipe_open fails with a reason.
+ * Fallbacks can be forced to check them: PEER_LLVMPIPE_API=gles, PEER_LLVMPIPE_TARGET=rgba8. */
 #ifndef SPX_PEER_LLVMPIPE_H
 #define SPX_PEER_LLVMPIPE_H
 
