@@ -553,6 +553,7 @@ void peer_llvmpipe_close(peer_llvmpipe *p) {
     eglMakeCurrent(p->dpy, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     if (p->ctx != EGL_NO_CONTEXT) eglDestroyContext(p->dpy, p->ctx);
     eglTerminate(p->dpy);
+    eglReleaseThread();
   }
   free(p);
 }
