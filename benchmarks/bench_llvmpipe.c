@@ -3,7 +3,8 @@
  * (27,554 and 110,210 vertices) with per-vertex colours from the normals, at the size of
  * data/cameras/default.json (410x308). Per size: warm-up, then median / min / max over N frames
  * of draw + glReadPixels (mesh resident), and of vertex update (positions + colours) + draw +
- * read-back, like a posed body every frame. Sanity check (not a test): the llvmpipe image is
+ * read-back, like a posed body every frame; plus the process CPU time per frame (all threads),
+ * which is steadier than wall time on a shared machine. Sanity check (not a test): the llvmpipe image is
  * compared with the project's plain-C rasterizer (spx_raster_ref, same camera): coverage masks
  * (they differ on edges: different fill rules and snapping), depth and colour where both cover.
  * Writes out/bench/llvmpipe.png (times vs vertices) and out/bench/llvmpipe_body.png (the image).
@@ -14,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 
 #include "core/internal.h"
 #include "peer_llvmpipe.h"
@@ -57,6 +59,14 @@ static void colours_from_normals(const spx_mesh *m, float *col) {
   free(acc);
 }
 
+/* CPU seconds of the whole process (all llvmpipe threads): unlike wall time, hardly inflated when
+ * other jobs share the cores. */
+static double cpu_now(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
 #define DIE(what)                                                                                                   \
   do {                                                                                                              \
     fprintf(stderr, "bench_llvmpipe: %s: %s\n", what, spx_ctx_message(ctx));                                       \
@@ -92,11 +102,13 @@ int main(int argc, char **argv) {
     printf("GL_RENDERER: %s\nGL_VERSION: %s\nllvmpipe threads: %s\n", peer_llvmpipe_renderer(gl),
            peer_llvmpipe_version(gl), lp ? lp : "default (one per CPU)");
   }
-  printf("image %dx%d (%s), %d frames after 3 warm-up, times in ms (median [min, max])\n", W, H, cam_path, frames);
-  printf("%8s %8s  %-26s %-26s %9s  %s\n", "verts", "faces", "llvmpipe draw+read", "llvmpipe update+draw+read",
-         "ref ms", "vs spx_raster_ref");
+  printf("image %dx%d (%s), %d frames after 3 warm-up; wall ms: median [min, max]; cpu: process CPU ms per frame\n",
+         W, H, cam_path, frames);
+  printf("%8s %8s  %-24s %6s  %-24s %6s  %8s %6s\n", "verts", "faces", "llvmpipe draw+read", "cpu",
+         "llvmpipe upd+draw+read", "cpu", "ref ms", "cpu");
+  char checks[3][320];
 
-  double xs[3], y_draw[3], y_upd[3], y_ref[3];
+  double xs[3], y_draw[3], y_upd[3], y_cpu[3], y_ref[3], y_refcpu[3];
   float *col = NULL, *img_gl = malloc(sizeof(float) * 4 * npx), *img_ref = malloc(sizeof(float) * 4 * npx);
   double *t = malloc(sizeof(double) * (size_t)frames);
   if (!img_gl || !img_ref || !t) {
@@ -112,14 +124,17 @@ int main(int argc, char **argv) {
     }
     colours_from_normals(m, col);
     xs[l] = m->nv;
-    y_draw[l] = y_upd[l] = NAN;
+    y_draw[l] = y_upd[l] = y_cpu[l] = NAN;
     stats sd = {NAN, NAN, NAN}, su = sd;
+    double cpu_d = NAN, cpu_u = NAN;
     if (gl) {
       if (peer_llvmpipe_upload(gl, m->nv, m->pos, col, m->nf, m->faces, why, sizeof why)) {
         fprintf(stderr, "bench_llvmpipe: %s\n", why);
         return 1;
       }
+      double c0 = 0;
       for (int f = 0; f < 3 + frames; f++) {
+        if (f == 3) c0 = cpu_now();
         double t0 = spx_now();
         if (peer_llvmpipe_draw(gl, &cam, img_gl, why, sizeof why)) {
           fprintf(stderr, "bench_llvmpipe: %s\n", why);
@@ -127,8 +142,10 @@ int main(int argc, char **argv) {
         }
         if (f >= 3) t[f - 3] = spx_now() - t0;
       }
+      cpu_d = 1e3 * (cpu_now() - c0) / frames;
       sd = summarize(t, frames);
       for (int f = 0; f < 3 + frames; f++) {
+        if (f == 3) c0 = cpu_now();
         double t0 = spx_now();
         if (peer_llvmpipe_update(gl, m->pos, col, why, sizeof why) ||
             peer_llvmpipe_draw(gl, &cam, img_gl, why, sizeof why)) {
@@ -137,8 +154,9 @@ int main(int argc, char **argv) {
         }
         if (f >= 3) t[f - 3] = spx_now() - t0;
       }
+      cpu_u = 1e3 * (cpu_now() - c0) / frames;
       su = summarize(t, frames);
-      y_draw[l] = sd.med, y_upd[l] = su.med;
+      y_draw[l] = sd.med, y_upd[l] = su.med, y_cpu[l] = cpu_d;
     }
 
     /* the project's own rasterizer (plain C, one thread): sanity check + a rough time */
@@ -146,15 +164,17 @@ int main(int argc, char **argv) {
     memset(&a, 0, sizeof a);
     a.nverts = m->nv, a.pos = m->pos, a.col = col, a.nfaces = m->nf, a.faces = m->faces;
     a.ncams = 1, a.cams = &cam, a.aa = 1, a.cull = SPX_CULL_NONE, a.layout = SPX_LAYOUT_HWC;
-    double tr[3];
+    double tr[3], cr0 = cpu_now();
     for (int f = 0; f < 3; f++) {
       double t0 = spx_now();
       if (spx_raster_ref(ctx, &a, img_ref, NULL)) DIE("spx_raster_ref");
       tr[f] = spx_now() - t0;
     }
+    y_refcpu[l] = 1e3 * (cpu_now() - cr0) / 3;
     y_ref[l] = summarize(tr, 3).med;
 
-    char check[256] = "no GL image";
+    char *check = checks[l];
+    snprintf(check, sizeof checks[l], "no GL image");
     if (gl) {
       size_t cov_gl = 0, cov_ref = 0, differ = 0, both = 0, dbad = 0;
       double dsum = 0, cmax = 0;
@@ -167,10 +187,10 @@ int main(int argc, char **argv) {
           for (int k = 0; k < 3; k++) cmax = fmax(cmax, fabs((double)img_gl[4 * i + k] - img_ref[4 * i + k]));
         }
       }
-      snprintf(check, sizeof check,
-               "coverage %zu vs %zu px, %zu differ (%.2f%% of image, %.2f%% of covered); depth mean |diff| %.1e, "
+      snprintf(check, sizeof checks[l],
+               "%d v: coverage %zu (llvmpipe) vs %zu (ref) px, %zu differ (%.2f%% of image, %.2f%% of covered); depth mean |diff| %.1e, "
                "%zu px > 0.1%%; colour max |diff| %.3f",
-               cov_gl, cov_ref, differ, 100.0 * differ / npx, cov_ref ? 100.0 * differ / cov_ref : 0.0,
+               (int)m->nv, cov_gl, cov_ref, differ, 100.0 * differ / npx, cov_ref ? 100.0 * differ / cov_ref : 0.0,
                both ? dsum / both : 0.0, dbad, cmax);
     }
     char c1[40] = "-", c2[40] = "-";
@@ -178,7 +198,8 @@ int main(int argc, char **argv) {
       snprintf(c1, sizeof c1, "%.2f [%.2f, %.2f]", sd.med, sd.min, sd.max);
       snprintf(c2, sizeof c2, "%.2f [%.2f, %.2f]", su.med, su.min, su.max);
     }
-    printf("%8d %8d  %-26s %-26s %9.2f  %s\n", m->nv, m->nf, c1, c2, y_ref[l], check);
+    printf("%8d %8d  %-24s %6.2f  %-24s %6.2f  %8.2f %6.2f\n", m->nv, m->nf, c1, cpu_d, c2, cpu_u, y_ref[l],
+           y_refcpu[l]);
     fflush(stdout);
 
     if (l == 0 && (mkdir("out", 0777) == 0 || errno == EEXIST) && (mkdir("out/bench", 0777) == 0 || errno == EEXIST)) {
@@ -187,6 +208,8 @@ int main(int argc, char **argv) {
         fprintf(stderr, "bench_llvmpipe: %s\n", spx_ctx_message(ctx));
     }
   }
+  printf("check against spx_raster_ref (same camera; edges may differ, this is not a test):\n");
+  for (int l = 0; l < 3; l++) printf("  %s\n", checks[l]);
   if (gl) printf("render target: %s\n", peer_llvmpipe_float_target(gl) ? "RGBA32F (depth in alpha)" : "RGBA8 + depth bits");
 
   char title[96];
@@ -194,10 +217,11 @@ int main(int argc, char **argv) {
   plot *pl = plot_create(640, 420, title, "vertices", "ms per frame", 1, 1);
   if (pl) {
     if (gl) {
-      plot_series(pl, "llvmpipe draw+read", 3, xs, y_draw);
-      plot_series(pl, "llvmpipe update+draw+read", 3, xs, y_upd);
+      plot_series(pl, "llvmpipe draw+read, wall", 3, xs, y_draw);
+      plot_series(pl, "llvmpipe update+draw+read, wall", 3, xs, y_upd);
+      plot_series(pl, "llvmpipe draw+read, CPU (all threads)", 3, xs, y_cpu);
     }
-    plot_series(pl, "spx_raster_ref (C, 1 thread)", 3, xs, y_ref);
+    plot_series(pl, "spx_raster_ref (plain C, 1 thread), CPU", 3, xs, y_refcpu);
     if (plot_save(pl, "out/bench/llvmpipe.png", why, sizeof why))
       fprintf(stderr, "bench_llvmpipe: %s\n", why);
     else

@@ -303,7 +303,7 @@ static void make_axis(axis *a, double dlo, double dhi, int logscale) {
       for (int m = 1; m <= 9 && a->n < 128; m++) {
         double t = k + log10((double)m);
         if (t < a->lo - 1e-12 || t > a->hi + 1e-12) continue;
-        int major = m == 1 || (span <= 1.6 && (m == 2 || m == 5)) || (span <= 0.8 && m == 3);
+        int major = m == 1 || (span <= 2.5 && (m == 2 || m == 5)) || (span <= 0.8 && m == 3);
         a->t[a->n] = t;
         a->labeled[a->n] = major && (span <= 7 || k % 2 == 0);
         fmt_value(a->lab[a->n], sizeof a->lab[0], m * pow(10.0, k));
