@@ -99,8 +99,8 @@ int main(int argc, char **argv) {
     printf("llvmpipe peer skipped: %s\n", why);
   } else {
     const char *lp = getenv("LP_NUM_THREADS");
-    printf("GL_RENDERER: %s\nGL_VERSION: %s\nllvmpipe threads: %s\n", peer_llvmpipe_renderer(gl),
-           peer_llvmpipe_version(gl), lp ? lp : "default (one per CPU)");
+    printf("GL_RENDERER: %s\nGL_VERSION: %s\nEGL display: %s\nllvmpipe threads: %s\n", peer_llvmpipe_renderer(gl),
+           peer_llvmpipe_version(gl), peer_llvmpipe_platform(gl), lp ? lp : "default (one per CPU)");
   }
   printf("image %dx%d (%s), %d frames after 3 warm-up; wall ms: median [min, max]; cpu: process CPU ms per frame\n",
          W, H, cam_path, frames);

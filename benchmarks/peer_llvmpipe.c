@@ -26,6 +26,7 @@ peer_llvmpipe *peer_llvmpipe_open(char *err, size_t cap) {
 }
 const char *peer_llvmpipe_renderer(const peer_llvmpipe *p) { return ""; }
 const char *peer_llvmpipe_version(const peer_llvmpipe *p) { return ""; }
+const char *peer_llvmpipe_platform(const peer_llvmpipe *p) { return ""; }
 int peer_llvmpipe_float_target(const peer_llvmpipe *p) { return 0; }
 int peer_llvmpipe_upload(peer_llvmpipe *p, int32_t nv, const float *pos, const float *col, int32_t nf,
                          const int32_t *faces, char *err, size_t cap) {
@@ -105,6 +106,7 @@ struct peer_llvmpipe {
   int gles;         /* 0: desktop GL 3.3 core, 1: OpenGL ES 3.0 */
   int float_target; /* RGBA32F colour (depth in alpha); else RGBA8 + RGBA8 depth bits */
   char renderer[256], version[256];
+  const char *platform; /* how the EGL display was obtained */
 #define PEER_DECL(type, name) type name;
   PEER_GL(PEER_DECL)
 #undef PEER_DECL
@@ -270,6 +272,7 @@ peer_llvmpipe *peer_llvmpipe_open(char *err, size_t cap) {
   }
   const char *how = "";
   p->dpy = open_display(err, cap, &how);
+  p->platform = how;
   if (p->dpy == EGL_NO_DISPLAY) goto fail;
   EGLint major = 0, minor = 0;
   if (!eglInitialize(p->dpy, &major, &minor)) {
@@ -333,6 +336,7 @@ fail:
 
 const char *peer_llvmpipe_renderer(const peer_llvmpipe *p) { return p ? p->renderer : ""; }
 const char *peer_llvmpipe_version(const peer_llvmpipe *p) { return p ? p->version : ""; }
+const char *peer_llvmpipe_platform(const peer_llvmpipe *p) { return p && p->platform ? p->platform : ""; }
 int peer_llvmpipe_float_target(const peer_llvmpipe *p) { return p ? p->float_target : 0; }
 
 int peer_llvmpipe_upload(peer_llvmpipe *p, int32_t nv, const float *pos, const float *col, int32_t nf,

@@ -32,6 +32,8 @@ peer_llvmpipe *peer_llvmpipe_open(char *err, size_t cap);
 /* GL_RENDERER / GL_VERSION strings (e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"); "" if closed. */
 const char *peer_llvmpipe_renderer(const peer_llvmpipe *p);
 const char *peer_llvmpipe_version(const peer_llvmpipe *p);
+/* How the EGL display was found: "EGL_MESA_platform_surfaceless" or the software EGL device. */
+const char *peer_llvmpipe_platform(const peer_llvmpipe *p);
 /* 1 if the target is RGBA32F, 0 if the RGBA8 fallback is in use (valid after the first draw). */
 int peer_llvmpipe_float_target(const peer_llvmpipe *p);
 
