@@ -4,6 +4,7 @@
 #define SPX_NN_INTERNAL_H
 
 #include <limits.h>
+#include <math.h>
 
 #include "nn/tensor.h"
 

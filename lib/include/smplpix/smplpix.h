@@ -4,5 +4,7 @@
 
 #include "smplpix/core.h"
 #include "smplpix/device.h"
+#include "smplpix/image.h"
+#include "smplpix/safetensors.h"
 
 #endif
