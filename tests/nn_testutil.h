@@ -126,6 +126,7 @@ static inline spx_ctx *spx_nt_open(void) {
  * File: one record per line, "name count v0 v1 ...", values as printed by Python repr/%.9g.
  * spx_golden_get returns a malloc'd array of `count` doubles for `name` (NULL if absent). */
 static inline double *spx_golden_get(const char *path, const char *name, int *count) {
+  *count = 0;
   FILE *f = fopen(path, "r");
   if (!f) {
     fprintf(stderr, "cannot open golden %s\n", path);

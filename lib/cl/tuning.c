@@ -14,6 +14,18 @@ struct spx_tunable {
 static const struct spx_tunable spx_tunables[] = {
     /* generic 1-D work-group size for elementwise kernels */
     {"SPX_WG", 64, 256},
+    /* conv2d (kernels/conv2d.cl): forward register tile = CONV_TM out-channels x CONV_TN vectors
+     * of CONV_VW pixels per work-item, CONV_LWS work-items per group (interleaved pixels) */
+    {"CONV_VW", 16, 1},
+    {"CONV_TM", 8, 8},
+    {"CONV_TN", 3, 4},
+    {"CONV_LWS", 1, 64},
+    /* conv2d backward weights: tile of out-channels x weight columns; q-chunk of the split reduction */
+    {"CONV_DW_TM", 4, 4},
+    {"CONV_DW_TN", 4, 4},
+    {"CONV_DW_QC", 4096, 1024},
+    /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
+    {"CONV_RED_WG", 16, 256},
 };
 
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {
