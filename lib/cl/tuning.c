@@ -26,6 +26,12 @@ static const struct spx_tunable spx_tunables[] = {
     {"CONV_DW_QC", 4096, 1024},
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", 16, 256},
+    /* batch norm: one work-group per channel (power of two), kernels/batchnorm.cl */
+    {"SPX_BN_WG", 64, 256},
+    /* generic reductions (kernels/loss.cl): work-group size (power of two) and the number of
+     * groups of the first stage (fixed, so results do not depend on the launch) */
+    {"SPX_RED_WG", 64, 256},
+    {"SPX_RED_GROUPS", 32, 256},
 };
 
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {
