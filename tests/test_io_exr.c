@@ -154,6 +154,12 @@ static void test_half_and_layouts(void) {
       {"RGBZ", EXR_PIXEL_HALF, 1, box(0, 0, 37, 21), box(0, 0, 37, 21)},
       {"RGB", EXR_PIXEL_FLOAT, 1, box(0, 0, 37, 21), box(5, 3, 30, 19)},      /* data window inside */
       {"RGBZ", EXR_PIXEL_UINT, 0, box(-4, -2, 25, 30), box(-10, 5, 12, 44)}, /* overlapping windows */
+      /* extra channels that are not read (OpenEXR 3.1 crashed when they had no buffer) */
+      {"ARGB", EXR_PIXEL_HALF, 0, box(0, 0, 20, 17), box(0, 0, 20, 17)},
+      {"RGBAYZ", EXR_PIXEL_HALF, 1, box(0, 0, 40, 30), box(0, 0, 40, 30)},
+      {"RGBY", EXR_PIXEL_FLOAT, 0, box(0, 0, 5, 5), box(0, 0, 5, 5)},
+      {"RGBY", EXR_PIXEL_HALF, 0, box(0, 0, 5, 5), box(0, 0, 5, 5)},
+      {"RGBY", EXR_PIXEL_HALF, 1, box(0, 0, 5, 5), box(0, 0, 5, 5)},
   };
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
     char path[512];

@@ -73,39 +73,66 @@ static int exr_channel_slot(const char *name) {
 
 /* Decode one chunk into buf (cinfo->width x cinfo->height x 4 floats) and copy its intersection
  * with the display window into out. */
-static spx_status exr_decode_chunk(spx_ctx *ctx, const char *name, exr_context_t e, exr_decode_pipeline_t *dec,
-                                   int *first, const exr_chunk_info_t *ci, int64_t x0, int64_t y0, int has_z,
-                                   float **buf, size_t *bufcap, const exr_attr_box2i_t *disp, spx_image *out) {
+typedef struct {
+  const char *name;
+  int64_t max_pixels;     /* caller's pixel cap, also bounds per-chunk memory */
+  int64_t dw_w, dw_h;     /* data window size */
+  int has_z;
+  exr_attr_box2i_t disp;  /* display window */
+  float *buf;             /* one decoded chunk, `stride` floats per pixel */
+  size_t bufcap;
+  int first;              /* decoder not initialized yet */
+} exr_read_job;
+
+/* Decode one chunk and copy its intersection with the display window into out.
+ *
+ * Every channel of the file gets a destination: R,G,B,Z go to slots 0-3 of a pixel, any other
+ * channel to its own slot after those. OpenEXR 3.1's generic unpacker writes through
+ * decode_to_ptr without checking for NULL (a file with an extra channel, e.g. R,G,B,A, made it
+ * write to address 0 when A was skipped), so no channel is ever left without a buffer. */
+static spx_status exr_decode_chunk(spx_ctx *ctx, exr_read_job *job, exr_context_t e, exr_decode_pipeline_t *dec,
+                                   const exr_chunk_info_t *ci, int64_t x0, int64_t y0, spx_image *out) {
+  const char *name = job->name;
   exr_result_t rv;
-  if (ci->width <= 0 || ci->height <= 0 || ci->width > SPX_EXR_MAX_DIM || ci->height > SPX_EXR_MAX_DIM)
+  if (ci->width <= 0 || ci->height <= 0 || ci->width > job->dw_w || ci->height > job->dw_h)
     return spx_fail(ctx, SPX_E_FORMAT, "%s: chunk at y=%lld has invalid size %dx%d", name, (long long)y0,
                     (int)ci->width, (int)ci->height);
-  size_t need = (size_t)ci->width * (size_t)ci->height * 4;
-  if (need > *bufcap) {
-    float *nb = realloc(*buf, need * sizeof(float));
-    if (!nb) return spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate a %dx%d chunk", name, ci->width, ci->height);
-    *buf = nb;
-    *bufcap = need;
-  }
-  float *b = *buf;
-  for (size_t i = 0; i < need; i++) b[i] = 1.0f; /* background, and Z when the file has none */
-  rv = *first ? exr_decoding_initialize(e, 0, ci, dec) : exr_decoding_update(e, 0, ci, dec);
+  if (ci->unpacked_size > (uint64_t)job->max_pixels * 64u)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: chunk at y=%lld unpacks to %llu bytes, too many", name, (long long)y0,
+                    (unsigned long long)ci->unpacked_size);
+  rv = job->first ? exr_decoding_initialize(e, 0, ci, dec) : exr_decoding_update(e, 0, ci, dec);
   if (rv != EXR_ERR_SUCCESS)
     return spx_fail(ctx, SPX_E_FORMAT, "%s: cannot decode chunk at y=%lld: %s", name, (long long)y0, exr_detail(rv));
-  *first = 0;
+  job->first = 0;
+  int extra = 0;
+  for (int c = 0; c < dec->channel_count; c++) {
+    int slot = exr_channel_slot(dec->channels[c].channel_name);
+    if (slot < 0 || (slot == 3 && !job->has_z)) extra++;
+  }
+  size_t stride = 4 + (size_t)extra, pixels = (size_t)ci->width * (size_t)ci->height;
+  if (pixels * stride > (uint64_t)job->max_pixels * 16u)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: %d channels in a %dx%d chunk is too much to decode", name,
+                    (int)dec->channel_count, (int)ci->width, (int)ci->height);
+  size_t need = pixels * stride;
+  if (need > job->bufcap) {
+    float *nb = realloc(job->buf, need * sizeof(float));
+    if (!nb) return spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate a %dx%d chunk", name, ci->width, ci->height);
+    job->buf = nb;
+    job->bufcap = need;
+  }
+  float *b = job->buf;
+  for (size_t i = 0; i < need; i++) b[i] = 1.0f; /* background, and Z when the file has none */
+  int next_extra = 4;
   for (int c = 0; c < dec->channel_count; c++) {
     exr_coding_channel_info_t *ch = &dec->channels[c];
     int slot = exr_channel_slot(ch->channel_name);
-    if (slot < 0 || (slot == 3 && !has_z)) {
-      ch->decode_to_ptr = NULL; /* skipped */
-      continue;
-    }
+    if (slot < 0 || (slot == 3 && !job->has_z)) slot = next_extra++;
     if (ch->width != ci->width || ch->height != ci->height)
       return spx_fail(ctx, SPX_E_FORMAT, "%s: channel %s has an unexpected size in chunk at y=%lld", name,
-                      ch->channel_name, (long long)y0);
+                      ch->channel_name ? ch->channel_name : "?", (long long)y0);
     ch->decode_to_ptr = (uint8_t *)(b + slot);
-    ch->user_pixel_stride = 4 * (int32_t)sizeof(float);
-    ch->user_line_stride = 4 * (int32_t)sizeof(float) * ci->width;
+    ch->user_pixel_stride = (int32_t)(stride * sizeof(float));
+    ch->user_line_stride = (int32_t)(stride * sizeof(float)) * ci->width;
     ch->user_bytes_per_element = (int16_t)sizeof(float);
     ch->user_data_type = EXR_PIXEL_FLOAT;
   }
@@ -113,15 +140,16 @@ static spx_status exr_decode_chunk(spx_ctx *ctx, const char *name, exr_context_t
   if (rv == EXR_ERR_SUCCESS) rv = exr_decoding_run(e, 0, dec);
   if (rv != EXR_ERR_SUCCESS)
     return spx_fail(ctx, SPX_E_FORMAT, "%s: corrupt chunk at y=%lld: %s", name, (long long)y0, exr_detail(rv));
+  const exr_attr_box2i_t *disp = &job->disp;
   for (int32_t r = 0; r < ci->height; r++) {
     int64_t y = y0 + r;
     if (y < disp->min.y || y > disp->max.y) continue;
     float *dst = out->data + (size_t)(y - disp->min.y) * (size_t)out->width * 4;
-    const float *src = b + (size_t)r * (size_t)ci->width * 4;
+    const float *src = b + (size_t)r * (size_t)ci->width * stride;
     for (int32_t cx = 0; cx < ci->width; cx++) {
       int64_t x = x0 + cx;
       if (x < disp->min.x || x > disp->max.x) continue;
-      memcpy(dst + (size_t)(x - disp->min.x) * 4, src + (size_t)cx * 4, 4 * sizeof(float));
+      memcpy(dst + (size_t)(x - disp->min.x) * 4, src + (size_t)cx * stride, 4 * sizeof(float));
     }
   }
   return SPX_OK;
@@ -140,9 +168,12 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
   exr_result_t rv;
   exr_context_t e = NULL;
   exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
-  int dec_used = 0, first = 1;
-  float *buf = NULL;
-  size_t bufcap = 0;
+  int dec_used = 0;
+  exr_read_job job;
+  memset(&job, 0, sizeof job);
+  job.name = name;
+  job.max_pixels = max_pixels;
+  job.first = 1;
   exr_mem_src src = {data, size};
 
   exr_msg[0] = 0;
@@ -221,6 +252,10 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
                   (long long)(W > DW ? W : DW), (long long)(H > DH ? H : DH), (long long)max_pixels);
     goto done;
   }
+  job.dw_w = DW;
+  job.dw_h = DH;
+  job.has_z = found[3];
+  job.disp = disp;
   st = spx_image_alloc(ctx, (int32_t)W, (int32_t)H, 4, out);
   if (st != SPX_OK) goto done;
   for (size_t i = 0, n = (size_t)W * (size_t)H * 4; i < n; i++) out->data[i] = 1.0f;
@@ -239,7 +274,7 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
         st = spx_fail(ctx, SPX_E_FORMAT, "%s: bad chunk at y=%lld: %s", name, (long long)y, exr_detail(rv));
         goto done;
       }
-      st = exr_decode_chunk(ctx, name, e, &dec, &first, &ci, dw.min.x, y, found[3], &buf, &bufcap, &disp, out);
+      st = exr_decode_chunk(ctx, &job, e, &dec, &ci, dw.min.x, y, out);
       if (st != SPX_OK) goto done;
     }
   } else {
@@ -262,18 +297,18 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
                         exr_detail(rv));
           goto done;
         }
-        st = exr_decode_chunk(ctx, name, e, &dec, &first, &ci, dw.min.x + tx * (int64_t)tx_size,
-                              dw.min.y + ty * (int64_t)ty_size, found[3], &buf, &bufcap, &disp, out);
+        st = exr_decode_chunk(ctx, &job, e, &dec, &ci, dw.min.x + tx * (int64_t)tx_size,
+                              dw.min.y + ty * (int64_t)ty_size, out);
         if (st != SPX_OK) goto done;
       }
   }
 
 done:
   if (e) {
-    if (dec_used && !first) exr_decoding_destroy(e, &dec);
+    if (dec_used && !job.first) exr_decoding_destroy(e, &dec);
     exr_finish(&e);
   }
-  free(buf);
+  free(job.buf);
   if (st != SPX_OK) spx_image_free(out);
   return st;
 }

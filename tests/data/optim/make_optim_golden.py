@@ -23,6 +23,8 @@ for s, g in enumerate(grads):
 configs = [
     ("adam", lambda p: torch.optim.Adam([p], lr=0.01, betas=(0.9, 0.999), eps=1e-8)),
     ("adam_wd", lambda p: torch.optim.Adam([p], lr=0.01, betas=(0.9, 0.999), eps=1e-8, weight_decay=0.1)),
+    # a large eps makes its placement (after sqrt of the bias-corrected v) visible
+    ("adam_eps", lambda p: torch.optim.Adam([p], lr=0.01, betas=(0.8, 0.99), eps=0.1, weight_decay=0.5)),
     ("sgd_mom", lambda p: torch.optim.SGD([p], lr=0.05, momentum=0.9, weight_decay=0.01)),
     ("sgd_nesterov", lambda p: torch.optim.SGD([p], lr=0.05, momentum=0.9, nesterov=True)),
     ("sgd_plain", lambda p: torch.optim.SGD([p], lr=0.05)),
