@@ -8,9 +8,7 @@
 #include "nn/batchnorm.h"
 #include "nn/conv2d.h"
 #include "nn/loss.h"
-#ifdef SPX_TAPE_HAVE_OPTIM
 #include "nn/optim.h"
-#endif
 #include "nn/pool.h"
 #include "nn/tensor_ops.h"
 #include "nn/upsample.h"
@@ -668,21 +666,19 @@ spx_status spx_tape_zero_grad(spx_tape *t) {
   return t->nparam ? spx_cl_fill_f32(t->ctx, t->grad, 0, t->nparam, 0.0f) : SPX_OK;
 }
 
-spx_status spx_tape_adam(spx_tape *t, float lr, float beta1, float beta2, float eps, int64_t step) {
+spx_status spx_tape_adam(spx_tape *t, double lr, double beta1, double beta2, double eps, int64_t step) {
   if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
   if (step < 1) return spx_fail(t->ctx, SPX_E_ARG, "tape: Adam step number %lld < 1", (long long)step);
   if (!t->nparam) return SPX_OK;
-#ifndef SPX_TAPE_HAVE_OPTIM
-  return spx_fail(t->ctx, SPX_E_UNSUPPORTED, "tape: Adam not built yet");
-#else
+  if (t->nparam > (size_t)INT32_MAX) return spx_fail(t->ctx, SPX_E_ARG, "tape: %zu parameters is too many", t->nparam);
+  spx_adam_params hp = {lr, beta1, beta2, eps, 0.0};
   if (HOST) {
-    spx_ref_adam_step(t->hparam, t->hgrad, t->hm, t->hv, t->nparam, lr, beta1, beta2, eps, step);
+    spx_ref_adam_step(&hp, step, t->hparam, t->hgrad, t->hm, t->hv, t->nparam);
     return SPX_OK;
   }
   spx_tensor p = spx_tensor_view(t->param, 0, (int32_t)t->nparam, 1, 1, 1);
   spx_tensor g = spx_tensor_view(t->grad, 0, (int32_t)t->nparam, 1, 1, 1);
   spx_tensor m = spx_tensor_view(t->m, 0, (int32_t)t->nparam, 1, 1, 1);
   spx_tensor v = spx_tensor_view(t->v, 0, (int32_t)t->nparam, 1, 1, 1);
-  return spx_adam_step(t->ctx, &p, &g, &m, &v, lr, beta1, beta2, eps, step);
-#endif
+  return spx_adam_step(t->ctx, &hp, step, &p, &g, &m, &v);
 }

@@ -96,6 +96,6 @@ spx_status spx_tape_backward(spx_tape *t, int loss);
 spx_status spx_tape_zero_grad(spx_tape *t);
 /* One Adam step (PyTorch semantics, no weight decay) over the whole parameter slab; `step` is the
  * 1-based step number used for bias correction. */
-spx_status spx_tape_adam(spx_tape *t, float lr, float beta1, float beta2, float eps, int64_t step);
+spx_status spx_tape_adam(spx_tape *t, double lr, double beta1, double beta2, double eps, int64_t step);
 
 #endif

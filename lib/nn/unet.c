@@ -327,14 +327,19 @@ spx_status spx_unet_backward(spx_unet *u) {
 
 spx_status spx_unet_zero_grad(spx_unet *u) { return spx_tape_zero_grad(u->tape); }
 
-spx_status spx_unet_adam_step(spx_unet *u, float lr) {
-  if (!(lr > 0.0f) || !isfinite(lr)) return spx_fail(u->ctx, SPX_E_ARG, "unet: learning rate %g is not positive", lr);
-  spx_status st = spx_tape_adam(u->tape, lr, 0.9f, 0.999f, 1e-8f, u->step + 1);
+spx_status spx_unet_adam_step_ex(spx_unet *u, double lr, double beta1, double beta2, double eps) {
+  if (!(lr > 0.0) || !isfinite(lr)) return spx_fail(u->ctx, SPX_E_ARG, "unet: learning rate %g is not positive", lr);
+  if (!(beta1 >= 0.0 && beta1 < 1.0) || !(beta2 >= 0.0 && beta2 < 1.0) || !(eps >= 0.0) || !isfinite(eps))
+    return spx_fail(u->ctx, SPX_E_ARG, "unet: Adam betas (%g, %g) must be in [0, 1) and eps %g >= 0", beta1, beta2,
+                    eps);
+  spx_status st = spx_tape_adam(u->tape, lr, beta1, beta2, eps, u->step + 1);
   if (st) return st;
   u->step++;
   u->fold_dirty = 1;
   return SPX_OK;
 }
+
+spx_status spx_unet_adam_step(spx_unet *u, double lr) { return spx_unet_adam_step_ex(u, lr, 0.9, 0.999, 1e-8); }
 
 /* ------------------------------------------------------------------ introspection */
 

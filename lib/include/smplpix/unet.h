@@ -43,7 +43,9 @@ spx_status spx_unet_forward_loss(spx_unet *u, const float *input, const float *t
 spx_status spx_unet_backward(spx_unet *u);
 spx_status spx_unet_zero_grad(spx_unet *u);
 /* One Adam step (betas 0.9 / 0.999, eps 1e-8, PyTorch's update) over every parameter. */
-spx_status spx_unet_adam_step(spx_unet *u, float lr);
+spx_status spx_unet_adam_step(spx_unet *u, double lr);
+/* The same with every hyper-parameter (torch.optim.Adam(lr, betas=(beta1, beta2), eps)). */
+spx_status spx_unet_adam_step_ex(spx_unet *u, double lr, double beta1, double beta2, double eps);
 
 /* Checkpoints (safetensors). save writes the state_dict names (+ optimizer.<param>.exp_avg,
  * optimizer.<param>.exp_avg_sq and optimizer.step when with_optimizer) to a temporary file renamed
