@@ -6,7 +6,8 @@
  *
  * Read: the first part of any scanline or tiled file (level 0 of mip/rip-mapped files) with
  * channels named exactly R, G, B and optionally Z, each of half, float or uint type (converted
- * to float by the library), no subsampling. The result is a 4-channel image the size of the
+ * to float by the library); other channels are decoded and ignored; no channel may be
+ * subsampled. The result is a 4-channel image the size of the
  * DISPLAY window; data-window pixels outside it are dropped and display pixels outside the
  * data window are background (1, 1, 1, 1). A missing Z reads as 1. Display and data windows are
  * limited to SPX_EXR_MAX_DIM on a side. Deep files are rejected. Pixel values are passed through
