@@ -27,5 +27,7 @@ const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *ba
 
 /* Subcommand entry points. */
 int spx_cmd_devices(int argc, char **argv);
+int spx_cmd_render(int argc, char **argv); /* apps/cmd_render.c */
+int spx_cmd_train(int argc, char **argv);  /* apps/cmd_train.c */
 
 #endif

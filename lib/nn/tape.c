@@ -666,6 +666,19 @@ spx_status spx_tape_zero_grad(spx_tape *t) {
   return t->nparam ? spx_cl_fill_f32(t->ctx, t->grad, 0, t->nparam, 0.0f) : SPX_OK;
 }
 
+spx_status spx_tape_zero_moments(spx_tape *t) {
+  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  if (HOST) {
+    memset(t->hm, 0, t->nparam * sizeof(double));
+    memset(t->hv, 0, t->nparam * sizeof(double));
+    return SPX_OK;
+  }
+  spx_status st = SPX_OK;
+  if (t->nparam && !(st = spx_cl_fill_f32(t->ctx, t->m, 0, t->nparam, 0.0f)))
+    st = spx_cl_fill_f32(t->ctx, t->v, 0, t->nparam, 0.0f);
+  return st;
+}
+
 spx_status spx_tape_adam(spx_tape *t, double lr, double beta1, double beta2, double eps, int64_t step) {
   if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
   if (step < 1) return spx_fail(t->ctx, SPX_E_ARG, "tape: Adam step number %lld < 1", (long long)step);

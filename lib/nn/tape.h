@@ -94,6 +94,8 @@ int spx_tape_l1(spx_tape *t, int pred, int target);
 /* ---- backward and optimizer ---- */
 spx_status spx_tape_backward(spx_tape *t, int loss);
 spx_status spx_tape_zero_grad(spx_tape *t);
+/* Zero the Adam moments (exp_avg, exp_avg_sq). */
+spx_status spx_tape_zero_moments(spx_tape *t);
 /* One Adam step (PyTorch semantics, no weight decay) over the whole parameter slab; `step` is the
  * 1-based step number used for bias correction. */
 spx_status spx_tape_adam(spx_tape *t, double lr, double beta1, double beta2, double eps, int64_t step);

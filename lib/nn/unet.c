@@ -266,6 +266,11 @@ static spx_status run_forward(spx_unet *u, const float *input, const float *targ
   if (n < 1 || h < 16 || w < 16 || n > 4096 || h > 16384 || w > 16384)
     return spx_fail(u->ctx, SPX_E_ARG, "unet: input %dx%dx%dx%d: need batch >= 1 and height, width in [16, 16384]", n,
                     SPX_UNET_IN_CHANNELS, h, w);
+  if (train && (long)n * (h / 16) * (w / 16) < 2)
+    return spx_fail(u->ctx, SPX_E_ARG,
+                    "unet: training on %dx%dx%dx%d leaves one value per channel at the %dx%d bottleneck (batch norm "
+                    "needs two): use a larger batch or image",
+                    n, SPX_UNET_IN_CHANNELS, h, w, h / 16, w / 16);
   if (!train && (st = refold(u))) return st;
   uint64_t key = spx_hash64(&n, sizeof n, SPX_FNV_SEED);
   key = spx_hash64(&h, sizeof h, key);
@@ -337,6 +342,12 @@ spx_status spx_unet_adam_step_ex(spx_unet *u, double lr, double beta1, double be
   u->step++;
   u->fold_dirty = 1;
   return SPX_OK;
+}
+
+spx_status spx_unet_reset_optimizer(spx_unet *u) {
+  spx_status st = spx_tape_zero_moments(u->tape);
+  if (!st) u->step = 0;
+  return st;
 }
 
 spx_status spx_unet_adam_step(spx_unet *u, double lr) { return spx_unet_adam_step_ex(u, lr, 0.9, 0.999, 1e-8); }

@@ -6,5 +6,6 @@
 #include "smplpix/device.h"
 #include "smplpix/image.h"
 #include "smplpix/safetensors.h"
+#include "smplpix/unet.h"
 
 #endif

@@ -47,6 +47,9 @@ spx_status spx_unet_adam_step(spx_unet *u, double lr);
 /* The same with every hyper-parameter (torch.optim.Adam(lr, betas=(beta1, beta2), eps)). */
 spx_status spx_unet_adam_step_ex(spx_unet *u, double lr, double beta1, double beta2, double eps);
 
+/* Forget the optimizer state: Adam moments to zero, step count to 0 (fine-tuning from weights). */
+spx_status spx_unet_reset_optimizer(spx_unet *u);
+
 /* Checkpoints (safetensors). save writes the state_dict names (+ optimizer.<param>.exp_avg,
  * optimizer.<param>.exp_avg_sq and optimizer.step when with_optimizer) to a temporary file renamed
  * over path. load reads the base width from inc.double_conv.0.weight, accepts F32 or F16 weights,
