@@ -614,8 +614,8 @@ spx_status spx_unet_load(spx_ctx *ctx, const char *path, spx_unet **out) {
   int has_opt = spx_st_find(&f, "optimizer.step") != NULL;
   for (int i = 0; i < u->nents && !st; i++) {
     const entry *e = &u->ents[i];
-    if (e->kind == E_NBT) {
-      st = load_int(ctx, path, &f, e->name, &u->dc[e->id / 2].nbt[e->id % 2]);
+    if (e->kind == E_NBT) { /* informational only (momentum is fixed): optional */
+      if (spx_st_find(&f, e->name)) st = load_int(ctx, path, &f, e->name, &u->dc[e->id / 2].nbt[e->id % 2]);
       continue;
     }
     size_t n = spx_tape_numel(u->tape, e->id);
