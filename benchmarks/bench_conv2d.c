@@ -6,6 +6,7 @@
  *   bench_conv2d --unet [reps]   also time every conv of a UNet-64 eval forward (sum)        */
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "cl/cl_internal.h"
 #include "nn/conv2d.h"
@@ -41,7 +42,16 @@ static int fail(spx_ctx *ctx, const char *what) {
 static double flops(const shape *s) { return 2.0 * s->cout * s->h * s->w * (double)s->cin * s->k * s->k; }
 
 /* mode 0 forward (with fused affine+relu), 1 backward-data, 2 backward-weights; returns min ms */
-static int time_op(spx_ctx *ctx, const shape *s, int mode, int reps, double *ms) {
+static spx_conv2d_workspace ws;
+static double cpu_ms_sum; /* process CPU time of the best reps (all threads): less sensitive to other load */
+
+static double cpu_now(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static int time_op(spx_ctx *ctx, const shape *s, int mode, int reps, double *ms, double *cpu) {
   size_t nx = (size_t)s->cin * s->h * s->w, ny = (size_t)s->cout * s->h * s->w;
   size_t nw = (size_t)s->cout * s->cin * s->k * s->k;
   cl_mem mx = NULL, my = NULL, mw = NULL, mv = NULL;
@@ -54,18 +64,20 @@ static int time_op(spx_ctx *ctx, const shape *s, int mode, int reps, double *ms)
     goto done;
   spx_tensor x = spx_tensor_view(mx, 0, 1, s->cin, s->h, s->w), y = spx_tensor_view(my, 0, 1, s->cout, s->h, s->w);
   spx_tensor w = spx_tensor_view(mw, 0, s->cout, s->cin, s->k, s->k), v = spx_tensor_view(mv, 0, s->cout, 1, 1, 1);
-  spx_conv2d_params p = {s->k, 1, s->pad, &v, &v, 1};
-  double best = 1e30;
+  spx_conv2d_params p = {s->k, 1, s->pad, &v, &v, 1, &ws};
+  double best = 1e30, best_cpu = 0;
   for (int r = 0; r < reps + 1; r++) { /* first run warms up (kernel build, page faults) */
-    double t0 = spx_now();
+    double t0 = spx_now(), c0 = cpu_now();
     spx_status st = mode == 0   ? spx_conv2d_forward(ctx, &x, &w, NULL, &p, &y)
                     : mode == 1 ? spx_conv2d_backward(ctx, &x, &w, &y, &x, NULL, NULL, &p)
                                 : spx_conv2d_backward(ctx, &x, &w, &y, NULL, &w, NULL, &p);
     if (st || clFinish(ctx->queue) != CL_SUCCESS) goto done;
-    double t = (spx_now() - t0) * 1e3;
-    if (r > 0 && t < best) best = t;
+    double t = (spx_now() - t0) * 1e3, c = (cpu_now() - c0) * 1e3;
+    if (r > 0 && t < best) best = t, best_cpu = c;
   }
   *ms = best;
+  cpu_ms_sum += best_cpu;
+  if (cpu) *cpu = best_cpu;
   rc = 0;
 done:
   spx_cl_free(&mx), spx_cl_free(&my), spx_cl_free(&mw), spx_cl_free(&mv);
@@ -88,21 +100,29 @@ int main(int argc, char **argv) {
          spx_cl_tune(ctx, "CONV_DW_TM"), spx_cl_tune(ctx, "CONV_DW_TN"), spx_cl_tune(ctx, "CONV_DW_QC"));
   printf("%-22s %9s | %9s %7s | %9s %7s | %9s %7s\n", "shape (1x, HxW)", "GFLOP", "fwd ms", "GF/s", "bwd-x ms",
          "GF/s", "bwd-w ms", "GF/s");
+  double wall_sum = 0;
+  cpu_ms_sum = 0;
   for (size_t i = 0; i < sizeof shapes / sizeof shapes[0]; i++) {
     const shape *s = &shapes[i];
-    double ms[3];
+    const char *only = getenv("SPX_BENCH_ONLY"); /* e.g. "12": shapes 1 and 2 */
+    if (only && !strchr(only, '0' + (int)i)) continue;
+    double ms[3], cpu[3];
     for (int m = 0; m < 3; m++)
-      if (time_op(ctx, s, m, reps, &ms[m])) return fail(ctx, s->name);
+      if (time_op(ctx, s, m, reps, &ms[m], &cpu[m])) return fail(ctx, s->name);
     double gf = flops(s) * 1e-9;
     printf("%-18s %3dx%-3d %7.2f | %9.1f %7.1f | %9.1f %7.1f | %9.1f %7.1f\n", s->name, s->h, s->w, gf, ms[0],
            gf / ms[0] * 1e3, ms[1], gf / ms[1] * 1e3, ms[2], gf / ms[2] * 1e3);
+    wall_sum += ms[0] + ms[1] + ms[2];
+    if (getenv("SPX_BENCH_CPU")) printf("   cpu ms: %.1f %.1f %.1f\n", cpu[0], cpu[1], cpu[2]);
     fflush(stdout);
   }
+  printf("sum of the table: %.1f ms wall, %.1f ms CPU (all threads; wall x cores when the machine is idle)\n", wall_sum,
+         cpu_ms_sum);
   if (do_unet) {
     double tot = 0, gtot = 0;
     for (size_t i = 0; i < sizeof unet / sizeof unet[0]; i++) {
       double ms;
-      if (time_op(ctx, &unet[i], 0, reps, &ms)) return fail(ctx, unet[i].name);
+      if (time_op(ctx, &unet[i], 0, reps, &ms, NULL)) return fail(ctx, unet[i].name);
       tot += ms, gtot += flops(&unet[i]) * 1e-9;
     }
     printf("UNet-64 all %zu convs, eval forward: %.1f ms, %.1f GFLOP, %.1f GFLOP/s\n", sizeof unet / sizeof unet[0],
@@ -122,6 +142,7 @@ int main(int argc, char **argv) {
     printf("plain-C reference (double, 1 thread) [1,16->16,32x40] 3x3: %.1f ms, %.2f GFLOP/s\n", t * 1e3, gf / t);
     free(x), free(w), free(y);
   }
+  spx_conv2d_workspace_release(&ws);
   spx_ctx_destroy(ctx);
   return 0;
 }

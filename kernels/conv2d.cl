@@ -34,6 +34,12 @@
 #ifndef CONV_DW_TN
 #define CONV_DW_TN 4
 #endif
+#ifndef CONV_DW_G
+#define CONV_DW_G 1
+#endif
+#ifndef CONV_DW_QB
+#define CONV_DW_QB 1024
+#endif
 #ifndef CONV_RED_WG
 #define CONV_RED_WG 64
 #endif
@@ -92,18 +98,26 @@ static inline vf vload_s(const __global float *p, const int S) {
 #define FL_RELU 8
 #define FL_ACCUM 16
 
-/* Forward. Global: dim0 = CoutP/TM output-channel tiles, dim1 = pixel groups * CONV_LWS
- * (local CONV_LWS), dim2 = N. A group covers CONV_LWS*CONV_TN*CONV_VW consecutive q. */
+/* Forward. Global: dim0 = (CoutP/TM channel tiles) x (pixel groups) work-groups of CONV_LWS,
+ * dim1 = N. A group covers CONV_LWS*CONV_TN*CONV_VW consecutive q and one channel tile; the
+ * group order is channel-tile-fastest (consecutive groups share input pixels: large images) or
+ * pixel-fastest when pix_major (consecutive groups share weights: deep layers with large
+ * weights). wpk is packed per channel tile: wpk[cot][kk][TM], contiguous for one work-item.
+ * KF > 0 fixes the kernel size at compile time (fully unrolled taps), KF = 0 uses k. */
 static inline __attribute__((always_inline)) void conv_fwd(
     const __global float *xp, const __global float *wpk, __global float *y, const __global float *bias,
     const __global float *scale, const __global float *shift, int Cin, int Cout, int CoutP, int k, int Wp,
-    int plane, int Ho, int Wo, int flags, const int S) {
-  const int co0 = (int)get_global_id(0) * CONV_TM;
-  const int lid = (int)get_local_id(1);
-  const int n = (int)get_global_id(2);
-  const int q0 = (int)get_group_id(1) * (CONV_LWS * CONV_TN * CONV_VW) + lid * CONV_VW;
+    int plane, int Ho, int Wo, int flags, int pix_major, const int S, const int KF) {
+  const int K = KF > 0 ? KF : k;
+  const int ncot = CoutP / CONV_TM, grp = (int)get_group_id(0);
+  const int npg = (int)get_num_groups(0) / ncot;
+  const int cot = pix_major ? grp / npg : grp % ncot, pg = pix_major ? grp % npg : grp / ncot;
+  const int co0 = cot * CONV_TM;
+  const int lid = (int)get_local_id(0);
+  const int n = (int)get_global_id(1);
+  const int q0 = pg * (CONV_LWS * CONV_TN * CONV_VW) + lid * CONV_VW;
   const __global float *xb = xp + (size_t)n * Cin * plane + (size_t)S * q0;
-  const __global float *wb = wpk + co0;
+  const __global float *wb = wpk + (size_t)cot * Cin * K * K * CONV_TM;
 
   vf acc[CONV_TM][CONV_TN];
 #pragma unroll
@@ -113,10 +127,11 @@ static inline __attribute__((always_inline)) void conv_fwd(
 
   for (int ci = 0; ci < Cin; ci++) {
     const __global float *xc = xb + (size_t)ci * plane;
-    for (int ky = 0; ky < k; ky++) {
-      for (int kx = 0; kx < k; kx++) {
+    const __global float *wc = wb + ci * K * K * CONV_TM;
+    for (int ky = 0; ky < K; ky++) {
+      for (int kx = 0; kx < K; kx++) {
         const __global float *xr = xc + ky * Wp + kx;
-        const __global float *wr = wb + (size_t)((ci * k + ky) * k + kx) * CoutP;
+        const __global float *wr = wc + (ky * K + kx) * CONV_TM;
         vf xv[CONV_TN];
 #pragma unroll
         for (int j = 0; j < CONV_TN; j++) xv[j] = vload_s(xr + S * j * (CONV_LWS * CONV_VW), S);
@@ -132,35 +147,50 @@ static inline __attribute__((always_inline)) void conv_fwd(
 
   /* epilogue: map lanes back to (oy, ox), drop the padding columns, apply bias/affine/ReLU */
   const int hw = Ho * Wo;
-  int oidx[CONV_TN][CONV_VW];
-#pragma unroll
-  for (int j = 0; j < CONV_TN; j++)
-    for (int l = 0; l < CONV_VW; l++) {
-      int q = q0 + j * (CONV_LWS * CONV_VW) + l;
-      int oy = q / Wp, ox = q - oy * Wp;
-      oidx[j][l] = (oy < Ho && ox < Wo) ? oy * Wo + ox : -1;
-    }
+  __global float *yn = y + (size_t)n * Cout * hw;
+  float b[CONV_TM], sc[CONV_TM], sh[CONV_TM];
 #pragma unroll
   for (int m = 0; m < CONV_TM; m++) {
-    int co = co0 + m;
-    if (co >= Cout) break;
-    float b = (flags & FL_BIAS) ? bias[co] : 0.0f;
-    float sc = (flags & FL_SCALE) ? scale[co] : 1.0f;
-    float sh = (flags & FL_SHIFT) ? shift[co] : 0.0f;
-    __global float *yc = y + ((size_t)n * Cout + co) * hw;
+    int co = min(co0 + m, Cout - 1);
+    b[m] = (flags & FL_BIAS) ? bias[co] : 0.0f;
+    sc[m] = (flags & FL_SCALE) ? scale[co] : 1.0f;
+    sh[m] = (flags & FL_SHIFT) ? shift[co] : 0.0f;
+  }
+  const int mmax = min(CONV_TM, Cout - co0);
 #pragma unroll
-    for (int j = 0; j < CONV_TN; j++) {
-      float t[CONV_VW];
-      VSTORE(acc[m][j], t);
-      for (int l = 0; l < CONV_VW; l++) {
-        int o = oidx[j][l];
-        if (o < 0) continue;
-        float v = t[l];
-        if (flags & FL_BIAS) v = v + b;
-        if (flags & FL_SCALE) v = v * sc + sh;
-        if (flags & FL_RELU) v = fmax(v, 0.0f);
-        if (flags & FL_ACCUM) v = yc[o] + v;
-        yc[o] = v;
+  for (int j = 0; j < CONV_TN; j++) {
+    int qs = q0 + j * (CONV_LWS * CONV_VW);
+    int oy = qs / Wp, ox = qs - oy * Wp;
+    if (oy >= Ho) break;
+    if (ox + CONV_VW <= Wo) { /* whole vector is one run of valid outputs */
+      int o = oy * Wo + ox;
+      for (int m = 0; m < mmax; m++) {
+        vf v = acc[m][j];
+        if (flags & FL_BIAS) v = v + b[m];
+        if (flags & FL_SCALE) v = v * sc[m] + sh[m];
+        if (flags & FL_RELU) v = fmax(v, (vf)0.0f);
+        __global float *yo = yn + (size_t)(co0 + m) * hw + o;
+        if (flags & FL_ACCUM) v = VLOAD(yo) + v;
+        VSTORE(v, yo);
+      }
+    } else {
+      for (int m = 0; m < mmax; m++) {
+        float t[CONV_VW];
+        VSTORE(acc[m][j], t);
+        __global float *yc = yn + (size_t)(co0 + m) * hw;
+        int ly = oy, lx = ox;
+        for (int l = 0; l < CONV_VW; l++) {
+          if (ly < Ho && lx < Wo) {
+            float v = t[l];
+            if (flags & FL_BIAS) v = v + b[m];
+            if (flags & FL_SCALE) v = v * sc[m] + sh[m];
+            if (flags & FL_RELU) v = fmax(v, 0.0f);
+            int o = ly * Wo + lx;
+            if (flags & FL_ACCUM) v = yc[o] + v;
+            yc[o] = v;
+          }
+          if (++lx == Wp) lx = 0, ly++;
+        }
       }
     }
   }
@@ -170,69 +200,94 @@ static inline __attribute__((always_inline)) void conv_fwd(
   const __global float *xp, const __global float *wpk, __global float *y, ulong y_off,                        \
       const __global float *bias, ulong b_off, const __global float *scale, ulong sc_off,                     \
       const __global float *shift, ulong sh_off, int Cin, int Cout, int CoutP, int k, int Wp, int plane,      \
-      int Ho, int Wo, int flags
+      int Ho, int Wo, int flags, int pix_major
 #define CONV_FWD_PASS                                                                                         \
-  xp, wpk, y + y_off, bias + b_off, scale + sc_off, shift + sh_off, Cin, Cout, CoutP, k, Wp, plane, Ho, Wo, flags
+  xp, wpk, y + y_off, bias + b_off, scale + sc_off, shift + sh_off, Cin, Cout, CoutP, k, Wp, plane, Ho, Wo,   \
+      flags, pix_major
 
-__kernel void spx_conv2d_fwd_s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1); }
-__kernel void spx_conv2d_fwd_s2(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 2); }
-__kernel void spx_conv2d_fwd_sn(CONV_FWD_ARGS, int S) { conv_fwd(CONV_FWD_PASS, S); }
+__kernel void spx_conv2d_fwd_k3s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 3); }
+__kernel void spx_conv2d_fwd_k1s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 1); }
+__kernel void spx_conv2d_fwd_s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 0); }
+__kernel void spx_conv2d_fwd_s2(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 2, 0); }
+__kernel void spx_conv2d_fwd_sn(CONV_FWD_ARGS, int S) { conv_fwd(CONV_FWD_PASS, S, 0); }
 
 /* Backward weights, partial sums: part[c][co][kk] = sum_n sum_{q in chunk c} dyq[n][co][q] *
  * xp[n][ci][S*q + ky*Wp + kx]. dyq holds dy on the virtual grid (zeros in the padding columns
- * and past the end). Global: dim0 = ceil(Kdim/DW_TN), dim1 = CoutP/DW_TM, dim2 = chunks. */
+ * and past the end). A work-item owns DW_TM channels x CONV_DW_G tiles of DW_TN weight columns;
+ * it walks its chunk in blocks of CONV_DW_QB q and, per block, updates every tile in turn
+ * (accumulators of the other tiles wait in private memory), so the block of dy stays in L1
+ * while the tiles stream x. Global: dim0 = ceil(Kdim/(DW_TN*DW_G)), dim1 = ceil(Cout/DW_TM),
+ * dim2 = chunks. */
 static inline __attribute__((always_inline)) void conv_dw(const __global float *xp, const __global float *dyq,
                                                           __global float *part, int N, int Cin, int Cout, int k,
                                                           int Wp, int plane, int Qd, int qchunk, const int S) {
   const int Kdim = Cin * k * k;
-  const int kk0 = (int)get_global_id(0) * CONV_DW_TN;
+  const int kt0 = (int)get_global_id(0) * CONV_DW_G;
   const int co0 = (int)get_global_id(1) * CONV_DW_TM;
   const int c = (int)get_global_id(2);
-  if (kk0 >= Kdim || co0 >= Cout) return;
-  const int qa = c * qchunk, qb = min(qa + qchunk, Qd);
+  if (kt0 * CONV_DW_TN >= Kdim || co0 >= Cout) return;
+  const int qa = c * qchunk, qe = min(qa + qchunk, Qd);
+  const int ntiles = min(CONV_DW_G, (Kdim + CONV_DW_TN - 1) / CONV_DW_TN - kt0);
 
-  int xoff[CONV_DW_TN];
+  int xoff[CONV_DW_G][CONV_DW_TN];
+  for (int g = 0; g < CONV_DW_G; g++)
 #pragma unroll
-  for (int j = 0; j < CONV_DW_TN; j++) {
-    int kk = min(kk0 + j, Kdim - 1);
-    int ci = kk / (k * k), r = kk - ci * k * k, ky = r / k, kx = r - ky * k;
-    xoff[j] = ci * plane + ky * Wp + kx;
-  }
+    for (int j = 0; j < CONV_DW_TN; j++) {
+      int kk = min((kt0 + g) * CONV_DW_TN + j, Kdim - 1);
+      int ci = kk / (k * k), r = kk - ci * k * k, ky = r / k, kx = r - ky * k;
+      xoff[g][j] = ci * plane + ky * Wp + kx;
+    }
   int yoff[CONV_DW_TM];
 #pragma unroll
   for (int m = 0; m < CONV_DW_TM; m++) yoff[m] = min(co0 + m, Cout - 1) * Qd;
 
-  vf acc[CONV_DW_TM][CONV_DW_TN];
+  vf accs[CONV_DW_G][CONV_DW_TM][CONV_DW_TN];
+  for (int g = 0; g < CONV_DW_G; g++)
 #pragma unroll
-  for (int m = 0; m < CONV_DW_TM; m++)
+    for (int m = 0; m < CONV_DW_TM; m++)
 #pragma unroll
-    for (int j = 0; j < CONV_DW_TN; j++) acc[m][j] = (vf)0.0f;
+      for (int j = 0; j < CONV_DW_TN; j++) accs[g][m][j] = (vf)0.0f;
 
   for (int n = 0; n < N; n++) {
     const __global float *xn = xp + (size_t)n * Cin * plane;
     const __global float *dn = dyq + (size_t)n * Cout * Qd;
-    for (int q = qa; q < qb; q += CONV_VW) {
-      vf dv[CONV_DW_TM], xv[CONV_DW_TN];
+    for (int qb = qa; qb < qe; qb += CONV_DW_QB) {
+      const int qbe = min(qb + CONV_DW_QB, qe);
+      for (int g = 0; g < ntiles; g++) {
+        vf acc[CONV_DW_TM][CONV_DW_TN];
 #pragma unroll
-      for (int m = 0; m < CONV_DW_TM; m++) dv[m] = VLOAD(dn + yoff[m] + q);
+        for (int m = 0; m < CONV_DW_TM; m++)
 #pragma unroll
-      for (int j = 0; j < CONV_DW_TN; j++) xv[j] = vload_s(xn + xoff[j] + S * q, S);
+          for (int j = 0; j < CONV_DW_TN; j++) acc[m][j] = accs[g][m][j];
+        for (int q = qb; q < qbe; q += CONV_VW) {
+          vf dv[CONV_DW_TM], xv[CONV_DW_TN];
 #pragma unroll
-      for (int m = 0; m < CONV_DW_TM; m++)
+          for (int m = 0; m < CONV_DW_TM; m++) dv[m] = VLOAD(dn + yoff[m] + q);
 #pragma unroll
-        for (int j = 0; j < CONV_DW_TN; j++) acc[m][j] = fma(dv[m], xv[j], acc[m][j]);
+          for (int j = 0; j < CONV_DW_TN; j++) xv[j] = vload_s(xn + xoff[g][j] + S * q, S);
+#pragma unroll
+          for (int m = 0; m < CONV_DW_TM; m++)
+#pragma unroll
+            for (int j = 0; j < CONV_DW_TN; j++) acc[m][j] = fma(dv[m], xv[j], acc[m][j]);
+        }
+#pragma unroll
+        for (int m = 0; m < CONV_DW_TM; m++)
+#pragma unroll
+          for (int j = 0; j < CONV_DW_TN; j++) accs[g][m][j] = acc[m][j];
+      }
     }
   }
+  for (int g = 0; g < ntiles; g++)
 #pragma unroll
-  for (int m = 0; m < CONV_DW_TM; m++) {
-    int co = co0 + m;
-    if (co >= Cout) break;
+    for (int m = 0; m < CONV_DW_TM; m++) {
+      int co = co0 + m;
+      if (co >= Cout) break;
 #pragma unroll
-    for (int j = 0; j < CONV_DW_TN; j++) {
-      int kk = kk0 + j;
-      if (kk < Kdim) part[((size_t)c * Cout + co) * Kdim + kk] = VSUM(acc[m][j]);
+      for (int j = 0; j < CONV_DW_TN; j++) {
+        int kk = (kt0 + g) * CONV_DW_TN + j;
+        if (kk < Kdim) part[((size_t)c * Cout + co) * Kdim + kk] = VSUM(accs[g][m][j]);
+      }
     }
-  }
 }
 
 #define CONV_DW_ARGS                                                                                          \
@@ -274,37 +329,39 @@ __kernel void spx_conv2d_db(const __global float *dy, ulong dy_off, __global flo
 }
 
 /* Copy src [NC][H][W] into dst planes of `plane` floats laid out as rows of Wp: element
- * (sy, sx) goes to row top + sy*d, column left + sx*d; everything else (padding, dilation
- * holes, plane tail, the guard after the last plane) is zero. total = elements of dst. */
-__kernel void spx_conv2d_pad(const __global float *src, ulong src_off, __global float *dst, int NC, int H, int W,
-                             int Hp, int Wp, int plane, int top, int left, int d, int total) {
-  int i = SPX_GID0;
-  if (i >= total) return;
+ * (sy, sx) goes to row top + sy*d, column left + sx*d; everything else in the plane (padding,
+ * dilation holes, plane tail) is zero. Global: (Wp, ceil(plane/Wp), NC). The guard after the
+ * last plane is filled separately. */
+__kernel void spx_conv2d_pad(const __global float *src, ulong src_off, __global float *dst, int H, int W, int Hp,
+                             int Wp, int plane, int top, int left, int d) {
+  const int xx = (int)get_global_id(0), yy = (int)get_global_id(1), nc = (int)get_global_id(2);
+  const int r = yy * Wp + xx;
+  if (xx >= Wp || r >= plane) return;
   float v = 0.0f;
-  int nc = i / plane, r = i - nc * plane;
-  int yy = r / Wp, xx = r - yy * Wp;
-  if (nc < NC && yy < Hp) {
-    int sy = yy - top, sx = xx - left;
-    if (sy >= 0 && sx >= 0 && sy % d == 0 && sx % d == 0) {
-      sy /= d;
-      sx /= d;
-      if (sy < H && sx < W) v = src[src_off + ((size_t)nc * H + sy) * W + sx];
-    }
+  int sy = yy - top, sx = xx - left;
+  int ok = yy < Hp && sy >= 0 && sx >= 0;
+  if (ok && d != 1) {
+    ok = sy % d == 0 && sx % d == 0;
+    sy /= d;
+    sx /= d;
   }
-  dst[i] = v;
+  if (ok && sy < H && sx < W) v = src[src_off + ((size_t)nc * H + sy) * W + sx];
+  dst[(size_t)nc * plane + r] = v;
 }
 
-/* Pack weights w [Cout][Cin][k][k] into a GEMM panel wpk [rows][cols]:
- *  flip = 0: rows = Cin*k*k (kk), cols = CoutP: wpk[kk][co] = w[co][kk]
- *  flip = 1: rows = Cout*k*k, cols = CinP:  wpk[(co*k+ky)*k+kx][ci] = w[co][ci][k-1-ky][k-1-kx]
- * (flip = 1 is the weight of the backward-data convolution). Columns past the real count are 0. */
+/* Pack weights w [Cout][Cin][k][k] into GEMM panels of CONV_TM columns, wpk[ct][r][m] with
+ * column c = ct*CONV_TM + m (cols = columns rounded up to CONV_TM, extra columns zero):
+ *  flip = 0: rows r = kk = (ci*k+ky)*k+kx, columns co:  w[co][ci][ky][kx]
+ *  flip = 1: rows r = (co*k+ky)*k+kx, columns ci:       w[co][ci][k-1-ky][k-1-kx]
+ * (flip = 1 is the weight of the backward-data convolution). */
 __kernel void spx_conv2d_pack(const __global float *w, ulong w_off, __global float *wpk, int Cout, int Cin, int k,
                               int cols, int flip) {
   int i = SPX_GID0;
   int kk2 = k * k;
   int rows = (flip ? Cout : Cin) * kk2;
   if (i >= rows * cols) return;
-  int r = i / cols, c = i - r * cols;
+  int m = i % CONV_TM, t0 = i / CONV_TM, r = t0 % rows, ct = t0 / rows;
+  int c = ct * CONV_TM + m;
   float v = 0.0f;
   if (!flip) {
     if (c < Cout) v = w[w_off + (size_t)c * Cin * kk2 + r];

@@ -123,6 +123,13 @@ static void device_case(spx_ctx *ctx, int n, int c, int h, int w, float offset, 
   CHECK_MSG(spx_nt_err(outp, pd + 2 * c, c, 0) < tol, "running_mean: %.3g", spx_nt_err(outp, pd + 2 * c, c, 0));
   CHECK_OK(ctx, spx_nt_download(ctx, &trv, outp));
   CHECK_MSG(spx_nt_err(outp, pd + 3 * c, c, 0) < tol, "running_var: %.3g", spx_nt_err(outp, pd + 3 * c, c, 0));
+  /* rerun without the running-stat update: the same bits, running stats untouched */
+  CHECK_OK(ctx, spx_bn_train_forward(ctx, &tx, &tw, &tb, NULL, NULL, 0.1f, 1e-5f, 0, &tsave, &ty));
+  CHECK_OK(ctx, spx_nt_download(ctx, &ty, got2));
+  CHECK(memcmp(got, got2, 4 * nx) == 0);
+  float rv_again[64];
+  CHECK_OK(ctx, spx_nt_download(ctx, &trv, rv_again));
+  CHECK(memcmp(rv_again, outp, 4 * (size_t)c) == 0);
 
   /* backward from the device's own saved stats (as training does) */
   CHECK_OK(ctx, spx_nt_download(ctx, &tsave, outp));

@@ -119,7 +119,7 @@ static double max_violation(const float *dev, const double *ref, const double *a
 
 /* Runs forward and backward on the device and compares with the reference. accumulate: the
  * gradients are pre-filled with ones. Returns copies of the device outputs for determinism checks. */
-static void device_case(spx_ctx *ctx, const dev_case *c, int accumulate, float **outs) {
+static void device_case(spx_ctx *ctx, const dev_case *c, int accumulate, spx_conv2d_workspace *ws, float **outs) {
   const spx_conv2d_shape *s = &c->s;
   size_t ho = out_h(s), wo = out_w(s);
   size_t nx = (size_t)s->n * s->cin * s->h * s->w, nw = (size_t)s->cout * s->cin * s->k * s->k, nb = s->cout;
@@ -166,7 +166,7 @@ static void device_case(spx_ctx *ctx, const dev_case *c, int accumulate, float *
   spx_tensor tdx = spx_tensor_view(mdx, off, s->n, s->cin, s->h, s->w);
   spx_tensor tdw = spx_tensor_view(mdw, off, s->cout, s->cin, s->k, s->k);
   spx_tensor tdb = spx_tensor_view(mdb, off, s->cout, 1, 1, 1);
-  spx_conv2d_params p = {s->k, s->stride, s->pad, c->use_affine ? &tsc : NULL, c->use_affine ? &tsh : NULL, c->relu};
+  spx_conv2d_params p = {s->k, s->stride, s->pad, c->use_affine ? &tsc : NULL, c->use_affine ? &tsh : NULL, c->relu, ws};
   CHECK_OK(ctx, spx_conv2d_forward(ctx, &tx, &tw, c->use_bias ? &tb : NULL, &p, &ty));
   CHECK_OK(ctx, spx_conv2d_backward(ctx, &tx, &tw, &tdy, &tdx, &tdw, &tdb, &p));
 
@@ -207,13 +207,18 @@ static const dev_case cases[] = {
     {{1, 3, 8, 8, 4, 3, 1, 0}, 1, 0, 0},     /* valid conv (pad 0) */
     {{1, 1, 1, 1, 1, 1, 1, 0}, 1, 0, 0},     /* 1x1x1x1 */
     {{1, 33, 21, 17, 19, 3, 1, 1}, 1, 1, 0}, /* Cin 33, Cout 19 */
+    {{2, 2, 45, 50, 3, 3, 1, 1}, 0, 0, 0},   /* weight-gradient reduction over several q chunks */
+    {{1, 2, 64, 70, 3, 4, 2, 1}, 0, 0, 1},   /* same, stride 2 */
 };
 
 static void test_device_vs_ref(void) {
   spx_ctx *ctx;
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
-  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) device_case(ctx, &cases[i], 0, NULL);
+  /* even cases: per-call scratch; odd cases: one shared grow-only workspace */
+  spx_conv2d_workspace ws = {0};
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) device_case(ctx, &cases[i], 0, i % 2 ? &ws : NULL, NULL);
+  spx_conv2d_workspace_release(&ws);
   spx_ctx_destroy(ctx);
 }
 
@@ -221,8 +226,10 @@ static void test_device_accumulate(void) {
   spx_ctx *ctx;
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
-  device_case(ctx, &cases[0], 1, NULL);
-  device_case(ctx, &cases[3], 1, NULL);
+  spx_conv2d_workspace ws = {0};
+  device_case(ctx, &cases[0], 1, NULL, NULL);
+  device_case(ctx, &cases[3], 1, &ws, NULL);
+  spx_conv2d_workspace_release(&ws);
   spx_ctx_destroy(ctx);
 }
 
@@ -236,9 +243,11 @@ static void test_device_deterministic(void) {
                      (size_t)s->cout * s->cin * s->k * s->k, (size_t)s->cout};
   float *a[4], *b[4];
   unsigned long long keep = rng;
-  device_case(ctx, c, 0, a);
+  spx_conv2d_workspace ws = {0};
+  device_case(ctx, c, 0, &ws, a);
   rng = keep; /* same inputs */
-  device_case(ctx, c, 0, b);
+  device_case(ctx, c, 0, &ws, b);
+  spx_conv2d_workspace_release(&ws);
   for (int i = 0; i < 4; i++) {
     CHECK_MSG(memcmp(a[i], b[i], sizes[i] * sizeof(float)) == 0, "output %d differs between runs", i);
     free(a[i]), free(b[i]);
@@ -255,16 +264,16 @@ static void test_bad_args(void) {
   spx_tensor x = spx_tensor_view(m, 0, 1, 2, 5, 5), w = spx_tensor_view(m, 0, 3, 2, 3, 3);
   spx_tensor y = spx_tensor_view(m, 0, 1, 3, 5, 5), ybad = spx_tensor_view(m, 0, 1, 3, 4, 5);
   spx_tensor wbad = spx_tensor_view(m, 0, 3, 4, 3, 3), b2 = spx_tensor_view(m, 0, 2, 1, 1, 1);
-  spx_conv2d_params p = {3, 1, 1, NULL, NULL, 0};
+  spx_conv2d_params p = {3, 1, 1, NULL, NULL, 0, NULL};
   CHECK(spx_conv2d_forward(ctx, &x, &w, NULL, &p, &ybad) == SPX_E_ARG);
   CHECK(strstr(spx_ctx_message(ctx), "y has shape") != NULL);
   CHECK(spx_conv2d_forward(ctx, &x, &wbad, NULL, &p, &y) == SPX_E_ARG);
   CHECK(strstr(spx_ctx_message(ctx), "w has shape") != NULL);
   CHECK(spx_conv2d_forward(ctx, &x, &w, &b2, &p, &y) == SPX_E_ARG);
   CHECK(strstr(spx_ctx_message(ctx), "bias") != NULL);
-  spx_conv2d_params pb = {3, 1, 3, NULL, NULL, 0};
+  spx_conv2d_params pb = {3, 1, 3, NULL, NULL, 0, NULL};
   CHECK(spx_conv2d_forward(ctx, &x, &w, NULL, &pb, &y) == SPX_E_ARG);
-  spx_conv2d_params p0 = {3, 0, 1, NULL, NULL, 0};
+  spx_conv2d_params p0 = {3, 0, 1, NULL, NULL, 0, NULL};
   CHECK(spx_conv2d_backward(ctx, &x, &w, &y, &x, NULL, NULL, &p0) == SPX_E_ARG);
   CHECK(spx_conv2d_backward(ctx, &x, &w, &ybad, NULL, NULL, NULL, &p) == SPX_E_ARG);
   CHECK(strstr(spx_ctx_message(ctx), "dy") != NULL);

@@ -36,6 +36,32 @@ static void test_reference(void) {
   CHECK(isnan(y));
 }
 
+#define GOLDEN SPX_TEST_DATA "/pool/pool_golden.txt"
+
+/* reference vs F.max_pool2d with ties (tests/data/pool/make_pool_golden.py): exact */
+static void test_golden(void) {
+  int cnt = 0, nx = 0, ng = 0, ny = 0, ndx = 0;
+  double *shape = spx_golden_get(GOLDEN, "shape", &cnt), *x = spx_golden_get(GOLDEN, "x", &nx);
+  double *g = spx_golden_get(GOLDEN, "g", &ng), *yt = spx_golden_get(GOLDEN, "y", &ny);
+  double *dxt = spx_golden_get(GOLDEN, "dx", &ndx);
+  CHECK(shape && x && g && yt && dxt && cnt == 4);
+  if (shape && x && g && yt && dxt && cnt == 4) {
+    int n = (int)shape[0], c = (int)shape[1], h = (int)shape[2], w = (int)shape[3];
+    CHECK(nx == n * c * h * w && ndx == nx && ny == n * c * (h / 2) * (w / 2) && ng == ny);
+    double *y = malloc(8 * (size_t)ny), *dx = calloc((size_t)nx, 8);
+    spx_ref_maxpool_forward(x, n, c, h, w, y);
+    spx_ref_maxpool_backward(x, g, n, c, h, w, dx);
+    int ok = 1;
+    for (int i = 0; i < ny; i++) ok &= y[i] == yt[i];
+    CHECK(ok);
+    ok = 1;
+    for (int i = 0; i < nx; i++) ok &= (float)dx[i] == (float)dxt[i];
+    CHECK_MSG(ok, "gradient routing differs from torch");
+    free(y), free(dx);
+  }
+  free(shape), free(x), free(g), free(yt), free(dxt);
+}
+
 static void device_case(spx_ctx *ctx, int n, int c, int h, int w, int levels) {
   int oh = h / 2, ow = w / 2;
   size_t nin = (size_t)n * c * h * w, nout = (size_t)n * c * oh * ow;
@@ -84,6 +110,7 @@ static void test_device(void) {
 
 int main(void) {
   SPX_RUN(test_reference);
+  SPX_RUN(test_golden);
   SPX_RUN(test_device);
   return spx_test_summary();
 }

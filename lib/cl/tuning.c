@@ -20,17 +20,29 @@ static const struct spx_tunable spx_tunables[] = {
     {"CONV_TM", 8, 8},
     {"CONV_TN", 3, 4},
     {"CONV_LWS", 1, 64},
+    /* conv2d: inputs up to this many KiB (and smaller than the weights) run pixel-tile-fastest */
+    {"CONV_XCACHE", 2048, 2048},
     /* conv2d backward weights: tile of out-channels x weight columns; q-chunk of the split reduction */
-    {"CONV_DW_TM", 4, 4},
+    {"CONV_DW_TM", 6, 4},
     {"CONV_DW_TN", 4, 4},
-    {"CONV_DW_QC", 4096, 1024},
+    {"CONV_DW_QC", 2048, 1024},
+    /* conv2d backward weights: column tiles per work-item, walked per block of CONV_DW_QB q */
+    {"CONV_DW_G", 8, 1},
+    {"CONV_DW_QB", 256, 1024},
+    {"CONV_DW_LWS", 1, 64}, /* work-group size along the column tiles (CPU: 1, keeps private arrays small) */
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", 16, 256},
-    /* batch norm: one work-group per channel (power of two), kernels/batchnorm.cl */
-    {"SPX_BN_WG", 64, 256},
-    /* generic reductions (kernels/loss.cl): work-group size (power of two) and the number of
-     * groups of the first stage (fixed, so results do not depend on the launch) */
-    {"SPX_RED_WG", 64, 256},
+    /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,
+     * upsample, batch-norm eval (lib/nn/nn_internal.h spx_nn_run3d) */
+    {"SPX_WG2_X", 64, 32},
+    {"SPX_WG2_Y", 1, 8},
+    /* batch norm: one work-group per channel (power of two). 1 = one work-item walks the
+     * channel contiguously with 8-lane vector accumulators (CPU); >1 = strided + tree (GPU) */
+    {"SPX_BN_WG", 1, 256},
+    /* generic reductions (kernels/loss.cl): work-group size (power of two; 1 = contiguous
+     * chunk per group, vectorised, for CPUs) and the number of groups of the first stage
+     * (fixed, so results do not depend on the launch) */
+    {"SPX_RED_WG", 1, 256},
     {"SPX_RED_GROUPS", 32, 256},
 };
 

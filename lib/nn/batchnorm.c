@@ -67,10 +67,10 @@ spx_status spx_bn_eval_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
   if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_eval_fwd", &k))) return st;
   cl_int hw = x->h * x->w;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, bias) | spx_nn_arg(k, 6, running_mean) |
-             spx_nn_arg(k, 8, running_var) | spx_nn_arg(k, 10, y) | SPX_ARG(k, 12, x->n) | SPX_ARG(k, 13, x->c) |
-             SPX_ARG(k, 14, hw) | SPX_ARG(k, 15, eps);
+             spx_nn_arg(k, 8, running_var) | spx_nn_arg(k, 10, y) | SPX_ARG(k, 12, x->c) | SPX_ARG(k, 13, hw) |
+             SPX_ARG(k, 14, eps);
   if ((st = spx_cl_check(ctx, e, "spx_bn_eval_fwd"))) return st;
-  return spx_nn_run1d(ctx, k, spx_tensor_numel(x), "spx_bn_eval_fwd");
+  return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)x->n * (size_t)x->c, 1, "spx_bn_eval_fwd");
 }
 
 spx_status spx_bn_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *save,

@@ -63,47 +63,68 @@ static spx_status check_common(spx_ctx *ctx, const spx_tensor *x, const spx_tens
   return SPX_OK;
 }
 
+void spx_conv2d_workspace_release(spx_conv2d_workspace *ws) {
+  if (!ws) return;
+  for (int i = 0; i < 3; i++) spx_cl_buf_release(&ws->buf[i]);
+}
+
+/* Scratch buffer `slot` of ws (grow-only), or a fresh buffer owned by the caller when ws is NULL. */
+typedef struct scratch {
+  cl_mem mem;
+  int owned;
+} scratch;
+static spx_status scratch_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, size_t bytes, const char *what,
+                              scratch *out) {
+  out->mem = NULL;
+  out->owned = 0;
+  if (ws) {
+    spx_status st = spx_cl_buf_ensure(ctx, &ws->buf[slot], bytes, what);
+    if (st == SPX_OK) out->mem = ws->buf[slot].mem;
+    return st;
+  }
+  out->owned = 1;
+  return spx_cl_alloc(ctx, bytes, what, &out->mem);
+}
+static void scratch_put(scratch *s) {
+  if (s->owned) spx_cl_free(&s->mem);
+  s->mem = NULL;
+}
+
 /* Padded/dilated copy of src [nc][h][w] into a new scratch buffer (see spx_conv2d_pad). */
-static spx_status pad_copy(spx_ctx *ctx, cl_mem src, size_t src_off, int nc, int h, int w, int hp, int wp, int plane,
-                           int top, int left, int d, size_t total, cl_mem *out) {
-  *out = NULL;
+static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_mem src, size_t src_off, int nc,
+                           int h, int w, int hp, int wp, int plane, int top, int left, int d, size_t total,
+                           scratch *out) {
   cl_kernel k;
   spx_status st = spx_cl_kernel(ctx, "conv2d.cl", "spx_conv2d_pad", &k);
   if (st) return st;
-  if ((st = spx_cl_alloc(ctx, total * sizeof(float), "conv2d padded scratch", out))) return st;
+  if ((st = scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d padded scratch", out))) return st;
   cl_ulong so = src_off;
-  int tot = (int)total;
-  cl_int e = SPX_ARG(k, 0, src) | SPX_ARG(k, 1, so) | SPX_ARG(k, 2, *out) | SPX_ARG(k, 3, nc) | SPX_ARG(k, 4, h) |
-             SPX_ARG(k, 5, w) | SPX_ARG(k, 6, hp) | SPX_ARG(k, 7, wp) | SPX_ARG(k, 8, plane) | SPX_ARG(k, 9, top) |
-             SPX_ARG(k, 10, left) | SPX_ARG(k, 11, d) | SPX_ARG(k, 12, tot);
-  if ((st = spx_cl_check(ctx, e, "spx_conv2d_pad args"))) goto fail;
-  size_t gl = total, l = (size_t)spx_cl_tune(ctx, "SPX_WG");
-  if ((st = spx_cl_run(ctx, k, 1, &gl, &l, "spx_conv2d_pad"))) goto fail;
-  return SPX_OK;
-fail:
-  spx_cl_free(out);
-  return st;
+  cl_int e = SPX_ARG(k, 0, src) | SPX_ARG(k, 1, so) | SPX_ARG(k, 2, out->mem) | SPX_ARG(k, 3, h) | SPX_ARG(k, 4, w) |
+             SPX_ARG(k, 5, hp) | SPX_ARG(k, 6, wp) | SPX_ARG(k, 7, plane) | SPX_ARG(k, 8, top) |
+             SPX_ARG(k, 9, left) | SPX_ARG(k, 10, d);
+  if ((st = spx_cl_check(ctx, e, "spx_conv2d_pad args"))) return st;
+  size_t gl[3] = {(size_t)wp, ((size_t)plane + wp - 1) / wp, (size_t)nc};
+  size_t lo[3] = {(size_t)spx_cl_tune(ctx, "SPX_WG"), 1, 1};
+  if ((size_t)wp < lo[0]) lo[0] = (size_t)wp;
+  if ((st = spx_cl_run(ctx, k, 3, gl, lo, "spx_conv2d_pad"))) return st;
+  size_t used = (size_t)nc * plane;
+  return spx_cl_fill_f32(ctx, out->mem, used, total - used, 0.0f);
 }
 
 /* Packed weight panel (see spx_conv2d_pack). */
-static spx_status pack_weights(spx_ctx *ctx, const spx_tensor *w, int cout, int cin, int k, int cols, int flip,
-                               cl_mem *out) {
-  *out = NULL;
+static spx_status pack_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, const spx_tensor *w, int cout,
+                               int cin, int k, int cols, int flip, scratch *out) {
   cl_kernel kr;
   spx_status st = spx_cl_kernel(ctx, "conv2d.cl", "spx_conv2d_pack", &kr);
   if (st) return st;
   size_t rows = (size_t)(flip ? cout : cin) * k * k, total = rows * (size_t)cols;
-  if ((st = spx_cl_alloc(ctx, total * sizeof(float), "conv2d packed weights", out))) return st;
+  if ((st = scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d packed weights", out))) return st;
   cl_ulong wo = w->off;
-  cl_int e = SPX_ARG(kr, 0, w->mem) | SPX_ARG(kr, 1, wo) | SPX_ARG(kr, 2, *out) | SPX_ARG(kr, 3, cout) |
+  cl_int e = SPX_ARG(kr, 0, w->mem) | SPX_ARG(kr, 1, wo) | SPX_ARG(kr, 2, out->mem) | SPX_ARG(kr, 3, cout) |
              SPX_ARG(kr, 4, cin) | SPX_ARG(kr, 5, k) | SPX_ARG(kr, 6, cols) | SPX_ARG(kr, 7, flip);
-  if ((st = spx_cl_check(ctx, e, "spx_conv2d_pack args"))) goto fail;
+  if ((st = spx_cl_check(ctx, e, "spx_conv2d_pack args"))) return st;
   size_t l = (size_t)spx_cl_tune(ctx, "SPX_WG");
-  if ((st = spx_cl_run(ctx, kr, 1, &total, &l, "spx_conv2d_pack"))) goto fail;
-  return SPX_OK;
-fail:
-  spx_cl_free(out);
-  return st;
+  return spx_cl_run(ctx, kr, 1, &total, &l, "spx_conv2d_pack");
 }
 
 /* Zeros after the last plane so that vector loads of the last tiles stay inside the buffer. */
@@ -115,7 +136,8 @@ static size_t guard_elems(int s, size_t q, int k, int wp, int vw) {
 static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, int cout, int coutp, int k, int s,
                           int wp, int plane, int ho, int wo, const spx_tensor *y, const spx_tensor *bias,
                           const spx_tensor *scale, const spx_tensor *shift, int flags) {
-  const char *name = s == 1 ? "spx_conv2d_fwd_s1" : s == 2 ? "spx_conv2d_fwd_s2" : "spx_conv2d_fwd_sn";
+  const char *name = s == 2 ? "spx_conv2d_fwd_s2" : s > 2 ? "spx_conv2d_fwd_sn"
+                     : k == 3 ? "spx_conv2d_fwd_k3s1" : k == 1 ? "spx_conv2d_fwd_k1s1" : "spx_conv2d_fwd_s1";
   cl_kernel kr;
   spx_status st = spx_cl_kernel(ctx, "conv2d.cl", name, &kr);
   if (st) return st;
@@ -130,10 +152,16 @@ static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, i
              SPX_ARG(kr, 8, shm) | SPX_ARG(kr, 9, sho) | SPX_ARG(kr, 10, cin) | SPX_ARG(kr, 11, cout) |
              SPX_ARG(kr, 12, coutp) | SPX_ARG(kr, 13, k) | SPX_ARG(kr, 14, wp) | SPX_ARG(kr, 15, plane) |
              SPX_ARG(kr, 16, ho) | SPX_ARG(kr, 17, wo) | SPX_ARG(kr, 18, flags);
-  if (s > 2) e |= SPX_ARG(kr, 19, s);
+  /* Group order: channel tiles fastest keeps one pixel tile (all input channels) hot while the
+   * weights stream; when the weights outweigh a cache-resident input (deep, small layers) go
+   * pixel-fastest so each weight panel is read once. */
+  double wbytes = 4.0 * cin * k * k * coutp, xbytes = 4.0 * cin * plane;
+  int pix_major = wbytes > xbytes && xbytes <= (double)spx_cl_tune(ctx, "CONV_XCACHE") * 1024.0;
+  e |= SPX_ARG(kr, 19, pix_major);
+  if (s > 2) e |= SPX_ARG(kr, 20, s);
   if ((st = spx_cl_check(ctx, e, name))) return st;
-  size_t gl[3] = {(size_t)coutp / tm, groups * lws, (size_t)n}, lo[3] = {1, (size_t)lws, 1};
-  return spx_cl_run(ctx, kr, 3, gl, lo, name);
+  size_t gl[2] = {(size_t)(coutp / tm) * groups * lws, (size_t)n}, lo[2] = {(size_t)lws, 1};
+  return spx_cl_run(ctx, kr, 2, gl, lo, name);
 }
 
 spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,
@@ -150,46 +178,47 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
   size_t qv = round_up((size_t)g.ho * wp, (size_t)lws * tn * vw);
   size_t total = (size_t)g.n * g.cin * plane + guard_elems(g.s, qv, g.k, wp, vw);
   int coutp = (int)round_up((size_t)g.cout, (size_t)tm);
-  cl_mem xp = NULL, wpk = NULL;
-  if ((st = pad_copy(ctx, x->mem, x->off, g.n * g.cin, g.h, g.w, hp, wp, plane, g.pad, g.pad, 1, total, &xp)))
+  scratch xp = {0}, wpk = {0};
+  if ((st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, hp, wp, plane, g.pad, g.pad, 1, total,
+                     &xp)))
     goto done;
-  if ((st = pack_weights(ctx, w, g.cout, g.cin, g.k, coutp, 0, &wpk))) goto done;
+  if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, &wpk))) goto done;
   int flags = (bias ? FL_BIAS : 0) | (p->scale ? FL_SCALE : 0) | (p->scale && p->shift ? FL_SHIFT : 0) |
               (p->relu ? FL_RELU : 0);
-  st = run_fwd(ctx, xp, wpk, g.n, g.cin, g.cout, coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale,
+  st = run_fwd(ctx, xp.mem, wpk.mem, g.n, g.cin, g.cout, coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale,
                p->scale ? p->shift : NULL, flags);
 done:
-  spx_cl_free(&xp);
-  spx_cl_free(&wpk);
+  scratch_put(&xp);
+  scratch_put(&wpk);
   return st;
 }
 
 /* dx += conv(dilate_s(dy) padded by k-1-pad, flipped and transposed w), stride 1. */
-static spx_status backward_data(spx_ctx *ctx, const geom *g, const spx_tensor *w, const spx_tensor *dy,
-                                const spx_tensor *dx) {
+static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *w,
+                                const spx_tensor *dy, const spx_tensor *dx) {
   int tm = spx_cl_tune(ctx, "CONV_TM"), tn = spx_cl_tune(ctx, "CONV_TN"), vw = spx_cl_tune(ctx, "CONV_VW");
   int lws = spx_cl_tune(ctx, "CONV_LWS");
   int hd = g->h + g->k - 1, wd = g->w + g->k - 1, plane = hd * wd, top = g->k - 1 - g->pad;
   size_t qv = round_up((size_t)g->h * wd, (size_t)lws * tn * vw);
   size_t total = (size_t)g->n * g->cout * plane + guard_elems(1, qv, g->k, wd, vw);
   int cinp = (int)round_up((size_t)g->cin, (size_t)tm);
-  cl_mem dyp = NULL, wpk = NULL;
+  scratch dyp = {0}, wpk = {0};
   spx_status st;
-  if ((st = pad_copy(ctx, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, hd, wd, plane, top, top, g->s, total,
-                     &dyp)))
+  if ((st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, hd, wd, plane, top, top, g->s,
+                     total, &dyp)))
     goto done;
-  if ((st = pack_weights(ctx, w, g->cout, g->cin, g->k, cinp, 1, &wpk))) goto done;
-  st = run_fwd(ctx, dyp, wpk, g->n, g->cout, g->cin, cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL, NULL,
-               FL_ACCUM);
+  if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, &wpk))) goto done;
+  st = run_fwd(ctx, dyp.mem, wpk.mem, g->n, g->cout, g->cin, cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL,
+               NULL, FL_ACCUM);
 done:
-  spx_cl_free(&dyp);
-  spx_cl_free(&wpk);
+  scratch_put(&dyp);
+  scratch_put(&wpk);
   return st;
 }
 
 /* dw += sum over (n, q) of dy x im2col(x): chunked partial sums, then a fixed-order reduction. */
-static spx_status backward_weights(spx_ctx *ctx, const geom *g, const spx_tensor *x, const spx_tensor *dy,
-                                   const spx_tensor *dw) {
+static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *x,
+                                   const spx_tensor *dy, const spx_tensor *dw) {
   int vw = spx_cl_tune(ctx, "CONV_VW"), dtm = spx_cl_tune(ctx, "CONV_DW_TM"), dtn = spx_cl_tune(ctx, "CONV_DW_TN");
   int qc = (int)round_up((size_t)spx_cl_tune(ctx, "CONV_DW_QC"), (size_t)vw);
   int hp = g->h + 2 * g->pad, wp = g->w + 2 * g->pad, plane = hp * wp;
@@ -199,13 +228,17 @@ static spx_status backward_weights(spx_ctx *ctx, const geom *g, const spx_tensor
   size_t xtotal = (size_t)g->n * g->cin * plane + guard_elems(g->s, (size_t)qd, g->k, wp, vw);
   size_t dtotal = (size_t)g->n * g->cout * qd;
   size_t count = (size_t)g->cout * kdim;
-  cl_mem xp = NULL, dyq = NULL, part = NULL;
+  scratch xs = {0}, dys = {0}, ps = {0};
   spx_status st;
-  if ((st = pad_copy(ctx, x->mem, x->off, g->n * g->cin, g->h, g->w, hp, wp, plane, g->pad, g->pad, 1, xtotal, &xp)))
+  if ((st = pad_copy(ctx, ws, 0, x->mem, x->off, g->n * g->cin, g->h, g->w, hp, wp, plane, g->pad, g->pad, 1, xtotal,
+                     &xs)))
     goto done;
-  if ((st = pad_copy(ctx, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, g->ho, wp, qd, 0, 0, 1, dtotal, &dyq)))
+  if ((st = pad_copy(ctx, ws, 1, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, g->ho, wp, qd, 0, 0, 1, dtotal,
+                     &dys)))
     goto done;
-  if ((st = spx_cl_alloc(ctx, count * nchunks * sizeof(float), "conv2d weight-gradient partials", &part))) goto done;
+  if ((st = scratch_get(ctx, ws, 2, count * nchunks * sizeof(float), "conv2d weight-gradient partials", &ps)))
+    goto done;
+  cl_mem xp = xs.mem, dyq = dys.mem, part = ps.mem;
   {
     const char *name = g->s == 1 ? "spx_conv2d_dw_s1" : g->s == 2 ? "spx_conv2d_dw_s2" : "spx_conv2d_dw_sn";
     cl_kernel kr;
@@ -215,8 +248,10 @@ static spx_status backward_weights(spx_ctx *ctx, const geom *g, const spx_tensor
                SPX_ARG(kr, 8, plane) | SPX_ARG(kr, 9, qd) | SPX_ARG(kr, 10, qc);
     if (g->s > 2) e |= SPX_ARG(kr, 11, g->s);
     if ((st = spx_cl_check(ctx, e, name))) goto done;
-    size_t gl[3] = {((size_t)kdim + dtn - 1) / dtn, ((size_t)g->cout + dtm - 1) / dtm, (size_t)nchunks};
-    if ((st = spx_cl_run(ctx, kr, 3, gl, NULL, name))) goto done;
+    size_t per = (size_t)dtn * spx_cl_tune(ctx, "CONV_DW_G");
+    size_t gl[3] = {((size_t)kdim + per - 1) / per, ((size_t)g->cout + dtm - 1) / dtm, (size_t)nchunks};
+    size_t lo[3] = {(size_t)spx_cl_tune(ctx, "CONV_DW_LWS"), 1, 1};
+    if ((st = spx_cl_run(ctx, kr, 3, gl, lo, name))) goto done;
   }
   {
     cl_kernel kr;
@@ -230,9 +265,9 @@ static spx_status backward_weights(spx_ctx *ctx, const geom *g, const spx_tensor
     st = spx_cl_run(ctx, kr, 1, &gl, &l, "spx_conv2d_dw_reduce");
   }
 done:
-  spx_cl_free(&xp);
-  spx_cl_free(&dyq);
-  spx_cl_free(&part);
+  scratch_put(&xs);
+  scratch_put(&dys);
+  scratch_put(&ps);
   return st;
 }
 
@@ -259,8 +294,8 @@ spx_status spx_conv2d_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
   if (dx && (st = check_shape(ctx, "dx", dx, g.n, g.cin, g.h, g.w))) return st;
   if (dw && (st = check_shape(ctx, "dw", dw, g.cout, g.cin, g.k, g.k))) return st;
   if ((st = check_vec(ctx, db, g.cout, "db"))) return st;
-  if (dx && (st = backward_data(ctx, &g, w, dy, dx))) return st;
-  if (dw && (st = backward_weights(ctx, &g, x, dy, dw))) return st;
+  if (dx && (st = backward_data(ctx, p->ws, &g, w, dy, dx))) return st;
+  if (dw && (st = backward_weights(ctx, p->ws, &g, x, dy, dw))) return st;
   if (db && (st = backward_bias(ctx, &g, dy, db))) return st;
   return SPX_OK;
 }

@@ -13,6 +13,15 @@
 
 #include "nn/tensor.h"
 
+/* Optional persistent scratch (padded copies, packed weights, partial sums). Grow-only; reuse
+ * one per network so steady-state calls allocate nothing. Calls that share a workspace must
+ * be enqueued on the same (in-order) queue. Zero-initialise; release with
+ * spx_conv2d_workspace_release. */
+typedef struct spx_conv2d_workspace {
+  spx_cl_buf buf[3];
+} spx_conv2d_workspace;
+void spx_conv2d_workspace_release(spx_conv2d_workspace *ws);
+
 typedef struct spx_conv2d_params {
   int k;      /* kernel size (k x k), >= 1 */
   int stride; /* >= 1 */
@@ -21,6 +30,7 @@ typedef struct spx_conv2d_params {
   const spx_tensor *scale; /* [Cout] or NULL */
   const spx_tensor *shift; /* [Cout] or NULL (only used together with scale) */
   int relu;                /* nonzero: max(v, 0) after bias/scale/shift */
+  spx_conv2d_workspace *ws; /* NULL: scratch is allocated and released per call */
 } spx_conv2d_params;
 
 /* Output size of one spatial dimension; <= 0 when the input is too small. */

@@ -17,6 +17,8 @@ static spx_status reduce_run(spx_ctx *ctx, const char *op, int kind, const spx_t
   size_t n = spx_tensor_numel(a), groups = (n + wg - 1) / wg;
   if (groups > maxg) groups = maxg;
   if (groups < 1) groups = 1;
+  if (n > (size_t)INT_MAX - groups * wg) /* the kernel's grid-stride index must not overflow */
+    return spx_fail(ctx, SPX_E_ARG, "%s: %zu elements are too many for one reduction", op, n);
   if ((st = spx_cl_kernel(ctx, "loss.cl", "spx_reduce_stage1", &k1)) ||
       (st = spx_cl_kernel(ctx, "loss.cl", "spx_reduce_stage2", &k2)))
     return st;

@@ -44,4 +44,19 @@ static inline spx_status spx_nn_run1d(spx_ctx *ctx, cl_kernel k, size_t count, c
   return spx_cl_run(ctx, k, 1, &count, &l, what);
 }
 
+/* Launch a 3-D kernel over (x, y, plane) = (w, h, planes): kernels index without divisions.
+ * Work-group SPX_WG2_X x SPX_WG2_Y (lib/cl/tuning.c), shrunk to the next power of two of w and h
+ * so narrow deep levels do not waste most of each group. */
+static inline size_t spx_nn_pow2_cap(size_t v, size_t cap) {
+  size_t p = 1;
+  while (p < v && p < cap) p <<= 1;
+  return p;
+}
+static inline spx_status spx_nn_run3d(spx_ctx *ctx, cl_kernel k, size_t w, size_t h, size_t planes, const char *what) {
+  size_t g[3] = {w, h, planes};
+  size_t l[3] = {spx_nn_pow2_cap(w, (size_t)spx_cl_tune(ctx, "SPX_WG2_X")),
+                 spx_nn_pow2_cap(h, (size_t)spx_cl_tune(ctx, "SPX_WG2_Y")), 1};
+  return spx_cl_run(ctx, k, 3, g, l, what);
+}
+
 #endif

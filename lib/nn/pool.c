@@ -17,10 +17,9 @@ spx_status spx_maxpool_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
   cl_kernel k;
   if ((st = shapes(ctx, "maxpool_forward", x, y, "y")) || (st = spx_cl_kernel(ctx, "pool.cl", "spx_maxpool_fwd", &k)))
     return st;
-  cl_int nc = x->n * x->c;
-  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, nc) | SPX_ARG(k, 5, x->h) | SPX_ARG(k, 6, x->w);
+  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, x->h) | SPX_ARG(k, 5, x->w);
   if ((st = spx_cl_check(ctx, e, "spx_maxpool_fwd"))) return st;
-  return spx_nn_run1d(ctx, k, spx_tensor_numel(y), "spx_maxpool_fwd");
+  return spx_nn_run3d(ctx, k, (size_t)y->w, (size_t)y->h, (size_t)y->n * (size_t)y->c, "spx_maxpool_fwd");
 }
 
 spx_status spx_maxpool_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *dy, const spx_tensor *dx) {
@@ -31,9 +30,8 @@ spx_status spx_maxpool_backward(spx_ctx *ctx, const spx_tensor *x, const spx_ten
     return st;
   if (!spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, "maxpool_backward", "dx vs x", dx, x);
   if ((st = spx_cl_kernel(ctx, "pool.cl", "spx_maxpool_bwd", &k))) return st;
-  cl_int nc = x->n * x->c;
-  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, dy) | spx_nn_arg(k, 4, dx) | SPX_ARG(k, 6, nc) |
-             SPX_ARG(k, 7, x->h) | SPX_ARG(k, 8, x->w);
+  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, dy) | spx_nn_arg(k, 4, dx) | SPX_ARG(k, 6, x->h) |
+             SPX_ARG(k, 7, x->w);
   if ((st = spx_cl_check(ctx, e, "spx_maxpool_bwd"))) return st;
-  return spx_nn_run1d(ctx, k, spx_tensor_numel(x), "spx_maxpool_bwd");
+  return spx_nn_run3d(ctx, k, (size_t)dy->w, (size_t)dy->h, (size_t)dy->n * (size_t)dy->c, "spx_maxpool_bwd");
 }

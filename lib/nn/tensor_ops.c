@@ -77,30 +77,28 @@ static spx_status pad_check(spx_ctx *ctx, const char *op, const spx_tensor *x, c
 }
 
 static spx_status pad_run(spx_ctx *ctx, const char *kname, const spx_tensor *src, const spx_tensor *dst,
-                          const spx_tensor *x, const spx_tensor *o, int left, int top, size_t count) {
+                          const spx_tensor *x, const spx_tensor *o, int left, int top, const spx_tensor *range) {
   cl_kernel k;
   spx_status st = spx_cl_kernel(ctx, "tensor_ops.cl", kname, &k);
   if (st) return st;
-  cl_int nc = x->n * x->c;
-  cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, nc) | SPX_ARG(k, 5, x->h) |
-             SPX_ARG(k, 6, x->w) | SPX_ARG(k, 7, o->h) | SPX_ARG(k, 8, o->w) | SPX_ARG(k, 9, left) |
-             SPX_ARG(k, 10, top);
+  cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, x->h) | SPX_ARG(k, 5, x->w) |
+             SPX_ARG(k, 6, o->h) | SPX_ARG(k, 7, o->w) | SPX_ARG(k, 8, left) | SPX_ARG(k, 9, top);
   if ((st = spx_cl_check(ctx, e, kname))) return st;
-  return spx_nn_run1d(ctx, k, count, kname);
+  return spx_nn_run3d(ctx, k, (size_t)range->w, (size_t)range->h, (size_t)range->n * (size_t)range->c, kname);
 }
 
 spx_status spx_pad_forward(spx_ctx *ctx, const spx_tensor *x, int left, int right, int top, int bottom,
                            const spx_tensor *out) {
   spx_status st = pad_check(ctx, "pad_forward", x, out, left, right, top, bottom);
   if (st) return st;
-  return pad_run(ctx, "spx_pad_fwd", x, out, x, out, left, top, spx_tensor_numel(out));
+  return pad_run(ctx, "spx_pad_fwd", x, out, x, out, left, top, out);
 }
 
 spx_status spx_pad_backward(spx_ctx *ctx, const spx_tensor *dout, int left, int right, int top, int bottom,
                             const spx_tensor *dx) {
   spx_status st = pad_check(ctx, "pad_backward", dx, dout, left, right, top, bottom);
   if (st) return st;
-  return pad_run(ctx, "spx_pad_bwd", dout, dx, dx, dout, left, top, spx_tensor_numel(dx));
+  return pad_run(ctx, "spx_pad_bwd", dout, dx, dx, dout, left, top, dx);
 }
 
 static spx_status concat_check(spx_ctx *ctx, const char *op, const spx_tensor *a, const spx_tensor *b,
@@ -112,18 +110,25 @@ static spx_status concat_check(spx_ctx *ctx, const char *op, const spx_tensor *a
   return SPX_OK;
 }
 
+/* src (n x cs x hw) into channels [c0, c0 + cs) of dst (n x cd x hw) */
+static spx_status place(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
+  cl_kernel k;
+  spx_status st = spx_cl_kernel(ctx, "tensor_ops.cl", "spx_channel_place", &k);
+  if (st) return st;
+  cl_int hw = src->h * src->w;
+  cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, src->c) | SPX_ARG(k, 5, c0) |
+             SPX_ARG(k, 6, dst->c) | SPX_ARG(k, 7, hw);
+  if ((st = spx_cl_check(ctx, e, "spx_channel_place"))) return st;
+  return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)src->c, (size_t)src->n, "spx_channel_place");
+}
+
 spx_status spx_concat_forward(spx_ctx *ctx, const spx_tensor *a, const spx_tensor *b, const spx_tensor *out) {
   spx_status st;
-  cl_kernel k;
   if ((st = spx_nn_check(ctx, a, "concat_forward", "a")) || (st = spx_nn_check(ctx, b, "concat_forward", "b")) ||
       (st = spx_nn_check(ctx, out, "concat_forward", "out")) || (st = concat_check(ctx, "concat_forward", a, b, out)) ||
-      (st = spx_cl_kernel(ctx, "tensor_ops.cl", "spx_concat_fwd", &k)))
+      (st = place(ctx, a, out, 0)))
     return st;
-  cl_int hw = out->h * out->w;
-  cl_int e = spx_nn_arg(k, 0, a) | spx_nn_arg(k, 2, b) | spx_nn_arg(k, 4, out) | SPX_ARG(k, 6, out->n) |
-             SPX_ARG(k, 7, a->c) | SPX_ARG(k, 8, b->c) | SPX_ARG(k, 9, hw);
-  if ((st = spx_cl_check(ctx, e, "spx_concat_fwd"))) return st;
-  return spx_nn_run1d(ctx, k, spx_tensor_numel(out), "spx_concat_fwd");
+  return place(ctx, b, out, a->c);
 }
 
 static spx_status slice_acc(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
@@ -131,10 +136,10 @@ static spx_status slice_acc(spx_ctx *ctx, const spx_tensor *src, const spx_tenso
   spx_status st = spx_cl_kernel(ctx, "tensor_ops.cl", "spx_channel_slice_acc", &k);
   if (st) return st;
   cl_int hw = src->h * src->w;
-  cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, src->n) | SPX_ARG(k, 5, src->c) |
-             SPX_ARG(k, 6, c0) | SPX_ARG(k, 7, dst->c) | SPX_ARG(k, 8, hw);
+  cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, src->c) | SPX_ARG(k, 5, c0) |
+             SPX_ARG(k, 6, dst->c) | SPX_ARG(k, 7, hw);
   if ((st = spx_cl_check(ctx, e, "spx_channel_slice_acc"))) return st;
-  return spx_nn_run1d(ctx, k, spx_tensor_numel(dst), "spx_channel_slice_acc");
+  return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)dst->c, (size_t)dst->n, "spx_channel_slice_acc");
 }
 
 static spx_status part_check(spx_ctx *ctx, const spx_tensor *dout, const spx_tensor *d, const char *name) {
