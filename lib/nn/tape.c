@@ -57,6 +57,7 @@ struct spx_tape {
   size_t plan_size[8];
   int nplans;
   int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
+  spx_conv2d_workspace ws; /* conv scratch, grow-only: no allocation in the steady state */
 };
 
 /* ------------------------------------------------------------------ values */
@@ -144,6 +145,7 @@ void spx_tape_destroy(spx_tape *t) {
   if (!t) return;
   spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
   spx_cl_free(&t->state), spx_cl_free(&t->act), spx_cl_free(&t->dact);
+  spx_conv2d_workspace_release(&t->ws);
   free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact), free(t->hdact);
   free(t->vals);
   free(t->nodes);
@@ -393,7 +395,7 @@ int spx_tape_conv(spx_tape *t, int x, int w, int bias, int pad, int scale, int s
   } else {
     spx_tensor tx = TV(x), tw = TV(w), tb = bias >= 0 ? TV(bias) : tx, ts = scale >= 0 ? TV(scale) : tx,
                tsh = shift >= 0 ? TV(shift) : tx, ty = TV(y);
-    spx_conv2d_params p = {k, 1, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu};
+    spx_conv2d_params p = {k, 1, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu, &t->ws};
     RUN(spx_conv2d_forward(t->ctx, &tx, &tw, bias >= 0 ? &tb : NULL, &p, &ty));
   }
   int ia[4] = {pad, 0, 0, 0};
@@ -600,7 +602,7 @@ static spx_status back_dev(spx_tape *t, const tnode *nd) {
     case OP_CONV: {
       spx_tensor w = TV(nd->in[1]), dw = spx_tape_grad_tensor(t, nd->in[1]), db;
       if (nd->in[2] >= 0) db = spx_tape_grad_tensor(t, nd->in[2]);
-      spx_conv2d_params p = {t->vals[nd->in[1]].h, 1, nd->iarg[0], NULL, NULL, 0};
+      spx_conv2d_params p = {t->vals[nd->in[1]].h, 1, nd->iarg[0], NULL, NULL, 0, &t->ws};
       return spx_conv2d_backward(ctx, &x, &w, &dy, pdx, wants(t, nd->in[1]) ? &dw : NULL,
                                  nd->in[2] >= 0 && wants(t, nd->in[2]) ? &db : NULL, &p);
     }
