@@ -2,6 +2,7 @@
 #include "nn/tape.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -22,7 +23,7 @@ typedef struct tvalue {
   int needs_grad;
 } tvalue;
 
-enum { OP_CONV, OP_BN, OP_ACT, OP_MAXPOOL, OP_UPSAMPLE, OP_PAD, OP_CONCAT, OP_L1 };
+enum { OP_CONV, OP_BN, OP_ACT, OP_MAXPOOL, OP_UPSAMPLE, OP_PAD, OP_CONCAT, OP_L1, NOPS };
 
 typedef struct tnode {
   int kind;
@@ -58,7 +59,23 @@ struct spx_tape {
   int nplans;
   int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
   spx_conv2d_workspace ws; /* conv scratch, grow-only: no allocation in the steady state */
+  /* SPX_TAPE_PROFILE=1: finish the queue around every device op and print the time per op kind
+   * and direction when the tape is destroyed */
+  int prof;
+  double prof_s[NOPS][2];
+  long prof_n[NOPS][2];
 };
+
+static double prof_begin(spx_tape *t) {
+  spx_device_finish(t->ctx);
+  return spx_now();
+}
+static void prof_end(spx_tape *t, int kind, int dir, double t0) {
+  spx_device_finish(t->ctx);
+  t->prof_s[kind][dir] += spx_now() - t0;
+  t->prof_n[kind][dir]++;
+}
+static const char *const op_names[NOPS] = {"conv", "batchnorm", "activation", "maxpool", "upsample", "pad", "concat", "l1"};
 
 /* ------------------------------------------------------------------ values */
 
@@ -137,12 +154,22 @@ spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **ou
   if (!t) return spx_fail(ctx, SPX_E_NOMEM, "tape: out of memory");
   t->ctx = ctx;
   t->backend = backend;
+  const char *pe = getenv("SPX_TAPE_PROFILE");
+  t->prof = backend == SPX_TAPE_DEVICE && pe && *pe && strcmp(pe, "0");
   *out = t;
   return SPX_OK;
 }
 
 void spx_tape_destroy(spx_tape *t) {
   if (!t) return;
+  if (t->prof) {
+    fprintf(stderr, "tape profile (device time per op kind, all passes):\n");
+    for (int k = 0; k < NOPS; k++)
+      for (int d = 0; d < 2; d++)
+        if (t->prof_n[k][d])
+          fprintf(stderr, "  %-10s %-8s %8.3f s  %6ld calls\n", op_names[k], d ? "backward" : "forward", t->prof_s[k][d],
+                  t->prof_n[k][d]);
+  }
   spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
   spx_cl_free(&t->state), spx_cl_free(&t->act), spx_cl_free(&t->dact);
   spx_conv2d_workspace_release(&t->ws);
@@ -357,13 +384,15 @@ int spx_tape_input(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w, cons
 }
 
 /* Run a status-returning call, making the error sticky. */
-#define RUN(call)                                                                                                   \
+#define RUN(kind, call)                                                                                             \
   do {                                                                                                              \
+    double run_t0_ = t->prof ? prof_begin(t) : 0;                                                                   \
     spx_status run_st_ = (call);                                                                                    \
     if (run_st_) {                                                                                                  \
       t->err = run_st_;                                                                                             \
       return -1;                                                                                                    \
     }                                                                                                               \
+    if (t->prof) prof_end(t, (kind), 0, run_t0_);                                                                   \
   } while (0)
 
 #define HOST (t->backend == SPX_TAPE_HOST)
@@ -396,7 +425,7 @@ int spx_tape_conv(spx_tape *t, int x, int w, int bias, int pad, int scale, int s
     spx_tensor tx = TV(x), tw = TV(w), tb = bias >= 0 ? TV(bias) : tx, ts = scale >= 0 ? TV(scale) : tx,
                tsh = shift >= 0 ? TV(shift) : tx, ty = TV(y);
     spx_conv2d_params p = {k, 1, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu, &t->ws};
-    RUN(spx_conv2d_forward(t->ctx, &tx, &tw, bias >= 0 ? &tb : NULL, &p, &ty));
+    RUN(OP_CONV, spx_conv2d_forward(t->ctx, &tx, &tw, bias >= 0 ? &tb : NULL, &p, &ty));
   }
   int ia[4] = {pad, 0, 0, 0};
   record(t, OP_CONV, x, w, bias, y, -1, -1, ia, NULL);
@@ -427,7 +456,7 @@ int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int r
                              HV(sv), HV(sv) + c, HV(y));
   } else {
     spx_tensor tx = TV(x), tg = TV(gamma), tb = TV(beta), trm = TV(rmean), trv = TV(rvar), ty = TV(y), ts = TV(sv);
-    RUN(spx_bn_train_forward(t->ctx, &tx, &tg, &tb, &trm, &trv, momentum, eps, 1, &ts, &ty));
+    RUN(OP_BN, spx_bn_train_forward(t->ctx, &tx, &tg, &tb, &trm, &trv, momentum, eps, 1, &ts, &ty));
   }
   float fa[2] = {momentum, eps};
   record(t, OP_BN, x, gamma, beta, y, sv, -1, NULL, fa);
@@ -443,7 +472,7 @@ int spx_tape_act(spx_tape *t, spx_act_kind kind, float slope, int x) {
     spx_ref_act_forward(kind, slope, HV(x), HV(y), spx_tape_numel(t, x));
   } else {
     spx_tensor tx = TV(x), ty = TV(y);
-    RUN(spx_act_forward(t->ctx, kind, slope, &tx, &ty));
+    RUN(OP_ACT, spx_act_forward(t->ctx, kind, slope, &tx, &ty));
   }
   int ia[4] = {(int)kind, 0, 0, 0};
   float fa[2] = {slope, 0};
@@ -461,7 +490,7 @@ int spx_tape_maxpool2(spx_tape *t, int x) {
     spx_ref_maxpool_forward(HV(x), xv->n, xv->c, xv->h, xv->w, HV(y));
   } else {
     spx_tensor tx = TV(x), ty = TV(y);
-    RUN(spx_maxpool_forward(t->ctx, &tx, &ty));
+    RUN(OP_MAXPOOL, spx_maxpool_forward(t->ctx, &tx, &ty));
   }
   record(t, OP_MAXPOOL, x, -1, -1, y, -1, -1, NULL, NULL);
   return y;
@@ -477,7 +506,7 @@ int spx_tape_upsample2(spx_tape *t, int x) {
     spx_ref_upsample2x_forward(HV(x), xv->n, xv->c, xv->h, xv->w, 1, HV(y));
   } else {
     spx_tensor tx = TV(x), ty = TV(y);
-    RUN(spx_upsample2x_forward(t->ctx, &tx, 1, &ty));
+    RUN(OP_UPSAMPLE, spx_upsample2x_forward(t->ctx, &tx, 1, &ty));
   }
   record(t, OP_UPSAMPLE, x, -1, -1, y, -1, -1, NULL, NULL);
   return y;
@@ -494,7 +523,7 @@ int spx_tape_pad(spx_tape *t, int x, int left, int right, int top, int bottom) {
     spx_ref_pad_forward(HV(x), xv->n, xv->c, xv->h, xv->w, left, right, top, bottom, HV(y));
   } else {
     spx_tensor tx = TV(x), ty = TV(y);
-    RUN(spx_pad_forward(t->ctx, &tx, left, right, top, bottom, &ty));
+    RUN(OP_PAD, spx_pad_forward(t->ctx, &tx, left, right, top, bottom, &ty));
   }
   int ia[4] = {left, right, top, bottom};
   record(t, OP_PAD, x, -1, -1, y, -1, -1, ia, NULL);
@@ -516,7 +545,7 @@ int spx_tape_concat(spx_tape *t, int a, int b) {
     spx_ref_concat_forward(HV(a), HV(b), av->n, av->c, bv->c, av->h * av->w, HV(y));
   } else {
     spx_tensor ta = TV(a), tb = TV(b), ty = TV(y);
-    RUN(spx_concat_forward(t->ctx, &ta, &tb, &ty));
+    RUN(OP_CONCAT, spx_concat_forward(t->ctx, &ta, &tb, &ty));
   }
   record(t, OP_CONCAT, a, b, -1, y, -1, -1, NULL, NULL);
   return y;
@@ -535,7 +564,7 @@ int spx_tape_l1(spx_tape *t, int pred, int target) {
     *HV(y) = spx_ref_loss_forward(SPX_LOSS_L1, SPX_REDUCE_MEAN, HV(pred), HV(target), spx_tape_numel(t, pred));
   } else {
     spx_tensor tp = TV(pred), tt = TV(target), ty = TV(y);
-    RUN(spx_loss_forward(t->ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &tp, &tt, &ty));
+    RUN(OP_L1, spx_loss_forward(t->ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &tp, &tt, &ty));
   }
   record(t, OP_L1, pred, target, -1, y, -1, -1, NULL, NULL);
   return y;
@@ -654,7 +683,9 @@ spx_status spx_tape_backward(spx_tape *t, int loss) {
   for (int i = t->nnodes - 1; i >= 0; i--) {
     const tnode *nd = &t->nodes[i];
     if (!t->vals[nd->out].needs_grad) continue;
+    double t0 = t->prof ? prof_begin(t) : 0;
     if ((st = HOST ? back_host(t, nd) : back_dev(t, nd))) return st;
+    if (t->prof) prof_end(t, nd->kind, 1, t0);
   }
   return SPX_OK;
 }
