@@ -323,6 +323,15 @@ static void test_checkpoint_errors(void) {
   }
   free(es);
   spx_st_free(&f);
+  /* a tiny file claiming width 1024 is refused before anything that size is allocated */
+  {
+    static float w0[1024 * 4 * 9];
+    spx_st_entry one = {"inc.double_conv.0.weight", SPX_F32, 4, {1024, 4, 3, 3}, w0};
+    CHECK_OK(ctx, spx_st_save(ctx, bad, &one, 1, NULL, NULL, 0));
+    CHECK(spx_unet_load(ctx, bad, &r) == SPX_E_FORMAT && r == NULL);
+    CHECK_MSG(strstr(spx_ctx_message(ctx), "up1.conv.double_conv.0.weight (expected shape [8192, 16384, 3, 3])"),
+              "message: %s", spx_ctx_message(ctx));
+  }
   /* a save to a directory that does not exist fails and leaves nothing behind; the old file stays */
   CHECK(spx_unet_save(u, "/nonexistent-dir/x.safetensors", 1) != SPX_OK);
   CHECK_OK(ctx, spx_unet_load(ctx, ck, &r));

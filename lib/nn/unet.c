@@ -599,6 +599,24 @@ spx_status spx_unet_load(spx_ctx *ctx, const char *path, spx_unet **out) {
                   got);
     goto done;
   }
+  /* before allocating anything for width W, the file must hold the largest weight (8W x 16W x 3 x 3):
+   * device memory stays proportional to the file size, whatever its first shape claims */
+  {
+    int64_t wd = t0->shape[0], big[4] = {8 * wd, 16 * wd, 3, 3};
+    const char *bn = "up1.conv.double_conv.0.weight";
+    const spx_st_tensor *tb = spx_st_find(&f, bn);
+    char want[96], got[96];
+    shape_str(want, sizeof want, 4, big);
+    if (!tb) {
+      st = spx_fail(ctx, SPX_E_FORMAT, "%s: missing tensor %s (expected shape %s)", path, bn, want);
+      goto done;
+    }
+    if (tb->ndim != 4 || memcmp(tb->shape, big, sizeof big)) {
+      shape_str(got, sizeof got, tb->ndim, tb->shape);
+      st = spx_fail(ctx, SPX_E_FORMAT, "%s: tensor %s has shape %s, expected %s", path, bn, got, want);
+      goto done;
+    }
+  }
   const char *sig = spx_st_meta(&f, "smplpix.sigmoid");
   if ((st = spx_unet_create_ex(ctx, (int)t0->shape[0], sig && !strcmp(sig, "1"), 0, SPX_TAPE_DEVICE, &u))) goto done;
   size_t cmax = 0;
