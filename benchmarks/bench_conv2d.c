@@ -119,14 +119,18 @@ int main(int argc, char **argv) {
   printf("sum of the table: %.1f ms wall, %.1f ms CPU (all threads; wall x cores when the machine is idle)\n", wall_sum,
          cpu_ms_sum);
   if (do_unet) {
-    double tot = 0, gtot = 0;
+    double tot = 0, gtot = 0, ctot = 0;
     for (size_t i = 0; i < sizeof unet / sizeof unet[0]; i++) {
-      double ms;
-      if (time_op(ctx, &unet[i], 0, reps, &ms, NULL)) return fail(ctx, unet[i].name);
-      tot += ms, gtot += flops(&unet[i]) * 1e-9;
+      const char *only = getenv("SPX_BENCH_UNET"); /* comma list of layer names */
+      if (only && !strstr(only, unet[i].name)) continue;
+      double ms, cpu;
+      if (time_op(ctx, &unet[i], 0, reps, &ms, &cpu)) return fail(ctx, unet[i].name);
+      tot += ms, gtot += flops(&unet[i]) * 1e-9, ctot += cpu;
+      if (getenv("SPX_BENCH_CPU")) printf("  %-5s %4d->%-4d %3dx%-3d wall %7.1f ms cpu %7.1f ms\n", unet[i].name,
+                                          unet[i].cin, unet[i].cout, unet[i].h, unet[i].w, ms, cpu);
     }
-    printf("UNet-64 all %zu convs, eval forward: %.1f ms, %.1f GFLOP, %.1f GFLOP/s\n", sizeof unet / sizeof unet[0],
-           tot, gtot, gtot / tot * 1e3);
+    printf("UNet-64 all %zu convs, eval forward: %.1f ms, %.1f GFLOP, %.1f GFLOP/s (CPU %.1f ms)\n",
+           sizeof unet / sizeof unet[0], tot, gtot, gtot / tot * 1e3, ctot);
   }
   /* plain-C double reference, one thread */
   {

@@ -71,14 +71,18 @@ def main():
             print(f"   cpu ms: {CPU[-3]:.1f} {CPU[-2]:.1f} {CPU[-1]:.1f}")
     if "--unet" in sys.argv:
         tot = gtot = 0.0
+        c0 = len(CPU)
         for cin, cout, h, w in UNET + [(64, 3, 308, 410)]:
             k = 1 if cout == 3 else 3
             x = torch.full((1, cin, h, w), 0.5)
             wt = torch.full((cout, cin, k, k), 0.01)
-            tot += best_ms(lambda: F.conv2d(x, wt, None, 1, k // 2), reps)
+            ms = best_ms(lambda: F.conv2d(x, wt, None, 1, k // 2), reps)
+            tot += ms
+            if os.environ.get("SPX_BENCH_CPU"):
+                print(f"  {cin:4d}->{cout:<4d} {h:3d}x{w:<3d} wall {ms:7.1f} ms cpu {CPU[-1]:7.1f} ms")
             gtot += 2.0 * cout * h * w * cin * k * k * 1e-9
         print(f"UNet-64 all {len(UNET) + 1} convs, eval forward: {tot:.1f} ms, {gtot:.1f} GFLOP, "
-              f"{gtot / tot * 1e3:.1f} GFLOP/s")
+              f"{gtot / tot * 1e3:.1f} GFLOP/s (CPU {sum(CPU[c0:]):.1f} ms)")
 
 
 if __name__ == "__main__":

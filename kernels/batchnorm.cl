@@ -146,9 +146,10 @@ __kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_trai
  * range (hw, n * c): one work-item per element, no division. */
 __kernel void spx_bn_eval_fwd(__global const float *x, int xo, __global const float *wt, int wo,
                               __global const float *bs, int bo, __global const float *rm, int rmo,
-                              __global const float *rv, int rvo, __global float *y, int yo, int c, int hw, float eps) {
+                              __global const float *rv, int rvo, __global float *y, int yo, int c, int hw, int planes,
+                              float eps) {
   int s = get_global_id(0), p = get_global_id(1);
-  if (s >= hw) return;
+  if (s >= hw || p >= planes) return; /* both dimensions are rounded up to the work-group */
   int ch = p % c, i = p * hw + s;
   float invstd = 1.0f / sqrt(rv[rvo + ch] + eps);
   y[yo + i] = (x[xo + i] - rm[rmo + ch]) * (invstd * wt[wo + ch]) + bs[bo + ch];

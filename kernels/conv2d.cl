@@ -96,18 +96,21 @@ static inline vf vload_s(const __global float *p, const int S) {
 #define FL_SCALE 2
 #define FL_SHIFT 4
 #define FL_RELU 8
-#define FL_ACCUM 16
+#define FL_ACCUM 16 /* y = y + acc, before bias / affine / ReLU */
 
 /* Forward. Global: dim0 = (CoutP/TM channel tiles) x (pixel groups) work-groups of CONV_LWS,
  * dim1 = N. A group covers CONV_LWS*CONV_TN*CONV_VW consecutive q and one channel tile; the
  * group order is channel-tile-fastest (consecutive groups share input pixels: large images) or
  * pixel-fastest when pix_major (consecutive groups share weights: deep layers with large
  * weights). wpk is packed per channel tile: wpk[cot][kk][TM], contiguous for one work-item.
+ * Input channels [ci0, ci1) only: the host may split a deep layer into passes over channel
+ * blocks (FL_ACCUM on all passes but the first, epilogue on the last) so the input block stays
+ * in cache while each weight panel is read once.
  * KF > 0 fixes the kernel size at compile time (fully unrolled taps), KF = 0 uses k. */
 static inline __attribute__((always_inline)) void conv_fwd(
     const __global float *xp, const __global float *wpk, __global float *y, const __global float *bias,
     const __global float *scale, const __global float *shift, int Cin, int Cout, int CoutP, int k, int Wp,
-    int plane, int Ho, int Wo, int flags, int pix_major, const int S, const int KF) {
+    int plane, int Ho, int Wo, int flags, int pix_major, int ci0, int ci1, const int S, const int KF) {
   const int K = KF > 0 ? KF : k;
   const int ncot = CoutP / CONV_TM, grp = (int)get_group_id(0);
   const int npg = (int)get_num_groups(0) / ncot;
@@ -125,7 +128,7 @@ static inline __attribute__((always_inline)) void conv_fwd(
 #pragma unroll
     for (int j = 0; j < CONV_TN; j++) acc[m][j] = (vf)0.0f;
 
-  for (int ci = 0; ci < Cin; ci++) {
+  for (int ci = ci0; ci < ci1; ci++) {
     const __global float *xc = xb + (size_t)ci * plane;
     const __global float *wc = wb + ci * K * K * CONV_TM;
     for (int ky = 0; ky < K; ky++) {
@@ -166,11 +169,11 @@ static inline __attribute__((always_inline)) void conv_fwd(
       int o = oy * Wo + ox;
       for (int m = 0; m < mmax; m++) {
         vf v = acc[m][j];
+        __global float *yo = yn + (size_t)(co0 + m) * hw + o;
+        if (flags & FL_ACCUM) v = VLOAD(yo) + v;
         if (flags & FL_BIAS) v = v + b[m];
         if (flags & FL_SCALE) v = v * sc[m] + sh[m];
         if (flags & FL_RELU) v = fmax(v, (vf)0.0f);
-        __global float *yo = yn + (size_t)(co0 + m) * hw + o;
-        if (flags & FL_ACCUM) v = VLOAD(yo) + v;
         VSTORE(v, yo);
       }
     } else {
@@ -182,11 +185,11 @@ static inline __attribute__((always_inline)) void conv_fwd(
         for (int l = 0; l < CONV_VW; l++) {
           if (ly < Ho && lx < Wo) {
             float v = t[l];
+            int o = ly * Wo + lx;
+            if (flags & FL_ACCUM) v = yc[o] + v;
             if (flags & FL_BIAS) v = v + b[m];
             if (flags & FL_SCALE) v = v * sc[m] + sh[m];
             if (flags & FL_RELU) v = fmax(v, 0.0f);
-            int o = ly * Wo + lx;
-            if (flags & FL_ACCUM) v = yc[o] + v;
             yc[o] = v;
           }
           if (++lx == Wp) lx = 0, ly++;
@@ -200,10 +203,10 @@ static inline __attribute__((always_inline)) void conv_fwd(
   const __global float *xp, const __global float *wpk, __global float *y, ulong y_off,                        \
       const __global float *bias, ulong b_off, const __global float *scale, ulong sc_off,                     \
       const __global float *shift, ulong sh_off, int Cin, int Cout, int CoutP, int k, int Wp, int plane,      \
-      int Ho, int Wo, int flags, int pix_major
+      int Ho, int Wo, int flags, int pix_major, int ci0, int ci1
 #define CONV_FWD_PASS                                                                                         \
   xp, wpk, y + y_off, bias + b_off, scale + sc_off, shift + sh_off, Cin, Cout, CoutP, k, Wp, plane, Ho, Wo,   \
-      flags, pix_major
+      flags, pix_major, ci0, ci1
 
 __kernel void spx_conv2d_fwd_k3s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 3); }
 __kernel void spx_conv2d_fwd_k1s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 1); }

@@ -55,30 +55,51 @@ inline void spx_up_readers(int i, int in, int out, float scale, int align, int *
   }
 }
 
-/* range (w, h, planes). Readers of input row i are output rows 2i-1 .. 2i+3 (lib/nn/upsample.c).
- * Branch-free for vectorisation: every load is at a clamped (valid) index and terms whose weight
- * is 0 are replaced by 0 with a select (never 0 * dy, so an inf/NaN elsewhere cannot leak in). */
-__kernel void spx_upsample2x_bwd(__global const float *dy, int go, __global float *dx, int xo, int h, int w, float sh,
-                                 float sw, int align) {
+/* Backward in two separable passes (the same sums, in the same order, as a fused 2-D gather:
+ * each input pixel gets sum_a wy[a] * (sum_b wx[b] * dy[y0+a, x0+b])). Readers of input
+ * coordinate i are output coordinates 2i-1 .. 2i+3 (lib/nn/upsample.c); their weights come from
+ * per-axis tables tab[k * in + i] (k = 0..4) built once per call by spx_upsample2x_weights.
+ * Branch-free: loads are at clamped (valid) indices and terms whose weight is 0 are replaced by 0
+ * with a select (never 0 * dy, so an inf/NaN elsewhere cannot leak in). */
+
+/* range (in): the reader weights of every input coordinate along one axis */
+__kernel void spx_upsample2x_weights(__global float *tab, int to, int in, float scale, int align) {
+  int i = SPX_GID0;
+  if (i >= in) return;
+  int d0;
+  float wt[5];
+  spx_up_readers(i, in, 2 * in, scale, align, &d0, wt);
+  for (int k = 0; k < 5; k++) tab[to + k * in + i] = wt[k];
+}
+
+/* Pass 1, range (w, oh, planes): t[p, oy, ix] = sum_b wx[b] * dy[p, oy, 2ix - 1 + b]. */
+__kernel void spx_upsample2x_bwd_rows(__global const float *dy, int go, __global float *t, __global const float *tab,
+                                      int wxo, int h, int w) {
   int oh = 2 * h, ow = 2 * w;
+  int ix = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
+  if (ix >= w || oy >= oh) return;
+  __global const float *g = dy + go + (p * oh + oy) * ow;
+  float row = 0.0f;
+#pragma unroll
+  for (int b = 0; b < 5; b++) {
+    float wb = tab[wxo + b * w + ix], v = g[clamp(2 * ix - 1 + b, 0, ow - 1)];
+    row += wb != 0.0f ? wb * v : 0.0f;
+  }
+  t[(p * oh + oy) * w + ix] = row;
+}
+
+/* Pass 2, range (w, h, planes): dx[p, iy, ix] += sum_a wy[a] * t[p, 2iy - 1 + a, ix]. */
+__kernel void spx_upsample2x_bwd_cols(__global const float *t, __global const float *tab, int wyo,
+                                      __global float *dx, int xo, int h, int w) {
+  int oh = 2 * h;
   int ix = get_global_id(0), iy = get_global_id(1), p = get_global_id(2);
   if (ix >= w || iy >= h) return;
-  int y0, x0;
-  float wy[5], wx[5];
-  spx_up_readers(iy, h, oh, sh, align, &y0, wy);
-  spx_up_readers(ix, w, ow, sw, align, &x0, wx);
-  __global const float *g = dy + go + p * oh * ow;
+  __global const float *q = t + p * oh * w + ix;
   float acc = 0.0f;
 #pragma unroll
   for (int a = 0; a < 5; a++) {
-    int yy = clamp(y0 + a, 0, oh - 1);
-    float row = 0.0f;
-#pragma unroll
-    for (int b = 0; b < 5; b++) {
-      float v = g[yy * ow + clamp(x0 + b, 0, ow - 1)];
-      row += wx[b] != 0.0f ? wx[b] * v : 0.0f;
-    }
-    acc += wy[a] != 0.0f ? wy[a] * row : 0.0f;
+    float wa = tab[wyo + a * h + iy], v = q[clamp(2 * iy - 1 + a, 0, oh - 1) * w];
+    acc += wa != 0.0f ? wa * v : 0.0f;
   }
   dx[xo + (p * h + iy) * w + ix] += acc;
 }

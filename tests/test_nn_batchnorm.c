@@ -164,6 +164,7 @@ static void device_case(spx_ctx *ctx, int n, int c, int h, int w, float offset, 
   spx_ref_bn_eval_forward(xd, n, c, hw, pd, pd + c, rmd, rvd, 1e-5, ref);
   CHECK_OK(ctx, spx_nt_download(ctx, &ty, got));
   CHECK_MSG(spx_nt_err(got, ref, nx, 1.0) < ytol, "eval y: %.3g", spx_nt_err(got, ref, nx, 1.0));
+  CHECK(spx_nt_guards_ok(ctx, &ty));
 
   spx_nt_free(&tx), spx_nt_free(&tw), spx_nt_free(&tb), spx_nt_free(&trm), spx_nt_free(&trv), spx_nt_free(&tsave);
   spx_nt_free(&ty), spx_nt_free(&tg), spx_nt_free(&tdx), spx_nt_free(&tdw), spx_nt_free(&tdb);

@@ -209,6 +209,8 @@ static const dev_case cases[] = {
     {{1, 33, 21, 17, 19, 3, 1, 1}, 1, 1, 0}, /* Cin 33, Cout 19 */
     {{2, 2, 45, 50, 3, 3, 1, 1}, 0, 0, 0},   /* weight-gradient reduction over several q chunks */
     {{1, 2, 64, 70, 3, 4, 2, 1}, 0, 0, 1},   /* same, stride 2 */
+    /* deep layer whose input exceeds CONV_XCACHE: forward split into input-channel passes */
+    {{1, 3700, 10, 10, 20, 3, 1, 1}, 1, 1, 1},
 };
 
 static void test_device_vs_ref(void) {

@@ -65,10 +65,10 @@ spx_status spx_bn_eval_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
     return st;
   if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
   if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_eval_fwd", &k))) return st;
-  cl_int hw = x->h * x->w;
+  cl_int hw = x->h * x->w, planes = x->n * x->c;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, bias) | spx_nn_arg(k, 6, running_mean) |
              spx_nn_arg(k, 8, running_var) | spx_nn_arg(k, 10, y) | SPX_ARG(k, 12, x->c) | SPX_ARG(k, 13, hw) |
-             SPX_ARG(k, 14, eps);
+             SPX_ARG(k, 14, planes) | SPX_ARG(k, 15, eps);
   if ((st = spx_cl_check(ctx, e, "spx_bn_eval_fwd"))) return st;
   return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)x->n * (size_t)x->c, 1, "spx_bn_eval_fwd");
 }

@@ -154,14 +154,31 @@ static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, i
              SPX_ARG(kr, 16, ho) | SPX_ARG(kr, 17, wo) | SPX_ARG(kr, 18, flags);
   /* Group order: channel tiles fastest keeps one pixel tile (all input channels) hot while the
    * weights stream; when the weights outweigh a cache-resident input (deep, small layers) go
-   * pixel-fastest so each weight panel is read once. */
+   * pixel-fastest so each weight panel is read once. When the input does not fit, split the
+   * input channels into blocks that do (passes accumulate into y in a fixed order). */
   double wbytes = 4.0 * cin * k * k * coutp, xbytes = 4.0 * cin * plane;
-  int pix_major = wbytes > xbytes && xbytes <= (double)spx_cl_tune(ctx, "CONV_XCACHE") * 1024.0;
+  double xcache = (double)spx_cl_tune(ctx, "CONV_XCACHE") * 1024.0;
+  int pix_major = wbytes > xbytes && xbytes <= xcache, cib = cin;
+  if (wbytes > xbytes && xbytes > xcache && xcache > 0) {
+    cib = (int)(xcache / (4.0 * plane));
+    if (cib < 16) cib = 16;
+    if (cib < cin) pix_major = 1;
+    else cib = cin;
+  }
   e |= SPX_ARG(kr, 19, pix_major);
-  if (s > 2) e |= SPX_ARG(kr, 20, s);
+  if (s > 2) e |= SPX_ARG(kr, 22, s);
   if ((st = spx_cl_check(ctx, e, name))) return st;
   size_t gl[2] = {(size_t)(coutp / tm) * groups * lws, (size_t)n}, lo[2] = {(size_t)lws, 1};
-  return spx_cl_run(ctx, kr, 2, gl, lo, name);
+  const int epi = FL_BIAS | FL_SCALE | FL_SHIFT | FL_RELU;
+  for (int ci0 = 0; ci0 < cin; ci0 += cib) {
+    int ci1 = ci0 + cib < cin ? ci0 + cib : cin;
+    int f = (flags & ~epi) | (ci0 > 0 ? FL_ACCUM : 0) | (ci1 == cin ? flags & epi : 0);
+    e = SPX_ARG(kr, 18, f) | SPX_ARG(kr, 20, ci0) | SPX_ARG(kr, 21, ci1);
+    if ((st = spx_cl_check(ctx, e, name))) return st;
+    if ((st = spx_cl_run(ctx, kr, 2, gl, lo, name))) return st;
+  }
+  return SPX_OK;
+
 }
 
 spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,

@@ -46,7 +46,8 @@ static inline spx_status spx_nn_run1d(spx_ctx *ctx, cl_kernel k, size_t count, c
 
 /* Launch a 3-D kernel over (x, y, plane) = (w, h, planes): kernels index without divisions.
  * Work-group SPX_WG2_X x SPX_WG2_Y (lib/cl/tuning.c), shrunk to the next power of two of w and h
- * so narrow deep levels do not waste most of each group. */
+ * so narrow deep levels do not waste most of each group. Dimensions 0 AND 1 are rounded up to
+ * the group, so every such kernel must bound-check both (dimension 2 has group size 1). */
 static inline size_t spx_nn_pow2_cap(size_t v, size_t cap) {
   size_t p = 1;
   while (p < v && p < cap) p <<= 1;
