@@ -59,7 +59,7 @@ static void test_fd_whole_unet(void) {
   /* central differences on 3 entries of every parameter tensor. A ReLU or max-pool kink inside
    * [x-h, x+h] shows as one-sided differences that disagree: such samples are skipped (and
    * counted; they must stay rare). */
-  double worst = 0, h = 1e-6;
+  double worst = 0, h = 1e-6, l0 = host_loss(u, in, tg); /* loss at the unperturbed point */
   int checked = 0, kinks = 0;
   for (int i = 0; i < spx_unet_tensor_count(u); i++) {
     const char *name = spx_unet_tensor_name(u, i, NULL, NULL);
@@ -72,7 +72,6 @@ static void test_fd_whole_unet(void) {
     for (int r = 0; r < 3; r++) {
       size_t k = (size_t)(spx_t_uniform(&s) * (double)n);
       double p0 = p[k];
-      double l0 = host_loss(u, in, tg);
       p[k] = p0 + h;
       double lp = host_loss(u, in, tg);
       p[k] = p0 - h;
