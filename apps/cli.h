@@ -33,5 +33,7 @@ double spx_cli_now(void);
 /* Subcommand entry points. */
 int spx_cmd_devices(int argc, char **argv);
 int spx_cmd_project(int argc, char **argv);
+int spx_cmd_render(int argc, char **argv); /* apps/cmd_render.c */
+int spx_cmd_train(int argc, char **argv);  /* apps/cmd_train.c */
 
 #endif

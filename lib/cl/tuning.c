@@ -33,6 +33,24 @@ static const struct spx_tunable spx_tunables[] = {
     /* projection (kernels/project.cl): up to this many projected points (B*C*N) the fused path
      * runs (project+background fill, then one single-work-group sort+unique+scatter launch) */
     {"SPX_PROJ_FAST_MAX", 32768, 8192},
+    /* conv2d (kernels/conv2d.cl): forward register tile = CONV_TM out-channels x CONV_TN vectors
+     * of CONV_VW pixels per work-item, CONV_LWS work-items per group (interleaved pixels) */
+    {"CONV_VW", 16, 1},
+    {"CONV_TM", 8, 8},
+    {"CONV_TN", 3, 4},
+    {"CONV_LWS", 1, 64},
+    /* conv2d: inputs up to this many KiB (and smaller than the weights) run pixel-tile-fastest */
+    {"CONV_XCACHE", 2048, 2048},
+    /* conv2d backward weights: tile of out-channels x weight columns; q-chunk of the split reduction */
+    {"CONV_DW_TM", 6, 4},
+    {"CONV_DW_TN", 4, 4},
+    {"CONV_DW_QC", 2048, 1024},
+    /* conv2d backward weights: column tiles per work-item, walked per block of CONV_DW_QB q */
+    {"CONV_DW_G", 8, 1},
+    {"CONV_DW_QB", 256, 1024},
+    {"CONV_DW_LWS", 1, 64}, /* work-group size along the column tiles (CPU: 1, keeps private arrays small) */
+    /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
+    {"CONV_RED_WG", 16, 256},
     /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,
      * upsample, batch-norm eval (lib/nn/nn_internal.h spx_nn_run3d) */
     {"SPX_WG2_X", 64, 32},

@@ -17,5 +17,6 @@
 #include "smplpix/render.h"
 
 #include "smplpix/body.h"
+#include "smplpix/unet.h"
 
 #endif
