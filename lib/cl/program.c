@@ -45,6 +45,60 @@ static spx_status load_source(spx_ctx *ctx, const char *name, char **out, size_t
   return spx_fail(ctx, SPX_E_ARG, "no kernel file named %s is built into this library", name);
 }
 
+/* Replace each line `#include "NAME"` of a kernel source by the embedded (or $SPX_KERNEL_DIR)
+ * file NAME, one level deep, so kernel files can share device functions (e.g. project.cl uses
+ * the work-group radix sort of radix_sort.h). The compiler never sees a file system path. */
+static spx_status expand_includes(spx_ctx *ctx, const char *name, char **text, size_t *len) {
+  const char *tag = "#include \"";
+  size_t tl = strlen(tag);
+  if (!strstr(*text, tag)) return SPX_OK;
+  char *out = NULL;
+  size_t n = 0;
+  spx_status st = SPX_OK;
+  const char *p = *text, *end = *text + *len;
+  while (p < end) {
+    const char *eol = memchr(p, '\n', (size_t)(end - p));
+    size_t ll = eol ? (size_t)(eol - p) + 1 : (size_t)(end - p);
+    const char *piece = p;
+    size_t plen = ll;
+    char *inc = NULL;
+    if (ll > tl && !strncmp(p, tag, tl)) {
+      const char *q = memchr(p + tl, '"', ll - tl);
+      char file[64];
+      if (!q || (size_t)(q - p - tl) >= sizeof file) {
+        st = spx_fail(ctx, SPX_E_FORMAT, "kernels/%s: malformed #include line", name);
+        break;
+      }
+      snprintf(file, sizeof file, "%.*s", (int)(q - p - tl), p + tl);
+      size_t ilen = 0;
+      if ((st = load_source(ctx, file, &inc, &ilen))) break;
+      piece = inc;
+      plen = ilen;
+    }
+    char *grown = realloc(out, n + plen + 2);
+    if (!grown) {
+      free(inc);
+      st = spx_fail(ctx, SPX_E_NOMEM, "kernel source %s: out of memory", name);
+      break;
+    }
+    out = grown;
+    memcpy(out + n, piece, plen);
+    n += plen;
+    if (inc) out[n++] = '\n';
+    free(inc);
+    p += ll;
+  }
+  if (st) {
+    free(out);
+    return st;
+  }
+  out[n] = 0;
+  free(*text);
+  *text = out;
+  *len = n;
+  return SPX_OK;
+}
+
 static int cache_disabled(void) {
   const char *v = getenv("SPX_NO_CACHE");
   return v && *v && strcmp(v, "0");
@@ -195,6 +249,8 @@ static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
   spx_status st = load_source(ctx, SPX_PRELUDE, &prelude, &plen);
   if (st) goto done;
   st = load_source(ctx, name, &body, &blen);
+  if (st) goto done;
+  st = expand_includes(ctx, name, &body, &blen);
   if (st) goto done;
   char line[96];
   int ll = snprintf(line, sizeof line, "\n#line 1 \"%s\"\n", name);

@@ -2,6 +2,7 @@
  * and is readable on the host with spx_cl_tune(), so launch sizes and kernel code agree.
  * Add a row here when a kernel grows a tunable; keep CPU and GPU values measured. */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "cl/cl_internal.h"
@@ -14,6 +15,24 @@ struct spx_tunable {
 static const struct spx_tunable spx_tunables[] = {
     /* generic 1-D work-group size for elementwise kernels */
     {"SPX_WG", 64, 256},
+    /* mesh rasterizer (kernels/raster.cl): screen tile side in pixels */
+    {"SPX_RASTER_TILE", 16, 16},
+    /* mesh rasterizer tile kernel: 1 = one work-item walks a whole tile (CPU), 0 = one per pixel (GPU) */
+    {"SPX_RASTER_SERIAL", 1, 0},
+    /* mesh rasterizer setup/binning: consecutive faces per work-item (CPU: aggregate tile counts) */
+    {"SPX_RASTER_CHUNK", 64, 1},
+    /* mesh rasterizer shading: work-items of the grid-stride loop over covered pixels */
+    {"SPX_RASTER_SHADE_ITEMS", 65536, 65536},
+    /* radix sort (kernels/radix_sort.cl): digit bits per pass, work-group size, keys per
+     * work-item; local memory of the scatter = 4 * 2^BITS * WG bytes */
+    {"SPX_SORT_BITS", 8, 4},
+    {"SPX_SORT_WG", 64, 256},
+    {"SPX_SORT_ITEMS", 16, 4},
+    /* up to this many keys, the whole sort runs in one work-group launch (no scan passes) */
+    {"SPX_SORT_SINGLE_MAX", 32768, 8192},
+    /* projection (kernels/project.cl): up to this many projected points (B*C*N) the fused path
+     * runs (project+background fill, then one single-work-group sort+unique+scatter launch) */
+    {"SPX_PROJ_FAST_MAX", 32768, 8192},
     /* conv2d (kernels/conv2d.cl): forward register tile = CONV_TM out-channels x CONV_TN vectors
      * of CONV_VW pixels per work-item, CONV_LWS work-items per group (interleaved pixels) */
     {"CONV_VW", 16, 1},
@@ -35,10 +54,31 @@ static const struct spx_tunable spx_tunables[] = {
     {"CONV_DW_LWS", 1, 64}, /* work-group size along the column tiles (CPU: 1, keeps private arrays small) */
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", 16, 256},
+    /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,
+     * upsample, batch-norm eval (lib/nn/nn_internal.h spx_nn_run3d) */
+    {"SPX_WG2_X", 64, 32},
+    {"SPX_WG2_Y", 1, 8},
+    /* batch norm: one work-group per channel (power of two). 1 = one work-item walks the
+     * channel contiguously with 8-lane vector accumulators (CPU); >1 = strided + tree (GPU) */
+    {"SPX_BN_WG", 1, 256},
+    /* generic reductions (kernels/loss.cl): work-group size (power of two; 1 = contiguous
+     * chunk per group, vectorised, for CPUs) and the number of groups of the first stage
+     * (fixed, so results do not depend on the launch) */
+    {"SPX_RED_WG", 1, 256},
+    {"SPX_RED_GROUPS", 32, 256},
 };
 
+/* Which column applies: the device's own class, unless SPX_TUNE_CLASS=cpu|gpu overrides it (so
+ * the GPU code paths and launch shapes can be tested on PoCL). */
+static int tune_cpu_column(const spx_ctx *ctx) {
+  const char *c = getenv("SPX_TUNE_CLASS");
+  if (c && !strcmp(c, "gpu")) return 0;
+  if (c && !strcmp(c, "cpu")) return 1;
+  return ctx->info.kind == SPX_DEVICE_CPU;
+}
+
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {
-  int cpu = ctx->info.kind == SPX_DEVICE_CPU;
+  int cpu = ctx->tune_cpu;
   for (size_t i = 0; i < sizeof spx_tunables / sizeof spx_tunables[0]; i++)
     if (!strcmp(spx_tunables[i].name, name)) return cpu ? spx_tunables[i].cpu : spx_tunables[i].gpu;
   return 0;
@@ -47,8 +87,22 @@ int spx_cl_tune(const spx_ctx *ctx, const char *name) {
 void spx_cl_build_options(spx_ctx *ctx) {
   char *o = ctx->build_options;
   size_t cap = sizeof ctx->build_options, n = 0;
-  n += (size_t)snprintf(o + n, cap - n, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1",
-                        ctx->info.kind == SPX_DEVICE_CPU ? "CPU" : "GPU");
+  ctx->tune_cpu = tune_cpu_column(ctx);
+  n += (size_t)snprintf(o + n, cap - n, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1", ctx->tune_cpu ? "CPU" : "GPU");
   for (size_t i = 0; i < sizeof spx_tunables / sizeof spx_tunables[0] && n < cap; i++)
     n += (size_t)snprintf(o + n, cap - n, " -D%s=%d", spx_tunables[i].name, spx_cl_tune(ctx, spx_tunables[i].name));
+  /* Bit-exact kernels (projection) need a correctly rounded fp32 '/'. When the device offers it,
+   * ask for it; otherwise kernels see SPX_CR_DIV=0 and divide in double (a/b computed in binary64
+   * and rounded to binary32 is the correctly rounded binary32 quotient, since 53 >= 2*24+2). */
+  cl_device_fp_config fp = 0;
+  int cr = clGetDeviceInfo(ctx->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS &&
+           (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT);
+  ctx->cr_div = cr;
+  if (n < cap)
+    n += (size_t)snprintf(o + n, cap - n, cr ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
+  if (n < cap && getenv("SPX_FORCE_DIV_FALLBACK") && ctx->info.fp64) {
+    /* testing hook: exercise the double-division path on a device that has both */
+    ctx->cr_div = 0;
+    snprintf(o + n, cap - n, " -DSPX_FORCE_DIV_FALLBACK=1");
+  }
 }

@@ -1,0 +1,160 @@
+/* Point projection with collision resolution (SMPLpix eq. 3-4; contract in
+ * lib/include/smplpix/render.h). Host: lib/render/project.c; reference: lib/render/project_ref.c.
+ *
+ * Point i of the B*C*N projected points is vertex v = i % N of set b seen by camera c, with
+ * image index img = i / N = b*C + c. Its sort key is (img*H*W + row*W + col) << 32 | bits(d):
+ * d > 0, so the float bits order like the value; dropped points get the sentinel pixel
+ * B*C*H*W and sort last. A stable sort keeps equal keys in vertex order, so the first element
+ * of each pixel run is the nearest point, ties going to the smallest vertex index.
+ *
+ * Cameras: SPX_CAM_FLOATS floats each, K (row-major 3x3), R (row-major 3x3), t, rounded to
+ * float on the host. Arithmetic (FP_CONTRACT off, same order in the reference):
+ *   p_r = ((R[r][0]*x + R[r][1]*y) + R[r][2]*z) + t[r]
+ *   q_r = (K[r][0]*p_0 + K[r][1]*p_1) + K[r][2]*p_2        (u' = q_0, v' = q_1, d = q_2)
+ *   u = u'/d, v = v'/d correctly rounded (SPX_CR_DIV, see lib/cl/tuning.c; otherwise in double,
+ *   which rounds to the same float). */
+#include "radix_sort.h"
+
+#if !SPX_CR_DIV || defined(SPX_FORCE_DIV_FALLBACK)
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+#define SPX_DIV(a, b) ((float)((double)(a) / (double)(b)))
+#else
+#define SPX_DIV(a, b) ((a) / (b))
+#endif
+
+#define SPX_CAM_FLOATS 21
+
+/* Pixel (row*W + col) and depth of one point, or 0 when it is dropped. */
+inline int spx_project_point(__global const float *cam, float x, float y, float z, int W, int H, uint *pix,
+                             float *depth) {
+  __global const float *K = cam, *R = cam + 9, *t = cam + 18;
+  float p0 = ((R[0] * x + R[1] * y) + R[2] * z) + t[0];
+  float p1 = ((R[3] * x + R[4] * y) + R[5] * z) + t[1];
+  float p2 = ((R[6] * x + R[7] * y) + R[8] * z) + t[2];
+  float uq = (K[0] * p0 + K[1] * p1) + K[2] * p2;
+  float vq = (K[3] * p0 + K[4] * p1) + K[5] * p2;
+  float d = (K[6] * p0 + K[7] * p1) + K[8] * p2;
+  if (!(d > 0.0f) || !isfinite(d) || !isfinite(uq) || !isfinite(vq)) return 0;
+  float u = SPX_DIV(uq, d), v = SPX_DIV(vq, d);
+  if (!(u >= 0.0f && u < (float)W && v >= 0.0f && v < (float)H)) return 0;
+  *pix = (uint)(int)v * (uint)W + (uint)(int)u; /* u, v >= 0: truncation is floor */
+  *depth = d;
+  return 1;
+}
+
+/* Write one pixel of image img in the HWC (layout 0) or NCHW (layout 1) layout. */
+inline void spx_put_pixel(__global float *out, int layout, ulong img, uint pix, uint hw, float r, float g, float b,
+                          float d) {
+  if (layout == 0) {
+    ulong o = (img * hw + pix) * 4;
+    out[o] = r;
+    out[o + 1] = g;
+    out[o + 2] = b;
+    out[o + 3] = d;
+  } else {
+    ulong o = img * 4 * hw + pix;
+    out[o] = r;
+    out[o + hw] = g;
+    out[o + 2 * (ulong)hw] = b;
+    out[o + 3 * (ulong)hw] = d;
+  }
+}
+
+/* One work-item per point (keys) and per pixel (background fill), whichever is more. */
+__kernel void spx_project_keys(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
+                               uint npts, __global ulong *keys, __global uint *vals, uint npix,
+                               __global float *out, int layout, __global int *winners, int want_winners) {
+  uint i = get_global_id(0);
+  uint hw = (uint)W * (uint)H;
+  if (i < npts) {
+    uint img = i / (uint)N, v = i % (uint)N;
+    uint b = img / (uint)C, c = img % (uint)C;
+    __global const float *x = pos + ((ulong)b * N + v) * 3;
+    uint pix;
+    float d;
+    ulong key = (ulong)npix << 32; /* dropped: sorts after every pixel */
+    if (spx_project_point(cams + c * SPX_CAM_FLOATS, x[0], x[1], x[2], W, H, &pix, &d))
+      key = ((ulong)img * hw + pix) << 32 | as_uint(d);
+    keys[i] = key;
+    vals[i] = v;
+  }
+  if (i < npix) {
+    spx_put_pixel(out, layout, i / hw, i % hw, hw, 1.0f, 1.0f, 1.0f, 1.0f);
+    if (want_winners) winners[i] = -1;
+  }
+}
+
+/* Unique + scatter of the sorted keys at position j: the head of each pixel run wins. */
+inline void spx_project_head(__global const ulong *keys, __global const uint *vals, uint j, __global const float *col,
+                             int has_col, int N, int C, uint hw, uint npix, __global float *out, int layout,
+                             __global int *winners, int want_winners) {
+  ulong key = keys[j];
+  uint pg = (uint)(key >> 32);
+  if (pg >= npix || (j > 0 && (uint)(keys[j - 1] >> 32) == pg)) return;
+  uint v = vals[j], img = pg / hw;
+  float r = 1.0f, g = 1.0f, b = 1.0f;
+  if (has_col) {
+    __global const float *cv = col + ((ulong)(img / (uint)C) * N + v) * 3;
+    r = cv[0];
+    g = cv[1];
+    b = cv[2];
+  }
+  spx_put_pixel(out, layout, img, pg % hw, hw, r, g, b, as_float((uint)key));
+  if (want_winners) winners[pg] = (int)v;
+}
+
+__kernel void spx_project_scatter(__global const ulong *keys, __global const uint *vals, uint n,
+                                  __global const float *col, int has_col, int N, int C, int W, int H, uint npix,
+                                  __global float *out, int layout, __global int *winners, int want_winners) {
+  uint j = get_global_id(0);
+  if (j < n)
+    spx_project_head(keys, vals, j, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
+}
+
+/* Small inputs: the whole sort + unique + scatter in one work-group (one launch). */
+__kernel __attribute__((reqd_work_group_size(SPX_SORT_WG, 1, 1))) void
+spx_project_sort_scatter(__global ulong *keys, __global uint *vals, __global ulong *keys2, __global uint *vals2,
+                         uint n, uint key_bits, __global const float *col, int has_col, int N, int C, int W, int H,
+                         uint npix, __global float *out, int layout, __global int *winners, int want_winners) {
+  __local uint cnt[SPX_RADIX * SPX_SORT_WG], tmp[SPX_SORT_WG], dbase[SPX_RADIX], adj[SPX_RADIX];
+  spx_sort_wg(keys, vals, keys2, vals2, n, key_bits, cnt, tmp, dbase, adj);
+  barrier(CLK_GLOBAL_MEM_FENCE);
+  for (uint j = get_local_id(0); j < n; j += SPX_SORT_WG)
+    spx_project_head(keys, vals, j, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
+}
+
+/* Backward, step 1: for each pixel with a winner, remember the pixel in vpix[img*N + winner]
+ * (winners are unique per image, so no two work-items write the same slot). */
+__kernel void spx_project_vpix(__global const int *winners, uint npix, int N, int W, int H, __global int *vpix) {
+  uint i = get_global_id(0);
+  if (i >= npix) return;
+  int w = winners[i];
+  uint hw = (uint)W * (uint)H;
+  if (w >= 0 && w < N) vpix[(ulong)(i / hw) * N + w] = (int)(i % hw);
+}
+
+/* Backward, step 2: one work-item per vertex (b, v) walks the cameras in order, so the sums are
+ * deterministic and equal to the reference's. d(depth)/dx_j = (K20*R0j + K21*R1j) + K22*R2j. */
+__kernel void spx_project_grad(__global const int *vpix, __global const float *gimg, int layout,
+                               __global const float *cams, int B, int N, int C, int W, int H,
+                               __global float *gcol, int want_col, __global float *gpos, int want_pos) {
+  uint i = get_global_id(0);
+  if (i >= (uint)B * (uint)N) return;
+  uint b = i / (uint)N, v = i % (uint)N, hw = (uint)W * (uint)H;
+  for (int c = 0; c < C; c++) {
+    ulong img = (ulong)b * C + c;
+    int p = vpix[img * N + v];
+    if (p < 0) continue;
+    float g[4];
+    for (int k = 0; k < 4; k++) g[k] = layout == 0 ? gimg[(img * hw + p) * 4 + k] : gimg[(img * 4 + k) * hw + p];
+    if (want_col)
+      for (int k = 0; k < 3; k++) gcol[(ulong)i * 3 + k] += g[k];
+    if (want_pos) {
+      __global const float *K = cams + c * SPX_CAM_FLOATS, *R = K + 9;
+      for (int j = 0; j < 3; j++) {
+        float dd = (K[6] * R[j] + K[7] * R[3 + j]) + K[8] * R[6 + j];
+        gpos[(ulong)i * 3 + j] += g[3] * dd;
+      }
+    }
+  }
+}

@@ -1,0 +1,247 @@
+/* Host side of the projection (kernels/project.cl): argument checks, grow-only scratch, the
+ * fused small-input path and the general sort path, backward. Reference: project_ref.c. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "render/project_internal.h"
+
+spx_status spx_projector_create(spx_ctx *ctx, spx_projector **out) {
+  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_projector_create: NULL out");
+  *out = calloc(1, sizeof **out);
+  if (!*out) return spx_fail(ctx, SPX_E_NOMEM, "spx_projector_create: out of memory");
+  return SPX_OK;
+}
+
+void spx_projector_destroy(spx_projector *p) {
+  if (!p) return;
+  spx_sorter_release(&p->sorter);
+  spx_cl_buf *bufs[] = {&p->pos, &p->col, &p->cams, &p->keys, &p->vals, &p->img, &p->win,
+                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->dummy};
+  for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) spx_cl_buf_release(bufs[i]);
+  free(p);
+}
+
+static int bits_for(uint64_t x) {
+  int b = 0;
+  while (b < 64 && (x >> b)) b++;
+  return b;
+}
+
+static spx_status upload_cams(spx_ctx *ctx, spx_projector *p, int32_t ncams, const spx_camera *cams) {
+  float f[64 * SPX_CAM_FLOATS];
+  size_t bytes = (size_t)ncams * SPX_CAM_FLOATS * sizeof(float);
+  spx_status st = spx_cl_buf_ensure(ctx, &p->cams, bytes, "projection cameras");
+  if (st) return st;
+  for (int32_t c0 = 0; c0 < ncams; c0 += 64) {
+    int32_t m = ncams - c0 < 64 ? ncams - c0 : 64;
+    for (int32_t c = 0; c < m; c++) spx_project_cam_floats(&cams[c0 + c], f + (size_t)c * SPX_CAM_FLOATS);
+    if ((st = spx_cl_write(ctx, p->cams.mem, (size_t)c0 * SPX_CAM_FLOATS * sizeof(float),
+                           (size_t)m * SPX_CAM_FLOATS * sizeof(float), f)))
+      return st;
+  }
+  return SPX_OK;
+}
+
+static spx_status check_device(spx_ctx *ctx, const char *fn) {
+  spx_status st = spx_cl_require(ctx, fn);
+  if (st) return st;
+  if (!ctx->cr_div && !ctx->info.fp64)
+    return spx_fail(ctx, SPX_E_UNSUPPORTED,
+                    "%s: the device has neither correctly rounded fp32 division nor fp64, so the projection cannot "
+                    "be bit-exact",
+                    fn);
+  return SPX_OK;
+}
+
+spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out,
+                              cl_mem winners, int force_path) {
+  spx_status st = check_device(ctx, "spx_project");
+  if (st) return st;
+  if (!p || !a || !out) return spx_fail(ctx, SPX_E_ARG, "spx_project: NULL arguments");
+  if ((st = spx_project_check(ctx, "spx_project", a->batch, a->nverts, a->ncams, a->cams))) return st;
+  if (a->nverts > 0 && !a->pos) return spx_fail(ctx, SPX_E_ARG, "spx_project: no positions");
+  if ((st = upload_cams(ctx, p, a->ncams, a->cams))) return st;
+  cl_int N = a->nverts, C = a->ncams, W = a->cams[0].width, H = a->cams[0].height, layout = (cl_int)a->layout;
+  cl_uint npts = (cl_uint)((size_t)a->batch * C * N), npix = (cl_uint)((size_t)a->batch * C * W * H);
+  cl_int want_win = winners != NULL, has_col = a->col != NULL;
+  if ((st = spx_cl_buf_ensure(ctx, &p->dummy, 16, "projection placeholder"))) return st;
+  cl_mem win = winners ? winners : p->dummy.mem, col = a->col ? a->col : p->dummy.mem;
+  cl_mem pos = a->pos ? a->pos : p->dummy.mem;
+  if ((st = spx_cl_buf_ensure(ctx, &p->keys, ((size_t)npts + 1) * sizeof(cl_ulong), "projection keys"))) return st;
+  if ((st = spx_cl_buf_ensure(ctx, &p->vals, ((size_t)npts + 1) * sizeof(cl_uint), "projection values"))) return st;
+
+  cl_kernel kk;
+  if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_keys", &kk))) return st;
+  cl_int e = SPX_ARG(kk, 0, pos) | SPX_ARG(kk, 1, p->cams.mem) | SPX_ARG(kk, 2, N) | SPX_ARG(kk, 3, C) |
+             SPX_ARG(kk, 4, W) | SPX_ARG(kk, 5, H) | SPX_ARG(kk, 6, npts) | SPX_ARG(kk, 7, p->keys.mem) |
+             SPX_ARG(kk, 8, p->vals.mem) | SPX_ARG(kk, 9, npix) | SPX_ARG(kk, 10, out) | SPX_ARG(kk, 11, layout) |
+             SPX_ARG(kk, 12, win) | SPX_ARG(kk, 13, want_win);
+  if ((st = spx_cl_check(ctx, e, "spx_project_keys args"))) return st;
+  size_t g = npts > npix ? npts : npix, l = (size_t)spx_cl_tune(ctx, "SPX_WG");
+  if ((st = spx_cl_run(ctx, kk, 1, &g, &l, "spx_project_keys"))) return st;
+  if (npts == 0) return SPX_OK;
+
+  cl_uint key_bits = 32u + (cl_uint)bits_for(npix);
+  int fast = force_path ? force_path == 1 : npts <= (cl_uint)spx_cl_tune(ctx, "SPX_PROJ_FAST_MAX");
+  p->last_fast = fast;
+  if (fast) {
+    cl_kernel k;
+    if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_sort_scatter", &k))) return st;
+    if ((st = spx_cl_buf_ensure(ctx, &p->sorter.keys2, (size_t)npts * sizeof(cl_ulong), "radix sort keys"))) return st;
+    if ((st = spx_cl_buf_ensure(ctx, &p->sorter.vals2, (size_t)npts * sizeof(cl_uint), "radix sort values"))) return st;
+    e = SPX_ARG(k, 0, p->keys.mem) | SPX_ARG(k, 1, p->vals.mem) | SPX_ARG(k, 2, p->sorter.keys2.mem) |
+        SPX_ARG(k, 3, p->sorter.vals2.mem) | SPX_ARG(k, 4, npts) | SPX_ARG(k, 5, key_bits) | SPX_ARG(k, 6, col) |
+        SPX_ARG(k, 7, has_col) | SPX_ARG(k, 8, N) | SPX_ARG(k, 9, C) | SPX_ARG(k, 10, W) | SPX_ARG(k, 11, H) |
+        SPX_ARG(k, 12, npix) | SPX_ARG(k, 13, out) | SPX_ARG(k, 14, layout) | SPX_ARG(k, 15, win) |
+        SPX_ARG(k, 16, want_win);
+    if ((st = spx_cl_check(ctx, e, "spx_project_sort_scatter args"))) return st;
+    size_t wg = (size_t)spx_cl_tune(ctx, "SPX_SORT_WG");
+    return spx_cl_run(ctx, k, 1, &wg, &wg, "spx_project_sort_scatter");
+  }
+  if ((st = spx_radix_sort(ctx, &p->sorter, p->keys.mem, p->vals.mem, npts, (int)key_bits, SPX_SORT_AUTO))) return st;
+  cl_kernel ks;
+  if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_scatter", &ks))) return st;
+  e = SPX_ARG(ks, 0, p->keys.mem) | SPX_ARG(ks, 1, p->vals.mem) | SPX_ARG(ks, 2, npts) | SPX_ARG(ks, 3, col) |
+      SPX_ARG(ks, 4, has_col) | SPX_ARG(ks, 5, N) | SPX_ARG(ks, 6, C) | SPX_ARG(ks, 7, W) | SPX_ARG(ks, 8, H) |
+      SPX_ARG(ks, 9, npix) | SPX_ARG(ks, 10, out) | SPX_ARG(ks, 11, layout) | SPX_ARG(ks, 12, win) |
+      SPX_ARG(ks, 13, want_win);
+  if ((st = spx_cl_check(ctx, e, "spx_project_scatter args"))) return st;
+  g = npts;
+  return spx_cl_run(ctx, ks, 1, &g, &l, "spx_project_scatter");
+}
+
+static spx_status host_args(spx_ctx *ctx, const char *fn, const spx_project_args *a) {
+  if (!a) return spx_fail(ctx, SPX_E_ARG, "%s: NULL arguments", fn);
+  spx_status st = spx_project_check(ctx, fn, a->batch, a->nverts, a->ncams, a->cams);
+  if (st) return st;
+  if (a->nverts > 0 && !a->pos) return spx_fail(ctx, SPX_E_ARG, "%s: no positions", fn);
+  if (a->layout != SPX_LAYOUT_HWC && a->layout != SPX_LAYOUT_NCHW)
+    return spx_fail(ctx, SPX_E_ARG, "%s: unknown layout %d", fn, (int)a->layout);
+  return SPX_OK;
+}
+
+/* Upload the vertex sets into the projector's scratch and describe them for the device path. */
+static spx_status upload_sets(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, spx_project_dev_args *d) {
+  size_t vbytes = (size_t)a->batch * a->nverts * 3 * sizeof(float);
+  spx_status st;
+  memset(d, 0, sizeof *d);
+  d->batch = a->batch;
+  d->nverts = a->nverts;
+  d->ncams = a->ncams;
+  d->cams = a->cams;
+  d->layout = a->layout;
+  if (a->nverts > 0) {
+    if ((st = spx_cl_buf_ensure(ctx, &p->pos, vbytes, "projection positions"))) return st;
+    if ((st = spx_cl_write(ctx, p->pos.mem, 0, vbytes, a->pos))) return st;
+    d->pos = p->pos.mem;
+    if (a->col) {
+      if ((st = spx_cl_buf_ensure(ctx, &p->col, vbytes, "projection colors"))) return st;
+      if ((st = spx_cl_write(ctx, p->col.mem, 0, vbytes, a->col))) return st;
+      d->col = p->col.mem;
+    }
+  }
+  return SPX_OK;
+}
+
+spx_status spx_project(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, float *out, int32_t *winners) {
+  spx_status st = check_device(ctx, "spx_project");
+  if (st) return st;
+  if ((st = host_args(ctx, "spx_project", a))) return st;
+  if (!p || !out) return spx_fail(ctx, SPX_E_ARG, "spx_project: NULL projector or output");
+  size_t npix = (size_t)a->batch * a->ncams * a->cams[0].width * a->cams[0].height;
+  if ((st = spx_cl_buf_ensure(ctx, &p->img, npix * 4 * sizeof(float), "projection images"))) return st;
+  if (winners && (st = spx_cl_buf_ensure(ctx, &p->win, npix * sizeof(int32_t), "projection winners"))) return st;
+  spx_project_dev_args d;
+  if ((st = upload_sets(ctx, p, a, &d))) return st;
+  if ((st = spx_project_device(ctx, p, &d, p->img.mem, winners ? p->win.mem : NULL, 0))) return st;
+  if ((st = spx_cl_read(ctx, p->img.mem, 0, npix * 4 * sizeof(float), out))) return st;
+  if (winners) st = spx_cl_read(ctx, p->win.mem, 0, npix * sizeof(int32_t), winners);
+  return st;
+}
+
+spx_status spx_project_backward_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem winners,
+                                       cl_mem grad_img, cl_mem gcol, cl_mem gpos) {
+  spx_status st = spx_cl_require(ctx, "spx_project_backward");
+  if (st) return st;
+  if (!p || !a || !winners || !grad_img) return spx_fail(ctx, SPX_E_ARG, "spx_project_backward: NULL arguments");
+  if ((st = spx_project_check(ctx, "spx_project_backward", a->batch, a->nverts, a->ncams, a->cams))) return st;
+  if ((!gcol && !gpos) || a->nverts == 0) return SPX_OK;
+  if ((st = upload_cams(ctx, p, a->ncams, a->cams))) return st;
+  cl_int B = a->batch, N = a->nverts, C = a->ncams, W = a->cams[0].width, H = a->cams[0].height;
+  cl_int layout = (cl_int)a->layout, want_col = gcol != NULL, want_pos = gpos != NULL;
+  cl_uint npix = (cl_uint)((size_t)B * C * W * H);
+  size_t nv = (size_t)B * C * N;
+  if ((st = spx_cl_buf_ensure(ctx, &p->vpix, nv * sizeof(cl_int), "projection backward map"))) return st;
+  if ((st = spx_cl_buf_ensure(ctx, &p->dummy, 16, "projection placeholder"))) return st;
+  cl_int minus1 = -1;
+  cl_int e = clEnqueueFillBuffer(ctx->queue, p->vpix.mem, &minus1, sizeof minus1, 0, nv * sizeof(cl_int), 0, NULL, NULL);
+  if ((st = spx_cl_check(ctx, e, "spx_project_backward fill"))) return st;
+  cl_kernel kv, kg;
+  if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_vpix", &kv))) return st;
+  if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_grad", &kg))) return st;
+  e = SPX_ARG(kv, 0, winners) | SPX_ARG(kv, 1, npix) | SPX_ARG(kv, 2, N) | SPX_ARG(kv, 3, W) | SPX_ARG(kv, 4, H) |
+      SPX_ARG(kv, 5, p->vpix.mem);
+  if ((st = spx_cl_check(ctx, e, "spx_project_vpix args"))) return st;
+  size_t g = npix, l = (size_t)spx_cl_tune(ctx, "SPX_WG");
+  if ((st = spx_cl_run(ctx, kv, 1, &g, &l, "spx_project_vpix"))) return st;
+  cl_mem gc = gcol ? gcol : p->dummy.mem, gp = gpos ? gpos : p->dummy.mem;
+  e = SPX_ARG(kg, 0, p->vpix.mem) | SPX_ARG(kg, 1, grad_img) | SPX_ARG(kg, 2, layout) | SPX_ARG(kg, 3, p->cams.mem) |
+      SPX_ARG(kg, 4, B) | SPX_ARG(kg, 5, N) | SPX_ARG(kg, 6, C) | SPX_ARG(kg, 7, W) | SPX_ARG(kg, 8, H) |
+      SPX_ARG(kg, 9, gc) | SPX_ARG(kg, 10, want_col) | SPX_ARG(kg, 11, gp) | SPX_ARG(kg, 12, want_pos);
+  if ((st = spx_cl_check(ctx, e, "spx_project_grad args"))) return st;
+  g = (size_t)B * N;
+  return spx_cl_run(ctx, kg, 1, &g, &l, "spx_project_grad");
+}
+
+spx_status spx_project_backward(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, const int32_t *winners,
+                                const float *grad_img, float *grad_col, float *grad_pos) {
+  spx_status st = spx_cl_require(ctx, "spx_project_backward");
+  if (st) return st;
+  if ((st = host_args(ctx, "spx_project_backward", a))) return st;
+  if (!p || !winners || !grad_img) return spx_fail(ctx, SPX_E_ARG, "spx_project_backward: NULL arguments");
+  if ((!grad_col && !grad_pos) || a->nverts == 0) return SPX_OK;
+  size_t hw = (size_t)a->cams[0].width * a->cams[0].height, nimg = (size_t)a->batch * a->ncams, npix = nimg * hw;
+  size_t N = (size_t)a->nverts, vbytes = (size_t)a->batch * N * 3 * sizeof(float);
+  /* winners must be what a forward makes: each in -1..N-1 and no vertex twice in one image */
+  unsigned char *seen = calloc(N, 1);
+  if (!seen) return spx_fail(ctx, SPX_E_NOMEM, "spx_project_backward: out of memory");
+  for (size_t img = 0; img < nimg && !st; img++) {
+    const int32_t *w = winners + img * hw;
+    for (size_t i = 0; i < hw; i++) {
+      if (w[i] < -1 || w[i] >= a->nverts) {
+        st = spx_fail(ctx, SPX_E_ARG, "spx_project_backward: winners[%zu] = %d not in -1..%d", img * hw + i, w[i],
+                      a->nverts - 1);
+        break;
+      }
+      if (w[i] < 0) continue;
+      if (seen[w[i]]) {
+        st = spx_fail(ctx, SPX_E_ARG, "spx_project_backward: image %zu: vertex %d wins two pixels", img, w[i]);
+        break;
+      }
+      seen[w[i]] = 1;
+    }
+    for (size_t i = 0; i < hw; i++) /* reset only what was set */
+      if (w[i] >= 0 && w[i] < a->nverts) seen[w[i]] = 0;
+  }
+  free(seen);
+  if (st) return st;
+  if ((st = spx_cl_buf_ensure(ctx, &p->win, npix * sizeof(int32_t), "projection winners"))) return st;
+  if ((st = spx_cl_buf_ensure(ctx, &p->gimg, npix * 4 * sizeof(float), "projection image gradient"))) return st;
+  if ((st = spx_cl_write(ctx, p->win.mem, 0, npix * sizeof(int32_t), winners))) return st;
+  if ((st = spx_cl_write(ctx, p->gimg.mem, 0, npix * 4 * sizeof(float), grad_img))) return st;
+  if (grad_col) {
+    if ((st = spx_cl_buf_ensure(ctx, &p->gcol, vbytes, "projection color gradient"))) return st;
+    if ((st = spx_cl_write(ctx, p->gcol.mem, 0, vbytes, grad_col))) return st;
+  }
+  if (grad_pos) {
+    if ((st = spx_cl_buf_ensure(ctx, &p->gpos, vbytes, "projection position gradient"))) return st;
+    if ((st = spx_cl_write(ctx, p->gpos.mem, 0, vbytes, grad_pos))) return st;
+  }
+  spx_project_dev_args d = {a->batch, a->nverts, NULL, NULL, a->ncams, a->cams, a->layout};
+  if ((st = spx_project_backward_device(ctx, p, &d, p->win.mem, p->gimg.mem, grad_col ? p->gcol.mem : NULL,
+                                        grad_pos ? p->gpos.mem : NULL)))
+    return st;
+  if (grad_col && (st = spx_cl_read(ctx, p->gcol.mem, 0, vbytes, grad_col))) return st;
+  if (grad_pos && (st = spx_cl_read(ctx, p->gpos.mem, 0, vbytes, grad_pos))) return st;
+  return SPX_OK;
+}

@@ -1,0 +1,49 @@
+/* Private: the projection on device buffers, for chaining into the network without host round
+ * trips (kernels/project.cl; public host API in smplpix/render.h). */
+#ifndef SPX_RENDER_PROJECT_INTERNAL_H
+#define SPX_RENDER_PROJECT_INTERNAL_H
+
+#include "cl/cl_internal.h"
+#include "render/sort.h"
+#include "smplpix/render.h"
+
+#define SPX_CAM_FLOATS 21 /* K (3x3 row-major), R (3x3 row-major), t — as in kernels/project.cl */
+
+struct spx_projector {
+  spx_sorter sorter;
+  spx_cl_buf pos, col, cams, keys, vals, img, win; /* grow-only scratch */
+  spx_cl_buf gimg, gcol, gpos, vpix;
+  spx_cl_buf dummy;
+  int last_fast; /* 1 when the last forward took the fused small-input path (for tests/benchmarks) */
+};
+
+/* Inputs on the device: pos B*N*3 floats, col B*N*3 floats or NULL (white). */
+typedef struct spx_project_dev_args {
+  int32_t batch, nverts;
+  cl_mem pos, col;
+  int32_t ncams;
+  const spx_camera *cams;
+  spx_layout layout;
+} spx_project_dev_args;
+
+/* Forward into device buffers: out B*C*4*H*W floats (layout as asked; the network wants
+ * SPX_LAYOUT_NCHW), winners B*C*H*W ints or NULL. Only enqueues work. force_path: 0 auto,
+ * 1 fused small-input path, 2 general path (tests compare both). */
+spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out,
+                              cl_mem winners, int force_path);
+
+/* Backward on device buffers: adds into gcol / gpos (B*N*3 floats each, either may be NULL).
+ * winners must come from spx_project_device (unique per image). */
+spx_status spx_project_backward_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem winners,
+                                       cl_mem grad_img, cl_mem gcol, cl_mem gpos);
+
+/* Camera checks shared by the device path and the reference: sizes equal across the batch,
+ * K upper-triangular with positive focal lengths, R orthonormal (1e-4) with det > 0, all finite
+ * also after rounding to float. */
+spx_status spx_project_check(spx_ctx *ctx, const char *fn, int32_t batch, int32_t nverts, int32_t ncams,
+                             const spx_camera *cams);
+
+/* The cameras as the kernels and the reference see them (floats, SPX_CAM_FLOATS per camera). */
+void spx_project_cam_floats(const spx_camera *cam, float out[SPX_CAM_FLOATS]);
+
+#endif
