@@ -9,8 +9,10 @@
  *
  * Register tiling: a work-item owns CONV_TM output channels x CONV_TN vectors of CONV_VW
  * pixels (CPU: explicit float16 vectors = one AVX-512 register each; GPU: CONV_VW = 1 and the
- * CONV_LWS work-items of a group take interleaved pixels so loads coalesce). Weights are
- * pre-packed as wpk[kk][CoutP] (kk = (ci*k+ky)*k+kx) so the TM weights of one step are adjacent.
+ * CONV_LWS work-items of a group take interleaved pixels so loads coalesce), for CONV_CT such
+ * channel tiles walked in blocks of CONV_CB input channels (cache blocking). Weights are
+ * pre-packed per channel tile as wpk[tile][kk][TM] (kk = (ci*k+ky)*k+kx): the TM weights of one
+ * step are adjacent and a work-item's panel is contiguous. Tunables: lib/cl/tuning.c.
  *
  * Backward data = this same forward kernel on dy dilated by the stride and padded by k-1-pad,
  * with weights flipped and transposed (spx_conv2d_pack flip=1), accumulating into dx.
