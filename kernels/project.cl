@@ -84,14 +84,27 @@ __kernel void spx_project_keys(__global const float *pos, __global const float *
   }
 }
 
-/* Unique + scatter of the sorted keys at position j: the head of each pixel run wins. */
-inline void spx_project_head(__global const ulong *keys, __global const uint *vals, uint j, __global const float *col,
-                             int has_col, int N, int C, uint hw, uint npix, __global float *out, int layout,
-                             __global int *winners, int want_winners) {
+/* Unique + scatter at sorted position j: the head of each pixel run writes the run's nearest
+ * point (smallest depth bits; on equal depths the first in the run, which is the smallest vertex
+ * index because the sort is stable and points enter in vertex order). When the depth bits took
+ * part in the sort (SPX_PROJ_SORT_DEPTH) the head itself is that point; when only the pixel bits
+ * were sorted the short walk over the run finds it: both give the same result. */
+inline void spx_project_head(__global const ulong *keys, __global const uint *vals, uint j, uint n,
+                             __global const float *col, int has_col, int N, int C, uint hw, uint npix,
+                             __global float *out, int layout, __global int *winners, int want_winners) {
   ulong key = keys[j];
   uint pg = (uint)(key >> 32);
   if (pg >= npix || (j > 0 && (uint)(keys[j - 1] >> 32) == pg)) return;
-  uint v = vals[j], img = pg / hw;
+  uint best = j, bd = (uint)key;
+  for (uint m = j + 1; m < n; m++) {
+    ulong km = keys[m];
+    if ((uint)(km >> 32) != pg) break;
+    if ((uint)km < bd) {
+      bd = (uint)km;
+      best = m;
+    }
+  }
+  uint v = vals[best], img = pg / hw;
   float r = 1.0f, g = 1.0f, b = 1.0f;
   if (has_col) {
     __global const float *cv = col + ((ulong)(img / (uint)C) * N + v) * 3;
@@ -99,7 +112,7 @@ inline void spx_project_head(__global const ulong *keys, __global const uint *va
     g = cv[1];
     b = cv[2];
   }
-  spx_put_pixel(out, layout, img, pg % hw, hw, r, g, b, as_float((uint)key));
+  spx_put_pixel(out, layout, img, pg % hw, hw, r, g, b, as_float(bd));
   if (want_winners) winners[pg] = (int)v;
 }
 
@@ -108,19 +121,19 @@ __kernel void spx_project_scatter(__global const ulong *keys, __global const uin
                                   __global float *out, int layout, __global int *winners, int want_winners) {
   uint j = get_global_id(0);
   if (j < n)
-    spx_project_head(keys, vals, j, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
+    spx_project_head(keys, vals, j, n, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
 }
 
 /* Small inputs: the whole sort + unique + scatter in one work-group (one launch). */
 __kernel __attribute__((reqd_work_group_size(SPX_SORT_WG, 1, 1))) void
 spx_project_sort_scatter(__global ulong *keys, __global uint *vals, __global ulong *keys2, __global uint *vals2,
-                         uint n, uint key_bits, __global const float *col, int has_col, int N, int C, int W, int H,
+                         uint n, uint lo_bit, uint key_bits, __global const float *col, int has_col, int N, int C, int W, int H,
                          uint npix, __global float *out, int layout, __global int *winners, int want_winners) {
   __local uint cnt[SPX_RADIX * SPX_SORT_WG], tmp[SPX_SORT_WG], dbase[SPX_RADIX], adj[SPX_RADIX];
-  spx_sort_wg(keys, vals, keys2, vals2, n, key_bits, cnt, tmp, dbase, adj);
+  spx_sort_wg(keys, vals, keys2, vals2, n, lo_bit, key_bits, cnt, tmp, dbase, adj);
   barrier(CLK_GLOBAL_MEM_FENCE);
   for (uint j = get_local_id(0); j < n; j += SPX_SORT_WG)
-    spx_project_head(keys, vals, j, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
+    spx_project_head(keys, vals, j, n, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
 }
 
 /* Backward, step 1: for each pixel with a winner, remember the pixel in vpix[img*N + winner]

@@ -25,6 +25,9 @@ static const struct spx_tunable spx_tunables[] = {
     /* projection (kernels/project.cl): up to this many projected points (B*C*N) the fused path
      * runs (project+background fill, then one single-work-group sort+unique+scatter launch) */
     {"SPX_PROJ_FAST_MAX", 32768, 8192},
+    /* 1: sort projection keys by pixel and depth (the paper's depth sort); 0: by pixel only, the
+     * nearest point of each (short) pixel run found by its head — same output, fewer passes */
+    {"SPX_PROJ_SORT_DEPTH", 0, 0},
 };
 
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {

@@ -81,7 +81,8 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
   if ((st = spx_cl_run(ctx, kk, 1, &g, &l, "spx_project_keys"))) return st;
   if (npts == 0) return SPX_OK;
 
-  cl_uint key_bits = 32u + (cl_uint)bits_for(npix);
+  /* sort by pixel only (bits [32, key_bits)) unless SPX_PROJ_SORT_DEPTH: see spx_project_head */
+  cl_uint key_bits = 32u + (cl_uint)bits_for(npix), lo_bit = spx_cl_tune(ctx, "SPX_PROJ_SORT_DEPTH") ? 0u : 32u;
   int fast = force_path ? force_path == 1 : npts <= (cl_uint)spx_cl_tune(ctx, "SPX_PROJ_FAST_MAX");
   p->last_fast = fast;
   if (fast) {
@@ -90,15 +91,16 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
     if ((st = spx_cl_buf_ensure(ctx, &p->sorter.keys2, (size_t)npts * sizeof(cl_ulong), "radix sort keys"))) return st;
     if ((st = spx_cl_buf_ensure(ctx, &p->sorter.vals2, (size_t)npts * sizeof(cl_uint), "radix sort values"))) return st;
     e = SPX_ARG(k, 0, p->keys.mem) | SPX_ARG(k, 1, p->vals.mem) | SPX_ARG(k, 2, p->sorter.keys2.mem) |
-        SPX_ARG(k, 3, p->sorter.vals2.mem) | SPX_ARG(k, 4, npts) | SPX_ARG(k, 5, key_bits) | SPX_ARG(k, 6, col) |
-        SPX_ARG(k, 7, has_col) | SPX_ARG(k, 8, N) | SPX_ARG(k, 9, C) | SPX_ARG(k, 10, W) | SPX_ARG(k, 11, H) |
-        SPX_ARG(k, 12, npix) | SPX_ARG(k, 13, out) | SPX_ARG(k, 14, layout) | SPX_ARG(k, 15, win) |
-        SPX_ARG(k, 16, want_win);
+        SPX_ARG(k, 3, p->sorter.vals2.mem) | SPX_ARG(k, 4, npts) | SPX_ARG(k, 5, lo_bit) | SPX_ARG(k, 6, key_bits) |
+        SPX_ARG(k, 7, col) | SPX_ARG(k, 8, has_col) | SPX_ARG(k, 9, N) | SPX_ARG(k, 10, C) | SPX_ARG(k, 11, W) |
+        SPX_ARG(k, 12, H) | SPX_ARG(k, 13, npix) | SPX_ARG(k, 14, out) | SPX_ARG(k, 15, layout) |
+        SPX_ARG(k, 16, win) | SPX_ARG(k, 17, want_win);
     if ((st = spx_cl_check(ctx, e, "spx_project_sort_scatter args"))) return st;
     size_t wg = (size_t)spx_cl_tune(ctx, "SPX_SORT_WG");
     return spx_cl_run(ctx, k, 1, &wg, &wg, "spx_project_sort_scatter");
   }
-  if ((st = spx_radix_sort(ctx, &p->sorter, p->keys.mem, p->vals.mem, npts, (int)key_bits, SPX_SORT_AUTO))) return st;
+  if ((st = spx_radix_sort(ctx, &p->sorter, p->keys.mem, p->vals.mem, npts, (int)lo_bit, (int)key_bits,
+                            SPX_SORT_AUTO))) return st;
   cl_kernel ks;
   if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_scatter", &ks))) return st;
   e = SPX_ARG(ks, 0, p->keys.mem) | SPX_ARG(ks, 1, p->vals.mem) | SPX_ARG(ks, 2, npts) | SPX_ARG(ks, 3, col) |
