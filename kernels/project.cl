@@ -23,6 +23,9 @@
 #endif
 
 #define SPX_CAM_FLOATS 21
+#ifndef SPX_PROJ_FILL_PX
+#define SPX_PROJ_FILL_PX 1
+#endif
 
 /* Pixel (row*W + col) and depth of one point, or 0 when it is dropped. */
 inline int spx_project_point(__global const float *cam, float x, float y, float z, int W, int H, uint *pix,
@@ -60,7 +63,8 @@ inline void spx_put_pixel(__global float *out, int layout, ulong img, uint pix, 
   }
 }
 
-/* One work-item per point (keys) and per pixel (background fill), whichever is more. */
+/* One work-item per point (keys) and per SPX_PROJ_FILL_PX pixels (background fill), whichever
+ * needs more work-items. */
 __kernel void spx_project_keys(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
                                uint npts, __global ulong *keys, __global uint *vals, uint npix,
                                __global float *out, int layout, __global int *winners, int want_winners) {
@@ -78,9 +82,14 @@ __kernel void spx_project_keys(__global const float *pos, __global const float *
     keys[i] = key;
     vals[i] = v;
   }
-  if (i < npix) {
-    spx_put_pixel(out, layout, i / hw, i % hw, hw, 1.0f, 1.0f, 1.0f, 1.0f);
-    if (want_winners) winners[i] = -1;
+  /* background: every float of either layout is 1; SPX_PROJ_FILL_PX pixels per work-item */
+  uint q0 = i * SPX_PROJ_FILL_PX;
+  if (q0 < npix) {
+    uint q1 = min(q0 + (uint)SPX_PROJ_FILL_PX, npix);
+    __global float4 *o4 = (__global float4 *)out;
+    for (uint q = q0; q < q1; q++) o4[q] = (float4)(1.0f);
+    if (want_winners)
+      for (uint q = q0; q < q1; q++) winners[q] = -1;
   }
 }
 

@@ -17,9 +17,9 @@ static const struct spx_tunable spx_tunables[] = {
     {"SPX_WG", 64, 256},
     /* radix sort (kernels/radix_sort.cl): digit bits per pass, work-group size, keys per
      * work-item; local memory of the scatter = 4 * 2^BITS * WG bytes */
-    {"SPX_SORT_BITS", 8, 4},
-    {"SPX_SORT_WG", 64, 256},
-    {"SPX_SORT_ITEMS", 16, 4},
+    {"SPX_SORT_BITS", 9, 4},
+    {"SPX_SORT_WG", 1, 256},
+    {"SPX_SORT_ITEMS", 4096, 4},
     /* up to this many keys, the whole sort runs in one work-group launch (no scan passes) */
     {"SPX_SORT_SINGLE_MAX", 32768, 8192},
     /* projection (kernels/project.cl): up to this many projected points (B*C*N) the fused path
@@ -28,6 +28,8 @@ static const struct spx_tunable spx_tunables[] = {
     /* 1: sort projection keys by pixel and depth (the paper's depth sort); 0: by pixel only, the
      * nearest point of each (short) pixel run found by its head — same output, fewer passes */
     {"SPX_PROJ_SORT_DEPTH", 0, 0},
+    /* background pixels written per work-item of spx_project_keys */
+    {"SPX_PROJ_FILL_PX", 64, 1},
 };
 
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {

@@ -15,6 +15,8 @@ struct spx_projector {
   spx_cl_buf gimg, gcol, gpos, vpix;
   spx_cl_buf dummy;
   int last_fast; /* 1 when the last forward took the fused small-input path (for tests/benchmarks) */
+  int ncams_on_device;                  /* cameras in `cams` equal to cam_host (0: unknown) */
+  float cam_host[16 * SPX_CAM_FLOATS]; /* what was uploaded last, to skip repeated uploads */
 };
 
 /* Inputs on the device: pos B*N*3 floats, col B*N*3 floats or NULL (white). */
