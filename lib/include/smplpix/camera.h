@@ -13,7 +13,8 @@ extern "C" {
 
 typedef struct spx_camera {
   int32_t width, height;
-  double K[3][3]; /* upper-triangular, K[0][0] > 0, K[1][1] > 0 */
+  double K[3][3]; /* upper-triangular: K[1][0] == K[2][0] == K[2][1] == 0 and K[2][2] == 1;
+                     K[0][0] > 0, K[1][1] > 0 (focal lengths in pixels) */
   double R[3][3]; /* orthonormal within 1e-4 (rows and columns), det > 0 */
   double t[3];
 } spx_camera;
@@ -23,8 +24,10 @@ typedef struct spx_camera {
 spx_status spx_camera_load(spx_ctx *ctx, const char *path, spx_camera **cams, int *count);
 spx_status spx_camera_parse(spx_ctx *ctx, const char *name, const char *text, size_t len, spx_camera **cams,
                             int *count);
-/* Validate one camera (K upper-triangular with positive focal lengths, R orthonormal within 1e-4
- * with det +1, 0 < width,height <= 16384, all finite). */
+/* Validate one camera (K upper-triangular as above with positive focal lengths, R orthonormal
+ * within 1e-4 with det > 0, 0 < width,height <= 16384, all finite). Non-finite values give
+ * SPX_E_NUMERIC, impossible cameras SPX_E_CAMERA; in files, wrong types and missing keys give
+ * SPX_E_FORMAT ("cam.json: [1].t: expected an array of 3 numbers"). */
 spx_status spx_camera_validate(spx_ctx *ctx, const char *name, const spx_camera *cam);
 /* Save one camera (count == 1 writes an object) or an array, atomically. */
 spx_status spx_camera_save(spx_ctx *ctx, const char *path, const spx_camera *cams, int count);

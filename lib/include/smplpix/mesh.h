@@ -47,7 +47,10 @@ spx_status spx_mesh_validate(spx_ctx *ctx, const char *name, const spx_mesh *m);
 
 /* Loop subdivision as a sparse linear operator: every new vertex is a fixed weighted sum of old
  * vertices, so any per-vertex attribute (positions, colors, skinning weights, blend shapes) is
- * subdivided by applying the same operator. Boundaries use the standard crease rules. */
+ * subdivided by applying the same operator. Boundaries use the standard crease rules.
+ * Non-manifold edges (three or more faces) are treated as boundary edges; a vertex on more than
+ * two boundary edges, or on no face, keeps its position. Old vertices keep indices 0..nv_in-1,
+ * then one new vertex per edge. Details: lib/geom/loop.c. */
 typedef struct spx_loop_plan {
   int32_t nv_in, nv_out, nf_out;
   int32_t *faces_out;  /* nf_out*3 */
