@@ -336,7 +336,11 @@ static void test_errors_and_empty(void) {
   CHECK(spx_project(ctx, proj, &a, out, win) == SPX_E_CAMERA);
   cams[0].K[0][0] = 10;
   cams[0].R[1][1] = NAN;
-  CHECK(spx_project(ctx, proj, &a, out, win) == SPX_E_CAMERA);
+  CHECK(spx_project(ctx, proj, &a, out, win) == SPX_E_NUMERIC);
+  cams[0].R[1][1] = 1;
+  cams[0].t[2] = 1e300; /* finite in double, not in float */
+  CHECK(spx_project(ctx, proj, &a, out, win) == SPX_E_NUMERIC);
+  cams[0].t[2] = 1;
   cams[0].R[1][1] = 2;
   CHECK(spx_project(ctx, proj, &a, out, win) == SPX_E_CAMERA);
   CHECK(strstr(spx_ctx_message(ctx), "orthonormal") != NULL);

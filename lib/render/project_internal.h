@@ -39,9 +39,8 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
 spx_status spx_project_backward_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem winners,
                                        cl_mem grad_img, cl_mem gcol, cl_mem gpos);
 
-/* Camera checks shared by the device path and the reference: sizes equal across the batch,
- * K upper-triangular with positive focal lengths, R orthonormal (1e-4) with det > 0, all finite
- * also after rounding to float. */
+/* Checks shared by the device path and the reference: counts, spx_camera_validate on every
+ * camera, one size across the batch, K R t finite after rounding to float. */
 spx_status spx_project_check(spx_ctx *ctx, const char *fn, int32_t batch, int32_t nverts, int32_t ncams,
                              const spx_camera *cams);
 
