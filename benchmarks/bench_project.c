@@ -1,14 +1,17 @@
 /* Projection + collision resolution at 410x308: the device (spx_project: upload, kernels,
  * read-back of the image) against the plain-C single-thread z-buffer with the same arithmetic
  * (spx_project_ref), in the same run. Median of RUNS runs after warm-up.
- * Point sets: random clouds shaped like a standing body (6,890 = SMPL, 27,554 = SMPL after one
- * Loop subdivision, 10^6), until the mesh loader lands. Usage: bench_project [runs] */
+ * Point sets: the SMPL-topology body data/body/human_woman.obj (6,890 vertices), its Loop
+ * subdivision (27,554), and 10^6 points sampled on its triangles; colors random. The camera
+ * looks at the body from the front so it fills the 410x308 image's height.
+ * Usage: bench_project [runs] [mesh.obj] */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "render/project_internal.h"
+#include "smplpix/mesh.h"
 #include "smplpix/smplpix.h"
 
 static int cmp_d(const void *a, const void *b) {
@@ -29,14 +32,21 @@ static double uni(void) {
   return (double)(rng >> 11) * (1.0 / 9007199254740992.0);
 }
 
-/* points on a 1.7 m tall, 0.5 m wide ellipsoid shell 2.5 m in front of the camera */
-static void body_cloud(float *pos, float *col, int n) {
+static void random_colors(float *col, int n) {
+  for (int i = 0; i < 3 * n; i++) col[i] = (float)uni();
+}
+
+/* n points uniformly over the triangles' barycentric coordinates (triangle picked uniformly) */
+static void sample_surface(const spx_mesh *m, float *pos, int n) {
   for (int i = 0; i < n; i++) {
-    double th = uni() * 6.283185307, z = uni() * 2 - 1, r = sqrt(1 - z * z);
-    pos[i * 3 + 0] = (float)(0.25 * r * cos(th));
-    pos[i * 3 + 1] = (float)(0.85 * z);
-    pos[i * 3 + 2] = (float)(2.5 + 0.15 * r * sin(th));
-    for (int k = 0; k < 3; k++) col[i * 3 + k] = (float)uni();
+    const int32_t *f = m->faces + (size_t)(uni() * m->nf) % (size_t)m->nf * 3;
+    double a = uni(), b = uni();
+    if (a + b > 1) {
+      a = 1 - a;
+      b = 1 - b;
+    }
+    for (int k = 0; k < 3; k++)
+      pos[i * 3 + k] = (float)((1 - a - b) * m->pos[f[0] * 3 + k] + a * m->pos[f[1] * 3 + k] + b * m->pos[f[2] * 3 + k]);
   }
 }
 
@@ -61,24 +71,37 @@ int main(int argc, char **argv) {
   spx_device_info info;
   spx_device_get_info(ctx, &info);
   printf("device: %s (%s)\n", info.name, info.platform);
+  const char *path = argc > 2 ? argv[2] : SPX_REPO_DATA "/body/human_woman.obj";
+  spx_mesh mesh, sub;
+  memset(&mesh, 0, sizeof mesh);
+  memset(&sub, 0, sizeof sub);
+  CHECKED(spx_mesh_load(ctx, path, &mesh));
+  CHECKED(spx_mesh_subdivide(ctx, &mesh, 1, &sub));
+  double lo[3] = {1e30, 1e30, 1e30}, hi[3] = {-1e30, -1e30, -1e30};
+  for (int i = 0; i < mesh.nv; i++)
+    for (int k = 0; k < 3; k++) {
+      lo[k] = fmin(lo[k], mesh.pos[i * 3 + k]);
+      hi[k] = fmax(hi[k], mesh.pos[i * 3 + k]);
+    }
+  /* y up in the file: camera on +z looking at the centre, 2.5 body heights away */
+  double h = hi[1] - lo[1], dist = 2.5 * h, c[3] = {(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2};
+  double eye[3] = {c[0], c[1], c[2] + dist}, up[3] = {0, 1, 0};
   spx_camera cam;
-  memset(&cam, 0, sizeof cam);
-  cam.width = 410;
-  cam.height = 308;
-  cam.K[0][0] = cam.K[1][1] = 300;
-  cam.K[0][2] = 205;
-  cam.K[1][2] = 154;
-  cam.K[2][2] = 1;
-  cam.R[0][0] = cam.R[1][1] = cam.R[2][2] = 1;
-  static const int ns[] = {6890, 27554, 1000000};
+  CHECKED(spx_camera_look_at(ctx, 410, 308, 308.0 * dist / (1.1 * h), eye, c, up, &cam));
+  printf("mesh: %s, %d vertices (%d after one Loop step)\n", path, mesh.nv, sub.nv);
+  const int ns[] = {mesh.nv, sub.nv, 1000000};
   size_t hw = (size_t)cam.width * cam.height;
   float *out = malloc(hw * 4 * sizeof(float)), *ref = malloc(hw * 4 * sizeof(float));
   double *t = malloc(sizeof(double) * (size_t)runs);
-  printf("%-9s %12s %12s %8s %14s %7s\n", "points", "device ms", "plain C ms", "ratio", "device-only ms", "path");
+  printf("%-9s %12s %12s %8s %14s %7s %7s\n", "points", "device ms", "plain C ms", "ratio", "device-only ms", "path",
+         "pixels");
   for (size_t s = 0; s < sizeof ns / sizeof ns[0]; s++) {
     int n = ns[s];
     float *pos = malloc(sizeof(float) * 3 * (size_t)n), *col = malloc(sizeof(float) * 3 * (size_t)n);
-    body_cloud(pos, col, n);
+    if (s == 0) memcpy(pos, mesh.pos, sizeof(float) * 3 * (size_t)n);
+    else if (s == 1) memcpy(pos, sub.pos, sizeof(float) * 3 * (size_t)n);
+    else sample_surface(&mesh, pos, n);
+    random_colors(col, n);
     spx_project_args a = {1, n, pos, col, 1, &cam, SPX_LAYOUT_HWC};
     for (int w = 0; w < 3; w++) CHECKED(spx_project(ctx, p, &a, out, NULL));
     for (int r = 0; r < runs; r++) {
@@ -106,8 +129,10 @@ int main(int argc, char **argv) {
       t[r] = spx_now() - t0;
     }
     double kern = median(t, runs);
-    printf("%-9d %12.3f %12.3f %7.2fx %14.3f %7s\n", n, dev * 1e3, cpu * 1e3, dev / cpu, kern * 1e3,
-           p->last_fast ? "fused" : "sort");
+    int hits = 0;
+    for (size_t i = 0; i < hw; i++) hits += ref[i * 4 + 3] != 1.0f;
+    printf("%-9d %12.3f %12.3f %7.2fx %14.3f %7s %7d\n", n, dev * 1e3, cpu * 1e3, dev / cpu, kern * 1e3,
+           p->last_fast ? "fused" : "sort", hits);
     fflush(stdout);
     free(pos);
     free(col);
@@ -115,6 +140,8 @@ int main(int argc, char **argv) {
   free(out);
   free(ref);
   free(t);
+  spx_mesh_free(&mesh);
+  spx_mesh_free(&sub);
   spx_projector_destroy(p);
   spx_ctx_destroy(ctx);
   return 0;

@@ -4,5 +4,6 @@
 
 #include "smplpix/core.h"
 #include "smplpix/device.h"
+#include "smplpix/render.h"
 
 #endif
