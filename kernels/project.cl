@@ -67,7 +67,8 @@ inline void spx_put_pixel(__global float *out, int layout, ulong img, uint pix, 
  * needs more work-items. */
 __kernel void spx_project_keys(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
                                uint npts, __global ulong *keys, __global uint *vals, uint npix,
-                               __global float *out, int layout, __global int *winners, int want_winners) {
+                               __global float *out, int layout, __global int *winners, int want_winners,
+                               __global uint *counts, int want_counts) {
   uint i = get_global_id(0);
   uint hw = (uint)W * (uint)H;
   if (i < npts) {
@@ -78,7 +79,10 @@ __kernel void spx_project_keys(__global const float *pos, __global const float *
     float d;
     ulong key = (ulong)npix << 32; /* dropped: sorts after every pixel */
     if (spx_project_point(cams + c * SPX_CAM_FLOATS, x[0], x[1], x[2], W, H, &pix, &d))
+    {
       key = ((ulong)img * hw + pix) << 32 | as_uint(d);
+      if (want_counts) atomic_inc(&counts[img * hw + pix]); /* counting-sort path: bucket sizes */
+    }
     keys[i] = key;
     vals[i] = v;
   }
@@ -143,6 +147,48 @@ spx_project_sort_scatter(__global ulong *keys, __global uint *vals, __global ulo
   barrier(CLK_GLOBAL_MEM_FENCE);
   for (uint j = get_local_id(0); j < n; j += SPX_SORT_WG)
     spx_project_head(keys, vals, j, n, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
+}
+
+/* Counting-sort path (large inputs): offs holds the exclusive scan of the per-pixel counts.
+ * Each point claims a slot of its pixel's bucket (order inside a bucket is arbitrary); after
+ * this launch offs[q] is the end of bucket q, i.e. the start of bucket q+1. */
+__kernel void spx_project_bucket(__global const ulong *keys, uint npts, uint npix, __global uint *offs,
+                                 __global uint *bucket) {
+  uint i = get_global_id(0);
+  if (i >= npts) return;
+  uint pg = (uint)(keys[i] >> 32);
+  if (pg < npix) bucket[atomic_inc(&offs[pg])] = i;
+}
+
+/* One work-item per pixel walks its bucket and keeps the nearest point, ties to the smallest
+ * point index (= smallest vertex index within an image): independent of the bucket order, so
+ * the result is deterministic and equal to the stable depth sort's first-of-run. */
+__kernel void spx_project_bucket_min(__global const ulong *keys, __global const uint *offs,
+                                     __global const uint *bucket, __global const float *col, int has_col, int N,
+                                     int C, int W, int H, uint npix, __global float *out, int layout,
+                                     __global int *winners, int want_winners) {
+  uint q = get_global_id(0);
+  if (q >= npix) return;
+  uint start = q ? offs[q - 1] : 0u, end = offs[q];
+  if (start == end) return;
+  uint best = bucket[start], bd = (uint)keys[best];
+  for (uint m = start + 1; m < end; m++) {
+    uint i = bucket[m], di = (uint)keys[i];
+    if (di < bd || (di == bd && i < best)) {
+      bd = di;
+      best = i;
+    }
+  }
+  uint hw = (uint)W * (uint)H, v = best % (uint)N, img = q / hw;
+  float r = 1.0f, g = 1.0f, b = 1.0f;
+  if (has_col) {
+    __global const float *cv = col + ((ulong)(img / (uint)C) * N + v) * 3;
+    r = cv[0];
+    g = cv[1];
+    b = cv[2];
+  }
+  spx_put_pixel(out, layout, img, q % hw, hw, r, g, b, as_float(bd));
+  if (want_winners) winners[q] = (int)v;
 }
 
 /* Backward, step 1: for each pixel with a winner, remember the pixel in vpix[img*N + winner]

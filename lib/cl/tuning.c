@@ -28,6 +28,11 @@ static const struct spx_tunable spx_tunables[] = {
     /* 1: sort projection keys by pixel and depth (the paper's depth sort); 0: by pixel only, the
      * nearest point of each (short) pixel run found by its head — same output, fewer passes */
     {"SPX_PROJ_SORT_DEPTH", 0, 0},
+    /* from this many points on (0: never), the projection uses a counting sort by pixel (one
+     * pass, atomics for bucket slots) + a per-pixel nearest-point pass instead of the radix sort;
+     * on 2-core PoCL it measured no better than the radix sort at 10^6 points (both ~40-90 ms,
+     * noisy), so it is off; unmeasured on GPUs */
+    {"SPX_PROJ_COUNT_MIN", 0, 0},
     /* background pixels written per work-item of spx_project_keys */
     {"SPX_PROJ_FILL_PX", 64, 1},
 };

@@ -16,7 +16,7 @@ void spx_projector_destroy(spx_projector *p) {
   if (!p) return;
   spx_sorter_release(&p->sorter);
   spx_cl_buf *bufs[] = {&p->pos, &p->col, &p->cams, &p->keys, &p->vals, &p->img, &p->win,
-                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->dummy};
+                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->offs, &p->dummy};
   for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) spx_cl_buf_release(bufs[i]);
   free(p);
 }
@@ -79,12 +79,29 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
   if ((st = spx_cl_buf_ensure(ctx, &p->keys, ((size_t)npts + 1) * sizeof(cl_ulong), "projection keys"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &p->vals, ((size_t)npts + 1) * sizeof(cl_uint), "projection values"))) return st;
 
+  /* path: 1 fused single-work-group sort, 2 radix sort + unique, 3 counting sort by pixel */
+  int path = force_path;
+  if (!path)
+    path = npts <= (cl_uint)spx_cl_tune(ctx, "SPX_PROJ_FAST_MAX")   ? 1
+           : spx_cl_tune(ctx, "SPX_PROJ_COUNT_MIN") > 0 && npts >= (cl_uint)spx_cl_tune(ctx, "SPX_PROJ_COUNT_MIN")
+               ? 3
+               : 2;
+  cl_int want_counts = path == 3 && npts > 0;
+  if (want_counts) {
+    cl_uint zero = 0;
+    if ((st = spx_cl_buf_ensure(ctx, &p->offs, (size_t)npix * sizeof(cl_uint), "projection pixel counts"))) return st;
+    cl_int fe = clEnqueueFillBuffer(ctx->queue, p->offs.mem, &zero, sizeof zero, 0, (size_t)npix * sizeof(cl_uint), 0,
+                                    NULL, NULL);
+    if ((st = spx_cl_check(ctx, fe, "spx_project counts fill"))) return st;
+  }
+  cl_mem counts = want_counts ? p->offs.mem : p->dummy.mem;
   cl_kernel kk;
   if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_keys", &kk))) return st;
   cl_int e = SPX_ARG(kk, 0, pos) | SPX_ARG(kk, 1, p->cams.mem) | SPX_ARG(kk, 2, N) | SPX_ARG(kk, 3, C) |
              SPX_ARG(kk, 4, W) | SPX_ARG(kk, 5, H) | SPX_ARG(kk, 6, npts) | SPX_ARG(kk, 7, p->keys.mem) |
              SPX_ARG(kk, 8, p->vals.mem) | SPX_ARG(kk, 9, npix) | SPX_ARG(kk, 10, out) | SPX_ARG(kk, 11, layout) |
-             SPX_ARG(kk, 12, win) | SPX_ARG(kk, 13, want_win);
+             SPX_ARG(kk, 12, win) | SPX_ARG(kk, 13, want_win) | SPX_ARG(kk, 14, counts) |
+             SPX_ARG(kk, 15, want_counts);
   if ((st = spx_cl_check(ctx, e, "spx_project_keys args"))) return st;
   size_t fill_px = (size_t)spx_cl_tune(ctx, "SPX_PROJ_FILL_PX"), nfill = (npix + fill_px - 1) / fill_px;
   size_t g = npts > nfill ? npts : nfill, l = (size_t)spx_cl_tune(ctx, "SPX_WG");
@@ -93,9 +110,26 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
 
   /* sort by pixel only (bits [32, key_bits)) unless SPX_PROJ_SORT_DEPTH: see spx_project_head */
   cl_uint key_bits = 32u + (cl_uint)bits_for(npix), lo_bit = spx_cl_tune(ctx, "SPX_PROJ_SORT_DEPTH") ? 0u : 32u;
-  int fast = force_path ? force_path == 1 : npts <= (cl_uint)spx_cl_tune(ctx, "SPX_PROJ_FAST_MAX");
-  p->last_fast = fast;
-  if (fast) {
+  p->last_path = path;
+  if (path == 3) {
+    if ((st = spx_scan_exclusive(ctx, &p->sorter, p->offs.mem, npix))) return st;
+    cl_kernel kb, km;
+    if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_bucket", &kb))) return st;
+    if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_bucket_min", &km))) return st;
+    e = SPX_ARG(kb, 0, p->keys.mem) | SPX_ARG(kb, 1, npts) | SPX_ARG(kb, 2, npix) | SPX_ARG(kb, 3, p->offs.mem) |
+        SPX_ARG(kb, 4, p->vals.mem);
+    if ((st = spx_cl_check(ctx, e, "spx_project_bucket args"))) return st;
+    g = npts;
+    if ((st = spx_cl_run(ctx, kb, 1, &g, &l, "spx_project_bucket"))) return st;
+    e = SPX_ARG(km, 0, p->keys.mem) | SPX_ARG(km, 1, p->offs.mem) | SPX_ARG(km, 2, p->vals.mem) |
+        SPX_ARG(km, 3, col) | SPX_ARG(km, 4, has_col) | SPX_ARG(km, 5, N) | SPX_ARG(km, 6, C) | SPX_ARG(km, 7, W) |
+        SPX_ARG(km, 8, H) | SPX_ARG(km, 9, npix) | SPX_ARG(km, 10, out) | SPX_ARG(km, 11, layout) |
+        SPX_ARG(km, 12, win) | SPX_ARG(km, 13, want_win);
+    if ((st = spx_cl_check(ctx, e, "spx_project_bucket_min args"))) return st;
+    g = npix;
+    return spx_cl_run(ctx, km, 1, &g, &l, "spx_project_bucket_min");
+  }
+  if (path == 1) {
     cl_kernel k;
     if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_sort_scatter", &k))) return st;
     if ((st = spx_cl_buf_ensure(ctx, &p->sorter.keys2, (size_t)npts * sizeof(cl_ulong), "radix sort keys"))) return st;
