@@ -25,7 +25,15 @@ int spx_cli_open_device(const char *cmd, spx_ctx *ctx, const char *spec);
  * not --name. Exits with a usage error via *bad when the value is missing. */
 const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *bad);
 
+/* Lower-case extension of path without the dot ("" if none). */
+void spx_cli_ext(const char *path, char *ext, size_t cap);
+/* Monotonic clock in seconds. */
+double spx_cli_now(void);
+
 /* Subcommand entry points. */
 int spx_cmd_devices(int argc, char **argv);
+int spx_cmd_project(int argc, char **argv);
+int spx_cmd_render(int argc, char **argv); /* apps/cmd_render.c */
+int spx_cmd_train(int argc, char **argv);  /* apps/cmd_train.c */
 
 #endif

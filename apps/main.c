@@ -2,10 +2,14 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
+#include <time.h>
 
 #include "cli.h"
 
 static const spx_command commands[] = {
+    {"project", "project a colored mesh through camera(s) into RGB-D images", spx_cmd_project},
+    {"render", "run a trained UNet on RGB-D image(s), or on a mesh through camera(s)", spx_cmd_render},
+    {"train", "train the UNet on a data directory", spx_cmd_train},
     {"devices", "list OpenCL devices and warm the kernel cache", spx_cmd_devices},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
@@ -48,6 +52,20 @@ const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *ba
     return NULL;
   }
   return argv[++*i];
+}
+
+void spx_cli_ext(const char *path, char *ext, size_t cap) {
+  const char *slash = strrchr(path, '/'), *dot = strrchr(path, '.');
+  size_t i = 0;
+  if (dot && (!slash || dot > slash))
+    for (const char *p = dot + 1; *p && i + 1 < cap; p++, i++) ext[i] = (char)((*p >= 'A' && *p <= 'Z') ? *p + 32 : *p);
+  if (cap) ext[i] = 0;
+}
+
+double spx_cli_now(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 static void usage(FILE *fp) {

@@ -1,4 +1,4 @@
-/* Shared prelude, prepended to every kernels/*.cl program before it is built.
+/* Shared prelude, prepended to every kernel program (kernels/<name>.cl) before it is built.
  * Build options supply -DSPX_DEVICE_CPU / -DSPX_DEVICE_GPU and the tunables of lib/cl/tuning.c. */
 #ifndef SPX_WG
 #define SPX_WG 64

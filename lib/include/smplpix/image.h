@@ -19,7 +19,10 @@ void spx_image_free(spx_image *img);
 
 /* OpenEXR through the OpenEXR C API. Write: 3 channels → R,G,B; 4 → R,G,B,Z; float32,
  * ZIP compression, atomically. Read: R,G,B (+Z if present; missing Z reads as 1 = background)
- * as a 4-channel image; any pixel type is converted to float; a file without R,G,B is an error. */
+ * as a 4-channel image; any pixel type is converted to float; a file without R,G,B is an error.
+ * The image has the size of the display window; pixels outside the data window read as
+ * (1,1,1,1) = background. Scanline and tiled files (level 0) are read; deep files are an error;
+ * windows larger than 16384 on a side are rejected. */
 spx_status spx_exr_write(spx_ctx *ctx, const char *path, const spx_image *img);
 spx_status spx_exr_read(spx_ctx *ctx, const char *path, spx_image *out);
 

@@ -4,6 +4,19 @@
 
 #include "smplpix/core.h"
 #include "smplpix/device.h"
+#include "smplpix/raster.h"
+
+#include "smplpix/camera.h"
+#include "smplpix/image.h"
+#include "smplpix/mesh.h"
+#include "smplpix/npy.h"
+#include "smplpix/npz.h"
+#include "smplpix/safetensors.h"
+#include "smplpix/bvh.h"
+
 #include "smplpix/render.h"
+
+#include "smplpix/body.h"
+#include "smplpix/unet.h"
 
 #endif

@@ -1,0 +1,363 @@
+/* smplpix train: train the UNet on DIR/{train,validation}/{input,output}/NAME.{exr,npy,png}
+ * with Adam and the mean L1 loss; checkpoints (weights + optimizer state) after every epoch. */
+#include <dirent.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include "cli.h"
+#include "unet_io.h"
+
+static void train_help(void) {
+  printf("usage: smplpix train --data DIR --out W.safetensors [--width 8|16|32|64] [--batch B] [--lr LR]\n"
+         "                     [--epochs E | --steps S] [--init W0.safetensors] [--resume] [--seed N]\n"
+         "                     [--no-shuffle] [--loss l1] [--sigmoid] [--device cpu|gpu|P:D]\n"
+         "Trains on DIR/train/input/NAME.{exr,npy,png} (RGB-D) -> DIR/train/output/NAME.{png,exr,npy} (RGB),\n"
+         "matched by NAME; all images of a split must have the same size (>= 16x16). Adam (betas 0.9,\n"
+         "0.999, eps 1e-8), mean L1 loss. Defaults: --width 32 --batch 1 --lr 1e-3 --epochs 1 --seed 0.\n"
+         "--epochs E / --steps S: train until E epochs / S optimizer steps in total are done.\n"
+         "--resume continues from W (weights, optimizer state, step count, data order); --init starts\n"
+         "from the weights of W0 with a fresh optimizer. After every epoch W is rewritten atomically and\n"
+         "the loss on DIR/validation (when present) is printed.\n");
+}
+
+typedef struct sample {
+  char *in, *out;
+} sample;
+
+typedef struct split {
+  sample *s;
+  int n;
+  int h, w;
+} split;
+
+static int cmp_sample(const void *a, const void *b) {
+  return strcmp(((const sample *)a)->in, ((const sample *)b)->in);
+}
+
+static char *join3(const char *a, const char *b, const char *c) {
+  size_t n = strlen(a) + strlen(b) + strlen(c) + 1;
+  char *p = malloc(n);
+  if (p) snprintf(p, n, "%s%s%s", a, b, c);
+  return p;
+}
+
+static int file_exists(const char *p) {
+  struct stat sb;
+  return stat(p, &sb) == 0 && S_ISREG(sb.st_mode);
+}
+
+static void split_free(split *sp) {
+  for (int i = 0; i < sp->n; i++) free(sp->s[i].in), free(sp->s[i].out);
+  free(sp->s);
+  memset(sp, 0, sizeof *sp);
+}
+
+/* List DIR/<name>/input and pair each with DIR/<name>/output/<stem>.{png,exr,npy}. Returns an
+ * exit code; a missing split directory is an empty split unless `required`. */
+static int list_split(const char *dir, const char *name, int required, split *sp) {
+  memset(sp, 0, sizeof *sp);
+  char sub[64];
+  snprintf(sub, sizeof sub, "/%s/input", name);
+  char *idir = join3(dir, sub, "");
+  snprintf(sub, sizeof sub, "/%s/output/", name);
+  char *odir = join3(dir, sub, "");
+  int rc = SPX_EXIT_OK, cap = 0;
+  DIR *d = idir ? opendir(idir) : NULL;
+  if (!d) {
+    if (required) rc = spx_cli_errorf("train", "%s: cannot open (%s)", idir ? idir : dir, strerror(errno));
+    goto done;
+  }
+  struct dirent *e;
+  while ((e = readdir(d))) {
+    const char *dot = strrchr(e->d_name, '.');
+    if (!dot || e->d_name[0] == '.') continue;
+    if (strcmp(dot, ".exr") && strcmp(dot, ".npy") && strcmp(dot, ".png")) continue;
+    if (sp->n == cap) {
+      cap = cap ? 2 * cap : 64;
+      sample *ns = realloc(sp->s, sizeof(sample) * (size_t)cap);
+      if (!ns) {
+        rc = spx_cli_errorf("train", "out of memory listing %s", idir);
+        break;
+      }
+      sp->s = ns;
+    }
+    sample *s = &sp->s[sp->n];
+    s->in = join3(idir, "/", e->d_name);
+    s->out = NULL;
+    size_t stem = (size_t)(dot - e->d_name);
+    static const char *const exts[] = {".png", ".exr", ".npy"};
+    for (int k = 0; k < 3 && s->in && !s->out; k++) {
+      char *cand = malloc(strlen(odir) + stem + 5);
+      if (!cand) break;
+      snprintf(cand, strlen(odir) + stem + 5, "%s%.*s%s", odir, (int)stem, e->d_name, exts[k]);
+      if (file_exists(cand)) s->out = cand;
+      else free(cand);
+    }
+    sp->n++;
+    if (!s->in) {
+      rc = spx_cli_errorf("train", "out of memory listing %s", idir);
+      break;
+    }
+    if (!s->out) {
+      rc = spx_cli_errorf("train", "%s: no target %s%.*s.{png,exr,npy}", s->in, odir, (int)stem, e->d_name);
+      break;
+    }
+  }
+  closedir(d);
+  if (!rc && required && sp->n == 0) rc = spx_cli_errorf("train", "%s: no .exr, .npy or .png inputs", idir);
+  if (!rc && sp->n) qsort(sp->s, (size_t)sp->n, sizeof(sample), cmp_sample);
+done:
+  free(idir);
+  free(odir);
+  if (rc) split_free(sp);
+  return rc;
+}
+
+/* Load samples idx[0..count) into contiguous NCHW batches (sizes must match sp->h, sp->w; the
+ * first load sets them). */
+static int load_batch(spx_ctx *ctx, split *sp, const int *idx, int count, float *in, float *tg) {
+  for (int k = 0; k < count; k++) {
+    const sample *s = &sp->s[idx[k]];
+    spx_app_batch a = {0}, b = {0};
+    if (spx_app_load(ctx, s->in, SPX_UNET_IN_CHANNELS, &a)) return spx_app_error("train", ctx);
+    if (spx_app_load(ctx, s->out, SPX_UNET_OUT_CHANNELS, &b)) {
+      spx_app_batch_free(&a);
+      return spx_app_error("train", ctx);
+    }
+    int rc = SPX_EXIT_OK;
+    if (a.n != 1 || b.n != 1) rc = spx_cli_errorf("train", "%s: training files hold one image each", s->in);
+    else if (a.h != sp->h || a.w != sp->w)
+      rc = spx_cli_errorf("train", "%s: %dx%d, but the data set's images are %dx%d", s->in, a.w, a.h, sp->w, sp->h);
+    else if (b.h != sp->h || b.w != sp->w)
+      rc = spx_cli_errorf("train", "%s: %dx%d, but its input is %dx%d", s->out, b.w, b.h, sp->w, sp->h);
+    if (!rc) {
+      size_t hw = (size_t)sp->h * (size_t)sp->w;
+      memcpy(in + (size_t)k * SPX_UNET_IN_CHANNELS * hw, a.data, SPX_UNET_IN_CHANNELS * hw * sizeof(float));
+      memcpy(tg + (size_t)k * SPX_UNET_OUT_CHANNELS * hw, b.data, SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
+    }
+    spx_app_batch_free(&a);
+    spx_app_batch_free(&b);
+    if (rc) return rc;
+  }
+  return SPX_EXIT_OK;
+}
+
+static int probe_size(spx_ctx *ctx, split *sp) {
+  spx_app_batch a = {0};
+  if (spx_app_load(ctx, sp->s[0].in, SPX_UNET_IN_CHANNELS, &a)) return spx_app_error("train", ctx);
+  sp->h = a.h, sp->w = a.w;
+  spx_app_batch_free(&a);
+  if (sp->h < 16 || sp->w < 16)
+    return spx_cli_errorf("train", "%s: %dx%d is too small (the UNet needs at least 16x16)", sp->s[0].in, sp->w, sp->h);
+  return SPX_EXIT_OK;
+}
+
+static double now_s(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static uint64_t mix(uint64_t z) {
+  z += 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+/* Data order of an epoch: a function of (seed, epoch) only, so --resume continues exactly. */
+static void epoch_order(int *perm, int n, uint64_t seed, int64_t epoch, int shuffle) {
+  for (int i = 0; i < n; i++) perm[i] = i;
+  if (!shuffle) return;
+  uint64_t s = mix(seed ^ mix((uint64_t)epoch));
+  for (int i = n - 1; i > 0; i--) {
+    s = mix(s);
+    int j = (int)(s % (uint64_t)(i + 1));
+    int t = perm[i];
+    perm[i] = perm[j];
+    perm[j] = t;
+  }
+}
+
+static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss) {
+  size_t hw = (size_t)val->h * (size_t)val->w;
+  float *in = malloc(SPX_UNET_IN_CHANNELS * hw * sizeof(float)), *tg = malloc(SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
+  float *out = malloc(SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
+  int rc = SPX_EXIT_OK;
+  double sum = 0;
+  if (!in || !tg || !out) rc = spx_cli_errorf("train", "out of memory for validation");
+  for (int i = 0; i < val->n && !rc; i++) {
+    if ((rc = load_batch(ctx, val, &i, 1, in, tg))) break;
+    if (spx_unet_forward(u, in, 1, val->h, val->w, 0, out)) {
+      rc = spx_cli_error("train", ctx);
+      break;
+    }
+    double s = 0;
+    for (size_t k = 0; k < SPX_UNET_OUT_CHANNELS * hw; k++) s += fabs((double)out[k] - (double)tg[k]);
+    sum += s / (double)(SPX_UNET_OUT_CHANNELS * hw);
+  }
+  *loss = val->n ? sum / val->n : 0;
+  free(in), free(tg), free(out);
+  return rc;
+}
+
+static int parse_int(const char *opt, const char *v, long lo, long hi, long *out) {
+  char *end = NULL;
+  errno = 0;
+  long x = strtol(v, &end, 10);
+  if (errno || !end || *end || x < lo || x > hi)
+    return spx_cli_usage("train", "%s needs an integer in [%ld, %ld], not '%s'", opt, lo, hi, v);
+  *out = x;
+  return SPX_EXIT_OK;
+}
+
+int spx_cmd_train(int argc, char **argv) {
+  const char *data = NULL, *outp = NULL, *init = NULL, *spec = NULL, *loss_name = "l1";
+  long width = 0, batch = 1, epochs = -1, steps = -1, seed = 0;
+  double lr = 1e-3;
+  int resume = 0, shuffle = 1, sigmoid = 0, bad = 0, rc;
+  for (int i = 1; i < argc; i++) {
+    const char *v;
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+      train_help();
+      return SPX_EXIT_OK;
+    } else if (!strcmp(argv[i], "--resume")) {
+      resume = 1;
+    } else if (!strcmp(argv[i], "--no-shuffle")) {
+      shuffle = 0;
+    } else if (!strcmp(argv[i], "--sigmoid")) {
+      sigmoid = 1;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--data", &bad))) {
+      data = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
+      outp = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--init", &bad))) {
+      init = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
+      spec = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--loss", &bad))) {
+      loss_name = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--width", &bad))) {
+      if ((rc = parse_int("--width", v, 8, 64, &width))) return rc;
+      if (width != 8 && width != 16 && width != 32 && width != 64)
+        return spx_cli_usage("train", "--width must be 8, 16, 32 or 64, not %ld", width);
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--batch", &bad))) {
+      if ((rc = parse_int("--batch", v, 1, 4096, &batch))) return rc;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--epochs", &bad))) {
+      if ((rc = parse_int("--epochs", v, 0, 100000000, &epochs))) return rc;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--steps", &bad))) {
+      if ((rc = parse_int("--steps", v, 0, 2000000000, &steps))) return rc;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) {
+      if ((rc = parse_int("--seed", v, 0, 2147483647, &seed))) return rc;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--lr", &bad))) {
+      char *end = NULL;
+      lr = strtod(v, &end);
+      if (!end || *end || !(lr > 0) || !isfinite(lr)) return spx_cli_usage("train", "--lr needs a positive number, not '%s'", v);
+    } else {
+      return spx_cli_usage("train", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+    }
+  }
+  if (!data || !outp) return spx_cli_usage("train", "--data and --out are required");
+  if (strcmp(loss_name, "l1")) return spx_cli_usage("train", "--loss: only l1 is supported, not '%s'", loss_name);
+  if (epochs >= 0 && steps >= 0) return spx_cli_usage("train", "give --epochs or --steps, not both");
+  if (resume && init) return spx_cli_usage("train", "--resume continues --out; it cannot be combined with --init");
+  if (epochs < 0 && steps < 0) epochs = 1;
+
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("train", "out of memory");
+  spx_unet *u = NULL;
+  split tr = {0}, val = {0};
+  int *perm = NULL;
+  float *in = NULL, *tg = NULL;
+  if ((rc = list_split(data, "train", 1, &tr)) || (rc = list_split(data, "validation", 0, &val))) goto done;
+  if ((rc = probe_size(ctx, &tr)) || (val.n && (rc = probe_size(ctx, &val)))) goto done;
+  if ((rc = spx_cli_open_device("train", ctx, spec))) goto done;
+  const char *from = resume ? outp : init;
+  if (from) {
+    if (spx_unet_load(ctx, from, &u)) {
+      rc = spx_cli_error("train", ctx);
+      goto done;
+    }
+    if (width && width != spx_unet_width(u)) {
+      rc = spx_cli_errorf("train", "%s has width %d, not the --width %ld asked for", from, spx_unet_width(u), width);
+      goto done;
+    }
+    if (init && spx_unet_reset_optimizer(u)) {
+      rc = spx_cli_error("train", ctx);
+      goto done;
+    }
+    if (sigmoid) spx_unet_set_sigmoid(u, 1);
+  } else if (spx_unet_create(ctx, width ? (int)width : 32, sigmoid, (uint64_t)seed, &u)) {
+    rc = spx_cli_error("train", ctx);
+    goto done;
+  }
+  int64_t spe = (tr.n + batch - 1) / batch; /* steps per epoch (the last batch may be short) */
+  int64_t target = steps >= 0 ? steps : epochs * spe;
+  size_t hw = (size_t)tr.h * (size_t)tr.w;
+  perm = malloc(sizeof(int) * (size_t)tr.n);
+  in = malloc((size_t)batch * SPX_UNET_IN_CHANNELS * hw * sizeof(float));
+  tg = malloc((size_t)batch * SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
+  if (!perm || !in || !tg) {
+    rc = spx_cli_errorf("train", "out of memory for a batch of %ld %dx%d images", batch, tr.w, tr.h);
+    goto done;
+  }
+  printf("train: %d pairs (%dx%d), %d validation, width %d, batch %ld, lr %g, %lld steps/epoch, step %lld -> %lld\n",
+         tr.n, tr.w, tr.h, val.n, spx_unet_width(u), batch, lr, (long long)spe, (long long)spx_unet_step(u),
+         (long long)target);
+  double t0 = now_s(), ep_loss = 0;
+  int ep_count = 0;
+  int64_t cur_epoch = -1;
+  while (spx_unet_step(u) < target) {
+    int64_t step = spx_unet_step(u), epoch = step / spe, pos = step % spe;
+    if (epoch != cur_epoch) {
+      epoch_order(perm, tr.n, (uint64_t)seed, epoch, shuffle);
+      cur_epoch = epoch;
+    }
+    int first = (int)(pos * batch), count = (int)(tr.n - first < batch ? tr.n - first : batch);
+    float loss = 0;
+    if ((rc = load_batch(ctx, &tr, perm + first, count, in, tg))) goto done;
+    if (spx_unet_zero_grad(u) || spx_unet_forward_loss(u, in, tg, count, tr.h, tr.w, NULL, &loss) ||
+        spx_unet_backward(u) || spx_unet_adam_step(u, lr)) {
+      rc = spx_cli_error("train", ctx);
+      goto done;
+    }
+    if (!isfinite(loss)) {
+      rc = spx_cli_errorf("train", "the loss became %g at step %lld (learning rate too high?)", loss, (long long)step);
+      goto done;
+    }
+    ep_loss += loss;
+    ep_count++;
+    int end_epoch = pos == spe - 1, last = spx_unet_step(u) == target;
+    if (end_epoch || last) {
+      double vl = 0;
+      if (val.n && (rc = validate(ctx, u, &val, &vl))) goto done;
+      printf("epoch %lld step %lld: train L1 %.6f", (long long)epoch + 1, (long long)spx_unet_step(u), ep_loss / ep_count);
+      if (val.n) printf(", validation L1 %.6f", vl);
+      printf(", %.1f s\n", now_s() - t0);
+      fflush(stdout);
+      ep_loss = 0;
+      ep_count = 0;
+      if (spx_unet_save(u, outp, 1)) {
+        rc = spx_cli_error("train", ctx);
+        goto done;
+      }
+    }
+  }
+  if (spx_unet_save(u, outp, 1)) { /* also when nothing was left to do */
+    rc = spx_cli_error("train", ctx);
+    goto done;
+  }
+  printf("wrote %s (step %lld)\n", outp, (long long)spx_unet_step(u));
+done:
+  free(perm), free(in), free(tg);
+  split_free(&tr);
+  split_free(&val);
+  spx_unet_destroy(u);
+  spx_ctx_destroy(ctx);
+  return rc;
+}

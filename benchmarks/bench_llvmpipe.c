@@ -1,0 +1,240 @@
+/* The outside peer on its own: Mesa llvmpipe (OpenGL through headless EGL, peer_llvmpipe.c)
+ * drawing the body mesh (data/body/human_woman.obj, 6,890 vertices) and its Loop subdivisions
+ * (27,554 and 110,210 vertices) with per-vertex colours from the normals, at the size of
+ * data/cameras/default.json (410x308). Per size: warm-up, then median / min / max over N frames
+ * of draw + glReadPixels (mesh resident), and of vertex update (positions + colours) + draw +
+ * read-back, like a posed body every frame; plus the process CPU time per frame (all threads),
+ * which is steadier than wall time on a shared machine. Sanity check (not a test): the llvmpipe image is
+ * compared with the project's plain-C rasterizer (spx_raster_ref, same camera): coverage masks
+ * (they differ on edges: different fill rules and snapping), depth and colour where both cover.
+ * Writes out/bench/llvmpipe.png (times vs vertices) and out/bench/llvmpipe_body.png (the image).
+ * Usage: bench_llvmpipe [frames (default 21, at least 20 recommended)] [mesh.obj] [camera.json] */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include "core/internal.h"
+#include "peer_llvmpipe.h"
+#include "plot.h"
+#include "smplpix/camera.h"
+#include "smplpix/image.h"
+#include "smplpix/mesh.h"
+#include "smplpix/raster.h"
+
+static int cmp_d(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return x < y ? -1 : x > y;
+}
+
+typedef struct stats {
+  double med, min, max; /* ms */
+} stats;
+
+static stats summarize(double *t, int n) {
+  qsort(t, (size_t)n, sizeof *t, cmp_d);
+  stats s = {1e3 * (n % 2 ? t[n / 2] : 0.5 * (t[n / 2 - 1] + t[n / 2])), 1e3 * t[0], 1e3 * t[n - 1]};
+  return s;
+}
+
+/* Area-weighted vertex normals → colours 0.5 n + 0.5. */
+static void colours_from_normals(const spx_mesh *m, float *col) {
+  double *acc = calloc(3 * (size_t)m->nv, sizeof(double));
+  if (!acc) return;
+  for (int32_t f = 0; f < m->nf; f++) {
+    const int32_t *v = m->faces + 3 * (size_t)f;
+    const float *a = m->pos + 3 * (size_t)v[0], *b = m->pos + 3 * (size_t)v[1], *c = m->pos + 3 * (size_t)v[2];
+    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    for (int k = 0; k < 3; k++)
+      for (int j = 0; j < 3; j++) acc[3 * (size_t)v[k] + j] += n[j];
+  }
+  for (int32_t i = 0; i < m->nv; i++) {
+    double *n = acc + 3 * (size_t)i, l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (int j = 0; j < 3; j++) col[3 * (size_t)i + j] = l > 0 ? (float)(0.5 + 0.5 * n[j] / l) : 0.5f;
+  }
+  free(acc);
+}
+
+/* CPU seconds of the whole process (all llvmpipe threads): unlike wall time, hardly inflated when
+ * other jobs share the cores. */
+static double cpu_now(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+#define DIE(what)                                                                                                   \
+  do {                                                                                                              \
+    fprintf(stderr, "bench_llvmpipe: %s: %s\n", what, spx_ctx_message(ctx));                                       \
+    return 1;                                                                                                       \
+  } while (0)
+
+int main(int argc, char **argv) {
+  int frames = argc > 1 ? atoi(argv[1]) : 21;
+  if (frames < 1) frames = 21;
+  const char *mesh_path = argc > 2 ? argv[2] : SPX_REPO_DATA "/body/human_woman.obj";
+  const char *cam_path = argc > 3 ? argv[3] : SPX_REPO_DATA "/cameras/default.json";
+  spx_ctx *ctx;
+  if (spx_ctx_create(&ctx)) return 1;
+  spx_mesh meshes[3];
+  memset(meshes, 0, sizeof meshes);
+  if (spx_mesh_load(ctx, mesh_path, &meshes[0])) DIE("mesh");
+  for (int l = 1; l < 3; l++)
+    if (spx_mesh_subdivide(ctx, &meshes[0], l, &meshes[l])) DIE("subdivide");
+  spx_camera *cams = NULL;
+  int ncams = 0;
+  if (spx_camera_load(ctx, cam_path, &cams, &ncams)) DIE("camera");
+  const spx_camera cam = cams[0];
+  free(cams);
+  int W = cam.width, H = cam.height;
+  size_t npx = (size_t)W * (size_t)H;
+
+  char why[512] = "";
+  peer_llvmpipe *gl = peer_llvmpipe_open(why, sizeof why);
+  if (!gl) {
+    printf("llvmpipe peer skipped: %s\n", why);
+  } else {
+    const char *lp = getenv("LP_NUM_THREADS");
+    printf("GL_RENDERER: %s\nGL_VERSION: %s\nEGL display: %s\nllvmpipe threads: %s\n", peer_llvmpipe_renderer(gl),
+           peer_llvmpipe_version(gl), peer_llvmpipe_platform(gl), lp ? lp : "default (one per CPU)");
+  }
+  printf("image %dx%d (%s), %d frames after 3 warm-up; wall ms: median [min, max]; cpu: process CPU ms per frame\n",
+         W, H, cam_path, frames);
+  printf("%8s %8s  %-24s %6s  %-24s %6s  %8s %6s\n", "verts", "faces", "llvmpipe draw+read", "cpu",
+         "llvmpipe upd+draw+read", "cpu", "ref ms", "cpu");
+  char checks[3][320];
+
+  double xs[3], y_draw[3], y_upd[3], y_cpu[3], y_ref[3], y_refcpu[3];
+  float *col = NULL, *img_gl = malloc(sizeof(float) * 4 * npx), *img_ref = malloc(sizeof(float) * 4 * npx);
+  double *t = malloc(sizeof(double) * (size_t)frames);
+  if (!img_gl || !img_ref || !t) {
+    fprintf(stderr, "bench_llvmpipe: out of memory\n");
+    return 1;
+  }
+  for (int l = 0; l < 3; l++) {
+    const spx_mesh *m = &meshes[l];
+    col = realloc(col, sizeof(float) * 3 * (size_t)m->nv);
+    if (!col) {
+      fprintf(stderr, "bench_llvmpipe: out of memory\n");
+      return 1;
+    }
+    colours_from_normals(m, col);
+    xs[l] = m->nv;
+    y_draw[l] = y_upd[l] = y_cpu[l] = NAN;
+    stats sd = {NAN, NAN, NAN}, su = sd;
+    double cpu_d = NAN, cpu_u = NAN;
+    if (gl) {
+      if (peer_llvmpipe_upload(gl, m->nv, m->pos, col, m->nf, m->faces, why, sizeof why)) {
+        fprintf(stderr, "bench_llvmpipe: %s\n", why);
+        return 1;
+      }
+      double c0 = 0;
+      for (int f = 0; f < 3 + frames; f++) {
+        if (f == 3) c0 = cpu_now();
+        double t0 = spx_now();
+        if (peer_llvmpipe_draw(gl, &cam, img_gl, why, sizeof why)) {
+          fprintf(stderr, "bench_llvmpipe: %s\n", why);
+          return 1;
+        }
+        if (f >= 3) t[f - 3] = spx_now() - t0;
+      }
+      cpu_d = 1e3 * (cpu_now() - c0) / frames;
+      sd = summarize(t, frames);
+      for (int f = 0; f < 3 + frames; f++) {
+        if (f == 3) c0 = cpu_now();
+        double t0 = spx_now();
+        if (peer_llvmpipe_update(gl, m->pos, col, why, sizeof why) ||
+            peer_llvmpipe_draw(gl, &cam, img_gl, why, sizeof why)) {
+          fprintf(stderr, "bench_llvmpipe: %s\n", why);
+          return 1;
+        }
+        if (f >= 3) t[f - 3] = spx_now() - t0;
+      }
+      cpu_u = 1e3 * (cpu_now() - c0) / frames;
+      su = summarize(t, frames);
+      y_draw[l] = sd.med, y_upd[l] = su.med, y_cpu[l] = cpu_d;
+    }
+
+    /* the project's own rasterizer (plain C, one thread): sanity check + a rough time */
+    spx_raster_args a;
+    memset(&a, 0, sizeof a);
+    a.nverts = m->nv, a.pos = m->pos, a.col = col, a.nfaces = m->nf, a.faces = m->faces;
+    a.ncams = 1, a.cams = &cam, a.aa = 1, a.cull = SPX_CULL_NONE, a.layout = SPX_LAYOUT_HWC;
+    double tr[3], cr0 = cpu_now();
+    for (int f = 0; f < 3; f++) {
+      double t0 = spx_now();
+      if (spx_raster_ref(ctx, &a, img_ref, NULL)) DIE("spx_raster_ref");
+      tr[f] = spx_now() - t0;
+    }
+    y_refcpu[l] = 1e3 * (cpu_now() - cr0) / 3;
+    y_ref[l] = summarize(tr, 3).med;
+
+    char *check = checks[l];
+    snprintf(check, sizeof checks[l], "no GL image");
+    if (gl) {
+      size_t cov_gl = 0, cov_ref = 0, differ = 0, both = 0, dbad = 0;
+      double dsum = 0, cmax = 0;
+      for (size_t i = 0; i < npx; i++) {
+        int g = img_gl[4 * i + 3] != 1.0f, r = img_ref[4 * i + 3] != 1.0f;
+        cov_gl += g, cov_ref += r, differ += g != r;
+        if (g && r) {
+          double dd = fabs((double)img_gl[4 * i + 3] - img_ref[4 * i + 3]);
+          both++, dsum += dd, dbad += dd > 1e-3 * img_ref[4 * i + 3];
+          for (int k = 0; k < 3; k++) cmax = fmax(cmax, fabs((double)img_gl[4 * i + k] - img_ref[4 * i + k]));
+        }
+      }
+      snprintf(check, sizeof checks[l],
+               "%d v: coverage %zu (llvmpipe) vs %zu (ref) px, %zu differ (%.2f%% of image, %.2f%% of covered); depth mean |diff| %.1e, "
+               "%zu px > 0.1%%; colour max |diff| %.3f",
+               (int)m->nv, cov_gl, cov_ref, differ, 100.0 * differ / npx, cov_ref ? 100.0 * differ / cov_ref : 0.0,
+               both ? dsum / both : 0.0, dbad, cmax);
+    }
+    char c1[40] = "-", c2[40] = "-";
+    if (gl) {
+      snprintf(c1, sizeof c1, "%.2f [%.2f, %.2f]", sd.med, sd.min, sd.max);
+      snprintf(c2, sizeof c2, "%.2f [%.2f, %.2f]", su.med, su.min, su.max);
+    }
+    printf("%8d %8d  %-24s %6.2f  %-24s %6.2f  %8.2f %6.2f\n", m->nv, m->nf, c1, cpu_d, c2, cpu_u, y_ref[l],
+           y_refcpu[l]);
+    fflush(stdout);
+
+    if (l == 0 && (mkdir("out", 0777) == 0 || errno == EEXIST) && (mkdir("out/bench", 0777) == 0 || errno == EEXIST)) {
+      spx_image im = {W, H, 4, gl ? img_gl : img_ref};
+      if (spx_png_write_rgb(ctx, "out/bench/llvmpipe_body.png", &im))
+        fprintf(stderr, "bench_llvmpipe: %s\n", spx_ctx_message(ctx));
+    }
+  }
+  printf("check against spx_raster_ref (same camera; edges may differ, this is not a test):\n");
+  for (int l = 0; l < 3; l++) printf("  %s\n", checks[l]);
+  if (gl) printf("render target: %s\n", peer_llvmpipe_float_target(gl) ? "RGBA32F (depth in alpha)" : "RGBA8 + depth bits");
+
+  char title[96];
+  snprintf(title, sizeof title, "Mesh raster %dx%d", W, H);
+  plot *pl = plot_create(640, 420, title, "vertices", "ms per frame", 1, 1);
+  if (pl) {
+    if (gl) {
+      plot_series(pl, "llvmpipe draw+read, wall", 3, xs, y_draw);
+      plot_series(pl, "llvmpipe update+draw+read, wall", 3, xs, y_upd);
+      plot_series(pl, "llvmpipe draw+read, CPU (all threads)", 3, xs, y_cpu);
+    }
+    plot_series(pl, "spx_raster_ref (plain C, 1 thread), CPU", 3, xs, y_refcpu);
+    if (plot_save(pl, "out/bench/llvmpipe.png", why, sizeof why))
+      fprintf(stderr, "bench_llvmpipe: %s\n", why);
+    else
+      printf("plot: out/bench/llvmpipe.png\n");
+    plot_free(pl);
+  }
+
+  peer_llvmpipe_close(gl);
+  free(col);
+  free(img_gl);
+  free(img_ref);
+  free(t);
+  for (int l = 0; l < 3; l++) spx_mesh_free(&meshes[l]);
+  spx_ctx_destroy(ctx);
+  return 0;
+}

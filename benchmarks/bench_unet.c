@@ -1,0 +1,108 @@
+/* UNet benchmark: eval forward (batch norm folded, fused ReLU) and one training step (forward +
+ * L1 + backward + Adam) of the SMPLpix UNet on a 1x4xHxW input, on the open device; minimum over
+ * reps after one warm-up (which also plans the arenas and builds the kernels). Peer:
+ * benchmarks/peer_unet_torch.py times the same model in PyTorch (run it in the same session and
+ * compare ratios: absolute times drift on shared machines).
+ *
+ *   bench_unet [--width W] [--size HxW] [--reps N] [--no-train]   (defaults: 16, 308x410, 3) */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "smplpix/smplpix.h"
+
+static double now(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static int fail(spx_ctx *ctx, const char *what) {
+  fprintf(stderr, "bench_unet: %s: %s\n", what, spx_ctx_message(ctx));
+  return 1;
+}
+
+/* multiply-adds x 2 of every convolution of the width-w UNet on h x w0 */
+static double unet_gflop(int wd, int h, int w) {
+  const int io[9][3] = {{4, wd, wd},           {wd, 2 * wd, 2 * wd},     {2 * wd, 4 * wd, 4 * wd},
+                        {4 * wd, 8 * wd, 8 * wd}, {8 * wd, 8 * wd, 8 * wd}, {16 * wd, 8 * wd, 4 * wd},
+                        {8 * wd, 4 * wd, 2 * wd}, {4 * wd, 2 * wd, wd},     {2 * wd, wd, wd}};
+  int hs[5] = {h, h / 2, h / 4, h / 8, h / 16}, ws[5] = {w, w / 2, w / 4, w / 8, w / 16};
+  const int lvl[9] = {0, 1, 2, 3, 4, 3, 2, 1, 0};
+  double f = 0;
+  for (int i = 0; i < 9; i++) {
+    double px = (double)hs[lvl[i]] * ws[lvl[i]];
+    f += 2.0 * px * 9 * ((double)io[i][0] * io[i][1] + (double)io[i][1] * io[i][2]);
+  }
+  f += 2.0 * (double)h * w * wd * 3;
+  return f * 1e-9;
+}
+
+int main(int argc, char **argv) {
+  int width = 16, h = 308, w = 410, reps = 3, train = 1;
+  for (int i = 1; i < argc; i++) {
+    if (!strcmp(argv[i], "--width") && i + 1 < argc) width = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--size") && i + 1 < argc && sscanf(argv[++i], "%dx%d", &h, &w) == 2) {
+    } else if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--no-train")) train = 0;
+    else {
+      fprintf(stderr, "usage: bench_unet [--width 8|16|32|64] [--size HxW] [--reps N] [--no-train]\n");
+      return 2;
+    }
+  }
+  if (reps < 1) reps = 1;
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return 1;
+  spx_unet *u = NULL;
+  int rc = 1;
+  size_t nin = (size_t)4 * h * w, nout = (size_t)3 * h * w;
+  float *in = malloc(nin * sizeof(float)), *tg = malloc(nout * sizeof(float)), *out = malloc(nout * sizeof(float));
+  if (!in || !tg || !out) goto done;
+  for (size_t i = 0; i < nin; i++) in[i] = (float)((i * 2654435761u) % 1000) / 1000.0f;
+  for (size_t i = 0; i < nout; i++) tg[i] = (float)((i * 40503u) % 1000) / 1000.0f;
+  if (spx_device_open(ctx, NULL)) {
+    rc = fail(ctx, "device");
+    goto done;
+  }
+  spx_device_info info;
+  spx_device_get_info(ctx, &info);
+  if (spx_unet_create(ctx, width, 0, 1, &u)) {
+    rc = fail(ctx, "create");
+    goto done;
+  }
+  double gf = unet_gflop(width, h, w), best = 1e30, tbest = 1e30;
+  for (int r = 0; r <= reps; r++) { /* r == 0: warm-up */
+    double t0 = now();
+    if (spx_unet_forward(u, in, 1, h, w, 0, out) || spx_device_finish(ctx)) {
+      rc = fail(ctx, "eval forward");
+      goto done;
+    }
+    double t = now() - t0;
+    if (r && t < best) best = t;
+  }
+  printf("device: %s\n", info.name);
+  printf("unet width %d, 1x4x%dx%d: eval forward %.3f s (%.1f GFLOP, %.1f GFLOP/s)\n", width, h, w, best, gf,
+         gf / best);
+  if (train) {
+    float loss;
+    for (int r = 0; r <= reps; r++) {
+      double t0 = now();
+      if (spx_unet_zero_grad(u) || spx_unet_forward_loss(u, in, tg, 1, h, w, NULL, &loss) || spx_unet_backward(u) ||
+          spx_unet_adam_step(u, 1e-4) || spx_device_finish(ctx)) {
+        rc = fail(ctx, "train step");
+        goto done;
+      }
+      double t = now() - t0;
+      if (r && t < tbest) tbest = t;
+    }
+    printf("unet width %d, 1x4x%dx%d: train step (fwd + L1 + bwd + Adam) %.3f s (~%.1f GFLOP/s at 3x eval flops)\n",
+           width, h, w, tbest, 3 * gf / tbest);
+  }
+  rc = 0;
+done:
+  free(in), free(tg), free(out);
+  spx_unet_destroy(u);
+  spx_ctx_destroy(ctx);
+  return rc;
+}

@@ -1,0 +1,187 @@
+/* Batch norm 2d (PyTorch BatchNorm2d semantics, affine). One work-group of SPX_BN_WG work-items
+ * (a power of two, lib/cl/tuning.c) per channel; nothing but that group touches the channel, so
+ * the whole op is one kernel, needs no scratch and no atomics, and is deterministic.
+ *
+ * Accuracy (126k+ elements per channel in the UNet's first level): the variance is TWO-PASS
+ * (mean first, then sum (x - mean)^2), so there is no cancellation of E[x^2] - E[x]^2 when
+ * |mean| >> std. Each work-item sums its strided share with Kahan compensation (error O(eps)
+ * instead of O(n/WG * eps)), and the per-item results are combined by a pairwise tree in local
+ * memory (error O(log2(WG) * eps)). Welford would need a division per element and is no more
+ * accurate than compensated two-pass; the extra read of x is cheap next to the convolutions.
+ *
+ * SPX_BN_WG == 1 (CPUs): the single work-item of a channel walks each plane contiguously with
+ * eight independent Kahan lanes in a float8 (vectorised, no serial dependency chain), then folds
+ * the lanes and the tail with scalar Kahan. SPX_BN_WG > 1 (GPUs): item lid takes elements
+ * lid, lid + WG, ... (coalesced) and the group folds by the tree. */
+
+#ifndef SPX_BN_WG
+#define SPX_BN_WG 64
+#endif
+
+/* Kahan-compensated accumulation: s + c is the running sum */
+#define SPX_KAHAN_ADD(s, c, v)                                                                      \
+  do {                                                                                              \
+    float y_ = (v) - (c);                                                                           \
+    float t_ = (s) + y_;                                                                            \
+    (c) = (t_ - (s)) - y_;                                                                          \
+    (s) = t_;                                                                                       \
+  } while (0)
+
+/* Sum of v over the group, pairwise tree; every work-item gets the result. */
+inline float spx_bn_group_sum(__local float *buf, float v) {
+  int lid = get_local_id(0);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  buf[lid] = v;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  for (int s = SPX_BN_WG / 2; s > 0; s >>= 1) {
+    if (lid < s) buf[lid] += buf[lid + s];
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+  return buf[0];
+}
+
+#define SPX_KAHAN8(s, c, v)                                                                         \
+  do {                                                                                              \
+    float8 y8_ = (v) - (c);                                                                         \
+    float8 t8_ = (s) + y8_;                                                                         \
+    (c) = (t8_ - (s)) - y8_;                                                                        \
+    (s) = t8_;                                                                                      \
+  } while (0)
+
+/* fold 8 compensated lanes into a compensated scalar (s, c) */
+inline void spx_fold8(float8 s8, float8 c8, float *s, float *c) {
+  float l[8];
+  vstore8(s8 - c8, 0, l);
+  for (int j = 0; j < 8; j++) SPX_KAHAN_ADD(*s, *c, l[j]);
+}
+
+/* Per-item partial sums over channel ch of an n x c x hw tensor (x at xo; dy at go for mode 2):
+ *   mode 0: sum x            mode 1: sum (x - mean)^2
+ *   mode 2: sum dy and sum dy * (x - mean)  (second result in *r2)
+ * Returns the item's compensated partial (to be summed over the group). */
+inline float spx_bn_partial(__global const float *x, int xo, __global const float *dy, int go, int n, int c, int hw,
+                            int ch, float mean, int mode, float *r2) {
+  float s = 0.0f, comp = 0.0f, s2 = 0.0f, comp2 = 0.0f;
+#if SPX_BN_WG == 1
+  float8 a8 = 0.0f, c8 = 0.0f, b8 = 0.0f, d8 = 0.0f, m8 = (float8)(mean);
+  for (int k = 0; k < n; k++) {
+    __global const float *p = x + xo + (k * c + ch) * hw;
+    __global const float *g = dy + go + (k * c + ch) * hw;
+    int i = 0;
+    if (mode == 0)
+      for (; i + 8 <= hw; i += 8) SPX_KAHAN8(a8, c8, vload8(0, p + i));
+    else if (mode == 1)
+      for (; i + 8 <= hw; i += 8) {
+        float8 d = vload8(0, p + i) - m8;
+        SPX_KAHAN8(a8, c8, d * d);
+      }
+    else
+      for (; i + 8 <= hw; i += 8) {
+        float8 gv = vload8(0, g + i);
+        SPX_KAHAN8(a8, c8, gv);
+        SPX_KAHAN8(b8, d8, gv * (vload8(0, p + i) - m8));
+      }
+    for (; i < hw; i++) {
+      if (mode == 0) SPX_KAHAN_ADD(s, comp, p[i]);
+      else if (mode == 1) SPX_KAHAN_ADD(s, comp, (p[i] - mean) * (p[i] - mean));
+      else {
+        SPX_KAHAN_ADD(s, comp, g[i]);
+        SPX_KAHAN_ADD(s2, comp2, g[i] * (p[i] - mean));
+      }
+    }
+  }
+  spx_fold8(a8, c8, &s, &comp);
+  spx_fold8(b8, d8, &s2, &comp2);
+#else
+  int lid = get_local_id(0);
+  for (int k = 0; k < n; k++) {
+    __global const float *p = x + xo + (k * c + ch) * hw;
+    __global const float *g = dy + go + (k * c + ch) * hw;
+    for (int i = lid; i < hw; i += SPX_BN_WG) {
+      if (mode == 0) SPX_KAHAN_ADD(s, comp, p[i]);
+      else if (mode == 1) SPX_KAHAN_ADD(s, comp, (p[i] - mean) * (p[i] - mean));
+      else {
+        SPX_KAHAN_ADD(s, comp, g[i]);
+        SPX_KAHAN_ADD(s2, comp2, g[i] * (p[i] - mean));
+      }
+    }
+  }
+#endif
+  *r2 = s2 - comp2;
+  return s - comp;
+}
+
+/* Train mode: batch statistics over N, H, W (biased variance for the normalisation),
+ * y = (x - mean) * invstd * weight + bias, save = [mean(C), invstd(C)] for the backward, and
+ * when update != 0: running_mean = m * mean + (1 - m) * running_mean,
+ * running_var = m * var * cnt / (cnt - 1) + (1 - m) * running_var (unbiased, like PyTorch). */
+__kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_train_fwd(
+    __global const float *x, int xo, __global const float *wt, int wo, __global const float *bs, int bo,
+    __global float *rm, int rmo, __global float *rv, int rvo, __global float *save, int so, __global float *y, int yo,
+    int n, int c, int hw, float momentum, float eps, int update) {
+  __local float buf[SPX_BN_WG];
+  int ch = get_group_id(0), lid = get_local_id(0);
+  float cnt = (float)n * (float)hw, unused;
+  float mean = spx_bn_group_sum(buf, spx_bn_partial(x, xo, x, xo, n, c, hw, ch, 0.0f, 0, &unused)) / cnt;
+  float var = spx_bn_group_sum(buf, spx_bn_partial(x, xo, x, xo, n, c, hw, ch, mean, 1, &unused)) / cnt;
+  float invstd = 1.0f / sqrt(var + eps);
+  float a = invstd * wt[wo + ch], b = bs[bo + ch];
+  for (int k = 0; k < n; k++) {
+    __global const float *p = x + xo + (k * c + ch) * hw;
+    __global float *q = y + yo + (k * c + ch) * hw;
+    for (int i = lid; i < hw; i += SPX_BN_WG) q[i] = (p[i] - mean) * a + b; /* WG 1: contiguous */
+  }
+  if (lid == 0) {
+    save[so + ch] = mean;
+    save[so + c + ch] = invstd;
+    if (update) {
+      float unbiased = var * (cnt / (cnt - 1.0f));
+      rm[rmo + ch] = momentum * mean + (1.0f - momentum) * rm[rmo + ch];
+      rv[rvo + ch] = momentum * unbiased + (1.0f - momentum) * rv[rvo + ch];
+    }
+  }
+}
+
+/* Eval mode: y = (x - running_mean) * (invstd * weight) + bias, invstd = 1 / sqrt(running_var + eps);
+ * range (hw, n * c): one work-item per element, no division. */
+__kernel void spx_bn_eval_fwd(__global const float *x, int xo, __global const float *wt, int wo,
+                              __global const float *bs, int bo, __global const float *rm, int rmo,
+                              __global const float *rv, int rvo, __global float *y, int yo, int c, int hw, int planes,
+                              float eps) {
+  int s = get_global_id(0), p = get_global_id(1);
+  if (s >= hw || p >= planes) return; /* both dimensions are rounded up to the work-group */
+  int ch = p % c, i = p * hw + s;
+  float invstd = 1.0f / sqrt(rv[rvo + ch] + eps);
+  y[yo + i] = (x[xo + i] - rm[rmo + ch]) * (invstd * wt[wo + ch]) + bs[bo + ch];
+}
+
+/* Train-mode backward (PyTorch's formula), one group per channel, ACCUMULATING:
+ *   sdy = sum dy, sdyx = sum dy * (x - mean)
+ *   dweight += sdyx * invstd, dbias += sdy
+ *   dx += (dy - sdy / cnt - (x - mean) * sdyx * invstd^2 / cnt) * invstd * weight
+ * want: bit 0 dx, bit 1 dweight, bit 2 dbias (buffers of unwanted ones are never touched). */
+__kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_train_bwd(
+    __global const float *x, int xo, __global const float *wt, int wo, __global const float *save, int so,
+    __global const float *dy, int go, __global float *dx, int dxo, __global float *dw, int dwo, __global float *db,
+    int dbo, int n, int c, int hw, int want) {
+  __local float buf[SPX_BN_WG];
+  int ch = get_group_id(0), lid = get_local_id(0);
+  float cnt = (float)n * (float)hw;
+  float mean = save[so + ch], invstd = save[so + c + ch];
+  float part2;
+  float part1 = spx_bn_partial(x, xo, dy, go, n, c, hw, ch, mean, 2, &part2);
+  float sdy = spx_bn_group_sum(buf, part1);
+  float sdyx = spx_bn_group_sum(buf, part2);
+  if (lid == 0) {
+    if (want & 2) dw[dwo + ch] += sdyx * invstd;
+    if (want & 4) db[dbo + ch] += sdy;
+  }
+  if (!(want & 1)) return;
+  float gm = sdy / cnt, proj = sdyx * invstd * invstd / cnt, scale = invstd * wt[wo + ch];
+  for (int k = 0; k < n; k++) {
+    __global const float *p = x + xo + (k * c + ch) * hw;
+    __global const float *g = dy + go + (k * c + ch) * hw;
+    __global float *q = dx + dxo + (k * c + ch) * hw;
+    for (int i = lid; i < hw; i += SPX_BN_WG) q[i] += (g[i] - gm - (p[i] - mean) * proj) * scale;
+  }
+}

@@ -1,0 +1,416 @@
+/* 2-D convolution as an implicit GEMM (host side: lib/nn/conv2d.c; reference: lib/nn/conv2d_ref.c).
+ *
+ * The input is first copied into a zero-padded scratch `xp` ([N][C][Hp][Wp] plus a guard of
+ * zeros). Outputs are computed on a "virtual grid": q = oy*Wp + ox with ox running over the
+ * whole padded width, so that for every (ci, ky, kx) the input of output q sits at
+ *     xp[ci*plane + S*q + ky*Wp + kx]
+ * i.e. consecutive q read consecutive (S = 1) or evenly strided (S = 2) floats: no bounds tests
+ * in the inner loop, contiguous vector loads. Columns ox >= Wo are computed and dropped.
+ *
+ * Register tiling: a work-item owns CONV_TM output channels x CONV_TN vectors of CONV_VW
+ * pixels (CPU: explicit float16 vectors = one AVX-512 register each; GPU: CONV_VW = 1 and the
+ * CONV_LWS work-items of a group take interleaved pixels so loads coalesce), for CONV_CT such
+ * channel tiles walked in blocks of CONV_CB input channels (cache blocking). Weights are
+ * pre-packed per channel tile as wpk[tile][kk][TM] (kk = (ci*k+ky)*k+kx): the TM weights of one
+ * step are adjacent and a work-item's panel is contiguous. Tunables: lib/cl/tuning.c.
+ *
+ * Backward data = this same forward kernel on dy dilated by the stride and padded by k-1-pad,
+ * with weights flipped and transposed (spx_conv2d_pack flip=1), accumulating into dx.
+ * Backward weights = GEMM over (n, q) with the reduction split into fixed chunks (partials,
+ * then a fixed-order sum): no atomics, bit-identical every run.
+ *
+ * Next steps (not done): Winograd F(2x2,3x3) for the 3x3 stride-1 layers (2.25x fewer
+ * multiplies), and a local-memory (shared x and weight tiles) variant of conv_fwd for GPUs;
+ * the GPU configuration (CONV_VW = 1, interleaved pixels) is register-tiled and coalesced but
+ * keeps its operands in global memory / caches. */
+#ifndef CONV_VW
+#define CONV_VW 1
+#endif
+#ifndef CONV_TM
+#define CONV_TM 4
+#endif
+#ifndef CONV_TN
+#define CONV_TN 4
+#endif
+#ifndef CONV_LWS
+#define CONV_LWS 64
+#endif
+#ifndef CONV_CT
+#define CONV_CT 1
+#endif
+#ifndef CONV_CB
+#define CONV_CB (1 << 30)
+#endif
+#ifndef CONV_DW_TM
+#define CONV_DW_TM 4
+#endif
+#ifndef CONV_DW_TN
+#define CONV_DW_TN 4
+#endif
+#ifndef CONV_DW_G
+#define CONV_DW_G 1
+#endif
+#ifndef CONV_DW_QB
+#define CONV_DW_QB 1024
+#endif
+#ifndef CONV_RED_WG
+#define CONV_RED_WG 64
+#endif
+
+#if CONV_VW == 16
+typedef float16 vf;
+#define VLOAD(p) vload16(0, (p))
+#define VLOAD2(p) ((float16)(vload16(0, (p)).even, vload16(0, (p) + 16).even))
+#define VSTORE(v, p) vstore16((v), 0, (p))
+#define VSUM(v) vsum16(v)
+#elif CONV_VW == 8
+typedef float8 vf;
+#define VLOAD(p) vload8(0, (p))
+#define VLOAD2(p) vload16(0, (p)).even
+#define VSTORE(v, p) vstore8((v), 0, (p))
+#define VSUM(v) vsum8(v)
+#elif CONV_VW == 4
+typedef float4 vf;
+#define VLOAD(p) vload4(0, (p))
+#define VLOAD2(p) vload8(0, (p)).even
+#define VSTORE(v, p) vstore4((v), 0, (p))
+#define VSUM(v) vsum4(v)
+#elif CONV_VW == 1
+typedef float vf;
+#define VLOAD(p) (*(p))
+#define VLOAD2(p) (*(p))
+#define VSTORE(v, p) (*(p) = (v))
+#define VSUM(v) (v)
+#else
+#error "CONV_VW must be 1, 4, 8 or 16"
+#endif
+
+#if CONV_VW >= 4
+/* fixed-order pairwise horizontal sums (same bits every run) */
+static inline float vsum4(float4 v) { return (v.s0 + v.s1) + (v.s2 + v.s3); }
+#endif
+#if CONV_VW >= 8
+static inline float vsum8(float8 v) { return vsum4(v.lo) + vsum4(v.hi); }
+#endif
+#if CONV_VW >= 16
+static inline float vsum16(float16 v) { return vsum8(v.lo) + vsum8(v.hi); }
+#endif
+
+/* CONV_VW floats starting at p with element stride S (S is a literal in the hot kernels). */
+static inline vf vload_s(const __global float *p, const int S) {
+  if (S == 1) return VLOAD(p);
+  if (S == 2) return VLOAD2(p);
+  float t[CONV_VW];
+  for (int l = 0; l < CONV_VW; l++) t[l] = p[l * S];
+  return VLOAD(t);
+}
+
+#define FL_BIAS 1
+#define FL_SCALE 2
+#define FL_SHIFT 4
+#define FL_RELU 8
+#define FL_ACCUM 16 /* y = y + acc, before bias / affine / ReLU */
+
+/* Epilogue of one channel tile: map lanes back to (oy, ox), drop the padding columns, apply
+ * accumulate / bias / affine / ReLU, store. */
+static inline __attribute__((always_inline)) void conv_fwd_store(vf acc[CONV_TM][CONV_TN], __global float *y,
+                                                                 const __global float *bias,
+                                                                 const __global float *scale,
+                                                                 const __global float *shift, int Cout, int co0,
+                                                                 int n, int q0, int Wp, int Ho, int Wo, int flags) {
+  const int hw = Ho * Wo;
+  __global float *yn = y + (size_t)n * Cout * hw;
+  float b[CONV_TM], sc[CONV_TM], sh[CONV_TM];
+#pragma unroll
+  for (int m = 0; m < CONV_TM; m++) {
+    int co = min(co0 + m, Cout - 1);
+    b[m] = (flags & FL_BIAS) ? bias[co] : 0.0f;
+    sc[m] = (flags & FL_SCALE) ? scale[co] : 1.0f;
+    sh[m] = (flags & FL_SHIFT) ? shift[co] : 0.0f;
+  }
+  const int mmax = min(CONV_TM, Cout - co0);
+#pragma unroll
+  for (int j = 0; j < CONV_TN; j++) {
+    int qs = q0 + j * (CONV_LWS * CONV_VW);
+    int oy = qs / Wp, ox = qs - oy * Wp;
+    if (oy >= Ho) break;
+    if (ox + CONV_VW <= Wo) { /* whole vector is one run of valid outputs */
+      int o = oy * Wo + ox;
+      for (int m = 0; m < mmax; m++) {
+        vf v = acc[m][j];
+        __global float *yo = yn + (size_t)(co0 + m) * hw + o;
+        if (flags & FL_ACCUM) v = VLOAD(yo) + v;
+        if (flags & FL_BIAS) v = v + b[m];
+        if (flags & FL_SCALE) v = v * sc[m] + sh[m];
+        if (flags & FL_RELU) v = fmax(v, (vf)0.0f);
+        VSTORE(v, yo);
+      }
+    } else {
+      for (int m = 0; m < mmax; m++) {
+        float t[CONV_VW];
+        VSTORE(acc[m][j], t);
+        __global float *yc = yn + (size_t)(co0 + m) * hw;
+        int ly = oy, lx = ox;
+        for (int l = 0; l < CONV_VW; l++) {
+          if (ly < Ho && lx < Wo) {
+            float v = t[l];
+            int o = ly * Wo + lx;
+            if (flags & FL_ACCUM) v = yc[o] + v;
+            if (flags & FL_BIAS) v = v + b[m];
+            if (flags & FL_SCALE) v = v * sc[m] + sh[m];
+            if (flags & FL_RELU) v = fmax(v, 0.0f);
+            yc[o] = v;
+          }
+          if (++lx == Wp) lx = 0, ly++;
+        }
+      }
+    }
+  }
+}
+
+/* Forward. Global: dim0 = (channel super-tiles of CONV_CT tiles) x (pixel groups) work-groups of CONV_LWS,
+ * dim1 = N. A group covers CONV_LWS*CONV_TN*CONV_VW consecutive q and one channel tile; the
+ * group order is channel-tile-fastest (consecutive groups share input pixels: large images) or
+ * pixel-fastest when pix_major (consecutive groups share weights: deep layers with large
+ * weights). wpk is packed per channel tile: wpk[cot][kk][TM], contiguous for one work-item.
+ * Input channels [ci0, ci1) only: the host may split a deep layer into passes over channel
+ * blocks (FL_ACCUM on all passes but the first, epilogue on the last) so the input block stays
+ * in cache while each weight panel is read once.
+ * KF > 0 fixes the kernel size at compile time (fully unrolled taps), KF = 0 uses k. */
+static inline __attribute__((always_inline)) void conv_fwd(
+    const __global float *xp, const __global float *wpk, __global float *y, const __global float *bias,
+    const __global float *scale, const __global float *shift, int Cin, int Cout, int CoutP, int k, int Wp,
+    int plane, int Ho, int Wo, int flags, int pix_major, int ci0, int ci1, const int S, const int KF) {
+  const int K = KF > 0 ? KF : k;
+  const int ncot = CoutP / CONV_TM, ncst = (ncot + CONV_CT - 1) / CONV_CT, grp = (int)get_group_id(0);
+  const int npg = (int)get_num_groups(0) / ncst;
+  const int cst = pix_major ? grp / npg : grp % ncst, pg = pix_major ? grp % npg : grp / ncst;
+  const int ntl = min(CONV_CT, ncot - cst * CONV_CT);
+  const int lid = (int)get_local_id(0);
+  const int n = (int)get_global_id(1);
+  const int q0 = pg * (CONV_LWS * CONV_TN * CONV_VW) + lid * CONV_VW;
+  const __global float *xb = xp + (size_t)n * Cin * plane + (size_t)S * q0;
+
+  /* CONV_CT channel tiles per work-item, walked per block of CONV_CB input channels: the block
+   * of input pixels stays in L1 while each tile's accumulators cycle through private memory */
+  vf accs[CONV_CT][CONV_TM][CONV_TN];
+  for (int t = 0; t < ntl; t++)
+#pragma unroll
+    for (int m = 0; m < CONV_TM; m++)
+#pragma unroll
+      for (int j = 0; j < CONV_TN; j++) accs[t][m][j] = (vf)0.0f;
+
+  for (int cb = ci0; cb < ci1; cb += CONV_CB) {
+    const int ce = min(cb + CONV_CB, ci1);
+    for (int t = 0; t < ntl; t++) {
+      const __global float *wb = wpk + (size_t)(cst * CONV_CT + t) * Cin * K * K * CONV_TM;
+      vf acc[CONV_TM][CONV_TN];
+#pragma unroll
+      for (int m = 0; m < CONV_TM; m++)
+#pragma unroll
+        for (int j = 0; j < CONV_TN; j++) acc[m][j] = accs[t][m][j];
+      for (int ci = cb; ci < ce; ci++) {
+        const __global float *xc = xb + (size_t)ci * plane;
+        const __global float *wc = wb + ci * K * K * CONV_TM;
+        for (int ky = 0; ky < K; ky++) {
+          for (int kx = 0; kx < K; kx++) {
+            const __global float *xr = xc + ky * Wp + kx;
+            const __global float *wr = wc + (ky * K + kx) * CONV_TM;
+            vf xv[CONV_TN];
+#pragma unroll
+            for (int j = 0; j < CONV_TN; j++) xv[j] = vload_s(xr + S * j * (CONV_LWS * CONV_VW), S);
+#pragma unroll
+            for (int m = 0; m < CONV_TM; m++) {
+              vf wm = (vf)wr[m];
+#pragma unroll
+              for (int j = 0; j < CONV_TN; j++) acc[m][j] = fma(wm, xv[j], acc[m][j]);
+            }
+          }
+        }
+      }
+#pragma unroll
+      for (int m = 0; m < CONV_TM; m++)
+#pragma unroll
+        for (int j = 0; j < CONV_TN; j++) accs[t][m][j] = acc[m][j];
+    }
+  }
+
+  for (int t = 0; t < ntl; t++)
+    conv_fwd_store(accs[t], y, bias, scale, shift, Cout, (cst * CONV_CT + t) * CONV_TM, n, q0, Wp, Ho, Wo, flags);
+}
+
+#define CONV_FWD_ARGS                                                                                         \
+  const __global float *xp, const __global float *wpk, __global float *y, ulong y_off,                        \
+      const __global float *bias, ulong b_off, const __global float *scale, ulong sc_off,                     \
+      const __global float *shift, ulong sh_off, int Cin, int Cout, int CoutP, int k, int Wp, int plane,      \
+      int Ho, int Wo, int flags, int pix_major, int ci0, int ci1
+#define CONV_FWD_PASS                                                                                         \
+  xp, wpk, y + y_off, bias + b_off, scale + sc_off, shift + sh_off, Cin, Cout, CoutP, k, Wp, plane, Ho, Wo,   \
+      flags, pix_major, ci0, ci1
+
+__kernel void spx_conv2d_fwd_k3s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 3); }
+__kernel void spx_conv2d_fwd_k1s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 1); }
+__kernel void spx_conv2d_fwd_s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 0); }
+__kernel void spx_conv2d_fwd_s2(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 2, 0); }
+__kernel void spx_conv2d_fwd_sn(CONV_FWD_ARGS, int S) { conv_fwd(CONV_FWD_PASS, S, 0); }
+
+/* Backward weights, partial sums: part[c][co][kk] = sum_n sum_{q in chunk c} dyq[n][co][q] *
+ * xp[n][ci][S*q + ky*Wp + kx]. dyq holds dy on the virtual grid (zeros in the padding columns
+ * and past the end). A work-item owns DW_TM channels x CONV_DW_G tiles of DW_TN weight columns;
+ * it walks its chunk in blocks of CONV_DW_QB q and, per block, updates every tile in turn
+ * (accumulators of the other tiles wait in private memory), so the block of dy stays in L1
+ * while the tiles stream x. Global: dim0 = ceil(Kdim/(DW_TN*DW_G)), dim1 = ceil(Cout/DW_TM),
+ * dim2 = chunks. */
+static inline __attribute__((always_inline)) void conv_dw(const __global float *xp, const __global float *dyq,
+                                                          __global float *part, int N, int Cin, int Cout, int k,
+                                                          int Wp, int plane, int Qd, int qchunk, const int S) {
+  const int Kdim = Cin * k * k;
+  const int kt0 = (int)get_global_id(0) * CONV_DW_G;
+  const int co0 = (int)get_global_id(1) * CONV_DW_TM;
+  const int c = (int)get_global_id(2);
+  if (kt0 * CONV_DW_TN >= Kdim || co0 >= Cout) return;
+  const int qa = c * qchunk, qe = min(qa + qchunk, Qd);
+  const int ntiles = min(CONV_DW_G, (Kdim + CONV_DW_TN - 1) / CONV_DW_TN - kt0);
+
+  int xoff[CONV_DW_G][CONV_DW_TN];
+  for (int g = 0; g < CONV_DW_G; g++)
+#pragma unroll
+    for (int j = 0; j < CONV_DW_TN; j++) {
+      int kk = min((kt0 + g) * CONV_DW_TN + j, Kdim - 1);
+      int ci = kk / (k * k), r = kk - ci * k * k, ky = r / k, kx = r - ky * k;
+      xoff[g][j] = ci * plane + ky * Wp + kx;
+    }
+  int yoff[CONV_DW_TM];
+#pragma unroll
+  for (int m = 0; m < CONV_DW_TM; m++) yoff[m] = min(co0 + m, Cout - 1) * Qd;
+
+  vf accs[CONV_DW_G][CONV_DW_TM][CONV_DW_TN];
+  for (int g = 0; g < CONV_DW_G; g++)
+#pragma unroll
+    for (int m = 0; m < CONV_DW_TM; m++)
+#pragma unroll
+      for (int j = 0; j < CONV_DW_TN; j++) accs[g][m][j] = (vf)0.0f;
+
+  for (int n = 0; n < N; n++) {
+    const __global float *xn = xp + (size_t)n * Cin * plane;
+    const __global float *dn = dyq + (size_t)n * Cout * Qd;
+    for (int qb = qa; qb < qe; qb += CONV_DW_QB) {
+      const int qbe = min(qb + CONV_DW_QB, qe);
+      for (int g = 0; g < ntiles; g++) {
+        vf acc[CONV_DW_TM][CONV_DW_TN];
+#pragma unroll
+        for (int m = 0; m < CONV_DW_TM; m++)
+#pragma unroll
+          for (int j = 0; j < CONV_DW_TN; j++) acc[m][j] = accs[g][m][j];
+        for (int q = qb; q < qbe; q += CONV_VW) {
+          vf dv[CONV_DW_TM], xv[CONV_DW_TN];
+#pragma unroll
+          for (int m = 0; m < CONV_DW_TM; m++) dv[m] = VLOAD(dn + yoff[m] + q);
+#pragma unroll
+          for (int j = 0; j < CONV_DW_TN; j++) xv[j] = vload_s(xn + xoff[g][j] + S * q, S);
+#pragma unroll
+          for (int m = 0; m < CONV_DW_TM; m++)
+#pragma unroll
+            for (int j = 0; j < CONV_DW_TN; j++) acc[m][j] = fma(dv[m], xv[j], acc[m][j]);
+        }
+#pragma unroll
+        for (int m = 0; m < CONV_DW_TM; m++)
+#pragma unroll
+          for (int j = 0; j < CONV_DW_TN; j++) accs[g][m][j] = acc[m][j];
+      }
+    }
+  }
+  for (int g = 0; g < ntiles; g++)
+#pragma unroll
+    for (int m = 0; m < CONV_DW_TM; m++) {
+      int co = co0 + m;
+      if (co >= Cout) break;
+#pragma unroll
+      for (int j = 0; j < CONV_DW_TN; j++) {
+        int kk = (kt0 + g) * CONV_DW_TN + j;
+        if (kk < Kdim) part[((size_t)c * Cout + co) * Kdim + kk] = VSUM(accs[g][m][j]);
+      }
+    }
+}
+
+#define CONV_DW_ARGS                                                                                          \
+  const __global float *xp, const __global float *dyq, __global float *part, int N, int Cin, int Cout, int k, \
+      int Wp, int plane, int Qd, int qchunk
+#define CONV_DW_PASS xp, dyq, part, N, Cin, Cout, k, Wp, plane, Qd, qchunk
+__kernel void spx_conv2d_dw_s1(CONV_DW_ARGS) { conv_dw(CONV_DW_PASS, 1); }
+__kernel void spx_conv2d_dw_s2(CONV_DW_ARGS) { conv_dw(CONV_DW_PASS, 2); }
+__kernel void spx_conv2d_dw_sn(CONV_DW_ARGS, int S) { conv_dw(CONV_DW_PASS, S); }
+
+/* dw[i] += sum over chunks c (in order) of part[c][i]. */
+__kernel void spx_conv2d_dw_reduce(const __global float *part, __global float *dw, ulong dw_off, int count,
+                                   int nchunks) {
+  int i = SPX_GID0;
+  if (i >= count) return;
+  float s = 0.0f;
+  for (int c = 0; c < nchunks; c++) s += part[(size_t)c * count + i];
+  dw[dw_off + i] += s;
+}
+
+/* db[co] += sum_{n, p} dy[n][co][p]: one work-group of CONV_RED_WG per channel, strided
+ * partial sums then a fixed tree in local memory. */
+__kernel void spx_conv2d_db(const __global float *dy, ulong dy_off, __global float *db, ulong db_off, int N,
+                            int Cout, int hw) {
+  __local float red[CONV_RED_WG];
+  const int co = (int)get_group_id(0), lid = (int)get_local_id(0);
+  float s = 0.0f;
+  for (int n = 0; n < N; n++) {
+    const __global float *p = dy + dy_off + ((size_t)n * Cout + co) * hw;
+    for (int i = lid; i < hw; i += CONV_RED_WG) s += p[i];
+  }
+  red[lid] = s;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  for (int h = CONV_RED_WG / 2; h > 0; h >>= 1) {
+    if (lid < h) red[lid] += red[lid + h];
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+  if (lid == 0) db[db_off + co] += red[0];
+}
+
+/* Copy src [NC][H][W] into dst planes of `plane` floats laid out as rows of Wp: element
+ * (sy, sx) goes to row top + sy*d, column left + sx*d; everything else in the plane (padding,
+ * dilation holes, plane tail) is zero. Global: (Wp, ceil(plane/Wp), NC). The guard after the
+ * last plane is filled separately. */
+__kernel void spx_conv2d_pad(const __global float *src, ulong src_off, __global float *dst, int H, int W, int Hp,
+                             int Wp, int plane, int top, int left, int d) {
+  const int xx = (int)get_global_id(0), yy = (int)get_global_id(1), nc = (int)get_global_id(2);
+  const int r = yy * Wp + xx;
+  if (xx >= Wp || r >= plane) return;
+  float v = 0.0f;
+  int sy = yy - top, sx = xx - left;
+  int ok = yy < Hp && sy >= 0 && sx >= 0;
+  if (ok && d != 1) {
+    ok = sy % d == 0 && sx % d == 0;
+    sy /= d;
+    sx /= d;
+  }
+  if (ok && sy < H && sx < W) v = src[src_off + ((size_t)nc * H + sy) * W + sx];
+  dst[(size_t)nc * plane + r] = v;
+}
+
+/* Pack weights w [Cout][Cin][k][k] into GEMM panels of CONV_TM columns, wpk[ct][r][m] with
+ * column c = ct*CONV_TM + m (cols = columns rounded up to CONV_TM, extra columns zero):
+ *  flip = 0: rows r = kk = (ci*k+ky)*k+kx, columns co:  w[co][ci][ky][kx]
+ *  flip = 1: rows r = (co*k+ky)*k+kx, columns ci:       w[co][ci][k-1-ky][k-1-kx]
+ * (flip = 1 is the weight of the backward-data convolution). */
+__kernel void spx_conv2d_pack(const __global float *w, ulong w_off, __global float *wpk, int Cout, int Cin, int k,
+                              int cols, int flip) {
+  int i = SPX_GID0;
+  int kk2 = k * k;
+  int rows = (flip ? Cout : Cin) * kk2;
+  if (i >= rows * cols) return;
+  int m = i % CONV_TM, t0 = i / CONV_TM, r = t0 % rows, ct = t0 / rows;
+  int c = ct * CONV_TM + m;
+  float v = 0.0f;
+  if (!flip) {
+    if (c < Cout) v = w[w_off + (size_t)c * Cin * kk2 + r];
+  } else if (c < Cin) {
+    int co = r / kk2, t = r - co * kk2, ky = t / k, kx = t - ky * k;
+    v = w[w_off + (((size_t)co * Cin + c) * k + (k - 1 - ky)) * k + (k - 1 - kx)];
+  }
+  wpk[i] = v;
+}

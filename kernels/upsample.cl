@@ -1,0 +1,105 @@
+/* Bilinear x2 upsampling, PyTorch's F.interpolate(scale_factor=2, mode="bilinear") formulas for
+ * align_corners true and false (CPU, float):
+ *   align_corners:  src = scale * dst,                scale = (in - 1) / (out - 1)  (0 if out == 1)
+ *   otherwise:      src = max(scale * (dst + 0.5) - 0.5, 0),  scale = 1 / 2
+ *   i0 = min((int)src, in - 1), i1 = i0 + (i0 < in - 1), l1 = clamp(src - i0, 0, 1), l0 = 1 - l1
+ *   y = l0h * (l0w * x[h0,w0] + l1w * x[h0,w1]) + l1h * (l0w * x[h1,w0] + l1w * x[h1,w1])
+ * The scales are computed on the host (float) and passed in. Backward is a gather: each input
+ * pixel sums the weighted dy of the output pixels that read it (rows 2i-1 .. 2i+3 cover every
+ * reader for both modes, see lib/nn/upsample.c), so no atomics and deterministic results. */
+
+inline void spx_up_src(int d, int in, float scale, int align, int *i0, int *i1, float *l0, float *l1) {
+  float s = align ? scale * (float)d : scale * ((float)d + 0.5f) - 0.5f;
+  if (s < 0.0f) s = 0.0f;
+  int a = (int)s;
+  if (a > in - 1) a = in - 1;
+  *i0 = a;
+  *i1 = a + (a < in - 1 ? 1 : 0);
+  float l = s - (float)a;
+  l = l < 0.0f ? 0.0f : (l > 1.0f ? 1.0f : l);
+  *l1 = l;
+  *l0 = 1.0f - l;
+}
+
+/* range (ow, oh, planes) */
+__kernel void spx_upsample2x_fwd(__global const float *x, int xo, __global float *y, int yo, int h, int w, float sh,
+                                 float sw, int align) {
+  int oh = 2 * h, ow = 2 * w;
+  int ox = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
+  if (ox >= ow || oy >= oh) return;
+  int h0, h1, w0, w1;
+  float lh0, lh1, lw0, lw1;
+  spx_up_src(oy, h, sh, align, &h0, &h1, &lh0, &lh1);
+  spx_up_src(ox, w, sw, align, &w0, &w1, &lw0, &lw1);
+  __global const float *q = x + xo + p * h * w;
+  y[yo + (p * oh + oy) * ow + ox] = lh0 * (lw0 * q[h0 * w + w0] + lw1 * q[h0 * w + w1]) + lh1 * (lw0 * q[h1 * w + w0] + lw1 * q[h1 * w + w1]);
+}
+
+/* weight with which output coordinate d reads input coordinate i */
+inline float spx_up_weight(int d, int i, int in, float scale, int align) {
+  int i0, i1;
+  float l0, l1;
+  spx_up_src(d, in, scale, align, &i0, &i1, &l0, &l1);
+  return (i0 == i ? l0 : 0.0f) + (i1 == i ? l1 : 0.0f);
+}
+
+/* The (at most 5) output coordinates 2i-1 .. 2i+3 that can read input coordinate i, with their
+ * weights (0 for those that do not read it or lie outside): first one in *d0, weights in wt. */
+inline void spx_up_readers(int i, int in, int out, float scale, int align, int *d0, float *wt) {
+  int a = 2 * i - 1;
+  *d0 = a;
+#pragma unroll
+  for (int k = 0; k < 5; k++) {
+    int d = a + k;
+    wt[k] = (d >= 0 && d < out) ? spx_up_weight(d, i, in, scale, align) : 0.0f;
+  }
+}
+
+/* Backward in two separable passes (the same sums, in the same order, as a fused 2-D gather:
+ * each input pixel gets sum_a wy[a] * (sum_b wx[b] * dy[y0+a, x0+b])). Readers of input
+ * coordinate i are output coordinates 2i-1 .. 2i+3 (lib/nn/upsample.c); their weights come from
+ * per-axis tables tab[k * in + i] (k = 0..4) built once per call by spx_upsample2x_weights.
+ * Branch-free: loads are at clamped (valid) indices and terms whose weight is 0 are replaced by 0
+ * with a select (never 0 * dy, so an inf/NaN elsewhere cannot leak in). */
+
+/* range (in): the reader weights of every input coordinate along one axis */
+__kernel void spx_upsample2x_weights(__global float *tab, int to, int in, float scale, int align) {
+  int i = SPX_GID0;
+  if (i >= in) return;
+  int d0;
+  float wt[5];
+  spx_up_readers(i, in, 2 * in, scale, align, &d0, wt);
+  for (int k = 0; k < 5; k++) tab[to + k * in + i] = wt[k];
+}
+
+/* Pass 1, range (w, oh, planes): t[p, oy, ix] = sum_b wx[b] * dy[p, oy, 2ix - 1 + b]. */
+__kernel void spx_upsample2x_bwd_rows(__global const float *dy, int go, __global float *t, __global const float *tab,
+                                      int wxo, int h, int w) {
+  int oh = 2 * h, ow = 2 * w;
+  int ix = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
+  if (ix >= w || oy >= oh) return;
+  __global const float *g = dy + go + (p * oh + oy) * ow;
+  float row = 0.0f;
+#pragma unroll
+  for (int b = 0; b < 5; b++) {
+    float wb = tab[wxo + b * w + ix], v = g[clamp(2 * ix - 1 + b, 0, ow - 1)];
+    row += wb != 0.0f ? wb * v : 0.0f;
+  }
+  t[(p * oh + oy) * w + ix] = row;
+}
+
+/* Pass 2, range (w, h, planes): dx[p, iy, ix] += sum_a wy[a] * t[p, 2iy - 1 + a, ix]. */
+__kernel void spx_upsample2x_bwd_cols(__global const float *t, __global const float *tab, int wyo,
+                                      __global float *dx, int xo, int h, int w) {
+  int oh = 2 * h;
+  int ix = get_global_id(0), iy = get_global_id(1), p = get_global_id(2);
+  if (ix >= w || iy >= h) return;
+  __global const float *q = t + p * oh * w + ix;
+  float acc = 0.0f;
+#pragma unroll
+  for (int a = 0; a < 5; a++) {
+    float wa = tab[wyo + a * h + iy], v = q[clamp(2 * iy - 1 + a, 0, oh - 1) * w];
+    acc += wa != 0.0f ? wa * v : 0.0f;
+  }
+  dx[xo + (p * h + iy) * w + ix] += acc;
+}

@@ -1,0 +1,32 @@
+/* In-memory HWC float images: allocation and release. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/internal.h"
+#include "smplpix/image.h"
+
+spx_status spx_image_alloc(spx_ctx *ctx, int32_t width, int32_t height, int32_t channels, spx_image *out) {
+  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_image_alloc: out is NULL");
+  memset(out, 0, sizeof *out);
+  if (width <= 0 || height <= 0 || channels <= 0)
+    return spx_fail(ctx, SPX_E_ARG, "spx_image_alloc: invalid size %dx%dx%d", (int)width, (int)height,
+                    (int)channels);
+  size_t n;
+  if (!spx_mul_size((size_t)width, (size_t)height, &n) || !spx_mul_size(n, (size_t)channels, &n))
+    return spx_fail(ctx, SPX_E_ARG, "spx_image_alloc: size %dx%dx%d overflows", (int)width, (int)height,
+                    (int)channels);
+  float *d = spx_alloc_array(ctx, n, sizeof(float), "image");
+  if (!d) return SPX_E_NOMEM;
+  memset(d, 0, n * sizeof(float));
+  out->width = width;
+  out->height = height;
+  out->channels = channels;
+  out->data = d;
+  return SPX_OK;
+}
+
+void spx_image_free(spx_image *img) {
+  if (!img) return;
+  free(img->data);
+  memset(img, 0, sizeof *img);
+}

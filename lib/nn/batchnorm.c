@@ -1,0 +1,100 @@
+/* Launchers for kernels/batchnorm.cl. */
+#include "nn/batchnorm.h"
+
+#include "nn/nn_internal.h"
+
+static spx_status vec_check(spx_ctx *ctx, const char *op, const spx_tensor *t, const char *name, size_t want) {
+  spx_status st = spx_nn_check(ctx, t, op, name);
+  if (st) return st;
+  if (spx_tensor_numel(t) != want)
+    return spx_fail(ctx, SPX_E_ARG, "%s: %s has %zu elements, expected %zu", op, name, spx_tensor_numel(t), want);
+  return SPX_OK;
+}
+
+static spx_status run_group_per_channel(spx_ctx *ctx, cl_kernel k, int c, const char *what) {
+  size_t l = (size_t)spx_cl_tune(ctx, "SPX_BN_WG");
+  if (l > ctx->info.max_work_group)
+    return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_BN_WG=%zu exceeds the device's work-group limit %zu", what, l,
+                    ctx->info.max_work_group);
+  size_t g = (size_t)c * l;
+  return spx_cl_run(ctx, k, 1, &g, &l, what);
+}
+
+spx_status spx_bn_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *bias,
+                                const spx_tensor *running_mean, const spx_tensor *running_var, float momentum,
+                                float eps, int update_running, const spx_tensor *save, const spx_tensor *y) {
+  const char *op = "bn_train_forward";
+  spx_status st;
+  cl_kernel k;
+  if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, y, op, "y"))) return st;
+  size_t c = (size_t)x->c;
+  if ((st = vec_check(ctx, op, weight, "weight", c)) || (st = vec_check(ctx, op, bias, "bias", c)) ||
+      (st = vec_check(ctx, op, save, "save", 2 * c)))
+    return st;
+  if (update_running &&
+      ((st = vec_check(ctx, op, running_mean, "running_mean", c)) || (st = vec_check(ctx, op, running_var, "running_var", c))))
+    return st;
+  if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
+  if ((long)x->n * x->h * x->w <= 1)
+    return spx_fail(ctx, SPX_E_ARG, "%s: expected more than 1 value per channel when training, got input %dx%dx%dx%d", op,
+                    x->n, x->c, x->h, x->w);
+  if (!isfinite(momentum) || !isfinite(eps) || eps < 0)
+    return spx_fail(ctx, SPX_E_ARG, "%s: momentum %g / eps %g invalid", op, momentum, eps);
+  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_train_fwd", &k))) return st;
+  const spx_tensor *rm = update_running ? running_mean : x, *rv = update_running ? running_var : x; /* unused if !update */
+  cl_int hw = x->h * x->w, upd = update_running ? 1 : 0;
+  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, bias) | spx_nn_arg(k, 6, rm) |
+             spx_nn_arg(k, 8, rv) | spx_nn_arg(k, 10, save) | spx_nn_arg(k, 12, y) | SPX_ARG(k, 14, x->n) |
+             SPX_ARG(k, 15, x->c) | SPX_ARG(k, 16, hw) | SPX_ARG(k, 17, momentum) | SPX_ARG(k, 18, eps) |
+             SPX_ARG(k, 19, upd);
+  if ((st = spx_cl_check(ctx, e, "spx_bn_train_fwd"))) return st;
+  return run_group_per_channel(ctx, k, x->c, "spx_bn_train_fwd");
+}
+
+spx_status spx_bn_eval_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *bias,
+                               const spx_tensor *running_mean, const spx_tensor *running_var, float eps,
+                               const spx_tensor *y) {
+  const char *op = "bn_eval_forward";
+  spx_status st;
+  cl_kernel k;
+  if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, y, op, "y"))) return st;
+  size_t c = (size_t)x->c;
+  if ((st = vec_check(ctx, op, weight, "weight", c)) || (st = vec_check(ctx, op, bias, "bias", c)) ||
+      (st = vec_check(ctx, op, running_mean, "running_mean", c)) ||
+      (st = vec_check(ctx, op, running_var, "running_var", c)))
+    return st;
+  if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
+  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_eval_fwd", &k))) return st;
+  cl_int hw = x->h * x->w, planes = x->n * x->c;
+  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, bias) | spx_nn_arg(k, 6, running_mean) |
+             spx_nn_arg(k, 8, running_var) | spx_nn_arg(k, 10, y) | SPX_ARG(k, 12, x->c) | SPX_ARG(k, 13, hw) |
+             SPX_ARG(k, 14, planes) | SPX_ARG(k, 15, eps);
+  if ((st = spx_cl_check(ctx, e, "spx_bn_eval_fwd"))) return st;
+  return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)x->n * (size_t)x->c, 1, "spx_bn_eval_fwd");
+}
+
+spx_status spx_bn_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *save,
+                                 const spx_tensor *dy, const spx_tensor *dx, const spx_tensor *dweight,
+                                 const spx_tensor *dbias) {
+  const char *op = "bn_train_backward";
+  spx_status st;
+  cl_kernel k;
+  if (!dx && !dweight && !dbias) return SPX_OK;
+  if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, dy, op, "dy"))) return st;
+  size_t c = (size_t)x->c;
+  if ((st = vec_check(ctx, op, weight, "weight", c)) || (st = vec_check(ctx, op, save, "save", 2 * c))) return st;
+  if (!spx_nn_same_shape(x, dy)) return spx_nn_shape_mismatch(ctx, op, "dy vs x", dy, x);
+  if (dx && (st = spx_nn_check(ctx, dx, op, "dx"))) return st;
+  if (dx && !spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, op, "dx vs x", dx, x);
+  if ((dweight && (st = vec_check(ctx, op, dweight, "dweight", c))) || (dbias && (st = vec_check(ctx, op, dbias, "dbias", c))))
+    return st;
+  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_train_bwd", &k))) return st;
+  cl_int hw = x->h * x->w, want = (dx ? 1 : 0) | (dweight ? 2 : 0) | (dbias ? 4 : 0);
+  /* unwanted outputs get a harmless stand-in buffer that the kernel never writes */
+  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, save) | spx_nn_arg(k, 6, dy) |
+             spx_nn_arg(k, 8, dx ? dx : dy) | spx_nn_arg(k, 10, dweight ? dweight : weight) |
+             spx_nn_arg(k, 12, dbias ? dbias : weight) | SPX_ARG(k, 14, x->n) | SPX_ARG(k, 15, x->c) |
+             SPX_ARG(k, 16, hw) | SPX_ARG(k, 17, want);
+  if ((st = spx_cl_check(ctx, e, "spx_bn_train_bwd"))) return st;
+  return run_group_per_channel(ctx, k, x->c, "spx_bn_train_bwd");
+}

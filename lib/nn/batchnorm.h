@@ -1,0 +1,36 @@
+/* Private: batch norm 2d (kernels/batchnorm.cl) with PyTorch BatchNorm2d semantics (affine,
+ * eps, momentum; num_batches_tracked is the caller's counter), and double references.
+ *  - weight, bias, running_mean, running_var: C floats each (any tensor shape with C elements).
+ *  - save: 2*C floats written by the train forward ([mean, invstd] of the batch), read by the
+ *    train backward. Train mode needs more than one value per channel (N*H*W > 1).
+ *  - backward (train mode) ACCUMULATES into dx, dweight, dbias; any of them may be NULL. */
+#ifndef SPX_NN_BATCHNORM_H
+#define SPX_NN_BATCHNORM_H
+
+#include "nn/tensor.h"
+
+#define SPX_BN_MOMENTUM 0.1f
+#define SPX_BN_EPS 1e-5f
+
+/* update_running: 0 leaves running_mean/var untouched (they may then be NULL). */
+spx_status spx_bn_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *bias,
+                                const spx_tensor *running_mean, const spx_tensor *running_var, float momentum,
+                                float eps, int update_running, const spx_tensor *save, const spx_tensor *y);
+spx_status spx_bn_eval_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *bias,
+                               const spx_tensor *running_mean, const spx_tensor *running_var, float eps,
+                               const spx_tensor *y);
+spx_status spx_bn_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *save,
+                                 const spx_tensor *dy, const spx_tensor *dx, const spx_tensor *dweight,
+                                 const spx_tensor *dbias);
+
+/* References: x is n x c x hw. rm/rv may be NULL (no update). save_mean/save_invstd: c each. */
+void spx_ref_bn_train_forward(const double *x, int n, int c, int hw, const double *weight, const double *bias,
+                              double *rm, double *rv, double momentum, double eps, double *save_mean,
+                              double *save_invstd, double *y);
+void spx_ref_bn_eval_forward(const double *x, int n, int c, int hw, const double *weight, const double *bias,
+                             const double *rm, const double *rv, double eps, double *y);
+void spx_ref_bn_train_backward(const double *x, int n, int c, int hw, const double *weight, const double *save_mean,
+                               const double *save_invstd, const double *dy, double *dx, double *dweight,
+                               double *dbias);
+
+#endif

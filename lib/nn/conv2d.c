@@ -1,0 +1,335 @@
+/* 2-D convolution on the device: launchers for kernels/conv2d.cl (implicit GEMM with
+ * register tiling; see the comment at the top of the kernel file for the data layout).
+ * Scratch buffers (padded input, packed weights, partial sums) come from the caller's
+ * spx_conv2d_workspace when given, else they are allocated per call and released after
+ * enqueueing (OpenCL keeps them alive until the kernels that use them finish). */
+#include <limits.h>
+
+#include "nn/conv2d.h"
+
+#define FL_BIAS 1
+#define FL_SCALE 2
+#define FL_SHIFT 4
+#define FL_RELU 8
+#define FL_ACCUM 16
+
+static size_t round_up(size_t a, size_t b) { return (a + b - 1) / b * b; }
+
+/* The tensor's elements [off, off + numel) must lie inside its buffer. */
+static spx_status check_fits(spx_ctx *ctx, const spx_tensor *t, const char *what) {
+  size_t bytes = 0;
+  spx_status st = spx_cl_check(ctx, clGetMemObjectInfo(t->mem, CL_MEM_SIZE, sizeof bytes, &bytes, NULL), what);
+  if (st) return st;
+  size_t n = spx_tensor_numel(t);
+  if (t->off > bytes / sizeof(float) || n > bytes / sizeof(float) - t->off)
+    return spx_fail(ctx, SPX_E_ARG, "conv2d: %s (%zu floats at offset %zu) overruns its %zu-byte buffer", what, n,
+                    t->off, bytes);
+  return SPX_OK;
+}
+
+static spx_status check_vec(spx_ctx *ctx, const spx_tensor *t, int count, const char *what) {
+  if (!t) return SPX_OK;
+  if (!t->mem || spx_tensor_numel(t) != (size_t)count)
+    return spx_fail(ctx, SPX_E_ARG, "conv2d: %s must have %d elements (has %zu)", what, count,
+                    t->mem ? spx_tensor_numel(t) : (size_t)0);
+  return check_fits(ctx, t, what);
+}
+
+static spx_status check_shape(spx_ctx *ctx, const char *what, const spx_tensor *t, int n, int c, int h, int w) {
+  if (!t || !t->mem) return spx_fail(ctx, SPX_E_ARG, "conv2d: %s is missing", what);
+  if (t->n != n || t->c != c || t->h != h || t->w != w)
+    return spx_fail(ctx, SPX_E_ARG, "conv2d: %s has shape [%d,%d,%d,%d], expected [%d,%d,%d,%d]", what, t->n, t->c,
+                    t->h, t->w, n, c, h, w);
+  return check_fits(ctx, t, what);
+}
+
+/* Validate x, w, p; fills the geometry. */
+typedef struct geom {
+  int n, cin, h, w, cout, k, s, pad, ho, wo;
+} geom;
+
+static spx_status check_common(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_conv2d_params *p,
+                               geom *g) {
+  spx_status st = spx_cl_require(ctx, "conv2d");
+  if (st) return st;
+  if (!x || !x->mem || !w || !w->mem || !p) return spx_fail(ctx, SPX_E_ARG, "conv2d: x, w and params are required");
+  if (p->k < 1 || p->stride < 1 || p->pad < 0 || p->pad >= p->k)
+    return spx_fail(ctx, SPX_E_ARG, "conv2d: unsupported k=%d stride=%d pad=%d (need k>=1, stride>=1, 0<=pad<k)",
+                    p->k, p->stride, p->pad);
+  if (x->n < 1 || x->c < 1 || x->h < 1 || x->w < 1)
+    return spx_fail(ctx, SPX_E_ARG, "conv2d: x has empty shape [%d,%d,%d,%d]", x->n, x->c, x->h, x->w);
+  if (w->n < 1 || w->c != x->c || w->h != p->k || w->w != p->k)
+    return spx_fail(ctx, SPX_E_ARG, "conv2d: w has shape [%d,%d,%d,%d], expected [Cout,%d,%d,%d]", w->n, w->c, w->h,
+                    w->w, x->c, p->k, p->k);
+  g->n = x->n, g->cin = x->c, g->h = x->h, g->w = x->w, g->cout = w->n, g->k = p->k, g->s = p->stride;
+  g->pad = p->pad;
+  g->ho = spx_conv2d_out_size(g->h, g->k, g->s, g->pad);
+  g->wo = spx_conv2d_out_size(g->w, g->k, g->s, g->pad);
+  if (g->ho < 1 || g->wo < 1)
+    return spx_fail(ctx, SPX_E_ARG, "conv2d: input %dx%d is smaller than the %dx%d kernel with pad %d", g->h, g->w,
+                    g->k, g->k, g->pad);
+  /* every index inside the kernels is a 32-bit int: bound the largest scratch generously */
+  double big = ((double)g->n * (g->cin > g->cout ? g->cin : g->cout) + 4.0) * (g->h + 2.0 * g->k) *
+               (g->w + 2.0 * g->k) * g->s;
+  double wbig = ((double)g->cout + 64.0) * ((double)g->cin + 64.0) * g->k * g->k;
+  if (big > (double)INT_MAX / 2 || wbig > (double)INT_MAX / 2)
+    return spx_fail(ctx, SPX_E_UNSUPPORTED, "conv2d: tensors of %.0f elements exceed the 32-bit index range",
+                    big > wbig ? big : wbig);
+  if ((st = check_fits(ctx, x, "x")) || (st = check_fits(ctx, w, "w"))) return st;
+  return SPX_OK;
+}
+
+void spx_conv2d_workspace_release(spx_conv2d_workspace *ws) {
+  if (!ws) return;
+  for (int i = 0; i < 3; i++) spx_cl_buf_release(&ws->buf[i]);
+}
+
+/* Scratch buffer `slot` of ws (grow-only), or a fresh buffer owned by the caller when ws is NULL. */
+typedef struct scratch {
+  cl_mem mem;
+  int owned;
+} scratch;
+static spx_status scratch_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, size_t bytes, const char *what,
+                              scratch *out) {
+  out->mem = NULL;
+  out->owned = 0;
+  if (ws) {
+    spx_status st = spx_cl_buf_ensure(ctx, &ws->buf[slot], bytes, what);
+    if (st == SPX_OK) out->mem = ws->buf[slot].mem;
+    return st;
+  }
+  out->owned = 1;
+  return spx_cl_alloc(ctx, bytes, what, &out->mem);
+}
+static void scratch_put(scratch *s) {
+  if (s->owned) spx_cl_free(&s->mem);
+  s->mem = NULL;
+}
+
+/* Padded/dilated copy of src [nc][h][w] into a new scratch buffer (see spx_conv2d_pad). */
+static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_mem src, size_t src_off, int nc,
+                           int h, int w, int hp, int wp, int plane, int top, int left, int d, size_t total,
+                           scratch *out) {
+  cl_kernel k;
+  spx_status st = spx_cl_kernel(ctx, "conv2d.cl", "spx_conv2d_pad", &k);
+  if (st) return st;
+  if ((st = scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d padded scratch", out))) return st;
+  cl_ulong so = src_off;
+  cl_int e = SPX_ARG(k, 0, src) | SPX_ARG(k, 1, so) | SPX_ARG(k, 2, out->mem) | SPX_ARG(k, 3, h) | SPX_ARG(k, 4, w) |
+             SPX_ARG(k, 5, hp) | SPX_ARG(k, 6, wp) | SPX_ARG(k, 7, plane) | SPX_ARG(k, 8, top) |
+             SPX_ARG(k, 9, left) | SPX_ARG(k, 10, d);
+  if ((st = spx_cl_check(ctx, e, "spx_conv2d_pad args"))) return st;
+  size_t gl[3] = {(size_t)wp, ((size_t)plane + wp - 1) / wp, (size_t)nc};
+  size_t lo[3] = {(size_t)spx_cl_tune(ctx, "SPX_WG"), 1, 1};
+  if ((size_t)wp < lo[0]) lo[0] = (size_t)wp;
+  if ((st = spx_cl_run(ctx, k, 3, gl, lo, "spx_conv2d_pad"))) return st;
+  size_t used = (size_t)nc * plane;
+  return spx_cl_fill_f32(ctx, out->mem, used, total - used, 0.0f);
+}
+
+/* Packed weight panel (see spx_conv2d_pack). */
+static spx_status pack_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, const spx_tensor *w, int cout,
+                               int cin, int k, int cols, int flip, scratch *out) {
+  cl_kernel kr;
+  spx_status st = spx_cl_kernel(ctx, "conv2d.cl", "spx_conv2d_pack", &kr);
+  if (st) return st;
+  size_t rows = (size_t)(flip ? cout : cin) * k * k, total = rows * (size_t)cols;
+  if ((st = scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d packed weights", out))) return st;
+  cl_ulong wo = w->off;
+  cl_int e = SPX_ARG(kr, 0, w->mem) | SPX_ARG(kr, 1, wo) | SPX_ARG(kr, 2, out->mem) | SPX_ARG(kr, 3, cout) |
+             SPX_ARG(kr, 4, cin) | SPX_ARG(kr, 5, k) | SPX_ARG(kr, 6, cols) | SPX_ARG(kr, 7, flip);
+  if ((st = spx_cl_check(ctx, e, "spx_conv2d_pack args"))) return st;
+  size_t l = (size_t)spx_cl_tune(ctx, "SPX_WG");
+  return spx_cl_run(ctx, kr, 1, &total, &l, "spx_conv2d_pack");
+}
+
+/* Zeros after the last plane so that vector loads of the last tiles stay inside the buffer. */
+static size_t guard_elems(int s, size_t q, int k, int wp, int vw) {
+  return (size_t)s * q + (size_t)k * wp + (size_t)k + 2 * (size_t)vw * s + 64;
+}
+
+/* The tiled forward kernel on an already padded input xp (planes of hp*wp, rows of wp). */
+static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, int cout, int coutp, int k, int s,
+                          int wp, int plane, int ho, int wo, const spx_tensor *y, const spx_tensor *bias,
+                          const spx_tensor *scale, const spx_tensor *shift, int flags) {
+  const char *name = s == 2 ? "spx_conv2d_fwd_s2" : s > 2 ? "spx_conv2d_fwd_sn"
+                     : k == 3 ? "spx_conv2d_fwd_k3s1" : k == 1 ? "spx_conv2d_fwd_k1s1" : "spx_conv2d_fwd_s1";
+  cl_kernel kr;
+  spx_status st = spx_cl_kernel(ctx, "conv2d.cl", name, &kr);
+  if (st) return st;
+  int tm = spx_cl_tune(ctx, "CONV_TM"), tn = spx_cl_tune(ctx, "CONV_TN"), vw = spx_cl_tune(ctx, "CONV_VW");
+  int lws = spx_cl_tune(ctx, "CONV_LWS");
+  size_t tile_q = (size_t)lws * tn * vw;
+  size_t groups = round_up((size_t)ho * wp, tile_q) / tile_q;
+  cl_mem bm = bias ? bias->mem : wpk, scm = scale ? scale->mem : wpk, shm = shift ? shift->mem : wpk;
+  cl_ulong yo = y->off, bo = bias ? bias->off : 0, sco = scale ? scale->off : 0, sho = shift ? shift->off : 0;
+  cl_int e = SPX_ARG(kr, 0, xp) | SPX_ARG(kr, 1, wpk) | SPX_ARG(kr, 2, y->mem) | SPX_ARG(kr, 3, yo) |
+             SPX_ARG(kr, 4, bm) | SPX_ARG(kr, 5, bo) | SPX_ARG(kr, 6, scm) | SPX_ARG(kr, 7, sco) |
+             SPX_ARG(kr, 8, shm) | SPX_ARG(kr, 9, sho) | SPX_ARG(kr, 10, cin) | SPX_ARG(kr, 11, cout) |
+             SPX_ARG(kr, 12, coutp) | SPX_ARG(kr, 13, k) | SPX_ARG(kr, 14, wp) | SPX_ARG(kr, 15, plane) |
+             SPX_ARG(kr, 16, ho) | SPX_ARG(kr, 17, wo) | SPX_ARG(kr, 18, flags);
+  /* Group order: channel tiles fastest keeps one pixel tile (all input channels) hot while the
+   * weights stream; when the weights outweigh a cache-resident input (deep, small layers) go
+   * pixel-fastest so each weight panel is read once. When the input does not fit, split the
+   * input channels into blocks that do (passes accumulate into y in a fixed order). */
+  double wbytes = 4.0 * cin * k * k * coutp, xbytes = 4.0 * cin * plane;
+  double xcache = (double)spx_cl_tune(ctx, "CONV_XCACHE") * 1024.0;
+  int pix_major = wbytes > xbytes && xbytes <= xcache, cib = cin;
+  if (wbytes > xbytes && xbytes > xcache && xcache > 0) {
+    cib = (int)(xcache / (4.0 * plane));
+    if (cib < 16) cib = 16;
+    if (cib < cin) pix_major = 1;
+    else cib = cin;
+  }
+  e |= SPX_ARG(kr, 19, pix_major);
+  if (s > 2) e |= SPX_ARG(kr, 22, s);
+  if ((st = spx_cl_check(ctx, e, name))) return st;
+  int ct = spx_cl_tune(ctx, "CONV_CT"), ncst = (coutp / tm + ct - 1) / ct;
+  size_t gl[2] = {(size_t)ncst * groups * lws, (size_t)n}, lo[2] = {(size_t)lws, 1};
+  const int epi = FL_BIAS | FL_SCALE | FL_SHIFT | FL_RELU;
+  for (int ci0 = 0; ci0 < cin; ci0 += cib) {
+    int ci1 = ci0 + cib < cin ? ci0 + cib : cin;
+    int f = (flags & ~epi) | (ci0 > 0 ? FL_ACCUM : 0) | (ci1 == cin ? flags & epi : 0);
+    e = SPX_ARG(kr, 18, f) | SPX_ARG(kr, 20, ci0) | SPX_ARG(kr, 21, ci1);
+    if ((st = spx_cl_check(ctx, e, name))) return st;
+    if ((st = spx_cl_run(ctx, kr, 2, gl, lo, name))) return st;
+  }
+  return SPX_OK;
+
+}
+
+spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,
+                              const spx_conv2d_params *p, const spx_tensor *y) {
+  geom g = {0};
+  spx_status st = check_common(ctx, x, w, p, &g);
+  if (st) return st;
+  if ((st = check_shape(ctx, "y", y, g.n, g.cout, g.ho, g.wo)) || (st = check_vec(ctx, bias, g.cout, "bias")) ||
+      (st = check_vec(ctx, p->scale, g.cout, "scale")) || (st = check_vec(ctx, p->shift, g.cout, "shift")))
+    return st;
+  int tm = spx_cl_tune(ctx, "CONV_TM"), tn = spx_cl_tune(ctx, "CONV_TN"), vw = spx_cl_tune(ctx, "CONV_VW");
+  int lws = spx_cl_tune(ctx, "CONV_LWS");
+  int hp = g.h + 2 * g.pad, wp = g.w + 2 * g.pad, plane = hp * wp;
+  size_t qv = round_up((size_t)g.ho * wp, (size_t)lws * tn * vw);
+  size_t total = (size_t)g.n * g.cin * plane + guard_elems(g.s, qv, g.k, wp, vw);
+  int coutp = (int)round_up((size_t)g.cout, (size_t)tm);
+  scratch xp = {0}, wpk = {0};
+  if ((st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, hp, wp, plane, g.pad, g.pad, 1, total,
+                     &xp)))
+    goto done;
+  if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, &wpk))) goto done;
+  int flags = (bias ? FL_BIAS : 0) | (p->scale ? FL_SCALE : 0) | (p->scale && p->shift ? FL_SHIFT : 0) |
+              (p->relu ? FL_RELU : 0);
+  st = run_fwd(ctx, xp.mem, wpk.mem, g.n, g.cin, g.cout, coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale,
+               p->scale ? p->shift : NULL, flags);
+done:
+  scratch_put(&xp);
+  scratch_put(&wpk);
+  return st;
+}
+
+/* dx += conv(dilate_s(dy) padded by k-1-pad, flipped and transposed w), stride 1. */
+static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *w,
+                                const spx_tensor *dy, const spx_tensor *dx) {
+  int tm = spx_cl_tune(ctx, "CONV_TM"), tn = spx_cl_tune(ctx, "CONV_TN"), vw = spx_cl_tune(ctx, "CONV_VW");
+  int lws = spx_cl_tune(ctx, "CONV_LWS");
+  int hd = g->h + g->k - 1, wd = g->w + g->k - 1, plane = hd * wd, top = g->k - 1 - g->pad;
+  size_t qv = round_up((size_t)g->h * wd, (size_t)lws * tn * vw);
+  size_t total = (size_t)g->n * g->cout * plane + guard_elems(1, qv, g->k, wd, vw);
+  int cinp = (int)round_up((size_t)g->cin, (size_t)tm);
+  scratch dyp = {0}, wpk = {0};
+  spx_status st;
+  if ((st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, hd, wd, plane, top, top, g->s,
+                     total, &dyp)))
+    goto done;
+  if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, &wpk))) goto done;
+  st = run_fwd(ctx, dyp.mem, wpk.mem, g->n, g->cout, g->cin, cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL,
+               NULL, FL_ACCUM);
+done:
+  scratch_put(&dyp);
+  scratch_put(&wpk);
+  return st;
+}
+
+/* dw += sum over (n, q) of dy x im2col(x): chunked partial sums, then a fixed-order reduction. */
+static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *x,
+                                   const spx_tensor *dy, const spx_tensor *dw) {
+  int vw = spx_cl_tune(ctx, "CONV_VW"), dtm = spx_cl_tune(ctx, "CONV_DW_TM"), dtn = spx_cl_tune(ctx, "CONV_DW_TN");
+  int qc = (int)round_up((size_t)spx_cl_tune(ctx, "CONV_DW_QC"), (size_t)vw);
+  int hp = g->h + 2 * g->pad, wp = g->w + 2 * g->pad, plane = hp * wp;
+  int qd = (int)round_up((size_t)g->ho * wp, (size_t)vw);
+  int nchunks = (qd + qc - 1) / qc;
+  int kdim = g->cin * g->k * g->k;
+  size_t xtotal = (size_t)g->n * g->cin * plane + guard_elems(g->s, (size_t)qd, g->k, wp, vw);
+  size_t dtotal = (size_t)g->n * g->cout * qd;
+  size_t count = (size_t)g->cout * kdim;
+  scratch xs = {0}, dys = {0}, ps = {0};
+  spx_status st;
+  if ((st = pad_copy(ctx, ws, 0, x->mem, x->off, g->n * g->cin, g->h, g->w, hp, wp, plane, g->pad, g->pad, 1, xtotal,
+                     &xs)))
+    goto done;
+  if ((st = pad_copy(ctx, ws, 1, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, g->ho, wp, qd, 0, 0, 1, dtotal,
+                     &dys)))
+    goto done;
+  if ((st = scratch_get(ctx, ws, 2, count * nchunks * sizeof(float), "conv2d weight-gradient partials", &ps)))
+    goto done;
+  cl_mem xp = xs.mem, dyq = dys.mem, part = ps.mem;
+  {
+    const char *name = g->s == 1 ? "spx_conv2d_dw_s1" : g->s == 2 ? "spx_conv2d_dw_s2" : "spx_conv2d_dw_sn";
+    cl_kernel kr;
+    if ((st = spx_cl_kernel(ctx, "conv2d.cl", name, &kr))) goto done;
+    cl_int e = SPX_ARG(kr, 0, xp) | SPX_ARG(kr, 1, dyq) | SPX_ARG(kr, 2, part) | SPX_ARG(kr, 3, g->n) |
+               SPX_ARG(kr, 4, g->cin) | SPX_ARG(kr, 5, g->cout) | SPX_ARG(kr, 6, g->k) | SPX_ARG(kr, 7, wp) |
+               SPX_ARG(kr, 8, plane) | SPX_ARG(kr, 9, qd) | SPX_ARG(kr, 10, qc);
+    if (g->s > 2) e |= SPX_ARG(kr, 11, g->s);
+    if ((st = spx_cl_check(ctx, e, name))) goto done;
+    size_t per = (size_t)dtn * spx_cl_tune(ctx, "CONV_DW_G");
+    size_t gl[3] = {((size_t)kdim + per - 1) / per, ((size_t)g->cout + dtm - 1) / dtm, (size_t)nchunks};
+    size_t lo[3] = {(size_t)spx_cl_tune(ctx, "CONV_DW_LWS"), 1, 1};
+    if ((st = spx_cl_run(ctx, kr, 3, gl, lo, name))) goto done;
+  }
+  {
+    cl_kernel kr;
+    if ((st = spx_cl_kernel(ctx, "conv2d.cl", "spx_conv2d_dw_reduce", &kr))) goto done;
+    cl_ulong off = dw->off;
+    int cnt = (int)count;
+    cl_int e = SPX_ARG(kr, 0, part) | SPX_ARG(kr, 1, dw->mem) | SPX_ARG(kr, 2, off) | SPX_ARG(kr, 3, cnt) |
+               SPX_ARG(kr, 4, nchunks);
+    if ((st = spx_cl_check(ctx, e, "spx_conv2d_dw_reduce"))) goto done;
+    size_t gl = count, l = (size_t)spx_cl_tune(ctx, "SPX_WG");
+    st = spx_cl_run(ctx, kr, 1, &gl, &l, "spx_conv2d_dw_reduce");
+  }
+done:
+  scratch_put(&xs);
+  scratch_put(&dys);
+  scratch_put(&ps);
+  return st;
+}
+
+static spx_status backward_bias(spx_ctx *ctx, const geom *g, const spx_tensor *dy, const spx_tensor *db) {
+  cl_kernel kr;
+  spx_status st = spx_cl_kernel(ctx, "conv2d.cl", "spx_conv2d_db", &kr);
+  if (st) return st;
+  cl_ulong dyo = dy->off, dbo = db->off;
+  int hw = g->ho * g->wo;
+  cl_int e = SPX_ARG(kr, 0, dy->mem) | SPX_ARG(kr, 1, dyo) | SPX_ARG(kr, 2, db->mem) | SPX_ARG(kr, 3, dbo) |
+             SPX_ARG(kr, 4, g->n) | SPX_ARG(kr, 5, g->cout) | SPX_ARG(kr, 6, hw);
+  if ((st = spx_cl_check(ctx, e, "spx_conv2d_db"))) return st;
+  size_t l = (size_t)spx_cl_tune(ctx, "CONV_RED_WG"), gl = (size_t)g->cout * l;
+  return spx_cl_run(ctx, kr, 1, &gl, &l, "spx_conv2d_db");
+}
+
+spx_status spx_conv2d_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *dy,
+                               const spx_tensor *dx, const spx_tensor *dw, const spx_tensor *db,
+                               const spx_conv2d_params *p) {
+  geom g = {0};
+  spx_status st = check_common(ctx, x, w, p, &g);
+  if (st) return st;
+  if ((st = check_shape(ctx, "dy", dy, g.n, g.cout, g.ho, g.wo))) return st;
+  if (dx && (st = check_shape(ctx, "dx", dx, g.n, g.cin, g.h, g.w))) return st;
+  if (dw && (st = check_shape(ctx, "dw", dw, g.cout, g.cin, g.k, g.k))) return st;
+  if ((st = check_vec(ctx, db, g.cout, "db"))) return st;
+  if (dx && (st = backward_data(ctx, p->ws, &g, w, dy, dx))) return st;
+  if (dw && (st = backward_weights(ctx, p->ws, &g, x, dy, dw))) return st;
+  if (db && (st = backward_bias(ctx, &g, dy, db))) return st;
+  return SPX_OK;
+}

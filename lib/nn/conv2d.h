@@ -1,0 +1,64 @@
+/* Private: 2-D convolution (NCHW, square kernel, zero padding) for the network engine.
+ * Device kernels: kernels/conv2d.cl; host launchers: lib/nn/conv2d.c; double-precision
+ * reference: lib/nn/conv2d_ref.c; tests: tests/test_nn_conv2d.c; bench: benchmarks/bench_conv2d.c.
+ *
+ *   y[n,co,oy,ox] = bias[co] + sum_{ci,ky,kx} w[co,ci,ky,kx] * x[n,ci,oy*s+ky-pad,ox*s+kx-pad]
+ *   Ho = (H + 2*pad - k)/s + 1,  Wo = (W + 2*pad - k)/s + 1  (floor)
+ *
+ * Optional fused inference epilogue (per output channel): v = v*scale[co] + shift[co], then
+ * ReLU. Forward overwrites y; backward ACCUMULATES into dx, dw, db (each may be NULL). All
+ * reductions run in a fixed order: results are bit-identical from run to run. */
+#ifndef SPX_NN_CONV2D_H
+#define SPX_NN_CONV2D_H
+
+#include "nn/tensor.h"
+
+/* Optional persistent scratch (padded copies, packed weights, partial sums). Grow-only; reuse
+ * one per network so steady-state calls allocate nothing. Calls that share a workspace must
+ * be enqueued on the same (in-order) queue. Zero-initialise; release with
+ * spx_conv2d_workspace_release. */
+typedef struct spx_conv2d_workspace {
+  spx_cl_buf buf[3];
+} spx_conv2d_workspace;
+void spx_conv2d_workspace_release(spx_conv2d_workspace *ws);
+
+typedef struct spx_conv2d_params {
+  int k;      /* kernel size (k x k), >= 1 */
+  int stride; /* >= 1 */
+  int pad;    /* zero padding on every side, 0 <= pad < k */
+  /* forward-only fused epilogue (inference: folded batch norm + ReLU) */
+  const spx_tensor *scale; /* [Cout] or NULL */
+  const spx_tensor *shift; /* [Cout] or NULL (only used together with scale) */
+  int relu;                /* nonzero: max(v, 0) after bias/scale/shift */
+  spx_conv2d_workspace *ws; /* NULL: scratch is allocated and released per call */
+} spx_conv2d_params;
+
+/* Output size of one spatial dimension; <= 0 when the input is too small. */
+static inline int spx_conv2d_out_size(int in, int k, int stride, int pad) {
+  int span = in + 2 * pad - k;
+  return span < 0 ? 0 : span / stride + 1;
+}
+
+/* x [N,Cin,H,W], w [Cout,Cin,k,k], bias [Cout] or NULL, y [N,Cout,Ho,Wo] (overwritten). */
+spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,
+                              const spx_conv2d_params *p, const spx_tensor *y);
+
+/* Gradients of the plain convolution (the epilogue fields of p are ignored): dx [N,Cin,H,W],
+ * dw [Cout,Cin,k,k], db [Cout], each accumulated (+=) when non-NULL. */
+spx_status spx_conv2d_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *dy,
+                               const spx_tensor *dx, const spx_tensor *dw, const spx_tensor *db,
+                               const spx_conv2d_params *p);
+
+/* ---- plain-C double-precision reference (same semantics) ---- */
+typedef struct spx_conv2d_shape {
+  int n, cin, h, w, cout, k, stride, pad;
+} spx_conv2d_shape;
+
+/* scale/shift may be NULL (no affine), bias may be NULL. y overwritten. */
+void spx_ref_conv2d_forward(const spx_conv2d_shape *s, const double *x, const double *w, const double *bias,
+                            const double *scale, const double *shift, int relu, double *y);
+/* dx, dw, db accumulated when non-NULL. */
+void spx_ref_conv2d_backward(const spx_conv2d_shape *s, const double *x, const double *w, const double *dy,
+                             double *dx, double *dw, double *db);
+
+#endif

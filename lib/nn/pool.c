@@ -1,0 +1,37 @@
+/* Launchers for kernels/pool.cl. */
+#include "nn/pool.h"
+
+#include "nn/nn_internal.h"
+
+static spx_status shapes(spx_ctx *ctx, const char *op, const spx_tensor *x, const spx_tensor *y, const char *yname) {
+  spx_status st;
+  if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, y, op, yname))) return st;
+  if (y->n != x->n || y->c != x->c || y->h != x->h / 2 || y->w != x->w / 2)
+    return spx_fail(ctx, SPX_E_ARG, "%s: %s is %dx%dx%dx%d, 2x2 pooling of %dx%dx%dx%d gives %dx%dx%dx%d", op, yname,
+                    y->n, y->c, y->h, y->w, x->n, x->c, x->h, x->w, x->n, x->c, x->h / 2, x->w / 2);
+  return SPX_OK;
+}
+
+spx_status spx_maxpool_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *y) {
+  spx_status st;
+  cl_kernel k;
+  if ((st = shapes(ctx, "maxpool_forward", x, y, "y")) || (st = spx_cl_kernel(ctx, "pool.cl", "spx_maxpool_fwd", &k)))
+    return st;
+  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, x->h) | SPX_ARG(k, 5, x->w);
+  if ((st = spx_cl_check(ctx, e, "spx_maxpool_fwd"))) return st;
+  return spx_nn_run3d(ctx, k, (size_t)y->w, (size_t)y->h, (size_t)y->n * (size_t)y->c, "spx_maxpool_fwd");
+}
+
+spx_status spx_maxpool_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *dy, const spx_tensor *dx) {
+  spx_status st;
+  cl_kernel k;
+  if (!dx) return SPX_OK;
+  if ((st = shapes(ctx, "maxpool_backward", x, dy, "dy")) || (st = spx_nn_check(ctx, dx, "maxpool_backward", "dx")))
+    return st;
+  if (!spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, "maxpool_backward", "dx vs x", dx, x);
+  if ((st = spx_cl_kernel(ctx, "pool.cl", "spx_maxpool_bwd", &k))) return st;
+  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, dy) | spx_nn_arg(k, 4, dx) | SPX_ARG(k, 6, x->h) |
+             SPX_ARG(k, 7, x->w);
+  if ((st = spx_cl_check(ctx, e, "spx_maxpool_bwd"))) return st;
+  return spx_nn_run3d(ctx, k, (size_t)dy->w, (size_t)dy->h, (size_t)dy->n * (size_t)dy->c, "spx_maxpool_bwd");
+}

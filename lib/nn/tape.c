@@ -1,0 +1,730 @@
+/* The autodiff tape (lib/nn/tape.h): value table, planned arenas, op recording, reverse walk. */
+#include "nn/tape.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "nn/batchnorm.h"
+#include "nn/conv2d.h"
+#include "nn/loss.h"
+#include "nn/optim.h"
+#include "nn/pool.h"
+#include "nn/tensor_ops.h"
+#include "nn/upsample.h"
+
+enum { SP_ACT = 0, SP_PARAM = 1, SP_STATE = 2 };
+
+typedef struct tvalue {
+  int space;
+  size_t off; /* floats from the start of its slab / arena */
+  int32_t n, c, h, w;
+  int needs_grad;
+} tvalue;
+
+enum { OP_CONV, OP_BN, OP_ACT, OP_MAXPOOL, OP_UPSAMPLE, OP_PAD, OP_CONCAT, OP_L1, NOPS };
+
+typedef struct tnode {
+  int kind;
+  int in[3];
+  int out;
+  int saved[2];
+  int iarg[4];
+  float farg[2];
+} tnode;
+
+struct spx_tape {
+  spx_ctx *ctx;
+  spx_tape_backend backend;
+  tvalue *vals;
+  int nvals, capvals, npersist; /* values [0, npersist) are params/state */
+  tnode *nodes;
+  int nnodes, capnodes;
+  size_t nparam, nstate; /* floats */
+  int allocated;
+  /* slabs: device */
+  cl_mem param, grad, m, v, state, act, dact;
+  size_t act_cap, dact_cap; /* floats */
+  /* slabs: host */
+  double *hparam, *hgrad, *hm, *hv, *hstate, *hact, *hdact;
+  /* current pass */
+  size_t act_used;
+  int train, measuring, in_pass;
+  spx_status err;
+  /* plans: keys already measured, with their sizes */
+  uint64_t plan_keys[8];
+  int plan_train[8];
+  size_t plan_size[8];
+  int nplans;
+  int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
+  spx_conv2d_workspace ws; /* conv scratch, grow-only: no allocation in the steady state */
+  /* SPX_TAPE_PROFILE=1: finish the queue around every device op and print the time per op kind
+   * and direction when the tape is destroyed */
+  int prof;
+  double prof_s[NOPS][2];
+  long prof_n[NOPS][2];
+};
+
+static double prof_begin(spx_tape *t) {
+  spx_device_finish(t->ctx);
+  return spx_now();
+}
+static void prof_end(spx_tape *t, int kind, int dir, double t0) {
+  spx_device_finish(t->ctx);
+  t->prof_s[kind][dir] += spx_now() - t0;
+  t->prof_n[kind][dir]++;
+}
+static const char *const op_names[NOPS] = {"conv", "batchnorm", "activation", "maxpool", "upsample", "pad", "concat", "l1"};
+
+/* ------------------------------------------------------------------ values */
+
+static int new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, int32_t w) {
+  if (t->err) return -1;
+  if (n <= 0 || c <= 0 || h <= 0 || w <= 0) {
+    t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: empty tensor shape %dx%dx%dx%d", n, c, h, w);
+    return -1;
+  }
+  if (t->nvals == t->capvals) {
+    int cap = t->capvals ? 2 * t->capvals : 256;
+    tvalue *nv = realloc(t->vals, sizeof(tvalue) * (size_t)cap);
+    if (!nv) {
+      t->err = spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for %d values", cap);
+      return -1;
+    }
+    t->vals = nv;
+    t->capvals = cap;
+  }
+  size_t numel = (size_t)n * (size_t)c * (size_t)h * (size_t)w;
+  tvalue *v = &t->vals[t->nvals];
+  v->space = space;
+  v->n = n, v->c = c, v->h = h, v->w = w;
+  v->needs_grad = space == SP_PARAM;
+  size_t *used = space == SP_ACT ? &t->act_used : space == SP_PARAM ? &t->nparam : &t->nstate;
+  if (numel > ((size_t)1 << 40) || *used > ((size_t)1 << 40)) {
+    t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: tensor %dx%dx%dx%d is too large", n, c, h, w);
+    return -1;
+  }
+  v->off = *used;
+  *used += numel;
+  return t->nvals++;
+}
+
+static int valid(const spx_tape *t, int id) { return id >= 0 && id < t->nvals; }
+
+static size_t vnumel(const tvalue *v) { return (size_t)v->n * (size_t)v->c * (size_t)v->h * (size_t)v->w; }
+
+spx_tensor spx_tape_tensor(const spx_tape *t, int id) {
+  const tvalue *v = &t->vals[id];
+  cl_mem m = v->space == SP_ACT ? t->act : v->space == SP_PARAM ? t->param : t->state;
+  return spx_tensor_view(m, v->off, v->n, v->c, v->h, v->w);
+}
+spx_tensor spx_tape_grad_tensor(const spx_tape *t, int id) {
+  const tvalue *v = &t->vals[id];
+  cl_mem m = v->space == SP_ACT ? t->dact : v->space == SP_PARAM ? t->grad : NULL;
+  return spx_tensor_view(m, v->off, v->n, v->c, v->h, v->w);
+}
+double *spx_tape_host(spx_tape *t, int id) {
+  const tvalue *v = &t->vals[id];
+  double *b = v->space == SP_ACT ? t->hact : v->space == SP_PARAM ? t->hparam : t->hstate;
+  return b ? b + v->off : NULL;
+}
+double *spx_tape_host_grad(spx_tape *t, int id) {
+  const tvalue *v = &t->vals[id];
+  double *b = v->space == SP_ACT ? t->hdact : v->space == SP_PARAM ? t->hgrad : NULL;
+  return b ? b + v->off : NULL;
+}
+void spx_tape_shape(const spx_tape *t, int id, int32_t shape[4]) {
+  const tvalue *v = &t->vals[id];
+  shape[0] = v->n, shape[1] = v->c, shape[2] = v->h, shape[3] = v->w;
+}
+size_t spx_tape_numel(const spx_tape *t, int id) { return vnumel(&t->vals[id]); }
+size_t spx_tape_param_count(const spx_tape *t) { return t->nparam; }
+spx_tape_backend spx_tape_get_backend(const spx_tape *t) { return t->backend; }
+
+/* ------------------------------------------------------------------ lifetime */
+
+spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **out) {
+  *out = NULL;
+  if (backend == SPX_TAPE_DEVICE) {
+    spx_status st = spx_cl_require(ctx, "tape");
+    if (st) return st;
+  }
+  spx_tape *t = calloc(1, sizeof *t);
+  if (!t) return spx_fail(ctx, SPX_E_NOMEM, "tape: out of memory");
+  t->ctx = ctx;
+  t->backend = backend;
+  const char *pe = getenv("SPX_TAPE_PROFILE");
+  t->prof = backend == SPX_TAPE_DEVICE && pe && *pe && strcmp(pe, "0");
+  *out = t;
+  return SPX_OK;
+}
+
+void spx_tape_destroy(spx_tape *t) {
+  if (!t) return;
+  if (t->prof) {
+    fprintf(stderr, "tape profile (device time per op kind, all passes):\n");
+    for (int k = 0; k < NOPS; k++)
+      for (int d = 0; d < 2; d++)
+        if (t->prof_n[k][d])
+          fprintf(stderr, "  %-10s %-8s %8.3f s  %6ld calls\n", op_names[k], d ? "backward" : "forward", t->prof_s[k][d],
+                  t->prof_n[k][d]);
+  }
+  spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
+  spx_cl_free(&t->state), spx_cl_free(&t->act), spx_cl_free(&t->dact);
+  spx_conv2d_workspace_release(&t->ws);
+  free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact), free(t->hdact);
+  free(t->vals);
+  free(t->nodes);
+  free(t);
+}
+
+int spx_tape_param(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w) {
+  if (t->allocated || t->nvals != t->npersist) {
+    t->err = spx_fail(t->ctx, SPX_E_STATE, "tape: parameters must be declared before allocation");
+    return -1;
+  }
+  int id = new_value(t, SP_PARAM, n, c, h, w);
+  if (id >= 0) t->npersist = t->nvals;
+  return id;
+}
+int spx_tape_state(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w) {
+  if (t->allocated || t->nvals != t->npersist) {
+    t->err = spx_fail(t->ctx, SPX_E_STATE, "tape: state must be declared before allocation");
+    return -1;
+  }
+  int id = new_value(t, SP_STATE, n, c, h, w);
+  if (id >= 0) t->npersist = t->nvals;
+  return id;
+}
+
+static spx_status dev_zeroed(spx_tape *t, size_t n, const char *what, cl_mem *m) {
+  spx_status st = spx_cl_alloc(t->ctx, (n ? n : 1) * sizeof(float), what, m);
+  if (!st) st = spx_cl_fill_f32(t->ctx, *m, 0, n ? n : 1, 0.0f);
+  return st;
+}
+
+spx_status spx_tape_alloc_params(spx_tape *t) {
+  spx_status st;
+  if (t->err) return t->err;
+  if (t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters already allocated");
+  if (t->backend == SPX_TAPE_DEVICE) {
+    if ((st = dev_zeroed(t, t->nparam, "parameter slab", &t->param)) ||
+        (st = dev_zeroed(t, t->nparam, "gradient slab", &t->grad)) ||
+        (st = dev_zeroed(t, t->nparam, "Adam exp_avg slab", &t->m)) ||
+        (st = dev_zeroed(t, t->nparam, "Adam exp_avg_sq slab", &t->v)) ||
+        (st = dev_zeroed(t, t->nstate, "state slab", &t->state)))
+      return st;
+  } else {
+    size_t np = t->nparam ? t->nparam : 1, ns = t->nstate ? t->nstate : 1;
+    t->hparam = calloc(np, sizeof(double)), t->hgrad = calloc(np, sizeof(double));
+    t->hm = calloc(np, sizeof(double)), t->hv = calloc(np, sizeof(double));
+    t->hstate = calloc(ns, sizeof(double));
+    if (!t->hparam || !t->hgrad || !t->hm || !t->hv || !t->hstate)
+      return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for %zu parameters", t->nparam);
+  }
+  t->allocated = 1;
+  return SPX_OK;
+}
+
+/* ------------------------------------------------------------------ host <-> values */
+
+static spx_status xfer(spx_tape *t, int id, int grad, int moment, float *rd, const float *wr) {
+  if (!valid(t, id)) return spx_fail(t->ctx, SPX_E_ARG, "tape: no value %d", id);
+  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  const tvalue *v = &t->vals[id];
+  if ((grad || moment) && v->space == SP_STATE) return spx_fail(t->ctx, SPX_E_ARG, "tape: state has no gradient");
+  if (moment && v->space != SP_PARAM) return spx_fail(t->ctx, SPX_E_ARG, "tape: value %d is not a parameter", id);
+  size_t n = vnumel(v);
+  if (t->backend == SPX_TAPE_DEVICE) {
+    cl_mem m;
+    if (moment) m = moment == 1 ? t->m : t->v;
+    else if (grad) m = spx_tape_grad_tensor(t, id).mem;
+    else m = spx_tape_tensor(t, id).mem;
+    if (!m) return spx_fail(t->ctx, SPX_E_STATE, "tape: value %d has no storage yet", id);
+    return rd ? spx_cl_read(t->ctx, m, v->off * sizeof(float), n * sizeof(float), rd)
+              : spx_cl_write(t->ctx, m, v->off * sizeof(float), n * sizeof(float), wr);
+  }
+  double *p;
+  if (moment) p = (moment == 1 ? t->hm : t->hv) + v->off;
+  else p = grad ? spx_tape_host_grad(t, id) : spx_tape_host(t, id);
+  if (!p) return spx_fail(t->ctx, SPX_E_STATE, "tape: value %d has no storage yet", id);
+  for (size_t i = 0; i < n; i++) {
+    if (rd) rd[i] = (float)p[i];
+    else p[i] = wr[i];
+  }
+  return SPX_OK;
+}
+spx_status spx_tape_read(spx_tape *t, int id, float *dst) { return xfer(t, id, 0, 0, dst, NULL); }
+spx_status spx_tape_write(spx_tape *t, int id, const float *src) { return xfer(t, id, 0, 0, NULL, src); }
+spx_status spx_tape_read_grad(spx_tape *t, int id, float *dst) { return xfer(t, id, 1, 0, dst, NULL); }
+spx_status spx_tape_read_moments(spx_tape *t, int id, float *m, float *v) {
+  spx_status st = xfer(t, id, 0, 1, m, NULL);
+  return st ? st : xfer(t, id, 0, 2, v, NULL);
+}
+spx_status spx_tape_write_moments(spx_tape *t, int id, const float *m, const float *v) {
+  spx_status st = xfer(t, id, 0, 1, NULL, m);
+  return st ? st : xfer(t, id, 0, 2, NULL, v);
+}
+
+/* ------------------------------------------------------------------ passes */
+
+spx_status spx_tape_begin(spx_tape *t, int train, uint64_t plan_key) {
+  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  t->err = SPX_OK;
+  t->nvals = t->npersist;
+  t->nnodes = 0;
+  t->act_used = 0;
+  t->train = train != 0;
+  t->in_pass = 1;
+  t->measuring = 1;
+  for (int i = 0; i < t->nplans; i++)
+    if (t->plan_keys[i] == plan_key && t->plan_train[i] == t->train && t->plan_size[i] <= t->act_cap &&
+        (!t->train || t->plan_size[i] <= t->dact_cap))
+      t->measuring = 0;
+  if (t->measuring) { /* remember the key; end() stores the size */
+    if (t->nplans == 8) memmove(t->plan_keys, t->plan_keys + 1, 7 * sizeof(uint64_t)),
+                        memmove(t->plan_train, t->plan_train + 1, 7 * sizeof(int)),
+                        memmove(t->plan_size, t->plan_size + 1, 7 * sizeof(size_t)), t->nplans = 7;
+    t->plan_keys[t->nplans] = plan_key;
+    t->plan_train[t->nplans] = t->train;
+    t->plan_size[t->nplans] = 0;
+    t->nplans++;
+  }
+  return SPX_OK;
+}
+
+int spx_tape_measuring(const spx_tape *t) { return t->measuring; }
+int spx_tape_plan_count(const spx_tape *t) { return t->nmeasured; }
+
+static spx_status grow_arena(spx_tape *t, size_t need, int grad) {
+  size_t *cap = grad ? &t->dact_cap : &t->act_cap;
+  if (need <= *cap) return SPX_OK;
+  if (t->backend == SPX_TAPE_DEVICE) {
+    cl_mem *m = grad ? &t->dact : &t->act;
+    spx_cl_free(m);
+    *cap = 0;
+    spx_status st = spx_cl_alloc(t->ctx, need * sizeof(float), grad ? "activation-gradient arena" : "activation arena", m);
+    if (st) return st;
+  } else {
+    double **p = grad ? &t->hdact : &t->hact;
+    free(*p);
+    *cap = 0;
+    *p = calloc(need, sizeof(double));
+    if (!*p) return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for a %zu-float arena", need);
+  }
+  *cap = need;
+  return SPX_OK;
+}
+
+spx_status spx_tape_end(spx_tape *t, int *again) {
+  *again = 0;
+  t->in_pass = 0;
+  if (t->err) return t->err;
+  if (!t->measuring) return SPX_OK;
+  size_t need = t->act_used ? t->act_used : 1;
+  spx_status st = grow_arena(t, need, 0);
+  if (!st && t->train) st = grow_arena(t, need, 1);
+  if (st) return st;
+  t->plan_size[t->nplans - 1] = need;
+  t->nmeasured++;
+  *again = 1;
+  return SPX_OK;
+}
+
+/* An op may run when no error is pending and the pass is not a measuring one. */
+static int live(const spx_tape *t) { return !t->err && !t->measuring; }
+
+static void record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, int s1, const int *iarg, const float *farg) {
+  if (!live(t) || !t->train) return;
+  if (t->nnodes == t->capnodes) {
+    int cap = t->capnodes ? 2 * t->capnodes : 128;
+    tnode *nn = realloc(t->nodes, sizeof(tnode) * (size_t)cap);
+    if (!nn) {
+      t->err = spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for %d nodes", cap);
+      return;
+    }
+    t->nodes = nn;
+    t->capnodes = cap;
+  }
+  tnode *nd = &t->nodes[t->nnodes++];
+  memset(nd, 0, sizeof *nd);
+  nd->kind = kind;
+  nd->in[0] = a, nd->in[1] = b, nd->in[2] = c;
+  nd->out = out;
+  nd->saved[0] = s0, nd->saved[1] = s1;
+  if (iarg) memcpy(nd->iarg, iarg, sizeof nd->iarg);
+  if (farg) memcpy(nd->farg, farg, sizeof nd->farg);
+  int ng = 0;
+  for (int i = 0; i < 3; i++)
+    if (nd->in[i] >= 0 && t->vals[nd->in[i]].needs_grad) ng = 1;
+  t->vals[out].needs_grad = ng;
+}
+
+static int bad_id(spx_tape *t, const char *op, int id) {
+  if (t->err) return 1;
+  if (!t->in_pass) {
+    t->err = spx_fail(t->ctx, SPX_E_STATE, "tape: %s outside spx_tape_begin/end", op);
+    return 1;
+  }
+  if (!valid(t, id)) {
+    t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: %s: no value %d", op, id);
+    return 1;
+  }
+  return 0;
+}
+
+int spx_tape_input(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w, const float *data) {
+  if (t->err) return -1;
+  int id = new_value(t, SP_ACT, n, c, h, w);
+  if (id < 0 || !live(t) || !data) return id;
+  spx_status st = spx_tape_write(t, id, data);
+  if (st) t->err = st;
+  return id;
+}
+
+/* Run a status-returning call, making the error sticky. */
+#define RUN(kind, call)                                                                                             \
+  do {                                                                                                              \
+    double run_t0_ = t->prof ? prof_begin(t) : 0;                                                                   \
+    spx_status run_st_ = (call);                                                                                    \
+    if (run_st_) {                                                                                                  \
+      t->err = run_st_;                                                                                             \
+      return -1;                                                                                                    \
+    }                                                                                                               \
+    if (t->prof) prof_end(t, (kind), 0, run_t0_);                                                                   \
+  } while (0)
+
+#define HOST (t->backend == SPX_TAPE_HOST)
+#define TV(id) spx_tape_tensor(t, (id))
+#define HV(id) spx_tape_host(t, (id))
+
+int spx_tape_conv(spx_tape *t, int x, int w, int bias, int pad, int scale, int shift, int relu) {
+  if (bad_id(t, "conv", x) || bad_id(t, "conv", w)) return -1;
+  if ((bias >= 0 && bad_id(t, "conv", bias)) || (scale >= 0 && bad_id(t, "conv", scale)) ||
+      (shift >= 0 && bad_id(t, "conv", shift)))
+    return -1;
+  const tvalue *xv = &t->vals[x], *wv = &t->vals[w];
+  if (wv->c != xv->c || wv->h != wv->w) {
+    t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: conv weight %dx%dx%dx%d does not fit input with %d channels", wv->n,
+                      wv->c, wv->h, wv->w, xv->c);
+    return -1;
+  }
+  if (t->train && (scale >= 0 || relu)) {
+    t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: the fused conv epilogue is inference-only");
+    return -1;
+  }
+  int k = wv->h, ho = spx_conv2d_out_size(xv->h, k, 1, pad), wo = spx_conv2d_out_size(xv->w, k, 1, pad);
+  int y = new_value(t, SP_ACT, xv->n, wv->n, ho, wo);
+  if (y < 0 || !live(t)) return y;
+  if (HOST) {
+    spx_conv2d_shape s = {xv->n, xv->c, xv->h, xv->w, wv->n, k, 1, pad};
+    spx_ref_conv2d_forward(&s, HV(x), HV(w), bias >= 0 ? HV(bias) : NULL, scale >= 0 ? HV(scale) : NULL,
+                           shift >= 0 ? HV(shift) : NULL, relu, HV(y));
+  } else {
+    spx_tensor tx = TV(x), tw = TV(w), tb = bias >= 0 ? TV(bias) : tx, ts = scale >= 0 ? TV(scale) : tx,
+               tsh = shift >= 0 ? TV(shift) : tx, ty = TV(y);
+    spx_conv2d_params p = {k, 1, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu, &t->ws};
+    RUN(OP_CONV, spx_conv2d_forward(t->ctx, &tx, &tw, bias >= 0 ? &tb : NULL, &p, &ty));
+  }
+  int ia[4] = {pad, 0, 0, 0};
+  record(t, OP_CONV, x, w, bias, y, -1, -1, ia, NULL);
+  return y;
+}
+
+int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int rvar, float momentum, float eps) {
+  if (bad_id(t, "batchnorm", x) || bad_id(t, "batchnorm", gamma) || bad_id(t, "batchnorm", beta) ||
+      bad_id(t, "batchnorm", rmean) || bad_id(t, "batchnorm", rvar))
+    return -1;
+  const tvalue *xv = &t->vals[x];
+  int c = xv->c;
+  if (spx_tape_numel(t, gamma) != (size_t)c || spx_tape_numel(t, beta) != (size_t)c ||
+      spx_tape_numel(t, rmean) != (size_t)c || spx_tape_numel(t, rvar) != (size_t)c) {
+    t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: batchnorm parameters do not have %d channels", c);
+    return -1;
+  }
+  if (!t->train) {
+    t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: batchnorm in inference mode is folded into the convolution");
+    return -1;
+  }
+  int y = new_value(t, SP_ACT, xv->n, c, xv->h, xv->w);
+  int sv = new_value(t, SP_ACT, 2 * c, 1, 1, 1); /* [mean, invstd] of the batch */
+  if (y < 0 || sv < 0 || !live(t)) return y;
+  xv = &t->vals[x];
+  if (HOST) {
+    spx_ref_bn_train_forward(HV(x), xv->n, c, xv->h * xv->w, HV(gamma), HV(beta), HV(rmean), HV(rvar), momentum, eps,
+                             HV(sv), HV(sv) + c, HV(y));
+  } else {
+    spx_tensor tx = TV(x), tg = TV(gamma), tb = TV(beta), trm = TV(rmean), trv = TV(rvar), ty = TV(y), ts = TV(sv);
+    RUN(OP_BN, spx_bn_train_forward(t->ctx, &tx, &tg, &tb, &trm, &trv, momentum, eps, 1, &ts, &ty));
+  }
+  float fa[2] = {momentum, eps};
+  record(t, OP_BN, x, gamma, beta, y, sv, -1, NULL, fa);
+  return y;
+}
+
+int spx_tape_act(spx_tape *t, spx_act_kind kind, float slope, int x) {
+  if (bad_id(t, "activation", x)) return -1;
+  const tvalue *xv = &t->vals[x];
+  int y = new_value(t, SP_ACT, xv->n, xv->c, xv->h, xv->w);
+  if (y < 0 || !live(t)) return y;
+  if (HOST) {
+    spx_ref_act_forward(kind, slope, HV(x), HV(y), spx_tape_numel(t, x));
+  } else {
+    spx_tensor tx = TV(x), ty = TV(y);
+    RUN(OP_ACT, spx_act_forward(t->ctx, kind, slope, &tx, &ty));
+  }
+  int ia[4] = {(int)kind, 0, 0, 0};
+  float fa[2] = {slope, 0};
+  record(t, OP_ACT, x, -1, -1, y, -1, -1, ia, fa);
+  return y;
+}
+
+int spx_tape_maxpool2(spx_tape *t, int x) {
+  if (bad_id(t, "maxpool", x)) return -1;
+  const tvalue *xv = &t->vals[x];
+  int y = new_value(t, SP_ACT, xv->n, xv->c, xv->h / 2, xv->w / 2);
+  if (y < 0 || !live(t)) return y;
+  xv = &t->vals[x];
+  if (HOST) {
+    spx_ref_maxpool_forward(HV(x), xv->n, xv->c, xv->h, xv->w, HV(y));
+  } else {
+    spx_tensor tx = TV(x), ty = TV(y);
+    RUN(OP_MAXPOOL, spx_maxpool_forward(t->ctx, &tx, &ty));
+  }
+  record(t, OP_MAXPOOL, x, -1, -1, y, -1, -1, NULL, NULL);
+  return y;
+}
+
+int spx_tape_upsample2(spx_tape *t, int x) {
+  if (bad_id(t, "upsample", x)) return -1;
+  const tvalue *xv = &t->vals[x];
+  int y = new_value(t, SP_ACT, xv->n, xv->c, xv->h * 2, xv->w * 2);
+  if (y < 0 || !live(t)) return y;
+  xv = &t->vals[x];
+  if (HOST) {
+    spx_ref_upsample2x_forward(HV(x), xv->n, xv->c, xv->h, xv->w, 1, HV(y));
+  } else {
+    spx_tensor tx = TV(x), ty = TV(y);
+    RUN(OP_UPSAMPLE, spx_upsample2x_forward(t->ctx, &tx, 1, &ty));
+  }
+  record(t, OP_UPSAMPLE, x, -1, -1, y, -1, -1, NULL, NULL);
+  return y;
+}
+
+int spx_tape_pad(spx_tape *t, int x, int left, int right, int top, int bottom) {
+  if (bad_id(t, "pad", x)) return -1;
+  if (!left && !right && !top && !bottom) return x;
+  const tvalue *xv = &t->vals[x];
+  int y = new_value(t, SP_ACT, xv->n, xv->c, xv->h + top + bottom, xv->w + left + right);
+  if (y < 0 || !live(t)) return y;
+  xv = &t->vals[x];
+  if (HOST) {
+    spx_ref_pad_forward(HV(x), xv->n, xv->c, xv->h, xv->w, left, right, top, bottom, HV(y));
+  } else {
+    spx_tensor tx = TV(x), ty = TV(y);
+    RUN(OP_PAD, spx_pad_forward(t->ctx, &tx, left, right, top, bottom, &ty));
+  }
+  int ia[4] = {left, right, top, bottom};
+  record(t, OP_PAD, x, -1, -1, y, -1, -1, ia, NULL);
+  return y;
+}
+
+int spx_tape_concat(spx_tape *t, int a, int b) {
+  if (bad_id(t, "concat", a) || bad_id(t, "concat", b)) return -1;
+  const tvalue *av = &t->vals[a], *bv = &t->vals[b];
+  if (av->n != bv->n || av->h != bv->h || av->w != bv->w) {
+    t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: concat of %dx%dx%dx%d and %dx%dx%dx%d", av->n, av->c, av->h, av->w,
+                      bv->n, bv->c, bv->h, bv->w);
+    return -1;
+  }
+  int y = new_value(t, SP_ACT, av->n, av->c + bv->c, av->h, av->w);
+  if (y < 0 || !live(t)) return y;
+  av = &t->vals[a], bv = &t->vals[b];
+  if (HOST) {
+    spx_ref_concat_forward(HV(a), HV(b), av->n, av->c, bv->c, av->h * av->w, HV(y));
+  } else {
+    spx_tensor ta = TV(a), tb = TV(b), ty = TV(y);
+    RUN(OP_CONCAT, spx_concat_forward(t->ctx, &ta, &tb, &ty));
+  }
+  record(t, OP_CONCAT, a, b, -1, y, -1, -1, NULL, NULL);
+  return y;
+}
+
+int spx_tape_l1(spx_tape *t, int pred, int target) {
+  if (bad_id(t, "l1", pred) || bad_id(t, "l1", target)) return -1;
+  if (spx_tape_numel(t, pred) != spx_tape_numel(t, target)) {
+    t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: l1: prediction and target sizes differ (%zu vs %zu)",
+                      spx_tape_numel(t, pred), spx_tape_numel(t, target));
+    return -1;
+  }
+  int y = new_value(t, SP_ACT, 1, 1, 1, 1);
+  if (y < 0 || !live(t)) return y;
+  if (HOST) {
+    *HV(y) = spx_ref_loss_forward(SPX_LOSS_L1, SPX_REDUCE_MEAN, HV(pred), HV(target), spx_tape_numel(t, pred));
+  } else {
+    spx_tensor tp = TV(pred), tt = TV(target), ty = TV(y);
+    RUN(OP_L1, spx_loss_forward(t->ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &tp, &tt, &ty));
+  }
+  record(t, OP_L1, pred, target, -1, y, -1, -1, NULL, NULL);
+  return y;
+}
+
+/* ------------------------------------------------------------------ backward */
+
+static int wants(const spx_tape *t, int id) { return id >= 0 && t->vals[id].needs_grad; }
+
+static spx_status back_host(spx_tape *t, const tnode *nd) {
+  const tvalue *xv = &t->vals[nd->in[0]];
+  double *dy = spx_tape_host_grad(t, nd->out);
+#define HG(id) (wants(t, (id)) ? spx_tape_host_grad(t, (id)) : NULL)
+  switch (nd->kind) {
+    case OP_CONV: {
+      const tvalue *wv = &t->vals[nd->in[1]];
+      spx_conv2d_shape s = {xv->n, xv->c, xv->h, xv->w, wv->n, wv->h, 1, nd->iarg[0]};
+      spx_ref_conv2d_backward(&s, HV(nd->in[0]), HV(nd->in[1]), dy, HG(nd->in[0]), HG(nd->in[1]),
+                              nd->in[2] >= 0 ? HG(nd->in[2]) : NULL);
+      break;
+    }
+    case OP_BN:
+      spx_ref_bn_train_backward(HV(nd->in[0]), xv->n, xv->c, xv->h * xv->w, HV(nd->in[1]), HV(nd->saved[0]),
+                                HV(nd->saved[0]) + xv->c, dy, HG(nd->in[0]), HG(nd->in[1]), HG(nd->in[2]));
+      break;
+    case OP_ACT: {
+      spx_act_kind k = (spx_act_kind)nd->iarg[0];
+      if (wants(t, nd->in[0]))
+        spx_ref_act_backward(k, nd->farg[0], spx_act_saves_output(k) ? HV(nd->out) : HV(nd->in[0]), dy,
+                             HG(nd->in[0]), vnumel(xv));
+      break;
+    }
+    case OP_MAXPOOL:
+      if (wants(t, nd->in[0])) spx_ref_maxpool_backward(HV(nd->in[0]), dy, xv->n, xv->c, xv->h, xv->w, HG(nd->in[0]));
+      break;
+    case OP_UPSAMPLE:
+      if (wants(t, nd->in[0])) spx_ref_upsample2x_backward(dy, xv->n, xv->c, xv->h, xv->w, 1, HG(nd->in[0]));
+      break;
+    case OP_PAD:
+      if (wants(t, nd->in[0]))
+        spx_ref_pad_backward(dy, xv->n, xv->c, xv->h, xv->w, nd->iarg[0], nd->iarg[1], nd->iarg[2], nd->iarg[3],
+                             HG(nd->in[0]));
+      break;
+    case OP_CONCAT: {
+      const tvalue *bv = &t->vals[nd->in[1]];
+      spx_ref_concat_backward(dy, xv->n, xv->c, bv->c, xv->h * xv->w, HG(nd->in[0]), HG(nd->in[1]));
+      break;
+    }
+    case OP_L1:
+      if (wants(t, nd->in[0]))
+        spx_ref_loss_backward(SPX_LOSS_L1, SPX_REDUCE_MEAN, HV(nd->in[0]), HV(nd->in[1]), vnumel(xv), dy[0],
+                              HG(nd->in[0]), NULL);
+      break;
+  }
+#undef HG
+  return SPX_OK;
+}
+
+static spx_status back_dev(spx_tape *t, const tnode *nd) {
+  spx_ctx *ctx = t->ctx;
+  spx_tensor x = TV(nd->in[0]), dy = spx_tape_grad_tensor(t, nd->out), dx = spx_tape_grad_tensor(t, nd->in[0]);
+  const spx_tensor *pdx = wants(t, nd->in[0]) ? &dx : NULL;
+  switch (nd->kind) {
+    case OP_CONV: {
+      spx_tensor w = TV(nd->in[1]), dw = spx_tape_grad_tensor(t, nd->in[1]), db;
+      if (nd->in[2] >= 0) db = spx_tape_grad_tensor(t, nd->in[2]);
+      spx_conv2d_params p = {t->vals[nd->in[1]].h, 1, nd->iarg[0], NULL, NULL, 0, &t->ws};
+      return spx_conv2d_backward(ctx, &x, &w, &dy, pdx, wants(t, nd->in[1]) ? &dw : NULL,
+                                 nd->in[2] >= 0 && wants(t, nd->in[2]) ? &db : NULL, &p);
+    }
+    case OP_BN: {
+      spx_tensor g = TV(nd->in[1]), sv = TV(nd->saved[0]);
+      spx_tensor dg = spx_tape_grad_tensor(t, nd->in[1]), dbt = spx_tape_grad_tensor(t, nd->in[2]);
+      return spx_bn_train_backward(ctx, &x, &g, &sv, &dy, pdx, wants(t, nd->in[1]) ? &dg : NULL,
+                                   wants(t, nd->in[2]) ? &dbt : NULL);
+    }
+    case OP_ACT: {
+      spx_act_kind k = (spx_act_kind)nd->iarg[0];
+      spx_tensor s = spx_act_saves_output(k) ? TV(nd->out) : x;
+      return pdx ? spx_act_backward(ctx, k, nd->farg[0], &s, &dy, pdx) : SPX_OK;
+    }
+    case OP_MAXPOOL:
+      return pdx ? spx_maxpool_backward(ctx, &x, &dy, pdx) : SPX_OK;
+    case OP_UPSAMPLE:
+      return pdx ? spx_upsample2x_backward(ctx, &dy, 1, pdx) : SPX_OK;
+    case OP_PAD:
+      return pdx ? spx_pad_backward(ctx, &dy, nd->iarg[0], nd->iarg[1], nd->iarg[2], nd->iarg[3], pdx) : SPX_OK;
+    case OP_CONCAT: {
+      spx_tensor db = spx_tape_grad_tensor(t, nd->in[1]);
+      return spx_concat_backward(ctx, &dy, pdx, wants(t, nd->in[1]) ? &db : NULL);
+    }
+    case OP_L1: {
+      spx_tensor tt = TV(nd->in[1]);
+      return pdx ? spx_loss_backward(ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &x, &tt, &dy, pdx, NULL) : SPX_OK;
+    }
+  }
+  return SPX_OK;
+}
+
+spx_status spx_tape_backward(spx_tape *t, int loss) {
+  spx_status st;
+  if (t->err) return t->err;
+  if (!t->train || t->measuring || t->in_pass)
+    return spx_fail(t->ctx, SPX_E_STATE, "tape: backward needs a finished training forward");
+  if (!valid(t, loss) || vnumel(&t->vals[loss]) != 1 || t->vals[loss].space != SP_ACT)
+    return spx_fail(t->ctx, SPX_E_ARG, "tape: backward from a value that is not a scalar activation");
+  /* zero the activation gradients of this pass, seed d loss = 1 */
+  if (HOST) {
+    memset(t->hdact, 0, t->act_used * sizeof(double));
+    spx_tape_host_grad(t, loss)[0] = 1.0;
+  } else {
+    if ((st = spx_cl_fill_f32(t->ctx, t->dact, 0, t->act_used, 0.0f)) ||
+        (st = spx_cl_fill_f32(t->ctx, t->dact, t->vals[loss].off, 1, 1.0f)))
+      return st;
+  }
+  for (int i = t->nnodes - 1; i >= 0; i--) {
+    const tnode *nd = &t->nodes[i];
+    if (!t->vals[nd->out].needs_grad) continue;
+    double t0 = t->prof ? prof_begin(t) : 0;
+    if ((st = HOST ? back_host(t, nd) : back_dev(t, nd))) return st;
+    if (t->prof) prof_end(t, nd->kind, 1, t0);
+  }
+  return SPX_OK;
+}
+
+spx_status spx_tape_zero_grad(spx_tape *t) {
+  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  if (HOST) {
+    memset(t->hgrad, 0, t->nparam * sizeof(double));
+    return SPX_OK;
+  }
+  return t->nparam ? spx_cl_fill_f32(t->ctx, t->grad, 0, t->nparam, 0.0f) : SPX_OK;
+}
+
+spx_status spx_tape_zero_moments(spx_tape *t) {
+  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  if (HOST) {
+    memset(t->hm, 0, t->nparam * sizeof(double));
+    memset(t->hv, 0, t->nparam * sizeof(double));
+    return SPX_OK;
+  }
+  spx_status st = SPX_OK;
+  if (t->nparam && !(st = spx_cl_fill_f32(t->ctx, t->m, 0, t->nparam, 0.0f)))
+    st = spx_cl_fill_f32(t->ctx, t->v, 0, t->nparam, 0.0f);
+  return st;
+}
+
+spx_status spx_tape_adam(spx_tape *t, double lr, double beta1, double beta2, double eps, int64_t step) {
+  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  if (step < 1) return spx_fail(t->ctx, SPX_E_ARG, "tape: Adam step number %lld < 1", (long long)step);
+  if (!t->nparam) return SPX_OK;
+  if (t->nparam > (size_t)INT32_MAX) return spx_fail(t->ctx, SPX_E_ARG, "tape: %zu parameters is too many", t->nparam);
+  spx_adam_params hp = {lr, beta1, beta2, eps, 0.0};
+  if (HOST) {
+    spx_ref_adam_step(&hp, step, t->hparam, t->hgrad, t->hm, t->hv, t->nparam);
+    return SPX_OK;
+  }
+  spx_tensor p = spx_tensor_view(t->param, 0, (int32_t)t->nparam, 1, 1, 1);
+  spx_tensor g = spx_tensor_view(t->grad, 0, (int32_t)t->nparam, 1, 1, 1);
+  spx_tensor m = spx_tensor_view(t->m, 0, (int32_t)t->nparam, 1, 1, 1);
+  spx_tensor v = spx_tensor_view(t->v, 0, (int32_t)t->nparam, 1, 1, 1);
+  return spx_adam_step(t->ctx, &hp, step, &p, &g, &m, &v);
+}

@@ -1,0 +1,103 @@
+/* Private: the autodiff tape of the network engine.
+ *
+ * A tape owns every float of a network: trainable parameters, their gradients and Adam moments
+ * (four flat slabs with the same layout, so an optimizer step is one kernel), non-trainable
+ * state (batch-norm running statistics), and an activation arena + activation-gradient arena
+ * for the forward/backward of one input shape.
+ *
+ * Values are small integer ids. Parameters and state are declared once (spx_tape_param /
+ * spx_tape_state, then spx_tape_alloc_params). A forward pass is bracketed by
+ * spx_tape_begin/spx_tape_end; every op call (spx_tape_conv, ...) creates its output value in
+ * the arena, runs the op and, in training mode, appends a node (kind, input/output ids, saved
+ * ids, integer args) to the tape. In inference mode nothing is recorded.
+ *
+ * Memory is planned once per input shape: when begin() sees a plan key it has not planned, the
+ * pass is a MEASURING pass: ops only assign arena offsets (bump allocation, deterministic) and
+ * run nothing; end() then sizes the arenas (grow-only) and asks the caller to run the pass again
+ *   do { spx_tape_begin(t, train, key); ...ops...; st = spx_tape_end(t, &again); } while (!st && again);
+ * so the steady state creates no buffers at all.
+ *
+ * spx_tape_backward(t, loss) walks the nodes in reverse; every op's backward ACCUMULATES into the
+ * gradients of its inputs (activation gradients are zeroed first; parameter gradients are only
+ * zeroed by spx_tape_zero_grad, so gradients of several backward passes add up).
+ *
+ * Two backends with identical semantics: DEVICE (float32 cl_mem slabs, the lib/nn launchers)
+ * and HOST (double arrays, the spx_ref_* references) used by the finite-difference test of the
+ * whole graph and as a double-precision oracle.
+ *
+ * Errors are sticky: after the first failing op every later op is a no-op returning -1, and
+ * end()/backward() return the recorded status. */
+#ifndef SPX_NN_TAPE_H
+#define SPX_NN_TAPE_H
+
+#include "nn/activations.h"
+#include "nn/tensor.h"
+
+typedef enum spx_tape_backend { SPX_TAPE_DEVICE = 0, SPX_TAPE_HOST = 1 } spx_tape_backend;
+
+typedef struct spx_tape spx_tape;
+
+spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **out);
+void spx_tape_destroy(spx_tape *t);
+spx_tape_backend spx_tape_get_backend(const spx_tape *t);
+
+/* ---- parameters and state (declare all, then allocate once) ---- */
+int spx_tape_param(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w); /* trainable */
+int spx_tape_state(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w); /* not trainable */
+/* Allocate and zero the param/grad/m/v and state slabs. */
+spx_status spx_tape_alloc_params(spx_tape *t);
+size_t spx_tape_param_count(const spx_tape *t); /* floats in the parameter slab */
+
+/* Host access to any value's data / gradient as float32 (values of the last forward, params,
+ * state). Gradients of state values do not exist. */
+spx_status spx_tape_read(spx_tape *t, int id, float *dst);
+spx_status spx_tape_write(spx_tape *t, int id, const float *src);
+spx_status spx_tape_read_grad(spx_tape *t, int id, float *dst);
+/* Host backend: direct double pointers (NULL on the device backend). */
+double *spx_tape_host(spx_tape *t, int id);
+double *spx_tape_host_grad(spx_tape *t, int id);
+/* Device backend: tensor views (mem NULL on the host backend). */
+spx_tensor spx_tape_tensor(const spx_tape *t, int id);
+spx_tensor spx_tape_grad_tensor(const spx_tape *t, int id);
+void spx_tape_shape(const spx_tape *t, int id, int32_t shape[4]);
+size_t spx_tape_numel(const spx_tape *t, int id);
+
+/* Optimizer slabs: exp_avg (m) and exp_avg_sq (v) of a parameter. */
+spx_status spx_tape_read_moments(spx_tape *t, int id, float *m, float *v);
+spx_status spx_tape_write_moments(spx_tape *t, int id, const float *m, const float *v);
+
+/* ---- forward passes ---- */
+spx_status spx_tape_begin(spx_tape *t, int train, uint64_t plan_key);
+spx_status spx_tape_end(spx_tape *t, int *again);
+int spx_tape_measuring(const spx_tape *t);
+/* Number of measuring (planning) passes so far. */
+int spx_tape_plan_count(const spx_tape *t);
+/* A new activation value filled from host data (ignored while measuring). */
+int spx_tape_input(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w, const float *data);
+
+/* Ops: each returns the output value id (-1 after an error). */
+/* k x k convolution, zero padding `pad`, stride 1. bias, scale, shift: value ids or -1.
+ * scale/shift/relu are the inference epilogue (not differentiable: only allowed when not
+ * training). */
+int spx_tape_conv(spx_tape *t, int x, int w, int bias, int pad, int scale, int shift, int relu);
+/* Batch norm over N,H,W in training mode (batch statistics; running_mean/var updated with
+ * momentum, unbiased variance, like torch.nn.BatchNorm2d). gamma/beta params, rmean/rvar state. */
+int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int rvar, float momentum, float eps);
+int spx_tape_act(spx_tape *t, spx_act_kind kind, float slope, int x);
+int spx_tape_maxpool2(spx_tape *t, int x);
+int spx_tape_upsample2(spx_tape *t, int x); /* bilinear x2, align_corners = true */
+int spx_tape_pad(spx_tape *t, int x, int left, int right, int top, int bottom);
+int spx_tape_concat(spx_tape *t, int a, int b); /* channels: [a, b] */
+/* mean |pred - target| as a 1-element value; must be the root of backward. */
+int spx_tape_l1(spx_tape *t, int pred, int target);
+
+/* ---- backward and optimizer ---- */
+spx_status spx_tape_backward(spx_tape *t, int loss);
+spx_status spx_tape_zero_grad(spx_tape *t);
+/* Zero the Adam moments (exp_avg, exp_avg_sq). */
+spx_status spx_tape_zero_moments(spx_tape *t);
+/* One Adam step (PyTorch semantics, no weight decay) over the whole parameter slab; `step` is the
+ * 1-based step number used for bias correction. */
+spx_status spx_tape_adam(spx_tape *t, double lr, double beta1, double beta2, double eps, int64_t step);
+
+#endif

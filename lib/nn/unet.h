@@ -1,0 +1,20 @@
+/* Private side of the UNet (lib/nn/unet.c): construction on either tape backend (the HOST one
+ * runs the double-precision references, used by the whole-graph finite-difference test) and
+ * access to the tape and value ids. The public API is smplpix/unet.h. */
+#ifndef SPX_NN_UNET_H
+#define SPX_NN_UNET_H
+
+#include "nn/tape.h"
+#include "smplpix/unet.h"
+
+/* Any width >= 1 (tests use tiny ones); backend DEVICE needs an open device. */
+spx_status spx_unet_create_ex(spx_ctx *ctx, int width, int sigmoid, uint64_t seed, spx_tape_backend backend,
+                              spx_unet **out);
+spx_tape *spx_unet_tape(spx_unet *u);
+/* Tape value id of a state_dict tensor (-1 if unknown). */
+int spx_unet_value_id(const spx_unet *u, const char *name);
+/* Value id of the loss / input of the last forward_loss (-1 if none). */
+int spx_unet_loss_id(const spx_unet *u);
+int spx_unet_input_id(const spx_unet *u);
+
+#endif

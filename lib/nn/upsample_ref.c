@@ -1,0 +1,59 @@
+/* Plain-C double references for kernels/upsample.cl (same formulas; backward is the
+ * straightforward scatter, so the device gather is checked against an independent formulation). */
+#include "nn/upsample.h"
+
+/* Source coordinate and weights exactly as PyTorch computes them for float tensors (scale,
+ * coordinate and lambda in float: at align_corners=true the float coordinate of a far output
+ * pixel is off by ~d*eps, and matching that is what "same semantics" means); the interpolation
+ * itself is then done in double. */
+static void src_index(int d, int in, int out, int align, int *i0, int *i1, double *l0, double *l1) {
+  float s;
+  if (align) {
+    float scale = out > 1 ? (float)(in - 1) / (float)(out - 1) : 0.0f;
+    s = scale * (float)d;
+  } else {
+    s = 0.5f * ((float)d + 0.5f) - 0.5f;
+  }
+  if (s < 0.0f) s = 0.0f;
+  int a = (int)s;
+  if (a > in - 1) a = in - 1;
+  *i0 = a;
+  *i1 = a + (a < in - 1);
+  float l = s - (float)a;
+  l = l < 0.0f ? 0.0f : (l > 1.0f ? 1.0f : l);
+  *l1 = l;
+  *l0 = 1.0f - l;
+}
+
+void spx_ref_upsample2x_forward(const double *x, int n, int c, int h, int w, int align_corners, double *y) {
+  int oh = 2 * h, ow = 2 * w;
+  for (int p = 0; p < n * c; p++)
+    for (int oy = 0; oy < oh; oy++)
+      for (int ox = 0; ox < ow; ox++) {
+        int h0, h1, w0, w1;
+        double lh0, lh1, lw0, lw1;
+        src_index(oy, h, oh, align_corners, &h0, &h1, &lh0, &lh1);
+        src_index(ox, w, ow, align_corners, &w0, &w1, &lw0, &lw1);
+        const double *q = x + (size_t)p * h * w;
+        y[((size_t)p * oh + oy) * ow + ox] =
+            lh0 * (lw0 * q[h0 * w + w0] + lw1 * q[h0 * w + w1]) + lh1 * (lw0 * q[h1 * w + w0] + lw1 * q[h1 * w + w1]);
+      }
+}
+
+void spx_ref_upsample2x_backward(const double *dy, int n, int c, int h, int w, int align_corners, double *dx) {
+  int oh = 2 * h, ow = 2 * w;
+  for (int p = 0; p < n * c; p++)
+    for (int oy = 0; oy < oh; oy++)
+      for (int ox = 0; ox < ow; ox++) {
+        int h0, h1, w0, w1;
+        double lh0, lh1, lw0, lw1;
+        src_index(oy, h, oh, align_corners, &h0, &h1, &lh0, &lh1);
+        src_index(ox, w, ow, align_corners, &w0, &w1, &lw0, &lw1);
+        double g = dy[((size_t)p * oh + oy) * ow + ox];
+        double *q = dx + (size_t)p * h * w;
+        q[h0 * w + w0] += lh0 * lw0 * g;
+        q[h0 * w + w1] += lh0 * lw1 * g;
+        q[h1 * w + w0] += lh1 * lw0 * g;
+        q[h1 * w + w1] += lh1 * lw1 * g;
+      }
+}

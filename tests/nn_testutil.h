@@ -1,0 +1,163 @@
+/* Test helpers for the network-engine ops (tests/test_nn_*.c):
+ *  - spx_fd_check: finite-difference gradient check of a double-precision reference op
+ *  - device tensor upload/download at a non-zero offset, device-vs-reference comparison
+ *  - a tiny text golden reader (tests/data/<op>/<name>.txt written by the make_<op>_golden.py scripts) */
+#ifndef SPX_NN_TESTUTIL_H
+#define SPX_NN_TESTUTIL_H
+
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "nn/tensor.h"
+#include "smplpix/smplpix.h"
+#include "test.h"
+
+/* ---------- finite differences ---------- */
+
+/* f: out[nout] = f(in[nin]).  b: din[nin] += J^T dout (must ACCUMULATE). */
+typedef void (*spx_fd_fwd)(void *user, const double *in, double *out);
+typedef void (*spx_fd_bwd)(void *user, const double *in, const double *dout, double *din);
+
+/* Central-difference check of b against f at `in`, with a random upstream gradient u:
+ * numeric g_i = (u.f(x+h e_i) - u.f(x-h e_i)) / 2h, analytic g = b(x, u) computed on top of a
+ * random pre-filled din (which is then subtracted, so non-accumulating backwards fail).
+ * Returns max_i |g_i - n_i| / max(max_i |n_i|, 1e-3): a relative error, ~1e-9 when right. */
+static inline double spx_fd_check(spx_fd_fwd f, spx_fd_bwd b, void *user, const double *in0, int nin, int nout,
+                                  double h, unsigned long long seed) {
+  double *x = malloc(sizeof(double) * (size_t)nin), *u = malloc(sizeof(double) * (size_t)nout);
+  double *y = malloc(sizeof(double) * (size_t)nout), *din = malloc(sizeof(double) * (size_t)nin);
+  double *pre = malloc(sizeof(double) * (size_t)nin);
+  double worst = 0, scale = 1e-3;
+  memcpy(x, in0, sizeof(double) * (size_t)nin);
+  for (int i = 0; i < nout; i++) u[i] = 2 * spx_t_uniform(&seed) - 1;
+  for (int i = 0; i < nin; i++) din[i] = pre[i] = 2 * spx_t_uniform(&seed) - 1;
+  b(user, x, u, din);
+  for (int i = 0; i < nin; i++) {
+    double a = din[i] - pre[i], lp = 0, lm = 0;
+    x[i] = in0[i] + h;
+    f(user, x, y);
+    for (int j = 0; j < nout; j++) lp += u[j] * y[j];
+    x[i] = in0[i] - h;
+    f(user, x, y);
+    for (int j = 0; j < nout; j++) lm += u[j] * y[j];
+    x[i] = in0[i];
+    double num = (lp - lm) / (2 * h);
+    if (fabs(num) > scale) scale = fabs(num);
+    din[i] = fabs(a - num); /* reuse as error store */
+  }
+  for (int i = 0; i < nin; i++)
+    if (din[i] > worst) worst = din[i];
+  free(x), free(u), free(y), free(din), free(pre);
+  return worst / scale;
+}
+
+/* ---------- random data ---------- */
+
+static inline void spx_nt_rand(float *a, size_t n, float lo, float hi, unsigned long long *s) {
+  for (size_t i = 0; i < n; i++) a[i] = lo + (hi - lo) * (float)spx_t_uniform(s);
+}
+static inline void spx_nt_to_double(const float *a, double *d, size_t n) {
+  for (size_t i = 0; i < n; i++) d[i] = a[i];
+}
+
+/* ---------- device tensors ---------- */
+
+#define SPX_NT_PAD 7 /* every test tensor sits at this offset, with this many guard floats after it */
+#define SPX_NT_GUARD 12345.0f
+
+/* Allocate a tensor at offset SPX_NT_PAD in its own buffer, guard floats around it, and upload
+ * data (NULL: zeros). */
+static inline spx_status spx_nt_upload(spx_ctx *ctx, const float *data, int n, int c, int h, int w, spx_tensor *t) {
+  size_t numel = (size_t)n * c * h * w, total = numel + 2 * SPX_NT_PAD;
+  *t = spx_tensor_view(NULL, SPX_NT_PAD, n, c, h, w);
+  spx_status st = spx_cl_alloc(ctx, total * sizeof(float), "test tensor", &t->mem);
+  if (st) return st;
+  if ((st = spx_cl_fill_f32(ctx, t->mem, 0, total, SPX_NT_GUARD))) return st;
+  if (data) return spx_cl_write(ctx, t->mem, SPX_NT_PAD * sizeof(float), numel * sizeof(float), data);
+  return spx_cl_fill_f32(ctx, t->mem, SPX_NT_PAD, numel, 0.0f);
+}
+static inline spx_status spx_nt_download(spx_ctx *ctx, const spx_tensor *t, float *out) {
+  return spx_cl_read(ctx, t->mem, t->off * sizeof(float), spx_tensor_numel(t) * sizeof(float), out);
+}
+/* 1 when the guard floats around t are untouched. */
+static inline int spx_nt_guards_ok(spx_ctx *ctx, const spx_tensor *t) {
+  float g[SPX_NT_PAD];
+  if (spx_cl_read(ctx, t->mem, 0, sizeof g, g)) return 0;
+  for (int i = 0; i < SPX_NT_PAD; i++)
+    if (g[i] != SPX_NT_GUARD) return 0;
+  if (spx_cl_read(ctx, t->mem, (t->off + spx_tensor_numel(t)) * sizeof(float), sizeof g, g)) return 0;
+  for (int i = 0; i < SPX_NT_PAD; i++)
+    if (g[i] != SPX_NT_GUARD) return 0;
+  return 1;
+}
+static inline void spx_nt_free(spx_tensor *t) { spx_cl_free(&t->mem); }
+
+/* max_i |dev_i - ref_i| / (atol + |ref_i|): <= rtol means "close" (atol keeps zeros sane). */
+static inline double spx_nt_err(const float *dev, const double *ref, size_t n, double atol) {
+  double worst = 0;
+  for (size_t i = 0; i < n; i++) {
+    if ((double)dev[i] == ref[i] || (isnan(dev[i]) && isnan(ref[i]))) continue; /* equal, incl. inf */
+    double e = fabs((double)dev[i] - ref[i]) / (atol + fabs(ref[i]));
+    if (!(e <= worst)) worst = e; /* NaN propagates */
+  }
+  return worst;
+}
+#define CHECK_CLOSE_ARR(dev, ref, n, atol, rtol)                                                   \
+  do {                                                                                             \
+    double spx_nt_e = spx_nt_err((dev), (ref), (n), (atol));                                       \
+    CHECK_MSG(spx_nt_e <= (rtol), "max relative error %.3g > %.3g", spx_nt_e, (double)(rtol));     \
+  } while (0)
+
+static inline spx_ctx *spx_nt_open(void) {
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx) != SPX_OK) return NULL;
+  if (spx_device_open(ctx, NULL) != SPX_OK) {
+    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
+    spx_ctx_destroy(ctx);
+    return NULL;
+  }
+  return ctx;
+}
+
+/* ---------- text goldens ----------
+ * File: one record per line, "name count v0 v1 ...", values as printed by Python repr/%.9g.
+ * spx_golden_get returns a malloc'd array of `count` doubles for `name` (NULL if absent). */
+static inline double *spx_golden_get(const char *path, const char *name, int *count) {
+  *count = 0;
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    fprintf(stderr, "cannot open golden %s\n", path);
+    return NULL;
+  }
+  char key[128];
+  int n;
+  double *out = NULL;
+  while (fscanf(f, "%127s %d", key, &n) == 2) {
+    if (n < 0 || n > 10000000) break;
+    int want = !strcmp(key, name);
+    double *v = want ? malloc(sizeof(double) * (size_t)(n ? n : 1)) : NULL;
+    int ok = 1;
+    for (int i = 0; i < n && ok; i++) {
+      double d;
+      ok = fscanf(f, "%lf", &d) == 1;
+      if (v) v[i] = d;
+    }
+    if (!ok) {
+      free(v);
+      break;
+    }
+    if (want) {
+      out = v;
+      *count = n;
+      break;
+    }
+  }
+  fclose(f);
+  if (!out) fprintf(stderr, "golden %s: no record %s\n", path, name);
+  return out;
+}
+
+#endif

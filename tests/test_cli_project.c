@@ -1,0 +1,153 @@
+/* `smplpix project` end to end: a good run, then hostile inputs → one-line error naming the file,
+ * exit code 1 (2 for usage), and no output file left behind. */
+#include <unistd.h>
+
+#include "smplpix/image.h"
+#include "smplpix/smplpix.h"
+#include "test.h"
+
+static char dir[512];
+
+static void write_text(const char *name, const char *text) {
+  char p[700];
+  snprintf(p, sizeof p, "%s/%s", dir, name);
+  FILE *f = fopen(p, "wb");
+  if (f) {
+    fputs(text, f);
+    fclose(f);
+  }
+}
+
+/* Run the tool with args; stderr goes to dir/err.txt. Returns the exit code. */
+static int tool(const char *args) {
+  char cmd[2048];
+  snprintf(cmd, sizeof cmd, "cd '%s' && '%s' %s >out.txt 2>err.txt", dir, spx_t_tool(), args);
+  return spx_t_system(cmd);
+}
+
+/* stderr is exactly one line and contains `needle` */
+static int err_one_line_with(const char *needle) {
+  char p[700], buf[4096] = "";
+  snprintf(p, sizeof p, "%s/err.txt", dir);
+  FILE *f = fopen(p, "rb");
+  if (!f) return 0;
+  size_t n = fread(buf, 1, sizeof buf - 1, f);
+  fclose(f);
+  buf[n] = 0;
+  int lines = 0;
+  for (size_t i = 0; i < n; i++) lines += buf[i] == '\n';
+  if (lines != 1 || !strstr(buf, needle)) {
+    fprintf(stderr, "  stderr was: %s", buf);
+    return 0;
+  }
+  return 1;
+}
+
+static int exists(const char *name) {
+  char p[700];
+  snprintf(p, sizeof p, "%s/%s", dir, name);
+  return spx_t_file_exists(p);
+}
+
+static void clean_outputs(void) {
+  char cmd[700];
+  snprintf(cmd, sizeof cmd, "cd '%s' && rm -f o.exr o.png o.npy o_*.exr", dir);
+  spx_t_system(cmd);
+}
+
+static const char *GOOD_CAM = "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
+                              " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}";
+static const char *GOOD_OBJ = "v 0 0 0 1 0 0\nv 0.1 0.1 0 0 1 0\nv -0.1 0.1 0.5 0 0 1\nf 1 2 3\n";
+
+static void test_good_run(void) {
+  clean_outputs();
+  write_text("cam.json", GOOD_CAM);
+  write_text("tri.obj", GOOD_OBJ);
+  CHECK(tool("project --mesh tri.obj --camera cam.json --out o.exr --png o.png --npy o.npy") == 0);
+  CHECK(exists("o.exr") && exists("o.png") && exists("o.npy"));
+  char p[700];
+  snprintf(p, sizeof p, "%s/o.exr", dir);
+  spx_ctx *ctx;
+  spx_ctx_create(&ctx);
+  spx_image img = {0};
+  CHECK_OK(ctx, spx_exr_read(ctx, p, &img));
+  CHECK(img.width == 64 && img.height == 48 && img.channels == 4);
+  if (img.data) {
+    /* vertex 0 at the principal point: pixel (32,24) red at depth 3 */
+    const float *px = img.data + 4 * (24 * 64 + 32);
+    CHECK(px[0] == 1 && px[1] == 0 && px[2] == 0 && px[3] == 3);
+    CHECK(img.data[0] == 1 && img.data[3] == 1); /* background */
+  }
+  spx_image_free(&img);
+  spx_ctx_destroy(ctx);
+  /* a camera array writes one image per camera */
+  clean_outputs();
+  write_text("cams.json", "[{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
+                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]},"
+                          "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
+                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,4]}]");
+  CHECK(tool("project --mesh tri.obj --camera cams.json --out o.exr") == 0);
+  CHECK(exists("o_000.exr") && exists("o_001.exr") && !exists("o.exr"));
+  clean_outputs();
+}
+
+/* a bad input: exit 1, one stderr line naming `needle`, no outputs */
+static void expect_fail(const char *args, const char *needle) {
+  clean_outputs();
+  int rc = tool(args);
+  CHECK_MSG(rc == 1, "exit %d for %s", rc, args);
+  CHECK_MSG(err_one_line_with(needle), "%s", args);
+  CHECK_MSG(!exists("o.exr") && !exists("o.png") && !exists("o.npy"), "output left by %s", args);
+}
+
+static void test_bad_inputs(void) {
+  write_text("cam.json", GOOD_CAM);
+  write_text("tri.obj", GOOD_OBJ);
+  write_text("trunc.obj", "v 0 0 0\nv 1 1\n");
+  write_text("garbage.obj", "\x7f\x45LF\x02\x01\x01 not an obj at all\nf 9 9 9\n");
+  write_text("nan.obj", "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  write_text("badidx.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n");
+  write_text("lying.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1000000\nproperty float x\n"
+                          "property float y\nproperty float z\nend_header\n\x01\x02\x03");
+  write_text("weird.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quaternion x\nend_header\n1\n");
+  write_text("noR.json", "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]], \"t\": [0,0,3]}");
+  write_text("skewR.json", "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
+                           " \"R\": [[1,0.1,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
+  write_text("zerof.json", "{\"width\": 64, \"height\": 48, \"K\": [[0,0,32],[0,60,24],[0,0,1]],"
+                           " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
+  write_text("huge.json", "{\"width\": 20000, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
+                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
+  write_text("notjson.json", "{\"width\": 64, \"height\": ");
+  expect_fail("project --mesh trunc.obj --camera cam.json --out o.exr", "trunc.obj");
+  expect_fail("project --mesh garbage.obj --camera cam.json --out o.exr", "garbage.obj");
+  expect_fail("project --mesh nan.obj --camera cam.json --out o.exr", "nan.obj");
+  expect_fail("project --mesh badidx.obj --camera cam.json --out o.exr", "badidx.obj");
+  expect_fail("project --mesh lying.ply --camera cam.json --out o.exr", "lying.ply");
+  expect_fail("project --mesh weird.ply --camera cam.json --out o.exr", "weird.ply");
+  expect_fail("project --mesh missing.obj --camera cam.json --out o.exr", "missing.obj");
+  expect_fail("project --mesh tri.obj --camera noR.json --out o.exr", "noR.json");
+  expect_fail("project --mesh tri.obj --camera skewR.json --out o.exr", "skewR.json");
+  expect_fail("project --mesh tri.obj --camera zerof.json --out o.exr", "zerof.json");
+  expect_fail("project --mesh tri.obj --camera huge.json --out o.exr", "huge.json");
+  expect_fail("project --mesh tri.obj --camera notjson.json --out o.exr", "notjson.json");
+  /* the second output cannot be written: the first must not stay behind */
+  expect_fail("project --mesh tri.obj --camera cam.json --out o.exr --png no/such/dir/o.png", "o.png");
+  /* a device that does not exist */
+  expect_fail("project --mesh tri.obj --camera cam.json --out o.exr --device 42:0", "42:0");
+}
+
+static void test_usage(void) {
+  CHECK(tool("project --mesh tri.obj") == 2);
+  CHECK(tool("project --mesh tri.obj --camera cam.json --out o.tiff") == 2);
+  CHECK(tool("project --bogus") == 2);
+  CHECK(tool("nosuchcommand") == 2);
+  CHECK(tool("project --help") == 0);
+}
+
+int main(void) {
+  snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
+  SPX_RUN(test_good_run);
+  SPX_RUN(test_bad_inputs);
+  SPX_RUN(test_usage);
+  return spx_test_summary();
+}
