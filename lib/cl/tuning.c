@@ -25,14 +25,24 @@ static const struct spx_tunable spx_tunables[] = {
     {"SPX_RASTER_SHADE_ITEMS", 65536, 65536},
     /* radix sort (kernels/radix_sort.cl): digit bits per pass, work-group size, keys per
      * work-item; local memory of the scatter = 4 * 2^BITS * WG bytes */
-    {"SPX_SORT_BITS", 8, 4},
-    {"SPX_SORT_WG", 64, 256},
-    {"SPX_SORT_ITEMS", 16, 4},
+    {"SPX_SORT_BITS", 9, 4},
+    {"SPX_SORT_WG", 1, 256},
+    {"SPX_SORT_ITEMS", 4096, 4},
     /* up to this many keys, the whole sort runs in one work-group launch (no scan passes) */
     {"SPX_SORT_SINGLE_MAX", 32768, 8192},
     /* projection (kernels/project.cl): up to this many projected points (B*C*N) the fused path
      * runs (project+background fill, then one single-work-group sort+unique+scatter launch) */
     {"SPX_PROJ_FAST_MAX", 32768, 8192},
+    /* 1: sort projection keys by pixel and depth (the paper's depth sort); 0: by pixel only, the
+     * nearest point of each (short) pixel run found by its head — same output, fewer passes */
+    {"SPX_PROJ_SORT_DEPTH", 0, 0},
+    /* from this many points on (0: never), the projection uses a counting sort by pixel (one
+     * pass, atomics for bucket slots) + a per-pixel nearest-point pass instead of the radix sort;
+     * on 2-core PoCL it measured no better than the radix sort at 10^6 points (both ~40-90 ms,
+     * noisy), so it is off; unmeasured on GPUs */
+    {"SPX_PROJ_COUNT_MIN", 0, 0},
+    /* background pixels written per work-item of spx_project_keys */
+    {"SPX_PROJ_FILL_PX", 64, 1},
     /* conv2d (kernels/conv2d.cl): forward register tile = CONV_TM out-channels x CONV_TN vectors
      * of CONV_VW pixels per work-item, CONV_LWS work-items per group (interleaved pixels) */
     {"CONV_VW", 16, 1},
