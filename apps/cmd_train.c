@@ -22,7 +22,8 @@ static void train_help(void) {
          "--epochs E / --steps S: train until E epochs / S optimizer steps in total are done.\n"
          "--resume continues from W (weights, optimizer state, step count, data order); --init starts\n"
          "from the weights of W0 with a fresh optimizer. After every epoch W is rewritten atomically and\n"
-         "the loss on DIR/validation (when present) is printed.\n");
+         "the loss on DIR/validation (when present: mean L1, and PSNR of the output clamped to [0,1]) is\n"
+         "printed, also once before the first step.\n");
 }
 
 typedef struct sample {
@@ -184,12 +185,13 @@ static void epoch_order(int *perm, int n, uint64_t seed, int64_t epoch, int shuf
   }
 }
 
-static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss) {
+/* Mean L1 over the validation set, and the mean PSNR (dB) of the output clamped to [0, 1]. */
+static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss, double *psnr) {
   size_t hw = (size_t)val->h * (size_t)val->w;
   float *in = malloc(SPX_UNET_IN_CHANNELS * hw * sizeof(float)), *tg = malloc(SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
   float *out = malloc(SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
   int rc = SPX_EXIT_OK;
-  double sum = 0;
+  double sum = 0, psum = 0;
   if (!in || !tg || !out) rc = spx_cli_errorf("train", "out of memory for validation");
   for (int i = 0; i < val->n && !rc; i++) {
     if ((rc = load_batch(ctx, val, &i, 1, in, tg))) break;
@@ -197,11 +199,17 @@ static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss) {
       rc = spx_cli_error("train", ctx);
       break;
     }
-    double s = 0;
-    for (size_t k = 0; k < SPX_UNET_OUT_CHANNELS * hw; k++) s += fabs((double)out[k] - (double)tg[k]);
+    double s = 0, se = 0;
+    for (size_t k = 0; k < SPX_UNET_OUT_CHANNELS * hw; k++) {
+      double o = out[k], e = (o < 0 ? 0 : o > 1 ? 1 : o) - (double)tg[k];
+      s += fabs(o - (double)tg[k]);
+      se += e * e;
+    }
     sum += s / (double)(SPX_UNET_OUT_CHANNELS * hw);
+    psum += se > 0 ? -10 * log10(se / (double)(SPX_UNET_OUT_CHANNELS * hw)) : 100;
   }
   *loss = val->n ? sum / val->n : 0;
+  *psnr = val->n ? psum / val->n : 0;
   free(in), free(tg), free(out);
   return rc;
 }
@@ -309,6 +317,12 @@ int spx_cmd_train(int argc, char **argv) {
   printf("train: %d pairs (%dx%d), %d validation, width %d, batch %ld, lr %g, %lld steps/epoch, step %lld -> %lld\n",
          tr.n, tr.w, tr.h, val.n, spx_unet_width(u), batch, lr, (long long)spe, (long long)spx_unet_step(u),
          (long long)target);
+  if (val.n && spx_unet_step(u) < target) { /* the starting point, to compare the epochs against */
+    double vl = 0, vp = 0;
+    if ((rc = validate(ctx, u, &val, &vl, &vp))) goto done;
+    printf("step %lld: validation L1 %.6f, PSNR %.2f dB\n", (long long)spx_unet_step(u), vl, vp);
+    fflush(stdout);
+  }
   double t0 = now_s(), ep_loss = 0;
   int ep_count = 0;
   int64_t cur_epoch = -1;
@@ -334,10 +348,10 @@ int spx_cmd_train(int argc, char **argv) {
     ep_count++;
     int end_epoch = pos == spe - 1, last = spx_unet_step(u) == target;
     if (end_epoch || last) {
-      double vl = 0;
-      if (val.n && (rc = validate(ctx, u, &val, &vl))) goto done;
+      double vl = 0, vp = 0;
+      if (val.n && (rc = validate(ctx, u, &val, &vl, &vp))) goto done;
       printf("epoch %lld step %lld: train L1 %.6f", (long long)epoch + 1, (long long)spx_unet_step(u), ep_loss / ep_count);
-      if (val.n) printf(", validation L1 %.6f", vl);
+      if (val.n) printf(", validation L1 %.6f, PSNR %.2f dB", vl, vp);
       printf(", %.1f s\n", now_s() - t0);
       fflush(stdout);
       ep_loss = 0;

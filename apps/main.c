@@ -8,6 +8,8 @@
 
 static const spx_command commands[] = {
     {"project", "project a colored mesh through camera(s) into RGB-D images", spx_cmd_project},
+    {"raster", "rasterize a mesh's triangles through camera(s) (the classic baseline)", spx_cmd_raster},
+    {"dataset", "write a training set: projections -> raster renders of one mesh", spx_cmd_dataset},
     {"render", "run a trained UNet on RGB-D image(s), or on a mesh through camera(s)", spx_cmd_render},
     {"train", "train the UNet on a data directory", spx_cmd_train},
     {"devices", "list OpenCL devices and warm the kernel cache", spx_cmd_devices},
