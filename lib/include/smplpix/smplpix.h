@@ -16,5 +16,6 @@
 #include "smplpix/render.h"
 
 #include "smplpix/body.h"
+#include "smplpix/fit.h"
 
 #endif
