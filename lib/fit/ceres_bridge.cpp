@@ -173,8 +173,6 @@ int spx_ceres_solve(spx_ceres_problem *p, const spx_ceres_options *o, spx_ceres_
   if (!p || !o || !s) return set_error("ceres solve", "bad argument"), -1;
   std::memset(s, 0, sizeof *s);
   try {
-    // logging off: keep glog's own messages (Ceres warnings) out of the tool's output
-    if (FLAGS_minloglevel < google::GLOG_ERROR) FLAGS_minloglevel = google::GLOG_ERROR;
     ceres::Solver::Options so;
     switch (o->linear_solver) {
       case SPX_LS_DENSE_QR: so.linear_solver_type = ceres::DENSE_QR; break;
@@ -194,10 +192,20 @@ int spx_ceres_solve(spx_ceres_problem *p, const spx_ceres_options *o, spx_ceres_
     if (!so.IsValid(&why)) return set_error("ceres solver options", why.c_str()), -1;
     if (p->prepare) p->prepare->failed = false;
     ceres::Solver::Summary sum;
-    ceres::Solve(so, p->problem.get(), &sum);
+    {
+      // logging off: Ceres reports failures through glog (LOG(ERROR)); the summary carries them
+      // here instead. The host's level is restored afterwards.
+      struct Quiet {
+        int saved = FLAGS_minloglevel;
+        Quiet() { FLAGS_minloglevel = std::max(saved, (int)google::GLOG_FATAL); }
+        ~Quiet() { FLAGS_minloglevel = saved; }
+      } quiet;
+      ceres::Solve(so, p->problem.get(), &sum);
+    }
     s->initial_cost = sum.initial_cost;
     s->final_cost = sum.final_cost;
-    s->iterations = (int32_t)(sum.num_successful_steps + sum.num_unsuccessful_steps);
+    // Ceres lists iteration 0 (the initial evaluation) too
+    s->iterations = sum.iterations.empty() ? 0 : (int32_t)sum.iterations.size() - 1;
     s->time_s = sum.total_time_in_seconds;
     switch (sum.termination_type) {
       case ceres::CONVERGENCE: s->termination = SPX_TERM_CONVERGENCE; break;

@@ -55,7 +55,7 @@ typedef enum spx_ceres_termination {
 
 typedef struct spx_ceres_summary {
   double initial_cost, final_cost; /* Ceres cost: 1/2 sum of (robustified) squared residuals */
-  int32_t iterations;              /* successful + unsuccessful steps */
+  int32_t iterations;              /* minimizer iterations (the initial evaluation not counted) */
   int32_t termination;             /* spx_ceres_termination */
   double time_s;
   char message[160];

@@ -1058,3 +1058,89 @@ spx_status spx_fit_result_mesh(spx_ctx *ctx, const spx_fit_result *r, spx_mesh *
   if (r->colors) memcpy(out->col, r->colors, (size_t)r->nv * 3 * sizeof(float));
   return SPX_OK;
 }
+
+/* ---------- finite-difference check of every residual's analytic Jacobian (tests) ---------- */
+
+/* Compares fn's Jacobian blocks with central differences at the given parameters; returns the
+ * worst |analytic - numeric| / max(1, |numeric|). */
+static double fd_check(spx_ceres_cost_fn fn, void *user, int nres, int nblk, const int *sizes, double **par,
+                       body_state *b) {
+  double worst = 0, *J[16], r0[64], rp[64], rm[64];
+  if (nres > 64 || nblk > 16) return INFINITY;
+  for (int k = 0; k < nblk; k++) J[k] = malloc((size_t)nres * (size_t)sizes[k] * sizeof(double));
+  if (b) body_prepare(b, 1, 1);
+  fn(user, (const double *const *)par, r0, J);
+  for (int k = 0; k < nblk; k++)
+    for (int c = 0; c < sizes[k]; c++) {
+      double x0 = par[k][c], h = 1e-6 * fmax(1.0, fabs(x0));
+      par[k][c] = x0 + h;
+      if (b) body_prepare(b, 0, 1);
+      fn(user, (const double *const *)par, rp, NULL);
+      par[k][c] = x0 - h;
+      if (b) body_prepare(b, 0, 1);
+      fn(user, (const double *const *)par, rm, NULL);
+      par[k][c] = x0;
+      for (int i = 0; i < nres; i++) {
+        double num = (rp[i] - rm[i]) / (2 * h), e = fabs(J[k][i * sizes[k] + c] - num) / fmax(1.0, fabs(num));
+        if (e > worst) worst = e;
+      }
+    }
+  for (int k = 0; k < nblk; k++) free(J[k]);
+  if (b) body_prepare(b, 1, 1);
+  return worst;
+}
+
+spx_status spx_fit_gradient_selftest(spx_ctx *ctx, const spx_body_model *m, double worst[6]) {
+  uint64_t s = 12345;
+#define U() ((double)(rng_next(&s) >> 11) * (1.0 / 9007199254740992.0) - 0.5)
+  for (int i = 0; i < 6; i++) worst[i] = 0;
+  /* rigid */
+  double z[3] = {0.3, -0.7, 0.2}, w[3] = {0.4, -0.2, 0.9}, sc[1] = {1.3}, t[3] = {0.1, 0.2, -0.3};
+  rigid_pair rp = {z, {0.5, 0.1, -0.2}, 0.7};
+  int rs[3] = {3, 1, 3};
+  double *rpar[3] = {w, sc, t};
+  worst[0] = fd_check(rigid_cost, &rp, 3, 3, rs, rpar, NULL);
+  /* body point-to-plane and point-to-point */
+  int32_t nb = m->nbetas < 4 ? m->nbetas : 4, K3 = 3 * m->nj, ncol = spx_body_nparams(m, nb);
+  body_state b;
+  memset(&b, 0, sizeof b);
+  b.ctx = ctx, b.m = m, b.nb = nb, b.ncol = ncol, b.bscale[0] = 1.1;
+  b.pose = malloc((size_t)K3 * sizeof(double));
+  b.betas = malloc((size_t)(nb ? nb : 1) * sizeof(double));
+  b.F = malloc((size_t)m->nv * 3 * sizeof(double));
+  b.J = malloc((size_t)m->nv * 3 * (size_t)ncol * sizeof(double));
+  if (!b.pose || !b.betas || !b.F || !b.J) {
+    free(b.pose), free(b.betas), free(b.F), free(b.J);
+    return spx_fail(ctx, SPX_E_NOMEM, "gradient self-test: out of memory");
+  }
+  for (int32_t i = 0; i < K3; i++) b.pose[i] = 0.6 * U();
+  for (int32_t i = 0; i < nb; i++) b.betas[i] = 2 * U();
+  for (int d = 0; d < 3; d++) b.trans[d] = U();
+  body_pair bp = {&b, m->nv / 3, {0.1, 0.2, 0.3}, {0.48, 0.6, 0.64}, 0.9};
+  int bs[4] = {K3, nb, 3, 1};
+  double *bpar[4] = {b.pose, b.betas, b.trans, b.bscale};
+  if (!nb) bs[1] = 3, bs[2] = 1, bpar[1] = b.trans, bpar[2] = b.bscale;
+  worst[1] = fd_check(body_plane_cost, &bp, 1, nb ? 4 : 3, bs, bpar, &b);
+  worst[2] = fd_check(body_point_cost, &bp, 3, nb ? 4 : 3, bs, bpar, &b);
+  /* priors */
+  double lims[64];
+  for (int i = 0; i < 64; i++) lims[i] = 0.1;
+  int n = K3 - 3 < 60 ? K3 - 3 : 60;
+  prior_data pl = {n, 0.5, 0, 3, 0, lims}, pp = {n, 0.3, 0, 3, 0, NULL};
+  int ps = n + 3;
+  double *ppar[1] = {b.pose};
+  worst[3] = fmax(fd_check(limit_cost, &pl, n, 1, &ps, ppar, NULL), fd_check(l2_prior_cost, &pp, n, 1, &ps, ppar, NULL));
+  /* free-vertex terms */
+  double x[5][3];
+  for (int i = 0; i < 5; i++)
+    for (int d = 0; d < 3; d++) x[i][d] = U();
+  lap_data ld = {4, 0.8, {0.01, -0.02, 0.03}};
+  int ls[5] = {3, 3, 3, 3, 3};
+  double *lpar[5] = {x[0], x[1], x[2], x[3], x[4]};
+  free_pair fp = {{0.1, 0.2, 0.3}, {0, 0.6, 0.8}, 1.3};
+  worst[4] = fd_check(lap_cost, &ld, 3, 5, ls, lpar, NULL);
+  worst[5] = fmax(fd_check(free_plane_cost, &fp, 1, 1, ls, lpar, NULL), fd_check(free_point_cost, &fp, 3, 1, ls, lpar, NULL));
+#undef U
+  free(b.pose), free(b.betas), free(b.F), free(b.J);
+  return SPX_OK;
+}
