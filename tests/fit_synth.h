@@ -86,7 +86,7 @@ static inline int synth_scan(const double *V, int32_t nv, const int32_t *F, int3
   int32_t removed = 0, target = (int32_t)(o->hole_frac * o->npoints);
   while (removed < target) {
     int32_t c = (int32_t)(synth_next(&s) % (uint64_t)o->npoints);
-    double rad = 0.03 + 0.05 * synth_uni(&s);
+    double rad = 0.015 + 0.025 * synth_uni(&s); /* patches of 1.5-4 cm radius */
     for (int32_t i = 0; i < o->npoints && removed < target; i++) {
       double dx = P[i * 3] - P[c * 3], dy = P[i * 3 + 1] - P[c * 3 + 1], dz = P[i * 3 + 2] - P[c * 3 + 2];
       if (keep[i] && dx * dx + dy * dy + dz * dz < rad * rad) keep[i] = 0, removed++;

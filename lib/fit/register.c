@@ -652,6 +652,7 @@ static spx_status stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_fi
     int nblk = 4;
     if (!nb) sizes[1] = 3, sizes[2] = 1, blocks[1] = b->trans, blocks[2] = b->bscale, nblk = 3;
     double a1 = sqrt(1.0 / w->nq);
+    int m2s_plane = getenv("SPX_M2S_POINT") == NULL;
     int32_t np = 0;
     for (int32_t i = 0; i < w->nq; i++) {
       if (w->d2[i] > thr * thr) continue;
@@ -669,9 +670,10 @@ static spx_status stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_fi
       body_pair *q = w->bp + np++;
       double a2 = sqrt(o->w_m2s * w->area[j] * w->msub_w);
       q->b = b, q->j = j, q->a = a2;
-      for (int d = 0; d < 3; d++) q->q[d] = w->Q[w->idx_m[j] * 3 + d];
-      if (spx_ceres_add_residual(pb, body_point_cost, q, 3, nblk, sizes, blocks, SPX_LOSS_CAUCHY,
-                                 a2 * 2 * robust)) {
+      for (int d = 0; d < 3; d++) q->q[d] = w->Q[w->idx_m[j] * 3 + d], q->n[d] = w->N[j * 3 + d];
+      /* point-to-plane (model normal): converges much faster than point-to-point */
+      if (spx_ceres_add_residual(pb, m2s_plane ? body_plane_cost : body_point_cost, q, m2s_plane ? 1 : 3, nblk, sizes,
+                                 blocks, SPX_LOSS_CAUCHY, a2 * 2 * robust)) {
         st = ceres_err(ctx, "pose");
         goto cleanup;
       }
