@@ -24,7 +24,7 @@ void spx_fit_options_default(spx_fit_options *o) {
   o->inner_iterations = 4;
   o->w_shape = 2e-3;
   o->w_pose = 1e-3;
-  o->w_pose_start = 0.03;
+  o->w_pose_start = 0.1;
   o->w_limits = 0.1;
   o->w_scale = 1.0;
   o->w_m2s = 1.0;
@@ -446,18 +446,6 @@ static int body_plane_cost(void *user, const double *const *par, double *res, do
   return 1;
 }
 
-static int body_point_cost(void *user, const double *const *par, double *res, double **jac) {
-  const body_pair *q = user;
-  const body_state *b = q->b;
-  int sb = b->nb ? 3 : 2;
-  double s = par[sb][0];
-  const double *F = b->F + (size_t)q->j * 3;
-  for (int d = 0; d < 3; d++) res[d] = q->a * (s * F[d] - q->q[d]);
-  static const double I3[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-  if (jac) body_jac_rows(b, q->j, I3, 3, s, q->a, jac, sb);
-  return 1;
-}
-
 typedef struct prior_data {
   int n;
   double w;
@@ -640,7 +628,7 @@ static spx_status stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_fi
     if ((st = spx_fit_kd_query(ctx, mt, w->Q, w->nq, 1, w->idx, w->d2, o->threads))) goto cleanup;
     if ((st = spx_fit_kd_query(ctx, qt, w->Vf, nv, 1, w->idx_m, w->d2_m, o->threads))) goto cleanup;
     double frac = steps > 1 ? (double)step / (steps - 1) : 1.0;
-    double thr = fmax(0.05, 0.3 * pow(0.5, step));
+    double thr = fmax(0.08, 0.3 * pow(0.7, step)); /* pair rejection distance (m) */
     double robust = o->robust_m * pow(4.0, 1.0 - frac); /* 4x → 1x */
     pb = spx_ceres_problem_create(body_prepare, b);
     if (!pb) {
@@ -652,7 +640,6 @@ static spx_status stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_fi
     int nblk = 4;
     if (!nb) sizes[1] = 3, sizes[2] = 1, blocks[1] = b->trans, blocks[2] = b->bscale, nblk = 3;
     double a1 = sqrt(1.0 / w->nq);
-    int m2s_plane = getenv("SPX_M2S_POINT") == NULL;
     int32_t np = 0;
     for (int32_t i = 0; i < w->nq; i++) {
       if (w->d2[i] > thr * thr) continue;
@@ -672,8 +659,7 @@ static spx_status stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_fi
       q->b = b, q->j = j, q->a = a2;
       for (int d = 0; d < 3; d++) q->q[d] = w->Q[w->idx_m[j] * 3 + d], q->n[d] = w->N[j * 3 + d];
       /* point-to-plane (model normal): converges much faster than point-to-point */
-      if (spx_ceres_add_residual(pb, m2s_plane ? body_plane_cost : body_point_cost, q, m2s_plane ? 1 : 3, nblk, sizes,
-                                 blocks, SPX_LOSS_CAUCHY, a2 * 2 * robust)) {
+      if (spx_ceres_add_residual(pb, body_plane_cost, q, 1, nblk, sizes, blocks, SPX_LOSS_CAUCHY, a2 * 2 * robust)) {
         st = ceres_err(ctx, "pose");
         goto cleanup;
       }
@@ -797,8 +783,9 @@ static spx_status stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_fi
       if (w->d2_m[j] <= thr * thr) {
         free_pair *q = w->fp + np++;
         q->a = sqrt(o->w_m2s * w->area[j]);
-        for (int d = 0; d < 3; d++) q->q[d] = w->Qf[w->idx_m[j] * 3 + d];
-        if (spx_ceres_add_residual(pb, free_point_cost, q, 3, 1, sizes, &blk, SPX_LOSS_CAUCHY, q->a * o->robust_m * 0.5)) {
+        for (int d = 0; d < 3; d++) q->q[d] = w->Qf[w->idx_m[j] * 3 + d], q->n[d] = w->N[j * 3 + d];
+        /* along the normal only: tangential sliding toward noisy samples would distort the mesh */
+        if (spx_ceres_add_residual(pb, free_plane_cost, q, 1, 1, sizes, &blk, SPX_LOSS_CAUCHY, q->a * o->robust_m * 0.5)) {
           st = ceres_err(ctx, "free");
           goto cleanup;
         }
@@ -1123,7 +1110,8 @@ spx_status spx_fit_gradient_selftest(spx_ctx *ctx, const spx_body_model *m, doub
   double *bpar[4] = {b.pose, b.betas, b.trans, b.bscale};
   if (!nb) bs[1] = 3, bs[2] = 1, bpar[1] = b.trans, bpar[2] = b.bscale;
   worst[1] = fd_check(body_plane_cost, &bp, 1, nb ? 4 : 3, bs, bpar, &b);
-  worst[2] = fd_check(body_point_cost, &bp, 3, nb ? 4 : 3, bs, bpar, &b);
+  bp.n[0] = -0.8, bp.n[1] = 0, bp.n[2] = 0.6, bp.j = m->nv - 1;
+  worst[2] = fd_check(body_plane_cost, &bp, 1, nb ? 4 : 3, bs, bpar, &b);
   /* priors */
   double lims[64];
   for (int i = 0; i < 64; i++) lims[i] = 0.1;
