@@ -22,6 +22,7 @@ void spx_fit_options_default(spx_fit_options *o) {
   o->pose_steps = 20;
   o->free_steps = 4;
   o->inner_iterations = 4;
+  o->free_inner_iterations = 2;
   o->w_shape = 2e-3;
   o->w_pose = 1e-3;
   o->w_pose_start = 0.1;
@@ -810,7 +811,7 @@ static spx_status stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_fi
     spx_ceres_options co;
     spx_ceres_options_default(&co);
     co.threads = o->threads;
-    co.max_iterations = o->inner_iterations;
+    co.max_iterations = o->free_inner_iterations > 0 ? o->free_inner_iterations : o->inner_iterations;
     co.linear_solver = SPX_LS_SPARSE_NORMAL_CHOLESKY;
     co.progress = getenv("SPX_FIT_CERES_PROGRESS") != NULL;
     spx_ceres_summary sum;

@@ -45,7 +45,8 @@ typedef struct spx_fit_options {
   double unit_scale;       /* 0: detect from the bounding box; else multiply the scan by it */
   int32_t max_points_rigid, max_points_pose, max_points_free; /* scan subsamples */
   int32_t pose_steps, free_steps; /* outer iterations (nearest neighbours rebuilt between) */
-  int32_t inner_iterations;       /* Ceres iterations per outer step */
+  int32_t inner_iterations;       /* Ceres iterations per outer step (pose stage) */
+  int32_t free_inner_iterations;  /* Ceres iterations per outer step (free stage) */
   double w_shape, w_pose, w_limits, w_scale; /* priors */
   double w_pose_start;            /* pose prior weight of the first pose step (annealed to w_pose) */
   double w_m2s;                   /* model → scan data weight (scan → model is 1) */
