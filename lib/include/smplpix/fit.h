@@ -13,7 +13,9 @@
  *                  uniform-Laplacian regulariser (Laplacian of x kept close to the model's), same
  *                  data terms.
  * Frames: "model frame" is the body model's space (metres); the scan is first multiplied by
- * unit_scale (1, 0.01 or 0.001), then x_scan_metres = sim_scale * sim_R * x_model + sim_t. */
+ * unit_scale (1, 0.01 or 0.001), then x_scan_metres = sim_scale * sim_R * x_model + sim_t.
+ * Ceres prints nothing unless the environment variable SPX_FIT_CERES_PROGRESS is set (debugging:
+ * per-iteration progress of every solve on stdout). */
 #ifndef SMPLPIX_FIT_H
 #define SMPLPIX_FIT_H
 
@@ -31,15 +33,15 @@ typedef struct spx_fit_progress {
   const char *stage;    /* "rigid", "pose", "free" */
   int32_t step, nsteps; /* outer iteration (1-based) of this stage */
   double energy;        /* final Ceres cost of this step (1/2 sum of robustified squares) */
-  double mean_dist;     /* mean scan → registration distance (metres, scan side, after units) */
+  double mean_dist;     /* mean scan → registration surface distance over the stage's scan sample
+                           (metres, after units); rigid: mean two-way nearest-point distance */
   double seconds;       /* since the stage started */
   const char *note;     /* a remark ("scan looks like millimetres, scaling by 0.001"), or NULL */
 } spx_fit_progress;
 typedef void (*spx_fit_progress_fn)(void *user, const spx_fit_progress *p);
 
 typedef struct spx_fit_options {
-  int stages;              /* SPX_FIT_* mask; RIGID is implied by POSE/FREE unless a prior
-                              similarity is given via init_* */
+  int stages;              /* SPX_FIT_* mask; the rigid stage always runs, FREE implies POSE */
   int threads;             /* Ceres + k-d tree threads (>= 1) */
   int nbetas;              /* shape directions fitted (-1: all of the model's) */
   double unit_scale;       /* 0: detect from the bounding box; else multiply the scan by it */
