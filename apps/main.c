@@ -5,6 +5,7 @@
 #include <time.h>
 
 #include "cli.h"
+#include "cmd_fit.h"
 
 static const spx_command commands[] = {
     {"project", "project a colored mesh through camera(s) into RGB-D images", spx_cmd_project},
@@ -12,6 +13,9 @@ static const spx_command commands[] = {
     {"dataset", "write a training set: projections -> raster renders of one mesh", spx_cmd_dataset},
     {"render", "run a trained UNet on RGB-D image(s), or on a mesh through camera(s)", spx_cmd_render},
     {"train", "train the UNet on a data directory", spx_cmd_train},
+    {"register", "register the body model to a 3-D scan (Ceres)", spx_cmd_register},
+    {"repose", "pose a registered person with a BVH frame", spx_cmd_repose},
+    {"reshape", "change a registered person's shape coefficients", spx_cmd_reshape},
     {"devices", "list OpenCL devices and warm the kernel cache", spx_cmd_devices},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
