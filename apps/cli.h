@@ -27,6 +27,9 @@ const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *ba
 
 /* Lower-case extension of path without the dot ("" if none). */
 void spx_cli_ext(const char *path, char *ext, size_t cap);
+/* Path of a file shipped in data/: under $SPX_DATA_DIR when set, else the installed copy
+ * (<datadir>/smplpix), else the source tree the tool was built from. Returns a static buffer. */
+const char *spx_cli_data_path(const char *rel);
 /* Monotonic clock in seconds. */
 double spx_cli_now(void);
 

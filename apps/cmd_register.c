@@ -9,10 +9,7 @@
 #include "cli.h"
 #include "cmd_fit.h"
 
-#ifndef SPX_DATA_DIR
-#define SPX_DATA_DIR "data"
-#endif
-#define DEFAULT_MODEL SPX_DATA_DIR "/body/default_body.npz"
+#define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
 
 static void print_progress(void *user, const spx_fit_progress *p) {
   (void)user;

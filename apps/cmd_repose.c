@@ -9,10 +9,7 @@
 #include "cli.h"
 #include "cmd_fit.h"
 
-#ifndef SPX_DATA_DIR
-#define SPX_DATA_DIR "data"
-#endif
-#define DEFAULT_MODEL SPX_DATA_DIR "/body/default_body.npz"
+#define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
 
 /* Load the registration and its model (--model, else the path recorded in the JSON, else the
  * default body) and check that they belong together. */

@@ -2,7 +2,9 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
+#include <stdlib.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "cmd_fit.h"
@@ -66,6 +68,19 @@ void spx_cli_ext(const char *path, char *ext, size_t cap) {
   if (dot && (!slash || dot > slash))
     for (const char *p = dot + 1; *p && i + 1 < cap; p++, i++) ext[i] = (char)((*p >= 'A' && *p <= 'Z') ? *p + 32 : *p);
   if (cap) ext[i] = 0;
+}
+
+const char *spx_cli_data_path(const char *rel) {
+  static char buf[4096];
+  const char *env = getenv("SPX_DATA_DIR");
+  const char *dirs[3] = {env && *env ? env : NULL, SPX_INSTALL_DATA_DIR, SPX_SOURCE_DATA_DIR};
+  for (int i = 0; i < 3; i++) {
+    if (!dirs[i]) continue;
+    snprintf(buf, sizeof buf, "%s/%s", dirs[i], rel);
+    if (access(buf, R_OK) == 0 || i == 0) return buf; /* an explicit $SPX_DATA_DIR is final */
+  }
+  snprintf(buf, sizeof buf, "%s/%s", SPX_SOURCE_DATA_DIR, rel);
+  return buf;
 }
 
 double spx_cli_now(void) {
