@@ -288,11 +288,11 @@ static void progress_show(progress *pg, int64_t step, int64_t epoch, double loss
     int fill = pg->total > 0 ? (int)(20 * step / pg->total) : 20;
     for (int k = 0; k < 20; k++) bar[k] = k < fill ? '#' : '.';
     bar[20] = 0;
-    fprintf(stderr, "\r\033[K[%s] step %lld/%lld  epoch %lld  loss %.6f  %.1f img/s  ETA %s", bar, (long long)step,
+    fprintf(stderr, "\r\033[K[%s] step %lld/%lld  epoch %lld  loss %.6f  %.3g img/s  ETA %s", bar, (long long)step,
             (long long)pg->total, (long long)epoch + 1, loss, ips, e);
     pg->bar_shown = 1;
   } else {
-    fprintf(stderr, "step %lld/%lld epoch %lld: loss %.6f, %.1f images/s, ETA %s\n", (long long)step,
+    fprintf(stderr, "step %lld/%lld epoch %lld: loss %.6f, %.3g images/s, ETA %s\n", (long long)step,
             (long long)pg->total, (long long)epoch + 1, loss, ips, e);
   }
   fflush(stderr);
