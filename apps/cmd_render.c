@@ -94,14 +94,21 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
     }
     for (int k = 0; k < n; k++) {
       char *p = spx_cli_indexed_path(outp, c0 + k, ncams);
-      if (!p || !spx_cli_remember(&wr, p)) {
-        free(p);
+      if (!p) {
         rc = spx_cli_errorf("render", "out of memory");
         goto done;
       }
+      /* remembered once written: a failed write (atomic) leaves whatever was at p alone */
       spx_app_batch b = {1, SPX_UNET_OUT_CHANNELS, H, W, 1, out + (size_t)k * SPX_UNET_OUT_CHANNELS * hw};
       if (spx_app_save(ctx, p, &b)) {
+        free(p);
         rc = spx_app_error("render", ctx);
+        goto done;
+      }
+      if (!spx_cli_remember(&wr, p)) {
+        remove(p);
+        free(p);
+        rc = spx_cli_errorf("render", "out of memory");
         goto done;
       }
     }
@@ -204,10 +211,7 @@ int spx_cmd_render(int argc, char **argv) {
     rc = net_error(ctx, st);
     goto done;
   }
-  if (spx_app_save(ctx, outp, &out)) {
-    rc = spx_app_error("render", ctx);
-    remove(outp);
-  }
+  if (spx_app_save(ctx, outp, &out)) rc = spx_app_error("render", ctx);
 done:
   spx_app_batch_free(&in);
   spx_app_batch_free(&out);

@@ -236,6 +236,9 @@ static void test_render_mesh(void) {
   CHECK_MSG(!spx_t_file_exists(p), "partial output f_000.npy left behind");
   path_in(p, sizeof p, "f_002.npy");
   CHECK(!spx_t_file_exists(p));
+  struct stat sb;
+  path_in(p, sizeof p, "f_001.npy");
+  CHECK_MSG(stat(p, &sb) == 0 && S_ISDIR(sb.st_mode), "the clean-up removed what was at the failing output's path");
 
   /* cameras of two sizes: error naming the camera file, no output */
   write_cameras(cams, 2, 1);
