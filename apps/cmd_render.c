@@ -33,9 +33,10 @@ static void render_help(void) {
 }
 
 /* Device memory errors get a hint on what to change. */
-static int net_error(spx_ctx *ctx, spx_status st) {
+static int net_error(spx_ctx *ctx, spx_status st, int n, int h, int w) {
   if (st == SPX_E_DEVMEM || st == SPX_E_NOMEM)
-    return spx_cli_errorf("render", "%s (try a smaller --batch, or smaller images)", spx_ctx_message(ctx));
+    return spx_cli_errorf("render", "the network on %d images of %dx%d: %s (try a smaller --batch, or smaller images)",
+                          n, w, h, spx_ctx_message(ctx));
   return spx_cli_error("render", ctx);
 }
 
@@ -89,7 +90,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
       goto done;
     }
     if ((st = spx_unet_forward(u, in, n, H, W, 0, out)) || (st = spx_device_finish(ctx))) {
-      rc = net_error(ctx, st);
+      rc = net_error(ctx, st, n, H, W);
       goto done;
     }
     for (int k = 0; k < n; k++) {
@@ -208,7 +209,7 @@ int spx_cmd_render(int argc, char **argv) {
     goto done;
   }
   if ((st = spx_unet_forward(u, in.data, in.n, in.h, in.w, 0, out.data)) || (st = spx_device_finish(ctx))) {
-    rc = net_error(ctx, st);
+    rc = net_error(ctx, st, in.n, in.h, in.w);
     goto done;
   }
   if (spx_app_save(ctx, outp, &out)) rc = spx_app_error("render", ctx);

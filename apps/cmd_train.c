@@ -248,9 +248,10 @@ static void on_sigint(int sig) {
 }
 
 /* A library failure during a step; device memory errors get a hint on what to change. */
-static int step_error(spx_ctx *ctx, spx_status st) {
+static int step_error(spx_ctx *ctx, spx_status st, int n, int h, int w, int width) {
   if (st == SPX_E_DEVMEM || st == SPX_E_NOMEM)
-    return spx_cli_errorf("train", "%s (try a smaller --batch or --width)", spx_ctx_message(ctx));
+    return spx_cli_errorf("train", "a step on %d images of %dx%d at width %d: %s (try a smaller --batch or --width)", n,
+                          w, h, width, spx_ctx_message(ctx));
   return spx_cli_error("train", ctx);
 }
 
@@ -265,7 +266,7 @@ static void fmt_eta(char *buf, size_t cap, double s) {
 typedef struct progress {
   int tty, bar_shown;
   int64_t start_step, total;
-  double t0;
+  double t0, last_draw;
   long images;
 } progress;
 
@@ -277,8 +278,12 @@ static void progress_clear(progress *pg) {
   }
 }
 
-static void progress_show(progress *pg, int64_t step, int64_t epoch, double loss) {
-  double el = now_s() - pg->t0, ips = el > 0 ? (double)pg->images / el : 0;
+/* The bar is redrawn at most 10 times a second (always when force). */
+static void progress_show(progress *pg, int64_t step, int64_t epoch, double loss, int force) {
+  double t = now_s();
+  if (pg->tty && !force && pg->bar_shown && t - pg->last_draw < 0.1) return;
+  pg->last_draw = t;
+  double el = t - pg->t0, ips = el > 0 ? (double)pg->images / el : 0;
   int64_t done = step - pg->start_step;
   double eta = done > 0 ? el / (double)done * (double)(pg->total - step) : 0;
   char e[32];
@@ -436,7 +441,7 @@ int spx_cmd_train(int argc, char **argv) {
     if ((st = spx_unet_zero_grad(u)) || (st = spx_unet_forward_loss(u, in, tg, count, tr.h, tr.w, NULL, &loss)) ||
         (st = spx_unet_backward(u)) || (st = spx_unet_adam_step(u, lr))) {
       progress_clear(&pg);
-      rc = step_error(ctx, st);
+      rc = step_error(ctx, st, count, tr.h, tr.w, spx_unet_width(u));
       goto done;
     }
     if (!isfinite(loss)) {
@@ -450,7 +455,7 @@ int spx_cmd_train(int argc, char **argv) {
     int64_t now_step = spx_unet_step(u);
     int end_epoch = pos == spe - 1, last = now_step == target;
     if (pg.tty || now_step % log_every == 0 || end_epoch || last)
-      progress_show(&pg, now_step, epoch, ep_loss / ep_count);
+      progress_show(&pg, now_step, epoch, ep_loss / ep_count, end_epoch || last);
     if (end_epoch || last) {
       double vl = 0, vp = 0;
       if (val.n && (rc = validate(ctx, u, &val, &vl, &vp))) goto done;

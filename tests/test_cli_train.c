@@ -304,7 +304,7 @@ static int run_interrupted(char *const *argv, const char *trigger, int nsig, cha
 
 static const char *last_epoch_line(const char *log, char *out, size_t cap) {
   char *s = slurp(log), *p = s, *hit = NULL;
-  while (p && (p = strstr(p, "epoch 6 step 30: train L1 "))) hit = p++;
+  while (p && (p = strstr(p, "epoch 10 step 50: train L1 "))) hit = p++;
   out[0] = 0;
   if (hit) {
     size_t n = strcspn(hit, ",\n");
@@ -326,24 +326,24 @@ static void test_train_interrupt(void) {
   const char *names[] = {"a", "b", "c", "d", "e"};
   for (int i = 0; i < 5; i++) make_pair(data, names[i], H, W, &s);
 
-  /* uninterrupted: 30 steps = 6 epochs of 5 */
-  snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --width 8 --steps 30 --lr 3e-3 --seed 4 --log-every 1", data, wa);
+  /* uninterrupted: 50 steps = 10 epochs of 5 */
+  snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --width 8 --steps 50 --lr 3e-3 --seed 4 --log-every 1", data, wa);
   CHECK(run(args, log) == 0);
-  CHECK(log_has(log, "step 1/30 epoch 1: loss ") && log_has(log, "images/s, ETA ") && log_has(log, "step 30/30"));
+  CHECK(log_has(log, "step 1/50 epoch 1: loss ") && log_has(log, "images/s, ETA ") && log_has(log, "step 50/50"));
   char la[256], lb[256];
   last_epoch_line(log, la, sizeof la);
   CHECK(la[0] != 0);
 
-  /* interrupted after step 3, then resumed to 30 */
-  char *argv[] = {"smplpix", "train", "--data", data, "--out", wb, "--width", "8", "--steps", "30", "--lr", "3e-3",
+  /* interrupted after step 3, then resumed to 50 */
+  char *argv[] = {"smplpix", "train", "--data", data, "--out", wb, "--width", "8", "--steps", "50", "--lr", "3e-3",
                   "--seed", "4", "--log-every", "1", NULL};
   char text[65536];
-  int rc = run_interrupted(argv, "step 3/30", 1, text, sizeof text);
+  int rc = run_interrupted(argv, "step 3/50", 1, text, sizeof text);
   CHECK_MSG(rc == 130, "exit status %d after SIGINT", rc);
   CHECK(strstr(text, "interrupted after step") && strstr(text, "wb.safetensors") && strstr(text, "--resume"));
   int64_t at = checkpoint_step(wb);
-  CHECK_MSG(at >= 3 && at < 30, "checkpoint after SIGINT at step %lld", (long long)at);
-  snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --steps 30 --lr 3e-3 --seed 4 --resume", data, wb);
+  CHECK_MSG(at >= 3 && at < 50, "checkpoint after SIGINT at step %lld", (long long)at);
+  snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --steps 50 --lr 3e-3 --seed 4 --resume", data, wb);
   CHECK(run(args, log) == 0);
   CHECK_MSG(same_checkpoints(wa, wb), "interrupted + resumed training differs from the straight run");
   last_epoch_line(log, lb, sizeof lb);
@@ -490,7 +490,9 @@ static void test_out_of_memory(void) {
   snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --width 32 --batch 100000 --steps 1", data, out);
   CHECK(run_err(args, log) == 1);
   CHECK(one_line(log));
-  CHECK_MSG(log_has(log, "GiB device buffer") && log_has(log, "try a smaller --batch or --width"),
+  char want[64];
+  snprintf(want, sizeof want, "a step on %ld images of 410x308 at width 32", n);
+  CHECK_MSG(log_has(log, want) && log_has(log, "GiB device buffer") && log_has(log, "try a smaller --batch or --width"),
             "no out-of-memory message (see %s)", log);
   CHECK(!spx_t_file_exists(out));
 }
