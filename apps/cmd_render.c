@@ -24,10 +24,11 @@ static void render_help(void) {
          "Runs the UNet of checkpoint W (milesial state_dict names; base width read from the file) on\n"
          "the RGB-D image P (EXR channels R,G,B,Z; a PNG or a 3-channel image gets depth 1; .npy is\n"
          "HxWx4, or Nx4xHxW for a batch, which then needs a .npy output) and writes the RGB result.\n"
+         "A 3-channel input (RGB PNG or EXR, HxWx3 .npy) gets depth 1 (the background); fewer is an error.\n"
          "With --mesh/--camera the RGB-D input is the projection of the mesh's vertices (as `smplpix\n"
          "project`, --color as there); a camera array of N cameras writes I_000.png ... I_<N-1>.png, the\n"
-         "cameras going through the network B at a time (--batch, default 4). Nothing is written when\n"
-         "any camera fails.\n"
+         "cameras going through the network B at a time (--batch, default 4; also for an Nx4xHxW .npy).\n"
+         "Nothing is written when any camera fails.\n"
          "--sigmoid overrides the checkpoint's output sigmoid flag (metadata smplpix.sigmoid).\n"
          "PNG output is clamped to [0, 1]; height and width must be at least 16.\n");
 }
@@ -208,9 +209,15 @@ int spx_cmd_render(int argc, char **argv) {
     rc = spx_cli_errorf("render", "out of memory for a %dx%d output", out.w, out.h);
     goto done;
   }
-  if ((st = spx_unet_forward(u, in.data, in.n, in.h, in.w, 0, out.data)) || (st = spx_device_finish(ctx))) {
-    rc = net_error(ctx, st, in.n, in.h, in.w);
-    goto done;
+  size_t hw = (size_t)in.h * (size_t)in.w;
+  for (int i0 = 0; i0 < in.n; i0 += (int)batch) { /* an Nx4xHxW batch goes through --batch at a time */
+    int n = in.n - i0 < batch ? in.n - i0 : (int)batch;
+    if ((st = spx_unet_forward(u, in.data + (size_t)i0 * SPX_UNET_IN_CHANNELS * hw, n, in.h, in.w, 0,
+                               out.data + (size_t)i0 * SPX_UNET_OUT_CHANNELS * hw)) ||
+        (st = spx_device_finish(ctx))) {
+      rc = net_error(ctx, st, n, in.h, in.w);
+      goto done;
+    }
   }
   if (spx_app_save(ctx, outp, &out)) rc = spx_app_error("render", ctx);
 done:
