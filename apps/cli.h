@@ -49,7 +49,8 @@ typedef struct spx_cli_written {
   char **paths;
   int n, cap;
 } spx_cli_written;
-/* Take ownership of path (malloc'd); 0 when out of memory (path is then not owned). */
+/* Take ownership of path (malloc'd) once the file is written (never before: a failed atomic write
+ * leaves what was there, which must not be removed); 0 when out of memory (path is then not owned). */
 int spx_cli_remember(spx_cli_written *w, char *path);
 /* Remove every remembered file when failed, then free the list. */
 void spx_cli_written_finish(spx_cli_written *w, int failed);

@@ -317,13 +317,19 @@ int spx_cmd_dataset(int argc, char **argv) {
   snprintf(path, plen, "%s/cameras.json", dir);
   char *cp = strdup(path);
   free(path);
-  if (!cp || !spx_cli_remember(&w, cp)) {
-    free(cp);
+  if (!cp) {
     rc = spx_cli_errorf("dataset", "out of memory");
     goto done;
   }
-  if (spx_camera_save(ctx, cp, cams, ncams)) {
+  if (spx_camera_save(ctx, cp, cams, ncams)) { /* atomic: a failed write leaves what was at cp */
+    free(cp);
     rc = spx_cli_error("dataset", ctx);
+    goto done;
+  }
+  if (!spx_cli_remember(&w, cp)) {
+    remove(cp);
+    free(cp);
+    rc = spx_cli_errorf("dataset", "out of memory");
     goto done;
   }
 
@@ -352,15 +358,21 @@ int spx_cmd_dataset(int argc, char **argv) {
       for (int io = 0; io < 2; io++) {
         size_t len = strlen(dir) + 64;
         char *p = malloc(len);
-        if (!p || !spx_cli_remember(&w, p)) {
-          free(p);
+        if (!p) {
           rc = spx_cli_errorf("dataset", "out of memory");
           goto done;
         }
         snprintf(p, len, "%s/%s/%s/view_%04d.%s", dir, names[which[v]], io ? "output" : "input", v, io ? "png" : fmt);
         spx_image img = {Wc, Hc, 4, (io ? rast_img : proj_img) + per * (size_t)c};
-        if (spx_cli_write_image(ctx, p, &img)) {
+        if (spx_cli_write_image(ctx, p, &img)) { /* atomic: a failed write leaves what was at p */
+          free(p);
           rc = spx_cli_error("dataset", ctx);
+          goto done;
+        }
+        if (!spx_cli_remember(&w, p)) {
+          remove(p);
+          free(p);
+          rc = spx_cli_errorf("dataset", "out of memory");
           goto done;
         }
       }

@@ -101,13 +101,19 @@ int spx_cmd_project(int argc, char **argv) {
     for (int k = 0; k < 3; k++) {
       if (!outs[k]) continue;
       char *p = spx_cli_indexed_path(outs[k], c, ncams);
-      if (!p || !spx_cli_remember(&w, p)) {
-        free(p);
+      if (!p) {
         rc = spx_cli_errorf("project", "out of memory");
         goto done;
       }
-      if (spx_cli_write_image(ctx, p, &img)) {
+      if (spx_cli_write_image(ctx, p, &img)) { /* atomic: a failed write leaves what was at p */
+        free(p);
         rc = spx_cli_error("project", ctx);
+        goto done;
+      }
+      if (!spx_cli_remember(&w, p)) {
+        remove(p);
+        free(p);
+        rc = spx_cli_errorf("project", "out of memory");
         goto done;
       }
     }

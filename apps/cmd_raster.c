@@ -156,13 +156,19 @@ int spx_cmd_raster(int argc, char **argv) {
   for (int c = 0; c < ncams; c++) {
     spx_image img = {W, H, 4, images + per * (size_t)c};
     char *p = spx_cli_indexed_path(out, c, ncams);
-    if (!p || !spx_cli_remember(&w, p)) {
-      free(p);
+    if (!p) {
       rc = spx_cli_errorf("raster", "out of memory");
       goto done;
     }
-    if (spx_cli_write_image(ctx, p, &img)) {
+    if (spx_cli_write_image(ctx, p, &img)) { /* atomic: a failed write leaves what was at p */
+      free(p);
       rc = spx_cli_error("raster", ctx);
+      goto done;
+    }
+    if (!spx_cli_remember(&w, p)) {
+      remove(p);
+      free(p);
+      rc = spx_cli_errorf("raster", "out of memory");
       goto done;
     }
   }
