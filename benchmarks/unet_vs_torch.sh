@@ -48,7 +48,7 @@ for wd in $WIDTHS; do
   for r in "eval 1" "train 1" "train 4"; do
     set -- $r
     if [ "$1" = eval ]; then flags="--no-train --eval-batch $2"; else flags="--no-eval --batch $2"; fi
-    echo "== width $wd, $1 batch $2" | tee -a "$RAW"
+    echo "== width $wd, $1 batch $2 (load $(cut -d' ' -f1 /proc/loadavg))" | tee -a "$RAW"
     "$BENCH" --width "$wd" --size "$SIZE" --reps "$reps" $flags | tee -a "$RAW"
     if [ $peer = 1 ]; then
       "$PYTHON" "$HERE/peer_unet_torch.py" --width "$wd" --size "$SIZE" --reps "$reps" $flags | tee -a "$RAW"
