@@ -3,7 +3,7 @@ BUILD    ?= build
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build demo train-demo test asan fuzz bench install clean
+.PHONY: all deps build demo train-demo test asan fuzz bench bench-unet install clean
 
 all: build
 
@@ -62,6 +62,11 @@ fuzz: deps
 
 bench: build
 	sh benchmarks/run.sh $(BUILD)
+
+# The UNet against PyTorch CPU (widths 16 and 64; eval b1, train b1, train b4), one table; ~10 min
+# on 2 cores. The torch side is skipped, saying so, when /usr/bin/python3 cannot import torch.
+bench-unet: build
+	sh benchmarks/unet_vs_torch.sh $(BUILD)
 
 PREFIX ?= /usr/local
 install: build
