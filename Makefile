@@ -3,7 +3,7 @@ BUILD    ?= build
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build demo test asan fuzz bench install clean
+.PHONY: all deps build demo test asan fuzz bench bench-latency install clean
 
 all: build
 
@@ -46,6 +46,11 @@ fuzz: deps
 
 bench: build
 	sh benchmarks/run.sh $(BUILD)
+
+# Renderer latency vs vertex count (also part of `make bench`): table on stdout,
+# out/bench/latency.{csv,json,png}.
+bench-latency: build
+	$(BUILD)/benchmarks/bench_latency
 
 PREFIX ?= /usr/local
 install: build
