@@ -34,32 +34,47 @@ double bench_cpu_now(void) {
   return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
+int bench_time_interleaved(bench_frame_fn fn, void **users, int n, int warmup, int frames, double slow_s,
+                           int slow_frames, bench_stats *out, double *cpu_ms) {
+  double slowest = 0;
+  int rc;
+  for (int i = 0; i < n; i++)
+    for (int f = 0; f < warmup; f++) {
+      double t0 = spx_now();
+      if ((rc = fn(users[i]))) return rc;
+      if (f == warmup - 1) slowest = fmax(slowest, spx_now() - t0);
+    }
+  if (warmup > 0 && slowest > slow_s && slow_frames < frames) frames = slow_frames;
+  if (frames < 1) frames = 1;
+  double *t = malloc(sizeof(double) * (size_t)frames * (size_t)n), *cpu = calloc((size_t)n, sizeof(double));
+  if (!t || !cpu) {
+    free(t);
+    free(cpu);
+    return -1;
+  }
+  for (int f = 0; f < frames; f++)
+    for (int i = 0; i < n; i++) {
+      double c0 = bench_cpu_now(), t0 = spx_now();
+      if ((rc = fn(users[i]))) {
+        free(t);
+        free(cpu);
+        return rc;
+      }
+      t[(size_t)i * frames + f] = spx_now() - t0;
+      cpu[i] += bench_cpu_now() - c0;
+    }
+  for (int i = 0; i < n; i++) {
+    out[i] = bench_summarize(t + (size_t)i * frames, frames);
+    if (cpu_ms) cpu_ms[i] = 1e3 * cpu[i] / frames;
+  }
+  free(t);
+  free(cpu);
+  return 0;
+}
+
 int bench_time(bench_frame_fn fn, void *user, int warmup, int frames, double slow_s, int slow_frames,
                bench_stats *out, double *cpu_ms) {
-  double last = 0;
-  int rc;
-  for (int f = 0; f < warmup; f++) {
-    double t0 = spx_now();
-    if ((rc = fn(user))) return rc;
-    last = spx_now() - t0;
-  }
-  if (warmup > 0 && last > slow_s && slow_frames < frames) frames = slow_frames;
-  if (frames < 1) frames = 1;
-  double *t = malloc(sizeof(double) * (size_t)frames);
-  if (!t) return -1;
-  double c0 = bench_cpu_now();
-  for (int f = 0; f < frames; f++) {
-    double t0 = spx_now();
-    if ((rc = fn(user))) {
-      free(t);
-      return rc;
-    }
-    t[f] = spx_now() - t0;
-  }
-  if (cpu_ms) *cpu_ms = 1e3 * (bench_cpu_now() - c0) / frames;
-  *out = bench_summarize(t, frames);
-  free(t);
-  return 0;
+  return bench_time_interleaved(fn, &user, 1, warmup, frames, slow_s, slow_frames, out, cpu_ms);
 }
 
 int bench_mesh_levels(spx_ctx *ctx, const char *path, int levels, spx_mesh *out) {

@@ -28,6 +28,12 @@ typedef int (*bench_frame_fn)(void *user);
  * timed. *cpu_ms (optional): mean process CPU ms per timed frame. Returns 0 or the frame's error. */
 int bench_time(bench_frame_fn fn, void *user, int warmup, int frames, double slow_s, int slow_frames,
                bench_stats *out, double *cpu_ms);
+/* The same for n workloads (users[i]) timed round-robin, frame by frame (0, 1, .., n-1, 0, 1, ..),
+ * so that their ratios see the same machine load; out[i], cpu_ms[i] per workload. Every workload
+ * gets `warmup` frames first; the slowest last warm-up frame decides between frames and
+ * slow_frames for all. */
+int bench_time_interleaved(bench_frame_fn fn, void **users, int n, int warmup, int frames, double slow_s,
+                           int slow_frames, bench_stats *out, double *cpu_ms);
 
 /* The mesh at path and its Loop subdivisions: out[0] = the mesh, out[l] = l subdivisions, for
  * l < levels. Returns 0, or nonzero with the reason in ctx. */

@@ -19,6 +19,9 @@
  *                    per-vertex colours: glBufferSubData of positions + colours, draw, glReadPixels.
  * Per row: warm-up frames, then median / min / max wall ms over N frames (fewer, --slow-frames,
  * for rows whose warm-up frame takes over 1 s: the width-64 UNet on a CPU), and process CPU ms.
+ * The three meshes are timed round-robin, frame by frame, so a row's growth ratios see the same
+ * machine load (the machine this was written on is shared); llvmpipe holds one mesh at a time,
+ * so its three sizes run one after another.
  * Output: a table on stdout, out/bench/latency.csv, out/bench/latency.json, out/bench/latency.png.
  *
  *   bench_latency [--frames N (21)] [--slow-frames N (5)] [--warmup N (2)] [--widths 64,32,16]
@@ -171,15 +174,13 @@ int main(int argc, char **argv) {
   int mesh_has_uv = meshes[0].uv && meshes[0].face_uv;
 
   enum { TW = 1024, TH = 1024 };
-  float *tex = malloc(sizeof(float) * TW * TH * 3), *out = malloc(sizeof(float) * 4 * npx);
-  float *ref = malloc(sizeof(float) * 4 * npx);
-  if (!tex || !out || !ref) DIE("out of memory");
+  float *tex = malloc(sizeof(float) * TW * TH * 3);
+  if (!tex) DIE("out of memory");
   bench_checker_texture(tex, TW, TH);
 
   spx_projector *proj = NULL;
-  spx_rasterizer *rast = NULL;
   spx_unet *nets[MAXW] = {NULL};
-  if (spx_projector_create(ctx, &proj) || spx_rasterizer_create(ctx, &rast)) DIE("setup");
+  if (spx_projector_create(ctx, &proj)) DIE("setup");
   for (int k = 0; k < nw; k++)
     if (spx_unet_create(ctx, widths[k], 0, 1 + (uint64_t)k, &nets[k])) DIE("unet width %d", widths[k]);
   cl_mem dpos = NULL, dcol = NULL, dimg = NULL;
@@ -208,8 +209,9 @@ int main(int argc, char **argv) {
   printf("UNet weights are random (PyTorch default init): latency does not depend on their values\n");
   printf("textured rows: %s, 1024x1024 procedural checker texture\n",
          mesh_has_uv ? "the mesh's UVs" : "the mesh has no UVs: spherical UVs generated");
-  printf("%d warm-up frames, then %d timed (%d when a warm-up frame takes > %.0f s); wall ms median [min, max]; "
-         "cpu = process CPU ms per frame (all threads)\n\n",
+  printf("%d warm-up frames, then %d timed (%d when a warm-up frame takes > %.0f s), the three meshes round-robin "
+         "frame by frame (llvmpipe: one after another); wall ms median [min, max]; cpu = process CPU ms per frame "
+         "(all threads)\n\n",
          warmup, frames, slow_frames, SLOW_S);
 
   row rows[NROWS];
@@ -238,73 +240,96 @@ int main(int argc, char **argv) {
   printf("%-20s %8s %8s %6s  %-28s %9s %9s\n", "renderer", "verts", "faces", "frames", "median [min, max] ms",
          "cpu ms", "drawn px");
   char checks[LEVELS][256];
+  /* per level: colours, UVs, an output image, a rasterizer (its faces/UVs/texture stay resident) */
+  float *cols[LEVELS] = {NULL}, *uvs[LEVELS] = {NULL}, *outs[LEVELS] = {NULL}, *refs[LEVELS] = {NULL};
+  spx_rasterizer *rasts[LEVELS] = {NULL};
+  frame_job jobs[LEVELS];
+  void *users[LEVELS];
+  memset(jobs, 0, sizeof jobs);
   for (int l = 0; l < LEVELS; l++) {
     const spx_mesh *m = &meshes[l];
-    float *col = malloc(sizeof(float) * 3 * (size_t)m->nv), *uv = NULL;
-    if (!col || bench_colours_from_normals(m, col)) DIE("out of memory");
+    cols[l] = malloc(sizeof(float) * 3 * (size_t)m->nv);
+    outs[l] = malloc(sizeof(float) * 4 * npx);
+    refs[l] = malloc(sizeof(float) * 4 * npx);
+    if (!cols[l] || !outs[l] || !refs[l] || bench_colours_from_normals(m, cols[l])) DIE("out of memory");
     if (!mesh_has_uv) {
-      if (!(uv = malloc(sizeof(float) * 2 * (size_t)m->nv))) DIE("out of memory");
-      bench_spherical_uv(m, uv);
+      if (!(uvs[l] = malloc(sizeof(float) * 2 * (size_t)m->nv))) DIE("out of memory");
+      bench_spherical_uv(m, uvs[l]);
     }
-    frame_job j;
-    memset(&j, 0, sizeof j);
-    j.ctx = ctx, j.proj = proj, j.rast = rast, j.gl = gl, j.pos = m->pos, j.col = col, j.cam = &cam;
-    j.nv = m->nv, j.W = W, j.H = H, j.out = out, j.dpos = dpos, j.dcol = dcol, j.dimg = dimg;
-    spx_project_args pa = {1, m->nv, m->pos, col, 1, &cam, SPX_LAYOUT_HWC};
+    if (spx_rasterizer_create(ctx, &rasts[l])) DIE("rasterizer");
+    frame_job *j = &jobs[l];
+    j->ctx = ctx, j->proj = proj, j->rast = rasts[l], j->gl = gl, j->pos = m->pos, j->col = cols[l], j->cam = &cam;
+    j->nv = m->nv, j->W = W, j->H = H, j->out = outs[l], j->dpos = dpos, j->dcol = dcol, j->dimg = dimg;
+    spx_project_args pa = {1, m->nv, m->pos, cols[l], 1, &cam, SPX_LAYOUT_HWC};
     spx_project_dev_args da = {1, m->nv, dpos, dcol, 1, &cam, SPX_LAYOUT_NCHW};
-    j.pa = pa, j.da = da;
-    for (int r = 0; r < nr; r++) {
-      if (!rows[r].present) continue;
+    j->pa = pa, j->da = da;
+    users[l] = j;
+    snprintf(checks[l], sizeof checks[l], "%d v: no llvmpipe image", m->nv);
+  }
+  for (int r = 0; r < nr; r++) {
+    if (!rows[r].present) continue;
+    for (int l = 0; l < LEVELS; l++) {
+      const spx_mesh *m = &meshes[l];
+      frame_job *j = &jobs[l];
       if (r == r_proj) {
-        j.k = K_PROJECT;
+        j->k = K_PROJECT;
       } else if (r == r_pref) {
-        j.k = K_PROJECT_REF;
+        j->k = K_PROJECT_REF;
       } else if (r < r_rast) {
-        j.k = K_UNET, j.unet = nets[r - r_unet0];
+        j->k = K_UNET, j->unet = nets[r - r_unet0];
       } else if (r < r_gl) {
         int mode = r - r_rast;
-        j.k = K_RASTER;
-        memset(&j.ra, 0, sizeof j.ra);
-        j.ra.nverts = m->nv, j.ra.pos = m->pos, j.ra.col = col, j.ra.nfaces = m->nf, j.ra.faces = m->faces;
-        j.ra.ncams = 1, j.ra.cams = &cam, j.ra.aa = mode == 2 ? 2 : 1, j.ra.layout = SPX_LAYOUT_HWC;
-        j.ra.static_id = (uint32_t)(l * 3 + mode + 1);
+        j->k = K_RASTER;
+        memset(&j->ra, 0, sizeof j->ra);
+        j->ra.nverts = m->nv, j->ra.pos = m->pos, j->ra.col = cols[l], j->ra.nfaces = m->nf, j->ra.faces = m->faces;
+        j->ra.ncams = 1, j->ra.cams = &cam, j->ra.aa = mode == 2 ? 2 : 1, j->ra.layout = SPX_LAYOUT_HWC;
+        j->ra.static_id = (uint32_t)(mode + 1);
         if (mode) {
-          j.ra.nuv = mesh_has_uv ? m->nuv : m->nv, j.ra.uv = mesh_has_uv ? m->uv : uv;
-          j.ra.face_uv = mesh_has_uv ? m->face_uv : m->faces;
-          j.ra.tex = tex, j.ra.tex_width = TW, j.ra.tex_height = TH, j.ra.tex_channels = 3;
-          j.ra.wrap = SPX_WRAP_REPEAT;
+          j->ra.nuv = mesh_has_uv ? m->nuv : m->nv, j->ra.uv = mesh_has_uv ? m->uv : uvs[l];
+          j->ra.face_uv = mesh_has_uv ? m->face_uv : m->faces;
+          j->ra.tex = tex, j->ra.tex_width = TW, j->ra.tex_height = TH, j->ra.tex_channels = 3;
+          j->ra.wrap = SPX_WRAP_REPEAT;
         }
       } else {
-        j.k = K_GL;
-        if (peer_llvmpipe_upload(gl, m->nv, m->pos, col, m->nf, m->faces, why, sizeof why)) {
-          fprintf(stderr, "bench_latency: llvmpipe: %s\n", why);
-          return 1;
-        }
+        j->k = K_GL;
       }
-      int rc = bench_time(frame, &j, warmup, frames, SLOW_S, slow_frames, &rows[r].s[l], &rows[r].cpu[l]);
-      if (rc) {
-        if (j.k == K_GL) fprintf(stderr, "bench_latency: llvmpipe: %s\n", j.why);
-        else fprintf(stderr, "bench_latency: %s: %s\n", rows[r].name, spx_ctx_message(ctx));
-        return 1;
+    }
+    int rc = 0;
+    if (r == r_gl) { /* one mesh resident in the GL context at a time: the levels one after another */
+      for (int l = 0; l < LEVELS && !rc; l++) {
+        const spx_mesh *m = &meshes[l];
+        if (peer_llvmpipe_upload(gl, m->nv, m->pos, cols[l], m->nf, m->faces, jobs[l].why, sizeof jobs[l].why))
+          rc = -1;
+        else
+          rc = bench_time(frame, &jobs[l], warmup, frames, SLOW_S, slow_frames, &rows[r].s[l], &rows[r].cpu[l]);
+        if (rc) fprintf(stderr, "bench_latency: llvmpipe: %s\n", jobs[l].why);
       }
-      if (j.k != K_UNET) rows[r].drawn[l] = covered(out, npx, 0);
-      if (r == r_rast) memcpy(ref, out, sizeof(float) * 4 * npx);
+    } else { /* the three levels round-robin, frame by frame */
+      rc = bench_time_interleaved(frame, users, LEVELS, warmup, frames, SLOW_S, slow_frames, rows[r].s, rows[r].cpu);
+      if (rc) fprintf(stderr, "bench_latency: %s: %s\n", rows[r].name, spx_ctx_message(ctx));
+    }
+    if (rc) return 1;
+    for (int l = 0; l < LEVELS; l++) {
+      const spx_mesh *m = &meshes[l];
+      if (jobs[l].k != K_UNET) rows[r].drawn[l] = covered(outs[l], npx, 0);
+      if (r == r_rast) memcpy(refs[l], outs[l], sizeof(float) * 4 * npx);
       if (r == r_gl) {
         long differ = 0;
-        for (size_t i = 0; i < npx; i++) differ += (out[4 * i + 3] != 1.0f) != (ref[4 * i + 3] != 1.0f);
+        for (size_t i = 0; i < npx; i++) differ += (outs[l][4 * i + 3] != 1.0f) != (refs[l][4 * i + 3] != 1.0f);
         snprintf(checks[l], sizeof checks[l], "%d v: llvmpipe and our rasterizer differ in coverage at %ld px (%.2f%%)",
                  m->nv, differ, 100.0 * differ / (double)npx);
       }
-      const bench_stats *s = &rows[r].s[l];
+      const bench_stats *st = &rows[r].s[l];
       char t[64], d[24] = "-";
-      snprintf(t, sizeof t, "%.2f [%.2f, %.2f]", s->med, s->min, s->max);
+      snprintf(t, sizeof t, "%.2f [%.2f, %.2f]", st->med, st->min, st->max);
       if (rows[r].drawn[l] >= 0) snprintf(d, sizeof d, "%ld", rows[r].drawn[l]);
-      printf("%-20s %8d %8d %6d  %-28s %9.2f %9s\n", rows[r].name, m->nv, m->nf, s->n, t, rows[r].cpu[l], d);
-      fflush(stdout);
+      printf("%-20s %8d %8d %6d  %-28s %9.2f %9s\n", rows[r].name, m->nv, m->nf, st->n, t, rows[r].cpu[l], d);
     }
-    if (!gl) snprintf(checks[l], sizeof checks[l], "%d v: no llvmpipe image", m->nv);
-    free(col);
-    free(uv);
+    fflush(stdout);
+  }
+  for (int l = 0; l < LEVELS; l++) {
+    spx_rasterizer_destroy(rasts[l]);
+    free(cols[l]), free(uvs[l]), free(outs[l]), free(refs[l]);
   }
   loadavg(load1, sizeof load1);
   printf("\nload average at end: %s\n", load1);
@@ -446,10 +471,9 @@ int main(int argc, char **argv) {
   spx_cl_free(&dcol);
   spx_cl_free(&dimg);
   for (int k = 0; k < nw; k++) spx_unet_destroy(nets[k]);
-  spx_rasterizer_destroy(rast);
   spx_projector_destroy(proj);
   for (int l = 0; l < LEVELS; l++) spx_mesh_free(&meshes[l]);
-  free(tex), free(out), free(ref);
+  free(tex);
   spx_ctx_destroy(ctx);
   return 0;
 }
