@@ -95,6 +95,7 @@ static int frame(void *user) {
 
 typedef struct row {
   char name[48];
+  char label[80]; /* in the plot's legend */
   int present; /* 0: skipped */
   bench_stats s[LEVELS];
   double cpu[LEVELS];
@@ -221,13 +222,18 @@ int main(int argc, char **argv) {
   int r_rast = nr;
   nr += 3;
   int r_gl = nr++;
-  snprintf(rows[r_proj].name, sizeof rows[0].name, "project");
-  snprintf(rows[r_pref].name, sizeof rows[0].name, "project C ref");
-  for (int k = 0; k < nw; k++) snprintf(rows[r_unet0 + k].name, sizeof rows[0].name, "project+unet%d", widths[k]);
-  snprintf(rows[r_rast].name, sizeof rows[0].name, "raster colours");
-  snprintf(rows[r_rast + 1].name, sizeof rows[0].name, "raster textured");
-  snprintf(rows[r_rast + 2].name, sizeof rows[0].name, "raster textured+aa2");
-  snprintf(rows[r_gl].name, sizeof rows[0].name, "llvmpipe colours");
+#define NAME(r, n, l) snprintf(rows[r].name, sizeof rows[0].name, "%s", n), snprintf(rows[r].label, sizeof rows[0].label, "%s", l)
+  NAME(r_proj, "project", "SMPLpix projection (spx_project)");
+  NAME(r_pref, "project C ref", "projection, plain-C reference, 1 thread");
+  for (int k = 0; k < nw; k++) {
+    snprintf(rows[r_unet0 + k].name, sizeof rows[0].name, "project+unet%d", widths[k]);
+    snprintf(rows[r_unet0 + k].label, sizeof rows[0].label, "SMPLpix projection + UNet width %d", widths[k]);
+  }
+  NAME(r_rast, "raster colours", "our rasterizer, vertex colours");
+  NAME(r_rast + 1, "raster textured", "our rasterizer, textured");
+  NAME(r_rast + 2, "raster textured+aa2", "our rasterizer, textured + AA 2x");
+  NAME(r_gl, "llvmpipe colours", "Mesa llvmpipe, vertex colours");
+#undef NAME
   for (int r = 0; r < nr; r++) {
     rows[r].present = r != r_gl || gl;
     for (int l = 0; l < LEVELS; l++) {
@@ -445,8 +451,9 @@ int main(int argc, char **argv) {
   cJSON_Delete(js);
 
   char title[128];
-  snprintf(title, sizeof title, "Latency per frame vs vertices, %dx%d, incl. read-back", W, H);
-  plot *pl = plot_create(880, 560, title, "vertices", "ms per frame (median)", 1, 1);
+  snprintf(title, sizeof title, "Renderer latency vs vertices, %dx%d", W, H);
+  plot *pl = plot_create(900, 700, title, "vertices (body mesh, 0 / 1 / 2 Loop subdivisions)",
+                         "ms per frame: upload + render + read-back (median)", 1, 1);
   if (pl) {
     /* plot order: the palette has 8 colours, so the 9th series (the C reference, far below the
      * others) repeats the first colour with another marker */
@@ -459,7 +466,7 @@ int main(int argc, char **argv) {
       if (!rows[r].present) continue;
       double ys[LEVELS];
       for (int l = 0; l < LEVELS; l++) ys[l] = rows[r].s[l].med;
-      plot_series(pl, rows[r].name, LEVELS, xs, ys);
+      plot_series(pl, rows[r].label, LEVELS, xs, ys);
     }
     if (plot_save(pl, "out/bench/latency.png", why, sizeof why)) fprintf(stderr, "bench_latency: %s\n", why);
     plot_free(pl);
