@@ -3,7 +3,7 @@ BUILD    ?= build
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build demo test asan fuzz bench bench-latency install clean
+.PHONY: all deps build demo train-demo test asan fuzz bench bench-unet bench-latency install clean
 
 all: build
 
@@ -21,6 +21,22 @@ demo: build
 	@mkdir -p out
 	./$(BUILD)/smplpix project --mesh data/body/human_woman.obj --camera data/cameras/default.json \
 	    --out out/demo.exr --png out/demo.png --npy out/demo.npy
+
+# Train a small SMPLpix network: 48 orbit views of the shipped body (projections -> raster renders,
+# 128x96), a width-16 UNet for TRAIN_DEMO_STEPS Adam steps (validation L1/PSNR printed at the start
+# and after every epoch), then render one validation view to out/train-demo/render.png.
+TRAIN_DEMO_STEPS ?= 400
+TD = out/train-demo
+train-demo: build
+	@rm -rf $(TD) && mkdir -p $(TD)
+	./$(BUILD)/smplpix dataset --mesh data/body/human_woman.obj --out $(TD)/data --orbit 48 \
+	    --elevations -10,15,35 --size 128x96 --aa 2 --seed 1
+	./$(BUILD)/smplpix train --data $(TD)/data --out $(TD)/unet16.safetensors --width 16 --batch 4 \
+	    --lr 3e-3 --steps $(TRAIN_DEMO_STEPS) --seed 1
+	@v=$$(ls $(TD)/data/validation/input | head -n 1) && v=$${v%.*} && \
+	  ./$(BUILD)/smplpix render --checkpoint $(TD)/unet16.safetensors --input $(TD)/data/validation/input/$$v.exr \
+	    --out $(TD)/render.png && cp $(TD)/data/validation/output/$$v.png $(TD)/target.png && \
+	  echo "input $(TD)/data/validation/input/$$v.exr -> $(TD)/render.png (target: $(TD)/target.png)"
 
 # All tests (warnings are errors here, as in CI).
 test: deps
@@ -46,6 +62,11 @@ fuzz: deps
 
 bench: build
 	sh benchmarks/run.sh $(BUILD)
+
+# The UNet against PyTorch CPU (widths 16 and 64; eval b1, train b1, train b4), one table; ~10 min
+# on 2 cores. The torch side is skipped, saying so, when /usr/bin/python3 cannot import torch.
+bench-unet: build
+	sh benchmarks/unet_vs_torch.sh $(BUILD)
 
 # Renderer latency vs vertex count (also part of `make bench`): table on stdout,
 # out/bench/latency.{csv,json,png}.

@@ -27,13 +27,44 @@ const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *ba
 
 /* Lower-case extension of path without the dot ("" if none). */
 void spx_cli_ext(const char *path, char *ext, size_t cap);
+/* Path of a file shipped in data/: under $SPX_DATA_DIR when set, else the installed copy
+ * (<datadir>/smplpix), else the source tree the tool was built from. Returns a static buffer. */
+const char *spx_cli_data_path(const char *rel);
 /* Monotonic clock in seconds. */
 double spx_cli_now(void);
+
+/* apps/cli_common.c: pieces shared by project, raster and dataset. */
+/* Area-weighted vertex normals as [0,1] colors (nv*3; gray where undefined). */
+void spx_cli_normal_colors(const spx_mesh *m, float *col);
+/* --color auto|mesh|normal|white is one of those. */
+int spx_cli_color_ok(const char *color);
+/* Per-vertex colors for --color: *col = the mesh's colors, or *owned (normals, free() it), or NULL
+ * for white; *used names the choice. Prints the error itself (naming mesh_path), returns an exit code. */
+int spx_cli_mesh_colors(const char *cmd, const char *mesh_path, const spx_mesh *m, const char *color,
+                        float **owned, const float **col, const char **used);
+/* "dir/name.ext" -> "dir/name_007.ext" when n > 1 (malloc'd; NULL when out of memory). */
+char *spx_cli_indexed_path(const char *path, int i, int n);
+/* The outputs written so far: removed again when the command fails (no partial set of outputs). */
+typedef struct spx_cli_written {
+  char **paths;
+  int n, cap;
+} spx_cli_written;
+/* Take ownership of path (malloc'd) once the file is written (never before: a failed atomic write
+ * leaves what was there, which must not be removed); 0 when out of memory (path is then not owned). */
+int spx_cli_remember(spx_cli_written *w, char *path);
+/* Remove every remembered file when failed, then free the list. */
+void spx_cli_written_finish(spx_cli_written *w, int failed);
+/* The path ends in .exr, .png or .npy (any case). */
+int spx_cli_image_ext_ok(const char *path);
+/* Write an HWC image by extension: .exr (3 or 4 channels), .png (RGB), .npy (HxWxC float32). */
+spx_status spx_cli_write_image(spx_ctx *ctx, const char *path, const spx_image *img);
 
 /* Subcommand entry points. */
 int spx_cmd_devices(int argc, char **argv);
 int spx_cmd_project(int argc, char **argv);
 int spx_cmd_render(int argc, char **argv); /* apps/cmd_render.c */
 int spx_cmd_train(int argc, char **argv);  /* apps/cmd_train.c */
+int spx_cmd_raster(int argc, char **argv); /* apps/cmd_raster.c */
+int spx_cmd_dataset(int argc, char **argv); /* apps/cmd_dataset.c */
 
 #endif

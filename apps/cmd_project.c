@@ -21,73 +21,6 @@ static const char *USAGE =
     "--color: mesh = the file's vertex colors; normal = 0.5+0.5*vertex normal; white; auto (default)\n"
     "= mesh colors when present, else normals (gray for point clouds).\n";
 
-/* Area-weighted vertex normals mapped to [0,1] colors; gray where undefined. */
-static void normal_colors(const spx_mesh *m, float *col) {
-  double *acc = calloc((size_t)m->nv * 3, sizeof *acc);
-  if (!acc) {
-    for (int64_t i = 0; i < (int64_t)m->nv * 3; i++) col[i] = 0.5f;
-    return;
-  }
-  for (int32_t f = 0; f < m->nf; f++) {
-    const int32_t *t = m->faces + 3 * f;
-    const float *a = m->pos + 3 * t[0], *b = m->pos + 3 * t[1], *c = m->pos + 3 * t[2];
-    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-    for (int k = 0; k < 3; k++)
-      for (int j = 0; j < 3; j++) acc[3 * t[k] + j] += n[j];
-  }
-  for (int32_t v = 0; v < m->nv; v++) {
-    double *n = acc + 3 * v, l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    for (int j = 0; j < 3; j++) col[3 * v + j] = l > 0 ? (float)(0.5 + 0.5 * n[j] / l) : 0.5f;
-  }
-  free(acc);
-}
-
-/* "dir/name.ext" → "dir/name_007.ext" when several images are written. */
-static char *indexed_path(const char *path, int i, int n) {
-  size_t len = strlen(path) + 16;
-  char *out = malloc(len);
-  if (!out) return NULL;
-  if (n <= 1) {
-    snprintf(out, len, "%s", path);
-    return out;
-  }
-  const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
-  if (!dot || (slash && dot < slash)) dot = path + strlen(path);
-  snprintf(out, len, "%.*s_%03d%s", (int)(dot - path), path, i, dot);
-  return out;
-}
-
-typedef struct written {
-  char **paths;
-  int n, cap;
-} written;
-
-static int remember(written *w, char *path) {
-  if (w->n == w->cap) {
-    int cap = w->cap ? 2 * w->cap : 8;
-    char **p = realloc(w->paths, sizeof *p * (size_t)cap);
-    if (!p) return 0;
-    w->paths = p;
-    w->cap = cap;
-  }
-  w->paths[w->n++] = path;
-  return 1;
-}
-
-/* Write one RGB-D image in the format its extension names. */
-static spx_status write_image(spx_ctx *ctx, const char *path, const spx_image *img) {
-  char ext[16];
-  spx_cli_ext(path, ext, sizeof ext);
-  if (!strcmp(ext, "exr")) return spx_exr_write(ctx, path, img);
-  if (!strcmp(ext, "png")) return spx_png_write_rgb(ctx, path, img);
-  if (!strcmp(ext, "npy")) {
-    int64_t shape[3] = {img->height, img->width, img->channels};
-    return spx_npy_save_f32(ctx, path, img->data, 3, shape);
-  }
-  return SPX_E_ARG;
-}
-
 int spx_cmd_project(int argc, char **argv) {
   const char *mesh_path = NULL, *cam_path = NULL, *out = NULL, *png = NULL, *npy = NULL, *dev = NULL;
   const char *color = "auto";
@@ -112,12 +45,10 @@ int spx_cmd_project(int argc, char **argv) {
   const char *outs[3] = {out, png, npy};
   for (int k = 0; k < 3; k++) {
     if (!outs[k]) continue;
-    char ext[16];
-    spx_cli_ext(outs[k], ext, sizeof ext);
-    if (strcmp(ext, "exr") && strcmp(ext, "png") && strcmp(ext, "npy"))
+    if (!spx_cli_image_ext_ok(outs[k]))
       return spx_cli_usage("project", "%s: output must end in .exr, .png or .npy", outs[k]);
   }
-  if (strcmp(color, "auto") && strcmp(color, "mesh") && strcmp(color, "normal") && strcmp(color, "white"))
+  if (!spx_cli_color_ok(color))
     return spx_cli_usage("project", "--color %s: expected auto, mesh, normal or white", color);
 
   spx_ctx *ctx = NULL;
@@ -126,7 +57,7 @@ int spx_cmd_project(int argc, char **argv) {
   int ncams = 0, rc = SPX_EXIT_ERROR;
   float *colors = NULL, *images = NULL;
   spx_projector *proj = NULL;
-  written w = {0};
+  spx_cli_written w = {0};
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("project", "out of memory");
 
   /* read and check every input before touching the device or any output */
@@ -140,24 +71,10 @@ int spx_cmd_project(int argc, char **argv) {
                           cam_path, c, cams[c].width, cams[c].height, cams[0].width, cams[0].height);
       goto done;
     }
-  if (!strcmp(color, "mesh") && !mesh.col) {
-    rc = spx_cli_errorf("project", "%s: --color mesh, but the file has no vertex colors", mesh_path);
-    goto done;
-  }
-  const char *used = "white";
-  if (strcmp(color, "white")) {
-    if (mesh.col && strcmp(color, "normal")) {
-      used = "mesh colors";
-    } else {
-      colors = malloc(sizeof(float) * 3 * (size_t)(mesh.nv ? mesh.nv : 1));
-      if (!colors) {
-        rc = spx_cli_errorf("project", "out of memory");
-        goto done;
-      }
-      normal_colors(&mesh, colors);
-      used = mesh.nf ? "vertex normals" : "gray (point cloud without colors)";
-    }
-  }
+  const float *col = NULL;
+  const char *used = NULL;
+  if ((rc = spx_cli_mesh_colors("project", mesh_path, &mesh, color, &colors, &col, &used))) goto done;
+  rc = SPX_EXIT_ERROR;
   int W = cams[0].width, H = cams[0].height;
   size_t per = (size_t)W * H * 4;
   images = malloc(sizeof(float) * per * (size_t)ncams);
@@ -171,8 +88,7 @@ int spx_cmd_project(int argc, char **argv) {
     rc = spx_cli_error("project", ctx);
     goto done;
   }
-  spx_project_args a = {1, mesh.nv, mesh.pos, colors ? colors : (strcmp(used, "white") ? mesh.col : NULL),
-                        ncams, cams, SPX_LAYOUT_HWC};
+  spx_project_args a = {1, mesh.nv, mesh.pos, col, ncams, cams, SPX_LAYOUT_HWC};
   double t0 = spx_cli_now();
   if (spx_project(ctx, proj, &a, images, NULL)) {
     rc = spx_cli_error("project", ctx);
@@ -184,14 +100,20 @@ int spx_cmd_project(int argc, char **argv) {
     spx_image img = {W, H, 4, images + per * (size_t)c};
     for (int k = 0; k < 3; k++) {
       if (!outs[k]) continue;
-      char *p = indexed_path(outs[k], c, ncams);
-      if (!p || !remember(&w, p)) {
-        free(p);
+      char *p = spx_cli_indexed_path(outs[k], c, ncams);
+      if (!p) {
         rc = spx_cli_errorf("project", "out of memory");
         goto done;
       }
-      if (write_image(ctx, p, &img)) {
+      if (spx_cli_write_image(ctx, p, &img)) { /* atomic: a failed write leaves what was at p */
+        free(p);
         rc = spx_cli_error("project", ctx);
+        goto done;
+      }
+      if (!spx_cli_remember(&w, p)) {
+        remove(p);
+        free(p);
+        rc = spx_cli_errorf("project", "out of memory");
         goto done;
       }
     }
@@ -219,10 +141,7 @@ int spx_cmd_project(int argc, char **argv) {
   }
   rc = SPX_EXIT_OK;
 done:
-  if (rc != SPX_EXIT_OK)
-    for (int i = 0; i < w.n; i++) remove(w.paths[i]); /* no partial set of outputs */
-  for (int i = 0; i < w.n; i++) free(w.paths[i]);
-  free(w.paths);
+  spx_cli_written_finish(&w, rc != SPX_EXIT_OK);
   spx_projector_destroy(proj);
   free(images);
   free(colors);

@@ -1,34 +1,164 @@
-/* smplpix render: run a trained UNet on an RGB-D projection image (inference: batch norm folded
- * into the convolutions). */
+/* smplpix render: run a trained UNet (inference: batch norm folded into the convolutions) on an
+ * RGB-D projection image, or on a mesh projected through one camera or a camera array (the
+ * projection and the network in one call; cameras go through the network in chunks of --batch).
+ *
+ * The mesh path keeps the projection in the network's NCHW layout, but it crosses the host once:
+ * the public UNet API (smplpix/unet.h) takes host arrays, and lib/nn/unet.c has no entry point
+ * that takes a cl_mem input (spx_project_device could write straight into the tape's input value
+ * if it had one). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
+#include "smplpix/camera.h"
+#include "smplpix/mesh.h"
+#include "smplpix/render.h"
 #include "unet_io.h"
 
 static void render_help(void) {
   printf("usage: smplpix render --checkpoint W.safetensors --input P.exr|P.png|P.npy --out I.png|I.exr|I.npy\n"
-         "                      [--sigmoid on|off] [--device cpu|gpu|P:D]\n"
+         "       smplpix render --checkpoint W.safetensors --mesh M.obj|M.ply --camera C.json --out I.png|I.exr|I.npy\n"
+         "                      [--color auto|mesh|normal|white] [--batch B]\n"
+         "       common options: [--sigmoid on|off] [--device cpu|gpu|P:D] [--quiet]\n"
          "Runs the UNet of checkpoint W (milesial state_dict names; base width read from the file) on\n"
          "the RGB-D image P (EXR channels R,G,B,Z; a PNG or a 3-channel image gets depth 1; .npy is\n"
          "HxWx4, or Nx4xHxW for a batch, which then needs a .npy output) and writes the RGB result.\n"
+         "A 3-channel input (RGB PNG or EXR, HxWx3 .npy) gets depth 1 (the background); fewer is an error.\n"
+         "With --mesh/--camera the RGB-D input is the projection of the mesh's vertices (as `smplpix\n"
+         "project`, --color as there); a camera array of N cameras writes I_000.png ... I_<N-1>.png, the\n"
+         "cameras going through the network B at a time (--batch, default 4; also for an Nx4xHxW .npy).\n"
+         "Nothing is written when any camera fails.\n"
          "--sigmoid overrides the checkpoint's output sigmoid flag (metadata smplpix.sigmoid).\n"
          "PNG output is clamped to [0, 1]; height and width must be at least 16.\n");
 }
 
+/* Device memory errors get a hint on what to change. */
+static int net_error(spx_ctx *ctx, spx_status st, int n, int h, int w) {
+  if (st == SPX_E_DEVMEM || st == SPX_E_NOMEM)
+    return spx_cli_errorf("render", "the network on %d images of %dx%d: %s (try a smaller --batch, or smaller images)",
+                          n, w, h, spx_ctx_message(ctx));
+  return spx_cli_error("render", ctx);
+}
+
+/* --mesh/--camera: project, run the network chunk by chunk, write one output per camera. */
+static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const char *cam_path, const char *color,
+                       const char *outp, int batch, int quiet) {
+  spx_mesh mesh = {0};
+  spx_camera *cams = NULL;
+  int ncams = 0, rc = SPX_EXIT_ERROR;
+  float *colors = NULL, *in = NULL, *out = NULL;
+  spx_projector *proj = NULL;
+  spx_cli_written wr = {0};
+  if (spx_mesh_load(ctx, mesh_path, &mesh) || spx_camera_load(ctx, cam_path, &cams, &ncams)) {
+    rc = spx_cli_error("render", ctx);
+    goto done;
+  }
+  for (int c = 1; c < ncams; c++)
+    if (cams[c].width != cams[0].width || cams[c].height != cams[0].height) {
+      rc = spx_cli_errorf("render", "%s: camera %d is %dx%d but camera 0 is %dx%d; one call needs one image size",
+                          cam_path, c, cams[c].width, cams[c].height, cams[0].width, cams[0].height);
+      goto done;
+    }
+  int W = cams[0].width, H = cams[0].height;
+  if (H < 16 || W < 16) {
+    rc = spx_cli_errorf("render", "%s: %dx%d is too small (the UNet needs at least 16x16)", cam_path, W, H);
+    goto done;
+  }
+  const float *col = NULL;
+  const char *used = NULL;
+  if ((rc = spx_cli_mesh_colors("render", mesh_path, &mesh, color, &colors, &col, &used))) goto done;
+  rc = SPX_EXIT_ERROR;
+  int chunk = batch < ncams ? batch : ncams;
+  size_t hw = (size_t)W * (size_t)H;
+  in = malloc(sizeof(float) * SPX_UNET_IN_CHANNELS * hw * (size_t)chunk);
+  out = malloc(sizeof(float) * SPX_UNET_OUT_CHANNELS * hw * (size_t)chunk);
+  if (!in || !out) {
+    rc = spx_cli_errorf("render", "out of memory for %d images of %dx%d (try a smaller --batch)", chunk, W, H);
+    goto done;
+  }
+  if (spx_projector_create(ctx, &proj)) {
+    rc = spx_cli_error("render", ctx);
+    goto done;
+  }
+  double t0 = spx_cli_now();
+  for (int c0 = 0; c0 < ncams; c0 += chunk) {
+    int n = ncams - c0 < chunk ? ncams - c0 : chunk;
+    spx_project_args a = {1, mesh.nv, mesh.pos, col, n, cams + c0, SPX_LAYOUT_NCHW};
+    spx_status st;
+    if (spx_project(ctx, proj, &a, in, NULL)) {
+      rc = spx_cli_error("render", ctx);
+      goto done;
+    }
+    if ((st = spx_unet_forward(u, in, n, H, W, 0, out)) || (st = spx_device_finish(ctx))) {
+      rc = net_error(ctx, st, n, H, W);
+      goto done;
+    }
+    for (int k = 0; k < n; k++) {
+      char *p = spx_cli_indexed_path(outp, c0 + k, ncams);
+      if (!p) {
+        rc = spx_cli_errorf("render", "out of memory");
+        goto done;
+      }
+      /* remembered once written: a failed write (atomic) leaves whatever was at p alone */
+      spx_app_batch b = {1, SPX_UNET_OUT_CHANNELS, H, W, 1, out + (size_t)k * SPX_UNET_OUT_CHANNELS * hw};
+      if (spx_app_save(ctx, p, &b)) {
+        free(p);
+        rc = spx_app_error("render", ctx);
+        goto done;
+      }
+      if (!spx_cli_remember(&wr, p)) {
+        remove(p);
+        free(p);
+        rc = spx_cli_errorf("render", "out of memory");
+        goto done;
+      }
+    }
+  }
+  if (!quiet) {
+    printf("rendered %d vertices (%s) through %d camera%s at %dx%d, %d per network batch, in %.2f s\n", mesh.nv,
+           used, ncams, ncams > 1 ? "s" : "", W, H, chunk, spx_cli_now() - t0);
+    for (int i = 0; i < wr.n; i++) printf("wrote %s\n", wr.paths[i]);
+  }
+  rc = SPX_EXIT_OK;
+done:
+  spx_cli_written_finish(&wr, rc != SPX_EXIT_OK);
+  spx_projector_destroy(proj);
+  free(in);
+  free(out);
+  free(colors);
+  free(cams);
+  spx_mesh_free(&mesh);
+  return rc;
+}
+
 int spx_cmd_render(int argc, char **argv) {
-  const char *ckpt = NULL, *input = NULL, *outp = NULL, *spec = NULL, *sig = NULL;
-  int bad = 0;
+  const char *ckpt = NULL, *input = NULL, *outp = NULL, *spec = NULL, *sig = NULL, *mesh = NULL, *cam = NULL;
+  const char *color = "auto";
+  int bad = 0, quiet = 0;
+  long batch = 4;
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       render_help();
       return SPX_EXIT_OK;
+    } else if (!strcmp(argv[i], "--quiet")) {
+      quiet = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
       ckpt = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--input", &bad))) {
       input = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--mesh", &bad))) {
+      mesh = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--camera", &bad))) {
+      cam = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--color", &bad))) {
+      color = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--batch", &bad))) {
+      char *end = NULL;
+      batch = strtol(v, &end, 10);
+      if (!end || *end || batch < 1 || batch > 4096)
+        return spx_cli_usage("render", "--batch needs an integer in [1, 4096], not '%s'", v);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
       outp = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
@@ -40,27 +170,38 @@ int spx_cmd_render(int argc, char **argv) {
       return spx_cli_usage("render", bad ? "missing value for %s" : "unknown option %s", argv[i]);
     }
   }
-  if (!ckpt || !input || !outp)
-    return spx_cli_usage("render", "--checkpoint, --input and --out are required");
+  int by_mesh = mesh || cam;
+  if (!ckpt || !outp || (by_mesh ? !(mesh && cam) || input : !input))
+    return spx_cli_usage("render", "--checkpoint, --out and either --input or both --mesh and --camera are required");
+  if (!spx_cli_color_ok(color))
+    return spx_cli_usage("render", "--color %s: expected auto, mesh, normal or white", color);
+  if (!spx_cli_image_ext_ok(outp)) return spx_cli_usage("render", "%s: output must end in .exr, .png or .npy", outp);
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("render", "out of memory");
   spx_unet *u = NULL;
   spx_app_batch in = {0}, out = {0};
-  int rc = spx_cli_open_device("render", ctx, spec);
-  if (rc) goto done;
-  if (spx_app_load(ctx, input, SPX_UNET_IN_CHANNELS, &in)) {
-    rc = spx_app_error("render", ctx);
-    goto done;
+  spx_status st;
+  int rc = SPX_EXIT_OK;
+  if (!by_mesh) {
+    if (spx_app_load(ctx, input, SPX_UNET_IN_CHANNELS, &in)) {
+      rc = spx_app_error("render", ctx);
+      goto done;
+    }
+    if (in.h < 16 || in.w < 16) {
+      rc = spx_cli_errorf("render", "%s: %dx%d is too small (the UNet needs at least 16x16)", input, in.w, in.h);
+      goto done;
+    }
   }
-  if (in.h < 16 || in.w < 16) {
-    rc = spx_cli_errorf("render", "%s: %dx%d is too small (the UNet needs at least 16x16)", input, in.w, in.h);
-    goto done;
-  }
+  if ((rc = spx_cli_open_device("render", ctx, spec))) goto done;
   if (spx_unet_load(ctx, ckpt, &u)) {
     rc = spx_cli_error("render", ctx);
     goto done;
   }
   if (sig) spx_unet_set_sigmoid(u, !strcmp(sig, "on"));
+  if (by_mesh) {
+    rc = render_mesh(ctx, u, mesh, cam, color, outp, (int)batch, quiet);
+    goto done;
+  }
   out = in;
   out.c = SPX_UNET_OUT_CHANNELS;
   out.data = malloc((size_t)out.n * out.c * out.h * out.w * sizeof(float));
@@ -68,9 +209,15 @@ int spx_cmd_render(int argc, char **argv) {
     rc = spx_cli_errorf("render", "out of memory for a %dx%d output", out.w, out.h);
     goto done;
   }
-  if (spx_unet_forward(u, in.data, in.n, in.h, in.w, 0, out.data) || spx_device_finish(ctx)) {
-    rc = spx_cli_error("render", ctx);
-    goto done;
+  size_t hw = (size_t)in.h * (size_t)in.w;
+  for (int i0 = 0; i0 < in.n; i0 += (int)batch) { /* an Nx4xHxW batch goes through --batch at a time */
+    int n = in.n - i0 < batch ? in.n - i0 : (int)batch;
+    if ((st = spx_unet_forward(u, in.data + (size_t)i0 * SPX_UNET_IN_CHANNELS * hw, n, in.h, in.w, 0,
+                               out.data + (size_t)i0 * SPX_UNET_OUT_CHANNELS * hw)) ||
+        (st = spx_device_finish(ctx))) {
+      rc = net_error(ctx, st, n, in.h, in.w);
+      goto done;
+    }
   }
   if (spx_app_save(ctx, outp, &out)) rc = spx_app_error("render", ctx);
 done:

@@ -1,13 +1,17 @@
 /* smplpix train: train the UNet on DIR/{train,validation}/{input,output}/NAME.{exr,npy,png}
- * with Adam and the mean L1 loss; checkpoints (weights + optimizer state) after every epoch. */
+ * with Adam and the mean L1 loss; checkpoints (weights + optimizer state) after every epoch or
+ * every --save-every steps, and on the first Ctrl-C (exact resume with --resume). Progress: a
+ * one-line bar on a terminal, else a log line every --log-every steps. */
 #include <dirent.h>
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "unet_io.h"
@@ -20,9 +24,15 @@ static void train_help(void) {
          "matched by NAME; all images of a split must have the same size (>= 16x16). Adam (betas 0.9,\n"
          "0.999, eps 1e-8), mean L1 loss. Defaults: --width 32 --batch 1 --lr 1e-3 --epochs 1 --seed 0.\n"
          "--epochs E / --steps S: train until E epochs / S optimizer steps in total are done.\n"
-         "--resume continues from W (weights, optimizer state, step count, data order); --init starts\n"
-         "from the weights of W0 with a fresh optimizer. After every epoch W is rewritten atomically and\n"
-         "the loss on DIR/validation (when present) is printed.\n");
+         "--resume continues from W (weights, optimizer state, step count, data order) bit for bit;\n"
+         "--init starts from the weights of W0 with a fresh optimizer. After every epoch the loss on\n"
+         "DIR/validation (when present: mean L1, and PSNR of the output clamped to [0,1]) is printed,\n"
+         "also once before the first step. W is rewritten atomically after every epoch, or every N steps\n"
+         "with --save-every N, and at the end. --batch larger than the number of pairs uses them all.\n"
+         "Progress goes to stderr: a bar updated in place on a terminal, else a line every --log-every\n"
+         "steps (default 10): step, loss (mean over the epoch so far), images/s, ETA.\n"
+         "Ctrl-C: the current step finishes, W is saved (exit status 130; continue with --resume); a\n"
+         "second Ctrl-C stops at once, leaving the last saved W as it was.\n");
 }
 
 typedef struct sample {
@@ -132,9 +142,10 @@ static int load_batch(spx_ctx *ctx, split *sp, const int *idx, int count, float 
     int rc = SPX_EXIT_OK;
     if (a.n != 1 || b.n != 1) rc = spx_cli_errorf("train", "%s: training files hold one image each", s->in);
     else if (a.h != sp->h || a.w != sp->w)
-      rc = spx_cli_errorf("train", "%s: %dx%d, but the data set's images are %dx%d", s->in, a.w, a.h, sp->w, sp->h);
+      rc = spx_cli_errorf("train", "%s is %dx%d, but %s is %dx%d: all images of a split must have one size", s->in,
+                          a.w, a.h, sp->s[0].in, sp->w, sp->h);
     else if (b.h != sp->h || b.w != sp->w)
-      rc = spx_cli_errorf("train", "%s: %dx%d, but its input is %dx%d", s->out, b.w, b.h, sp->w, sp->h);
+      rc = spx_cli_errorf("train", "%s is %dx%d, but its input %s is %dx%d", s->out, b.w, b.h, s->in, sp->w, sp->h);
     if (!rc) {
       size_t hw = (size_t)sp->h * (size_t)sp->w;
       memcpy(in + (size_t)k * SPX_UNET_IN_CHANNELS * hw, a.data, SPX_UNET_IN_CHANNELS * hw * sizeof(float));
@@ -184,12 +195,13 @@ static void epoch_order(int *perm, int n, uint64_t seed, int64_t epoch, int shuf
   }
 }
 
-static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss) {
+/* Mean L1 over the validation set, and the mean PSNR (dB) of the output clamped to [0, 1]. */
+static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss, double *psnr) {
   size_t hw = (size_t)val->h * (size_t)val->w;
   float *in = malloc(SPX_UNET_IN_CHANNELS * hw * sizeof(float)), *tg = malloc(SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
   float *out = malloc(SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
   int rc = SPX_EXIT_OK;
-  double sum = 0;
+  double sum = 0, psum = 0;
   if (!in || !tg || !out) rc = spx_cli_errorf("train", "out of memory for validation");
   for (int i = 0; i < val->n && !rc; i++) {
     if ((rc = load_batch(ctx, val, &i, 1, in, tg))) break;
@@ -197,11 +209,17 @@ static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss) {
       rc = spx_cli_error("train", ctx);
       break;
     }
-    double s = 0;
-    for (size_t k = 0; k < SPX_UNET_OUT_CHANNELS * hw; k++) s += fabs((double)out[k] - (double)tg[k]);
+    double s = 0, se = 0;
+    for (size_t k = 0; k < SPX_UNET_OUT_CHANNELS * hw; k++) {
+      double o = out[k], e = (o < 0 ? 0 : o > 1 ? 1 : o) - (double)tg[k];
+      s += fabs(o - (double)tg[k]);
+      se += e * e;
+    }
     sum += s / (double)(SPX_UNET_OUT_CHANNELS * hw);
+    psum += se > 0 ? -10 * log10(se / (double)(SPX_UNET_OUT_CHANNELS * hw)) : 100;
   }
   *loss = val->n ? sum / val->n : 0;
+  *psnr = val->n ? psum / val->n : 0;
   free(in), free(tg), free(out);
   return rc;
 }
@@ -216,9 +234,78 @@ static int parse_int(const char *opt, const char *v, long lo, long hi, long *out
   return SPX_EXIT_OK;
 }
 
+/* Ctrl-C: the first sets the flag (the loop saves and stops after the current step), the second
+ * ends the process at once (saves are atomic, so the last checkpoint stays whole). */
+static volatile sig_atomic_t interrupted;
+
+static void on_sigint(int sig) {
+  (void)sig;
+  if (interrupted) _exit(130);
+  interrupted = 1;
+  static const char msg[] = "\nsmplpix train: interrupted: finishing the current step and saving (Ctrl-C again to stop at once)\n";
+  ssize_t r = write(STDERR_FILENO, msg, sizeof msg - 1);
+  (void)r;
+}
+
+/* A library failure during a step; device memory errors get a hint on what to change. */
+static int step_error(spx_ctx *ctx, spx_status st, int n, int h, int w, int width) {
+  if (st == SPX_E_DEVMEM || st == SPX_E_NOMEM)
+    return spx_cli_errorf("train", "a step on %d images of %dx%d at width %d: %s (try a smaller --batch or --width)", n,
+                          w, h, width, spx_ctx_message(ctx));
+  return spx_cli_error("train", ctx);
+}
+
+static void fmt_eta(char *buf, size_t cap, double s) {
+  if (!(s >= 0) || s > 1e8) s = 0;
+  long t = (long)(s + 0.5);
+  if (t >= 3600) snprintf(buf, cap, "%ld:%02ld:%02ld", t / 3600, t / 60 % 60, t % 60);
+  else snprintf(buf, cap, "%ld:%02ld", t / 60, t % 60);
+}
+
+/* Progress: step/total, loss, images/s, ETA; an in-place bar on a terminal, else a log line. */
+typedef struct progress {
+  int tty, bar_shown;
+  int64_t start_step, total;
+  double t0, last_draw;
+  long images;
+} progress;
+
+static void progress_clear(progress *pg) {
+  if (pg->tty && pg->bar_shown) {
+    fputs("\r\033[K", stderr);
+    fflush(stderr);
+    pg->bar_shown = 0;
+  }
+}
+
+/* The bar is redrawn at most 10 times a second (always when force). */
+static void progress_show(progress *pg, int64_t step, int64_t epoch, double loss, int force) {
+  double t = now_s();
+  if (pg->tty && !force && pg->bar_shown && t - pg->last_draw < 0.1) return;
+  pg->last_draw = t;
+  double el = t - pg->t0, ips = el > 0 ? (double)pg->images / el : 0;
+  int64_t done = step - pg->start_step;
+  double eta = done > 0 ? el / (double)done * (double)(pg->total - step) : 0;
+  char e[32];
+  fmt_eta(e, sizeof e, eta);
+  if (pg->tty) {
+    char bar[21];
+    int fill = pg->total > 0 ? (int)(20 * step / pg->total) : 20;
+    for (int k = 0; k < 20; k++) bar[k] = k < fill ? '#' : '.';
+    bar[20] = 0;
+    fprintf(stderr, "\r\033[K[%s] step %lld/%lld  epoch %lld  loss %.6f  %.3g img/s  ETA %s", bar, (long long)step,
+            (long long)pg->total, (long long)epoch + 1, loss, ips, e);
+    pg->bar_shown = 1;
+  } else {
+    fprintf(stderr, "step %lld/%lld epoch %lld: loss %.6f, %.3g images/s, ETA %s\n", (long long)step,
+            (long long)pg->total, (long long)epoch + 1, loss, ips, e);
+  }
+  fflush(stderr);
+}
+
 int spx_cmd_train(int argc, char **argv) {
   const char *data = NULL, *outp = NULL, *init = NULL, *spec = NULL, *loss_name = "l1";
-  long width = 0, batch = 1, epochs = -1, steps = -1, seed = 0;
+  long width = 0, batch = 1, epochs = -1, steps = -1, seed = 0, save_every = 0, log_every = 10;
   double lr = 1e-3;
   int resume = 0, shuffle = 1, sigmoid = 0, bad = 0, rc;
   for (int i = 1; i < argc; i++) {
@@ -247,13 +334,17 @@ int spx_cmd_train(int argc, char **argv) {
       if (width != 8 && width != 16 && width != 32 && width != 64)
         return spx_cli_usage("train", "--width must be 8, 16, 32 or 64, not %ld", width);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--batch", &bad))) {
-      if ((rc = parse_int("--batch", v, 1, 4096, &batch))) return rc;
+      if ((rc = parse_int("--batch", v, 1, 1000000000, &batch))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--epochs", &bad))) {
       if ((rc = parse_int("--epochs", v, 0, 100000000, &epochs))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--steps", &bad))) {
       if ((rc = parse_int("--steps", v, 0, 2000000000, &steps))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) {
       if ((rc = parse_int("--seed", v, 0, 2147483647, &seed))) return rc;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--save-every", &bad))) {
+      if ((rc = parse_int("--save-every", v, 1, 2000000000, &save_every))) return rc;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--log-every", &bad))) {
+      if ((rc = parse_int("--log-every", v, 1, 2000000000, &log_every))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--lr", &bad))) {
       char *end = NULL;
       lr = strtod(v, &end);
@@ -274,6 +365,11 @@ int spx_cmd_train(int argc, char **argv) {
   split tr = {0}, val = {0};
   int *perm = NULL;
   float *in = NULL, *tg = NULL;
+  struct sigaction old_int;
+  int handler_set = 0;
+  spx_status st;
+  progress pg = {0};
+  pg.tty = isatty(STDERR_FILENO);
   if ((rc = list_split(data, "train", 1, &tr)) || (rc = list_split(data, "validation", 0, &val))) goto done;
   if ((rc = probe_size(ctx, &tr)) || (val.n && (rc = probe_size(ctx, &val)))) goto done;
   if ((rc = spx_cli_open_device("train", ctx, spec))) goto done;
@@ -296,6 +392,7 @@ int spx_cmd_train(int argc, char **argv) {
     rc = spx_cli_error("train", ctx);
     goto done;
   }
+  if (batch > tr.n) batch = tr.n; /* one batch holds the whole set */
   int64_t spe = (tr.n + batch - 1) / batch; /* steps per epoch (the last batch may be short) */
   int64_t target = steps >= 0 ? steps : epochs * spe;
   size_t hw = (size_t)tr.h * (size_t)tr.w;
@@ -303,15 +400,35 @@ int spx_cmd_train(int argc, char **argv) {
   in = malloc((size_t)batch * SPX_UNET_IN_CHANNELS * hw * sizeof(float));
   tg = malloc((size_t)batch * SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
   if (!perm || !in || !tg) {
-    rc = spx_cli_errorf("train", "out of memory for a batch of %ld %dx%d images", batch, tr.w, tr.h);
+    rc = spx_cli_errorf("train", "out of memory for a batch of %ld %dx%d images (try a smaller --batch)", batch, tr.w,
+                        tr.h);
     goto done;
   }
   printf("train: %d pairs (%dx%d), %d validation, width %d, batch %ld, lr %g, %lld steps/epoch, step %lld -> %lld\n",
          tr.n, tr.w, tr.h, val.n, spx_unet_width(u), batch, lr, (long long)spe, (long long)spx_unet_step(u),
          (long long)target);
+  fflush(stdout);
+  if (val.n && spx_unet_step(u) < target) { /* the starting point, to compare the epochs against */
+    double vl = 0, vp = 0;
+    if ((rc = validate(ctx, u, &val, &vl, &vp))) goto done;
+    printf("step %lld: validation L1 %.6f, PSNR %.2f dB\n", (long long)spx_unet_step(u), vl, vp);
+    fflush(stdout);
+  }
+  {
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_sigint;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESTART;
+    interrupted = 0;
+    handler_set = sigaction(SIGINT, &sa, &old_int) == 0;
+  }
   double t0 = now_s(), ep_loss = 0;
   int ep_count = 0;
   int64_t cur_epoch = -1;
+  pg.t0 = t0;
+  pg.start_step = spx_unet_step(u);
+  pg.total = target;
   while (spx_unet_step(u) < target) {
     int64_t step = spx_unet_step(u), epoch = step / spe, pos = step % spe;
     if (epoch != cur_epoch) {
@@ -321,39 +438,59 @@ int spx_cmd_train(int argc, char **argv) {
     int first = (int)(pos * batch), count = (int)(tr.n - first < batch ? tr.n - first : batch);
     float loss = 0;
     if ((rc = load_batch(ctx, &tr, perm + first, count, in, tg))) goto done;
-    if (spx_unet_zero_grad(u) || spx_unet_forward_loss(u, in, tg, count, tr.h, tr.w, NULL, &loss) ||
-        spx_unet_backward(u) || spx_unet_adam_step(u, lr)) {
-      rc = spx_cli_error("train", ctx);
+    if ((st = spx_unet_zero_grad(u)) || (st = spx_unet_forward_loss(u, in, tg, count, tr.h, tr.w, NULL, &loss)) ||
+        (st = spx_unet_backward(u)) || (st = spx_unet_adam_step(u, lr))) {
+      progress_clear(&pg);
+      rc = step_error(ctx, st, count, tr.h, tr.w, spx_unet_width(u));
       goto done;
     }
     if (!isfinite(loss)) {
+      progress_clear(&pg);
       rc = spx_cli_errorf("train", "the loss became %g at step %lld (learning rate too high?)", loss, (long long)step);
       goto done;
     }
     ep_loss += loss;
     ep_count++;
-    int end_epoch = pos == spe - 1, last = spx_unet_step(u) == target;
+    pg.images += count;
+    int64_t now_step = spx_unet_step(u);
+    int end_epoch = pos == spe - 1, last = now_step == target;
+    if (pg.tty || now_step % log_every == 0 || end_epoch || last)
+      progress_show(&pg, now_step, epoch, ep_loss / ep_count, end_epoch || last);
     if (end_epoch || last) {
-      double vl = 0;
-      if (val.n && (rc = validate(ctx, u, &val, &vl))) goto done;
-      printf("epoch %lld step %lld: train L1 %.6f", (long long)epoch + 1, (long long)spx_unet_step(u), ep_loss / ep_count);
-      if (val.n) printf(", validation L1 %.6f", vl);
+      double vl = 0, vp = 0;
+      if (val.n && (rc = validate(ctx, u, &val, &vl, &vp))) goto done;
+      progress_clear(&pg);
+      printf("epoch %lld step %lld: train L1 %.6f", (long long)epoch + 1, (long long)now_step, ep_loss / ep_count);
+      if (val.n) printf(", validation L1 %.6f, PSNR %.2f dB", vl, vp);
       printf(", %.1f s\n", now_s() - t0);
       fflush(stdout);
       ep_loss = 0;
       ep_count = 0;
+    }
+    int save = save_every ? now_step % save_every == 0 : end_epoch;
+    if ((save || interrupted) && !last) {
       if (spx_unet_save(u, outp, 1)) {
+        progress_clear(&pg);
         rc = spx_cli_error("train", ctx);
         goto done;
       }
     }
+    if (interrupted && !last) {
+      progress_clear(&pg);
+      fprintf(stderr, "smplpix train: interrupted after step %lld of %lld: saved %s (continue with --resume)\n",
+              (long long)now_step, (long long)target, outp);
+      rc = 130;
+      goto done;
+    }
   }
+  progress_clear(&pg);
   if (spx_unet_save(u, outp, 1)) { /* also when nothing was left to do */
     rc = spx_cli_error("train", ctx);
     goto done;
   }
   printf("wrote %s (step %lld)\n", outp, (long long)spx_unet_step(u));
 done:
+  if (handler_set) sigaction(SIGINT, &old_int, NULL);
   free(perm), free(in), free(tg);
   split_free(&tr);
   split_free(&val);

@@ -2,14 +2,22 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
+#include <stdlib.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "cli.h"
+#include "cmd_fit.h"
 
 static const spx_command commands[] = {
     {"project", "project a colored mesh through camera(s) into RGB-D images", spx_cmd_project},
+    {"raster", "rasterize a mesh's triangles through camera(s) (the classic baseline)", spx_cmd_raster},
+    {"dataset", "write a training set: projections -> raster renders of one mesh", spx_cmd_dataset},
     {"render", "run a trained UNet on RGB-D image(s), or on a mesh through camera(s)", spx_cmd_render},
     {"train", "train the UNet on a data directory", spx_cmd_train},
+    {"register", "register the body model to a 3-D scan (Ceres)", spx_cmd_register},
+    {"repose", "pose a registered person with a BVH frame", spx_cmd_repose},
+    {"reshape", "change a registered person's shape coefficients", spx_cmd_reshape},
     {"devices", "list OpenCL devices and warm the kernel cache", spx_cmd_devices},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
@@ -60,6 +68,19 @@ void spx_cli_ext(const char *path, char *ext, size_t cap) {
   if (dot && (!slash || dot > slash))
     for (const char *p = dot + 1; *p && i + 1 < cap; p++, i++) ext[i] = (char)((*p >= 'A' && *p <= 'Z') ? *p + 32 : *p);
   if (cap) ext[i] = 0;
+}
+
+const char *spx_cli_data_path(const char *rel) {
+  static char buf[4096];
+  const char *env = getenv("SPX_DATA_DIR");
+  const char *dirs[3] = {env && *env ? env : NULL, SPX_INSTALL_DATA_DIR, SPX_SOURCE_DATA_DIR};
+  for (int i = 0; i < 3; i++) {
+    if (!dirs[i]) continue;
+    snprintf(buf, sizeof buf, "%s/%s", dirs[i], rel);
+    if (access(buf, R_OK) == 0 || i == 0) return buf; /* an explicit $SPX_DATA_DIR is final */
+  }
+  snprintf(buf, sizeof buf, "%s/%s", SPX_SOURCE_DATA_DIR, rel);
+  return buf;
 }
 
 double spx_cli_now(void) {

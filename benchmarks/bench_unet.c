@@ -1,10 +1,25 @@
-/* UNet benchmark: eval forward (batch norm folded, fused ReLU) and one training step (forward +
- * L1 + backward + Adam) of the SMPLpix UNet on a 1x4xHxW input, on the open device; minimum over
- * reps after one warm-up (which also plans the arenas and builds the kernels). Peer:
- * benchmarks/peer_unet_torch.py times the same model in PyTorch (run it in the same session and
- * compare ratios: absolute times drift on shared machines).
+/* UNet benchmark: eval forward (batch norm folded, fused ReLU) and one training step (zero grad +
+ * forward + L1 + backward + Adam) of the SMPLpix UNet on an Nx4xHxW input, on the open device;
+ * minimum over reps after one warm-up (which also plans the arenas and builds the kernels).
+ * Peer: benchmarks/peer_unet_torch.py times the same model in PyTorch and prints the same ROW
+ * lines; benchmarks/unet_vs_torch.sh (`make bench-unet`) runs both back to back and compares.
  *
- *   bench_unet [--width W] [--size HxW] [--reps N] [--no-train]   (defaults: 16, 308x410, 3) */
+ *   bench_unet [--width W] [--size HxW] [--reps N] [--batch N] [--eval-batch N] [--no-train] [--no-eval]
+ *   defaults: width 16, 308x410, 3 reps, train batch 1, eval batch 1
+ *
+ * GFLOP convention: forward = 2 x multiply-adds of every convolution (batch norm, ReLU, pooling,
+ * upsampling, concat and the loss are not counted) x batch; a training step counts 3x the forward
+ * (forward + input gradient + weight gradient). GFLOP/s = those FLOPs / the minimum time.
+ *
+ * Memory: the bytes of every device buffer the network holds at the end of the row
+ * (spx_unet_device_bytes: parameter, gradient, Adam and state slabs + activation and
+ * activation-gradient arenas + convolution workspace; all grow-only, so this is the peak of the
+ * rows run so far in this process; scratch allocated and released inside one op call is not
+ * counted).
+ *
+ * Besides the human-readable lines, every row prints one machine-readable line:
+ *   ROW impl=smplpix mode=eval|train width=W batch=N h=H w=W reps=R ms=... gflop=... gflops=...
+ *       mem_bytes=... mem_kind=device */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -23,7 +38,7 @@ static int fail(spx_ctx *ctx, const char *what) {
   return 1;
 }
 
-/* multiply-adds x 2 of every convolution of the width-w UNet on h x w0 */
+/* 2 x multiply-adds of every convolution of the width-wd UNet on one h x w input, in GFLOP */
 static double unet_gflop(int wd, int h, int w) {
   const int io[9][3] = {{4, wd, wd},           {wd, 2 * wd, 2 * wd},     {2 * wd, 4 * wd, 4 * wd},
                         {4 * wd, 8 * wd, 8 * wd}, {8 * wd, 8 * wd, 8 * wd}, {16 * wd, 8 * wd, 4 * wd},
@@ -39,26 +54,44 @@ static double unet_gflop(int wd, int h, int w) {
   return f * 1e-9;
 }
 
+static void row(const char *mode, int width, int n, int h, int w, int reps, double s, double gflop, size_t bytes) {
+  printf("ROW impl=smplpix mode=%s width=%d batch=%d h=%d w=%d reps=%d ms=%.3f gflop=%.3f gflops=%.3f "
+         "mem_bytes=%zu mem_kind=device\n",
+         mode, width, n, h, w, reps, 1e3 * s, gflop, gflop / s, bytes);
+}
+
 int main(int argc, char **argv) {
-  int width = 16, h = 308, w = 410, reps = 3, train = 1;
+  int width = 16, h = 308, w = 410, reps = 3, train = 1, eval = 1, batch = 1, ebatch = 1;
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--width") && i + 1 < argc) width = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--size") && i + 1 < argc && sscanf(argv[++i], "%dx%d", &h, &w) == 2) {
     } else if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--batch") && i + 1 < argc) batch = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--eval-batch") && i + 1 < argc) ebatch = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--no-train")) train = 0;
+    else if (!strcmp(argv[i], "--no-eval")) eval = 0;
     else {
-      fprintf(stderr, "usage: bench_unet [--width 8|16|32|64] [--size HxW] [--reps N] [--no-train]\n");
+      fprintf(stderr, "usage: bench_unet [--width 8|16|32|64] [--size HxW] [--reps N] [--batch N] [--eval-batch N] "
+                      "[--no-train] [--no-eval]\n");
       return 2;
     }
   }
   if (reps < 1) reps = 1;
+  if (batch < 1 || batch > 64 || ebatch < 1 || ebatch > 64 || h < 16 || w < 16 || h > 8192 || w > 8192) {
+    fprintf(stderr, "bench_unet: --batch/--eval-batch must be 1..64 and --size within 16..8192\n");
+    return 2;
+  }
+  int nmax = batch > ebatch ? batch : ebatch;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return 1;
   spx_unet *u = NULL;
   int rc = 1;
-  size_t nin = (size_t)4 * h * w, nout = (size_t)3 * h * w;
+  size_t nin = (size_t)nmax * 4 * h * w, nout = (size_t)nmax * 3 * h * w;
   float *in = malloc(nin * sizeof(float)), *tg = malloc(nout * sizeof(float)), *out = malloc(nout * sizeof(float));
-  if (!in || !tg || !out) goto done;
+  if (!in || !tg || !out) {
+    fprintf(stderr, "bench_unet: out of host memory\n");
+    goto done;
+  }
   for (size_t i = 0; i < nin; i++) in[i] = (float)((i * 2654435761u) % 1000) / 1000.0f;
   for (size_t i = 0; i < nout; i++) tg[i] = (float)((i * 40503u) % 1000) / 1000.0f;
   if (spx_device_open(ctx, NULL)) {
@@ -67,37 +100,46 @@ int main(int argc, char **argv) {
   }
   spx_device_info info;
   spx_device_get_info(ctx, &info);
+  printf("device: %s\n", info.name);
   if (spx_unet_create(ctx, width, 0, 1, &u)) {
     rc = fail(ctx, "create");
     goto done;
   }
-  double gf = unet_gflop(width, h, w), best = 1e30, tbest = 1e30;
-  for (int r = 0; r <= reps; r++) { /* r == 0: warm-up */
-    double t0 = now();
-    if (spx_unet_forward(u, in, 1, h, w, 0, out) || spx_device_finish(ctx)) {
-      rc = fail(ctx, "eval forward");
-      goto done;
+  double gf = unet_gflop(width, h, w);
+  if (eval) {
+    double best = 1e30;
+    for (int r = 0; r <= reps; r++) { /* r == 0: warm-up */
+      double t0 = now();
+      if (spx_unet_forward(u, in, ebatch, h, w, 0, out) || spx_device_finish(ctx)) {
+        rc = fail(ctx, "eval forward");
+        goto done;
+      }
+      double t = now() - t0;
+      if (r && t < best) best = t;
     }
-    double t = now() - t0;
-    if (r && t < best) best = t;
+    size_t bytes = spx_unet_device_bytes(u);
+    printf("unet width %d, %dx4x%dx%d: eval forward %.3f s (%.1f GFLOP, %.1f GFLOP/s), device memory %.1f MiB\n",
+           width, ebatch, h, w, best, gf * ebatch, gf * ebatch / best, (double)bytes / 1048576.0);
+    row("eval", width, ebatch, h, w, reps, best, gf * ebatch, bytes);
   }
-  printf("device: %s\n", info.name);
-  printf("unet width %d, 1x4x%dx%d: eval forward %.3f s (%.1f GFLOP, %.1f GFLOP/s)\n", width, h, w, best, gf,
-         gf / best);
   if (train) {
+    double best = 1e30;
     float loss;
     for (int r = 0; r <= reps; r++) {
       double t0 = now();
-      if (spx_unet_zero_grad(u) || spx_unet_forward_loss(u, in, tg, 1, h, w, NULL, &loss) || spx_unet_backward(u) ||
+      if (spx_unet_zero_grad(u) || spx_unet_forward_loss(u, in, tg, batch, h, w, NULL, &loss) || spx_unet_backward(u) ||
           spx_unet_adam_step(u, 1e-4) || spx_device_finish(ctx)) {
         rc = fail(ctx, "train step");
         goto done;
       }
       double t = now() - t0;
-      if (r && t < tbest) tbest = t;
+      if (r && t < best) best = t;
     }
-    printf("unet width %d, 1x4x%dx%d: train step (fwd + L1 + bwd + Adam) %.3f s (~%.1f GFLOP/s at 3x eval flops)\n",
-           width, h, w, tbest, 3 * gf / tbest);
+    size_t bytes = spx_unet_device_bytes(u);
+    printf("unet width %d, %dx4x%dx%d: train step (fwd + L1 + bwd + Adam) %.3f s (~%.1f GFLOP/s at 3x forward "
+           "flops), device memory %.1f MiB\n",
+           width, batch, h, w, best, 3 * gf * batch / best, (double)bytes / 1048576.0);
+    row("train", width, batch, h, w, reps, best, 3 * gf * batch, bytes);
   }
   rc = 0;
 done:

@@ -1,13 +1,23 @@
 #!/usr/bin/python3
 """Peer for bench_unet: the same milesial UNet (bilinear; tests/data/unet/make_unet_golden.py)
-in PyTorch on the CPU, 1x4xHxW: eval forward (no_grad) and one training step (forward, L1,
-backward, Adam), minimum over reps after a warm-up, with as many threads as cores.
+in PyTorch on the CPU, Nx4xHxW: eval forward (no_grad, eval mode) and one training step (zero_grad,
+forward, L1, backward, Adam), minimum over reps after one warm-up, with
+torch.set_num_threads(os.cpu_count()).
 
-    /usr/bin/python3 benchmarks/peer_unet_torch.py [--width W] [--size HxW] [--reps N] [--no-train]
+Prints the same machine-readable ROW lines as bench_unet (same GFLOP convention: 2 x conv
+multiply-adds x batch for the forward, 3x that for a training step). Memory: there is no device
+here, so the CPU analogue is reported: the process's peak resident set size
+(resource.getrusage(RUSAGE_SELF).ru_maxrss, mem_kind=maxrss) after the row. It includes the
+Python interpreter and the torch libraries; rss_before_bytes is the resident size just before the
+row's first pass, for reference. Run one row per process for a per-row figure.
+
+    /usr/bin/python3 benchmarks/peer_unet_torch.py [--width W] [--size HxW] [--reps N] [--batch N]
+                                                  [--eval-batch N] [--no-train] [--no-eval]
 """
 import argparse
 import importlib.util
 import os
+import resource
 import sys
 import time
 
@@ -23,32 +33,72 @@ spec = importlib.util.spec_from_file_location("golden", os.path.join(here, "..",
 golden = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(golden)
 
+
+def unet_gflop(wd, h, w):
+    """2 x multiply-adds of every convolution of the width-wd UNet on one h x w input (as bench_unet)."""
+    io = [(4, wd, wd), (wd, 2 * wd, 2 * wd), (2 * wd, 4 * wd, 4 * wd), (4 * wd, 8 * wd, 8 * wd),
+          (8 * wd, 8 * wd, 8 * wd), (16 * wd, 8 * wd, 4 * wd), (8 * wd, 4 * wd, 2 * wd), (4 * wd, 2 * wd, wd),
+          (2 * wd, wd, wd)]
+    hs = [h >> i for i in range(5)]
+    ws = [w >> i for i in range(5)]
+    lvl = [0, 1, 2, 3, 4, 3, 2, 1, 0]
+    f = 0.0
+    for (a, b, c), l in zip(io, lvl):
+        f += 2.0 * hs[l] * ws[l] * 9 * (a * b + b * c)
+    f += 2.0 * h * w * wd * 3
+    return f * 1e-9
+
+
+def rss_now():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def row(mode, n, best, gflop, before):
+    maxrss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # KiB on Linux
+    print("ROW impl=torch mode=%s width=%d batch=%d h=%d w=%d reps=%d ms=%.3f gflop=%.3f gflops=%.3f "
+          "mem_bytes=%d mem_kind=maxrss rss_before_bytes=%d threads=%d torch=%s"
+          % (mode, a.width, n, h, w, a.reps, 1e3 * best, gflop, gflop / best, maxrss, before,
+             torch.get_num_threads(), torch.__version__), flush=True)
+
+
 ap = argparse.ArgumentParser()
 ap.add_argument("--width", type=int, default=16)
 ap.add_argument("--size", default="308x410")
 ap.add_argument("--reps", type=int, default=3)
+ap.add_argument("--batch", type=int, default=1)
+ap.add_argument("--eval-batch", type=int, default=1)
 ap.add_argument("--no-train", action="store_true")
+ap.add_argument("--no-eval", action="store_true")
 a = ap.parse_args()
+a.reps = max(a.reps, 1)
 h, w = (int(v) for v in a.size.split("x"))
 torch.set_num_threads(os.cpu_count() or 1)
 torch.manual_seed(0)
 m = golden.UNet(a.width)
-x = torch.rand(1, 4, h, w)
-t = torch.rand(1, 3, h, w)
-m.eval()
-best = 1e30
-with torch.no_grad():
-    for r in range(a.reps + 1):
-        t0 = time.perf_counter()
-        m(x)
-        dt = time.perf_counter() - t0
-        if r:
-            best = min(best, dt)
-print("torch %s, %d threads: unet width %d, 1x4x%dx%d: eval forward %.3f s"
-      % (torch.__version__, torch.get_num_threads(), a.width, h, w, best))
+gf = unet_gflop(a.width, h, w)
+if not a.no_eval:
+    x = torch.rand(a.eval_batch, 4, h, w)
+    m.eval()
+    before = rss_now()
+    best = 1e30
+    with torch.no_grad():
+        for r in range(a.reps + 1):  # r == 0: warm-up
+            t0 = time.perf_counter()
+            m(x)
+            dt = time.perf_counter() - t0
+            if r:
+                best = min(best, dt)
+    print("torch %s, %d threads: unet width %d, %dx4x%dx%d: eval forward %.3f s (%.1f GFLOP/s)"
+          % (torch.__version__, torch.get_num_threads(), a.width, a.eval_batch, h, w, best, gf * a.eval_batch / best))
+    row("eval", a.eval_batch, best, gf * a.eval_batch, before)
+    del x
 if not a.no_train:
+    x = torch.rand(a.batch, 4, h, w)
+    t = torch.rand(a.batch, 3, h, w)
     m.train()
     opt = torch.optim.Adam(m.parameters(), lr=1e-4)
+    before = rss_now()
     best = 1e30
     for r in range(a.reps + 1):
         t0 = time.perf_counter()
@@ -58,4 +108,7 @@ if not a.no_train:
         dt = time.perf_counter() - t0
         if r:
             best = min(best, dt)
-    print("torch: unet width %d, 1x4x%dx%d: train step (fwd + L1 + bwd + Adam) %.3f s" % (a.width, h, w, best))
+    print("torch %s, %d threads: unet width %d, %dx4x%dx%d: train step (fwd + L1 + bwd + Adam) %.3f s "
+          "(~%.1f GFLOP/s at 3x forward flops)"
+          % (torch.__version__, torch.get_num_threads(), a.width, a.batch, h, w, best, 3 * gf * a.batch / best))
+    row("train", a.batch, best, 3 * gf * a.batch, before)

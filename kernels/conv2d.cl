@@ -9,13 +9,20 @@
  *
  * Register tiling: a work-item owns CONV_TM output channels x CONV_TN vectors of CONV_VW
  * pixels (CPU: explicit float16 vectors = one AVX-512 register each; GPU: CONV_VW = 1 and the
- * CONV_LWS work-items of a group take interleaved pixels so loads coalesce). Weights are
- * pre-packed as wpk[kk][CoutP] (kk = (ci*k+ky)*k+kx) so the TM weights of one step are adjacent.
+ * CONV_LWS work-items of a group take interleaved pixels so loads coalesce), for CONV_CT such
+ * channel tiles walked in blocks of CONV_CB input channels (cache blocking). Weights are
+ * pre-packed per channel tile as wpk[tile][kk][TM] (kk = (ci*k+ky)*k+kx): the TM weights of one
+ * step are adjacent and a work-item's panel is contiguous. Tunables: lib/cl/tuning.c.
  *
  * Backward data = this same forward kernel on dy dilated by the stride and padded by k-1-pad,
  * with weights flipped and transposed (spx_conv2d_pack flip=1), accumulating into dx.
  * Backward weights = GEMM over (n, q) with the reduction split into fixed chunks (partials,
- * then a fixed-order sum): no atomics, bit-identical every run. */
+ * then a fixed-order sum): no atomics, bit-identical every run.
+ *
+ * Next steps (not done): Winograd F(2x2,3x3) for the 3x3 stride-1 layers (2.25x fewer
+ * multiplies), and a local-memory (shared x and weight tiles) variant of conv_fwd for GPUs;
+ * the GPU configuration (CONV_VW = 1, interleaved pixels) is register-tiled and coalesced but
+ * keeps its operands in global memory / caches. */
 #ifndef CONV_VW
 #define CONV_VW 1
 #endif
@@ -27,6 +34,12 @@
 #endif
 #ifndef CONV_LWS
 #define CONV_LWS 64
+#endif
+#ifndef CONV_CT
+#define CONV_CT 1
+#endif
+#ifndef CONV_CB
+#define CONV_CB (1 << 30)
 #endif
 #ifndef CONV_DW_TM
 #define CONV_DW_TM 4
@@ -98,57 +111,13 @@ static inline vf vload_s(const __global float *p, const int S) {
 #define FL_RELU 8
 #define FL_ACCUM 16 /* y = y + acc, before bias / affine / ReLU */
 
-/* Forward. Global: dim0 = (CoutP/TM channel tiles) x (pixel groups) work-groups of CONV_LWS,
- * dim1 = N. A group covers CONV_LWS*CONV_TN*CONV_VW consecutive q and one channel tile; the
- * group order is channel-tile-fastest (consecutive groups share input pixels: large images) or
- * pixel-fastest when pix_major (consecutive groups share weights: deep layers with large
- * weights). wpk is packed per channel tile: wpk[cot][kk][TM], contiguous for one work-item.
- * Input channels [ci0, ci1) only: the host may split a deep layer into passes over channel
- * blocks (FL_ACCUM on all passes but the first, epilogue on the last) so the input block stays
- * in cache while each weight panel is read once.
- * KF > 0 fixes the kernel size at compile time (fully unrolled taps), KF = 0 uses k. */
-static inline __attribute__((always_inline)) void conv_fwd(
-    const __global float *xp, const __global float *wpk, __global float *y, const __global float *bias,
-    const __global float *scale, const __global float *shift, int Cin, int Cout, int CoutP, int k, int Wp,
-    int plane, int Ho, int Wo, int flags, int pix_major, int ci0, int ci1, const int S, const int KF) {
-  const int K = KF > 0 ? KF : k;
-  const int ncot = CoutP / CONV_TM, grp = (int)get_group_id(0);
-  const int npg = (int)get_num_groups(0) / ncot;
-  const int cot = pix_major ? grp / npg : grp % ncot, pg = pix_major ? grp % npg : grp / ncot;
-  const int co0 = cot * CONV_TM;
-  const int lid = (int)get_local_id(0);
-  const int n = (int)get_global_id(1);
-  const int q0 = pg * (CONV_LWS * CONV_TN * CONV_VW) + lid * CONV_VW;
-  const __global float *xb = xp + (size_t)n * Cin * plane + (size_t)S * q0;
-  const __global float *wb = wpk + (size_t)cot * Cin * K * K * CONV_TM;
-
-  vf acc[CONV_TM][CONV_TN];
-#pragma unroll
-  for (int m = 0; m < CONV_TM; m++)
-#pragma unroll
-    for (int j = 0; j < CONV_TN; j++) acc[m][j] = (vf)0.0f;
-
-  for (int ci = ci0; ci < ci1; ci++) {
-    const __global float *xc = xb + (size_t)ci * plane;
-    const __global float *wc = wb + ci * K * K * CONV_TM;
-    for (int ky = 0; ky < K; ky++) {
-      for (int kx = 0; kx < K; kx++) {
-        const __global float *xr = xc + ky * Wp + kx;
-        const __global float *wr = wc + (ky * K + kx) * CONV_TM;
-        vf xv[CONV_TN];
-#pragma unroll
-        for (int j = 0; j < CONV_TN; j++) xv[j] = vload_s(xr + S * j * (CONV_LWS * CONV_VW), S);
-#pragma unroll
-        for (int m = 0; m < CONV_TM; m++) {
-          vf wm = (vf)wr[m];
-#pragma unroll
-          for (int j = 0; j < CONV_TN; j++) acc[m][j] = fma(wm, xv[j], acc[m][j]);
-        }
-      }
-    }
-  }
-
-  /* epilogue: map lanes back to (oy, ox), drop the padding columns, apply bias/affine/ReLU */
+/* Epilogue of one channel tile: map lanes back to (oy, ox), drop the padding columns, apply
+ * accumulate / bias / affine / ReLU, store. */
+static inline __attribute__((always_inline)) void conv_fwd_store(vf acc[CONV_TM][CONV_TN], __global float *y,
+                                                                 const __global float *bias,
+                                                                 const __global float *scale,
+                                                                 const __global float *shift, int Cout, int co0,
+                                                                 int n, int q0, int Wp, int Ho, int Wo, int flags) {
   const int hw = Ho * Wo;
   __global float *yn = y + (size_t)n * Cout * hw;
   float b[CONV_TM], sc[CONV_TM], sh[CONV_TM];
@@ -197,6 +166,77 @@ static inline __attribute__((always_inline)) void conv_fwd(
       }
     }
   }
+}
+
+/* Forward. Global: dim0 = (channel super-tiles of CONV_CT tiles) x (pixel groups) work-groups of CONV_LWS,
+ * dim1 = N. A group covers CONV_LWS*CONV_TN*CONV_VW consecutive q and one channel tile; the
+ * group order is channel-tile-fastest (consecutive groups share input pixels: large images) or
+ * pixel-fastest when pix_major (consecutive groups share weights: deep layers with large
+ * weights). wpk is packed per channel tile: wpk[cot][kk][TM], contiguous for one work-item.
+ * Input channels [ci0, ci1) only: the host may split a deep layer into passes over channel
+ * blocks (FL_ACCUM on all passes but the first, epilogue on the last) so the input block stays
+ * in cache while each weight panel is read once.
+ * KF > 0 fixes the kernel size at compile time (fully unrolled taps), KF = 0 uses k. */
+static inline __attribute__((always_inline)) void conv_fwd(
+    const __global float *xp, const __global float *wpk, __global float *y, const __global float *bias,
+    const __global float *scale, const __global float *shift, int Cin, int Cout, int CoutP, int k, int Wp,
+    int plane, int Ho, int Wo, int flags, int pix_major, int ci0, int ci1, const int S, const int KF) {
+  const int K = KF > 0 ? KF : k;
+  const int ncot = CoutP / CONV_TM, ncst = (ncot + CONV_CT - 1) / CONV_CT, grp = (int)get_group_id(0);
+  const int npg = (int)get_num_groups(0) / ncst;
+  const int cst = pix_major ? grp / npg : grp % ncst, pg = pix_major ? grp % npg : grp / ncst;
+  const int ntl = min(CONV_CT, ncot - cst * CONV_CT);
+  const int lid = (int)get_local_id(0);
+  const int n = (int)get_global_id(1);
+  const int q0 = pg * (CONV_LWS * CONV_TN * CONV_VW) + lid * CONV_VW;
+  const __global float *xb = xp + (size_t)n * Cin * plane + (size_t)S * q0;
+
+  /* CONV_CT channel tiles per work-item, walked per block of CONV_CB input channels: the block
+   * of input pixels stays in L1 while each tile's accumulators cycle through private memory */
+  vf accs[CONV_CT][CONV_TM][CONV_TN];
+  for (int t = 0; t < ntl; t++)
+#pragma unroll
+    for (int m = 0; m < CONV_TM; m++)
+#pragma unroll
+      for (int j = 0; j < CONV_TN; j++) accs[t][m][j] = (vf)0.0f;
+
+  for (int cb = ci0; cb < ci1; cb += CONV_CB) {
+    const int ce = min(cb + CONV_CB, ci1);
+    for (int t = 0; t < ntl; t++) {
+      const __global float *wb = wpk + (size_t)(cst * CONV_CT + t) * Cin * K * K * CONV_TM;
+      vf acc[CONV_TM][CONV_TN];
+#pragma unroll
+      for (int m = 0; m < CONV_TM; m++)
+#pragma unroll
+        for (int j = 0; j < CONV_TN; j++) acc[m][j] = accs[t][m][j];
+      for (int ci = cb; ci < ce; ci++) {
+        const __global float *xc = xb + (size_t)ci * plane;
+        const __global float *wc = wb + ci * K * K * CONV_TM;
+        for (int ky = 0; ky < K; ky++) {
+          for (int kx = 0; kx < K; kx++) {
+            const __global float *xr = xc + ky * Wp + kx;
+            const __global float *wr = wc + (ky * K + kx) * CONV_TM;
+            vf xv[CONV_TN];
+#pragma unroll
+            for (int j = 0; j < CONV_TN; j++) xv[j] = vload_s(xr + S * j * (CONV_LWS * CONV_VW), S);
+#pragma unroll
+            for (int m = 0; m < CONV_TM; m++) {
+              vf wm = (vf)wr[m];
+#pragma unroll
+              for (int j = 0; j < CONV_TN; j++) acc[m][j] = fma(wm, xv[j], acc[m][j]);
+            }
+          }
+        }
+      }
+#pragma unroll
+      for (int m = 0; m < CONV_TM; m++)
+#pragma unroll
+        for (int j = 0; j < CONV_TN; j++) accs[t][m][j] = acc[m][j];
+    }
+  }
+
+  for (int t = 0; t < ntl; t++)
+    conv_fwd_store(accs[t], y, bias, scale, shift, Cout, (cst * CONV_CT + t) * CONV_TM, n, q0, Wp, Ho, Wo, flags);
 }
 
 #define CONV_FWD_ARGS                                                                                         \

@@ -23,6 +23,9 @@
 #endif
 
 #define SPX_CAM_FLOATS 21
+#ifndef SPX_PROJ_FILL_PX
+#define SPX_PROJ_FILL_PX 1
+#endif
 
 /* Pixel (row*W + col) and depth of one point, or 0 when it is dropped. */
 inline int spx_project_point(__global const float *cam, float x, float y, float z, int W, int H, uint *pix,
@@ -60,10 +63,12 @@ inline void spx_put_pixel(__global float *out, int layout, ulong img, uint pix, 
   }
 }
 
-/* One work-item per point (keys) and per pixel (background fill), whichever is more. */
+/* One work-item per point (keys) and per SPX_PROJ_FILL_PX pixels (background fill), whichever
+ * needs more work-items. */
 __kernel void spx_project_keys(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
                                uint npts, __global ulong *keys, __global uint *vals, uint npix,
-                               __global float *out, int layout, __global int *winners, int want_winners) {
+                               __global float *out, int layout, __global int *winners, int want_winners,
+                               __global uint *counts, int want_counts) {
   uint i = get_global_id(0);
   uint hw = (uint)W * (uint)H;
   if (i < npts) {
@@ -74,24 +79,45 @@ __kernel void spx_project_keys(__global const float *pos, __global const float *
     float d;
     ulong key = (ulong)npix << 32; /* dropped: sorts after every pixel */
     if (spx_project_point(cams + c * SPX_CAM_FLOATS, x[0], x[1], x[2], W, H, &pix, &d))
+    {
       key = ((ulong)img * hw + pix) << 32 | as_uint(d);
+      if (want_counts) atomic_inc(&counts[img * hw + pix]); /* counting-sort path: bucket sizes */
+    }
     keys[i] = key;
     vals[i] = v;
   }
-  if (i < npix) {
-    spx_put_pixel(out, layout, i / hw, i % hw, hw, 1.0f, 1.0f, 1.0f, 1.0f);
-    if (want_winners) winners[i] = -1;
+  /* background: every float of either layout is 1; SPX_PROJ_FILL_PX pixels per work-item */
+  uint q0 = i * SPX_PROJ_FILL_PX;
+  if (q0 < npix) {
+    uint q1 = min(q0 + (uint)SPX_PROJ_FILL_PX, npix);
+    __global float4 *o4 = (__global float4 *)out;
+    for (uint q = q0; q < q1; q++) o4[q] = (float4)(1.0f);
+    if (want_winners)
+      for (uint q = q0; q < q1; q++) winners[q] = -1;
   }
 }
 
-/* Unique + scatter of the sorted keys at position j: the head of each pixel run wins. */
-inline void spx_project_head(__global const ulong *keys, __global const uint *vals, uint j, __global const float *col,
-                             int has_col, int N, int C, uint hw, uint npix, __global float *out, int layout,
-                             __global int *winners, int want_winners) {
+/* Unique + scatter at sorted position j: the head of each pixel run writes the run's nearest
+ * point (smallest depth bits; on equal depths the first in the run, which is the smallest vertex
+ * index because the sort is stable and points enter in vertex order). When the depth bits took
+ * part in the sort (SPX_PROJ_SORT_DEPTH) the head itself is that point; when only the pixel bits
+ * were sorted the short walk over the run finds it: both give the same result. */
+inline void spx_project_head(__global const ulong *keys, __global const uint *vals, uint j, uint n,
+                             __global const float *col, int has_col, int N, int C, uint hw, uint npix,
+                             __global float *out, int layout, __global int *winners, int want_winners) {
   ulong key = keys[j];
   uint pg = (uint)(key >> 32);
   if (pg >= npix || (j > 0 && (uint)(keys[j - 1] >> 32) == pg)) return;
-  uint v = vals[j], img = pg / hw;
+  uint best = j, bd = (uint)key;
+  for (uint m = j + 1; m < n; m++) {
+    ulong km = keys[m];
+    if ((uint)(km >> 32) != pg) break;
+    if ((uint)km < bd) {
+      bd = (uint)km;
+      best = m;
+    }
+  }
+  uint v = vals[best], img = pg / hw;
   float r = 1.0f, g = 1.0f, b = 1.0f;
   if (has_col) {
     __global const float *cv = col + ((ulong)(img / (uint)C) * N + v) * 3;
@@ -99,7 +125,7 @@ inline void spx_project_head(__global const ulong *keys, __global const uint *va
     g = cv[1];
     b = cv[2];
   }
-  spx_put_pixel(out, layout, img, pg % hw, hw, r, g, b, as_float((uint)key));
+  spx_put_pixel(out, layout, img, pg % hw, hw, r, g, b, as_float(bd));
   if (want_winners) winners[pg] = (int)v;
 }
 
@@ -108,19 +134,61 @@ __kernel void spx_project_scatter(__global const ulong *keys, __global const uin
                                   __global float *out, int layout, __global int *winners, int want_winners) {
   uint j = get_global_id(0);
   if (j < n)
-    spx_project_head(keys, vals, j, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
+    spx_project_head(keys, vals, j, n, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
 }
 
 /* Small inputs: the whole sort + unique + scatter in one work-group (one launch). */
 __kernel __attribute__((reqd_work_group_size(SPX_SORT_WG, 1, 1))) void
 spx_project_sort_scatter(__global ulong *keys, __global uint *vals, __global ulong *keys2, __global uint *vals2,
-                         uint n, uint key_bits, __global const float *col, int has_col, int N, int C, int W, int H,
+                         uint n, uint lo_bit, uint key_bits, __global const float *col, int has_col, int N, int C, int W, int H,
                          uint npix, __global float *out, int layout, __global int *winners, int want_winners) {
   __local uint cnt[SPX_RADIX * SPX_SORT_WG], tmp[SPX_SORT_WG], dbase[SPX_RADIX], adj[SPX_RADIX];
-  spx_sort_wg(keys, vals, keys2, vals2, n, key_bits, cnt, tmp, dbase, adj);
+  spx_sort_wg(keys, vals, keys2, vals2, n, lo_bit, key_bits, cnt, tmp, dbase, adj);
   barrier(CLK_GLOBAL_MEM_FENCE);
   for (uint j = get_local_id(0); j < n; j += SPX_SORT_WG)
-    spx_project_head(keys, vals, j, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
+    spx_project_head(keys, vals, j, n, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
+}
+
+/* Counting-sort path (large inputs): offs holds the exclusive scan of the per-pixel counts.
+ * Each point claims a slot of its pixel's bucket (order inside a bucket is arbitrary); after
+ * this launch offs[q] is the end of bucket q, i.e. the start of bucket q+1. */
+__kernel void spx_project_bucket(__global const ulong *keys, uint npts, uint npix, __global uint *offs,
+                                 __global uint *bucket) {
+  uint i = get_global_id(0);
+  if (i >= npts) return;
+  uint pg = (uint)(keys[i] >> 32);
+  if (pg < npix) bucket[atomic_inc(&offs[pg])] = i;
+}
+
+/* One work-item per pixel walks its bucket and keeps the nearest point, ties to the smallest
+ * point index (= smallest vertex index within an image): independent of the bucket order, so
+ * the result is deterministic and equal to the stable depth sort's first-of-run. */
+__kernel void spx_project_bucket_min(__global const ulong *keys, __global const uint *offs,
+                                     __global const uint *bucket, __global const float *col, int has_col, int N,
+                                     int C, int W, int H, uint npix, __global float *out, int layout,
+                                     __global int *winners, int want_winners) {
+  uint q = get_global_id(0);
+  if (q >= npix) return;
+  uint start = q ? offs[q - 1] : 0u, end = offs[q];
+  if (start == end) return;
+  uint best = bucket[start], bd = (uint)keys[best];
+  for (uint m = start + 1; m < end; m++) {
+    uint i = bucket[m], di = (uint)keys[i];
+    if (di < bd || (di == bd && i < best)) {
+      bd = di;
+      best = i;
+    }
+  }
+  uint hw = (uint)W * (uint)H, v = best % (uint)N, img = q / hw;
+  float r = 1.0f, g = 1.0f, b = 1.0f;
+  if (has_col) {
+    __global const float *cv = col + ((ulong)(img / (uint)C) * N + v) * 3;
+    r = cv[0];
+    g = cv[1];
+    b = cv[2];
+  }
+  spx_put_pixel(out, layout, img, q % hw, hw, r, g, b, as_float(bd));
+  if (want_winners) winners[q] = (int)v;
 }
 
 /* Backward, step 1: for each pixel with a winner, remember the pixel in vpix[img*N + winner]

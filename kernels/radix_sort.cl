@@ -6,19 +6,19 @@
  * Host side: lib/render/sort.c; reference: lib/render/sort_ref.c. */
 #include "radix_sort.h"
 
+/* Digit counts of this work-group's block (the keys spx_sort_scatter will rank), digit-major. */
 __kernel __attribute__((reqd_work_group_size(SPX_SORT_WG, 1, 1))) void
 spx_sort_hist(__global const ulong *keys, uint n, uint shift, uint dmask, __global uint *hist, uint nblocks) {
-  __local uint c[SPX_RADIX];
+  __local uint cnt[SPX_RADIX * SPX_SORT_WG], tot[SPX_RADIX];
   uint lid = get_local_id(0), blk = get_group_id(0);
-  for (uint d = lid; d < SPX_RADIX; d += SPX_SORT_WG) c[d] = 0;
+  for (uint d = 0; d < SPX_RADIX; d++) cnt[d * SPX_SORT_WG + lid] = 0;
+  uint first = blk * SPX_SORT_BLOCK + lid * SPX_SORT_ITEMS;
+  for (uint i = 0; i < SPX_SORT_ITEMS; i++)
+    if (first + i < n) cnt[spx_digit(keys[first + i], shift) * SPX_SORT_WG + lid]++;
   barrier(CLK_LOCAL_MEM_FENCE);
-  uint base = blk * SPX_SORT_BLOCK;
-  for (uint i = 0; i < SPX_SORT_ITEMS; i++) {
-    uint j = base + i * SPX_SORT_WG + lid;
-    if (j < n) atomic_inc(&c[spx_digit(keys[j], shift)]);
-  }
+  spx_sum_counts(cnt, tot);
   barrier(CLK_LOCAL_MEM_FENCE);
-  for (uint d = lid; d < SPX_RADIX; d += SPX_SORT_WG) hist[d * nblocks + blk] = c[d];
+  for (uint d = lid; d < SPX_RADIX; d += SPX_SORT_WG) hist[d * nblocks + blk] = tot[d];
 }
 
 /* Exclusive scan of each SPX_SORT_BLOCK chunk of data in place; chunk totals go to sums[]. */
@@ -57,7 +57,8 @@ spx_sort_scatter(__global const ulong *ks, __global const uint *vs, uint n, uint
 }
 
 __kernel __attribute__((reqd_work_group_size(SPX_SORT_WG, 1, 1))) void
-spx_sort_single(__global ulong *ka, __global uint *va, __global ulong *kb, __global uint *vb, uint n, uint key_bits) {
+spx_sort_single(__global ulong *ka, __global uint *va, __global ulong *kb, __global uint *vb, uint n, uint lo_bit,
+                uint key_bits) {
   __local uint cnt[SPX_RADIX * SPX_SORT_WG], tmp[SPX_SORT_WG], dbase[SPX_RADIX], adj[SPX_RADIX];
-  spx_sort_wg(ka, va, kb, vb, n, key_bits, cnt, tmp, dbase, adj);
+  spx_sort_wg(ka, va, kb, vb, n, lo_bit, key_bits, cnt, tmp, dbase, adj);
 }

@@ -91,21 +91,33 @@ inline void spx_rank_scatter(__global const ulong *ks, __global const uint *vs, 
   barrier(CLK_LOCAL_MEM_FENCE);
 }
 
-/* The whole stable LSD sort of n pairs by their low key_bits bits inside ONE work-group, ping-
- * ponging between (ka, va) and (kb, vb); the result is left in (ka, va). */
+/* Per-digit totals of the keys this work-group sees (each work-item counts its own keys into
+ * column lid of cnt; no atomics), summed into tot[d]. Call after the counts are in cnt. */
+inline void spx_sum_counts(__local uint *cnt, __local uint *tot) {
+  for (uint d = get_local_id(0); d < SPX_RADIX; d += SPX_SORT_WG) {
+    uint s = 0;
+    for (uint w = 0; w < SPX_SORT_WG; w++) s += cnt[d * SPX_SORT_WG + w];
+    tot[d] = s;
+  }
+}
+
+/* The whole stable LSD sort of n pairs by key bits [lo_bit, key_bits) inside ONE work-group,
+ * ping-ponging between (ka, va) and (kb, vb); the result is left in (ka, va). */
 inline void spx_sort_wg(__global ulong *ka, __global uint *va, __global ulong *kb, __global uint *vb, uint n,
-                        uint key_bits, __local uint *cnt, __local uint *tmp, __local uint *dbase, __local uint *adj) {
+                        uint lo_bit, uint key_bits, __local uint *cnt, __local uint *tmp, __local uint *dbase,
+                        __local uint *adj) {
   uint lid = get_local_id(0);
   uint pass = 0;
-  for (uint shift = 0; shift < key_bits; shift += SPX_SORT_BITS, pass++) {
+  for (uint shift = lo_bit; shift < key_bits; shift += SPX_SORT_BITS, pass++) {
     __global ulong *ks = (pass & 1u) ? kb : ka;
     __global uint *vs = (pass & 1u) ? vb : va;
     __global ulong *kd = (pass & 1u) ? ka : kb;
     __global uint *vd = (pass & 1u) ? va : vb;
     uint dmask = spx_digit_mask(shift, key_bits);
-    for (uint d = lid; d < SPX_RADIX; d += SPX_SORT_WG) dbase[d] = 0;
+    for (uint d = 0; d < SPX_RADIX; d++) cnt[d * SPX_SORT_WG + lid] = 0;
+    for (uint j = lid; j < n; j += SPX_SORT_WG) cnt[spx_digit(ks[j], shift) * SPX_SORT_WG + lid]++;
     barrier(CLK_LOCAL_MEM_FENCE);
-    for (uint j = lid; j < n; j += SPX_SORT_WG) atomic_inc(&dbase[spx_digit(ks[j], shift)]);
+    spx_sum_counts(cnt, dbase);
     barrier(CLK_LOCAL_MEM_FENCE);
     if (lid == 0) {
       uint run = 0;

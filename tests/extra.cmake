@@ -18,3 +18,11 @@ foreach(src ${SPX_TEST_SOURCES})
       TIMEOUT 900)
   endif()
 endforeach()
+
+# The projection's alternative collision path: sort by pixel only, nearest point found by the
+# run head (the default is the paper's (pixel, depth) sort); both must give identical bits.
+add_test(NAME test_render_project_pixel_sort COMMAND test_render_project)
+file(MAKE_DIRECTORY ${SPX_TEST_TMP}/test_render_project_pixel_sort)
+set_tests_properties(test_render_project_pixel_sort PROPERTIES
+  ENVIRONMENT "SPX_TUNE_PROJ_SORT_DEPTH=0;SPX_TEST_TMP=${SPX_TEST_TMP}/test_render_project_pixel_sort;SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache"
+  TIMEOUT 900)

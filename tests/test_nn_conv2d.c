@@ -279,6 +279,13 @@ static void test_bad_args(void) {
   CHECK(spx_conv2d_backward(ctx, &x, &w, &y, &x, NULL, NULL, &p0) == SPX_E_ARG);
   CHECK(spx_conv2d_backward(ctx, &x, &w, &ybad, NULL, NULL, NULL, &p) == SPX_E_ARG);
   CHECK(strstr(spx_ctx_message(ctx), "dy") != NULL);
+  /* a view that runs past the end of its buffer (4096 bytes = 1024 floats) */
+  spx_tensor xo = spx_tensor_view(m, 1000, 1, 2, 5, 5);
+  CHECK(spx_conv2d_forward(ctx, &xo, &w, NULL, &p, &y) == SPX_E_ARG);
+  CHECK(strstr(spx_ctx_message(ctx), "overruns") != NULL);
+  spx_tensor dwo = spx_tensor_view(m, 1020, 3, 2, 3, 3);
+  CHECK(spx_conv2d_backward(ctx, &x, &w, &y, NULL, &dwo, NULL, &p) == SPX_E_ARG);
+  CHECK(strstr(spx_ctx_message(ctx), "dw") != NULL);
   spx_cl_free(&m);
   spx_ctx_destroy(ctx);
 }

@@ -60,7 +60,7 @@ static void run_dev(const spx_project_args *a, int force, float *out, int32_t *w
   if (a->col) CHECK_OK(ctx, spx_cl_write(ctx, col, 0, vb - 4, a->col));
   spx_project_dev_args d = {a->batch, a->nverts, pos, a->col ? col : NULL, a->ncams, a->cams, a->layout};
   CHECK_OK(ctx, spx_project_device(ctx, proj, &d, img, w, force));
-  if (force) CHECK(proj->last_fast == (force == 1) || a->nverts == 0);
+  if (force) CHECK(proj->last_path == force || a->nverts == 0);
   CHECK_OK(ctx, spx_cl_read(ctx, img, 0, npix * 16, out));
   CHECK_OK(ctx, spx_cl_read(ctx, w, 0, npix * 4, win));
   spx_cl_free(&pos);
@@ -75,7 +75,7 @@ static void check_vs_ref(const spx_project_args *a, const char *what, float **re
   float *ro = malloc(npix * 16), *o = malloc(npix * 16);
   int32_t *rw = malloc(npix * 4), *w = malloc(npix * 4);
   CHECK_OK(ctx, spx_project_ref(ctx, a, ro, rw));
-  for (int force = 0; force <= 2; force++) {
+  for (int force = 0; force <= 3; force++) {
     memset(o, 0, npix * 16);
     memset(w, 0, npix * 4);
     if (force == 0) CHECK_OK(ctx, spx_project(ctx, proj, a, o, w));
@@ -336,7 +336,11 @@ static void test_errors_and_empty(void) {
   CHECK(spx_project(ctx, proj, &a, out, win) == SPX_E_CAMERA);
   cams[0].K[0][0] = 10;
   cams[0].R[1][1] = NAN;
-  CHECK(spx_project(ctx, proj, &a, out, win) == SPX_E_CAMERA);
+  CHECK(spx_project(ctx, proj, &a, out, win) == SPX_E_NUMERIC);
+  cams[0].R[1][1] = 1;
+  cams[0].t[2] = 1e300; /* finite in double, not in float */
+  CHECK(spx_project(ctx, proj, &a, out, win) == SPX_E_NUMERIC);
+  cams[0].t[2] = 1;
   cams[0].R[1][1] = 2;
   CHECK(spx_project(ctx, proj, &a, out, win) == SPX_E_CAMERA);
   CHECK(strstr(spx_ctx_message(ctx), "orthonormal") != NULL);

@@ -13,7 +13,7 @@ static spx_sorter sorter;
 enum { KEYS_RANDOM48, KEYS_FEW, KEYS_EQUAL, KEYS_HIGH };
 
 /* Sorts n generated pairs on the device via `path` and compares with the reference. */
-static void check_sort(size_t n, int kind, int key_bits, spx_sort_path path, unsigned long long seed) {
+static void check_sort_bits(size_t n, int kind, int lo_bit, int key_bits, spx_sort_path path, unsigned long long seed) {
   uint64_t *k = malloc(sizeof *k * (n + 1)), *kr = malloc(sizeof *kr * (n + 1));
   uint32_t *v = malloc(sizeof *v * (n + 1)), *vr = malloc(sizeof *vr * (n + 1));
   for (size_t i = 0; i < n; i++) {
@@ -26,17 +26,17 @@ static void check_sort(size_t n, int kind, int key_bits, spx_sort_path path, uns
   }
   memcpy(kr, k, sizeof *k * n);
   memcpy(vr, v, sizeof *v * n);
-  CHECK_OK(ctx, spx_radix_sort_ref(ctx, kr, vr, n, key_bits));
+  CHECK_OK(ctx, spx_radix_sort_ref(ctx, kr, vr, n, lo_bit, key_bits));
   cl_mem dk = NULL, dv = NULL;
   CHECK_OK(ctx, spx_cl_alloc(ctx, sizeof *k * (n + 1), "keys", &dk));
   CHECK_OK(ctx, spx_cl_alloc(ctx, sizeof *v * (n + 1), "vals", &dv));
   CHECK_OK(ctx, spx_cl_write(ctx, dk, 0, sizeof *k * n, k));
   CHECK_OK(ctx, spx_cl_write(ctx, dv, 0, sizeof *v * n, v));
-  CHECK_OK(ctx, spx_radix_sort(ctx, &sorter, dk, dv, n, key_bits, path));
+  CHECK_OK(ctx, spx_radix_sort(ctx, &sorter, dk, dv, n, lo_bit, key_bits, path));
   CHECK_OK(ctx, spx_cl_read(ctx, dk, 0, sizeof *k * n, k));
   CHECK_OK(ctx, spx_cl_read(ctx, dv, 0, sizeof *v * n, v));
   int kok = memcmp(k, kr, sizeof *k * n) == 0, vok = memcmp(v, vr, sizeof *v * n) == 0;
-  CHECK_MSG(kok && vok, "n=%zu kind=%d bits=%d path=%d: keys %s, values %s", n, kind, key_bits, (int)path,
+  CHECK_MSG(kok && vok, "n=%zu kind=%d bits=[%d,%d) path=%d: keys %s, values %s", n, kind, lo_bit, key_bits, (int)path,
             kok ? "ok" : "differ", vok ? "ok" : "differ");
   spx_cl_free(&dk);
   spx_cl_free(&dv);
@@ -44,6 +44,10 @@ static void check_sort(size_t n, int kind, int key_bits, spx_sort_path path, uns
   free(kr);
   free(v);
   free(vr);
+}
+
+static void check_sort(size_t n, int kind, int key_bits, spx_sort_path path, unsigned long long seed) {
+  check_sort_bits(n, kind, 0, key_bits, path, seed);
 }
 
 static void test_small_sizes(void) {
@@ -68,6 +72,10 @@ static void test_key_bits(void) {
   check_sort(4000, KEYS_HIGH, 13, SPX_SORT_MULTI, 5);
   check_sort(4000, KEYS_HIGH, 64, SPX_SORT_MULTI, 6);
   check_sort(4000, KEYS_HIGH, 1, SPX_SORT_AUTO, 7);
+  /* a bit window [lo, hi): the projection sorts by pixel only, bits [32, 32 + pixel bits) */
+  check_sort_bits(5000, KEYS_RANDOM48, 32, 49, SPX_SORT_SINGLE, 8);
+  check_sort_bits(5000, KEYS_RANDOM48, 32, 49, SPX_SORT_MULTI, 8);
+  check_sort_bits(5000, KEYS_HIGH, 61, 64, SPX_SORT_MULTI, 9);
 }
 
 static void test_large(void) {
@@ -102,9 +110,10 @@ static void test_bad_args(void) {
   cl_mem dk = NULL, dv = NULL;
   CHECK_OK(ctx, spx_cl_alloc(ctx, 64, "keys", &dk));
   CHECK_OK(ctx, spx_cl_alloc(ctx, 64, "vals", &dv));
-  CHECK(spx_radix_sort(ctx, &sorter, dk, dv, 4, 65, SPX_SORT_AUTO) == SPX_E_ARG);
-  CHECK(strstr(spx_ctx_message(ctx), "key_bits") != NULL);
-  CHECK(spx_radix_sort(ctx, &sorter, dk, dv, (size_t)1 << 40, 32, SPX_SORT_AUTO) == SPX_E_ARG);
+  CHECK(spx_radix_sort(ctx, &sorter, dk, dv, 4, 0, 65, SPX_SORT_AUTO) == SPX_E_ARG);
+  CHECK(strstr(spx_ctx_message(ctx), "key bits") != NULL);
+  CHECK(spx_radix_sort(ctx, &sorter, dk, dv, 4, 9, 8, SPX_SORT_AUTO) == SPX_E_ARG);
+  CHECK(spx_radix_sort(ctx, &sorter, dk, dv, (size_t)1 << 40, 0, 32, SPX_SORT_AUTO) == SPX_E_ARG);
   spx_cl_free(&dk);
   spx_cl_free(&dv);
 }

@@ -31,7 +31,7 @@ struct spx_ctx {
   cl_device_id device;
   cl_context context;
   cl_command_queue queue;
-  char build_options[1024];
+  char build_options[4096];
   int cr_div; /* the device divides fp32 correctly rounded (set with build_options) */
   int tune_cpu; /* 1: kernels are built and launched with the CPU column of lib/cl/tuning.c */
   struct spx_cl_program programs[SPX_MAX_PROGRAMS];

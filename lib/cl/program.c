@@ -56,7 +56,9 @@ static spx_status expand_includes(spx_ctx *ctx, const char *name, char **text, s
   size_t n = 0;
   spx_status st = SPX_OK;
   const char *p = *text, *end = *text + *len;
+  int lineno = 0;
   while (p < end) {
+    lineno++;
     const char *eol = memchr(p, '\n', (size_t)(end - p));
     size_t ll = eol ? (size_t)(eol - p) + 1 : (size_t)(end - p);
     const char *piece = p;
@@ -75,16 +77,27 @@ static spx_status expand_includes(spx_ctx *ctx, const char *name, char **text, s
       piece = inc;
       plen = ilen;
     }
-    char *grown = realloc(out, n + plen + 2);
+    /* compiler messages keep pointing at the right file and line: mark where the included
+     * text starts and where the including file resumes */
+    char mark[2][160] = {"", ""};
+    if (inc) {
+      snprintf(mark[0], sizeof mark[0], "#line 1 \"%.*s\"\n", (int)(strchr(p + tl, '"') - p - tl), p + tl);
+      snprintf(mark[1], sizeof mark[1], "\n#line %d \"%s\"\n", lineno + 1, name);
+    }
+    size_t m0 = strlen(mark[0]), m1 = strlen(mark[1]);
+    char *grown = realloc(out, n + m0 + plen + m1 + 1);
     if (!grown) {
       free(inc);
       st = spx_fail(ctx, SPX_E_NOMEM, "kernel source %s: out of memory", name);
       break;
     }
     out = grown;
+    memcpy(out + n, mark[0], m0);
+    n += m0;
     memcpy(out + n, piece, plen);
     n += plen;
-    if (inc) out[n++] = '\n';
+    memcpy(out + n, mark[1], m1);
+    n += m1;
     free(inc);
     p += ll;
   }

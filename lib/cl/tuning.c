@@ -25,20 +25,33 @@ static const struct spx_tunable spx_tunables[] = {
     {"SPX_RASTER_SHADE_ITEMS", 65536, 65536},
     /* radix sort (kernels/radix_sort.cl): digit bits per pass, work-group size, keys per
      * work-item; local memory of the scatter = 4 * 2^BITS * WG bytes */
-    {"SPX_SORT_BITS", 8, 4},
-    {"SPX_SORT_WG", 64, 256},
-    {"SPX_SORT_ITEMS", 16, 4},
+    {"SPX_SORT_BITS", 9, 4},
+    {"SPX_SORT_WG", 1, 256},
+    {"SPX_SORT_ITEMS", 4096, 4},
     /* up to this many keys, the whole sort runs in one work-group launch (no scan passes) */
     {"SPX_SORT_SINGLE_MAX", 32768, 8192},
     /* projection (kernels/project.cl): up to this many projected points (B*C*N) the fused path
      * runs (project+background fill, then one single-work-group sort+unique+scatter launch) */
     {"SPX_PROJ_FAST_MAX", 32768, 8192},
+    /* 1: sort projection keys by pixel and depth (the paper's depth sort); 0: by pixel only, the
+     * nearest point of each (short) pixel run found by its head — same output, fewer passes */
+    {"SPX_PROJ_SORT_DEPTH", 1, 1},
+    /* from this many points on (0: never), the projection uses a counting sort by pixel (one
+     * pass, atomics for bucket slots) + a per-pixel nearest-point pass instead of the radix sort;
+     * on 2-core PoCL it measured no better than the radix sort at 10^6 points (both ~40-90 ms,
+     * noisy), so it is off; unmeasured on GPUs */
+    {"SPX_PROJ_COUNT_MIN", 0, 0},
+    /* background pixels written per work-item of spx_project_keys */
+    {"SPX_PROJ_FILL_PX", 64, 1},
     /* conv2d (kernels/conv2d.cl): forward register tile = CONV_TM out-channels x CONV_TN vectors
      * of CONV_VW pixels per work-item, CONV_LWS work-items per group (interleaved pixels) */
     {"CONV_VW", 16, 1},
     {"CONV_TM", 8, 8},
     {"CONV_TN", 3, 4},
     {"CONV_LWS", 1, 64},
+    /* conv2d forward: channel tiles per work-item, walked per block of CONV_CB input channels */
+    {"CONV_CT", 4, 1},
+    {"CONV_CB", 16, 1048576},
     /* conv2d: inputs up to this many KiB (and smaller than the weights) run pixel-tile-fastest */
     {"CONV_XCACHE", 2048, 2048},
     /* conv2d backward weights: tile of out-channels x weight columns; q-chunk of the split reduction */
@@ -74,10 +87,28 @@ static int tune_cpu_column(const spx_ctx *ctx) {
   return ctx->info.kind == SPX_DEVICE_CPU;
 }
 
+/* SPX_TUNE_<NAME without a leading SPX_>=value overrides one row (tests use it to exercise
+ * alternative code paths; tuning experiments use it to try values without rebuilding). */
+static int tune_override(const char *name, int *value) {
+  char env[96];
+  snprintf(env, sizeof env, "SPX_TUNE_%s", strncmp(name, "SPX_", 4) ? name : name + 4);
+  const char *v = getenv(env);
+  if (!v || !*v) return 0;
+  char *end;
+  long x = strtol(v, &end, 10);
+  if (*end || x < -1000000000L || x > 1000000000L) return 0;
+  *value = (int)x;
+  return 1;
+}
+
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {
   int cpu = ctx->tune_cpu;
   for (size_t i = 0; i < sizeof spx_tunables / sizeof spx_tunables[0]; i++)
-    if (!strcmp(spx_tunables[i].name, name)) return cpu ? spx_tunables[i].cpu : spx_tunables[i].gpu;
+    if (!strcmp(spx_tunables[i].name, name)) {
+      int v;
+      if (tune_override(name, &v)) return v;
+      return cpu ? spx_tunables[i].cpu : spx_tunables[i].gpu;
+    }
   return 0;
 }
 

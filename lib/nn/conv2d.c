@@ -1,7 +1,8 @@
 /* 2-D convolution on the device: launchers for kernels/conv2d.cl (implicit GEMM with
  * register tiling; see the comment at the top of the kernel file for the data layout).
- * Scratch buffers (padded input, packed weights, partial sums) are allocated per call and
- * released after enqueueing; OpenCL keeps them alive until the kernels that use them finish. */
+ * Scratch buffers (padded input, packed weights, partial sums) come from the caller's
+ * spx_conv2d_workspace when given, else they are allocated per call and released after
+ * enqueueing (OpenCL keeps them alive until the kernels that use them finish). */
 #include <limits.h>
 
 #include "nn/conv2d.h"
@@ -14,12 +15,24 @@
 
 static size_t round_up(size_t a, size_t b) { return (a + b - 1) / b * b; }
 
+/* The tensor's elements [off, off + numel) must lie inside its buffer. */
+static spx_status check_fits(spx_ctx *ctx, const spx_tensor *t, const char *what) {
+  size_t bytes = 0;
+  spx_status st = spx_cl_check(ctx, clGetMemObjectInfo(t->mem, CL_MEM_SIZE, sizeof bytes, &bytes, NULL), what);
+  if (st) return st;
+  size_t n = spx_tensor_numel(t);
+  if (t->off > bytes / sizeof(float) || n > bytes / sizeof(float) - t->off)
+    return spx_fail(ctx, SPX_E_ARG, "conv2d: %s (%zu floats at offset %zu) overruns its %zu-byte buffer", what, n,
+                    t->off, bytes);
+  return SPX_OK;
+}
+
 static spx_status check_vec(spx_ctx *ctx, const spx_tensor *t, int count, const char *what) {
   if (!t) return SPX_OK;
   if (!t->mem || spx_tensor_numel(t) != (size_t)count)
     return spx_fail(ctx, SPX_E_ARG, "conv2d: %s must have %d elements (has %zu)", what, count,
                     t->mem ? spx_tensor_numel(t) : (size_t)0);
-  return SPX_OK;
+  return check_fits(ctx, t, what);
 }
 
 static spx_status check_shape(spx_ctx *ctx, const char *what, const spx_tensor *t, int n, int c, int h, int w) {
@@ -27,7 +40,7 @@ static spx_status check_shape(spx_ctx *ctx, const char *what, const spx_tensor *
   if (t->n != n || t->c != c || t->h != h || t->w != w)
     return spx_fail(ctx, SPX_E_ARG, "conv2d: %s has shape [%d,%d,%d,%d], expected [%d,%d,%d,%d]", what, t->n, t->c,
                     t->h, t->w, n, c, h, w);
-  return SPX_OK;
+  return check_fits(ctx, t, what);
 }
 
 /* Validate x, w, p; fills the geometry. */
@@ -58,8 +71,11 @@ static spx_status check_common(spx_ctx *ctx, const spx_tensor *x, const spx_tens
   /* every index inside the kernels is a 32-bit int: bound the largest scratch generously */
   double big = ((double)g->n * (g->cin > g->cout ? g->cin : g->cout) + 4.0) * (g->h + 2.0 * g->k) *
                (g->w + 2.0 * g->k) * g->s;
-  if (big > (double)INT_MAX / 2)
-    return spx_fail(ctx, SPX_E_UNSUPPORTED, "conv2d: tensors of %.0f elements exceed the 32-bit index range", big);
+  double wbig = ((double)g->cout + 64.0) * ((double)g->cin + 64.0) * g->k * g->k;
+  if (big > (double)INT_MAX / 2 || wbig > (double)INT_MAX / 2)
+    return spx_fail(ctx, SPX_E_UNSUPPORTED, "conv2d: tensors of %.0f elements exceed the 32-bit index range",
+                    big > wbig ? big : wbig);
+  if ((st = check_fits(ctx, x, "x")) || (st = check_fits(ctx, w, "w"))) return st;
   return SPX_OK;
 }
 
@@ -168,7 +184,8 @@ static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, i
   e |= SPX_ARG(kr, 19, pix_major);
   if (s > 2) e |= SPX_ARG(kr, 22, s);
   if ((st = spx_cl_check(ctx, e, name))) return st;
-  size_t gl[2] = {(size_t)(coutp / tm) * groups * lws, (size_t)n}, lo[2] = {(size_t)lws, 1};
+  int ct = spx_cl_tune(ctx, "CONV_CT"), ncst = (coutp / tm + ct - 1) / ct;
+  size_t gl[2] = {(size_t)ncst * groups * lws, (size_t)n}, lo[2] = {(size_t)lws, 1};
   const int epi = FL_BIAS | FL_SCALE | FL_SHIFT | FL_RELU;
   for (int ci0 = 0; ci0 < cin; ci0 += cib) {
     int ci1 = ci0 + cib < cin ? ci0 + cib : cin;

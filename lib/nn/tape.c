@@ -227,6 +227,17 @@ spx_status spx_tape_alloc_params(spx_tape *t) {
   return SPX_OK;
 }
 
+size_t spx_tape_device_bytes(const spx_tape *t) {
+  if (!t || t->backend != SPX_TAPE_DEVICE) return 0;
+  size_t b = 0;
+  if (t->allocated) b += (4 * (t->nparam ? t->nparam : 1) + (t->nstate ? t->nstate : 1)) * sizeof(float);
+  if (t->act) b += t->act_cap * sizeof(float);
+  if (t->dact) b += t->dact_cap * sizeof(float);
+  for (int i = 0; i < 3; i++)
+    if (t->ws.buf[i].mem) b += t->ws.buf[i].bytes;
+  return b;
+}
+
 /* ------------------------------------------------------------------ host <-> values */
 
 static spx_status xfer(spx_tape *t, int id, int grad, int moment, float *rd, const float *wr) {

@@ -191,6 +191,7 @@ int spx_unet_sigmoid(const spx_unet *u) { return u->sigmoid; }
 void spx_unet_set_sigmoid(spx_unet *u, int on) { u->sigmoid = on != 0; }
 int64_t spx_unet_step(const spx_unet *u) { return u->step; }
 spx_tape *spx_unet_tape(spx_unet *u) { return u->tape; }
+size_t spx_unet_device_bytes(const spx_unet *u) { return u ? spx_tape_device_bytes(u->tape) : 0; }
 int spx_unet_loss_id(const spx_unet *u) { return u->loss_id; }
 int spx_unet_input_id(const spx_unet *u) { return u->input_id; }
 

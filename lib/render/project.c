@@ -16,7 +16,7 @@ void spx_projector_destroy(spx_projector *p) {
   if (!p) return;
   spx_sorter_release(&p->sorter);
   spx_cl_buf *bufs[] = {&p->pos, &p->col, &p->cams, &p->keys, &p->vals, &p->img, &p->win,
-                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->dummy};
+                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->offs, &p->dummy};
   for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) spx_cl_buf_release(bufs[i]);
   free(p);
 }
@@ -27,9 +27,16 @@ static int bits_for(uint64_t x) {
   return b;
 }
 
+/* Cameras as floats on the device; a call with the same (up to 16) cameras as the last one
+ * skips the upload (one blocking write less per call). */
 static spx_status upload_cams(spx_ctx *ctx, spx_projector *p, int32_t ncams, const spx_camera *cams) {
   float f[64 * SPX_CAM_FLOATS];
   size_t bytes = (size_t)ncams * SPX_CAM_FLOATS * sizeof(float);
+  if (ncams <= 16 && p->ncams_on_device == ncams && p->cams.mem) {
+    for (int32_t c = 0; c < ncams; c++) spx_project_cam_floats(&cams[c], f + (size_t)c * SPX_CAM_FLOATS);
+    if (!memcmp(f, p->cam_host, bytes)) return SPX_OK;
+  }
+  p->ncams_on_device = 0;
   spx_status st = spx_cl_buf_ensure(ctx, &p->cams, bytes, "projection cameras");
   if (st) return st;
   for (int32_t c0 = 0; c0 < ncams; c0 += 64) {
@@ -38,7 +45,9 @@ static spx_status upload_cams(spx_ctx *ctx, spx_projector *p, int32_t ncams, con
     if ((st = spx_cl_write(ctx, p->cams.mem, (size_t)c0 * SPX_CAM_FLOATS * sizeof(float),
                            (size_t)m * SPX_CAM_FLOATS * sizeof(float), f)))
       return st;
+    if (c0 == 0 && ncams <= 16) memcpy(p->cam_host, f, bytes);
   }
+  if (ncams <= 16) p->ncams_on_device = ncams;
   return SPX_OK;
 }
 
@@ -70,35 +79,72 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
   if ((st = spx_cl_buf_ensure(ctx, &p->keys, ((size_t)npts + 1) * sizeof(cl_ulong), "projection keys"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &p->vals, ((size_t)npts + 1) * sizeof(cl_uint), "projection values"))) return st;
 
+  /* path: 1 fused single-work-group sort, 2 radix sort + unique, 3 counting sort by pixel */
+  int path = force_path;
+  if (!path)
+    path = npts <= (cl_uint)spx_cl_tune(ctx, "SPX_PROJ_FAST_MAX")   ? 1
+           : spx_cl_tune(ctx, "SPX_PROJ_COUNT_MIN") > 0 && npts >= (cl_uint)spx_cl_tune(ctx, "SPX_PROJ_COUNT_MIN")
+               ? 3
+               : 2;
+  cl_int want_counts = path == 3 && npts > 0;
+  if (want_counts) {
+    cl_uint zero = 0;
+    if ((st = spx_cl_buf_ensure(ctx, &p->offs, (size_t)npix * sizeof(cl_uint), "projection pixel counts"))) return st;
+    cl_int fe = clEnqueueFillBuffer(ctx->queue, p->offs.mem, &zero, sizeof zero, 0, (size_t)npix * sizeof(cl_uint), 0,
+                                    NULL, NULL);
+    if ((st = spx_cl_check(ctx, fe, "spx_project counts fill"))) return st;
+  }
+  cl_mem counts = want_counts ? p->offs.mem : p->dummy.mem;
   cl_kernel kk;
   if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_keys", &kk))) return st;
   cl_int e = SPX_ARG(kk, 0, pos) | SPX_ARG(kk, 1, p->cams.mem) | SPX_ARG(kk, 2, N) | SPX_ARG(kk, 3, C) |
              SPX_ARG(kk, 4, W) | SPX_ARG(kk, 5, H) | SPX_ARG(kk, 6, npts) | SPX_ARG(kk, 7, p->keys.mem) |
              SPX_ARG(kk, 8, p->vals.mem) | SPX_ARG(kk, 9, npix) | SPX_ARG(kk, 10, out) | SPX_ARG(kk, 11, layout) |
-             SPX_ARG(kk, 12, win) | SPX_ARG(kk, 13, want_win);
+             SPX_ARG(kk, 12, win) | SPX_ARG(kk, 13, want_win) | SPX_ARG(kk, 14, counts) |
+             SPX_ARG(kk, 15, want_counts);
   if ((st = spx_cl_check(ctx, e, "spx_project_keys args"))) return st;
-  size_t g = npts > npix ? npts : npix, l = (size_t)spx_cl_tune(ctx, "SPX_WG");
+  size_t fill_px = (size_t)spx_cl_tune(ctx, "SPX_PROJ_FILL_PX"), nfill = (npix + fill_px - 1) / fill_px;
+  size_t g = npts > nfill ? npts : nfill, l = (size_t)spx_cl_tune(ctx, "SPX_WG");
   if ((st = spx_cl_run(ctx, kk, 1, &g, &l, "spx_project_keys"))) return st;
   if (npts == 0) return SPX_OK;
 
-  cl_uint key_bits = 32u + (cl_uint)bits_for(npix);
-  int fast = force_path ? force_path == 1 : npts <= (cl_uint)spx_cl_tune(ctx, "SPX_PROJ_FAST_MAX");
-  p->last_fast = fast;
-  if (fast) {
+  /* sort by pixel only (bits [32, key_bits)) unless SPX_PROJ_SORT_DEPTH: see spx_project_head */
+  cl_uint key_bits = 32u + (cl_uint)bits_for(npix), lo_bit = spx_cl_tune(ctx, "SPX_PROJ_SORT_DEPTH") ? 0u : 32u;
+  p->last_path = path;
+  if (path == 3) {
+    if ((st = spx_scan_exclusive(ctx, &p->sorter, p->offs.mem, npix))) return st;
+    cl_kernel kb, km;
+    if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_bucket", &kb))) return st;
+    if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_bucket_min", &km))) return st;
+    e = SPX_ARG(kb, 0, p->keys.mem) | SPX_ARG(kb, 1, npts) | SPX_ARG(kb, 2, npix) | SPX_ARG(kb, 3, p->offs.mem) |
+        SPX_ARG(kb, 4, p->vals.mem);
+    if ((st = spx_cl_check(ctx, e, "spx_project_bucket args"))) return st;
+    g = npts;
+    if ((st = spx_cl_run(ctx, kb, 1, &g, &l, "spx_project_bucket"))) return st;
+    e = SPX_ARG(km, 0, p->keys.mem) | SPX_ARG(km, 1, p->offs.mem) | SPX_ARG(km, 2, p->vals.mem) |
+        SPX_ARG(km, 3, col) | SPX_ARG(km, 4, has_col) | SPX_ARG(km, 5, N) | SPX_ARG(km, 6, C) | SPX_ARG(km, 7, W) |
+        SPX_ARG(km, 8, H) | SPX_ARG(km, 9, npix) | SPX_ARG(km, 10, out) | SPX_ARG(km, 11, layout) |
+        SPX_ARG(km, 12, win) | SPX_ARG(km, 13, want_win);
+    if ((st = spx_cl_check(ctx, e, "spx_project_bucket_min args"))) return st;
+    g = npix;
+    return spx_cl_run(ctx, km, 1, &g, &l, "spx_project_bucket_min");
+  }
+  if (path == 1) {
     cl_kernel k;
     if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_sort_scatter", &k))) return st;
     if ((st = spx_cl_buf_ensure(ctx, &p->sorter.keys2, (size_t)npts * sizeof(cl_ulong), "radix sort keys"))) return st;
     if ((st = spx_cl_buf_ensure(ctx, &p->sorter.vals2, (size_t)npts * sizeof(cl_uint), "radix sort values"))) return st;
     e = SPX_ARG(k, 0, p->keys.mem) | SPX_ARG(k, 1, p->vals.mem) | SPX_ARG(k, 2, p->sorter.keys2.mem) |
-        SPX_ARG(k, 3, p->sorter.vals2.mem) | SPX_ARG(k, 4, npts) | SPX_ARG(k, 5, key_bits) | SPX_ARG(k, 6, col) |
-        SPX_ARG(k, 7, has_col) | SPX_ARG(k, 8, N) | SPX_ARG(k, 9, C) | SPX_ARG(k, 10, W) | SPX_ARG(k, 11, H) |
-        SPX_ARG(k, 12, npix) | SPX_ARG(k, 13, out) | SPX_ARG(k, 14, layout) | SPX_ARG(k, 15, win) |
-        SPX_ARG(k, 16, want_win);
+        SPX_ARG(k, 3, p->sorter.vals2.mem) | SPX_ARG(k, 4, npts) | SPX_ARG(k, 5, lo_bit) | SPX_ARG(k, 6, key_bits) |
+        SPX_ARG(k, 7, col) | SPX_ARG(k, 8, has_col) | SPX_ARG(k, 9, N) | SPX_ARG(k, 10, C) | SPX_ARG(k, 11, W) |
+        SPX_ARG(k, 12, H) | SPX_ARG(k, 13, npix) | SPX_ARG(k, 14, out) | SPX_ARG(k, 15, layout) |
+        SPX_ARG(k, 16, win) | SPX_ARG(k, 17, want_win);
     if ((st = spx_cl_check(ctx, e, "spx_project_sort_scatter args"))) return st;
     size_t wg = (size_t)spx_cl_tune(ctx, "SPX_SORT_WG");
     return spx_cl_run(ctx, k, 1, &wg, &wg, "spx_project_sort_scatter");
   }
-  if ((st = spx_radix_sort(ctx, &p->sorter, p->keys.mem, p->vals.mem, npts, (int)key_bits, SPX_SORT_AUTO))) return st;
+  if ((st = spx_radix_sort(ctx, &p->sorter, p->keys.mem, p->vals.mem, npts, (int)lo_bit, (int)key_bits,
+                            SPX_SORT_AUTO))) return st;
   cl_kernel ks;
   if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_scatter", &ks))) return st;
   e = SPX_ARG(ks, 0, p->keys.mem) | SPX_ARG(ks, 1, p->vals.mem) | SPX_ARG(ks, 2, npts) | SPX_ARG(ks, 3, col) |

@@ -12,9 +12,11 @@
 struct spx_projector {
   spx_sorter sorter;
   spx_cl_buf pos, col, cams, keys, vals, img, win; /* grow-only scratch */
-  spx_cl_buf gimg, gcol, gpos, vpix;
+  spx_cl_buf gimg, gcol, gpos, vpix, offs;
   spx_cl_buf dummy;
-  int last_fast; /* 1 when the last forward took the fused small-input path (for tests/benchmarks) */
+  int last_path; /* path of the last forward (1 fused, 2 radix sort, 3 counting sort; for tests/benchmarks) */
+  int ncams_on_device;                  /* cameras in `cams` equal to cam_host (0: unknown) */
+  float cam_host[16 * SPX_CAM_FLOATS]; /* what was uploaded last, to skip repeated uploads */
 };
 
 /* Inputs on the device: pos B*N*3 floats, col B*N*3 floats or NULL (white). */
@@ -27,8 +29,9 @@ typedef struct spx_project_dev_args {
 } spx_project_dev_args;
 
 /* Forward into device buffers: out B*C*4*H*W floats (layout as asked; the network wants
- * SPX_LAYOUT_NCHW), winners B*C*H*W ints or NULL. Only enqueues work. force_path: 0 auto,
- * 1 fused small-input path, 2 general path (tests compare both). */
+ * SPX_LAYOUT_NCHW), winners B*C*H*W ints or NULL. Only enqueues work. force_path: 0 auto
+ * (tunables SPX_PROJ_FAST_MAX, SPX_PROJ_COUNT_MIN), 1 fused single-work-group sort + unique,
+ * 2 radix sort + unique, 3 counting sort by pixel + per-pixel nearest (tests compare all). */
 spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out,
                               cl_mem winners, int force_path);
 
@@ -37,9 +40,8 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
 spx_status spx_project_backward_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem winners,
                                        cl_mem grad_img, cl_mem gcol, cl_mem gpos);
 
-/* Camera checks shared by the device path and the reference: sizes equal across the batch,
- * K upper-triangular with positive focal lengths, R orthonormal (1e-4) with det > 0, all finite
- * also after rounding to float. */
+/* Checks shared by the device path and the reference: counts, spx_camera_validate on every
+ * camera, one size across the batch, K R t finite after rounding to float. */
 spx_status spx_project_check(spx_ctx *ctx, const char *fn, int32_t batch, int32_t nverts, int32_t ncams,
                              const spx_camera *cams);
 

@@ -1,6 +1,7 @@
 /* Plain-C reference of the projection (single-thread z-buffer with the kernel's float
  * arithmetic, kernels/project.cl) and of its backward; also the argument checks both share. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -23,35 +24,17 @@ spx_status spx_project_check(spx_ctx *ctx, const char *fn, int32_t batch, int32_
   if (!cams) return spx_fail(ctx, SPX_E_ARG, "%s: no cameras", fn);
   for (int32_t c = 0; c < ncams; c++) {
     const spx_camera *k = &cams[c];
-    if (k->width < 1 || k->height < 1 || k->width > SPX_CAMERA_MAX_SIZE || k->height > SPX_CAMERA_MAX_SIZE)
-      return spx_fail(ctx, SPX_E_CAMERA, "%s: camera %d: size %dx%d not in 1..%d", fn, c, k->width, k->height,
-                      SPX_CAMERA_MAX_SIZE);
+    char name[96];
+    snprintf(name, sizeof name, "%s: camera %d", fn, c);
+    spx_status st = spx_camera_validate(ctx, name, k);
+    if (st) return st;
     if (k->width != cams[0].width || k->height != cams[0].height)
       return spx_fail(ctx, SPX_E_ARG, "%s: camera %d is %dx%d but camera 0 is %dx%d (one batch needs one size)", fn, c,
                       k->width, k->height, cams[0].width, cams[0].height);
     float f[SPX_CAM_FLOATS];
     spx_project_cam_floats(k, f);
     for (int i = 0; i < SPX_CAM_FLOATS; i++)
-      if (!isfinite(f[i])) return spx_fail(ctx, SPX_E_CAMERA, "%s: camera %d: K, R or t not finite in float32", fn, c);
-    if (!(k->K[0][0] > 0) || !(k->K[1][1] > 0))
-      return spx_fail(ctx, SPX_E_CAMERA, "%s: camera %d: K focal lengths must be > 0", fn, c);
-    if (k->K[1][0] != 0 || k->K[2][0] != 0 || k->K[2][1] != 0)
-      return spx_fail(ctx, SPX_E_CAMERA, "%s: camera %d: K is not upper-triangular", fn, c);
-    double det = k->R[0][0] * (k->R[1][1] * k->R[2][2] - k->R[1][2] * k->R[2][1]) -
-                 k->R[0][1] * (k->R[1][0] * k->R[2][2] - k->R[1][2] * k->R[2][0]) +
-                 k->R[0][2] * (k->R[1][0] * k->R[2][1] - k->R[1][1] * k->R[2][0]);
-    for (int i = 0; i < 3; i++)
-      for (int j = 0; j < 3; j++) {
-        double rr = 0, cc = 0;
-        for (int m = 0; m < 3; m++) {
-          rr += k->R[i][m] * k->R[j][m];
-          cc += k->R[m][i] * k->R[m][j];
-        }
-        double want = i == j ? 1.0 : 0.0;
-        if (fabs(rr - want) > 1e-4 || fabs(cc - want) > 1e-4)
-          return spx_fail(ctx, SPX_E_CAMERA, "%s: camera %d: R is not orthonormal", fn, c);
-      }
-    if (!(det > 0)) return spx_fail(ctx, SPX_E_CAMERA, "%s: camera %d: R has det %g (need +1)", fn, c, det);
+      if (!isfinite(f[i])) return spx_fail(ctx, SPX_E_NUMERIC, "%s: K, R or t overflows float32", name);
   }
   size_t hw = (size_t)cams[0].width * (size_t)cams[0].height, t;
   if (!spx_mul_size((size_t)batch, (size_t)ncams, &t) || !spx_mul_size(t, hw, &t) || t > 0x7fffffffu ||

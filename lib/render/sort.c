@@ -38,26 +38,27 @@ spx_status spx_scan_exclusive(spx_ctx *ctx, spx_sorter *s, cl_mem data, size_t n
   return scan_level(ctx, s, data, (cl_uint)n, 0);
 }
 
-spx_status spx_radix_sort(spx_ctx *ctx, spx_sorter *s, cl_mem keys, cl_mem vals, size_t n, int key_bits,
+spx_status spx_radix_sort(spx_ctx *ctx, spx_sorter *s, cl_mem keys, cl_mem vals, size_t n, int lo_bit, int key_bits,
                           spx_sort_path path) {
   spx_status st = spx_cl_require(ctx, "spx_radix_sort");
   if (st) return st;
-  if (key_bits < 0 || key_bits > 64) return spx_fail(ctx, SPX_E_ARG, "spx_radix_sort: key_bits %d not in 0..64", key_bits);
+  if (key_bits < 0 || key_bits > 64 || lo_bit < 0 || lo_bit > key_bits)
+    return spx_fail(ctx, SPX_E_ARG, "spx_radix_sort: key bits [%d, %d) not within 0..64", lo_bit, key_bits);
   if (n > SPX_SORT_MAX_N)
     return spx_fail(ctx, SPX_E_ARG, "spx_radix_sort: %zu keys is more than the supported %u", n, SPX_SORT_MAX_N);
-  if (n < 2 || key_bits == 0) return SPX_OK;
+  if (n < 2 || key_bits == lo_bit) return SPX_OK;
   int bits = spx_cl_tune(ctx, "SPX_SORT_BITS");
   size_t wg = (size_t)spx_cl_tune(ctx, "SPX_SORT_WG"), block = wg * (size_t)spx_cl_tune(ctx, "SPX_SORT_ITEMS");
   if (path == SPX_SORT_AUTO) path = n <= (size_t)spx_cl_tune(ctx, "SPX_SORT_SINGLE_MAX") ? SPX_SORT_SINGLE : SPX_SORT_MULTI;
   if ((st = spx_cl_buf_ensure(ctx, &s->keys2, n * sizeof(cl_ulong), "radix sort keys"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &s->vals2, n * sizeof(cl_uint), "radix sort values"))) return st;
-  cl_uint un = (cl_uint)n, ubits = (cl_uint)key_bits;
+  cl_uint un = (cl_uint)n, ubits = (cl_uint)key_bits, ulo = (cl_uint)lo_bit;
   cl_int e;
   if (path == SPX_SORT_SINGLE) {
     cl_kernel k;
     if ((st = spx_cl_kernel(ctx, "radix_sort.cl", "spx_sort_single", &k))) return st;
     e = SPX_ARG(k, 0, keys) | SPX_ARG(k, 1, vals) | SPX_ARG(k, 2, s->keys2.mem) | SPX_ARG(k, 3, s->vals2.mem) |
-        SPX_ARG(k, 4, un) | SPX_ARG(k, 5, ubits);
+        SPX_ARG(k, 4, un) | SPX_ARG(k, 5, ulo) | SPX_ARG(k, 6, ubits);
     if ((st = spx_cl_check(ctx, e, "spx_sort_single args"))) return st;
     return spx_cl_run(ctx, k, 1, &wg, &wg, "spx_sort_single");
   }
@@ -70,7 +71,7 @@ spx_status spx_radix_sort(spx_ctx *ctx, spx_sorter *s, cl_mem keys, cl_mem vals,
   cl_mem a_k = keys, a_v = vals, b_k = s->keys2.mem, b_v = s->vals2.mem;
   size_t g = (size_t)nb * wg;
   int pass = 0;
-  for (cl_uint shift = 0; shift < (cl_uint)key_bits; shift += (cl_uint)bits, pass++) {
+  for (cl_uint shift = ulo; shift < ubits; shift += (cl_uint)bits, pass++) {
     cl_uint left = (cl_uint)key_bits - shift;
     cl_uint dmask = left >= (cl_uint)bits ? (cl_uint)radix - 1u : (1u << left) - 1u;
     e = SPX_ARG(kh, 0, a_k) | SPX_ARG(kh, 1, un) | SPX_ARG(kh, 2, shift) | SPX_ARG(kh, 3, dmask) |

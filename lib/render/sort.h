@@ -18,16 +18,16 @@ void spx_sorter_release(spx_sorter *s);
 
 typedef enum spx_sort_path { SPX_SORT_AUTO = 0, SPX_SORT_SINGLE = 1, SPX_SORT_MULTI = 2 } spx_sort_path;
 
-/* Sort n pairs in place by the low key_bits bits of the keys (0..64; higher bits must be zero
- * or are ignored), stable: equal keys keep their input order. AUTO picks the one-launch
+/* Sort n pairs in place by key bits [lo_bit, key_bits) (0 <= lo_bit <= key_bits <= 64; other
+ * bits are carried along but ignored), stable: equal sort bits keep their input order. AUTO picks the one-launch
  * single-work-group path up to the SPX_SORT_SINGLE_MAX tunable. Only enqueues work. */
-spx_status spx_radix_sort(spx_ctx *ctx, spx_sorter *s, cl_mem keys, cl_mem vals, size_t n, int key_bits,
+spx_status spx_radix_sort(spx_ctx *ctx, spx_sorter *s, cl_mem keys, cl_mem vals, size_t n, int lo_bit, int key_bits,
                           spx_sort_path path);
 
 /* Exclusive prefix sum of n uints in place on the device (uses s->sums). */
 spx_status spx_scan_exclusive(spx_ctx *ctx, spx_sorter *s, cl_mem data, size_t n);
 
-/* Reference: stable sort by the low key_bits bits (qsort on (masked key, input position)). */
-spx_status spx_radix_sort_ref(spx_ctx *ctx, uint64_t *keys, uint32_t *vals, size_t n, int key_bits);
+/* Reference: stable sort by key bits [lo_bit, key_bits) (qsort on (those bits, input position)). */
+spx_status spx_radix_sort_ref(spx_ctx *ctx, uint64_t *keys, uint32_t *vals, size_t n, int lo_bit, int key_bits);
 
 #endif

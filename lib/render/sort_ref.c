@@ -16,19 +16,21 @@ static int cmp_item(const void *a, const void *b) {
   return x->pos < y->pos ? -1 : x->pos > y->pos;
 }
 
-spx_status spx_radix_sort_ref(spx_ctx *ctx, uint64_t *keys, uint32_t *vals, size_t n, int key_bits) {
-  if (key_bits < 0 || key_bits > 64) return spx_fail(ctx, SPX_E_ARG, "spx_radix_sort_ref: key_bits %d not in 0..64", key_bits);
-  if (n < 2) return SPX_OK;
+spx_status spx_radix_sort_ref(spx_ctx *ctx, uint64_t *keys, uint32_t *vals, size_t n, int lo_bit, int key_bits) {
+  if (key_bits < 0 || key_bits > 64 || lo_bit < 0 || lo_bit > key_bits)
+    return spx_fail(ctx, SPX_E_ARG, "spx_radix_sort_ref: key bits [%d, %d) not within 0..64", lo_bit, key_bits);
+  if (n < 2 || lo_bit == key_bits) return SPX_OK;
   struct sort_item *it = spx_alloc_array(ctx, n, sizeof *it, "spx_radix_sort_ref");
   if (!it) return SPX_E_NOMEM;
   uint64_t mask = key_bits == 64 ? ~(uint64_t)0 : (((uint64_t)1 << key_bits) - 1);
+  mask &= ~(((uint64_t)1 << lo_bit) - 1); /* lo_bit < key_bits <= 64 here */
   for (size_t i = 0; i < n; i++) {
     it[i].key = keys[i] & mask;
     it[i].val = vals[i];
     it[i].pos = i;
   }
   uint64_t *orig = NULL;
-  if (key_bits < 64) { /* keep the full keys (the device moves them unmasked) */
+  if (mask != ~(uint64_t)0) { /* keep the full keys (the device moves them unmasked) */
     orig = spx_alloc_array(ctx, n, sizeof *orig, "spx_radix_sort_ref");
     if (!orig) {
       free(it);

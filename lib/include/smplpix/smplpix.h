@@ -18,5 +18,6 @@
 
 #include "smplpix/body.h"
 #include "smplpix/unet.h"
+#include "smplpix/fit.h"
 
 #endif

@@ -30,6 +30,11 @@ int spx_unet_sigmoid(const spx_unet *u);
 void spx_unet_set_sigmoid(spx_unet *u, int on);
 /* Number of Adam steps taken so far (restored by spx_unet_load). */
 int64_t spx_unet_step(const spx_unet *u);
+/* Bytes of device memory the network holds now: parameters, gradients, Adam moments, batch-norm
+ * state, the activation (+ gradient) arenas and the convolution scratch. All are grow-only, so
+ * after a forward / training step this is the peak of the shapes seen so far (short-lived scratch
+ * of a few ops, released within the call, excluded). */
+size_t spx_unet_device_bytes(const spx_unet *u);
 
 /* Forward. input [n,4,h,w]; output [n,3,h,w] (may be NULL in training mode).
  * train = 0: inference (batch norm folded into the convolutions, running statistics used,

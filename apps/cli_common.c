@@ -1,0 +1,110 @@
+/* Helpers shared by the image-writing subcommands (project, raster, dataset): vertex colors,
+ * indexed output names, writing by extension, and the list of outputs removed on failure. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "smplpix/image.h"
+#include "smplpix/npy.h"
+
+/* Area-weighted vertex normals mapped to [0,1] colors; gray where undefined. */
+void spx_cli_normal_colors(const spx_mesh *m, float *col) {
+  double *acc = calloc((size_t)m->nv * 3, sizeof *acc);
+  if (!acc) {
+    for (int64_t i = 0; i < (int64_t)m->nv * 3; i++) col[i] = 0.5f;
+    return;
+  }
+  for (int32_t f = 0; f < m->nf; f++) {
+    const int32_t *t = m->faces + 3 * f;
+    const float *a = m->pos + 3 * t[0], *b = m->pos + 3 * t[1], *c = m->pos + 3 * t[2];
+    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    for (int k = 0; k < 3; k++)
+      for (int j = 0; j < 3; j++) acc[3 * t[k] + j] += n[j];
+  }
+  for (int32_t v = 0; v < m->nv; v++) {
+    double *n = acc + 3 * v, l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (int j = 0; j < 3; j++) col[3 * v + j] = l > 0 ? (float)(0.5 + 0.5 * n[j] / l) : 0.5f;
+  }
+  free(acc);
+}
+
+int spx_cli_color_ok(const char *color) {
+  return !strcmp(color, "auto") || !strcmp(color, "mesh") || !strcmp(color, "normal") || !strcmp(color, "white");
+}
+
+int spx_cli_mesh_colors(const char *cmd, const char *mesh_path, const spx_mesh *m, const char *color,
+                        float **owned, const float **col, const char **used) {
+  *owned = NULL;
+  *col = NULL;
+  *used = "white";
+  if (!strcmp(color, "mesh") && !m->col)
+    return spx_cli_errorf(cmd, "%s: --color mesh, but the file has no vertex colors", mesh_path);
+  if (!strcmp(color, "white")) return SPX_EXIT_OK;
+  if (m->col && strcmp(color, "normal")) {
+    *col = m->col;
+    *used = "mesh colors";
+    return SPX_EXIT_OK;
+  }
+  *owned = malloc(sizeof(float) * 3 * (size_t)(m->nv ? m->nv : 1));
+  if (!*owned) return spx_cli_errorf(cmd, "out of memory");
+  spx_cli_normal_colors(m, *owned);
+  *col = *owned;
+  *used = m->nf ? "vertex normals" : "gray (point cloud without colors)";
+  return SPX_EXIT_OK;
+}
+
+char *spx_cli_indexed_path(const char *path, int i, int n) {
+  size_t len = strlen(path) + 16;
+  char *out = malloc(len);
+  if (!out) return NULL;
+  if (n <= 1) {
+    snprintf(out, len, "%s", path);
+    return out;
+  }
+  const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+  if (!dot || (slash && dot < slash)) dot = path + strlen(path);
+  snprintf(out, len, "%.*s_%03d%s", (int)(dot - path), path, i, dot);
+  return out;
+}
+
+int spx_cli_remember(spx_cli_written *w, char *path) {
+  if (w->n == w->cap) {
+    int cap = w->cap ? 2 * w->cap : 8;
+    char **p = realloc(w->paths, sizeof *p * (size_t)cap);
+    if (!p) return 0;
+    w->paths = p;
+    w->cap = cap;
+  }
+  w->paths[w->n++] = path;
+  return 1;
+}
+
+void spx_cli_written_finish(spx_cli_written *w, int failed) {
+  for (int i = 0; i < w->n; i++) {
+    if (failed) remove(w->paths[i]); /* no partial set of outputs */
+    free(w->paths[i]);
+  }
+  free(w->paths);
+  memset(w, 0, sizeof *w);
+}
+
+int spx_cli_image_ext_ok(const char *path) {
+  char ext[16];
+  spx_cli_ext(path, ext, sizeof ext);
+  return !strcmp(ext, "exr") || !strcmp(ext, "png") || !strcmp(ext, "npy");
+}
+
+spx_status spx_cli_write_image(spx_ctx *ctx, const char *path, const spx_image *img) {
+  char ext[16];
+  spx_cli_ext(path, ext, sizeof ext);
+  if (!strcmp(ext, "exr")) return spx_exr_write(ctx, path, img);
+  if (!strcmp(ext, "png")) return spx_png_write_rgb(ctx, path, img);
+  if (!strcmp(ext, "npy")) {
+    int64_t shape[3] = {img->height, img->width, img->channels};
+    return spx_npy_save_f32(ctx, path, img->data, 3, shape);
+  }
+  return SPX_E_ARG;
+}

@@ -1,0 +1,406 @@
+/* smplpix dataset: a SMPLpix training set from one mesh. For every camera (from a file, or an
+ * orbit around the mesh) the input is the vertex projection (sparse RGB-D, as `smplpix project`)
+ * and the target the triangle rasterization (dense RGB, as `smplpix raster`) with the same colors:
+ * DIR/{train,validation,test}/{input,output}/NAME.{exr|npy,png} (DESIGN.md's training layout). */
+#include <dirent.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "cli.h"
+#include "smplpix/camera.h"
+#include "smplpix/image.h"
+#include "smplpix/mesh.h"
+#include "smplpix/raster.h"
+#include "smplpix/render.h"
+
+static const char *USAGE =
+    "usage: smplpix dataset --mesh M.obj|M.ply --out DIR\n"
+    "                       (--cameras C.json | --orbit N [--elevations E1,E2,..] [--distance D]\n"
+    "                                           [--size WxH] [--focal F])\n"
+    "                       [--split 0.8,0.1,0.1] [--seed S] [--input-format exr|npy] [--aa 1|2]\n"
+    "                       [--color auto|mesh|normal|white] [--force] [--device cpu|gpu|P:D] [--quiet]\n"
+    "Writes DIR/{train,validation,test}/{input,output}/NAME.{exr|npy,png}: for each camera the input\n"
+    "is the vertex projection (RGB-D, as `smplpix project`) and the output the triangle rasterization\n"
+    "(RGB, as `smplpix raster`) of the same mesh and colors; NAME = view_0000, view_0001, ... in camera\n"
+    "order, and DIR/cameras.json holds the cameras. Views go to the splits in a random order drawn from\n"
+    "--seed (default 0), in the proportions of --split (train,validation,test; they must sum to 1).\n"
+    "--orbit N: N cameras looking at the mesh's bounding-box centre from azimuths 360*i/N degrees around\n"
+    "the +y axis, view i at elevation E[i % count] degrees (default 0); --size WxH (default 410x308),\n"
+    "--focal in pixels (default max(W,H)), --distance (default: the nearest distance at which every\n"
+    "view holds the whole mesh with a 5% margin). Every file is written atomically; DIR must be empty\n"
+    "or absent unless --force. On failure nothing written by this run is left behind.\n";
+
+static uint64_t mix(uint64_t z) {
+  z += 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+/* Comma-separated finite doubles; returns the count, or -1 when malformed / more than cap. */
+static int parse_list(const char *s, double *v, int cap) {
+  int n = 0;
+  const char *p = s;
+  for (;;) {
+    char *end = NULL;
+    errno = 0;
+    double x = strtod(p, &end);
+    if (end == p || errno || !isfinite(x) || n == cap) return -1;
+    v[n++] = x;
+    if (*end == 0) return n;
+    if (*end != ',') return -1;
+    p = end + 1;
+  }
+}
+
+static int parse_long(const char *v, long lo, long hi, long *out) {
+  char *end = NULL;
+  errno = 0;
+  long x = strtol(v, &end, 10);
+  if (errno || end == v || *end || x < lo || x > hi) return 0;
+  *out = x;
+  return 1;
+}
+
+/* 1 when dir exists and holds anything besides . and .. */
+static int dir_nonempty(const char *dir) {
+  DIR *d = opendir(dir);
+  if (!d) return 0;
+  struct dirent *e;
+  int any = 0;
+  while (!any && (e = readdir(d))) any = strcmp(e->d_name, ".") && strcmp(e->d_name, "..");
+  closedir(d);
+  return any;
+}
+
+/* Directories this run created (removed again, innermost first, when it fails). */
+typedef struct made_dirs {
+  char *p[16];
+  int n;
+} made_dirs;
+
+static int make_dir(made_dirs *m, const char *path) {
+  if (mkdir(path, 0777) == 0) {
+    if (m->n < 16 && (m->p[m->n] = strdup(path))) m->n++;
+    return 0;
+  }
+  struct stat sb;
+  if (errno == EEXIST && stat(path, &sb) == 0 && S_ISDIR(sb.st_mode)) return 0;
+  return -1;
+}
+
+/* Cameras on an orbit around the mesh (see USAGE). */
+static int orbit_cameras(spx_ctx *ctx, const spx_mesh *m, long n, const double *elev, int ne, int W, int H,
+                         double focal, double distance, spx_camera **out) {
+  spx_camera *cams = calloc((size_t)n, sizeof *cams);
+  if (!cams) return spx_cli_errorf("dataset", "out of memory for %ld cameras", n);
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, c[3];
+  for (int32_t v = 0; v < m->nv; v++)
+    for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], m->pos[3 * v + k]), hi[k] = fmax(hi[k], m->pos[3 * v + k]);
+  for (int k = 0; k < 3; k++) c[k] = 0.5 * (lo[k] + hi[k]);
+  const double up[3] = {0, 1, 0}, pi = 3.14159265358979323846;
+  double dir[3];
+  if (!(distance > 0)) { /* nearest distance at which every vertex lands inside 95% of every view */
+    distance = 0;
+    for (long i = 0; i < n; i++) {
+      double az = 2 * pi * (double)i / (double)n, el = elev[i % ne] * pi / 180;
+      dir[0] = cos(el) * sin(az), dir[1] = sin(el), dir[2] = cos(el) * cos(az); /* centre → eye */
+      double eye[3] = {c[0] + dir[0], c[1] + dir[1], c[2] + dir[2]};
+      spx_camera cam;
+      if (spx_camera_look_at(ctx, W, H, focal, eye, c, up, &cam)) {
+        free(cams);
+        return spx_cli_errorf("dataset", "--elevations %g: looks straight along the +y axis", elev[i % ne]);
+      }
+      for (int32_t v = 0; v < m->nv; v++) {
+        double p[3] = {m->pos[3 * v] - c[0], m->pos[3 * v + 1] - c[1], m->pos[3 * v + 2] - c[2]}, q[3];
+        for (int r = 0; r < 3; r++) q[r] = cam.R[r][0] * p[0] + cam.R[r][1] * p[1] + cam.R[r][2] * p[2];
+        double need = fmax(fabs(q[0]) * focal / (0.475 * W), fabs(q[1]) * focal / (0.475 * H)) - q[2];
+        distance = fmax(distance, need);
+      }
+    }
+    if (!(distance > 0)) distance = 1;
+  }
+  for (long i = 0; i < n; i++) {
+    double az = 2 * pi * (double)i / (double)n, el = elev[i % ne] * pi / 180;
+    dir[0] = cos(el) * sin(az), dir[1] = sin(el), dir[2] = cos(el) * cos(az);
+    double eye[3] = {c[0] + distance * dir[0], c[1] + distance * dir[1], c[2] + distance * dir[2]};
+    if (spx_camera_look_at(ctx, W, H, focal, eye, c, up, &cams[i])) {
+      free(cams);
+      return spx_cli_errorf("dataset", "--orbit: camera %ld: %s", i, spx_ctx_message(ctx));
+    }
+  }
+  *out = cams;
+  return SPX_EXIT_OK;
+}
+
+int spx_cmd_dataset(int argc, char **argv) {
+  const char *mesh_path = NULL, *cam_path = NULL, *dir = NULL, *dev = NULL, *color = "auto";
+  const char *split_s = "0.8,0.1,0.1", *fmt = "exr", *elev_s = "0", *size_s = "410x308", *aa_s = "1";
+  const char *orbit_s = NULL, *seed_s = "0", *dist_s = NULL, *focal_s = NULL;
+  int quiet = 0, force = 0, bad = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *v;
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+      fputs(USAGE, stdout);
+      return SPX_EXIT_OK;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--mesh", &bad))) mesh_path = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--cameras", &bad))) cam_path = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) dir = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--split", &bad))) split_s = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) seed_s = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--input-format", &bad))) fmt = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--color", &bad))) color = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--aa", &bad))) aa_s = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--orbit", &bad))) orbit_s = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--elevations", &bad))) elev_s = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--distance", &bad))) dist_s = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) size_s = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--focal", &bad))) focal_s = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) dev = v;
+    else if (!strcmp(argv[i], "--force")) force = 1;
+    else if (!strcmp(argv[i], "--quiet")) quiet = 1;
+    else return spx_cli_usage("dataset", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+  }
+  if (!mesh_path || !dir) return spx_cli_usage("dataset", "--mesh and --out are required");
+  if (!cam_path == !orbit_s) return spx_cli_usage("dataset", "give --cameras C.json or --orbit N (one of them)");
+  double split[3], elev[64], dist = 0, focal = 0;
+  long seed = 0, norbit = 0, W = 0, H = 0;
+  if (parse_list(split_s, split, 3) != 3 || split[0] < 0 || split[1] < 0 || split[2] < 0 ||
+      fabs(split[0] + split[1] + split[2] - 1) > 1e-6)
+    return spx_cli_usage("dataset", "--split %s: expected three fractions >= 0 that sum to 1", split_s);
+  if (!parse_long(seed_s, 0, 2147483647, &seed)) return spx_cli_usage("dataset", "--seed %s: expected an integer >= 0", seed_s);
+  if (strcmp(fmt, "exr") && strcmp(fmt, "npy"))
+    return spx_cli_usage("dataset", "--input-format %s: expected exr or npy", fmt);
+  if (!spx_cli_color_ok(color))
+    return spx_cli_usage("dataset", "--color %s: expected auto, mesh, normal or white", color);
+  if (strcmp(aa_s, "1") && strcmp(aa_s, "2")) return spx_cli_usage("dataset", "--aa %s: expected 1 or 2", aa_s);
+  int ne = parse_list(elev_s, elev, 64);
+  if (ne < 1) return spx_cli_usage("dataset", "--elevations %s: expected up to 64 comma-separated degrees", elev_s);
+  for (int k = 0; k < ne; k++)
+    if (!(fabs(elev[k]) < 90)) return spx_cli_usage("dataset", "--elevations %s: each must lie in (-90, 90)", elev_s);
+  char *x = NULL;
+  if (orbit_s && !parse_long(orbit_s, 1, 100000, &norbit))
+    return spx_cli_usage("dataset", "--orbit %s: expected a number of views in [1, 100000]", orbit_s);
+  errno = 0;
+  W = strtol(size_s, &x, 10);
+  if (errno || !x || *x != 'x' || !parse_long(x + 1, 16, SPX_CAMERA_MAX_SIZE, &H) || W < 16 || W > SPX_CAMERA_MAX_SIZE)
+    return spx_cli_usage("dataset", "--size %s: expected WxH, each in [16, %d]", size_s, SPX_CAMERA_MAX_SIZE);
+  if (dist_s && (parse_list(dist_s, &dist, 1) != 1 || !(dist > 0)))
+    return spx_cli_usage("dataset", "--distance %s: expected a positive number", dist_s);
+  focal = (double)(W > H ? W : H);
+  if (focal_s && (parse_list(focal_s, &focal, 1) != 1 || !(focal > 0)))
+    return spx_cli_usage("dataset", "--focal %s: expected a positive number of pixels", focal_s);
+
+  spx_ctx *ctx = NULL;
+  spx_mesh mesh = {0};
+  spx_camera *cams = NULL;
+  int ncams = 0, rc = SPX_EXIT_ERROR;
+  float *colors = NULL, *proj_img = NULL, *rast_img = NULL;
+  int *which = NULL;
+  spx_projector *proj = NULL;
+  spx_rasterizer *rast = NULL;
+  spx_cli_written w = {0};
+  made_dirs md = {{0}, 0};
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("dataset", "out of memory");
+
+  /* every input and the destination are checked before the device or any output */
+  struct stat sb;
+  if (stat(dir, &sb) == 0 && !S_ISDIR(sb.st_mode)) {
+    rc = spx_cli_errorf("dataset", "%s: exists and is not a directory", dir);
+    goto done;
+  }
+  if (!force && dir_nonempty(dir)) {
+    rc = spx_cli_errorf("dataset", "%s: not empty (use --force to write into it)", dir);
+    goto done;
+  }
+  if (spx_mesh_load(ctx, mesh_path, &mesh)) {
+    rc = spx_cli_error("dataset", ctx);
+    goto done;
+  }
+  if (mesh.nf == 0) {
+    rc = spx_cli_errorf("dataset", "%s: no triangles (the targets are rasterized triangles)", mesh_path);
+    goto done;
+  }
+  if (cam_path) {
+    if (spx_camera_load(ctx, cam_path, &cams, &ncams)) {
+      rc = spx_cli_error("dataset", ctx);
+      goto done;
+    }
+    for (int c = 1; c < ncams; c++)
+      if (cams[c].width != cams[0].width || cams[c].height != cams[0].height) {
+        rc = spx_cli_errorf("dataset", "%s: camera %d is %dx%d but camera 0 is %dx%d; a data set has one image size",
+                            cam_path, c, cams[c].width, cams[c].height, cams[0].width, cams[0].height);
+        goto done;
+      }
+  } else {
+    if ((rc = orbit_cameras(ctx, &mesh, norbit, elev, ne, (int)W, (int)H, focal, dist, &cams))) goto done;
+    ncams = (int)norbit;
+  }
+  const float *col = NULL;
+  const char *used = NULL;
+  if ((rc = spx_cli_mesh_colors("dataset", mesh_path, &mesh, color, &colors, &col, &used))) goto done;
+  rc = SPX_EXIT_ERROR;
+
+  /* split sizes by largest remainder, then a seeded shuffle decides which view goes where */
+  int count[3], given = 0;
+  double rem[3];
+  for (int k = 0; k < 3; k++) {
+    count[k] = (int)floor(split[k] * ncams);
+    rem[k] = split[k] * ncams - count[k];
+    given += count[k];
+  }
+  while (given < ncams) {
+    int best = 0;
+    for (int k = 1; k < 3; k++)
+      if (rem[k] > rem[best]) best = k;
+    count[best]++, rem[best] = -1, given++;
+  }
+  which = malloc(sizeof(int) * (size_t)ncams);
+  int *perm = malloc(sizeof(int) * (size_t)ncams);
+  if (!which || !perm) {
+    free(perm);
+    rc = spx_cli_errorf("dataset", "out of memory");
+    goto done;
+  }
+  for (int i = 0; i < ncams; i++) perm[i] = i;
+  uint64_t s = mix((uint64_t)seed);
+  for (int i = ncams - 1; i > 0; i--) {
+    s = mix(s);
+    int j = (int)(s % (uint64_t)(i + 1)), t = perm[i];
+    perm[i] = perm[j], perm[j] = t;
+  }
+  for (int i = 0; i < ncams; i++) which[perm[i]] = i < count[0] ? 0 : i < count[0] + count[1] ? 1 : 2;
+  free(perm);
+
+  int Wc = cams[0].width, Hc = cams[0].height;
+  const int chunk = 16; /* cameras per device call: bounded memory for any number of views */
+  size_t per = (size_t)Wc * Hc * 4;
+  proj_img = malloc(sizeof(float) * per * chunk);
+  rast_img = malloc(sizeof(float) * per * chunk);
+  if (!proj_img || !rast_img) {
+    rc = spx_cli_errorf("dataset", "cannot allocate %d images of %dx%d", 2 * chunk, Wc, Hc);
+    goto done;
+  }
+  if ((rc = spx_cli_open_device("dataset", ctx, dev))) goto done;
+  rc = SPX_EXIT_ERROR;
+  if (spx_projector_create(ctx, &proj) || spx_rasterizer_create(ctx, &rast)) {
+    rc = spx_cli_error("dataset", ctx);
+    goto done;
+  }
+
+  static const char *const names[3] = {"train", "validation", "test"};
+  size_t plen = strlen(dir) + 64;
+  char *path = malloc(plen);
+  if (!path) {
+    rc = spx_cli_errorf("dataset", "out of memory");
+    goto done;
+  }
+  int mk = make_dir(&md, dir);
+  for (int k = 0; k < 3 && !mk; k++) {
+    snprintf(path, plen, "%s/%s", dir, names[k]);
+    mk = make_dir(&md, path);
+    snprintf(path, plen, "%s/%s/input", dir, names[k]);
+    if (!mk) mk = make_dir(&md, path);
+    snprintf(path, plen, "%s/%s/output", dir, names[k]);
+    if (!mk) mk = make_dir(&md, path);
+  }
+  if (mk) {
+    rc = spx_cli_errorf("dataset", "%s: cannot create directory (%s)", path, strerror(errno));
+    free(path);
+    goto done;
+  }
+  snprintf(path, plen, "%s/cameras.json", dir);
+  char *cp = strdup(path);
+  free(path);
+  if (!cp) {
+    rc = spx_cli_errorf("dataset", "out of memory");
+    goto done;
+  }
+  if (spx_camera_save(ctx, cp, cams, ncams)) { /* atomic: a failed write leaves what was at cp */
+    free(cp);
+    rc = spx_cli_error("dataset", ctx);
+    goto done;
+  }
+  if (!spx_cli_remember(&w, cp)) {
+    remove(cp);
+    free(cp);
+    rc = spx_cli_errorf("dataset", "out of memory");
+    goto done;
+  }
+
+  double t0 = spx_cli_now();
+  for (int c0 = 0; c0 < ncams; c0 += chunk) {
+    int nc = ncams - c0 < chunk ? ncams - c0 : chunk;
+    spx_project_args pa = {1, mesh.nv, mesh.pos, col, nc, cams + c0, SPX_LAYOUT_HWC};
+    spx_raster_args ra = {0};
+    ra.nverts = mesh.nv;
+    ra.pos = mesh.pos;
+    ra.col = col;
+    ra.nfaces = mesh.nf;
+    ra.faces = mesh.faces;
+    ra.ncams = nc;
+    ra.cams = cams + c0;
+    ra.aa = aa_s[0] - '0';
+    ra.cull = SPX_CULL_NONE;
+    ra.layout = SPX_LAYOUT_HWC;
+    ra.static_id = 1;
+    if (spx_project(ctx, proj, &pa, proj_img, NULL) || spx_raster(ctx, rast, &ra, rast_img, NULL)) {
+      rc = spx_cli_error("dataset", ctx);
+      goto done;
+    }
+    for (int c = 0; c < nc; c++) {
+      int v = c0 + c;
+      for (int io = 0; io < 2; io++) {
+        size_t len = strlen(dir) + 64;
+        char *p = malloc(len);
+        if (!p) {
+          rc = spx_cli_errorf("dataset", "out of memory");
+          goto done;
+        }
+        snprintf(p, len, "%s/%s/%s/view_%04d.%s", dir, names[which[v]], io ? "output" : "input", v, io ? "png" : fmt);
+        spx_image img = {Wc, Hc, 4, (io ? rast_img : proj_img) + per * (size_t)c};
+        if (spx_cli_write_image(ctx, p, &img)) { /* atomic: a failed write leaves what was at p */
+          free(p);
+          rc = spx_cli_error("dataset", ctx);
+          goto done;
+        }
+        if (!spx_cli_remember(&w, p)) {
+          remove(p);
+          free(p);
+          rc = spx_cli_errorf("dataset", "out of memory");
+          goto done;
+        }
+      }
+    }
+  }
+  if (!quiet) {
+    spx_device_info info;
+    spx_device_get_info(ctx, &info);
+    printf("dataset %s: %d views %dx%d (%s%s), train %d, validation %d, test %d; inputs .%s, outputs .png; "
+           "%.2f s on %s\n",
+           dir, ncams, Wc, Hc, used, cam_path ? "" : ", orbit", count[0], count[1], count[2], fmt,
+           spx_cli_now() - t0, info.name);
+  }
+  rc = SPX_EXIT_OK;
+done:
+  spx_cli_written_finish(&w, rc != SPX_EXIT_OK);
+  for (int i = md.n - 1; i >= 0; i--) {
+    if (rc != SPX_EXIT_OK) rmdir(md.p[i]); /* only succeeds when empty: never removes what others wrote */
+    free(md.p[i]);
+  }
+  spx_projector_destroy(proj);
+  spx_rasterizer_destroy(rast);
+  free(proj_img);
+  free(rast_img);
+  free(which);
+  free(colors);
+  free(cams);
+  spx_mesh_free(&mesh);
+  spx_ctx_destroy(ctx);
+  return rc;
+}

@@ -1,0 +1,201 @@
+/* smplpix repose / reshape: pose or reshape a registered person (the unposed personal template
+ * written by `smplpix register --params`) and write the mesh in the model frame (metres). */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "cmd_fit.h"
+
+#define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
+
+/* Load the registration and its model (--model, else the path recorded in the JSON, else the
+ * default body) and check that they belong together. */
+static int load_registration(const char *cmd, spx_ctx *ctx, const char *reg_path, const char *model_arg,
+                             spx_fit_result *r, spx_body_model *m) {
+  char *recorded = NULL;
+  if (spx_fit_load_json(ctx, reg_path, r, &recorded)) return spx_cli_error(cmd, ctx);
+  const char *mp = model_arg ? model_arg : recorded ? recorded : DEFAULT_MODEL;
+  int rc = SPX_EXIT_OK;
+  if (spx_body_load(ctx, mp, m)) {
+    rc = spx_cli_error(cmd, ctx);
+  } else if (!r->template_unposed) {
+    rc = spx_cli_errorf(cmd, "%s: no \"template\" (write it with smplpix register --params)", reg_path);
+  } else if (m->nv != r->nv || m->nj != r->nj || r->nbetas > m->nbetas) {
+    rc = spx_cli_errorf(cmd, "%s: registration (%d vertices, %d joints, %d betas) does not match model %s (%d, %d, %d)",
+                        reg_path, r->nv, r->nj, r->nbetas, mp, m->nv, m->nj, m->nbetas);
+  }
+  free(recorded);
+  return rc;
+}
+
+static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m, const spx_fit_result *r,
+                         const double *betas, const double *pose, const double *trans, const char *out_path) {
+  double *v = malloc((size_t)m->nv * 3 * sizeof(double));
+  spx_mesh out = {0};
+  int rc = SPX_EXIT_OK;
+  out.nv = m->nv, out.nf = m->nf;
+  out.pos = malloc((size_t)m->nv * 3 * sizeof(float));
+  out.faces = malloc((size_t)m->nf * 3 * sizeof(int32_t));
+  if (r->colors) out.col = malloc((size_t)m->nv * 3 * sizeof(float));
+  if (!v || !out.pos || !out.faces || (r->colors && !out.col)) {
+    rc = spx_cli_errorf(cmd, "out of memory");
+    goto done;
+  }
+  spx_body_params p = {r->nbetas, betas, pose, trans, r->template_unposed};
+  if (spx_body_forward_ref(ctx, m, &p, v, NULL)) {
+    rc = spx_cli_error(cmd, ctx);
+    goto done;
+  }
+  for (int32_t i = 0; i < m->nv * 3; i++) out.pos[i] = (float)(r->body_scale * v[i]);
+  memcpy(out.faces, m->faces, (size_t)m->nf * 3 * sizeof(int32_t));
+  if (r->colors) memcpy(out.col, r->colors, (size_t)m->nv * 3 * sizeof(float));
+  if (spx_mesh_save(ctx, out_path, &out, SPX_MESH_AUTO)) {
+    rc = spx_cli_error(cmd, ctx);
+    goto done;
+  }
+  printf("wrote %s (%d vertices)\n", out_path, out.nv);
+done:
+  free(v);
+  spx_mesh_free(&out);
+  return rc;
+}
+
+int spx_cmd_repose(int argc, char **argv) {
+  const char *reg_path = NULL, *bvh_path = NULL, *out_path = NULL, *model_arg = NULL;
+  long frame = 0;
+  int bad = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *v;
+    if (!strcmp(argv[i], "--help")) {
+      printf("usage: smplpix repose --registration P.json --bvh M.bvh [--frame N] --out V.ply [--model M.npz]\n"
+             "Poses the registered person (its unposed template and shape) with frame N of a BVH clip,\n"
+             "retargeted by joint name; writes the mesh (with the registration's colours) in metres.\n");
+      return SPX_EXIT_OK;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--registration", &bad))) {
+      reg_path = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--bvh", &bad))) {
+      bvh_path = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
+      out_path = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
+      model_arg = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--frame", &bad))) {
+      char *end;
+      errno = 0;
+      frame = strtol(v, &end, 10);
+      if (errno || *end || frame < 0) return spx_cli_usage("repose", "--frame: expected a frame index >= 0, got '%s'", v);
+    } else {
+      return spx_cli_usage("repose", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+    }
+  }
+  if (!reg_path || !bvh_path || !out_path) return spx_cli_usage("repose", "--registration, --bvh and --out are required");
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("repose", "out of memory");
+  spx_fit_result r;
+  spx_body_model m;
+  spx_bvh b;
+  spx_bvh_map map;
+  memset(&r, 0, sizeof r), memset(&m, 0, sizeof m), memset(&b, 0, sizeof b), memset(&map, 0, sizeof map);
+  double *pose = NULL, trans[3];
+  int rc = load_registration("repose", ctx, reg_path, model_arg, &r, &m);
+  if (rc) goto done;
+  if (spx_bvh_load(ctx, bvh_path, &b) || spx_bvh_map_create(ctx, &b, &m, NULL, NULL, &map)) {
+    rc = spx_cli_error("repose", ctx);
+    goto done;
+  }
+  if (frame >= b.nframes) {
+    rc = spx_cli_errorf("repose", "%s: frame %ld out of range (the clip has %d frames)", bvh_path, frame, b.nframes);
+    goto done;
+  }
+  pose = malloc((size_t)m.nj * 3 * sizeof(double));
+  if (!pose) {
+    rc = spx_cli_errorf("repose", "out of memory");
+    goto done;
+  }
+  if (spx_bvh_map_pose(ctx, &map, &b, &m, (int32_t)frame, pose, trans)) {
+    rc = spx_cli_error("repose", ctx);
+    goto done;
+  }
+  rc = pose_and_save("repose", ctx, &m, &r, r.betas, pose, trans, out_path);
+done:
+  free(pose);
+  spx_bvh_map_free(&map);
+  spx_bvh_free(&b);
+  spx_body_free(&m);
+  spx_fit_result_free(&r);
+  spx_ctx_destroy(ctx);
+  return rc;
+}
+
+int spx_cmd_reshape(int argc, char **argv) {
+  const char *reg_path = NULL, *out_path = NULL, *model_arg = NULL;
+  enum { MAXSH = 64 };
+  int sh_idx[MAXSH], nsh = 0, sh_rel[MAXSH], rest = 0, bad = 0;
+  double sh_val[MAXSH];
+  for (int i = 1; i < argc; i++) {
+    const char *v;
+    if (!strcmp(argv[i], "--help")) {
+      printf("usage: smplpix reshape --registration P.json --shape I:V [--shape I:V ...] --out V.ply\n"
+             "                       [--model M.npz] [--rest]\n"
+             "Changes shape coefficient I of the registered person: V with a sign (+2.0, -1) is added to\n"
+             "the fitted value, V without a sign replaces it. The personal detail (the unposed template)\n"
+             "is kept; the registered pose is kept unless --rest. Writes the mesh in metres.\n");
+      return SPX_EXIT_OK;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--registration", &bad))) {
+      reg_path = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
+      out_path = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
+      model_arg = v;
+    } else if (!strcmp(argv[i], "--rest")) {
+      rest = 1;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--shape", &bad))) {
+      char *end;
+      errno = 0;
+      long idx = strtol(v, &end, 10);
+      if (errno || end == v || *end != ':' || idx < 0 || idx > 100000 || nsh >= MAXSH)
+        return spx_cli_usage("reshape", "--shape: expected I:V (e.g. 0:+2.0), got '%s'", v);
+      const char *val = end + 1;
+      double x = strtod(val, &end);
+      if (errno || end == val || *end || !isfinite(x))
+        return spx_cli_usage("reshape", "--shape: expected I:V (e.g. 0:+2.0), got '%s'", v);
+      sh_idx[nsh] = (int)idx, sh_val[nsh] = x, sh_rel[nsh] = (*val == '+' || *val == '-');
+      nsh++;
+    } else {
+      return spx_cli_usage("reshape", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+    }
+  }
+  if (!reg_path || !out_path || !nsh) return spx_cli_usage("reshape", "--registration, --shape and --out are required");
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("reshape", "out of memory");
+  spx_fit_result r;
+  spx_body_model m;
+  memset(&r, 0, sizeof r), memset(&m, 0, sizeof m);
+  double *betas = NULL, *pose = NULL;
+  int rc = load_registration("reshape", ctx, reg_path, model_arg, &r, &m);
+  if (rc) goto done;
+  for (int k = 0; k < nsh; k++)
+    if (sh_idx[k] >= r.nbetas) {
+      rc = spx_cli_errorf("reshape", "--shape %d: the registration has %d shape coefficients", sh_idx[k], r.nbetas);
+      goto done;
+    }
+  betas = calloc((size_t)(r.nbetas ? r.nbetas : 1), sizeof(double));
+  pose = calloc((size_t)m.nj * 3, sizeof(double));
+  if (!betas || !pose) {
+    rc = spx_cli_errorf("reshape", "out of memory");
+    goto done;
+  }
+  memcpy(betas, r.betas, (size_t)r.nbetas * sizeof(double));
+  if (!rest) memcpy(pose, r.pose, (size_t)m.nj * 3 * sizeof(double));
+  for (int k = 0; k < nsh; k++) betas[sh_idx[k]] = sh_rel[k] ? betas[sh_idx[k]] + sh_val[k] : sh_val[k];
+  rc = pose_and_save("reshape", ctx, &m, &r, betas, pose, rest ? NULL : r.trans, out_path);
+done:
+  free(betas), free(pose);
+  spx_body_free(&m);
+  spx_fit_result_free(&r);
+  spx_ctx_destroy(ctx);
+  return rc;
+}

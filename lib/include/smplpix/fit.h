@@ -1,0 +1,106 @@
+/* Scan-to-body registration (Ceres Solver behind lib/fit/ceres_bridge.cpp).
+ *
+ * A scan (mesh or point cloud, any up axis, metres / centimetres / millimetres) is registered
+ * with a body model in stages, each reported through a progress callback:
+ *   SPX_FIT_RIGID  similarity (scale, rotation, translation): candidate orientations (the six
+ *                  axis-aligned ups x 8 headings, plus the scan's principal axes) refined by
+ *                  robust ICP; the best one (two-way mean distance) is kept.
+ *   SPX_FIT_POSE   pose + shape + translation + a body scale, with a shape L2 prior, a pose L2
+ *                  prior plus soft joint limits, data terms both ways (scan point → plane of the
+ *                  closest model vertex, model vertex → closest scan point), Huber / Cauchy
+ *                  losses, nearest neighbours from k-d trees rebuilt between outer iterations.
+ *   SPX_FIT_FREE   free vertices coupled to the posed model (coupling weight annealed), with a
+ *                  uniform-Laplacian regulariser (Laplacian of x kept close to the model's), same
+ *                  data terms.
+ * Frames: "model frame" is the body model's space (metres); the scan is first multiplied by
+ * unit_scale (1, 0.01 or 0.001), then x_scan_metres = sim_scale * sim_R * x_model + sim_t.
+ * Ceres prints nothing unless the environment variable SPX_FIT_CERES_PROGRESS is set (debugging:
+ * per-iteration progress of every solve on stdout). */
+#ifndef SMPLPIX_FIT_H
+#define SMPLPIX_FIT_H
+
+#include "smplpix/body.h"
+#include "smplpix/core.h"
+#include "smplpix/mesh.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum { SPX_FIT_RIGID = 1, SPX_FIT_POSE = 2, SPX_FIT_FREE = 4, SPX_FIT_ALL = 7 };
+
+typedef struct spx_fit_progress {
+  const char *stage;    /* "rigid", "pose", "free" */
+  int32_t step, nsteps; /* outer iteration (1-based) of this stage */
+  double energy;        /* final Ceres cost of this step (1/2 sum of robustified squares) */
+  double mean_dist;     /* mean scan → registration surface distance over the stage's scan sample
+                           (metres, after units); rigid: mean two-way nearest-point distance */
+  double seconds;       /* since the stage started */
+  const char *note;     /* a remark ("scan looks like millimetres, scaling by 0.001"), or NULL */
+} spx_fit_progress;
+typedef void (*spx_fit_progress_fn)(void *user, const spx_fit_progress *p);
+
+typedef struct spx_fit_options {
+  int stages;              /* SPX_FIT_* mask; the rigid stage always runs, FREE implies POSE */
+  int threads;             /* Ceres + k-d tree threads (>= 1) */
+  int nbetas;              /* shape directions fitted (-1: all of the model's) */
+  double unit_scale;       /* 0: detect from the bounding box; else multiply the scan by it */
+  int32_t max_points_rigid, max_points_pose, max_points_free; /* scan subsamples */
+  int32_t pose_steps, free_steps; /* outer iterations (nearest neighbours rebuilt between) */
+  int32_t inner_iterations;       /* Ceres iterations per outer step (pose stage) */
+  int32_t free_inner_iterations;  /* Ceres iterations per outer step (free stage) */
+  double w_shape, w_pose, w_limits, w_scale; /* priors */
+  double w_pose_start;            /* pose prior weight of the first pose step (annealed to w_pose) */
+  double w_m2s;                   /* model → scan data weight (scan → model is 1) */
+  double w_lap, w_couple_start, w_couple_end; /* free stage */
+  double robust_m;                /* robust loss scale (metres) */
+  uint64_t seed;                  /* subsampling */
+  spx_fit_progress_fn progress;
+  void *progress_user;
+} spx_fit_options;
+
+void spx_fit_options_default(spx_fit_options *o);
+
+typedef struct spx_fit_result {
+  int32_t nv, nj, nbetas, nf;
+  double unit_scale;                      /* applied to the scan */
+  double sim_scale, sim_R[9], sim_t[3];   /* model frame → scan (metres), row-major R */
+  double body_scale;                      /* extra uniform scale of the fitted body */
+  double *betas;                          /* nbetas */
+  double *pose;                           /* nj*3 */
+  double trans[3];
+  double *verts_model;                    /* nv*3 final registration, model frame */
+  double *verts_pose;                     /* nv*3 pose+shape model before the free stage */
+  float *verts_scan;                      /* nv*3 final registration in scan coordinates (input units) */
+  float *colors;                          /* nv*3 in [0,1] transferred from the scan, or NULL */
+  double *template_unposed;               /* nv*3 personal template in the zero-shape rest space
+                                             (spx_body_unpose_ref, usable as v_base), or NULL */
+  int32_t *faces;                         /* nf*3 (the model's) */
+  double stage_seconds[3], stage_energy[3], stage_mean[3]; /* rigid, pose, free (metres) */
+  int stages_done;                        /* SPX_FIT_* mask */
+} spx_fit_result;
+
+/* Register `scan` (needs >= 10 finite points) to model m. */
+spx_status spx_fit_register(spx_ctx *ctx, const spx_body_model *m, const spx_mesh *scan, const spx_fit_options *o,
+                            spx_fit_result *out);
+void spx_fit_result_free(spx_fit_result *r);
+
+/* Registered mesh in scan coordinates (with colours when the scan had them). */
+spx_status spx_fit_result_mesh(spx_ctx *ctx, const spx_fit_result *r, spx_mesh *out);
+
+/* Distances from each of n points to a triangle mesh's surface (exact point-to-triangle over the
+ * triangles around the k nearest vertices). Any output may be NULL; dist: n values. */
+spx_status spx_fit_surface_distance(spx_ctx *ctx, const float *pts, int32_t n, const float *verts, int32_t nv,
+                                    const int32_t *faces, int32_t nf, float *dist, double *mean, double *median,
+                                    double *p95);
+
+/* Registration parameters as JSON: units, similarity, body scale, betas, pose, trans, the
+ * unposed personal template, per-vertex colours, the model path (if given) and stage stats. */
+spx_status spx_fit_save_json(spx_ctx *ctx, const char *path, const spx_fit_result *r, const char *model_path);
+/* Load what spx_fit_save_json wrote (verts_* left NULL). model_path: caller frees, may be NULL. */
+spx_status spx_fit_load_json(spx_ctx *ctx, const char *path, spx_fit_result *out, char **model_path);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

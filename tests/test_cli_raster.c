@@ -1,0 +1,259 @@
+/* `smplpix raster` end to end: good runs (PNG/EXR/NPY, camera array, 2x2 anti-aliasing, texture),
+ * then hostile inputs → one-line error naming the file, exit code 1 (2 for usage), and no output
+ * file left behind. */
+#include <unistd.h>
+
+#include "smplpix/image.h"
+#include "smplpix/npy.h"
+#include "smplpix/smplpix.h"
+#include "test.h"
+
+static char dir[512];
+
+static void path_of(char *p, size_t cap, const char *name) { snprintf(p, cap, "%s/%s", dir, name); }
+
+static void write_text(const char *name, const char *text) {
+  char p[700];
+  path_of(p, sizeof p, name);
+  FILE *f = fopen(p, "wb");
+  if (f) {
+    fputs(text, f);
+    fclose(f);
+  }
+}
+
+/* Run the tool with args; stderr goes to dir/err.txt. Returns the exit code. */
+static int tool(const char *args) {
+  char cmd[2048];
+  snprintf(cmd, sizeof cmd, "cd '%s' && '%s' %s >out.txt 2>err.txt", dir, spx_t_tool(), args);
+  return spx_t_system(cmd);
+}
+
+/* stderr is exactly one line and contains `needle` */
+static int err_one_line_with(const char *needle) {
+  char p[700], buf[4096] = "";
+  path_of(p, sizeof p, "err.txt");
+  FILE *f = fopen(p, "rb");
+  if (!f) return 0;
+  size_t n = fread(buf, 1, sizeof buf - 1, f);
+  fclose(f);
+  buf[n] = 0;
+  int lines = 0;
+  for (size_t i = 0; i < n; i++) lines += buf[i] == '\n';
+  if (lines != 1 || !strstr(buf, needle)) {
+    fprintf(stderr, "  stderr was: %s", buf);
+    return 0;
+  }
+  return 1;
+}
+
+static int exists(const char *name) {
+  char p[700];
+  path_of(p, sizeof p, name);
+  return spx_t_file_exists(p);
+}
+
+static void clean_outputs(void) {
+  char cmd[700];
+  snprintf(cmd, sizeof cmd, "cd '%s' && rm -f o.exr o.png o.npy o_*.exr o_*.png", dir);
+  spx_t_system(cmd);
+}
+
+static const char *GOOD_CAM = "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
+                              " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}";
+/* a red square, 1 x 1 at depth 3: columns 22..41, rows 14..33 */
+static const char *QUAD_OBJ = "v -0.5 -0.5 0 1 0 0\nv 0.5 -0.5 0 1 0 0\nv 0.5 0.5 0 1 0 0\nv -0.5 0.5 0 1 0 0\n"
+                              "f 1 2 3\nf 1 3 4\n";
+/* the same square with texture coordinates u = x + 0.5 */
+static const char *UV_OBJ = "v -0.5 -0.5 0\nv 0.5 -0.5 0\nv 0.5 0.5 0\nv -0.5 0.5 0\n"
+                            "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+
+static spx_image read_png(spx_ctx *ctx, const char *name) {
+  char p[700];
+  path_of(p, sizeof p, name);
+  spx_image img = {0};
+  CHECK_OK(ctx, spx_png_read(ctx, p, &img));
+  return img;
+}
+
+static void test_good_runs(void) {
+  spx_ctx *ctx;
+  spx_ctx_create(&ctx);
+  char p[700];
+  clean_outputs();
+  write_text("cam.json", GOOD_CAM);
+  write_text("quad.obj", QUAD_OBJ);
+  /* EXR: R,G,B,depth; the centre is red at depth 3, the corner background */
+  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.exr") == 0);
+  path_of(p, sizeof p, "o.exr");
+  spx_image img = {0};
+  CHECK_OK(ctx, spx_exr_read(ctx, p, &img));
+  CHECK(img.width == 64 && img.height == 48 && img.channels == 4);
+  if (img.data && img.width == 64 && img.height == 48) {
+    const float *px = img.data + 4 * (24 * 64 + 32);
+    CHECK_NEAR(px[0], 1, 1e-6, 0);
+    CHECK_NEAR(px[1], 0, 1e-6, 0);
+    CHECK_NEAR(px[3], 3, 1e-5, 0);
+    CHECK(img.data[0] == 1 && img.data[1] == 1 && img.data[3] == 1); /* background */
+    int covered = 0;                                                 /* a dense 20x20 square */
+    for (int k = 0; k < 64 * 48; k++) covered += img.data[4 * k + 1] == 0;
+    CHECK_MSG(covered == 400, "%d pixels covered, expected 20x20", covered);
+  }
+  spx_image_free(&img);
+  /* NPY: HxWx4 float32, the same image */
+  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.npy") == 0);
+  path_of(p, sizeof p, "o.npy");
+  spx_array a = {0};
+  CHECK_OK(ctx, spx_npy_load(ctx, p, &a));
+  CHECK(a.ndim == 3 && a.shape[0] == 48 && a.shape[1] == 64 && a.shape[2] == 4 && a.dtype == SPX_F32);
+  if (a.data && a.nbytes == 48 * 64 * 4 * sizeof(float)) CHECK_NEAR(((float *)a.data)[4 * (24 * 64 + 32) + 3], 3, 1e-5, 0);
+  spx_array_free(&a);
+  /* PNG: RGB */
+  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --cull front") == 0);
+  img = read_png(ctx, "o.png");
+  if (img.data) {
+    CHECK(img.channels == 3 && img.width == 64);
+    /* the face normal (v1-v0)x(v2-v0) = +z points away from the camera at z = -3: a back face,
+     * which front-culling keeps */
+    const float *px = img.data + 3 * (24 * 64 + 32);
+    CHECK(px[0] == 1 && px[1] == 0 && px[2] == 0);
+  }
+  spx_image_free(&img);
+  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --cull back") == 0);
+  img = read_png(ctx, "o.png");
+  if (img.data) CHECK(img.data[3 * (24 * 64 + 32) + 1] == 1); /* culled: background */
+  spx_image_free(&img);
+  /* aa 1: every pixel is red or background; aa 2: the square's edges are blended (the edges lie
+   * on pixel boundaries, so move the square by 0.3 pixel) */
+  write_text("quad2.obj", "v -0.485 -0.485 0 1 0 0\nv 0.515 -0.485 0 1 0 0\nv 0.515 0.515 0 1 0 0\n"
+                          "v -0.485 0.515 0 1 0 0\nf 1 2 3\nf 1 3 4\n");
+  int blended[2] = {0, 0};
+  for (int aa = 1; aa <= 2; aa++) {
+    char args[256];
+    snprintf(args, sizeof args, "raster --mesh quad2.obj --camera cam.json --out o.npy --aa %d", aa);
+    CHECK(tool(args) == 0);
+    path_of(p, sizeof p, "o.npy");
+    spx_array b = {0};
+    CHECK_OK(ctx, spx_npy_load(ctx, p, &b));
+    if (b.data && b.nbytes == 48 * 64 * 4 * sizeof(float))
+      for (int k = 0; k < 64 * 48; k++) {
+        float g = ((float *)b.data)[4 * k + 1];
+        blended[aa - 1] += g > 0.01f && g < 0.99f;
+      }
+    spx_array_free(&b);
+  }
+  CHECK_MSG(blended[0] == 0 && blended[1] > 40, "blended pixels: aa 1 %d, aa 2 %d", blended[0], blended[1]);
+  /* a camera array writes one image per camera */
+  clean_outputs();
+  write_text("cams.json", "[{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
+                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]},"
+                          "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
+                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,6]}]");
+  CHECK(tool("raster --mesh quad.obj --camera cams.json --out o.png") == 0);
+  CHECK(exists("o_000.png") && exists("o_001.png") && !exists("o.png"));
+  img = read_png(ctx, "o_001.png"); /* twice as far: a 10x10 square */
+  if (img.data) {
+    int covered = 0;
+    for (int k = 0; k < 64 * 48; k++) covered += img.data[3 * k + 1] == 0;
+    CHECK_MSG(covered == 100, "%d pixels covered at distance 6", covered);
+  }
+  spx_image_free(&img);
+  /* texture: 4x1 texels red, red, blue, blue → the left half of the square red, the right blue */
+  clean_outputs();
+  write_text("uv.obj", UV_OBJ);
+  spx_image tex = {0};
+  CHECK_OK(ctx, spx_image_alloc(ctx, 4, 1, 3, &tex));
+  if (tex.data) {
+    tex.data[0] = tex.data[3] = 1;
+    tex.data[8] = tex.data[11] = 1;
+    path_of(p, sizeof p, "tex.png");
+    CHECK_OK(ctx, spx_png_write(ctx, p, &tex));
+  }
+  spx_image_free(&tex);
+  CHECK(tool("raster --mesh uv.obj --camera cam.json --out o.png --texture tex.png") == 0);
+  img = read_png(ctx, "o.png");
+  if (img.data && img.width == 64 && img.height == 48) {
+    const float *l = img.data + 3 * (24 * 64 + 28), *r = img.data + 3 * (24 * 64 + 36);
+    CHECK_MSG(l[0] == 1 && l[1] == 0 && l[2] == 0, "left %g %g %g", l[0], l[1], l[2]);
+    CHECK_MSG(r[0] == 0 && r[1] == 0 && r[2] == 1, "right %g %g %g", r[0], r[1], r[2]);
+  }
+  spx_image_free(&img);
+  clean_outputs();
+  spx_ctx_destroy(ctx);
+}
+
+/* a bad input: exit 1, one stderr line naming `needle`, no outputs */
+static void expect_fail(const char *args, const char *needle) {
+  clean_outputs();
+  int rc = tool(args);
+  CHECK_MSG(rc == 1, "exit %d for %s", rc, args);
+  CHECK_MSG(err_one_line_with(needle), "%s", args);
+  CHECK_MSG(!exists("o.exr") && !exists("o.png") && !exists("o.npy") && !exists("o_000.png"), "output left by %s",
+            args);
+}
+
+static void test_bad_inputs(void) {
+  write_text("cam.json", GOOD_CAM);
+  write_text("quad.obj", QUAD_OBJ);
+  write_text("uv.obj", UV_OBJ);
+  write_text("trunc.obj", "v 0 0 0\nv 1 1\n");
+  write_text("garbage.obj", "\x7f\x45LF\x02\x01\x01 not an obj at all\nf 9 9 9\n");
+  write_text("nan.obj", "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  write_text("badidx.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n");
+  write_text("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+  write_text("lying.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1000000\nproperty float x\n"
+                          "property float y\nproperty float z\nend_header\n\x01\x02\x03");
+  write_text("noR.json", "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]], \"t\": [0,0,3]}");
+  write_text("skewR.json", "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
+                           " \"R\": [[1,0.1,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
+  write_text("huge.json", "{\"width\": 20000, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
+                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
+  write_text("notjson.json", "{\"width\": 64, \"height\": ");
+  write_text("mixed.json", "[{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
+                           " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]},"
+                           "{\"width\": 32, \"height\": 48, \"K\": [[60,0,16],[0,60,24],[0,0,1]],"
+                           " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}]");
+  write_text("badtex.png", "\x89PNG\r\n\x1a\n but then nothing sensible");
+  expect_fail("raster --mesh trunc.obj --camera cam.json --out o.exr", "trunc.obj");
+  expect_fail("raster --mesh garbage.obj --camera cam.json --out o.exr", "garbage.obj");
+  expect_fail("raster --mesh nan.obj --camera cam.json --out o.exr", "nan.obj");
+  expect_fail("raster --mesh badidx.obj --camera cam.json --out o.exr", "badidx.obj");
+  expect_fail("raster --mesh points.obj --camera cam.json --out o.exr", "points.obj");
+  expect_fail("raster --mesh lying.ply --camera cam.json --out o.exr", "lying.ply");
+  expect_fail("raster --mesh missing.obj --camera cam.json --out o.exr", "missing.obj");
+  expect_fail("raster --mesh quad.obj --camera noR.json --out o.exr", "noR.json");
+  expect_fail("raster --mesh quad.obj --camera skewR.json --out o.exr", "skewR.json");
+  expect_fail("raster --mesh quad.obj --camera huge.json --out o.exr", "huge.json");
+  expect_fail("raster --mesh quad.obj --camera notjson.json --out o.exr", "notjson.json");
+  expect_fail("raster --mesh quad.obj --camera mixed.json --out o.png", "mixed.json");
+  /* a texture needs texture coordinates: the error names the mesh */
+  expect_fail("raster --mesh quad.obj --camera cam.json --out o.png --texture badtex.png", "quad.obj");
+  expect_fail("raster --mesh uv.obj --camera cam.json --out o.png --texture badtex.png", "badtex.png");
+  expect_fail("raster --mesh uv.obj --camera cam.json --out o.png --texture nosuch.png", "nosuch.png");
+  expect_fail("raster --mesh points.obj --camera cam.json --out o.png --color mesh", "points.obj");
+  /* an output that cannot be written */
+  expect_fail("raster --mesh quad.obj --camera cam.json --out no/such/dir/o.png", "o.png");
+  /* a device that does not exist */
+  expect_fail("raster --mesh quad.obj --camera cam.json --out o.exr --device 42:0", "42:0");
+}
+
+static void test_usage(void) {
+  CHECK(tool("raster --mesh quad.obj") == 2);
+  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.tiff") == 2);
+  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --aa 3") == 2);
+  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --cull sideways") == 2);
+  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --color red") == 2);
+  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --texture t.bmp") == 2);
+  CHECK(tool("raster --mesh quad.obj --camera cam.json --out") == 2);
+  CHECK(tool("raster --bogus") == 2);
+  CHECK(tool("raster --help") == 0);
+  CHECK(!exists("o.png"));
+}
+
+int main(void) {
+  snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
+  SPX_RUN(test_good_runs);
+  SPX_RUN(test_bad_inputs);
+  SPX_RUN(test_usage);
+  return spx_test_summary();
+}

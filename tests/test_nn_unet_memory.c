@@ -1,0 +1,86 @@
+/* spx_unet_device_bytes (the device-memory figure of benchmarks/bench_unet): on a width-8 UNet,
+ *  - right after creation it is exactly the four parameter slabs (value, gradient, Adam m and v:
+ *    16 bytes per parameter) + the state slab (running mean / variance and the folded batch-norm
+ *    scale / shift: 16 bytes per channel of every batch norm, i.e. 2x the running statistics);
+ *  - an eval forward adds at least its input + output activations, a training step adds more
+ *    (activation-gradient arena, larger activation plan), a larger batch more again;
+ *  - repeating a pass of an already planned shape adds nothing (grow-only, steady state);
+ *  - the host backend holds no device memory (0). */
+#include <stdlib.h>
+#include <string.h>
+
+#include "nn/unet.h"
+#include "nn_testutil.h"
+#include "smplpix/smplpix.h"
+#include "smplpix/unet.h"
+
+enum { WD = 8, H = 32, W = 48 };
+
+static void test_device_bytes(void) {
+  spx_ctx *ctx = spx_nt_open();
+  CHECK(ctx != NULL);
+  if (!ctx) return;
+  spx_unet *u = NULL, *hu = NULL;
+  size_t nin = (size_t)2 * 4 * H * W, nout = (size_t)2 * 3 * H * W;
+  float *in = malloc(nin * sizeof(float)), *tg = malloc(nout * sizeof(float)), *out = malloc(nout * sizeof(float));
+  CHECK(in && tg && out);
+  if (!in || !tg || !out) goto done;
+  unsigned long long s = 7;
+  spx_nt_rand(in, nin, 0.0f, 1.0f, &s);
+  spx_nt_rand(tg, nout, 0.0f, 1.0f, &s);
+  CHECK_OK(ctx, spx_unet_create(ctx, WD, 0, 1, &u));
+  if (!u) goto done;
+  size_t params = 0, stats = 0;
+  for (int i = 0; i < spx_unet_tensor_count(u); i++) {
+    int nd;
+    int64_t sh[4];
+    const char *name = spx_unet_tensor_name(u, i, &nd, sh);
+    if (strncmp(name, "optimizer.", 10) == 0) continue;
+    size_t n = 1;
+    for (int d = 0; d < nd; d++) n *= (size_t)sh[d];
+    size_t len = strlen(name);
+    if ((len > 13 && !strcmp(name + len - 13, ".running_mean")) || (len > 12 && !strcmp(name + len - 12, ".running_var")))
+      stats += n;
+    else
+      params += n;
+  }
+  CHECK(params > 0 && stats > 0);
+  size_t b0 = spx_unet_device_bytes(u);
+  CHECK_MSG(b0 == 16 * params + 8 * stats, "after create: %zu bytes, expected %zu", b0, 16 * params + 8 * stats);
+
+  CHECK_OK(ctx, spx_unet_forward(u, in, 1, H, W, 0, out));
+  size_t b1 = spx_unet_device_bytes(u);
+  CHECK_MSG(b1 >= b0 + (size_t)(4 + 3) * H * W * sizeof(float), "eval: %zu -> %zu bytes", b0, b1);
+  CHECK_OK(ctx, spx_unet_forward(u, in, 1, H, W, 0, out));
+  CHECK(spx_unet_device_bytes(u) == b1);
+
+  float loss;
+  CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 1, H, W, NULL, &loss));
+  CHECK_OK(ctx, spx_unet_backward(u));
+  size_t b2 = spx_unet_device_bytes(u);
+  CHECK_MSG(b2 > b1 + (size_t)(4 + 3) * H * W * sizeof(float), "train b1: %zu -> %zu bytes", b1, b2);
+  CHECK_OK(ctx, spx_unet_adam_step(u, 1e-3));
+  CHECK_OK(ctx, spx_unet_zero_grad(u));
+  CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 1, H, W, NULL, &loss));
+  CHECK_OK(ctx, spx_unet_backward(u));
+  CHECK(spx_unet_device_bytes(u) == b2);
+
+  CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 2, H, W, NULL, &loss));
+  CHECK_OK(ctx, spx_unet_backward(u));
+  size_t b3 = spx_unet_device_bytes(u);
+  CHECK_MSG(b3 > b2, "train b2: %zu -> %zu bytes", b2, b3);
+
+  CHECK_OK(ctx, spx_unet_create_ex(ctx, WD, 0, 1, SPX_TAPE_HOST, &hu));
+  CHECK(hu && spx_unet_device_bytes(hu) == 0);
+  CHECK(spx_unet_device_bytes(NULL) == 0);
+done:
+  spx_unet_destroy(hu);
+  spx_unet_destroy(u);
+  free(in), free(tg), free(out);
+  spx_ctx_destroy(ctx);
+}
+
+int main(void) {
+  SPX_RUN(test_device_bytes);
+  return spx_test_summary();
+}
