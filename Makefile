@@ -3,7 +3,7 @@ BUILD    ?= build
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build demo train-demo test asan fuzz bench bench-unet install clean
+.PHONY: all deps build demo train-demo test asan fuzz bench bench-unet bench-latency install clean
 
 all: build
 
@@ -67,6 +67,11 @@ bench: build
 # on 2 cores. The torch side is skipped, saying so, when /usr/bin/python3 cannot import torch.
 bench-unet: build
 	sh benchmarks/unet_vs_torch.sh $(BUILD)
+
+# Renderer latency vs vertex count (also part of `make bench`): table on stdout,
+# out/bench/latency.{csv,json,png}.
+bench-latency: build
+	$(BUILD)/benchmarks/bench_latency
 
 PREFIX ?= /usr/local
 install: build

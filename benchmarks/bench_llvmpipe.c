@@ -9,14 +9,12 @@
  * (they differ on edges: different fill rules and snapping), depth and colour where both cover.
  * Writes out/bench/llvmpipe.png (times vs vertices) and out/bench/llvmpipe_body.png (the image).
  * Usage: bench_llvmpipe [frames (default 21, at least 20 recommended)] [mesh.obj] [camera.json] */
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <time.h>
 
+#include "bench_common.h"
 #include "core/internal.h"
 #include "peer_llvmpipe.h"
 #include "plot.h"
@@ -24,48 +22,6 @@
 #include "smplpix/image.h"
 #include "smplpix/mesh.h"
 #include "smplpix/raster.h"
-
-static int cmp_d(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return x < y ? -1 : x > y;
-}
-
-typedef struct stats {
-  double med, min, max; /* ms */
-} stats;
-
-static stats summarize(double *t, int n) {
-  qsort(t, (size_t)n, sizeof *t, cmp_d);
-  stats s = {1e3 * (n % 2 ? t[n / 2] : 0.5 * (t[n / 2 - 1] + t[n / 2])), 1e3 * t[0], 1e3 * t[n - 1]};
-  return s;
-}
-
-/* Area-weighted vertex normals → colours 0.5 n + 0.5. */
-static void colours_from_normals(const spx_mesh *m, float *col) {
-  double *acc = calloc(3 * (size_t)m->nv, sizeof(double));
-  if (!acc) return;
-  for (int32_t f = 0; f < m->nf; f++) {
-    const int32_t *v = m->faces + 3 * (size_t)f;
-    const float *a = m->pos + 3 * (size_t)v[0], *b = m->pos + 3 * (size_t)v[1], *c = m->pos + 3 * (size_t)v[2];
-    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-    for (int k = 0; k < 3; k++)
-      for (int j = 0; j < 3; j++) acc[3 * (size_t)v[k] + j] += n[j];
-  }
-  for (int32_t i = 0; i < m->nv; i++) {
-    double *n = acc + 3 * (size_t)i, l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    for (int j = 0; j < 3; j++) col[3 * (size_t)i + j] = l > 0 ? (float)(0.5 + 0.5 * n[j] / l) : 0.5f;
-  }
-  free(acc);
-}
-
-/* CPU seconds of the whole process (all llvmpipe threads): unlike wall time, hardly inflated when
- * other jobs share the cores. */
-static double cpu_now(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
 
 #define DIE(what)                                                                                                   \
   do {                                                                                                              \
@@ -122,10 +78,13 @@ int main(int argc, char **argv) {
       fprintf(stderr, "bench_llvmpipe: out of memory\n");
       return 1;
     }
-    colours_from_normals(m, col);
+    if (bench_colours_from_normals(m, col)) {
+      fprintf(stderr, "bench_llvmpipe: out of memory\n");
+      return 1;
+    }
     xs[l] = m->nv;
     y_draw[l] = y_upd[l] = y_cpu[l] = NAN;
-    stats sd = {NAN, NAN, NAN}, su = sd;
+    bench_stats sd = {NAN, NAN, NAN, 0}, su = sd;
     double cpu_d = NAN, cpu_u = NAN;
     if (gl) {
       if (peer_llvmpipe_upload(gl, m->nv, m->pos, col, m->nf, m->faces, why, sizeof why)) {
@@ -134,7 +93,7 @@ int main(int argc, char **argv) {
       }
       double c0 = 0;
       for (int f = 0; f < 3 + frames; f++) {
-        if (f == 3) c0 = cpu_now();
+        if (f == 3) c0 = bench_cpu_now();
         double t0 = spx_now();
         if (peer_llvmpipe_draw(gl, &cam, img_gl, why, sizeof why)) {
           fprintf(stderr, "bench_llvmpipe: %s\n", why);
@@ -142,10 +101,10 @@ int main(int argc, char **argv) {
         }
         if (f >= 3) t[f - 3] = spx_now() - t0;
       }
-      cpu_d = 1e3 * (cpu_now() - c0) / frames;
-      sd = summarize(t, frames);
+      cpu_d = 1e3 * (bench_cpu_now() - c0) / frames;
+      sd = bench_summarize(t, frames);
       for (int f = 0; f < 3 + frames; f++) {
-        if (f == 3) c0 = cpu_now();
+        if (f == 3) c0 = bench_cpu_now();
         double t0 = spx_now();
         if (peer_llvmpipe_update(gl, m->pos, col, why, sizeof why) ||
             peer_llvmpipe_draw(gl, &cam, img_gl, why, sizeof why)) {
@@ -154,8 +113,8 @@ int main(int argc, char **argv) {
         }
         if (f >= 3) t[f - 3] = spx_now() - t0;
       }
-      cpu_u = 1e3 * (cpu_now() - c0) / frames;
-      su = summarize(t, frames);
+      cpu_u = 1e3 * (bench_cpu_now() - c0) / frames;
+      su = bench_summarize(t, frames);
       y_draw[l] = sd.med, y_upd[l] = su.med, y_cpu[l] = cpu_d;
     }
 
@@ -164,14 +123,14 @@ int main(int argc, char **argv) {
     memset(&a, 0, sizeof a);
     a.nverts = m->nv, a.pos = m->pos, a.col = col, a.nfaces = m->nf, a.faces = m->faces;
     a.ncams = 1, a.cams = &cam, a.aa = 1, a.cull = SPX_CULL_NONE, a.layout = SPX_LAYOUT_HWC;
-    double tr[3], cr0 = cpu_now();
+    double tr[3], cr0 = bench_cpu_now();
     for (int f = 0; f < 3; f++) {
       double t0 = spx_now();
       if (spx_raster_ref(ctx, &a, img_ref, NULL)) DIE("spx_raster_ref");
       tr[f] = spx_now() - t0;
     }
-    y_refcpu[l] = 1e3 * (cpu_now() - cr0) / 3;
-    y_ref[l] = summarize(tr, 3).med;
+    y_refcpu[l] = 1e3 * (bench_cpu_now() - cr0) / 3;
+    y_ref[l] = bench_summarize(tr, 3).med;
 
     char *check = checks[l];
     snprintf(check, sizeof checks[l], "no GL image");
@@ -202,7 +161,7 @@ int main(int argc, char **argv) {
            y_refcpu[l]);
     fflush(stdout);
 
-    if (l == 0 && (mkdir("out", 0777) == 0 || errno == EEXIST) && (mkdir("out/bench", 0777) == 0 || errno == EEXIST)) {
+    if (l == 0 && bench_out_dir() == 0) {
       spx_image im = {W, H, 4, gl ? img_gl : img_ref};
       if (spx_png_write_rgb(ctx, "out/bench/llvmpipe_body.png", &im))
         fprintf(stderr, "bench_llvmpipe: %s\n", spx_ctx_message(ctx));

@@ -10,19 +10,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bench_common.h"
 #include "render/project_internal.h"
 #include "smplpix/mesh.h"
 #include "smplpix/smplpix.h"
-
-static int cmp_d(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return x < y ? -1 : x > y;
-}
-
-static double median(double *t, int n) {
-  qsort(t, (size_t)n, sizeof *t, cmp_d);
-  return n % 2 ? t[n / 2] : 0.5 * (t[n / 2 - 1] + t[n / 2]);
-}
 
 static unsigned long long rng = 88172645463325252ULL;
 static double uni(void) {
@@ -109,13 +100,13 @@ int main(int argc, char **argv) {
       CHECKED(spx_project(ctx, p, &a, out, NULL));
       t[r] = spx_now() - t0;
     }
-    double dev = median(t, runs);
+    double dev = bench_median(t, runs);
     for (int r = 0; r < runs; r++) {
       double t0 = spx_now();
       CHECKED(spx_project_ref(ctx, &a, ref, NULL));
       t[r] = spx_now() - t0;
     }
-    double cpu = median(t, runs);
+    double cpu = bench_median(t, runs);
     if (memcmp(out, ref, hw * 4 * sizeof(float))) {
       fprintf(stderr, "bench_project: device and reference differ at %d points\n", n);
       return 1;
@@ -128,7 +119,7 @@ int main(int argc, char **argv) {
       CHECKED(spx_device_finish(ctx));
       t[r] = spx_now() - t0;
     }
-    double kern = median(t, runs);
+    double kern = bench_median(t, runs);
     int hits = 0;
     for (size_t i = 0; i < hw; i++) hits += ref[i * 4 + 3] != 1.0f;
     printf("%-9d %12.3f %12.3f %7.2fx %14.3f %7s %7d\n", n, dev * 1e3, cpu * 1e3, dev / cpu, kern * 1e3,

@@ -12,20 +12,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bench_common.h"
 #include "core/internal.h"
 #include "smplpix/smplpix.h"
 #include "smplpix/mesh.h"
 #include "raster_gl_peer.h"
-
-static int cmp_d(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return x < y ? -1 : x > y;
-}
-
-static double median(double *t, int n) {
-  qsort(t, (size_t)n, sizeof *t, cmp_d);
-  return n % 2 ? t[n / 2] : 0.5 * (t[n / 2 - 1] + t[n / 2]);
-}
 
 #define DIE(...)                                                                                                \
   do {                                                                                                          \
@@ -62,12 +53,7 @@ int main(int argc, char **argv) {
   /* procedural texture (1024², 3 channels) */
   enum { TW = 1024, TH = 1024 };
   float *tex = malloc(sizeof(float) * TW * TH * 3);
-  for (int y = 0; y < TH; y++)
-    for (int x = 0; x < TW; x++) {
-      float *t = tex + 3 * (y * TW + x);
-      int chk = ((x >> 5) ^ (y >> 5)) & 1;
-      t[0] = chk ? 0.9f : 0.2f, t[1] = 0.5f + 0.5f * sinf(x * 0.05f), t[2] = 0.5f + 0.5f * cosf(y * 0.03f);
-    }
+  bench_checker_texture(tex, TW, TH);
 
   printf("device: %s (%s)\n", info.name, info.platform);
   printf("median (min) ms of %d frames\n", frames);
@@ -138,7 +124,7 @@ int main(int argc, char **argv) {
         }
         gmin = tg[0];
         for (int f = 1; f < frames; f++) gmin = fmin(gmin, tg[f]);
-        mg = median(tg, frames) * 1e3;
+        mg = bench_median(tg, frames) * 1e3;
         if (!g.rgba8) /* background depth is exactly 1 in both */
           for (size_t i = 3; i < n; i += 4) gl_diff += (o3[i] == 1.0f) != (o2[i] == 1.0f);
         free(o3);
@@ -163,7 +149,7 @@ int main(int argc, char **argv) {
       for (size_t i = 3; i < n; i += 4) drawn += o2[i] != 1.0f;
       double dmin = td[0], rmin = tr[0];
       for (int f = 1; f < frames; f++) dmin = fmin(dmin, td[f]), rmin = fmin(rmin, tr[f]);
-      double md = median(td, frames) * 1e3, mr = median(tr, frames) * 1e3;
+      double md = bench_median(td, frames) * 1e3, mr = bench_median(tr, frames) * 1e3;
       static const char *names[] = {"colors", "textured", "textured+aa2"};
       printf("%-8s %7d %7d  %-12s %7.2f (%5.2f) %7.2f (%5.2f) %7.2f %7.2f (%5.2f) %7.2f  max|dev-ref| %.1e, %zu px "
              "drawn, %zu px coverage differ from GL\n",

@@ -467,13 +467,19 @@ int plot_save(const plot *p, const char *path, char *err, size_t cap) {
       name_w = tw > name_w ? tw : name_w;
     }
     int lw = 8 + 26 + 8 + name_w + 8, lh = 6 + 14 * p->ns;
-    int best = 0, best_hits = -1;
+    /* the four corners first; if none is empty, any height along the left or right edge */
+    int best_hits = -1, lx = f.x0 + 8, ly = f.y0 + 8;
     int cand[4][2] = {{f.x0 + 8, f.y0 + 8}, {f.x1 - 8 - lw, f.y0 + 8}, {f.x0 + 8, f.y1 - 8 - lh}, {f.x1 - 8 - lw, f.y1 - 8 - lh}};
     for (int k = 0; k < 4; k++) {
       int hits = data_in_box(p, &f, cand[k][0], cand[k][1], cand[k][0] + lw, cand[k][1] + lh);
-      if (best_hits < 0 || hits < best_hits) best = k, best_hits = hits;
+      if (best_hits < 0 || hits < best_hits) lx = cand[k][0], ly = cand[k][1], best_hits = hits;
     }
-    int lx = cand[best][0], ly = cand[best][1];
+    for (int y = f.y0 + 8; best_hits > 0 && y <= f.y1 - 8 - lh; y += 4)
+      for (int side = 0; side < 2; side++) {
+        int x = side ? f.x1 - 8 - lw : f.x0 + 8;
+        int hits = data_in_box(p, &f, x, y, x + lw, y + lh);
+        if (hits < best_hits) lx = x, ly = y, best_hits = hits;
+      }
     const float white[3] = {1, 1, 1}, frame_col[3] = {0.6f, 0.6f, 0.6f};
     fill_rect(&c, lx, ly, lx + lw, ly + lh, white);
     rect_outline(&c, lx, ly, lx + lw, ly + lh, frame_col);

@@ -260,10 +260,10 @@ static int up_block(spx_unet *u, int x, int skip, int i, int train) {
   return double_conv(u, spx_tape_concat(t, skip, up), i, train);
 }
 
-static spx_status run_forward(spx_unet *u, const float *input, const float *target, int n, int h, int w, int train,
-                              float *output, float *loss) {
-  spx_status st;
-  if (!input) return spx_fail(u->ctx, SPX_E_ARG, "unet: input is NULL");
+static spx_status run_forward(spx_unet *u, const float *input, cl_mem dev_in, size_t dev_off, const float *target,
+                              int n, int h, int w, int train, float *output, float *loss) {
+  spx_status st, cst = SPX_OK;
+  if (!input && !dev_in) return spx_fail(u->ctx, SPX_E_ARG, "unet: input is NULL");
   if (n < 1 || h < 16 || w < 16 || n > 4096 || h > 16384 || w > 16384)
     return spx_fail(u->ctx, SPX_E_ARG, "unet: input %dx%dx%dx%d: need batch >= 1 and height, width in [16, 16384]", n,
                     SPX_UNET_IN_CHANNELS, h, w);
@@ -283,6 +283,15 @@ static spx_status run_forward(spx_unet *u, const float *input, const float *targ
   do {
     if ((st = spx_tape_begin(t, train, key))) return st;
     in = spx_tape_input(t, n, SPX_UNET_IN_CHANNELS, h, w, input);
+    if (dev_in && in >= 0 && !spx_tape_measuring(t)) { /* device-to-device copy into the arena */
+      spx_tensor iv = spx_tape_tensor(t, in);
+      size_t bytes = spx_tensor_numel(&iv) * sizeof(float);
+      cl_int e = clEnqueueCopyBuffer(u->ctx->queue, dev_in, iv.mem, dev_off, iv.off * sizeof(float), bytes, 0, NULL,
+                                     NULL);
+      if (e != CL_SUCCESS && !cst)
+        cst = spx_fail(u->ctx, SPX_E_CL, "unet: copying the %zu-byte device input failed (OpenCL error %d)", bytes,
+                       (int)e);
+    }
     int x1 = double_conv(u, in, 0, train);
     int x2 = double_conv(u, spx_tape_maxpool2(t, x1), 1, train);
     int x3 = double_conv(u, spx_tape_maxpool2(t, x2), 2, train);
@@ -302,6 +311,7 @@ static spx_status run_forward(spx_unet *u, const float *input, const float *targ
   } while (!st && again);
   u->loss_id = u->input_id = u->out_id = -1;
   if (st) return st;
+  if (cst) return cst;
   u->input_id = in;
   u->out_id = y;
   u->loss_id = l;
@@ -316,13 +326,28 @@ static spx_status run_forward(spx_unet *u, const float *input, const float *targ
 }
 
 spx_status spx_unet_forward(spx_unet *u, const float *input, int n, int h, int w, int train, float *output) {
-  return run_forward(u, input, NULL, n, h, w, train, output, NULL);
+  return run_forward(u, input, NULL, 0, NULL, n, h, w, train, output, NULL);
+}
+
+spx_status spx_unet_forward_device(spx_unet *u, cl_mem input, size_t offset, int n, int h, int w, float *output) {
+  if (!input) return spx_fail(u->ctx, SPX_E_ARG, "unet: device input is NULL");
+  if (spx_tape_get_backend(u->tape) != SPX_TAPE_DEVICE)
+    return spx_fail(u->ctx, SPX_E_ARG, "unet: a device input needs the device backend");
+  size_t size = 0;
+  cl_int e = clGetMemObjectInfo(input, CL_MEM_SIZE, sizeof size, &size, NULL);
+  if (e != CL_SUCCESS) return spx_fail(u->ctx, SPX_E_CL, "unet: device input: clGetMemObjectInfo failed (%d)", (int)e);
+  size_t need = (size_t)(n > 0 ? n : 0) * SPX_UNET_IN_CHANNELS * (size_t)(h > 0 ? h : 0) * (size_t)(w > 0 ? w : 0) *
+                sizeof(float);
+  if (offset > size || size - offset < need)
+    return spx_fail(u->ctx, SPX_E_ARG, "unet: device input holds %zu bytes after offset %zu, need %zu for %dx%dx%dx%d",
+                    offset > size ? 0 : size - offset, offset, need, n, SPX_UNET_IN_CHANNELS, h, w);
+  return run_forward(u, NULL, input, offset, NULL, n, h, w, 0, output, NULL);
 }
 
 spx_status spx_unet_forward_loss(spx_unet *u, const float *input, const float *target, int n, int h, int w,
                                  float *output, float *loss) {
   if (!target) return spx_fail(u->ctx, SPX_E_ARG, "unet: target is NULL");
-  return run_forward(u, input, target, n, h, w, 1, output, loss);
+  return run_forward(u, input, NULL, 0, target, n, h, w, 1, output, loss);
 }
 
 spx_status spx_unet_backward(spx_unet *u) {

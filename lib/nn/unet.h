@@ -17,4 +17,10 @@ int spx_unet_value_id(const spx_unet *u, const char *name);
 int spx_unet_loss_id(const spx_unet *u);
 int spx_unet_input_id(const spx_unet *u);
 
+/* Inference forward (batch norm folded, like spx_unet_forward with train = 0) from an input
+ * already on the device: n*4*h*w floats NCHW in `input` at byte `offset` (e.g. straight from
+ * spx_project_device), copied on the device into the network's input; no host round trip.
+ * output: host [n,3,h,w], or NULL to leave the result on the device. Device backend only. */
+spx_status spx_unet_forward_device(spx_unet *u, cl_mem input, size_t offset, int n, int h, int w, float *output);
+
 #endif
