@@ -30,6 +30,9 @@ void spx_cli_ext(const char *path, char *ext, size_t cap);
 /* Path of a file shipped in data/: under $SPX_DATA_DIR when set, else the installed copy
  * (<datadir>/smplpix), else the source tree the tool was built from. Returns a static buffer. */
 const char *spx_cli_data_path(const char *rel);
+/* A 64-bit mixing function (splitmix64 finaliser) for seeded shuffles: the data order of
+ * `train` and the split of `dataset` depend only on the seed. */
+uint64_t spx_cli_mix64(uint64_t z);
 /* Monotonic clock in seconds. */
 double spx_cli_now(void);
 

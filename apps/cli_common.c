@@ -108,3 +108,10 @@ spx_status spx_cli_write_image(spx_ctx *ctx, const char *path, const spx_image *
   }
   return SPX_E_ARG;
 }
+
+uint64_t spx_cli_mix64(uint64_t z) {
+  z += 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}

@@ -35,13 +35,6 @@ static const char *USAGE =
     "view holds the whole mesh with a 5% margin). Every file is written atomically; DIR must be empty\n"
     "or absent unless --force. On failure nothing written by this run is left behind.\n";
 
-static uint64_t mix(uint64_t z) {
-  z += 0x9e3779b97f4a7c15ULL;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-
 /* Comma-separated finite doubles; returns the count, or -1 when malformed / more than cap. */
 static int parse_list(const char *s, double *v, int cap) {
   int n = 0;
@@ -268,9 +261,9 @@ int spx_cmd_dataset(int argc, char **argv) {
     goto done;
   }
   for (int i = 0; i < ncams; i++) perm[i] = i;
-  uint64_t s = mix((uint64_t)seed);
+  uint64_t s = spx_cli_mix64((uint64_t)seed);
   for (int i = ncams - 1; i > 0; i--) {
-    s = mix(s);
+    s = spx_cli_mix64(s);
     int j = (int)(s % (uint64_t)(i + 1)), t = perm[i];
     perm[i] = perm[j], perm[j] = t;
   }

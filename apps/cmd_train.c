@@ -174,20 +174,13 @@ static double now_s(void) {
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static uint64_t mix(uint64_t z) {
-  z += 0x9e3779b97f4a7c15ULL;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-
 /* Data order of an epoch: a function of (seed, epoch) only, so --resume continues exactly. */
 static void epoch_order(int *perm, int n, uint64_t seed, int64_t epoch, int shuffle) {
   for (int i = 0; i < n; i++) perm[i] = i;
   if (!shuffle) return;
-  uint64_t s = mix(seed ^ mix((uint64_t)epoch));
+  uint64_t s = spx_cli_mix64(seed ^ spx_cli_mix64((uint64_t)epoch));
   for (int i = n - 1; i > 0; i--) {
-    s = mix(s);
+    s = spx_cli_mix64(s);
     int j = (int)(s % (uint64_t)(i + 1));
     int t = perm[i];
     perm[i] = perm[j];
