@@ -3,9 +3,12 @@
  * textured + AA 2x. Times spx_raster (upload of positions and colors + all kernels + read-back;
  * faces, uv and texture stay resident like GL buffer/texture objects; median of N frames)
  * against the single-threaded plain-C reference in the same run, and checks they agree.
- * The peer: the same frames through OpenGL ES 3 / EGL (Mesa llvmpipe here, loaded at run time;
- * raster_gl_peer.h), float RGBA target (R,G,B,depth like ours), or an 8-bit colour target with
- * SPX_BENCH_GL_RGBA8=1. SPX_BENCH_NO_GL=1 skips it; SPX_BENCH_ONLY=LEVEL:MODE runs one row.
+ * The peer: the same frames (upload of positions and colours, draw, read-back; faces, uv and
+ * texture resident) through Mesa llvmpipe (peer_llvmpipe.c: headless EGL, OpenGL 3.3 core or
+ * ES 3.0), float RGBA target (R,G,B,depth like ours), or with SPX_BENCH_GL_RGBA8=1 the lighter
+ * 8-bit colour target and 8-bit texture (depth still exact, as bits in a second attachment).
+ * SPX_BENCH_NO_GL=1 skips it; SPX_BENCH_ONLY=LEVEL:MODE runs one row; SPX_BENCH_DUMP=DIR writes
+ * our image of each row.
  * Usage: bench_raster [frames (default 21)] [mesh.obj] */
 #include <math.h>
 #include <stdio.h>
@@ -16,7 +19,7 @@
 #include "core/internal.h"
 #include "smplpix/smplpix.h"
 #include "smplpix/mesh.h"
-#include "raster_gl_peer.h"
+#include "peer_llvmpipe.h"
 
 #define DIE(...)                                                                                                \
   do {                                                                                                          \
@@ -55,6 +58,16 @@ int main(int argc, char **argv) {
   float *tex = malloc(sizeof(float) * TW * TH * 3);
   bench_checker_texture(tex, TW, TH);
 
+  /* the GL peer: one context for the whole run, one mesh at a time */
+  char why[256] = "";
+  peer_llvmpipe *gl = NULL;
+  int gl_said = 0; /* "(no GL peer: ...)" once */
+  if (!getenv("SPX_BENCH_NO_GL")) {
+    const char *r8 = getenv("SPX_BENCH_GL_RGBA8");
+    if (r8 && atoi(r8)) setenv("PEER_LLVMPIPE_TARGET", "rgba8", 1);
+    gl = peer_llvmpipe_open(why, sizeof why);
+  }
+
   printf("device: %s (%s)\n", info.name, info.platform);
   printf("median (min) ms of %d frames\n", frames);
   printf("%-8s %7s %7s  %-12s %15s %15s %7s %15s %7s  %s\n", "mesh", "verts", "faces", "mode", "device", "C ref",
@@ -78,6 +91,7 @@ int main(int argc, char **argv) {
       uv[2 * i] = (float)(atan2(p[0] - ctr[0], p[2] - ctr[2]) / (2 * M_PI) + 0.5);
       uv[2 * i + 1] = (p[1] - lo[1]) / (hi[1] - lo[1]);
     }
+    int gl_ok = gl && !peer_llvmpipe_upload(gl, m.nv, m.pos, col, m.nf, m.faces, why, sizeof why);
     for (int mode = 0; mode < 3; mode++) {
       const char *only = getenv("SPX_BENCH_ONLY"); /* "LEVEL:MODE", e.g. 0:0 */
       if (only && *only && (atoi(only) != level || !strchr(only, ':') || atoi(strchr(only, ':') + 1) != mode))
@@ -109,30 +123,31 @@ int main(int argc, char **argv) {
       /* the GL peer (llvmpipe here), same frames, same camera */
       double mg = 0, gmin = 0;
       size_t gl_diff = 0;
-      char why[256] = "";
-      glp g;
-      memset(&g, 0, sizeof g);
-      if (!getenv("SPX_BENCH_NO_GL") && glp_init(&g, 410, 308, a.aa, why, sizeof why) &&
-          glp_setup(&g, m.nv, m.nf, m.faces, mode ? uv : NULL, TW, TH, mode ? tex : NULL, &cam)) {
-        float *o3 = malloc(n * 4);
-        double *tg = malloc(sizeof(double) * frames);
-        for (int w = 0; w < 3; w++) glp_frame(&g, m.pos, col, o3);
-        for (int f = 0; f < frames; f++) {
-          double t0 = spx_now();
-          glp_frame(&g, m.pos, col, o3);
+      int gl_row = gl_ok && !peer_llvmpipe_texture(gl, mode ? uv : NULL, TW, TH, 3, tex, 0, why, sizeof why);
+      float *o3 = gl_row ? malloc(n * 4) : NULL;
+      double *tg = gl_row ? malloc(sizeof(double) * frames) : NULL;
+      if (gl_row && (!o3 || !tg)) gl_row = 0, snprintf(why, sizeof why, "out of memory");
+      /* one frame = what spx_raster does per frame: upload positions and colours, draw, read back */
+      for (int f = -3; gl_row && f < frames; f++) {
+        double t0 = spx_now();
+        if (peer_llvmpipe_update(gl, m.pos, col, why, sizeof why) ||
+            peer_llvmpipe_draw_aa(gl, &cam, a.aa, o3, why, sizeof why))
+          gl_row = 0;
+        else if (f >= 0)
           tg[f] = spx_now() - t0;
-        }
+      }
+      if (gl_row) {
         gmin = tg[0];
         for (int f = 1; f < frames; f++) gmin = fmin(gmin, tg[f]);
         mg = bench_median(tg, frames) * 1e3;
-        if (!g.rgba8) /* background depth is exactly 1 in both */
-          for (size_t i = 3; i < n; i += 4) gl_diff += (o3[i] == 1.0f) != (o2[i] == 1.0f);
-        free(o3);
-        free(tg);
-      } else if (level == 0 && mode == 0) {
+        /* background depth is exactly 1 in both (also with the RGBA8 target: depth as bits) */
+        for (size_t i = 3; i < n; i += 4) gl_diff += (o3[i] == 1.0f) != (o2[i] == 1.0f);
+      } else if (!getenv("SPX_BENCH_NO_GL") && !gl_said) {
         printf("(no GL peer: %s)\n", why);
+        gl_said = 1;
       }
-      glp_free(&g);
+      free(o3);
+      free(tg);
       const char *dump = getenv("SPX_BENCH_DUMP"); /* DIR: raw HWC float32 images of each row */
       if (dump && *dump) {
         char dpath[4096];
@@ -166,6 +181,7 @@ int main(int argc, char **argv) {
     spx_mesh_free(&m);
   }
   free(tex);
+  peer_llvmpipe_close(gl);
   spx_mesh_free(&base);
   spx_rasterizer_destroy(R);
   spx_ctx_destroy(ctx);

@@ -41,6 +41,17 @@ int peer_llvmpipe_draw(peer_llvmpipe *p, const spx_camera *cam, float *rgbd_out,
   say(err, cap, "llvmpipe peer not built");
   return -1;
 }
+int peer_llvmpipe_texture(peer_llvmpipe *p, const float *uv, int32_t tw, int32_t th, int32_t channels,
+                          const float *tex, int clamp, char *err, size_t cap) {
+  (void)p, (void)uv, (void)tw, (void)th, (void)channels, (void)tex, (void)clamp;
+  say(err, cap, "llvmpipe peer not built");
+  return -1;
+}
+int peer_llvmpipe_draw_aa(peer_llvmpipe *p, const spx_camera *cam, int aa, float *rgbd_out, char *err, size_t cap) {
+  (void)p, (void)cam, (void)aa, (void)rgbd_out;
+  say(err, cap, "llvmpipe peer not built");
+  return -1;
+}
 void peer_llvmpipe_close(peer_llvmpipe *p) {}
 
 #else
@@ -65,6 +76,14 @@ void peer_llvmpipe_close(peer_llvmpipe *p) {}
   X(PFNGLDISABLEVERTEXATTRIBARRAYPROC, glDisableVertexAttribArray)                                                  \
   X(PFNGLVERTEXATTRIBPOINTERPROC, glVertexAttribPointer)                                                            \
   X(PFNGLVERTEXATTRIB3FPROC, glVertexAttrib3f)                                                                      \
+  X(PFNGLVERTEXATTRIB2FPROC, glVertexAttrib2f)                                                                      \
+  X(PFNGLGENTEXTURESPROC, glGenTextures)                                                                            \
+  X(PFNGLDELETETEXTURESPROC, glDeleteTextures)                                                                      \
+  X(PFNGLBINDTEXTUREPROC, glBindTexture)                                                                            \
+  X(PFNGLACTIVETEXTUREPROC, glActiveTexture)                                                                        \
+  X(PFNGLTEXIMAGE2DPROC, glTexImage2D)                                                                              \
+  X(PFNGLTEXPARAMETERIPROC, glTexParameteri)                                                                        \
+  X(PFNGLUNIFORM1IPROC, glUniform1i)                                                                                \
   X(PFNGLCREATESHADERPROC, glCreateShader)                                                                          \
   X(PFNGLSHADERSOURCEPROC, glShaderSource)                                                                          \
   X(PFNGLCOMPILESHADERPROC, glCompileShader)                                                                        \
@@ -111,14 +130,15 @@ struct peer_llvmpipe {
   PEER_GL(PEER_DECL)
 #undef PEER_DECL
   GLuint prog[2]; /* [0] float target, [1] RGBA8 + depth-bits target */
-  GLint loc_m[2];
-  GLuint vao, vbo_pos, vbo_col, ibo;
+  GLint loc_m[2], loc_textured[2], loc_tex[2];
+  GLuint vao, vbo_pos, vbo_col, vbo_uv, ibo, tex;
   int32_t nv, nf;
-  int has_col;
+  int has_col, textured;
   double centre[3], radius; /* bounding sphere of the uploaded mesh, for the depth range */
   GLuint fbo, rb_col, rb_aux, rb_depth;
   int fb_w, fb_h;
   unsigned char *bytes; /* RGBA8 read-back scratch, 2 * fb_w * fb_h * 4 */
+  float *full;          /* aa = 2: full-resolution RGBD before the 2x2 average, fb_w * fb_h * 4 */
 };
 
 static int has_ext(const char *list, const char *name) {
@@ -206,26 +226,41 @@ static GLuint build_program(peer_llvmpipe *p, int depth_bits, char *err, size_t 
   const char *vs =
       "layout(location = 0) in vec3 pos;\n"
       "layout(location = 1) in vec3 col;\n"
+      "layout(location = 2) in vec2 uv;\n"
       "uniform mat4 M;\n"
       "out vec3 v_col;\n"
+      "out vec2 v_uv;\n"
       "out float v_d;\n"
       "void main() {\n"
       "  gl_Position = M * vec4(pos, 1.0);\n"
       "  v_col = col;\n"
+      "  v_uv = vec2(uv.x, 1.0 - uv.y);\n" /* texture rows are uploaded top to bottom: v = 0 is the last */
       "  v_d = gl_Position.w;\n" /* w_clip = camera depth d; interpolated perspective-correct */
       "}\n";
   const char *fs_float =
       "in vec3 v_col;\n"
+      "in vec2 v_uv;\n"
       "in float v_d;\n"
+      "uniform int textured;\n"
+      "uniform sampler2D tex;\n"
       "layout(location = 0) out vec4 o_rgbd;\n"
-      "void main() { o_rgbd = vec4(v_col, v_d); }\n";
+      "void main() {\n"
+      "  vec3 c = v_col;\n"
+      "  if (textured != 0) c *= texture(tex, v_uv).rgb;\n"
+      "  o_rgbd = vec4(c, v_d);\n"
+      "}\n";
   const char *fs_bits =
       "in vec3 v_col;\n"
+      "in vec2 v_uv;\n"
       "in float v_d;\n"
+      "uniform int textured;\n"
+      "uniform sampler2D tex;\n"
       "layout(location = 0) out vec4 o_rgb;\n"
       "layout(location = 1) out vec4 o_dbits;\n"
       "void main() {\n"
-      "  o_rgb = vec4(v_col, 1.0);\n"
+      "  vec3 c = v_col;\n"
+      "  if (textured != 0) c *= texture(tex, v_uv).rgb;\n"
+      "  o_rgb = vec4(c, 1.0);\n"
       "  uint b = floatBitsToUint(v_d);\n"
       "  o_dbits = vec4(float(b & 255u), float((b >> 8) & 255u), float((b >> 16) & 255u), float(b >> 24)) / 255.0;\n"
       "}\n";
@@ -318,12 +353,17 @@ peer_llvmpipe *peer_llvmpipe_open(char *err, size_t cap) {
     p->prog[i] = build_program(p, i, err, cap);
     if (!p->prog[i]) goto fail;
     p->loc_m[i] = p->glGetUniformLocation(p->prog[i], "M");
+    p->loc_textured[i] = p->glGetUniformLocation(p->prog[i], "textured");
+    p->loc_tex[i] = p->glGetUniformLocation(p->prog[i], "tex");
   }
   p->glGenVertexArrays(1, &p->vao);
   p->glGenBuffers(1, &p->vbo_pos);
   p->glGenBuffers(1, &p->vbo_col);
+  p->glGenBuffers(1, &p->vbo_uv);
   p->glGenBuffers(1, &p->ibo);
+  p->glGenTextures(1, &p->tex);
   p->glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  p->glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
   if (p->glGetError() != GL_NO_ERROR) {
     say(err, cap, "GL error while setting up");
     goto fail;
@@ -383,6 +423,9 @@ int peer_llvmpipe_upload(peer_llvmpipe *p, int32_t nv, const float *pos, const f
     p->glDisableVertexAttribArray(1);
     p->glVertexAttrib3f(1, 1.0f, 1.0f, 1.0f);
   }
+  p->glDisableVertexAttribArray(2); /* the texture (if any) belonged to the previous mesh */
+  p->glVertexAttrib2f(2, 0.0f, 0.0f);
+  p->textured = 0;
   p->glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, p->ibo);
   p->glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)nf * 12, faces, GL_STATIC_DRAW);
   p->glBindVertexArray(0);
@@ -414,6 +457,65 @@ int peer_llvmpipe_update(peer_llvmpipe *p, const float *pos, const float *col, c
   return 0;
 }
 
+int peer_llvmpipe_texture(peer_llvmpipe *p, const float *uv, int32_t tw, int32_t th, int32_t channels,
+                          const float *tex, int clamp, char *err, size_t cap) {
+  if (!p || p->nv < 1) {
+    say(err, cap, "peer_llvmpipe_texture: no mesh uploaded");
+    return -1;
+  }
+  p->glBindVertexArray(p->vao);
+  if (!uv) {
+    p->glDisableVertexAttribArray(2);
+    p->glBindVertexArray(0);
+    p->textured = 0;
+    return 0;
+  }
+  if (!tex || tw < 1 || th < 1 || tw > 16384 || th > 16384 || (channels != 3 && channels != 4)) {
+    p->glBindVertexArray(0);
+    say(err, cap, "peer_llvmpipe_texture: bad texture (%dx%d, %d channels)", (int)tw, (int)th, (int)channels);
+    return -1;
+  }
+  p->glBindBuffer(GL_ARRAY_BUFFER, p->vbo_uv);
+  p->glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)p->nv * 8, uv, GL_STATIC_DRAW);
+  p->glVertexAttribPointer(2, 2, GL_FLOAT, GL_FALSE, 8, NULL);
+  p->glEnableVertexAttribArray(2);
+  p->glBindVertexArray(0);
+  p->glBindBuffer(GL_ARRAY_BUFFER, 0);
+  p->glActiveTexture(GL_TEXTURE0);
+  p->glBindTexture(GL_TEXTURE_2D, p->tex);
+  const char *tgt = getenv("PEER_LLVMPIPE_TARGET");
+  if (tgt && !strcmp(tgt, "rgba8")) { /* the lighter configuration: 8-bit texels */
+    size_t n = (size_t)tw * (size_t)th;
+    unsigned char *t8 = malloc(n * 4);
+    if (!t8) {
+      say(err, cap, "peer_llvmpipe_texture: out of memory");
+      return -1;
+    }
+    for (size_t i = 0; i < n; i++)
+      for (int k = 0; k < 4; k++) {
+        float v = k < 3 ? tex[i * (size_t)channels + (size_t)k] : 1.0f;
+        t8[4 * i + (size_t)k] = (unsigned char)(v > 0 ? (v < 1 ? v * 255.0f + 0.5f : 255.0f) : 0.0f);
+      }
+    p->glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, tw, th, 0, GL_RGBA, GL_UNSIGNED_BYTE, t8);
+    free(t8);
+  } else {
+    p->glTexImage2D(GL_TEXTURE_2D, 0, channels == 3 ? GL_RGB32F : GL_RGBA32F, tw, th, 0,
+                    channels == 3 ? GL_RGB : GL_RGBA, GL_FLOAT, tex);
+  }
+  p->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR); /* no mipmaps, like ours */
+  p->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  GLint wrap = clamp ? GL_CLAMP_TO_EDGE : GL_REPEAT;
+  p->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, wrap);
+  p->glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, wrap);
+  GLenum e = p->glGetError();
+  if (e != GL_NO_ERROR) {
+    say(err, cap, "peer_llvmpipe_texture: GL error 0x%04x (%dx%d float texture)", (unsigned)e, (int)tw, (int)th);
+    return -1;
+  }
+  p->textured = 1;
+  return 0;
+}
+
 static void drop_target(peer_llvmpipe *p) {
   if (p->fbo) p->glDeleteFramebuffers(1, &p->fbo);
   GLuint rb[3] = {p->rb_col, p->rb_aux, p->rb_depth};
@@ -423,6 +525,8 @@ static void drop_target(peer_llvmpipe *p) {
   p->fb_w = p->fb_h = 0;
   free(p->bytes);
   p->bytes = NULL;
+  free(p->full);
+  p->full = NULL;
 }
 
 static GLuint make_rb(peer_llvmpipe *p, GLenum fmt, GLenum attach, int w, int h) {
@@ -451,7 +555,8 @@ static int make_target(peer_llvmpipe *p, int w, int h, char *err, size_t cap) {
     if (st == GL_FRAMEBUFFER_COMPLETE) {
       p->float_target = flt;
       p->fb_w = w, p->fb_h = h;
-      if (!flt && !(p->bytes = malloc((size_t)w * (size_t)h * 8))) {
+      if ((!flt && !(p->bytes = malloc((size_t)w * (size_t)h * 8))) ||
+          !(p->full = malloc((size_t)w * (size_t)h * 4 * sizeof(float)))) {
         drop_target(p);
         say(err, cap, "out of memory");
         return -1;
@@ -465,13 +570,19 @@ static int make_target(peer_llvmpipe *p, int w, int h, char *err, size_t cap) {
 }
 
 int peer_llvmpipe_draw(peer_llvmpipe *p, const spx_camera *cam, float *rgbd_out, char *err, size_t cap) {
+  return peer_llvmpipe_draw_aa(p, cam, 1, rgbd_out, err, cap);
+}
+
+int peer_llvmpipe_draw_aa(peer_llvmpipe *p, const spx_camera *cam, int aa, float *rgbd_out, char *err, size_t cap) {
   if (!p || !cam || !rgbd_out || p->nv < 1 || cam->width < 1 || cam->height < 1 ||
-      cam->width > SPX_CAMERA_MAX_SIZE || cam->height > SPX_CAMERA_MAX_SIZE) {
-    say(err, cap, "peer_llvmpipe_draw: bad arguments or no mesh uploaded");
+      cam->width > SPX_CAMERA_MAX_SIZE || cam->height > SPX_CAMERA_MAX_SIZE || (aa != 1 && aa != 2)) {
+    say(err, cap, "peer_llvmpipe_draw: bad arguments (aa %d) or no mesh uploaded", aa);
     return -1;
   }
-  int W = cam->width, H = cam->height;
+  int W = cam->width * aa, H = cam->height * aa; /* the drawn size; K is scaled by aa below */
+  float *out = aa == 1 ? rgbd_out : NULL;
   if ((W != p->fb_w || H != p->fb_h) && make_target(p, W, H, err, cap)) return -1;
+  if (!out) out = p->full;
 
   /* Depth range fitted to the bounding sphere (precision of the float depth buffer). */
   const double(*K)[3] = cam->K, (*R)[3] = cam->R;
@@ -481,8 +592,8 @@ int peer_llvmpipe_draw(peer_llvmpipe *p, const spx_camera *cam, float *rgbd_out,
   if (zf <= zn) zf = 2 * zn;
   /* clip = C [R t; 0 0 0 1] x, with w_clip = d and window x = u, window y = v (GL's row y is our
    * row y: the image is drawn upside down in GL terms, so the read-back needs no flip). */
-  double C[4][4] = {{2 * K[0][0] / W, 2 * K[0][1] / W, 2 * K[0][2] / W - 1, 0},
-                    {0, 2 * K[1][1] / H, 2 * K[1][2] / H - 1, 0},
+  double C[4][4] = {{2 * aa * K[0][0] / W, 2 * aa * K[0][1] / W, 2 * aa * K[0][2] / W - 1, 0},
+                    {0, 2 * aa * K[1][1] / H, 2 * aa * K[1][2] / H - 1, 0},
                     {0, 0, (zf + zn) / (zf - zn), -2 * zf * zn / (zf - zn)},
                     {0, 0, 1, 0}};
   double Rt[4][4] = {{R[0][0], R[0][1], R[0][2], cam->t[0]},
@@ -512,12 +623,18 @@ int peer_llvmpipe_draw(peer_llvmpipe *p, const spx_camera *cam, float *rgbd_out,
   p->glClearBufferfv(GL_DEPTH, 0, &depth_one);
   p->glUseProgram(p->prog[pi]);
   p->glUniformMatrix4fv(p->loc_m[pi], 1, GL_FALSE, M);
+  p->glUniform1i(p->loc_textured[pi], p->textured);
+  if (p->textured) {
+    p->glActiveTexture(GL_TEXTURE0);
+    p->glBindTexture(GL_TEXTURE_2D, p->tex);
+    p->glUniform1i(p->loc_tex[pi], 0);
+  }
   p->glBindVertexArray(p->vao);
   p->glDrawElements(GL_TRIANGLES, 3 * p->nf, GL_UNSIGNED_INT, NULL);
   p->glBindVertexArray(0);
   if (fl) {
     p->glReadBuffer(GL_COLOR_ATTACHMENT0);
-    p->glReadPixels(0, 0, W, H, GL_RGBA, GL_FLOAT, rgbd_out);
+    p->glReadPixels(0, 0, W, H, GL_RGBA, GL_FLOAT, out);
   } else {
     size_t n = (size_t)W * (size_t)H;
     unsigned char *c = p->bytes, *d = p->bytes + 4 * n;
@@ -530,10 +647,18 @@ int peer_llvmpipe_draw(peer_llvmpipe *p, const spx_camera *cam, float *rgbd_out,
                    (uint32_t)d[4 * i + 3] << 24;
       float z;
       memcpy(&z, &b, 4);
-      for (int k = 0; k < 3; k++) rgbd_out[4 * i + k] = c[4 * i + k] / 255.0f;
-      rgbd_out[4 * i + 3] = z;
+      for (int k = 0; k < 3; k++) out[4 * i + k] = c[4 * i + k] / 255.0f;
+      out[4 * i + 3] = z;
     }
   }
+  if (aa == 2) /* average each 2x2 block, RGB and depth, background included (as smplpix/raster.h) */
+    for (int y = 0; y < cam->height; y++)
+      for (int x = 0; x < cam->width; x++)
+        for (int k = 0; k < 4; k++) {
+          size_t a = ((size_t)(2 * y) * (size_t)W + (size_t)(2 * x)) * 4 + (size_t)k, b = a + (size_t)W * 4;
+          rgbd_out[((size_t)y * (size_t)cam->width + (size_t)x) * 4 + (size_t)k] =
+              ((out[a] + out[a + 4]) + (out[b] + out[b + 4])) * 0.25f;
+        }
   GLenum e = p->glGetError();
   if (e != GL_NO_ERROR) {
     say(err, cap, "peer_llvmpipe_draw: GL error 0x%04x", (unsigned)e);
@@ -548,11 +673,13 @@ void peer_llvmpipe_close(peer_llvmpipe *p) {
     drop_target(p);
     for (int i = 0; i < 2; i++)
       if (p->prog[i]) p->glDeleteProgram(p->prog[i]);
-    GLuint b[3] = {p->vbo_pos, p->vbo_col, p->ibo};
-    p->glDeleteBuffers(3, b);
+    GLuint b[4] = {p->vbo_pos, p->vbo_col, p->vbo_uv, p->ibo};
+    p->glDeleteBuffers(4, b);
+    if (p->tex) p->glDeleteTextures(1, &p->tex);
     if (p->vao) p->glDeleteVertexArrays(1, &p->vao);
   }
   free(p->bytes);
+  free(p->full);
   if (p->dpy != EGL_NO_DISPLAY) {
     eglMakeCurrent(p->dpy, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     if (p->ctx != EGL_NO_CONTEXT) eglDestroyContext(p->dpy, p->ctx);
