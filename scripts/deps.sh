@@ -3,10 +3,9 @@
 # command to run). Used by `make demo` / `make test`; safe to run repeatedly.
 set -eu
 # libegl-dev, libgl-dev, libegl-mesa0, libgl1-mesa-dri: only for the benchmarks' Mesa llvmpipe peer (optional)
-PKGS="build-essential cmake pkg-config ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd \
+PKGS="build-essential cmake pkg-config ocl-icd-opencl-dev opencl-c-headers pocl-opencl-icd \
 libopenexr-dev libpng-dev zlib1g-dev libcjson-dev libceres-dev libeigen3-dev libnanoflann-dev clang \
 libclang-rt-dev python3 libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri"
-[ "${1:-}" = "--extra" ] && PKGS="$PKGS ${2:-}"
 missing=""
 for p in $PKGS; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
