@@ -4,50 +4,7 @@
 
 #include "smplpix/image.h"
 #include "smplpix/smplpix.h"
-#include "test.h"
-
-static char dir[512];
-
-static void write_text(const char *name, const char *text) {
-  char p[700];
-  snprintf(p, sizeof p, "%s/%s", dir, name);
-  FILE *f = fopen(p, "wb");
-  if (f) {
-    fputs(text, f);
-    fclose(f);
-  }
-}
-
-/* Run the tool with args; stderr goes to dir/err.txt. Returns the exit code. */
-static int tool(const char *args) {
-  char cmd[2048];
-  snprintf(cmd, sizeof cmd, "cd '%s' && '%s' %s >out.txt 2>err.txt", dir, spx_t_tool(), args);
-  return spx_t_system(cmd);
-}
-
-/* stderr is exactly one line and contains `needle` */
-static int err_one_line_with(const char *needle) {
-  char p[700], buf[4096] = "";
-  snprintf(p, sizeof p, "%s/err.txt", dir);
-  FILE *f = fopen(p, "rb");
-  if (!f) return 0;
-  size_t n = fread(buf, 1, sizeof buf - 1, f);
-  fclose(f);
-  buf[n] = 0;
-  int lines = 0;
-  for (size_t i = 0; i < n; i++) lines += buf[i] == '\n';
-  if (lines != 1 || !strstr(buf, needle)) {
-    fprintf(stderr, "  stderr was: %s", buf);
-    return 0;
-  }
-  return 1;
-}
-
-static int exists(const char *name) {
-  char p[700];
-  snprintf(p, sizeof p, "%s/%s", dir, name);
-  return spx_t_file_exists(p);
-}
+#include "cli_test.h"
 
 static void clean_outputs(void) {
   char cmd[700];
