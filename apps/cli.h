@@ -61,6 +61,13 @@ void spx_cli_written_finish(spx_cli_written *w, int failed);
 int spx_cli_image_ext_ok(const char *path);
 /* Write an HWC image by extension: .exr (3 or 4 channels), .png (RGB), .npy (HxWxC float32). */
 spx_status spx_cli_write_image(spx_ctx *ctx, const char *path, const spx_image *img);
+/* Write img to `path` (malloc'd, owned: kept in w once written, freed otherwise; NULL = an
+ * allocation failed) with spx_cli_write_image, and remember it so a later failure removes it.
+ * Prints the one-line error itself; returns SPX_EXIT_OK or the exit code. */
+int spx_cli_write_output(const char *cmd, spx_ctx *ctx, spx_cli_written *w, char *path, const spx_image *img);
+/* Print "camera C: WxH, N pixels <what> (P%), depth a..b" for an RGB-D image whose background
+ * is (1,1,1,1). */
+void spx_cli_print_coverage(int c, const spx_image *img, const char *what);
 
 /* Subcommand entry points. */
 int spx_cmd_devices(int argc, char **argv);

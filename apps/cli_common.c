@@ -109,6 +109,36 @@ spx_status spx_cli_write_image(spx_ctx *ctx, const char *path, const spx_image *
   return SPX_E_ARG;
 }
 
+int spx_cli_write_output(const char *cmd, spx_ctx *ctx, spx_cli_written *w, char *path, const spx_image *img) {
+  if (!path) return spx_cli_errorf(cmd, "out of memory");
+  if (spx_cli_write_image(ctx, path, img)) { /* atomic: a failed write leaves what was at path */
+    free(path);
+    return spx_cli_error(cmd, ctx);
+  }
+  if (!spx_cli_remember(w, path)) {
+    remove(path);
+    free(path);
+    return spx_cli_errorf(cmd, "out of memory");
+  }
+  return SPX_EXIT_OK;
+}
+
+void spx_cli_print_coverage(int c, const spx_image *img, const char *what) {
+  size_t n = (size_t)img->width * (size_t)img->height, covered = 0;
+  float dmin = INFINITY, dmax = -INFINITY;
+  for (size_t p = 0; p < n; p++) {
+    const float *px = img->data + 4 * p;
+    if (px[0] == 1 && px[1] == 1 && px[2] == 1 && px[3] == 1) continue;
+    covered++;
+    dmin = fminf(dmin, px[3]);
+    dmax = fmaxf(dmax, px[3]);
+  }
+  printf("camera %d: %dx%d, %zu pixels %s (%.2f%%)", c, img->width, img->height, covered, what,
+         100.0 * (double)covered / (double)n);
+  if (covered) printf(", depth %.3f..%.3f", dmin, dmax);
+  printf("\n");
+}
+
 uint64_t spx_cli_mix64(uint64_t z) {
   z += 0x9e3779b97f4a7c15ULL;
   z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;

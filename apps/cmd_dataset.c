@@ -350,24 +350,11 @@ int spx_cmd_dataset(int argc, char **argv) {
       int v = c0 + c;
       for (int io = 0; io < 2; io++) {
         size_t len = strlen(dir) + 64;
-        char *p = malloc(len);
-        if (!p) {
-          rc = spx_cli_errorf("dataset", "out of memory");
-          goto done;
-        }
-        snprintf(p, len, "%s/%s/%s/view_%04d.%s", dir, names[which[v]], io ? "output" : "input", v, io ? "png" : fmt);
+        char *p = malloc(len); /* NULL: spx_cli_write_output reports it */
+        if (p)
+          snprintf(p, len, "%s/%s/%s/view_%04d.%s", dir, names[which[v]], io ? "output" : "input", v, io ? "png" : fmt);
         spx_image img = {Wc, Hc, 4, (io ? rast_img : proj_img) + per * (size_t)c};
-        if (spx_cli_write_image(ctx, p, &img)) { /* atomic: a failed write leaves what was at p */
-          free(p);
-          rc = spx_cli_error("dataset", ctx);
-          goto done;
-        }
-        if (!spx_cli_remember(&w, p)) {
-          remove(p);
-          free(p);
-          rc = spx_cli_errorf("dataset", "out of memory");
-          goto done;
-        }
+        if ((rc = spx_cli_write_output("dataset", ctx, &w, p, &img))) goto done;
       }
     }
   }

@@ -98,42 +98,16 @@ int spx_cmd_project(int argc, char **argv) {
 
   for (int c = 0; c < ncams; c++) {
     spx_image img = {W, H, 4, images + per * (size_t)c};
-    for (int k = 0; k < 3; k++) {
-      if (!outs[k]) continue;
-      char *p = spx_cli_indexed_path(outs[k], c, ncams);
-      if (!p) {
-        rc = spx_cli_errorf("project", "out of memory");
+    for (int k = 0; k < 3; k++)
+      if (outs[k] && (rc = spx_cli_write_output("project", ctx, &w, spx_cli_indexed_path(outs[k], c, ncams), &img)))
         goto done;
-      }
-      if (spx_cli_write_image(ctx, p, &img)) { /* atomic: a failed write leaves what was at p */
-        free(p);
-        rc = spx_cli_error("project", ctx);
-        goto done;
-      }
-      if (!spx_cli_remember(&w, p)) {
-        remove(p);
-        free(p);
-        rc = spx_cli_errorf("project", "out of memory");
-        goto done;
-      }
-    }
   }
   if (!quiet) {
     spx_device_info info;
     spx_device_get_info(ctx, &info);
     for (int c = 0; c < ncams; c++) {
-      const float *im = images + per * (size_t)c;
-      size_t covered = 0;
-      float dmin = INFINITY, dmax = -INFINITY;
-      for (size_t p = 0; p < (size_t)W * H; p++)
-        if (!(im[4 * p] == 1 && im[4 * p + 1] == 1 && im[4 * p + 2] == 1 && im[4 * p + 3] == 1)) {
-          covered++;
-          dmin = fminf(dmin, im[4 * p + 3]);
-          dmax = fmaxf(dmax, im[4 * p + 3]);
-        }
-      printf("camera %d: %dx%d, %zu pixels hold a vertex (%.2f%%)", c, W, H, covered, 100.0 * covered / ((double)W * H));
-      if (covered) printf(", depth %.3f..%.3f", dmin, dmax);
-      printf("\n");
+      spx_image img = {W, H, 4, images + per * (size_t)c};
+      spx_cli_print_coverage(c, &img, "hold a vertex");
     }
     printf("projected %d vertices (%s) through %d camera%s in %.2f ms (first call: includes kernel set-up) on %s\n", mesh.nv, used, ncams,
            ncams > 1 ? "s" : "", ms, info.name);
