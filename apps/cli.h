@@ -65,6 +65,9 @@ spx_status spx_cli_write_image(spx_ctx *ctx, const char *path, const spx_image *
  * allocation failed) with spx_cli_write_image, and remember it so a later failure removes it.
  * Prints the one-line error itself; returns SPX_EXIT_OK or the exit code. */
 int spx_cli_write_output(const char *cmd, spx_ctx *ctx, spx_cli_written *w, char *path, const spx_image *img);
+/* Load a camera file (one camera or an array) whose cameras must all have one image size; prints
+ * the one-line error itself and returns SPX_EXIT_OK or the exit code. */
+int spx_cli_load_cameras(const char *cmd, spx_ctx *ctx, const char *path, spx_camera **cams, int *count);
 /* Print "camera C: WxH, N pixels <what> (P%), depth a..b" for an RGB-D image whose background
  * is (1,1,1,1). */
 void spx_cli_print_coverage(int c, const spx_image *img, const char *what);

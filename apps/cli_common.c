@@ -123,6 +123,16 @@ int spx_cli_write_output(const char *cmd, spx_ctx *ctx, spx_cli_written *w, char
   return SPX_EXIT_OK;
 }
 
+int spx_cli_load_cameras(const char *cmd, spx_ctx *ctx, const char *path, spx_camera **cams, int *count) {
+  if (spx_camera_load(ctx, path, cams, count)) return spx_cli_error(cmd, ctx);
+  const spx_camera *c0 = &(*cams)[0];
+  for (int c = 1; c < *count; c++)
+    if ((*cams)[c].width != c0->width || (*cams)[c].height != c0->height)
+      return spx_cli_errorf(cmd, "%s: camera %d is %dx%d but camera 0 is %dx%d; all cameras of one call need one image size",
+                            path, c, (*cams)[c].width, (*cams)[c].height, c0->width, c0->height);
+  return SPX_EXIT_OK;
+}
+
 void spx_cli_print_coverage(int c, const spx_image *img, const char *what) {
   size_t n = (size_t)img->width * (size_t)img->height, covered = 0;
   float dmin = INFINITY, dmax = -INFINITY;

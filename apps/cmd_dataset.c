@@ -220,16 +220,7 @@ int spx_cmd_dataset(int argc, char **argv) {
     goto done;
   }
   if (cam_path) {
-    if (spx_camera_load(ctx, cam_path, &cams, &ncams)) {
-      rc = spx_cli_error("dataset", ctx);
-      goto done;
-    }
-    for (int c = 1; c < ncams; c++)
-      if (cams[c].width != cams[0].width || cams[c].height != cams[0].height) {
-        rc = spx_cli_errorf("dataset", "%s: camera %d is %dx%d but camera 0 is %dx%d; a data set has one image size",
-                            cam_path, c, cams[c].width, cams[c].height, cams[0].width, cams[0].height);
-        goto done;
-      }
+    if ((rc = spx_cli_load_cameras("dataset", ctx, cam_path, &cams, &ncams))) goto done;
   } else {
     if ((rc = orbit_cameras(ctx, &mesh, norbit, elev, ne, (int)W, (int)H, focal, dist, &cams))) goto done;
     ncams = (int)norbit;

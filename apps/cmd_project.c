@@ -61,16 +61,11 @@ int spx_cmd_project(int argc, char **argv) {
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("project", "out of memory");
 
   /* read and check every input before touching the device or any output */
-  if (spx_mesh_load(ctx, mesh_path, &mesh) || spx_camera_load(ctx, cam_path, &cams, &ncams)) {
+  if (spx_mesh_load(ctx, mesh_path, &mesh)) {
     rc = spx_cli_error("project", ctx);
     goto done;
   }
-  for (int c = 1; c < ncams; c++)
-    if (cams[c].width != cams[0].width || cams[c].height != cams[0].height) {
-      rc = spx_cli_errorf("project", "%s: camera %d is %dx%d but camera 0 is %dx%d; one call needs one image size",
-                          cam_path, c, cams[c].width, cams[c].height, cams[0].width, cams[0].height);
-      goto done;
-    }
+  if ((rc = spx_cli_load_cameras("project", ctx, cam_path, &cams, &ncams))) goto done;
   const float *col = NULL;
   const char *used = NULL;
   if ((rc = spx_cli_mesh_colors("project", mesh_path, &mesh, color, &colors, &col, &used))) goto done;

@@ -71,20 +71,15 @@ int spx_cmd_raster(int argc, char **argv) {
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("raster", "out of memory");
 
   /* read and check every input before touching the device or any output */
-  if (spx_mesh_load(ctx, mesh_path, &mesh) || spx_camera_load(ctx, cam_path, &cams, &ncams)) {
+  if (spx_mesh_load(ctx, mesh_path, &mesh)) {
     rc = spx_cli_error("raster", ctx);
     goto done;
   }
+  if ((rc = spx_cli_load_cameras("raster", ctx, cam_path, &cams, &ncams))) goto done;
   if (mesh.nf == 0) {
     rc = spx_cli_errorf("raster", "%s: no triangles to rasterize (a point cloud: use `smplpix project`)", mesh_path);
     goto done;
   }
-  for (int c = 1; c < ncams; c++)
-    if (cams[c].width != cams[0].width || cams[c].height != cams[0].height) {
-      rc = spx_cli_errorf("raster", "%s: camera %d is %dx%d but camera 0 is %dx%d; one call needs one image size",
-                          cam_path, c, cams[c].width, cams[c].height, cams[0].width, cams[0].height);
-      goto done;
-    }
   if (tex_path) {
     if (!mesh.uv || !mesh.face_uv) {
       rc = spx_cli_errorf("raster", "%s: --texture %s, but the mesh has no texture coordinates", mesh_path, tex_path);

@@ -50,16 +50,11 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
   float *colors = NULL, *in = NULL, *out = NULL;
   spx_projector *proj = NULL;
   spx_cli_written wr = {0};
-  if (spx_mesh_load(ctx, mesh_path, &mesh) || spx_camera_load(ctx, cam_path, &cams, &ncams)) {
+  if (spx_mesh_load(ctx, mesh_path, &mesh)) {
     rc = spx_cli_error("render", ctx);
     goto done;
   }
-  for (int c = 1; c < ncams; c++)
-    if (cams[c].width != cams[0].width || cams[c].height != cams[0].height) {
-      rc = spx_cli_errorf("render", "%s: camera %d is %dx%d but camera 0 is %dx%d; one call needs one image size",
-                          cam_path, c, cams[c].width, cams[c].height, cams[0].width, cams[0].height);
-      goto done;
-    }
+  if ((rc = spx_cli_load_cameras("render", ctx, cam_path, &cams, &ncams))) goto done;
   int W = cams[0].width, H = cams[0].height;
   if (H < 16 || W < 16) {
     rc = spx_cli_errorf("render", "%s: %dx%d is too small (the UNet needs at least 16x16)", cam_path, W, H);
