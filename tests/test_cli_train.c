@@ -23,6 +23,7 @@
 
 #include "smplpix/npy.h"
 #include "smplpix/smplpix.h"
+#include "st_compare.h"
 #include "test.h"
 
 enum { H = 36, W = 40 };
@@ -99,23 +100,7 @@ static void make_pair(const char *base, const char *name, int h, int w, unsigned
   free(tg);
 }
 
-static int same_checkpoints(const char *a, const char *b) {
-  spx_st_file fa, fb;
-  if (spx_st_load(ctx, a, &fa)) return 0;
-  if (spx_st_load(ctx, b, &fb)) {
-    spx_st_free(&fa);
-    return 0;
-  }
-  int same = fa.count == fb.count;
-  for (int i = 0; i < fa.count && same; i++) {
-    const spx_st_tensor *t = spx_st_find(&fb, fa.tensors[i].name);
-    same = t && t->nbytes == fa.tensors[i].nbytes && !memcmp(t->data, fa.tensors[i].data, t->nbytes);
-    if (!same) fprintf(stderr, "  differs: %s\n", fa.tensors[i].name);
-  }
-  spx_st_free(&fa);
-  spx_st_free(&fb);
-  return same;
-}
+static int same_checkpoints(const char *a, const char *b) { return spx_t_same_safetensors(ctx, a, b); }
 
 static int64_t checkpoint_step(const char *path) {
   spx_unet *u = NULL;

@@ -14,6 +14,7 @@
 #include "nn_testutil.h"
 #include "smplpix/npy.h"
 #include "smplpix/smplpix.h"
+#include "st_compare.h"
 
 enum { H = 36, W = 40 }; /* bottleneck 2x2: batch norm can train on a batch of 1 */
 
@@ -73,24 +74,6 @@ static void mk(const char *rel) {
   mkdir(p, 0777);
 }
 
-static int same_checkpoints(spx_ctx *ctx, const char *a, const char *b) {
-  spx_st_file fa, fb;
-  if (spx_st_load(ctx, a, &fa)) return 0;
-  if (spx_st_load(ctx, b, &fb)) {
-    spx_st_free(&fa);
-    return 0;
-  }
-  int same = fa.count == fb.count;
-  for (int i = 0; i < fa.count && same; i++) {
-    const spx_st_tensor *t = spx_st_find(&fb, fa.tensors[i].name);
-    same = t && t->nbytes == fa.tensors[i].nbytes && !memcmp(t->data, fa.tensors[i].data, t->nbytes);
-    if (!same) fprintf(stderr, "  differs: %s\n", fa.tensors[i].name);
-  }
-  spx_st_free(&fa);
-  spx_st_free(&fb);
-  return same;
-}
-
 static double parse_losses(const char *log, double *first, double *last) {
   FILE *f = fopen(log, "r");
   int n = 0;
@@ -147,7 +130,7 @@ static void test_train_render(void) {
   CHECK(run(args, log) == 0);
   snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --batch 2 --epochs 3 --lr 3e-3 --seed 9 --resume", dir, wr);
   CHECK(run(args, log) == 0);
-  CHECK_MSG(same_checkpoints(ctx, w3, wr), "resumed training differs from the straight run");
+  CHECK_MSG(spx_t_same_safetensors(ctx, w3, wr), "resumed training differs from the straight run");
 
   /* render to npy equals the library's eval forward; png and exr outputs are written */
   path_in(p, sizeof p, "train/input/b.exr");
