@@ -52,10 +52,14 @@ static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m,
   for (int32_t i = 0; i < m->nv * 3; i++) out.pos[i] = (float)(r->body_scale * v[i]);
   memcpy(out.faces, m->faces, (size_t)m->nf * 3 * sizeof(int32_t));
   if (r->colors) memcpy(out.col, r->colors, (size_t)m->nv * 3 * sizeof(float));
-  if (spx_mesh_save(ctx, out_path, &out, SPX_MESH_AUTO)) {
-    rc = spx_cli_error(cmd, ctx);
-    goto done;
-  }
+  spx_tx tx;
+  spx_tx_begin(&tx, cmd, 0);
+  const char *tmp = spx_tx_stage(&tx, out_path);
+  if (!tmp) rc = SPX_EXIT_ERROR;
+  else if (spx_mesh_save(ctx, tmp, &out, SPX_MESH_AUTO)) rc = spx_cli_error(cmd, ctx);
+  else rc = spx_tx_commit(&tx);
+  spx_tx_end(&tx);
+  if (rc) goto done;
   printf("wrote %s (%d vertices)\n", out_path, out.nv);
 done:
   free(v);
@@ -100,7 +104,10 @@ int spx_cmd_repose(int argc, char **argv) {
   spx_bvh_map map;
   memset(&r, 0, sizeof r), memset(&m, 0, sizeof m), memset(&b, 0, sizeof b), memset(&map, 0, sizeof map);
   double *pose = NULL, trans[3];
-  int rc = load_registration("repose", ctx, reg_path, model_arg, &r, &m);
+  spx_tx tx;
+  spx_tx_begin(&tx, "repose", 0);
+  int rc = spx_tx_check(&tx, out_path); /* before any work */
+  if (!rc) rc = load_registration("repose", ctx, reg_path, model_arg, &r, &m);
   if (rc) goto done;
   if (spx_bvh_load(ctx, bvh_path, &b) || spx_bvh_map_create(ctx, &b, &m, NULL, NULL, &map)) {
     rc = spx_cli_error("repose", ctx);
@@ -175,7 +182,10 @@ int spx_cmd_reshape(int argc, char **argv) {
   spx_body_model m;
   memset(&r, 0, sizeof r), memset(&m, 0, sizeof m);
   double *betas = NULL, *pose = NULL;
-  int rc = load_registration("reshape", ctx, reg_path, model_arg, &r, &m);
+  spx_tx tx;
+  spx_tx_begin(&tx, "reshape", 0);
+  int rc = spx_tx_check(&tx, out_path); /* before any work */
+  if (!rc) rc = load_registration("reshape", ctx, reg_path, model_arg, &r, &m);
   if (rc) goto done;
   for (int k = 0; k < nsh; k++)
     if (sh_idx[k] >= r.nbetas) {

@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "train_state.h"
 #include "unet_io.h"
 
 static void train_help(void) {
@@ -301,6 +302,7 @@ int spx_cmd_train(int argc, char **argv) {
   long width = 0, batch = 1, epochs = -1, steps = -1, seed = 0, save_every = 0, log_every = 10;
   double lr = 1e-3;
   int resume = 0, shuffle = 1, sigmoid = 0, bad = 0, rc;
+  int seed_given = 0, batch_given = 0, lr_given = 0, shuffle_given = 0, loss_given = 0;
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
@@ -310,6 +312,7 @@ int spx_cmd_train(int argc, char **argv) {
       resume = 1;
     } else if (!strcmp(argv[i], "--no-shuffle")) {
       shuffle = 0;
+      shuffle_given = 1;
     } else if (!strcmp(argv[i], "--sigmoid")) {
       sigmoid = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--data", &bad))) {
@@ -322,18 +325,21 @@ int spx_cmd_train(int argc, char **argv) {
       spec = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--loss", &bad))) {
       loss_name = v;
+      loss_given = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--width", &bad))) {
       if ((rc = parse_int("--width", v, 8, 64, &width))) return rc;
       if (width != 8 && width != 16 && width != 32 && width != 64)
         return spx_cli_usage("train", "--width must be 8, 16, 32 or 64, not %ld", width);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--batch", &bad))) {
       if ((rc = parse_int("--batch", v, 1, 1000000000, &batch))) return rc;
+      batch_given = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--epochs", &bad))) {
       if ((rc = parse_int("--epochs", v, 0, 100000000, &epochs))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--steps", &bad))) {
       if ((rc = parse_int("--steps", v, 0, 2000000000, &steps))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) {
       if ((rc = parse_int("--seed", v, 0, 2147483647, &seed))) return rc;
+      seed_given = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--save-every", &bad))) {
       if ((rc = parse_int("--save-every", v, 1, 2000000000, &save_every))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--log-every", &bad))) {
@@ -342,6 +348,7 @@ int spx_cmd_train(int argc, char **argv) {
       char *end = NULL;
       lr = strtod(v, &end);
       if (!end || *end || !(lr > 0) || !isfinite(lr)) return spx_cli_usage("train", "--lr needs a positive number, not '%s'", v);
+      lr_given = 1;
     } else {
       return spx_cli_usage("train", bad ? "missing value for %s" : "unknown option %s", argv[i]);
     }
@@ -363,6 +370,41 @@ int spx_cmd_train(int argc, char **argv) {
   spx_status st;
   progress pg = {0};
   pg.tty = isatty(STDERR_FILENO);
+  spx_train_state ts;
+  spx_train_state_init(&ts);
+  { /* --out must be writable before any training (a failed save would throw the steps away) */
+    spx_tx chk;
+    spx_tx_begin(&chk, "train", 0);
+    if ((rc = spx_tx_check(&chk, outp))) goto done;
+  }
+  if (resume) { /* the run's settings come from the checkpoint; flags may only repeat them */
+    int has_state = 0, has_opt = 0;
+    if ((rc = spx_train_state_read(ctx, outp, &ts, &has_state, &has_opt))) goto done;
+    if (!has_opt) {
+      rc = spx_cli_errorf("train", "%s: holds weights only (no optimizer state), so it cannot be resumed; start from it "
+                          "with --init", outp);
+      goto done;
+    }
+    if (!has_state) {
+      rc = spx_cli_errorf("train", "%s: records no training state (seed, data order, batch), so it cannot be resumed "
+                          "bit for bit; start from it with --init", outp);
+      goto done;
+    }
+    const char *clash = NULL;
+    char rec[96];
+    if (seed_given && seed != ts.seed) clash = "--seed", snprintf(rec, sizeof rec, "seed %lld", (long long)ts.seed);
+    else if (batch_given && batch != ts.batch && !(batch > ts.batch && ts.batch == ts.pairs))
+      clash = "--batch", snprintf(rec, sizeof rec, "batch %lld", (long long)ts.batch);
+    else if (shuffle_given && ts.shuffle) clash = "--no-shuffle", snprintf(rec, sizeof rec, "shuffled data order");
+    else if (lr_given && lr != ts.lr) clash = "--lr", snprintf(rec, sizeof rec, "lr %.17g", ts.lr);
+    else if (loss_given && strcmp(loss_name, ts.loss)) clash = "--loss", snprintf(rec, sizeof rec, "loss %s", ts.loss);
+    if (clash) {
+      rc = spx_cli_usage("train", "%s contradicts the %s recorded in %s (--resume takes it from the checkpoint)", clash,
+                         rec, outp);
+      goto done;
+    }
+    seed = (long)ts.seed, batch = (long)ts.batch, shuffle = (int)ts.shuffle, lr = ts.lr;
+  }
   if ((rc = list_split(data, "train", 1, &tr)) || (rc = list_split(data, "validation", 0, &val))) goto done;
   if ((rc = probe_size(ctx, &tr)) || (val.n && (rc = probe_size(ctx, &val)))) goto done;
   if ((rc = spx_cli_open_device("train", ctx, spec))) goto done;
@@ -385,9 +427,18 @@ int spx_cmd_train(int argc, char **argv) {
     rc = spx_cli_error("train", ctx);
     goto done;
   }
+  if (resume && (ts.pairs != tr.n || ts.step != spx_unet_step(u))) {
+    rc = ts.pairs != tr.n ? spx_cli_errorf("train", "%s/train has %d pairs, but %s was trained on %lld: the data order "
+                                           "cannot continue", data, tr.n, outp, (long long)ts.pairs)
+                          : spx_cli_errorf("train", "%s: recorded step %lld does not match its optimizer step %lld", outp,
+                                           (long long)ts.step, (long long)spx_unet_step(u));
+    goto done;
+  }
   if (batch > tr.n) batch = tr.n; /* one batch holds the whole set */
   int64_t spe = (tr.n + batch - 1) / batch; /* steps per epoch (the last batch may be short) */
   int64_t target = steps >= 0 ? steps : epochs * spe;
+  ts.seed = seed, ts.shuffle = shuffle, ts.batch = batch, ts.pairs = tr.n, ts.steps_per_epoch = spe, ts.lr = lr;
+  snprintf(ts.loss, sizeof ts.loss, "%s", loss_name);
   size_t hw = (size_t)tr.h * (size_t)tr.w;
   perm = malloc(sizeof(int) * (size_t)tr.n);
   in = malloc((size_t)batch * SPX_UNET_IN_CHANNELS * hw * sizeof(float));
@@ -462,9 +513,9 @@ int spx_cmd_train(int argc, char **argv) {
     }
     int save = save_every ? now_step % save_every == 0 : end_epoch;
     if ((save || interrupted) && !last) {
-      if (spx_unet_save(u, outp, 1)) {
+      ts.step = now_step, ts.epoch = now_step / spe;
+      if ((rc = spx_train_checkpoint_save(ctx, u, outp, &ts))) {
         progress_clear(&pg);
-        rc = spx_cli_error("train", ctx);
         goto done;
       }
     }
@@ -477,10 +528,8 @@ int spx_cmd_train(int argc, char **argv) {
     }
   }
   progress_clear(&pg);
-  if (spx_unet_save(u, outp, 1)) { /* also when nothing was left to do */
-    rc = spx_cli_error("train", ctx);
-    goto done;
-  }
+  ts.step = spx_unet_step(u), ts.epoch = ts.step / spe;
+  if ((rc = spx_train_checkpoint_save(ctx, u, outp, &ts))) goto done; /* also when nothing was left to do */
   printf("wrote %s (step %lld)\n", outp, (long long)spx_unet_step(u));
 done:
   if (handler_set) sigaction(SIGINT, &old_int, NULL);
