@@ -99,6 +99,9 @@ spx_status spx_fit_surface_distance(spx_ctx *ctx, const float *pts, int32_t n, c
 spx_status spx_fit_save_json(spx_ctx *ctx, const char *path, const spx_fit_result *r, const char *model_path);
 /* Load what spx_fit_save_json wrote (verts_* left NULL). model_path: caller frees, may be NULL. */
 spx_status spx_fit_load_json(spx_ctx *ctx, const char *path, spx_fit_result *out, char **model_path);
+/* The same from text in memory (name labels the messages): one JSON document, nothing after it. */
+spx_status spx_fit_parse_json(spx_ctx *ctx, const char *name, const char *text, size_t len, spx_fit_result *out,
+                              char **model_path);
 
 #ifdef __cplusplus
 }
