@@ -128,6 +128,7 @@ int spx_cmd_register(int argc, char **argv) {
   for (int32_t i = 0; i < scan.nv * 3; i++) pts[i] = (float)(scan.pos[i] * r.unit_scale);
   for (int32_t i = 0; i < r.nv * 3; i++) rv[i] = (float)(r.verts_scan[i] * r.unit_scale);
   spx_status st = spx_fit_surface_distance(ctx, pts, scan.nv, rv, r.nv, r.faces, r.nf, NULL, &mean, &med, &p95);
+  if (!st) st = spx_fit_check_result(ctx, pts, scan.nv, rv, r.nv, med); /* exit 1 with the figures, no output */
   free(rv);
   if (st) {
     rc = spx_cli_error("register", ctx);

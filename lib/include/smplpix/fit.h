@@ -88,6 +88,16 @@ void spx_fit_result_free(spx_fit_result *r);
 /* Registered mesh in scan coordinates (with colours when the scan had them). */
 spx_status spx_fit_result_mesh(spx_ctx *ctx, const spx_fit_result *r, spx_mesh *out);
 
+/* The unit scale of a scan ext units across (lib/fit/sanity.c): given > 0 (--units) is checked, else
+ * detected; a size that is not a person's (0.1-3 m) in metres, centimetres or millimetres is an
+ * error (SPX_E_ARG) with the figure. *note: what was assumed (NULL when metres or given). */
+spx_status spx_fit_units(spx_ctx *ctx, double ext, double given, double *scale, const char **note);
+/* A finished registration fits its scan (both in metres): the body's extent within 0.5-2x the
+ * scan's, and the median scan-to-surface distance at most 5% of the scan's extent; otherwise
+ * SPX_E_NUMERIC with the measured figures. */
+spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, const float *reg_m, int32_t nv,
+                                double median_m);
+
 /* Distances from each of n points to a triangle mesh's surface (exact point-to-triangle over the
  * triangles around the k nearest vertices). Any output may be NULL; dist: n values. */
 spx_status spx_fit_surface_distance(spx_ctx *ctx, const float *pts, int32_t n, const float *verts, int32_t nv,
