@@ -91,18 +91,17 @@ const char *spx_tx_stage(spx_tx *tx, const char *target) {
   return tmp;
 }
 
-static int same_dir(const char *a, const char *b) {
-  const char *sa = strrchr(a, '/'), *sb = strrchr(b, '/');
-  size_t la = sa ? (size_t)(sa - a) : 0, lb = sb ? (size_t)(sb - b) : 0;
-  return la == lb && !strncmp(a, b, la);
-}
-
 int spx_tx_commit(spx_tx *tx) {
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf(tx->cmd, "out of memory");
   int rc = SPX_EXIT_OK, done = 0;
-  for (int i = 0; i < tx->n && tx->durable && !rc; i++)
-    if (spx_file_sync(ctx, tx->f[i].temp)) rc = spx_cli_error(tx->cmd, ctx);
+  if (tx->durable && tx->n) { /* the new bytes are on disk before any name points at them */
+    const char **temps = malloc(sizeof *temps * (size_t)tx->n);
+    if (!temps) rc = spx_cli_errorf(tx->cmd, "out of memory");
+    for (int i = 0; temps && i < tx->n; i++) temps[i] = tx->f[i].temp;
+    if (temps && spx_file_sync_all(ctx, temps, tx->n, 0)) rc = spx_cli_error(tx->cmd, ctx);
+    free(temps);
+  }
   for (; done < tx->n && !rc; done++) {
     spx_tx_file *f = &tx->f[done];
     struct stat sb;
@@ -130,11 +129,15 @@ int spx_tx_commit(spx_tx *tx) {
       }
     }
   }
-  for (int i = 0; i < tx->n && tx->durable && !rc; i++)
-    if ((i == 0 || !same_dir(tx->f[i].target, tx->f[i - 1].target)) && spx_file_sync_dir_of(ctx, tx->f[i].target))
-      rc = spx_cli_error(tx->cmd, ctx);
-  for (int i = 0; i < tx->ndirs && tx->durable && !rc; i++)
-    if (spx_file_sync_dir_of(ctx, tx->dirs[i])) rc = spx_cli_error(tx->cmd, ctx);
+  if (tx->durable && !rc) { /* the new names (and folders made) are on disk before success is reported */
+    int n = tx->n + tx->ndirs;
+    const char **names = malloc(sizeof *names * (size_t)(n ? n : 1));
+    if (!names) rc = spx_cli_errorf(tx->cmd, "out of memory");
+    for (int i = 0; names && i < tx->n; i++) names[i] = tx->f[i].target;
+    for (int i = 0; names && i < tx->ndirs; i++) names[tx->n + i] = tx->dirs[i];
+    if (names && spx_file_sync_all(ctx, names, n, 1)) rc = spx_cli_error(tx->cmd, ctx);
+    free(names);
+  }
   for (int i = 0; i < tx->n; i++)
     if (tx->f[i].backup) {
       unlink(tx->f[i].backup);

@@ -36,6 +36,9 @@ spx_status spx_file_check_writable(spx_ctx *ctx, const char *target);
 /* fsync the file at path, and the folder that holds path (its name entries). */
 spx_status spx_file_sync(spx_ctx *ctx, const char *path);
 spx_status spx_file_sync_dir_of(spx_ctx *ctx, const char *path);
+/* fsync every one of paths[0..n-1] (folders: the folder holding each, once), all on one file
+ * system; for more than 8 paths one syncfs on Linux flushes them all. */
+spx_status spx_file_sync_all(spx_ctx *ctx, const char *const *paths, int n, int folders);
 
 #ifdef __cplusplus
 }
