@@ -95,6 +95,10 @@ int spx_tx_commit(spx_tx *tx) {
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf(tx->cmd, "out of memory");
   int rc = SPX_EXIT_OK, done = 0;
+  /* testing hook (tests/test_hostile_outputs.c): the rename of staged file k fails, as a full disk
+   * or a vanished folder would make it, so the roll-back is exercised */
+  const char *hook = getenv("SPX_TEST_TX_FAIL_AT");
+  int fail_at = hook && *hook ? atoi(hook) : -1;
   if (tx->durable && tx->n) { /* the new bytes are on disk before any name points at them */
     const char **temps = malloc(sizeof *temps * (size_t)tx->n);
     if (!temps) rc = spx_cli_errorf(tx->cmd, "out of memory");
@@ -113,7 +117,7 @@ int spx_tx_commit(spx_tx *tx) {
         f->backup = NULL;
       }
     }
-    if (rename(f->temp, f->target) != 0) {
+    if (done == fail_at ? (errno = EIO, 1) : rename(f->temp, f->target) != 0) {
       rc = spx_cli_errorf(tx->cmd, "%s: cannot rename the new file into place: %s", f->target, strerror(errno));
       break;
     }

@@ -39,6 +39,17 @@ static void test_project_raster(void) {
   snap_take(&s, r);
   CHECK(run("raster --mesh quad.obj --camera cams.json --out I.png") == 1 && err_is("raster", "I_002.png: cannot write"));
   CHECK(snap_same(&s));
+  /* a rename failing in the middle of the commit: the files already replaced get their old bytes
+   * back and the new ones that had no predecessor go again */
+  sh("rmdir P_002.npy");
+  const char *p2[] = {"P_000.exr", "P_001.exr", "P_002.exr", "P_000.npy", "P_001.npy", NULL};
+  snap_take(&s, p2);
+  CHECK(sh("SPX_TEST_TX_FAIL_AT=4 '%s' project --mesh quad.obj --camera cams.json --out P.exr --npy P.npy "
+           ">out.txt 2>err.txt", spx_t_tool()) == 1);
+  CHECK(err_is("project", "P_002.exr: cannot rename the new file into place"));
+  CHECK(snap_same(&s));
+  CHECK(!exists("P_000.npy") && count_temps(".") == 0);
+  sh("mkdir P_002.npy");
   /* a successful run replaces them all at once */
   sh("rmdir P_002.npy I_002.png");
   CHECK(run("project --mesh quad.obj --camera cams.json --out P.exr --npy P.npy") == 0);
