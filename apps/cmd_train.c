@@ -423,6 +423,11 @@ int spx_cmd_train(int argc, char **argv) {
       rc = spx_cli_error("train", ctx);
       goto done;
     }
+    if (resume && sigmoid && !spx_unet_sigmoid(u)) {
+      rc = spx_cli_usage("train", "--sigmoid contradicts %s, trained without it (--resume takes it from the checkpoint)",
+                         outp);
+      goto done;
+    }
     if (sigmoid) spx_unet_set_sigmoid(u, 1);
   } else if (spx_unet_create(ctx, width ? (int)width : 32, sigmoid, (uint64_t)seed, &u)) {
     rc = spx_cli_error("train", ctx);

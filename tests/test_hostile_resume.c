@@ -83,6 +83,7 @@ static void test_refusals(void) {
   CHECK(run("train --data ds --out B.safetensors --steps 5 --resume --no-shuffle") == 2 &&
         err_is("train", "--no-shuffle contradicts the shuffled data order"));
   CHECK(run("train --data ds --out B.safetensors --steps 5 --resume --lr 0.001") == 2 && err_is("train", "--lr contradicts"));
+  CHECK(run("train --data ds --out B.safetensors --steps 5 --resume --sigmoid") == 2 && err_is("train", "--sigmoid contradicts"));
   CHECK(snap_same(&s));
   /* a changed data set: the recorded order cannot continue */
   sh("cp -r ds ds6 && f=$(ls ds6/train/input/*.exr | head -1) && g=$(ls ds6/train/output/*.png | head -1) && "
