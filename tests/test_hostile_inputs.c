@@ -76,6 +76,11 @@ static void test_colours_and_json(void) {
   write_text("c255.obj", "v -0.5 -0.5 0 128 128 128\nv 0.5 -0.5 0 255 0 0\nv 0 0.5 0 200 0 0\nf 1 2 3\n");
   write_text("cmix.obj", "v -0.5 -0.5 0 0.5 0.5 0.5\nv 0.5 -0.5 0 255 0 0\nv 0 0.5 0 200 0 0\nf 1 2 3\n");
   CHECK(run("project --mesh c255.obj --camera cam.json --out c.npy") == 0);
+  /* numbers in text formats are decimal: a hexadecimal float is refused, nan is not finite */
+  write_text("hex.obj", "v 0x1p-1 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  write_text("nan.obj", "v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  CHECK(run("project --mesh hex.obj --camera cam.json --out h.npy") == 1 && err_is("project", "hex.obj:1: expected vertex coordinate"));
+  CHECK(run("project --mesh nan.obj --camera cam.json --out h.npy") == 1 && err_is("project", "nan.obj:1: vertex coordinate is not finite"));
   CHECK(run("project --mesh cmix.obj --camera cam.json --out c2.npy") == 1 && err_is("project", "cmix.obj:1: vertex color 0.5 is not an integer"));
   /* the float PLY 0.78 and the uchar PLY 200 give the same pixels: one scale on every path */
   size_t na, nb;

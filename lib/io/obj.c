@@ -58,7 +58,7 @@ static spx_status obj_number(obj_state *s, char **pp, double *val, const char *w
   if (!*p) return spx_fail(s->ctx, SPX_E_FORMAT, "%s:%ld: expected %s, found end of line", s->name, s->line, what);
   errno = 0;
   double v = strtod(p, &end);
-  if (end == p || (*end && !is_ws(*end)))
+  if (end == p || (*end && !is_ws(*end)) || spx_hex_number(p))
     return spx_fail(s->ctx, SPX_E_FORMAT, "%s:%ld: expected %s, found '%.20s'", s->name, s->line, what, p);
   if (!isfinite(v)) return spx_fail(s->ctx, SPX_E_NUMERIC, "%s:%ld: %s is not finite", s->name, s->line, what);
   *val = v;

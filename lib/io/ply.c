@@ -140,7 +140,7 @@ static spx_status ply_read(ply_reader *r, ply_type t, double *out) {
   errno = 0;
   if (t == T_F32 || t == T_F64) {
     double v = strtod(tok, &e);
-    if (e == tok || *e) {
+    if (e == tok || *e || spx_hex_number(tok)) {
       char msg[128];
       snprintf(msg, sizeof msg, "expected a number, found '%.20s'", tok);
       return where_fail(r, SPX_E_FORMAT, msg);
