@@ -55,7 +55,7 @@ spx_status spx_image_metrics(spx_ctx *ctx, const spx_image *pred, const spx_imag
  *   net.slice1.0.{weight,bias}  [64,3,11,11]   net.slice2.3.{weight,bias}  [192,64,5,5]
  *   net.slice3.6.{weight,bias}  [384,192,3,3]  net.slice4.8.{weight,bias}  [256,384,3,3]
  *   net.slice5.10.{weight,bias} [256,256,3,3]  lin0..lin4.model.1.weight   [1,C,1,1]
- * (F32, F64 or F16; tools/lpips_to_safetensors.py writes it). Images must be at least 31x31. */
+ * (F32 or F64; tools/lpips_to_safetensors.py writes it). Images must be at least 31x31. */
 typedef struct spx_lpips spx_lpips;
 spx_status spx_lpips_load(spx_ctx *ctx, const char *path, spx_lpips **out);
 spx_status spx_lpips_distance(spx_lpips *lp, const spx_image *pred, const spx_image *target, double *out);
