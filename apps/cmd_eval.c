@@ -66,6 +66,8 @@ static size_t stem_len(const char *name) {
   return dot ? (size_t)(dot - name) : strlen(name);
 }
 
+static int cmp_name(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
 /* The image files of folder `dir` (sorted by name). Two files with one stem are an error. */
 static int list_dir(const char *dir, char ***names, int *count) {
   *names = NULL;
@@ -93,7 +95,7 @@ static int list_dir(const char *dir, char ***names, int *count) {
   }
   closedir(d);
   if (!rc && *count)
-    qsort(*names, (size_t)*count, sizeof(char *), (int (*)(const void *, const void *))(void *)strcmp);
+    qsort(*names, (size_t)*count, sizeof(char *), cmp_name);
   for (int i = 0; !rc && *count > 1 && i < *count; i++) {
     for (int j = i + 1; j < *count; j++) {
       size_t a = stem_len((*names)[i]), b = stem_len((*names)[j]);

@@ -4,6 +4,7 @@
  *    this test regenerates bit for bit, written here to a safetensors file), relative 1e-5;
  *  - weight files with a missing, misshapen or non-float tensor: one message naming file and tensor. */
 #include "metrics/metrics_internal.h"
+#include "lpips_weights.h"
 #include "nn_testutil.h"
 #include "smplpix/metrics.h"
 
@@ -51,61 +52,6 @@ static void test_pool(void) {
 
 /* ---- the LPIPS golden ---- */
 
-/* splitmix64(seed * 2^32 + i) >> 11, times 2^-53 (tools/make_lpips_golden.py: splitmix_uniform) */
-static double uniform(uint64_t seed, uint64_t i) {
-  uint64_t z = (seed << 32) + i + 0x9E3779B97F4A7C15ULL;
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-  z ^= z >> 31;
-  return (double)(z >> 11) * 0x1p-53;
-}
-
-static const char *const conv_names[5] = {"net.slice1.0", "net.slice2.3", "net.slice3.6", "net.slice4.8",
-                                          "net.slice5.10"};
-static const int conv_shape[5][4] = {{64, 3, 11, 11}, {192, 64, 5, 5}, {384, 192, 3, 3}, {256, 384, 3, 3}, {256, 256, 3, 3}};
-
-/* Write the golden's weights to path. skip: a tensor to leave out; bad: a tensor to give a wrong shape. */
-static int write_weights(spx_ctx *ctx, const char *path, const char *skip, const char *bad) {
-  spx_st_entry e[17];
-  char names[17][48];
-  float *bufs[17] = {0};
-  int n = 0;
-  uint64_t seed = 1;
-  static const float shift[3] = {-.030f, -.088f, -.188f}, scale[3] = {.458f, .448f, .450f};
-  for (int l = 0; l < 5; l++)
-    for (int part = 0; part < 2; part++, seed++) {
-      size_t cnt = part ? (size_t)conv_shape[l][0]
-                        : (size_t)conv_shape[l][0] * conv_shape[l][1] * conv_shape[l][2] * conv_shape[l][3];
-      double a = part ? 0.1 : sqrt(6.0 / (conv_shape[l][1] * conv_shape[l][2] * conv_shape[l][3]));
-      bufs[n] = malloc(4 * cnt);
-      for (size_t i = 0; i < cnt; i++) bufs[n][i] = (float)((2 * uniform(seed, i) - 1) * a);
-      snprintf(names[n], sizeof names[n], "%s.%s", conv_names[l], part ? "bias" : "weight");
-      e[n] = (spx_st_entry){names[n], SPX_F32, part ? 1 : 4, {0}, bufs[n]};
-      for (int d = 0; d < (part ? 1 : 4); d++) e[n].shape[d] = conv_shape[l][d];
-      n++;
-    }
-  for (int l = 0; l < 5; l++, seed++) {
-    size_t cnt = (size_t)conv_shape[l][0];
-    bufs[n] = malloc(4 * cnt);
-    for (size_t i = 0; i < cnt; i++) bufs[n][i] = (float)(0.2 * uniform(seed, i));
-    snprintf(names[n], sizeof names[n], "lin%d.model.1.weight", l);
-    e[n] = (spx_st_entry){names[n], SPX_F32, 4, {1, conv_shape[l][0], 1, 1}, bufs[n]};
-    n++;
-  }
-  e[n++] = (spx_st_entry){"scaling_layer.shift", SPX_F32, 4, {1, 3, 1, 1}, shift};
-  e[n++] = (spx_st_entry){"scaling_layer.scale", SPX_F32, 4, {1, 3, 1, 1}, scale};
-  int m = 0;
-  for (int i = 0; i < n; i++) {
-    if (skip && !strcmp(e[i].name, skip)) continue;
-    e[m] = e[i];
-    if (bad && !strcmp(e[i].name, bad)) e[m].shape[0] = 1, e[m].shape[1] = 1, e[m].ndim = 2;
-    m++;
-  }
-  spx_status st = spx_st_save(ctx, path, e, m, NULL, NULL, 0);
-  for (int i = 0; i < 17; i++) free(bufs[i]);
-  return st == SPX_OK;
-}
-
 static int load_npy(spx_ctx *ctx, const char *name, spx_image *img) {
   char p[1024];
   snprintf(p, sizeof p, "%s/metrics/%s.npy", SPX_TEST_DATA, name);
@@ -124,7 +70,7 @@ static void test_golden(void) {
   if (!ctx) return;
   char w[700], line[256], p[1024];
   spx_t_path(w, sizeof w, "lpips_golden.safetensors");
-  CHECK(write_weights(ctx, w, NULL, NULL));
+  CHECK(spx_t_lpips_weights(ctx, w, NULL, NULL));
   spx_lpips *lp = NULL;
   CHECK_OK(ctx, spx_lpips_load(ctx, w, &lp));
   snprintf(p, sizeof p, "%s/metrics/lpips_expected.txt", SPX_TEST_DATA);
@@ -164,7 +110,7 @@ static void test_golden(void) {
 static void bad_file(spx_ctx *ctx, const char *skip, const char *bad, const char *needle) {
   char w[700];
   spx_t_path(w, sizeof w, "lpips_bad.safetensors");
-  CHECK(write_weights(ctx, w, skip, bad));
+  CHECK(spx_t_lpips_weights(ctx, w, skip, bad));
   spx_lpips *lp = (spx_lpips *)1;
   CHECK(spx_lpips_load(ctx, w, &lp) == SPX_E_FORMAT && lp == NULL);
   const char *m = spx_ctx_message(ctx);
