@@ -101,6 +101,25 @@ static void test_files(void) {
   CHECK_NEAR(num(j, "psnr_masked"), 22.074080173902484, 1e-8, 0);
   CHECK_NEAR(num(j, "ssim_masked"), 0.64834196113444498, 1e-9, 0);
   cJSON_Delete(j);
+  /* constant images (tests/data/metrics/expected.txt: 7.9588, 0.72419) */
+  put("constant_pred", "cp.npy");
+  put("constant_target", "ct.npy");
+  CHECK(tool("eval --pred cp.npy --target ct.npy") == 0);
+  CHECK(out_has("mean over 1 images: PSNR 7.959 dB, SSIM 0.7242\n"));
+  /* a mask whose foreground is only at the border: masked SSIM undefined, n/a and null */
+  spx_image bm = {0};
+  CHECK_OK(ctx, spx_image_alloc(ctx, 19, 16, 1, &bm));
+  bm.data[0] = 1;
+  char p[700];
+  path_of(p, sizeof p, "corner.npy");
+  int64_t shape[2] = {16, 19};
+  CHECK_OK(ctx, spx_npy_save_f32(ctx, p, bm.data, 2, shape));
+  spx_image_free(&bm);
+  CHECK(tool("eval --pred cp.npy --target ct.npy --mask corner.npy --json rc.json") == 0);
+  CHECK(out_has("; masked: PSNR 7.959 dB, SSIM n/a\n"));
+  j = json("rc.json");
+  CHECK(j && is_null(j, "ssim_masked") && fabs(num(j, "psnr_masked") - 7.9588) < 1e-4);
+  cJSON_Delete(j);
   CHECK(tool("eval --help") == 0 && out_has("--pred P --target T"));
 }
 
