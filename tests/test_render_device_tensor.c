@@ -125,6 +125,7 @@ static void test_project_and_network(void) {
   CHECK(strstr(spx_ctx_message(ctx), "NCHW") != NULL);
   CHECK_OK(ctx, spx_device_tensor_create(ctx, 1, 4, H, W, &small));
   CHECK(spx_project_to_tensor(ctx, p, &a2, small) == SPX_E_ARG);
+  CHECK_MSG(strstr(spx_ctx_message(ctx), "6 images of 4x20x26") != NULL, "message: %s", spx_ctx_message(ctx));
   spx_device_tensor_shape(small, sh);
   CHECK(sh[0] == 1);
   CHECK(spx_project_to_tensor(ctx, p, &a1, NULL) == SPX_E_ARG);

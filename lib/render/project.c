@@ -216,6 +216,10 @@ spx_status spx_project_to_tensor(spx_ctx *ctx, spx_projector *p, const spx_proje
   if (a->layout != SPX_LAYOUT_NCHW)
     return spx_fail(ctx, SPX_E_ARG, "spx_project_to_tensor: a device tensor is NCHW; ask for SPX_LAYOUT_NCHW");
   int n = a->batch * a->ncams; /* both bounded by spx_project_check */
+  size_t need = (size_t)n * 4 * (size_t)a->cams[0].height * (size_t)a->cams[0].width;
+  if (need > out->capacity)
+    return spx_fail(ctx, SPX_E_ARG, "spx_project_to_tensor: %d images of 4x%dx%d need %zu floats, the tensor holds %zu",
+                    n, a->cams[0].height, a->cams[0].width, need, out->capacity);
   if ((st = spx_device_tensor_reshape(ctx, out, n, 4, a->cams[0].height, a->cams[0].width))) return st;
   spx_project_dev_args d;
   if ((st = upload_sets(ctx, p, a, &d))) return st;
