@@ -3,6 +3,7 @@
  * with --no-network, the raw vertex projection; an MP4 when ffmpeg is on PATH. */
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -29,7 +30,15 @@ static void animate_help(void) {
       "in the first frame. With ffmpeg on PATH, DIR/animation.mp4 is made at --fps (default: the clip's\n"
       "frame rate); --no-mp4 skips it. Colours: the registration's, else the surface normals.\n"
       "Progress: a bar on stderr when it is a terminal, else a line per tenth of the frames on stdout;\n"
-      "frames per second are reported at the end. On failure nothing is left (frames, video, folder).\n");
+      "frames per second are reported at the end. On failure nothing is left (frames, video, folder);\n"
+      "Ctrl-C stops after the current frame, removes them too and exits with status 130.\n");
+}
+
+/* Ctrl-C: the loop stops after the current frame and removes what it wrote (exit 130). */
+static volatile sig_atomic_t interrupted;
+static void on_sigint(int sig) {
+  (void)sig;
+  interrupted = 1;
 }
 
 typedef struct progress {
@@ -88,6 +97,13 @@ static int run(spx_ctx *ctx, const opts *o) {
   double *pose = NULL, *work = NULL;
   float *pos = NULL, *owned_col = NULL, *buf = NULL;
   const char *ckpt = NULL;
+  struct sigaction sa, old_int;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_sigint;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = SA_RESTART;
+  interrupted = 0;
+  int handler_set = sigaction(SIGINT, &sa, &old_int) == 0;
   /* every input is read and checked before anything is written */
   if ((rc = spx_cli_load_registration(C, ctx, o->reg, o->model, &r, &m))) goto done;
   if ((rc = spx_anim_motion_open(C, ctx, o->bvh, o->amass, &m, &mo))) goto done;
@@ -149,6 +165,12 @@ static int run(spx_ctx *ctx, const opts *o) {
   progress pg = {isatty(STDERR_FILENO), 0, t_start, 0};
   for (long f = a; f < b; f++) {
     double trans[3];
+    if (interrupted) {
+      if (pg.tty && pg.shown) fputc('\n', stderr);
+      spx_cli_errorf(C, "interrupted at frame %ld: removed the %d frames written", f, wr.n);
+      rc = 130;
+      goto done;
+    }
     if (spx_anim_motion_pose(ctx, &mo, &m, (int32_t)f, pose, trans)) {
       rc = spx_cli_errorf(C, "%s: frame %ld: %s", mo.path, f, spx_ctx_message(ctx));
       goto done;
@@ -199,6 +221,7 @@ static int run(spx_ctx *ctx, const opts *o) {
   }
   rc = SPX_EXIT_OK;
 done:
+  if (handler_set) sigaction(SIGINT, &old_int, NULL);
   spx_cli_written_finish(&wr, rc != SPX_EXIT_OK);
   if (created && rc != SPX_EXIT_OK) rmdir(o->out);
   spx_image_free(&img);

@@ -7,6 +7,7 @@
  *    the library (spx_amass_map_pose + projection + network); SMPL-H renders too;
  *  - MP4: a stand-in ffmpeg on PATH is called with the frame pattern, start number and --fps, and
  *    its video is renamed into place; a failing one leaves nothing (frames and folder removed);
+ *  - Ctrl-C during a run: exit 130 and the frames written so far are removed with the folder;
  *  - bad input: one line, exit 1, no output folder: SMPL-X layout, a missing key, frames out of
  *    range, a camera array, no network without --checkpoint / --no-network; usage errors exit 2. */
 #include <math.h>
@@ -262,6 +263,19 @@ static void test_mp4(void) {
   CHECK(!exists("failed"));
 }
 
+/* Ctrl-C in the middle of a long run: exit 130, one line, nothing left */
+static void test_interrupt(void) {
+  char cmd[2048];
+  snprintf(cmd, sizeof cmd,
+           "cd '%s' && { '%s' animate --registration reg.json --bvh " CLIP " --camera cam.json --out long "
+           "--no-network --no-mp4 >out.txt 2>err.txt & pid=$!; sleep 1; kill -INT $pid; wait $pid; }",
+           dir, spx_t_tool());
+  int rc = spx_t_system(cmd);
+  CHECK_MSG(rc == 130, "exit status %d", rc);
+  if (rc == 130 && file_has("err.txt", "interrupted")) CHECK(err_one_line_with("interrupted at frame"));
+  CHECK(!exists("long"));
+}
+
 static void test_errors(void) {
   write_amass("smplx.npz", 165, NULL);
   write_amass("notrans.npz", 72, "trans");
@@ -314,6 +328,7 @@ int main(void) {
     SPX_RUN(test_amass);
     SPX_RUN(test_mp4);
     SPX_RUN(test_errors);
+    SPX_RUN(test_interrupt);
   }
   spx_unet_destroy(net);
   spx_fit_result_free(&reg);
