@@ -179,6 +179,7 @@ void syn_look_init(spx_synth_rng *r, const syn_skel *sk, syn_look *lk) {
   lk->fold_len = spx_synth_rng_uniform(r, 0.04, 0.09);
   lk->fold_phase = spx_synth_rng_uniform(r, 0, 6.283185307179586);
   lk->shoe_thick = spx_synth_rng_uniform(r, 0.004, 0.01);
+  lk->collar_r = spx_synth_rng_uniform(r, 0.075, 0.11);
 }
 
 static int dominant(const syn_point *pt) {
@@ -218,8 +219,11 @@ int syn_region(const syn_look *lk, const syn_skel *sk, const syn_point *pt) {
   if (c == SYN_NECK || c == SYN_TORSO) {
     if (is_hair(lk, sk, p) && p[2] < sk->neck[2] && fabs(p[0]) < 0.1) return SYN_HAIR;
     if (p[1] > lk->waist_y) {
+      /* the neckline: a collar cylinder around the neck cut at neck_y (lower at the front with a V) */
       double top = lk->neck_y - (p[2] > sk->neck[2] ? lk->vneck * fmax(0.0, 1.0 - fabs(p[0]) / 0.08) : 0.0);
-      return p[1] > top ? SYN_SKIN : SYN_SHIRT;
+      double rx = p[0] - sk->neck[0], rz = p[2] - sk->neck[2];
+      int in_collar = rx * rx + rz * rz < lk->collar_r * lk->collar_r;
+      return (in_collar && p[1] > top) || p[1] > sk->neck[1] + 0.03 ? SYN_SKIN : SYN_SHIRT;
     }
     return p[1] > lk->waist_y - lk->belt_w ? SYN_BELT : SYN_PANTS;
   }

@@ -32,7 +32,7 @@ typedef struct syn_look {
   int bald;
   double hair_front_y, hair_back_y, hair_volume; /* hairline heights, volume (m) */
   double sleeve;                 /* fraction of the shoulder→wrist segment covered */
-  double neck_y, vneck;          /* shirt top height; extra V depth at the front */
+  double neck_y, vneck, collar_r; /* neckline height, extra V depth at the front, collar radius */
   double waist_y, belt_w;        /* shirt / trousers boundary; belt width (0 = none) */
   double hem_y;                  /* trousers end */
   int print;
