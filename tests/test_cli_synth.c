@@ -162,7 +162,8 @@ static void test_bad_input(void) {
   /* an existing output is replaced only with --force; a folder that is not one, never */
   CHECK(tool("synth " SMALL " --seed 5 --out a") == 1 && err_one_line_with("--force"));
   CHECK(same_file("a/s000/texture.png", "b/s000/texture.png"));
-  CHECK(tool("synth " SMALL " --seed 4 --out a --force") == 0);
+  CHECK(tool("synth " SMALL " --seed 1 --out .") == 2 && err_one_line_with("--out"));
+  CHECK(tool("synth " SMALL " --seed 4 --out a/ --force") == 0);
   CHECK(same_file("a/s000/texture.png", "c/s000/texture.png"));
   char keep[700];
   path_of(keep, sizeof keep, "keep");
