@@ -166,7 +166,7 @@ static int one_subject(run_state *s, int i) {
   double t_start = spx_cli_now();
   spx_synth_rng rng = {spx_cli_mix64(o->seed * 0x9E3779B97F4A7C15ULL + (uint64_t)i + 1)};
   if (spx_synth_subject_create(s->ctx, &s->body, &s->parts, spx_synth_rng_next(&rng), o->tex_size, &sub)) {
-    rc = spx_cli_error("synth", s->ctx);
+    rc = spx_cli_errorf("synth", "%s: %s", o->body_path, spx_ctx_message(s->ctx));
     goto done;
   }
   posed = malloc((size_t)sub.nv * 3 * sizeof(float));
@@ -356,7 +356,7 @@ int synth_run(const synth_opts *o) {
   }
   snprintf(s.tmp, n, "%s.tmp.%ld", o->out, (long)getpid());
   if (mkdir(s.tmp, 0777)) {
-    rc = spx_cli_errorf("synth", "%s: cannot create folder: %s", s.tmp, strerror(errno));
+    rc = spx_cli_errorf("synth", "%s: cannot create the temporary folder %s: %s", o->out, s.tmp, strerror(errno));
     free(s.tmp);
     s.tmp = NULL;
     goto done;
