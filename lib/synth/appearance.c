@@ -169,6 +169,8 @@ void syn_look_init(spx_synth_rng *r, const syn_skel *sk, syn_look *lk) {
   lk->print = (int)(spx_synth_rng_next(r) % 3);
   snprintf(lk->text, sizeof lk->text, "%s", WORDS[spx_synth_rng_next(r) % (sizeof WORDS / sizeof WORDS[0])]);
   lk->text_cell = spx_synth_rng_uniform(r, 0.006, 0.011);
+  double tw = 6.0 * (double)strlen(lk->text) - 1; /* keep the word on the front of the chest */
+  if (tw * lk->text_cell > 0.24) lk->text_cell = 0.24 / tw;
   lk->text_y = sk->neck[1] - spx_synth_rng_uniform(r, 0.1, 0.16);
   lk->logo_r = spx_synth_rng_uniform(r, 0.035, 0.06);
   lk->logo_x = spx_synth_rng_uniform(r, -0.08, 0.08);
