@@ -98,6 +98,35 @@ static void test_subject(void) {
   spx_synth_subject_free(&c);
 }
 
+/* Pose correctives: posedirs that add c * (R_1[0][0] - 1) to every body vertex add the same
+ * offset to every scan vertex (Loop rows sum to 1) before skinning. */
+static void test_posedirs(void) {
+  spx_synth_subject s;
+  CHECK_OK(ctx, spx_synth_subject_create(ctx, &body, &parts, 13, 256, &s));
+  if (spx_t_fail) return;
+  int32_t P = 9 * (body.nj - 1);
+  spx_body_model pm = body;
+  pm.nposedirs = P;
+  pm.posedirs = calloc((size_t)body.nv * 3 * P, sizeof(float));
+  const double c[3] = {0.01, -0.02, 0.03}, th = 0.4;
+  for (int32_t i = 0; i < body.nv; i++)
+    for (int d = 0; d < 3; d++) pm.posedirs[((size_t)i * 3 + d) * P] = (float)c[d];
+  double *pose = calloc((size_t)body.nj * 3, sizeof(double)), trans[3] = {0.2, 0, -0.1};
+  pose[1 * 3 + 2] = th; /* joint 1 about z: R_1[0][0] - 1 = cos(th) - 1 */
+  float *got = malloc((size_t)s.nv * 3 * sizeof(float)), *want = malloc((size_t)s.nv * 3 * sizeof(float));
+  float *rest = malloc((size_t)s.nv * 3 * sizeof(float));
+  for (size_t i = 0; i < (size_t)s.nv * 3; i++) rest[i] = s.rest[i] + (float)(c[i % 3] * (cos(th) - 1));
+  CHECK_OK(ctx, spx_synth_pose(ctx, &pm, &s, pose, trans, got));
+  CHECK_OK(ctx, spx_synth_lbs(ctx, &body, s.betas, s.nbetas, pose, trans, s.nv, rest, s.w_start, s.w_joint, s.w, want));
+  double worst = 0, moved = 0;
+  for (size_t i = 0; i < (size_t)s.nv * 3; i++) worst = fmax(worst, fabs(got[i] - want[i]));
+  CHECK_OK(ctx, spx_synth_pose(ctx, &body, &s, pose, trans, want)); /* without correctives */
+  for (size_t i = 0; i < (size_t)s.nv * 3; i++) moved = fmax(moved, fabs(got[i] - want[i]));
+  CHECK_MSG(worst < 1e-6 && moved > 1e-3, "worst %g, correctives moved %g", worst, moved);
+  free(pm.posedirs), free(pose), free(got), free(want), free(rest);
+  spx_synth_subject_free(&s);
+}
+
 static void test_photo_consistency(void) {
   char path[512];
   snprintf(path, sizeof path, "%s/mocap/01_01.bvh", SPX_REPO_DATA);
@@ -229,6 +258,7 @@ int main(void) {
   if (spx_png_read(ctx, path, &parts)) return fprintf(stderr, "%s\n", spx_ctx_message(ctx)), 1;
   SPX_RUN(test_lbs_matches_body);
   SPX_RUN(test_subject);
+  SPX_RUN(test_posedirs);
   SPX_RUN(test_photo_consistency);
   SPX_RUN(test_detail);
   SPX_RUN(test_errors);
