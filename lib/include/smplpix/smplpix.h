@@ -20,5 +20,6 @@
 #include "smplpix/synth.h"
 #include "smplpix/unet.h"
 #include "smplpix/fit.h"
+#include "smplpix/metrics.h"
 
 #endif
