@@ -182,6 +182,7 @@ void syn_look_init(spx_synth_rng *r, const syn_skel *sk, syn_look *lk) {
   lk->fold_phase = spx_synth_rng_uniform(r, 0, 6.283185307179586);
   lk->shoe_thick = spx_synth_rng_uniform(r, 0.004, 0.01);
   lk->collar_r = spx_synth_rng_uniform(r, 0.075, 0.11);
+  lk->flare = spx_synth_rng_uniform(r, 0, 1) < 0.3 ? spx_synth_rng_uniform(r, 0.02, 0.05) : 0.0;
 }
 
 static int dominant(const syn_point *pt) {
@@ -345,7 +346,9 @@ double syn_displace(const syn_look *lk, const syn_skel *sk, const syn_point *pt,
       double taper = fmin(1.0, fmax(0.3, (lk->neck_y - pt->p[1]) / 0.08)); /* close at the collar */
       return taper * (lk->loose_shirt + fold);
     }
-    return lk->loose_pants + 0.7 * fold + (region == SYN_BELT ? 0.004 : 0.0);
+    double below_knee = (sk->knee[1] + 0.05 - pt->p[1]) / (sk->knee[1] + 0.05 - sk->ankle[1]);
+    double flare = lk->flare * fmin(1.0, fmax(0.0, below_knee));
+    return lk->loose_pants + flare + 0.7 * fold + (region == SYN_BELT ? 0.004 : 0.0);
   }
   case SYN_HAIR: return lk->hair_volume * fmin(1.0, fmax(0.25, (pt->p[1] - lk->hair_back_y) / 0.04));
   case SYN_SHOE:
