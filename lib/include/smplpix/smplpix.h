@@ -18,6 +18,7 @@
 #include "smplpix/render.h"
 
 #include "smplpix/body.h"
+#include "smplpix/synth.h"
 #include "smplpix/unet.h"
 #include "smplpix/fit.h"
 #include "smplpix/metrics.h"
