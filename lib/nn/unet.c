@@ -194,6 +194,7 @@ spx_tape *spx_unet_tape(spx_unet *u) { return u->tape; }
 size_t spx_unet_device_bytes(const spx_unet *u) { return u ? spx_tape_device_bytes(u->tape) : 0; }
 int spx_unet_loss_id(const spx_unet *u) { return u->loss_id; }
 int spx_unet_input_id(const spx_unet *u) { return u->input_id; }
+int spx_unet_output_id(const spx_unet *u) { return u->out_id; }
 
 static const entry *find_entry(const spx_unet *u, const char *name) {
   for (int i = 0; i < u->nents; i++)
