@@ -1,6 +1,8 @@
 /* One stage-2 step: UNet generator + multi-scale PatchGAN (lib/nn/gan_step.h). */
 #include "nn/gan_step.h"
 
+#include "core/internal.h"
+
 #include <stdlib.h>
 #include <string.h>
 
@@ -54,7 +56,7 @@ static spx_status d_forward(spx_patchgan *d, spx_tape *gt, int gy, const float *
 }
 
 spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, const float *in, const float *target, int n, int h, int w,
-                        const spx_gan_opts *o, spx_gan_terms *terms) {
+                        const spx_gan_opts *o, spx_gan_losses *terms) {
   spx_tape *gt = spx_unet_tape(g), *dt = spx_patchgan_tape(d);
   spx_status st;
   if (spx_patchgan_in_channels(d) != SPX_UNET_IN_CHANNELS + SPX_UNET_OUT_CHANNELS)
@@ -95,4 +97,12 @@ spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, const float 
 done:
   free(xh);
   return st;
+}
+
+spx_status spx_unet_gan_step(spx_unet *g, spx_patchgan *d, const float *input, const float *target, int n, int h,
+                             int w, double lr_g, double lr_d, spx_gan_losses *out) {
+  spx_ctx *ctx = spx_unet_ctx(g);
+  if (!input || !target) return spx_fail(ctx, SPX_E_ARG, "gan: input or target is NULL");
+  spx_gan_opts o = {lr_g, lr_d, 0.9, 0.999, 1e-8, 0.1f, 1.0f};
+  return spx_gan_step(ctx, g, d, input, target, n, h, w, &o, out);
 }

@@ -26,12 +26,9 @@ typedef struct spx_gan_opts {
   float lambda_rec;                     /* weight of the L1 term (1) */
 } spx_gan_opts;
 
-typedef struct spx_gan_terms {
-  float rec, gan, fm, g_total, d_fake, d_real, d_total;
-} spx_gan_terms;
 
 /* in [n,4,h,w], target [n,3,h,w] host arrays. D must have 7 input channels. */
 spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, const float *in, const float *target, int n, int h, int w,
-                        const spx_gan_opts *o, spx_gan_terms *terms);
+                        const spx_gan_opts *o, spx_gan_losses *terms);
 
 #endif

@@ -284,3 +284,10 @@ done:
   else *out = d;
   return st;
 }
+
+spx_status spx_patchgan_new(spx_ctx *ctx, int ndf, int num_d, uint64_t seed, spx_patchgan **out) {
+  return spx_patchgan_create(ctx, 7, ndf, num_d, seed, SPX_TAPE_DEVICE, out);
+}
+spx_status spx_patchgan_open(spx_ctx *ctx, const char *path, spx_patchgan **out) {
+  return spx_patchgan_load(ctx, path, 7, SPX_TAPE_DEVICE, out);
+}

@@ -19,23 +19,18 @@
 #define SPX_NN_PATCHGAN_H
 
 #include "nn/tape.h"
+#include "smplpix/patchgan.h"
 
 #define SPX_PG_LAYERS 5
 #define SPX_PG_MAX_D 4
-
-typedef struct spx_patchgan spx_patchgan;
 
 /* in_ch input channels (7 for SMPLpix: RGB-D + RGB), base width ndf (64 in pix2pixHD), num_d
  * scales (3 in the paper). Weights N(0, 0.02) (pix2pixHD's weights_init), biases
  * U(-1/sqrt(fan_in), 1/sqrt(fan_in)) (PyTorch's default), drawn from seed. */
 spx_status spx_patchgan_create(spx_ctx *ctx, int in_ch, int ndf, int num_d, uint64_t seed, spx_tape_backend backend,
                                spx_patchgan **out);
-void spx_patchgan_destroy(spx_patchgan *d);
 spx_tape *spx_patchgan_tape(spx_patchgan *d);
-int spx_patchgan_num_d(const spx_patchgan *d);
-int spx_patchgan_ndf(const spx_patchgan *d);
 int spx_patchgan_in_channels(const spx_patchgan *d);
-int64_t spx_patchgan_step(const spx_patchgan *d);
 
 /* Inside a pass of the discriminator's tape (spx_tape_begin/end): run every scale on the
  * activation x [B, in_ch, H, W]; feat[k][j] = output of layer j at resolution k (k = 0 full).
@@ -44,18 +39,16 @@ int spx_patchgan_forward(spx_patchgan *d, int x, int feat[SPX_PG_MAX_D][SPX_PG_L
 
 /* One Adam step (PyTorch semantics) over every discriminator parameter; the step count advances. */
 spx_status spx_patchgan_adam(spx_patchgan *d, double lr, double beta1, double beta2, double eps);
-spx_status spx_patchgan_reset_optimizer(spx_patchgan *d);
 
 /* Tensor access by state_dict name (also "optimizer.<name>.exp_avg" / ".exp_avg_sq"). */
 int spx_patchgan_tensor_count(const spx_patchgan *d);
 const char *spx_patchgan_tensor_name(const spx_patchgan *d, int i, int *ndim, int64_t shape[4]);
 int spx_patchgan_value_id(const spx_patchgan *d, const char *name);
 
-/* Atomic save (temp + rename); load checks every tensor's presence and shape (one line naming the
+/* (Save: smplpix/patchgan.h.) Load checks every tensor's presence and shape (one line naming the
  * file and the tensor), reads ndf from scale0_layer0.0.weight and num_d from the scales present,
  * restores the optimizer when optimizer.step is present. expect_in_ch > 0: the input channel count
  * must be this. */
-spx_status spx_patchgan_save(spx_patchgan *d, const char *path, int with_optimizer);
 spx_status spx_patchgan_load(spx_ctx *ctx, const char *path, int expect_in_ch, spx_tape_backend backend,
                              spx_patchgan **out);
 
