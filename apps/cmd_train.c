@@ -369,10 +369,7 @@ int spx_cmd_train(int argc, char **argv) {
   if (schedule) use_vgg = vgg_path != NULL;
   if (use_vgg && !vgg_path)
     return spx_cli_errorf("train", "--loss %s needs the VGG19 weights: --vgg VGG19.safetensors (torchvision's "
-                          "features.N.weight/bias; see tools/vgg19_pth_to_safetensors.py)", loss_name);
-  if (use_vgg)
-    return spx_cli_errorf("train", "%s: the VGG perceptual loss is not part of this build yet; use --loss l1 or l1+gan "
-                          "(or --schedule paper without --vgg: l1, then l1+gan)", vgg_path);
+                          "features.N.weight/bias; tools/vgg19_pth_to_safetensors.py converts a .pth)", loss_name);
   if (vgg_path && !use_vgg) return spx_cli_usage("train", "--vgg is only used by --loss vgg or vgg+gan");
   if (lr < 0) lr = schedule ? 1e-4 : 1e-3;
   if (batch < 0) batch = schedule ? 10 : 1;
@@ -381,6 +378,7 @@ int spx_cmd_train(int argc, char **argv) {
   rcp.gan[1] = schedule ? 0 : use_gan;
   rcp.gan[2] = schedule ? 1 : use_gan;
   rcp.vgg = use_vgg;
+  rcp.vgg_path = vgg_path;
   rcp.lr1 = lr, rcp.lr2 = schedule ? lr2 : lr;
   rcp.disc_width = (int)disc_width, rcp.num_d = 3, rcp.seed = (uint64_t)seed;
   if (epochs >= 0 && steps >= 0) return spx_cli_usage("train", "give --epochs or --steps, not both");
@@ -491,7 +489,7 @@ int spx_cmd_train(int argc, char **argv) {
       char terms[160];
       train_recipe_terms(&rcp, terms, sizeof terms);
       printf("epoch %lld step %lld: train %s %.6f%s", (long long)epoch + 1, (long long)now_step,
-             rcp.gan[rcp.stage] ? "loss" : "L1", ep_loss / ep_count, terms);
+             rcp.gan[rcp.stage] || rcp.vgg ? "loss" : "L1", ep_loss / ep_count, terms);
       if (val.n) printf(", validation L1 %.6f, PSNR %.2f dB", vl, vp);
       printf(", %.1f s\n", now_s() - t0);
       fflush(stdout);

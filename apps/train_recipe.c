@@ -63,6 +63,7 @@ int train_recipe_start(spx_ctx *ctx, train_recipe *r, spx_unet *u, const char *o
     spx_st_free(&f);
     if (rc) return rc;
   }
+  if (r->vgg && spx_vgg_open(ctx, r->vgg_path, &r->net_vgg)) return spx_cli_error("train", ctx);
   int rc = need_disc(ctx, r, resume && r->gan[r->stage]);
   if (rc) return rc;
   if (r->d && resume && spx_patchgan_step(r->d) != spx_unet_step(u))
@@ -86,19 +87,23 @@ int train_recipe_step(spx_ctx *ctx, train_recipe *r, spx_unet *u, const float *i
     fflush(stdout);
   }
   double lr = r->schedule && r->stage == 2 ? r->lr2 : r->lr1;
+  spx_gan_losses gl;
+  memset(&gl, 0, sizeof gl);
   if (r->gan[r->stage]) {
-    spx_gan_losses gl;
-    st = spx_unet_gan_step(u, r->d, in, tg, n, h, w, lr, lr, &gl);
-    if (!st) {
-      *loss = gl.g_total;
-      double v[6] = {gl.g_total, gl.rec, gl.gan, gl.fm, gl.d_total, 0};
-      for (int i = 0; i < 5; i++) r->sum[i] += v[i];
-    }
+    st = spx_unet_gan_step(u, r->d, r->net_vgg, in, tg, n, h, w, lr, lr, &gl);
+    if (!st) *loss = gl.g_total;
+  } else if (r->vgg) {
+    st = spx_unet_vgg_step(u, r->net_vgg, in, tg, n, h, w, lr, &gl);
+    if (!st) *loss = gl.vgg;
   } else {
     if (!(st = spx_unet_zero_grad(u)) && !(st = spx_unet_forward_loss(u, in, tg, n, h, w, NULL, loss)) &&
         !(st = spx_unet_backward(u)))
       st = spx_unet_adam_step(u, lr);
-    if (!st) r->sum[0] += *loss, r->sum[1] += *loss;
+    gl.rec = *loss;
+  }
+  if (!st) {
+    double v[6] = {*loss, gl.rec, gl.gan, gl.fm, gl.d_total, gl.vgg};
+    for (int i = 0; i < 6; i++) r->sum[i] += v[i];
   }
   if (st) return st == SPX_E_DEVMEM || st == SPX_E_NOMEM
                      ? spx_cli_errorf("train", "a step on %d images of %dx%d at width %d: %s (try a smaller --batch or "
@@ -110,10 +115,15 @@ int train_recipe_step(spx_ctx *ctx, train_recipe *r, spx_unet *u, const float *i
 
 void train_recipe_terms(const train_recipe *r, char *buf, size_t cap) {
   buf[0] = 0;
-  if (!r->gan[r->stage] || !r->count) return;
+  if ((!r->gan[r->stage] && !r->vgg) || !r->count) return;
   double c = r->count;
-  snprintf(buf, cap, " (L1 %.4f, GAN %.4f, FM %.4f, D %.4f)", r->sum[1] / c, r->sum[2] / c, r->sum[3] / c,
-           r->sum[4] / c);
+  size_t n = 0;
+  n += (size_t)snprintf(buf, cap, " (");
+  if (r->vgg && n < cap) n += (size_t)snprintf(buf + n, cap - n, "VGG %.4f, ", r->sum[5] / c);
+  if (n < cap) n += (size_t)snprintf(buf + n, cap - n, "L1 %.4f", r->sum[1] / c);
+  if (r->gan[r->stage] && n < cap)
+    n += (size_t)snprintf(buf + n, cap - n, ", GAN %.4f, FM %.4f, D %.4f", r->sum[2] / c, r->sum[3] / c, r->sum[4] / c);
+  if (n < cap) snprintf(buf + n, cap - n, ")");
 }
 
 void train_recipe_epoch_reset(train_recipe *r) {
@@ -134,6 +144,8 @@ spx_status train_recipe_save(train_recipe *r, spx_unet *u, const char *outp) {
 
 void train_recipe_free(train_recipe *r) {
   spx_patchgan_destroy(r->d);
+  spx_vgg_destroy(r->net_vgg);
+  r->net_vgg = NULL;
   free(r->disc_path);
   r->d = NULL;
   r->disc_path = NULL;

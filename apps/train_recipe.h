@@ -21,7 +21,8 @@ typedef struct train_recipe {
   /* configuration */
   int schedule;              /* --schedule paper */
   int gan[3];                /* gan[s]: stage s uses the GAN (index 1, 2) */
-  int vgg;                   /* the reconstruction term is the VGG loss (not built: refused) */
+  int vgg;                   /* the reconstruction term is the VGG perceptual loss */
+  const char *vgg_path;      /* --vgg */
   int64_t stage1_steps;      /* schedule: steps of stage 1 (stage 2 starts there) */
   double lr1, lr2;
   int disc_width, num_d;
@@ -30,6 +31,7 @@ typedef struct train_recipe {
   int stage;
   int64_t base;
   spx_patchgan *d;
+  spx_vgg *net_vgg;
   char *disc_path;
   /* sums over the epoch so far, for the progress and epoch lines */
   double sum[6];
@@ -48,7 +50,7 @@ int64_t train_recipe_step_count(const train_recipe *r, const spx_unet *u);
  * receives what the generator minimised. Exit code (0, or 1 with the message printed). */
 int train_recipe_step(spx_ctx *ctx, train_recipe *r, spx_unet *u, const float *in, const float *tg, int n, int h,
                       int w, float *loss);
-/* ", L1 0.1234, GAN 0.9, FM 0.2, D 0.25" for the epoch so far (empty without a GAN). */
+/* " (VGG 0.3, L1 0.1234, GAN 0.9, FM 0.2, D 0.25)" for the epoch so far (empty for plain l1). */
 void train_recipe_terms(const train_recipe *r, char *buf, size_t cap);
 void train_recipe_epoch_reset(train_recipe *r);
 /* Save the discriminator (when there is one) and then W with the stage record. */

@@ -5,8 +5,9 @@
  *  - --resume of a stage-2 run gives the same generator and discriminator files, bit for bit, as an
  *    uninterrupted run of the same length;
  *  - --schedule paper runs stage 1 (l1) then stage 2 (l1+gan) with Adam restarted;
+ *  - --loss vgg then vgg+gan with a (small, random) VGG19 file;
  *  - one-line errors: --resume with another --loss, a discriminator file from another run, --loss
- *    vgg without --vgg (exit 1); an unknown --loss (exit 2). */
+ *    vgg without --vgg or with a file that is no VGG19 (exit 1); an unknown --loss (exit 2). */
 #include <stdlib.h>
 #include <string.h>
 
@@ -110,6 +111,21 @@ static void test_offline_recipe(void) {
   CHECK(err_one_line_with("--vgg"));
   CHECK(!exists("f.safetensors"));
   CHECK(tool("train " COMMON " --out f.safetensors --loss l2") == 2);
+  CHECK(tool("train " COMMON " --out f.safetensors --loss l1 --vgg x.safetensors") == 2);
+}
+
+/* the perceptual loss: stage 1 (vgg) then vgg+gan from it; a VGG file of the wrong kind */
+static void test_vgg(void) {
+  CHECK(tool("train " COMMON " --out v.safetensors --epochs 1 --loss vgg --vgg '" SPX_TEST_DATA
+             "/vgg/vgg_w4.safetensors'") == 0);
+  CHECK(file_has("out.txt", "(VGG ") && meta_is("v.safetensors", "smplpix.loss", "vgg"));
+  CHECK(tool("train " COMMON " --out v2.safetensors --init v.safetensors --epochs 1 --loss vgg+gan --vgg '" SPX_TEST_DATA
+             "/vgg/vgg_w4.safetensors'") == 0);
+  CHECK(file_has("out.txt", "(VGG ") && file_has("out.txt", "GAN ") && exists("v2.disc.safetensors"));
+  CHECK(tool("train " COMMON " --out v3.safetensors --epochs 1 --loss vgg --vgg '" SPX_TEST_DATA
+             "/patchgan/D.safetensors'") == 1);
+  CHECK(err_one_line_with("D.safetensors: missing tensor features.0.weight"));
+  CHECK(!exists("v3.safetensors"));
 }
 
 static void test_schedule(void) {
@@ -139,6 +155,7 @@ int main(void) {
   make_data();
   SPX_RUN(test_offline_recipe);
   SPX_RUN(test_schedule);
+  SPX_RUN(test_vgg);
   spx_ctx_destroy(ctx);
   return spx_test_summary();
 }

@@ -90,7 +90,7 @@ static void test_step(void) {
   CHECK(spx_patchgan_num_d(d) == 3 && spx_patchgan_ndf(d) == 4 && spx_patchgan_step(d) == 0);
   spx_gan_opts o = {1e-3, 1e-3, 0.9, 0.999, 1e-3, 0.1f, 1.0f};
   spx_gan_losses tm;
-  CHECK_OK(ctx, spx_gan_step(ctx, g, d, in, tg, 1, 37, 53, &o, &tm));
+  CHECK_OK(ctx, spx_gan_step(ctx, g, d, NULL, in, tg, 1, 37, 53, &o, &tm));
   const char *ln[5] = {"loss.rec", "loss.gan", "loss.fm", "loss.d_fake", "loss.d_real"};
   float ours[5] = {tm.rec, tm.gan, tm.fm, tm.d_fake, tm.d_real};
   for (int i = 0; i < 5; i++) {

@@ -19,6 +19,7 @@
 
 #include "nn/patchgan.h"
 #include "nn/unet.h"
+#include "smplpix/vgg.h"
 
 typedef struct spx_gan_opts {
   double lr_g, lr_d, beta1, beta2, eps; /* Adam (the same betas / eps for G and D) */
@@ -27,8 +28,10 @@ typedef struct spx_gan_opts {
 } spx_gan_opts;
 
 
-/* in [n,4,h,w], target [n,3,h,w] host arrays. D must have 7 input channels. */
-spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, const float *in, const float *target, int n, int h, int w,
+/* in [n,4,h,w], target [n,3,h,w] host arrays. D must have 7 input channels; d NULL: no GAN terms
+ * (stage 1); vgg non-NULL: the reconstruction term is L_VGG (lib/nn/vgg.h, its own tape, fed
+ * [fake; real] and handing the fake half's gradient back like D) instead of the L1. */
+spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, spx_vgg *vgg, const float *in, const float *target, int n, int h, int w,
                         const spx_gan_opts *o, spx_gan_losses *terms);
 
 #endif

@@ -14,6 +14,7 @@
 #define SMPLPIX_PATCHGAN_H
 
 #include "smplpix/unet.h"
+#include "smplpix/vgg.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -35,18 +36,24 @@ spx_status spx_patchgan_reset_optimizer(spx_patchgan *d);
 
 typedef struct spx_gan_losses {
   float rec;     /* mean L1 between the generated image and the target */
+  float vgg;     /* L_VGG (smplpix/vgg.h) when a VGG is given, else 0 */
   float gan;     /* sum over scales of mean (D_k(fake) - 1)^2 */
   float fm;      /* feature matching: sum_k sum_{l<4} (1/num_d) mean |D_k^l(fake) - D_k^l(real)| */
-  float g_total; /* rec + gan + 0.1 fm: what the generator minimises */
+  float g_total; /* (vgg or rec) + gan + 0.1 fm: what the generator minimises */
   float d_fake, d_real, d_total; /* sum_k mean D_k(fake)^2, sum_k mean (D_k(real) - 1)^2, 0.5 (fake + real) */
 } spx_gan_losses;
 
 /* One stage-2 step on a batch (input [n,4,h,w], target [n,3,h,w]): the generator takes an Adam
- * step (lr_g) on L1 + L_GAN + 0.1 L_FM, the discriminator one (lr_d) on 0.5 (fake + real) with the
- * generator's image detached; both from the same forward pass (pix2pixHD). Adam betas 0.9 / 0.999,
- * eps 1e-8 for both. out (may be NULL) receives the terms before the step. */
-spx_status spx_unet_gan_step(spx_unet *g, spx_patchgan *d, const float *input, const float *target, int n, int h,
-                             int w, double lr_g, double lr_d, spx_gan_losses *out);
+ * step (lr_g) on L_rec + L_GAN + 0.1 L_FM (L_rec = L_VGG with vgg, else the mean L1), the
+ * discriminator one (lr_d) on 0.5 (fake + real) with the generator's image detached; both from the
+ * same forward pass (pix2pixHD). Adam betas 0.9 / 0.999, eps 1e-8 for both. out (may be NULL)
+ * receives the terms before the step. */
+spx_status spx_unet_gan_step(spx_unet *g, spx_patchgan *d, spx_vgg *vgg, const float *input, const float *target,
+                             int n, int h, int w, double lr_g, double lr_d, spx_gan_losses *out);
+/* One stage-1 step with the perceptual loss: Adam (lr) on L_VGG(target, G(input)). out->vgg is
+ * the loss, out->rec the L1 (for reporting). */
+spx_status spx_unet_vgg_step(spx_unet *g, spx_vgg *vgg, const float *input, const float *target, int n, int h, int w,
+                             double lr, spx_gan_losses *out);
 
 /* spx_unet_save with extra "__metadata__" string pairs (e.g. the training stage). */
 spx_status spx_unet_save_meta(spx_unet *u, const char *path, int with_optimizer, const char *const *keys,

@@ -18,6 +18,7 @@
 
 #include "smplpix/body.h"
 #include "smplpix/unet.h"
+#include "smplpix/vgg.h"
 #include "smplpix/patchgan.h"
 #include "smplpix/fit.h"
 
