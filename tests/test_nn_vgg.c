@@ -54,9 +54,10 @@ static void run(spx_ctx *ctx, spx_tape_backend be) {
   spx_status st;
   do {
     if ((st = spx_tape_begin(t, 1, 1))) break;
-    xi = spx_tape_input(t, 2, 3, H, W, x);
+    xi = spx_tape_input(t, 1, 3, H, W, x);
+    int gi = spx_tape_input(t, 1, 3, H, W, x + np);
     if (!spx_tape_measuring(t)) spx_tape_requires_grad(t, xi);
-    loss = spx_vgg_loss(v, xi, 1);
+    loss = spx_vgg_loss(v, xi, gi);
     st = spx_tape_end(t, &again);
   } while (!st && again);
   CHECK_OK(ctx, st);
