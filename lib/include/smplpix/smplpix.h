@@ -20,6 +20,8 @@
 #include "smplpix/body.h"
 #include "smplpix/synth.h"
 #include "smplpix/unet.h"
+#include "smplpix/vgg.h"
+#include "smplpix/patchgan.h"
 #include "smplpix/fit.h"
 #include "smplpix/metrics.h"
 
