@@ -11,9 +11,7 @@
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
 
-/* Load the registration and its model (--model, else the path recorded in the JSON, else the
- * default body) and check that they belong together. */
-static int load_registration(const char *cmd, spx_ctx *ctx, const char *reg_path, const char *model_arg,
+int spx_cli_load_registration(const char *cmd, spx_ctx *ctx, const char *reg_path, const char *model_arg,
                              spx_fit_result *r, spx_body_model *m) {
   char *recorded = NULL;
   if (spx_fit_load_json(ctx, reg_path, r, &recorded)) return spx_cli_error(cmd, ctx);
@@ -31,6 +29,14 @@ static int load_registration(const char *cmd, spx_ctx *ctx, const char *reg_path
   return rc;
 }
 
+int spx_cli_pose_registration(const char *cmd, spx_ctx *ctx, const spx_body_model *m, const spx_fit_result *r,
+                              const double *betas, const double *pose, const double *trans, double *work, float *pos) {
+  spx_body_params p = {r->nbetas, betas, pose, trans, r->template_unposed};
+  if (spx_body_forward_ref(ctx, m, &p, work, NULL)) return spx_cli_error(cmd, ctx);
+  for (int32_t i = 0; i < m->nv * 3; i++) pos[i] = (float)(r->body_scale * work[i]);
+  return SPX_EXIT_OK;
+}
+
 static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m, const spx_fit_result *r,
                          const double *betas, const double *pose, const double *trans, const char *out_path) {
   double *v = malloc((size_t)m->nv * 3 * sizeof(double));
@@ -44,12 +50,7 @@ static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m,
     rc = spx_cli_errorf(cmd, "out of memory");
     goto done;
   }
-  spx_body_params p = {r->nbetas, betas, pose, trans, r->template_unposed};
-  if (spx_body_forward_ref(ctx, m, &p, v, NULL)) {
-    rc = spx_cli_error(cmd, ctx);
-    goto done;
-  }
-  for (int32_t i = 0; i < m->nv * 3; i++) out.pos[i] = (float)(r->body_scale * v[i]);
+  if ((rc = spx_cli_pose_registration(cmd, ctx, m, r, betas, pose, trans, v, out.pos))) goto done;
   memcpy(out.faces, m->faces, (size_t)m->nf * 3 * sizeof(int32_t));
   if (r->colors) memcpy(out.col, r->colors, (size_t)m->nv * 3 * sizeof(float));
   spx_tx tx;
@@ -107,7 +108,7 @@ int spx_cmd_repose(int argc, char **argv) {
   spx_tx tx;
   spx_tx_begin(&tx, "repose", 0);
   int rc = spx_tx_check(&tx, out_path); /* before any work */
-  if (!rc) rc = load_registration("repose", ctx, reg_path, model_arg, &r, &m);
+  if (!rc) rc = spx_cli_load_registration("repose", ctx, reg_path, model_arg, &r, &m);
   if (rc) goto done;
   if (spx_bvh_load(ctx, bvh_path, &b) || spx_bvh_map_create(ctx, &b, &m, NULL, NULL, &map)) {
     rc = spx_cli_error("repose", ctx);
@@ -185,7 +186,7 @@ int spx_cmd_reshape(int argc, char **argv) {
   spx_tx tx;
   spx_tx_begin(&tx, "reshape", 0);
   int rc = spx_tx_check(&tx, out_path); /* before any work */
-  if (!rc) rc = load_registration("reshape", ctx, reg_path, model_arg, &r, &m);
+  if (!rc) rc = spx_cli_load_registration("reshape", ctx, reg_path, model_arg, &r, &m);
   if (rc) goto done;
   for (int k = 0; k < nsh; k++)
     if (sh_idx[k] >= r.nbetas) {

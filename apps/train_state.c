@@ -27,7 +27,13 @@ static const struct field {
     {"smplpix.train.epoch", F_INT, offsetof(spx_train_state, epoch), 0},
     {"smplpix.train.lr", F_REAL, offsetof(spx_train_state, lr), 0},
     {"smplpix.train.loss", F_TEXT, offsetof(spx_train_state, loss), sizeof(((spx_train_state *)0)->loss)},
-    {"smplpix.train.stage", F_TEXT, offsetof(spx_train_state, stage), sizeof(((spx_train_state *)0)->stage)},
+    {"smplpix.train.schedule", F_TEXT, offsetof(spx_train_state, schedule),
+     sizeof(((spx_train_state *)0)->schedule)},
+    {"smplpix.train.stage", F_INT, offsetof(spx_train_state, stage), 0},
+    {"smplpix.train.stage_base", F_INT, offsetof(spx_train_state, stage_base), 0},
+    {"smplpix.train.stage1_steps", F_INT, offsetof(spx_train_state, stage1_steps), 0},
+    {"smplpix.train.lr2", F_REAL, offsetof(spx_train_state, lr2), 0},
+    {"smplpix.train.disc_width", F_INT, offsetof(spx_train_state, disc_width), 0},
 };
 enum { NFIELDS = (int)(sizeof FIELDS / sizeof FIELDS[0]) };
 
@@ -39,6 +45,20 @@ void spx_train_state_init(spx_train_state *s) {
   s->steps_per_epoch = 1;
   s->lr = 1e-3;
   snprintf(s->loss, sizeof s->loss, "l1");
+  s->stage = 1;
+  s->lr2 = 1e-5;
+  s->disc_width = 64;
+}
+
+/* The state as metadata pairs: keys[k] / text[k] for every field of FIELDS. */
+static void state_text(const spx_train_state *s, const char **keys, char (*text)[80]) {
+  for (int k = 0; k < NFIELDS; k++) {
+    const char *p = (const char *)s + FIELDS[k].off;
+    if (FIELDS[k].kind == F_INT) snprintf(text[k], sizeof text[k], "%lld", (long long)*(const int64_t *)p);
+    else if (FIELDS[k].kind == F_REAL) snprintf(text[k], sizeof text[k], "%.17g", *(const double *)p);
+    else snprintf(text[k], sizeof text[k], "%s", p);
+    keys[k] = FIELDS[k].key;
+  }
 }
 
 int spx_train_state_attach(spx_ctx *ctx, const char *src, const char *dst, const spx_train_state *s) {
@@ -59,13 +79,8 @@ int spx_train_state_attach(spx_ctx *ctx, const char *src, const char *dst, const
     if (!strncmp(f.meta_keys[i], "smplpix.train.", 14)) continue;
     keys[nk] = f.meta_keys[i], vals[nk++] = f.meta_values[i];
   }
-  for (int k = 0; k < NFIELDS; k++) {
-    const char *p = (const char *)s + FIELDS[k].off;
-    if (FIELDS[k].kind == F_INT) snprintf(text[k], sizeof text[k], "%lld", (long long)*(const int64_t *)p);
-    else if (FIELDS[k].kind == F_REAL) snprintf(text[k], sizeof text[k], "%.17g", *(const double *)p);
-    else snprintf(text[k], sizeof text[k], "%s", p);
-    keys[nk] = FIELDS[k].key, vals[nk++] = text[k];
-  }
+  state_text(s, keys + nk, text);
+  for (int k = 0; k < NFIELDS; k++) vals[nk++] = text[k];
   for (int i = 0; i < f.count; i++) {
     const spx_st_tensor *t = &f.tensors[i];
     memset(&e[i], 0, sizeof e[i]);
@@ -116,30 +131,43 @@ int spx_train_state_read(spx_ctx *ctx, const char *path, spx_train_state *s, int
   if (!st && *has_state && (s->version < 1 || s->version > SPX_TRAIN_STATE_VERSION)) {
     st = spx_cli_errorf("train", "%s: training state version %lld is not one this smplpix reads (1..%d)", path,
                         (long long)s->version, SPX_TRAIN_STATE_VERSION);
+  } else if (!st && *has_state &&
+             ((s->stage != 1 && s->stage != 2) || s->stage_base > s->step || (s->schedule[0] && strcmp(s->schedule, "paper")) ||
+              !(s->lr > 0) || !(s->lr2 > 0) || s->disc_width < 1 || s->disc_width > 512)) {
+    st = spx_cli_errorf("train", "%s: invalid training state (stage %lld from step %lld, schedule '%s', lr %g, lr2 %g, "
+                        "disc width %lld)", path, (long long)s->stage, (long long)s->stage_base, s->schedule, s->lr,
+                        s->lr2, (long long)s->disc_width);
   }
   spx_st_free(&f);
   return st;
 }
 
-int spx_train_checkpoint_save(spx_ctx *ctx, spx_unet *u, const char *path, const spx_train_state *s) {
-  spx_tx tx; /* durable: the checkpoint is on disk (file and folder entry) before the rename */
+int spx_train_checkpoint_save(spx_ctx *ctx, spx_unet *u, spx_patchgan *d, const char *disc_path, const char *path,
+                              const spx_train_state *s) {
+  spx_tx tx; /* durable: both files are on disk (files and folder entries) before the renames */
   spx_tx_begin(&tx, "train", 1);
-  const char *tmp = spx_tx_stage(&tx, path);
-  char *raw = spx_file_temp_name(path); /* the network's own file, before the state is added */
   int rc = SPX_EXIT_ERROR;
-  if (!tmp || !raw) {
-    if (tmp) spx_cli_errorf("train", "out of memory");
-    goto done;
+  const char *keys[NFIELDS], *vals[NFIELDS];
+  char text[NFIELDS][80];
+  state_text(s, keys, text);
+  for (int k = 0; k < NFIELDS; k++) vals[k] = text[k];
+  if (d) { /* staged first: a commit interrupted between the renames leaves a new D beside the old W,
+              which --resume refuses (the step counts differ), never a W without its D */
+    const char *dtmp = spx_tx_stage(&tx, disc_path);
+    if (!dtmp) goto done;
+    if (spx_patchgan_save(d, dtmp, 1)) {
+      rc = spx_cli_error("train", ctx);
+      goto done;
+    }
   }
-  if (spx_unet_save(u, raw, 1)) {
+  const char *tmp = spx_tx_stage(&tx, path);
+  if (!tmp) goto done;
+  if (spx_unet_save_meta(u, tmp, 1, keys, vals, NFIELDS)) {
     rc = spx_cli_error("train", ctx);
     goto done;
   }
-  if ((rc = spx_train_state_attach(ctx, raw, tmp, s))) goto done;
   rc = spx_tx_commit(&tx);
 done:
-  if (raw) unlink(raw);
-  free(raw);
   spx_tx_end(&tx);
   return rc;
 }

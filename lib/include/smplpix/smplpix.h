@@ -13,11 +13,16 @@
 #include "smplpix/npz.h"
 #include "smplpix/safetensors.h"
 #include "smplpix/bvh.h"
+#include "smplpix/amass.h"
 
 #include "smplpix/render.h"
 
 #include "smplpix/body.h"
+#include "smplpix/synth.h"
 #include "smplpix/unet.h"
+#include "smplpix/vgg.h"
+#include "smplpix/patchgan.h"
 #include "smplpix/fit.h"
+#include "smplpix/metrics.h"
 
 #endif
