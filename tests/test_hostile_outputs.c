@@ -170,6 +170,19 @@ static void test_kill9(void) {
   CHECK(!exists(name) && exists(mine));
   sh("rm -f '%s'", mine);
   CHECK(count_temps(".") == 0);
+  /* a GAN stage saves W and W.disc in one transaction: after kills at any moment the pair still
+   * belongs together (--resume checks the discriminator's step against the generator's), and the
+   * next save removes the temporaries of both */
+  CHECK(run("train --data ds --out G.safetensors --width 8 --disc-width 4 --loss l1+gan --steps 1 --seed 2") == 0);
+  for (int k = 0; k < 6; k++) {
+    pid_t pid = spawn("train --data ds --out G.safetensors --steps 100000 --save-every 1 --resume");
+    sleep_ms(400 + 131 * k);
+    kill(pid, SIGKILL);
+    waitpid(pid, NULL, 0);
+    CHECK_MSG(run("train --data ds --out G.safetensors --steps 1 --resume") == 0,
+              "G.safetensors and G.disc.safetensors do not resume after a kill at %d ms", 400 + 131 * k);
+  }
+  CHECK(count_temps(".") == 0);
   /* the same for dataset, killed while writing its files */
   for (int k = 0; k < 4; k++) {
     pid_t pid = spawn("dataset --mesh quad.obj --out dk --orbit 60 --size 32x24 --force --quiet");
