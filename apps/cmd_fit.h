@@ -9,5 +9,6 @@
 int spx_cmd_register(int argc, char **argv);
 int spx_cmd_repose(int argc, char **argv);
 int spx_cmd_reshape(int argc, char **argv);
+int spx_cmd_bake(int argc, char **argv); /* apps/cmd_bake.c */
 
 #endif

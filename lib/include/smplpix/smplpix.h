@@ -19,5 +19,6 @@
 #include "smplpix/body.h"
 #include "smplpix/unet.h"
 #include "smplpix/fit.h"
+#include "smplpix/bake.h"
 
 #endif
