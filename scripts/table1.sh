@@ -5,7 +5,7 @@
 #   register  per subject: a coloured point cloud sampled from the scan (table1_tool sample),
 #             smplpix register (rigid, pose, free), smplpix bake (scan colours -> body UV texture)
 #   inputs    per view: smplpix repose (the view's pose from synth.json) at 13,380 vertices and
-#             after 1 Loop step (53,414), smplpix project -> sparse RGB-D inputs
+#             after 1 Loop step (53,514), smplpix project -> sparse RGB-D inputs
 #   baselines per test view: smplpix raster per-vertex colours (both counts), textured (baked)
 #   train     smplpix train --loss l1 (stage 1), then --loss l1+gan when the tool has it (stage 2)
 #   render    smplpix render on every test input
@@ -57,10 +57,11 @@ stage() { # stage NAME CMD...: run, log, add the wall time to stage_s[NAME]
   t0=$(date +%s.%N)
   "$@" >>"$log" 2>&1 || die "stage $name: $(tail -n 1 "$log") (log: $log)"
   t1=$(date +%s.%N)
-  stage_s[$name]=$(echo "${stage_s[$name]:-0} + $t1 - $t0" | bc -l)
+  stage_s[$name]=$(calc "${stage_s[$name]:-0} + $t1 - $t0")
 }
 now() { date +%s.%N; }
-secs() { echo "$2 - $1" | bc -l; }
+calc() { awk "BEGIN { printf \"%.6f\", $1 }"; }
+secs() { calc "$2 - $1"; }
 say() { printf 'table1 [%s] %s\n' "$(date -u +%H:%M:%S)" "$*"; }
 
 # ---- synth ------------------------------------------------------------------------------------
@@ -76,12 +77,14 @@ man=$out/synth/synth.json
 manname=${TABLE1_SYNTH:+$TABLE1_SYNTH/synth.json}
 manname=${manname:-$man}
 [ -f "$man" ] || die "$manname: smplpix synth wrote no manifest"
-jq -e '.subjects | length > 0' "$man" >/dev/null || die "$manname: no subjects"
+jq empty "$man" >/dev/null 2>&1 || die "$manname: not valid JSON"
+jq -e '.subjects | length > 0' "$man" >/dev/null 2>&1 || die "$manname: no subjects"
 nsub=$(jq '.subjects | length' "$man")
 [ "$nsub" = "$SUBJECTS" ] || die "$manname: $nsub subjects, expected $SUBJECTS"
 
-jq -e '[.subjects[] | (.name, .scan | strings), (.views | length), (.views[] | .name, .camera, .image, .mask, .pose.source | strings)]
-       | length == ([.subjects[] | 3 + 5 * (.views | length)] | add)' "$man" >/dev/null 2>&1 ||
+jq -e '([.subjects[] | (.name, .scan | strings), (.views | length),
+          (.views[] | .name, .camera, .image, .mask, .pose.source | strings)] | length)
+       == ([.subjects[] | 3 + 5 * (.views | length)] | add)' "$man" >/dev/null 2>&1 ||
   die "$manname: every subject needs a name, a scan and views with name, camera, image, mask and pose.source"
 # views as lines: subject_index view_index name camera image mask pose_source
 jq -r '.subjects | to_entries[] | .key as $s | .value.views | to_entries[] |
@@ -119,7 +122,7 @@ timed() { # timed KEY CMD...: run once, add the wall time to t_frames[KEY] (one 
   t0=$(now)
   "$@" >>"$log" 2>&1 || die "$key: $(tail -n 1 "$log") (log: $log)"
   t1=$(now)
-  t_frames[$key]=$(echo "${t_frames[$key]:-0} + $t1 - $t0" | bc -l)
+  t_frames[$key]=$(calc "${t_frames[$key]:-0} + $t1 - $t0")
 }
 ntest=0
 t0=$(now)
@@ -212,7 +215,7 @@ metric() { # metric FILE KEY: the mean of KEY from an eval JSON, or "—"
   jq -r --arg k "$2" '(.mean[$k] // .[$k] // empty) | if type == "number" then (. * 1000 | round / 1000 | tostring) else empty end' "$1" 2>/dev/null |
     head -n 1 | grep . || echo "—"
 }
-ms() { [ -n "${t_frames[$1]:-}" ] && printf '%.0f' "$(echo "${t_frames[$1]} * 1000 / $ntest" | bc -l)" || echo "—"; }
+ms() { [ -n "${t_frames[$1]:-}" ] && printf '%.0f' "$(calc "${t_frames[$1]} * 1000 / $ntest")" || echo "—"; }
 total=$(secs "$t_start" "$(now)")
 stage_name="stage 1 (l1, ${STEPS} steps)"
 [ $gan = 1 ] && stage_name="stage 1 + 2 (l1 ${STEPS} steps, then l1+gan ${GANSTEPS} steps: offline variant, no VGG)"
@@ -233,10 +236,10 @@ md=$out/TABLE1.md.tmp
     echo "| $1 | $2 | $(metric "$j" psnr) | $(metric "$j" ssim) | $(metric "$j" lpips) | $(metric "$jm" psnr) | $(metric "$jm" ssim) | $4 |"
   }
   row "per-vertex colours, rasterized (paper: NMR per-verts)" "13,380" pervertex13k "$(ms raster13k)"
-  row "per-vertex colours, rasterized (paper: NMR per-verts)" "53,414 (1 Loop step; paper: 27k)" pervertex53k "$(ms raster53k)"
+  row "per-vertex colours, rasterized (paper: NMR per-verts)" "53,514 (1 Loop step; paper: 27k)" pervertex53k "$(ms raster53k)"
   row "full texture baked from the scan, rasterized (paper: NMR full textures)" "13,380" textured13k "$(ms textured)"
   row "SMPLpix, $stage_name" "13,380" smplpix13k "$(printf '%s + %s' "$(ms project13k)" "$(ms unet13k)")"
-  row "SMPLpix, $stage_name" "53,414 (1 Loop step; paper: 27k)" smplpix53k "$(printf '%s + %s' "$(ms project53k)" "$(ms unet53k)")"
+  row "SMPLpix, $stage_name" "53,514 (1 Loop step; paper: 27k)" smplpix53k "$(printf '%s + %s' "$(ms project53k)" "$(ms unet53k)")"
   echo
   [ $have_eval = 1 ] || echo "**No scores: \`smplpix eval\` is not in this build (branch h/eval not merged); the images are in $out/methods.**"
   [ $gan = 1 ] || echo "**Stage 2 (l1+gan) not run: \`smplpix train\` has no --loss l1+gan in this build (branch h/recipe not merged).**"
@@ -248,7 +251,7 @@ md=$out/TABLE1.md.tmp
   echo "  Test pose sources also used in training: $overlap."
   echo "- Registration: a $POINTS-point coloured cloud sampled from each scan (\`table1_tool sample\`), \`smplpix register\`"
   echo "  (rigid, pose, free); the registered vertices and colours are reposed to each view's pose"
-  echo "  (\`smplpix repose --pose synth.json --view NAME\`), at 13,380 vertices and after one Loop step (53,414;"
+  echo "  (\`smplpix repose --pose synth.json --view NAME\`), at 13,380 vertices and after one Loop step (53,514;"
   echo "  the paper's 27k row is one subdivision of its 7k body). Texture: \`smplpix bake\` (${TEX}x${TEX})."
   echo "- Network: UNet width $WIDTH, batch $BATCH, Adam lr 2e-3, $STEPS steps of l1$([ $gan = 1 ] && echo ", then $GANSTEPS of l1+gan at lr 2e-4"); seed $SEED."
   echo "- Time per stage (s): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$k" "${stage_s[$k]:-0}"; done)total $(printf '%.0f' "$total")."
