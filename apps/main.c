@@ -14,6 +14,7 @@ static const spx_command commands[] = {
     {"raster", "rasterize a mesh's triangles through camera(s) (the classic baseline)", spx_cmd_raster},
     {"dataset", "write a training set: projections -> raster renders of one mesh", spx_cmd_dataset},
     {"render", "run a trained UNet on RGB-D image(s), or on a mesh through camera(s)", spx_cmd_render},
+    {"synth", "synthetic scanned people and their ground-truth photos", spx_cmd_synth},
     {"train", "train the UNet on a data directory", spx_cmd_train},
     {"register", "register the body model to a 3-D scan (Ceres)", spx_cmd_register},
     {"repose", "pose a registered person with a BVH frame", spx_cmd_repose},
