@@ -26,7 +26,8 @@ static void train_help(void) {
          "--epochs E / --steps S: train until E epochs / S optimizer steps in total are done.\n"
          "--resume continues from W (weights, optimizer state, step count, data order) bit for bit;\n"
          "--init starts from the weights of W0 with a fresh optimizer. After every epoch the loss on\n"
-         "DIR/validation (when present: mean L1, and PSNR of the output clamped to [0,1]) is printed,\n"
+         "DIR/validation (when present: mean L1, and PSNR and SSIM of the output clamped to [0,1], as\n"
+         "`smplpix eval` computes them) is printed,\n"
          "also once before the first step. W is rewritten atomically after every epoch, or every N steps\n"
          "with --save-every N, and at the end. --batch larger than the number of pairs uses them all.\n"
          "Progress goes to stderr: a bar updated in place on a terminal, else a line every --log-every\n"
@@ -188,32 +189,44 @@ static void epoch_order(int *perm, int n, uint64_t seed, int64_t epoch, int shuf
   }
 }
 
-/* Mean L1 over the validation set, and the mean PSNR (dB) of the output clamped to [0, 1]. */
-static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss, double *psnr) {
+/* Mean L1 over the validation set, and the mean PSNR (dB) and SSIM of the output clamped to [0, 1]
+ * (smplpix/metrics.h, the numbers `smplpix eval` gives). */
+static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss, double *psnr, double *ssim) {
   size_t hw = (size_t)val->h * (size_t)val->w;
   float *in = malloc(SPX_UNET_IN_CHANNELS * hw * sizeof(float)), *tg = malloc(SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
   float *out = malloc(SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
+  float *po = malloc(3 * hw * sizeof(float)), *pt = malloc(3 * hw * sizeof(float)); /* HWC for the metrics */
   int rc = SPX_EXIT_OK;
-  double sum = 0, psum = 0;
-  if (!in || !tg || !out) rc = spx_cli_errorf("train", "out of memory for validation");
+  double sum = 0, psum = 0, ssum = 0;
+  if (!in || !tg || !out || !po || !pt) rc = spx_cli_errorf("train", "out of memory for validation");
   for (int i = 0; i < val->n && !rc; i++) {
     if ((rc = load_batch(ctx, val, &i, 1, in, tg))) break;
     if (spx_unet_forward(u, in, 1, val->h, val->w, 0, out)) {
       rc = spx_cli_error("train", ctx);
       break;
     }
-    double s = 0, se = 0;
-    for (size_t k = 0; k < SPX_UNET_OUT_CHANNELS * hw; k++) {
-      double o = out[k], e = (o < 0 ? 0 : o > 1 ? 1 : o) - (double)tg[k];
-      s += fabs(o - (double)tg[k]);
-      se += e * e;
-    }
+    double s = 0;
+    for (size_t k = 0; k < SPX_UNET_OUT_CHANNELS * hw; k++) s += fabs((double)out[k] - (double)tg[k]);
     sum += s / (double)(SPX_UNET_OUT_CHANNELS * hw);
-    psum += se > 0 ? -10 * log10(se / (double)(SPX_UNET_OUT_CHANNELS * hw)) : 100;
+    for (int c = 0; c < 3; c++)
+      for (size_t p = 0; p < hw; p++) {
+        float o = out[(size_t)c * hw + p];
+        po[3 * p + (size_t)c] = o < 0 ? 0 : o > 1 ? 1 : o;
+        pt[3 * p + (size_t)c] = tg[(size_t)c * hw + p];
+      }
+    spx_image a = {val->w, val->h, 3, po}, b = {val->w, val->h, 3, pt};
+    spx_metrics m;
+    if (spx_image_metrics(ctx, &a, &b, NULL, &m)) {
+      rc = spx_cli_errorf("train", "%s: %s", val->s[i].out, spx_ctx_message(ctx));
+      break;
+    }
+    psum += m.psnr;
+    ssum += m.ssim;
   }
   *loss = val->n ? sum / val->n : 0;
   *psnr = val->n ? psum / val->n : 0;
-  free(in), free(tg), free(out);
+  *ssim = val->n ? ssum / val->n : 0;
+  free(in), free(tg), free(out), free(po), free(pt);
   return rc;
 }
 
@@ -402,9 +415,9 @@ int spx_cmd_train(int argc, char **argv) {
          (long long)target);
   fflush(stdout);
   if (val.n && spx_unet_step(u) < target) { /* the starting point, to compare the epochs against */
-    double vl = 0, vp = 0;
-    if ((rc = validate(ctx, u, &val, &vl, &vp))) goto done;
-    printf("step %lld: validation L1 %.6f, PSNR %.2f dB\n", (long long)spx_unet_step(u), vl, vp);
+    double vl = 0, vp = 0, vs = 0;
+    if ((rc = validate(ctx, u, &val, &vl, &vp, &vs))) goto done;
+    printf("step %lld: validation L1 %.6f, PSNR %.2f dB, SSIM %.4f\n", (long long)spx_unet_step(u), vl, vp, vs);
     fflush(stdout);
   }
   {
@@ -450,11 +463,11 @@ int spx_cmd_train(int argc, char **argv) {
     if (pg.tty || now_step % log_every == 0 || end_epoch || last)
       progress_show(&pg, now_step, epoch, ep_loss / ep_count, end_epoch || last);
     if (end_epoch || last) {
-      double vl = 0, vp = 0;
-      if (val.n && (rc = validate(ctx, u, &val, &vl, &vp))) goto done;
+      double vl = 0, vp = 0, vs = 0;
+      if (val.n && (rc = validate(ctx, u, &val, &vl, &vp, &vs))) goto done;
       progress_clear(&pg);
       printf("epoch %lld step %lld: train L1 %.6f", (long long)epoch + 1, (long long)now_step, ep_loss / ep_count);
-      if (val.n) printf(", validation L1 %.6f, PSNR %.2f dB", vl, vp);
+      if (val.n) printf(", validation L1 %.6f, PSNR %.2f dB, SSIM %.4f", vl, vp, vs);
       printf(", %.1f s\n", now_s() - t0);
       fflush(stdout);
       ep_loss = 0;

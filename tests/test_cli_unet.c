@@ -89,6 +89,48 @@ static double parse_losses(const char *log, double *first, double *last) {
   return n;
 }
 
+/* The last epoch's validation PSNR / SSIM (log of `train`) equal what `smplpix eval` gives for the
+ * checkpoint's output on validation/input/v (clamped to [0, 1], as validation clamps it). */
+static void check_validation_metrics(spx_ctx *ctx, const char *log, const char *w) {
+  FILE *f = fopen(log, "r");
+  char line[512];
+  double psnr = NAN, ssim = NAN;
+  while (f && fgets(line, sizeof line, f)) {
+    const char *p = strstr(line, "validation L1 ");
+    if (p && (p = strstr(p, "PSNR ")) && sscanf(p, "PSNR %lf dB, SSIM %lf", &psnr, &ssim) != 2) psnr = ssim = NAN;
+  }
+  if (f) fclose(f);
+  CHECK_MSG(isfinite(psnr) && isfinite(ssim), "no 'PSNR x dB, SSIM y' on the validation line of %s", log);
+  char in[1024], raw[1024], clamped[1024], tg[1024], out[1024], args[4096];
+  path_in(in, sizeof in, "validation/input/v.exr");
+  path_in(raw, sizeof raw, "v_raw.npy");
+  path_in(clamped, sizeof clamped, "v_clamped.npy");
+  path_in(tg, sizeof tg, "validation/output/v.png");
+  path_in(out, sizeof out, "eval.txt");
+  snprintf(args, sizeof args, "render --checkpoint \"%s\" --input \"%s\" --out \"%s\"", w, in, raw);
+  CHECK(run(args, out) == 0);
+  spx_array a;
+  memset(&a, 0, sizeof a);
+  CHECK_OK(ctx, spx_npy_load(ctx, raw, &a));
+  if (a.ndim == 3 && a.dtype == SPX_F32) {
+    float *v = a.data;
+    for (int64_t k = 0; k < spx_array_numel(&a); k++) v[k] = v[k] < 0 ? 0 : v[k] > 1 ? 1 : v[k];
+    CHECK_OK(ctx, spx_npy_save_f32(ctx, clamped, v, 3, a.shape));
+  }
+  spx_array_free(&a);
+  snprintf(args, sizeof args, "eval --pred \"%s\" --target \"%s\"", clamped, tg);
+  CHECK(run(args, out) == 0);
+  double ep = NAN, es = NAN;
+  f = fopen(out, "r");
+  while (f && fgets(line, sizeof line, f)) {
+    const char *p = strstr(line, "PSNR ");
+    if (p) sscanf(p, "PSNR %lf dB, SSIM %lf", &ep, &es);
+  }
+  if (f) fclose(f);
+  CHECK_NEAR(ep, psnr, 0.0051, 0); /* train prints 2 decimals, eval 3 */
+  CHECK_NEAR(es, ssim, 0.00006, 0); /* 4 decimals each */
+}
+
 static void test_train_render(void) {
   spx_t_path(dir, sizeof dir, "unetdata");
   char log[1024], args[4096], w1[1024], w3[1024], wr[1024], p[1024], q[1024];
@@ -131,6 +173,7 @@ static void test_train_render(void) {
   snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --batch 2 --epochs 3 --lr 3e-3 --seed 9 --resume", dir, wr);
   CHECK(run(args, log) == 0);
   CHECK_MSG(spx_t_same_safetensors(ctx, w3, wr), "resumed training differs from the straight run");
+  check_validation_metrics(ctx, log, w3);
 
   /* render to npy equals the library's eval forward; png and exr outputs are written */
   path_in(p, sizeof p, "train/input/b.exr");

@@ -20,5 +20,6 @@
 #include "smplpix/unet.h"
 #include "smplpix/fit.h"
 #include "smplpix/bake.h"
+#include "smplpix/metrics.h"
 
 #endif

@@ -1,0 +1,400 @@
+/* smplpix eval: PSNR, SSIM (and LPIPS with --lpips) of predicted images against targets, for two
+ * files or two folders matched by name (smplpix/metrics.h does the arithmetic). */
+#include <dirent.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "cli.h"
+
+static void eval_help(void) {
+  printf("usage: smplpix eval --pred P --target T [--mask M] [--per-image] [--json F] [--lpips W.safetensors]\n"
+         "                    [--device cpu|gpu|P:D]\n"
+         "P and T are two image files, or two folders whose files are matched by name (the extension may\n"
+         "differ: .png, .exr, .npy as HxWxC or HxW). Only the first three channels (RGB in [0,1]) are\n"
+         "compared: the alpha of an RGBA PNG, the depth of an RGB-D EXR are ignored.\n"
+         "PSNR = 10 log10(1/MSE) per image (inf for identical images); SSIM as scikit-image's\n"
+         "structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False,\n"
+         "data_range=1.0, channel_axis=-1) (images of at least 11x11); both are averaged over the images.\n"
+         "--mask M: a mask file (used for every image) or a folder of masks matched by name; the first\n"
+         "channel nonzero = foreground. Adds the masked values: PSNR of the foreground pixels' MSE, and\n"
+         "the SSIM map averaged over the foreground (see smplpix/metrics.h).\n"
+         "--lpips W: also LPIPS (AlexNet, the lpips package's v0.1 weights converted to safetensors by\n"
+         "tools/lpips_to_safetensors.py); runs on the OpenCL device; images of at least 31x31.\n"
+         "--per-image: one line per image before the mean. --json F: {\"count\", \"psnr\", \"ssim\",\n"
+         "\"lpips\", \"images\": [{\"name\", \"psnr\", \"ssim\", \"lpips\"}]} (+ \"psnr_masked\",\n"
+         "\"ssim_masked\" with --mask), null where a value is infinite, undefined or not asked for.\n"
+         "A size mismatch, an unreadable file or a name present on one side only: one line, exit 1,\n"
+         "no JSON written.\n");
+}
+
+typedef struct item {
+  char *name, *pred, *target, *mask;
+  spx_metrics m;
+  double lpips;
+} item;
+
+typedef struct list {
+  item *it;
+  int n, cap;
+} list;
+
+static void list_free(list *l) {
+  for (int i = 0; i < l->n; i++) free(l->it[i].name), free(l->it[i].pred), free(l->it[i].target), free(l->it[i].mask);
+  free(l->it);
+  memset(l, 0, sizeof *l);
+}
+
+static int is_dir(const char *p) {
+  struct stat sb;
+  return stat(p, &sb) == 0 && S_ISDIR(sb.st_mode);
+}
+
+static char *join(const char *dir, const char *name) {
+  size_t n = strlen(dir) + strlen(name) + 2;
+  char *p = malloc(n);
+  if (p) snprintf(p, n, "%s/%s", dir, name);
+  return p;
+}
+
+static size_t stem_len(const char *name) {
+  const char *dot = strrchr(name, '.');
+  return dot ? (size_t)(dot - name) : strlen(name);
+}
+
+static int cmp_name(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+/* The image files of folder `dir` (sorted by name). Two files with one stem are an error. */
+static int list_dir(const char *dir, char ***names, int *count) {
+  *names = NULL;
+  *count = 0;
+  DIR *d = opendir(dir);
+  if (!d) return spx_cli_errorf("eval", "%s: cannot open folder (%s)", dir, strerror(errno));
+  int cap = 0, rc = SPX_EXIT_OK;
+  struct dirent *e;
+  while ((e = readdir(d))) {
+    if (e->d_name[0] == '.' || !spx_cli_image_ext_ok(e->d_name)) continue;
+    if (*count == cap) {
+      cap = cap ? 2 * cap : 64;
+      char **nn = realloc(*names, sizeof(char *) * (size_t)cap);
+      if (!nn) {
+        rc = spx_cli_errorf("eval", "out of memory listing %s", dir);
+        break;
+      }
+      *names = nn;
+    }
+    if (!((*names)[*count] = strdup(e->d_name))) {
+      rc = spx_cli_errorf("eval", "out of memory listing %s", dir);
+      break;
+    }
+    (*count)++;
+  }
+  closedir(d);
+  if (!rc && *count)
+    qsort(*names, (size_t)*count, sizeof(char *), cmp_name);
+  for (int i = 0; !rc && *count > 1 && i < *count; i++) {
+    for (int j = i + 1; j < *count; j++) {
+      size_t a = stem_len((*names)[i]), b = stem_len((*names)[j]);
+      if (a == b && !strncmp((*names)[i], (*names)[j], a)) {
+        rc = spx_cli_errorf("eval", "%s: both %s and %s have the name %.*s", dir, (*names)[i], (*names)[j], (int)a,
+                            (*names)[i]);
+        break;
+      }
+      if (strncmp((*names)[i], (*names)[j], a)) break; /* sorted: no later name shares the stem prefix */
+    }
+  }
+  return rc;
+}
+
+static void names_free(char **n, int count) {
+  for (int i = 0; i < count; i++) free(n[i]);
+  free(n);
+}
+
+/* The entry of names[] with the stem `stem` (length len), or NULL. */
+static const char *find_stem(char **names, int count, const char *stem, size_t len) {
+  for (int i = 0; i < count; i++)
+    if (stem_len(names[i]) == len && !strncmp(names[i], stem, len)) return names[i];
+  return NULL;
+}
+
+static int add_item(list *l, const char *name, size_t len, char *pred, char *target, char *mask) {
+  if (l->n == l->cap) {
+    int cap = l->cap ? 2 * l->cap : 16;
+    item *ni = realloc(l->it, sizeof(item) * (size_t)cap);
+    if (!ni) goto oom;
+    l->it = ni;
+    l->cap = cap;
+  }
+  item *it = &l->it[l->n];
+  memset(it, 0, sizeof *it);
+  it->name = strndup(name, len);
+  if (!it->name) goto oom;
+  it->pred = pred, it->target = target, it->mask = mask;
+  l->n++;
+  return SPX_EXIT_OK;
+oom:
+  free(pred), free(target), free(mask);
+  return spx_cli_errorf("eval", "out of memory");
+}
+
+/* Pair P and T (files or folders) and the masks into l. */
+static int pair_up(const char *pd, const char *td, const char *md, list *l) {
+  int pdir = is_dir(pd), tdir = is_dir(td), mdir = md && is_dir(md);
+  if (pdir != tdir)
+    return spx_cli_errorf("eval", "%s is a %s but %s is a %s: give two files or two folders", pd,
+                          pdir ? "folder" : "file", td, tdir ? "folder" : "file");
+  if (!pdir) {
+    if (mdir) return spx_cli_errorf("eval", "%s is a folder, but --pred and --target are files", md);
+    const char *base = strrchr(pd, '/');
+    base = base ? base + 1 : pd;
+    char *a = strdup(pd), *b = strdup(td), *c = md ? strdup(md) : NULL;
+    if (!a || !b || (md && !c)) {
+      free(a), free(b), free(c);
+      return spx_cli_errorf("eval", "out of memory");
+    }
+    return add_item(l, base, stem_len(base), a, b, c);
+  }
+  char **pn = NULL, **tn = NULL, **mn = NULL;
+  int np = 0, nt = 0, nm = 0, rc;
+  if ((rc = list_dir(pd, &pn, &np)) || (rc = list_dir(td, &tn, &nt)) || (mdir && (rc = list_dir(md, &mn, &nm))))
+    goto done;
+  if (!np) {
+    rc = spx_cli_errorf("eval", "%s: no .png, .exr or .npy images", pd);
+    goto done;
+  }
+  for (int i = 0; i < nt; i++)
+    if (!find_stem(pn, np, tn[i], stem_len(tn[i]))) {
+      rc = spx_cli_errorf("eval", "%s/%s has no prediction in %s", td, tn[i], pd);
+      goto done;
+    }
+  for (int i = 0; i < np && !rc; i++) {
+    size_t len = stem_len(pn[i]);
+    const char *t = find_stem(tn, nt, pn[i], len), *m = mdir ? find_stem(mn, nm, pn[i], len) : NULL;
+    if (!t) {
+      rc = spx_cli_errorf("eval", "%s/%s has no target in %s", pd, pn[i], td);
+      break;
+    }
+    if (mdir && !m) {
+      rc = spx_cli_errorf("eval", "%s/%s has no mask in %s", pd, pn[i], md);
+      break;
+    }
+    char *a = join(pd, pn[i]), *b = join(td, t), *c = mdir ? join(md, m) : md ? strdup(md) : NULL;
+    if (!a || !b || (md && !c)) {
+      free(a), free(b), free(c);
+      rc = spx_cli_errorf("eval", "out of memory");
+      break;
+    }
+    rc = add_item(l, pn[i], len, a, b, c);
+  }
+done:
+  names_free(pn, np), names_free(tn, nt), names_free(mn, nm);
+  return rc;
+}
+
+/* Any image file as HWC floats: .png, .exr (R,G,B,Z), .npy (HxW or HxWxC, any numeric dtype). */
+static int load_image(spx_ctx *ctx, const char *path, int need_rgb, spx_image *img) {
+  char ext[16];
+  memset(img, 0, sizeof *img);
+  spx_cli_ext(path, ext, sizeof ext);
+  if (!spx_cli_image_ext_ok(path)) return spx_cli_errorf("eval", "%s: unknown image type (expected .png, .exr or .npy)", path);
+  if (!strcmp(ext, "png") || !strcmp(ext, "exr")) {
+    if ((!strcmp(ext, "png") ? spx_png_read(ctx, path, img) : spx_exr_read(ctx, path, img)))
+      return spx_cli_error("eval", ctx);
+  } else {
+    spx_array a;
+    if (spx_npy_load(ctx, path, &a)) return spx_cli_error("eval", ctx);
+    float *f = NULL;
+    int rc = SPX_EXIT_OK;
+    if (a.ndim != 2 && a.ndim != 3)
+      rc = spx_cli_errorf("eval", "%s: expected an HxWxC or HxW image, not %d dimensions", path, a.ndim);
+    else if (a.shape[0] < 1 || a.shape[1] < 1 || a.shape[0] > 65536 || a.shape[1] > 65536 ||
+             (a.ndim == 3 && (a.shape[2] < 1 || a.shape[2] > 64)))
+      rc = spx_cli_errorf("eval", "%s: unsupported image shape %lldx%lld%s", path, (long long)a.shape[0],
+                          (long long)a.shape[1], a.ndim == 3 ? "xC (C in 1..64)" : "");
+    else if (spx_array_to_f32(ctx, &a, &f))
+      rc = spx_cli_error("eval", ctx);
+    if (!rc) {
+      img->height = (int32_t)a.shape[0], img->width = (int32_t)a.shape[1];
+      img->channels = a.ndim == 3 ? (int32_t)a.shape[2] : 1;
+      img->data = f;
+    }
+    spx_array_free(&a);
+    if (rc) return rc;
+  }
+  if (need_rgb && img->channels < 3) {
+    int c = img->channels;
+    spx_image_free(img);
+    return spx_cli_errorf("eval", "%s: %d channel%s, expected an RGB image", path, c, c == 1 ? "" : "s");
+  }
+  return SPX_EXIT_OK;
+}
+
+/* One image pair: load, check sizes, compute. */
+static int measure(spx_ctx *ctx, spx_lpips *lp, item *it) {
+  spx_image p = {0}, t = {0}, m = {0};
+  int rc;
+  if ((rc = load_image(ctx, it->pred, 1, &p)) || (rc = load_image(ctx, it->target, 1, &t)) ||
+      (it->mask && (rc = load_image(ctx, it->mask, 0, &m))))
+    goto done;
+  if (p.width != t.width || p.height != t.height) {
+    rc = spx_cli_errorf("eval", "%s is %dx%d but %s is %dx%d", it->pred, p.width, p.height, it->target, t.width,
+                        t.height);
+    goto done;
+  }
+  if (it->mask && (m.width != p.width || m.height != p.height)) {
+    rc = spx_cli_errorf("eval", "%s is %dx%d but %s is %dx%d", it->mask, m.width, m.height, it->pred, p.width,
+                        p.height);
+    goto done;
+  }
+  if (spx_image_metrics(ctx, &p, &t, it->mask ? &m : NULL, &it->m)) {
+    rc = spx_cli_errorf("eval", "%s: %s", it->pred, spx_ctx_message(ctx));
+    goto done;
+  }
+  if (it->mask && it->m.fg_pixels == 0) {
+    rc = spx_cli_errorf("eval", "%s: the mask has no foreground pixels", it->mask);
+    goto done;
+  }
+  it->lpips = NAN;
+  if (lp && spx_lpips_distance(lp, &p, &t, &it->lpips)) rc = spx_cli_errorf("eval", "%s: %s", it->pred, spx_ctx_message(ctx));
+done:
+  spx_image_free(&p), spx_image_free(&t), spx_image_free(&m);
+  return rc;
+}
+
+/* A value for the text line: "inf", "n/a" (undefined) or the number. */
+static const char *num(char *buf, size_t cap, const char *fmt, double v) {
+  if (isnan(v)) snprintf(buf, cap, "n/a");
+  else if (isinf(v)) snprintf(buf, cap, "%sinf", v < 0 ? "-" : "");
+  else snprintf(buf, cap, fmt, v);
+  return buf;
+}
+
+static void print_line(const char *lead, const spx_metrics *m, double lpips, int has_lpips, int has_mask) {
+  char a[32], b[32], c[32];
+  printf("%s: PSNR %s dB, SSIM %s", lead, num(a, sizeof a, "%.3f", m->psnr), num(b, sizeof b, "%.4f", m->ssim));
+  if (has_lpips) printf(", LPIPS %s", num(c, sizeof c, "%.4f", lpips));
+  if (has_mask)
+    printf("; masked: PSNR %s dB, SSIM %s", num(a, sizeof a, "%.3f", m->psnr_fg), num(b, sizeof b, "%.4f", m->ssim_fg));
+  printf("\n");
+}
+
+static void json_num(FILE *f, const char *key, double v, int last) {
+  if (isfinite(v)) fprintf(f, "\"%s\": %.10g%s", key, v, last ? "" : ", ");
+  else fprintf(f, "\"%s\": null%s", key, last ? "" : ", ");
+}
+
+static void json_str(FILE *f, const char *s) {
+  fputc('"', f);
+  for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
+    if (*p == '"' || *p == '\\') fprintf(f, "\\%c", *p);
+    else if (*p < 0x20) fprintf(f, "\\u%04x", *p);
+    else fputc(*p, f);
+  }
+  fputc('"', f);
+}
+
+static void json_metrics(FILE *f, const spx_metrics *m, double lpips, int has_mask) {
+  json_num(f, "psnr", m->psnr, 0);
+  json_num(f, "ssim", m->ssim, 0);
+  if (has_mask) {
+    json_num(f, "psnr_masked", m->psnr_fg, 0);
+    json_num(f, "ssim_masked", m->ssim_fg, 0);
+  }
+  json_num(f, "lpips", lpips, 1);
+}
+
+/* Write the report to path through a temp file renamed over it: F appears whole or not at all. */
+static int write_json(const char *path, const list *l, const spx_metrics *mean, double mean_lpips, int has_mask) {
+  size_t n = strlen(path) + 32;
+  char *tmp = malloc(n);
+  if (!tmp) return spx_cli_errorf("eval", "out of memory");
+  snprintf(tmp, n, "%s.tmp.%ld", path, (long)getpid());
+  FILE *f = fopen(tmp, "wb");
+  if (!f) {
+    int rc = spx_cli_errorf("eval", "%s: cannot write (%s)", path, strerror(errno));
+    free(tmp);
+    return rc;
+  }
+  fprintf(f, "{\"count\": %d, ", l->n);
+  json_metrics(f, mean, mean_lpips, has_mask);
+  fprintf(f, ",\n \"images\": [");
+  for (int i = 0; i < l->n; i++) {
+    fprintf(f, "%s\n  {\"name\": ", i ? "," : "");
+    json_str(f, l->it[i].name);
+    fprintf(f, ", ");
+    json_metrics(f, &l->it[i].m, l->it[i].lpips, has_mask);
+    fprintf(f, "}");
+  }
+  fprintf(f, "\n ]}\n");
+  int bad = ferror(f);
+  bad |= fclose(f) != 0;
+  if (bad || rename(tmp, path)) {
+    int rc = spx_cli_errorf("eval", "%s: cannot write (%s)", path, strerror(errno ? errno : EIO));
+    remove(tmp);
+    free(tmp);
+    return rc;
+  }
+  free(tmp);
+  return SPX_EXIT_OK;
+}
+
+int spx_cmd_eval(int argc, char **argv) {
+  const char *pred = NULL, *target = NULL, *mask = NULL, *json = NULL, *lpw = NULL, *device = NULL;
+  int per_image = 0, bad = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *v;
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+      eval_help();
+      return SPX_EXIT_OK;
+    }
+    if ((v = spx_cli_opt(argc, argv, &i, "--pred", &bad))) pred = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--target", &bad))) target = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--mask", &bad))) mask = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--json", &bad))) json = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--lpips", &bad))) lpw = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) device = v;
+    else if (!strcmp(argv[i], "--per-image")) per_image = 1;
+    else if (bad) return spx_cli_usage("eval", "%s needs a value", argv[i]);
+    else return spx_cli_usage("eval", "unknown option '%s'", argv[i]);
+    if (bad) return spx_cli_usage("eval", "%s needs a value", argv[i]);
+  }
+  if (!pred || !target) return spx_cli_usage("eval", "--pred and --target are required");
+  spx_ctx *ctx = NULL;
+  spx_lpips *lp = NULL;
+  list l = {0};
+  int rc;
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("eval", "out of memory");
+  if ((rc = pair_up(pred, target, mask, &l))) goto done;
+  if (lpw) {
+    if ((rc = spx_cli_open_device("eval", ctx, device))) goto done;
+    if (spx_lpips_load(ctx, lpw, &lp)) {
+      rc = spx_cli_error("eval", ctx);
+      goto done;
+    }
+  }
+  spx_metrics mean = {0};
+  double mean_lp = 0;
+  for (int i = 0; i < l.n; i++) {
+    item *it = &l.it[i];
+    if ((rc = measure(ctx, lp, it))) goto done;
+    if (per_image) print_line(it->name, &it->m, it->lpips, lp != NULL, mask != NULL);
+    mean.psnr += it->m.psnr, mean.ssim += it->m.ssim, mean.psnr_fg += it->m.psnr_fg, mean.ssim_fg += it->m.ssim_fg;
+    mean_lp += it->lpips;
+  }
+  mean.psnr /= l.n, mean.ssim /= l.n, mean.psnr_fg /= l.n, mean.ssim_fg /= l.n;
+  mean_lp = lp ? mean_lp / l.n : NAN;
+  if (json && (rc = write_json(json, &l, &mean, mean_lp, mask != NULL))) goto done;
+  char lead[64];
+  snprintf(lead, sizeof lead, "mean over %d image%s", l.n, l.n == 1 ? "" : "s");
+  print_line(lead, &mean, mean_lp, lp != NULL, mask != NULL);
+done:
+  spx_lpips_free(lp);
+  list_free(&l);
+  spx_ctx_destroy(ctx);
+  return rc;
+}
