@@ -32,14 +32,14 @@ command -v jq >/dev/null || die "jq: not found (apt-get install jq)"
 
 if [ "${TABLE1_QUICK:-0}" = 1 ]; then
   mode=quick SUBJECTS=2 NTRAIN=1 VIEWS=3 VTRAIN=2 SIZE=64x48 WIDTH=8 STEPS=20 GANSTEPS=10 BATCH=2
-  POINTS=8000 TEX=256 SEED=7
+  POINTS=8000 TEX=256 SYNTEX=256 SEED=7
   out=${TABLE1_OUT:-$root/out/table1-quick}
   report=${TABLE1_REPORT:-$out}
 else
   # 60 minutes on 2 CPU cores: see README "make table1" for the time per stage.
   mode=full SUBJECTS=${TABLE1_SUBJECTS:-6} NTRAIN=${TABLE1_NTRAIN:-4} VIEWS=${TABLE1_VIEWS:-12} VTRAIN=${TABLE1_VTRAIN:-9}
   SIZE=${TABLE1_SIZE:-128x96} WIDTH=${TABLE1_WIDTH:-16} STEPS=${TABLE1_STEPS:-1500} GANSTEPS=${TABLE1_GANSTEPS:-500}
-  BATCH=${TABLE1_BATCH:-4} POINTS=50000 TEX=1024 SEED=${TABLE1_SEED:-1}
+  BATCH=${TABLE1_BATCH:-4} POINTS=50000 TEX=1024 SYNTEX=2048 SEED=${TABLE1_SEED:-1}
   out=${TABLE1_OUT:-$root/out/table1}
   report=${TABLE1_REPORT:-$root/benchmarks}
 fi
@@ -71,7 +71,8 @@ if [ -n "${TABLE1_SYNTH:-}" ]; then # an existing `smplpix synth` output (read o
   cp -r "$TABLE1_SYNTH" "$out/synth"
 else
   $tool synth --help >/dev/null 2>&1 || die "smplpix synth: not in this build (branch h/synth not merged)"
-  stage synth $tool synth --subjects "$SUBJECTS" --views "$VIEWS" --seed "$SEED" --out "$out/synth" --size "$SIZE"
+  stage synth $tool synth --subjects "$SUBJECTS" --views "$VIEWS" --seed "$SEED" --out "$out/synth" --size "$SIZE" \
+    --texture-size "$SYNTEX" --quiet
 fi
 man=$out/synth/synth.json
 manname=${TABLE1_SYNTH:+$TABLE1_SYNTH/synth.json}
@@ -194,10 +195,8 @@ if [ $have_eval = 1 ]; then
   lp=()
   [ -n "${TABLE1_LPIPS:-}" ] && lp=(--lpips "$TABLE1_LPIPS")
   for m in $methods; do
-    $tool eval "$out/methods/$m" "$out/methods/gt" --json "$out/eval_$m.json" "${lp[@]}" >>"$log" 2>&1 ||
-      die "eval: $(tail -n 1 "$log") (log: $log)"
-    $tool eval "$out/methods/$m" "$out/methods/gt" --mask "$out/methods/mask" --json "$out/eval_${m}_mask.json" "${lp[@]}" \
-      >>"$log" 2>&1 || die "eval: $(tail -n 1 "$log") (log: $log)"
+    $tool eval --pred "$out/methods/$m" --target "$out/methods/gt" --mask "$out/methods/mask" --json "$out/eval_$m.json" \
+      "${lp[@]}" >>"$log" 2>&1 || die "eval: $(tail -n 1 "$log") (log: $log)"
   done
 fi
 stage_s[eval]=$(secs "$t0" "$(now)")
@@ -212,7 +211,7 @@ done
 
 metric() { # metric FILE KEY: the mean of KEY from an eval JSON, or "—"
   [ -f "$1" ] || { echo "—"; return; }
-  jq -r --arg k "$2" '(.mean[$k] // .[$k] // empty) | if type == "number" then (. * 1000 | round / 1000 | tostring) else empty end' "$1" 2>/dev/null |
+  jq -r --arg k "$2" '.[$k] | if type == "number" then (. * 1000 | round / 1000 | tostring) else empty end' "$1" 2>/dev/null |
     head -n 1 | grep . || echo "—"
 }
 ms() { [ -n "${t_frames[$1]:-}" ] && printf '%.0f' "$(calc "${t_frames[$1]} * 1000 / $ntest")" || echo "—"; }
@@ -232,8 +231,8 @@ md=$out/TABLE1.md.tmp
   echo "| method | vertices | PSNR full | SSIM full | LPIPS full | PSNR mask | SSIM mask | time/frame (ms) |"
   echo "|---|---|---|---|---|---|---|---|"
   row() { # row LABEL VERTS METHOD TIMEKEY
-    local j=$out/eval_$3.json jm=$out/eval_$3_mask.json
-    echo "| $1 | $2 | $(metric "$j" psnr) | $(metric "$j" ssim) | $(metric "$j" lpips) | $(metric "$jm" psnr) | $(metric "$jm" ssim) | $4 |"
+    local j=$out/eval_$3.json
+    echo "| $1 | $2 | $(metric "$j" psnr) | $(metric "$j" ssim) | $(metric "$j" lpips) | $(metric "$j" psnr_masked) | $(metric "$j" ssim_masked) | $4 |"
   }
   row "per-vertex colours, rasterized (paper: NMR per-verts)" "13,380" pervertex13k "$(ms raster13k)"
   row "per-vertex colours, rasterized (paper: NMR per-verts)" "53,514 (1 Loop step; paper: 27k)" pervertex53k "$(ms raster53k)"
@@ -246,7 +245,7 @@ md=$out/TABLE1.md.tmp
   echo
   echo "## Setup"
   echo
-  echo "- Data: \`smplpix synth --subjects $SUBJECTS --views $VIEWS --seed $SEED --size $SIZE\`; subjects 0..$((NTRAIN - 1)) train"
+  echo "- Data: \`smplpix synth --subjects $SUBJECTS --views $VIEWS --seed $SEED --size $SIZE --texture-size $SYNTEX\`; subjects 0..$((NTRAIN - 1)) train"
   echo "  (views 0..$((VTRAIN - 1)); views $VTRAIN.. of them are the validation set), subjects $NTRAIN..$((SUBJECTS - 1)) test (views $VTRAIN..$((VIEWS - 1)))."
   echo "  Test pose sources also used in training: $overlap."
   echo "- Registration: a $POINTS-point coloured cloud sampled from each scan (\`table1_tool sample\`), \`smplpix register\`"
