@@ -33,10 +33,14 @@ static int load_registration(const char *cmd, spx_ctx *ctx, const char *reg_path
 
 /* Pose the registered person and save it (model frame, metres). The model's texture coordinates
  * (when it has them) go with the mesh; subdivide > 0 adds Loop subdivision steps of the posed mesh
- * (positions and colours; texture coordinates are dropped). */
+ * (positions and colours; texture coordinates are dropped).
+ * scan_trans != NULL: pose and trans are given in the scan's frame (a synth view, whose subject
+ * was scanned with translation scan_trans): the registered translation is moved by
+ * R^T (trans - scan_trans) / (s * body_scale) and the registration's similarity (s, R, t; model
+ * frame -> scan) is applied, so the mesh lands in the scan's frame (metres). */
 static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m, const spx_fit_result *r,
-                         const double *betas, const double *pose, const double *trans, int subdivide,
-                         const char *out_path) {
+                         const double *betas, const double *pose, const double *trans, const double *scan_trans,
+                         int subdivide, const char *out_path) {
   double *v = malloc((size_t)m->nv * 3 * sizeof(double));
   spx_mesh out = {0}, sub = {0};
   int rc = SPX_EXIT_OK, uv = m->vt && m->ft && subdivide == 0;
@@ -53,12 +57,24 @@ static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m,
     rc = spx_cli_errorf(cmd, "out of memory");
     goto done;
   }
-  spx_body_params p = {r->nbetas, betas, pose, trans, r->template_unposed};
+  double tx[3] = {0, 0, 0};
+  const double *R = r->sim_R, k = r->sim_scale * r->body_scale;
+  if (scan_trans) {
+    double d[3] = {trans[0] - scan_trans[0], trans[1] - scan_trans[1], trans[2] - scan_trans[2]};
+    for (int a = 0; a < 3; a++) tx[a] = r->trans[a] + (R[a] * d[0] + R[3 + a] * d[1] + R[6 + a] * d[2]) / k;
+  }
+  spx_body_params p = {r->nbetas, betas, pose, scan_trans ? tx : trans, r->template_unposed};
   if (spx_body_forward_ref(ctx, m, &p, v, NULL)) {
     rc = spx_cli_error(cmd, ctx);
     goto done;
   }
-  for (int32_t i = 0; i < m->nv * 3; i++) out.pos[i] = (float)(r->body_scale * v[i]);
+  for (int32_t i = 0; i < m->nv; i++) {
+    const double *x = v + (size_t)i * 3;
+    for (int a = 0; a < 3; a++)
+      out.pos[i * 3 + a] = scan_trans ? (float)((k * (R[a * 3] * x[0] + R[a * 3 + 1] * x[1] + R[a * 3 + 2] * x[2]) + r->sim_t[a]) /
+                                                r->unit_scale)
+                                      : (float)(r->body_scale * x[a]);
+  }
   memcpy(out.faces, m->faces, (size_t)m->nf * 3 * sizeof(int32_t));
   if (r->colors) memcpy(out.col, r->colors, (size_t)m->nv * 3 * sizeof(float));
   if (uv) {
@@ -96,7 +112,9 @@ int spx_cmd_repose(int argc, char **argv) {
              "retargeted by joint name, or with the model's own pose parameters from Q.json: its\n"
              "top-level \"pose\" and \"trans\" (e.g. a registration JSON), or with --view the \"pose\"\n"
              "object of that view of a `smplpix synth` manifest. Writes the mesh (with the registration's\n"
-             "colours and the model's texture coordinates) in metres; --subdivide N adds N Loop steps\n"
+             "colours and the model's texture coordinates) in metres, in the model frame; with --view in\n"
+             "the scan's frame (the registration's similarity applied, the translation taken relative to\n"
+             "the subject's \"scan_pose\"), where the synth cameras look. --subdivide N adds N Loop steps\n"
              "(4^N times the faces; texture coordinates are then dropped).\n");
       return SPX_EXIT_OK;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--registration", &bad))) {
@@ -136,7 +154,7 @@ int spx_cmd_repose(int argc, char **argv) {
   spx_bvh b;
   spx_bvh_map map;
   memset(&r, 0, sizeof r), memset(&m, 0, sizeof m), memset(&b, 0, sizeof b), memset(&map, 0, sizeof map);
-  double *pose = NULL, trans[3];
+  double *pose = NULL, trans[3], scan_trans[3];
   int rc = load_registration("repose", ctx, reg_path, model_arg, &r, &m);
   if (rc) goto done;
   pose = malloc((size_t)m.nj * 3 * sizeof(double));
@@ -145,7 +163,7 @@ int spx_cmd_repose(int argc, char **argv) {
     goto done;
   }
   if (pose_path) {
-    if (spx_pose_load_json(ctx, pose_path, view, m.nj, pose, trans)) {
+    if (spx_pose_load_json(ctx, pose_path, view, m.nj, pose, trans, view ? scan_trans : NULL)) {
       rc = spx_cli_error("repose", ctx);
       goto done;
     }
@@ -163,7 +181,7 @@ int spx_cmd_repose(int argc, char **argv) {
       goto done;
     }
   }
-  rc = pose_and_save("repose", ctx, &m, &r, r.betas, pose, trans, (int)subdivide, out_path);
+  rc = pose_and_save("repose", ctx, &m, &r, r.betas, pose, trans, view ? scan_trans : NULL, (int)subdivide, out_path);
 done:
   free(pose);
   spx_bvh_map_free(&map);
@@ -235,7 +253,7 @@ int spx_cmd_reshape(int argc, char **argv) {
   memcpy(betas, r.betas, (size_t)r.nbetas * sizeof(double));
   if (!rest) memcpy(pose, r.pose, (size_t)m.nj * 3 * sizeof(double));
   for (int k = 0; k < nsh; k++) betas[sh_idx[k]] = sh_rel[k] ? betas[sh_idx[k]] + sh_val[k] : sh_val[k];
-  rc = pose_and_save("reshape", ctx, &m, &r, betas, pose, rest ? NULL : r.trans, 0, out_path);
+  rc = pose_and_save("reshape", ctx, &m, &r, betas, pose, rest ? NULL : r.trans, NULL, 0, out_path);
 done:
   free(betas), free(pose);
   spx_body_free(&m);

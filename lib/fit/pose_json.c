@@ -26,8 +26,8 @@ static spx_status numbers(spx_ctx *ctx, const char *path, const char *where, con
   return SPX_OK;
 }
 
-/* The view named `view` in a synth manifest, or NULL. */
-static const cJSON *find_view(const cJSON *root, const char *view) {
+/* The view named `view` in a synth manifest (and its subject), or NULL. */
+static const cJSON *find_view(const cJSON *root, const char *view, const cJSON **subject) {
   const cJSON *subjects = cJSON_GetObjectItemCaseSensitive(root, "subjects"), *s;
   if (!cJSON_IsArray(subjects)) return NULL;
   cJSON_ArrayForEach(s, subjects) {
@@ -35,14 +35,14 @@ static const cJSON *find_view(const cJSON *root, const char *view) {
     if (!cJSON_IsArray(views)) continue;
     cJSON_ArrayForEach(v, views) {
       const cJSON *name = cJSON_GetObjectItemCaseSensitive(v, "name");
-      if (cJSON_IsString(name) && !strcmp(name->valuestring, view)) return v;
+      if (cJSON_IsString(name) && !strcmp(name->valuestring, view)) return *subject = s, v;
     }
   }
   return NULL;
 }
 
 spx_status spx_pose_load_json(spx_ctx *ctx, const char *path, const char *view, int32_t nj, double *pose,
-                              double trans[3]) {
+                              double trans[3], double scan_trans[3]) {
   if (!path || !pose || !trans || nj <= 0) return spx_fail(ctx, SPX_E_ARG, "spx_pose_load_json: bad arguments");
   unsigned char *data = NULL;
   size_t size = 0;
@@ -58,11 +58,18 @@ spx_status spx_pose_load_json(spx_ctx *ctx, const char *path, const char *view, 
   char where[160];
   snprintf(where, sizeof where, "the top level");
   if (view) {
-    const cJSON *v = find_view(root, view);
+    const cJSON *subject = NULL, *v = find_view(root, view, &subject);
     obj = v ? cJSON_GetObjectItemCaseSensitive(v, "pose") : NULL;
     if (!v) st = spx_fail(ctx, SPX_E_FORMAT, "%s: no view named \"%s\" in subjects[].views[]", path, view);
     else if (!cJSON_IsObject(obj)) st = spx_fail(ctx, SPX_E_FORMAT, "%s: view \"%s\" has no \"pose\" object", path, view);
     snprintf(where, sizeof where, "view \"%.120s\" pose", view);
+    if (!st && scan_trans) {
+      const cJSON *sp = cJSON_GetObjectItemCaseSensitive(subject, "scan_pose");
+      char w2[160];
+      snprintf(w2, sizeof w2, "the \"scan_pose\" of view \"%.100s\"'s subject", view);
+      if (!cJSON_IsObject(sp)) st = spx_fail(ctx, SPX_E_FORMAT, "%s: view \"%s\"'s subject has no \"scan_pose\" object", path, view);
+      else st = numbers(ctx, path, w2, sp, "trans", 3, scan_trans);
+    }
   }
   if (!st) st = numbers(ctx, path, where, obj, "pose", nj * 3, pose);
   if (!st) st = numbers(ctx, path, where, obj, "trans", 3, trans);
