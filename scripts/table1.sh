@@ -152,10 +152,10 @@ while IFS=$'\t' read -r si vi vname cam img mask src; do
     cp "$out/synth/$img" "$out/methods/gt/$vname.png"
     cp "$out/synth/$mask" "$out/methods/mask/$vname.png"
     cp "$out/data13k/test/input/$vname.png" "$out/methods/input13k/$vname.png"
-    timed raster13k $tool raster --mesh "$d/$vname.13k.obj" --camera "$out/synth/$cam" --out "$out/methods/pervertex13k/$vname.png" --color mesh --quiet
-    timed raster53k $tool raster --mesh "$d/$vname.53k.ply" --camera "$out/synth/$cam" --out "$out/methods/pervertex53k/$vname.png" --color mesh --quiet
+    timed raster13k $tool raster --mesh "$d/$vname.13k.obj" --camera "$out/synth/$cam" --out "$out/methods/pervertex13k/$vname.png" --color mesh --aa 2 --quiet
+    timed raster53k $tool raster --mesh "$d/$vname.53k.ply" --camera "$out/synth/$cam" --out "$out/methods/pervertex53k/$vname.png" --color mesh --aa 2 --quiet
     timed textured $tool raster --mesh "$d/$vname.13k.obj" --camera "$out/synth/$cam" --texture "$d/texture.png" \
-      --out "$out/methods/textured13k/$vname.png" --quiet
+      --out "$out/methods/textured13k/$vname.png" --aa 2 --quiet
   fi
 done <"$out/views.tsv"
 stage_s[inputs]=$(secs "$t0" "$(now)")
@@ -253,6 +253,7 @@ md=$out/TABLE1.md.tmp
   echo "  (rigid, pose, free); the registered vertices and colours are reposed to each view's pose"
   echo "  (\`smplpix repose --pose synth.json --view NAME\`), at 13,380 vertices and after one Loop step (53,514;"
   echo "  the paper's 27k row is one subdivision of its 7k body). Texture: \`smplpix bake\` (${TEX}x${TEX})."
+  echo "- Rasterizers: \`smplpix raster --aa 2\` (2x2 supersampling, as NMR and the synth photos), unlit colours."
   echo "- Network: UNet width $WIDTH, batch $BATCH, Adam lr 2e-3, $STEPS steps of l1$([ $gan = 1 ] && echo ", then $GANSTEPS of l1+gan at lr 2e-4"); seed $SEED."
   echo "- Time per stage (s): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$k" "${stage_s[$k]:-0}"; done)total $(printf '%.0f' "$total")."
   echo "- Machine: $(uname -srm), $(nproc) CPU cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')), OpenCL device: $($tool devices 2>/dev/null | head -n 1 | sed 's/^ *//')."
