@@ -18,6 +18,8 @@
 
 #include "smplpix/body.h"
 #include "smplpix/unet.h"
+#include "smplpix/vgg.h"
+#include "smplpix/patchgan.h"
 #include "smplpix/fit.h"
 #include "smplpix/bake.h"
 #include "smplpix/metrics.h"
