@@ -33,7 +33,7 @@ command -v jq >/dev/null || die "jq: not found (apt-get install jq)"
 
 if [ "${TABLE1_QUICK:-0}" = 1 ]; then
   mode=quick SUBJECTS=2 NTRAIN=1 VIEWS=3 VTRAIN=2 SIZE=64x48 WIDTH=8 STEPS=20 GANSTEPS=10 BATCH=2
-  POINTS=8000 TEX=256 SYNTEX=256 SEED=7
+  POINTS=8000 TEX=256 SYNTEX=256 SEED=7 DISCW=8
   out=${TABLE1_OUT:-$root/out/table1-quick}
   report=${TABLE1_REPORT:-$out}
 else
@@ -41,6 +41,7 @@ else
   mode=full SUBJECTS=${TABLE1_SUBJECTS:-8} NTRAIN=${TABLE1_NTRAIN:-6} VIEWS=${TABLE1_VIEWS:-16} VTRAIN=${TABLE1_VTRAIN:-12}
   SIZE=${TABLE1_SIZE:-128x96} WIDTH=${TABLE1_WIDTH:-16} STEPS=${TABLE1_STEPS:-1500} GANSTEPS=${TABLE1_GANSTEPS:-300}
   BATCH=${TABLE1_BATCH:-4} POINTS=50000 TEX=1024 SYNTEX=2048 SEED=${TABLE1_SEED:-1}
+  DISCW=${TABLE1_DISCW:-32}
   out=${TABLE1_OUT:-$root/out/table1}
   report=${TABLE1_REPORT:-$root/benchmarks}
 fi
@@ -176,7 +177,7 @@ for n in 13k 53k; do
   ckpt=$out/unet$n.stage1.safetensors
   if [ $gan = 1 ]; then
     stage "train$n" $tool train --data "$out/data$n" --out "$out/unet$n.stage2.safetensors" --width "$WIDTH" --batch "$BATCH" \
-      --lr 2e-4 --steps "$GANSTEPS" --seed "$SEED" --loss l1+gan --init "$ckpt" --log-every 50
+      --lr 2e-4 --steps "$GANSTEPS" --seed "$SEED" --loss l1+gan --disc-width "$DISCW" --init "$ckpt" --log-every 50
     ckpt=$out/unet$n.stage2.safetensors
   fi
   cp "$ckpt" "$out/unet$n.safetensors"
@@ -254,7 +255,7 @@ md=$out/TABLE1.md.tmp
   echo "  (\`smplpix repose --pose synth.json --view NAME\`), at 13,380 vertices and after one Loop step (53,514;"
   echo "  the paper's 27k row is one subdivision of its 7k body). Texture: \`smplpix bake\` (${TEX}x${TEX})."
   echo "- Rasterizers: \`smplpix raster --aa 2\` (2x2 supersampling, as NMR and the synth photos), unlit colours."
-  echo "- Network: UNet width $WIDTH, batch $BATCH, Adam lr 2e-3, $STEPS steps of l1$([ $gan = 1 ] && echo ", then $GANSTEPS of l1+gan at lr 2e-4"); seed $SEED."
+  echo "- Network: UNet width $WIDTH, batch $BATCH, Adam lr 2e-3, $STEPS steps of l1$([ $gan = 1 ] && echo ", then $GANSTEPS of l1+gan at lr 2e-4, PatchGAN width $DISCW"); seed $SEED."
   echo "- Time per stage (s): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$k" "${stage_s[$k]:-0}"; done)total $(printf '%.0f' "$total")."
   echo "- Machine: $(uname -srm), $(nproc) CPU cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')), OpenCL device: $($tool devices 2>/dev/null | head -n 1 | sed 's/^ *//')."
   echo "- Command: \`$([ $mode = quick ] && echo 'TABLE1_QUICK=1 ')make table1\`, $(date -u '+%Y-%m-%d %H:%M UTC'); grid: table1.png (rows: test views;"
