@@ -39,7 +39,7 @@ if [ "${TABLE1_QUICK:-0}" = 1 ]; then
 else
   # 60 minutes on 2 CPU cores: see README "make table1" for the time per stage.
   mode=full SUBJECTS=${TABLE1_SUBJECTS:-8} NTRAIN=${TABLE1_NTRAIN:-6} VIEWS=${TABLE1_VIEWS:-16} VTRAIN=${TABLE1_VTRAIN:-12}
-  SIZE=${TABLE1_SIZE:-128x96} WIDTH=${TABLE1_WIDTH:-16} STEPS=${TABLE1_STEPS:-1500} GANSTEPS=${TABLE1_GANSTEPS:-300}
+  SIZE=${TABLE1_SIZE:-128x96} WIDTH=${TABLE1_WIDTH:-16} STEPS=${TABLE1_STEPS:-1200} GANSTEPS=${TABLE1_GANSTEPS:-200}
   BATCH=${TABLE1_BATCH:-4} POINTS=50000 TEX=1024 SYNTEX=2048 SEED=${TABLE1_SEED:-1}
   DISCW=${TABLE1_DISCW:-32}
   out=${TABLE1_OUT:-$root/out/table1}
@@ -48,9 +48,14 @@ fi
 [ "$NTRAIN" -ge 1 ] && [ "$NTRAIN" -lt "$SUBJECTS" ] || die "TABLE1_NTRAIN=$NTRAIN: need 1..SUBJECTS-1 training subjects"
 [ "$VTRAIN" -ge 1 ] && [ "$VTRAIN" -lt "$VIEWS" ] || die "TABLE1_VTRAIN=$VTRAIN: need 1..VIEWS-1 training views"
 
+# the work directory is replaced: only when it is one (its log.txt) or empty
+if [ -e "$out" ] && { [ ! -d "$out" ] || { [ -n "$(ls -A "$out")" ] && [ ! -f "$out/log.txt" ]; }; }; then
+  die "$out: exists and is not a table1 work directory (no log.txt); choose another TABLE1_OUT"
+fi
 rm -rf "$out"
-mkdir -p "$out" "$report"
+mkdir -p "$out" "$report" || die "$out or $report: cannot create"
 log=$out/log.txt
+: >"$log"
 t_start=$(date +%s.%N)
 declare -A stage_s
 stage() { # stage NAME CMD...: run, log, add the wall time to stage_s[NAME]

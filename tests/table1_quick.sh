@@ -36,6 +36,10 @@ expect_error "$tmp/bad1/synth.json: every subject needs" env TABLE1_QUICK=1 TABL
 mkdir -p "$tmp/bad2" && printf '{"subjects": [' >"$tmp/bad2/synth.json"
 expect_error "$tmp/bad2/synth.json: not valid JSON" env TABLE1_QUICK=1 TABLE1_BUILD=$build TABLE1_OUT=$tmp/run-bad \
   TABLE1_REPORT=$tmp/report-bad TABLE1_SYNTH=$tmp/bad2 bash "$script"
+mkdir -p "$tmp/precious" && touch "$tmp/precious/keep"
+expect_error "$tmp/precious: exists and is not a table1 work directory" env TABLE1_QUICK=1 TABLE1_BUILD=$build \
+  TABLE1_OUT=$tmp/precious TABLE1_REPORT=$tmp/report-bad bash "$script"
+[ -f "$tmp/precious/keep" ] || fail "table1.sh removed a directory that was not its own"
 [ -e "$tmp/report-bad/TABLE1.md" ] || [ -e "$tmp/report-bad/table1.png" ] && fail "a failed run left a report"
 
 # --- repose --pose / --view / --subdivide and bake on bad input -------------------------------------
