@@ -171,6 +171,13 @@ stage_s[inputs]=$(secs "$t0" "$(now)")
 seen=$(awk -F'\t' -v nt="$NTRAIN" -v vt="$VTRAIN" '$1 < nt && $2 < vt {print $7}' "$out/views.tsv" | sort -u)
 overlap=$(awk -F'\t' -v nt="$NTRAIN" -v vt="$VTRAIN" '$1 >= nt && $2 >= vt {print $7}' "$out/views.tsv" | sort -u |
   grep -Fxc -f <(printf '%s\n' "$seen") || true)
+frames() { # frames SUBJECT_TEST VIEW_TEST: "min..max" of the BVH frames of those views
+  awk -F'\t' -v nt="$NTRAIN" -v vt="$VTRAIN" -v st="$1" -v sv="$2" '
+    (st ? $1 >= nt : $1 < nt) && (sv ? $2 >= vt : $2 < vt) && $7 ~ /^bvh:/ {
+      f = substr($7, 5) + 0; if (n++ == 0 || f < lo) lo = f; if (f > hi) hi = f }
+    END { print n ? lo ".." hi : "none" }' "$out/views.tsv"
+}
+train_frames=$(frames 0 0) test_frames=$(frames 1 1)
 
 # ---- train ------------------------------------------------------------------------------------
 gan=0
@@ -254,7 +261,8 @@ md=$out/TABLE1.md.tmp
   echo
   echo "- Data: \`smplpix synth --subjects $SUBJECTS --views $VIEWS --seed $SEED --size $SIZE --texture-size $SYNTEX\`; subjects 0..$((NTRAIN - 1)) train"
   echo "  (views 0..$((VTRAIN - 1)); view $VTRAIN of each is the validation set), subjects $NTRAIN..$((SUBJECTS - 1)) test (views $VTRAIN..$((VIEWS - 1)))."
-  echo "  Test pose sources also used in training: $overlap."
+  echo "  BVH frames of the training views: $train_frames (plus rest poses); of the test views: $test_frames;"
+  echo "  test pose sources also used in training: $overlap."
   echo "- Registration: a $POINTS-point coloured cloud sampled from each scan (\`table1_tool sample\`), \`smplpix register\`"
   echo "  (rigid, pose, free); the registered vertices and colours are reposed to each view's pose"
   echo "  (\`smplpix repose --pose synth.json --view NAME\`), at 13,380 vertices and after one Loop step (53,514;"
