@@ -118,7 +118,7 @@ done
 
 # ---- inputs and baselines ---------------------------------------------------------------------
 say "inputs: repose to every view's pose, project at 13k and 53k vertices; rasterize the test views"
-declare -A t_frames
+declare -A t_frames n_frames
 for n in 13k 53k; do
   for split in train validation test; do mkdir -p "$out/data$n/$split/input" "$out/data$n/$split/output"; done
 done
@@ -131,6 +131,7 @@ timed() { # timed KEY CMD...: run once, add the wall time to t_frames[KEY] (one 
   "$@" >>"$log" 2>&1 || die "$key: $(tail -n 1 "$log") (log: $log)"
   t1=$(now)
   t_frames[$key]=$(calc "${t_frames[$key]:-0} + $t1 - $t0")
+  n_frames[$key]=$((${n_frames[$key]:-0} + 1))
 }
 ntest=0
 t0=$(now)
@@ -228,7 +229,7 @@ metric() { # metric FILE KEY: the mean of KEY from an eval JSON, or "—"
   jq -r --arg k "$2" '.[$k] | if type == "number" then (. * 1000 | round / 1000 | tostring) else empty end' "$1" 2>/dev/null |
     head -n 1 | grep . || echo "—"
 }
-ms() { [ -n "${t_frames[$1]:-}" ] && printf '%.0f' "$(calc "${t_frames[$1]} * 1000 / $ntest")" || echo "—"; }
+ms() { [ -n "${t_frames[$1]:-}" ] && printf '%.0f' "$(calc "${t_frames[$1]} * 1000 / ${n_frames[$1]}")" || echo "—"; }
 total=$(secs "$t_start" "$(now)")
 stage_name="stage 1 (l1, ${STEPS} steps)"
 [ $gan = 1 ] && stage_name="stage 1 + 2 (l1 ${STEPS} steps, then l1+gan ${GANSTEPS} steps: offline variant, no VGG)"
@@ -254,6 +255,15 @@ md=$out/TABLE1.md.tmp
   row "SMPLpix, $stage_name" "13,380" smplpix13k "$(printf '%s + %s' "$(ms project13k)" "$(ms unet13k)")"
   row "SMPLpix, $stage_name" "53,514 (1 Loop step; paper: 27k)" smplpix53k "$(printf '%s + %s' "$(ms project53k)" "$(ms unet53k)")"
   echo
+  if [ $have_eval = 1 ]; then
+    pv=$(metric "$out/eval_pervertex13k.json" psnr) tx=$(metric "$out/eval_textured13k.json" psnr)
+    sp=$(metric "$out/eval_smplpix13k.json" psnr)
+    awk -v pv="$pv" -v tx="$tx" -v sp="$sp" 'BEGIN {
+      if (pv == "—" || tx == "—" || sp == "—") { print "Goal: not evaluated (a PSNR is missing)."; exit }
+      d1 = sp - pv; d2 = tx - sp
+      printf "Goal (issue 15), 13,380 vertices, full-image PSNR: SMPLpix - per-vertex = %+.2f dB (goal >= +2: %s); ", d1, (d1 >= 2 ? "met" : "not met")
+      printf "textured - SMPLpix = %+.2f dB (goal <= 0.5: %s).\n", d2, (d2 <= 0.5 ? "met" : "not met") }'
+  fi
   [ $have_eval = 1 ] || echo "**No scores: \`smplpix eval\` is not in this build (branch h/eval not merged); the images are in $out/methods.**"
   [ $gan = 1 ] || echo "**Stage 2 (l1+gan) not run: \`smplpix train\` has no --loss l1+gan in this build (branch h/recipe not merged).**"
   echo
