@@ -60,6 +60,17 @@ printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n' >"$t
 "$tool" bake --mesh "$tmp/triuv.obj" --scan "$tmp/tric.obj" --out "$tmp/t.png" --size 8 >/dev/null || fail "bake of a textured triangle"
 [ -s "$tmp/t.png" ] || fail "bake wrote no texture"
 
+# table1_tool (the point-cloud sampler and the grid composer) on bad input, then on good input
+helper=$build/benchmarks/table1_tool
+expect_error "$tmp/none.ply" "$helper" sample --mesh "$tmp/none.ply" --points 10 --out "$tmp/pc.ply"
+expect_error "$tmp/tri.obj: needs triangles and vertex colours" "$helper" sample --mesh "$tmp/tri.obj" --points 10 --out "$tmp/pc.ply"
+expect_error "$tmp/none.png" "$helper" grid --out "$tmp/g.png" --cols 2 "$tmp/t.png" "$tmp/none.png"
+[ -e "$tmp/pc.ply" ] || [ -e "$tmp/g.png" ] && fail "a failed table1_tool call wrote its output"
+"$helper" sample --mesh "$tmp/tric.obj" --points 100 --seed 3 --out "$tmp/pc.ply" | grep -q "100 points" || fail "sample"
+"$helper" sample --mesh "$tmp/tric.obj" --points 100 --seed 3 --out "$tmp/pc2.ply" >/dev/null
+cmp -s "$tmp/pc.ply" "$tmp/pc2.ply" || fail "sample is not deterministic for a seed"
+"$helper" grid --out "$tmp/g.png" --cols 2 --cell 4x4 "$tmp/t.png" "$tmp/t.png" "$tmp/t.png" | grep -q "3 images" || fail "grid"
+
 # --- the pipeline, tiny ----------------------------------------------------------------------------
 # TABLE1_SYNTH=DIR (an existing synth output of the quick mode's sizes) runs it without smplpix synth
 if [ -z "${TABLE1_SYNTH:-}" ] && ! "$tool" synth --help >/dev/null 2>&1; then
