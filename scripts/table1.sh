@@ -279,7 +279,7 @@ md=$out/TABLE1.md.tmp
   echo "  the paper's 27k row is one subdivision of its 7k body). Texture: \`smplpix bake\` (${TEX}x${TEX})."
   echo "- Rasterizers: \`smplpix raster --aa 2\` (2x2 supersampling, as NMR and the synth photos), unlit colours."
   echo "- Network: UNet width $WIDTH, batch $BATCH, Adam lr 2e-3, $STEPS steps of l1$([ $gan = 1 ] && echo ", then $GANSTEPS of l1+gan at lr 2e-4, PatchGAN width $DISCW"); seed $SEED."
-  echo "- Time per stage (s): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$k" "${stage_s[$k]:-0}"; done)total $(printf '%.0f' "$total")."
+  echo "- Time per stage (s): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$([ $k = inputs ] && echo 'inputs+rasterizers' || echo $k)" "${stage_s[$k]:-0}"; done)total $(printf '%.0f' "$total")."
   echo "- Machine: $(uname -srm), $(nproc) CPU cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')), OpenCL device: $($tool devices 2>/dev/null | head -n 1 | sed 's/^ *//')."
   echo "- Command: \`$([ $mode = quick ] && echo 'TABLE1_QUICK=1 ')make table1\`, $(date -u '+%Y-%m-%d %H:%M UTC'); grid: table1.png (rows: test views;"
   echo "  columns: ground truth | input projection | per-vertex raster | textured raster | SMPLpix, 13k)."
