@@ -390,7 +390,7 @@ int spx_cmd_eval(int argc, char **argv) {
   mean_lp = lp ? mean_lp / l.n : NAN;
   if (json && (rc = write_json(json, &l, &mean, mean_lp, mask != NULL))) goto done;
   char lead[64];
-  snprintf(lead, sizeof lead, "mean over %d image%s", l.n, l.n == 1 ? "" : "s");
+  snprintf(lead, sizeof lead, "mean over %d images", l.n); /* the fixed form of the design, also for 1 */
   print_line(lead, &mean, mean_lp, lp != NULL, mask != NULL);
 done:
   spx_lpips_free(lp);

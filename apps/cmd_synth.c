@@ -75,14 +75,25 @@ int spx_cmd_synth(int argc, char **argv) {
     return spx_cli_usage("synth", "--seed %s: expected a non-negative integer", seed_s);
   o.seed = (uint64_t)sd;
   int w = 0, h = 0, used = 0;
-  if (sscanf(size_s, "%dx%d%n", &w, &h, &used) != 2 || size_s[used] || w < 16 || h < 16 || w > 8192 || h > 8192)
-    return spx_cli_usage("synth", "--size %s: expected WxH, each 16..8192", size_s);
+  if (sscanf(size_s, "%dx%d%n", &w, &h, &used) != 2 || size_s[used] || w < 16 || h < 16 || w > 4096 || h > 4096)
+    return spx_cli_usage("synth", "--size %s: expected WxH, each 16..4096", size_s);
   o.width = w;
   o.height = h;
   if (!parse_int(tex_s, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX, &n))
     return spx_cli_usage("synth", "--texture-size %s: expected %d..%d", tex_s, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX);
   o.tex_size = (int32_t)n;
-  o.out = out;
+  /* DIR without trailing slashes (the temporary folder is its sibling); not ".", ".." or "/" */
+  char *outc = strdup(out);
+  if (!outc) return spx_cli_errorf("synth", "out of memory");
+  size_t ol = strlen(outc);
+  while (ol > 1 && outc[ol - 1] == '/') outc[--ol] = 0;
+  const char *last = strrchr(outc, '/');
+  last = last ? last + 1 : outc;
+  if (!*last || !strcmp(last, ".") || !strcmp(last, "..")) {
+    free(outc);
+    return spx_cli_usage("synth", "--out %s: name a folder to create (not /, . or ..)", out);
+  }
+  o.out = outc;
   o.force = force;
   o.progress = !quiet;
   o.body_path = body_path ? body_path : spx_cli_data_path("body/default_body.npz");
@@ -96,6 +107,7 @@ int spx_cmd_synth(int argc, char **argv) {
   o.parts_path = pp;
   o.device = dev;
   int rc = (!bp || !vp || !pp) ? spx_cli_errorf("synth", "out of memory") : synth_run(&o);
+  free(outc);
   free(bp);
   free(vp);
   free(pp);

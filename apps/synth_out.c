@@ -78,6 +78,7 @@ typedef struct run_state {
   FILE *manifest;
   int tty, bar;
   double t0, last;
+  double t_scan, t_views; /* seconds spent on subjects (scan, texture, their files) and on views */
   long done, total;
 } run_state;
 
@@ -162,9 +163,10 @@ static int one_subject(run_state *s, int i) {
     goto done;
   }
   for (int v = 0; v < o->views; v++) vr[v].pose = poses + (size_t)v * nj * 3;
+  double t_start = spx_cli_now();
   spx_synth_rng rng = {spx_cli_mix64(o->seed * 0x9E3779B97F4A7C15ULL + (uint64_t)i + 1)};
   if (spx_synth_subject_create(s->ctx, &s->body, &s->parts, spx_synth_rng_next(&rng), o->tex_size, &sub)) {
-    rc = spx_cli_error("synth", s->ctx);
+    rc = spx_cli_errorf("synth", "%s: %s", o->body_path, spx_ctx_message(s->ctx));
     goto done;
   }
   posed = malloc((size_t)sub.nv * 3 * sizeof(float));
@@ -201,6 +203,8 @@ static int one_subject(run_state *s, int i) {
   }
   s->done++;
   progress(s, i, 0, 0);
+  double t_views = spx_cli_now();
+  s->t_scan += t_views - t_start;
   /* light fixed in the world for the subject: from the front-above, side drawn per subject */
   double side = spx_synth_rng_uniform(&rng, -0.8, 0.8);
   spx_synth_light light = {{side, 1.0, 0.8}, 0.45, 0.7};
@@ -248,6 +252,7 @@ static int one_subject(run_state *s, int i) {
     s->done++;
     progress(s, i, v + 1, v + 1 == o->views);
   }
+  s->t_views += spx_cli_now() - t_views;
   /* manifest entry */
   FILE *f = s->manifest;
   fprintf(f, "%s\n    {\"name\": \"%s\", \"betas\": ", i ? "," : "", name);
@@ -351,7 +356,7 @@ int synth_run(const synth_opts *o) {
   }
   snprintf(s.tmp, n, "%s.tmp.%ld", o->out, (long)getpid());
   if (mkdir(s.tmp, 0777)) {
-    rc = spx_cli_errorf("synth", "%s: cannot create folder: %s", s.tmp, strerror(errno));
+    rc = spx_cli_errorf("synth", "%s: cannot create the temporary folder %s: %s", o->out, s.tmp, strerror(errno));
     free(s.tmp);
     s.tmp = NULL;
     goto done;
@@ -372,6 +377,7 @@ int synth_run(const synth_opts *o) {
   s.tty = isatty(STDERR_FILENO);
   s.t0 = spx_cli_now();
   s.total = (long)o->subjects * (o->views + 1);
+  progress(&s, 0, 0, 1);
   for (int i = 0; i < o->subjects && !rc; i++) rc = one_subject(&s, i);
   progress_clear(&s);
   if (rc) goto done;
@@ -394,9 +400,10 @@ int synth_run(const synth_opts *o) {
   free(s.tmp);
   s.tmp = NULL;
   double el = spx_cli_now() - s.t0;
-  printf("wrote %d subjects x %d views (%dx%d, textures %d^2) to %s in %.1f s (%.2f s per subject, %.3f s per view)\n",
-         o->subjects, o->views, o->width, o->height, (int)o->tex_size, o->out, el, el / o->subjects,
-         el / ((double)o->subjects * o->views));
+  printf("wrote %d subjects x %d views (%dx%d, textures %d^2) to %s in %.1f s: %.2f s per subject (scan, texture), "
+         "%.3f s per view\n",
+         o->subjects, o->views, o->width, o->height, (int)o->tex_size, o->out, el, s.t_scan / o->subjects,
+         s.t_views / ((double)o->subjects * o->views));
 done:
   if (s.manifest) fclose(s.manifest);
   if (s.tmp) {

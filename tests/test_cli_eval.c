@@ -73,7 +73,7 @@ static void test_files(void) {
   put("odd_pred", "p.npy");
   put("odd_target", "t.npy");
   CHECK(tool("eval --pred p.npy --target t.npy --json r.json") == 0);
-  CHECK(out_has("mean over 1 image: PSNR 20.498 dB, SSIM 0.9452\n")); /* expected.txt: 20.4975, 0.94523 */
+  CHECK(out_has("mean over 1 images: PSNR 20.498 dB, SSIM 0.9452\n")); /* expected.txt: 20.4975, 0.94523 */
   cJSON *j = json("r.json");
   CHECK(j != NULL);
   CHECK(num(j, "count") == 1 && is_null(j, "lpips"));
@@ -87,7 +87,7 @@ static void test_files(void) {
   put("identical_pred", "ip.npy");
   put("identical_target", "it.npy");
   CHECK(tool("eval --pred ip.npy --target it.npy --json r2.json --per-image") == 0);
-  CHECK(out_has("ip: PSNR inf dB, SSIM 1.0000\nmean over 1 image: PSNR inf dB, SSIM 1.0000\n"));
+  CHECK(out_has("ip: PSNR inf dB, SSIM 1.0000\nmean over 1 images: PSNR inf dB, SSIM 1.0000\n"));
   j = json("r2.json");
   CHECK(j && is_null(j, "psnr") && num(j, "ssim") == 1);
   cJSON_Delete(j);
@@ -96,10 +96,29 @@ static void test_files(void) {
   put("masked_target", "mt.npy");
   put("masked_mask", "mm.npy");
   CHECK(tool("eval --pred mp.npy --target mt.npy --mask mm.npy --json r3.json") == 0);
-  CHECK(out_has("mean over 1 image: PSNR 27.498 dB, SSIM 0.8088; masked: PSNR 22.074 dB, SSIM 0.6483\n"));
+  CHECK(out_has("mean over 1 images: PSNR 27.498 dB, SSIM 0.8088; masked: PSNR 22.074 dB, SSIM 0.6483\n"));
   j = json("r3.json");
   CHECK_NEAR(num(j, "psnr_masked"), 22.074080173902484, 1e-8, 0);
   CHECK_NEAR(num(j, "ssim_masked"), 0.64834196113444498, 1e-9, 0);
+  cJSON_Delete(j);
+  /* constant images (tests/data/metrics/expected.txt: 7.9588, 0.72419) */
+  put("constant_pred", "cp.npy");
+  put("constant_target", "ct.npy");
+  CHECK(tool("eval --pred cp.npy --target ct.npy") == 0);
+  CHECK(out_has("mean over 1 images: PSNR 7.959 dB, SSIM 0.7242\n"));
+  /* a mask whose foreground is only at the border: masked SSIM undefined, n/a and null */
+  spx_image bm = {0};
+  CHECK_OK(ctx, spx_image_alloc(ctx, 19, 16, 1, &bm));
+  bm.data[0] = 1;
+  char p[700];
+  path_of(p, sizeof p, "corner.npy");
+  int64_t shape[2] = {16, 19};
+  CHECK_OK(ctx, spx_npy_save_f32(ctx, p, bm.data, 2, shape));
+  spx_image_free(&bm);
+  CHECK(tool("eval --pred cp.npy --target ct.npy --mask corner.npy --json rc.json") == 0);
+  CHECK(out_has("; masked: PSNR 7.959 dB, SSIM n/a\n"));
+  j = json("rc.json");
+  CHECK(j && is_null(j, "ssim_masked") && fabs(num(j, "psnr_masked") - 7.9588) < 1e-4);
   cJSON_Delete(j);
   CHECK(tool("eval --help") == 0 && out_has("--pred P --target T"));
 }

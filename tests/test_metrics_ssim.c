@@ -93,6 +93,10 @@ static void test_channels(void) {
   for (size_t p = 0; p < np; p++) m.data[2 * p] = 0;
   CHECK_OK(ctx, spx_image_metrics(ctx, &a, &b, &m, &r4));
   CHECK(isnan(r4.psnr_fg) && isnan(r4.ssim_fg) && r4.fg_pixels == 0);
+  /* foreground only within 5 pixels of the border: a masked PSNR, but no valid-region SSIM pixel */
+  m.data[2 * 3] = 1;
+  CHECK_OK(ctx, spx_image_metrics(ctx, &a, &b, &m, &r4));
+  CHECK(r4.fg_pixels == 1 && isfinite(r4.psnr_fg) && isnan(r4.ssim_fg));
   /* deterministic */
   CHECK_OK(ctx, spx_image_metrics(ctx, &a, &b, NULL, &r4));
   CHECK(r3.psnr == r4.psnr && r3.ssim == r4.ssim);

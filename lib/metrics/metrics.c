@@ -29,14 +29,16 @@ static spx_status check_image(spx_ctx *ctx, const spx_image *img, const char *wh
 }
 
 /* One channel's SSIM map over the valid region, reduced to the mean over all valid pixels and over
- * the valid foreground pixels (mask may be NULL). tmp holds 5 * (h - 10) * w doubles. */
+ * the valid foreground pixels (mask may be NULL). Row by row: tmp holds 5 * w doubles. */
 static void ssim_channel(const spx_image *a, const spx_image *b, const spx_image *m, int c, const double *g,
                          double *tmp, double *all, double *fg, int64_t *nfg) {
   const int w = a->width, h = a->height, vh = h - 2 * R;
   const size_t ca = (size_t)a->channels, cb = (size_t)b->channels;
   const double C1 = 0.01 * 0.01, C2 = 0.03 * 0.03;
-  /* vertical pass: the five local sums for every valid row and every column */
-  for (int y = 0; y < vh; y++)
+  double sum = 0, sum_fg = 0;
+  int64_t n_fg = 0;
+  for (int y = 0; y < vh; y++) {
+    /* vertical pass: the five local sums of output row y + R, for every column */
     for (int x = 0; x < w; x++) {
       double s[5] = {0, 0, 0, 0, 0};
       for (int k = 0; k < SPX_SSIM_WIN; k++) {
@@ -48,16 +50,13 @@ static void ssim_channel(const spx_image *a, const spx_image *b, const spx_image
         s[3] += g[k] * (v * v);
         s[4] += g[k] * (u * v);
       }
-      for (int q = 0; q < 5; q++) tmp[((size_t)q * (size_t)vh + (size_t)y) * (size_t)w + (size_t)x] = s[q];
+      for (int q = 0; q < 5; q++) tmp[(size_t)q * (size_t)w + (size_t)x] = s[q];
     }
-  /* horizontal pass and the SSIM formula, summed row by row */
-  double sum = 0, sum_fg = 0;
-  int64_t n_fg = 0;
-  for (int y = 0; y < vh; y++) {
+    /* horizontal pass and the SSIM formula */
     for (int x = R; x < w - R; x++) {
       double s[5] = {0, 0, 0, 0, 0};
       for (int q = 0; q < 5; q++) {
-        const double *row = tmp + ((size_t)q * (size_t)vh + (size_t)y) * (size_t)w;
+        const double *row = tmp + (size_t)q * (size_t)w;
         for (int k = 0; k < SPX_SSIM_WIN; k++) s[q] += g[k] * row[x + k - R];
       }
       double mx = s[0], my = s[1], vx = s[2] - mx * mx, vy = s[3] - my * my, vxy = s[4] - mx * my;
@@ -124,7 +123,7 @@ spx_status spx_image_metrics(spx_ctx *ctx, const spx_image *pred, const spx_imag
   /* SSIM */
   double g[SPX_SSIM_WIN];
   gauss_taps(g);
-  double *tmp = spx_alloc_array(ctx, 5 * (size_t)(h - 2 * R), (size_t)w * sizeof(double), "SSIM scratch");
+  double *tmp = spx_alloc_array(ctx, 5, (size_t)w * sizeof(double), "SSIM scratch");
   if (!tmp) return SPX_E_NOMEM;
   double s_all = 0, s_fg = 0;
   int64_t vfg = 0;

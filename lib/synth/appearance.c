@@ -169,6 +169,8 @@ void syn_look_init(spx_synth_rng *r, const syn_skel *sk, syn_look *lk) {
   lk->print = (int)(spx_synth_rng_next(r) % 3);
   snprintf(lk->text, sizeof lk->text, "%s", WORDS[spx_synth_rng_next(r) % (sizeof WORDS / sizeof WORDS[0])]);
   lk->text_cell = spx_synth_rng_uniform(r, 0.006, 0.011);
+  double tw = 6.0 * (double)strlen(lk->text) - 1; /* keep the word on the front of the chest */
+  if (tw * lk->text_cell > 0.24) lk->text_cell = 0.24 / tw;
   lk->text_y = sk->neck[1] - spx_synth_rng_uniform(r, 0.1, 0.16);
   lk->logo_r = spx_synth_rng_uniform(r, 0.035, 0.06);
   lk->logo_x = spx_synth_rng_uniform(r, -0.08, 0.08);
@@ -179,6 +181,8 @@ void syn_look_init(spx_synth_rng *r, const syn_skel *sk, syn_look *lk) {
   lk->fold_len = spx_synth_rng_uniform(r, 0.04, 0.09);
   lk->fold_phase = spx_synth_rng_uniform(r, 0, 6.283185307179586);
   lk->shoe_thick = spx_synth_rng_uniform(r, 0.004, 0.01);
+  lk->collar_r = spx_synth_rng_uniform(r, 0.075, 0.11);
+  lk->flare = spx_synth_rng_uniform(r, 0, 1) < 0.3 ? spx_synth_rng_uniform(r, 0.02, 0.05) : 0.0;
 }
 
 static int dominant(const syn_point *pt) {
@@ -218,8 +222,11 @@ int syn_region(const syn_look *lk, const syn_skel *sk, const syn_point *pt) {
   if (c == SYN_NECK || c == SYN_TORSO) {
     if (is_hair(lk, sk, p) && p[2] < sk->neck[2] && fabs(p[0]) < 0.1) return SYN_HAIR;
     if (p[1] > lk->waist_y) {
+      /* the neckline: a collar cylinder around the neck cut at neck_y (lower at the front with a V) */
       double top = lk->neck_y - (p[2] > sk->neck[2] ? lk->vneck * fmax(0.0, 1.0 - fabs(p[0]) / 0.08) : 0.0);
-      return p[1] > top ? SYN_SKIN : SYN_SHIRT;
+      double rx = p[0] - sk->neck[0], rz = p[2] - sk->neck[2];
+      int in_collar = rx * rx + rz * rz < lk->collar_r * lk->collar_r;
+      return (in_collar && p[1] > top) || p[1] > sk->neck[1] + 0.03 ? SYN_SKIN : SYN_SHIRT;
     }
     return p[1] > lk->waist_y - lk->belt_w ? SYN_BELT : SYN_PANTS;
   }
@@ -339,7 +346,9 @@ double syn_displace(const syn_look *lk, const syn_skel *sk, const syn_point *pt,
       double taper = fmin(1.0, fmax(0.3, (lk->neck_y - pt->p[1]) / 0.08)); /* close at the collar */
       return taper * (lk->loose_shirt + fold);
     }
-    return lk->loose_pants + 0.7 * fold + (region == SYN_BELT ? 0.004 : 0.0);
+    double below_knee = (sk->knee[1] + 0.05 - pt->p[1]) / (sk->knee[1] + 0.05 - sk->ankle[1]);
+    double flare = lk->flare * fmin(1.0, fmax(0.0, below_knee));
+    return lk->loose_pants + flare + 0.7 * fold + (region == SYN_BELT ? 0.004 : 0.0);
   }
   case SYN_HAIR: return lk->hair_volume * fmin(1.0, fmax(0.25, (pt->p[1] - lk->hair_back_y) / 0.04));
   case SYN_SHOE:

@@ -237,6 +237,7 @@ spx_status spx_synth_lbs(spx_ctx *ctx, const spx_body_model *m, const double *be
                          const int32_t *w_joint, const float *w, float *verts) {
   int32_t K = m->nj;
   if (nbetas < 0 || nbetas > m->nbetas) return spx_fail(ctx, SPX_E_ARG, "synth lbs: %d betas, model has %d", nbetas, m->nbetas);
+  if (!betas) nbetas = 0;
   double *J = spx_alloc_array(ctx, (size_t)K, 12 * sizeof(double) + 3 * sizeof(double), "synth lbs");
   if (!J) return SPX_E_NOMEM;
   double *A = J + (size_t)K * 3; /* K x [R | t] row-major 3x4, then turned into G */

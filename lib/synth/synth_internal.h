@@ -32,7 +32,7 @@ typedef struct syn_look {
   int bald;
   double hair_front_y, hair_back_y, hair_volume; /* hairline heights, volume (m) */
   double sleeve;                 /* fraction of the shoulder→wrist segment covered */
-  double neck_y, vneck;          /* shirt top height; extra V depth at the front */
+  double neck_y, vneck, collar_r; /* neckline height, extra V depth at the front, collar radius */
   double waist_y, belt_w;        /* shirt / trousers boundary; belt width (0 = none) */
   double hem_y;                  /* trousers end */
   int print;
@@ -40,6 +40,7 @@ typedef struct syn_look {
   double text_cell, text_y;      /* glyph pixel size (m), baseline height of the top row */
   double logo_r, logo_x, logo_y; /* logo radius, centre on the chest */
   double loose_shirt, loose_pants, fold_amp, fold_len, fold_phase, shoe_thick;
+  double flare; /* extra looseness of trousers at the ankle, growing from the knee (0 = straight) */
 } syn_look;
 
 /* What the generator knows about a surface point (texel or scan vertex). */

@@ -17,6 +17,7 @@
 #include "smplpix/render.h"
 
 #include "smplpix/body.h"
+#include "smplpix/synth.h"
 #include "smplpix/unet.h"
 #include "smplpix/vgg.h"
 #include "smplpix/patchgan.h"
