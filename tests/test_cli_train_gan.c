@@ -4,12 +4,18 @@
  *    checkpoint records loss and stage;
  *  - --resume of a stage-2 run gives the same generator and discriminator files, bit for bit, as an
  *    uninterrupted run of the same length;
- *  - --schedule paper runs stage 1 (l1) then stage 2 (l1+gan) with Adam restarted;
+ *  - --schedule paper runs stage 1 (l1) then stage 2 (l1+gan) with Adam restarted; a run
+ *    interrupted (Ctrl-C) in stage 1 or in stage 2 and resumed ends with the same generator and
+ *    discriminator files, bit for bit, as the uninterrupted run;
  *  - --loss vgg then vgg+gan with a (small, random) VGG19 file;
  *  - one-line errors: --resume with another --loss, a discriminator file from another run, --loss
  *    vgg without --vgg or with a file that is no VGG19 (exit 1); an unknown --loss (exit 2). */
+#include <fcntl.h>
+#include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "cli_test.h"
 #include "smplpix/npy.h"
@@ -145,6 +151,54 @@ static void test_schedule(void) {
   CHECK(file_has("out.txt", "step 4 -> 4"));
 }
 
+/* Run the tool (argv[0] ignored), SIGINT after the stderr line starting with `trigger`; exit status. */
+static int run_interrupted(char *const *argv, const char *trigger) {
+  int fd[2];
+  if (pipe(fd)) return -1;
+  pid_t pid = fork();
+  if (pid == 0) {
+    int dn = open("/dev/null", O_WRONLY);
+    if (dn >= 0) dup2(dn, 1);
+    dup2(fd[1], 2);
+    close(fd[0]);
+    execv(spx_t_tool(), argv);
+    _exit(127);
+  }
+  close(fd[1]);
+  FILE *f = fdopen(fd[0], "r");
+  char line[1024];
+  int sent = 0;
+  while (f && fgets(line, sizeof line, f))
+    if (!sent && !strncmp(line, trigger, strlen(trigger))) kill(pid, SIGINT), sent = 1;
+  if (f) fclose(f);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  if (!sent) return -2;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+static void test_schedule_resume(void) {
+  CHECK(tool("train " COMMON " --out full.safetensors --schedule paper --epochs 2 --lr 1e-3 --lr2 1e-4") == 0);
+  const char *trig[2] = {"step 2/8", "step 5/8"}, *name[2] = {"i1", "i2"};
+  for (int k = 0; k < 2; k++) {
+    char data[800], out[800], o2[64];
+    path_of(data, sizeof data, "d");
+    snprintf(o2, sizeof o2, "%s.safetensors", name[k]);
+    path_of(out, sizeof out, o2);
+    char *argv[] = {"smplpix", "train", "--data", data, "--width", "8", "--batch", "2", "--no-shuffle", "--disc-width",
+                    "4", "--log-every", "1", "--out", out, "--schedule", "paper", "--epochs", "2", "--lr", "1e-3",
+                    "--lr2", "1e-4", NULL};
+    CHECK_MSG(run_interrupted(argv, trig[k]) == 130, "interrupt after '%s'", trig[k]);
+    CHECK(meta_is(o2, "smplpix.stage", k ? "2" : "1"));
+    char args[1024], d2[64];
+    snprintf(args, sizeof args, "train " COMMON " --out %s --schedule paper --epochs 2 --lr 1e-3 --lr2 1e-4 --resume", o2);
+    CHECK(tool(args) == 0);
+    snprintf(d2, sizeof d2, "%s.disc.safetensors", name[k]);
+    CHECK_MSG(same("full.safetensors", o2), "generator after an interrupt at '%s' + resume differs", trig[k]);
+    CHECK_MSG(same("full.disc.safetensors", d2), "discriminator after an interrupt at '%s' + resume differs", trig[k]);
+  }
+}
+
 int main(void) {
   spx_t_path(dir, sizeof dir, "cligan");
   mkdir(dir, 0777);
@@ -155,6 +209,7 @@ int main(void) {
   make_data();
   SPX_RUN(test_offline_recipe);
   SPX_RUN(test_schedule);
+  SPX_RUN(test_schedule_resume);
   SPX_RUN(test_vgg);
   spx_ctx_destroy(ctx);
   return spx_test_summary();

@@ -3,7 +3,9 @@
  *  - G.safetensors (a PyTorch UNet state_dict) and D.safetensors (a PyTorch
  *    MultiscaleDiscriminator(getIntermFeat=True) state_dict) load here by their own names;
  *  - the loss terms before the step, and every parameter of G and of D after the step (Adam on
- *    both), within max(1e-4, 10 x PyTorch's own float32-vs-float64 spread of that tensor);
+ *    both), within max(1e-4, 10 x PyTorch's own float32-vs-float64 spread of that tensor), for
+ *    the generator loss L1 + GAN + 0.1 FM and for the paper's L_VGG + GAN + 0.1 FM (a small random
+ *    VGG19, tests/data/vgg);
  *  - the discriminator checkpoint round trip (weights, Adam moments, step) and its errors (a
  *    missing and a misshapen tensor named in one line); PyTorch loads our D file strictly (run
  *    when /usr/bin/python3 has torch). */
@@ -12,6 +14,7 @@
 #include <string.h>
 
 #include "nn/gan_step.h"
+#include "nn/vgg.h"
 #include "nn_testutil.h"
 #include "smplpix/safetensors.h"
 
@@ -75,13 +78,18 @@ static double compare(const char *tag, const char *name, const float *ours, size
   return e;
 }
 
-static void test_step(void) {
+/* with_vgg: the paper's stage 2 (L_VGG instead of L1, step_vgg.safetensors); checkpoint checks
+ * run once (without). */
+static void run_step(int with_vgg) {
   spx_ctx *ctx = spx_nt_open();
   CHECK(ctx != NULL);
   if (!ctx) return;
   spx_unet *g = NULL;
   spx_patchgan *d = NULL;
-  CHECK_OK(ctx, spx_st_load(ctx, DIR "step.safetensors", &G));
+  spx_vgg *vgg = NULL;
+  g_worst_loss = g_worst_g = g_worst_d = 0;
+  CHECK_OK(ctx, spx_st_load(ctx, with_vgg ? DIR "step_vgg.safetensors" : DIR "step.safetensors", &G));
+  if (with_vgg) CHECK_OK(ctx, spx_vgg_open(ctx, SPX_TEST_DATA "/vgg/vgg_w4.safetensors", &vgg));
   CHECK_OK(ctx, spx_unet_load(ctx, DIR "G.safetensors", &g));
   CHECK_OK(ctx, spx_patchgan_load(ctx, DIR "D.safetensors", 7, SPX_TAPE_DEVICE, &d));
   size_t nin = 0, ntg = 0;
@@ -90,10 +98,10 @@ static void test_step(void) {
   CHECK(spx_patchgan_num_d(d) == 3 && spx_patchgan_ndf(d) == 4 && spx_patchgan_step(d) == 0);
   spx_gan_opts o = {1e-3, 1e-3, 0.9, 0.999, 1e-3, 0.1f, 1.0f};
   spx_gan_losses tm;
-  CHECK_OK(ctx, spx_gan_step(ctx, g, d, NULL, in, tg, 1, 37, 53, &o, &tm));
-  const char *ln[5] = {"loss.rec", "loss.gan", "loss.fm", "loss.d_fake", "loss.d_real"};
-  float ours[5] = {tm.rec, tm.gan, tm.fm, tm.d_fake, tm.d_real};
-  for (int i = 0; i < 5; i++) {
+  CHECK_OK(ctx, spx_gan_step(ctx, g, d, vgg, in, tg, 1, 37, 53, &o, &tm));
+  const char *ln[6] = {"loss.rec", "loss.gan", "loss.fm", "loss.d_fake", "loss.d_real", "loss.vgg"};
+  float ours[6] = {tm.rec, tm.gan, tm.fm, tm.d_fake, tm.d_real, tm.vgg};
+  for (int i = 0; i < (with_vgg ? 6 : 5); i++) {
     float *v = gfloat(ln[i], NULL);
     if (!v) continue;
     double e = fabs(ours[i] - v[0]) / fabs(v[0]);
@@ -102,7 +110,7 @@ static void test_step(void) {
     free(v);
   }
   CHECK(fabsf(tm.d_total - 0.5f * (tm.d_fake + tm.d_real)) <= 1e-6f * tm.d_total);
-  CHECK(fabsf(tm.g_total - (tm.rec + tm.gan + 0.1f * tm.fm)) <= 1e-5f * tm.g_total);
+  CHECK(fabsf(tm.g_total - ((with_vgg ? tm.vgg : tm.rec) + tm.gan + 0.1f * tm.fm)) <= 1e-5f * tm.g_total);
   for (int i = 0; i < spx_unet_tensor_count(g); i++) {
     int ndim;
     int64_t sh[4];
@@ -125,9 +133,10 @@ static void test_step(void) {
     g_worst_d = fmax(g_worst_d, compare("D.", name, buf, n));
     free(buf);
   }
-  printf("  vs PyTorch: loss terms %.3g, G after the step %.3g, D after the step %.3g (relative)\n", g_worst_loss,
-         g_worst_g, g_worst_d);
+  printf("  %s vs PyTorch: loss terms %.3g, G after the step %.3g, D after the step %.3g (relative)\n",
+         with_vgg ? "L_VGG + GAN + 0.1 FM" : "L1 + GAN + 0.1 FM", g_worst_loss, g_worst_g, g_worst_d);
   CHECK(spx_patchgan_step(d) == 1 && spx_unet_step(g) == 1);
+  if (with_vgg) goto done;
 
   /* checkpoint round trip and errors */
   char path[512], bad[512];
@@ -190,11 +199,16 @@ done:
   free(in), free(tg);
   spx_unet_destroy(g);
   spx_patchgan_destroy(d);
+  spx_vgg_destroy(vgg);
   spx_st_free(&G);
   spx_ctx_destroy(ctx);
 }
 
+static void test_step(void) { run_step(0); }
+static void test_step_vgg(void) { run_step(1); }
+
 int main(void) {
   SPX_RUN(test_step);
+  SPX_RUN(test_step_vgg);
   return spx_test_summary();
 }

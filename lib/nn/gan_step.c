@@ -57,8 +57,8 @@ static spx_status d_forward(spx_patchgan *d, spx_tape *gt, int gy, const float *
   return st;
 }
 
-/* VGG pass on [pred; gt] (pred handed over from G's output). */
-static spx_status vgg_forward(spx_vgg *v, spx_tape *gt, int gy, const float *xhost, int n, int h, int w, int *x,
+/* VGG pass: pred (handed over from G's output, gradient wanted) and gt (no gradient). */
+static spx_status vgg_forward(spx_vgg *v, spx_tape *gt, int gy, const float *target, int n, int h, int w, int *x,
                               int *loss) {
   spx_tape *t = spx_vgg_tape(v);
   size_t chw = (size_t)3 * h * w;
@@ -69,13 +69,14 @@ static spx_status vgg_forward(spx_vgg *v, spx_tape *gt, int gy, const float *xho
   spx_status st;
   do {
     if ((st = spx_tape_begin(t, 1, key))) return st;
-    *x = spx_tape_input(t, 2 * n, 3, h, w, xhost);
+    *x = spx_tape_input(t, n, 3, h, w, NULL);
+    int tg = spx_tape_input(t, n, 3, h, w, target);
     if (*x >= 0 && !spx_tape_measuring(t)) {
       if ((st = spx_tape_requires_grad(t, *x)) ||
           (st = spx_tape_transfer(t, *x, 0, 0, gt, gy, 0, 0, (size_t)n * chw, 0)))
         return st;
     }
-    *loss = spx_vgg_loss(v, *x, n);
+    *loss = spx_vgg_loss(v, *x, tg);
     st = spx_tape_end(t, &again);
   } while (!st && again);
   return st;
@@ -89,9 +90,7 @@ spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, spx_vgg *vgg
     return spx_fail(ctx, SPX_E_ARG, "gan: the discriminator takes %d channels, not 7", spx_patchgan_in_channels(d));
   size_t hw = (size_t)h * (size_t)w;
   float *xh = d ? calloc((size_t)2 * n * 7 * hw, sizeof(float)) : NULL;
-  float *vh = vgg ? calloc((size_t)2 * n * 3 * hw, sizeof(float)) : NULL;
-  if ((d && !xh) || (vgg && !vh)) {
-    free(xh), free(vh);
+  if (d && !xh) {
     return spx_fail(ctx, SPX_E_NOMEM, "gan: out of memory for a batch of %d %dx%d images", 2 * n, h, w);
   }
   for (int i = 0; i < n && xh; i++) { /* [in, (fake)] then [in, real] */
@@ -99,7 +98,6 @@ spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, spx_vgg *vgg
     memcpy(xh + (size_t)(n + i) * 7 * hw, in + (size_t)i * 4 * hw, 4 * hw * sizeof(float));
     memcpy(xh + ((size_t)(n + i) * 7 + 4) * hw, target + (size_t)i * 3 * hw, 3 * hw * sizeof(float));
   }
-  if (vh) memcpy(vh + (size_t)n * 3 * hw, target, (size_t)n * 3 * hw * sizeof(float)); /* [(pred); gt] */
   dpass p;
   memset(&p, 0, sizeof p);
   float rec = 0, vl = 0;
@@ -107,7 +105,7 @@ spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, spx_vgg *vgg
   if ((st = spx_unet_zero_grad(g)) || (st = spx_unet_forward_loss(g, in, target, n, h, w, NULL, &rec))) goto done;
   gy = spx_unet_output_id(g);
   if (d && (st = d_forward(d, gt, gy, xh, n, h, w, o->lambda_fm, &p))) goto done;
-  if (vgg && (st = vgg_forward(vgg, gt, gy, vh, n, h, w, &vx, &vloss))) goto done;
+  if (vgg && (st = vgg_forward(vgg, gt, gy, target, n, h, w, &vx, &vloss))) goto done;
   /* G: through D (its input gradient, fake half, image channels), through VGG, plus its own L1 */
   if ((d && (st = spx_tape_backward(dt, p.gadv))) || (vgg && (st = spx_tape_backward(vt, vloss))) ||
       (st = spx_tape_backward_begin(gt)) || (!vgg && (st = spx_tape_seed(gt, spx_unet_loss_id(g), o->lambda_rec))))
@@ -131,7 +129,7 @@ spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, spx_vgg *vgg
     terms->d_fake = v[3], terms->d_real = v[4], terms->d_total = v[5];
   }
 done:
-  free(xh), free(vh);
+  free(xh);
   return st;
 }
 

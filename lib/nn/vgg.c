@@ -127,25 +127,28 @@ spx_status spx_vgg_open(spx_ctx *ctx, const char *path, spx_vgg **out) {
   return spx_vgg_open_ex(ctx, path, SPX_TAPE_DEVICE, out);
 }
 
-int spx_vgg_loss(spx_vgg *v, int x, int n) {
+/* The features f_1..f_5 of x (ids into feat[0..4]). */
+static void features(spx_vgg *v, int x, int feat[5]) {
   spx_tape *t = v->tape;
   /* conv i is followed by a max pool before conv i+1 for i = 1, 3, 7, 11 (features 4, 9, 18, 27) */
   static const int pool_after[SPX_VGG_NCONV] = {0, 1, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0};
   /* the slice ends (relu1_1 .. relu5_1) come after convs 0, 2, 4, 8, 12 */
   static const int feat_after[SPX_VGG_NCONV] = {1, 0, 2, 0, 3, 0, 0, 0, 4, 0, 0, 0, 5};
-  int loss = spx_tape_axpby(t, 1.0f / 32.0f,
-                            spx_tape_l1(t, spx_tape_slice_batch(t, x, 0, n), spx_tape_slice_batch(t, x, n, n)), 0.0f,
-                            -1);
   int h = spx_tape_conv(t, x, v->nw, v->nb, 0, -1, -1, 0);
   for (int i = 0; i < SPX_VGG_NCONV; i++) {
     h = spx_tape_act(t, SPX_ACT_RELU, 0.0f, spx_tape_conv(t, h, v->w[i], v->b[i], 1, -1, -1, 0));
-    if (feat_after[i]) {
-      int k = feat_after[i];
-      float wt = 1.0f / (float)(1 << (5 - k));
-      int d = spx_tape_l1(t, spx_tape_slice_batch(t, h, 0, n), spx_tape_slice_batch(t, h, n, n));
-      loss = spx_tape_axpby(t, 1.0f, loss, wt, d);
-    }
+    if (feat_after[i]) feat[feat_after[i] - 1] = h;
     if (pool_after[i]) h = spx_tape_maxpool2(t, h);
   }
+}
+
+int spx_vgg_loss(spx_vgg *v, int pred, int gt) {
+  spx_tape *t = v->tape;
+  int fp[5], fg[5];
+  features(v, gt, fg);
+  features(v, pred, fp);
+  int loss = spx_tape_axpby(t, 1.0f / 32.0f, spx_tape_l1(t, pred, gt), 0.0f, -1);
+  for (int k = 1; k <= 5; k++)
+    loss = spx_tape_axpby(t, 1.0f, loss, 1.0f / (float)(1 << (5 - k)), spx_tape_l1(t, fp[k - 1], fg[k - 1]));
   return loss;
 }

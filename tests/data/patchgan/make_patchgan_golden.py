@@ -17,6 +17,8 @@ writes, next to this script (deterministic; commit them):
       elements as a strided sample + aftersum.<name> = [sum g*r, sum |g|], as in the UNet golden)
     spread.<name>: max |float32 - float64| / max |float64| of each tensor after the same step in
       float64 (the test's tolerance is max(1e-4, 10 x spread))
+  step_vgg.safetensors: the same for the paper's stage 2, L_VGG instead of L1 as the generator's
+    reconstruction term, with the small random VGG19 of ../vgg/vgg_w4.safetensors
 
 The step is pix2pixHD's: fake = G(x); D on [x, fake.detach()] -> loss_D_fake (target 0); D on
 [x, real] -> loss_D_real (target 1); D on [x, fake] -> loss_G_GAN (target 1); feature matching
@@ -41,6 +43,9 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "unet"))
 sys.dont_write_bytecode = True
 from make_unet_golden import UNet, sampled, st_load, st_save  # noqa: E402
+
+sys.path.insert(0, os.path.join(HERE, "..", "vgg"))
+from make_vgg_golden import VGG19, vgg_loss  # noqa: E402
 
 ADAM_EPS = 1e-3
 LR = 1e-3
@@ -96,7 +101,7 @@ def lsgan(preds, real):
     return sum(F.mse_loss(p[-1], torch.full_like(p[-1], 1.0 if real else 0.0)) for p in preds)
 
 
-def step(G, D, optG, optD, x, real):
+def step(G, D, optG, optD, x, real, vgg=None):
     fake = G(x)
     pred_fake_pool = D(torch.cat((x, fake.detach()), 1))
     loss_d_fake = lsgan(pred_fake_pool, False)
@@ -109,7 +114,8 @@ def step(G, D, optG, optD, x, real):
         for j in range(len(pred_fake[i]) - 1):
             fm = fm + (1.0 / NUM_D) * (4.0 / (3 + 1)) * F.l1_loss(pred_fake[i][j], pred_real[i][j].detach())
     rec = F.l1_loss(fake, real)
-    loss_g = rec + loss_g_gan + 0.1 * fm
+    lv = vgg_loss(vgg, fake, real) if vgg is not None else torch.zeros(())
+    loss_g = (lv if vgg is not None else rec) + loss_g_gan + 0.1 * fm
     loss_d = 0.5 * (loss_d_fake + loss_d_real)
     optG.zero_grad()
     loss_g.backward()
@@ -117,7 +123,7 @@ def step(G, D, optG, optD, x, real):
     optD.zero_grad()
     loss_d.backward()
     optD.step()
-    return [t.item() for t in (rec, loss_g_gan, fm, loss_d_fake, loss_d_real)]
+    return [t.item() for t in (rec, loss_g_gan, fm, loss_d_fake, loss_d_real, lv)]
 
 
 def main():
@@ -161,23 +167,33 @@ def main():
             {"format": "pt"})
     x = torch.rand(1, 4, 37, 53)
     real = torch.rand(1, 3, 37, 53)
-    G64, D64 = copy.deepcopy(G).double(), copy.deepcopy(D).double()
-    G.train(), G64.train()
-    mk = lambda m: torch.optim.Adam(m.parameters(), lr=LR, betas=(0.9, 0.999), eps=ADAM_EPS)  # noqa: E731
-    losses = step(G, D, mk(G), mk(D), x, real)
-    step(G64, D64, mk(G64), mk(D64), x.double(), real.double())
-    out = [("input", x.numpy().copy()), ("target", real.numpy().copy())]
-    for n, v in zip(("rec", "gan", "fm", "d_fake", "d_real"), losses):
-        out.append(("loss." + n, np.array([v], dtype=np.float32)))
-    for tag, m, m64 in (("G.", G, G64), ("D.", D, D64)):
-        sd64 = dict(m64.named_parameters())
-        for name, p in m.named_parameters():
-            sampled("after." + tag, "aftersum." + tag, name, p, out)
-            t64 = sd64[name].detach()
-            spread = ((p.detach().double() - t64).abs().max() / t64.abs().max().clamp_min(1e-30)).item()
-            out.append(("spread." + tag + name, np.array([spread], dtype=np.float32)))
-    st_save(os.path.join(HERE, "step.safetensors"), out, {"format": "pt", "lr": repr(LR), "adam_eps": repr(ADAM_EPS)})
-    print("losses rec %.6f gan %.6f fm %.6f d_fake %.6f d_real %.6f" % tuple(losses))
+    G0, D0 = copy.deepcopy(G), copy.deepcopy(D)
+    for fname, use_vgg in (("step.safetensors", False), ("step_vgg.safetensors", True)):
+        G, D = copy.deepcopy(G0), copy.deepcopy(D0)
+        vgg = vgg64 = None
+        if use_vgg:  # the small random VGG19 of ../vgg (stage 2 of the paper: L_VGG + L_GAN + 0.1 L_FM)
+            vgg = VGG19(4)
+            vgg.load_state_dict({k: torch.from_numpy(v) for k, v in
+                                 st_load(os.path.join(HERE, "..", "vgg", "vgg_w4.safetensors")).items()
+                                 if k.startswith("features.")}, strict=False)  # up to features.28
+            vgg64 = copy.deepcopy(vgg).double()
+        G64, D64 = copy.deepcopy(G).double(), copy.deepcopy(D).double()
+        G.train(), G64.train()
+        mk = lambda m: torch.optim.Adam(m.parameters(), lr=LR, betas=(0.9, 0.999), eps=ADAM_EPS)  # noqa: E731
+        losses = step(G, D, mk(G), mk(D), x, real, vgg)
+        step(G64, D64, mk(G64), mk(D64), x.double(), real.double(), vgg64)
+        out = [("input", x.numpy().copy()), ("target", real.numpy().copy())]
+        for n, v in zip(("rec", "gan", "fm", "d_fake", "d_real", "vgg"), losses):
+            out.append(("loss." + n, np.array([v], dtype=np.float32)))
+        for tag, m, m64 in (("G.", G, G64), ("D.", D, D64)):
+            sd64 = dict(m64.named_parameters())
+            for name, p in m.named_parameters():
+                sampled("after." + tag, "aftersum." + tag, name, p, out)
+                t64 = sd64[name].detach()
+                spread = ((p.detach().double() - t64).abs().max() / t64.abs().max().clamp_min(1e-30)).item()
+                out.append(("spread." + tag + name, np.array([spread], dtype=np.float32)))
+        st_save(os.path.join(HERE, fname), out, {"format": "pt", "lr": repr(LR), "adam_eps": repr(ADAM_EPS)})
+        print("%s: losses rec %.6f gan %.6f fm %.6f d_fake %.6f d_real %.6f vgg %.6f" % ((fname,) + tuple(losses)))
     return 0
 
 

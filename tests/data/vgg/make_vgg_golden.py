@@ -9,8 +9,8 @@ vgg_golden.safetensors next to this script; deterministic).
   relu2_1, relu3_1, relu4_1, relu5_1 = features[0:2], [2:7], [7:12], [12:21], [21:30] of the
   ImageNet-normalised image.
 
-vgg_w4.safetensors: features.N.weight/bias for every conv of features (N up to 34, as torchvision
-has them) plus a classifier tensor: the loader must ignore what it does not use.
+vgg_w4.safetensors: features.N.weight/bias for the convs up to N = 28 (relu5_1's conv) plus a
+classifier tensor the loader must ignore.
 vgg_golden.safetensors: pred, gt [1,3,35,42] in [0,1]; loss [1]; grad = dL/dpred; spread.loss /
 spread.grad: max |float32 - float64| / max |float64| of the same computation.
 """
@@ -67,7 +67,8 @@ def main():
             if isinstance(mod, nn.Conv2d):
                 nn.init.kaiming_normal_(mod.weight, mode="fan_out", nonlinearity="relu")
                 mod.bias.uniform_(-0.1, 0.1)
-    sd = [(k, v.numpy().copy()) for k, v in m.state_dict().items()]
+    # the convs up to features.28 (relu5_1) + one unused tensor; the loader must ignore the extra
+    sd = [(k, v.numpy().copy()) for k, v in m.state_dict().items() if int(k.split(".")[1]) <= 28]
     sd.append(("classifier.0.weight", np.zeros((2, 3), dtype=np.float32)))
     st_save(os.path.join(HERE, "vgg_w4.safetensors"), sd, {"format": "pt"})
     pred = torch.rand(1, 3, 35, 42)
