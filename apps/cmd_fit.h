@@ -6,9 +6,22 @@
 #ifndef SPX_APPS_CMD_FIT_H
 #define SPX_APPS_CMD_FIT_H
 
+#include "smplpix/smplpix.h"
+
 int spx_cmd_register(int argc, char **argv);
 int spx_cmd_repose(int argc, char **argv);
 int spx_cmd_reshape(int argc, char **argv);
 int spx_cmd_bake(int argc, char **argv); /* apps/cmd_bake.c */
+int spx_cmd_animate(int argc, char **argv); /* apps/cmd_animate.c */
+
+/* apps/cmd_repose.c, shared with animate. Load a registration (smplpix register --params) and its
+ * body model (model_arg, else the path recorded in the JSON, else the default body) and check that
+ * they belong together; prints the one-line error itself, returns an exit code. */
+int spx_cli_load_registration(const char *cmd, spx_ctx *ctx, const char *reg_path, const char *model_arg,
+                              spx_fit_result *r, spx_body_model *m);
+/* The registered person posed (its unposed template, the given shape / pose / trans) in the model
+ * frame, metres: pos = nv*3 floats; work = nv*3 doubles of scratch. Returns an exit code. */
+int spx_cli_pose_registration(const char *cmd, spx_ctx *ctx, const spx_body_model *m, const spx_fit_result *r,
+                              const double *betas, const double *pose, const double *trans, double *work, float *pos);
 
 #endif

@@ -1,11 +1,9 @@
 /* smplpix render: run a trained UNet (inference: batch norm folded into the convolutions) on an
- * RGB-D projection image, or on a mesh projected through one camera or a camera array (the
- * projection and the network in one call; cameras go through the network in chunks of --batch).
- *
- * The mesh path keeps the projection in the network's NCHW layout, but it crosses the host once:
- * the public UNet API (smplpix/unet.h) takes host arrays, and lib/nn/unet.c has no entry point
- * that takes a cl_mem input (spx_project_device could write straight into the tape's input value
- * if it had one). */
+ * RGB-D projection image, or on a mesh / point cloud projected through one camera or a camera
+ * array. The mesh path never crosses the host between the two: the projection writes a device
+ * tensor (spx_project_to_tensor) that the network reads (spx_unet_forward_tensor), the path
+ * benchmarks/bench_latency.c measures; cameras go through in chunks of --batch. Without
+ * --checkpoint the shipped network data/models/default.safetensors is used. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -14,19 +12,22 @@
 #include "smplpix/camera.h"
 #include "smplpix/mesh.h"
 #include "smplpix/render.h"
+#include "cli_model.h"
 #include "unet_io.h"
 
 static void render_help(void) {
-  printf("usage: smplpix render --checkpoint W.safetensors --input P.exr|P.png|P.npy --out I.png|I.exr|I.npy\n"
-         "       smplpix render --checkpoint W.safetensors --mesh M.obj|M.ply --camera C.json --out I.png|I.exr|I.npy\n"
+  printf("usage: smplpix render [--checkpoint W.safetensors] --input P.exr|P.png|P.npy --out I.png|I.exr|I.npy\n"
+         "       smplpix render [--checkpoint W.safetensors] --mesh M.obj|M.ply --camera C.json --out I.png|I.exr|I.npy\n"
          "                      [--color auto|mesh|normal|white] [--batch B]\n"
          "       common options: [--sigmoid on|off] [--device cpu|gpu|P:D] [--quiet]\n"
-         "Runs the UNet of checkpoint W (milesial state_dict names; base width read from the file) on\n"
+         "Runs the UNet of checkpoint W (milesial state_dict names; base width read from the file;\n"
+         "default: the shipped network data/models/default.safetensors, when present) on\n"
          "the RGB-D image P (EXR channels R,G,B,Z; a PNG or a 3-channel image gets depth 1; .npy is\n"
          "HxWx4, or Nx4xHxW for a batch, which then needs a .npy output) and writes the RGB result.\n"
          "A 3-channel input (RGB PNG or EXR, HxWx3 .npy) gets depth 1 (the background); fewer is an error.\n"
          "With --mesh/--camera the RGB-D input is the projection of the mesh's vertices (as `smplpix\n"
-         "project`, --color as there); a camera array of N cameras writes I_000.png ... I_<N-1>.png, the\n"
+         "project`, --color as there; a PLY/OBJ point cloud without faces works the same), made on the\n"
+         "device straight into the network's input (no host round trip); a camera array of N cameras writes I_000.png ... I_<N-1>.png, the\n"
          "cameras going through the network B at a time (--batch, default 4; also for an Nx4xHxW .npy).\n"
          "Nothing is written when any camera fails.\n"
          "--sigmoid overrides the checkpoint's output sigmoid flag (metadata smplpix.sigmoid).\n"
@@ -47,8 +48,9 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
   spx_mesh mesh = {0};
   spx_camera *cams = NULL;
   int ncams = 0, rc = SPX_EXIT_ERROR;
-  float *colors = NULL, *in = NULL, *out = NULL;
+  float *colors = NULL, *out = NULL;
   spx_projector *proj = NULL;
+  spx_device_tensor *in = NULL;
   spx_cli_written wr = {0};
   if (spx_mesh_load(ctx, mesh_path, &mesh)) {
     rc = spx_cli_error("render", ctx);
@@ -66,14 +68,13 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
   rc = SPX_EXIT_ERROR;
   int chunk = batch < ncams ? batch : ncams;
   size_t hw = (size_t)W * (size_t)H;
-  in = malloc(sizeof(float) * SPX_UNET_IN_CHANNELS * hw * (size_t)chunk);
   out = malloc(sizeof(float) * SPX_UNET_OUT_CHANNELS * hw * (size_t)chunk);
-  if (!in || !out) {
+  if (!out) {
     rc = spx_cli_errorf("render", "out of memory for %d images of %dx%d (try a smaller --batch)", chunk, W, H);
     goto done;
   }
-  if (spx_projector_create(ctx, &proj)) {
-    rc = spx_cli_error("render", ctx);
+  if (spx_projector_create(ctx, &proj) || spx_device_tensor_create(ctx, chunk, SPX_UNET_IN_CHANNELS, H, W, &in)) {
+    rc = net_error(ctx, spx_ctx_last_status(ctx), chunk, H, W);
     goto done;
   }
   double t0 = spx_cli_now();
@@ -81,11 +82,11 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
     int n = ncams - c0 < chunk ? ncams - c0 : chunk;
     spx_project_args a = {1, mesh.nv, mesh.pos, col, n, cams + c0, SPX_LAYOUT_NCHW};
     spx_status st;
-    if (spx_project(ctx, proj, &a, in, NULL)) {
+    if (spx_project_to_tensor(ctx, proj, &a, in)) { /* projection -> device tensor -> network */
       rc = spx_cli_error("render", ctx);
       goto done;
     }
-    if ((st = spx_unet_forward(u, in, n, H, W, 0, out)) || (st = spx_device_finish(ctx))) {
+    if ((st = spx_unet_forward_tensor(u, in, out)) || (st = spx_device_finish(ctx))) {
       rc = net_error(ctx, st, n, H, W);
       goto done;
     }
@@ -118,8 +119,8 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
   rc = SPX_EXIT_OK;
 done:
   spx_cli_written_finish(&wr, rc != SPX_EXIT_OK);
+  spx_device_tensor_free(in);
   spx_projector_destroy(proj);
-  free(in);
   free(out);
   free(colors);
   free(cams);
@@ -166,11 +167,12 @@ int spx_cmd_render(int argc, char **argv) {
     }
   }
   int by_mesh = mesh || cam;
-  if (!ckpt || !outp || (by_mesh ? !(mesh && cam) || input : !input))
-    return spx_cli_usage("render", "--checkpoint, --out and either --input or both --mesh and --camera are required");
+  if (!outp || (by_mesh ? !(mesh && cam) || input : !input))
+    return spx_cli_usage("render", "--out and either --input or both --mesh and --camera are required");
   if (!spx_cli_color_ok(color))
     return spx_cli_usage("render", "--color %s: expected auto, mesh, normal or white", color);
   if (!spx_cli_image_ext_ok(outp)) return spx_cli_usage("render", "%s: output must end in .exr, .png or .npy", outp);
+  if (!(ckpt = spx_cli_checkpoint("render", ckpt, NULL))) return SPX_EXIT_ERROR;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("render", "out of memory");
   spx_unet *u = NULL;

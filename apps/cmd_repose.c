@@ -11,9 +11,7 @@
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
 
-/* Load the registration and its model (--model, else the path recorded in the JSON, else the
- * default body) and check that they belong together. */
-static int load_registration(const char *cmd, spx_ctx *ctx, const char *reg_path, const char *model_arg,
+int spx_cli_load_registration(const char *cmd, spx_ctx *ctx, const char *reg_path, const char *model_arg,
                              spx_fit_result *r, spx_body_model *m) {
   char *recorded = NULL;
   if (spx_fit_load_json(ctx, reg_path, r, &recorded)) return spx_cli_error(cmd, ctx);
@@ -29,6 +27,14 @@ static int load_registration(const char *cmd, spx_ctx *ctx, const char *reg_path
   }
   free(recorded);
   return rc;
+}
+
+int spx_cli_pose_registration(const char *cmd, spx_ctx *ctx, const spx_body_model *m, const spx_fit_result *r,
+                              const double *betas, const double *pose, const double *trans, double *work, float *pos) {
+  spx_body_params p = {r->nbetas, betas, pose, trans, r->template_unposed};
+  if (spx_body_forward_ref(ctx, m, &p, work, NULL)) return spx_cli_error(cmd, ctx);
+  for (int32_t i = 0; i < m->nv * 3; i++) pos[i] = (float)(r->body_scale * work[i]);
+  return SPX_EXIT_OK;
 }
 
 /* Pose the registered person and save it (model frame, metres). The model's texture coordinates
@@ -155,7 +161,7 @@ int spx_cmd_repose(int argc, char **argv) {
   spx_bvh_map map;
   memset(&r, 0, sizeof r), memset(&m, 0, sizeof m), memset(&b, 0, sizeof b), memset(&map, 0, sizeof map);
   double *pose = NULL, trans[3], scan_trans[3];
-  int rc = load_registration("repose", ctx, reg_path, model_arg, &r, &m);
+  int rc = spx_cli_load_registration("repose", ctx, reg_path, model_arg, &r, &m);
   if (rc) goto done;
   pose = malloc((size_t)m.nj * 3 * sizeof(double));
   if (!pose) {
@@ -237,7 +243,7 @@ int spx_cmd_reshape(int argc, char **argv) {
   spx_body_model m;
   memset(&r, 0, sizeof r), memset(&m, 0, sizeof m);
   double *betas = NULL, *pose = NULL;
-  int rc = load_registration("reshape", ctx, reg_path, model_arg, &r, &m);
+  int rc = spx_cli_load_registration("reshape", ctx, reg_path, model_arg, &r, &m);
   if (rc) goto done;
   for (int k = 0; k < nsh; k++)
     if (sh_idx[k] >= r.nbetas) {

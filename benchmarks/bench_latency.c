@@ -8,8 +8,9 @@
  *  (a) project       spx_project: projection + collision (z-buffer), RGB-D image read back;
  *      project C ref spx_project_ref, the single-threaded plain-C reference of the same (for
  *                    scale: what the projection costs without the OpenCL runtime);
- *  (b) project+unetW projection straight into the UNet on the device (spx_project_device ->
- *                    spx_unet_forward_device, no host round trip between them), eval mode (batch
+ *  (b) project+unetW projection straight into the UNet on the device through the public device
+ *                    tensor (spx_project_to_tensor -> spx_unet_forward_tensor, no host round trip
+ *                    between them; the path `smplpix render --mesh` runs), eval mode (batch
  *                    norm folded, fused ReLU), widths 64, 32, 16, RGB output read back. The
  *                    weights are random (PyTorch's default init): latency does not depend on them;
  *  (c) raster        spx_raster: per-vertex colours; textured (procedural checker texture, the
@@ -35,10 +36,8 @@
 
 #include "bench_common.h"
 #include "core/internal.h"
-#include "nn/unet.h"
 #include "peer_llvmpipe.h"
 #include "plot.h"
-#include "render/project_internal.h"
 #include "smplpix/smplpix.h"
 
 #define LEVELS 3
@@ -54,8 +53,8 @@ typedef struct frame_job {
   /* (a), (b) */
   spx_projector *proj;
   spx_project_args pa;
-  spx_project_dev_args da;
-  cl_mem dpos, dcol, dimg;
+  spx_project_args na; /* the same as pa, NCHW for the network */
+  spx_device_tensor *dimg;
   spx_unet *unet;
   /* (c) */
   spx_rasterizer *rast;
@@ -76,12 +75,9 @@ static int frame(void *user) {
     return spx_project(j->ctx, j->proj, &j->pa, j->out, NULL);
   case K_PROJECT_REF:
     return spx_project_ref(j->ctx, &j->pa, j->out, NULL);
-  case K_UNET: {
-    size_t bytes = sizeof(float) * 3 * (size_t)j->nv;
-    spx_status st = spx_cl_write(j->ctx, j->dpos, 0, bytes, j->pos);
-    if (!st) st = spx_cl_write(j->ctx, j->dcol, 0, bytes, j->col);
-    if (!st) st = spx_project_device(j->ctx, j->proj, &j->da, j->dimg, NULL, 0);
-    if (!st) st = spx_unet_forward_device(j->unet, j->dimg, 0, 1, j->H, j->W, j->out);
+  case K_UNET: { /* positions and colours are uploaded inside spx_project_to_tensor */
+    spx_status st = spx_project_to_tensor(j->ctx, j->proj, &j->na, j->dimg);
+    if (!st) st = spx_unet_forward_tensor(j->unet, j->dimg, j->out);
     return st;
   }
   case K_RASTER:
@@ -184,12 +180,8 @@ int main(int argc, char **argv) {
   if (spx_projector_create(ctx, &proj)) DIE("setup");
   for (int k = 0; k < nw; k++)
     if (spx_unet_create(ctx, widths[k], 0, 1 + (uint64_t)k, &nets[k])) DIE("unet width %d", widths[k]);
-  cl_mem dpos = NULL, dcol = NULL, dimg = NULL;
-  size_t maxv = (size_t)meshes[LEVELS - 1].nv;
-  if (spx_cl_alloc(ctx, sizeof(float) * 3 * maxv, "positions", &dpos) ||
-      spx_cl_alloc(ctx, sizeof(float) * 3 * maxv, "colours", &dcol) ||
-      spx_cl_alloc(ctx, sizeof(float) * 4 * npx, "projection image", &dimg))
-    DIE("device buffers");
+  spx_device_tensor *dimg = NULL;
+  if (spx_device_tensor_create(ctx, 1, 4, H, W, &dimg)) DIE("device tensor");
 
   char why[512] = "", cpu[320], load0[64], load1[64];
   peer_llvmpipe *gl = getenv("SPX_BENCH_NO_GL") ? NULL : peer_llvmpipe_open(why, sizeof why);
@@ -265,10 +257,10 @@ int main(int argc, char **argv) {
     if (spx_rasterizer_create(ctx, &rasts[l])) DIE("rasterizer");
     frame_job *j = &jobs[l];
     j->ctx = ctx, j->proj = proj, j->rast = rasts[l], j->gl = gl, j->pos = m->pos, j->col = cols[l], j->cam = &cam;
-    j->nv = m->nv, j->W = W, j->H = H, j->out = outs[l], j->dpos = dpos, j->dcol = dcol, j->dimg = dimg;
+    j->nv = m->nv, j->W = W, j->H = H, j->out = outs[l], j->dimg = dimg;
     spx_project_args pa = {1, m->nv, m->pos, cols[l], 1, &cam, SPX_LAYOUT_HWC};
-    spx_project_dev_args da = {1, m->nv, dpos, dcol, 1, &cam, SPX_LAYOUT_NCHW};
-    j->pa = pa, j->da = da;
+    j->pa = pa, j->na = pa;
+    j->na.layout = SPX_LAYOUT_NCHW;
     users[l] = j;
     snprintf(checks[l], sizeof checks[l], "%d v: no llvmpipe image", m->nv);
   }
@@ -474,9 +466,7 @@ int main(int argc, char **argv) {
   printf("\nwrote out/bench/latency.csv, out/bench/latency.json, out/bench/latency.png\n");
 
   peer_llvmpipe_close(gl);
-  spx_cl_free(&dpos);
-  spx_cl_free(&dcol);
-  spx_cl_free(&dimg);
+  spx_device_tensor_free(dimg);
   for (int k = 0; k < nw; k++) spx_unet_destroy(nets[k]);
   spx_projector_destroy(proj);
   for (int l = 0; l < LEVELS; l++) spx_mesh_free(&meshes[l]);

@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "cl/tensor.h"
 #include "nn/batchnorm.h"
 #include "smplpix/patchgan.h"
 #include "smplpix/safetensors.h"
@@ -345,6 +346,15 @@ spx_status spx_unet_forward_device(spx_unet *u, cl_mem input, size_t offset, int
     return spx_fail(u->ctx, SPX_E_ARG, "unet: device input holds %zu bytes after offset %zu, need %zu for %dx%dx%dx%d",
                     offset > size ? 0 : size - offset, offset, need, n, SPX_UNET_IN_CHANNELS, h, w);
   return run_forward(u, NULL, input, offset, NULL, n, h, w, 0, output, NULL);
+}
+
+spx_status spx_unet_forward_tensor(spx_unet *u, const spx_device_tensor *input, float *output) {
+  spx_status st = spx_device_tensor_check(u->ctx, input, "spx_unet_forward_tensor");
+  if (st) return st;
+  if (input->shape[1] != SPX_UNET_IN_CHANNELS)
+    return spx_fail(u->ctx, SPX_E_ARG, "spx_unet_forward_tensor: input has %d channels, the network takes %d",
+                    input->shape[1], SPX_UNET_IN_CHANNELS);
+  return spx_unet_forward_device(u, input->mem, 0, input->shape[0], input->shape[2], input->shape[3], output);
 }
 
 spx_status spx_unet_forward_loss(spx_unet *u, const float *input, const float *target, int n, int h, int w,

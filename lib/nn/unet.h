@@ -21,7 +21,7 @@ int spx_unet_output_id(const spx_unet *u);
 spx_ctx *spx_unet_ctx(spx_unet *u);
 
 /* Inference forward (batch norm folded, like spx_unet_forward with train = 0) from an input
- * already on the device: n*4*h*w floats NCHW in `input` at byte `offset` (e.g. straight from
+ * already on the device (the public form is spx_unet_forward_tensor, smplpix/unet.h): n*4*h*w floats NCHW in `input` at byte `offset` (e.g. straight from
  * spx_project_device), copied on the device into the network's input; no host round trip.
  * output: host [n,3,h,w], or NULL to leave the result on the device. Device backend only. */
 spx_status spx_unet_forward_device(spx_unet *u, cl_mem input, size_t offset, int n, int h, int w, float *output);

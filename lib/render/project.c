@@ -5,6 +5,8 @@
 
 #include "render/project_internal.h"
 
+#include "cl/tensor.h"
+
 spx_status spx_projector_create(spx_ctx *ctx, spx_projector **out) {
   if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_projector_create: NULL out");
   *out = calloc(1, sizeof **out);
@@ -203,6 +205,25 @@ spx_status spx_project(spx_ctx *ctx, spx_projector *p, const spx_project_args *a
   if ((st = spx_cl_read(ctx, p->img.mem, 0, npix * 4 * sizeof(float), out))) return st;
   if (winners) st = spx_cl_read(ctx, p->win.mem, 0, npix * sizeof(int32_t), winners);
   return st;
+}
+
+spx_status spx_project_to_tensor(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, spx_device_tensor *out) {
+  spx_status st = check_device(ctx, "spx_project_to_tensor");
+  if (st) return st;
+  if ((st = host_args(ctx, "spx_project_to_tensor", a))) return st;
+  if (!p) return spx_fail(ctx, SPX_E_ARG, "spx_project_to_tensor: NULL projector");
+  if ((st = spx_device_tensor_check(ctx, out, "spx_project_to_tensor"))) return st;
+  if (a->layout != SPX_LAYOUT_NCHW)
+    return spx_fail(ctx, SPX_E_ARG, "spx_project_to_tensor: a device tensor is NCHW; ask for SPX_LAYOUT_NCHW");
+  int n = a->batch * a->ncams; /* both bounded by spx_project_check */
+  size_t need = (size_t)n * 4 * (size_t)a->cams[0].height * (size_t)a->cams[0].width;
+  if (need > out->capacity)
+    return spx_fail(ctx, SPX_E_ARG, "spx_project_to_tensor: %d images of 4x%dx%d need %zu floats, the tensor holds %zu",
+                    n, a->cams[0].height, a->cams[0].width, need, out->capacity);
+  if ((st = spx_device_tensor_reshape(ctx, out, n, 4, a->cams[0].height, a->cams[0].width))) return st;
+  spx_project_dev_args d;
+  if ((st = upload_sets(ctx, p, a, &d))) return st;
+  return spx_project_device(ctx, p, &d, out->mem, NULL, 0);
 }
 
 spx_status spx_project_backward_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem winners,

@@ -1,5 +1,6 @@
-/* Private: the projection on device buffers, for chaining into the network without host round
- * trips (kernels/project.cl; public host API in smplpix/render.h). */
+/* Private: the projection on device buffers (kernels/project.cl). The public API is
+ * smplpix/render.h: host arrays (spx_project), or a device tensor for the network without a host
+ * round trip (spx_project_to_tensor, built on spx_project_device). */
 #ifndef SPX_RENDER_PROJECT_INTERNAL_H
 #define SPX_RENDER_PROJECT_INTERNAL_H
 

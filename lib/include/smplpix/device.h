@@ -47,6 +47,29 @@ typedef struct spx_cache_stats {
 } spx_cache_stats;
 spx_status spx_device_cache_stats(spx_ctx *ctx, spx_cache_stats *out);
 
+/* A float32 NCHW tensor in device memory: what the projection writes and the network reads, so a
+ * frame goes projection -> UNet without crossing the host (spx_project_to_tensor in
+ * smplpix/render.h, spx_unet_forward_tensor in smplpix/unet.h). It belongs to the context that
+ * created it (other contexts are refused) and must be freed before that context is destroyed.
+ * The buffer holds `capacity` floats, fixed at creation; the shape may change later (reshape, or
+ * a producer that writes a different batch) as long as it fits. */
+typedef struct spx_device_tensor spx_device_tensor;
+
+/* A tensor of shape [n, c, h, w] (every dimension >= 1); its capacity is n*c*h*w floats. The
+ * contents are undefined until written. */
+spx_status spx_device_tensor_create(spx_ctx *ctx, int n, int c, int h, int w, spx_device_tensor **out);
+void spx_device_tensor_free(spx_device_tensor *t);
+/* Current shape (4 values, NCHW), element count and capacity (floats). */
+void spx_device_tensor_shape(const spx_device_tensor *t, int shape[4]);
+size_t spx_device_tensor_count(const spx_device_tensor *t);
+size_t spx_device_tensor_capacity(const spx_device_tensor *t);
+/* Give the tensor a new shape of at most `capacity` elements (the contents are kept as a flat
+ * array). */
+spx_status spx_device_tensor_reshape(spx_ctx *ctx, spx_device_tensor *t, int n, int c, int h, int w);
+/* Blocking copies of the whole tensor (spx_device_tensor_count floats, NCHW) from / to the host. */
+spx_status spx_device_tensor_write(spx_ctx *ctx, spx_device_tensor *t, const float *src);
+spx_status spx_device_tensor_read(spx_ctx *ctx, const spx_device_tensor *t, float *dst);
+
 #ifdef __cplusplus
 }
 #endif

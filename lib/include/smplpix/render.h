@@ -7,6 +7,7 @@
 
 #include "smplpix/camera.h"
 #include "smplpix/core.h"
+#include "smplpix/device.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -35,6 +36,13 @@ typedef struct spx_project_args {
 /* Project B sets through C cameras: out holds B*C images (image b*C + c) of H*W*4 floats.
  * winners (optional, B*C*H*W): the vertex index kept at each pixel, -1 for background. */
 spx_status spx_project(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, float *out, int32_t *winners);
+
+/* Project into a device tensor (smplpix/device.h) instead of host memory: the network's input
+ * stays on the device (spx_unet_forward_tensor in smplpix/unet.h reads it; no host round trip).
+ * a->layout must be SPX_LAYOUT_NCHW; out must hold B*C*4*H*W floats and gets the shape
+ * [B*C, 4, H, W]. The images equal spx_project's bit for bit. Only enqueues work (the positions
+ * and colours are uploaded first); reading the tensor or spx_device_finish waits for it. */
+spx_status spx_project_to_tensor(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, spx_device_tensor *out);
 
 /* Gradient of a loss through the projection. grad_img has the shape/layout of the forward's
  * output; winners is the forward's winners. Accumulates (+=) into grad_col (B*N*3) and

@@ -13,6 +13,7 @@
 #include "smplpix/npz.h"
 #include "smplpix/safetensors.h"
 #include "smplpix/bvh.h"
+#include "smplpix/amass.h"
 
 #include "smplpix/render.h"
 

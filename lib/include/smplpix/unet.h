@@ -3,13 +3,16 @@
  * conv; 4 input channels (RGB-D), 3 output channels, optional sigmoid. Tensor names and shapes are
  * those of the PyTorch "milesial" UNet with bilinear upsampling, so checkpoints move both ways.
  *
- * Tensors cross the API as host float32 NCHW arrays; everything else stays on the device. Any
+ * Tensors cross the API as host float32 NCHW arrays, or, for inference, as a device tensor
+ * (smplpix/device.h: e.g. straight from spx_project_to_tensor); everything else stays on the
+ * device. Any
  * batch >= 1 and any H, W >= 16 work (odd sizes included). Memory for activations and gradients
  * is planned once per (batch, H, W, mode) and reused. */
 #ifndef SMPLPIX_UNET_H
 #define SMPLPIX_UNET_H
 
 #include "smplpix/core.h"
+#include "smplpix/device.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -41,6 +44,11 @@ size_t spx_unet_device_bytes(const spx_unet *u);
  * nothing recorded). train = 1: batch statistics, running statistics updated, the pass is
  * recorded for spx_unet_backward. */
 spx_status spx_unet_forward(spx_unet *u, const float *input, int n, int h, int w, int train, float *output);
+/* Inference forward (as train = 0) reading its input from a device tensor of shape [n, 4, h, w]
+ * (smplpix/device.h; e.g. written by spx_project_to_tensor): the input is copied on the device,
+ * never through the host, and the result equals spx_unet_forward on the same values bit for bit.
+ * output: host [n,3,h,w], or NULL to leave the result on the device (e.g. when timing). */
+spx_status spx_unet_forward_tensor(spx_unet *u, const spx_device_tensor *input, float *output);
 /* Training forward followed by the mean L1 loss to target [n,3,h,w]; *loss receives its value. */
 spx_status spx_unet_forward_loss(spx_unet *u, const float *input, const float *target, int n, int h, int w,
                                  float *output, float *loss);

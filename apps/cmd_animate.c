@@ -1,0 +1,301 @@
+/* smplpix animate: a registered person driven by a motion clip (BVH, or AMASS .npz), one PNG per
+ * frame, through the network (projection straight into it on the device, as `render --mesh`) or,
+ * with --no-network, the raw vertex projection; an MP4 when ffmpeg is on PATH. */
+#include <errno.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "animate.h"
+#include "cli.h"
+#include "cli_model.h"
+#include "cmd_fit.h"
+
+static void animate_help(void) {
+  printf(
+      "usage: smplpix animate --registration P.json (--bvh M.bvh | --amass M.npz) --camera C.json --out DIR\n"
+      "                       [--frames A:B] [--checkpoint W.safetensors | --no-network] [--orbit DEG]\n"
+      "                       [--fps N] [--no-mp4] [--model M.npz] [--device cpu|gpu|P:D] [--quiet]\n"
+      "Poses the registered person (smplpix register --params) with frames A..B-1 of the motion (default:\n"
+      "all; A: or :B leave an end open), retargeted by joint name: a BVH clip as `smplpix repose` does,\n"
+      "or an AMASS .npz (poses, trans, mocap_framerate; SMPL's 24 or SMPL-H's 52 joints, hands dropped).\n"
+      "Each frame is projected through the one camera of C.json straight into the network on the device\n"
+      "and written as DIR/frame_NNNNNN.png (NNNNNN = the motion frame). The network is W, else the shipped\n"
+      "data/models/default.safetensors; --no-network writes the raw projection (the network's input) instead.\n"
+      "--orbit DEG turns the camera DEG degrees per frame about the vertical axis through the body's centre\n"
+      "in the first frame. With ffmpeg on PATH, DIR/animation.mp4 is made at --fps (default: the clip's\n"
+      "frame rate); --no-mp4 skips it. Colours: the registration's, else the surface normals.\n"
+      "Progress: a bar on stderr when it is a terminal, else a line per tenth of the frames on stdout;\n"
+      "frames per second are reported at the end. On failure nothing is left (frames, video, folder);\n"
+      "Ctrl-C stops after the current frame, removes them too and exits with status 130.\n");
+}
+
+/* Ctrl-C: the loop stops after the current frame and removes what it wrote (exit 130). */
+static volatile sig_atomic_t interrupted;
+static void on_sigint(int sig) {
+  (void)sig;
+  interrupted = 1;
+}
+
+typedef struct progress {
+  int tty, shown;
+  double t0, last;
+} progress;
+
+static void progress_show(progress *pg, int done, int total, int quiet) {
+  if (quiet) return;
+  double t = spx_cli_now(), el = t - pg->t0, fps = el > 0 ? done / el : 0;
+  if (pg->tty) {
+    if (done < total && pg->shown && t - pg->last < 0.1) return;
+    char bar[21];
+    int fill = total > 0 ? 20 * done / total : 20;
+    for (int k = 0; k < 20; k++) bar[k] = k < fill ? '#' : '.';
+    bar[20] = 0;
+    fprintf(stderr, "\r\033[K[%s] frame %d/%d  %.3g frames/s  ETA %.0f s", bar, done, total, fps,
+            fps > 0 ? (total - done) / fps : 0.0);
+    if (done == total) fputc('\n', stderr);
+    pg->shown = 1;
+  } else {
+    int every = total / 10 > 1 ? total / 10 : 1;
+    if (done % every && done != total) return;
+    printf("frame %d/%d: %.3g frames/s\n", done, total, fps); /* a log: stdout keeps errors one line */
+  }
+  pg->last = t;
+  fflush(pg->tty ? stderr : stdout);
+}
+
+typedef struct opts {
+  const char *reg, *bvh, *amass, *cam, *out, *ckpt, *model, *spec, *frames;
+  int no_net, no_mp4, quiet;
+  double orbit, fps;
+} opts;
+
+/* network output [3,H,W] or the projection (HWC, 4 channels) -> an RGB image */
+static void to_rgb(const float *src, int nchw, int W, int H, spx_image *img) {
+  size_t hw = (size_t)W * (size_t)H;
+  for (size_t p = 0; p < hw; p++)
+    for (int c = 0; c < 3; c++) img->data[p * 3 + (size_t)c] = nchw ? src[(size_t)c * hw + p] : src[p * 4 + (size_t)c];
+}
+
+static int run(spx_ctx *ctx, const opts *o) {
+  const char *C = "animate";
+  spx_fit_result r;
+  spx_body_model m;
+  spx_anim_motion mo;
+  memset(&r, 0, sizeof r), memset(&m, 0, sizeof m), memset(&mo, 0, sizeof mo);
+  spx_camera *cams = NULL;
+  int ncams = 0, created = 0, rc;
+  spx_unet *u = NULL;
+  spx_projector *proj = NULL;
+  spx_device_tensor *tin = NULL;
+  spx_cli_written wr = {0};
+  spx_image img = {0};
+  double *pose = NULL, *work = NULL;
+  float *pos = NULL, *owned_col = NULL, *buf = NULL;
+  const char *ckpt = NULL;
+  struct sigaction sa, old_int;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_sigint;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = SA_RESTART;
+  interrupted = 0;
+  int handler_set = sigaction(SIGINT, &sa, &old_int) == 0;
+  /* every input is read and checked before anything is written */
+  if ((rc = spx_cli_load_registration(C, ctx, o->reg, o->model, &r, &m))) goto done;
+  if ((rc = spx_anim_motion_open(C, ctx, o->bvh, o->amass, &m, &mo))) goto done;
+  long a = 0, b = -1;
+  if (o->frames) spx_anim_parse_frames(o->frames, &a, &b); /* checked in the caller */
+  if (b < 0) b = mo.nframes;
+  rc = SPX_EXIT_ERROR;
+  if (a >= b || b > mo.nframes) {
+    rc = spx_cli_errorf(C, "%s: --frames %ld:%ld is out of range (the clip has %d frames: 0:%d)", mo.path, a, b,
+                        mo.nframes, mo.nframes);
+    goto done;
+  }
+  if ((rc = spx_cli_load_cameras(C, ctx, o->cam, &cams, &ncams))) goto done;
+  rc = SPX_EXIT_ERROR;
+  const int W = cams[0].width, H = cams[0].height;
+  if (ncams != 1) {
+    rc = spx_cli_errorf(C, "%s: holds %d cameras; animate renders through one", o->cam, ncams);
+    goto done;
+  }
+  if (!o->no_net && (H < 16 || W < 16)) {
+    rc = spx_cli_errorf(C, "%s: %dx%d is too small (the UNet needs at least 16x16)", o->cam, W, H);
+    goto done;
+  }
+  if (!o->no_net && !(ckpt = spx_cli_checkpoint(C, o->ckpt, "--no-network (the raw projection)"))) goto done;
+  struct stat sb;
+  if (stat(o->out, &sb) == 0) {
+    if (!S_ISDIR(sb.st_mode)) {
+      rc = spx_cli_errorf(C, "%s: exists and is not a directory", o->out);
+      goto done;
+    }
+  } else if (mkdir(o->out, 0777) != 0) {
+    rc = spx_cli_errorf(C, "%s: cannot create the directory: %s", o->out, strerror(errno));
+    goto done;
+  } else {
+    created = 1;
+  }
+  if ((rc = spx_cli_open_device(C, ctx, o->spec))) goto done;
+  rc = SPX_EXIT_ERROR;
+  if (ckpt && spx_unet_load(ctx, ckpt, &u)) {
+    rc = spx_cli_error(C, ctx);
+    goto done;
+  }
+  size_t nv3 = (size_t)m.nv * 3, hw = (size_t)W * (size_t)H;
+  pose = malloc((size_t)m.nj * 3 * sizeof(double));
+  work = malloc(nv3 * sizeof(double));
+  pos = malloc(nv3 * sizeof(float));
+  buf = malloc(hw * 4 * sizeof(float));
+  if (!r.colors) owned_col = malloc(nv3 * sizeof(float));
+  if (!pose || !work || !pos || !buf || (!r.colors && !owned_col) || spx_image_alloc(ctx, W, H, 3, &img)) {
+    rc = spx_cli_errorf(C, "out of memory");
+    goto done;
+  }
+  if (spx_projector_create(ctx, &proj) || (u && spx_device_tensor_create(ctx, 1, SPX_UNET_IN_CHANNELS, H, W, &tin))) {
+    rc = spx_cli_error(C, ctx);
+    goto done;
+  }
+  int total = (int)(b - a);
+  double centre[3] = {0, 0, 0}, t_start = spx_cli_now();
+  progress pg = {isatty(STDERR_FILENO), 0, t_start, 0};
+  for (long f = a; f < b; f++) {
+    double trans[3];
+    if (interrupted) {
+      if (pg.tty && pg.shown) fputc('\n', stderr);
+      spx_cli_errorf(C, "interrupted at frame %ld: removed the %d frames written", f, wr.n);
+      rc = 130;
+      goto done;
+    }
+    if (spx_anim_motion_pose(ctx, &mo, &m, (int32_t)f, pose, trans)) {
+      rc = spx_cli_errorf(C, "%s: frame %ld: %s", mo.path, f, spx_ctx_message(ctx));
+      goto done;
+    }
+    if ((rc = spx_cli_pose_registration(C, ctx, &m, &r, r.betas, pose, trans, work, pos))) goto done;
+    rc = SPX_EXIT_ERROR;
+    if (!r.colors) {
+      spx_mesh view = {m.nv, m.nf, pos, NULL, NULL, m.faces, 0, NULL, NULL};
+      spx_cli_normal_colors(&view, owned_col);
+    }
+    if (f == a) {
+      for (size_t i = 0; i < nv3; i++) centre[i % 3] += pos[i] / m.nv;
+    }
+    spx_camera cam = cams[0];
+    if (o->orbit != 0) spx_anim_orbit(&cams[0], centre, o->orbit * (double)(f - a), &cam);
+    spx_project_args pa = {1, m.nv, pos, r.colors ? r.colors : owned_col, 1, &cam,
+                           u ? SPX_LAYOUT_NCHW : SPX_LAYOUT_HWC};
+    spx_status st = u ? spx_project_to_tensor(ctx, proj, &pa, tin) : spx_project(ctx, proj, &pa, buf, NULL);
+    if (!st && u) st = spx_unet_forward_tensor(u, tin, buf);
+    if (st) {
+      rc = spx_cli_errorf(C, "frame %ld: %s", f, spx_ctx_message(ctx));
+      goto done;
+    }
+    to_rgb(buf, u != NULL, W, H, &img);
+    char *path = malloc(strlen(o->out) + 32);
+    if (path) snprintf(path, strlen(o->out) + 32, "%s/frame_%06ld.png", o->out, f);
+    if ((rc = spx_cli_write_output(C, ctx, &wr, path, &img))) goto done;
+    progress_show(&pg, (int)(f - a + 1), total, o->quiet);
+  }
+  double el = spx_cli_now() - t_start;
+  rc = SPX_EXIT_ERROR;
+  char mp4[4200] = "";
+  const char *ffmpeg = o->no_mp4 ? NULL : spx_anim_find_ffmpeg();
+  if (ffmpeg) {
+    char why[4400];
+    snprintf(mp4, sizeof mp4, "%s/animation.mp4", o->out);
+    if (spx_anim_encode_mp4(ffmpeg, o->out, a, o->fps > 0 ? o->fps : mo.fps, mp4, why, sizeof why)) {
+      rc = spx_cli_errorf(C, "%s", why);
+      goto done;
+    }
+  }
+  if (!o->quiet) {
+    printf("animated %d frames (%ld..%ld of %s) at %dx%d %s in %.2f s: %.2f frames/s\n", total, a, b - 1, mo.path, W,
+           H, u ? "through the network" : "as the raw projection (--no-network)", el, el > 0 ? total / el : 0.0);
+    printf("wrote %s/frame_%06ld.png .. frame_%06ld.png\n", o->out, a, b - 1);
+    if (ffmpeg) printf("wrote %s (%.3g frames/s)\n", mp4, o->fps > 0 ? o->fps : mo.fps);
+    else if (!o->no_mp4) printf("ffmpeg is not on PATH: no MP4 written (install ffmpeg to get %s/animation.mp4)\n", o->out);
+  }
+  rc = SPX_EXIT_OK;
+done:
+  if (handler_set) sigaction(SIGINT, &old_int, NULL);
+  spx_cli_written_finish(&wr, rc != SPX_EXIT_OK);
+  if (created && rc != SPX_EXIT_OK) rmdir(o->out);
+  spx_image_free(&img);
+  free(pose), free(work), free(pos), free(buf), free(owned_col), free(cams);
+  spx_device_tensor_free(tin);
+  spx_projector_destroy(proj);
+  spx_unet_destroy(u);
+  spx_anim_motion_close(&mo);
+  spx_body_free(&m);
+  spx_fit_result_free(&r);
+  return rc;
+}
+
+static int parse_double(const char *v, double lo, double hi, double *out) {
+  char *end;
+  errno = 0;
+  double x = strtod(v, &end);
+  if (errno || end == v || *end || !isfinite(x) || x < lo || x > hi) return 0;
+  *out = x;
+  return 1;
+}
+
+int spx_cmd_animate(int argc, char **argv) {
+  opts o;
+  memset(&o, 0, sizeof o);
+  int bad = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *v;
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+      animate_help();
+      return SPX_EXIT_OK;
+    } else if (!strcmp(argv[i], "--no-network")) {
+      o.no_net = 1;
+    } else if (!strcmp(argv[i], "--no-mp4")) {
+      o.no_mp4 = 1;
+    } else if (!strcmp(argv[i], "--quiet")) {
+      o.quiet = 1;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--registration", &bad))) {
+      o.reg = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--bvh", &bad))) {
+      o.bvh = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--amass", &bad))) {
+      o.amass = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--camera", &bad))) {
+      o.cam = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
+      o.out = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
+      o.ckpt = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
+      o.model = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
+      o.spec = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--frames", &bad))) {
+      long s, e;
+      if (!spx_anim_parse_frames(v, &s, &e))
+        return spx_cli_usage("animate", "--frames: expected A:B (frames A..B-1), A: or :B, got '%s'", v);
+      o.frames = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--orbit", &bad))) {
+      if (!parse_double(v, -360, 360, &o.orbit))
+        return spx_cli_usage("animate", "--orbit: expected degrees per frame in [-360, 360], got '%s'", v);
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--fps", &bad))) {
+      if (!parse_double(v, 0.01, 1000, &o.fps))
+        return spx_cli_usage("animate", "--fps: expected frames per second in [0.01, 1000], got '%s'", v);
+    } else {
+      return spx_cli_usage("animate", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+    }
+  }
+  if (!o.reg || !o.cam || !o.out || !o.bvh == !o.amass)
+    return spx_cli_usage("animate", "--registration, --camera, --out and one of --bvh / --amass are required");
+  if (o.no_net && o.ckpt) return spx_cli_usage("animate", "--no-network and --checkpoint exclude each other");
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("animate", "out of memory");
+  int rc = run(ctx, &o);
+  spx_ctx_destroy(ctx);
+  return rc;
+}
