@@ -112,6 +112,12 @@ spx_status spx_fit_load_json(spx_ctx *ctx, const char *path, spx_fit_result *out
 /* The same from text in memory (name labels the messages): one JSON document, nothing after it. */
 spx_status spx_fit_parse_json(spx_ctx *ctx, const char *name, const char *text, size_t len, spx_fit_result *out,
                               char **model_path);
+/* Pose parameters (nj*3 axis-angle + trans) from JSON: the top-level "pose" and "trans" (a
+ * registration JSON or a pose file), or, with view != NULL, the "pose" object of the view of that
+ * name in a `smplpix synth` manifest (subjects[].views[]); then scan_trans (optional) receives
+ * the "trans" of that subject's "scan_pose". Errors name the file and the key. */
+spx_status spx_pose_load_json(spx_ctx *ctx, const char *path, const char *view, int32_t nj, double *pose,
+                              double trans[3], double scan_trans[3]);
 
 #ifdef __cplusplus
 }
