@@ -1,5 +1,5 @@
 /* Hostile inputs and outputs (issue 12) for the commands that came after the transaction:
- * `eval`, `animate`, `synth`. For each: a FIFO as an input is a one-line error at once (never a
+ * `eval`, `animate`, `synth`, `bake`. For each: a FIFO as an input is a one-line error at once (never a
  * hang), a pre-existing output keeps its bytes when the run fails, an output that cannot be
  * written is refused before the work, and no temporary is left behind. synth's folder-level
  * commit: a run killed at any moment leaves the previous output whole, and the next run removes
@@ -213,11 +213,31 @@ static void test_synth(void) {
   CHECK(snap_same(&s) && count_temps(".") == 0);
 }
 
+static void test_bake(void) {
+  hostile_dir();
+  CHECK(make_scene(0));
+  fifo("f.obj");
+  write_text("old.png", "precious");
+  const char *o[] = {"old.png", NULL};
+  snapshot s;
+  snap_take(&s, o);
+  CHECK(run("bake --mesh f.obj --scan quad.obj --out old.png") == 1 && err_is("bake", "f.obj: not a regular file (a FIFO)"));
+  CHECK(run("bake --mesh quad.obj --scan f.obj --out old.png") == 1 && err_is("bake", "f.obj: not a regular file"));
+  /* a run that fails after reading its inputs (no texture coordinates) keeps the old texture */
+  CHECK(run("bake --mesh quad.obj --scan quad.obj --out old.png") == 1 && err_is("bake", "quad.obj: no texture"));
+  CHECK(snap_same(&s));
+  /* an --out that is a folder is refused before the inputs are read (the FIFO would be next) */
+  sh("mkdir bd.png");
+  CHECK(run("bake --mesh f.obj --scan quad.obj --out bd.png") == 1 && err_is("bake", "bd.png: cannot write: it is a folder"));
+  CHECK(count_temps(".") == 0);
+}
+
 int main(void) {
   if (spx_ctx_create(&ctx)) return 1;
   SPX_RUN(test_eval);
   SPX_RUN(test_animate);
   SPX_RUN(test_synth);
+  SPX_RUN(test_bake);
   spx_ctx_destroy(ctx);
   return spx_test_summary();
 }
