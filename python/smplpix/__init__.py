@@ -7,7 +7,7 @@ C-order arrays in and out, errors raised as SmplpixError carrying the library's 
     ctx = smplpix.Context(device="cpu")
     mesh = smplpix.read_mesh("data/body/human_woman.obj")
     cam = smplpix.Camera.load("data/cameras/default.json")
-    img = smplpix.project(ctx, mesh.vertices, mesh.colors, cam)   # (1, H, W, 4) R, G, B, depth
+    img = smplpix.project(ctx, mesh.vertices, mesh.colors, cam)   # (1, 1, H, W, 4): B, C, H, W, (R, G, B, depth)
 
 `smplpix.torch` (needs PyTorch) makes the projection a torch.autograd.Function."""
 from ._core import Context, SmplpixError, list_devices, version

@@ -71,9 +71,9 @@ def project(ctx: Context, vertices, colors=None, cameras: Cameras = (), *, layou
 
     vertices: (N, 3) or (B, N, 3) float32; colors: the same shape (any range), (N, 3) shared by
     every set, or None for white; cameras: a Camera or a list (all of the same size).
-    Returns (B, C, H, W, 4) float32 (R, G, B, depth) for (B, N, 3) input, (C, H, W, 4) for (N, 3);
-    layout="nchw" gives (..., 4, H, W). With return_winners, also the vertex index kept at each
-    pixel, int32 (B, C, H, W) ((C, H, W)), -1 for background.
+    Returns (B, C, H, W, 4) float32 (R, G, B, depth), image b*C + c of spx_project (B = 1 for
+    (N, 3) input); layout="nchw" gives (B, C, 4, H, W). With return_winners, also the vertex
+    index kept at each pixel, int32 (B, C, H, W), -1 for background.
 
     Contract (DESIGN.md): (u', v', d) = K (R x + t); column floor(u'/d), row floor(v'/d); d <= 0
     and out-of-image points dropped; background (1, 1, 1, 1); nearest depth wins, equal depth ->
@@ -85,9 +85,7 @@ def project(ctx: Context, vertices, colors=None, cameras: Cameras = (), *, layou
         ctx.check(L.spx_project_ref(ctx.ptr, ctypes.byref(call.args), fptr(out), iptr(win)))
     else:
         ctx.check(L.spx_project(ctx.ptr, ctx.projector(), ctypes.byref(call.args), fptr(out), iptr(win)))
-    if return_winners:
-        return call.shape_out(out), call.shape_out(win)
-    return call.shape_out(out)
+    return (out, win) if return_winners else out
 
 
 def project_backward(ctx: Context, vertices, colors, cameras: Cameras, winners, grad_images, *,
