@@ -7,7 +7,7 @@ import sys
 import numpy as np
 
 import smplpix
-from conftest import BODY, ROOT
+from conftest import BODY
 
 
 def rss_mib():
@@ -62,6 +62,7 @@ def test_interpreter_exit_with_live_objects():
             "n = smplpix.UNet.create(ctx, width=8)\n"
             "v, j = b.forward()\n"
             "print('ok', v.shape)\n")
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.join(ROOT, "python"), os.environ.get("PYTHONPATH", "")]))
+    pkg_parent = os.path.dirname(os.path.dirname(smplpix.__file__))  # the smplpix under test
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([pkg_parent, os.environ.get("PYTHONPATH", "")]))
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
     assert r.returncode == 0 and "ok (13380, 3)" in r.stdout, r.stderr
