@@ -230,3 +230,8 @@ spx_fit_register = _fn("spx_fit_register", _st, _ctx_p, POINTER(spx_body_model),
                        POINTER(spx_fit_options), POINTER(spx_fit_result))
 spx_fit_result_free = _fn("spx_fit_result_free", None, POINTER(spx_fit_result))
 spx_fit_save_json = _fn("spx_fit_save_json", _st, _ctx_p, c_char_p, POINTER(spx_fit_result), c_char_p)
+
+spx_device_tensor_create = _fn("spx_device_tensor_create", _st, _ctx_p, c_int, c_int, c_int, c_int, POINTER(c_void_p))
+spx_device_tensor_free = _fn("spx_device_tensor_free", None, c_void_p)
+spx_project_to_tensor = _fn("spx_project_to_tensor", _st, _ctx_p, c_void_p, POINTER(spx_project_args), c_void_p)
+spx_unet_forward_tensor = _fn("spx_unet_forward_tensor", _st, c_void_p, c_void_p, _F)

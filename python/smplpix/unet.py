@@ -95,6 +95,24 @@ class UNet:
         self.ctx.check(L.spx_unet_forward(self.ptr, fptr(x), n, h, w, 0, fptr(out)))
         return np.ascontiguousarray(out[0].transpose(1, 2, 0)) if hwc else out
 
+    def render_points(self, vertices, colors=None, cameras=()) -> np.ndarray:
+        """Project and render without leaving the device: spx_project_to_tensor writes the
+        RGB-D images into a device tensor (smplpix/device.h) that spx_unet_forward_tensor reads
+        (what `smplpix render --mesh` runs). Arguments as project(); returns (B, C, 3, H, W)
+        float32, equal bit for bit to render(project(..., layout="nchw")) on the same images."""
+        from .render import ProjectCall
+        call = ProjectCall(vertices, colors, cameras, "nchw")
+        n = call.B * call.C
+        t = ctypes.c_void_p()
+        self.ctx.check(L.spx_device_tensor_create(self.ctx.ptr, n, 4, call.H, call.W, ctypes.byref(t)))
+        try:
+            out = np.empty((call.B, call.C, 3, call.H, call.W), dtype=np.float32)
+            self.ctx.check(L.spx_project_to_tensor(self.ctx.ptr, self.ctx.projector(), ctypes.byref(call.args), t))
+            self.ctx.check(L.spx_unet_forward_tensor(self.ptr, t, fptr(out)))
+            return out
+        finally:
+            L.spx_device_tensor_free(t)
+
     def state_dict(self) -> Dict[str, np.ndarray]:
         """Every tensor by its state_dict name (spx_unet_tensor_name / spx_unet_read), float32."""
         out = {}

@@ -128,3 +128,32 @@ def test_bad_input_raises(ctx, body, tmp_path):
     net.close()
     with pytest.raises(ValueError, match="closed"):
         net.render(np.ones((1, 4, 16, 16), np.float32))
+
+
+def test_render_points_on_device_equals_host_path(ctx, body):
+    net = smplpix.UNet.create(ctx, width=8, seed=3)
+    cams = [smplpix.Camera(40, 32, [[40, 0, 20], [0, 40, 16], [0, 0, 1]], [[1, 0, 0], [0, -1, 0], [0, 0, -1]],
+                           [0, 0.83, t]) for t in (3.0, 3.5)]
+    v2 = np.stack([body.vertices, body.vertices * np.float32(0.9)])
+    col = np.random.default_rng(0).random(body.vertices.shape, dtype=np.float32)
+    dev = net.render_points(v2, col, cams)
+    assert dev.shape == (2, 2, 3, 32, 40)
+    host = net.render(smplpix.project(ctx, v2, col, cams, layout="nchw").reshape(4, 4, 32, 40))
+    np.testing.assert_array_equal(dev.reshape(4, 3, 32, 40), host)
+    net.close()
+
+
+def test_inputs_converted_or_used_in_place(ctx, body):
+    from smplpix._core import f32
+    a = np.ascontiguousarray(body.vertices)
+    assert f32(a, "a") is a  # float32 C order: no copy
+    cam = smplpix.Camera.load(CAMERA)
+    want = smplpix.project(ctx, body.vertices, None, cam)
+    f64 = body.vertices.astype(np.float64)
+    np.testing.assert_array_equal(smplpix.project(ctx, f64, None, cam), want)
+    fortran = np.asfortranarray(body.vertices)
+    np.testing.assert_array_equal(smplpix.project(ctx, fortran, None, cam), want)
+    strided = np.concatenate([body.vertices, body.vertices], axis=1)[:, :3]  # a non-contiguous view
+    assert not strided.flags.c_contiguous
+    np.testing.assert_array_equal(smplpix.project(ctx, strided, None, cam), want)
+    assert smplpix.project(ctx, body.vertices.tolist(), None, cam).shape == want.shape

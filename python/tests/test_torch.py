@@ -89,3 +89,13 @@ def test_matches_torch_zbuffer_semantics(ctx):
     # gradient is the depth channel's gradient, on z only (u, v are floored: no x, y gradient)
     assert torch.all(av[-1] == 0) and torch.all(ac[-1] == 0)
     assert torch.all(av[:, :2] == 0) and torch.count_nonzero(av[:, 2]) == 30
+
+
+def test_positions_only_and_white(ctx):
+    v = torch.tensor(centred_points(10, 8), requires_grad=True)
+    img = spt.project(ctx, v, None, CAM)  # white
+    assert torch.all(img[..., :3] == 1)
+    img[..., 3].sum().backward()
+    assert torch.count_nonzero(v.grad[:, 2]) == 10 and torch.all(v.grad[:, :2] == 0)
+    with pytest.raises(ValueError, match="colors"):
+        spt.project(ctx, v, torch.ones(3, 3, dtype=torch.float64), CAM)
