@@ -27,13 +27,16 @@ def _candidates():
                 if name.startswith("libsmplpix.so"):
                     yield os.path.join(d, name)
     # 2. an installed libsmplpix found through pkg-config (make install PREFIX=...)
-    try:
-        libdir = subprocess.run(["pkg-config", "--variable=libdir", "smplpix"], capture_output=True, text=True,
-                                check=False, timeout=10).stdout.strip()
-        if libdir:
-            yield os.path.join(libdir, "libsmplpix.so.0")
-    except (OSError, subprocess.SubprocessError):
-        pass
+    #    (libdir as configured, and the folder above the .pc file, which is right even when the
+    #    install prefix was chosen at install time: cmake --install --prefix)
+    for var, sub in (("libdir", "."), ("pcfiledir", "..")):
+        try:
+            d = subprocess.run(["pkg-config", f"--variable={var}", "smplpix"], capture_output=True, text=True,
+                               check=False, timeout=10).stdout.strip()
+        except (OSError, subprocess.SubprocessError):
+            continue
+        if d:
+            yield os.path.normpath(os.path.join(d, sub, "libsmplpix.so.0"))
     # 3. the dynamic linker's search path
     found = ctypes.util.find_library("smplpix")
     if found:

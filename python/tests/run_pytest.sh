@@ -17,7 +17,7 @@ if [ -z "$py" ] || ! "$py" -c "import numpy, pytest" >/dev/null 2>&1; then
 fi
 lib=$(ls "$build"/libsmplpix.so 2>/dev/null || true)
 [ -n "$lib" ] || { echo "run_pytest.sh: $build/libsmplpix.so not found (shared library build needed)" >&2; exit 1; }
-export SMPLPIX_LIBRARY="$lib" SPX_TOOL="${SPX_TOOL:-$build/smplpix}"
+export SMPLPIX_LIBRARY="$lib" SPX_TOOL="${SPX_TOOL:-$build/smplpix}" SPX_BUILD_DIR="$build"
 export PYTHONPATH="$root/python${PYTHONPATH:+:$PYTHONPATH}"
 cd "$root/python"
 # exit 5 (no tests collected) is a failure too: ctest sees every non-zero status except 77
