@@ -5,6 +5,7 @@ import ctypes
 from typing import Optional, Sequence, Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _lib as L
 from ._core import Context, f32, fptr, i32, iptr
@@ -64,8 +65,9 @@ class ProjectCall:
         return a[0] if self.squeeze else a
 
 
-def project(ctx: Context, vertices, colors=None, cameras: Cameras = (), *, layout: str = "hwc",
-            return_winners: bool = False, reference: bool = False):
+def project(ctx: Context, vertices: ArrayLike, colors: Optional[ArrayLike] = None, cameras: Cameras = (), *,
+            layout: str = "hwc", return_winners: bool = False,
+            reference: bool = False) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
     """Point projection with collision resolution (SMPLpix eq. 3-4): coloured vertices -> sparse
     RGB-D images (spx_project; spx_project_ref with reference=True).
 
@@ -88,8 +90,9 @@ def project(ctx: Context, vertices, colors=None, cameras: Cameras = (), *, layou
     return (out, win) if return_winners else out
 
 
-def project_backward(ctx: Context, vertices, colors, cameras: Cameras, winners, grad_images, *,
-                     layout: str = "hwc", reference: bool = False):
+def project_backward(ctx: Context, vertices: ArrayLike, colors: Optional[ArrayLike], cameras: Cameras,
+                     winners: ArrayLike, grad_images: ArrayLike, *, layout: str = "hwc",
+                     reference: bool = False) -> Tuple[np.ndarray, np.ndarray]:
     """Gradient of a loss through the projection (spx_project_backward; spx_project_backward_ref
     with reference=True). winners and grad_images have the shapes project() returned.
     Returns (grad_colors, grad_vertices), each shaped like vertices. Colours get the image's RGB
@@ -116,9 +119,11 @@ def project_backward(ctx: Context, vertices, colors, cameras: Cameras, winners, 
     return call.shape_out(gc), call.shape_out(gp)
 
 
-def raster(ctx: Context, vertices, faces, colors=None, cameras: Cameras = (), *, aa: int = 1,
-           cull: str = "none", znear: float = 0.0, layout: str = "hwc", uv=None, face_uv=None, texture=None,
-           wrap: str = "repeat", return_faces: bool = False, reference: bool = False):
+def raster(ctx: Context, vertices: ArrayLike, faces: ArrayLike, colors: Optional[ArrayLike] = None,
+           cameras: Cameras = (), *, aa: int = 1, cull: str = "none", znear: float = 0.0, layout: str = "hwc",
+           uv: Optional[ArrayLike] = None, face_uv: Optional[ArrayLike] = None, texture: Optional[ArrayLike] = None,
+           wrap: str = "repeat", return_faces: bool = False,
+           reference: bool = False) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
     """The classic triangle-mesh rasterizer (spx_raster; spx_raster_ref with reference=True):
     the baseline SMPLpix is compared against, with the projection's cameras and output.
 
