@@ -19,7 +19,7 @@
 
 static void demo_help(void) {
   printf("usage: smplpix demo [--out DIR] [--checkpoint W.safetensors] [--frame N] [--seed S] [--size WxH]\n"
-         "                    [--device cpu|gpu|P:D] [--quiet]\n"
+         "                    [--zoom Z] [--device cpu|gpu|P:D] [--quiet]\n"
          "Renders the shipped body (data/body/default_body.npz) with the appearance of synthetic subject S\n"
          "(smplpix synth's texture sampled at the body's UVs; its shape too), reposed to frame N (default 600)\n"
          "of the shipped motion (data/mocap/01_01.bvh), seen from the front at WxH (default 128x96, the\n"
@@ -27,7 +27,8 @@ static void demo_help(void) {
          "  demo_input.png    the SMPLpix input: the projected coloured vertices (RGB of the RGB-D image)\n"
          "  demo_smplpix.png  the network's output on that input\n"
          "  demo_raster.png   the classic baseline: the same coloured mesh rasterized (per-vertex colours)\n"
-         "  demo.png          input | SMPLpix | per-vertex raster side by side, labelled\n"
+         "  demo.png          input | SMPLpix | per-vertex raster side by side, labelled, each panel\n"
+         "                    enlarged Z times (nearest pixel; --zoom 1..8, default 1)\n"
          "The network is --checkpoint, else the shipped data/models/default.safetensors. Without either,\n"
          "a note says so and demo.png is input | per-vertex raster (no demo_smplpix.png).\n");
 }
@@ -36,12 +37,12 @@ typedef struct demo_opts {
   const char *out_dir, *ckpt, *device;
   long frame;
   uint64_t seed;
-  int W, H, quiet;
+  int W, H, zoom, quiet;
 } demo_opts;
 
 static int parse(int argc, char **argv, demo_opts *o) {
   int bad = 0;
-  o->out_dir = "out", o->frame = 600, o->seed = 3, o->W = 128, o->H = 96;
+  o->out_dir = "out", o->frame = 600, o->seed = 3, o->W = 128, o->H = 96, o->zoom = 1;
   for (int i = 1; i < argc; i++) {
     const char *v;
     char *end;
@@ -63,6 +64,9 @@ static int parse(int argc, char **argv, demo_opts *o) {
       unsigned long long s = strtoull(v, &end, 10);
       if (errno || end == v || *end || *v == '-') return spx_cli_usage("demo", "--seed: expected an integer >= 0, got '%s'", v);
       o->seed = s;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--zoom", &bad))) {
+      if (strlen(v) != 1 || v[0] < '1' || v[0] > '8') return spx_cli_usage("demo", "--zoom: expected 1..8, got '%s'", v);
+      o->zoom = v[0] - '0';
     } else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) {
       int w = 0, h = 0, n = 0;
       if (sscanf(v, "%dx%d%n", &w, &h, &n) != 2 || v[n] || w < 16 || h < 16 || w > 4096 || h > 4096)
@@ -197,7 +201,7 @@ done:
 }
 
 /* Write the images; every file written is removed again when a later one fails. */
-static int write_all(spx_ctx *ctx, const char *dir, const spx_image *input, const spx_image *raster,
+static int write_all(spx_ctx *ctx, const char *dir, int zoom, const spx_image *input, const spx_image *raster,
                      const spx_image *net) {
   const spx_image *panels[3];
   const char *labels[3];
@@ -208,7 +212,7 @@ static int write_all(spx_ctx *ctx, const char *dir, const spx_image *input, cons
   spx_image strip = {0};
   spx_cli_written w = {0};
   int rc = SPX_EXIT_OK;
-  if (spx_demo_compose(ctx, panels, labels, n, &strip)) {
+  if (spx_demo_compose(ctx, panels, labels, n, zoom, &strip)) {
     rc = spx_cli_error("demo", ctx);
     goto done;
   }
@@ -271,7 +275,7 @@ int spx_cmd_demo(int argc, char **argv) {
     rc = spx_cli_errorf("demo", "%s: cannot create: %s", o.out_dir, strerror(errno));
     goto done;
   }
-  if ((rc = write_all(ctx, o.out_dir, &input, &raster, u ? &net : NULL))) goto done;
+  if ((rc = write_all(ctx, o.out_dir, o.zoom, &input, &raster, u ? &net : NULL))) goto done;
   if (!o.quiet) {
     if (!u)
       printf("note: no network is shipped yet (%s is absent) and no --checkpoint was given:\n"

@@ -7,10 +7,11 @@
 
 #define GAP 2
 
-spx_status spx_demo_compose(spx_ctx *ctx, const spx_image *const *imgs, const char *const *labels, int n,
+spx_status spx_demo_compose(spx_ctx *ctx, const spx_image *const *imgs, const char *const *labels, int n, int zoom,
                             spx_image *out) {
   memset(out, 0, sizeof *out);
-  int W = imgs[0]->width, H = imgs[0]->height;
+  if (zoom < 1) zoom = 1; /* the CLI allows 1..8 */
+  int W = imgs[0]->width * zoom, H = imgs[0]->height * zoom, IW = imgs[0]->width;
   int scale = H / 96 > 1 ? H / 96 : 1, band = 7 * scale + 6;
   int TW = n * W + (n - 1) * GAP, TH = H + band;
   spx_status st = spx_image_alloc(ctx, TW, TH, 3, out);
@@ -26,7 +27,7 @@ spx_status spx_demo_compose(spx_ctx *ctx, const spx_image *const *imgs, const ch
     for (int y = 0; y < H; y++)
       for (int x = 0; x < W; x++)
         for (int c = 0; c < 3; c++) {
-          float v = im->data[((size_t)y * W + x) * im->channels + c];
+          float v = im->data[((size_t)(y / zoom) * IW + x / zoom) * im->channels + c];
           v = v < 0 ? 0 : v > 1 ? 1 : v;
           out->data[((size_t)(y + band) * TW + x0 + x) * 3 + c] = v;
         }

@@ -84,6 +84,10 @@ static void test_with_network(void) {
   /* another subject and frame give another picture */
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o4 --size 40x32 --frame 300 --seed 6 --quiet") == 0);
   CHECK(!same_file("o2/demo_input.png", "o4/demo_input.png"));
+  /* --zoom enlarges the panels of demo.png only */
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o5 --size 40x32 --frame 10 --seed 5 --zoom 2") == 0);
+  CHECK(png_size("o5/demo.png", &w, &h) && w == 3 * 2 * W + 4 && h > 2 * H);
+  CHECK(same_file("o2/demo_smplpix.png", "o5/demo_smplpix.png"));
 }
 
 static void test_bad_input(void) {
@@ -98,6 +102,7 @@ static void test_bad_input(void) {
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out afile --size 40x32") == 1);
   CHECK(err_one_line_with("afile"));
   CHECK(tool("demo --size 8x8") == 2 && tool("demo --frame -1") == 2 && tool("demo --seed x") == 2);
+  CHECK(tool("demo --zoom 9") == 2 && tool("demo --zoom 0") == 2);
   CHECK(tool("demo --bogus") == 2 && err_one_line_with("--bogus"));
   CHECK(!exists("out"));
 }
