@@ -148,6 +148,22 @@ done:
   return rc;
 }
 
+/* mkdir -p: dir and its missing parents. */
+static int make_dirs(const char *dir) {
+  char p[4096];
+  if (snprintf(p, sizeof p, "%s", dir) >= (int)sizeof p) {
+    errno = ENAMETOOLONG;
+    return -1;
+  }
+  for (char *q = p + 1; *q; q++)
+    if (*q == '/') {
+      *q = 0;
+      if (mkdir(p, 0777) && errno != EEXIST) return -1;
+      *q = '/';
+    }
+  return mkdir(p, 0777) && errno != EEXIST ? -1 : 0;
+}
+
 static void free_scene(demo_scene *s) {
   free(s->pos), free(s->col);
   spx_synth_subject_free(&s->sub);
@@ -271,7 +287,7 @@ int spx_cmd_demo(int argc, char **argv) {
   }
   if ((rc = build_scene(ctx, &o, &s))) goto done;
   if ((rc = render_all(ctx, &s, u, &input, &raster, &net))) goto done;
-  if (mkdir(o.out_dir, 0777) && errno != EEXIST) {
+  if (make_dirs(o.out_dir)) {
     rc = spx_cli_errorf("demo", "%s: cannot create: %s", o.out_dir, strerror(errno));
     goto done;
   }
