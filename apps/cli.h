@@ -79,8 +79,8 @@ int spx_cmd_render(int argc, char **argv); /* apps/cmd_render.c */
 int spx_cmd_train(int argc, char **argv);  /* apps/cmd_train.c */
 int spx_cmd_raster(int argc, char **argv); /* apps/cmd_raster.c */
 int spx_cmd_dataset(int argc, char **argv); /* apps/cmd_dataset.c */
-int spx_cmd_eval(int argc, char **argv);    /* apps/cmd_eval.c */
 int spx_cmd_synth(int argc, char **argv);   /* apps/cmd_synth.c */
+int spx_cmd_eval(int argc, char **argv);    /* apps/cmd_eval.c */
 int spx_cmd_demo(int argc, char **argv);    /* apps/cmd_demo.c */
 int spx_cmd_export(int argc, char **argv);  /* apps/cmd_export.c */
 

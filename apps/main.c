@@ -23,6 +23,7 @@ static const spx_command commands[] = {
     {"repose", "pose a registered person with a BVH frame", spx_cmd_repose},
     {"reshape", "change a registered person's shape coefficients", spx_cmd_reshape},
     {"animate", "animate a registered person with BVH / AMASS motion (PNG frames, MP4)", spx_cmd_animate},
+    {"bake", "bake a coloured scan onto the registered body's UV texture", spx_cmd_bake},
     {"devices", "list OpenCL devices and warm the kernel cache", spx_cmd_devices},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])

@@ -29,3 +29,13 @@ set_tests_properties(test_render_project_pixel_sort PROPERTIES
 
 # The shipped network's PyTorch golden: ctest SKIP while data/models/default.safetensors is absent.
 set_tests_properties(test_model_golden PROPERTIES SKIP_RETURN_CODE 77)
+
+# make table1's pipeline (scripts/table1.sh) in TABLE1_QUICK mode plus its bad-input checks;
+# needs the benchmarks' table1_tool and jq; skipped (77) while the build has no `smplpix synth`.
+find_program(SPX_JQ jq)
+if(NOT SPX_SANITIZE AND SPX_BUILD_BENCHMARKS AND SPX_JQ)
+  add_test(NAME table1_quick COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/table1_quick.sh ${CMAKE_BINARY_DIR}
+           ${SPX_TEST_TMP}/table1_quick)
+  set_tests_properties(table1_quick PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 600
+    ENVIRONMENT "SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
+endif()

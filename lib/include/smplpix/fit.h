@@ -99,6 +99,12 @@ spx_status spx_fit_surface_distance(spx_ctx *ctx, const float *pts, int32_t n, c
 spx_status spx_fit_save_json(spx_ctx *ctx, const char *path, const spx_fit_result *r, const char *model_path);
 /* Load what spx_fit_save_json wrote (verts_* left NULL). model_path: caller frees, may be NULL. */
 spx_status spx_fit_load_json(spx_ctx *ctx, const char *path, spx_fit_result *out, char **model_path);
+/* Pose parameters (nj*3 axis-angle + trans) from JSON: the top-level "pose" and "trans" (a
+ * registration JSON or a pose file), or, with view != NULL, the "pose" object of the view of that
+ * name in a `smplpix synth` manifest (subjects[].views[]); then scan_trans (optional) receives
+ * the "trans" of that subject's "scan_pose". Errors name the file and the key. */
+spx_status spx_pose_load_json(spx_ctx *ctx, const char *path, const char *view, int32_t nj, double *pose,
+                              double trans[3], double scan_trans[3]);
 
 #ifdef __cplusplus
 }

@@ -23,6 +23,7 @@
 #include "smplpix/vgg.h"
 #include "smplpix/patchgan.h"
 #include "smplpix/fit.h"
+#include "smplpix/bake.h"
 #include "smplpix/metrics.h"
 
 #endif
