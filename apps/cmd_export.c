@@ -18,7 +18,8 @@ static void export_help(void) {
          "float16 with --half (the shipping format of data/models/default.safetensors: PyTorch loads\n"
          "it with load_state_dict(strict=True) after .float(); smplpix render reads it directly).\n"
          "Metadata: format, smplpix.width, smplpix.sigmoid; smplpix.loss and smplpix.stage when W has\n"
-         "them; smplpix.steps (W's Adam step count); smplpix.dtype (F16 or F32); and each --meta pair\n"
+         "them; smplpix.steps (W's Adam step count: of its last run, a stage started with --init counts\n"
+         "from 0); smplpix.dtype (F16 or F32); and each --meta pair\n"
          "(at most %d; e.g. --meta smplpix.image_size=128x96). A value that does not fit in float16\n"
          "is an error naming the tensor.\n",
          MAX_META);
@@ -92,7 +93,7 @@ int spx_cmd_export(int argc, char **argv) {
     rc = spx_cli_error("export", ctx);
     goto done;
   }
-  printf("wrote %s (width %d, %s, %s training steps)\n", out, spx_unet_width(u), half ? "float16" : "float32",
+  printf("wrote %s (width %d, %s, %s Adam steps recorded)\n", out, spx_unet_width(u), half ? "float16" : "float32",
          steps_used);
 done:
   spx_st_free(&f);

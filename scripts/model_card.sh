@@ -61,7 +61,7 @@ trap 'rm -f "$tmp"' EXIT
   echo "| file | \`$model\`, $size bytes, sha256 \`$sha\` |"
   echo "| format | safetensors, $ntensors tensors ($dtypes), no optimizer state; PyTorch \"milesial\" UNet state_dict names |"
   echo "| network | UNet (4 down / 4 up levels, bilinear upsampling), base width $width, $nparams parameters and batch-norm statistics; input RGB-D (4 channels), output RGB; output sigmoid: $([ "$sigmoid" = 1 ] && echo on || echo off) |"
-  echo "| training | loss \`${loss:-unknown}\`$([ -n "$stage" ] && echo ", stage $stage"), ${steps:-unknown} Adam steps, images ${imsize:-unknown}$([ -n "$source" ] && echo ", exported from \`$source\`") |"
+  echo "| training | loss \`${loss:-unknown}\`$([ -n "$stage" ] && echo ", stage $stage"), ${steps:-unknown} Adam steps in its last training run (a stage started with \`--init\` counts from 0; the whole schedule is under Data and recipe), images ${imsize:-unknown}$([ -n "$source" ] && echo ", exported from \`$source\`") |"
   echo
   echo "Use: \`smplpix render\` and \`smplpix demo\` pick it up when no \`--checkpoint\` is given. In"
   echo "PyTorch: build the milesial UNet of width $width (as in \`tests/data/models/make_model_golden.py\`),"

@@ -91,7 +91,7 @@ static void test_export_cli(void) {
   CHECK_OK(ctx, spx_unet_save_meta(u, p, 1, k, v, 1));
   CHECK_OK(ctx, spx_unet_forward(u, in, N, H, W, 0, o32));
   CHECK(tool_env("LC_ALL=C", "export --checkpoint w32.safetensors --out m16.safetensors --half --meta smplpix.image_size=48x32") == 0);
-  CHECK(file_has("out.txt", "float16") && file_has("out.txt", "1 training steps"));
+  CHECK(file_has("out.txt", "float16") && file_has("out.txt", "1 Adam steps recorded"));
   path_of(p, sizeof p, "m16.safetensors");
   CHECK_OK(ctx, spx_unet_load(ctx, p, &h));
   if (h) {
@@ -119,7 +119,7 @@ static void test_export_cli(void) {
   spx_st_free(&f);
   /* re-exporting the shipped file keeps its recorded step count; without --half: F32 */
   CHECK(tool("export --checkpoint m16.safetensors --out m32.safetensors") == 0);
-  CHECK(file_has("out.txt", "float32") && file_has("out.txt", "1 training steps"));
+  CHECK(file_has("out.txt", "float32") && file_has("out.txt", "1 Adam steps recorded"));
   /* bad input */
   CHECK(tool("export --checkpoint nothere.safetensors --out x.safetensors --half") == 1);
   CHECK(err_one_line_with("nothere.safetensors") && !exists("x.safetensors"));
