@@ -3,7 +3,7 @@ BUILD    ?= build
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build demo docs-demo model-card train-demo test asan fuzz bench bench-unet bench-latency install clean table1
+.PHONY: all deps build demo docs-demo model-card train-demo test asan fuzz bench bench-unet bench-latency install clean bench-python table1
 
 all: build
 
@@ -83,6 +83,10 @@ bench-unet: build
 # out/bench/latency.{csv,json,png}.
 bench-latency: build
 	$(BUILD)/benchmarks/bench_latency
+
+# The Python binding's per-call overhead: smplpix.project vs the same call from C vs a numpy z-buffer.
+bench-python: build
+	/usr/bin/python3 benchmarks/python_overhead.py $(BUILD)
 
 PREFIX ?= /usr/local
 install: build

@@ -39,3 +39,16 @@ if(NOT SPX_SANITIZE AND SPX_BUILD_BENCHMARKS AND SPX_JQ)
   set_tests_properties(table1_quick PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 600
     ENVIRONMENT "SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
 endif()
+
+# The Python package (python/): its pytest suite against this build tree's library and CLI, and
+# `pip install ./python` into a fresh venv (then the same suite against the installed wheel).
+# Both are skipped (exit 77, with the reason) where Python / numpy / pytest / venv / PyPI are
+# missing; not under the sanitizers (an instrumented library cannot be loaded into python3).
+if(NOT SPX_SANITIZE AND BUILD_SHARED_LIBS)
+  add_test(NAME python_bindings COMMAND sh ${CMAKE_SOURCE_DIR}/python/tests/run_pytest.sh ${CMAKE_BINARY_DIR})
+  add_test(NAME python_pip_install COMMAND sh ${CMAKE_SOURCE_DIR}/python/tests/pip_install.sh ${CMAKE_BINARY_DIR})
+  set_tests_properties(python_bindings python_pip_install PROPERTIES SKIP_RETURN_CODE 77
+    ENVIRONMENT "SPX_TOOL=$<TARGET_FILE:smplpix_tool>;SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
+  set_tests_properties(python_bindings PROPERTIES TIMEOUT 900)
+  set_tests_properties(python_pip_install PROPERTIES TIMEOUT 2400)
+endif()
