@@ -49,6 +49,7 @@ static int parse(int argc, char **argv, demo_opts *o) {
     if (!strcmp(argv[i], "--quiet")) {
       o->quiet = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
+      if (strlen(v) > 4000) return spx_cli_usage("demo", "--out: path too long (%zu characters)", strlen(v));
       o->out_dir = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
       o->ckpt = v;
@@ -216,7 +217,9 @@ done:
   return rc;
 }
 
-/* Write the images; every file written is removed again when a later one fails. */
+/* Write the images as one set: each to a temporary beside its target, then all renamed into
+ * place; a failure before the renames leaves every existing file as it was. (The whole output
+ * step; with apps/cli_tx.h this becomes spx_tx_stage per file + spx_tx_commit.) */
 static int write_all(spx_ctx *ctx, const char *dir, int zoom, const spx_image *input, const spx_image *raster,
                      const spx_image *net) {
   const spx_image *panels[3];
@@ -226,33 +229,42 @@ static int write_all(spx_ctx *ctx, const char *dir, int zoom, const spx_image *i
   if (net) panels[n] = net, labels[n++] = "SMPLPIX";
   panels[n] = raster, labels[n++] = "RASTER";
   spx_image strip = {0};
-  spx_cli_written w = {0};
-  int rc = SPX_EXIT_OK;
+  enum { NOUT = 4 };
+  const char *names[NOUT] = {"demo_input.png", "demo_raster.png", "demo_smplpix.png", "demo.png"};
+  const spx_image *imgs[NOUT] = {input, raster, net, &strip};
+  char fin[NOUT][4200], tmp[NOUT][4240];
+  int staged = 0, rc = SPX_EXIT_OK;
   if (spx_demo_compose(ctx, panels, labels, n, zoom, &strip)) {
     rc = spx_cli_error("demo", ctx);
     goto done;
   }
-  const char *names[4] = {"demo_input.png", "demo_raster.png", "demo_smplpix.png", "demo.png"};
-  const spx_image *imgs[4] = {input, raster, net, &strip};
-  for (int k = 0; k < 4 && !rc; k++) {
-    if (!imgs[k]) continue;
-    size_t cap = strlen(dir) + strlen(names[k]) + 2;
-    char *p = malloc(cap);
-    if (p) snprintf(p, cap, "%s/%s", dir, names[k]);
-    rc = spx_cli_write_output("demo", ctx, &w, p, imgs[k]);
+  for (int k = 0; k < NOUT; k++) {
+    snprintf(fin[k], sizeof fin[k], "%.4096s/%s", dir, names[k]);
+    snprintf(tmp[k], sizeof tmp[k], "%.4180s.tmp.%ld.png", fin[k], (long)getpid());
   }
-  if (!rc && !net) { /* a network output of an earlier run must not pass for this one's */
-    size_t cap = strlen(dir) + 32;
-    char *p = malloc(cap);
-    if (!p) rc = spx_cli_errorf("demo", "out of memory");
-    else {
-      snprintf(p, cap, "%s/demo_smplpix.png", dir);
-      if (unlink(p) && errno != ENOENT) rc = spx_cli_errorf("demo", "%s: cannot remove: %s", p, strerror(errno));
-      free(p);
+  for (int k = 0; k < NOUT; k++) { /* a target the rename cannot replace: refuse before writing */
+    struct stat sb;
+    if (stat(fin[k], &sb) == 0 && S_ISDIR(sb.st_mode)) {
+      rc = spx_cli_errorf("demo", "%s: is a directory, cannot write the image there", fin[k]);
+      goto done;
+    }
+  }
+  for (; staged < NOUT; staged++) {
+    if (imgs[staged] && spx_cli_write_image(ctx, tmp[staged], imgs[staged])) {
+      rc = spx_cli_error("demo", ctx);
+      goto done;
+    }
+  }
+  for (int k = 0; k < NOUT && !rc; k++) {
+    if (!imgs[k]) { /* no network: an earlier run's output must not pass for this one's */
+      if (unlink(fin[k]) && errno != ENOENT) rc = spx_cli_errorf("demo", "%s: cannot remove: %s", fin[k], strerror(errno));
+    } else if (rename(tmp[k], fin[k])) {
+      rc = spx_cli_errorf("demo", "%s: cannot rename into place: %s", fin[k], strerror(errno));
     }
   }
 done:
-  spx_cli_written_finish(&w, rc != SPX_EXIT_OK);
+  for (int k = 0; k < staged; k++)
+    if (imgs[k]) unlink(tmp[k]); /* the ones not renamed (ENOENT for the others) */
   spx_image_free(&strip);
   return rc;
 }

@@ -6,7 +6,9 @@
  *    as <data>/models/default.safetensors: demo.png has 3 panels; the SMPLpix panel is the
  *    network's output (it differs from the input and the raster), the run is deterministic, and
  *    --checkpoint names one explicitly;
- *  - bad input: one line, exit 1 (2 for usage), nothing written. */
+ *  - bad input: one line, exit 1 (2 for usage), nothing written; an output that cannot be written
+ *    (a folder named demo.png) fails before any file of the set appears, no temporaries left. */
+#include <dirent.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -39,6 +41,20 @@ static int same_file(const char *a, const char *b) {
   if (fa) fclose(fa);
   if (fb) fclose(fb);
   return same;
+}
+
+/* number of entries in dir/name (-1 when it cannot be read) */
+static int entries(const char *name) {
+  char p[700];
+  path_of(p, sizeof p, name);
+  DIR *d = opendir(p);
+  if (!d) return -1;
+  int n = 0;
+  struct dirent *e;
+  while ((e = readdir(d)))
+    if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..")) n++;
+  closedir(d);
+  return n;
 }
 
 static void make_data_dir(void) {
@@ -101,6 +117,15 @@ static void test_bad_input(void) {
   write_text("afile", "x");
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out afile --size 40x32") == 1);
   CHECK(err_one_line_with("afile"));
+  /* an output the run cannot write: nothing of the set appears, no temporaries stay */
+  char p[700];
+  path_of(p, sizeof p, "b4");
+  mkdir(p, 0777);
+  path_of(p, sizeof p, "b4/demo.png");
+  mkdir(p, 0777);
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out b4 --size 40x32") == 1);
+  CHECK(err_one_line_with("b4/demo.png") && !exists("b4/demo_input.png") && !exists("b4/demo_raster.png"));
+  CHECK(entries("b4") == 1); /* just the folder in the way */
   CHECK(tool("demo --size 8x8") == 2 && tool("demo --frame -1") == 2 && tool("demo --seed x") == 2);
   CHECK(tool("demo --zoom 9") == 2 && tool("demo --zoom 0") == 2);
   CHECK(tool("demo --bogus") == 2 && err_one_line_with("--bogus"));
