@@ -54,7 +54,11 @@ int spx_cmd_bake(int argc, char **argv) {
   spx_image tex = {0};
   memset(&m, 0, sizeof m);
   int rc = SPX_EXIT_ERROR;
+  spx_tx tx;
+  spx_tx_begin(&tx, "bake", 0);
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("bake", "out of memory");
+  if ((rc = spx_tx_check(&tx, out))) goto done; /* before any work */
+  rc = SPX_EXIT_ERROR;
   if (spx_mesh_load(ctx, mesh_path, &mesh) || spx_mesh_load(ctx, scan_path, &scan)) {
     rc = spx_cli_error("bake", ctx);
     goto done;
@@ -95,14 +99,16 @@ int spx_cmd_bake(int argc, char **argv) {
     memcpy(mesh.face_uv, m.ft, (size_t)m.nf * 3 * sizeof(int32_t));
   }
   if (spx_image_alloc(ctx, (int32_t)size, (int32_t)size, 3, &tex) ||
-      spx_bake_texture(ctx, &mesh, &scan, (int32_t)size, (int32_t)size, (int32_t)pad, tex.data, NULL) ||
-      spx_cli_write_image(ctx, out, &tex)) {
+      spx_bake_texture(ctx, &mesh, &scan, (int32_t)size, (int32_t)size, (int32_t)pad, tex.data, NULL)) {
     rc = spx_cli_error("bake", ctx);
     goto done;
   }
+  if ((rc = spx_cli_write_output("bake", ctx, &tx, strdup(out), &tex)) || (rc = spx_tx_commit(&tx))) goto done;
+  rc = SPX_EXIT_ERROR;
   printf("bake: wrote %s (%ldx%ld texture from %d scan vertices)\n", out, size, size, scan.nv);
   rc = SPX_EXIT_OK;
 done:
+  spx_tx_end(&tx);
   spx_image_free(&tex);
   spx_body_free(&m);
   spx_mesh_free(&mesh);

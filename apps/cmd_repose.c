@@ -92,10 +92,14 @@ static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m,
     goto done;
   }
   const spx_mesh *save = subdivide > 0 ? &sub : &out;
-  if (spx_mesh_save(ctx, out_path, save, SPX_MESH_AUTO)) {
-    rc = spx_cli_error(cmd, ctx);
-    goto done;
-  }
+  spx_tx otx;
+  spx_tx_begin(&otx, cmd, 0);
+  const char *tmp = spx_tx_stage(&otx, out_path);
+  if (!tmp) rc = SPX_EXIT_ERROR;
+  else if (spx_mesh_save(ctx, tmp, save, SPX_MESH_AUTO)) rc = spx_cli_error(cmd, ctx);
+  else rc = spx_tx_commit(&otx);
+  spx_tx_end(&otx);
+  if (rc) goto done;
   printf("wrote %s (%d vertices)\n", out_path, save->nv);
 done:
   free(v);
@@ -161,7 +165,10 @@ int spx_cmd_repose(int argc, char **argv) {
   spx_bvh_map map;
   memset(&r, 0, sizeof r), memset(&m, 0, sizeof m), memset(&b, 0, sizeof b), memset(&map, 0, sizeof map);
   double *pose = NULL, trans[3], scan_trans[3];
-  int rc = spx_cli_load_registration("repose", ctx, reg_path, model_arg, &r, &m);
+  spx_tx tx;
+  spx_tx_begin(&tx, "repose", 0);
+  int rc = spx_tx_check(&tx, out_path); /* before any work */
+  if (!rc) rc = spx_cli_load_registration("repose", ctx, reg_path, model_arg, &r, &m);
   if (rc) goto done;
   pose = malloc((size_t)m.nj * 3 * sizeof(double));
   if (!pose) {
@@ -243,7 +250,10 @@ int spx_cmd_reshape(int argc, char **argv) {
   spx_body_model m;
   memset(&r, 0, sizeof r), memset(&m, 0, sizeof m);
   double *betas = NULL, *pose = NULL;
-  int rc = spx_cli_load_registration("reshape", ctx, reg_path, model_arg, &r, &m);
+  spx_tx tx;
+  spx_tx_begin(&tx, "reshape", 0);
+  int rc = spx_tx_check(&tx, out_path); /* before any work */
+  if (!rc) rc = spx_cli_load_registration("reshape", ctx, reg_path, model_arg, &r, &m);
   if (rc) goto done;
   for (int k = 0; k < nsh; k++)
     if (sh_idx[k] >= r.nbetas) {

@@ -15,6 +15,7 @@
 
 #include "cli.h"
 #include "train_recipe.h"
+#include "train_state.h"
 #include "unet_io.h"
 
 static void train_help(void) {
@@ -26,11 +27,14 @@ static void train_help(void) {
          "matched by NAME; all images of a split must have the same size (>= 16x16). Adam (betas 0.9,\n"
          "0.999, eps 1e-8), mean L1 loss. Defaults: --width 32 --batch 1 --lr 1e-3 --epochs 1 --seed 0.\n"
          "--epochs E / --steps S: train until E epochs / S optimizer steps in total are done.\n"
-         "--resume continues from W (weights, optimizer state, step count, data order) bit for bit;\n"
+         "--resume continues from W (weights, optimizer state, step count, data order) bit for bit, taking\n"
+         "the seed, shuffle, batch, lr, loss, schedule, stage, lr2 and disc width recorded in W (flags\n"
+         "that contradict them: exit 2);\n"
          "--init starts from the weights of W0 with a fresh optimizer. After every epoch the loss on\n"
          "DIR/validation (when present: mean L1, and PSNR and SSIM of the output clamped to [0,1], as\n"
          "`smplpix eval` computes them) is printed,\n"
-         "also once before the first step. W is rewritten atomically after every epoch, or every N steps\n"
+         "also once before the first step. W (and W.disc) is rewritten atomically (and fsync'ed) after every\n"
+         "epoch, or every N steps\n"
          "with --save-every N, and at the end. --batch larger than the number of pairs uses them all.\n"
          "Progress goes to stderr: a bar updated in place on a terminal, else a line every --log-every\n"
          "steps (default 10): step, loss (mean over the epoch so far), images/s, ETA.\n"
@@ -319,6 +323,8 @@ int spx_cmd_train(int argc, char **argv) {
   train_recipe rcp;
   memset(&rcp, 0, sizeof rcp);
   int resume = 0, shuffle = 1, sigmoid = 0, bad = 0, rc;
+  int seed_given = 0, batch_given = 0, lr_given = 0, shuffle_given = 0, loss_given = 0, lr2_given = 0;
+  int disc_width_given = 0;
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
@@ -328,6 +334,7 @@ int spx_cmd_train(int argc, char **argv) {
       resume = 1;
     } else if (!strcmp(argv[i], "--no-shuffle")) {
       shuffle = 0;
+      shuffle_given = 1;
     } else if (!strcmp(argv[i], "--sigmoid")) {
       sigmoid = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--data", &bad))) {
@@ -340,28 +347,33 @@ int spx_cmd_train(int argc, char **argv) {
       spec = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--loss", &bad))) {
       loss_name = v;
+      loss_given = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--vgg", &bad))) {
       vgg_path = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--schedule", &bad))) {
       schedule = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--disc-width", &bad))) {
       if ((rc = parse_int("--disc-width", v, 1, 512, &disc_width))) return rc;
+      disc_width_given = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--lr2", &bad))) {
       char *end = NULL;
       lr2 = strtod(v, &end);
       if (!end || *end || !(lr2 > 0) || !isfinite(lr2)) return spx_cli_usage("train", "--lr2 needs a positive number, not '%s'", v);
+      lr2_given = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--width", &bad))) {
       if ((rc = parse_int("--width", v, 8, 64, &width))) return rc;
       if (width != 8 && width != 16 && width != 32 && width != 64)
         return spx_cli_usage("train", "--width must be 8, 16, 32 or 64, not %ld", width);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--batch", &bad))) {
       if ((rc = parse_int("--batch", v, 1, 1000000000, &batch))) return rc;
+      batch_given = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--epochs", &bad))) {
       if ((rc = parse_int("--epochs", v, 0, 100000000, &epochs))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--steps", &bad))) {
       if ((rc = parse_int("--steps", v, 0, 2000000000, &steps))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) {
       if ((rc = parse_int("--seed", v, 0, 2147483647, &seed))) return rc;
+      seed_given = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--save-every", &bad))) {
       if ((rc = parse_int("--save-every", v, 1, 2000000000, &save_every))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--log-every", &bad))) {
@@ -370,6 +382,7 @@ int spx_cmd_train(int argc, char **argv) {
       char *end = NULL;
       lr = strtod(v, &end);
       if (!end || *end || !(lr > 0) || !isfinite(lr)) return spx_cli_usage("train", "--lr needs a positive number, not '%s'", v);
+      lr_given = 1;
     } else {
       return spx_cli_usage("train", bad ? "missing value for %s" : "unknown option %s", argv[i]);
     }
@@ -379,24 +392,8 @@ int spx_cmd_train(int argc, char **argv) {
   int use_gan = 0, use_vgg = 0;
   if (schedule && loss_name) return spx_cli_usage("train", "--schedule paper chooses the losses; drop --loss");
   if (loss_name && (rc = train_loss_parse(loss_name, &use_gan, &use_vgg))) return rc;
-  if (schedule) use_vgg = vgg_path != NULL;
-  if (use_vgg && !vgg_path)
-    return spx_cli_errorf("train", "--loss %s needs the VGG19 weights: --vgg VGG19.safetensors (torchvision's "
-                          "features.N.weight/bias; tools/vgg19_pth_to_safetensors.py converts a .pth)", loss_name);
-  if (vgg_path && !use_vgg) return spx_cli_usage("train", "--vgg is only used by --loss vgg or vgg+gan");
-  if (lr < 0) lr = schedule ? 1e-4 : 1e-3;
-  if (batch < 0) batch = schedule ? 10 : 1;
-  if (schedule && epochs < 0 && steps < 0) epochs = 100;
-  rcp.schedule = schedule != NULL;
-  rcp.gan[1] = schedule ? 0 : use_gan;
-  rcp.gan[2] = schedule ? 1 : use_gan;
-  rcp.vgg = use_vgg;
-  rcp.vgg_path = vgg_path;
-  rcp.lr1 = lr, rcp.lr2 = schedule ? lr2 : lr;
-  rcp.disc_width = (int)disc_width, rcp.num_d = 3, rcp.seed = (uint64_t)seed;
   if (epochs >= 0 && steps >= 0) return spx_cli_usage("train", "give --epochs or --steps, not both");
   if (resume && init) return spx_cli_usage("train", "--resume continues --out; it cannot be combined with --init");
-  if (epochs < 0 && steps < 0) epochs = 1;
 
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("train", "out of memory");
@@ -408,6 +405,77 @@ int spx_cmd_train(int argc, char **argv) {
   int handler_set = 0;
   progress pg = {0};
   pg.tty = isatty(STDERR_FILENO);
+  spx_train_state ts;
+  spx_train_state_init(&ts);
+  { /* --out must be writable before any training (a failed save would throw the steps away) */
+    spx_tx chk;
+    spx_tx_begin(&chk, "train", 0);
+    if ((rc = spx_tx_check(&chk, outp))) goto done;
+  }
+  if (resume) { /* the run's settings come from the checkpoint; flags may only repeat them */
+    int has_state = 0, has_opt = 0;
+    if ((rc = spx_train_state_read(ctx, outp, &ts, &has_state, &has_opt))) goto done;
+    if (!has_opt) {
+      rc = spx_cli_errorf("train", "%s: holds weights only (no optimizer state), so it cannot be resumed; start from it "
+                          "with --init", outp);
+      goto done;
+    }
+    if (!has_state) {
+      rc = spx_cli_errorf("train", "%s: records no training state (seed, data order, batch), so it cannot be resumed "
+                          "bit for bit; start from it with --init", outp);
+      goto done;
+    }
+    const char *clash = NULL;
+    char rec[160];
+    if (seed_given && seed != ts.seed) clash = "--seed", snprintf(rec, sizeof rec, "seed %lld", (long long)ts.seed);
+    else if (batch_given && batch != ts.batch && !(batch > ts.batch && ts.batch == ts.pairs))
+      clash = "--batch", snprintf(rec, sizeof rec, "batch %lld", (long long)ts.batch);
+    else if (shuffle_given && ts.shuffle) clash = "--no-shuffle", snprintf(rec, sizeof rec, "shuffled data order");
+    else if (lr_given && lr != ts.lr) clash = "--lr", snprintf(rec, sizeof rec, "lr %.17g", ts.lr);
+    else if (loss_given && ts.schedule[0])
+      clash = "--loss", snprintf(rec, sizeof rec, "--schedule %s (stage %lld, loss %s)", ts.schedule,
+                                 (long long)ts.stage, ts.loss);
+    else if (loss_given && strcmp(loss_name, ts.loss))
+      clash = "--loss", snprintf(rec, sizeof rec, "loss (it was trained with --loss %s, not %s)", ts.loss, loss_name);
+    else if (schedule && strcmp(schedule, ts.schedule))
+      clash = "--schedule", snprintf(rec, sizeof rec, "single-stage run (loss %s)", ts.loss);
+    else if (lr2_given && ts.schedule[0] && lr2 != ts.lr2) clash = "--lr2", snprintf(rec, sizeof rec, "lr2 %.17g", ts.lr2);
+    else if (disc_width_given && disc_width != ts.disc_width)
+      clash = "--disc-width", snprintf(rec, sizeof rec, "disc width %lld", (long long)ts.disc_width);
+    if (clash) {
+      rc = spx_cli_usage("train", "%s contradicts the %s recorded in %s (--resume takes it from the checkpoint)", clash,
+                         rec, outp);
+      goto done;
+    }
+    seed = (long)ts.seed, batch = (long)ts.batch, shuffle = (int)ts.shuffle, lr = ts.lr;
+    schedule = ts.schedule[0] ? "paper" : NULL, loss_name = ts.schedule[0] ? NULL : ts.loss;
+    lr2 = ts.lr2, disc_width = (long)ts.disc_width;
+  }
+  /* the recipe, from the flags or (--resume) the checkpoint's record */
+  if (loss_name && (rc = train_loss_parse(loss_name, &use_gan, &use_vgg))) goto done;
+  if (schedule) use_vgg = vgg_path != NULL;
+  if (resume && ts.schedule[0]) use_vgg = !strncmp(ts.loss, "vgg", 3);
+  if (use_vgg && !vgg_path) {
+    rc = spx_cli_errorf("train", "--loss %s needs the VGG19 weights: --vgg VGG19.safetensors (torchvision's "
+                        "features.N.weight/bias; tools/vgg19_pth_to_safetensors.py converts a .pth)",
+                        loss_name ? loss_name : ts.loss);
+    goto done;
+  }
+  if (vgg_path && !use_vgg) {
+    rc = spx_cli_usage("train", "--vgg is only used by --loss vgg or vgg+gan");
+    goto done;
+  }
+  if (lr < 0) lr = schedule ? 1e-4 : 1e-3;
+  if (batch < 0) batch = schedule ? 10 : 1;
+  if (schedule && epochs < 0 && steps < 0) epochs = 100;
+  if (epochs < 0 && steps < 0) epochs = 1;
+  rcp.schedule = schedule != NULL;
+  rcp.gan[1] = schedule ? 0 : use_gan;
+  rcp.gan[2] = schedule ? 1 : use_gan;
+  rcp.vgg = use_vgg;
+  rcp.vgg_path = vgg_path;
+  rcp.lr1 = lr, rcp.lr2 = schedule ? lr2 : lr;
+  rcp.disc_width = (int)disc_width, rcp.num_d = 3, rcp.seed = (uint64_t)seed;
   if ((rc = list_split(data, "train", 1, &tr)) || (rc = list_split(data, "validation", 0, &val))) goto done;
   if ((rc = probe_size(ctx, &tr)) || (val.n && (rc = probe_size(ctx, &val)))) goto done;
   if ((rc = spx_cli_open_device("train", ctx, spec))) goto done;
@@ -425,16 +493,31 @@ int spx_cmd_train(int argc, char **argv) {
       rc = spx_cli_error("train", ctx);
       goto done;
     }
+    if (resume && sigmoid && !spx_unet_sigmoid(u)) {
+      rc = spx_cli_usage("train", "--sigmoid contradicts %s, trained without it (--resume takes it from the checkpoint)",
+                         outp);
+      goto done;
+    }
     if (sigmoid) spx_unet_set_sigmoid(u, 1);
   } else if (spx_unet_create(ctx, width ? (int)width : 32, sigmoid, (uint64_t)seed, &u)) {
     rc = spx_cli_error("train", ctx);
     goto done;
   }
+  if (resume && (ts.pairs != tr.n || ts.step != ts.stage_base + spx_unet_step(u))) {
+    rc = ts.pairs != tr.n ? spx_cli_errorf("train", "%s/train has %d pairs, but %s was trained on %lld: the data order "
+                                           "cannot continue", data, tr.n, outp, (long long)ts.pairs)
+                          : spx_cli_errorf("train", "%s: recorded step %lld does not match its optimizer step %lld "
+                                           "(+ %lld before stage %lld)", outp, (long long)ts.step,
+                                           (long long)spx_unet_step(u), (long long)ts.stage_base, (long long)ts.stage);
+    goto done;
+  }
   if (batch > tr.n) batch = tr.n; /* one batch holds the whole set */
   int64_t spe = (tr.n + batch - 1) / batch; /* steps per epoch (the last batch may be short) */
   int64_t target = steps >= 0 ? steps : epochs * spe;
+  ts.seed = seed, ts.shuffle = shuffle, ts.batch = batch, ts.pairs = tr.n, ts.steps_per_epoch = spe;
   if (rcp.schedule) rcp.stage1_steps = target, target *= 2; /* the same length for both stages */
-  if ((rc = train_recipe_start(ctx, &rcp, u, outp, from, resume))) goto done;
+  /* resuming: the stage (and the schedule's stage-2 start) come from the record */
+  if ((rc = train_recipe_start(ctx, &rcp, u, outp, from, resume ? &ts : NULL))) goto done;
 #define GSTEP() train_recipe_step_count(&rcp, u)
   size_t hw = (size_t)tr.h * (size_t)tr.w;
   perm = malloc(sizeof(int) * (size_t)tr.n);
@@ -512,9 +595,10 @@ int spx_cmd_train(int argc, char **argv) {
     }
     int save = save_every ? now_step % save_every == 0 : end_epoch;
     if ((save || interrupted) && !last) {
-      if (train_recipe_save(&rcp, u, outp)) {
+      train_recipe_record(&rcp, &ts);
+      ts.step = now_step, ts.epoch = now_step / spe;
+      if ((rc = spx_train_checkpoint_save(ctx, u, train_recipe_disc(&rcp), rcp.disc_path, outp, &ts))) {
         progress_clear(&pg);
-        rc = spx_cli_error("train", ctx);
         goto done;
       }
     }
@@ -527,11 +611,12 @@ int spx_cmd_train(int argc, char **argv) {
     }
   }
   progress_clear(&pg);
-  if (train_recipe_save(&rcp, u, outp)) { /* also when nothing was left to do */
-    rc = spx_cli_error("train", ctx);
-    goto done;
-  }
-  printf("wrote %s (step %lld)%s%s\n", outp, (long long)GSTEP(), rcp.d ? " and " : "", rcp.d ? rcp.disc_path : "");
+  train_recipe_record(&rcp, &ts);
+  ts.step = GSTEP(), ts.epoch = ts.step / spe;
+  /* also when nothing was left to do */
+  if ((rc = spx_train_checkpoint_save(ctx, u, train_recipe_disc(&rcp), rcp.disc_path, outp, &ts))) goto done;
+  printf("wrote %s (step %lld)%s%s\n", outp, (long long)GSTEP(), train_recipe_disc(&rcp) ? " and " : "",
+         train_recipe_disc(&rcp) ? rcp.disc_path : "");
 done:
   if (handler_set) sigaction(SIGINT, &old_int, NULL);
   free(perm), free(in), free(tg);

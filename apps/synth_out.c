@@ -1,7 +1,11 @@
-/* `smplpix synth`: load and check every input, then generate into "<DIR>.tmp.<pid>" and rename it
- * to DIR at the end (removing a previous synth output there first with --force). */
+/* `smplpix synth`: load and check every input, then generate into "<DIR>.tmp.<pid>.0" and rename
+ * it to DIR at the end. With --force a previous synth output is first renamed aside to
+ * "<DIR>.tmp.<pid>.1" and removed only once the new folder is in place (put back if that rename
+ * fails). Both names follow the temporaries' rule of lib/core/files.c: a later run removes those of
+ * processes that no longer run (and puts back an aside output whose DIR is missing). */
 #include <dirent.h>
 #include <errno.h>
+#include <signal.h>
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
@@ -12,6 +16,7 @@
 
 #include "cli.h"
 #include "smplpix/bvh.h"
+#include "smplpix/files.h"
 #include "smplpix/synth.h"
 #include "synth_out.h"
 
@@ -40,6 +45,35 @@ static int remove_tree(const char *path) {
   }
   closedir(d);
   return rc ? rc : rmdir(path);
+}
+
+/* Folders "<out>.tmp.<pid>.<n>" of processes that no longer run: an aside previous output (n = 1)
+ * goes back to out when out is missing (the run died between the renames); the rest is removed. */
+static void clean_stale_dirs(const char *out) {
+  char dir[4200];
+  const char *slash = strrchr(out, '/'), *base = slash ? slash + 1 : out;
+  if (slash) snprintf(dir, sizeof dir, "%.*s", (int)(slash - out) ? (int)(slash - out) : 1, out);
+  else snprintf(dir, sizeof dir, ".");
+  DIR *d = opendir(dir);
+  if (!d) return;
+  size_t bl = strlen(base);
+  struct dirent *e;
+  while ((e = readdir(d))) {
+    const char *n = e->d_name, *p = n + bl + 5;
+    if (!bl || strncmp(n, base, bl) || strncmp(n + bl, ".tmp.", 5)) continue;
+    char *end;
+    errno = 0;
+    long pid = strtol(p, &end, 10);
+    if (end == p || *end != '.' || errno || pid <= 0 || pid == (long)getpid()) continue;
+    if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue; /* alive (or not ours to judge) */
+    char full[8400];
+    snprintf(full, sizeof full, "%s/%s", dir, n);
+    struct stat sb;
+    if (lstat(full, &sb) || !S_ISDIR(sb.st_mode)) continue; /* files: spx_file_clean_stale's part */
+    if (!strcmp(end, ".1") && access(out, F_OK) != 0 && errno == ENOENT && rename(full, out) == 0) continue;
+    remove_tree(full);
+  }
+  closedir(d);
 }
 
 /* 1 = missing, 2 = empty folder, 3 = synth output (has synth.json), 0 = something else. */
@@ -333,6 +367,7 @@ int synth_run(const synth_opts *o) {
     goto done;
   }
   have_map = 1;
+  clean_stale_dirs(o->out);
   int state = out_state(o->out);
   if (state == 0) {
     rc = spx_cli_errorf("synth", "%s: exists and is not an empty folder or a previous synth output; not replacing it",
@@ -354,7 +389,7 @@ int synth_run(const synth_opts *o) {
     rc = spx_cli_errorf("synth", "out of memory");
     goto done;
   }
-  snprintf(s.tmp, n, "%s.tmp.%ld", o->out, (long)getpid());
+  snprintf(s.tmp, n, "%s.tmp.%ld.0", o->out, (long)getpid());
   if (mkdir(s.tmp, 0777)) {
     rc = spx_cli_errorf("synth", "%s: cannot create the temporary folder %s: %s", o->out, s.tmp, strerror(errno));
     free(s.tmp);
@@ -389,16 +424,32 @@ int synth_run(const synth_opts *o) {
     rc = spx_cli_errorf("synth", "%s: write failed", mp);
     goto done;
   }
-  if (out_state(o->out) != 1 && remove_tree(o->out)) {
-    rc = spx_cli_errorf("synth", "%s: cannot remove the previous output: %s", o->out, strerror(errno));
-    goto done;
+  { /* the files and their folder entries are on disk before the rename makes them the output */
+    if (spx_file_sync(s.ctx, mp) || spx_file_sync(s.ctx, s.tmp)) {
+      rc = spx_cli_error("synth", s.ctx);
+      goto done;
+    }
+  }
+  char aside[4200] = "";
+  if (out_state(o->out) != 1) { /* the previous output (or an empty folder) steps aside, kept until the end */
+    snprintf(aside, sizeof aside, "%s.tmp.%ld.1", o->out, (long)getpid());
+    if (rename(o->out, aside)) {
+      rc = spx_cli_errorf("synth", "%s: cannot move the previous output aside: %s", o->out, strerror(errno));
+      goto done;
+    }
   }
   if (rename(s.tmp, o->out)) {
     rc = spx_cli_errorf("synth", "%s: cannot rename %s into place: %s", o->out, s.tmp, strerror(errno));
+    if (aside[0] && rename(aside, o->out)) /* the previous output back where it was */
+      fprintf(stderr, "smplpix synth: %s: the previous output is kept as %s\n", o->out, aside);
     goto done;
   }
   free(s.tmp);
   s.tmp = NULL;
+  spx_file_sync_dir_of(s.ctx, o->out); /* best effort: the new entry is durable */
+  if (aside[0] && remove_tree(aside))
+    fprintf(stderr, "smplpix synth: %s: could not remove the previous output %s (%s)\n", o->out, aside,
+            strerror(errno));
   double el = spx_cli_now() - s.t0;
   printf("wrote %d subjects x %d views (%dx%d, textures %d^2) to %s in %.1f s: %.2f s per subject (scan, texture), "
          "%.3f s per view\n",

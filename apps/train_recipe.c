@@ -38,30 +38,18 @@ static int need_disc(spx_ctx *ctx, train_recipe *r, int load) {
   return st ? spx_cli_error("train", ctx) : 0;
 }
 
-int train_recipe_start(spx_ctx *ctx, train_recipe *r, spx_unet *u, const char *outp, const char *from, int resume) {
+int train_recipe_start(spx_ctx *ctx, train_recipe *r, spx_unet *u, const char *outp, const char *from,
+                       const spx_train_state *rec) {
   r->stage = r->schedule ? 1 : (r->gan[2] ? 2 : 1);
   r->base = 0;
   if (!(r->disc_path = disc_path_of(outp))) return spx_cli_errorf("train", "out of memory");
-  if (resume && from) { /* the stage record of the checkpoint */
-    spx_st_file f;
-    memset(&f, 0, sizeof f);
-    if (spx_st_load(ctx, from, &f)) return spx_cli_error("train", ctx);
-    const char *ls = spx_st_meta(&f, "smplpix.loss"), *ss = spx_st_meta(&f, "smplpix.stage");
-    const char *bs = spx_st_meta(&f, "smplpix.stage_base");
-    int rc = 0, fstage = ss ? atoi(ss) : 1;
-    long long fbase = bs ? atoll(bs) : 0;
-    if ((ss && fstage != 1 && fstage != 2) || fbase < 0 || fbase > ((long long)1 << 50))
-      rc = spx_cli_errorf("train", "%s: invalid stage record (stage '%s', base '%s')", from, ss ? ss : "",
-                          bs ? bs : "");
-    if (!rc && !r->schedule) { /* a plain run continues only with the loss it was saved with */
-      const char *want = train_loss_name(r), *have = ls ? ls : "l1";
-      if (strcmp(want, have))
-        rc = spx_cli_errorf("train", "%s was trained with --loss %s, not %s (start a new run with --init)", from, have,
-                            want);
-    }
-    if (!rc) r->stage = fstage, r->base = fbase;
-    spx_st_free(&f);
-    if (rc) return rc;
+  int resume = rec != NULL;
+  if (rec) { /* the stage record of the checkpoint (spx_train_state_read checked its ranges) */
+    if (!r->schedule && strcmp(train_loss_name(r), rec->loss)) /* cmd_train takes the loss from rec */
+      return spx_cli_errorf("train", "%s was trained with --loss %s, not %s (start a new run with --init)", from,
+                            rec->loss, train_loss_name(r));
+    r->stage = (int)rec->stage, r->base = rec->stage_base;
+    if (r->schedule) r->stage1_steps = rec->stage1_steps;
   }
   if (r->vgg && spx_vgg_open(ctx, r->vgg_path, &r->net_vgg)) return spx_cli_error("train", ctx);
   int rc = need_disc(ctx, r, resume && r->gan[r->stage]);
@@ -131,16 +119,14 @@ void train_recipe_epoch_reset(train_recipe *r) {
   r->count = 0;
 }
 
-spx_status train_recipe_save(train_recipe *r, spx_unet *u, const char *outp) {
-  spx_status st;
-  if (r->d && r->gan[r->stage] && (st = spx_patchgan_save(r->d, r->disc_path, 1))) return st;
-  char sb[8], bb[32];
-  snprintf(sb, sizeof sb, "%d", r->stage);
-  snprintf(bb, sizeof bb, "%" PRId64, r->base);
-  const char *keys[] = {"smplpix.loss", "smplpix.stage", "smplpix.stage_base"};
-  const char *vals[] = {train_loss_name(r), sb, bb};
-  return spx_unet_save_meta(u, outp, 1, keys, vals, 3);
+void train_recipe_record(const train_recipe *r, spx_train_state *s) {
+  snprintf(s->loss, sizeof s->loss, "%s", train_loss_name(r));
+  snprintf(s->schedule, sizeof s->schedule, "%s", r->schedule ? "paper" : "");
+  s->stage = r->stage, s->stage_base = r->base, s->stage1_steps = r->schedule ? r->stage1_steps : 0;
+  s->lr = r->lr1, s->lr2 = r->lr2, s->disc_width = r->disc_width;
 }
+
+spx_patchgan *train_recipe_disc(const train_recipe *r) { return r->d && r->gan[r->stage] ? r->d : NULL; }
 
 void train_recipe_free(train_recipe *r) {
   spx_patchgan_destroy(r->d);

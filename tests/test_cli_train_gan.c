@@ -1,15 +1,16 @@
 /* End to end: `smplpix train --loss l1+gan` and `--schedule paper` (apps/train_recipe.c).
  *  - --loss l1, then --init from it with --loss l1+gan (the offline recipe): the discriminator is
  *    written beside W (W.disc.safetensors), the progress and epoch lines show every loss term, the
- *    checkpoint records loss and stage;
+ *    checkpoint's training state (smplpix.train.*, apps/train_state.h) records loss and stage;
  *  - --resume of a stage-2 run gives the same generator and discriminator files, bit for bit, as an
  *    uninterrupted run of the same length;
  *  - --schedule paper runs stage 1 (l1) then stage 2 (l1+gan) with Adam restarted; a run
  *    interrupted (Ctrl-C) in stage 1 or in stage 2 and resumed ends with the same generator and
  *    discriminator files, bit for bit, as the uninterrupted run;
  *  - --loss vgg then vgg+gan with a (small, random) VGG19 file;
- *  - one-line errors: --resume with another --loss, a discriminator file from another run, --loss
- *    vgg without --vgg or with a file that is no VGG19 (exit 1); an unknown --loss (exit 2). */
+ *  - one-line errors: a discriminator file from another run, --loss vgg without --vgg or with a
+ *    file that is no VGG19 (exit 1); an unknown --loss, or --resume with flags contradicting the
+ *    record (--loss, --schedule, --lr2, --disc-width) (exit 2). */
 #include <fcntl.h>
 #include <signal.h>
 #include <stdlib.h>
@@ -87,11 +88,11 @@ static int same(const char *a, const char *b) {
 
 static void test_offline_recipe(void) {
   CHECK(tool("train " COMMON " --out a.safetensors --epochs 1 --loss l1") == 0);
-  CHECK(meta_is("a.safetensors", "smplpix.loss", "l1") && meta_is("a.safetensors", "smplpix.stage", "1"));
+  CHECK(meta_is("a.safetensors", "smplpix.train.loss", "l1") && meta_is("a.safetensors", "smplpix.train.stage", "1"));
   CHECK(!exists("a.disc.safetensors"));
   CHECK(tool("train " COMMON " --out b.safetensors --init a.safetensors --epochs 2 --loss l1+gan") == 0);
   CHECK(exists("b.disc.safetensors"));
-  CHECK(meta_is("b.safetensors", "smplpix.loss", "l1+gan") && meta_is("b.safetensors", "smplpix.stage", "2"));
+  CHECK(meta_is("b.safetensors", "smplpix.train.loss", "l1+gan") && meta_is("b.safetensors", "smplpix.train.stage", "2"));
   CHECK_MSG(file_has("err.txt", "GAN") && file_has("err.txt", "FM") && file_has("err.txt", "D "),
             "progress lines without the loss terms");
   CHECK_MSG(file_has("out.txt", "epoch 2 step 4: train loss") && file_has("out.txt", "(L1 "), "no epoch line with terms");
@@ -101,8 +102,12 @@ static void test_offline_recipe(void) {
   CHECK_MSG(same("b.safetensors", "c.safetensors"), "resumed generator differs");
   CHECK_MSG(same("b.disc.safetensors", "c.disc.safetensors"), "resumed discriminator differs");
   /* errors */
-  CHECK(tool("train " COMMON " --out a.safetensors --resume --epochs 2 --loss l1+gan") == 1);
+  /* a flag contradicting the checkpoint's record is a usage error (exit 2, as every recorded setting) */
+  CHECK(tool("train " COMMON " --out a.safetensors --resume --epochs 2 --loss l1+gan") == 2);
   CHECK(err_one_line_with("was trained with --loss l1, not l1+gan"));
+  /* ... and so is --schedule on a single-stage run, or --loss on a scheduled one */
+  CHECK(tool("train " COMMON " --out a.safetensors --resume --epochs 2 --schedule paper") == 2);
+  CHECK(err_one_line_with("--schedule contradicts"));
   char cmd[2048];
   CHECK(tool("train " COMMON " --out e.safetensors --init a.safetensors --epochs 1 --loss l1+gan") == 0);
   snprintf(cmd, sizeof cmd, "cd '%s' && cp b.disc.safetensors e.disc.safetensors", dir);
@@ -124,7 +129,7 @@ static void test_offline_recipe(void) {
 static void test_vgg(void) {
   CHECK(tool("train " COMMON " --out v.safetensors --epochs 1 --loss vgg --vgg '" SPX_TEST_DATA
              "/vgg/vgg_w4.safetensors'") == 0);
-  CHECK(file_has("out.txt", "(VGG ") && meta_is("v.safetensors", "smplpix.loss", "vgg"));
+  CHECK(file_has("out.txt", "(VGG ") && meta_is("v.safetensors", "smplpix.train.loss", "vgg"));
   CHECK(tool("train " COMMON " --out v2.safetensors --init v.safetensors --epochs 1 --loss vgg+gan --vgg '" SPX_TEST_DATA
              "/vgg/vgg_w4.safetensors'") == 0);
   CHECK(file_has("out.txt", "(VGG ") && file_has("out.txt", "GAN ") && exists("v2.disc.safetensors"));
@@ -137,8 +142,8 @@ static void test_vgg(void) {
 static void test_schedule(void) {
   CHECK(tool("train " COMMON " --out s.safetensors --schedule paper --epochs 1 --lr 1e-3 --lr2 1e-4") == 0);
   CHECK(file_has("out.txt", "stage 1 of --schedule paper") && file_has("out.txt", "step 2: stage 2 (--loss l1+gan"));
-  CHECK(meta_is("s.safetensors", "smplpix.stage", "2") && meta_is("s.safetensors", "smplpix.stage_base", "2"));
-  CHECK(meta_is("s.safetensors", "smplpix.loss", "l1+gan") && exists("s.disc.safetensors"));
+  CHECK(meta_is("s.safetensors", "smplpix.train.stage", "2") && meta_is("s.safetensors", "smplpix.train.stage_base", "2"));
+  CHECK(meta_is("s.safetensors", "smplpix.train.loss", "l1+gan") && exists("s.disc.safetensors"));
   /* stage 2 restarted Adam: 2 generator steps since, 2 discriminator steps */
   char p[800];
   path_of(p, sizeof p, "s.safetensors");
@@ -149,6 +154,15 @@ static void test_schedule(void) {
   /* resuming a finished schedule does nothing and keeps both files */
   CHECK(tool("train " COMMON " --out s.safetensors --schedule paper --epochs 1 --resume") == 0);
   CHECK(file_has("out.txt", "step 4 -> 4"));
+  /* the schedule, lr2 and stage come from the record: --resume alone continues it */
+  CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume") == 0);
+  CHECK(file_has("out.txt", "step 4 -> 4") && file_has("out.txt", "stage 2 of --schedule paper"));
+  CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume --loss l1+gan") == 2);
+  CHECK(err_one_line_with("--loss contradicts the --schedule paper"));
+  CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume --lr2 1e-3") == 2);
+  CHECK(err_one_line_with("--lr2 contradicts"));
+  CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume --disc-width 8") == 2);
+  CHECK(err_one_line_with("--disc-width contradicts"));
 }
 
 /* Run the tool (argv[0] ignored), SIGINT after the stderr line starting with `trigger`; exit status. */
@@ -189,7 +203,7 @@ static void test_schedule_resume(void) {
                     "4", "--log-every", "1", "--out", out, "--schedule", "paper", "--epochs", "2", "--lr", "1e-3",
                     "--lr2", "1e-4", NULL};
     CHECK_MSG(run_interrupted(argv, trig[k]) == 130, "interrupt after '%s'", trig[k]);
-    CHECK(meta_is(o2, "smplpix.stage", k ? "2" : "1"));
+    CHECK(meta_is(o2, "smplpix.train.stage", k ? "2" : "1"));
     char args[1024], d2[64];
     snprintf(args, sizeof args, "train " COMMON " --out %s --schedule paper --epochs 2 --lr 1e-3 --lr2 1e-4 --resume", o2);
     CHECK(tool(args) == 0);
