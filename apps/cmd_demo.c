@@ -11,6 +11,7 @@
 
 #include "cli.h"
 #include "cli_model.h"
+#include "cli_tx.h"
 #include "demo_compose.h"
 #include "smplpix/bvh.h"
 #include "smplpix/synth.h"
@@ -23,7 +24,8 @@ static void demo_help(void) {
          "Renders the shipped body (data/body/default_body.npz) with the appearance of synthetic subject S\n"
          "(smplpix synth's texture sampled at the body's UVs; its shape too), reposed to frame N (default 600)\n"
          "of the shipped motion (data/mocap/01_01.bvh), seen from the front at WxH (default 128x96, the\n"
-         "size the shipped network was trained at). Writes to DIR (default out):\n"
+         "size the shipped network was trained at). Writes to DIR (default out; made if missing, its\n"
+         "parent must exist), all files at once or none:\n"
          "  demo_input.png    the SMPLpix input: the projected coloured vertices (RGB of the RGB-D image)\n"
          "  demo_smplpix.png  the network's output on that input\n"
          "  demo_raster.png   the classic baseline: the same coloured mesh rasterized (per-vertex colours)\n"
@@ -149,22 +151,6 @@ done:
   return rc;
 }
 
-/* mkdir -p: dir and its missing parents. */
-static int make_dirs(const char *dir) {
-  char p[4096];
-  if (snprintf(p, sizeof p, "%s", dir) >= (int)sizeof p) {
-    errno = ENAMETOOLONG;
-    return -1;
-  }
-  for (char *q = p + 1; *q; q++)
-    if (*q == '/') {
-      *q = 0;
-      if (mkdir(p, 0777) && errno != EEXIST) return -1;
-      *q = '/';
-    }
-  return mkdir(p, 0777) && errno != EEXIST ? -1 : 0;
-}
-
 static void free_scene(demo_scene *s) {
   free(s->pos), free(s->col);
   spx_synth_subject_free(&s->sub);
@@ -217,11 +203,20 @@ done:
   return rc;
 }
 
-/* Write the images as one set: each to a temporary beside its target, then all renamed into
- * place; a failure before the renames leaves every existing file as it was. (The whole output
- * step; with apps/cli_tx.h this becomes spx_tx_stage per file + spx_tx_commit.) */
-static int write_all(spx_ctx *ctx, const char *dir, int zoom, const spx_image *input, const spx_image *raster,
-                     const spx_image *net) {
+enum { NOUT = 4 };
+static const char *const out_names[NOUT] = {"demo_input.png", "demo_raster.png", "demo_smplpix.png", "demo.png"};
+
+static char *out_path(const char *dir, int k) {
+  size_t cap = strlen(dir) + strlen(out_names[k]) + 2;
+  char *p = malloc(cap);
+  if (p) snprintf(p, cap, "%s/%s", dir, out_names[k]);
+  return p;
+}
+
+/* Write the images as one set on the run's output transaction (apps/cli_tx.h): all appear
+ * together at the commit, or none (a failed run leaves the old set). */
+static int write_all(spx_ctx *ctx, spx_tx *tx, const char *dir, int zoom, const spx_image *input,
+                     const spx_image *raster, const spx_image *net) {
   const spx_image *panels[3];
   const char *labels[3];
   int n = 0;
@@ -229,42 +224,18 @@ static int write_all(spx_ctx *ctx, const char *dir, int zoom, const spx_image *i
   if (net) panels[n] = net, labels[n++] = "SMPLPIX";
   panels[n] = raster, labels[n++] = "RASTER";
   spx_image strip = {0};
-  enum { NOUT = 4 };
-  const char *names[NOUT] = {"demo_input.png", "demo_raster.png", "demo_smplpix.png", "demo.png"};
   const spx_image *imgs[NOUT] = {input, raster, net, &strip};
-  char fin[NOUT][4200], tmp[NOUT][4240];
-  int staged = 0, rc = SPX_EXIT_OK;
-  if (spx_demo_compose(ctx, panels, labels, n, zoom, &strip)) {
-    rc = spx_cli_error("demo", ctx);
-    goto done;
+  int rc = SPX_EXIT_OK;
+  if (spx_demo_compose(ctx, panels, labels, n, zoom, &strip)) rc = spx_cli_error("demo", ctx);
+  for (int k = 0; k < NOUT && !rc; k++)
+    if (imgs[k]) rc = spx_cli_write_output("demo", ctx, tx, out_path(dir, k), imgs[k]);
+  if (!rc) rc = spx_tx_commit(tx);
+  if (!rc && !net) { /* no network: an earlier run's output must not pass for this one's */
+    char *p = out_path(dir, 2);
+    if (!p) rc = spx_cli_errorf("demo", "out of memory");
+    else if (unlink(p) && errno != ENOENT) rc = spx_cli_errorf("demo", "%s: cannot remove: %s", p, strerror(errno));
+    free(p);
   }
-  for (int k = 0; k < NOUT; k++) {
-    snprintf(fin[k], sizeof fin[k], "%.4096s/%s", dir, names[k]);
-    snprintf(tmp[k], sizeof tmp[k], "%.4180s.tmp.%ld.png", fin[k], (long)getpid());
-  }
-  for (int k = 0; k < NOUT; k++) { /* a target the rename cannot replace: refuse before writing */
-    struct stat sb;
-    if (stat(fin[k], &sb) == 0 && S_ISDIR(sb.st_mode)) {
-      rc = spx_cli_errorf("demo", "%s: is a directory, cannot write the image there", fin[k]);
-      goto done;
-    }
-  }
-  for (; staged < NOUT; staged++) {
-    if (imgs[staged] && spx_cli_write_image(ctx, tmp[staged], imgs[staged])) {
-      rc = spx_cli_error("demo", ctx);
-      goto done;
-    }
-  }
-  for (int k = 0; k < NOUT && !rc; k++) {
-    if (!imgs[k]) { /* no network: an earlier run's output must not pass for this one's */
-      if (unlink(fin[k]) && errno != ENOENT) rc = spx_cli_errorf("demo", "%s: cannot remove: %s", fin[k], strerror(errno));
-    } else if (rename(tmp[k], fin[k])) {
-      rc = spx_cli_errorf("demo", "%s: cannot rename into place: %s", fin[k], strerror(errno));
-    }
-  }
-done:
-  for (int k = 0; k < staged; k++)
-    if (imgs[k]) unlink(tmp[k]); /* the ones not renamed (ENOENT for the others) */
   spx_image_free(&strip);
   return rc;
 }
@@ -288,10 +259,20 @@ int spx_cmd_demo(int argc, char **argv) {
   double t0 = spx_cli_now();
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("demo", "out of memory");
+  spx_tx tx;
+  spx_tx_begin(&tx, "demo", 0);
   demo_scene s;
   memset(&s, 0, sizeof s);
   spx_unet *u = NULL;
   spx_image input = {0}, raster = {0}, net = {0};
+  /* the folder (removed again by a failed run that made it) and the targets, before the work */
+  if ((rc = spx_tx_mkdir(&tx, o.out_dir))) goto done;
+  for (int k = 0; k < NOUT; k++) {
+    char *p = out_path(o.out_dir, k);
+    rc = p ? spx_tx_check(&tx, p) : spx_cli_errorf("demo", "out of memory");
+    free(p);
+    if (rc) goto done;
+  }
   if ((rc = spx_cli_open_device("demo", ctx, o.device))) goto done;
   if (ckpt && spx_unet_load(ctx, ckpt, &u)) {
     rc = spx_cli_error("demo", ctx);
@@ -299,11 +280,7 @@ int spx_cmd_demo(int argc, char **argv) {
   }
   if ((rc = build_scene(ctx, &o, &s))) goto done;
   if ((rc = render_all(ctx, &s, u, &input, &raster, &net))) goto done;
-  if (make_dirs(o.out_dir)) {
-    rc = spx_cli_errorf("demo", "%s: cannot create: %s", o.out_dir, strerror(errno));
-    goto done;
-  }
-  if ((rc = write_all(ctx, o.out_dir, o.zoom, &input, &raster, u ? &net : NULL))) goto done;
+  if ((rc = write_all(ctx, &tx, o.out_dir, o.zoom, &input, &raster, u ? &net : NULL))) goto done;
   if (!o.quiet) {
     if (!u)
       printf("note: no network is shipped yet (%s is absent) and no --checkpoint was given:\n"
@@ -319,6 +296,7 @@ done:
   spx_image_free(&input), spx_image_free(&raster), spx_image_free(&net);
   spx_unet_destroy(u);
   free_scene(&s);
+  spx_tx_end(&tx);
   spx_ctx_destroy(ctx);
   return rc;
 }

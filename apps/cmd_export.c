@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "cli_tx.h"
 #include "smplpix/patchgan.h"
 #include "smplpix/safetensors.h"
 #include "smplpix/unet.h"
@@ -59,12 +60,14 @@ int spx_cmd_export(int argc, char **argv) {
   if (strcmp(ext, "safetensors")) return spx_cli_usage("export", "%s: output must end in .safetensors", out);
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("export", "out of memory");
+  spx_tx tx;
+  spx_tx_begin(&tx, "export", 1); /* durable, like a checkpoint */
   spx_unet *u = NULL;
   spx_st_file f;
   memset(&f, 0, sizeof f);
   int rc = SPX_EXIT_OK;
   char steps[32];
-  if ((rc = spx_cli_open_device("export", ctx, NULL))) goto done;
+  if ((rc = spx_tx_check(&tx, out)) || (rc = spx_cli_open_device("export", ctx, NULL))) goto done;
   if (spx_unet_load(ctx, in, &u) || spx_st_load(ctx, in, &f)) {
     rc = spx_cli_error("export", ctx);
     goto done;
@@ -88,14 +91,21 @@ int spx_cmd_export(int argc, char **argv) {
     mk[j] = kbuf[k], mv[j] = eq + 1;
     if (j == nm) nm++;
   }
-  spx_status st = half ? spx_unet_save_half(u, out, mk, mv, nm) : spx_unet_save_meta(u, out, 0, mk, mv, nm);
+  const char *tmp = spx_tx_stage(&tx, out);
+  if (!tmp) {
+    rc = SPX_EXIT_ERROR;
+    goto done;
+  }
+  spx_status st = half ? spx_unet_save_half(u, tmp, mk, mv, nm) : spx_unet_save_meta(u, tmp, 0, mk, mv, nm);
   if (st) {
     rc = spx_cli_error("export", ctx);
     goto done;
   }
+  if ((rc = spx_tx_commit(&tx))) goto done;
   printf("wrote %s (width %d, %s, %s Adam steps recorded)\n", out, spx_unet_width(u), half ? "float16" : "float32",
          steps_used);
 done:
+  spx_tx_end(&tx);
   spx_st_free(&f);
   spx_unet_destroy(u);
   spx_ctx_destroy(ctx);
