@@ -3,7 +3,7 @@ BUILD    ?= build
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build demo train-demo test asan fuzz bench bench-unet bench-latency install clean bench-python table1
+.PHONY: all deps build demo docs-demo model-card train-demo test asan fuzz bench bench-unet bench-latency install clean bench-python table1
 
 all: build
 
@@ -16,11 +16,22 @@ $(BUILD)/CMakeCache.txt:
 build: deps $(BUILD)/CMakeCache.txt
 	cmake --build $(BUILD) -j $(JOBS)
 
-# The main job: project the shipped body mesh from the default camera into an RGB-D EXR + PNG.
+# The main job: the shipped body with a synthetic subject's look, reposed to a frame of the shipped
+# motion, through the shipped network (data/models/default.safetensors): out/demo.png = input |
+# SMPLpix | per-vertex raster, plus out/demo_{input,smplpix,raster}.png. Without a shipped network
+# it says so and writes input | per-vertex raster.
 demo: build
-	@mkdir -p out
-	./$(BUILD)/smplpix project --mesh data/body/human_woman.obj --camera data/cameras/default.json \
-	    --out out/demo.exr --png out/demo.png --npy out/demo.npy
+	./$(BUILD)/smplpix demo --out out
+
+# The README's picture (needs the shipped network): docs/demo.png, panels enlarged 2x.
+docs-demo: build
+	@test -f data/models/default.safetensors || { echo "docs-demo: data/models/default.safetensors is absent (see data/models/README.md)" >&2; exit 1; }
+	./$(BUILD)/smplpix demo --out out/docs-demo --zoom 2
+	cp out/docs-demo/demo.png docs/demo.png
+
+# The model card data/models/README.md from the shipped network's metadata and benchmarks/TABLE1.md.
+model-card:
+	sh scripts/model_card.sh data/models/default.safetensors benchmarks/TABLE1.md data/models/README.md
 
 # Train a small SMPLpix network: 48 orbit views of the shipped body (projections -> raster renders,
 # 128x96), a width-16 UNet for TRAIN_DEMO_STEPS Adam steps (validation L1/PSNR printed at the start

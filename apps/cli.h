@@ -76,5 +76,7 @@ int spx_cmd_raster(int argc, char **argv); /* apps/cmd_raster.c */
 int spx_cmd_dataset(int argc, char **argv); /* apps/cmd_dataset.c */
 int spx_cmd_synth(int argc, char **argv);   /* apps/cmd_synth.c */
 int spx_cmd_eval(int argc, char **argv);    /* apps/cmd_eval.c */
+int spx_cmd_demo(int argc, char **argv);    /* apps/cmd_demo.c */
+int spx_cmd_export(int argc, char **argv);  /* apps/cmd_export.c */
 
 #endif

@@ -16,6 +16,8 @@ static const spx_command commands[] = {
     {"render", "run a trained UNet on RGB-D image(s), or on a mesh through camera(s)", spx_cmd_render},
     {"synth", "synthetic scanned people and their ground-truth photos", spx_cmd_synth},
     {"train", "train the UNet on a data directory", spx_cmd_train},
+    {"export", "a checkpoint as the shipped network: weights only, float16 with --half", spx_cmd_export},
+    {"demo", "render the shipped body through the shipped network (make demo)", spx_cmd_demo},
     {"eval", "PSNR, SSIM (and LPIPS) of predicted images against targets", spx_cmd_eval},
     {"register", "register the body model to a 3-D scan (Ceres)", spx_cmd_register},
     {"repose", "pose a registered person with a BVH frame", spx_cmd_repose},

@@ -27,6 +27,9 @@ set_tests_properties(test_render_project_pixel_sort PROPERTIES
   ENVIRONMENT "SPX_TUNE_PROJ_SORT_DEPTH=0;SPX_TEST_TMP=${SPX_TEST_TMP}/test_render_project_pixel_sort;SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache"
   TIMEOUT 900)
 
+# The shipped network's PyTorch golden: ctest SKIP while data/models/default.safetensors is absent.
+set_tests_properties(test_model_golden PROPERTIES SKIP_RETURN_CODE 77)
+
 # make table1's pipeline (scripts/table1.sh) in TABLE1_QUICK mode plus its bad-input checks;
 # needs the benchmarks' table1_tool and jq; skipped (77) while the build has no `smplpix synth`.
 find_program(SPX_JQ jq)

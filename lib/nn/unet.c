@@ -476,8 +476,48 @@ spx_status spx_unet_save(spx_unet *u, const char *path, int with_optimizer) {
   return spx_unet_save_meta(u, path, with_optimizer, NULL, NULL, 0);
 }
 
+/* float -> IEEE half, round to nearest even; 0 when |v| does not fit (overflow to Inf). */
+static int float_to_half(float v, uint16_t *out) {
+  uint32_t b;
+  memcpy(&b, &v, 4);
+  uint32_t s = (b >> 16) & 0x8000u, e = (b >> 23) & 0xffu, m = b & 0x7fffffu;
+  int ex = (int)e - 127 + 15;
+  if (e == 0xffu) return 0;
+  if (ex >= 31) return 0;
+  if (ex <= 0) { /* subnormal half (or zero) */
+    if (ex < -10) {
+      *out = (uint16_t)s;
+      return 1;
+    }
+    m |= 0x800000u;
+    int shift = 14 - ex;
+    uint32_t hm = m >> shift, rem = m & ((1u << shift) - 1), half = 1u << (shift - 1);
+    if (rem > half || (rem == half && (hm & 1))) hm++;
+    *out = (uint16_t)(s | hm);
+    return 1;
+  }
+  uint32_t h = s | ((uint32_t)ex << 10) | (m >> 13), rem = m & 0x1fffu;
+  if (rem > 0x1000u || (rem == 0x1000u && (h & 1))) h++; /* may carry into the exponent: still correct */
+  if ((h & 0x7c00u) == 0x7c00u) return 0;
+  *out = (uint16_t)h;
+  return 1;
+}
+
+static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, int half, const char *const *mkeys,
+                            const char *const *mvalues, int count);
+
 spx_status spx_unet_save_meta(spx_unet *u, const char *path, int with_optimizer, const char *const *mkeys,
                               const char *const *mvalues, int count) {
+  return save_impl(u, path, with_optimizer, 0, mkeys, mvalues, count);
+}
+
+spx_status spx_unet_save_half(spx_unet *u, const char *path, const char *const *keys, const char *const *values,
+                              int count) {
+  return save_impl(u, path, 0, 1, keys, values, count);
+}
+
+static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, int half, const char *const *mkeys,
+                            const char *const *mvalues, int count) {
   spx_status st = SPX_OK;
   if (count < 0 || count > 16 || (count && (!mkeys || !mvalues)))
     return spx_fail(u->ctx, SPX_E_ARG, "unet: %d extra metadata entries (at most 16)", count);
@@ -518,6 +558,19 @@ spx_status spx_unet_save_meta(spx_unet *u, const char *path, int with_optimizer,
       o->data = bufs[ne];
       spx_unet_field f = pass == 0 ? SPX_UNET_VALUE : pass == 1 ? SPX_UNET_EXP_AVG : SPX_UNET_EXP_AVG_SQ;
       st = spx_unet_read(u, o->name, f, bufs[ne], n);
+      if (!st && half) { /* in place: the halves fill the front of the float buffer */
+        unsigned char *hb = (unsigned char *)bufs[ne];
+        for (size_t k = 0; k < n && !st; k++) {
+          float v;
+          uint16_t h = 0;
+          memcpy(&v, hb + 4 * k, 4);
+          if (float_to_half(v, &h)) memcpy(hb + 2 * k, &h, 2);
+          else
+            st = spx_fail(u->ctx, SPX_E_NUMERIC, "%s: tensor %s element %zu (%g) does not fit in float16", path,
+                          o->name, k, (double)v);
+        }
+        o->dtype = SPX_F16;
+      }
       ne++;
     }
   if (!st && with_optimizer) {

@@ -104,6 +104,16 @@ spx_status spx_synth_photo(spx_ctx *ctx, spx_rasterizer *r, const spx_body_model
 spx_status spx_synth_camera(spx_ctx *ctx, int32_t width, int32_t height, double az, double el, double dist,
                             double focal_px, const double target[3], spx_camera *out);
 
+/* Per-vertex colours of the base body (col: m->nv*3): the mean of the subject's texture sampled
+ * (bilinear) at every UV corner of the vertex (vertices on a UV seam average their corners;
+ * vertices in no face get grey 0.5). Needs the model's vt/ft (the layout the texture is painted in). */
+spx_status spx_synth_body_colors(spx_ctx *ctx, const spx_body_model *m, const spx_synth_subject *s, float *col);
+
+/* The built-in 5x7 bitmap font (the one painted on shirts): 1 if pixel (col 0..4, row 0..6,
+ * row 0 = top) of glyph c is set. Letters A-Z (either case), digits, space, '-', '!', '.';
+ * anything else (and out-of-range pixels) is blank. */
+int spx_synth_glyph_pixel(char c, int col, int row);
+
 /* Deterministic random numbers for the generator (splitmix64). */
 typedef struct spx_synth_rng {
   uint64_t s;

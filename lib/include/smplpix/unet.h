@@ -70,6 +70,13 @@ spx_status spx_unet_reset_optimizer(spx_unet *u);
  * present; the sigmoid flag comes from the metadata key "smplpix.sigmoid" (default off). */
 spx_status spx_unet_save(spx_unet *u, const char *path, int with_optimizer);
 spx_status spx_unet_load(spx_ctx *ctx, const char *path, spx_unet **out);
+/* The shipping format: the state_dict (weights, batch-norm running statistics and
+ * num_batches_tracked; no optimizer state) as float16 (I64 counters), the metadata of
+ * spx_unet_save plus `count` extra string pairs (at most 16). PyTorch loads it into the milesial
+ * UNet with load_state_dict(strict=True) after .float(); spx_unet_load reads it back. Fails
+ * (SPX_E_NUMERIC, naming the tensor) when a value does not fit in float16 (|v| > 65504). */
+spx_status spx_unet_save_half(spx_unet *u, const char *path, const char *const *keys, const char *const *values,
+                              int count);
 
 /* Introspection, by state_dict name (also "optimizer.<param>.exp_avg" / ".exp_avg_sq"). */
 int spx_unet_tensor_count(const spx_unet *u);

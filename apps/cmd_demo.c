@@ -1,0 +1,302 @@
+/* smplpix demo: the shipped body with a synthetic subject's appearance, reposed to a frame of the
+ * shipped motion, projected (the SMPLpix input), through the shipped network, next to the
+ * classic per-vertex raster of the same coloured mesh (`make demo`). */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "cli.h"
+#include "cli_model.h"
+#include "cli_tx.h"
+#include "demo_compose.h"
+#include "smplpix/bvh.h"
+#include "smplpix/synth.h"
+
+#define PI 3.14159265358979323846
+
+static void demo_help(void) {
+  printf("usage: smplpix demo [--out DIR] [--checkpoint W.safetensors] [--frame N] [--seed S] [--size WxH]\n"
+         "                    [--zoom Z] [--device cpu|gpu|P:D] [--quiet]\n"
+         "Renders the shipped body (data/body/default_body.npz) with the appearance of synthetic subject S\n"
+         "(smplpix synth's texture sampled at the body's UVs; its shape too), reposed to frame N (default 600)\n"
+         "of the shipped motion (data/mocap/01_01.bvh), seen from the front at WxH (default 128x96, the\n"
+         "size the shipped network was trained at). Writes to DIR (default out; made if missing, its\n"
+         "parent must exist), all files at once or none:\n"
+         "  demo_input.png    the SMPLpix input: the projected coloured vertices (RGB of the RGB-D image)\n"
+         "  demo_smplpix.png  the network's output on that input\n"
+         "  demo_raster.png   the classic baseline: the same coloured mesh rasterized (per-vertex colours)\n"
+         "  demo.png          input | SMPLpix | per-vertex raster side by side, labelled, each panel\n"
+         "                    enlarged Z times (nearest pixel; --zoom 1..8, default 1)\n"
+         "The network is --checkpoint, else the shipped data/models/default.safetensors. Without either,\n"
+         "a note says so and demo.png is input | per-vertex raster (no demo_smplpix.png).\n");
+}
+
+typedef struct demo_opts {
+  const char *out_dir, *ckpt, *device;
+  long frame;
+  uint64_t seed;
+  int W, H, zoom, quiet;
+} demo_opts;
+
+static int parse(int argc, char **argv, demo_opts *o) {
+  int bad = 0;
+  o->out_dir = "out", o->frame = 600, o->seed = 3, o->W = 128, o->H = 96, o->zoom = 1;
+  for (int i = 1; i < argc; i++) {
+    const char *v;
+    char *end;
+    if (!strcmp(argv[i], "--quiet")) {
+      o->quiet = 1;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
+      if (strlen(v) > 4000) return spx_cli_usage("demo", "--out: path too long (%zu characters)", strlen(v));
+      o->out_dir = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
+      o->ckpt = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
+      o->device = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--frame", &bad))) {
+      errno = 0;
+      o->frame = strtol(v, &end, 10);
+      if (errno || end == v || *end || o->frame < 0)
+        return spx_cli_usage("demo", "--frame: expected a frame index >= 0, got '%s'", v);
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) {
+      errno = 0;
+      unsigned long long s = strtoull(v, &end, 10);
+      if (errno || end == v || *end || *v == '-') return spx_cli_usage("demo", "--seed: expected an integer >= 0, got '%s'", v);
+      o->seed = s;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--zoom", &bad))) {
+      if (strlen(v) != 1 || v[0] < '1' || v[0] > '8') return spx_cli_usage("demo", "--zoom: expected 1..8, got '%s'", v);
+      o->zoom = v[0] - '0';
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) {
+      int w = 0, h = 0, n = 0;
+      if (sscanf(v, "%dx%d%n", &w, &h, &n) != 2 || v[n] || w < 16 || h < 16 || w > 4096 || h > 4096)
+        return spx_cli_usage("demo", "--size: expected WxH with 16 <= W, H <= 4096, got '%s'", v);
+      o->W = w, o->H = h;
+    } else {
+      return spx_cli_usage("demo", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+    }
+  }
+  return SPX_EXIT_OK;
+}
+
+/* The posed, coloured body and the camera looking at it from the front. */
+typedef struct demo_scene {
+  spx_body_model m;
+  spx_synth_subject sub;
+  float *pos, *col;
+  spx_camera cam;
+} demo_scene;
+
+static int build_scene(spx_ctx *ctx, const demo_opts *o, demo_scene *s) {
+  const char *body_path = spx_cli_data_path("body/default_body.npz");
+  if (spx_body_load(ctx, body_path, &s->m)) return spx_cli_error("demo", ctx);
+  char parts_path[4096], bvh_path[4096];
+  snprintf(parts_path, sizeof parts_path, "%s", spx_cli_data_path("body/body_parts_segmentation.png"));
+  snprintf(bvh_path, sizeof bvh_path, "%s", spx_cli_data_path("mocap/01_01.bvh"));
+  spx_image parts = {0};
+  spx_bvh b = {0};
+  spx_bvh_map map = {0};
+  double *pose = NULL, *v = NULL, trans[3];
+  int rc = SPX_EXIT_ERROR, nv = s->m.nv;
+  if (spx_png_read(ctx, parts_path, &parts) || spx_bvh_load(ctx, bvh_path, &b) ||
+      spx_bvh_map_create(ctx, &b, &s->m, NULL, NULL, &map)) {
+    rc = spx_cli_error("demo", ctx);
+    goto done;
+  }
+  if (o->frame >= b.nframes) {
+    rc = spx_cli_errorf("demo", "%s: --frame %ld out of range (the clip has %d frames)", bvh_path, o->frame, b.nframes);
+    goto done;
+  }
+  pose = malloc((size_t)s->m.nj * 3 * sizeof(double));
+  v = malloc((size_t)nv * 3 * sizeof(double));
+  s->pos = malloc((size_t)nv * 3 * sizeof(float));
+  s->col = malloc((size_t)nv * 3 * sizeof(float));
+  if (!pose || !v || !s->pos || !s->col) {
+    rc = spx_cli_errorf("demo", "out of memory");
+    goto done;
+  }
+  if (spx_bvh_map_pose(ctx, &map, &b, &s->m, (int32_t)o->frame, pose, trans) ||
+      spx_synth_subject_create(ctx, &s->m, &parts, o->seed, SPX_SYNTH_TEX_MIN, &s->sub) ||
+      spx_synth_body_colors(ctx, &s->m, &s->sub, s->col)) {
+    rc = spx_cli_errorf("demo", "%s: %s", body_path, spx_ctx_message(ctx));
+    goto done;
+  }
+  spx_body_params p = {s->sub.nbetas, s->sub.betas, pose, trans, NULL};
+  if (spx_body_forward_ref(ctx, &s->m, &p, v, NULL)) {
+    rc = spx_cli_error("demo", ctx);
+    goto done;
+  }
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int32_t k = 0; k < nv * 3; k++) {
+    s->pos[k] = (float)v[k];
+    lo[k % 3] = fmin(lo[k % 3], v[k]), hi[k % 3] = fmax(hi[k % 3], v[k]);
+  }
+  /* framed like the synth photos the network learnt from: focal 1.4 H, the body filling 80% */
+  double target[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
+  double ext_v = hi[1] - lo[1], ext_h = fmax(hi[0] - lo[0], hi[2] - lo[2]), focal = 1.4 * o->H;
+  double dist = focal * fmax(ext_v / (0.8 * o->H), ext_h / (0.8 * o->W)) + 0.25 * ext_h;
+  if (spx_synth_camera(ctx, o->W, o->H, 0.0, 10 * PI / 180, dist, focal, target, &s->cam)) {
+    rc = spx_cli_error("demo", ctx);
+    goto done;
+  }
+  rc = SPX_EXIT_OK;
+done:
+  free(pose), free(v);
+  spx_bvh_map_free(&map);
+  spx_bvh_free(&b);
+  spx_image_free(&parts);
+  return rc;
+}
+
+static void free_scene(demo_scene *s) {
+  free(s->pos), free(s->col);
+  spx_synth_subject_free(&s->sub);
+  spx_body_free(&s->m);
+}
+
+/* input (projection, RGB-D HWC), raster (RGB + coverage HWC), net (RGB HWC, or NULL). */
+static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image *input, spx_image *raster,
+                      spx_image *net) {
+  int W = s->cam.width, H = s->cam.height, rc = SPX_EXIT_ERROR;
+  size_t hw = (size_t)W * H;
+  spx_projector *proj = NULL;
+  spx_rasterizer *rast = NULL;
+  float *nchw = NULL, *out = NULL;
+  if (spx_image_alloc(ctx, W, H, 4, input) || spx_image_alloc(ctx, W, H, 4, raster) ||
+      (u && spx_image_alloc(ctx, W, H, 3, net)) || spx_projector_create(ctx, &proj) ||
+      spx_rasterizer_create(ctx, &rast)) {
+    rc = spx_cli_error("demo", ctx);
+    goto done;
+  }
+  spx_project_args pa = {1, s->m.nv, s->pos, s->col, 1, &s->cam, SPX_LAYOUT_HWC};
+  spx_raster_args ra = {0};
+  ra.nverts = s->m.nv, ra.pos = s->pos, ra.col = s->col, ra.nfaces = s->m.nf, ra.faces = s->m.faces;
+  ra.ncams = 1, ra.cams = &s->cam, ra.aa = 2, ra.cull = SPX_CULL_NONE, ra.layout = SPX_LAYOUT_HWC;
+  if (spx_project(ctx, proj, &pa, input->data, NULL) || spx_raster(ctx, rast, &ra, raster->data, NULL)) {
+    rc = spx_cli_error("demo", ctx);
+    goto done;
+  }
+  if (u) {
+    nchw = malloc(hw * 4 * sizeof(float));
+    out = malloc(hw * 3 * sizeof(float));
+    if (!nchw || !out) {
+      rc = spx_cli_errorf("demo", "out of memory");
+      goto done;
+    }
+    for (size_t i = 0; i < hw; i++)
+      for (int c = 0; c < 4; c++) nchw[c * hw + i] = input->data[i * 4 + c];
+    if (spx_unet_forward(u, nchw, 1, H, W, 0, out)) {
+      rc = spx_cli_error("demo", ctx);
+      goto done;
+    }
+    for (size_t i = 0; i < hw; i++)
+      for (int c = 0; c < 3; c++) net->data[i * 3 + c] = out[c * hw + i];
+  }
+  rc = SPX_EXIT_OK;
+done:
+  free(nchw), free(out);
+  spx_projector_destroy(proj);
+  spx_rasterizer_destroy(rast);
+  return rc;
+}
+
+enum { NOUT = 4 };
+static const char *const out_names[NOUT] = {"demo_input.png", "demo_raster.png", "demo_smplpix.png", "demo.png"};
+
+static char *out_path(const char *dir, int k) {
+  size_t cap = strlen(dir) + strlen(out_names[k]) + 2;
+  char *p = malloc(cap);
+  if (p) snprintf(p, cap, "%s/%s", dir, out_names[k]);
+  return p;
+}
+
+/* Write the images as one set on the run's output transaction (apps/cli_tx.h): all appear
+ * together at the commit, or none (a failed run leaves the old set). */
+static int write_all(spx_ctx *ctx, spx_tx *tx, const char *dir, int zoom, const spx_image *input,
+                     const spx_image *raster, const spx_image *net) {
+  const spx_image *panels[3];
+  const char *labels[3];
+  int n = 0;
+  panels[n] = input, labels[n++] = "INPUT";
+  if (net) panels[n] = net, labels[n++] = "SMPLPIX";
+  panels[n] = raster, labels[n++] = "RASTER";
+  spx_image strip = {0};
+  const spx_image *imgs[NOUT] = {input, raster, net, &strip};
+  int rc = SPX_EXIT_OK;
+  if (spx_demo_compose(ctx, panels, labels, n, zoom, &strip)) rc = spx_cli_error("demo", ctx);
+  for (int k = 0; k < NOUT && !rc; k++)
+    if (imgs[k]) rc = spx_cli_write_output("demo", ctx, tx, out_path(dir, k), imgs[k]);
+  if (!rc) rc = spx_tx_commit(tx);
+  if (!rc && !net) { /* no network: an earlier run's output must not pass for this one's */
+    char *p = out_path(dir, 2);
+    if (!p) rc = spx_cli_errorf("demo", "out of memory");
+    else if (unlink(p) && errno != ENOENT) rc = spx_cli_errorf("demo", "%s: cannot remove: %s", p, strerror(errno));
+    free(p);
+  }
+  spx_image_free(&strip);
+  return rc;
+}
+
+int spx_cmd_demo(int argc, char **argv) {
+  for (int i = 1; i < argc; i++)
+    if (!strcmp(argv[i], "--help")) {
+      demo_help();
+      return SPX_EXIT_OK;
+    }
+  demo_opts o = {0};
+  int rc = parse(argc, argv, &o);
+  if (rc) return rc;
+  struct stat sb;
+  if (stat(o.out_dir, &sb) == 0 && !S_ISDIR(sb.st_mode))
+    return spx_cli_errorf("demo", "%s: exists and is not a directory (--out)", o.out_dir);
+  const char *ckpt = o.ckpt;
+  char shipped[4096];
+  snprintf(shipped, sizeof shipped, "%s", spx_cli_data_path(SPX_CLI_DEFAULT_MODEL));
+  if (!ckpt && access(shipped, R_OK) == 0) ckpt = shipped;
+  double t0 = spx_cli_now();
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("demo", "out of memory");
+  spx_tx tx;
+  spx_tx_begin(&tx, "demo", 0);
+  demo_scene s;
+  memset(&s, 0, sizeof s);
+  spx_unet *u = NULL;
+  spx_image input = {0}, raster = {0}, net = {0};
+  /* the folder (removed again by a failed run that made it) and the targets, before the work */
+  if ((rc = spx_tx_mkdir(&tx, o.out_dir))) goto done;
+  for (int k = 0; k < NOUT; k++) {
+    char *p = out_path(o.out_dir, k);
+    rc = p ? spx_tx_check(&tx, p) : spx_cli_errorf("demo", "out of memory");
+    free(p);
+    if (rc) goto done;
+  }
+  if ((rc = spx_cli_open_device("demo", ctx, o.device))) goto done;
+  if (ckpt && spx_unet_load(ctx, ckpt, &u)) {
+    rc = spx_cli_error("demo", ctx);
+    goto done;
+  }
+  if ((rc = build_scene(ctx, &o, &s))) goto done;
+  if ((rc = render_all(ctx, &s, u, &input, &raster, &net))) goto done;
+  if ((rc = write_all(ctx, &tx, o.out_dir, o.zoom, &input, &raster, u ? &net : NULL))) goto done;
+  if (!o.quiet) {
+    if (!u)
+      printf("note: no network is shipped yet (%s is absent) and no --checkpoint was given:\n"
+             "      %s/demo.png is input | per-vertex raster only (train one: make table1, then see data/models/README.md)\n",
+             shipped, o.out_dir);
+    printf("subject seed %llu (%d betas), %s frame %ld, %dx%d, network %s\n", (unsigned long long)o.seed,
+           s.sub.nbetas, "01_01.bvh", o.frame, o.W, o.H, u ? ckpt : "none");
+    printf("wrote %s/demo.png (%s), demo_input.png, %sdemo_raster.png in %.2f s\n", o.out_dir,
+           u ? "input | SMPLpix | per-vertex raster" : "input | per-vertex raster", u ? "demo_smplpix.png, " : "",
+           spx_cli_now() - t0);
+  }
+done:
+  spx_image_free(&input), spx_image_free(&raster), spx_image_free(&net);
+  spx_unet_destroy(u);
+  free_scene(&s);
+  spx_tx_end(&tx);
+  spx_ctx_destroy(ctx);
+  return rc;
+}

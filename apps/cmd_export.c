@@ -1,0 +1,113 @@
+/* smplpix export: a training checkpoint -> the shipping form of the network (weights and batch-norm
+ * state only, optionally float16), with the training metadata carried over. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "cli_tx.h"
+#include "smplpix/patchgan.h"
+#include "smplpix/safetensors.h"
+#include "smplpix/unet.h"
+
+#define MAX_META 12
+
+static void export_help(void) {
+  printf("usage: smplpix export --checkpoint W.safetensors --out M.safetensors [--half] [--meta KEY=VALUE ...]\n"
+         "Writes the network of checkpoint W without its optimizer state: the state_dict (milesial\n"
+         "names: weights, batch-norm running statistics, num_batches_tracked) as float32, or as\n"
+         "float16 with --half (the shipping format of data/models/default.safetensors: PyTorch loads\n"
+         "it with load_state_dict(strict=True) after .float(); smplpix render reads it directly).\n"
+         "Metadata: format, smplpix.width, smplpix.sigmoid; smplpix.loss and smplpix.stage when W has\n"
+         "them; smplpix.steps (W's Adam step count: of its last run, a stage started with --init counts\n"
+         "from 0); smplpix.dtype (F16 or F32); and each --meta pair\n"
+         "(at most %d; e.g. --meta smplpix.image_size=128x96). A value that does not fit in float16\n"
+         "is an error naming the tensor.\n",
+         MAX_META);
+}
+
+int spx_cmd_export(int argc, char **argv) {
+  const char *in = NULL, *out = NULL, *mk[MAX_META + 6], *mv[MAX_META + 6];
+  char kbuf[MAX_META][128];
+  int half = 0, bad = 0, nm = 0, nuser = 0;
+  const char *user[MAX_META];
+  for (int i = 1; i < argc; i++) {
+    const char *v;
+    if (!strcmp(argv[i], "--help")) {
+      export_help();
+      return SPX_EXIT_OK;
+    } else if (!strcmp(argv[i], "--half")) {
+      half = 1;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
+      in = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
+      out = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--meta", &bad))) {
+      const char *eq = strchr(v, '=');
+      if (!eq || eq == v || (size_t)(eq - v) >= sizeof kbuf[0])
+        return spx_cli_usage("export", "--meta: expected KEY=VALUE, got '%s'", v);
+      if (!strncmp(v, "format=", 7) || !strncmp(v, "smplpix.width=", 14) || !strncmp(v, "smplpix.sigmoid=", 16))
+        return spx_cli_usage("export", "--meta %s: that key comes from the network itself", v);
+      if (nuser == MAX_META) return spx_cli_usage("export", "--meta: at most %d pairs", MAX_META);
+      user[nuser++] = v;
+    } else {
+      return spx_cli_usage("export", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+    }
+  }
+  if (!in || !out) return spx_cli_usage("export", "--checkpoint and --out are required");
+  char ext[16];
+  spx_cli_ext(out, ext, sizeof ext);
+  if (strcmp(ext, "safetensors")) return spx_cli_usage("export", "%s: output must end in .safetensors", out);
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("export", "out of memory");
+  spx_tx tx;
+  spx_tx_begin(&tx, "export", 1); /* durable, like a checkpoint */
+  spx_unet *u = NULL;
+  spx_st_file f;
+  memset(&f, 0, sizeof f);
+  int rc = SPX_EXIT_OK;
+  char steps[32];
+  if ((rc = spx_tx_check(&tx, out)) || (rc = spx_cli_open_device("export", ctx, NULL))) goto done;
+  if (spx_unet_load(ctx, in, &u) || spx_st_load(ctx, in, &f)) {
+    rc = spx_cli_error("export", ctx);
+    goto done;
+  }
+  const char *carry[] = {"smplpix.loss", "smplpix.stage"};
+  for (int k = 0; k < 2; k++) {
+    const char *val = spx_st_meta(&f, carry[k]);
+    if (val) mk[nm] = carry[k], mv[nm++] = val;
+  }
+  snprintf(steps, sizeof steps, "%lld", (long long)spx_unet_step(u));
+  /* an exported file has no optimizer: keep the count it recorded, if any */
+  const char *rec = spx_st_meta(&f, "smplpix.steps");
+  const char *steps_used = spx_unet_step(u) || !rec ? steps : rec;
+  mk[nm] = "smplpix.steps", mv[nm++] = steps_used;
+  mk[nm] = "smplpix.dtype", mv[nm++] = half ? "F16" : "F32";
+  for (int k = 0; k < nuser; k++) {
+    const char *eq = strchr(user[k], '=');
+    snprintf(kbuf[k], sizeof kbuf[k], "%.*s", (int)(eq - user[k]), user[k]);
+    int j = 0;
+    while (j < nm && strcmp(mk[j], kbuf[k])) j++;
+    mk[j] = kbuf[k], mv[j] = eq + 1;
+    if (j == nm) nm++;
+  }
+  const char *tmp = spx_tx_stage(&tx, out);
+  if (!tmp) {
+    rc = SPX_EXIT_ERROR;
+    goto done;
+  }
+  spx_status st = half ? spx_unet_save_half(u, tmp, mk, mv, nm) : spx_unet_save_meta(u, tmp, 0, mk, mv, nm);
+  if (st) {
+    rc = spx_cli_error("export", ctx);
+    goto done;
+  }
+  if ((rc = spx_tx_commit(&tx))) goto done;
+  printf("wrote %s (width %d, %s, %s Adam steps recorded)\n", out, spx_unet_width(u), half ? "float16" : "float32",
+         steps_used);
+done:
+  spx_tx_end(&tx);
+  spx_st_free(&f);
+  spx_unet_destroy(u);
+  spx_ctx_destroy(ctx);
+  return rc;
+}

@@ -1,0 +1,152 @@
+/* `smplpix demo` (make demo) on a tiny size, with its data found through SPX_DATA_DIR = a scratch
+ * data directory holding links to the repository's body and motion:
+ *  - no shipped network: a note saying so, demo.png = input | per-vertex raster (2 panels), no
+ *    demo_smplpix.png (and an earlier run's is removed);
+ *  - a stand-in network written here with the library (spx_unet_save_half, the shipping format)
+ *    as <data>/models/default.safetensors: demo.png has 3 panels; the SMPLpix panel is the
+ *    network's output (it differs from the input and the raster), the run is deterministic, and
+ *    --checkpoint names one explicitly;
+ *  - bad input: one line, exit 1 (2 for usage), nothing written; an output that cannot be written
+ *    (a folder named demo.png) fails before any file of the set appears, no temporaries left. */
+#include <dirent.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "animate_test.h"
+
+enum { W = 40, H = 32 };
+
+static int png_size(const char *name, int *w, int *h) {
+  char p[700];
+  path_of(p, sizeof p, name);
+  spx_image im = {0};
+  if (spx_png_read(ctx, p, &im)) return 0;
+  *w = im.width, *h = im.height;
+  spx_image_free(&im);
+  return 1;
+}
+
+static int same_file(const char *a, const char *b) {
+  char pa[700], pb[700];
+  path_of(pa, sizeof pa, a), path_of(pb, sizeof pb, b);
+  FILE *fa = fopen(pa, "rb"), *fb = fopen(pb, "rb");
+  int same = fa && fb;
+  while (same) {
+    int ca = fgetc(fa), cb = fgetc(fb);
+    if (ca != cb) same = 0;
+    if (ca == EOF) break;
+  }
+  if (fa) fclose(fa);
+  if (fb) fclose(fb);
+  return same;
+}
+
+/* number of entries in dir/name (-1 when it cannot be read) */
+static int entries(const char *name) {
+  char p[700];
+  path_of(p, sizeof p, name);
+  DIR *d = opendir(p);
+  if (!d) return -1;
+  int n = 0;
+  struct dirent *e;
+  while ((e = readdir(d)))
+    if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..")) n++;
+  closedir(d);
+  return n;
+}
+
+static void make_data_dir(void) {
+  char p[700];
+  path_of(p, sizeof p, "data");
+  mkdir(p, 0777);
+  path_of(p, sizeof p, "data/body");
+  CHECK(symlink(SPX_REPO_DATA "/body", p) == 0 || exists("data/body"));
+  path_of(p, sizeof p, "data/mocap");
+  CHECK(symlink(SPX_REPO_DATA "/mocap", p) == 0 || exists("data/mocap"));
+  path_of(p, sizeof p, "data/models");
+  mkdir(p, 0777);
+}
+
+static void test_without_network(void) {
+  write_text("o1/demo_smplpix.png", "stale");
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o1 --size 40x32") == 0);
+  CHECK(file_has("out.txt", "no network is shipped yet"));
+  int w = 0, h = 0;
+  CHECK(png_size("o1/demo.png", &w, &h) && w == 2 * W + 2 && h > H);
+  CHECK(png_size("o1/demo_input.png", &w, &h) && w == W && h == H);
+  CHECK(png_size("o1/demo_raster.png", &w, &h) && w == W && h == H);
+  CHECK(!exists("o1/demo_smplpix.png"));
+}
+
+static void test_with_network(void) {
+  spx_unet *u = NULL;
+  CHECK_OK(ctx, spx_unet_create(ctx, 8, 1, 21, &u));
+  if (!u) return;
+  char p[700];
+  path_of(p, sizeof p, "data/models/default.safetensors");
+  CHECK_OK(ctx, spx_unet_save_half(u, p, NULL, NULL, 0));
+  spx_unet_destroy(u);
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o2 --size 40x32 --frame 10 --seed 5") == 0);
+  CHECK(file_has("out.txt", "demo_smplpix.png") && file_has("out.txt", "network ./data/models/default.safetensors"));
+  int w = 0, h = 0;
+  CHECK(png_size("o2/demo.png", &w, &h) && w == 3 * W + 4 && h > H);
+  CHECK(png_size("o2/demo_smplpix.png", &w, &h) && w == W && h == H);
+  CHECK(!same_file("o2/demo_smplpix.png", "o2/demo_input.png") && !same_file("o2/demo_smplpix.png", "o2/demo_raster.png"));
+  /* deterministic; --checkpoint names the same network explicitly */
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o3 --size 40x32 --frame 10 --seed 5 --checkpoint data/models/default.safetensors") == 0);
+  CHECK(same_file("o2/demo.png", "o3/demo.png") && same_file("o2/demo_smplpix.png", "o3/demo_smplpix.png"));
+  /* another subject and frame give another picture */
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o4 --size 40x32 --frame 300 --seed 6 --quiet") == 0);
+  CHECK(!same_file("o2/demo_input.png", "o4/demo_input.png"));
+  /* --zoom enlarges the panels of demo.png only */
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o5 --size 40x32 --frame 10 --seed 5 --zoom 2") == 0);
+  CHECK(png_size("o5/demo.png", &w, &h) && w == 3 * 2 * W + 4 && h > 2 * H);
+  CHECK(same_file("o2/demo_smplpix.png", "o5/demo_smplpix.png"));
+}
+
+static void test_bad_input(void) {
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out b1 --size 40x32 --frame 999999") == 1);
+  CHECK(err_one_line_with("01_01.bvh") && err_one_line_with("frame") && !exists("b1"));
+  write_text("junk.safetensors", "junk");
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out b2 --size 40x32 --checkpoint junk.safetensors") == 1);
+  CHECK(err_one_line_with("junk.safetensors") && !exists("b2"));
+  CHECK(tool_env("SPX_DATA_DIR=./nodata", "demo --out b3 --size 40x32") == 1);
+  CHECK(err_one_line_with("nodata/body/default_body.npz") && !exists("b3"));
+  write_text("afile", "x");
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out afile --size 40x32") == 1);
+  CHECK(err_one_line_with("afile"));
+  /* an output the run cannot write: nothing of the set appears, no temporaries stay */
+  char p[700];
+  path_of(p, sizeof p, "b4");
+  mkdir(p, 0777);
+  path_of(p, sizeof p, "b4/demo.png");
+  mkdir(p, 0777);
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out b4 --size 40x32") == 1);
+  CHECK(err_one_line_with("b4/demo.png") && !exists("b4/demo_input.png") && !exists("b4/demo_raster.png"));
+  CHECK(entries("b4") == 1); /* just the folder in the way */
+  CHECK(tool("demo --size 8x8") == 2 && tool("demo --frame -1") == 2 && tool("demo --seed x") == 2);
+  CHECK(tool("demo --zoom 9") == 2 && tool("demo --zoom 0") == 2);
+  CHECK(tool("demo --bogus") == 2 && err_one_line_with("--bogus"));
+  CHECK(!exists("out"));
+}
+
+int main(void) {
+  snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
+  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
+    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
+    return 1;
+  }
+  char p[700], cmd[1200];
+  snprintf(cmd, sizeof cmd, "rm -rf '%s'/* '%s'/.[!.]*", dir, dir); /* a clean scratch folder */
+  CHECK(spx_t_system(cmd) == 0);
+  path_of(p, sizeof p, "o1");
+  mkdir(p, 0777);
+  make_data_dir();
+  SPX_RUN(test_without_network);
+  SPX_RUN(test_with_network);
+  SPX_RUN(test_bad_input);
+  spx_ctx_destroy(ctx);
+  return spx_test_summary();
+}
