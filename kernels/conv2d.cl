@@ -19,8 +19,8 @@
  * Backward weights = GEMM over (n, q) with the reduction split into fixed chunks (partials,
  * then a fixed-order sum): no atomics, bit-identical every run.
  *
- * Next steps (not done): Winograd F(2x2,3x3) for the 3x3 stride-1 layers (2.25x fewer
- * multiplies), and a local-memory (shared x and weight tiles) variant of conv_fwd for GPUs;
+ * Winograd F(4x4,3x3) for 3x3 stride-1 layers: kernels/conv2d_winograd.cl (inference by default).
+ * Next step (not done): a local-memory (shared x and weight tiles) variant of conv_fwd for GPUs;
  * the GPU configuration (CONV_VW = 1, interleaved pixels) is register-tiled and coalesced but
  * keeps its operands in global memory / caches. */
 #ifndef CONV_VW

@@ -206,6 +206,8 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
   if ((st = check_shape(ctx, "y", y, g.n, g.cout, g.ho, g.wo)) || (st = check_vec(ctx, bias, g.cout, "bias")) ||
       (st = check_vec(ctx, p->scale, g.cout, "scale")) || (st = check_vec(ctx, p->shift, g.cout, "shift")))
     return st;
+  if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, p->scale || p->relu))
+    return spx_conv2d_winograd(ctx, p->ws, x, w, 0, bias, p->scale, p->scale ? p->shift : NULL, p->relu, 0, y);
   int tm = spx_cl_tune(ctx, "CONV_TM"), tn = spx_cl_tune(ctx, "CONV_TN"), vw = spx_cl_tune(ctx, "CONV_VW");
   int lws = spx_cl_tune(ctx, "CONV_LWS");
   int hp = g.h + 2 * g.pad, wp = g.w + 2 * g.pad, plane = hp * wp;
@@ -230,6 +232,8 @@ done:
 /* dx += conv(dilate_s(dy) padded by k-1-pad, flipped and transposed w), stride 1. */
 static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *w,
                                 const spx_tensor *dy, const spx_tensor *dx) {
+  if (spx_conv2d_winograd_applies(ctx, g->k, g->s, g->pad, g->cout, g->cin, 0))
+    return spx_conv2d_winograd(ctx, ws, dy, w, 1, NULL, NULL, NULL, 0, 1, dx);
   int tm = spx_cl_tune(ctx, "CONV_TM"), tn = spx_cl_tune(ctx, "CONV_TN"), vw = spx_cl_tune(ctx, "CONV_VW");
   int lws = spx_cl_tune(ctx, "CONV_LWS");
   int hd = g->h + g->k - 1, wd = g->w + g->k - 1, plane = hd * wd, top = g->k - 1 - g->pad;
