@@ -126,7 +126,7 @@ awk '
       print ""
       print "Eval forward against the inference engines (ms: minimum; ratio = ours / engine)"
       printf "| %-11s | %8s | %8s | %14s | %11s | %10s | %10s | %10s |\n", "row", "ours ms", "torch ms", "onnxruntime ms", "openvino ms", "ours/torch", "ours/ORT", "ours/OV"
-      printf "|%s|%s|%s|%s|%s|%s|%s|%s|\n", "------------", "---------:", "---------:", "---------------:", "------------:", "-----------:", "-----------:", "-----------:"
+      printf "|%s|%s|%s|%s|%s|%s|%s|%s|\n", "-------------", "---------:", "---------:", "---------------:", "------------:", "-----------:", "-----------:", "-----------:"
       for (i = 1; i <= n; i++) {
         k = order[i]
         if (!((k in ort) || (k in ovn))) continue
