@@ -3,7 +3,7 @@ BUILD    ?= build
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build demo train-demo test asan fuzz bench bench-unet bench-latency install clean
+.PHONY: all deps build demo train-demo test asan fuzz bench bench-unet bench-latency install clean bench-python table1
 
 all: build
 
@@ -73,9 +73,20 @@ bench-unet: build
 bench-latency: build
 	$(BUILD)/benchmarks/bench_latency
 
+# The Python binding's per-call overhead: smplpix.project vs the same call from C vs a numpy z-buffer.
+bench-python: build
+	/usr/bin/python3 benchmarks/python_overhead.py $(BUILD)
+
 PREFIX ?= /usr/local
 install: build
 	cmake --install $(BUILD) --prefix $(PREFIX)
 
 clean:
 	rm -rf $(BUILD) build-asan build-fuzz out
+
+# The paper's Table 1 on synthetic scanned people (scripts/table1.sh): synth -> register -> bake ->
+# repose/project -> rasterizers and SMPLpix (train, render) -> eval -> benchmarks/TABLE1.md and
+# benchmarks/table1.png. About 60 minutes on 2 CPU cores; TABLE1_QUICK=1 runs it tiny (< 5 min,
+# writing to out/table1-quick instead of benchmarks/).
+table1: build
+	TABLE1_BUILD=$(CURDIR)/$(BUILD) bash scripts/table1.sh

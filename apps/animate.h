@@ -35,10 +35,10 @@ void spx_anim_orbit(const spx_camera *cam, const double centre[3], double degree
 
 /* Path of the ffmpeg executable on $PATH (static buffer), or NULL. */
 const char *spx_anim_find_ffmpeg(void);
-/* Encode dir/frame_%06d.png (numbers first .. first+count-1) at fps into `mp4` (written to a
- * temporary name in dir and renamed). ffmpeg's own output is discarded. Returns 0 on success, else
- * writes a one-line reason to why. */
-int spx_anim_encode_mp4(const char *ffmpeg, const char *dir, long first, double fps, const char *mp4, char *why,
-                        size_t cap);
+/* Encode dir/frame_%06d.png (numbers from first on) at fps into the file out (the transaction's
+ * temporary for the target mp4, named in messages). ffmpeg's own output is discarded. Returns 0 on
+ * success, else writes a one-line reason to why. */
+int spx_anim_encode_mp4(const char *ffmpeg, const char *dir, long first, double fps, const char *out, const char *mp4,
+                        char *why, size_t cap);
 
 #endif

@@ -105,16 +105,15 @@ const char *spx_anim_find_ffmpeg(void) {
   return NULL;
 }
 
-int spx_anim_encode_mp4(const char *ffmpeg, const char *dir, long first, double fps, const char *mp4, char *why,
-                        size_t cap) {
-  char pattern[4200], tmp[4200], rate[64], start[32];
+int spx_anim_encode_mp4(const char *ffmpeg, const char *dir, long first, double fps, const char *out, const char *mp4,
+                        char *why, size_t cap) {
+  char pattern[4200], rate[64], start[32];
   snprintf(pattern, sizeof pattern, "%s/frame_%%06d.png", dir);
-  snprintf(tmp, sizeof tmp, "%s.tmp.%ld", mp4, (long)getpid());
   snprintf(rate, sizeof rate, "%.6g", fps);
   snprintf(start, sizeof start, "%ld", first);
   char *argv[] = {(char *)ffmpeg, "-nostdin", "-y", "-loglevel", "error", "-framerate", rate, "-start_number", start,
-                  "-i", pattern, "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-pix_fmt", "yuv420p", "-f", "mp4", tmp,
-                  NULL};
+                  "-i", pattern, "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-pix_fmt", "yuv420p", "-f", "mp4",
+                  (char *)out, NULL};
   posix_spawn_file_actions_t fa;
   if (posix_spawn_file_actions_init(&fa)) return snprintf(why, cap, "cannot start ffmpeg"), 1;
   posix_spawn_file_actions_addopen(&fa, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
@@ -125,19 +124,11 @@ int spx_anim_encode_mp4(const char *ffmpeg, const char *dir, long first, double 
   posix_spawn_file_actions_destroy(&fa);
   if (e) return snprintf(why, cap, "cannot start %s: %s", ffmpeg, strerror(e)), 1;
   if (waitpid(pid, &status, 0) < 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    remove(tmp);
     snprintf(why, cap, "%s failed (%s %d) encoding %s", ffmpeg, WIFEXITED(status) ? "exit status" : "signal",
              WIFEXITED(status) ? WEXITSTATUS(status) : WIFSIGNALED(status) ? WTERMSIG(status) : -1, mp4);
     return 1;
   }
   struct stat sb;
-  if (stat(tmp, &sb) != 0 || sb.st_size == 0) {
-    remove(tmp);
-    return snprintf(why, cap, "%s wrote no video for %s", ffmpeg, mp4), 1;
-  }
-  if (rename(tmp, mp4) != 0) {
-    remove(tmp);
-    return snprintf(why, cap, "%s: cannot rename the finished video into place: %s", mp4, strerror(errno)), 1;
-  }
+  if (stat(out, &sb) != 0 || sb.st_size == 0) return snprintf(why, cap, "%s wrote no video for %s", ffmpeg, mp4), 1;
   return 0;
 }

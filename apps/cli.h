@@ -4,6 +4,8 @@
 
 #include "smplpix/smplpix.h"
 
+#include "cli_tx.h"
+
 /* Exit codes: 0 success, 1 runtime error (bad file, device failure), 2 usage error. */
 enum { SPX_EXIT_OK = 0, SPX_EXIT_ERROR = 1, SPX_EXIT_USAGE = 2 };
 
@@ -47,24 +49,17 @@ int spx_cli_mesh_colors(const char *cmd, const char *mesh_path, const spx_mesh *
                         float **owned, const float **col, const char **used);
 /* "dir/name.ext" -> "dir/name_007.ext" when n > 1 (malloc'd; NULL when out of memory). */
 char *spx_cli_indexed_path(const char *path, int i, int n);
-/* The outputs written so far: removed again when the command fails (no partial set of outputs). */
-typedef struct spx_cli_written {
-  char **paths;
-  int n, cap;
-} spx_cli_written;
-/* Take ownership of path (malloc'd) once the file is written (never before: a failed atomic write
- * leaves what was there, which must not be removed); 0 when out of memory (path is then not owned). */
-int spx_cli_remember(spx_cli_written *w, char *path);
-/* Remove every remembered file when failed, then free the list. */
-void spx_cli_written_finish(spx_cli_written *w, int failed);
 /* The path ends in .exr, .png or .npy (any case). */
 int spx_cli_image_ext_ok(const char *path);
 /* Write an HWC image by extension: .exr (3 or 4 channels), .png (RGB), .npy (HxWxC float32). */
 spx_status spx_cli_write_image(spx_ctx *ctx, const char *path, const spx_image *img);
-/* Write img to `path` (malloc'd, owned: kept in w once written, freed otherwise; NULL = an
- * allocation failed) with spx_cli_write_image, and remember it so a later failure removes it.
- * Prints the one-line error itself; returns SPX_EXIT_OK or the exit code. */
-int spx_cli_write_output(const char *cmd, spx_ctx *ctx, spx_cli_written *w, char *path, const spx_image *img);
+/* Stage `path` (malloc'd, freed here; NULL = an allocation failed) in the run's transaction and
+ * write img to its temporary with spx_cli_write_image: the file appears at path only when the
+ * transaction commits. Prints the one-line error itself; returns SPX_EXIT_OK or the exit code. */
+int spx_cli_write_output(const char *cmd, spx_ctx *ctx, spx_tx *tx, char *path, const spx_image *img);
+/* spx_tx_check for every output named by outs[0..nouts-1] (NULL entries skipped) indexed for
+ * ncams cameras (spx_cli_indexed_path); returns an exit code (error printed). */
+int spx_cli_check_outputs(spx_tx *tx, const char *const *outs, int nouts, int ncams);
 /* Load a camera file (one camera or an array) whose cameras must all have one image size; prints
  * the one-line error itself and returns SPX_EXIT_OK or the exit code. */
 int spx_cli_load_cameras(const char *cmd, spx_ctx *ctx, const char *path, spx_camera **cams, int *count);
@@ -79,6 +74,7 @@ int spx_cmd_render(int argc, char **argv); /* apps/cmd_render.c */
 int spx_cmd_train(int argc, char **argv);  /* apps/cmd_train.c */
 int spx_cmd_raster(int argc, char **argv); /* apps/cmd_raster.c */
 int spx_cmd_dataset(int argc, char **argv); /* apps/cmd_dataset.c */
+int spx_cmd_synth(int argc, char **argv);   /* apps/cmd_synth.c */
 int spx_cmd_eval(int argc, char **argv);    /* apps/cmd_eval.c */
 
 #endif

@@ -1,5 +1,5 @@
 /* Helpers shared by the image-writing subcommands (project, raster, dataset): vertex colors,
- * indexed output names, writing by extension, and the list of outputs removed on failure. */
+ * indexed output names, and writing by extension into the run's output transaction. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -70,27 +70,6 @@ char *spx_cli_indexed_path(const char *path, int i, int n) {
   return out;
 }
 
-int spx_cli_remember(spx_cli_written *w, char *path) {
-  if (w->n == w->cap) {
-    int cap = w->cap ? 2 * w->cap : 8;
-    char **p = realloc(w->paths, sizeof *p * (size_t)cap);
-    if (!p) return 0;
-    w->paths = p;
-    w->cap = cap;
-  }
-  w->paths[w->n++] = path;
-  return 1;
-}
-
-void spx_cli_written_finish(spx_cli_written *w, int failed) {
-  for (int i = 0; i < w->n; i++) {
-    if (failed) remove(w->paths[i]); /* no partial set of outputs */
-    free(w->paths[i]);
-  }
-  free(w->paths);
-  memset(w, 0, sizeof *w);
-}
-
 int spx_cli_image_ext_ok(const char *path) {
   char ext[16];
   spx_cli_ext(path, ext, sizeof ext);
@@ -109,17 +88,23 @@ spx_status spx_cli_write_image(spx_ctx *ctx, const char *path, const spx_image *
   return SPX_E_ARG;
 }
 
-int spx_cli_write_output(const char *cmd, spx_ctx *ctx, spx_cli_written *w, char *path, const spx_image *img) {
-  if (!path) return spx_cli_errorf(cmd, "out of memory");
-  if (spx_cli_write_image(ctx, path, img)) { /* atomic: a failed write leaves what was at path */
-    free(path);
-    return spx_cli_error(cmd, ctx);
-  }
-  if (!spx_cli_remember(w, path)) {
-    remove(path);
-    free(path);
-    return spx_cli_errorf(cmd, "out of memory");
-  }
+int spx_cli_write_output(const char *cmd, spx_ctx *ctx, spx_tx *tx, char *path, const spx_image *img) {
+  const char *tmp = spx_tx_stage(tx, path);
+  free(path);
+  if (!tmp) return SPX_EXIT_ERROR; /* printed */
+  if (spx_cli_write_image(ctx, tmp, img)) return spx_cli_error(cmd, ctx);
+  return SPX_EXIT_OK;
+}
+
+int spx_cli_check_outputs(spx_tx *tx, const char *const *outs, int nouts, int ncams) {
+  for (int c = 0; c < ncams; c++)
+    for (int k = 0; k < nouts; k++) {
+      if (!outs[k]) continue;
+      char *p = spx_cli_indexed_path(outs[k], c, ncams);
+      int rc = p ? spx_tx_check(tx, p) : spx_cli_errorf(tx->cmd, "out of memory");
+      free(p);
+      if (rc) return rc;
+    }
   return SPX_EXIT_OK;
 }
 

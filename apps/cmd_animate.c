@@ -30,8 +30,10 @@ static void animate_help(void) {
       "in the first frame. With ffmpeg on PATH, DIR/animation.mp4 is made at --fps (default: the clip's\n"
       "frame rate); --no-mp4 skips it. Colours: the registration's, else the surface normals.\n"
       "Progress: a bar on stderr when it is a terminal, else a line per tenth of the frames on stdout;\n"
-      "frames per second are reported at the end. On failure nothing is left (frames, video, folder);\n"
-      "Ctrl-C stops after the current frame, removes them too and exits with status 130.\n");
+      "frames per second are reported at the end. Frames and video are written to temporaries and renamed\n"
+      "into place together at the end: on failure nothing new is left (a folder it made is removed) and\n"
+      "files that were in DIR before are untouched; Ctrl-C stops after the current frame, does the same\n"
+      "and exits with status 130.\n");
 }
 
 /* Ctrl-C: the loop stops after the current frame and removes what it wrote (exit 130). */
@@ -88,11 +90,14 @@ static int run(spx_ctx *ctx, const opts *o) {
   spx_anim_motion mo;
   memset(&r, 0, sizeof r), memset(&m, 0, sizeof m), memset(&mo, 0, sizeof mo);
   spx_camera *cams = NULL;
-  int ncams = 0, created = 0, rc;
+  int ncams = 0, rc;
+  long a = 0, b = -1;
   spx_unet *u = NULL;
   spx_projector *proj = NULL;
   spx_device_tensor *tin = NULL;
-  spx_cli_written wr = {0};
+  spx_tx tx;
+  spx_tx_begin(&tx, C, 0);
+  char *links = NULL; /* DIR/frames.tmp.<pid>: the staged frames under their names, for ffmpeg */
   spx_image img = {0};
   double *pose = NULL, *work = NULL;
   float *pos = NULL, *owned_col = NULL, *buf = NULL;
@@ -107,7 +112,6 @@ static int run(spx_ctx *ctx, const opts *o) {
   /* every input is read and checked before anything is written */
   if ((rc = spx_cli_load_registration(C, ctx, o->reg, o->model, &r, &m))) goto done;
   if ((rc = spx_anim_motion_open(C, ctx, o->bvh, o->amass, &m, &mo))) goto done;
-  long a = 0, b = -1;
   if (o->frames) spx_anim_parse_frames(o->frames, &a, &b); /* checked in the caller */
   if (b < 0) b = mo.nframes;
   rc = SPX_EXIT_ERROR;
@@ -129,17 +133,17 @@ static int run(spx_ctx *ctx, const opts *o) {
   }
   if (!o->no_net && !(ckpt = spx_cli_checkpoint(C, o->ckpt, "--no-network (the raw projection)"))) goto done;
   struct stat sb;
-  if (stat(o->out, &sb) == 0) {
-    if (!S_ISDIR(sb.st_mode)) {
-      rc = spx_cli_errorf(C, "%s: exists and is not a directory", o->out);
-      goto done;
-    }
-  } else if (mkdir(o->out, 0777) != 0) {
-    rc = spx_cli_errorf(C, "%s: cannot create the directory: %s", o->out, strerror(errno));
+  if (stat(o->out, &sb) == 0 && !S_ISDIR(sb.st_mode)) {
+    rc = spx_cli_errorf(C, "%s: exists and is not a directory", o->out);
     goto done;
-  } else {
-    created = 1;
   }
+  if ((rc = spx_tx_mkdir(&tx, o->out))) goto done; /* removed again by a failed run that made it */
+  {
+    char first[4200];
+    snprintf(first, sizeof first, "%s/frame_%06ld.png", o->out, a);
+    if ((rc = spx_tx_check(&tx, first))) goto done; /* writable, before any work */
+  }
+  rc = SPX_EXIT_ERROR;
   if ((rc = spx_cli_open_device(C, ctx, o->spec))) goto done;
   rc = SPX_EXIT_ERROR;
   if (ckpt && spx_unet_load(ctx, ckpt, &u)) {
@@ -167,7 +171,7 @@ static int run(spx_ctx *ctx, const opts *o) {
     double trans[3];
     if (interrupted) {
       if (pg.tty && pg.shown) fputc('\n', stderr);
-      spx_cli_errorf(C, "interrupted at frame %ld: removed the %d frames written", f, wr.n);
+      spx_cli_errorf(C, "interrupted at frame %ld: removed the %d frames written", f, spx_tx_count(&tx));
       rc = 130;
       goto done;
     }
@@ -197,21 +201,43 @@ static int run(spx_ctx *ctx, const opts *o) {
     to_rgb(buf, u != NULL, W, H, &img);
     char *path = malloc(strlen(o->out) + 32);
     if (path) snprintf(path, strlen(o->out) + 32, "%s/frame_%06ld.png", o->out, f);
-    if ((rc = spx_cli_write_output(C, ctx, &wr, path, &img))) goto done;
+    if ((rc = spx_cli_write_output(C, ctx, &tx, path, &img))) goto done;
     progress_show(&pg, (int)(f - a + 1), total, o->quiet);
   }
   double el = spx_cli_now() - t_start;
   rc = SPX_EXIT_ERROR;
   char mp4[4200] = "";
   const char *ffmpeg = o->no_mp4 ? NULL : spx_anim_find_ffmpeg();
-  if (ffmpeg) {
+  if (ffmpeg) { /* ffmpeg reads the staged frames through hard links named as the frames will be */
     char why[4400];
     snprintf(mp4, sizeof mp4, "%s/animation.mp4", o->out);
-    if (spx_anim_encode_mp4(ffmpeg, o->out, a, o->fps > 0 ? o->fps : mo.fps, mp4, why, sizeof why)) {
+    const char *vtmp = spx_tx_stage(&tx, mp4);
+    size_t ln = strlen(o->out) + 64;
+    if (!vtmp || !(links = malloc(ln))) {
+      if (vtmp) spx_cli_errorf(C, "out of memory");
+      goto done;
+    }
+    snprintf(links, ln, "%s/frames.tmp.%ld", o->out, (long)getpid());
+    if (mkdir(links, 0700) != 0) {
+      rc = spx_cli_errorf(C, "%s: cannot create the folder: %s", links, strerror(errno));
+      free(links), links = NULL;
+      goto done;
+    }
+    for (int i = 0; i < total; i++) {
+      char lp[4300];
+      snprintf(lp, sizeof lp, "%s/frame_%06ld.png", links, a + i);
+      if (link(tx.f[i].temp, lp) != 0 && symlink(tx.f[i].temp, lp) != 0) {
+        rc = spx_cli_errorf(C, "%s: cannot link a staged frame: %s", lp, strerror(errno));
+        goto done;
+      }
+    }
+    if (spx_anim_encode_mp4(ffmpeg, links, a, o->fps > 0 ? o->fps : mo.fps, vtmp, mp4, why, sizeof why)) {
       rc = spx_cli_errorf(C, "%s", why);
       goto done;
     }
   }
+  if ((rc = spx_tx_commit(&tx))) goto done;
+  rc = SPX_EXIT_ERROR;
   if (!o->quiet) {
     printf("animated %d frames (%ld..%ld of %s) at %dx%d %s in %.2f s: %.2f frames/s\n", total, a, b - 1, mo.path, W,
            H, u ? "through the network" : "as the raw projection (--no-network)", el, el > 0 ? total / el : 0.0);
@@ -222,8 +248,16 @@ static int run(spx_ctx *ctx, const opts *o) {
   rc = SPX_EXIT_OK;
 done:
   if (handler_set) sigaction(SIGINT, &old_int, NULL);
-  spx_cli_written_finish(&wr, rc != SPX_EXIT_OK);
-  if (created && rc != SPX_EXIT_OK) rmdir(o->out);
+  if (links) { /* the link folder goes in every case (before spx_tx_end removes a folder it made) */
+    for (long f = a; f < b; f++) {
+      char lp[4300];
+      snprintf(lp, sizeof lp, "%s/frame_%06ld.png", links, f);
+      unlink(lp);
+    }
+    rmdir(links);
+    free(links);
+  }
+  spx_tx_end(&tx);
   spx_image_free(&img);
   free(pose), free(work), free(pos), free(buf), free(owned_col), free(cams);
   spx_device_tensor_free(tin);

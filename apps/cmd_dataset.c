@@ -32,8 +32,9 @@ static const char *USAGE =
     "--orbit N: N cameras looking at the mesh's bounding-box centre from azimuths 360*i/N degrees around\n"
     "the +y axis, view i at elevation E[i % count] degrees (default 0); --size WxH (default 410x308),\n"
     "--focal in pixels (default max(W,H)), --distance (default: the nearest distance at which every\n"
-    "view holds the whole mesh with a 5% margin). Every file is written atomically; DIR must be empty\n"
-    "or absent unless --force. On failure nothing written by this run is left behind.\n";
+    "view holds the whole mesh with a 5% margin). DIR must be empty or absent unless --force. The files\n"
+    "appear together when all are written and flushed to disk: on failure nothing this run wrote is left\n"
+    "behind and files that were there before keep their contents.\n";
 
 /* Comma-separated finite doubles; returns the count, or -1 when malformed / more than cap. */
 static int parse_list(const char *s, double *v, int cap) {
@@ -69,22 +70,6 @@ static int dir_nonempty(const char *dir) {
   while (!any && (e = readdir(d))) any = strcmp(e->d_name, ".") && strcmp(e->d_name, "..");
   closedir(d);
   return any;
-}
-
-/* Directories this run created (removed again, innermost first, when it fails). */
-typedef struct made_dirs {
-  char *p[16];
-  int n;
-} made_dirs;
-
-static int make_dir(made_dirs *m, const char *path) {
-  if (mkdir(path, 0777) == 0) {
-    if (m->n < 16 && (m->p[m->n] = strdup(path))) m->n++;
-    return 0;
-  }
-  struct stat sb;
-  if (errno == EEXIST && stat(path, &sb) == 0 && S_ISDIR(sb.st_mode)) return 0;
-  return -1;
 }
 
 /* Cameras on an orbit around the mesh (see USAGE). */
@@ -197,8 +182,8 @@ int spx_cmd_dataset(int argc, char **argv) {
   int *which = NULL;
   spx_projector *proj = NULL;
   spx_rasterizer *rast = NULL;
-  spx_cli_written w = {0};
-  made_dirs md = {{0}, 0};
+  spx_tx tx; /* durable: files and folders are fsync'ed before the run reports success */
+  spx_tx_begin(&tx, "dataset", 1);
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("dataset", "out of memory");
 
   /* every input and the destination are checked before the device or any output */
@@ -261,6 +246,38 @@ int spx_cmd_dataset(int argc, char **argv) {
   for (int i = 0; i < ncams; i++) which[perm[i]] = i < count[0] ? 0 : i < count[0] + count[1] ? 1 : 2;
   free(perm);
 
+  /* the folders (removed again, when still empty, if the run fails) and a check that every file
+   * can be written, before the device and the long work */
+  static const char *const names[3] = {"train", "validation", "test"};
+  size_t plen = strlen(dir) + 64;
+  char *path = malloc(plen);
+  if (!path) {
+    rc = spx_cli_errorf("dataset", "out of memory");
+    goto done;
+  }
+  rc = spx_tx_mkdir(&tx, dir);
+  for (int k = 0; k < 3 && !rc; k++) {
+    snprintf(path, plen, "%s/%s", dir, names[k]);
+    rc = spx_tx_mkdir(&tx, path);
+    for (int io = 0; io < 2 && !rc; io++) {
+      snprintf(path, plen, "%s/%s/%s", dir, names[k], io ? "output" : "input");
+      rc = spx_tx_mkdir(&tx, path);
+    }
+  }
+  for (int v = 0; v < ncams && !rc; v++)
+    for (int io = 0; io < 2 && !rc; io++) {
+      snprintf(path, plen, "%s/%s/%s/view_%04d.%s", dir, names[which[v]], io ? "output" : "input", v, io ? "png" : fmt);
+      rc = spx_tx_check(&tx, path);
+    }
+  if (!rc) {
+    snprintf(path, plen, "%s/cameras.json", dir);
+    const char *tmp = spx_tx_stage(&tx, path);
+    if (!tmp) rc = SPX_EXIT_ERROR;
+    else if (spx_camera_save(ctx, tmp, cams, ncams)) rc = spx_cli_error("dataset", ctx);
+  }
+  free(path);
+  if (rc) goto done;
+
   int Wc = cams[0].width, Hc = cams[0].height;
   const int chunk = 16; /* cameras per device call: bounded memory for any number of views */
   size_t per = (size_t)Wc * Hc * 4;
@@ -274,46 +291,6 @@ int spx_cmd_dataset(int argc, char **argv) {
   rc = SPX_EXIT_ERROR;
   if (spx_projector_create(ctx, &proj) || spx_rasterizer_create(ctx, &rast)) {
     rc = spx_cli_error("dataset", ctx);
-    goto done;
-  }
-
-  static const char *const names[3] = {"train", "validation", "test"};
-  size_t plen = strlen(dir) + 64;
-  char *path = malloc(plen);
-  if (!path) {
-    rc = spx_cli_errorf("dataset", "out of memory");
-    goto done;
-  }
-  int mk = make_dir(&md, dir);
-  for (int k = 0; k < 3 && !mk; k++) {
-    snprintf(path, plen, "%s/%s", dir, names[k]);
-    mk = make_dir(&md, path);
-    snprintf(path, plen, "%s/%s/input", dir, names[k]);
-    if (!mk) mk = make_dir(&md, path);
-    snprintf(path, plen, "%s/%s/output", dir, names[k]);
-    if (!mk) mk = make_dir(&md, path);
-  }
-  if (mk) {
-    rc = spx_cli_errorf("dataset", "%s: cannot create directory (%s)", path, strerror(errno));
-    free(path);
-    goto done;
-  }
-  snprintf(path, plen, "%s/cameras.json", dir);
-  char *cp = strdup(path);
-  free(path);
-  if (!cp) {
-    rc = spx_cli_errorf("dataset", "out of memory");
-    goto done;
-  }
-  if (spx_camera_save(ctx, cp, cams, ncams)) { /* atomic: a failed write leaves what was at cp */
-    free(cp);
-    rc = spx_cli_error("dataset", ctx);
-    goto done;
-  }
-  if (!spx_cli_remember(&w, cp)) {
-    remove(cp);
-    free(cp);
-    rc = spx_cli_errorf("dataset", "out of memory");
     goto done;
   }
 
@@ -345,10 +322,11 @@ int spx_cmd_dataset(int argc, char **argv) {
         if (p)
           snprintf(p, len, "%s/%s/%s/view_%04d.%s", dir, names[which[v]], io ? "output" : "input", v, io ? "png" : fmt);
         spx_image img = {Wc, Hc, 4, (io ? rast_img : proj_img) + per * (size_t)c};
-        if ((rc = spx_cli_write_output("dataset", ctx, &w, p, &img))) goto done;
+        if ((rc = spx_cli_write_output("dataset", ctx, &tx, p, &img))) goto done;
       }
     }
   }
+  if ((rc = spx_tx_commit(&tx))) goto done;
   if (!quiet) {
     spx_device_info info;
     spx_device_get_info(ctx, &info);
@@ -359,11 +337,7 @@ int spx_cmd_dataset(int argc, char **argv) {
   }
   rc = SPX_EXIT_OK;
 done:
-  spx_cli_written_finish(&w, rc != SPX_EXIT_OK);
-  for (int i = md.n - 1; i >= 0; i--) {
-    if (rc != SPX_EXIT_OK) rmdir(md.p[i]); /* only succeeds when empty: never removes what others wrote */
-    free(md.p[i]);
-  }
+  spx_tx_end(&tx);
   spx_projector_destroy(proj);
   spx_rasterizer_destroy(rast);
   free(proj_img);

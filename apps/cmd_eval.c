@@ -308,18 +308,14 @@ static void json_metrics(FILE *f, const spx_metrics *m, double lpips, int has_ma
   json_num(f, "lpips", lpips, 1);
 }
 
-/* Write the report to path through a temp file renamed over it: F appears whole or not at all. */
-static int write_json(const char *path, const list *l, const spx_metrics *mean, double mean_lpips, int has_mask) {
-  size_t n = strlen(path) + 32;
-  char *tmp = malloc(n);
-  if (!tmp) return spx_cli_errorf("eval", "out of memory");
-  snprintf(tmp, n, "%s.tmp.%ld", path, (long)getpid());
+/* Write the report to path in the run's transaction (apps/cli_tx.h): F appears whole, when the
+ * run succeeds, or not at all; an F that was there before a failed run stays as it was. */
+static int write_json(spx_tx *tx, const char *path, const list *l, const spx_metrics *mean, double mean_lpips,
+                      int has_mask) {
+  const char *tmp = spx_tx_stage(tx, path);
+  if (!tmp) return SPX_EXIT_ERROR; /* printed */
   FILE *f = fopen(tmp, "wb");
-  if (!f) {
-    int rc = spx_cli_errorf("eval", "%s: cannot write (%s)", path, strerror(errno));
-    free(tmp);
-    return rc;
-  }
+  if (!f) return spx_cli_errorf("eval", "%s: cannot write (%s)", path, strerror(errno));
   fprintf(f, "{\"count\": %d, ", l->n);
   json_metrics(f, mean, mean_lpips, has_mask);
   fprintf(f, ",\n \"images\": [");
@@ -333,14 +329,8 @@ static int write_json(const char *path, const list *l, const spx_metrics *mean, 
   fprintf(f, "\n ]}\n");
   int bad = ferror(f);
   bad |= fclose(f) != 0;
-  if (bad || rename(tmp, path)) {
-    int rc = spx_cli_errorf("eval", "%s: cannot write (%s)", path, strerror(errno ? errno : EIO));
-    remove(tmp);
-    free(tmp);
-    return rc;
-  }
-  free(tmp);
-  return SPX_EXIT_OK;
+  if (bad) return spx_cli_errorf("eval", "%s: cannot write (%s)", path, strerror(errno ? errno : EIO));
+  return spx_tx_commit(tx);
 }
 
 int spx_cmd_eval(int argc, char **argv) {
@@ -368,7 +358,10 @@ int spx_cmd_eval(int argc, char **argv) {
   spx_lpips *lp = NULL;
   list l = {0};
   int rc;
+  spx_tx tx;
+  spx_tx_begin(&tx, "eval", 0);
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("eval", "out of memory");
+  if (json && (rc = spx_tx_check(&tx, json))) goto done; /* before any work */
   if ((rc = pair_up(pred, target, mask, &l))) goto done;
   if (lpw) {
     if ((rc = spx_cli_open_device("eval", ctx, device))) goto done;
@@ -388,11 +381,12 @@ int spx_cmd_eval(int argc, char **argv) {
   }
   mean.psnr /= l.n, mean.ssim /= l.n, mean.psnr_fg /= l.n, mean.ssim_fg /= l.n;
   mean_lp = lp ? mean_lp / l.n : NAN;
-  if (json && (rc = write_json(json, &l, &mean, mean_lp, mask != NULL))) goto done;
+  if (json && (rc = write_json(&tx, json, &l, &mean, mean_lp, mask != NULL))) goto done;
   char lead[64];
   snprintf(lead, sizeof lead, "mean over %d images", l.n); /* the fixed form of the design, also for 1 */
   print_line(lead, &mean, mean_lp, lp != NULL, mask != NULL);
 done:
+  spx_tx_end(&tx);
   spx_lpips_free(lp);
   list_free(&l);
   spx_ctx_destroy(ctx);

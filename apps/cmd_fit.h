@@ -11,6 +11,7 @@
 int spx_cmd_register(int argc, char **argv);
 int spx_cmd_repose(int argc, char **argv);
 int spx_cmd_reshape(int argc, char **argv);
+int spx_cmd_bake(int argc, char **argv); /* apps/cmd_bake.c */
 int spx_cmd_animate(int argc, char **argv); /* apps/cmd_animate.c */
 
 /* apps/cmd_repose.c, shared with animate. Load a registration (smplpix register --params) and its

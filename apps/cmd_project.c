@@ -57,7 +57,8 @@ int spx_cmd_project(int argc, char **argv) {
   int ncams = 0, rc = SPX_EXIT_ERROR;
   float *colors = NULL, *images = NULL;
   spx_projector *proj = NULL;
-  spx_cli_written w = {0};
+  spx_tx tx;
+  spx_tx_begin(&tx, "project", 0);
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("project", "out of memory");
 
   /* read and check every input before touching the device or any output */
@@ -66,6 +67,7 @@ int spx_cmd_project(int argc, char **argv) {
     goto done;
   }
   if ((rc = spx_cli_load_cameras("project", ctx, cam_path, &cams, &ncams))) goto done;
+  if ((rc = spx_cli_check_outputs(&tx, outs, 3, ncams))) goto done; /* before any work */
   const float *col = NULL;
   const char *used = NULL;
   if ((rc = spx_cli_mesh_colors("project", mesh_path, &mesh, color, &colors, &col, &used))) goto done;
@@ -94,9 +96,10 @@ int spx_cmd_project(int argc, char **argv) {
   for (int c = 0; c < ncams; c++) {
     spx_image img = {W, H, 4, images + per * (size_t)c};
     for (int k = 0; k < 3; k++)
-      if (outs[k] && (rc = spx_cli_write_output("project", ctx, &w, spx_cli_indexed_path(outs[k], c, ncams), &img)))
+      if (outs[k] && (rc = spx_cli_write_output("project", ctx, &tx, spx_cli_indexed_path(outs[k], c, ncams), &img)))
         goto done;
   }
+  if ((rc = spx_tx_commit(&tx))) goto done;
   if (!quiet) {
     spx_device_info info;
     spx_device_get_info(ctx, &info);
@@ -106,11 +109,11 @@ int spx_cmd_project(int argc, char **argv) {
     }
     printf("projected %d vertices (%s) through %d camera%s in %.2f ms (first call: includes kernel set-up) on %s\n", mesh.nv, used, ncams,
            ncams > 1 ? "s" : "", ms, info.name);
-    for (int i = 0; i < w.n; i++) printf("wrote %s\n", w.paths[i]);
+    for (int i = 0; i < spx_tx_count(&tx); i++) printf("wrote %s\n", spx_tx_target(&tx, i));
   }
   rc = SPX_EXIT_OK;
 done:
-  spx_cli_written_finish(&w, rc != SPX_EXIT_OK);
+  spx_tx_end(&tx);
   spx_projector_destroy(proj);
   free(images);
   free(colors);

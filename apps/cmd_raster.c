@@ -67,7 +67,8 @@ int spx_cmd_raster(int argc, char **argv) {
   int ncams = 0, rc = SPX_EXIT_ERROR;
   float *colors = NULL, *images = NULL;
   spx_rasterizer *rast = NULL;
-  spx_cli_written w = {0};
+  spx_tx tx;
+  spx_tx_begin(&tx, "raster", 0);
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("raster", "out of memory");
 
   /* read and check every input before touching the device or any output */
@@ -76,6 +77,7 @@ int spx_cmd_raster(int argc, char **argv) {
     goto done;
   }
   if ((rc = spx_cli_load_cameras("raster", ctx, cam_path, &cams, &ncams))) goto done;
+  if ((rc = spx_cli_check_outputs(&tx, &out, 1, ncams))) goto done; /* before any work */
   if (mesh.nf == 0) {
     rc = spx_cli_errorf("raster", "%s: no triangles to rasterize (a point cloud: use `smplpix project`)", mesh_path);
     goto done;
@@ -150,8 +152,9 @@ int spx_cmd_raster(int argc, char **argv) {
 
   for (int c = 0; c < ncams; c++) {
     spx_image img = {W, H, 4, images + per * (size_t)c};
-    if ((rc = spx_cli_write_output("raster", ctx, &w, spx_cli_indexed_path(out, c, ncams), &img))) goto done;
+    if ((rc = spx_cli_write_output("raster", ctx, &tx, spx_cli_indexed_path(out, c, ncams), &img))) goto done;
   }
+  if ((rc = spx_tx_commit(&tx))) goto done;
   if (!quiet) {
     spx_device_info info;
     spx_device_get_info(ctx, &info);
@@ -162,11 +165,11 @@ int spx_cmd_raster(int argc, char **argv) {
     printf("rasterized %d triangles (%s%s, aa %d, cull %s) through %d camera%s in %.2f ms (first call: includes kernel "
            "set-up) on %s\n",
            mesh.nf, used, tex.data ? " x texture" : "", a.aa, cull_s, ncams, ncams > 1 ? "s" : "", ms, info.name);
-    for (int i = 0; i < w.n; i++) printf("wrote %s\n", w.paths[i]);
+    for (int i = 0; i < spx_tx_count(&tx); i++) printf("wrote %s\n", spx_tx_target(&tx, i));
   }
   rc = SPX_EXIT_OK;
 done:
-  spx_cli_written_finish(&w, rc != SPX_EXIT_OK);
+  spx_tx_end(&tx);
   spx_rasterizer_destroy(rast);
   free(images);
   free(colors);

@@ -88,6 +88,10 @@ int spx_cmd_register(int argc, char **argv) {
   spx_fit_result r;
   memset(&r, 0, sizeof r);
   float *pts = NULL;
+  spx_tx tx;
+  spx_tx_begin(&tx, "register", 0);
+  if ((rc = spx_tx_check(&tx, out_path)) || (params_path && (rc = spx_tx_check(&tx, params_path))))
+    goto done; /* before the fit */
   if (spx_mesh_load(ctx, scan_path, &scan)) {
     rc = spx_cli_error("register", ctx);
     goto done;
@@ -124,6 +128,7 @@ int spx_cmd_register(int argc, char **argv) {
   for (int32_t i = 0; i < scan.nv * 3; i++) pts[i] = (float)(scan.pos[i] * r.unit_scale);
   for (int32_t i = 0; i < r.nv * 3; i++) rv[i] = (float)(r.verts_scan[i] * r.unit_scale);
   spx_status st = spx_fit_surface_distance(ctx, pts, scan.nv, rv, r.nv, r.faces, r.nf, NULL, &mean, &med, &p95);
+  if (!st) st = spx_fit_check_result(ctx, pts, scan.nv, rv, r.nv, med); /* exit 1 with the figures, no output */
   free(rv);
   if (st) {
     rc = spx_cli_error("register", ctx);
@@ -132,17 +137,20 @@ int spx_cmd_register(int argc, char **argv) {
   printf("time: rigid %.1f s, pose %.1f s, free %.1f s\n", r.stage_seconds[0], r.stage_seconds[1], r.stage_seconds[2]);
   printf("scan -> surface distance: mean %.2f mm, median %.2f mm, 95th percentile %.2f mm\n", mean * 1e3, med * 1e3,
          p95 * 1e3);
-  if (spx_fit_result_mesh(ctx, &r, &reg) || spx_mesh_save(ctx, out_path, &reg, SPX_MESH_AUTO)) {
+  const char *tmp_out = spx_tx_stage(&tx, out_path), *tmp_params = NULL;
+  if (!tmp_out || (params_path && !(tmp_params = spx_tx_stage(&tx, params_path)))) {
+    rc = SPX_EXIT_ERROR;
+    goto done;
+  }
+  if (spx_fit_result_mesh(ctx, &r, &reg) || spx_mesh_save(ctx, tmp_out, &reg, SPX_MESH_AUTO) ||
+      (params_path && spx_fit_save_json(ctx, tmp_params, &r, model_path))) {
     rc = spx_cli_error("register", ctx);
     goto done;
   }
-  if (params_path && spx_fit_save_json(ctx, params_path, &r, model_path)) {
-    rc = spx_cli_error("register", ctx);
-    unlink(out_path); /* all or nothing */
-    goto done;
-  }
+  if ((rc = spx_tx_commit(&tx))) goto done; /* both files or neither */
   printf("wrote %s%s%s\n", out_path, params_path ? " and " : "", params_path ? params_path : "");
 done:
+  spx_tx_end(&tx);
   free(pts);
   spx_fit_result_free(&r);
   spx_mesh_free(&reg);

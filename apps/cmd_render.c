@@ -51,12 +51,14 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
   float *colors = NULL, *out = NULL;
   spx_projector *proj = NULL;
   spx_device_tensor *in = NULL;
-  spx_cli_written wr = {0};
+  spx_tx tx;
+  spx_tx_begin(&tx, "render", 0);
   if (spx_mesh_load(ctx, mesh_path, &mesh)) {
     rc = spx_cli_error("render", ctx);
     goto done;
   }
   if ((rc = spx_cli_load_cameras("render", ctx, cam_path, &cams, &ncams))) goto done;
+  if ((rc = spx_cli_check_outputs(&tx, &outp, 1, ncams))) goto done; /* before any work */
   int W = cams[0].width, H = cams[0].height;
   if (H < 16 || W < 16) {
     rc = spx_cli_errorf("render", "%s: %dx%d is too small (the UNet needs at least 16x16)", cam_path, W, H);
@@ -92,33 +94,25 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
     }
     for (int k = 0; k < n; k++) {
       char *p = spx_cli_indexed_path(outp, c0 + k, ncams);
-      if (!p) {
-        rc = spx_cli_errorf("render", "out of memory");
-        goto done;
-      }
-      /* remembered once written: a failed write (atomic) leaves whatever was at p alone */
+      const char *tmp = spx_tx_stage(&tx, p); /* appears at p when the whole run succeeds */
+      free(p);
+      if (!tmp) goto done;
       spx_app_batch b = {1, SPX_UNET_OUT_CHANNELS, H, W, 1, out + (size_t)k * SPX_UNET_OUT_CHANNELS * hw};
-      if (spx_app_save(ctx, p, &b)) {
-        free(p);
+      if (spx_app_save(ctx, tmp, &b)) {
         rc = spx_app_error("render", ctx);
-        goto done;
-      }
-      if (!spx_cli_remember(&wr, p)) {
-        remove(p);
-        free(p);
-        rc = spx_cli_errorf("render", "out of memory");
         goto done;
       }
     }
   }
+  if ((rc = spx_tx_commit(&tx))) goto done;
   if (!quiet) {
     printf("rendered %d vertices (%s) through %d camera%s at %dx%d, %d per network batch, in %.2f s\n", mesh.nv,
            used, ncams, ncams > 1 ? "s" : "", W, H, chunk, spx_cli_now() - t0);
-    for (int i = 0; i < wr.n; i++) printf("wrote %s\n", wr.paths[i]);
+    for (int i = 0; i < spx_tx_count(&tx); i++) printf("wrote %s\n", spx_tx_target(&tx, i));
   }
   rc = SPX_EXIT_OK;
 done:
-  spx_cli_written_finish(&wr, rc != SPX_EXIT_OK);
+  spx_tx_end(&tx);
   spx_device_tensor_free(in);
   spx_projector_destroy(proj);
   free(out);
@@ -179,6 +173,9 @@ int spx_cmd_render(int argc, char **argv) {
   spx_app_batch in = {0}, out = {0};
   spx_status st;
   int rc = SPX_EXIT_OK;
+  spx_tx tx;
+  spx_tx_begin(&tx, "render", 0);
+  if (!by_mesh && (rc = spx_tx_check(&tx, outp))) goto done; /* before any work */
   if (!by_mesh) {
     if (spx_app_load(ctx, input, SPX_UNET_IN_CHANNELS, &in)) {
       rc = spx_app_error("render", ctx);
@@ -216,8 +213,12 @@ int spx_cmd_render(int argc, char **argv) {
       goto done;
     }
   }
-  if (spx_app_save(ctx, outp, &out)) rc = spx_app_error("render", ctx);
+  const char *tmp = spx_tx_stage(&tx, outp);
+  if (!tmp) rc = SPX_EXIT_ERROR;
+  else if (spx_app_save(ctx, tmp, &out)) rc = spx_app_error("render", ctx);
+  else rc = spx_tx_commit(&tx);
 done:
+  spx_tx_end(&tx);
   spx_app_batch_free(&in);
   spx_app_batch_free(&out);
   spx_unet_destroy(u);

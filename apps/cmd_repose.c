@@ -37,48 +37,110 @@ int spx_cli_pose_registration(const char *cmd, spx_ctx *ctx, const spx_body_mode
   return SPX_EXIT_OK;
 }
 
+/* Pose the registered person and save it (model frame, metres). The model's texture coordinates
+ * (when it has them) go with the mesh; subdivide > 0 adds Loop subdivision steps of the posed mesh
+ * (positions and colours; texture coordinates are dropped).
+ * scan_trans != NULL: pose and trans are given in the scan's frame (a synth view, whose subject
+ * was scanned with translation scan_trans): the registered translation is moved by
+ * R^T (trans - scan_trans) / (s * body_scale) and the registration's similarity (s, R, t; model
+ * frame -> scan) is applied, so the mesh lands in the scan's frame (metres). */
 static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m, const spx_fit_result *r,
-                         const double *betas, const double *pose, const double *trans, const char *out_path) {
+                         const double *betas, const double *pose, const double *trans, const double *scan_trans,
+                         int subdivide, const char *out_path) {
   double *v = malloc((size_t)m->nv * 3 * sizeof(double));
-  spx_mesh out = {0};
-  int rc = SPX_EXIT_OK;
+  spx_mesh out = {0}, sub = {0};
+  int rc = SPX_EXIT_OK, uv = m->vt && m->ft && subdivide == 0;
   out.nv = m->nv, out.nf = m->nf;
   out.pos = malloc((size_t)m->nv * 3 * sizeof(float));
   out.faces = malloc((size_t)m->nf * 3 * sizeof(int32_t));
   if (r->colors) out.col = malloc((size_t)m->nv * 3 * sizeof(float));
-  if (!v || !out.pos || !out.faces || (r->colors && !out.col)) {
+  if (uv) {
+    out.nuv = m->nvt;
+    out.uv = malloc((size_t)m->nvt * 2 * sizeof(float));
+    out.face_uv = malloc((size_t)m->nf * 3 * sizeof(int32_t));
+  }
+  if (!v || !out.pos || !out.faces || (r->colors && !out.col) || (uv && (!out.uv || !out.face_uv))) {
     rc = spx_cli_errorf(cmd, "out of memory");
     goto done;
   }
-  if ((rc = spx_cli_pose_registration(cmd, ctx, m, r, betas, pose, trans, v, out.pos))) goto done;
-  memcpy(out.faces, m->faces, (size_t)m->nf * 3 * sizeof(int32_t));
-  if (r->colors) memcpy(out.col, r->colors, (size_t)m->nv * 3 * sizeof(float));
-  if (spx_mesh_save(ctx, out_path, &out, SPX_MESH_AUTO)) {
+  double tx[3] = {0, 0, 0};
+  const double *R = r->sim_R, k = r->sim_scale * r->body_scale;
+  if (scan_trans) {
+    double d[3] = {trans[0] - scan_trans[0], trans[1] - scan_trans[1], trans[2] - scan_trans[2]};
+    for (int a = 0; a < 3; a++) tx[a] = r->trans[a] + (R[a] * d[0] + R[3 + a] * d[1] + R[6 + a] * d[2]) / k;
+  }
+  spx_body_params p = {r->nbetas, betas, pose, scan_trans ? tx : trans, r->template_unposed};
+  if (spx_body_forward_ref(ctx, m, &p, v, NULL)) {
     rc = spx_cli_error(cmd, ctx);
     goto done;
   }
-  printf("wrote %s (%d vertices)\n", out_path, out.nv);
+  for (int32_t i = 0; i < m->nv; i++) {
+    const double *x = v + (size_t)i * 3;
+    for (int a = 0; a < 3; a++)
+      out.pos[i * 3 + a] = scan_trans ? (float)((k * (R[a * 3] * x[0] + R[a * 3 + 1] * x[1] + R[a * 3 + 2] * x[2]) + r->sim_t[a]) /
+                                                r->unit_scale)
+                                      : (float)(r->body_scale * x[a]);
+  }
+  memcpy(out.faces, m->faces, (size_t)m->nf * 3 * sizeof(int32_t));
+  if (r->colors) memcpy(out.col, r->colors, (size_t)m->nv * 3 * sizeof(float));
+  if (uv) {
+    memcpy(out.uv, m->vt, (size_t)m->nvt * 2 * sizeof(float));
+    memcpy(out.face_uv, m->ft, (size_t)m->nf * 3 * sizeof(int32_t));
+  }
+  if (subdivide > 0 && spx_mesh_subdivide(ctx, &out, subdivide, &sub)) {
+    rc = spx_cli_error(cmd, ctx);
+    goto done;
+  }
+  const spx_mesh *save = subdivide > 0 ? &sub : &out;
+  spx_tx otx;
+  spx_tx_begin(&otx, cmd, 0);
+  const char *tmp = spx_tx_stage(&otx, out_path);
+  if (!tmp) rc = SPX_EXIT_ERROR;
+  else if (spx_mesh_save(ctx, tmp, save, SPX_MESH_AUTO)) rc = spx_cli_error(cmd, ctx);
+  else rc = spx_tx_commit(&otx);
+  spx_tx_end(&otx);
+  if (rc) goto done;
+  printf("wrote %s (%d vertices)\n", out_path, save->nv);
 done:
   free(v);
   spx_mesh_free(&out);
+  spx_mesh_free(&sub);
   return rc;
 }
 
 int spx_cmd_repose(int argc, char **argv) {
-  const char *reg_path = NULL, *bvh_path = NULL, *out_path = NULL, *model_arg = NULL;
-  long frame = 0;
+  const char *reg_path = NULL, *bvh_path = NULL, *out_path = NULL, *model_arg = NULL, *pose_path = NULL,
+             *view = NULL;
+  long frame = 0, subdivide = 0;
   int bad = 0;
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help")) {
-      printf("usage: smplpix repose --registration P.json --bvh M.bvh [--frame N] --out V.ply [--model M.npz]\n"
+      printf("usage: smplpix repose --registration P.json (--bvh M.bvh [--frame N] | --pose Q.json [--view NAME])\n"
+             "                      --out V.ply|V.obj [--model M.npz] [--subdivide N]\n"
              "Poses the registered person (its unposed template and shape) with frame N of a BVH clip,\n"
-             "retargeted by joint name; writes the mesh (with the registration's colours) in metres.\n");
+             "retargeted by joint name, or with the model's own pose parameters from Q.json: its\n"
+             "top-level \"pose\" and \"trans\" (e.g. a registration JSON), or with --view the \"pose\"\n"
+             "object of that view of a `smplpix synth` manifest. Writes the mesh (with the registration's\n"
+             "colours and the model's texture coordinates) in metres, in the model frame; with --view in\n"
+             "the scan's frame (the registration's similarity applied, the translation taken relative to\n"
+             "the subject's \"scan_pose\"), where the synth cameras look. --subdivide N adds N Loop steps\n"
+             "(4^N times the faces; texture coordinates are then dropped).\n");
       return SPX_EXIT_OK;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--registration", &bad))) {
       reg_path = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--bvh", &bad))) {
       bvh_path = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--pose", &bad))) {
+      pose_path = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--view", &bad))) {
+      view = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--subdivide", &bad))) {
+      char *end;
+      errno = 0;
+      subdivide = strtol(v, &end, 10);
+      if (errno || end == v || *end || subdivide < 0 || subdivide > 3)
+        return spx_cli_usage("repose", "--subdivide: expected 0..3, got '%s'", v);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
       out_path = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
@@ -92,7 +154,9 @@ int spx_cmd_repose(int argc, char **argv) {
       return spx_cli_usage("repose", bad ? "missing value for %s" : "unknown option %s", argv[i]);
     }
   }
-  if (!reg_path || !bvh_path || !out_path) return spx_cli_usage("repose", "--registration, --bvh and --out are required");
+  if (!reg_path || !out_path || !bvh_path == !pose_path)
+    return spx_cli_usage("repose", "--registration, --out and one of --bvh or --pose are required");
+  if (view && !pose_path) return spx_cli_usage("repose", "--view needs --pose (a synth manifest)");
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("repose", "out of memory");
   spx_fit_result r;
@@ -100,27 +164,37 @@ int spx_cmd_repose(int argc, char **argv) {
   spx_bvh b;
   spx_bvh_map map;
   memset(&r, 0, sizeof r), memset(&m, 0, sizeof m), memset(&b, 0, sizeof b), memset(&map, 0, sizeof map);
-  double *pose = NULL, trans[3];
-  int rc = spx_cli_load_registration("repose", ctx, reg_path, model_arg, &r, &m);
+  double *pose = NULL, trans[3], scan_trans[3];
+  spx_tx tx;
+  spx_tx_begin(&tx, "repose", 0);
+  int rc = spx_tx_check(&tx, out_path); /* before any work */
+  if (!rc) rc = spx_cli_load_registration("repose", ctx, reg_path, model_arg, &r, &m);
   if (rc) goto done;
-  if (spx_bvh_load(ctx, bvh_path, &b) || spx_bvh_map_create(ctx, &b, &m, NULL, NULL, &map)) {
-    rc = spx_cli_error("repose", ctx);
-    goto done;
-  }
-  if (frame >= b.nframes) {
-    rc = spx_cli_errorf("repose", "%s: frame %ld out of range (the clip has %d frames)", bvh_path, frame, b.nframes);
-    goto done;
-  }
   pose = malloc((size_t)m.nj * 3 * sizeof(double));
   if (!pose) {
     rc = spx_cli_errorf("repose", "out of memory");
     goto done;
   }
-  if (spx_bvh_map_pose(ctx, &map, &b, &m, (int32_t)frame, pose, trans)) {
-    rc = spx_cli_error("repose", ctx);
-    goto done;
+  if (pose_path) {
+    if (spx_pose_load_json(ctx, pose_path, view, m.nj, pose, trans, view ? scan_trans : NULL)) {
+      rc = spx_cli_error("repose", ctx);
+      goto done;
+    }
+  } else {
+    if (spx_bvh_load(ctx, bvh_path, &b) || spx_bvh_map_create(ctx, &b, &m, NULL, NULL, &map)) {
+      rc = spx_cli_error("repose", ctx);
+      goto done;
+    }
+    if (frame >= b.nframes) {
+      rc = spx_cli_errorf("repose", "%s: frame %ld out of range (the clip has %d frames)", bvh_path, frame, b.nframes);
+      goto done;
+    }
+    if (spx_bvh_map_pose(ctx, &map, &b, &m, (int32_t)frame, pose, trans)) {
+      rc = spx_cli_error("repose", ctx);
+      goto done;
+    }
   }
-  rc = pose_and_save("repose", ctx, &m, &r, r.betas, pose, trans, out_path);
+  rc = pose_and_save("repose", ctx, &m, &r, r.betas, pose, trans, view ? scan_trans : NULL, (int)subdivide, out_path);
 done:
   free(pose);
   spx_bvh_map_free(&map);
@@ -176,7 +250,10 @@ int spx_cmd_reshape(int argc, char **argv) {
   spx_body_model m;
   memset(&r, 0, sizeof r), memset(&m, 0, sizeof m);
   double *betas = NULL, *pose = NULL;
-  int rc = spx_cli_load_registration("reshape", ctx, reg_path, model_arg, &r, &m);
+  spx_tx tx;
+  spx_tx_begin(&tx, "reshape", 0);
+  int rc = spx_tx_check(&tx, out_path); /* before any work */
+  if (!rc) rc = spx_cli_load_registration("reshape", ctx, reg_path, model_arg, &r, &m);
   if (rc) goto done;
   for (int k = 0; k < nsh; k++)
     if (sh_idx[k] >= r.nbetas) {
@@ -192,7 +269,7 @@ int spx_cmd_reshape(int argc, char **argv) {
   memcpy(betas, r.betas, (size_t)r.nbetas * sizeof(double));
   if (!rest) memcpy(pose, r.pose, (size_t)m.nj * 3 * sizeof(double));
   for (int k = 0; k < nsh; k++) betas[sh_idx[k]] = sh_rel[k] ? betas[sh_idx[k]] + sh_val[k] : sh_val[k];
-  rc = pose_and_save("reshape", ctx, &m, &r, betas, pose, rest ? NULL : r.trans, out_path);
+  rc = pose_and_save("reshape", ctx, &m, &r, betas, pose, rest ? NULL : r.trans, NULL, 0, out_path);
 done:
   free(betas), free(pose);
   spx_body_free(&m);

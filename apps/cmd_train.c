@@ -14,26 +14,39 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "train_recipe.h"
+#include "train_state.h"
 #include "unet_io.h"
 
 static void train_help(void) {
   printf("usage: smplpix train --data DIR --out W.safetensors [--width 8|16|32|64] [--batch B] [--lr LR]\n"
          "                     [--epochs E | --steps S] [--init W0.safetensors] [--resume] [--seed N]\n"
-         "                     [--no-shuffle] [--loss l1] [--sigmoid] [--device cpu|gpu|P:D]\n"
+         "                     [--no-shuffle] [--loss l1|l1+gan|vgg|vgg+gan] [--vgg VGG19.safetensors]\n"
+         "                     [--schedule paper] [--lr2 LR] [--disc-width N] [--sigmoid] [--device cpu|gpu|P:D]\n"
          "Trains on DIR/train/input/NAME.{exr,npy,png} (RGB-D) -> DIR/train/output/NAME.{png,exr,npy} (RGB),\n"
          "matched by NAME; all images of a split must have the same size (>= 16x16). Adam (betas 0.9,\n"
          "0.999, eps 1e-8), mean L1 loss. Defaults: --width 32 --batch 1 --lr 1e-3 --epochs 1 --seed 0.\n"
          "--epochs E / --steps S: train until E epochs / S optimizer steps in total are done.\n"
-         "--resume continues from W (weights, optimizer state, step count, data order) bit for bit;\n"
+         "--resume continues from W (weights, optimizer state, step count, data order) bit for bit, taking\n"
+         "the seed, shuffle, batch, lr, loss, schedule, stage, lr2 and disc width recorded in W (flags\n"
+         "that contradict them: exit 2);\n"
          "--init starts from the weights of W0 with a fresh optimizer. After every epoch the loss on\n"
          "DIR/validation (when present: mean L1, and PSNR and SSIM of the output clamped to [0,1], as\n"
          "`smplpix eval` computes them) is printed,\n"
-         "also once before the first step. W is rewritten atomically after every epoch, or every N steps\n"
+         "also once before the first step. W (and W.disc) is rewritten atomically (and fsync'ed) after every\n"
+         "epoch, or every N steps\n"
          "with --save-every N, and at the end. --batch larger than the number of pairs uses them all.\n"
          "Progress goes to stderr: a bar updated in place on a terminal, else a line every --log-every\n"
          "steps (default 10): step, loss (mean over the epoch so far), images/s, ETA.\n"
          "Ctrl-C: the current step finishes, W is saved (exit status 130; continue with --resume); a\n"
-         "second Ctrl-C stops at once, leaving the last saved W as it was.\n");
+         "second Ctrl-C stops at once, leaving the last saved W as it was.\n"
+         "Losses (the paper, §3.3): l1 = mean L1; l1+gan adds pix2pixHD's multi-scale PatchGAN (3 scales,\n"
+         "conditional on the RGB-D input, LSGAN) and 0.1 x feature matching, the discriminator (width\n"
+         "--disc-width, default 64) trained beside the generator with the same lr and kept with its Adam\n"
+         "state in W.disc.safetensors; vgg / vgg+gan use the VGG19 perceptual loss and need --vgg.\n"
+         "--schedule paper: stage 1 (l1, or vgg with --vgg) for --epochs (default 100) epochs at --lr\n"
+         "(default 1e-4), then Adam restarts and stage 2 (+gan) runs as many epochs at --lr2 (default\n"
+         "1e-5); --batch defaults to 10. The stage is recorded in W, so --resume continues the right one.\n");
 }
 
 typedef struct sample {
@@ -253,14 +266,6 @@ static void on_sigint(int sig) {
   (void)r;
 }
 
-/* A library failure during a step; device memory errors get a hint on what to change. */
-static int step_error(spx_ctx *ctx, spx_status st, int n, int h, int w, int width) {
-  if (st == SPX_E_DEVMEM || st == SPX_E_NOMEM)
-    return spx_cli_errorf("train", "a step on %d images of %dx%d at width %d: %s (try a smaller --batch or --width)", n,
-                          w, h, width, spx_ctx_message(ctx));
-  return spx_cli_error("train", ctx);
-}
-
 static void fmt_eta(char *buf, size_t cap, double s) {
   if (!(s >= 0) || s > 1e8) s = 0;
   long t = (long)(s + 0.5);
@@ -285,35 +290,41 @@ static void progress_clear(progress *pg) {
 }
 
 /* The bar is redrawn at most 10 times a second (always when force). */
-static void progress_show(progress *pg, int64_t step, int64_t epoch, double loss, int force) {
+static void progress_show(progress *pg, int64_t step, int64_t epoch, double loss, const train_recipe *r, int force) {
   double t = now_s();
   if (pg->tty && !force && pg->bar_shown && t - pg->last_draw < 0.1) return;
   pg->last_draw = t;
   double el = t - pg->t0, ips = el > 0 ? (double)pg->images / el : 0;
   int64_t done = step - pg->start_step;
   double eta = done > 0 ? el / (double)done * (double)(pg->total - step) : 0;
-  char e[32];
+  char e[32], terms[160];
   fmt_eta(e, sizeof e, eta);
+  train_recipe_terms(r, terms, sizeof terms);
   if (pg->tty) {
     char bar[21];
     int fill = pg->total > 0 ? (int)(20 * step / pg->total) : 20;
     for (int k = 0; k < 20; k++) bar[k] = k < fill ? '#' : '.';
     bar[20] = 0;
-    fprintf(stderr, "\r\033[K[%s] step %lld/%lld  epoch %lld  loss %.6f  %.3g img/s  ETA %s", bar, (long long)step,
-            (long long)pg->total, (long long)epoch + 1, loss, ips, e);
+    fprintf(stderr, "\r\033[K[%s] step %lld/%lld  epoch %lld  loss %.6f%s  %.3g img/s  ETA %s", bar, (long long)step,
+            (long long)pg->total, (long long)epoch + 1, loss, terms, ips, e);
     pg->bar_shown = 1;
   } else {
-    fprintf(stderr, "step %lld/%lld epoch %lld: loss %.6f, %.3g images/s, ETA %s\n", (long long)step,
-            (long long)pg->total, (long long)epoch + 1, loss, ips, e);
+    fprintf(stderr, "step %lld/%lld epoch %lld: loss %.6f%s, %.3g images/s, ETA %s\n", (long long)step,
+            (long long)pg->total, (long long)epoch + 1, loss, terms, ips, e);
   }
   fflush(stderr);
 }
 
 int spx_cmd_train(int argc, char **argv) {
-  const char *data = NULL, *outp = NULL, *init = NULL, *spec = NULL, *loss_name = "l1";
-  long width = 0, batch = 1, epochs = -1, steps = -1, seed = 0, save_every = 0, log_every = 10;
-  double lr = 1e-3;
+  const char *data = NULL, *outp = NULL, *init = NULL, *spec = NULL, *loss_name = NULL, *vgg_path = NULL;
+  const char *schedule = NULL;
+  long width = 0, batch = -1, epochs = -1, steps = -1, seed = 0, save_every = 0, log_every = 10, disc_width = 64;
+  double lr = -1, lr2 = 1e-5;
+  train_recipe rcp;
+  memset(&rcp, 0, sizeof rcp);
   int resume = 0, shuffle = 1, sigmoid = 0, bad = 0, rc;
+  int seed_given = 0, batch_given = 0, lr_given = 0, shuffle_given = 0, loss_given = 0, lr2_given = 0;
+  int disc_width_given = 0;
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
@@ -323,6 +334,7 @@ int spx_cmd_train(int argc, char **argv) {
       resume = 1;
     } else if (!strcmp(argv[i], "--no-shuffle")) {
       shuffle = 0;
+      shuffle_given = 1;
     } else if (!strcmp(argv[i], "--sigmoid")) {
       sigmoid = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--data", &bad))) {
@@ -335,18 +347,33 @@ int spx_cmd_train(int argc, char **argv) {
       spec = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--loss", &bad))) {
       loss_name = v;
+      loss_given = 1;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--vgg", &bad))) {
+      vgg_path = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--schedule", &bad))) {
+      schedule = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--disc-width", &bad))) {
+      if ((rc = parse_int("--disc-width", v, 1, 512, &disc_width))) return rc;
+      disc_width_given = 1;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--lr2", &bad))) {
+      char *end = NULL;
+      lr2 = strtod(v, &end);
+      if (!end || *end || !(lr2 > 0) || !isfinite(lr2)) return spx_cli_usage("train", "--lr2 needs a positive number, not '%s'", v);
+      lr2_given = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--width", &bad))) {
       if ((rc = parse_int("--width", v, 8, 64, &width))) return rc;
       if (width != 8 && width != 16 && width != 32 && width != 64)
         return spx_cli_usage("train", "--width must be 8, 16, 32 or 64, not %ld", width);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--batch", &bad))) {
       if ((rc = parse_int("--batch", v, 1, 1000000000, &batch))) return rc;
+      batch_given = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--epochs", &bad))) {
       if ((rc = parse_int("--epochs", v, 0, 100000000, &epochs))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--steps", &bad))) {
       if ((rc = parse_int("--steps", v, 0, 2000000000, &steps))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) {
       if ((rc = parse_int("--seed", v, 0, 2147483647, &seed))) return rc;
+      seed_given = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--save-every", &bad))) {
       if ((rc = parse_int("--save-every", v, 1, 2000000000, &save_every))) return rc;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--log-every", &bad))) {
@@ -355,15 +382,18 @@ int spx_cmd_train(int argc, char **argv) {
       char *end = NULL;
       lr = strtod(v, &end);
       if (!end || *end || !(lr > 0) || !isfinite(lr)) return spx_cli_usage("train", "--lr needs a positive number, not '%s'", v);
+      lr_given = 1;
     } else {
       return spx_cli_usage("train", bad ? "missing value for %s" : "unknown option %s", argv[i]);
     }
   }
   if (!data || !outp) return spx_cli_usage("train", "--data and --out are required");
-  if (strcmp(loss_name, "l1")) return spx_cli_usage("train", "--loss: only l1 is supported, not '%s'", loss_name);
+  if (schedule && strcmp(schedule, "paper")) return spx_cli_usage("train", "--schedule must be 'paper', not '%s'", schedule);
+  int use_gan = 0, use_vgg = 0;
+  if (schedule && loss_name) return spx_cli_usage("train", "--schedule paper chooses the losses; drop --loss");
+  if (loss_name && (rc = train_loss_parse(loss_name, &use_gan, &use_vgg))) return rc;
   if (epochs >= 0 && steps >= 0) return spx_cli_usage("train", "give --epochs or --steps, not both");
   if (resume && init) return spx_cli_usage("train", "--resume continues --out; it cannot be combined with --init");
-  if (epochs < 0 && steps < 0) epochs = 1;
 
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("train", "out of memory");
@@ -373,9 +403,79 @@ int spx_cmd_train(int argc, char **argv) {
   float *in = NULL, *tg = NULL;
   struct sigaction old_int;
   int handler_set = 0;
-  spx_status st;
   progress pg = {0};
   pg.tty = isatty(STDERR_FILENO);
+  spx_train_state ts;
+  spx_train_state_init(&ts);
+  { /* --out must be writable before any training (a failed save would throw the steps away) */
+    spx_tx chk;
+    spx_tx_begin(&chk, "train", 0);
+    if ((rc = spx_tx_check(&chk, outp))) goto done;
+  }
+  if (resume) { /* the run's settings come from the checkpoint; flags may only repeat them */
+    int has_state = 0, has_opt = 0;
+    if ((rc = spx_train_state_read(ctx, outp, &ts, &has_state, &has_opt))) goto done;
+    if (!has_opt) {
+      rc = spx_cli_errorf("train", "%s: holds weights only (no optimizer state), so it cannot be resumed; start from it "
+                          "with --init", outp);
+      goto done;
+    }
+    if (!has_state) {
+      rc = spx_cli_errorf("train", "%s: records no training state (seed, data order, batch), so it cannot be resumed "
+                          "bit for bit; start from it with --init", outp);
+      goto done;
+    }
+    const char *clash = NULL;
+    char rec[160];
+    if (seed_given && seed != ts.seed) clash = "--seed", snprintf(rec, sizeof rec, "seed %lld", (long long)ts.seed);
+    else if (batch_given && batch != ts.batch && !(batch > ts.batch && ts.batch == ts.pairs))
+      clash = "--batch", snprintf(rec, sizeof rec, "batch %lld", (long long)ts.batch);
+    else if (shuffle_given && ts.shuffle) clash = "--no-shuffle", snprintf(rec, sizeof rec, "shuffled data order");
+    else if (lr_given && lr != ts.lr) clash = "--lr", snprintf(rec, sizeof rec, "lr %.17g", ts.lr);
+    else if (loss_given && ts.schedule[0])
+      clash = "--loss", snprintf(rec, sizeof rec, "--schedule %s (stage %lld, loss %s)", ts.schedule,
+                                 (long long)ts.stage, ts.loss);
+    else if (loss_given && strcmp(loss_name, ts.loss))
+      clash = "--loss", snprintf(rec, sizeof rec, "loss (it was trained with --loss %s, not %s)", ts.loss, loss_name);
+    else if (schedule && strcmp(schedule, ts.schedule))
+      clash = "--schedule", snprintf(rec, sizeof rec, "single-stage run (loss %s)", ts.loss);
+    else if (lr2_given && ts.schedule[0] && lr2 != ts.lr2) clash = "--lr2", snprintf(rec, sizeof rec, "lr2 %.17g", ts.lr2);
+    else if (disc_width_given && disc_width != ts.disc_width)
+      clash = "--disc-width", snprintf(rec, sizeof rec, "disc width %lld", (long long)ts.disc_width);
+    if (clash) {
+      rc = spx_cli_usage("train", "%s contradicts the %s recorded in %s (--resume takes it from the checkpoint)", clash,
+                         rec, outp);
+      goto done;
+    }
+    seed = (long)ts.seed, batch = (long)ts.batch, shuffle = (int)ts.shuffle, lr = ts.lr;
+    schedule = ts.schedule[0] ? "paper" : NULL, loss_name = ts.schedule[0] ? NULL : ts.loss;
+    lr2 = ts.lr2, disc_width = (long)ts.disc_width;
+  }
+  /* the recipe, from the flags or (--resume) the checkpoint's record */
+  if (loss_name && (rc = train_loss_parse(loss_name, &use_gan, &use_vgg))) goto done;
+  if (schedule) use_vgg = vgg_path != NULL;
+  if (resume && ts.schedule[0]) use_vgg = !strncmp(ts.loss, "vgg", 3);
+  if (use_vgg && !vgg_path) {
+    rc = spx_cli_errorf("train", "--loss %s needs the VGG19 weights: --vgg VGG19.safetensors (torchvision's "
+                        "features.N.weight/bias; tools/vgg19_pth_to_safetensors.py converts a .pth)",
+                        loss_name ? loss_name : ts.loss);
+    goto done;
+  }
+  if (vgg_path && !use_vgg) {
+    rc = spx_cli_usage("train", "--vgg is only used by --loss vgg or vgg+gan");
+    goto done;
+  }
+  if (lr < 0) lr = schedule ? 1e-4 : 1e-3;
+  if (batch < 0) batch = schedule ? 10 : 1;
+  if (schedule && epochs < 0 && steps < 0) epochs = 100;
+  if (epochs < 0 && steps < 0) epochs = 1;
+  rcp.schedule = schedule != NULL;
+  rcp.gan[1] = schedule ? 0 : use_gan;
+  rcp.gan[2] = schedule ? 1 : use_gan;
+  rcp.vgg = use_vgg;
+  rcp.vgg_path = vgg_path;
+  rcp.lr1 = lr, rcp.lr2 = schedule ? lr2 : lr;
+  rcp.disc_width = (int)disc_width, rcp.num_d = 3, rcp.seed = (uint64_t)seed;
   if ((rc = list_split(data, "train", 1, &tr)) || (rc = list_split(data, "validation", 0, &val))) goto done;
   if ((rc = probe_size(ctx, &tr)) || (val.n && (rc = probe_size(ctx, &val)))) goto done;
   if ((rc = spx_cli_open_device("train", ctx, spec))) goto done;
@@ -393,14 +493,32 @@ int spx_cmd_train(int argc, char **argv) {
       rc = spx_cli_error("train", ctx);
       goto done;
     }
+    if (resume && sigmoid && !spx_unet_sigmoid(u)) {
+      rc = spx_cli_usage("train", "--sigmoid contradicts %s, trained without it (--resume takes it from the checkpoint)",
+                         outp);
+      goto done;
+    }
     if (sigmoid) spx_unet_set_sigmoid(u, 1);
   } else if (spx_unet_create(ctx, width ? (int)width : 32, sigmoid, (uint64_t)seed, &u)) {
     rc = spx_cli_error("train", ctx);
     goto done;
   }
+  if (resume && (ts.pairs != tr.n || ts.step != ts.stage_base + spx_unet_step(u))) {
+    rc = ts.pairs != tr.n ? spx_cli_errorf("train", "%s/train has %d pairs, but %s was trained on %lld: the data order "
+                                           "cannot continue", data, tr.n, outp, (long long)ts.pairs)
+                          : spx_cli_errorf("train", "%s: recorded step %lld does not match its optimizer step %lld "
+                                           "(+ %lld before stage %lld)", outp, (long long)ts.step,
+                                           (long long)spx_unet_step(u), (long long)ts.stage_base, (long long)ts.stage);
+    goto done;
+  }
   if (batch > tr.n) batch = tr.n; /* one batch holds the whole set */
   int64_t spe = (tr.n + batch - 1) / batch; /* steps per epoch (the last batch may be short) */
   int64_t target = steps >= 0 ? steps : epochs * spe;
+  ts.seed = seed, ts.shuffle = shuffle, ts.batch = batch, ts.pairs = tr.n, ts.steps_per_epoch = spe;
+  if (rcp.schedule) rcp.stage1_steps = target, target *= 2; /* the same length for both stages */
+  /* resuming: the stage (and the schedule's stage-2 start) come from the record */
+  if ((rc = train_recipe_start(ctx, &rcp, u, outp, from, resume ? &ts : NULL))) goto done;
+#define GSTEP() train_recipe_step_count(&rcp, u)
   size_t hw = (size_t)tr.h * (size_t)tr.w;
   perm = malloc(sizeof(int) * (size_t)tr.n);
   in = malloc((size_t)batch * SPX_UNET_IN_CHANNELS * hw * sizeof(float));
@@ -410,14 +528,16 @@ int spx_cmd_train(int argc, char **argv) {
                         tr.h);
     goto done;
   }
-  printf("train: %d pairs (%dx%d), %d validation, width %d, batch %ld, lr %g, %lld steps/epoch, step %lld -> %lld\n",
-         tr.n, tr.w, tr.h, val.n, spx_unet_width(u), batch, lr, (long long)spe, (long long)spx_unet_step(u),
-         (long long)target);
+  printf("train: %d pairs (%dx%d), %d validation, width %d, batch %ld, lr %g, %lld steps/epoch, step %lld -> %lld, "
+         "loss %s%s\n",
+         tr.n, tr.w, tr.h, val.n, spx_unet_width(u), batch, rcp.schedule && rcp.stage == 2 ? rcp.lr2 : lr, (long long)spe,
+         (long long)GSTEP(), (long long)target, train_loss_name(&rcp),
+         rcp.schedule ? (rcp.stage == 1 ? " (stage 1 of --schedule paper)" : " (stage 2 of --schedule paper)") : "");
   fflush(stdout);
-  if (val.n && spx_unet_step(u) < target) { /* the starting point, to compare the epochs against */
+  if (val.n && GSTEP() < target) { /* the starting point, to compare the epochs against */
     double vl = 0, vp = 0, vs = 0;
     if ((rc = validate(ctx, u, &val, &vl, &vp, &vs))) goto done;
-    printf("step %lld: validation L1 %.6f, PSNR %.2f dB, SSIM %.4f\n", (long long)spx_unet_step(u), vl, vp, vs);
+    printf("step %lld: validation L1 %.6f, PSNR %.2f dB, SSIM %.4f\n", (long long)GSTEP(), vl, vp, vs);
     fflush(stdout);
   }
   {
@@ -433,10 +553,10 @@ int spx_cmd_train(int argc, char **argv) {
   int ep_count = 0;
   int64_t cur_epoch = -1;
   pg.t0 = t0;
-  pg.start_step = spx_unet_step(u);
+  pg.start_step = GSTEP();
   pg.total = target;
-  while (spx_unet_step(u) < target) {
-    int64_t step = spx_unet_step(u), epoch = step / spe, pos = step % spe;
+  while (GSTEP() < target) {
+    int64_t step = GSTEP(), epoch = step / spe, pos = step % spe;
     if (epoch != cur_epoch) {
       epoch_order(perm, tr.n, (uint64_t)seed, epoch, shuffle);
       cur_epoch = epoch;
@@ -444,12 +564,8 @@ int spx_cmd_train(int argc, char **argv) {
     int first = (int)(pos * batch), count = (int)(tr.n - first < batch ? tr.n - first : batch);
     float loss = 0;
     if ((rc = load_batch(ctx, &tr, perm + first, count, in, tg))) goto done;
-    if ((st = spx_unet_zero_grad(u)) || (st = spx_unet_forward_loss(u, in, tg, count, tr.h, tr.w, NULL, &loss)) ||
-        (st = spx_unet_backward(u)) || (st = spx_unet_adam_step(u, lr))) {
-      progress_clear(&pg);
-      rc = step_error(ctx, st, count, tr.h, tr.w, spx_unet_width(u));
-      goto done;
-    }
+    progress_clear(&pg); /* a stage switch prints a line */
+    if ((rc = train_recipe_step(ctx, &rcp, u, in, tg, count, tr.h, tr.w, &loss))) goto done;
     if (!isfinite(loss)) {
       progress_clear(&pg);
       rc = spx_cli_errorf("train", "the loss became %g at step %lld (learning rate too high?)", loss, (long long)step);
@@ -458,26 +574,31 @@ int spx_cmd_train(int argc, char **argv) {
     ep_loss += loss;
     ep_count++;
     pg.images += count;
-    int64_t now_step = spx_unet_step(u);
+    int64_t now_step = GSTEP();
     int end_epoch = pos == spe - 1, last = now_step == target;
     if (pg.tty || now_step % log_every == 0 || end_epoch || last)
-      progress_show(&pg, now_step, epoch, ep_loss / ep_count, end_epoch || last);
+      progress_show(&pg, now_step, epoch, ep_loss / ep_count, &rcp, end_epoch || last);
     if (end_epoch || last) {
       double vl = 0, vp = 0, vs = 0;
       if (val.n && (rc = validate(ctx, u, &val, &vl, &vp, &vs))) goto done;
       progress_clear(&pg);
-      printf("epoch %lld step %lld: train L1 %.6f", (long long)epoch + 1, (long long)now_step, ep_loss / ep_count);
+      char terms[160];
+      train_recipe_terms(&rcp, terms, sizeof terms);
+      printf("epoch %lld step %lld: train %s %.6f%s", (long long)epoch + 1, (long long)now_step,
+             rcp.gan[rcp.stage] || rcp.vgg ? "loss" : "L1", ep_loss / ep_count, terms);
       if (val.n) printf(", validation L1 %.6f, PSNR %.2f dB, SSIM %.4f", vl, vp, vs);
       printf(", %.1f s\n", now_s() - t0);
       fflush(stdout);
       ep_loss = 0;
       ep_count = 0;
+      train_recipe_epoch_reset(&rcp);
     }
     int save = save_every ? now_step % save_every == 0 : end_epoch;
     if ((save || interrupted) && !last) {
-      if (spx_unet_save(u, outp, 1)) {
+      train_recipe_record(&rcp, &ts);
+      ts.step = now_step, ts.epoch = now_step / spe;
+      if ((rc = spx_train_checkpoint_save(ctx, u, train_recipe_disc(&rcp), rcp.disc_path, outp, &ts))) {
         progress_clear(&pg);
-        rc = spx_cli_error("train", ctx);
         goto done;
       }
     }
@@ -490,16 +611,18 @@ int spx_cmd_train(int argc, char **argv) {
     }
   }
   progress_clear(&pg);
-  if (spx_unet_save(u, outp, 1)) { /* also when nothing was left to do */
-    rc = spx_cli_error("train", ctx);
-    goto done;
-  }
-  printf("wrote %s (step %lld)\n", outp, (long long)spx_unet_step(u));
+  train_recipe_record(&rcp, &ts);
+  ts.step = GSTEP(), ts.epoch = ts.step / spe;
+  /* also when nothing was left to do */
+  if ((rc = spx_train_checkpoint_save(ctx, u, train_recipe_disc(&rcp), rcp.disc_path, outp, &ts))) goto done;
+  printf("wrote %s (step %lld)%s%s\n", outp, (long long)GSTEP(), train_recipe_disc(&rcp) ? " and " : "",
+         train_recipe_disc(&rcp) ? rcp.disc_path : "");
 done:
   if (handler_set) sigaction(SIGINT, &old_int, NULL);
   free(perm), free(in), free(tg);
   split_free(&tr);
   split_free(&val);
+  train_recipe_free(&rcp);
   spx_unet_destroy(u);
   spx_ctx_destroy(ctx);
   return rc;

@@ -14,12 +14,14 @@ static const spx_command commands[] = {
     {"raster", "rasterize a mesh's triangles through camera(s) (the classic baseline)", spx_cmd_raster},
     {"dataset", "write a training set: projections -> raster renders of one mesh", spx_cmd_dataset},
     {"render", "run a trained UNet on RGB-D image(s), or on a mesh through camera(s)", spx_cmd_render},
+    {"synth", "synthetic scanned people and their ground-truth photos", spx_cmd_synth},
     {"train", "train the UNet on a data directory", spx_cmd_train},
     {"eval", "PSNR, SSIM (and LPIPS) of predicted images against targets", spx_cmd_eval},
     {"register", "register the body model to a 3-D scan (Ceres)", spx_cmd_register},
     {"repose", "pose a registered person with a BVH frame", spx_cmd_repose},
     {"reshape", "change a registered person's shape coefficients", spx_cmd_reshape},
     {"animate", "animate a registered person with BVH / AMASS motion (PNG frames, MP4)", spx_cmd_animate},
+    {"bake", "bake a coloured scan onto the registered body's UV texture", spx_cmd_bake},
     {"devices", "list OpenCL devices and warm the kernel cache", spx_cmd_devices},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])

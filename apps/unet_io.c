@@ -37,8 +37,10 @@ static void lower_ext(const char *path, char *ext, size_t cap) {
 
 static spx_status from_hwc(const char *path, const float *src, int h, int w, int cin, int want,
                            spx_app_batch *out) {
-  if (cin < 3 || (cin < want && !(cin == 3 && want == 4)))
-    return fail(SPX_E_FORMAT, "%s: image has %d channels, expected %d", path, cin, want);
+  /* exact: an input is RGB-D (4) or RGB (3, depth taken as 1 = background); a target is RGB (3).
+   * Extra channels are an error, never dropped (only a PNG's alpha is, by the caller). */
+  if (cin != want && !(cin == 3 && want == 4))
+    return fail(SPX_E_FORMAT, "%s: image has %d channels, expected %d%s", path, cin, want, want == 4 ? " (or 3)" : "");
   if (h < 1 || w < 1) return fail(SPX_E_FORMAT, "%s: empty image (%dx%d)", path, w, h);
   size_t hw = (size_t)h * (size_t)w;
   out->data = malloc(hw * (size_t)want * sizeof(float));
@@ -60,7 +62,8 @@ spx_status spx_app_load(spx_ctx *ctx, const char *path, int channels, spx_app_ba
     st = !strcmp(ext, "exr") ? spx_exr_read(ctx, path, &img) : spx_png_read(ctx, path, &img);
     if (st) return st;
     int cin = img.channels;
-    if (!strcmp(ext, "png") && img.channels == 4) { /* RGBA: alpha is not depth; keep RGB */
+    /* a PNG's alpha is not depth, and an RGB target does not use an EXR's depth: keep RGB */
+    if (img.channels == 4 && (!strcmp(ext, "png") || channels == 3)) {
       size_t hw = (size_t)img.width * (size_t)img.height;
       for (size_t p = 0; p < hw; p++)
         for (int c = 0; c < 3; c++) img.data[p * 3 + (size_t)c] = img.data[p * 4 + (size_t)c];

@@ -11,3 +11,10 @@ for b in "$BUILD"/benchmarks/bench_*; do
   echo "== $name"
   "$b" | tee "out/bench/$name.txt"
 done
+# The Python binding's per-call overhead (needs python3 with numpy; skipped, saying so, otherwise)
+if /usr/bin/python3 -c "import numpy" >/dev/null 2>&1; then
+  echo "== python_overhead"
+  /usr/bin/python3 "$HERE/python_overhead.py" "$BUILD" | tee out/bench/python_overhead.txt
+else
+  echo "== python_overhead skipped: /usr/bin/python3 with numpy not found"
+fi

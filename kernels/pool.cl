@@ -38,3 +38,34 @@ __kernel void spx_maxpool_bwd(__global const float *x, int xo, __global const fl
   int a = spx_pool_argmax(x + xo + base, w);
   dx[dxo + base + (a >> 1) * w + (a & 1)] += dy[go + (p * oh + oy) * ow + ox];
 }
+
+/* Average pool 3x3, stride 2, padding 1, count_include_pad = False (nn.AvgPool2d(3, 2, 1,
+ * count_include_pad=False)): output (oy, ox) averages rows 2oy-1..2oy+1 and columns 2ox-1..2ox+1
+ * clipped to the image. */
+inline int spx_avg_count(int o, int n) { return min(2 * o + 1, n - 1) - max(2 * o - 1, 0) + 1; }
+
+/* range (ow, oh, planes) */
+__kernel void spx_avgpool3_fwd(__global const float *x, int xo, __global float *y, int yo, int h, int w) {
+  int oh = (h - 1) / 2 + 1, ow = (w - 1) / 2 + 1;
+  int ox = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
+  if (ox >= ow || oy >= oh) return;
+  int y0 = max(2 * oy - 1, 0), y1 = min(2 * oy + 1, h - 1), x0 = max(2 * ox - 1, 0), x1 = min(2 * ox + 1, w - 1);
+  float s = 0.0f;
+  for (int iy = y0; iy <= y1; iy++)
+    for (int ix = x0; ix <= x1; ix++) s += x[xo + (p * h + iy) * w + ix];
+  y[yo + (p * oh + oy) * ow + ox] = s / (float)((y1 - y0 + 1) * (x1 - x0 + 1));
+}
+
+/* range (w, h, planes): one work-item per INPUT element gathers dy / count of the (at most 2x2)
+ * outputs whose window holds it, in a fixed order; no atomics. */
+__kernel void spx_avgpool3_bwd(__global const float *dy, int go, __global float *dx, int dxo, int h, int w) {
+  int oh = (h - 1) / 2 + 1, ow = (w - 1) / 2 + 1;
+  int ix = get_global_id(0), iy = get_global_id(1), p = get_global_id(2);
+  if (ix >= w || iy >= h) return;
+  int oy0 = iy / 2, oy1 = min((iy + 1) / 2, oh - 1), ox0 = ix / 2, ox1 = min((ix + 1) / 2, ow - 1);
+  float s = 0.0f;
+  for (int oy = oy0; oy <= oy1; oy++)
+    for (int ox = ox0; ox <= ox1; ox++)
+      s += dy[go + (p * oh + oy) * ow + ox] / (float)(spx_avg_count(oy, h) * spx_avg_count(ox, w));
+  dx[dxo + (p * h + iy) * w + ix] += s;
+}

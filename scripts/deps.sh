@@ -2,10 +2,12 @@
 # Install the Debian packages smplpix needs, if any are missing (as root; otherwise print the
 # command to run). Used by `make demo` / `make test`; safe to run repeatedly.
 set -eu
+# jq: only for `make table1` (scripts/table1.sh reads synth.json with it)
+# python3-numpy, python3-pytest, python3-venv: the Python package's tests (python/tests, pip install in a venv)
 # libegl-dev, libgl-dev, libegl-mesa0, libgl1-mesa-dri: only for the benchmarks' Mesa llvmpipe peer (optional)
 PKGS="build-essential cmake pkg-config ocl-icd-opencl-dev opencl-c-headers pocl-opencl-icd \
 libopenexr-dev libpng-dev zlib1g-dev libcjson-dev libceres-dev libeigen3-dev libnanoflann-dev clang \
-libclang-rt-dev python3 libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri"
+libclang-rt-dev python3 python3-numpy python3-pytest python3-venv jq libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri"
 missing=""
 for p in $PKGS; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"

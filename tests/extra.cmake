@@ -26,3 +26,26 @@ file(MAKE_DIRECTORY ${SPX_TEST_TMP}/test_render_project_pixel_sort)
 set_tests_properties(test_render_project_pixel_sort PROPERTIES
   ENVIRONMENT "SPX_TUNE_PROJ_SORT_DEPTH=0;SPX_TEST_TMP=${SPX_TEST_TMP}/test_render_project_pixel_sort;SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache"
   TIMEOUT 900)
+
+# make table1's pipeline (scripts/table1.sh) in TABLE1_QUICK mode plus its bad-input checks;
+# needs the benchmarks' table1_tool and jq; skipped (77) while the build has no `smplpix synth`.
+find_program(SPX_JQ jq)
+if(NOT SPX_SANITIZE AND SPX_BUILD_BENCHMARKS AND SPX_JQ)
+  add_test(NAME table1_quick COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/table1_quick.sh ${CMAKE_BINARY_DIR}
+           ${SPX_TEST_TMP}/table1_quick)
+  set_tests_properties(table1_quick PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 600
+    ENVIRONMENT "SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
+endif()
+
+# The Python package (python/): its pytest suite against this build tree's library and CLI, and
+# `pip install ./python` into a fresh venv (then the same suite against the installed wheel).
+# Both are skipped (exit 77, with the reason) where Python / numpy / pytest / venv / PyPI are
+# missing; not under the sanitizers (an instrumented library cannot be loaded into python3).
+if(NOT SPX_SANITIZE AND BUILD_SHARED_LIBS)
+  add_test(NAME python_bindings COMMAND sh ${CMAKE_SOURCE_DIR}/python/tests/run_pytest.sh ${CMAKE_BINARY_DIR})
+  add_test(NAME python_pip_install COMMAND sh ${CMAKE_SOURCE_DIR}/python/tests/pip_install.sh ${CMAKE_BINARY_DIR})
+  set_tests_properties(python_bindings python_pip_install PROPERTIES SKIP_RETURN_CODE 77
+    ENVIRONMENT "SPX_TOOL=$<TARGET_FILE:smplpix_tool>;SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
+  set_tests_properties(python_bindings PROPERTIES TIMEOUT 900)
+  set_tests_properties(python_pip_install PROPERTIES TIMEOUT 2400)
+endif()

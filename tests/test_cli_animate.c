@@ -237,7 +237,9 @@ static void test_mp4(void) {
   mkdir(p, 0777);
   write_text("bin/ffmpeg", "#!/bin/sh\n"
                            "echo \"$@\" > ffargs.txt\n"
-                           "for a; do last=$a; done\n"
+                           "prev=; for a; do last=$a; [ \"$prev\" = -i ] && pat=$a; [ \"$prev\" = -start_number ] && "
+                           "start=$a; prev=$a; done\n"
+                           "[ -s \"$(printf \"$pat\" \"$start\")\" ] || exit 9\n" /* the first frame is readable there */
                            "echo video > \"$last\"\n");
   write_text("badbin/ffmpeg", "");
   path_of(p, sizeof p, "bin/ffmpeg");
@@ -247,9 +249,17 @@ static void test_mp4(void) {
   CHECK(tool_env(env, "animate --registration reg.json --amass walk.npz --frames 1:3 --camera acam.json --out mp4 "
                       "--no-network --fps 25") == 0);
   CHECK(exists("mp4/animation.mp4") && file_has("mp4/animation.mp4", "video"));
+  /* the frames are still staged (apps/cli_tx.h) while ffmpeg runs: it reads them through links named
+     frame_%06d.png in a private folder of DIR, gone afterwards with every temporary */
   CHECK(file_has("ffargs.txt", "-framerate 25") && file_has("ffargs.txt", "-start_number 1") &&
-        file_has("ffargs.txt", "mp4/frame_%06d.png"));
+        file_has("ffargs.txt", "mp4/frames.tmp.") && file_has("ffargs.txt", "/frame_%06d.png"));
   CHECK(file_has("out.txt", "wrote mp4/animation.mp4"));
+  CHECK(exists("mp4/frame_000001.png") && exists("mp4/frame_000002.png"));
+  {
+    char cmd[1024];
+    snprintf(cmd, sizeof cmd, "cd '%s' && ls -a mp4 | grep -q tmp", dir);
+    CHECK_MSG(spx_t_system(cmd) != 0, "a temporary or the link folder is left in mp4/");
+  }
   /* an ffmpeg that fails: one line, exit 1, nothing left */
   path_of(p, sizeof p, "bad");
   mkdir(p, 0777);

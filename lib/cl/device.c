@@ -131,7 +131,7 @@ static spx_status pick(spx_ctx *ctx, const char *spec, struct pick_state *s) {
   return SPX_OK;
 }
 
-void spx_cl_build_options(spx_ctx *ctx); /* tuning.c */
+spx_status spx_cl_build_options(spx_ctx *ctx); /* tuning.c: checks the tunables too */
 
 spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
   if (!ctx) return SPX_E_ARG;
@@ -155,7 +155,10 @@ spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
   fill_info(s.p, s.d, s.pi, s.di, &ctx->info);
   ctx->have_device = 1;
   memset(&ctx->cache, 0, sizeof ctx->cache);
-  spx_cl_build_options(ctx);
+  if ((st = spx_cl_build_options(ctx))) {
+    spx_cl_close(ctx); /* a bad SPX_TUNE_* override: the device is not usable as configured */
+    return st;
+  }
   return SPX_OK;
 }
 

@@ -78,10 +78,14 @@ void spx_ctx_clear_error(spx_ctx *ctx) {
 
 spx_status spx_fail(spx_ctx *ctx, spx_status st, const char *fmt, ...) {
   if (ctx) {
+    /* format into a scratch buffer first: callers may pass the current message as an argument
+     * ("prefix: %s", spx_ctx_message(ctx)), which must not overlap the destination */
+    char buf[sizeof ctx->msg];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(ctx->msg, sizeof ctx->msg, fmt, ap);
+    vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
+    memcpy(ctx->msg, buf, sizeof buf);
     /* one line: fold any newline (e.g. from a compiler log excerpt) into spaces */
     for (char *p = ctx->msg; *p; p++)
       if (*p == '\n' || *p == '\r') *p = ' ';

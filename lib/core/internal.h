@@ -40,6 +40,19 @@ void spx_atomic_abort(spx_atomic_file *af);
 char *spx_temp_path_for(const char *path);
 spx_status spx_rename_over(spx_ctx *ctx, const char *tmp, const char *path);
 
+/* Parse text[0..len) as one JSON document (lib/core/json_doc.c): trailing text other than white
+ * space is an error naming the byte. *out: a cJSON tree for cJSON_Delete. */
+struct cJSON;
+spx_status spx_json_parse_doc(spx_ctx *ctx, const char *name, const char *text, size_t len, struct cJSON **out);
+
+/* Text formats (OBJ, PLY ascii, BVH) take decimal numbers: strtod would also read a hexadecimal
+ * float ("0x1p3"), which no writer of these formats produces. 1 when p (after an optional sign)
+ * is one. ("nan"/"inf" are read, then refused as not finite with SPX_E_NUMERIC.) */
+static inline int spx_hex_number(const char *p) {
+  if (*p == '+' || *p == '-') p++;
+  return p[0] == '0' && (p[1] == 'x' || p[1] == 'X');
+}
+
 /* Lower-case extension of path without the dot ("" if none), written to ext (cap bytes). */
 void spx_path_ext(const char *path, char *ext, size_t cap);
 

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include "core/internal.h"
+#include "smplpix/files.h"
 
 int spx_mul_size(size_t a, size_t b, size_t *out) {
   if (a != 0 && b > SIZE_MAX / a) return 0;
@@ -29,21 +30,17 @@ void *spx_alloc_array(spx_ctx *ctx, size_t a, size_t b, const char *what) {
 spx_status spx_read_file(spx_ctx *ctx, const char *path, size_t max_bytes, unsigned char **data, size_t *size) {
   *data = NULL;
   *size = 0;
-  FILE *fp = fopen(path, "rb");
-  if (!fp) return spx_fail(ctx, SPX_E_IO, "%s: cannot open: %s", path, strerror(errno));
-  spx_status st = SPX_OK;
+  FILE *fp = NULL;
+  uint64_t fsize = 0;
+  spx_status st = spx_file_open_input(ctx, path, &fp, &fsize);
+  if (st != SPX_OK) return st;
   unsigned char *buf = NULL;
-  struct stat sb;
-  if (fstat(fileno(fp), &sb) != 0 || !S_ISREG(sb.st_mode)) {
-    st = spx_fail(ctx, SPX_E_IO, "%s: not a regular file", path);
+  if (fsize > max_bytes) {
+    st = spx_fail(ctx, SPX_E_FORMAT, "%s: file is %llu bytes, more than the %zu allowed", path,
+                  (unsigned long long)fsize, max_bytes);
     goto done;
   }
-  if ((uint64_t)sb.st_size > max_bytes) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: file is %lld bytes, more than the %zu allowed", path,
-                  (long long)sb.st_size, max_bytes);
-    goto done;
-  }
-  size_t n = (size_t)sb.st_size;
+  size_t n = (size_t)fsize;
   buf = malloc(n + 1);
   if (!buf) {
     st = spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate %zu bytes", path, n + 1);
@@ -63,14 +60,7 @@ done:
   return st;
 }
 
-char *spx_temp_path_for(const char *path) {
-  size_t n = strlen(path) + 48;
-  char *t = malloc(n);
-  if (!t) return NULL;
-  static unsigned counter;
-  snprintf(t, n, "%s.tmp.%ld.%u", path, (long)getpid(), counter++);
-  return t;
-}
+char *spx_temp_path_for(const char *path) { return spx_file_temp_name(path); }
 
 spx_status spx_rename_over(spx_ctx *ctx, const char *tmp, const char *path) {
   if (rename(tmp, path) != 0) {

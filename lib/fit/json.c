@@ -141,9 +141,21 @@ spx_status spx_fit_load_json(spx_ctx *ctx, const char *path, spx_fit_result *out
   size_t size = 0;
   spx_status st = spx_read_file(ctx, path, (size_t)1 << 30, &data, &size);
   if (st) return st;
-  cJSON *root = cJSON_ParseWithLength((const char *)data, size);
+  st = spx_fit_parse_json(ctx, path, (const char *)data, size, out, model_path);
   free(data);
-  if (!root || !cJSON_IsObject(root)) {
+  return st;
+}
+
+spx_status spx_fit_parse_json(spx_ctx *ctx, const char *path, const char *text, size_t len, spx_fit_result *out,
+                              char **model_path) {
+  if (!out || !path) return spx_fail(ctx, SPX_E_ARG, "registration JSON: NULL argument");
+  memset(out, 0, sizeof *out);
+  if (model_path) *model_path = NULL;
+  if (!text && len) return spx_fail(ctx, SPX_E_ARG, "%s: no text", path);
+  cJSON *root = NULL;
+  spx_status st = spx_json_parse_doc(ctx, path, text, len, &root);
+  if (st) return st;
+  if (!cJSON_IsObject(root)) {
     cJSON_Delete(root);
     return spx_fail(ctx, SPX_E_FORMAT, "%s: not a JSON object", path);
   }

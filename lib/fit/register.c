@@ -934,13 +934,9 @@ spx_status spx_fit_register(spx_ctx *ctx, const spx_body_model *m, const spx_mes
     st = spx_fail(ctx, SPX_E_ARG, "registration: the scan has no extent (all points equal)");
     goto cleanup;
   }
-  r->unit_scale = o.unit_scale > 0 ? o.unit_scale : 1.0;
-  if (!(o.unit_scale > 0)) {
-    const char *note = NULL;
-    if (ext > 300) r->unit_scale = 0.001, note = "scan looks like millimetres, scaling by 0.001";
-    else if (ext > 3) r->unit_scale = 0.01, note = "scan looks like centimetres, scaling by 0.01";
-    if (note) report(&o, "units", 0, 0, 0, 0, spx_now(), note);
-  }
+  const char *note = NULL;
+  if ((st = spx_fit_units(ctx, ext, o.unit_scale, &r->unit_scale, &note))) goto cleanup;
+  if (note) report(&o, "units", 0, 0, 0, 0, spx_now(), note);
   for (int32_t i = 0; i < ns * 3; i++) Sc[i] = (float)(scan->pos[i] * r->unit_scale);
 
   /* stage 1 */

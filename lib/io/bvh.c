@@ -53,7 +53,7 @@ static spx_status number(spx_ctx *ctx, tok *t, const char *what, double *out) {
   char *e;
   errno = 0;
   double v = t->len > 0 ? strtod(t->buf, &e) : 0;
-  if (t->len <= 0 || *e || errno == ERANGE)
+  if (t->len <= 0 || *e || errno == ERANGE || spx_hex_number(t->buf))
     return spx_fail(ctx, SPX_E_FORMAT, "%s:%d: expected %s, got '%.40s'", t->name, t->line, what, t->len > 0 ? t->buf : "");
   if (!isfinite(v)) return spx_fail(ctx, SPX_E_NUMERIC, "%s:%d: %s is not finite", t->name, t->line, what);
   *out = v;
@@ -65,7 +65,7 @@ static spx_status integer(spx_ctx *ctx, tok *t, const char *what, long long lo, 
   char *e;
   errno = 0;
   long long v = t->len > 0 ? strtoll(t->buf, &e, 10) : 0;
-  if (t->len <= 0 || *e || errno == ERANGE)
+  if (t->len <= 0 || *e || errno == ERANGE || spx_hex_number(t->buf))
     return spx_fail(ctx, SPX_E_FORMAT, "%s:%d: expected %s (an integer), got '%.40s'", t->name, t->line, what,
                     t->len > 0 ? t->buf : "");
   if (v < lo || v > hi)

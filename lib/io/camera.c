@@ -122,12 +122,9 @@ spx_status spx_camera_parse(spx_ctx *ctx, const char *name, const char *text, si
   *count = 0;
   if (!name) name = "camera";
   if (!text && len) return spx_fail(ctx, SPX_E_ARG, "%s: no text", name);
-  cJSON *root = cJSON_ParseWithLength(text ? text : "", len);
-  if (!root) {
-    const char *at = cJSON_GetErrorPtr();
-    long off = at && text && at >= text && at <= text + len ? (long)(at - text) : -1;
-    return spx_fail(ctx, SPX_E_FORMAT, "%s: invalid JSON (near byte %ld)", name, off);
-  }
+  cJSON *root = NULL;
+  spx_status pst = spx_json_parse_doc(ctx, name, text, len, &root);
+  if (pst) return pst;
   spx_status st = SPX_OK;
   spx_camera *out = NULL;
   int n = cJSON_IsArray(root) ? cJSON_GetArraySize(root) : 1;

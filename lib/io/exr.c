@@ -11,10 +11,12 @@
  * DISPLAY window; data-window pixels outside it are dropped and display pixels outside the
  * data window are background (1, 1, 1, 1). A missing Z reads as 1. Display and data windows are
  * limited to SPX_EXR_MAX_DIM on a side. Deep files are rejected. Pixel values are passed through
- * unchanged (NaN/Inf included). */
+ * unchanged, except that NaN and Inf are refused (SPX_E_NUMERIC naming the pixel), as in every
+ * other image input. */
 #include <errno.h>
 #include <openexr.h>
 #include <stdio.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -303,6 +305,15 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
         if (st != SPX_OK) goto done;
       }
   }
+  /* the same rule as every other image input: NaN and Inf are refused, never rendered */
+  for (size_t i = 0, n = (size_t)out->width * (size_t)out->height * (size_t)out->channels; i < n; i++)
+    if (!isfinite(out->data[i])) {
+      size_t px = i / (size_t)out->channels;
+      st = spx_fail(ctx, SPX_E_NUMERIC, "%s: %s in channel %d at pixel (%zu, %zu)", name,
+                    isnan(out->data[i]) ? "NaN" : "Inf", (int)(i % (size_t)out->channels), px % (size_t)out->width,
+                    px / (size_t)out->width);
+      goto done;
+    }
 
 done:
   if (e) {

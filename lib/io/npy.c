@@ -14,6 +14,7 @@
 #include <sys/stat.h>
 
 #include "core/internal.h"
+#include "smplpix/files.h"
 #include "smplpix/npy.h"
 
 #define NPY_MAX_HEADER 65536
@@ -222,17 +223,13 @@ spx_status spx_npy_load(spx_ctx *ctx, const char *path, spx_array *out) {
   if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_npy_load: no output array");
   memset(out, 0, sizeof *out);
   if (!path) return spx_fail(ctx, SPX_E_ARG, "spx_npy_load: no path");
-  FILE *fp = fopen(path, "rb");
-  if (!fp) return spx_fail(ctx, SPX_E_IO, "%s: cannot open: %s", path, strerror(errno));
-  spx_status st = SPX_OK;
+  FILE *fp = NULL;
+  uint64_t fsize64 = 0;
+  spx_status st = spx_file_open_input(ctx, path, &fp, &fsize64);
+  if (st != SPX_OK) return st;
   unsigned char *head = NULL;
   void *buf = NULL;
-  struct stat sb;
-  if (fstat(fileno(fp), &sb) != 0 || !S_ISREG(sb.st_mode)) {
-    st = spx_fail(ctx, SPX_E_IO, "%s: not a regular file", path);
-    goto done;
-  }
-  size_t fsize = (size_t)sb.st_size;
+  size_t fsize = (size_t)fsize64;
   size_t want = fsize < 12 + NPY_MAX_HEADER ? fsize : 12 + NPY_MAX_HEADER;
   head = malloc(want ? want : 1);
   if (!head) {

@@ -1,7 +1,8 @@
 /* Wavefront OBJ reader and writer.
  *
  * Reader: "v x y z [w]" or "v x y z r g b" (colors 0-1 or 0-255, decided per file: if any color
- * component is > 1 the whole file is taken as 0-255), "vn", "vt", "f" with v, v/vt, v//vn,
+ * component is > 1 the whole file is taken as 0-255 and every component must then be an integer
+ * in 0-255; a fraction beside a value > 1 is an error, as are negative values), "vn", "vt", "f" with v, v/vt, v//vn,
  * v/vt/vn corners and negative (relative) indices; polygons are fan-triangulated. Grouping,
  * material and other non-geometry statements are ignored; an unknown statement is an error
  * (it catches garbage and binary files). Normals: a face corner "v//n" assigns normal n to
@@ -57,7 +58,7 @@ static spx_status obj_number(obj_state *s, char **pp, double *val, const char *w
   if (!*p) return spx_fail(s->ctx, SPX_E_FORMAT, "%s:%ld: expected %s, found end of line", s->name, s->line, what);
   errno = 0;
   double v = strtod(p, &end);
-  if (end == p || (*end && !is_ws(*end)))
+  if (end == p || (*end && !is_ws(*end)) || spx_hex_number(p))
     return spx_fail(s->ctx, SPX_E_FORMAT, "%s:%ld: expected %s, found '%.20s'", s->name, s->line, what, p);
   if (!isfinite(v)) return spx_fail(s->ctx, SPX_E_NUMERIC, "%s:%ld: %s is not finite", s->name, s->line, what);
   *val = v;
@@ -146,8 +147,8 @@ spx_status spx_mesh_parse_obj(spx_ctx *ctx, const char *name, const void *data, 
   /* pass 2: parse */
   int64_t nv = 0, nvt = 0, nvn = 0;
   int any_vn_ref = 0, uv_mode = -1; /* -1 unknown, 0 faces without vt, 1 with vt */
-  double cmax = 0;
-  long cmax_line = 0;
+  double cmax = 0, cfrac = 0;
+  long cmax_line = 0, cfrac_line = 0; /* the largest colour, and the first one that is not an integer */
   for (char *p = buf; p < buf + size;) {
     char *e = memchr(p, '\n', (size_t)(buf + size - p));
     if (!e) e = buf + size;
@@ -187,6 +188,7 @@ spx_status spx_mesh_parse_obj(spx_ctx *ctx, const char *name, const void *data, 
             goto done;
           }
           if (vals[3 + k] > cmax) { cmax = vals[3 + k]; cmax_line = s.line; }
+          if (!cfrac_line && vals[3 + k] != floor(vals[3 + k])) { cfrac = vals[3 + k]; cfrac_line = s.line; }
           m.col[nv * 3 + k] = (float)vals[3 + k];
         }
       }
@@ -293,6 +295,11 @@ spx_status spx_mesh_parse_obj(spx_ctx *ctx, const char *name, const void *data, 
   if (m.col) {
     if (cmax > 255) {
       st = spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: vertex color %g is outside 0-255", name, cmax_line, cmax);
+      goto done;
+    }
+    if (cmax > 1 && cfrac_line) { /* 0-255 files hold integers: a fraction means mixed scales */
+      st = spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: vertex color %g is not an integer, but line %ld has %g > 1 "
+                    "(colors are all 0-255 integers or all 0-1)", name, cfrac_line, cfrac, cmax_line, cmax);
       goto done;
     }
     float sc = cmax > 1 ? 255.0f : 1.0f;

@@ -3,7 +3,7 @@
  * Elements may come in any order; elements other than "vertex" and "face" are skipped by their
  * declared property types (ascii and binary). Vertex properties used: x y z, nx ny nz,
  * red green blue (also r g b, diffuse_red ...): 8-bit integers are divided by 255, 16-bit by
- * 65535, floats are taken as they are; s t / u v / texture_u texture_v (per-vertex UVs, which
+ * 65535, floats must lie in 0-1 (a float 200 is an error, not 0.78); s t / u v / texture_u texture_v (per-vertex UVs, which
  * become uv with face_uv = faces). Face property: a list named vertex_indices or vertex_index
  * (polygons are fan-triangulated). All PLY scalar types and their sized aliases (int8 ...
  * float64) are accepted anywhere. A face list "texcoord" (u v per corner, as MeshLab writes it)
@@ -140,7 +140,7 @@ static spx_status ply_read(ply_reader *r, ply_type t, double *out) {
   errno = 0;
   if (t == T_F32 || t == T_F64) {
     double v = strtod(tok, &e);
-    if (e == tok || *e) {
+    if (e == tok || *e || spx_hex_number(tok)) {
       char msg[128];
       snprintf(msg, sizeof msg, "expected a number, found '%.20s'", tok);
       return where_fail(r, SPX_E_FORMAT, msg);
@@ -398,6 +398,9 @@ spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, 
                   st = where_fail(&r, SPX_E_FORMAT, "integer color outside 0-255");
                   goto done;
                 }
+              } else if (!(c >= 0 && c <= 1)) { /* floats are 0-1, never scaled by guesswork */
+                st = where_fail(&r, SPX_E_FORMAT, "float color outside 0-1 (0-255 colors use an integer property)");
+                goto done;
               }
               m.col[i * 3 + (size_t)(p->role - R_R)] = (float)c;
             }

@@ -35,3 +35,38 @@ spx_status spx_maxpool_backward(spx_ctx *ctx, const spx_tensor *x, const spx_ten
   if ((st = spx_cl_check(ctx, e, "spx_maxpool_bwd"))) return st;
   return spx_nn_run3d(ctx, k, (size_t)dy->w, (size_t)dy->h, (size_t)dy->n * (size_t)dy->c, "spx_maxpool_bwd");
 }
+
+static spx_status avg_shapes(spx_ctx *ctx, const char *op, const spx_tensor *x, const spx_tensor *y, const char *xn,
+                             const char *yn) {
+  spx_status st;
+  if ((st = spx_nn_check(ctx, x, op, xn)) || (st = spx_nn_check(ctx, y, op, yn))) return st;
+  if (x->h < 1 || x->w < 1 || y->n != x->n || y->c != x->c || y->h != spx_avgpool3_out(x->h) ||
+      y->w != spx_avgpool3_out(x->w))
+    return spx_fail(ctx, SPX_E_ARG, "%s: %s is %dx%dx%dx%d, 3x3/2 pooling of %dx%dx%dx%d gives %dx%dx%dx%d", op, yn,
+                    y->n, y->c, y->h, y->w, x->n, x->c, x->h, x->w, x->n, x->c, spx_avgpool3_out(x->h),
+                    spx_avgpool3_out(x->w));
+  return SPX_OK;
+}
+
+spx_status spx_avgpool3_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *y) {
+  spx_status st;
+  cl_kernel k;
+  if ((st = avg_shapes(ctx, "avgpool3_forward", x, y, "x", "y")) ||
+      (st = spx_cl_kernel(ctx, "pool.cl", "spx_avgpool3_fwd", &k)))
+    return st;
+  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, x->h) | SPX_ARG(k, 5, x->w);
+  if ((st = spx_cl_check(ctx, e, "spx_avgpool3_fwd"))) return st;
+  return spx_nn_run3d(ctx, k, (size_t)y->w, (size_t)y->h, (size_t)y->n * (size_t)y->c, "spx_avgpool3_fwd");
+}
+
+spx_status spx_avgpool3_backward(spx_ctx *ctx, const spx_tensor *dy, const spx_tensor *dx) {
+  spx_status st;
+  cl_kernel k;
+  if (!dx) return SPX_OK;
+  if ((st = avg_shapes(ctx, "avgpool3_backward", dx, dy, "dx", "dy")) ||
+      (st = spx_cl_kernel(ctx, "pool.cl", "spx_avgpool3_bwd", &k)))
+    return st;
+  cl_int e = spx_nn_arg(k, 0, dy) | spx_nn_arg(k, 2, dx) | SPX_ARG(k, 4, dx->h) | SPX_ARG(k, 5, dx->w);
+  if ((st = spx_cl_check(ctx, e, "spx_avgpool3_bwd"))) return st;
+  return spx_nn_run3d(ctx, k, (size_t)dx->w, (size_t)dx->h, (size_t)dx->n * (size_t)dx->c, "spx_avgpool3_bwd");
+}

@@ -31,3 +31,36 @@ void spx_ref_maxpool_backward(const double *x, const double *dy, int n, int c, i
     for (int oy = 0; oy < oh; oy++)
       for (int ox = 0; ox < ow; ox++) dx[argmax(x, p, h, w, oy, ox)] += dy[((size_t)p * oh + oy) * ow + ox];
 }
+
+/* rows/cols [lo, hi] of output o's window, clipped to [0, n) */
+static void win(int o, int n, int *lo, int *hi) {
+  *lo = 2 * o - 1 < 0 ? 0 : 2 * o - 1;
+  *hi = 2 * o + 1 > n - 1 ? n - 1 : 2 * o + 1;
+}
+
+void spx_ref_avgpool3_forward(const double *x, int n, int c, int h, int w, double *y) {
+  int oh = spx_avgpool3_out(h), ow = spx_avgpool3_out(w);
+  for (int p = 0; p < n * c; p++)
+    for (int oy = 0; oy < oh; oy++)
+      for (int ox = 0; ox < ow; ox++) {
+        int y0, y1, x0, x1;
+        win(oy, h, &y0, &y1), win(ox, w, &x0, &x1);
+        double s = 0;
+        for (int iy = y0; iy <= y1; iy++)
+          for (int ix = x0; ix <= x1; ix++) s += x[((size_t)p * h + iy) * w + ix];
+        y[((size_t)p * oh + oy) * ow + ox] = s / ((y1 - y0 + 1) * (x1 - x0 + 1));
+      }
+}
+
+void spx_ref_avgpool3_backward(const double *dy, int n, int c, int h, int w, double *dx) {
+  int oh = spx_avgpool3_out(h), ow = spx_avgpool3_out(w);
+  for (int p = 0; p < n * c; p++)
+    for (int oy = 0; oy < oh; oy++)
+      for (int ox = 0; ox < ow; ox++) {
+        int y0, y1, x0, x1;
+        win(oy, h, &y0, &y1), win(ox, w, &x0, &x1);
+        double g = dy[((size_t)p * oh + oy) * ow + ox] / ((y1 - y0 + 1) * (x1 - x0 + 1));
+        for (int iy = y0; iy <= y1; iy++)
+          for (int ix = x0; ix <= x1; ix++) dx[((size_t)p * h + iy) * w + ix] += g;
+      }
+}

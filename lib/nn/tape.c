@@ -1,5 +1,6 @@
 /* The autodiff tape (lib/nn/tape.h): value table, planned arenas, op recording, reverse walk. */
 #include "nn/tape.h"
+#include "nn/tape_internal.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -14,72 +15,13 @@
 #include "nn/tensor_ops.h"
 #include "nn/upsample.h"
 
-enum { SP_ACT = 0, SP_PARAM = 1, SP_STATE = 2 };
 
-typedef struct tvalue {
-  int space;
-  size_t off; /* floats from the start of its slab / arena */
-  int32_t n, c, h, w;
-  int needs_grad;
-} tvalue;
-
-enum { OP_CONV, OP_BN, OP_ACT, OP_MAXPOOL, OP_UPSAMPLE, OP_PAD, OP_CONCAT, OP_L1, NOPS };
-
-typedef struct tnode {
-  int kind;
-  int in[3];
-  int out;
-  int saved[2];
-  int iarg[4];
-  float farg[2];
-} tnode;
-
-struct spx_tape {
-  spx_ctx *ctx;
-  spx_tape_backend backend;
-  tvalue *vals;
-  int nvals, capvals, npersist; /* values [0, npersist) are params/state */
-  tnode *nodes;
-  int nnodes, capnodes;
-  size_t nparam, nstate; /* floats */
-  int allocated;
-  /* slabs: device */
-  cl_mem param, grad, m, v, state, act, dact;
-  size_t act_cap, dact_cap; /* floats */
-  /* slabs: host */
-  double *hparam, *hgrad, *hm, *hv, *hstate, *hact, *hdact;
-  /* current pass */
-  size_t act_used;
-  int train, measuring, in_pass;
-  spx_status err;
-  /* plans: keys already measured, with their sizes */
-  uint64_t plan_keys[8];
-  int plan_train[8];
-  size_t plan_size[8];
-  int nplans;
-  int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
-  spx_conv2d_workspace ws; /* conv scratch, grow-only: no allocation in the steady state */
-  /* SPX_TAPE_PROFILE=1: finish the queue around every device op and print the time per op kind
-   * and direction when the tape is destroyed */
-  int prof;
-  double prof_s[NOPS][2];
-  long prof_n[NOPS][2];
-};
-
-static double prof_begin(spx_tape *t) {
-  spx_device_finish(t->ctx);
-  return spx_now();
-}
-static void prof_end(spx_tape *t, int kind, int dir, double t0) {
-  spx_device_finish(t->ctx);
-  t->prof_s[kind][dir] += spx_now() - t0;
-  t->prof_n[kind][dir]++;
-}
-static const char *const op_names[NOPS] = {"conv", "batchnorm", "activation", "maxpool", "upsample", "pad", "concat", "l1"};
+static const char *const op_names[NOPS] = {"conv",     "batchnorm", "activation", "maxpool",  "upsample", "pad",
+                                           "concat",   "l1",        "instnorm",   "avgpool3", "mse",      "axpby"};
 
 /* ------------------------------------------------------------------ values */
 
-static int new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, int32_t w) {
+int spx_tp_new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, int32_t w) {
   if (t->err) return -1;
   if (n <= 0 || c <= 0 || h <= 0 || w <= 0) {
     t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: empty tensor shape %dx%dx%dx%d", n, c, h, w);
@@ -107,12 +49,14 @@ static int new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, in
   }
   v->off = *used;
   *used += numel;
+  if (space == SP_ACT && !t->measuring && (*used > t->act_cap || (t->train && *used > t->dact_cap))) {
+    t->err = spx_fail(t->ctx, SPX_E_STATE, "tape: the pass outgrew its memory plan (one plan key, two graphs?)");
+    return -1;
+  }
   return t->nvals++;
 }
 
-static int valid(const spx_tape *t, int id) { return id >= 0 && id < t->nvals; }
 
-static size_t vnumel(const tvalue *v) { return (size_t)v->n * (size_t)v->c * (size_t)v->h * (size_t)v->w; }
 
 spx_tensor spx_tape_tensor(const spx_tape *t, int id) {
   const tvalue *v = &t->vals[id];
@@ -138,7 +82,7 @@ void spx_tape_shape(const spx_tape *t, int id, int32_t shape[4]) {
   const tvalue *v = &t->vals[id];
   shape[0] = v->n, shape[1] = v->c, shape[2] = v->h, shape[3] = v->w;
 }
-size_t spx_tape_numel(const spx_tape *t, int id) { return vnumel(&t->vals[id]); }
+size_t spx_tape_numel(const spx_tape *t, int id) { return spx_tp_numel(&t->vals[id]); }
 size_t spx_tape_param_count(const spx_tape *t) { return t->nparam; }
 spx_tape_backend spx_tape_get_backend(const spx_tape *t) { return t->backend; }
 
@@ -184,7 +128,7 @@ int spx_tape_param(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w) {
     t->err = spx_fail(t->ctx, SPX_E_STATE, "tape: parameters must be declared before allocation");
     return -1;
   }
-  int id = new_value(t, SP_PARAM, n, c, h, w);
+  int id = spx_tp_new_value(t, SP_PARAM, n, c, h, w);
   if (id >= 0) t->npersist = t->nvals;
   return id;
 }
@@ -193,7 +137,7 @@ int spx_tape_state(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w) {
     t->err = spx_fail(t->ctx, SPX_E_STATE, "tape: state must be declared before allocation");
     return -1;
   }
-  int id = new_value(t, SP_STATE, n, c, h, w);
+  int id = spx_tp_new_value(t, SP_STATE, n, c, h, w);
   if (id >= 0) t->npersist = t->nvals;
   return id;
 }
@@ -241,12 +185,12 @@ size_t spx_tape_device_bytes(const spx_tape *t) {
 /* ------------------------------------------------------------------ host <-> values */
 
 static spx_status xfer(spx_tape *t, int id, int grad, int moment, float *rd, const float *wr) {
-  if (!valid(t, id)) return spx_fail(t->ctx, SPX_E_ARG, "tape: no value %d", id);
+  if (!spx_tp_valid(t, id)) return spx_fail(t->ctx, SPX_E_ARG, "tape: no value %d", id);
   if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
   const tvalue *v = &t->vals[id];
   if ((grad || moment) && v->space == SP_STATE) return spx_fail(t->ctx, SPX_E_ARG, "tape: state has no gradient");
   if (moment && v->space != SP_PARAM) return spx_fail(t->ctx, SPX_E_ARG, "tape: value %d is not a parameter", id);
-  size_t n = vnumel(v);
+  size_t n = spx_tp_numel(v);
   if (t->backend == SPX_TAPE_DEVICE) {
     cl_mem m;
     if (moment) m = moment == 1 ? t->m : t->v;
@@ -344,10 +288,9 @@ spx_status spx_tape_end(spx_tape *t, int *again) {
 }
 
 /* An op may run when no error is pending and the pass is not a measuring one. */
-static int live(const spx_tape *t) { return !t->err && !t->measuring; }
 
-static void record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, int s1, const int *iarg, const float *farg) {
-  if (!live(t) || !t->train) return;
+void spx_tp_record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, int s1, const int *iarg, const float *farg) {
+  if (!spx_tp_live(t) || !t->train) return;
   if (t->nnodes == t->capnodes) {
     int cap = t->capnodes ? 2 * t->capnodes : 128;
     tnode *nn = realloc(t->nodes, sizeof(tnode) * (size_t)cap);
@@ -372,13 +315,13 @@ static void record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, 
   t->vals[out].needs_grad = ng;
 }
 
-static int bad_id(spx_tape *t, const char *op, int id) {
+int spx_tp_bad_id(spx_tape *t, const char *op, int id) {
   if (t->err) return 1;
   if (!t->in_pass) {
     t->err = spx_fail(t->ctx, SPX_E_STATE, "tape: %s outside spx_tape_begin/end", op);
     return 1;
   }
-  if (!valid(t, id)) {
+  if (!spx_tp_valid(t, id)) {
     t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: %s: no value %d", op, id);
     return 1;
   }
@@ -387,33 +330,28 @@ static int bad_id(spx_tape *t, const char *op, int id) {
 
 int spx_tape_input(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w, const float *data) {
   if (t->err) return -1;
-  int id = new_value(t, SP_ACT, n, c, h, w);
-  if (id < 0 || !live(t) || !data) return id;
+  int id = spx_tp_new_value(t, SP_ACT, n, c, h, w);
+  if (id < 0 || !spx_tp_live(t) || !data) return id;
   spx_status st = spx_tape_write(t, id, data);
   if (st) t->err = st;
   return id;
 }
 
-/* Run a status-returning call, making the error sticky. */
-#define RUN(kind, call)                                                                                             \
-  do {                                                                                                              \
-    double run_t0_ = t->prof ? prof_begin(t) : 0;                                                                   \
-    spx_status run_st_ = (call);                                                                                    \
-    if (run_st_) {                                                                                                  \
-      t->err = run_st_;                                                                                             \
-      return -1;                                                                                                    \
-    }                                                                                                               \
-    if (t->prof) prof_end(t, (kind), 0, run_t0_);                                                                   \
-  } while (0)
 
-#define HOST (t->backend == SPX_TAPE_HOST)
-#define TV(id) spx_tape_tensor(t, (id))
-#define HV(id) spx_tape_host(t, (id))
+static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, int scale, int shift, int relu);
 
 int spx_tape_conv(spx_tape *t, int x, int w, int bias, int pad, int scale, int shift, int relu) {
-  if (bad_id(t, "conv", x) || bad_id(t, "conv", w)) return -1;
-  if ((bias >= 0 && bad_id(t, "conv", bias)) || (scale >= 0 && bad_id(t, "conv", scale)) ||
-      (shift >= 0 && bad_id(t, "conv", shift)))
+  return conv_impl(t, x, w, bias, 1, pad, scale, shift, relu);
+}
+
+int spx_tape_conv_s(spx_tape *t, int x, int w, int bias, int stride, int pad) {
+  return conv_impl(t, x, w, bias, stride, pad, -1, -1, 0);
+}
+
+static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, int scale, int shift, int relu) {
+  if (spx_tp_bad_id(t, "conv", x) || spx_tp_bad_id(t, "conv", w)) return -1;
+  if ((bias >= 0 && spx_tp_bad_id(t, "conv", bias)) || (scale >= 0 && spx_tp_bad_id(t, "conv", scale)) ||
+      (shift >= 0 && spx_tp_bad_id(t, "conv", shift)))
     return -1;
   const tvalue *xv = &t->vals[x], *wv = &t->vals[w];
   if (wv->c != xv->c || wv->h != wv->w) {
@@ -425,27 +363,37 @@ int spx_tape_conv(spx_tape *t, int x, int w, int bias, int pad, int scale, int s
     t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: the fused conv epilogue is inference-only");
     return -1;
   }
-  int k = wv->h, ho = spx_conv2d_out_size(xv->h, k, 1, pad), wo = spx_conv2d_out_size(xv->w, k, 1, pad);
-  int y = new_value(t, SP_ACT, xv->n, wv->n, ho, wo);
-  if (y < 0 || !live(t)) return y;
+  if (stride < 1 || pad < 0 || pad >= wv->h) {
+    t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: conv stride %d / pad %d unsupported for a %dx%d kernel", stride, pad,
+                      wv->h, wv->w);
+    return -1;
+  }
+  int k = wv->h, ho = spx_conv2d_out_size(xv->h, k, stride, pad), wo = spx_conv2d_out_size(xv->w, k, stride, pad);
+  if (ho < 1 || wo < 1) {
+    t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: conv input %dx%d is too small for a %dx%d kernel, stride %d, pad %d",
+                      xv->h, xv->w, k, k, stride, pad);
+    return -1;
+  }
+  int y = spx_tp_new_value(t, SP_ACT, xv->n, wv->n, ho, wo);
+  if (y < 0 || !spx_tp_live(t)) return y;
   if (HOST) {
-    spx_conv2d_shape s = {xv->n, xv->c, xv->h, xv->w, wv->n, k, 1, pad};
+    spx_conv2d_shape s = {xv->n, xv->c, xv->h, xv->w, wv->n, k, stride, pad};
     spx_ref_conv2d_forward(&s, HV(x), HV(w), bias >= 0 ? HV(bias) : NULL, scale >= 0 ? HV(scale) : NULL,
                            shift >= 0 ? HV(shift) : NULL, relu, HV(y));
   } else {
     spx_tensor tx = TV(x), tw = TV(w), tb = bias >= 0 ? TV(bias) : tx, ts = scale >= 0 ? TV(scale) : tx,
                tsh = shift >= 0 ? TV(shift) : tx, ty = TV(y);
-    spx_conv2d_params p = {k, 1, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu, &t->ws};
+    spx_conv2d_params p = {k, stride, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu, &t->ws};
     RUN(OP_CONV, spx_conv2d_forward(t->ctx, &tx, &tw, bias >= 0 ? &tb : NULL, &p, &ty));
   }
-  int ia[4] = {pad, 0, 0, 0};
-  record(t, OP_CONV, x, w, bias, y, -1, -1, ia, NULL);
+  int ia[4] = {pad, stride, 0, 0};
+  spx_tp_record(t, OP_CONV, x, w, bias, y, -1, -1, ia, NULL);
   return y;
 }
 
 int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int rvar, float momentum, float eps) {
-  if (bad_id(t, "batchnorm", x) || bad_id(t, "batchnorm", gamma) || bad_id(t, "batchnorm", beta) ||
-      bad_id(t, "batchnorm", rmean) || bad_id(t, "batchnorm", rvar))
+  if (spx_tp_bad_id(t, "batchnorm", x) || spx_tp_bad_id(t, "batchnorm", gamma) || spx_tp_bad_id(t, "batchnorm", beta) ||
+      spx_tp_bad_id(t, "batchnorm", rmean) || spx_tp_bad_id(t, "batchnorm", rvar))
     return -1;
   const tvalue *xv = &t->vals[x];
   int c = xv->c;
@@ -458,9 +406,9 @@ int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int r
     t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: batchnorm in inference mode is folded into the convolution");
     return -1;
   }
-  int y = new_value(t, SP_ACT, xv->n, c, xv->h, xv->w);
-  int sv = new_value(t, SP_ACT, 2 * c, 1, 1, 1); /* [mean, invstd] of the batch */
-  if (y < 0 || sv < 0 || !live(t)) return y;
+  int y = spx_tp_new_value(t, SP_ACT, xv->n, c, xv->h, xv->w);
+  int sv = spx_tp_new_value(t, SP_ACT, 2 * c, 1, 1, 1); /* [mean, invstd] of the batch */
+  if (y < 0 || sv < 0 || !spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_bn_train_forward(HV(x), xv->n, c, xv->h * xv->w, HV(gamma), HV(beta), HV(rmean), HV(rvar), momentum, eps,
@@ -470,15 +418,15 @@ int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int r
     RUN(OP_BN, spx_bn_train_forward(t->ctx, &tx, &tg, &tb, &trm, &trv, momentum, eps, 1, &ts, &ty));
   }
   float fa[2] = {momentum, eps};
-  record(t, OP_BN, x, gamma, beta, y, sv, -1, NULL, fa);
+  spx_tp_record(t, OP_BN, x, gamma, beta, y, sv, -1, NULL, fa);
   return y;
 }
 
 int spx_tape_act(spx_tape *t, spx_act_kind kind, float slope, int x) {
-  if (bad_id(t, "activation", x)) return -1;
+  if (spx_tp_bad_id(t, "activation", x)) return -1;
   const tvalue *xv = &t->vals[x];
-  int y = new_value(t, SP_ACT, xv->n, xv->c, xv->h, xv->w);
-  if (y < 0 || !live(t)) return y;
+  int y = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, xv->h, xv->w);
+  if (y < 0 || !spx_tp_live(t)) return y;
   if (HOST) {
     spx_ref_act_forward(kind, slope, HV(x), HV(y), spx_tape_numel(t, x));
   } else {
@@ -487,15 +435,15 @@ int spx_tape_act(spx_tape *t, spx_act_kind kind, float slope, int x) {
   }
   int ia[4] = {(int)kind, 0, 0, 0};
   float fa[2] = {slope, 0};
-  record(t, OP_ACT, x, -1, -1, y, -1, -1, ia, fa);
+  spx_tp_record(t, OP_ACT, x, -1, -1, y, -1, -1, ia, fa);
   return y;
 }
 
 int spx_tape_maxpool2(spx_tape *t, int x) {
-  if (bad_id(t, "maxpool", x)) return -1;
+  if (spx_tp_bad_id(t, "maxpool", x)) return -1;
   const tvalue *xv = &t->vals[x];
-  int y = new_value(t, SP_ACT, xv->n, xv->c, xv->h / 2, xv->w / 2);
-  if (y < 0 || !live(t)) return y;
+  int y = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, xv->h / 2, xv->w / 2);
+  if (y < 0 || !spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_maxpool_forward(HV(x), xv->n, xv->c, xv->h, xv->w, HV(y));
@@ -503,15 +451,15 @@ int spx_tape_maxpool2(spx_tape *t, int x) {
     spx_tensor tx = TV(x), ty = TV(y);
     RUN(OP_MAXPOOL, spx_maxpool_forward(t->ctx, &tx, &ty));
   }
-  record(t, OP_MAXPOOL, x, -1, -1, y, -1, -1, NULL, NULL);
+  spx_tp_record(t, OP_MAXPOOL, x, -1, -1, y, -1, -1, NULL, NULL);
   return y;
 }
 
 int spx_tape_upsample2(spx_tape *t, int x) {
-  if (bad_id(t, "upsample", x)) return -1;
+  if (spx_tp_bad_id(t, "upsample", x)) return -1;
   const tvalue *xv = &t->vals[x];
-  int y = new_value(t, SP_ACT, xv->n, xv->c, xv->h * 2, xv->w * 2);
-  if (y < 0 || !live(t)) return y;
+  int y = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, xv->h * 2, xv->w * 2);
+  if (y < 0 || !spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_upsample2x_forward(HV(x), xv->n, xv->c, xv->h, xv->w, 1, HV(y));
@@ -519,16 +467,16 @@ int spx_tape_upsample2(spx_tape *t, int x) {
     spx_tensor tx = TV(x), ty = TV(y);
     RUN(OP_UPSAMPLE, spx_upsample2x_forward(t->ctx, &tx, 1, &ty));
   }
-  record(t, OP_UPSAMPLE, x, -1, -1, y, -1, -1, NULL, NULL);
+  spx_tp_record(t, OP_UPSAMPLE, x, -1, -1, y, -1, -1, NULL, NULL);
   return y;
 }
 
 int spx_tape_pad(spx_tape *t, int x, int left, int right, int top, int bottom) {
-  if (bad_id(t, "pad", x)) return -1;
+  if (spx_tp_bad_id(t, "pad", x)) return -1;
   if (!left && !right && !top && !bottom) return x;
   const tvalue *xv = &t->vals[x];
-  int y = new_value(t, SP_ACT, xv->n, xv->c, xv->h + top + bottom, xv->w + left + right);
-  if (y < 0 || !live(t)) return y;
+  int y = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, xv->h + top + bottom, xv->w + left + right);
+  if (y < 0 || !spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_pad_forward(HV(x), xv->n, xv->c, xv->h, xv->w, left, right, top, bottom, HV(y));
@@ -537,20 +485,20 @@ int spx_tape_pad(spx_tape *t, int x, int left, int right, int top, int bottom) {
     RUN(OP_PAD, spx_pad_forward(t->ctx, &tx, left, right, top, bottom, &ty));
   }
   int ia[4] = {left, right, top, bottom};
-  record(t, OP_PAD, x, -1, -1, y, -1, -1, ia, NULL);
+  spx_tp_record(t, OP_PAD, x, -1, -1, y, -1, -1, ia, NULL);
   return y;
 }
 
 int spx_tape_concat(spx_tape *t, int a, int b) {
-  if (bad_id(t, "concat", a) || bad_id(t, "concat", b)) return -1;
+  if (spx_tp_bad_id(t, "concat", a) || spx_tp_bad_id(t, "concat", b)) return -1;
   const tvalue *av = &t->vals[a], *bv = &t->vals[b];
   if (av->n != bv->n || av->h != bv->h || av->w != bv->w) {
     t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: concat of %dx%dx%dx%d and %dx%dx%dx%d", av->n, av->c, av->h, av->w,
                       bv->n, bv->c, bv->h, bv->w);
     return -1;
   }
-  int y = new_value(t, SP_ACT, av->n, av->c + bv->c, av->h, av->w);
-  if (y < 0 || !live(t)) return y;
+  int y = spx_tp_new_value(t, SP_ACT, av->n, av->c + bv->c, av->h, av->w);
+  if (y < 0 || !spx_tp_live(t)) return y;
   av = &t->vals[a], bv = &t->vals[b];
   if (HOST) {
     spx_ref_concat_forward(HV(a), HV(b), av->n, av->c, bv->c, av->h * av->w, HV(y));
@@ -558,41 +506,40 @@ int spx_tape_concat(spx_tape *t, int a, int b) {
     spx_tensor ta = TV(a), tb = TV(b), ty = TV(y);
     RUN(OP_CONCAT, spx_concat_forward(t->ctx, &ta, &tb, &ty));
   }
-  record(t, OP_CONCAT, a, b, -1, y, -1, -1, NULL, NULL);
+  spx_tp_record(t, OP_CONCAT, a, b, -1, y, -1, -1, NULL, NULL);
   return y;
 }
 
 int spx_tape_l1(spx_tape *t, int pred, int target) {
-  if (bad_id(t, "l1", pred) || bad_id(t, "l1", target)) return -1;
+  if (spx_tp_bad_id(t, "l1", pred) || spx_tp_bad_id(t, "l1", target)) return -1;
   if (spx_tape_numel(t, pred) != spx_tape_numel(t, target)) {
     t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: l1: prediction and target sizes differ (%zu vs %zu)",
                       spx_tape_numel(t, pred), spx_tape_numel(t, target));
     return -1;
   }
-  int y = new_value(t, SP_ACT, 1, 1, 1, 1);
-  if (y < 0 || !live(t)) return y;
+  int y = spx_tp_new_value(t, SP_ACT, 1, 1, 1, 1);
+  if (y < 0 || !spx_tp_live(t)) return y;
   if (HOST) {
     *HV(y) = spx_ref_loss_forward(SPX_LOSS_L1, SPX_REDUCE_MEAN, HV(pred), HV(target), spx_tape_numel(t, pred));
   } else {
     spx_tensor tp = TV(pred), tt = TV(target), ty = TV(y);
     RUN(OP_L1, spx_loss_forward(t->ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &tp, &tt, &ty));
   }
-  record(t, OP_L1, pred, target, -1, y, -1, -1, NULL, NULL);
+  spx_tp_record(t, OP_L1, pred, target, -1, y, -1, -1, NULL, NULL);
   return y;
 }
 
 /* ------------------------------------------------------------------ backward */
 
-static int wants(const spx_tape *t, int id) { return id >= 0 && t->vals[id].needs_grad; }
 
 static spx_status back_host(spx_tape *t, const tnode *nd) {
   const tvalue *xv = &t->vals[nd->in[0]];
   double *dy = spx_tape_host_grad(t, nd->out);
-#define HG(id) (wants(t, (id)) ? spx_tape_host_grad(t, (id)) : NULL)
+#define HG(id) (spx_tp_wants(t, (id)) ? spx_tape_host_grad(t, (id)) : NULL)
   switch (nd->kind) {
     case OP_CONV: {
       const tvalue *wv = &t->vals[nd->in[1]];
-      spx_conv2d_shape s = {xv->n, xv->c, xv->h, xv->w, wv->n, wv->h, 1, nd->iarg[0]};
+      spx_conv2d_shape s = {xv->n, xv->c, xv->h, xv->w, wv->n, wv->h, nd->iarg[1], nd->iarg[0]};
       spx_ref_conv2d_backward(&s, HV(nd->in[0]), HV(nd->in[1]), dy, HG(nd->in[0]), HG(nd->in[1]),
                               nd->in[2] >= 0 ? HG(nd->in[2]) : NULL);
       break;
@@ -603,19 +550,19 @@ static spx_status back_host(spx_tape *t, const tnode *nd) {
       break;
     case OP_ACT: {
       spx_act_kind k = (spx_act_kind)nd->iarg[0];
-      if (wants(t, nd->in[0]))
+      if (spx_tp_wants(t, nd->in[0]))
         spx_ref_act_backward(k, nd->farg[0], spx_act_saves_output(k) ? HV(nd->out) : HV(nd->in[0]), dy,
-                             HG(nd->in[0]), vnumel(xv));
+                             HG(nd->in[0]), spx_tp_numel(xv));
       break;
     }
     case OP_MAXPOOL:
-      if (wants(t, nd->in[0])) spx_ref_maxpool_backward(HV(nd->in[0]), dy, xv->n, xv->c, xv->h, xv->w, HG(nd->in[0]));
+      if (spx_tp_wants(t, nd->in[0])) spx_ref_maxpool_backward(HV(nd->in[0]), dy, xv->n, xv->c, xv->h, xv->w, HG(nd->in[0]));
       break;
     case OP_UPSAMPLE:
-      if (wants(t, nd->in[0])) spx_ref_upsample2x_backward(dy, xv->n, xv->c, xv->h, xv->w, 1, HG(nd->in[0]));
+      if (spx_tp_wants(t, nd->in[0])) spx_ref_upsample2x_backward(dy, xv->n, xv->c, xv->h, xv->w, 1, HG(nd->in[0]));
       break;
     case OP_PAD:
-      if (wants(t, nd->in[0]))
+      if (spx_tp_wants(t, nd->in[0]))
         spx_ref_pad_backward(dy, xv->n, xv->c, xv->h, xv->w, nd->iarg[0], nd->iarg[1], nd->iarg[2], nd->iarg[3],
                              HG(nd->in[0]));
       break;
@@ -625,10 +572,12 @@ static spx_status back_host(spx_tape *t, const tnode *nd) {
       break;
     }
     case OP_L1:
-      if (wants(t, nd->in[0]))
-        spx_ref_loss_backward(SPX_LOSS_L1, SPX_REDUCE_MEAN, HV(nd->in[0]), HV(nd->in[1]), vnumel(xv), dy[0],
+      if (spx_tp_wants(t, nd->in[0]))
+        spx_ref_loss_backward(SPX_LOSS_L1, SPX_REDUCE_MEAN, HV(nd->in[0]), HV(nd->in[1]), spx_tp_numel(xv), dy[0],
                               HG(nd->in[0]), NULL);
       break;
+    default:
+      return spx_tp_back_multi(t, nd);
   }
 #undef HG
   return SPX_OK;
@@ -637,20 +586,20 @@ static spx_status back_host(spx_tape *t, const tnode *nd) {
 static spx_status back_dev(spx_tape *t, const tnode *nd) {
   spx_ctx *ctx = t->ctx;
   spx_tensor x = TV(nd->in[0]), dy = spx_tape_grad_tensor(t, nd->out), dx = spx_tape_grad_tensor(t, nd->in[0]);
-  const spx_tensor *pdx = wants(t, nd->in[0]) ? &dx : NULL;
+  const spx_tensor *pdx = spx_tp_wants(t, nd->in[0]) ? &dx : NULL;
   switch (nd->kind) {
     case OP_CONV: {
       spx_tensor w = TV(nd->in[1]), dw = spx_tape_grad_tensor(t, nd->in[1]), db;
       if (nd->in[2] >= 0) db = spx_tape_grad_tensor(t, nd->in[2]);
-      spx_conv2d_params p = {t->vals[nd->in[1]].h, 1, nd->iarg[0], NULL, NULL, 0, &t->ws};
-      return spx_conv2d_backward(ctx, &x, &w, &dy, pdx, wants(t, nd->in[1]) ? &dw : NULL,
-                                 nd->in[2] >= 0 && wants(t, nd->in[2]) ? &db : NULL, &p);
+      spx_conv2d_params p = {t->vals[nd->in[1]].h, nd->iarg[1], nd->iarg[0], NULL, NULL, 0, &t->ws};
+      return spx_conv2d_backward(ctx, &x, &w, &dy, pdx, spx_tp_wants(t, nd->in[1]) ? &dw : NULL,
+                                 nd->in[2] >= 0 && spx_tp_wants(t, nd->in[2]) ? &db : NULL, &p);
     }
     case OP_BN: {
       spx_tensor g = TV(nd->in[1]), sv = TV(nd->saved[0]);
       spx_tensor dg = spx_tape_grad_tensor(t, nd->in[1]), dbt = spx_tape_grad_tensor(t, nd->in[2]);
-      return spx_bn_train_backward(ctx, &x, &g, &sv, &dy, pdx, wants(t, nd->in[1]) ? &dg : NULL,
-                                   wants(t, nd->in[2]) ? &dbt : NULL);
+      return spx_bn_train_backward(ctx, &x, &g, &sv, &dy, pdx, spx_tp_wants(t, nd->in[1]) ? &dg : NULL,
+                                   spx_tp_wants(t, nd->in[2]) ? &dbt : NULL);
     }
     case OP_ACT: {
       spx_act_kind k = (spx_act_kind)nd->iarg[0];
@@ -665,12 +614,54 @@ static spx_status back_dev(spx_tape *t, const tnode *nd) {
       return pdx ? spx_pad_backward(ctx, &dy, nd->iarg[0], nd->iarg[1], nd->iarg[2], nd->iarg[3], pdx) : SPX_OK;
     case OP_CONCAT: {
       spx_tensor db = spx_tape_grad_tensor(t, nd->in[1]);
-      return spx_concat_backward(ctx, &dy, pdx, wants(t, nd->in[1]) ? &db : NULL);
+      return spx_concat_backward(ctx, &dy, pdx, spx_tp_wants(t, nd->in[1]) ? &db : NULL);
     }
     case OP_L1: {
       spx_tensor tt = TV(nd->in[1]);
       return pdx ? spx_loss_backward(ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &x, &tt, &dy, pdx, NULL) : SPX_OK;
     }
+    default:
+      return spx_tp_back_multi(t, nd);
+  }
+  return SPX_OK;
+}
+
+spx_status spx_tape_backward_begin(spx_tape *t) {
+  if (t->err) return t->err;
+  if (!t->train || t->measuring || t->in_pass)
+    return spx_fail(t->ctx, SPX_E_STATE, "tape: backward needs a finished training forward");
+  if (HOST) {
+    memset(t->hdact, 0, t->act_used * sizeof(double));
+    return SPX_OK;
+  }
+  return spx_cl_fill_f32(t->ctx, t->dact, 0, t->act_used, 0.0f);
+}
+
+spx_status spx_tape_seed(spx_tape *t, int id, float value) {
+  if (!spx_tp_valid(t, id) || spx_tp_numel(&t->vals[id]) != 1 || t->vals[id].space != SP_ACT)
+    return spx_fail(t->ctx, SPX_E_ARG, "tape: backward from a value that is not a scalar activation");
+  if (HOST) {
+    spx_tape_host_grad(t, id)[0] += value;
+    return SPX_OK;
+  }
+  spx_tensor g = spx_tape_grad_tensor(t, id);
+  float cur = 0;
+  spx_status st = spx_cl_read(t->ctx, g.mem, g.off * sizeof(float), sizeof cur, &cur);
+  if (!st) st = spx_cl_fill_f32(t->ctx, g.mem, g.off, 1, cur + value);
+  return st;
+}
+
+spx_status spx_tape_backward_run(spx_tape *t) {
+  spx_status st;
+  if (t->err) return t->err;
+  if (!t->train || t->measuring || t->in_pass)
+    return spx_fail(t->ctx, SPX_E_STATE, "tape: backward needs a finished training forward");
+  for (int i = t->nnodes - 1; i >= 0; i--) {
+    const tnode *nd = &t->nodes[i];
+    if (!t->vals[nd->out].needs_grad) continue;
+    double t0 = t->prof ? prof_begin(t) : 0;
+    if ((st = HOST ? back_host(t, nd) : back_dev(t, nd))) return st;
+    if (t->prof) prof_end(t, nd->kind, 1, t0);
   }
   return SPX_OK;
 }
@@ -680,25 +671,13 @@ spx_status spx_tape_backward(spx_tape *t, int loss) {
   if (t->err) return t->err;
   if (!t->train || t->measuring || t->in_pass)
     return spx_fail(t->ctx, SPX_E_STATE, "tape: backward needs a finished training forward");
-  if (!valid(t, loss) || vnumel(&t->vals[loss]) != 1 || t->vals[loss].space != SP_ACT)
+  if (!spx_tp_valid(t, loss) || spx_tp_numel(&t->vals[loss]) != 1 || t->vals[loss].space != SP_ACT)
     return spx_fail(t->ctx, SPX_E_ARG, "tape: backward from a value that is not a scalar activation");
   /* zero the activation gradients of this pass, seed d loss = 1 */
-  if (HOST) {
-    memset(t->hdact, 0, t->act_used * sizeof(double));
-    spx_tape_host_grad(t, loss)[0] = 1.0;
-  } else {
-    if ((st = spx_cl_fill_f32(t->ctx, t->dact, 0, t->act_used, 0.0f)) ||
-        (st = spx_cl_fill_f32(t->ctx, t->dact, t->vals[loss].off, 1, 1.0f)))
-      return st;
-  }
-  for (int i = t->nnodes - 1; i >= 0; i--) {
-    const tnode *nd = &t->nodes[i];
-    if (!t->vals[nd->out].needs_grad) continue;
-    double t0 = t->prof ? prof_begin(t) : 0;
-    if ((st = HOST ? back_host(t, nd) : back_dev(t, nd))) return st;
-    if (t->prof) prof_end(t, nd->kind, 1, t0);
-  }
-  return SPX_OK;
+  if ((st = spx_tape_backward_begin(t))) return st;
+  if (HOST) spx_tape_host_grad(t, loss)[0] = 1.0;
+  else if ((st = spx_cl_fill_f32(t->ctx, t->dact, t->vals[loss].off, 1, 1.0f))) return st;
+  return spx_tape_backward_run(t);
 }
 
 spx_status spx_tape_zero_grad(spx_tape *t) {

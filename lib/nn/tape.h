@@ -95,8 +95,42 @@ int spx_tape_concat(spx_tape *t, int a, int b); /* channels: [a, b] */
 /* mean |pred - target| as a 1-element value; must be the root of backward. */
 int spx_tape_l1(spx_tape *t, int pred, int target);
 
+/* ---- ops of the multi-network recipe (lib/nn/tape_multi.c) ---- */
+/* k x k convolution with stride and zero padding (0 <= pad < k), trainable: PatchGAN's 4x4 convs. */
+int spx_tape_conv_s(spx_tape *t, int x, int w, int bias, int stride, int pad);
+/* InstanceNorm2d(affine=False): per-(n, c) plane mean and biased variance, eps. */
+int spx_tape_instnorm(spx_tape *t, int x, float eps);
+/* AvgPool2d(3, stride=2, padding=1, count_include_pad=False). */
+int spx_tape_avgpool3(spx_tape *t, int x);
+/* mean (x - target)^2 over all elements as a 1-element value (least-squares GAN). */
+int spx_tape_mse_const(spx_tape *t, int x, float target);
+/* a * x + b * y elementwise (y = -1: a * x); x and y have the same number of elements. Weighted
+ * sums of scalar losses are chains of these. */
+int spx_tape_axpby(spx_tape *t, float a, int x, float b, int y);
+/* The same data as x, but no gradient flows back through it (torch's .detach()). No copy. */
+int spx_tape_detach(spx_tape *t, int x);
+/* Samples [n0, n0 + count) of x as a value of its own (no copy); gradients given to the slice land
+ * in x's gradient. */
+int spx_tape_slice_batch(spx_tape *t, int x, int n0, int count);
+/* Mark an activation (an input) as wanting its gradient: call right after creating it, before
+ * any op uses it. Its gradient is then readable after backward (spx_tape_read_grad / transfer). */
+spx_status spx_tape_requires_grad(spx_tape *t, int id);
+/* Copy (accumulate = 0) or add (accumulate = 1) `count` floats from the value or gradient
+ * (src_grad) of src's value sid at float offset soff into the value or gradient (dst_grad) of
+ * dst's value did at offset doff. Tapes of one context and backend; the device path stays on the
+ * device. This is how networks hand tensors forward (G's image into D's input) and gradients
+ * back (D's input gradient into G's output gradient, between backward_begin and backward_run). */
+spx_status spx_tape_transfer(spx_tape *dst, int did, size_t doff, int dst_grad, spx_tape *src, int sid, size_t soff,
+                             int src_grad, size_t count, int accumulate);
+
 /* ---- backward and optimizer ---- */
+/* backward(t, loss) = backward_begin (activation gradients of the pass zeroed) + seed(loss, 1) +
+ * backward_run. Several roots and external gradients: begin, then seed scalars and/or transfer
+ * gradients into any activation's gradient (accumulate = 1), then run. */
 spx_status spx_tape_backward(spx_tape *t, int loss);
+spx_status spx_tape_backward_begin(spx_tape *t);
+spx_status spx_tape_seed(spx_tape *t, int scalar_id, float value); /* d scalar += value */
+spx_status spx_tape_backward_run(spx_tape *t);
 spx_status spx_tape_zero_grad(spx_tape *t);
 /* Zero the Adam moments (exp_avg, exp_avg_sq). */
 spx_status spx_tape_zero_moments(spx_tape *t);

@@ -14,6 +14,7 @@
 
 #include "cl/tensor.h"
 #include "nn/batchnorm.h"
+#include "smplpix/patchgan.h"
 #include "smplpix/safetensors.h"
 
 #define NDC 9 /* inc, down1..4, up1..4 */
@@ -195,6 +196,8 @@ spx_tape *spx_unet_tape(spx_unet *u) { return u->tape; }
 size_t spx_unet_device_bytes(const spx_unet *u) { return u ? spx_tape_device_bytes(u->tape) : 0; }
 int spx_unet_loss_id(const spx_unet *u) { return u->loss_id; }
 int spx_unet_input_id(const spx_unet *u) { return u->input_id; }
+int spx_unet_output_id(const spx_unet *u) { return u->out_id; }
+spx_ctx *spx_unet_ctx(spx_unet *u) { return u->ctx; }
 
 static const entry *find_entry(const spx_unet *u, const char *name) {
   for (int i = 0; i < u->nents; i++)
@@ -470,7 +473,14 @@ spx_status spx_unet_write(spx_unet *u, const char *name, const float *src, size_
 /* ------------------------------------------------------------------ checkpoints */
 
 spx_status spx_unet_save(spx_unet *u, const char *path, int with_optimizer) {
+  return spx_unet_save_meta(u, path, with_optimizer, NULL, NULL, 0);
+}
+
+spx_status spx_unet_save_meta(spx_unet *u, const char *path, int with_optimizer, const char *const *mkeys,
+                              const char *const *mvalues, int count) {
   spx_status st = SPX_OK;
+  if (count < 0 || count > 16 || (count && (!mkeys || !mvalues)))
+    return spx_fail(u->ctx, SPX_E_ARG, "unet: %d extra metadata entries (at most 16)", count);
   int cap = u->nents * 3 + 1;
   spx_st_entry *es = calloc((size_t)cap, sizeof *es);
   float **bufs = calloc((size_t)cap, sizeof *bufs);
@@ -521,9 +531,10 @@ spx_status spx_unet_save(spx_unet *u, const char *path, int with_optimizer) {
   if (!st) {
     char wbuf[16];
     snprintf(wbuf, sizeof wbuf, "%d", u->width);
-    const char *keys[] = {"format", "smplpix.sigmoid", "smplpix.width"};
-    const char *vals[] = {"pt", u->sigmoid ? "1" : "0", wbuf};
-    st = spx_st_save(u->ctx, path, es, ne, keys, vals, 3);
+    const char *keys[19] = {"format", "smplpix.sigmoid", "smplpix.width"};
+    const char *vals[19] = {"pt", u->sigmoid ? "1" : "0", wbuf};
+    for (int i = 0; i < count; i++) keys[3 + i] = mkeys[i], vals[3 + i] = mvalues[i];
+    st = spx_st_save(u->ctx, path, es, ne, keys, vals, 3 + count);
   }
 done:
   if (bufs)

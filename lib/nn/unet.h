@@ -16,6 +16,9 @@ int spx_unet_value_id(const spx_unet *u, const char *name);
 /* Value id of the loss / input of the last forward_loss (-1 if none). */
 int spx_unet_loss_id(const spx_unet *u);
 int spx_unet_input_id(const spx_unet *u);
+/* Value id of the network's output (the image) in the last forward (-1 if none). */
+int spx_unet_output_id(const spx_unet *u);
+spx_ctx *spx_unet_ctx(spx_unet *u);
 
 /* Inference forward (batch norm folded, like spx_unet_forward with train = 0) from an input
  * already on the device (the public form is spx_unet_forward_tensor, smplpix/unet.h): n*4*h*w floats NCHW in `input` at byte `offset` (e.g. straight from

@@ -88,6 +88,16 @@ void spx_fit_result_free(spx_fit_result *r);
 /* Registered mesh in scan coordinates (with colours when the scan had them). */
 spx_status spx_fit_result_mesh(spx_ctx *ctx, const spx_fit_result *r, spx_mesh *out);
 
+/* The unit scale of a scan ext units across (lib/fit/sanity.c): given > 0 (--units) is checked, else
+ * detected; a size that is not a person's (0.1-3 m) in metres, centimetres or millimetres is an
+ * error (SPX_E_ARG) with the figure. *note: what was assumed (NULL when metres or given). */
+spx_status spx_fit_units(spx_ctx *ctx, double ext, double given, double *scale, const char **note);
+/* A finished registration fits its scan (both in metres): the body's extent within 0.5-2x the
+ * scan's, and the median scan-to-surface distance at most 5% of the scan's extent; otherwise
+ * SPX_E_NUMERIC with the measured figures. */
+spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, const float *reg_m, int32_t nv,
+                                double median_m);
+
 /* Distances from each of n points to a triangle mesh's surface (exact point-to-triangle over the
  * triangles around the k nearest vertices). Any output may be NULL; dist: n values. */
 spx_status spx_fit_surface_distance(spx_ctx *ctx, const float *pts, int32_t n, const float *verts, int32_t nv,
@@ -99,6 +109,15 @@ spx_status spx_fit_surface_distance(spx_ctx *ctx, const float *pts, int32_t n, c
 spx_status spx_fit_save_json(spx_ctx *ctx, const char *path, const spx_fit_result *r, const char *model_path);
 /* Load what spx_fit_save_json wrote (verts_* left NULL). model_path: caller frees, may be NULL. */
 spx_status spx_fit_load_json(spx_ctx *ctx, const char *path, spx_fit_result *out, char **model_path);
+/* The same from text in memory (name labels the messages): one JSON document, nothing after it. */
+spx_status spx_fit_parse_json(spx_ctx *ctx, const char *name, const char *text, size_t len, spx_fit_result *out,
+                              char **model_path);
+/* Pose parameters (nj*3 axis-angle + trans) from JSON: the top-level "pose" and "trans" (a
+ * registration JSON or a pose file), or, with view != NULL, the "pose" object of the view of that
+ * name in a `smplpix synth` manifest (subjects[].views[]); then scan_trans (optional) receives
+ * the "trans" of that subject's "scan_pose". Errors name the file and the key. */
+spx_status spx_pose_load_json(spx_ctx *ctx, const char *path, const char *view, int32_t nj, double *pose,
+                              double trans[3], double scan_trans[3]);
 
 #ifdef __cplusplus
 }

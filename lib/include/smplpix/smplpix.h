@@ -18,8 +18,12 @@
 #include "smplpix/render.h"
 
 #include "smplpix/body.h"
+#include "smplpix/synth.h"
 #include "smplpix/unet.h"
+#include "smplpix/vgg.h"
+#include "smplpix/patchgan.h"
 #include "smplpix/fit.h"
+#include "smplpix/bake.h"
 #include "smplpix/metrics.h"
 
 #endif

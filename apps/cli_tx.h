@@ -1,0 +1,53 @@
+/* One output transaction per command run: every file the run writes goes to a temporary beside
+ * its target ("<target>.tmp.<pid>.<n>") and is renamed into place only when all of them are
+ * complete; a failed run (or one killed before the commit) leaves every pre-existing file as it
+ * was, and the next run writing the same target removes a dead run's temporaries.
+ *
+ *   spx_tx tx;
+ *   spx_tx_begin(&tx, "cmd", 0);                   // 1: fsync files and folders (checkpoints, datasets)
+ *   if ((rc = spx_tx_check(&tx, out))) goto done;  // before long work: folder exists, writable, ...
+ *   ...
+ *   const char *tmp = spx_tx_stage(&tx, out);      // write the bytes of `out` to tmp (any writer)
+ *   if (!tmp || spx_whatever_write(ctx, tmp, ...)) ...goto done;
+ *   rc = spx_tx_commit(&tx);                       // all renamed into place, or none
+ * done:
+ *   spx_tx_end(&tx);                               // always: removes what was not committed
+ */
+#ifndef SPX_APPS_CLI_TX_H
+#define SPX_APPS_CLI_TX_H
+
+typedef struct spx_tx_file {
+  char *target, *temp, *backup; /* backup: a hard link to the replaced file while committing */
+  int existed;                  /* target existed when the commit began */
+} spx_tx_file;
+
+typedef struct spx_tx {
+  const char *cmd;
+  int durable;
+  spx_tx_file *f;
+  int n, cap;
+  char **dirs; /* folders this run created: removed again (when empty) if it fails */
+  int ndirs, capdirs;
+  int committed;
+} spx_tx;
+
+void spx_tx_begin(spx_tx *tx, const char *cmd, int durable);
+/* Target can be written (its folder exists and is writable, it is not a folder or FIFO): checked
+ * before the long work. Prints the one-line error itself; returns SPX_EXIT_OK or the exit code. */
+int spx_tx_check(spx_tx *tx, const char *target);
+/* Create folder path (mkdir, one level) unless it is one already; a failed run removes it again
+ * if it is still empty. Prints the error; returns an exit code. */
+int spx_tx_mkdir(spx_tx *tx, const char *path);
+/* The temporary to write target's bytes to (owned by tx, valid until spx_tx_end). Checks target
+ * as spx_tx_check does and refuses a target staged twice. NULL: the error was printed. */
+const char *spx_tx_stage(spx_tx *tx, const char *target);
+/* Rename every staged file over its target (fsync'ed first when durable). When one rename fails,
+ * the targets already replaced get their old files back. Prints the error; returns an exit code. */
+int spx_tx_commit(spx_tx *tx);
+/* Always call once: removes temporaries (and created folders) of a run that did not commit. */
+void spx_tx_end(spx_tx *tx);
+/* Number of staged files and the target of the i-th (for "wrote X" lines). */
+static inline int spx_tx_count(const spx_tx *tx) { return tx->n; }
+static inline const char *spx_tx_target(const spx_tx *tx, int i) { return tx->f[i].target; }
+
+#endif

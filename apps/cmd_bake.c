@@ -1,0 +1,118 @@
+/* smplpix bake: transfer a coloured scan's colours onto the registered body's UV texture
+ * (spx_bake_texture), for the textured-rasterization baseline (`smplpix raster --texture`). */
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "cmd_fit.h"
+
+#define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
+
+int spx_cmd_bake(int argc, char **argv) {
+  const char *mesh_path = NULL, *scan_path = NULL, *out = NULL, *model_path = NULL, *size_s = "1024", *pad_s = "8";
+  int bad = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *v;
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+      printf("usage: smplpix bake --mesh R.ply|R.obj --scan S.ply|S.obj --out T.png|T.exr\n"
+             "                    [--size N] [--pad N] [--model M.npz]\n"
+             "Bakes the scan's vertex colours into an NxN texture (default 1024) on the texture\n"
+             "coordinates of the registered mesh R (registered to the scan, in its frame, e.g. from\n"
+             "`smplpix register`): every texel covered in UV space takes the colour of the scan vertex\n"
+             "nearest to its surface point; --pad rounds of dilation (default 8) fill the seams. When R\n"
+             "has no texture coordinates they come from the body model (default %s),\n"
+             "whose faces must match R's. Use with `smplpix raster --texture T.png` on a mesh with the\n"
+             "same texture coordinates (e.g. from `smplpix repose`).\n",
+             DEFAULT_MODEL);
+      return SPX_EXIT_OK;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--mesh", &bad))) mesh_path = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--scan", &bad))) scan_path = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) out = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) model_path = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) size_s = v;
+    else if ((v = spx_cli_opt(argc, argv, &i, "--pad", &bad))) pad_s = v;
+    else return spx_cli_usage("bake", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+  }
+  if (!mesh_path || !scan_path || !out) return spx_cli_usage("bake", "--mesh, --scan and --out are required");
+  char *end;
+  errno = 0;
+  long size = strtol(size_s, &end, 10);
+  if (errno || end == size_s || *end || size < 1 || size > 16384)
+    return spx_cli_usage("bake", "--size %s: expected 1..16384", size_s);
+  errno = 0;
+  long pad = strtol(pad_s, &end, 10);
+  if (errno || end == pad_s || *end || pad < 0 || pad > 4096) return spx_cli_usage("bake", "--pad %s: expected 0..4096", pad_s);
+  char ext[16];
+  spx_cli_ext(out, ext, sizeof ext);
+  if (strcmp(ext, "png") && strcmp(ext, "exr")) return spx_cli_usage("bake", "--out %s: expected a .png or .exr file", out);
+
+  spx_ctx *ctx = NULL;
+  spx_mesh mesh = {0}, scan = {0};
+  spx_body_model m;
+  spx_image tex = {0};
+  memset(&m, 0, sizeof m);
+  int rc = SPX_EXIT_ERROR;
+  spx_tx tx;
+  spx_tx_begin(&tx, "bake", 0);
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("bake", "out of memory");
+  if ((rc = spx_tx_check(&tx, out))) goto done; /* before any work */
+  rc = SPX_EXIT_ERROR;
+  if (spx_mesh_load(ctx, mesh_path, &mesh) || spx_mesh_load(ctx, scan_path, &scan)) {
+    rc = spx_cli_error("bake", ctx);
+    goto done;
+  }
+  if (mesh.nf == 0) {
+    rc = spx_cli_errorf("bake", "%s: no triangles (the registered mesh is needed, not a point cloud)", mesh_path);
+    goto done;
+  }
+  if (!scan.col) {
+    rc = spx_cli_errorf("bake", "%s: the scan has no vertex colours", scan_path);
+    goto done;
+  }
+  if (!mesh.uv || !mesh.face_uv) {
+    const char *mp = model_path ? model_path : DEFAULT_MODEL;
+    if (spx_body_load(ctx, mp, &m)) {
+      rc = spx_cli_error("bake", ctx);
+      goto done;
+    }
+    if (!m.vt || !m.ft || m.nf != mesh.nf || m.nv != mesh.nv) {
+      rc = spx_cli_errorf("bake", "%s: no texture coordinates, and model %s has none for its %d faces / %d vertices",
+                          mesh_path, mp, mesh.nf, mesh.nv);
+      goto done;
+    }
+    for (int64_t k = 0; k < (int64_t)m.nf * 3; k++)
+      if (m.faces[k] != mesh.faces[k]) {
+        rc = spx_cli_errorf("bake", "%s: its faces differ from model %s's (face %lld): not a registration of it",
+                            mesh_path, mp, (long long)(k / 3));
+        goto done;
+      }
+    mesh.nuv = m.nvt;
+    mesh.uv = malloc((size_t)m.nvt * 2 * sizeof(float));
+    mesh.face_uv = malloc((size_t)m.nf * 3 * sizeof(int32_t));
+    if (!mesh.uv || !mesh.face_uv) {
+      rc = spx_cli_errorf("bake", "out of memory");
+      goto done;
+    }
+    memcpy(mesh.uv, m.vt, (size_t)m.nvt * 2 * sizeof(float));
+    memcpy(mesh.face_uv, m.ft, (size_t)m.nf * 3 * sizeof(int32_t));
+  }
+  if (spx_image_alloc(ctx, (int32_t)size, (int32_t)size, 3, &tex) ||
+      spx_bake_texture(ctx, &mesh, &scan, (int32_t)size, (int32_t)size, (int32_t)pad, tex.data, NULL)) {
+    rc = spx_cli_error("bake", ctx);
+    goto done;
+  }
+  if ((rc = spx_cli_write_output("bake", ctx, &tx, strdup(out), &tex)) || (rc = spx_tx_commit(&tx))) goto done;
+  rc = SPX_EXIT_ERROR;
+  printf("bake: wrote %s (%ldx%ld texture from %d scan vertices)\n", out, size, size, scan.nv);
+  rc = SPX_EXIT_OK;
+done:
+  spx_tx_end(&tx);
+  spx_image_free(&tex);
+  spx_body_free(&m);
+  spx_mesh_free(&mesh);
+  spx_mesh_free(&scan);
+  spx_ctx_destroy(ctx);
+  return rc;
+}

@@ -1,0 +1,471 @@
+/* `smplpix synth`: load and check every input, then generate into "<DIR>.tmp.<pid>.0" and rename
+ * it to DIR at the end. With --force a previous synth output is first renamed aside to
+ * "<DIR>.tmp.<pid>.1" and removed only once the new folder is in place (put back if that rename
+ * fails). Both names follow the temporaries' rule of lib/core/files.c: a later run removes those of
+ * processes that no longer run (and puts back an aside output whose DIR is missing). */
+#include <dirent.h>
+#include <errno.h>
+#include <signal.h>
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "cli.h"
+#include "smplpix/bvh.h"
+#include "smplpix/files.h"
+#include "smplpix/synth.h"
+#include "synth_out.h"
+
+#define PI 3.14159265358979323846
+
+/* Remove a folder tree (no symlinks followed). 0 on success. */
+static int remove_tree(const char *path) {
+  struct stat sb;
+  if (lstat(path, &sb)) return errno == ENOENT ? 0 : -1;
+  if (!S_ISDIR(sb.st_mode)) return unlink(path);
+  DIR *d = opendir(path);
+  if (!d) return -1;
+  struct dirent *e;
+  int rc = 0;
+  size_t n = strlen(path);
+  while ((e = readdir(d))) {
+    if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, "..")) continue;
+    char *p = malloc(n + strlen(e->d_name) + 2);
+    if (!p) {
+      rc = -1;
+      break;
+    }
+    sprintf(p, "%s/%s", path, e->d_name);
+    if (remove_tree(p)) rc = -1;
+    free(p);
+  }
+  closedir(d);
+  return rc ? rc : rmdir(path);
+}
+
+/* Folders "<out>.tmp.<pid>.<n>" of processes that no longer run: an aside previous output (n = 1)
+ * goes back to out when out is missing (the run died between the renames); the rest is removed. */
+static void clean_stale_dirs(const char *out) {
+  char dir[4200];
+  const char *slash = strrchr(out, '/'), *base = slash ? slash + 1 : out;
+  if (slash) snprintf(dir, sizeof dir, "%.*s", (int)(slash - out) ? (int)(slash - out) : 1, out);
+  else snprintf(dir, sizeof dir, ".");
+  DIR *d = opendir(dir);
+  if (!d) return;
+  size_t bl = strlen(base);
+  struct dirent *e;
+  while ((e = readdir(d))) {
+    const char *n = e->d_name, *p = n + bl + 5;
+    if (!bl || strncmp(n, base, bl) || strncmp(n + bl, ".tmp.", 5)) continue;
+    char *end;
+    errno = 0;
+    long pid = strtol(p, &end, 10);
+    if (end == p || *end != '.' || errno || pid <= 0 || pid == (long)getpid()) continue;
+    if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue; /* alive (or not ours to judge) */
+    char full[8400];
+    snprintf(full, sizeof full, "%s/%s", dir, n);
+    struct stat sb;
+    if (lstat(full, &sb) || !S_ISDIR(sb.st_mode)) continue; /* files: spx_file_clean_stale's part */
+    if (!strcmp(end, ".1") && access(out, F_OK) != 0 && errno == ENOENT && rename(full, out) == 0) continue;
+    remove_tree(full);
+  }
+  closedir(d);
+}
+
+/* 1 = missing, 2 = empty folder, 3 = synth output (has synth.json), 0 = something else. */
+static int out_state(const char *dir) {
+  struct stat sb;
+  if (stat(dir, &sb)) return errno == ENOENT ? 1 : 0;
+  if (!S_ISDIR(sb.st_mode)) return 0;
+  DIR *d = opendir(dir);
+  if (!d) return 0;
+  int empty = 1;
+  struct dirent *e;
+  while ((e = readdir(d)))
+    if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..")) empty = 0;
+  closedir(d);
+  if (empty) return 2;
+  char p[4200];
+  snprintf(p, sizeof p, "%s/synth.json", dir);
+  return access(p, F_OK) == 0 ? 3 : 0;
+}
+
+typedef struct view_rec {
+  char source[32];
+  double *pose; /* nj*3 */
+  double trans[3];
+} view_rec;
+
+typedef struct run_state {
+  const synth_opts *o;
+  spx_ctx *ctx;
+  spx_body_model body;
+  spx_bvh bvh;
+  spx_bvh_map map;
+  spx_image parts;
+  spx_rasterizer *rast;
+  char *tmp;         /* the temporary output folder */
+  FILE *manifest;
+  int tty, bar;
+  double t0, last;
+  double t_scan, t_views; /* seconds spent on subjects (scan, texture, their files) and on views */
+  long done, total;
+} run_state;
+
+static void progress(run_state *s, int subj, int view, int force) {
+  if (!s->o->progress) return;
+  double t = spx_cli_now();
+  if (s->tty && !force && s->bar && t - s->last < 0.1) return;
+  s->last = t;
+  double el = t - s->t0, eta = s->done > 0 ? el / s->done * (double)(s->total - s->done) : 0;
+  if (s->tty) {
+    char bar[21];
+    int fill = (int)(20 * s->done / (s->total ? s->total : 1));
+    for (int k = 0; k < 20; k++) bar[k] = k < fill ? '#' : '.';
+    bar[20] = 0;
+    fprintf(stderr, "\r\033[K[%s] subject %d/%d  view %d/%d  %.1f s  ETA %.0f s", bar, subj + 1, s->o->subjects,
+            view, s->o->views, el, eta);
+    s->bar = 1;
+  } else if (view == s->o->views) {
+    fprintf(stderr, "subject %d/%d done, %.1f s, ETA %.0f s\n", subj + 1, s->o->subjects, el, eta);
+  }
+  fflush(stderr);
+}
+
+static void progress_clear(run_state *s) {
+  if (s->tty && s->bar) fputs("\r\033[K", stderr);
+  s->bar = 0;
+}
+
+static int mkdirf(run_state *s, const char *fmt, int subj) {
+  char p[4200];
+  snprintf(p, sizeof p, fmt, s->tmp, subj);
+  if (mkdir(p, 0777)) return spx_cli_errorf("synth", "%s: cannot create folder: %s", p, strerror(errno));
+  return 0;
+}
+
+static void put_doubles(FILE *f, const double *v, int n) {
+  fputc('[', f);
+  for (int i = 0; i < n; i++) fprintf(f, "%s%.9g", i ? ", " : "", v[i]);
+  fputc(']', f);
+}
+
+static int write_gray(run_state *s, const char *path, const uint8_t *mask, int W, int H) {
+  spx_image img = {0};
+  if (spx_image_alloc(s->ctx, W, H, 1, &img)) return spx_cli_error("synth", s->ctx);
+  for (size_t i = 0; i < (size_t)W * H; i++) img.data[i] = mask[i] ? 1.0f : 0.0f;
+  int rc = spx_png_write(s->ctx, path, &img) ? spx_cli_error("synth", s->ctx) : 0;
+  spx_image_free(&img);
+  return rc;
+}
+
+/* The pose of view v of subject i: view 0 at rest, the others stratified over the clip. */
+static int view_pose(run_state *s, spx_synth_rng *rng, int v, view_rec *vr) {
+  int nj = s->body.nj;
+  memset(vr->pose, 0, (size_t)nj * 3 * sizeof(double));
+  memset(vr->trans, 0, sizeof vr->trans);
+  if (v == 0 || s->bvh.nframes < 1) {
+    snprintf(vr->source, sizeof vr->source, "rest");
+    return 0;
+  }
+  int V = s->o->views;
+  double u = (v - 1 + spx_synth_rng_uniform(rng, 0, 1)) / (V > 1 ? V - 1 : 1);
+  int f = (int)(u * s->bvh.nframes);
+  if (f >= s->bvh.nframes) f = s->bvh.nframes - 1;
+  snprintf(vr->source, sizeof vr->source, "bvh:%d", f);
+  if (spx_bvh_map_pose(s->ctx, &s->map, &s->bvh, &s->body, f, vr->pose, vr->trans))
+    return spx_cli_error("synth", s->ctx);
+  return 0;
+}
+
+static int one_subject(run_state *s, int i) {
+  const synth_opts *o = s->o;
+  int rc = 0, W = o->width, H = o->height, nj = s->body.nj;
+  char p[4200], name[16];
+  snprintf(name, sizeof name, "s%03d", i);
+  spx_synth_subject sub = {0};
+  float *posed = NULL, *rgb = NULL;
+  uint8_t *mask = NULL;
+  view_rec *vr = calloc((size_t)o->views, sizeof *vr);
+  double *poses = calloc((size_t)o->views * nj * 3 + 1, sizeof(double));
+  if (!vr || !poses) {
+    rc = spx_cli_errorf("synth", "out of memory");
+    goto done;
+  }
+  for (int v = 0; v < o->views; v++) vr[v].pose = poses + (size_t)v * nj * 3;
+  double t_start = spx_cli_now();
+  spx_synth_rng rng = {spx_cli_mix64(o->seed * 0x9E3779B97F4A7C15ULL + (uint64_t)i + 1)};
+  if (spx_synth_subject_create(s->ctx, &s->body, &s->parts, spx_synth_rng_next(&rng), o->tex_size, &sub)) {
+    rc = spx_cli_errorf("synth", "%s: %s", o->body_path, spx_ctx_message(s->ctx));
+    goto done;
+  }
+  posed = malloc((size_t)sub.nv * 3 * sizeof(float));
+  rgb = malloc((size_t)W * H * 3 * sizeof(float));
+  mask = malloc((size_t)W * H);
+  if (!posed || !rgb || !mask) {
+    rc = spx_cli_errorf("synth", "out of memory");
+    goto done;
+  }
+  if ((rc = mkdirf(s, "%s/s%03d", i)) || (rc = mkdirf(s, "%s/s%03d/cameras", i)) ||
+      (rc = mkdirf(s, "%s/s%03d/images", i)) || (rc = mkdirf(s, "%s/s%03d/masks", i)))
+    goto done;
+  /* the scan in its scan pose (rest), with colours, and the texture */
+  if (spx_synth_pose(s->ctx, &s->body, &sub, NULL, NULL, posed)) {
+    rc = spx_cli_error("synth", s->ctx);
+    goto done;
+  }
+  spx_mesh scan = {0};
+  scan.nv = sub.nv;
+  scan.nf = sub.nf;
+  scan.pos = posed;
+  scan.col = sub.col;
+  scan.faces = sub.faces;
+  snprintf(p, sizeof p, "%s/%s/scan.ply", s->tmp, name);
+  if (spx_mesh_save(s->ctx, p, &scan, SPX_MESH_PLY_BINARY)) {
+    rc = spx_cli_error("synth", s->ctx);
+    goto done;
+  }
+  spx_image tex = {sub.tex_size, sub.tex_size, 3, sub.tex};
+  snprintf(p, sizeof p, "%s/%s/texture.png", s->tmp, name);
+  if (spx_png_write(s->ctx, p, &tex)) {
+    rc = spx_cli_error("synth", s->ctx);
+    goto done;
+  }
+  s->done++;
+  progress(s, i, 0, 0);
+  double t_views = spx_cli_now();
+  s->t_scan += t_views - t_start;
+  /* light fixed in the world for the subject: from the front-above, side drawn per subject */
+  double side = spx_synth_rng_uniform(&rng, -0.8, 0.8);
+  spx_synth_light light = {{side, 1.0, 0.8}, 0.45, 0.7};
+  double az0 = spx_synth_rng_uniform(&rng, 0, 2 * PI);
+  for (int v = 0; v < o->views; v++) {
+    if ((rc = view_pose(s, &rng, v, &vr[v]))) goto done;
+    if (spx_synth_pose(s->ctx, &s->body, &sub, vr[v].pose, vr[v].trans, posed)) {
+      rc = spx_cli_error("synth", s->ctx);
+      goto done;
+    }
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int32_t k = 0; k < sub.nv; k++)
+      for (int c = 0; c < 3; c++) {
+        lo[c] = fmin(lo[c], posed[k * 3 + c]);
+        hi[c] = fmax(hi[c], posed[k * 3 + c]);
+      }
+    double target[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
+    double ext_v = hi[1] - lo[1], ext_h = fmax(hi[0] - lo[0], hi[2] - lo[2]);
+    double az = az0 + 2 * PI * (v + spx_synth_rng_uniform(&rng, -0.3, 0.3)) / o->views;
+    double el = spx_synth_rng_uniform(&rng, -10, 35) * PI / 180;
+    double focal = H * spx_synth_rng_uniform(&rng, 1.1, 1.7);
+    double fill = spx_synth_rng_uniform(&rng, 0.72, 0.9);
+    /* far enough that the body's height fills `fill` of the image (and its width fits) */
+    double dist = focal * fmax(ext_v / (fill * H), ext_h / (fill * W)) + 0.25 * ext_h;
+    spx_camera cam;
+    if (spx_synth_camera(s->ctx, W, H, az, el, dist, focal, target, &cam) ||
+        spx_synth_photo(s->ctx, s->rast, &s->body, &sub, vr[v].pose, vr[v].trans, &cam, &light, (uint32_t)i + 1, rgb,
+                        mask, NULL)) {
+      rc = spx_cli_error("synth", s->ctx);
+      goto done;
+    }
+    snprintf(p, sizeof p, "%s/%s/cameras/v%03d.json", s->tmp, name, v);
+    if (spx_camera_save(s->ctx, p, &cam, 1)) {
+      rc = spx_cli_error("synth", s->ctx);
+      goto done;
+    }
+    spx_image im = {W, H, 3, rgb};
+    snprintf(p, sizeof p, "%s/%s/images/v%03d.png", s->tmp, name, v);
+    if (spx_png_write(s->ctx, p, &im)) {
+      rc = spx_cli_error("synth", s->ctx);
+      goto done;
+    }
+    snprintf(p, sizeof p, "%s/%s/masks/v%03d.png", s->tmp, name, v);
+    if ((rc = write_gray(s, p, mask, W, H))) goto done;
+    s->done++;
+    progress(s, i, v + 1, v + 1 == o->views);
+  }
+  s->t_views += spx_cli_now() - t_views;
+  /* manifest entry */
+  FILE *f = s->manifest;
+  fprintf(f, "%s\n    {\"name\": \"%s\", \"betas\": ", i ? "," : "", name);
+  put_doubles(f, sub.betas, sub.nbetas);
+  fprintf(f, ", \"scan\": \"%s/scan.ply\", \"scan_pose\": {\"pose\": ", name);
+  {
+    double *zero = calloc((size_t)nj * 3, sizeof(double)); /* the scan pose: rest, at the origin */
+    if (!zero) {
+      rc = spx_cli_errorf("synth", "out of memory");
+      goto done;
+    }
+    put_doubles(f, zero, nj * 3);
+    fputs(", \"trans\": ", f);
+    put_doubles(f, zero, 3);
+    free(zero);
+  }
+  fprintf(f, "}, \"texture\": \"%s/texture.png\",\n     \"views\": [", name);
+  for (int v = 0; v < o->views; v++) {
+    fprintf(f, "%s\n      {\"name\": \"%s_v%03d\", \"camera\": \"%s/cameras/v%03d.json\", \"pose\": {\"source\": \"%s\", \"pose\": ",
+            v ? "," : "", name, v, name, v, vr[v].source);
+    put_doubles(f, vr[v].pose, nj * 3);
+    fputs(", \"trans\": ", f);
+    put_doubles(f, vr[v].trans, 3);
+    fprintf(f, "}, \"image\": \"%s/images/v%03d.png\", \"mask\": \"%s/masks/v%03d.png\"}", name, v, name, v);
+  }
+  fputs("]}", f);
+done:
+  spx_synth_subject_free(&sub);
+  free(posed);
+  free(rgb);
+  free(mask);
+  free(vr);
+  free(poses);
+  return rc;
+}
+
+static void json_str(FILE *f, const char *v) {
+  fputc('"', f);
+  for (; *v; v++) {
+    if (*v == '"' || *v == '\\') fprintf(f, "\\%c", *v);
+    else if ((unsigned char)*v < 0x20) fprintf(f, "\\u%04x", (unsigned char)*v);
+    else fputc(*v, f);
+  }
+  fputc('"', f);
+}
+
+int synth_run(const synth_opts *o) {
+  run_state s;
+  memset(&s, 0, sizeof s);
+  s.o = o;
+  int rc = 0, have_map = 0, have_bvh = 0, have_body = 0;
+  if (spx_ctx_create(&s.ctx)) return spx_cli_errorf("synth", "out of memory");
+  /* inputs first: nothing is written before they all check out */
+  if (spx_body_load(s.ctx, o->body_path, &s.body)) {
+    rc = spx_cli_error("synth", s.ctx);
+    goto done;
+  }
+  have_body = 1;
+  if (!s.body.vt || !s.body.ft) {
+    rc = spx_cli_errorf("synth", "%s: body model has no UVs (vt/ft), which synth needs for its textures", o->body_path);
+    goto done;
+  }
+  if (spx_png_read(s.ctx, o->parts_path, &s.parts)) {
+    rc = spx_cli_error("synth", s.ctx);
+    goto done;
+  }
+  if (spx_bvh_load(s.ctx, o->bvh_path, &s.bvh)) {
+    rc = spx_cli_error("synth", s.ctx);
+    goto done;
+  }
+  have_bvh = 1;
+  if (s.bvh.nframes < 1) {
+    rc = spx_cli_errorf("synth", "%s: no motion frames", o->bvh_path);
+    goto done;
+  }
+  if (spx_bvh_map_create(s.ctx, &s.bvh, &s.body, NULL, NULL, &s.map)) {
+    rc = spx_cli_errorf("synth", "%s: cannot retarget onto %s: %s", o->bvh_path, o->body_path, spx_ctx_message(s.ctx));
+    goto done;
+  }
+  have_map = 1;
+  clean_stale_dirs(o->out);
+  int state = out_state(o->out);
+  if (state == 0) {
+    rc = spx_cli_errorf("synth", "%s: exists and is not an empty folder or a previous synth output; not replacing it",
+                        o->out);
+    goto done;
+  }
+  if (state == 3 && !o->force) {
+    rc = spx_cli_errorf("synth", "%s: holds a synth output already (use --force to replace it)", o->out);
+    goto done;
+  }
+  if ((rc = spx_cli_open_device("synth", s.ctx, o->device))) goto done;
+  if (spx_rasterizer_create(s.ctx, &s.rast)) {
+    rc = spx_cli_error("synth", s.ctx);
+    goto done;
+  }
+  size_t n = strlen(o->out) + 32;
+  s.tmp = malloc(n);
+  if (!s.tmp) {
+    rc = spx_cli_errorf("synth", "out of memory");
+    goto done;
+  }
+  snprintf(s.tmp, n, "%s.tmp.%ld.0", o->out, (long)getpid());
+  if (mkdir(s.tmp, 0777)) {
+    rc = spx_cli_errorf("synth", "%s: cannot create the temporary folder %s: %s", o->out, s.tmp, strerror(errno));
+    free(s.tmp);
+    s.tmp = NULL;
+    goto done;
+  }
+  char mp[4200];
+  snprintf(mp, sizeof mp, "%s/synth.json", s.tmp);
+  s.manifest = fopen(mp, "wb");
+  if (!s.manifest) {
+    rc = spx_cli_errorf("synth", "%s: cannot write: %s", mp, strerror(errno));
+    goto done;
+  }
+  fprintf(s.manifest, "{\"version\": 1, \"seed\": %" PRIu64 ", \"width\": %d, \"height\": %d, \"body\": ", o->seed,
+          o->width, o->height);
+  json_str(s.manifest, o->body_path);
+  fputs(", \"bvh\": ", s.manifest);
+  json_str(s.manifest, o->bvh_path);
+  fprintf(s.manifest, ", \"texture_size\": %d,\n  \"subjects\": [", (int)o->tex_size);
+  s.tty = isatty(STDERR_FILENO);
+  s.t0 = spx_cli_now();
+  s.total = (long)o->subjects * (o->views + 1);
+  progress(&s, 0, 0, 1);
+  for (int i = 0; i < o->subjects && !rc; i++) rc = one_subject(&s, i);
+  progress_clear(&s);
+  if (rc) goto done;
+  fputs("]}\n", s.manifest);
+  int bad = ferror(s.manifest);
+  bad |= fclose(s.manifest) != 0;
+  s.manifest = NULL;
+  if (bad) {
+    rc = spx_cli_errorf("synth", "%s: write failed", mp);
+    goto done;
+  }
+  { /* the files and their folder entries are on disk before the rename makes them the output */
+    if (spx_file_sync(s.ctx, mp) || spx_file_sync(s.ctx, s.tmp)) {
+      rc = spx_cli_error("synth", s.ctx);
+      goto done;
+    }
+  }
+  char aside[4200] = "";
+  if (out_state(o->out) != 1) { /* the previous output (or an empty folder) steps aside, kept until the end */
+    snprintf(aside, sizeof aside, "%s.tmp.%ld.1", o->out, (long)getpid());
+    if (rename(o->out, aside)) {
+      rc = spx_cli_errorf("synth", "%s: cannot move the previous output aside: %s", o->out, strerror(errno));
+      goto done;
+    }
+  }
+  if (rename(s.tmp, o->out)) {
+    rc = spx_cli_errorf("synth", "%s: cannot rename %s into place: %s", o->out, s.tmp, strerror(errno));
+    if (aside[0] && rename(aside, o->out)) /* the previous output back where it was */
+      fprintf(stderr, "smplpix synth: %s: the previous output is kept as %s\n", o->out, aside);
+    goto done;
+  }
+  free(s.tmp);
+  s.tmp = NULL;
+  spx_file_sync_dir_of(s.ctx, o->out); /* best effort: the new entry is durable */
+  if (aside[0] && remove_tree(aside))
+    fprintf(stderr, "smplpix synth: %s: could not remove the previous output %s (%s)\n", o->out, aside,
+            strerror(errno));
+  double el = spx_cli_now() - s.t0;
+  printf("wrote %d subjects x %d views (%dx%d, textures %d^2) to %s in %.1f s: %.2f s per subject (scan, texture), "
+         "%.3f s per view\n",
+         o->subjects, o->views, o->width, o->height, (int)o->tex_size, o->out, el, s.t_scan / o->subjects,
+         s.t_views / ((double)o->subjects * o->views));
+done:
+  if (s.manifest) fclose(s.manifest);
+  if (s.tmp) {
+    remove_tree(s.tmp);
+    free(s.tmp);
+  }
+  spx_rasterizer_destroy(s.rast);
+  if (have_map) spx_bvh_map_free(&s.map);
+  if (have_bvh) spx_bvh_free(&s.bvh);
+  spx_image_free(&s.parts);
+  if (have_body) spx_body_free(&s.body);
+  spx_ctx_destroy(s.ctx);
+  return rc;
+}

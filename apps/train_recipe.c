@@ -1,0 +1,138 @@
+/* The paper's training recipe for `smplpix train` (see apps/train_recipe.h). */
+#include "train_recipe.h"
+
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+int train_loss_parse(const char *name, int *gan, int *vgg) {
+  *gan = *vgg = 0;
+  if (!strcmp(name, "l1")) return 0;
+  if (!strcmp(name, "l1+gan")) return *gan = 1, 0;
+  if (!strcmp(name, "vgg")) return *vgg = 1, 0;
+  if (!strcmp(name, "vgg+gan")) return *vgg = *gan = 1, 0;
+  return spx_cli_usage("train", "--loss must be l1, l1+gan, vgg or vgg+gan, not '%s'", name);
+}
+
+const char *train_loss_name(const train_recipe *r) {
+  int g = r->gan[r->stage];
+  return r->vgg ? (g ? "vgg+gan" : "vgg") : (g ? "l1+gan" : "l1");
+}
+
+int64_t train_recipe_step_count(const train_recipe *r, const spx_unet *u) { return r->base + spx_unet_step(u); }
+
+static char *disc_path_of(const char *outp) {
+  size_t n = strlen(outp);
+  const char *suf = ".safetensors";
+  size_t ls = strlen(suf), keep = n >= ls && !strcmp(outp + n - ls, suf) ? n - ls : n;
+  char *p = malloc(keep + 32);
+  if (p) snprintf(p, keep + 32, "%.*s.disc.safetensors", (int)keep, outp);
+  return p;
+}
+
+static int need_disc(spx_ctx *ctx, train_recipe *r, int load) {
+  if (r->d || !r->gan[r->stage]) return 0;
+  spx_status st = load ? spx_patchgan_open(ctx, r->disc_path, &r->d)
+                       : spx_patchgan_new(ctx, r->disc_width, r->num_d, r->seed ^ 0xd15cULL, &r->d);
+  return st ? spx_cli_error("train", ctx) : 0;
+}
+
+int train_recipe_start(spx_ctx *ctx, train_recipe *r, spx_unet *u, const char *outp, const char *from,
+                       const spx_train_state *rec) {
+  r->stage = r->schedule ? 1 : (r->gan[2] ? 2 : 1);
+  r->base = 0;
+  if (!(r->disc_path = disc_path_of(outp))) return spx_cli_errorf("train", "out of memory");
+  int resume = rec != NULL;
+  if (rec) { /* the stage record of the checkpoint (spx_train_state_read checked its ranges) */
+    if (!r->schedule && strcmp(train_loss_name(r), rec->loss)) /* cmd_train takes the loss from rec */
+      return spx_cli_errorf("train", "%s was trained with --loss %s, not %s (start a new run with --init)", from,
+                            rec->loss, train_loss_name(r));
+    r->stage = (int)rec->stage, r->base = rec->stage_base;
+    if (r->schedule) r->stage1_steps = rec->stage1_steps;
+  }
+  if (r->vgg && spx_vgg_open(ctx, r->vgg_path, &r->net_vgg)) return spx_cli_error("train", ctx);
+  int rc = need_disc(ctx, r, resume && r->gan[r->stage]);
+  if (rc) return rc;
+  if (r->d && resume && spx_patchgan_step(r->d) != spx_unet_step(u))
+    return spx_cli_errorf("train", "%s has %" PRId64 " discriminator steps but %s has %" PRId64
+                          " generator steps in stage %d: they are not from the same run",
+                          r->disc_path, spx_patchgan_step(r->d), from, spx_unet_step(u), r->stage);
+  return 0;
+}
+
+int train_recipe_step(spx_ctx *ctx, train_recipe *r, spx_unet *u, const float *in, const float *tg, int n, int h,
+                      int w, float *loss) {
+  spx_status st;
+  if (r->schedule && r->stage == 1 && train_recipe_step_count(r, u) >= r->stage1_steps) { /* stage 2 begins */
+    int64_t now = train_recipe_step_count(r, u);
+    if (spx_unet_reset_optimizer(u)) return spx_cli_error("train", ctx);
+    r->stage = 2;
+    r->base = now;
+    int rc = need_disc(ctx, r, 0);
+    if (rc) return rc;
+    printf("step %" PRId64 ": stage 2 (--loss %s, Adam restarted, lr %g)\n", now, train_loss_name(r), r->lr2);
+    fflush(stdout);
+  }
+  double lr = r->schedule && r->stage == 2 ? r->lr2 : r->lr1;
+  spx_gan_losses gl;
+  memset(&gl, 0, sizeof gl);
+  if (r->gan[r->stage]) {
+    st = spx_unet_gan_step(u, r->d, r->net_vgg, in, tg, n, h, w, lr, lr, &gl);
+    if (!st) *loss = gl.g_total;
+  } else if (r->vgg) {
+    st = spx_unet_vgg_step(u, r->net_vgg, in, tg, n, h, w, lr, &gl);
+    if (!st) *loss = gl.vgg;
+  } else {
+    if (!(st = spx_unet_zero_grad(u)) && !(st = spx_unet_forward_loss(u, in, tg, n, h, w, NULL, loss)) &&
+        !(st = spx_unet_backward(u)))
+      st = spx_unet_adam_step(u, lr);
+    gl.rec = *loss;
+  }
+  if (!st) {
+    double v[6] = {*loss, gl.rec, gl.gan, gl.fm, gl.d_total, gl.vgg};
+    for (int i = 0; i < 6; i++) r->sum[i] += v[i];
+  }
+  if (st) return st == SPX_E_DEVMEM || st == SPX_E_NOMEM
+                     ? spx_cli_errorf("train", "a step on %d images of %dx%d at width %d: %s (try a smaller --batch or "
+                                      "--width)", n, w, h, spx_unet_width(u), spx_ctx_message(ctx))
+                     : spx_cli_error("train", ctx);
+  r->count++;
+  return 0;
+}
+
+void train_recipe_terms(const train_recipe *r, char *buf, size_t cap) {
+  buf[0] = 0;
+  if ((!r->gan[r->stage] && !r->vgg) || !r->count) return;
+  double c = r->count;
+  size_t n = 0;
+  n += (size_t)snprintf(buf, cap, " (");
+  if (r->vgg && n < cap) n += (size_t)snprintf(buf + n, cap - n, "VGG %.4f, ", r->sum[5] / c);
+  if (n < cap) n += (size_t)snprintf(buf + n, cap - n, "L1 %.4f", r->sum[1] / c);
+  if (r->gan[r->stage] && n < cap)
+    n += (size_t)snprintf(buf + n, cap - n, ", GAN %.4f, FM %.4f, D %.4f", r->sum[2] / c, r->sum[3] / c, r->sum[4] / c);
+  if (n < cap) snprintf(buf + n, cap - n, ")");
+}
+
+void train_recipe_epoch_reset(train_recipe *r) {
+  memset(r->sum, 0, sizeof r->sum);
+  r->count = 0;
+}
+
+void train_recipe_record(const train_recipe *r, spx_train_state *s) {
+  snprintf(s->loss, sizeof s->loss, "%s", train_loss_name(r));
+  snprintf(s->schedule, sizeof s->schedule, "%s", r->schedule ? "paper" : "");
+  s->stage = r->stage, s->stage_base = r->base, s->stage1_steps = r->schedule ? r->stage1_steps : 0;
+  s->lr = r->lr1, s->lr2 = r->lr2, s->disc_width = r->disc_width;
+}
+
+spx_patchgan *train_recipe_disc(const train_recipe *r) { return r->d && r->gan[r->stage] ? r->d : NULL; }
+
+void train_recipe_free(train_recipe *r) {
+  spx_patchgan_destroy(r->d);
+  spx_vgg_destroy(r->net_vgg);
+  r->net_vgg = NULL;
+  free(r->disc_path);
+  r->d = NULL;
+  r->disc_path = NULL;
+}

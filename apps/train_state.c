@@ -1,0 +1,173 @@
+/* Read and write the training state of a checkpoint (see train_state.h). */
+#include <errno.h>
+#include <math.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "cli.h"
+#include "smplpix/files.h"
+#include "train_state.h"
+
+enum { F_INT, F_REAL, F_TEXT };
+static const struct field {
+  const char *key;
+  int kind;
+  size_t off, cap;
+} FIELDS[] = {
+    {"smplpix.train.version", F_INT, offsetof(spx_train_state, version), 0},
+    {"smplpix.train.seed", F_INT, offsetof(spx_train_state, seed), 0},
+    {"smplpix.train.shuffle", F_INT, offsetof(spx_train_state, shuffle), 0},
+    {"smplpix.train.batch", F_INT, offsetof(spx_train_state, batch), 0},
+    {"smplpix.train.pairs", F_INT, offsetof(spx_train_state, pairs), 0},
+    {"smplpix.train.steps_per_epoch", F_INT, offsetof(spx_train_state, steps_per_epoch), 0},
+    {"smplpix.train.step", F_INT, offsetof(spx_train_state, step), 0},
+    {"smplpix.train.epoch", F_INT, offsetof(spx_train_state, epoch), 0},
+    {"smplpix.train.lr", F_REAL, offsetof(spx_train_state, lr), 0},
+    {"smplpix.train.loss", F_TEXT, offsetof(spx_train_state, loss), sizeof(((spx_train_state *)0)->loss)},
+    {"smplpix.train.schedule", F_TEXT, offsetof(spx_train_state, schedule),
+     sizeof(((spx_train_state *)0)->schedule)},
+    {"smplpix.train.stage", F_INT, offsetof(spx_train_state, stage), 0},
+    {"smplpix.train.stage_base", F_INT, offsetof(spx_train_state, stage_base), 0},
+    {"smplpix.train.stage1_steps", F_INT, offsetof(spx_train_state, stage1_steps), 0},
+    {"smplpix.train.lr2", F_REAL, offsetof(spx_train_state, lr2), 0},
+    {"smplpix.train.disc_width", F_INT, offsetof(spx_train_state, disc_width), 0},
+};
+enum { NFIELDS = (int)(sizeof FIELDS / sizeof FIELDS[0]) };
+
+void spx_train_state_init(spx_train_state *s) {
+  memset(s, 0, sizeof *s);
+  s->version = SPX_TRAIN_STATE_VERSION;
+  s->shuffle = 1;
+  s->batch = 1;
+  s->steps_per_epoch = 1;
+  s->lr = 1e-3;
+  snprintf(s->loss, sizeof s->loss, "l1");
+  s->stage = 1;
+  s->lr2 = 1e-5;
+  s->disc_width = 64;
+}
+
+/* The state as metadata pairs: keys[k] / text[k] for every field of FIELDS. */
+static void state_text(const spx_train_state *s, const char **keys, char (*text)[80]) {
+  for (int k = 0; k < NFIELDS; k++) {
+    const char *p = (const char *)s + FIELDS[k].off;
+    if (FIELDS[k].kind == F_INT) snprintf(text[k], sizeof text[k], "%lld", (long long)*(const int64_t *)p);
+    else if (FIELDS[k].kind == F_REAL) snprintf(text[k], sizeof text[k], "%.17g", *(const double *)p);
+    else snprintf(text[k], sizeof text[k], "%s", p);
+    keys[k] = FIELDS[k].key;
+  }
+}
+
+int spx_train_state_attach(spx_ctx *ctx, const char *src, const char *dst, const spx_train_state *s) {
+  spx_st_file f;
+  memset(&f, 0, sizeof f);
+  if (spx_st_load(ctx, src, &f)) return spx_cli_error("train", ctx);
+  int rc = SPX_EXIT_OK;
+  int nk = 0;
+  size_t cap = (size_t)f.nmeta + NFIELDS;
+  const char **keys = malloc(sizeof *keys * cap), **vals = malloc(sizeof *vals * cap);
+  char(*text)[80] = malloc(sizeof *text * NFIELDS);
+  spx_st_entry *e = malloc(sizeof *e * (size_t)(f.count ? f.count : 1));
+  if (!keys || !vals || !text || !e) {
+    rc = spx_cli_errorf("train", "out of memory");
+    goto done;
+  }
+  for (int i = 0; i < f.nmeta; i++) { /* keep the file's own keys, except ours (rewritten below) */
+    if (!strncmp(f.meta_keys[i], "smplpix.train.", 14)) continue;
+    keys[nk] = f.meta_keys[i], vals[nk++] = f.meta_values[i];
+  }
+  state_text(s, keys + nk, text);
+  for (int k = 0; k < NFIELDS; k++) vals[nk++] = text[k];
+  for (int i = 0; i < f.count; i++) {
+    const spx_st_tensor *t = &f.tensors[i];
+    memset(&e[i], 0, sizeof e[i]);
+    e[i].name = t->name, e[i].dtype = t->dtype, e[i].ndim = t->ndim, e[i].data = t->data;
+    memcpy(e[i].shape, t->shape, sizeof t->shape);
+  }
+  if (spx_st_save(ctx, dst, e, f.count, keys, vals, nk)) rc = spx_cli_error("train", ctx);
+done:
+  free(keys), free(vals), free(text), free(e);
+  spx_st_free(&f);
+  return rc;
+}
+
+static int parse_field(const char *path, const struct field *fd, const char *v, spx_train_state *s) {
+  char *p = (char *)s + fd->off, *end = NULL;
+  errno = 0;
+  if (fd->kind == F_INT) {
+    long long x = strtoll(v, &end, 10);
+    if (end == v || *end || errno || x < 0) goto bad;
+    *(int64_t *)p = (int64_t)x;
+  } else if (fd->kind == F_REAL) {
+    double x = strtod(v, &end);
+    if (end == v || *end || errno || !isfinite(x)) goto bad;
+    *(double *)p = x;
+  } else {
+    if (strlen(v) >= fd->cap) goto bad;
+    snprintf(p, fd->cap, "%s", v);
+  }
+  return SPX_EXIT_OK;
+bad:
+  return spx_cli_errorf("train", "%s: metadata %s = \"%s\" is not a valid value", path, fd->key, v);
+}
+
+int spx_train_state_read(spx_ctx *ctx, const char *path, spx_train_state *s, int *has_state, int *has_optimizer) {
+  spx_train_state_init(s);
+  *has_state = *has_optimizer = 0;
+  spx_st_file f;
+  memset(&f, 0, sizeof f);
+  if (spx_st_load(ctx, path, &f)) return spx_cli_error("train", ctx);
+  int st = SPX_EXIT_OK;
+  *has_optimizer = spx_st_find(&f, "optimizer.step") != NULL;
+  for (int k = 0; k < NFIELDS && !st; k++) {
+    const char *v = spx_st_meta(&f, FIELDS[k].key);
+    if (!v) continue;
+    *has_state = 1;
+    st = parse_field(path, &FIELDS[k], v, s);
+  }
+  if (!st && *has_state && (s->version < 1 || s->version > SPX_TRAIN_STATE_VERSION)) {
+    st = spx_cli_errorf("train", "%s: training state version %lld is not one this smplpix reads (1..%d)", path,
+                        (long long)s->version, SPX_TRAIN_STATE_VERSION);
+  } else if (!st && *has_state &&
+             ((s->stage != 1 && s->stage != 2) || s->stage_base > s->step || (s->schedule[0] && strcmp(s->schedule, "paper")) ||
+              !(s->lr > 0) || !(s->lr2 > 0) || s->disc_width < 1 || s->disc_width > 512)) {
+    st = spx_cli_errorf("train", "%s: invalid training state (stage %lld from step %lld, schedule '%s', lr %g, lr2 %g, "
+                        "disc width %lld)", path, (long long)s->stage, (long long)s->stage_base, s->schedule, s->lr,
+                        s->lr2, (long long)s->disc_width);
+  }
+  spx_st_free(&f);
+  return st;
+}
+
+int spx_train_checkpoint_save(spx_ctx *ctx, spx_unet *u, spx_patchgan *d, const char *disc_path, const char *path,
+                              const spx_train_state *s) {
+  spx_tx tx; /* durable: both files are on disk (files and folder entries) before the renames */
+  spx_tx_begin(&tx, "train", 1);
+  int rc = SPX_EXIT_ERROR;
+  const char *keys[NFIELDS], *vals[NFIELDS];
+  char text[NFIELDS][80];
+  state_text(s, keys, text);
+  for (int k = 0; k < NFIELDS; k++) vals[k] = text[k];
+  if (d) { /* staged first: a commit interrupted between the renames leaves a new D beside the old W,
+              which --resume refuses (the step counts differ), never a W without its D */
+    const char *dtmp = spx_tx_stage(&tx, disc_path);
+    if (!dtmp) goto done;
+    if (spx_patchgan_save(d, dtmp, 1)) {
+      rc = spx_cli_error("train", ctx);
+      goto done;
+    }
+  }
+  const char *tmp = spx_tx_stage(&tx, path);
+  if (!tmp) goto done;
+  if (spx_unet_save_meta(u, tmp, 1, keys, vals, NFIELDS)) {
+    rc = spx_cli_error("train", ctx);
+    goto done;
+  }
+  rc = spx_tx_commit(&tx);
+done:
+  spx_tx_end(&tx);
+  return rc;
+}

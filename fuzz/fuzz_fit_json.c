@@ -1,0 +1,23 @@
+/* libFuzzer harness: the registration parameter JSON (`register --params`, read by repose and
+ * reshape); an accepted document must hold consistent, finite, positive-scale parameters. */
+#include <math.h>
+#include <stdlib.h>
+
+#include "smplpix/fit.h"
+
+int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size) {
+  spx_ctx *ctx;
+  if (spx_ctx_create(&ctx) != SPX_OK) return 0;
+  spx_fit_result r;
+  char *model = NULL;
+  if (spx_fit_parse_json(ctx, "fuzz.json", (const char *)data, size, &r, &model) == SPX_OK) {
+    if (r.nv < 1 || r.nj < 1 || r.nbetas < 0 || !r.pose || (r.nbetas && !r.betas)) abort();
+    if (!(r.body_scale > 0) || !(r.sim_scale > 0) || !(r.unit_scale > 0)) abort();
+    for (int32_t i = 0; i < r.nj * 3; i++)
+      if (!isfinite(r.pose[i])) abort();
+    spx_fit_result_free(&r);
+  }
+  free(model);
+  spx_ctx_destroy(ctx);
+  return 0;
+}

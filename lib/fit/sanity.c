@@ -1,0 +1,51 @@
+/* Registration that knows when it failed: the scan's units are taken only when its size is that
+ * of a person in metres, centimetres or millimetres, and a finished registration is checked
+ * against the scan it claims to fit (size of the body, distance of the fit). */
+#include <math.h>
+
+#include "fit/fit_internal.h"
+
+/* A person (child to tall adult, standing or lying, a bust included) is 0.1-3 m across. */
+#define PERSON_MIN_M 0.1
+#define PERSON_MAX_M 3.0
+
+spx_status spx_fit_units(spx_ctx *ctx, double ext, double given, double *scale, const char **note) {
+  *note = NULL;
+  if (given > 0) {
+    double m = ext * given;
+    if (!(m >= PERSON_MIN_M && m <= PERSON_MAX_M))
+      return spx_fail(ctx, SPX_E_ARG, "registration: with the units given the scan is %.3g m across; a person is "
+                      "%.1f-%.0f m", m, PERSON_MIN_M, PERSON_MAX_M);
+    *scale = given;
+    return SPX_OK;
+  }
+  if (ext >= PERSON_MIN_M && ext <= PERSON_MAX_M) *scale = 1;
+  else if (ext >= 100 * PERSON_MIN_M && ext <= 100 * PERSON_MAX_M)
+    *scale = 0.01, *note = "scan looks like centimetres, scaling by 0.01";
+  else if (ext > 100 * PERSON_MAX_M && ext <= 1000 * PERSON_MAX_M)
+    *scale = 0.001, *note = "scan looks like millimetres, scaling by 0.001";
+  else
+    return spx_fail(ctx, SPX_E_ARG, "registration: the scan is %.3g units across, not the size of a person in metres "
+                    "(%.1f-%.0f), centimetres or millimetres; give --units if it is one", ext, PERSON_MIN_M,
+                    PERSON_MAX_M);
+  return SPX_OK;
+}
+
+static double extent(const float *p, int32_t n) {
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int32_t i = 0; i < n; i++)
+    for (int d = 0; d < 3; d++) lo[d] = fmin(lo[d], p[i * 3 + d]), hi[d] = fmax(hi[d], p[i * 3 + d]);
+  return n ? fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2])) : 0;
+}
+
+spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, const float *reg_m, int32_t nv,
+                                double median_m) {
+  double es = extent(scan_m, ns), er = extent(reg_m, nv);
+  if (!(er > 0.5 * es && er < 2 * es))
+    return spx_fail(ctx, SPX_E_NUMERIC, "registration failed: the fitted body is %.4g m across, the scan %.4g m "
+                    "(degenerate fit)", er, es);
+  if (!(median_m <= 0.05 * es))
+    return spx_fail(ctx, SPX_E_NUMERIC, "registration failed: median scan-to-body distance %.1f mm is more than 5%% "
+                    "of the scan's %.3g m extent", median_m * 1e3, es);
+  return SPX_OK;
+}

@@ -1,0 +1,61 @@
+"""Truncated and corrupted files through every reader, in a child interpreter: each one either
+loads or raises SmplpixError with a one-line message naming the file; the interpreter never dies."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+import smplpix
+from conftest import BODY, CAMERA, MESH
+
+CHILD = r"""
+import sys, smplpix
+ctx = smplpix.Context(device=False)
+readers = {"exr": smplpix.read_exr, "png": smplpix.read_png, "npy": smplpix.read_npy, "obj": smplpix.read_mesh,
+           "ply": smplpix.read_mesh, "json": smplpix.Camera.load,
+           "npz": lambda p: smplpix.BodyModel.load(ctx, p).close()}
+bad = ok = 0
+for path in sys.argv[1:]:
+    try:
+        readers[path.rsplit(".", 1)[1]](path)
+        ok += 1
+    except smplpix.SmplpixError as e:
+        msg = str(e)
+        assert "\n" not in msg and msg, (path, msg)
+        assert path.rsplit("/", 1)[1] in msg or e.code in ("SPX_E_NOMEM",), (path, msg)
+        bad += 1
+print("ok", ok, "bad", bad)
+"""
+
+
+def test_corrupted_files_never_crash(tmp_path):
+    img = np.random.default_rng(0).random((9, 11, 4), dtype=np.float32)
+    smplpix.write_exr(tmp_path / "a.exr", img)
+    smplpix.write_png(tmp_path / "a.png", img)
+    smplpix.write_npy(tmp_path / "a.npy", img)
+    m = smplpix.read_mesh(MESH)
+    smplpix.write_mesh(tmp_path / "a.ply", smplpix.Mesh(m.vertices[:300], m.faces[np.all(m.faces < 300, axis=1)]))
+    sources = {"exr": tmp_path / "a.exr", "png": tmp_path / "a.png", "npy": tmp_path / "a.npy",
+               "ply": tmp_path / "a.ply", "obj": MESH, "json": CAMERA, "npz": BODY}
+    rng = np.random.default_rng(1)
+    paths = []
+    for ext, src in sources.items():
+        data = open(src, "rb").read()
+        for k, cut in enumerate([0, 1, 7, 64, len(data) // 3, len(data) // 2, len(data) - 1]):
+            p = tmp_path / f"cut{k}_{ext}.{ext}"
+            p.write_bytes(data[:cut])
+            paths.append(str(p))
+        for k in range(6):  # flipped bytes, mostly in the header
+            b = bytearray(data)
+            for _ in range(8):
+                b[int(rng.integers(0, min(len(b), 512)))] ^= int(rng.integers(1, 256))
+            p = tmp_path / f"flip{k}_{ext}.{ext}"
+            p.write_bytes(bytes(b))
+            paths.append(str(p))
+    pkg_parent = os.path.dirname(os.path.dirname(smplpix.__file__))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([pkg_parent, os.environ.get("PYTHONPATH", "")]))
+    r = subprocess.run([sys.executable, "-c", CHILD, *paths], capture_output=True, text=True, env=env, timeout=600)
+    assert r.returncode == 0, f"exit {r.returncode}: {r.stderr[-2000:]}"
+    ok, bad = int(r.stdout.split()[1]), int(r.stdout.split()[3])
+    assert ok + bad == len(paths) and bad >= 7 * len(sources)  # every truncation is an error

@@ -1,0 +1,230 @@
+/* End to end: `smplpix train --loss l1+gan` and `--schedule paper` (apps/train_recipe.c).
+ *  - --loss l1, then --init from it with --loss l1+gan (the offline recipe): the discriminator is
+ *    written beside W (W.disc.safetensors), the progress and epoch lines show every loss term, the
+ *    checkpoint's training state (smplpix.train.*, apps/train_state.h) records loss and stage;
+ *  - --resume of a stage-2 run gives the same generator and discriminator files, bit for bit, as an
+ *    uninterrupted run of the same length;
+ *  - --schedule paper runs stage 1 (l1) then stage 2 (l1+gan) with Adam restarted; a run
+ *    interrupted (Ctrl-C) in stage 1 or in stage 2 and resumed ends with the same generator and
+ *    discriminator files, bit for bit, as the uninterrupted run;
+ *  - --loss vgg then vgg+gan with a (small, random) VGG19 file;
+ *  - one-line errors: a discriminator file from another run, --loss vgg without --vgg or with a
+ *    file that is no VGG19 (exit 1); an unknown --loss, or --resume with flags contradicting the
+ *    record (--loss, --schedule, --lr2, --disc-width) (exit 2). */
+#include <fcntl.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "cli_test.h"
+#include "smplpix/npy.h"
+#include "smplpix/smplpix.h"
+#include "st_compare.h"
+
+enum { H = 33, W = 36 };
+static spx_ctx *ctx;
+
+static void make_data(void) {
+  const char *sub[] = {"d", "d/train", "d/train/input", "d/train/output"};
+  char p[800];
+  for (int i = 0; i < 4; i++) {
+    path_of(p, sizeof p, sub[i]);
+    mkdir(p, 0777);
+  }
+  unsigned long long s = 3;
+  float *in = malloc(sizeof(float) * H * W * 4), *tg = malloc(sizeof(float) * H * W * 3);
+  for (int k = 0; k < 3; k++) {
+    for (int i = 0; i < H * W; i++)
+      for (int c = 0; c < 4; c++) {
+        float v = (float)spx_t_uniform(&s);
+        in[i * 4 + c] = v;
+        if (c < 3) tg[i * 3 + c] = 0.5f * v + 0.25f;
+      }
+    int64_t si[3] = {H, W, 4}, so[3] = {H, W, 3};
+    char name[64];
+    snprintf(name, sizeof name, "d/train/input/p%d.npy", k);
+    path_of(p, sizeof p, name);
+    CHECK_OK(ctx, spx_npy_save_f32(ctx, p, in, 3, si));
+    snprintf(name, sizeof name, "d/train/output/p%d.npy", k);
+    path_of(p, sizeof p, name);
+    CHECK_OK(ctx, spx_npy_save_f32(ctx, p, tg, 3, so));
+  }
+  free(in), free(tg);
+}
+
+static int file_has(const char *name, const char *needle) {
+  char p[800], buf[16384] = "";
+  path_of(p, sizeof p, name);
+  FILE *f = fopen(p, "rb");
+  if (!f) return 0;
+  size_t n = fread(buf, 1, sizeof buf - 1, f);
+  fclose(f);
+  buf[n] = 0;
+  return strstr(buf, needle) != NULL;
+}
+
+static int meta_is(const char *name, const char *key, const char *want) {
+  char p[800];
+  path_of(p, sizeof p, name);
+  spx_st_file f;
+  memset(&f, 0, sizeof f);
+  if (spx_st_load(ctx, p, &f)) return 0;
+  const char *v = spx_st_meta(&f, key);
+  int ok = v && !strcmp(v, want);
+  if (!ok) fprintf(stderr, "  %s: %s = %s, expected %s\n", name, key, v ? v : "(none)", want);
+  spx_st_free(&f);
+  return ok;
+}
+
+static int same(const char *a, const char *b) {
+  char pa[800], pb[800];
+  path_of(pa, sizeof pa, a), path_of(pb, sizeof pb, b);
+  return spx_t_same_safetensors(ctx, pa, pb);
+}
+
+#define COMMON "--data d --width 8 --batch 2 --no-shuffle --disc-width 4 --log-every 1"
+
+static void test_offline_recipe(void) {
+  CHECK(tool("train " COMMON " --out a.safetensors --epochs 1 --loss l1") == 0);
+  CHECK(meta_is("a.safetensors", "smplpix.train.loss", "l1") && meta_is("a.safetensors", "smplpix.train.stage", "1"));
+  CHECK(!exists("a.disc.safetensors"));
+  CHECK(tool("train " COMMON " --out b.safetensors --init a.safetensors --epochs 2 --loss l1+gan") == 0);
+  CHECK(exists("b.disc.safetensors"));
+  CHECK(meta_is("b.safetensors", "smplpix.train.loss", "l1+gan") && meta_is("b.safetensors", "smplpix.train.stage", "2"));
+  CHECK_MSG(file_has("err.txt", "GAN") && file_has("err.txt", "FM") && file_has("err.txt", "D "),
+            "progress lines without the loss terms");
+  CHECK_MSG(file_has("out.txt", "epoch 2 step 4: train loss") && file_has("out.txt", "(L1 "), "no epoch line with terms");
+  /* the same 4 steps in two runs */
+  CHECK(tool("train " COMMON " --out c.safetensors --init a.safetensors --epochs 1 --loss l1+gan") == 0);
+  CHECK(tool("train " COMMON " --out c.safetensors --resume --epochs 2 --loss l1+gan") == 0);
+  CHECK_MSG(same("b.safetensors", "c.safetensors"), "resumed generator differs");
+  CHECK_MSG(same("b.disc.safetensors", "c.disc.safetensors"), "resumed discriminator differs");
+  /* errors */
+  /* a flag contradicting the checkpoint's record is a usage error (exit 2, as every recorded setting) */
+  CHECK(tool("train " COMMON " --out a.safetensors --resume --epochs 2 --loss l1+gan") == 2);
+  CHECK(err_one_line_with("was trained with --loss l1, not l1+gan"));
+  /* ... and so is --schedule on a single-stage run, or --loss on a scheduled one */
+  CHECK(tool("train " COMMON " --out a.safetensors --resume --epochs 2 --schedule paper") == 2);
+  CHECK(err_one_line_with("--schedule contradicts"));
+  char cmd[2048];
+  CHECK(tool("train " COMMON " --out e.safetensors --init a.safetensors --epochs 1 --loss l1+gan") == 0);
+  snprintf(cmd, sizeof cmd, "cd '%s' && cp b.disc.safetensors e.disc.safetensors", dir);
+  CHECK(spx_t_system(cmd) == 0);
+  CHECK(tool("train " COMMON " --out e.safetensors --resume --epochs 2 --loss l1+gan") == 1);
+  CHECK(err_one_line_with("not from the same run"));
+  snprintf(cmd, sizeof cmd, "cd '%s' && rm e.disc.safetensors", dir);
+  CHECK(spx_t_system(cmd) == 0);
+  CHECK(tool("train " COMMON " --out e.safetensors --resume --epochs 2 --loss l1+gan") == 1);
+  CHECK(err_one_line_with("e.disc.safetensors"));
+  CHECK(tool("train " COMMON " --out f.safetensors --loss vgg") == 1);
+  CHECK(err_one_line_with("--vgg"));
+  CHECK(!exists("f.safetensors"));
+  CHECK(tool("train " COMMON " --out f.safetensors --loss l2") == 2);
+  CHECK(tool("train " COMMON " --out f.safetensors --loss l1 --vgg x.safetensors") == 2);
+}
+
+/* the perceptual loss: stage 1 (vgg) then vgg+gan from it; a VGG file of the wrong kind */
+static void test_vgg(void) {
+  CHECK(tool("train " COMMON " --out v.safetensors --epochs 1 --loss vgg --vgg '" SPX_TEST_DATA
+             "/vgg/vgg_w4.safetensors'") == 0);
+  CHECK(file_has("out.txt", "(VGG ") && meta_is("v.safetensors", "smplpix.train.loss", "vgg"));
+  CHECK(tool("train " COMMON " --out v2.safetensors --init v.safetensors --epochs 1 --loss vgg+gan --vgg '" SPX_TEST_DATA
+             "/vgg/vgg_w4.safetensors'") == 0);
+  CHECK(file_has("out.txt", "(VGG ") && file_has("out.txt", "GAN ") && exists("v2.disc.safetensors"));
+  CHECK(tool("train " COMMON " --out v3.safetensors --epochs 1 --loss vgg --vgg '" SPX_TEST_DATA
+             "/patchgan/D.safetensors'") == 1);
+  CHECK(err_one_line_with("D.safetensors: missing tensor features.0.weight"));
+  CHECK(!exists("v3.safetensors"));
+}
+
+static void test_schedule(void) {
+  CHECK(tool("train " COMMON " --out s.safetensors --schedule paper --epochs 1 --lr 1e-3 --lr2 1e-4") == 0);
+  CHECK(file_has("out.txt", "stage 1 of --schedule paper") && file_has("out.txt", "step 2: stage 2 (--loss l1+gan"));
+  CHECK(meta_is("s.safetensors", "smplpix.train.stage", "2") && meta_is("s.safetensors", "smplpix.train.stage_base", "2"));
+  CHECK(meta_is("s.safetensors", "smplpix.train.loss", "l1+gan") && exists("s.disc.safetensors"));
+  /* stage 2 restarted Adam: 2 generator steps since, 2 discriminator steps */
+  char p[800];
+  path_of(p, sizeof p, "s.safetensors");
+  spx_unet *u = NULL;
+  CHECK_OK(ctx, spx_unet_load(ctx, p, &u));
+  if (u) CHECK(spx_unet_step(u) == 2);
+  spx_unet_destroy(u);
+  /* resuming a finished schedule does nothing and keeps both files */
+  CHECK(tool("train " COMMON " --out s.safetensors --schedule paper --epochs 1 --resume") == 0);
+  CHECK(file_has("out.txt", "step 4 -> 4"));
+  /* the schedule, lr2 and stage come from the record: --resume alone continues it */
+  CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume") == 0);
+  CHECK(file_has("out.txt", "step 4 -> 4") && file_has("out.txt", "stage 2 of --schedule paper"));
+  CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume --loss l1+gan") == 2);
+  CHECK(err_one_line_with("--loss contradicts the --schedule paper"));
+  CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume --lr2 1e-3") == 2);
+  CHECK(err_one_line_with("--lr2 contradicts"));
+  CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume --disc-width 8") == 2);
+  CHECK(err_one_line_with("--disc-width contradicts"));
+}
+
+/* Run the tool (argv[0] ignored), SIGINT after the stderr line starting with `trigger`; exit status. */
+static int run_interrupted(char *const *argv, const char *trigger) {
+  int fd[2];
+  if (pipe(fd)) return -1;
+  pid_t pid = fork();
+  if (pid == 0) {
+    int dn = open("/dev/null", O_WRONLY);
+    if (dn >= 0) dup2(dn, 1);
+    dup2(fd[1], 2);
+    close(fd[0]);
+    execv(spx_t_tool(), argv);
+    _exit(127);
+  }
+  close(fd[1]);
+  FILE *f = fdopen(fd[0], "r");
+  char line[1024];
+  int sent = 0;
+  while (f && fgets(line, sizeof line, f))
+    if (!sent && !strncmp(line, trigger, strlen(trigger))) kill(pid, SIGINT), sent = 1;
+  if (f) fclose(f);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  if (!sent) return -2;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+static void test_schedule_resume(void) {
+  CHECK(tool("train " COMMON " --out full.safetensors --schedule paper --epochs 2 --lr 1e-3 --lr2 1e-4") == 0);
+  const char *trig[2] = {"step 2/8", "step 5/8"}, *name[2] = {"i1", "i2"};
+  for (int k = 0; k < 2; k++) {
+    char data[800], out[800], o2[64];
+    path_of(data, sizeof data, "d");
+    snprintf(o2, sizeof o2, "%s.safetensors", name[k]);
+    path_of(out, sizeof out, o2);
+    char *argv[] = {"smplpix", "train", "--data", data, "--width", "8", "--batch", "2", "--no-shuffle", "--disc-width",
+                    "4", "--log-every", "1", "--out", out, "--schedule", "paper", "--epochs", "2", "--lr", "1e-3",
+                    "--lr2", "1e-4", NULL};
+    CHECK_MSG(run_interrupted(argv, trig[k]) == 130, "interrupt after '%s'", trig[k]);
+    CHECK(meta_is(o2, "smplpix.train.stage", k ? "2" : "1"));
+    char args[1024], d2[64];
+    snprintf(args, sizeof args, "train " COMMON " --out %s --schedule paper --epochs 2 --lr 1e-3 --lr2 1e-4 --resume", o2);
+    CHECK(tool(args) == 0);
+    snprintf(d2, sizeof d2, "%s.disc.safetensors", name[k]);
+    CHECK_MSG(same("full.safetensors", o2), "generator after an interrupt at '%s' + resume differs", trig[k]);
+    CHECK_MSG(same("full.disc.safetensors", d2), "discriminator after an interrupt at '%s' + resume differs", trig[k]);
+  }
+}
+
+int main(void) {
+  spx_t_path(dir, sizeof dir, "cligan");
+  mkdir(dir, 0777);
+  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
+    fprintf(stderr, "no device\n");
+    return 1;
+  }
+  make_data();
+  SPX_RUN(test_offline_recipe);
+  SPX_RUN(test_schedule);
+  SPX_RUN(test_schedule_resume);
+  SPX_RUN(test_vgg);
+  spx_ctx_destroy(ctx);
+  return spx_test_summary();
+}

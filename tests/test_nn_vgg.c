@@ -1,0 +1,143 @@
+/* The VGG19 perceptual loss (lib/nn/vgg.c, eq. 5 of the paper) against PyTorch
+ * (tests/data/vgg/make_vgg_golden.py: torchvision's layer order and names at 1/16 width, random
+ * weights): the loss value and its gradient w.r.t. the prediction, on the HOST backend (double
+ * references: vs PyTorch's float64 run) and the DEVICE backend (vs PyTorch float32, within
+ * max(1e-4, 10 x its float32-vs-float64 spread)); the frozen weights have no gradient or optimizer
+ * slabs; a file without a tensor or with a misshapen one fails with one line naming both. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "nn/vgg.h"
+#include "nn_testutil.h"
+#include "smplpix/safetensors.h"
+
+#define DIR SPX_TEST_DATA "/vgg/"
+enum { H = 35, W = 42 };
+
+static spx_st_file G;
+
+static const void *gdata(const char *name, size_t *n) {
+  const spx_st_tensor *t = spx_st_find(&G, name);
+  if (!t) return NULL;
+  *n = t->nbytes / (t->dtype == SPX_F64 ? 8 : 4);
+  return t->data;
+}
+
+/* element i of a F64 / F32 golden tensor (safetensors data need not be 8-byte aligned) */
+static double at(const void *p, size_t i, int f64) {
+  if (f64) {
+    double d;
+    memcpy(&d, (const char *)p + 8 * i, 8);
+    return d;
+  }
+  float f;
+  memcpy(&f, (const char *)p + 4 * i, 4);
+  return f;
+}
+
+static void run(spx_ctx *ctx, spx_tape_backend be) {
+  spx_vgg *v = NULL;
+  CHECK_OK(ctx, spx_vgg_open_ex(ctx, DIR "vgg_w4.safetensors", be, &v));
+  if (!v) return;
+  spx_tape *t = spx_vgg_tape(v);
+  CHECK(spx_vgg_width(v) == 4 && spx_tape_param_count(t) == 0); /* frozen: no trainable slab */
+  size_t np = 0, ng = 0, nl = 0, ngr = 0;
+  const float *pred = gdata("pred", &np), *gt = gdata("gt", &ng);
+  const float *gl = gdata(be == SPX_TAPE_HOST ? "loss64" : "loss", &nl);
+  const void *gg = gdata(be == SPX_TAPE_HOST ? "grad64" : "grad", &ngr);
+  CHECK(pred && gt && gl && gg && np == 3 * H * W && ngr == np);
+  if (!pred || !gt || !gl || !gg) goto done;
+  float *x = malloc(2 * np * 4), *grad = malloc(2 * np * 4);
+  memcpy(x, pred, np * 4), memcpy(x + np, gt, np * 4);
+  int again = 0, xi = -1, loss = -1;
+  spx_status st;
+  do {
+    if ((st = spx_tape_begin(t, 1, 1))) break;
+    xi = spx_tape_input(t, 1, 3, H, W, x);
+    int gi = spx_tape_input(t, 1, 3, H, W, x + np);
+    if (!spx_tape_measuring(t)) spx_tape_requires_grad(t, xi);
+    loss = spx_vgg_loss(v, xi, gi);
+    st = spx_tape_end(t, &again);
+  } while (!st && again);
+  CHECK_OK(ctx, st);
+  CHECK_OK(ctx, spx_tape_backward(t, loss));
+  float lv = 0;
+  CHECK_OK(ctx, spx_tape_read(t, loss, &lv));
+  CHECK_OK(ctx, spx_tape_read_grad(t, xi, grad));
+  double ref_l = at(gl, 0, be == SPX_TAPE_HOST);
+  double l_ours = be == SPX_TAPE_HOST ? spx_tape_host(t, loss)[0] : lv;
+  double num = 0, den = 1e-30;
+  for (size_t i = 0; i < np; i++) {
+    double r = at(gg, i, be == SPX_TAPE_HOST);
+    double o = be == SPX_TAPE_HOST ? spx_tape_host_grad(t, xi)[i] : grad[i];
+    num = fmax(num, fabs(o - r)), den = fmax(den, fabs(r));
+  }
+  double el = fabs(l_ours - ref_l) / fabs(ref_l), eg = num / den;
+  size_t one = 0;
+  const float *sl = gdata("spread.loss", &one), *sg = gdata("spread.grad", &one);
+  /* host: double arithmetic, but the normalisation constants 1/std and -mean/std are stored as
+   * float32 in the tape (as on the device): ~1e-8 from PyTorch's float64 */
+  double tl = be == SPX_TAPE_HOST ? 1e-6 : fmax(1e-4, 10.0 * sl[0]);
+  double tg = be == SPX_TAPE_HOST ? 1e-6 : fmax(1e-4, 10.0 * sg[0]);
+  printf("  %s vs PyTorch %s: loss %.3g, gradient w.r.t. the prediction %.3g (tolerances %.3g, %.3g)\n",
+         be == SPX_TAPE_HOST ? "host (double)" : "device (float32)", be == SPX_TAPE_HOST ? "float64" : "float32", el,
+         eg, tl, tg);
+  CHECK_MSG(el <= tl && eg <= tg, "loss %.3g gradient %.3g", el, eg);
+  free(x), free(grad);
+done:
+  spx_vgg_destroy(v);
+}
+
+static void test_golden(void) {
+  spx_ctx *ctx = spx_nt_open();
+  CHECK(ctx != NULL);
+  if (!ctx) return;
+  CHECK_OK(ctx, spx_st_load(ctx, DIR "vgg_golden.safetensors", &G));
+  run(ctx, SPX_TAPE_HOST);
+  run(ctx, SPX_TAPE_DEVICE);
+  spx_st_free(&G);
+  spx_ctx_destroy(ctx);
+}
+
+static void test_bad_files(void) {
+  spx_ctx *ctx = spx_nt_open();
+  if (!ctx) return;
+  spx_st_file f;
+  CHECK_OK(ctx, spx_st_load(ctx, DIR "vgg_w4.safetensors", &f));
+  spx_st_entry *es = calloc((size_t)f.count, sizeof *es);
+  char path[600];
+  snprintf(path, sizeof path, "%s/bad_vgg.safetensors", spx_t_tmpdir());
+  for (int pass = 0; pass < 2; pass++) {
+    int ne = 0;
+    for (int i = 0; i < f.count; i++) {
+      if (pass == 0 && !strcmp(f.tensors[i].name, "features.19.bias")) continue;
+      es[ne].name = f.tensors[i].name;
+      es[ne].dtype = f.tensors[i].dtype;
+      es[ne].ndim = f.tensors[i].ndim;
+      memcpy(es[ne].shape, f.tensors[i].shape, sizeof es[ne].shape);
+      if (pass == 1 && !strcmp(f.tensors[i].name, "features.10.weight")) /* [16, 8, 3, 3] as [8, 16, 3, 3] */
+        es[ne].shape[0] = f.tensors[i].shape[1], es[ne].shape[1] = f.tensors[i].shape[0];
+      es[ne].data = f.tensors[i].data;
+      ne++;
+    }
+    CHECK_OK(ctx, spx_st_save(ctx, path, es, ne, NULL, NULL, 0));
+    spx_vgg *v = NULL;
+    CHECK(spx_vgg_open(ctx, path, &v) != SPX_OK && !v);
+    const char *m = spx_ctx_message(ctx);
+    printf("  %s\n", m);
+    CHECK(strstr(m, path) && strstr(m, pass ? "features.10.weight" : "missing tensor features.19.bias") && !strchr(m, '\n'));
+  }
+  free(es);
+  spx_st_free(&f);
+  spx_vgg *v = NULL;
+  CHECK(spx_vgg_open(ctx, SPX_TEST_DATA "/patchgan/D.safetensors", &v) != SPX_OK);
+  CHECK(strstr(spx_ctx_message(ctx), "features.0.weight") != NULL);
+  spx_ctx_destroy(ctx);
+}
+
+int main(void) {
+  SPX_RUN(test_golden);
+  SPX_RUN(test_bad_files);
+  return spx_test_summary();
+}

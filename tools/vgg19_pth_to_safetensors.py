@@ -1,0 +1,64 @@
+#!/usr/bin/env python3
+"""Convert a torchvision VGG19 state_dict (.pth) into the safetensors file `smplpix train --vgg`
+reads (torchvision's names features.N.weight / features.N.bias, float32).
+
+  python3 tools/vgg19_pth_to_safetensors.py vgg19-dcbb9e9d.pth VGG19.safetensors
+
+The .pth is what torchvision downloads for models.vgg19(weights="IMAGENET1K_V1") (the file in
+~/.cache/torch/hub/checkpoints/), or torch.save(model.state_dict(), path) of any VGG19. Only the
+`features` tensors are kept (the classifier is not used by the perceptual loss). Needs PyTorch and
+NumPy; the file is written to a temporary name and renamed.
+"""
+import json
+import os
+import struct
+import sys
+
+
+def main():
+    if len(sys.argv) != 3:
+        print(__doc__.strip().split("\n\n")[1], file=sys.stderr)
+        return 2
+    src, dst = sys.argv[1], sys.argv[2]
+    import numpy as np
+    import torch
+
+    try:
+        sd = torch.load(src, map_location="cpu")
+    except Exception as e:  # noqa: BLE001 - one line for any unreadable file
+        print("vgg19_pth_to_safetensors: %s: cannot read (%s)" % (src, str(e).splitlines()[0]), file=sys.stderr)
+        return 1
+    if isinstance(sd, dict) and "state_dict" in sd and isinstance(sd["state_dict"], dict):
+        sd = sd["state_dict"]
+    if not isinstance(sd, dict):
+        print("vgg19_pth_to_safetensors: %s: not a state_dict" % src, file=sys.stderr)
+        return 1
+    feats = {k: v for k, v in sd.items() if k.startswith("features.") and hasattr(v, "numpy")}
+    if "features.0.weight" not in feats:
+        print("vgg19_pth_to_safetensors: %s: no features.0.weight (not a torchvision VGG state_dict)" % src,
+              file=sys.stderr)
+        return 1
+    order = sorted(feats, key=lambda k: (int(k.split(".")[1]), k))
+    header, blobs, off = {}, [], 0
+    for k in order:
+        a = np.ascontiguousarray(feats[k].detach().float().numpy()).astype("<f4")
+        raw = a.tobytes()
+        header[k] = {"dtype": "F32", "shape": list(a.shape), "data_offsets": [off, off + len(raw)]}
+        blobs.append(raw)
+        off += len(raw)
+    header["__metadata__"] = {"format": "pt", "source": os.path.basename(src)}
+    h = json.dumps(header, separators=(",", ":")).encode()
+    h += b" " * ((8 - len(h) % 8) % 8)
+    tmp = dst + ".tmp%d" % os.getpid()
+    with open(tmp, "wb") as f:
+        f.write(struct.pack("<Q", len(h)))
+        f.write(h)
+        for b in blobs:
+            f.write(b)
+    os.replace(tmp, dst)
+    print("wrote %s: %d tensors (features.*) from %s" % (dst, len(order), src))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
