@@ -5,9 +5,16 @@
 # then print one table: row, our ms, torch ms, ratio (ours / torch), our GFLOP/s, our device
 # memory (and torch's peak RSS, its CPU analogue). Each side: minimum over REPS timed passes after
 # one warm-up, torch with torch.set_num_threads(os.cpu_count()).
+# The eval rows also run the inference-engine peers (benchmarks/peer_unet_onnx.py: the torch
+# peer's model exported to ONNX, run by ONNX Runtime and OpenVINO on the CPU with all cores) and a
+# second table gives ours / each engine. The engines are pip-installed into a virtual environment
+# (PEER_VENV, default BUILD/peer-venv, with the system site packages for torch and numpy) on the
+# first run; when that fails (no network, no venv module) they are skipped with a message.
 #
 #   sh benchmarks/unet_vs_torch.sh [BUILD]      env: WIDTHS ("16 64"), SIZE (308x410),
-#                                                    REPS16 (3), REPS64 (2), PYTHON (/usr/bin/python3)
+#                                                    REPS16 (3), REPS64 (2), PYTHON (/usr/bin/python3),
+#                                                    ROWS ("eval 1;train 1;train 4"), PEER_VENV,
+#                                                    ENGINES (onnxruntime,openvino; empty: none)
 # Width 64 uses 2 reps by default to keep the whole run near 10 minutes on a 2-core CPU.
 # Without PyTorch the peer is skipped (said so) and the torch columns read "-".
 # Raw output: out/bench/unet_vs_torch.txt.
@@ -19,6 +26,9 @@ SIZE=${SIZE:-308x410}
 REPS16=${REPS16:-3}
 REPS64=${REPS64:-2}
 PYTHON=${PYTHON:-/usr/bin/python3}
+ROWS=${ROWS:-eval 1;train 1;train 4}
+PEER_VENV=${PEER_VENV:-$BUILD/peer-venv}
+ENGINES=${ENGINES-onnxruntime,openvino}
 BENCH="$BUILD/benchmarks/bench_unet"
 [ -x "$BENCH" ] || { echo "unet_vs_torch.sh: $BENCH not built (make build)" >&2; exit 1; }
 mkdir -p out/bench
@@ -31,6 +41,24 @@ if ! "$PYTHON" -c "import torch" 2>/dev/null; then
   echo "torch peer skipped: $PYTHON cannot import torch (apt install python3-torch)" | tee -a "$RAW"
 fi
 
+# inference-engine peers: a venv with onnxruntime and openvino (created once, reused)
+engines=""
+if [ $peer = 1 ] && [ -n "$ENGINES" ]; then
+  vpy="$PEER_VENV/bin/python"
+  if ! "$vpy" -c "import onnxruntime, openvino" 2>/dev/null; then
+    echo "installing the ONNX Runtime and OpenVINO peers into $PEER_VENV (pip) ..." >&2
+    { "$PYTHON" -m venv --system-site-packages "$PEER_VENV" &&
+      "$vpy" -m pip install -q onnxruntime openvino; } >"$BUILD/peer-venv.log" 2>&1 || true
+  fi
+  for e in $(echo "$ENGINES" | tr ',' ' '); do
+    if "$vpy" -c "import $e" 2>/dev/null; then
+      engines="${engines:+$engines,}$e"
+    else
+      echo "$e peer skipped: cannot install or import it in $PEER_VENV (see $BUILD/peer-venv.log)" | tee -a "$RAW"
+    fi
+  done
+fi
+
 {
   echo "date: $(date -u '+%Y-%m-%d %H:%M UTC')"
   echo "cpu: $(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -n 1), $(nproc) cores"
@@ -38,6 +66,7 @@ fi
     echo "opencl: $(clinfo 2>/dev/null | sed -n 's/^ *Platform Version *//p' | head -n 1)"
   fi
   [ $peer = 1 ] && echo "torch: $("$PYTHON" -c 'import torch; print(torch.__version__)')"
+  [ -n "$engines" ] && echo "engines: $("$vpy" -c 'import onnxruntime as o, openvino as v; print("onnxruntime", o.__version__, "openvino", v.__version__)' 2>/dev/null)"
   echo "size: $SIZE; reps: width 16 -> $REPS16, width 64 -> $REPS64, others -> $REPS16 (minimum after one warm-up)"
   echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)"
 } | tee -a "$RAW"
@@ -45,13 +74,18 @@ fi
 for wd in $WIDTHS; do
   reps=$REPS16
   [ "$wd" = 64 ] && reps=$REPS64
-  for r in "eval 1" "train 1" "train 4"; do
+  echo "$ROWS" | tr ';' '\n' | while read -r r; do
+    [ -n "$r" ] || continue
     set -- $r
     if [ "$1" = eval ]; then flags="--no-train --eval-batch $2"; else flags="--no-eval --batch $2"; fi
     echo "== width $wd, $1 batch $2 (load $(cut -d' ' -f1 /proc/loadavg))" | tee -a "$RAW"
-    "$BENCH" --width "$wd" --size "$SIZE" --reps "$reps" $flags | tee -a "$RAW"
+    "$BENCH" --width "$wd" --size "$SIZE" --reps "$reps" $flags </dev/null | tee -a "$RAW"
     if [ $peer = 1 ]; then
-      "$PYTHON" "$HERE/peer_unet_torch.py" --width "$wd" --size "$SIZE" --reps "$reps" $flags | tee -a "$RAW"
+      "$PYTHON" "$HERE/peer_unet_torch.py" --width "$wd" --size "$SIZE" --reps "$reps" $flags </dev/null | tee -a "$RAW"
+    fi
+    if [ "$1" = eval ] && [ -n "$engines" ]; then
+      "$vpy" "$HERE/peer_unet_onnx.py" --width "$wd" --size "$SIZE" --reps "$reps" --eval-batch "$2" \
+        --engines "$engines" --onnx out/bench </dev/null | tee -a "$RAW"
     fi
   done
 done
@@ -66,7 +100,9 @@ awk '
     key = "w" kv["width"] " " kv["mode"] " b" kv["batch"]
     if (!(key in seen)) { seen[key] = 1; order[++n] = key }
     if (kv["impl"] == "smplpix") { ours[key] = kv["ms"]; gfs[key] = kv["gflops"]; mem[key] = kv["mem_bytes"] }
-    else { theirs[key] = kv["ms"]; rss[key] = kv["mem_bytes"] }
+    else if (kv["impl"] == "torch") { theirs[key] = kv["ms"]; rss[key] = kv["mem_bytes"] }
+    else if (kv["impl"] == "onnxruntime") ort[key] = kv["ms"]
+    else if (kv["impl"] == "openvino") ovn[key] = kv["ms"]
   }
   END {
     printf "| %-14s | %10s | %10s | %6s | %11s | %14s | %15s |\n", "row", "ours ms", "torch ms", "ratio", "our GFLOP/s", "our device MiB", "torch maxrss MiB"
@@ -84,4 +120,21 @@ awk '
       }
     }
     for (i = 1; i <= nv; i++) print verdict[i]
+    ne = 0
+    for (i = 1; i <= n; i++) if ((order[i] in ort) || (order[i] in ovn)) ne++
+    if (ne) {
+      print ""
+      print "Eval forward against the inference engines (ms: minimum; ratio = ours / engine)"
+      printf "| %-11s | %8s | %8s | %14s | %11s | %10s | %10s | %10s |\n", "row", "ours ms", "torch ms", "onnxruntime ms", "openvino ms", "ours/torch", "ours/ORT", "ours/OV"
+      printf "|%s|%s|%s|%s|%s|%s|%s|%s|\n", "-------------", "---------:", "---------:", "---------------:", "------------:", "-----------:", "-----------:", "-----------:"
+      for (i = 1; i <= n; i++) {
+        k = order[i]
+        if (!((k in ort) || (k in ovn))) continue
+        printf "| %-11s | %8.1f | %8s | %14s | %11s | %10s | %10s | %10s |\n", k, ours[k],
+               (k in theirs) ? sprintf("%.1f", theirs[k]) : "-", (k in ort) ? sprintf("%.1f", ort[k]) : "-",
+               (k in ovn) ? sprintf("%.1f", ovn[k]) : "-",
+               (k in theirs) ? sprintf("%.2f", ours[k] / theirs[k]) : "-",
+               (k in ort) ? sprintf("%.2f", ours[k] / ort[k]) : "-", (k in ovn) ? sprintf("%.2f", ours[k] / ovn[k]) : "-"
+      }
+    }
   }' "$RAW" | tee -a "$RAW"

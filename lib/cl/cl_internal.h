@@ -56,6 +56,12 @@ spx_status spx_cl_check(spx_ctx *ctx, cl_int err, const char *what);
  * first use (from the binary cache when possible). The kernel object is owned by ctx. */
 spx_status spx_cl_kernel(spx_ctx *ctx, const char *program, const char *kernel, cl_kernel *out);
 
+/* The i-th embedded kernel program's file name ("conv2d.cl"), NULL past the last; and building
+ * one program now (or loading it from the cache), as its first kernel lookup would
+ * (benchmarks/bench_coldstart.c times them one by one). */
+const char *spx_cl_program_name(int i);
+spx_status spx_cl_program_build(spx_ctx *ctx, const char *program);
+
 /* Per-device tunable integer (the same value is passed to kernels as -D<name>=<value>). */
 int spx_cl_tune(const spx_ctx *ctx, const char *name);
 

@@ -330,6 +330,23 @@ spx_status spx_cl_kernel(spx_ctx *ctx, const char *program, const char *kernel, 
   return SPX_OK;
 }
 
+const char *spx_cl_program_name(int i) {
+  int n = 0;
+  for (const struct spx_embedded_kernel *k = spx_embedded_kernels; k->name; k++) {
+    size_t len = strlen(k->name);
+    if (len < 3 || strcmp(k->name + len - 3, ".cl")) continue;
+    if (n++ == i) return k->name;
+  }
+  return NULL;
+}
+
+spx_status spx_cl_program_build(spx_ctx *ctx, const char *program) {
+  spx_status st = spx_cl_require(ctx, program);
+  if (st) return st;
+  cl_program p;
+  return get_program(ctx, program, &p);
+}
+
 spx_status spx_device_warmup(spx_ctx *ctx) {
   spx_status st = spx_cl_require(ctx, "spx_device_warmup");
   if (st) return st;

@@ -68,6 +68,15 @@ static const struct spx_tunable spx_tunables[] = {
     {"CONV_DW_G", 8, 1, 1, 64, 0},
     {"CONV_DW_QB", 256, 1024, 1, 1 << 30, 0},
     {"CONV_DW_LWS", 1, 64, 1, 1024, T_WG}, /* work-group size along the column tiles (CPU: 1, keeps private arrays small) */
+    /* conv2d: 3x3 / stride 1 / pad 1 layers with at least this many input and output channels
+     * run Winograd F(4x4,3x3) (kernels/conv2d_winograd.cl) in inference forwards; 0 = never.
+     * CPU: measured on the UNet eval forward at 4x308x410 (CPU seconds, 2-core PoCL): width 64
+     * ~1.55x less with any of 16/32/64, width 16 best with 64 (16 costs ~5% more than direct);
+     * GPU: unmeasured */
+    {"CONV_WINO_MINC", 64, 32, 0, 1 << 20, 0},
+    /* 1: training forwards and backward data take Winograd too (off: the UNet training golden
+     * does not hold with it; see lib/nn/conv2d.h) */
+    {"CONV_WINO_TRAIN", 0, 0, 0, 1, 0},
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", 16, 256, 1, 1024, T_POW2|T_WG},
     /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,

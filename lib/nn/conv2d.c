@@ -1,4 +1,4 @@
-/* 2-D convolution on the device: launchers for kernels/conv2d.cl (implicit GEMM with
+/* 2-D convolution on the device: launchers for kernels/conv2d*.cl (implicit GEMM with
  * register tiling; see the comment at the top of the kernel file for the data layout).
  * Scratch buffers (padded input, packed weights, partial sums) come from the caller's
  * spx_conv2d_workspace when given, else they are allocated per call and released after
@@ -155,7 +155,7 @@ static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, i
   const char *name = s == 2 ? "spx_conv2d_fwd_s2" : s > 2 ? "spx_conv2d_fwd_sn"
                      : k == 3 ? "spx_conv2d_fwd_k3s1" : k == 1 ? "spx_conv2d_fwd_k1s1" : "spx_conv2d_fwd_s1";
   cl_kernel kr;
-  spx_status st = spx_cl_kernel(ctx, "conv2d.cl", name, &kr);
+  spx_status st = spx_cl_kernel(ctx, s == 1 && (k == 3 || k == 1) ? "conv2d.cl" : "conv2d_strided.cl", name, &kr);
   if (st) return st;
   int tm = spx_cl_tune(ctx, "CONV_TM"), tn = spx_cl_tune(ctx, "CONV_TN"), vw = spx_cl_tune(ctx, "CONV_VW");
   int lws = spx_cl_tune(ctx, "CONV_LWS");
@@ -206,6 +206,8 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
   if ((st = check_shape(ctx, "y", y, g.n, g.cout, g.ho, g.wo)) || (st = check_vec(ctx, bias, g.cout, "bias")) ||
       (st = check_vec(ctx, p->scale, g.cout, "scale")) || (st = check_vec(ctx, p->shift, g.cout, "shift")))
     return st;
+  if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, p->scale || p->relu))
+    return spx_conv2d_winograd(ctx, p->ws, x, w, 0, bias, p->scale, p->scale ? p->shift : NULL, p->relu, 0, y);
   int tm = spx_cl_tune(ctx, "CONV_TM"), tn = spx_cl_tune(ctx, "CONV_TN"), vw = spx_cl_tune(ctx, "CONV_VW");
   int lws = spx_cl_tune(ctx, "CONV_LWS");
   int hp = g.h + 2 * g.pad, wp = g.w + 2 * g.pad, plane = hp * wp;
@@ -230,6 +232,8 @@ done:
 /* dx += conv(dilate_s(dy) padded by k-1-pad, flipped and transposed w), stride 1. */
 static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *w,
                                 const spx_tensor *dy, const spx_tensor *dx) {
+  if (spx_conv2d_winograd_applies(ctx, g->k, g->s, g->pad, g->cout, g->cin, 0))
+    return spx_conv2d_winograd(ctx, ws, dy, w, 1, NULL, NULL, NULL, 0, 1, dx);
   int tm = spx_cl_tune(ctx, "CONV_TM"), tn = spx_cl_tune(ctx, "CONV_TN"), vw = spx_cl_tune(ctx, "CONV_VW");
   int lws = spx_cl_tune(ctx, "CONV_LWS");
   int hd = g->h + g->k - 1, wd = g->w + g->k - 1, plane = hd * wd, top = g->k - 1 - g->pad;
@@ -276,7 +280,7 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
   {
     const char *name = g->s == 1 ? "spx_conv2d_dw_s1" : g->s == 2 ? "spx_conv2d_dw_s2" : "spx_conv2d_dw_sn";
     cl_kernel kr;
-    if ((st = spx_cl_kernel(ctx, "conv2d.cl", name, &kr))) goto done;
+    if ((st = spx_cl_kernel(ctx, "conv2d_bwd.cl", name, &kr))) goto done;
     cl_int e = SPX_ARG(kr, 0, xp) | SPX_ARG(kr, 1, dyq) | SPX_ARG(kr, 2, part) | SPX_ARG(kr, 3, g->n) |
                SPX_ARG(kr, 4, g->cin) | SPX_ARG(kr, 5, g->cout) | SPX_ARG(kr, 6, g->k) | SPX_ARG(kr, 7, wp) |
                SPX_ARG(kr, 8, plane) | SPX_ARG(kr, 9, qd) | SPX_ARG(kr, 10, qc);
@@ -289,7 +293,7 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
   }
   {
     cl_kernel kr;
-    if ((st = spx_cl_kernel(ctx, "conv2d.cl", "spx_conv2d_dw_reduce", &kr))) goto done;
+    if ((st = spx_cl_kernel(ctx, "conv2d_bwd.cl", "spx_conv2d_dw_reduce", &kr))) goto done;
     cl_ulong off = dw->off;
     int cnt = (int)count;
     cl_int e = SPX_ARG(kr, 0, part) | SPX_ARG(kr, 1, dw->mem) | SPX_ARG(kr, 2, off) | SPX_ARG(kr, 3, cnt) |
@@ -307,7 +311,7 @@ done:
 
 static spx_status backward_bias(spx_ctx *ctx, const geom *g, const spx_tensor *dy, const spx_tensor *db) {
   cl_kernel kr;
-  spx_status st = spx_cl_kernel(ctx, "conv2d.cl", "spx_conv2d_db", &kr);
+  spx_status st = spx_cl_kernel(ctx, "conv2d_bwd.cl", "spx_conv2d_db", &kr);
   if (st) return st;
   cl_ulong dyo = dy->off, dbo = db->off;
   int hw = g->ho * g->wo;

@@ -33,6 +33,17 @@ typedef struct spx_conv2d_params {
   spx_conv2d_workspace *ws; /* NULL: scratch is allocated and released per call */
 } spx_conv2d_params;
 
+/* Algorithm: Winograd F(4x4,3x3) (kernels/conv2d_winograd.cl, lib/nn/conv2d_winograd.c) for
+ * 3x3 / stride 1 / pad 1 layers whose input and output channels are both >= the tunable
+ * CONV_WINO_MINC (0: never; override with SPX_TUNE_CONV_WINO_MINC), else direct. By default only
+ * INFERENCE forwards take it, recognised by the fused epilogue (scale or relu set: the tape
+ * refuses those in training). Training (plain forward, backward data) takes it only with the
+ * tunable CONV_WINO_TRAIN=1: it is implemented and tested, but the UNet training golden
+ * (tests/test_nn_unet.c, 1e-4 after 3 Adam steps) does not hold with it (gradients 1.9e-4 off
+ * PyTorch at width 8 with every layer on Winograd), so it is off. Winograd changes the float
+ * rounding (bounded error, see tests/test_nn_conv2d_winograd.c); the weight gradient always
+ * runs direct. */
+
 /* Output size of one spatial dimension; <= 0 when the input is too small. */
 static inline int spx_conv2d_out_size(int in, int k, int stride, int pad) {
   int span = in + 2 * pad - k;
@@ -48,6 +59,17 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
 spx_status spx_conv2d_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *dy,
                                const spx_tensor *dx, const spx_tensor *dw, const spx_tensor *db,
                                const spx_conv2d_params *p);
+
+/* ---- Winograd path (lib/nn/conv2d_winograd.c), called by the two functions above ---- */
+/* Nonzero when a k x k / stride / pad conv of cin -> cout channels takes the Winograd path
+ * (forward; backward data asks with cin and cout swapped and inference = 0). */
+int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int inference);
+/* y (=, or += with accumulate) = conv3x3/s1/p1 of x [n][cin][h][w] with w [Cout][Cin][3][3]
+ * (flip = 0: cout = Cout, cin = Cin; flip = 1: the backward-data conv, weights flipped and
+ * transposed, cin = Cout, cout = Cin). bias/scale/shift may be NULL. Shapes are pre-validated. */
+spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
+                               int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
+                               int relu, int accumulate, const spx_tensor *y);
 
 /* ---- plain-C double-precision reference (same semantics) ---- */
 typedef struct spx_conv2d_shape {

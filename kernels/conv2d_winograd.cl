@@ -1,0 +1,281 @@
+/* Winograd F(4x4, 3x3) convolution for 3x3, stride 1, pad 1 layers (host: lib/nn/conv2d_winograd.c;
+ * reference: the direct convolution's, lib/nn/conv2d_ref.c; test: tests/test_nn_conv2d_winograd.c).
+ *
+ * Every 4x4 output tile is A^T [ (G g G^T) .* (B^T d B) ] A, d being the 6x6 input patch around
+ * it (rows 4ty-1 .. 4ty+4, zero outside the image) and g the 3x3 filter (Lavin & Gray 2016, points
+ * 0, +-1, +-2, inf). The sum over input channels moves inside the transform, so a layer becomes
+ *   1. spx_wino_in:      V[n][e][ci][t] = (B^T d B)[e]          (e = 0..35, t = tile index)
+ *   2. spx_wino_weights: U[e][cot][ci][m] = (G g G^T)[e] of out channel cot*CONV_TM+m
+ *   3. spx_wino_gemm:    M[n][e][co][t] = sum_ci U[e][co][ci] V[n][e][ci][t]  (36 GEMMs per image)
+ *   4. spx_wino_out:     y = A^T M A + epilogue (accumulate / bias / affine / ReLU, as conv2d.cl)
+ * (spx_wino_in reads the input zero-padded by conv2d.cl's spx_conv2d_pad.)
+ * 36 GEMMs of Cout x Cin x T do the work of one direct convolution of Cout x 9Cin x 16T: 4x fewer
+ * multiply-adds. The GEMM uses the direct kernel's register tiling and tunables (CONV_TM out
+ * channels x CONV_TN vectors of CONV_VW tiles, CONV_LWS work-items with interleaved tiles). The
+ * tile count is padded to Tp (a multiple of a work-group's tiles); padding tiles hold zeros.
+ * Reduction orders are fixed: results are bit-identical from run to run (but not equal to the
+ * direct convolution's; see the test for the error bound). */
+#ifndef CONV_VW
+#define CONV_VW 1
+#endif
+#ifndef CONV_TM
+#define CONV_TM 4
+#endif
+#ifndef CONV_TN
+#define CONV_TN 4
+#endif
+#ifndef CONV_LWS
+#define CONV_LWS 64
+#endif
+
+#if CONV_VW == 16
+typedef float16 vf;
+#define VLOAD(p) vload16(0, (p))
+#define VSTORE(v, p) vstore16((v), 0, (p))
+#elif CONV_VW == 8
+typedef float8 vf;
+#define VLOAD(p) vload8(0, (p))
+#define VSTORE(v, p) vstore8((v), 0, (p))
+#elif CONV_VW == 4
+typedef float4 vf;
+#define VLOAD(p) vload4(0, (p))
+#define VSTORE(v, p) vstore4((v), 0, (p))
+#elif CONV_VW == 1
+typedef float vf;
+#define VLOAD(p) (*(p))
+#define VSTORE(v, p) (*(p) = (v))
+#else
+#error "CONV_VW must be 1, 4, 8 or 16"
+#endif
+
+#define FL_BIAS 1
+#define FL_SCALE 2
+#define FL_SHIFT 4
+#define FL_RELU 8
+#define FL_ACCUM 16
+
+/* r = B^T d for one column of 6 (stride s between elements of the column). */
+#define WINO_BT(r, d, s)                                                                                     \
+  do {                                                                                                       \
+    vf d0 = d[0], d1 = d[(s)], d2 = d[2 * (s)], d3 = d[3 * (s)], d4 = d[4 * (s)], d5 = d[5 * (s)];         \
+    r[0] = 4.0f * d0 - 5.0f * d2 + d4;                                                                      \
+    r[(s)] = -4.0f * (d1 + d2) + (d3 + d4);                                                                  \
+    r[2 * (s)] = 4.0f * (d1 - d2) + (d4 - d3);                                                               \
+    r[3 * (s)] = 2.0f * (d3 - d1) + (d4 - d2);                                                               \
+    r[4 * (s)] = 2.0f * (d1 - d3) + (d4 - d2);                                                               \
+    r[5 * (s)] = 4.0f * d1 - 5.0f * d3 + d5;                                                                 \
+  } while (0)
+
+/* Input transform. xp is the input zero-padded by spx_conv2d_pad: planes of Hp = 4*TH+2 rows of
+ * Wp = 4*TWp+4 floats (data at row 1 + y, column 1 + x), so no bounds tests. Tiles are numbered
+ * t = ty*TWp + tx with TWp = TW rounded up to CONV_VW: the CONV_VW tiles of one work-item lie in
+ * one tile row. Global: (Tp / CONV_VW, C, N); tiles past TH*TWp are written as zeros. */
+__kernel void spx_wino_in(const __global float *xp, __global float *V, int C, int Wp, int plane, int TWp, int T,
+                          int Tp) {
+  const int t0 = (int)get_global_id(0) * CONV_VW, c = (int)get_global_id(1), n = (int)get_global_id(2);
+  if (t0 >= Tp) return;
+  __global float *v = V + ((size_t)n * 36 * C + c) * Tp + t0;
+  const size_t es = (size_t)C * Tp;
+  vf d[36], r[36];
+  if (t0 >= T) {
+    for (int e = 0; e < 36; e++) VSTORE((vf)0.0f, v + e * es);
+    return;
+  }
+  const int ty = t0 / TWp, tx0 = t0 - ty * TWp;
+  const __global float *xc = xp + ((size_t)n * C + c) * plane + (size_t)(4 * ty) * Wp + 4 * tx0;
+  for (int i = 0; i < 6; i++) {
+    const __global float *p = xc + i * Wp;
+#if CONV_VW == 16
+    /* lane l needs p[4l + j], j = 0..5: four 16-float loads, de-interleaved by 4 (and again from p + 4) */
+    float16 a0 = vload16(0, p), a1 = vload16(0, p + 16), a2 = vload16(0, p + 32), a3 = vload16(0, p + 48);
+    float16 b0 = vload16(0, p + 4), b1 = vload16(0, p + 20), b2 = vload16(0, p + 36), b3 = vload16(0, p + 52);
+    d[i * 6 + 0] = (float16)(a0.s048c, a1.s048c, a2.s048c, a3.s048c);
+    d[i * 6 + 1] = (float16)(a0.s159d, a1.s159d, a2.s159d, a3.s159d);
+    d[i * 6 + 2] = (float16)(a0.s26ae, a1.s26ae, a2.s26ae, a3.s26ae);
+    d[i * 6 + 3] = (float16)(a0.s37bf, a1.s37bf, a2.s37bf, a3.s37bf);
+    d[i * 6 + 4] = (float16)(b0.s048c, b1.s048c, b2.s048c, b3.s048c);
+    d[i * 6 + 5] = (float16)(b0.s159d, b1.s159d, b2.s159d, b3.s159d);
+#else
+    for (int j = 0; j < 6; j++) {
+      float lanes[CONV_VW];
+      for (int l = 0; l < CONV_VW; l++) lanes[l] = p[4 * l + j];
+      d[i * 6 + j] = VLOAD(lanes);
+    }
+#endif
+  }
+  for (int j = 0; j < 6; j++) WINO_BT((r + j), (d + j), 6); /* columns: r = B^T d */
+  for (int i = 0; i < 6; i++) WINO_BT((d + 6 * i), (r + 6 * i), 1); /* rows: d = r B */
+  for (int e = 0; e < 36; e++) VSTORE(d[e], v + e * es);
+}
+
+/* Weight transform. w [Cout][Cin][3][3]; GEMM rows (out channels) `cols` (padded to CONV_TM),
+ * reduction `red`. flip = 0: out co, reduction ci, g = w[co][ci]; flip = 1 (backward data): out
+ * ci, reduction co, g[ky][kx] = w[co][ci][2-ky][2-kx]. U[e][cot][r][m]. Global: red * cols/CONV_TM
+ * (one work-item per reduction index and channel tile). */
+#define R6 0.16666667f  /* 1/6, 1/12, 1/24 rounded to float (multiplications, not divisions) */
+#define R12 0.083333336f
+#define R24 0.041666668f
+__kernel void spx_wino_weights(const __global float *w, ulong w_off, __global float *U, int Cout, int Cin, int cols,
+                               int flip) {
+  const int i = SPX_GID0;
+  const int red = flip ? Cout : Cin, ncot = cols / CONV_TM;
+  if (i >= red * ncot) return;
+  const int r = i % red, cot = i / red;
+  const int oc = flip ? Cin : Cout;
+  float u[36][CONV_TM];
+  for (int m = 0; m < CONV_TM; m++) {
+    const int c = cot * CONV_TM + m;
+    float g[9], h[18];
+    for (int k = 0; k < 9; k++) {
+      float v = 0.0f;
+      if (c < oc) v = flip ? w[w_off + ((size_t)r * Cin + c) * 9 + (8 - k)] : w[w_off + ((size_t)c * Cin + r) * 9 + k];
+      g[k] = v;
+    }
+    /* h = G g (6x3), then u = h G^T (6x6) */
+    for (int j = 0; j < 3; j++) {
+      float g0 = g[j], g1 = g[3 + j], g2 = g[6 + j];
+      h[j] = g0 * 0.25f;
+      h[3 + j] = -(g0 + g1 + g2) * R6;
+      h[6 + j] = -(g0 - g1 + g2) * R6;
+      h[9 + j] = g0 * R24 + g1 * R12 + g2 * R6;
+      h[12 + j] = g0 * R24 - g1 * R12 + g2 * R6;
+      h[15 + j] = g2;
+    }
+    for (int a = 0; a < 6; a++) {
+      float g0 = h[3 * a], g1 = h[3 * a + 1], g2 = h[3 * a + 2];
+      u[6 * a][m] = g0 * 0.25f;
+      u[6 * a + 1][m] = -(g0 + g1 + g2) * R6;
+      u[6 * a + 2][m] = -(g0 - g1 + g2) * R6;
+      u[6 * a + 3][m] = g0 * R24 + g1 * R12 + g2 * R6;
+      u[6 * a + 4][m] = g0 * R24 - g1 * R12 + g2 * R6;
+      u[6 * a + 5][m] = g2;
+    }
+  }
+  for (int e = 0; e < 36; e++) {
+    __global float *ue = U + (((size_t)e * ncot + cot) * red + r) * CONV_TM;
+    for (int m = 0; m < CONV_TM; m++) ue[m] = u[e][m];
+  }
+}
+
+/* The 36 GEMMs. Global: dim0 = ncot x (Tp / (CONV_LWS*CONV_TN*CONV_VW)) groups of CONV_LWS
+ * (channel tile fastest: consecutive groups reuse the same V tiles), dim1 = N*36. */
+__kernel void spx_wino_gemm(const __global float *V, const __global float *U, __global float *M, int Cin, int CoutP,
+                            int Tp) {
+  const int ncot = CoutP / CONV_TM, grp = (int)get_group_id(0);
+  const int cot = grp % ncot, pg = grp / ncot;
+  const int lid = (int)get_local_id(0), ne = (int)get_global_id(1), e = ne % 36;
+  const int t0 = pg * (CONV_LWS * CONV_TN * CONV_VW) + lid * CONV_VW;
+  const __global float *vb = V + (size_t)ne * Cin * Tp + t0;
+  const __global float *ub = U + ((size_t)e * ncot + cot) * Cin * CONV_TM;
+  vf acc[CONV_TM][CONV_TN];
+#pragma unroll
+  for (int m = 0; m < CONV_TM; m++)
+#pragma unroll
+    for (int j = 0; j < CONV_TN; j++) acc[m][j] = (vf)0.0f;
+  for (int ci = 0; ci < Cin; ci++) {
+    const __global float *vr = vb + (size_t)ci * Tp;
+    const __global float *ur = ub + ci * CONV_TM;
+    vf xv[CONV_TN];
+#pragma unroll
+    for (int j = 0; j < CONV_TN; j++) xv[j] = VLOAD(vr + j * (CONV_LWS * CONV_VW));
+#pragma unroll
+    for (int m = 0; m < CONV_TM; m++) {
+      vf wm = (vf)ur[m];
+#pragma unroll
+      for (int j = 0; j < CONV_TN; j++) acc[m][j] = fma(wm, xv[j], acc[m][j]);
+    }
+  }
+  __global float *mb = M + ((size_t)ne * CoutP + cot * CONV_TM) * Tp + t0;
+#pragma unroll
+  for (int m = 0; m < CONV_TM; m++)
+#pragma unroll
+    for (int j = 0; j < CONV_TN; j++) VSTORE(acc[m][j], mb + (size_t)m * Tp + j * (CONV_LWS * CONV_VW));
+}
+
+/* Output transform + epilogue on CONV_VW tiles of one tile row. Global: (Tp / CONV_VW, Cout, N). */
+static inline vf wino_epi(vf v, const __global float *yo, int flags, float bv, float sc, float sh) {
+  if (flags & FL_ACCUM) v = VLOAD(yo) + v;
+  if (flags & FL_BIAS) v = v + bv;
+  if (flags & FL_SCALE) v = v * sc + sh;
+  if (flags & FL_RELU) v = fmax(v, (vf)0.0f);
+  return v;
+}
+
+__kernel void spx_wino_out(const __global float *M, __global float *y, ulong y_off, const __global float *bias,
+                           ulong b_off, const __global float *scale, ulong sc_off, const __global float *shift,
+                           ulong sh_off, int Cout, int CoutP, int H, int W, int TWp, int T, int Tp, int flags) {
+  const int t0 = (int)get_global_id(0) * CONV_VW, co = (int)get_global_id(1), n = (int)get_global_id(2);
+  if (t0 >= T) return;
+  vf m[36], r[24];
+  const __global float *mp = M + ((size_t)n * 36 * CoutP + co) * Tp + t0;
+  const size_t es = (size_t)CoutP * Tp;
+  for (int e = 0; e < 36; e++) m[e] = VLOAD(mp + e * es);
+  /* r = A^T m (4x6), then o = r A (4x4) */
+  for (int j = 0; j < 6; j++) {
+    vf m0 = m[j], m1 = m[6 + j], m2 = m[12 + j], m3 = m[18 + j], m4 = m[24 + j], m5 = m[30 + j];
+    vf a = m1 + m2, b = m1 - m2, c = m3 + m4, d = m3 - m4;
+    r[j] = m0 + a + c;
+    r[6 + j] = b + 2.0f * d;
+    r[12 + j] = a + 4.0f * c;
+    r[18 + j] = b + 8.0f * d + m5;
+  }
+  const float bv = (flags & FL_BIAS) ? bias[b_off + co] : 0.0f;
+  const float sc = (flags & FL_SCALE) ? scale[sc_off + co] : 1.0f;
+  const float sh = (flags & FL_SHIFT) ? shift[sh_off + co] : 0.0f;
+  const int ty = t0 / TWp, tx0 = t0 - ty * TWp, ox0 = 4 * tx0;
+  __global float *yc = y + y_off + ((size_t)n * Cout + co) * H * W;
+  for (int i = 0; i < 4; i++) {
+    const int oy = 4 * ty + i;
+    if (oy >= H) break;
+    vf m0 = r[6 * i], m1 = r[6 * i + 1], m2 = r[6 * i + 2], m3 = r[6 * i + 3], m4 = r[6 * i + 4], m5 = r[6 * i + 5];
+    vf a = m1 + m2, b = m1 - m2, c = m3 + m4, d = m3 - m4;
+    vf o0 = m0 + a + c, o1 = b + 2.0f * d, o2 = a + 4.0f * c, o3 = b + 8.0f * d + m5;
+    __global float *yr = yc + (size_t)oy * W + ox0;
+#if CONV_VW == 16
+    /* interleave: output column 4l + j of lane l */
+    const uint16 lo = (uint16)(0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23);
+    const uint16 hi = lo + (uint16)8;
+    float16 p01l = shuffle2(o0, o1, lo), p01h = shuffle2(o0, o1, hi);
+    float16 p23l = shuffle2(o2, o3, lo), p23h = shuffle2(o2, o3, hi);
+    const uint16 q0 = (uint16)(0, 1, 16, 17, 2, 3, 18, 19, 4, 5, 20, 21, 6, 7, 22, 23);
+    const uint16 q1 = q0 + (uint16)8;
+    float16 out[4] = {shuffle2(p01l, p23l, q0), shuffle2(p01l, p23l, q1), shuffle2(p01h, p23h, q0),
+                      shuffle2(p01h, p23h, q1)};
+    if (ox0 + 64 <= W) {
+      for (int k = 0; k < 4; k++) vstore16(wino_epi(out[k], yr + 16 * k, flags, bv, sc, sh), 0, yr + 16 * k);
+    } else {
+      for (int k = 0; k < 4; k++) {
+        float tmp[16];
+        vstore16(out[k], 0, tmp);
+        for (int l = 0; l < 16; l++) {
+          if (ox0 + 16 * k + l >= W) break;
+          float v = tmp[l];
+          __global float *yo = yr + 16 * k + l;
+          if (flags & FL_ACCUM) v = *yo + v;
+          if (flags & FL_BIAS) v = v + bv;
+          if (flags & FL_SCALE) v = v * sc + sh;
+          if (flags & FL_RELU) v = fmax(v, 0.0f);
+          *yo = v;
+        }
+      }
+    }
+#else
+    float oo[4][CONV_VW];
+    VSTORE(o0, oo[0]);
+    VSTORE(o1, oo[1]);
+    VSTORE(o2, oo[2]);
+    VSTORE(o3, oo[3]);
+    for (int l = 0; l < CONV_VW; l++)
+      for (int j = 0; j < 4; j++) {
+        if (ox0 + 4 * l + j >= W) break;
+        float v = oo[j][l];
+        __global float *yo = yr + 4 * l + j;
+        if (flags & FL_ACCUM) v = *yo + v;
+        if (flags & FL_BIAS) v = v + bv;
+        if (flags & FL_SCALE) v = v * sc + sh;
+        if (flags & FL_RELU) v = fmax(v, 0.0f);
+        *yo = v;
+      }
+#endif
+  }
+}

@@ -1,0 +1,133 @@
+/* Winograd F(4x4,3x3) convolution: launchers for kernels/conv2d_winograd.cl (the four stages and
+ * the buffer layouts are described at the top of the kernel file). Called by lib/nn/conv2d.c for
+ * the forward and backward-data convolutions of 3x3 / stride 1 / pad 1 layers. Scratch: the
+ * caller's workspace slots 0 (zero-padded input, then M, the products), 1 (U, transformed
+ * weights), 2 (V, transformed input), else buffers allocated per call and released after
+ * enqueueing. */
+#include <limits.h>
+
+#include "nn/conv2d.h"
+
+#define FL_BIAS 1
+#define FL_SCALE 2
+#define FL_SHIFT 4
+#define FL_RELU 8
+#define FL_ACCUM 16
+
+int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int inference) {
+  int minc = spx_cl_tune(ctx, "CONV_WINO_MINC");
+  if (!inference && !spx_cl_tune(ctx, "CONV_WINO_TRAIN")) return 0;
+  return minc > 0 && k == 3 && stride == 1 && pad == 1 && cin >= minc && cout >= minc;
+}
+
+typedef struct wbuf {
+  cl_mem mem;
+  int owned;
+} wbuf;
+
+static spx_status wbuf_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, size_t floats, const char *what,
+                           wbuf *out) {
+  out->mem = NULL;
+  out->owned = 0;
+  if (ws) {
+    spx_status st = spx_cl_buf_ensure(ctx, &ws->buf[slot], floats * sizeof(float), what);
+    if (st == SPX_OK) out->mem = ws->buf[slot].mem;
+    return st;
+  }
+  out->owned = 1;
+  return spx_cl_alloc(ctx, floats * sizeof(float), what, &out->mem);
+}
+
+static void wbuf_put(wbuf *b) {
+  if (b->owned) spx_cl_free(&b->mem);
+  b->mem = NULL;
+}
+
+spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
+                               int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
+                               int relu, int accumulate, const spx_tensor *y) {
+  const int n = x->n, cin = x->c, h = x->h, wd = x->w, cout = y->c;
+  const int Cout = w->n, Cin = w->c; /* the weight tensor's own dimensions */
+  const int tm = spx_cl_tune(ctx, "CONV_TM"), tn = spx_cl_tune(ctx, "CONV_TN"), vw = spx_cl_tune(ctx, "CONV_VW");
+  const int lws = spx_cl_tune(ctx, "CONV_LWS");
+  /* tiles: TH rows of TWp (TW rounded up to the vector width, so a vector of tiles is one row) */
+  const int th = (h + 3) / 4, tw = (wd + 3) / 4, twp = (tw + vw - 1) / vw * vw, T = th * twp;
+  const int hp = 4 * th + 2, wp = 4 * twp + 4, plane = hp * wp;
+  const size_t quantum = (size_t)lws * tn * vw;
+  const size_t tp = ((size_t)T + quantum - 1) / quantum * quantum;
+  const int coutp = (cout + tm - 1) / tm * tm;
+  const double vmax = 36.0 * n * (double)(cin > coutp ? cin : coutp) * (double)tp;
+  if (vmax > (double)INT_MAX || (double)n * cin * plane > (double)INT_MAX)
+    return spx_fail(ctx, SPX_E_UNSUPPORTED, "conv2d winograd: %.0f transformed elements exceed the index range", vmax);
+  const int Tp = (int)tp;
+  /* slot 0 holds the padded input, then (once transformed) the products */
+  const size_t s0 = (size_t)n * 36 * coutp * tp > (size_t)n * cin * plane ? (size_t)n * 36 * coutp * tp
+                                                                           : (size_t)n * cin * plane;
+  wbuf XM = {0}, U = {0}, V = {0};
+  spx_status st;
+  cl_kernel kpad, kin, kw, kg, ko;
+  if ((st = spx_cl_kernel(ctx, "conv2d.cl", "spx_conv2d_pad", &kpad)) ||
+      (st = spx_cl_kernel(ctx, "conv2d_winograd.cl", "spx_wino_in", &kin)) ||
+      (st = spx_cl_kernel(ctx, "conv2d_winograd.cl", "spx_wino_weights", &kw)) ||
+      (st = spx_cl_kernel(ctx, "conv2d_winograd.cl", "spx_wino_gemm", &kg)) ||
+      (st = spx_cl_kernel(ctx, "conv2d_winograd.cl", "spx_wino_out", &ko)))
+    return st;
+  if ((st = wbuf_get(ctx, ws, 0, s0, "winograd padded input / products", &XM)) ||
+      (st = wbuf_get(ctx, ws, 1, (size_t)36 * cin * coutp, "winograd weight transform", &U)) ||
+      (st = wbuf_get(ctx, ws, 2, (size_t)n * 36 * cin * tp, "winograd input transform", &V)))
+    goto done;
+  const size_t wg = (size_t)spx_cl_tune(ctx, "SPX_WG");
+  {
+    cl_ulong xo = x->off;
+    int one = 1;
+    cl_int e = SPX_ARG(kpad, 0, x->mem) | SPX_ARG(kpad, 1, xo) | SPX_ARG(kpad, 2, XM.mem) | SPX_ARG(kpad, 3, h) |
+               SPX_ARG(kpad, 4, wd) | SPX_ARG(kpad, 5, hp) | SPX_ARG(kpad, 6, wp) | SPX_ARG(kpad, 7, plane) |
+               SPX_ARG(kpad, 8, one) | SPX_ARG(kpad, 9, one) | SPX_ARG(kpad, 10, one);
+    if ((st = spx_cl_check(ctx, e, "spx_conv2d_pad args"))) goto done;
+    size_t gl[3] = {(size_t)wp, (size_t)hp, (size_t)n * cin}, lo[3] = {wg < (size_t)wp ? wg : (size_t)wp, 1, 1};
+    if ((st = spx_cl_run(ctx, kpad, 3, gl, lo, "spx_conv2d_pad"))) goto done;
+  }
+  {
+    cl_int e = SPX_ARG(kin, 0, XM.mem) | SPX_ARG(kin, 1, V.mem) | SPX_ARG(kin, 2, cin) | SPX_ARG(kin, 3, wp) |
+               SPX_ARG(kin, 4, plane) | SPX_ARG(kin, 5, twp) | SPX_ARG(kin, 6, T) | SPX_ARG(kin, 7, Tp);
+    if ((st = spx_cl_check(ctx, e, "spx_wino_in args"))) goto done;
+    size_t gl[3] = {tp / (size_t)vw, (size_t)cin, (size_t)n}, lo[3] = {1, 1, 1};
+    if ((st = spx_cl_run(ctx, kin, 3, gl, vw > 1 ? lo : NULL, "spx_wino_in"))) goto done;
+  }
+  {
+    cl_ulong wo = w->off;
+    cl_int e = SPX_ARG(kw, 0, w->mem) | SPX_ARG(kw, 1, wo) | SPX_ARG(kw, 2, U.mem) | SPX_ARG(kw, 3, Cout) |
+               SPX_ARG(kw, 4, Cin) | SPX_ARG(kw, 5, coutp) | SPX_ARG(kw, 6, flip);
+    if ((st = spx_cl_check(ctx, e, "spx_wino_weights args"))) goto done;
+    size_t gl = (size_t)cin * (coutp / tm);
+    if ((st = spx_cl_run(ctx, kw, 1, &gl, &wg, "spx_wino_weights"))) goto done;
+  }
+  {
+    cl_int e = SPX_ARG(kg, 0, V.mem) | SPX_ARG(kg, 1, U.mem) | SPX_ARG(kg, 2, XM.mem) | SPX_ARG(kg, 3, cin) |
+               SPX_ARG(kg, 4, coutp) | SPX_ARG(kg, 5, Tp);
+    if ((st = spx_cl_check(ctx, e, "spx_wino_gemm args"))) goto done;
+    size_t gl[2] = {(size_t)(coutp / tm) * (tp / quantum) * lws, (size_t)n * 36}, lo[2] = {(size_t)lws, 1};
+    if ((st = spx_cl_run(ctx, kg, 2, gl, lo, "spx_wino_gemm"))) goto done;
+  }
+  {
+    int flags = (accumulate ? FL_ACCUM : 0) | (bias ? FL_BIAS : 0) | (scale ? FL_SCALE : 0) |
+                (scale && shift ? FL_SHIFT : 0) | (relu ? FL_RELU : 0);
+    cl_mem bm = bias ? bias->mem : XM.mem, scm = scale ? scale->mem : XM.mem;
+    cl_mem shm = scale && shift ? shift->mem : XM.mem;
+    cl_ulong yo = y->off, bo = bias ? bias->off : 0, sco = scale ? scale->off : 0;
+    cl_ulong sho = scale && shift ? shift->off : 0;
+    cl_int e = SPX_ARG(ko, 0, XM.mem) | SPX_ARG(ko, 1, y->mem) | SPX_ARG(ko, 2, yo) | SPX_ARG(ko, 3, bm) |
+               SPX_ARG(ko, 4, bo) | SPX_ARG(ko, 5, scm) | SPX_ARG(ko, 6, sco) | SPX_ARG(ko, 7, shm) |
+               SPX_ARG(ko, 8, sho) | SPX_ARG(ko, 9, cout) | SPX_ARG(ko, 10, coutp) | SPX_ARG(ko, 11, h) |
+               SPX_ARG(ko, 12, wd) | SPX_ARG(ko, 13, twp) | SPX_ARG(ko, 14, T) | SPX_ARG(ko, 15, Tp) |
+               SPX_ARG(ko, 16, flags);
+    if ((st = spx_cl_check(ctx, e, "spx_wino_out args"))) goto done;
+    size_t gl[3] = {(size_t)T / (size_t)vw, (size_t)cout, (size_t)n}, lo[3] = {1, 1, 1};
+    st = spx_cl_run(ctx, ko, 3, gl, vw > 1 ? lo : NULL, "spx_wino_out");
+  }
+done:
+  wbuf_put(&XM);
+  wbuf_put(&U);
+  wbuf_put(&V);
+  return st;
+}
