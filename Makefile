@@ -26,6 +26,7 @@ demo: build
 # The README's picture (needs the shipped network): docs/demo.png, panels enlarged 2x.
 docs-demo: build
 	@test -f data/models/default.safetensors || { echo "docs-demo: data/models/default.safetensors is absent (see data/models/README.md)" >&2; exit 1; }
+	@mkdir -p out
 	./$(BUILD)/smplpix demo --out out/docs-demo --zoom 2
 	cp out/docs-demo/demo.png docs/demo.png
 
