@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "nn/instnorm.h"
+#include "nn/st_take.h"
 #include "smplpix/safetensors.h"
 
 #define NT (SPX_PG_MAX_D * SPX_PG_LAYERS * 2)
@@ -201,33 +202,6 @@ spx_status spx_patchgan_save(spx_patchgan *d, const char *path, int with_optimiz
   return st;
 }
 
-static void shape_str(char *buf, size_t cap, int ndim, const int64_t *shape) {
-  size_t n = (size_t)snprintf(buf, cap, "[");
-  for (int k = 0; k < ndim && n < cap; k++) n += (size_t)snprintf(buf + n, cap - n, k ? ", %lld" : "%lld", (long long)shape[k]);
-  if (n < cap) snprintf(buf + n, cap - n, "]");
-}
-
-static spx_status get_f32(spx_ctx *ctx, const char *path, const spx_st_file *f, const char *name, int ndim,
-                          const int64_t *shape, float *dst) {
-  char want[96], got[96];
-  shape_str(want, sizeof want, ndim, shape);
-  const spx_st_tensor *t = spx_st_find(f, name);
-  if (!t) return spx_fail(ctx, SPX_E_FORMAT, "%s: missing tensor %s (expected shape %s)", path, name, want);
-  int same = t->ndim == ndim;
-  for (int k = 0; k < ndim && same; k++) same = t->shape[k] == shape[k];
-  if (!same) {
-    shape_str(got, sizeof got, t->ndim, t->shape);
-    return spx_fail(ctx, SPX_E_FORMAT, "%s: tensor %s has shape %s, expected %s", path, name, got, want);
-  }
-  if (t->dtype != SPX_F32)
-    return spx_fail(ctx, SPX_E_FORMAT, "%s: tensor %s has dtype %s, expected F32", path, name, spx_dtype_name(t->dtype));
-  size_t n = t->nbytes / 4;
-  memcpy(dst, t->data, n * 4);
-  for (size_t i = 0; i < n; i++)
-    if (!isfinite(dst[i])) return spx_fail(ctx, SPX_E_NUMERIC, "%s: tensor %s holds NaN or Inf", path, name);
-  return SPX_OK;
-}
-
 spx_status spx_patchgan_load(spx_ctx *ctx, const char *path, int expect_in_ch, spx_tape_backend backend,
                              spx_patchgan **out) {
   *out = NULL;
@@ -262,13 +236,13 @@ spx_status spx_patchgan_load(spx_ctx *ctx, const char *path, int expect_in_ch, s
   const spx_st_tensor *ts = spx_st_find(&f, "optimizer.step");
   for (int i = 0; i < d->nents && !st; i++) {
     const pg_entry *e = &d->ents[i];
-    if ((st = get_f32(ctx, path, &f, e->name, e->ndim, e->shape, buf)) || (st = spx_tape_write(d->tape, e->id, buf)))
+    if ((st = spx_nn_st_take_f32(ctx, path, &f, e->name, e->ndim, e->shape, buf)) || (st = spx_tape_write(d->tape, e->id, buf)))
       break;
     if (ts) {
       snprintf(nm, sizeof nm, "optimizer.%s.exp_avg", e->name);
-      if ((st = get_f32(ctx, path, &f, nm, e->ndim, e->shape, buf))) break;
+      if ((st = spx_nn_st_take_f32(ctx, path, &f, nm, e->ndim, e->shape, buf))) break;
       snprintf(nm, sizeof nm, "optimizer.%s.exp_avg_sq", e->name);
-      if ((st = get_f32(ctx, path, &f, nm, e->ndim, e->shape, buf2))) break;
+      if ((st = spx_nn_st_take_f32(ctx, path, &f, nm, e->ndim, e->shape, buf2))) break;
       st = spx_tape_write_moments(d->tape, e->id, buf, buf2);
     }
   }

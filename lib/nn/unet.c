@@ -5,6 +5,7 @@
  * each batch norm into the preceding convolution (scale = gamma / sqrt(var + eps),
  * shift = beta - mean * scale, then ReLU, all in the convolution's epilogue); the folded
  * vectors live in the state slab and are recomputed when weights or running statistics change. */
+#include "nn/st_take.h"
 #include "nn/unet.h"
 
 #include <math.h>
@@ -614,23 +615,17 @@ static float half_to_float(uint16_t h) {
   return f;
 }
 
-static void shape_str(char *buf, size_t cap, int ndim, const int64_t *shape) {
-  size_t n = (size_t)snprintf(buf, cap, "[");
-  for (int d = 0; d < ndim && n < cap; d++) n += (size_t)snprintf(buf + n, cap - n, d ? ", %lld" : "%lld", (long long)shape[d]);
-  if (n < cap) snprintf(buf + n, cap - n, "]");
-}
-
 /* Copy tensor `name` from the file (F32 or F16, shape checked) into dst. */
 static spx_status load_floats(spx_ctx *ctx, const char *path, const spx_st_file *f, const char *name, int ndim,
                               const int64_t *shape, float *dst) {
   char want[96], got[96];
-  shape_str(want, sizeof want, ndim, shape);
+  spx_nn_shape_str(want, sizeof want, ndim, shape);
   const spx_st_tensor *t = spx_st_find(f, name);
   if (!t) return spx_fail(ctx, SPX_E_FORMAT, "%s: missing tensor %s (expected shape %s)", path, name, want);
   int same = t->ndim == ndim;
   for (int d = 0; d < ndim && same; d++) same = t->shape[d] == shape[d];
   if (!same) {
-    shape_str(got, sizeof got, t->ndim, t->shape);
+    spx_nn_shape_str(got, sizeof got, t->ndim, t->shape);
     return spx_fail(ctx, SPX_E_FORMAT, "%s: tensor %s has shape %s, expected %s", path, name, got, want);
   }
   size_t n = 1;
@@ -694,7 +689,7 @@ spx_status spx_unet_load(spx_ctx *ctx, const char *path, spx_unet **out) {
   if (t0->ndim != 4 || t0->shape[1] != SPX_UNET_IN_CHANNELS || t0->shape[2] != 3 || t0->shape[3] != 3 ||
       t0->shape[0] < 1 || t0->shape[0] > 1024) {
     char got[96];
-    shape_str(got, sizeof got, t0->ndim, t0->shape);
+    spx_nn_shape_str(got, sizeof got, t0->ndim, t0->shape);
     st = spx_fail(ctx, SPX_E_FORMAT, "%s: tensor inc.double_conv.0.weight has shape %s, expected [W, 4, 3, 3]", path,
                   got);
     goto done;
@@ -706,13 +701,13 @@ spx_status spx_unet_load(spx_ctx *ctx, const char *path, spx_unet **out) {
     const char *bn = "up1.conv.double_conv.0.weight";
     const spx_st_tensor *tb = spx_st_find(&f, bn);
     char want[96], got[96];
-    shape_str(want, sizeof want, 4, big);
+    spx_nn_shape_str(want, sizeof want, 4, big);
     if (!tb) {
       st = spx_fail(ctx, SPX_E_FORMAT, "%s: missing tensor %s (expected shape %s)", path, bn, want);
       goto done;
     }
     if (tb->ndim != 4 || memcmp(tb->shape, big, sizeof big)) {
-      shape_str(got, sizeof got, tb->ndim, tb->shape);
+      spx_nn_shape_str(got, sizeof got, tb->ndim, tb->shape);
       st = spx_fail(ctx, SPX_E_FORMAT, "%s: tensor %s has shape %s, expected %s", path, bn, got, want);
       goto done;
     }

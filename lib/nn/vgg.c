@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "nn/st_take.h"
 #include "smplpix/safetensors.h"
 
 static const int conv_index[SPX_VGG_NCONV] = {0, 2, 5, 7, 10, 12, 14, 16, 19, 21, 23, 25, 28};
@@ -30,35 +31,6 @@ void spx_vgg_destroy(spx_vgg *v) {
   if (!v) return;
   spx_tape_destroy(v->tape);
   free(v);
-}
-
-static spx_status take(spx_ctx *ctx, const char *path, const spx_st_file *f, const char *name, int ndim,
-                       const int64_t *shape, float *dst) {
-  const spx_st_tensor *t = spx_st_find(f, name);
-  char want[64];
-  if (ndim == 4)
-    snprintf(want, sizeof want, "[%lld, %lld, %lld, %lld]", (long long)shape[0], (long long)shape[1],
-             (long long)shape[2], (long long)shape[3]);
-  else
-    snprintf(want, sizeof want, "[%lld]", (long long)shape[0]);
-  if (!t) return spx_fail(ctx, SPX_E_FORMAT, "%s: missing tensor %s (expected shape %s)", path, name, want);
-  int same = t->ndim == ndim;
-  for (int k = 0; k < ndim && same; k++) same = t->shape[k] == shape[k];
-  if (!same) {
-    char got[96];
-    size_t m = (size_t)snprintf(got, sizeof got, "[");
-    for (int k = 0; k < t->ndim && m < sizeof got; k++)
-      m += (size_t)snprintf(got + m, sizeof got - m, k ? ", %lld" : "%lld", (long long)t->shape[k]);
-    if (m < sizeof got) snprintf(got + m, sizeof got - m, "]");
-    return spx_fail(ctx, SPX_E_FORMAT, "%s: tensor %s has shape %s, expected %s", path, name, got, want);
-  }
-  if (t->dtype != SPX_F32)
-    return spx_fail(ctx, SPX_E_FORMAT, "%s: tensor %s has dtype %s, expected F32", path, name, spx_dtype_name(t->dtype));
-  size_t n = t->nbytes / 4;
-  memcpy(dst, t->data, n * 4);
-  for (size_t i = 0; i < n; i++)
-    if (!isfinite(dst[i])) return spx_fail(ctx, SPX_E_NUMERIC, "%s: tensor %s holds NaN or Inf", path, name);
-  return SPX_OK;
 }
 
 spx_status spx_vgg_open_ex(spx_ctx *ctx, const char *path, spx_tape_backend backend, spx_vgg **out) {
@@ -104,9 +76,9 @@ spx_status spx_vgg_open_ex(spx_ctx *ctx, const char *path, spx_tape_backend back
     char name[64];
     int64_t ws[4] = {co, cin, 3, 3}, bs[1] = {co};
     snprintf(name, sizeof name, "features.%d.weight", conv_index[i]);
-    if ((st = take(ctx, path, &f, name, 4, ws, buf)) || (st = spx_tape_write(v->tape, v->w[i], buf))) break;
+    if ((st = spx_nn_st_take_f32(ctx, path, &f, name, 4, ws, buf)) || (st = spx_tape_write(v->tape, v->w[i], buf))) break;
     snprintf(name, sizeof name, "features.%d.bias", conv_index[i]);
-    if ((st = take(ctx, path, &f, name, 1, bs, buf)) || (st = spx_tape_write(v->tape, v->b[i], buf))) break;
+    if ((st = spx_nn_st_take_f32(ctx, path, &f, name, 1, bs, buf)) || (st = spx_tape_write(v->tape, v->b[i], buf))) break;
     cin = co;
   }
   if (!st) {
