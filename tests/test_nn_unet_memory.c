@@ -5,7 +5,11 @@
  *  - an eval forward adds at least its input + output activations, a training step adds more
  *    (activation-gradient arena, larger activation plan), a larger batch more again;
  *  - repeating a pass of an already planned shape adds nothing (grow-only, steady state);
- *  - the host backend holds no device memory (0). */
+ *  - the host backend holds no device memory (0).
+ * and the context's device-memory counter (spx_device_live_bytes / spx_device_peak_bytes):
+ *  - creating the UNet adds exactly its slabs to the live bytes, destroying it takes them off;
+ *  - after a pass the live bytes are the network's buffers (per-call scratch is gone), the peak is
+ *    at least that, and a reset brings the peak down to the live bytes. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -28,8 +32,11 @@ static void test_device_bytes(void) {
   unsigned long long s = 7;
   spx_nt_rand(in, nin, 0.0f, 1.0f, &s);
   spx_nt_rand(tg, nout, 0.0f, 1.0f, &s);
+  size_t live0 = spx_device_live_bytes(ctx);
   CHECK_OK(ctx, spx_unet_create(ctx, WD, 0, 1, &u));
   if (!u) goto done;
+  CHECK_MSG(spx_device_live_bytes(ctx) == live0 + spx_unet_device_bytes(u), "live %zu after create, %zu + %zu",
+            spx_device_live_bytes(ctx), live0, spx_unet_device_bytes(u));
   size_t params = 0, stats = 0;
   for (int i = 0; i < spx_unet_tensor_count(u); i++) {
     int nd;
@@ -65,14 +72,26 @@ static void test_device_bytes(void) {
   CHECK_OK(ctx, spx_unet_backward(u));
   CHECK(spx_unet_device_bytes(u) == b2);
 
+  spx_device_reset_peak(ctx);
+  CHECK(spx_device_peak_bytes(ctx) == spx_device_live_bytes(ctx));
   CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 2, H, W, NULL, &loss));
   CHECK_OK(ctx, spx_unet_backward(u));
   size_t b3 = spx_unet_device_bytes(u);
   CHECK_MSG(b3 > b2, "train b2: %zu -> %zu bytes", b2, b3);
+  CHECK_OK(ctx, spx_device_finish(ctx));
+  size_t live = spx_device_live_bytes(ctx), peak = spx_device_peak_bytes(ctx);
+  CHECK_MSG(live == live0 + b3, "live %zu after a step, network %zu + %zu before", live, b3, live0);
+  CHECK_MSG(peak >= live && peak >= live0 + b2, "peak %zu, live %zu", peak, live);
+  spx_device_reset_peak(ctx);
+  CHECK(spx_device_peak_bytes(ctx) == live);
 
   CHECK_OK(ctx, spx_unet_create_ex(ctx, WD, 0, 1, SPX_TAPE_HOST, &hu));
   CHECK(hu && spx_unet_device_bytes(hu) == 0);
   CHECK(spx_unet_device_bytes(NULL) == 0);
+  spx_unet_destroy(u);
+  u = NULL;
+  CHECK_MSG(spx_device_live_bytes(ctx) == live0, "live %zu after destroy, %zu before", spx_device_live_bytes(ctx),
+            live0);
 done:
   spx_unet_destroy(hu);
   spx_unet_destroy(u);

@@ -4,6 +4,7 @@
 #define SPX_CL_INTERNAL_H
 
 #include <CL/cl.h>
+#include <stdatomic.h>
 
 #include "core/internal.h"
 #include "smplpix/device.h"
@@ -20,6 +21,11 @@ struct spx_cl_kernel_entry {
   char name[64];
   cl_kernel kernel;
 };
+
+/* Live / peak bytes of the device buffers of a context (lib/cl/devmem.c). */
+typedef struct spx_devmem {
+  _Atomic size_t live, peak;
+} spx_devmem;
 
 struct spx_ctx {
   char msg[1024];
@@ -39,6 +45,7 @@ struct spx_ctx {
   struct spx_cl_kernel_entry kernels[SPX_MAX_KERNELS];
   int nkernels;
   spx_cache_stats cache;
+  spx_devmem devmem;
 };
 
 /* Release all device objects (used by spx_ctx_destroy). */
@@ -68,6 +75,8 @@ int spx_cl_tune(const spx_ctx *ctx, const char *name);
 /* Device buffers. Creation checks the device's max allocation and reports the size on failure. */
 spx_status spx_cl_alloc(spx_ctx *ctx, size_t bytes, const char *what, cl_mem *out);
 void spx_cl_free(cl_mem *m);
+/* Count a new buffer of `bytes` in ctx's live / peak device bytes until OpenCL deletes it. */
+spx_status spx_cl_count_alloc(spx_ctx *ctx, cl_mem mem, size_t bytes, const char *what);
 /* A grow-only scratch buffer. */
 typedef struct spx_cl_buf {
   cl_mem mem;
