@@ -161,27 +161,47 @@ spx_status spx_tape_alloc_params(spx_tape *t) {
   if (t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters already allocated");
   if (t->backend == SPX_TAPE_DEVICE) {
     if ((st = dev_zeroed(t, t->nparam, "parameter slab", &t->param)) ||
-        (st = dev_zeroed(t, t->nparam, "gradient slab", &t->grad)) ||
-        (st = dev_zeroed(t, t->nparam, "Adam exp_avg slab", &t->m)) ||
-        (st = dev_zeroed(t, t->nparam, "Adam exp_avg_sq slab", &t->v)) ||
         (st = dev_zeroed(t, t->nstate, "state slab", &t->state)))
       return st;
   } else {
     size_t np = t->nparam ? t->nparam : 1, ns = t->nstate ? t->nstate : 1;
-    t->hparam = calloc(np, sizeof(double)), t->hgrad = calloc(np, sizeof(double));
-    t->hm = calloc(np, sizeof(double)), t->hv = calloc(np, sizeof(double));
+    t->hparam = calloc(np, sizeof(double));
     t->hstate = calloc(ns, sizeof(double));
-    if (!t->hparam || !t->hgrad || !t->hm || !t->hv || !t->hstate)
+    if (!t->hparam || !t->hstate)
       return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for %zu parameters", t->nparam);
   }
   t->allocated = 1;
   return SPX_OK;
 }
 
+/* The gradient and Adam slabs exist once something needs them (a network only ever run in
+ * inference holds its parameters and state only); they start at zero, as they always did. */
+spx_status spx_tp_train_slabs(spx_tape *t) {
+  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  if (t->grad || t->hgrad) return SPX_OK;
+  spx_status st;
+  if (t->backend == SPX_TAPE_DEVICE) {
+    if ((st = dev_zeroed(t, t->nparam, "gradient slab", &t->grad)) ||
+        (st = dev_zeroed(t, t->nparam, "Adam exp_avg slab", &t->m)) ||
+        (st = dev_zeroed(t, t->nparam, "Adam exp_avg_sq slab", &t->v))) {
+      spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
+      return st;
+    }
+    return SPX_OK;
+  }
+  size_t np = t->nparam ? t->nparam : 1;
+  t->hgrad = calloc(np, sizeof(double)), t->hm = calloc(np, sizeof(double)), t->hv = calloc(np, sizeof(double));
+  if (t->hgrad && t->hm && t->hv) return SPX_OK;
+  free(t->hgrad), free(t->hm), free(t->hv);
+  t->hgrad = t->hm = t->hv = NULL;
+  return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for the gradients of %zu parameters", t->nparam);
+}
+
 size_t spx_tape_device_bytes(const spx_tape *t) {
   if (!t || t->backend != SPX_TAPE_DEVICE) return 0;
   size_t b = 0;
-  if (t->allocated) b += (4 * (t->nparam ? t->nparam : 1) + (t->nstate ? t->nstate : 1)) * sizeof(float);
+  if (t->allocated)
+    b += ((t->grad ? 4 : 1) * (t->nparam ? t->nparam : 1) + (t->nstate ? t->nstate : 1)) * sizeof(float);
   if (t->act) b += t->act_cap * sizeof(float);
   for (int i = 0; i < 3; i++)
     if (t->ws.buf[i].mem) b += t->ws.buf[i].bytes;
@@ -198,7 +218,7 @@ static spx_status xfer(spx_tape *t, int id, int grad, int moment, float *rd, con
   if (moment && v->space != SP_PARAM) return spx_fail(t->ctx, SPX_E_ARG, "tape: value %d is not a parameter", id);
   size_t n = spx_tp_numel(v);
   spx_status st = spx_tp_check_live(t, id, grad, rd ? "read" : "write");
-  if (st) return st;
+  if (st || ((moment || (grad && v->space == SP_PARAM)) && (st = spx_tp_train_slabs(t)))) return st;
   if (t->backend == SPX_TAPE_DEVICE) {
     cl_mem m;
     size_t off = grad ? v->goff : v->off;
@@ -296,17 +316,6 @@ spx_status spx_tape_end(spx_tape *t, int *again) {
   *again = 1;
   return SPX_OK;
 }
-
-size_t spx_tape_plan_bytes(const spx_tape *t, size_t *without_reuse) {
-  const tplan *p = t->cur;
-  size_t el = t->backend == SPX_TAPE_HOST ? sizeof(double) : sizeof(float);
-  if (without_reuse) *without_reuse = p ? p->sum * el : 0;
-  return p ? p->size * el : 0;
-}
-
-void spx_tape_set_retain(spx_tape *t, int on) { t->retain = on != 0; }
-void spx_tape_set_reuse(spx_tape *t, int on) { t->reuse = on != 0; }
-void spx_tape_set_poison(spx_tape *t, int on) { t->poison = on != 0; }
 
 /* An op may run when no error is pending and the pass is not a measuring one. */
 
@@ -670,6 +679,7 @@ static spx_status need_backward(spx_tape *t) {
 spx_status spx_tape_backward_begin(spx_tape *t) {
   spx_status st = need_backward(t);
   if (st) return st;
+  if ((st = spx_tp_train_slabs(t))) return st;
   if (t->backward_runs && !t->retain)
     return spx_fail(t->ctx, SPX_E_STATE,
                     "tape: a second backward over one forward pass needs spx_tape_set_retain(t, 1) before the pass");
@@ -729,7 +739,8 @@ spx_status spx_tape_backward(spx_tape *t, int loss) {
 }
 
 spx_status spx_tape_zero_grad(spx_tape *t) {
-  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  spx_status st = spx_tp_train_slabs(t);
+  if (st) return st;
   if (HOST) {
     memset(t->hgrad, 0, t->nparam * sizeof(double));
     return SPX_OK;
@@ -738,20 +749,21 @@ spx_status spx_tape_zero_grad(spx_tape *t) {
 }
 
 spx_status spx_tape_zero_moments(spx_tape *t) {
-  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  spx_status st = spx_tp_train_slabs(t);
+  if (st) return st;
   if (HOST) {
     memset(t->hm, 0, t->nparam * sizeof(double));
     memset(t->hv, 0, t->nparam * sizeof(double));
     return SPX_OK;
   }
-  spx_status st = SPX_OK;
   if (t->nparam && !(st = spx_cl_fill_f32(t->ctx, t->m, 0, t->nparam, 0.0f)))
     st = spx_cl_fill_f32(t->ctx, t->v, 0, t->nparam, 0.0f);
   return st;
 }
 
 spx_status spx_tape_adam(spx_tape *t, double lr, double beta1, double beta2, double eps, int64_t step) {
-  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  spx_status st = spx_tp_train_slabs(t);
+  if (st) return st;
   if (step < 1) return spx_fail(t->ctx, SPX_E_ARG, "tape: Adam step number %lld < 1", (long long)step);
   if (!t->nparam) return SPX_OK;
   if (t->nparam > (size_t)INT32_MAX) return spx_fail(t->ctx, SPX_E_ARG, "tape: %zu parameters is too many", t->nparam);

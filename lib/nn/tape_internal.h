@@ -115,6 +115,7 @@ int spx_tp_new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, in
 void spx_tp_record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, int s1, const int *iarg,
                    const float *farg);
 int spx_tp_bad_id(spx_tape *t, const char *op, int id);
+spx_status spx_tp_train_slabs(spx_tape *t); /* the gradient / Adam slabs, made on first need */
 static inline int spx_tp_valid(const spx_tape *t, int id) { return id >= 0 && id < t->nvals; }
 static inline int spx_tp_live(const spx_tape *t) { return !t->err && !t->measuring; }
 static inline int spx_tp_wants(const spx_tape *t, int id) { return id >= 0 && t->vals[id].needs_grad; }

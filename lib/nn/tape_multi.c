@@ -220,6 +220,8 @@ spx_status spx_tape_transfer(spx_tape *dst, int did, size_t doff, int dst_grad, 
   if ((dst_grad && dv->space == SP_STATE) || (src_grad && sv->space == SP_STATE))
     return spx_fail(ctx, SPX_E_ARG, "tape: transfer: state has no gradient");
   spx_status st = spx_tp_check_live(dst, did, dst_grad, "transfer to");
+  if (!st && dst_grad && dv->space == SP_PARAM) st = spx_tp_train_slabs(dst);
+  if (!st && src_grad && sv->space == SP_PARAM) st = spx_tp_train_slabs(src);
   if (st || (st = spx_tp_check_live(src, sid, src_grad, "transfer from"))) return st;
   if (dst->backend == SPX_TAPE_HOST) {
     double *d = (dst_grad ? spx_tape_host_grad(dst, did) : spx_tape_host(dst, did));

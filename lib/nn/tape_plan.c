@@ -200,6 +200,17 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
   return SPX_OK;
 }
 
+size_t spx_tape_plan_bytes(const spx_tape *t, size_t *without_reuse) {
+  const tplan *p = t->cur;
+  size_t el = t->backend == SPX_TAPE_HOST ? sizeof(double) : sizeof(float);
+  if (without_reuse) *without_reuse = p ? p->sum * el : 0;
+  return p ? p->size * el : 0;
+}
+
+void spx_tape_set_retain(spx_tape *t, int on) { t->retain = on != 0; }
+void spx_tape_set_reuse(spx_tape *t, int on) { t->reuse = on != 0; }
+void spx_tape_set_poison(spx_tape *t, int on) { t->poison = on != 0; }
+
 void spx_tp_place(spx_tape *t, int id) {
   tvalue *v = &t->vals[id];
   int i = id - t->npersist;
