@@ -27,6 +27,16 @@ set_tests_properties(test_render_project_pixel_sort PROPERTIES
   ENVIRONMENT "SPX_TUNE_PROJ_SORT_DEPTH=0;SPX_TEST_TMP=${SPX_TEST_TMP}/test_render_project_pixel_sort;SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache"
   TIMEOUT 900)
 
+# The network tests again with every dead tape storage filled with NaN the moment it dies
+# (lib/nn/tape_plan.c): a read past a value's planned last use shows as NaN / wrong results.
+foreach(name test_nn_tape test_nn_tape_multi test_nn_patchgan test_nn_vgg test_nn_unet)
+  add_test(NAME ${name}_poison COMMAND ${name})
+  file(MAKE_DIRECTORY ${SPX_TEST_TMP}/${name}_poison)
+  set_tests_properties(${name}_poison PROPERTIES
+    ENVIRONMENT "SPX_TAPE_POISON=1;SPX_TEST_TMP=${SPX_TEST_TMP}/${name}_poison;SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache"
+    TIMEOUT 900)
+endforeach()
+
 # The shipped network's PyTorch golden: ctest SKIP while data/models/default.safetensors is absent.
 set_tests_properties(test_model_golden PROPERTIES SKIP_RETURN_CODE 77)
 

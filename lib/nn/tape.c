@@ -365,8 +365,10 @@ int spx_tape_input(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w, cons
   if (t->err) return -1;
   int id = spx_tp_new_value(t, SP_ACT, n, c, h, w);
   if (id >= 0) t->vals[id].born = 2 * t->nnodes; /* between nodes */
-  if (id < 0 || !spx_tp_live(t) || !data) return id;
-  spx_status st = spx_tape_write(t, id, data);
+  if (id < 0 || !spx_tp_live(t)) return id;
+  /* what died before now may be poisoned before the input is written (by data or a transfer) */
+  spx_status st = spx_tp_advance(t, 2 * t->nnodes);
+  if (!st && data) st = spx_tape_write(t, id, data);
   if (st) t->err = st;
   return id;
 }
