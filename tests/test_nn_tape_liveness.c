@@ -23,16 +23,27 @@ static spx_ctx *open_ctx(spx_tape_backend be) {
   return spx_ctx_create(&ctx) == SPX_OK ? ctx : NULL;
 }
 
+/* A context and a tape without parameters (NULL and a failed check when either cannot be made). */
+static spx_tape *bare_tape(spx_tape_backend be, spx_ctx **ctx) {
+  spx_tape *t = NULL;
+  *ctx = open_ctx(be);
+  CHECK(*ctx != NULL);
+  if (!*ctx) return NULL;
+  CHECK_OK(*ctx, spx_tape_create(*ctx, be, &t));
+  if (t) CHECK_OK(*ctx, spx_tape_alloc_params(t));
+  return t;
+}
+
 /* x -> relu -> relu -> relu (1x1x3x5 = 15 floats each, offsets 16-aligned), eval. x dies at node 0
  * (time 1), a at 3, b at 5, c is the output. Largest-first / first-fit: x at 0, a at 16 (meets x),
  * b at 0 (x is dead), c at 16: 16 + 15 = 31 floats, against 60 without reuse. */
 static void test_exact_eval(spx_tape_backend be) {
-  spx_ctx *ctx = open_ctx(be);
-  CHECK(ctx != NULL);
-  if (!ctx) return;
-  spx_tape *t = NULL;
-  CHECK_OK(ctx, spx_tape_create(ctx, be, &t));
-  CHECK_OK(ctx, spx_tape_alloc_params(t));
+  spx_ctx *ctx = NULL;
+  spx_tape *t = bare_tape(be, &ctx);
+  if (!t) {
+    spx_ctx_destroy(ctx);
+    return;
+  }
   float x[15];
   for (int i = 0; i < 15; i++) x[i] = (float)i - 7.0f;
   int again = 0, c = -1, in = -1;
@@ -63,12 +74,12 @@ static void test_exact_eval(spx_tape_backend be) {
  * z.g 48, c 32, l.d 64, l.g 80 (below it: z.d, y.d, c, z.g, l.d) -> 81 floats; 7 x 15 + 2 = 107
  * without reuse. */
 static void test_exact_train(spx_tape_backend be) {
-  spx_ctx *ctx = open_ctx(be);
-  CHECK(ctx != NULL);
-  if (!ctx) return;
-  spx_tape *t = NULL;
-  CHECK_OK(ctx, spx_tape_create(ctx, be, &t));
-  CHECK_OK(ctx, spx_tape_alloc_params(t));
+  spx_ctx *ctx = NULL;
+  spx_tape *t = bare_tape(be, &ctx);
+  if (!t) {
+    spx_ctx_destroy(ctx);
+    return;
+  }
   float x[15], g[15];
   for (int i = 0; i < 15; i++) x[i] = 0.1f * (float)i - 0.6f;
   int again = 0, xi = -1, l = -1, y = -1;
