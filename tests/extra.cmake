@@ -59,3 +59,5 @@ set_tests_properties(test_cli_train_mpi PROPERTIES SKIP_RETURN_CODE 77)
 if(SPX_HAVE_MPI AND MPIEXEC_EXECUTABLE)
   target_compile_definitions(test_cli_train_mpi PRIVATE SPX_MPIEXEC="${MPIEXEC_EXECUTABLE}")
 endif()
+# the synchronised batch norm's test runs its ranks as threads
+target_link_libraries(test_nn_batchnorm_sync PRIVATE Threads::Threads)
