@@ -333,7 +333,10 @@ int main(void) {
    * error line is the only text */
   setenv("OMPI_MCA_btl", "self,vader", 1);
   setenv("OMPI_MCA_btl_vader_single_copy_mechanism", "none", 1);
-  snprintf(mpirun, sizeof mpirun, "\"%s\" -q --oversubscribe%s", SPX_MPIEXEC,
+  /* LeakSanitizer (make asan) cannot judge an MPI process: Open MPI hooks the allocator and keeps
+   * its own allocations past MPI_Finalize, so its report is all noise. The other sanitizer checks
+   * stay on, and the same training code is leak-checked in the single-process tests. */
+  snprintf(mpirun, sizeof mpirun, "env LSAN_OPTIONS=detect_leaks=0 \"%s\" -q --oversubscribe%s", SPX_MPIEXEC,
            geteuid() == 0 ? " --allow-run-as-root" : "");
   if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
     fprintf(stderr, "no device: %s\n", ctx ? spx_ctx_message(ctx) : "");
