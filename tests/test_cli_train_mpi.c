@@ -62,35 +62,23 @@ static int exists_in(const char *name) {
   return spx_t_file_exists(p);
 }
 
-static char *slurp(const char *name) {
-  char p[1024];
+/* lines of dir/name that start with prefix ("" = all lines); echo: copy them to stderr */
+static int scan_lines(const char *name, const char *prefix, int echo) {
+  char p[1024], line[4096];
   path_in(p, sizeof p, name);
-  FILE *f = fopen(p, "rb");
-  if (!f) return NULL;
-  char *buf = malloc(1 << 20);
-  size_t n = buf ? fread(buf, 1, (1 << 20) - 1, f) : 0;
-  fclose(f);
-  if (buf) buf[n] = 0;
-  return buf;
-}
-
-/* lines of the file that start with prefix */
-static int count_lines(const char *name, const char *prefix) {
-  char *s = slurp(name);
+  FILE *f = fopen(p, "r");
   int n = 0;
-  for (char *p = s; p && *p;) {
-    if (!strncmp(p, prefix, strlen(prefix))) n++;
-    char *e = strchr(p, '\n');
-    p = e ? e + 1 : NULL;
+  while (f && fgets(line, sizeof line, f)) {
+    if (echo) fprintf(stderr, "  | %s", line);
+    n += !strncmp(line, prefix, strlen(prefix));
   }
-  free(s);
-  return n;
+  if (f) fclose(f);
+  return f ? n : -1;
 }
-
+static int count_lines(const char *name, const char *prefix) { return scan_lines(name, prefix, 0); }
 static void show(const char *name) {
-  char *s = slurp(name);
-  fprintf(stderr, "  --- %s ---\n%s", name, s ? s : "(missing)\n");
-  free(s);
+  fprintf(stderr, "  --- %s ---\n", name);
+  scan_lines(name, "", 1);
 }
 
 static void write_pairs(const char *data, int corrupt) {

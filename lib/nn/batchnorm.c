@@ -22,12 +22,11 @@ static spx_status run_group_per_channel(spx_ctx *ctx, cl_kernel k, int c, const 
   return spx_cl_run(ctx, k, 1, &g, &l, what);
 }
 
-spx_status spx_bn_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *bias,
-                                const spx_tensor *running_mean, const spx_tensor *running_var, float momentum,
-                                float eps, int update_running, const spx_tensor *save, const spx_tensor *y) {
-  const char *op = "bn_train_forward";
+/* The argument checks the train-mode forward launchers share (the sync one adds its own). */
+static spx_status fwd_check(spx_ctx *ctx, const char *op, const spx_tensor *x, const spx_tensor *weight,
+                            const spx_tensor *bias, const spx_tensor *running_mean, const spx_tensor *running_var,
+                            int update_running, const spx_tensor *save, const spx_tensor *y) {
   spx_status st;
-  cl_kernel k;
   if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, y, op, "y"))) return st;
   size_t c = (size_t)x->c;
   if ((st = vec_check(ctx, op, weight, "weight", c)) || (st = vec_check(ctx, op, bias, "bias", c)) ||
@@ -37,6 +36,32 @@ spx_status spx_bn_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_ten
       ((st = vec_check(ctx, op, running_mean, "running_mean", c)) || (st = vec_check(ctx, op, running_var, "running_var", c))))
     return st;
   if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
+  return SPX_OK;
+}
+
+/* ... and the backward ones. */
+static spx_status bwd_check(spx_ctx *ctx, const char *op, const spx_tensor *x, const spx_tensor *weight,
+                            const spx_tensor *save, const spx_tensor *dy, const spx_tensor *dx,
+                            const spx_tensor *dweight, const spx_tensor *dbias) {
+  spx_status st;
+  if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, dy, op, "dy"))) return st;
+  size_t c = (size_t)x->c;
+  if ((st = vec_check(ctx, op, weight, "weight", c)) || (st = vec_check(ctx, op, save, "save", 2 * c))) return st;
+  if (!spx_nn_same_shape(x, dy)) return spx_nn_shape_mismatch(ctx, op, "dy vs x", dy, x);
+  if (dx && (st = spx_nn_check(ctx, dx, op, "dx"))) return st;
+  if (dx && !spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, op, "dx vs x", dx, x);
+  if ((dweight && (st = vec_check(ctx, op, dweight, "dweight", c))) || (dbias && (st = vec_check(ctx, op, dbias, "dbias", c))))
+    return st;
+  return SPX_OK;
+}
+
+spx_status spx_bn_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *bias,
+                                const spx_tensor *running_mean, const spx_tensor *running_var, float momentum,
+                                float eps, int update_running, const spx_tensor *save, const spx_tensor *y) {
+  const char *op = "bn_train_forward";
+  spx_status st;
+  cl_kernel k;
+  if ((st = fwd_check(ctx, op, x, weight, bias, running_mean, running_var, update_running, save, y))) return st;
   if ((long)x->n * x->h * x->w <= 1)
     return spx_fail(ctx, SPX_E_ARG, "%s: expected more than 1 value per channel when training, got input %dx%dx%dx%d", op,
                     x->n, x->c, x->h, x->w);
@@ -82,14 +107,7 @@ spx_status spx_bn_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_te
   spx_status st;
   cl_kernel k;
   if (!dx && !dweight && !dbias) return SPX_OK;
-  if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, dy, op, "dy"))) return st;
-  size_t c = (size_t)x->c;
-  if ((st = vec_check(ctx, op, weight, "weight", c)) || (st = vec_check(ctx, op, save, "save", 2 * c))) return st;
-  if (!spx_nn_same_shape(x, dy)) return spx_nn_shape_mismatch(ctx, op, "dy vs x", dy, x);
-  if (dx && (st = spx_nn_check(ctx, dx, op, "dx"))) return st;
-  if (dx && !spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, op, "dx vs x", dx, x);
-  if ((dweight && (st = vec_check(ctx, op, dweight, "dweight", c))) || (dbias && (st = vec_check(ctx, op, dbias, "dbias", c))))
-    return st;
+  if ((st = bwd_check(ctx, op, x, weight, save, dy, dx, dweight, dbias))) return st;
   if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_train_bwd", &k))) return st;
   cl_int hw = x->h * x->w, want = (dx ? 1 : 0) | (dweight ? 2 : 0) | (dbias ? 4 : 0);
   /* unwanted outputs get a harmless stand-in buffer that the kernel never writes */
@@ -151,15 +169,10 @@ spx_status spx_bn_sync_train_forward(spx_ctx *ctx, const spx_tensor *x, const sp
   const char *op = "bn_sync_train_forward";
   spx_status st;
   cl_kernel k;
-  if ((st = sync_check(ctx, op, x, scratch, s)) || (st = spx_nn_check(ctx, y, op, "y"))) return st;
+  if ((st = sync_check(ctx, op, x, scratch, s)) ||
+      (st = fwd_check(ctx, op, x, weight, bias, running_mean, running_var, update_running, save, y)))
+    return st;
   size_t c = (size_t)x->c;
-  if ((st = vec_check(ctx, op, weight, "weight", c)) || (st = vec_check(ctx, op, bias, "bias", c)) ||
-      (st = vec_check(ctx, op, save, "save", 2 * c)))
-    return st;
-  if (update_running &&
-      ((st = vec_check(ctx, op, running_mean, "running_mean", c)) || (st = vec_check(ctx, op, running_var, "running_var", c))))
-    return st;
-  if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
   if (!isfinite(momentum) || !isfinite(eps) || eps < 0)
     return spx_fail(ctx, SPX_E_ARG, "%s: momentum %g / eps %g invalid", op, momentum, eps);
   /* scratch: [0, c) this rank's partial sums, [2c, 3c) the global mean, [3c, 4c) the global variance */
@@ -187,14 +200,9 @@ spx_status spx_bn_sync_train_backward(spx_ctx *ctx, const spx_tensor *x, const s
   const char *op = "bn_sync_train_backward";
   spx_status st;
   cl_kernel k;
-  if ((st = sync_check(ctx, op, x, scratch, s)) || (st = spx_nn_check(ctx, dy, op, "dy"))) return st;
-  size_t c = (size_t)x->c;
-  if ((st = vec_check(ctx, op, weight, "weight", c)) || (st = vec_check(ctx, op, save, "save", 2 * c))) return st;
-  if (!spx_nn_same_shape(x, dy)) return spx_nn_shape_mismatch(ctx, op, "dy vs x", dy, x);
-  if (dx && (st = spx_nn_check(ctx, dx, op, "dx"))) return st;
-  if (dx && !spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, op, "dx vs x", dx, x);
-  if ((dweight && (st = vec_check(ctx, op, dweight, "dweight", c))) || (dbias && (st = vec_check(ctx, op, dbias, "dbias", c))))
+  if ((st = sync_check(ctx, op, x, scratch, s)) || (st = bwd_check(ctx, op, x, weight, save, dy, dx, dweight, dbias)))
     return st;
+  size_t c = (size_t)x->c;
   /* every rank takes part in the sums even when it wants no gradient (the others wait for it) */
   if ((st = sync_part(ctx, x, dy, save, 0, scratch, 2)) || (st = sync_sum(ctx, s, scratch, 0, 2 * c, 2 * c, 0)))
     return st;
