@@ -14,7 +14,7 @@ static spx_status vec_check(spx_ctx *ctx, const char *op, const spx_tensor *t, c
 }
 
 static spx_status run_group_per_channel(spx_ctx *ctx, cl_kernel k, int c, const char *what) {
-  size_t l = (size_t)spx_cl_tune(ctx, "SPX_BN_WG");
+  size_t l = (size_t)ctx->tune.bn_wg;
   if (l > ctx->info.max_work_group)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_BN_WG=%zu exceeds the device's work-group limit %zu", what, l,
                     ctx->info.max_work_group);
@@ -67,7 +67,7 @@ spx_status spx_bn_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_ten
                     x->n, x->c, x->h, x->w);
   if (!isfinite(momentum) || !isfinite(eps) || eps < 0)
     return spx_fail(ctx, SPX_E_ARG, "%s: momentum %g / eps %g invalid", op, momentum, eps);
-  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_train_fwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_BN_TRAIN_FWD, &k))) return st;
   const spx_tensor *rm = update_running ? running_mean : x, *rv = update_running ? running_var : x; /* unused if !update */
   cl_int hw = x->h * x->w, upd = update_running ? 1 : 0;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, bias) | spx_nn_arg(k, 6, rm) |
@@ -91,7 +91,7 @@ spx_status spx_bn_eval_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
       (st = vec_check(ctx, op, running_var, "running_var", c)))
     return st;
   if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
-  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_eval_fwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_BN_EVAL_FWD, &k))) return st;
   cl_int hw = x->h * x->w, planes = x->n * x->c;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, bias) | spx_nn_arg(k, 6, running_mean) |
              spx_nn_arg(k, 8, running_var) | spx_nn_arg(k, 10, y) | SPX_ARG(k, 12, x->c) | SPX_ARG(k, 13, hw) |
@@ -108,7 +108,7 @@ spx_status spx_bn_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_te
   cl_kernel k;
   if (!dx && !dweight && !dbias) return SPX_OK;
   if ((st = bwd_check(ctx, op, x, weight, save, dy, dx, dweight, dbias))) return st;
-  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_train_bwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_BN_TRAIN_BWD, &k))) return st;
   cl_int hw = x->h * x->w, want = (dx ? 1 : 0) | (dweight ? 2 : 0) | (dbias ? 4 : 0);
   /* unwanted outputs get a harmless stand-in buffer that the kernel never writes */
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, save) | spx_nn_arg(k, 6, dy) |
@@ -140,7 +140,7 @@ static spx_status sync_part(spx_ctx *ctx, const spx_tensor *x, const spx_tensor 
                             size_t mean_off, const spx_tensor *scratch, int mode) {
   cl_kernel k;
   spx_status st;
-  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_sync_part", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_BN_SYNC_PART, &k))) return st;
   cl_int hw = x->h * x->w, mo = (cl_int)(mean->off + mean_off), md = mode;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, dy) | clSetKernelArg(k, 4, sizeof(cl_mem), &mean->mem) |
              SPX_ARG(k, 5, mo) | spx_nn_arg(k, 6, scratch) | SPX_ARG(k, 8, x->n) | SPX_ARG(k, 9, x->c) |
@@ -179,7 +179,7 @@ spx_status spx_bn_sync_train_forward(spx_ctx *ctx, const spx_tensor *x, const sp
   if ((st = sync_part(ctx, x, x, scratch, 0, scratch, 0)) || (st = sync_sum(ctx, s, scratch, 0, c, 2 * c, 1)) ||
       (st = sync_part(ctx, x, x, scratch, 2 * c, scratch, 1)) || (st = sync_sum(ctx, s, scratch, 0, c, 3 * c, 1)))
     return st;
-  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_sync_fwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_BN_SYNC_FWD, &k))) return st;
   const spx_tensor *rm = update_running ? running_mean : x, *rv = update_running ? running_var : x;
   spx_tensor stats = *scratch;
   stats.off += 2 * c;
@@ -208,7 +208,7 @@ spx_status spx_bn_sync_train_backward(spx_ctx *ctx, const spx_tensor *x, const s
     return st;
   if (s->empty) return SPX_OK; /* a stand-in: nothing of it may reach a gradient */
   if (!dx && !dweight && !dbias) return SPX_OK;
-  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_sync_bwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_BN_SYNC_BWD, &k))) return st;
   cl_int hw = x->h * x->w, want = (dx ? 1 : 0) | (dweight ? 2 : 0) | (dbias ? 4 : 0);
   cl_float cnt = (cl_float)s->count;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, save) | spx_nn_arg(k, 6, dy) |
