@@ -564,10 +564,11 @@ static int train_run(int argc, char **argv, train_dist *dist) {
 #define GSTEP() train_recipe_step_count(&rcp, u)
   size_t hw = (size_t)tr.h * (size_t)tr.w;
   perm = malloc(sizeof(int) * (size_t)tr.n);
-  in = malloc((size_t)batch * SPX_UNET_IN_CHANNELS * hw * sizeof(float));
-  tg = malloc((size_t)batch * SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
+  long held = batch / dist->comm.size; /* images this rank holds at once (its shard) */
+  in = malloc((size_t)held * SPX_UNET_IN_CHANNELS * hw * sizeof(float));
+  tg = malloc((size_t)held * SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
   if (!perm || !in || !tg) {
-    rc = spx_cli_errorf("train", "out of memory for a batch of %ld %dx%d images (try a smaller --batch)", batch, tr.w,
+    rc = spx_cli_errorf("train", "out of memory for a batch of %ld %dx%d images (try a smaller --batch)", held, tr.w,
                         tr.h);
     goto done;
   }
