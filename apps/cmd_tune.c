@@ -47,27 +47,32 @@ static int model_width(spx_ctx *ctx, const char *ckpt, int *width) {
   return SPX_EXIT_OK;
 }
 
+static const char usage[] =
+    "usage: smplpix tune [--quick] [--width W]... [--camera C.json | --size HxW] [--checkpoint W.safetensors]\n"
+    "                    [--repeat N] [--clock wall|cpu] [--device cpu|gpu|P:D]\n"
+    "       smplpix tune --show [--device cpu|gpu|P:D]\n"
+    "Times candidate values of the convolution tunables (Winograd threshold CONV_WINO_MINC, register\n"
+    "tiles CONV_TM x CONV_TN, vector width CONV_VW, channel tiles CONV_CT, work-group CONV_LWS, input\n"
+    "cache CONV_XCACHE) on the UNet's eval forward (batch 1) at the camera's image size (default\n"
+    "data/cameras/default.json) for each base width (--width, repeatable; default: the width of the\n"
+    "shipped network or --checkpoint), on the chosen device. One tunable (group) at a time, the others\n"
+    "at their best so far; a candidate whose output differs from the defaults' by more than 1e-3 of\n"
+    "its largest value is rejected. Prints candidate, ms per width and the choice, and writes the\n"
+    "winners to the device's tuning file beside the program cache (atomically; keyed by device,\n"
+    "driver and smplpix version), which every later device open applies; SPX_TUNE_<NAME> variables\n"
+    "still win (and those tunables are not tuned). --quick: a few candidates (well under a minute on\n"
+    "a 2-core CPU once the kernels are cached); --repeat: timed runs per candidate (min taken);\n"
+    "--clock cpu: time by this process's CPU time (a CPU device shared with other work; it does not\n"
+    "see lost parallelism), default wall.\n"
+    "--show prints every tunable in effect, its default and its source (default, tuned, env).\n";
+
 int spx_cmd_tune(int argc, char **argv) {
   const char *spec = NULL, *camera = NULL, *ckpt = NULL;
-  int quick = 0, do_show = 0, bad = 0, nw = 0, widths[MAX_WIDTHS], h = 0, w = 0, reps = 0;
+  int cpu_clock = 0, quick = 0, do_show = 0, bad = 0, nw = 0, widths[MAX_WIDTHS], h = 0, w = 0, reps = 0;
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help")) {
-      printf("usage: smplpix tune [--quick] [--width W]... [--camera C.json | --size HxW] [--checkpoint W.safetensors]\n"
-             "                    [--repeat N] [--device cpu|gpu|P:D]\n"
-             "       smplpix tune --show [--device cpu|gpu|P:D]\n"
-             "Times candidate values of the convolution tunables (Winograd threshold CONV_WINO_MINC, register\n"
-             "tiles CONV_TM x CONV_TN, vector width CONV_VW, channel tiles CONV_CT, work-group CONV_LWS, input\n"
-             "cache CONV_XCACHE) on the UNet's eval forward (batch 1) at the camera's image size (default\n"
-             "data/cameras/default.json) for each base width (--width, repeatable; default: the width of the\n"
-             "shipped network or --checkpoint), on the chosen device. One tunable (group) at a time, the others\n"
-             "at their best so far; a candidate whose output differs from the defaults' by more than 1e-3 of\n"
-             "its largest value is rejected. Prints candidate, ms per width and the choice, and writes the\n"
-             "winners to the device's tuning file beside the program cache (atomically; keyed by device,\n"
-             "driver and smplpix version), which every later device open applies; SPX_TUNE_<NAME> variables\n"
-             "still win (and those tunables are not tuned). --quick: a few candidates (well under a minute on\n"
-             "a 2-core CPU once the kernels are cached); --repeat: timed runs per candidate (min taken).\n"
-             "--show prints every tunable in effect, its default and its source (default, tuned, env).\n");
+      fputs(usage, stdout);
       return SPX_EXIT_OK;
     } else if (!strcmp(argv[i], "--quick")) {
       quick = 1;
@@ -75,6 +80,9 @@ int spx_cmd_tune(int argc, char **argv) {
       do_show = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
       spec = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--clock", &bad))) {
+      if (strcmp(v, "wall") && strcmp(v, "cpu")) return spx_cli_usage("tune", "--clock %s: expected wall or cpu", v);
+      cpu_clock = !strcmp(v, "cpu");
     } else if ((v = spx_cli_opt(argc, argv, &i, "--camera", &bad))) {
       camera = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
@@ -119,7 +127,8 @@ int spx_cmd_tune(int argc, char **argv) {
     free(cams);
   }
   if (!nw && (rc = model_width(ctx, ckpt, &widths[nw++]))) goto done;
-  spx_tune_plan plan = {.quick = quick, .h = h, .w = w, .nwidths = nw, .repeat = reps ? reps : quick ? 3 : 5};
+  spx_tune_plan plan = {.quick = quick, .h = h, .w = w, .nwidths = nw, .repeat = reps ? reps : quick ? 3 : 5,
+                       .device = spec, .cpu_clock = cpu_clock};
   memcpy(plan.widths, widths, sizeof(int) * (size_t)nw);
   rc = spx_tune_search(ctx, &plan, stdout);
 done:

@@ -12,6 +12,8 @@ typedef struct spx_tune_plan {
   int nwidths;    /* base widths to time (the score sums time / default time over them) */
   int widths[8];
   int repeat;     /* timed forwards per candidate and width; the minimum counts */
+  const char *device; /* the spec ctx was opened with (a second context opens the same device) */
+  int cpu_clock;      /* time by this process's CPU time instead of wall time */
 } spx_tune_plan;
 
 /* Run the search on ctx's open device, print the table to out, write the tuning file. Returns

@@ -153,6 +153,7 @@ static void test_usage(void) {
   CHECK(sh("'%s' tune --size 8x8 >/dev/null 2>&1", spx_t_tool()) == 2);
   CHECK(sh("'%s' tune --width 12 >/dev/null 2>&1", spx_t_tool()) == 2);
   CHECK(sh("'%s' tune --repeat 0 >/dev/null 2>&1", spx_t_tool()) == 2);
+  CHECK(sh("'%s' tune --clock sundial >/dev/null 2>&1", spx_t_tool()) == 2);
   CHECK(sh("'%s' tune --size 16x16 --camera c.json >/dev/null 2>&1", spx_t_tool()) == 2);
   CHECK(sh("'%s' tune --help | grep -q 'smplpix tune --show'", spx_t_tool()) == 0);
 }
