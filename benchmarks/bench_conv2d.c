@@ -71,7 +71,7 @@ static int time_op(spx_ctx *ctx, const shape *s, int mode, int reps, double *ms,
     spx_status st = mode == 0   ? spx_conv2d_forward(ctx, &x, &w, NULL, &p, &y)
                     : mode == 1 ? spx_conv2d_backward(ctx, &x, &w, &y, &x, NULL, NULL, &p)
                                 : spx_conv2d_backward(ctx, &x, &w, &y, NULL, &w, NULL, &p);
-    if (st || clFinish(ctx->queue) != CL_SUCCESS) goto done;
+    if (st || clFinish(ctx->dev->queue) != CL_SUCCESS) goto done;
     double t = (spx_now() - t0) * 1e3, c = (cpu_now() - c0) * 1e3;
     if (r > 0 && t < best) best = t, best_cpu = c;
   }

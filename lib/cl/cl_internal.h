@@ -21,11 +21,9 @@ struct spx_cl_kernel_entry {
   cl_kernel kernel;
 };
 
-struct spx_ctx {
-  char msg[1024];
-  spx_status last;
-  /* device state, valid when have_device */
-  int have_device;
+/* The open OpenCL device: allocated by spx_device_open, pointed to by ctx->dev (NULL when no
+ * device is open), released by spx_cl_close (which core reaches through ctx->dev_close). */
+struct spx_cl_device {
   spx_device_info info;
   cl_platform_id platform;
   cl_device_id device;
@@ -41,7 +39,7 @@ struct spx_ctx {
   spx_cache_stats cache;
 };
 
-/* Release all device objects (used by spx_ctx_destroy). */
+/* Release all device objects and free ctx->dev (spx_ctx_destroy calls it through ctx->dev_close). */
 void spx_cl_close(spx_ctx *ctx);
 
 /* Fail with SPX_E_STATE unless a device is open. */

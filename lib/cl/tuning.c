@@ -99,7 +99,7 @@ static int tune_cpu_column(const spx_ctx *ctx) {
   const char *c = getenv("SPX_TUNE_CLASS");
   if (c && !strcmp(c, "gpu")) return 0;
   if (c && !strcmp(c, "cpu")) return 1;
-  return ctx->info.kind == SPX_DEVICE_CPU;
+  return ctx->dev->info.kind == SPX_DEVICE_CPU;
 }
 
 /* SPX_TUNE_<NAME without a leading SPX_>=value overrides one row (tests use it to exercise
@@ -121,7 +121,7 @@ static int tune_override(const char *name, int *value) {
 #define NTUNABLES (sizeof spx_tunables / sizeof spx_tunables[0])
 
 int spx_cl_tune(const spx_ctx *ctx, const char *name) {
-  int cpu = ctx->tune_cpu;
+  int cpu = ctx->dev ? ctx->dev->tune_cpu : 0; /* no device: the GPU column, as before */
   for (size_t i = 0; i < NTUNABLES; i++)
     if (!strcmp(spx_tunables[i].name, name)) {
       int v;
@@ -161,13 +161,13 @@ static spx_status check_tunables(spx_ctx *ctx) {
       return spx_fail(ctx, SPX_E_ARG, "%.*s=%s: expected an integer in [%d, %d]", (int)nl, *e, val, t->lo, t->hi);
     if ((t->flags & T_POW2) && (x & (x - 1)))
       return spx_fail(ctx, SPX_E_ARG, "%.*s=%s: must be a power of two", (int)nl, *e, val);
-    if ((t->flags & T_WG) && (size_t)x > ctx->info.max_work_group)
+    if ((t->flags & T_WG) && (size_t)x > ctx->dev->info.max_work_group)
       return spx_fail(ctx, SPX_E_ARG, "%.*s=%s: more than the device's work-group limit %zu", (int)nl, *e, val,
-                      ctx->info.max_work_group);
+                      ctx->dev->info.max_work_group);
   }
   /* combinations: work-groups of two dimensions and the local memory of the kernels that use it */
-  size_t wg = ctx->info.max_work_group;
-  uint64_t lm = ctx->info.local_mem;
+  size_t wg = ctx->dev->info.max_work_group;
+  uint64_t lm = ctx->dev->info.local_mem;
   long wx = spx_cl_tune(ctx, "SPX_WG2_X"), wy = spx_cl_tune(ctx, "SPX_WG2_Y");
   if ((size_t)(wx * wy) > wg)
     return spx_fail(ctx, SPX_E_ARG, "tunables SPX_WG2_X x SPX_WG2_Y = %ld x %ld: more than the device's work-group "
@@ -186,26 +186,26 @@ static spx_status check_tunables(spx_ctx *ctx) {
 }
 
 spx_status spx_cl_build_options(spx_ctx *ctx) {
-  char *o = ctx->build_options;
-  size_t cap = sizeof ctx->build_options, n = 0;
-  ctx->tune_cpu = tune_cpu_column(ctx);
+  char *o = ctx->dev->build_options;
+  size_t cap = sizeof ctx->dev->build_options, n = 0;
+  ctx->dev->tune_cpu = tune_cpu_column(ctx);
   spx_status st = check_tunables(ctx);
   if (st) return st;
-  n += (size_t)snprintf(o + n, cap - n, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1", ctx->tune_cpu ? "CPU" : "GPU");
+  n += (size_t)snprintf(o + n, cap - n, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1", ctx->dev->tune_cpu ? "CPU" : "GPU");
   for (size_t i = 0; i < NTUNABLES && n < cap; i++)
     n += (size_t)snprintf(o + n, cap - n, " -D%s=%d", spx_tunables[i].name, spx_cl_tune(ctx, spx_tunables[i].name));
   /* Bit-exact kernels (projection) need a correctly rounded fp32 '/'. When the device offers it,
    * ask for it; otherwise kernels see SPX_CR_DIV=0 and divide in double (a/b computed in binary64
    * and rounded to binary32 is the correctly rounded binary32 quotient, since 53 >= 2*24+2). */
   cl_device_fp_config fp = 0;
-  int cr = clGetDeviceInfo(ctx->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS &&
+  int cr = clGetDeviceInfo(ctx->dev->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS &&
            (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT);
-  ctx->cr_div = cr;
+  ctx->dev->cr_div = cr;
   if (n < cap)
     n += (size_t)snprintf(o + n, cap - n, cr ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
-  if (n < cap && getenv("SPX_FORCE_DIV_FALLBACK") && ctx->info.fp64) {
+  if (n < cap && getenv("SPX_FORCE_DIV_FALLBACK") && ctx->dev->info.fp64) {
     /* testing hook: exercise the double-division path on a device that has both */
-    ctx->cr_div = 0;
+    ctx->dev->cr_div = 0;
     snprintf(o + n, cap - n, " -DSPX_FORCE_DIV_FALLBACK=1");
   }
   return SPX_OK;

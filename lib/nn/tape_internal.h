@@ -55,8 +55,8 @@ struct spx_tape {
   int nplans;
   int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
   spx_conv2d_workspace ws; /* conv scratch, grow-only: no allocation in the steady state */
-  /* SPX_TAPE_PROFILE=1: finish the queue around every device op and print the time per op kind
-   * and direction when the tape is destroyed */
+  /* SPX_PROFILE_TAPE on the context: finish the queue around every device op and log the time
+   * per op kind and direction when the tape is destroyed */
   int prof;
   double prof_s[NOPS][2];
   long prof_n[NOPS][2];

@@ -56,7 +56,7 @@ static spx_status upload_cams(spx_ctx *ctx, spx_projector *p, int32_t ncams, con
 static spx_status check_device(spx_ctx *ctx, const char *fn) {
   spx_status st = spx_cl_require(ctx, fn);
   if (st) return st;
-  if (!ctx->cr_div && !ctx->info.fp64)
+  if (!ctx->dev->cr_div && !ctx->dev->info.fp64)
     return spx_fail(ctx, SPX_E_UNSUPPORTED,
                     "%s: the device has neither correctly rounded fp32 division nor fp64, so the projection cannot "
                     "be bit-exact",
@@ -92,7 +92,7 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
   if (want_counts) {
     cl_uint zero = 0;
     if ((st = spx_cl_buf_ensure(ctx, &p->offs, (size_t)npix * sizeof(cl_uint), "projection pixel counts"))) return st;
-    cl_int fe = clEnqueueFillBuffer(ctx->queue, p->offs.mem, &zero, sizeof zero, 0, (size_t)npix * sizeof(cl_uint), 0,
+    cl_int fe = clEnqueueFillBuffer(ctx->dev->queue, p->offs.mem, &zero, sizeof zero, 0, (size_t)npix * sizeof(cl_uint), 0,
                                     NULL, NULL);
     if ((st = spx_cl_check(ctx, fe, "spx_project counts fill"))) return st;
   }
@@ -241,7 +241,7 @@ spx_status spx_project_backward_device(spx_ctx *ctx, spx_projector *p, const spx
   if ((st = spx_cl_buf_ensure(ctx, &p->vpix, nv * sizeof(cl_int), "projection backward map"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &p->dummy, 16, "projection placeholder"))) return st;
   cl_int minus1 = -1;
-  cl_int e = clEnqueueFillBuffer(ctx->queue, p->vpix.mem, &minus1, sizeof minus1, 0, nv * sizeof(cl_int), 0, NULL, NULL);
+  cl_int e = clEnqueueFillBuffer(ctx->dev->queue, p->vpix.mem, &minus1, sizeof minus1, 0, nv * sizeof(cl_int), 0, NULL, NULL);
   if ((st = spx_cl_check(ctx, e, "spx_project_backward fill"))) return st;
   cl_kernel kv, kg;
   if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_vpix", &kv))) return st;

@@ -18,15 +18,15 @@ struct spx_rasterizer {
   size_t static_sizes[4];
   spx_cl_buf tile_count, tile_start, cursor; /* per tile */
   spx_cl_buf counters, bins, cover, hi, out, win;
-  int profile;     /* $SPX_RASTER_PROFILE set: finish and print the wall time of each stage */
+  int profile;     /* SPX_PROFILE_RASTER on the context: finish and log the wall time of each stage */
   double prof_t0;
 };
 
 static void prof(spx_ctx *ctx, spx_rasterizer *r, const char *what) {
   if (!r->profile) return;
-  clFinish(ctx->queue);
+  clFinish(ctx->dev->queue);
   double t = spx_now();
-  if (*what) fprintf(stderr, "  %-8s %.3f ms\n", what, (t - r->prof_t0) * 1e3);
+  if (*what) spx_log(ctx, "  %-8s %.3f ms", what, (t - r->prof_t0) * 1e3);
   r->prof_t0 = t;
 }
 
@@ -101,8 +101,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
   const int tiles_x = (W + TS - 1) / TS, tiles_y = (H + TS - 1) / TS, ntiles = tiles_x * tiles_y;
   const size_t nv = (size_t)a->nverts, nf = (size_t)a->nfaces, img = (size_t)W1 * H1 * 4;
   const int has_col = a->col != NULL, has_tex = a->tex != NULL, has_win = faces_out != NULL;
-  const char *env_prof = getenv("SPX_RASTER_PROFILE");
-  r->profile = env_prof && *env_prof && strcmp(env_prof, "0");
+  r->profile = (spx_ctx_profile(ctx) & SPX_PROFILE_RASTER) != 0;
 
   prof(ctx, r, "");
   size_t sizes[4] = {nf * 12, has_tex ? (size_t)a->nuv * 8 : 0, has_tex ? nf * 12 : 0,
