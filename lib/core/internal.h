@@ -71,6 +71,14 @@ static inline int spx_hex_number(const char *p) {
 }
 
 
+/* Growable int32 array (e.g. faces while their count is unknown; lib/core/util.c). Free v. */
+typedef struct spx_ivec {
+  int32_t *v;
+  size_t n, cap;
+} spx_ivec;
+/* Append k values; records SPX_E_NOMEM naming `name` on failure. */
+spx_status spx_ivec_push(spx_ctx *ctx, const char *name, spx_ivec *a, const int32_t *vals, size_t k);
+
 /* 64-bit FNV-1a, chainable (pass the previous hash as seed; start with SPX_FNV_SEED). */
 #define SPX_FNV_SEED 0xcbf29ce484222325ULL
 uint64_t spx_hash64(const void *data, size_t n, uint64_t seed);
