@@ -52,3 +52,7 @@ if(NOT SPX_SANITIZE AND BUILD_SHARED_LIBS)
   set_tests_properties(python_bindings PROPERTIES TIMEOUT 900)
   set_tests_properties(python_pip_install PROPERTIES TIMEOUT 2400)
 endif()
+
+# The layer rule of lib/ (stated in tests/layering.cmake): every #include of lib/ and of the
+# public headers goes to the includer's own module or a lower level; fails naming the back-edge.
+add_test(NAME layering COMMAND ${CMAKE_COMMAND} -DSPX_SOURCE_DIR=${CMAKE_SOURCE_DIR} -P ${CMAKE_CURRENT_SOURCE_DIR}/layering.cmake)
