@@ -27,10 +27,3 @@ void spx_ref_hwc_to_nchw(const float *src, float *dst, int n, int c, int h, int 
         for (int x = 0; x < w; x++)
           dst[((b * c + ch) * h + y) * w + x] = src[((b * h + y) * w + x) * c + ch];
 }
-void spx_ref_nchw_to_hwc(const float *src, float *dst, int n, int c, int h, int w) {
-  for (int b = 0; b < n; b++)
-    for (int ch = 0; ch < c; ch++)
-      for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++)
-          dst[((b * h + y) * w + x) * c + ch] = src[((b * c + ch) * h + y) * w + x];
-}
