@@ -131,8 +131,6 @@ static spx_status pick(spx_ctx *ctx, const char *spec, struct pick_state *s) {
   return SPX_OK;
 }
 
-spx_status spx_cl_build_options(spx_ctx *ctx); /* tuning.c: checks the tunables too */
-
 spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
   if (!ctx) return SPX_E_ARG;
   if (ctx->dev) spx_cl_close(ctx);
@@ -160,7 +158,7 @@ spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
   fill_info(s.p, s.d, s.pi, s.di, &dev->info);
   ctx->dev = dev;
   ctx->dev_close = spx_cl_close;
-  if ((st = spx_cl_build_options(ctx))) {
+  if ((st = spx_cl_tunables_resolve(ctx))) {
     spx_cl_close(ctx); /* a bad SPX_TUNE_* override: the device is not usable as configured */
     return st;
   }
@@ -198,13 +196,10 @@ spx_status spx_device_cache_stats(spx_ctx *ctx, spx_cache_stats *out) {
 
 void spx_cl_close(spx_ctx *ctx) {
   if (!ctx || !ctx->dev) return;
-  struct spx_cl_device *dev = ctx->dev;
-  if (dev->queue) clFinish(dev->queue);
-  for (int i = 0; i < dev->nkernels; i++) clReleaseKernel(dev->kernels[i].kernel);
-  for (int i = 0; i < dev->nprograms; i++) clReleaseProgram(dev->programs[i].prog);
-  if (dev->queue) clReleaseCommandQueue(dev->queue);
-  if (dev->context) clReleaseContext(dev->context);
-  free(dev);
+  spx_cl_programs_release(ctx);
+  if (ctx->dev->queue) clReleaseCommandQueue(ctx->dev->queue);
+  if (ctx->dev->context) clReleaseContext(ctx->dev->context);
+  free(ctx->dev);
   ctx->dev = NULL;
   ctx->dev_close = NULL;
 }
