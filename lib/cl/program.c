@@ -334,7 +334,7 @@ static spx_status program_kernels(spx_ctx *ctx, const char *program) {
 }
 
 spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out) {
-  if (ctx && (unsigned)id < SPX_K_COUNT && ctx->dev->kernels[id]) {
+  if (ctx && ctx->dev && (unsigned)id < SPX_K_COUNT && ctx->dev->kernels[id]) {
     *out = ctx->dev->kernels[id];
     return SPX_OK;
   }
