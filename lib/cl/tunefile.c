@@ -114,7 +114,8 @@ void spx_cl_tunefile_apply(spx_ctx *ctx) {
     memcpy(ctx->msg, keep, sizeof keep);
     ctx->last = last;
   }
-  if (why[0]) snprintf(ctx->dev->tune_note, sizeof ctx->dev->tune_note, "%s: %s; ignored, defaults apply", path, why);
+  if (why[0]) /* bounded so the note always fits (gcc -Wformat-truncation) */
+    snprintf(ctx->dev->tune_note, sizeof ctx->dev->tune_note, "%.3000s: %.1500s; ignored, defaults apply", path, why);
   free(data);
 }
 
