@@ -71,6 +71,11 @@ static inline int spx_hex_number(const char *p) {
 }
 
 
+/* Grow *v (elements of elem bytes, capacity *cap) to hold need elements: capacity doubles from
+ * 64. Errors are SPX_E_NOMEM naming `name` ("<name>: <one> array too large", "<name>: cannot
+ * allocate N <many>"); *v and *cap are unchanged then. */
+spx_status spx_array_grow(spx_ctx *ctx, void **v, size_t *cap, size_t need, size_t elem, const char *name,
+                          const char *one, const char *many);
 /* Growable int32 array (e.g. faces while their count is unknown; lib/core/util.c). Free v. */
 typedef struct spx_ivec {
   int32_t *v;
