@@ -25,6 +25,13 @@ void spx_rot3_mul_tn(const double a[9], const double b[9], double o[9]) {
   memcpy(o, t, sizeof t);
 }
 
+void spx_rot3_mul_nt(const double a[9], const double b[9], double o[9]) {
+  double t[9];
+  for (int r = 0; r < 3; r++)
+    for (int c = 0; c < 3; c++) t[r * 3 + c] = a[r * 3] * b[c * 3] + a[r * 3 + 1] * b[c * 3 + 1] + a[r * 3 + 2] * b[c * 3 + 2];
+  memcpy(o, t, sizeof t);
+}
+
 void spx_rot3_apply(const double a[9], const double v[3], double o[3]) {
   double t[3];
   for (int r = 0; r < 3; r++) t[r] = a[r * 3] * v[0] + a[r * 3 + 1] * v[1] + a[r * 3 + 2] * v[2];

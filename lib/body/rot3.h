@@ -7,6 +7,8 @@ void spx_rot3_eye(double R[9]);
 void spx_rot3_mul(const double a[9], const double b[9], double o[9]);
 /* o = a^T b (o may alias) */
 void spx_rot3_mul_tn(const double a[9], const double b[9], double o[9]);
+/* o = a b^T (o may alias) */
+void spx_rot3_mul_nt(const double a[9], const double b[9], double o[9]);
 /* o = a v (o may alias v) */
 void spx_rot3_apply(const double a[9], const double v[3], double o[3]);
 /* The smallest rotation taking direction a onto direction b (neither needs unit length; both

@@ -16,8 +16,6 @@ spx_status spx_fit_vertex_faces(spx_ctx *ctx, int32_t nv, const int32_t *faces, 
 spx_status spx_fit_vertex_neighbours(spx_ctx *ctx, int32_t nv, const int32_t *faces, int32_t nf, spx_adj *out);
 void spx_adj_free(spx_adj *a);
 
-/* Area-weighted vertex normals (unit; zero for isolated vertices). */
-void spx_fit_vertex_normals_d(const double *v, int32_t nv, const int32_t *faces, int32_t nf, double *nrm);
 /* Squared distance from p to triangle (a, b, c). */
 double spx_fit_point_tri_d2(const double p[3], const double a[3], const double b[3], const double c[3]);
 /* Same as spx_fit_surface_distance, with an already computed vertex → face adjacency. */

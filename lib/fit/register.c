@@ -622,7 +622,7 @@ static spx_status stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_fi
     if ((st = spx_body_forward_ref(ctx, m, &p, b->F, NULL))) goto cleanup;
     double *V = r->verts_pose;
     for (int32_t i = 0; i < nv * 3; i++) V[i] = b->bscale[0] * b->F[i], w->Vf[i] = (float)V[i];
-    spx_fit_vertex_normals_d(V, nv, m->faces, m->nf, w->N);
+    spx_vertex_normals_d(V, nv, m->faces, m->nf, w->N);
     spx_kdtree_free(mt);
     mt = NULL;
     if ((st = spx_fit_kd_build(ctx, w->Vf, nv, &mt))) goto cleanup;
@@ -754,7 +754,7 @@ static spx_status stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_fi
     double wc = o->w_couple_start * pow(o->w_couple_end / o->w_couple_start, frac);
     double thr = 0.03;
     for (int32_t i = 0; i < nv * 3; i++) w->Vf[i] = (float)X[i];
-    spx_fit_vertex_normals_d(X, nv, m->faces, m->nf, w->N);
+    spx_vertex_normals_d(X, nv, m->faces, m->nf, w->N);
     spx_kdtree_free(mt);
     mt = NULL;
     if ((st = spx_fit_kd_build(ctx, w->Vf, nv, &mt))) goto cleanup;
