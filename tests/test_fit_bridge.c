@@ -253,7 +253,8 @@ static void test_gradients(void) {
   double lims[64];
   for (int i = 0; i < 64; i++) lims[i] = 0.1;
   int n = K3 - 3 < 60 ? K3 - 3 : 60;
-  spx_fit_prior pl = {n, 0.5, 0, 3, 0, lims}, pp = {n, 0.3, 0, 3, 0, NULL}, pscale = {1, 0.7, 0, 0, 1.3, NULL};
+  spx_fit_prior pl = {.n = n, .w = 0.5, .offset = 3, .lims = lims}, pp = {.n = n, .w = 0.3, .offset = 3};
+  spx_fit_prior pscale = {.n = 1, .w = 0.7, .target = 1.3};
   int ps = n + 3, one = 1;
   double *ppar[1] = {b.pose}, *spar[1] = {sc};
   worst[3] = fmax(fd_check(spx_fit_limit_cost, &pl, n, 1, &ps, ppar, NULL),

@@ -60,7 +60,6 @@ int spx_fit_body_plane_cost(void *user, const double *const *par, double *res, d
 typedef struct spx_fit_prior {
   int n;
   double w;
-  double lim;         /* unused */
   int offset;         /* first component (pose prior skips the root) */
   double target;      /* scale prior: w (x*target - 1) */
   const double *lims; /* joint limits: |x_i| beyond lims[i] is penalised */
