@@ -26,8 +26,4 @@ spx_status spx_fit_kd_build(spx_ctx *ctx, const float *pts, int32_t n, spx_kdtre
 spx_status spx_fit_kd_query(spx_ctx *ctx, const spx_kdtree *t, const float *q, int32_t nq, int k, int32_t *idx,
                             float *d2, int threads);
 
-
-/* Tests: central-difference check of every residual's analytic Jacobian (rigid, body plane,
- * body point, priors + limits, Laplacian, free-vertex data). worst[i]: max relative error. */
-spx_status spx_fit_gradient_selftest(spx_ctx *ctx, const spx_body_model *m, double worst[6]);
 #endif
