@@ -50,7 +50,7 @@ typedef struct progress {
 
 static void progress_show(progress *pg, int done, int total, int quiet) {
   if (quiet) return;
-  double t = spx_cli_now(), el = t - pg->t0, fps = el > 0 ? done / el : 0;
+  double t = spx_now(), el = t - pg->t0, fps = el > 0 ? done / el : 0;
   if (pg->tty) {
     if (done < total && pg->shown && t - pg->last < 0.1) return;
     char bar[21];
@@ -165,7 +165,7 @@ static int run(spx_ctx *ctx, const opts *o) {
     goto done;
   }
   int total = (int)(b - a);
-  double centre[3] = {0, 0, 0}, t_start = spx_cli_now();
+  double centre[3] = {0, 0, 0}, t_start = spx_now();
   progress pg = {isatty(STDERR_FILENO), 0, t_start, 0};
   for (long f = a; f < b; f++) {
     double trans[3];
@@ -204,7 +204,7 @@ static int run(spx_ctx *ctx, const opts *o) {
     if ((rc = spx_cli_write_output(C, ctx, &tx, path, &img))) goto done;
     progress_show(&pg, (int)(f - a + 1), total, o->quiet);
   }
-  double el = spx_cli_now() - t_start;
+  double el = spx_now() - t_start;
   rc = SPX_EXIT_ERROR;
   char mp4[4200] = "";
   const char *ffmpeg = o->no_mp4 ? NULL : spx_anim_find_ffmpeg();

@@ -45,7 +45,7 @@ int spx_cmd_bake(int argc, char **argv) {
   long pad = strtol(pad_s, &end, 10);
   if (errno || end == pad_s || *end || pad < 0 || pad > 4096) return spx_cli_usage("bake", "--pad %s: expected 0..4096", pad_s);
   char ext[16];
-  spx_cli_ext(out, ext, sizeof ext);
+  spx_path_ext(out, ext, sizeof ext);
   if (strcmp(ext, "png") && strcmp(ext, "exr")) return spx_cli_usage("bake", "--out %s: expected a .png or .exr file", out);
 
   spx_ctx *ctx = NULL;

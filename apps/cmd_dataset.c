@@ -294,7 +294,7 @@ int spx_cmd_dataset(int argc, char **argv) {
     goto done;
   }
 
-  double t0 = spx_cli_now();
+  double t0 = spx_now();
   for (int c0 = 0; c0 < ncams; c0 += chunk) {
     int nc = ncams - c0 < chunk ? ncams - c0 : chunk;
     spx_project_args pa = {1, mesh.nv, mesh.pos, col, nc, cams + c0, SPX_LAYOUT_HWC};
@@ -333,7 +333,7 @@ int spx_cmd_dataset(int argc, char **argv) {
     printf("dataset %s: %d views %dx%d (%s%s), train %d, validation %d, test %d; inputs .%s, outputs .png; "
            "%.2f s on %s\n",
            dir, ncams, Wc, Hc, used, cam_path ? "" : ", orbit", count[0], count[1], count[2], fmt,
-           spx_cli_now() - t0, info.name);
+           spx_now() - t0, info.name);
   }
   rc = SPX_EXIT_OK;
 done:

@@ -256,7 +256,7 @@ int spx_cmd_demo(int argc, char **argv) {
   char shipped[4096];
   snprintf(shipped, sizeof shipped, "%s", spx_cli_data_path(SPX_CLI_DEFAULT_MODEL));
   if (!ckpt && access(shipped, R_OK) == 0) ckpt = shipped;
-  double t0 = spx_cli_now();
+  double t0 = spx_now();
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("demo", "out of memory");
   spx_tx tx;
@@ -290,7 +290,7 @@ int spx_cmd_demo(int argc, char **argv) {
            s.sub.nbetas, "01_01.bvh", o.frame, o.W, o.H, u ? ckpt : "none");
     printf("wrote %s/demo.png (%s), demo_input.png, %sdemo_raster.png in %.2f s\n", o.out_dir,
            u ? "input | SMPLpix | per-vertex raster" : "input | per-vertex raster", u ? "demo_smplpix.png, " : "",
-           spx_cli_now() - t0);
+           spx_now() - t0);
   }
 done:
   spx_image_free(&input), spx_image_free(&raster), spx_image_free(&net);

@@ -56,7 +56,7 @@ int spx_cmd_export(int argc, char **argv) {
   }
   if (!in || !out) return spx_cli_usage("export", "--checkpoint and --out are required");
   char ext[16];
-  spx_cli_ext(out, ext, sizeof ext);
+  spx_path_ext(out, ext, sizeof ext);
   if (strcmp(ext, "safetensors")) return spx_cli_usage("export", "%s: output must end in .safetensors", out);
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("export", "out of memory");

@@ -45,7 +45,7 @@ int spx_cmd_project(int argc, char **argv) {
   const char *outs[3] = {out, png, npy};
   for (int k = 0; k < 3; k++) {
     if (!outs[k]) continue;
-    if (!spx_cli_image_ext_ok(outs[k]))
+    if (!spx_image_ext_ok(outs[k]))
       return spx_cli_usage("project", "%s: output must end in .exr, .png or .npy", outs[k]);
   }
   if (!spx_cli_color_ok(color))
@@ -86,12 +86,12 @@ int spx_cmd_project(int argc, char **argv) {
     goto done;
   }
   spx_project_args a = {1, mesh.nv, mesh.pos, col, ncams, cams, SPX_LAYOUT_HWC};
-  double t0 = spx_cli_now();
+  double t0 = spx_now();
   if (spx_project(ctx, proj, &a, images, NULL)) {
     rc = spx_cli_error("project", ctx);
     goto done;
   }
-  double ms = 1e3 * (spx_cli_now() - t0);
+  double ms = 1e3 * (spx_now() - t0);
 
   for (int c = 0; c < ncams; c++) {
     spx_image img = {W, H, 4, images + per * (size_t)c};

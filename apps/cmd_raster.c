@@ -44,7 +44,7 @@ int spx_cmd_raster(int argc, char **argv) {
     else return spx_cli_usage("raster", bad ? "missing value for %s" : "unknown option %s", argv[i]);
   }
   if (!mesh_path || !cam_path || !out) return spx_cli_usage("raster", "--mesh, --camera and --out are required");
-  if (!spx_cli_image_ext_ok(out)) return spx_cli_usage("raster", "%s: output must end in .exr, .png or .npy", out);
+  if (!spx_image_ext_ok(out)) return spx_cli_usage("raster", "%s: output must end in .exr, .png or .npy", out);
   if (!spx_cli_color_ok(color))
     return spx_cli_usage("raster", "--color %s: expected auto, mesh, normal or white", color);
   if (strcmp(aa_s, "1") && strcmp(aa_s, "2")) return spx_cli_usage("raster", "--aa %s: expected 1 or 2", aa_s);
@@ -54,7 +54,7 @@ int spx_cmd_raster(int argc, char **argv) {
   else if (strcmp(cull_s, "none")) return spx_cli_usage("raster", "--cull %s: expected none, back or front", cull_s);
   if (tex_path) {
     char ext[16];
-    spx_cli_ext(tex_path, ext, sizeof ext);
+    spx_path_ext(tex_path, ext, sizeof ext);
     if (strcmp(ext, "png") && strcmp(ext, "exr"))
       return spx_cli_usage("raster", "%s: texture must end in .png or .exr", tex_path);
     if (!strcmp(color, "auto")) color = "white";
@@ -88,7 +88,7 @@ int spx_cmd_raster(int argc, char **argv) {
       goto done;
     }
     char ext[16];
-    spx_cli_ext(tex_path, ext, sizeof ext);
+    spx_path_ext(tex_path, ext, sizeof ext);
     if (!strcmp(ext, "png") ? spx_png_read(ctx, tex_path, &tex) : spx_exr_read(ctx, tex_path, &tex)) {
       rc = spx_cli_error("raster", ctx);
       goto done;
@@ -143,12 +143,12 @@ int spx_cmd_raster(int argc, char **argv) {
   a.aa = aa_s[0] - '0';
   a.cull = cull;
   a.layout = SPX_LAYOUT_HWC;
-  double t0 = spx_cli_now();
+  double t0 = spx_now();
   if (spx_raster(ctx, rast, &a, images, NULL)) {
     rc = spx_cli_error("raster", ctx);
     goto done;
   }
-  double ms = 1e3 * (spx_cli_now() - t0);
+  double ms = 1e3 * (spx_now() - t0);
 
   for (int c = 0; c < ncams; c++) {
     spx_image img = {W, H, 4, images + per * (size_t)c};

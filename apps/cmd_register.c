@@ -110,6 +110,7 @@ int spx_cmd_register(int argc, char **argv) {
   o.threads = threads;
   o.unit_scale = units;
   o.progress = print_progress;
+  o.ceres_progress = getenv("SPX_FIT_CERES_PROGRESS") != NULL; /* debugging: Ceres's per-iteration output */
   printf("scan %s: %d points%s; model %s: %d vertices, %d joints, %d shape directions\n", scan_path, scan.nv,
          scan.col ? " with colours" : "", model_path, model.nv, model.nj, model.nbetas);
   if (spx_fit_register(ctx, &model, &scan, &o, &r)) {

@@ -79,7 +79,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
     rc = net_error(ctx, spx_ctx_last_status(ctx), chunk, H, W);
     goto done;
   }
-  double t0 = spx_cli_now();
+  double t0 = spx_now();
   for (int c0 = 0; c0 < ncams; c0 += chunk) {
     int n = ncams - c0 < chunk ? ncams - c0 : chunk;
     spx_project_args a = {1, mesh.nv, mesh.pos, col, n, cams + c0, SPX_LAYOUT_NCHW};
@@ -99,7 +99,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
       if (!tmp) goto done;
       spx_app_batch b = {1, SPX_UNET_OUT_CHANNELS, H, W, 1, out + (size_t)k * SPX_UNET_OUT_CHANNELS * hw};
       if (spx_app_save(ctx, tmp, &b)) {
-        rc = spx_app_error("render", ctx);
+        rc = spx_cli_error("render", ctx);
         goto done;
       }
     }
@@ -107,7 +107,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
   if ((rc = spx_tx_commit(&tx))) goto done;
   if (!quiet) {
     printf("rendered %d vertices (%s) through %d camera%s at %dx%d, %d per network batch, in %.2f s\n", mesh.nv,
-           used, ncams, ncams > 1 ? "s" : "", W, H, chunk, spx_cli_now() - t0);
+           used, ncams, ncams > 1 ? "s" : "", W, H, chunk, spx_now() - t0);
     for (int i = 0; i < spx_tx_count(&tx); i++) printf("wrote %s\n", spx_tx_target(&tx, i));
   }
   rc = SPX_EXIT_OK;
@@ -165,7 +165,7 @@ int spx_cmd_render(int argc, char **argv) {
     return spx_cli_usage("render", "--out and either --input or both --mesh and --camera are required");
   if (!spx_cli_color_ok(color))
     return spx_cli_usage("render", "--color %s: expected auto, mesh, normal or white", color);
-  if (!spx_cli_image_ext_ok(outp)) return spx_cli_usage("render", "%s: output must end in .exr, .png or .npy", outp);
+  if (!spx_image_ext_ok(outp)) return spx_cli_usage("render", "%s: output must end in .exr, .png or .npy", outp);
   if (!(ckpt = spx_cli_checkpoint("render", ckpt, NULL))) return SPX_EXIT_ERROR;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("render", "out of memory");
@@ -178,7 +178,7 @@ int spx_cmd_render(int argc, char **argv) {
   if (!by_mesh && (rc = spx_tx_check(&tx, outp))) goto done; /* before any work */
   if (!by_mesh) {
     if (spx_app_load(ctx, input, SPX_UNET_IN_CHANNELS, &in)) {
-      rc = spx_app_error("render", ctx);
+      rc = spx_cli_error("render", ctx);
       goto done;
     }
     if (in.h < 16 || in.w < 16) {
@@ -215,7 +215,7 @@ int spx_cmd_render(int argc, char **argv) {
   }
   const char *tmp = spx_tx_stage(&tx, outp);
   if (!tmp) rc = SPX_EXIT_ERROR;
-  else if (spx_app_save(ctx, tmp, &out)) rc = spx_app_error("render", ctx);
+  else if (spx_app_save(ctx, tmp, &out)) rc = spx_cli_error("render", ctx);
   else rc = spx_tx_commit(&tx);
 done:
   spx_tx_end(&tx);

@@ -118,7 +118,7 @@ typedef struct run_state {
 
 static void progress(run_state *s, int subj, int view, int force) {
   if (!s->o->progress) return;
-  double t = spx_cli_now();
+  double t = spx_now();
   if (s->tty && !force && s->bar && t - s->last < 0.1) return;
   s->last = t;
   double el = t - s->t0, eta = s->done > 0 ? el / s->done * (double)(s->total - s->done) : 0;
@@ -197,7 +197,7 @@ static int one_subject(run_state *s, int i) {
     goto done;
   }
   for (int v = 0; v < o->views; v++) vr[v].pose = poses + (size_t)v * nj * 3;
-  double t_start = spx_cli_now();
+  double t_start = spx_now();
   spx_synth_rng rng = {spx_cli_mix64(o->seed * 0x9E3779B97F4A7C15ULL + (uint64_t)i + 1)};
   if (spx_synth_subject_create(s->ctx, &s->body, &s->parts, spx_synth_rng_next(&rng), o->tex_size, &sub)) {
     rc = spx_cli_errorf("synth", "%s: %s", o->body_path, spx_ctx_message(s->ctx));
@@ -237,7 +237,7 @@ static int one_subject(run_state *s, int i) {
   }
   s->done++;
   progress(s, i, 0, 0);
-  double t_views = spx_cli_now();
+  double t_views = spx_now();
   s->t_scan += t_views - t_start;
   /* light fixed in the world for the subject: from the front-above, side drawn per subject */
   double side = spx_synth_rng_uniform(&rng, -0.8, 0.8);
@@ -286,7 +286,7 @@ static int one_subject(run_state *s, int i) {
     s->done++;
     progress(s, i, v + 1, v + 1 == o->views);
   }
-  s->t_views += spx_cli_now() - t_views;
+  s->t_views += spx_now() - t_views;
   /* manifest entry */
   FILE *f = s->manifest;
   fprintf(f, "%s\n    {\"name\": \"%s\", \"betas\": ", i ? "," : "", name);
@@ -410,7 +410,7 @@ int synth_run(const synth_opts *o) {
   json_str(s.manifest, o->bvh_path);
   fprintf(s.manifest, ", \"texture_size\": %d,\n  \"subjects\": [", (int)o->tex_size);
   s.tty = isatty(STDERR_FILENO);
-  s.t0 = spx_cli_now();
+  s.t0 = spx_now();
   s.total = (long)o->subjects * (o->views + 1);
   progress(&s, 0, 0, 1);
   for (int i = 0; i < o->subjects && !rc; i++) rc = one_subject(&s, i);
@@ -450,7 +450,7 @@ int synth_run(const synth_opts *o) {
   if (aside[0] && remove_tree(aside))
     fprintf(stderr, "smplpix synth: %s: could not remove the previous output %s (%s)\n", o->out, aside,
             strerror(errno));
-  double el = spx_cli_now() - s.t0;
+  double el = spx_now() - s.t0;
   printf("wrote %d subjects x %d views (%dx%d, textures %d^2) to %s in %.1f s: %.2f s per subject (scan, texture), "
          "%.3f s per view\n",
          o->subjects, o->views, o->width, o->height, (int)o->tex_size, o->out, el, s.t_scan / o->subjects,

@@ -15,7 +15,7 @@ typedef struct spx_app_batch {
  * (wrong channel count, unknown extension, ...) is described in spx_app_err. */
 extern char spx_app_err[512];
 /* Print either as "smplpix <cmd>: error: ..." and return the exit code. */
-int spx_app_error(const char *cmd, spx_ctx *ctx);
+int spx_cli_error(const char *cmd, spx_ctx *ctx);
 
 /* Load `path` (.exr, .png, .npy) as `channels` channels (4: RGB-D input, 3: RGB target).
  * A 3-channel image asked for 4 gets depth 1 (background), like an EXR without Z; RGBA PNGs

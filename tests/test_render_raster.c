@@ -601,7 +601,7 @@ int main(void) {
     spx_rasterizer_destroy(R);
     R = NULL;
     CHECK_OK(ctx, spx_device_open(ctx, NULL));
-    CHECK(ctx->tune.raster_serial == atoi(forms[i][0]) && ctx->tune.raster_chunk == atoi(forms[i][1]));
+    CHECK(ctx->dev->tune.raster_serial == atoi(forms[i][0]) && ctx->dev->tune.raster_chunk == atoi(forms[i][1]));
     CHECK_OK(ctx, spx_rasterizer_create(ctx, &R));
     SPX_RUN(test_random_meshes);
     SPX_RUN(test_watertight);

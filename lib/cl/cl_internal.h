@@ -16,6 +16,7 @@
 struct spx_cl_program {
   char name[64];
   cl_program prog;
+  uint64_t uses; /* bit i: built with -D of tunable row i */
 };
 
 /* Live / peak bytes of the device buffers of a context (lib/cl/devmem.c). */
@@ -23,11 +24,9 @@ typedef struct spx_devmem {
   _Atomic size_t live, peak;
 } spx_devmem;
 
-struct spx_ctx {
-  char msg[1024];
-  spx_status last;
-  /* device state, valid when have_device */
-  int have_device;
+/* The open OpenCL device: allocated by spx_device_open, pointed to by ctx->dev (NULL when no
+ * device is open), released by spx_cl_close (which core reaches through ctx->dev_close). */
+struct spx_cl_device {
   spx_device_info info;
   cl_platform_id platform;
   cl_device_id device;
@@ -35,12 +34,12 @@ struct spx_ctx {
   cl_command_queue queue;
   /* tunables and kernels: resolved when the device opens (lib/cl/tuning.c), programs built on
    * first use of any of their kernels (lib/cl/program.c) */
-  struct spx_tunables tune;                  /* read by host code: ctx->tune.conv_tm */
+  struct spx_tunables tune;                  /* read by host code: ctx->dev->tune.conv_tm */
   unsigned char tune_src[SPX_NTUNABLES];     /* spx_tune_source of each field */
   char tune_note[5120];                      /* why a tuning file was ignored ("" when not) */
   char tune_file[4096];                      /* the tuning file read (or looked for) */
-  char build_options[4096];                  /* -D list generated from tune */
-  int cr_div; /* the device divides fp32 correctly rounded (set with build_options) */
+  int cr_div;       /* the device divides fp32 correctly rounded (set with the tunables) */
+  int div_fallback; /* SPX_FORCE_DIV_FALLBACK: kernels divide in double although cr_div exists */
   int tune_cpu; /* 1: kernels are built and launched with the CPU column of lib/cl/tuning.c */
   struct spx_cl_program programs[SPX_MAX_PROGRAMS];
   int nprograms;
@@ -49,7 +48,7 @@ struct spx_ctx {
   spx_devmem devmem;
 };
 
-/* Release all device objects (used by spx_ctx_destroy). */
+/* Release all device objects and free ctx->dev (spx_ctx_destroy calls it through ctx->dev_close). */
 void spx_cl_close(spx_ctx *ctx);
 
 /* Fail with SPX_E_STATE unless a device is open. */
@@ -73,9 +72,12 @@ const char *spx_cl_kernel_name(spx_kernel_id id);
 const char *spx_cl_program_name(int i);
 spx_status spx_cl_program_build(spx_ctx *ctx, const char *program);
 
-/* Resolve ctx->tune for the device just opened (defaults, tuning file, SPX_TUNE_* overrides),
- * check it and generate ctx->build_options (lib/cl/tuning.c). */
+/* Resolve ctx->dev->tune for the device just opened (defaults, tuning file, SPX_TUNE_* overrides) and
+ * check it (lib/cl/tuning.c). */
 spx_status spx_cl_tunables_resolve(spx_ctx *ctx);
+/* Build options of the program with (prelude + expanded) source src: -cl-std, the device class,
+ * -D<NAME>=<value> of every tunable src mentions, the division mode. Part of the cache key. */
+uint64_t spx_cl_program_options(const spx_ctx *ctx, const char *src, char *out, size_t cap);
 /* Tunable rows (lib/cl/tuning.c), i in [0, SPX_NTUNABLES): the field of row i in t; its name as
  * users write it (CONV_TM for SPX_TUNE_CONV_TM); the row of a name of `len` bytes (-1: none). */
 int *spx_cl_tunable_field(struct spx_tunables *t, int i);
@@ -86,13 +88,14 @@ int spx_cl_tunable_find(const char *name, size_t len);
 int spx_cl_tunable_parse(const spx_ctx *ctx, int i, const char *val, int *out, char *why, size_t cap);
 /* The combinations of t against the device's limits (work-group sizes, local memory). */
 spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t);
-/* Apply the tuning file of the open device (lib/cl/tunefile.c) over the defaults in ctx->tune:
+/* Apply the tuning file of the open device (lib/cl/tunefile.c) over the defaults in ctx->dev->tune:
  * a missing file changes nothing; an unreadable, corrupt or mismatched one is ignored as a whole
- * and the reason kept in ctx->tune_note. Never fails. */
+ * and the reason kept in ctx->dev->tune_note. Never fails. */
 void spx_cl_tunefile_apply(spx_ctx *ctx);
 
-/* Release every built program and kernel (the device stays open); the next launch rebuilds. */
-void spx_cl_programs_release(spx_ctx *ctx);
+/* Release the built programs that use any tunable of the mask `uses` (~0: all) and their kernels
+ * (the device stays open); their next launch rebuilds them. */
+void spx_cl_programs_release(spx_ctx *ctx, uint64_t uses);
 /* The program-binary cache directory (created when missing); 0 when there is none. */
 int spx_cl_cache_dir(char *out, size_t cap);
 

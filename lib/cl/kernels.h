@@ -18,6 +18,9 @@
   X(BN_TRAIN_FWD, "batchnorm.cl", "spx_bn_train_fwd")                  \
   X(BN_EVAL_FWD, "batchnorm.cl", "spx_bn_eval_fwd")                    \
   X(BN_TRAIN_BWD, "batchnorm.cl", "spx_bn_train_bwd")                  \
+  X(BN_SYNC_PART, "batchnorm.cl", "spx_bn_sync_part")                  \
+  X(BN_SYNC_FWD, "batchnorm.cl", "spx_bn_sync_fwd")                    \
+  X(BN_SYNC_BWD, "batchnorm.cl", "spx_bn_sync_bwd")                    \
   X(CONV2D_FWD_K3S1, "conv2d.cl", "spx_conv2d_fwd_k3s1")               \
   X(CONV2D_FWD_K1S1, "conv2d.cl", "spx_conv2d_fwd_k1s1")               \
   X(CONV2D_PAD, "conv2d.cl", "spx_conv2d_pad")                         \
@@ -36,8 +39,6 @@
   X(WINO_OUT, "conv2d_winograd.cl", "spx_wino_out")                    \
   X(INSTNORM_FWD, "instnorm.cl", "spx_instnorm_fwd")                   \
   X(INSTNORM_BWD, "instnorm.cl", "spx_instnorm_bwd")                   \
-  X(HWC_TO_NCHW, "layout.cl", "spx_hwc_to_nchw")                       \
-  X(NCHW_TO_HWC, "layout.cl", "spx_nchw_to_hwc")                       \
   X(BODY_JOINTS, "lbs.cl", "spx_body_joints")                          \
   X(BODY_LBS, "lbs.cl", "spx_body_lbs")                                \
   X(REDUCE_STAGE1, "loss.cl", "spx_reduce_stage1")                     \

@@ -40,8 +40,8 @@ void spx_tp_back_reads(const spx_tape *t, const tnode *nd, int r[3]) {
     case OP_CONV: /* x for the weight gradient only; the data gradient needs w and dy */
       if (spx_tp_wants(t, nd->in[1])) r[0] = nd->in[0];
       break;
-    case OP_BN:
-      r[0] = nd->in[0], r[1] = nd->saved[0];
+    case OP_BN: /* saved[1]: the synchronised batch norm's rank sums (-1 without) */
+      r[0] = nd->in[0], r[1] = nd->saved[0], r[2] = nd->saved[1];
       break;
     case OP_ACT:
       if (wx) r[0] = spx_tp_act_uses_output((spx_act_kind)nd->iarg[0], nd->farg[0]) ? nd->out : nd->in[0];

@@ -272,7 +272,9 @@ static spx_status run_forward(spx_unet *u, const float *input, cl_mem dev_in, si
   if (n < 1 || h < 16 || w < 16 || n > 4096 || h > 16384 || w > 16384)
     return spx_fail(u->ctx, SPX_E_ARG, "unet: input %dx%dx%dx%d: need batch >= 1 and height, width in [16, 16384]", n,
                     SPX_UNET_IN_CHANNELS, h, w);
-  if (train && (long)n * (h / 16) * (w / 16) < 2)
+  /* synchronised batch norm: the statistics are those of the global batch */
+  long nstat = spx_tape_sync_bn(u->tape) ? spx_tape_global_batch(u->tape, n) : n;
+  if (train && nstat * (h / 16) * (w / 16) < 2)
     return spx_fail(u->ctx, SPX_E_ARG,
                     "unet: training on %dx%dx%dx%d leaves one value per channel at the %dx%d bottleneck (batch norm "
                     "needs two): use a larger batch or image",
@@ -291,7 +293,7 @@ static spx_status run_forward(spx_unet *u, const float *input, cl_mem dev_in, si
     if (dev_in && in >= 0 && !spx_tape_measuring(t)) { /* device-to-device copy into the arena */
       spx_tensor iv = spx_tape_tensor(t, in);
       size_t bytes = spx_tensor_numel(&iv) * sizeof(float);
-      cl_int e = clEnqueueCopyBuffer(u->ctx->queue, dev_in, iv.mem, dev_off, iv.off * sizeof(float), bytes, 0, NULL,
+      cl_int e = clEnqueueCopyBuffer(u->ctx->dev->queue, dev_in, iv.mem, dev_off, iv.off * sizeof(float), bytes, 0, NULL,
                                      NULL);
       if (e != CL_SUCCESS && !cst)
         cst = spx_fail(u->ctx, SPX_E_CL, "unet: copying the %zu-byte device input failed (OpenCL error %d)", bytes,
@@ -393,6 +395,35 @@ spx_status spx_unet_reset_optimizer(spx_unet *u) {
 
 spx_status spx_unet_adam_step(spx_unet *u, double lr) { return spx_unet_adam_step_ex(u, lr, 0.9, 0.999, 1e-8); }
 
+/* ------------------------------------------------------------------ data-parallel training */
+
+spx_status spx_unet_set_comm(spx_unet *u, const spx_comm *comm, int sync_bn) {
+  if (comm && comm->size > 1 && (!comm->allreduce_sum || !comm->broadcast || comm->rank < 0 || comm->rank >= comm->size))
+    return spx_fail(u->ctx, SPX_E_ARG, "unet: comm of %d ranks lacks a callback or has rank %d", comm->size, comm->rank);
+  spx_tape_set_comm(u->tape, comm, sync_bn);
+  return SPX_OK;
+}
+
+spx_status spx_unet_set_shard(spx_unet *u, int local_n, int global_n) {
+  if (local_n < 0 || global_n < 1 || local_n > global_n)
+    return spx_fail(u->ctx, SPX_E_ARG, "unet: shard of %d samples in a global batch of %d", local_n, global_n);
+  spx_tape_set_shard(u->tape, local_n, global_n);
+  return SPX_OK;
+}
+
+spx_status spx_unet_broadcast(spx_unet *u) {
+  const spx_comm *c = spx_tape_comm(u->tape);
+  if (!c) return SPX_OK;
+  int64_t meta[2 + 2 * NDC] = {u->step, u->sigmoid};
+  for (int i = 0; i < NDC; i++) meta[2 + 2 * i] = u->dc[i].nbt[0], meta[3 + 2 * i] = u->dc[i].nbt[1];
+  if (c->broadcast(c->self, meta, sizeof meta))
+    return spx_fail(u->ctx, SPX_E_IO, "unet: broadcast over %d ranks failed", c->size);
+  u->step = meta[0], u->sigmoid = (int)meta[1];
+  for (int i = 0; i < NDC; i++) u->dc[i].nbt[0] = meta[2 + 2 * i], u->dc[i].nbt[1] = meta[3 + 2 * i];
+  u->fold_dirty = 1;
+  return spx_tape_broadcast(u->tape);
+}
+
 /* ------------------------------------------------------------------ introspection */
 
 int spx_unet_tensor_count(const spx_unet *u) {
@@ -478,33 +509,6 @@ spx_status spx_unet_save(spx_unet *u, const char *path, int with_optimizer) {
   return spx_unet_save_meta(u, path, with_optimizer, NULL, NULL, 0);
 }
 
-/* float -> IEEE half, round to nearest even; 0 when |v| does not fit (overflow to Inf). */
-static int float_to_half(float v, uint16_t *out) {
-  uint32_t b;
-  memcpy(&b, &v, 4);
-  uint32_t s = (b >> 16) & 0x8000u, e = (b >> 23) & 0xffu, m = b & 0x7fffffu;
-  int ex = (int)e - 127 + 15;
-  if (e == 0xffu) return 0;
-  if (ex >= 31) return 0;
-  if (ex <= 0) { /* subnormal half (or zero) */
-    if (ex < -10) {
-      *out = (uint16_t)s;
-      return 1;
-    }
-    m |= 0x800000u;
-    int shift = 14 - ex;
-    uint32_t hm = m >> shift, rem = m & ((1u << shift) - 1), half = 1u << (shift - 1);
-    if (rem > half || (rem == half && (hm & 1))) hm++;
-    *out = (uint16_t)(s | hm);
-    return 1;
-  }
-  uint32_t h = s | ((uint32_t)ex << 10) | (m >> 13), rem = m & 0x1fffu;
-  if (rem > 0x1000u || (rem == 0x1000u && (h & 1))) h++; /* may carry into the exponent: still correct */
-  if ((h & 0x7c00u) == 0x7c00u) return 0;
-  *out = (uint16_t)h;
-  return 1;
-}
-
 static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, int half, const char *const *mkeys,
                             const char *const *mvalues, int count);
 
@@ -566,7 +570,7 @@ static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, i
           float v;
           uint16_t h = 0;
           memcpy(&v, hb + 4 * k, 4);
-          if (float_to_half(v, &h)) memcpy(hb + 2 * k, &h, 2);
+          if (spx_float_to_half(v, &h)) memcpy(hb + 2 * k, &h, 2);
           else
             st = spx_fail(u->ctx, SPX_E_NUMERIC, "%s: tensor %s element %zu (%g) does not fit in float16", path,
                           o->name, k, (double)v);
@@ -598,24 +602,6 @@ done:
   return st;
 }
 
-static float half_to_float(uint16_t h) {
-  uint32_t s = (uint32_t)(h >> 15) << 31, e = (h >> 10) & 31, m = h & 1023u, bits;
-  if (e == 0) {
-    if (!m) bits = s;
-    else { /* subnormal */
-      float f = ldexpf((float)m, -24);
-      return s ? -f : f;
-    }
-  } else if (e == 31) {
-    bits = s | 0x7f800000u | (m << 13);
-  } else {
-    bits = s | ((e + 112) << 23) | (m << 13);
-  }
-  float f;
-  memcpy(&f, &bits, sizeof f);
-  return f;
-}
-
 /* Copy tensor `name` from the file (F32 or F16, shape checked) into dst. */
 static spx_status load_floats(spx_ctx *ctx, const char *path, const spx_st_file *f, const char *name, int ndim,
                               const int64_t *shape, float *dst) {
@@ -639,7 +625,7 @@ static spx_status load_floats(spx_ctx *ctx, const char *path, const spx_st_file 
     } else if (t->dtype == SPX_F16) {
       uint16_t hv;
       memcpy(&hv, p + 2 * i, 2);
-      v = half_to_float(hv);
+      v = spx_half_to_float(hv);
     } else {
       return spx_fail(ctx, SPX_E_FORMAT, "%s: tensor %s has dtype %s, expected F32 or F16", path, name,
                       spx_dtype_name(t->dtype));
