@@ -12,29 +12,22 @@
 static int spx_t_pass, spx_t_fail, spx_t_cur_fail;
 static const char *spx_t_name = "";
 
-#define CHECK(cond)                                                                                 \
+/* one check: counted; on failure "  FAIL file:line in test: cond" then `more` (statements) and a newline */
+#define SPX_T_CHECK(cond, ...)                                                                      \
   do {                                                                                              \
     if (cond) {                                                                                     \
       spx_t_pass++;                                                                                 \
     } else {                                                                                        \
       spx_t_fail++;                                                                                 \
       spx_t_cur_fail++;                                                                             \
-      fprintf(stderr, "  FAIL %s:%d in %s: %s\n", __FILE__, __LINE__, spx_t_name, #cond);           \
-    }                                                                                               \
-  } while (0)
-
-#define CHECK_MSG(cond, ...)                                                                        \
-  do {                                                                                              \
-    if (cond) {                                                                                     \
-      spx_t_pass++;                                                                                 \
-    } else {                                                                                        \
-      spx_t_fail++;                                                                                 \
-      spx_t_cur_fail++;                                                                             \
-      fprintf(stderr, "  FAIL %s:%d in %s: %s: ", __FILE__, __LINE__, spx_t_name, #cond);           \
-      fprintf(stderr, __VA_ARGS__);                                                                 \
+      fprintf(stderr, "  FAIL %s:%d in %s: %s", __FILE__, __LINE__, spx_t_name, #cond);             \
+      __VA_ARGS__;                                                                                  \
       fputc('\n', stderr);                                                                          \
     }                                                                                               \
   } while (0)
+
+#define CHECK(cond) SPX_T_CHECK(cond, (void)0)
+#define CHECK_MSG(cond, ...) SPX_T_CHECK(cond, fputs(": ", stderr), fprintf(stderr, __VA_ARGS__))
 
 /* |a-b| <= atol + rtol*|b| */
 #define CHECK_NEAR(a, b, atol, rtol)                                                                \
@@ -93,6 +86,15 @@ static inline int spx_t_system(const char *cmd) {
   if (r == -1) return -1;
   if ((r & 0x7f) != 0) return 128 + (r & 0x7f); /* killed by signal */
   return (r >> 8) & 0xff;
+}
+
+/* Write `text` to path (best effort: a test checks what it reads back). */
+static inline void spx_t_write_text(const char *path, const char *text) {
+  FILE *f = fopen(path, "wb");
+  if (f) {
+    fputs(text, f);
+    fclose(f);
+  }
 }
 
 static inline int spx_t_file_exists(const char *path) {

@@ -16,6 +16,7 @@
 #include <sys/stat.h>
 
 #include "animate_test.h"
+#include "rest_registration.h"
 
 #define BODY SPX_REPO_DATA "/body/default_body.npz"
 #define CLIP SPX_REPO_DATA "/mocap/01_01.bvh"
@@ -27,27 +28,16 @@ static spx_unet *net;
 
 /* reg.json: the default body at rest, coloured by height, with the model path recorded */
 static void write_registration(const char *name) {
-  spx_fit_result r;
-  memset(&r, 0, sizeof r);
-  r.nv = body.nv, r.nj = body.nj, r.nbetas = 0, r.nf = body.nf;
-  r.unit_scale = r.sim_scale = r.body_scale = 1.0;
-  r.sim_R[0] = r.sim_R[4] = r.sim_R[8] = 1.0;
-  double betas[1] = {0};
-  r.betas = betas;
-  r.pose = calloc((size_t)body.nj * 3, sizeof(double));
-  r.template_unposed = malloc((size_t)body.nv * 3 * sizeof(double));
-  r.colors = malloc((size_t)body.nv * 3 * sizeof(float));
-  if (!r.pose || !r.template_unposed || !r.colors) return;
-  for (int i = 0; i < body.nv; i++)
-    for (int c = 0; c < 3; c++) {
-      float y = body.v_template[i * 3 + 1], x = body.v_template[i * 3];
-      r.template_unposed[i * 3 + c] = body.v_template[i * 3 + c];
-      r.colors[i * 3 + c] = c == 0 ? 0.5f + 0.5f * y : c == 1 ? 0.5f + x : 0.3f;
-    }
+  float *colors = malloc((size_t)body.nv * 3 * sizeof(float));
+  if (!colors) return;
+  for (int i = 0; i < body.nv; i++) {
+    float y = body.v_template[i * 3 + 1], x = body.v_template[i * 3];
+    for (int c = 0; c < 3; c++) colors[i * 3 + c] = c == 0 ? 0.5f + 0.5f * y : c == 1 ? 0.5f + x : 0.3f;
+  }
   char p[700];
   path_of(p, sizeof p, name);
-  CHECK_OK(ctx, spx_fit_save_json(ctx, p, &r, BODY));
-  free(r.pose), free(r.template_unposed), free(r.colors);
+  CHECK_OK(ctx, spx_t_save_rest_registration(ctx, &body, colors, BODY, p));
+  free(colors);
   CHECK_OK(ctx, spx_fit_load_json(ctx, p, &reg, NULL));
 }
 

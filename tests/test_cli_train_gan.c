@@ -54,17 +54,6 @@ static void make_data(void) {
   free(in), free(tg);
 }
 
-static int file_has(const char *name, const char *needle) {
-  char p[800], buf[16384] = "";
-  path_of(p, sizeof p, name);
-  FILE *f = fopen(p, "rb");
-  if (!f) return 0;
-  size_t n = fread(buf, 1, sizeof buf - 1, f);
-  fclose(f);
-  buf[n] = 0;
-  return strstr(buf, needle) != NULL;
-}
-
 static int meta_is(const char *name, const char *key, const char *want) {
   char p[800];
   path_of(p, sizeof p, name);

@@ -18,11 +18,7 @@ static void at(char *out, size_t cap, const char *name) { snprintf(out, cap, "%s
 static void touch(const char *name, const char *text) {
   char p[700];
   at(p, sizeof p, name);
-  FILE *f = fopen(p, "wb");
-  if (f) {
-    fputs(text, f);
-    fclose(f);
-  }
+  spx_t_write_text(p, text);
 }
 
 static int there(const char *name) {
