@@ -119,9 +119,7 @@ static inline double spx_nt_maxdiff(const double *a, const double *b, size_t n) 
 
 static inline spx_ctx *spx_nt_open(void) {
   spx_ctx *ctx = NULL;
-  if (spx_ctx_create(&ctx) != SPX_OK) return NULL;
-  if (spx_device_open(ctx, NULL) != SPX_OK) {
-    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
+  if (spx_t_open_device(&ctx)) {
     spx_ctx_destroy(ctx);
     return NULL;
   }

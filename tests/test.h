@@ -9,6 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "smplpix/smplpix.h"
+
 static int spx_t_pass, spx_t_fail, spx_t_cur_fail;
 static const char *spx_t_name = "";
 
@@ -95,6 +97,19 @@ static inline void spx_t_write_text(const char *path, const char *text) {
     fputs(text, f);
     fclose(f);
   }
+}
+
+/* st is not SPX_OK: prints "no device: <the context's message>" and returns 1 (main's exit code). */
+static inline int spx_t_no_device(spx_ctx *ctx, spx_status st) {
+  if (st == SPX_OK) return 0;
+  fprintf(stderr, "no device: %s\n", ctx ? spx_ctx_message(ctx) : "");
+  return 1;
+}
+/* *ctx: a new context with the device open; 1 (printed) when there is none. */
+static inline int spx_t_open_device(spx_ctx **ctx) {
+  spx_status st = spx_ctx_create(ctx);
+  if (st == SPX_OK) st = spx_device_open(*ctx, NULL);
+  return spx_t_no_device(*ctx, st);
 }
 
 static inline int spx_t_file_exists(const char *path) {

@@ -312,10 +312,7 @@ static void test_errors(void) {
 
 int main(void) {
   snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
+  if (spx_t_open_device(&ctx)) return 1;
   memset(&body, 0, sizeof body);
   CHECK_OK(ctx, spx_body_load(ctx, BODY, &body));
   write_registration("reg.json");

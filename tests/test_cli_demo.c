@@ -134,10 +134,7 @@ static void test_bad_input(void) {
 
 int main(void) {
   snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
+  if (spx_t_open_device(&ctx)) return 1;
   char p[700], cmd[1200];
   snprintf(cmd, sizeof cmd, "rm -rf '%s'/* '%s'/.[!.]*", dir, dir); /* a clean scratch folder */
   CHECK(spx_t_system(cmd) == 0);

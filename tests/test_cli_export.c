@@ -141,10 +141,7 @@ static void test_export_cli(void) {
 
 int main(void) {
   snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
+  if (spx_t_open_device(&ctx)) return 1;
   SPX_RUN(test_rounding);
   SPX_RUN(test_export_cli);
   spx_ctx_destroy(ctx);

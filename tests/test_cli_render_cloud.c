@@ -126,10 +126,7 @@ static void test_default_network(void) {
 
 int main(void) {
   snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
+  if (spx_t_open_device(&ctx)) return 1;
   CHECK_OK(ctx, spx_unet_create(ctx, 8, 0, 17, &net));
   char p[700];
   path_of(p, sizeof p, "net.safetensors");

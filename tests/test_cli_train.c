@@ -517,10 +517,7 @@ int main(void) {
   mkdir(dir, 0777);
   char log[1024];
   path_in(log, sizeof log, "help.log");
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device: %s\n", ctx ? spx_ctx_message(ctx) : "");
-    return 1;
-  }
+  if (spx_t_open_device(&ctx)) return 1;
   SPX_RUN(test_render_mesh);
   SPX_RUN(test_train_interrupt);
   SPX_RUN(test_train_tty);

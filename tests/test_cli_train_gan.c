@@ -205,10 +205,7 @@ static void test_schedule_resume(void) {
 int main(void) {
   spx_t_path(dir, sizeof dir, "cligan");
   mkdir(dir, 0777);
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device\n");
-    return 1;
-  }
+  if (spx_t_open_device(&ctx)) return 1;
   make_data();
   SPX_RUN(test_offline_recipe);
   SPX_RUN(test_schedule);
