@@ -62,6 +62,13 @@ static inline int file_has(const char *name, const char *needle) {
   return strstr(buf, needle) != NULL;
 }
 
+/* Make the folder dir/name (best effort: a test checks what it needs). */
+static inline void make_dir(const char *name) {
+  char p[700];
+  path_of(p, sizeof p, name);
+  mkdir(p, 0777);
+}
+
 /* dir/name exists (file or folder). */
 static inline int exists(const char *name) {
   char p[700];

@@ -223,8 +223,7 @@ static void test_amass(void) {
 
 static void test_mp4(void) {
   char p[700];
-  path_of(p, sizeof p, "bin");
-  mkdir(p, 0777);
+  make_dir("bin");
   write_text("bin/ffmpeg", "#!/bin/sh\n"
                            "echo \"$@\" > ffargs.txt\n"
                            "prev=; for a; do last=$a; [ \"$prev\" = -i ] && pat=$a; [ \"$prev\" = -start_number ] && "
@@ -251,8 +250,7 @@ static void test_mp4(void) {
     CHECK_MSG(spx_t_system(cmd) != 0, "a temporary or the link folder is left in mp4/");
   }
   /* an ffmpeg that fails: one line, exit 1, nothing left */
-  path_of(p, sizeof p, "bad");
-  mkdir(p, 0777);
+  make_dir("bad");
   write_text("bad/ffmpeg", "#!/bin/sh\necho noise >&2\nexit 3\n");
   path_of(p, sizeof p, "bad/ffmpeg");
   chmod(p, 0755);

@@ -111,10 +111,8 @@ static void test_point_cloud(void) {
 
 static void test_default_network(void) {
   char p[700];
-  path_of(p, sizeof p, "data");
-  mkdir(p, 0777);
-  path_of(p, sizeof p, "data/models");
-  mkdir(p, 0777);
+  make_dir("data");
+  make_dir("data/models");
   CHECK(tool_env("SPX_DATA_DIR=./nodata", "render --mesh cloud.ply --camera one.json --out none.npy") == 1);
   CHECK(err_one_line_with("nodata/models/default.safetensors") && err_one_line_with("--checkpoint"));
   CHECK(!exists("none.npy"));
