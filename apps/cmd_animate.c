@@ -11,7 +11,7 @@
 #include <unistd.h>
 
 #include "animate.h"
-#include "cli.h"
+#include "cli_scene.h"
 #include "cli_model.h"
 #include "cmd_fit.h"
 
@@ -146,10 +146,7 @@ static int run(spx_ctx *ctx, const opts *o) {
   rc = SPX_EXIT_ERROR;
   if ((rc = spx_cli_open_device(C, ctx, o->spec))) goto done;
   rc = SPX_EXIT_ERROR;
-  if (ckpt && spx_unet_load(ctx, ckpt, &u)) {
-    rc = spx_cli_error(C, ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, C, ctx, ckpt && spx_unet_load(ctx, ckpt, &u))) goto done;
   size_t nv3 = (size_t)m.nv * 3, hw = (size_t)W * (size_t)H;
   pose = malloc((size_t)m.nj * 3 * sizeof(double));
   work = malloc(nv3 * sizeof(double));
@@ -160,10 +157,9 @@ static int run(spx_ctx *ctx, const opts *o) {
     rc = spx_cli_errorf(C, "out of memory");
     goto done;
   }
-  if (spx_projector_create(ctx, &proj) || (u && spx_device_tensor_create(ctx, 1, SPX_UNET_IN_CHANNELS, H, W, &tin))) {
-    rc = spx_cli_error(C, ctx);
+  if (spx_cli_failed(&rc, C, ctx,
+                     spx_projector_create(ctx, &proj) || (u && spx_device_tensor_create(ctx, 1, SPX_UNET_IN_CHANNELS, H, W, &tin))))
     goto done;
-  }
   int total = (int)(b - a);
   double centre[3] = {0, 0, 0}, t_start = spx_cli_now();
   progress pg = {isatty(STDERR_FILENO), 0, t_start, 0};

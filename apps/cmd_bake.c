@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "cmd_fit.h"
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
@@ -59,10 +59,9 @@ int spx_cmd_bake(int argc, char **argv) {
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("bake", "out of memory");
   if ((rc = spx_tx_check(&tx, out))) goto done; /* before any work */
   rc = SPX_EXIT_ERROR;
-  if (spx_mesh_load(ctx, mesh_path, &mesh) || spx_mesh_load(ctx, scan_path, &scan)) {
-    rc = spx_cli_error("bake", ctx);
+  if (spx_cli_failed(&rc, "bake", ctx,
+                     spx_mesh_load(ctx, mesh_path, &mesh) || spx_mesh_load(ctx, scan_path, &scan)))
     goto done;
-  }
   if (mesh.nf == 0) {
     rc = spx_cli_errorf("bake", "%s: no triangles (the registered mesh is needed, not a point cloud)", mesh_path);
     goto done;
@@ -73,10 +72,7 @@ int spx_cmd_bake(int argc, char **argv) {
   }
   if (!mesh.uv || !mesh.face_uv) {
     const char *mp = model_path ? model_path : DEFAULT_MODEL;
-    if (spx_body_load(ctx, mp, &m)) {
-      rc = spx_cli_error("bake", ctx);
-      goto done;
-    }
+    if (spx_cli_failed(&rc, "bake", ctx, spx_body_load(ctx, mp, &m))) goto done;
     if (!m.vt || !m.ft || m.nf != mesh.nf || m.nv != mesh.nv) {
       rc = spx_cli_errorf("bake", "%s: no texture coordinates, and model %s has none for its %d faces / %d vertices",
                           mesh_path, mp, mesh.nf, mesh.nv);

@@ -11,7 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "smplpix/camera.h"
 #include "smplpix/image.h"
 #include "smplpix/mesh.h"
@@ -117,33 +117,30 @@ static int orbit_cameras(spx_ctx *ctx, const spx_mesh *m, long n, const double *
 }
 
 int spx_cmd_dataset(int argc, char **argv) {
-  const char *mesh_path = NULL, *cam_path = NULL, *dir = NULL, *dev = NULL, *color = "auto";
+  spx_cli_scene_opts o = {.color = "auto"};
   const char *split_s = "0.8,0.1,0.1", *fmt = "exr", *elev_s = "0", *size_s = "410x308", *aa_s = "1";
   const char *orbit_s = NULL, *seed_s = "0", *dist_s = NULL, *focal_s = NULL;
-  int quiet = 0, force = 0, bad = 0;
+  int force = 0, bad = 0;
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       fputs(USAGE, stdout);
       return SPX_EXIT_OK;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--mesh", &bad))) mesh_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--cameras", &bad))) cam_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) dir = v;
+    } else if (spx_cli_scene_opt(argc, argv, &i, "--cameras", &o, &bad)) continue;
     else if ((v = spx_cli_opt(argc, argv, &i, "--split", &bad))) split_s = v;
     else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) seed_s = v;
     else if ((v = spx_cli_opt(argc, argv, &i, "--input-format", &bad))) fmt = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--color", &bad))) color = v;
     else if ((v = spx_cli_opt(argc, argv, &i, "--aa", &bad))) aa_s = v;
     else if ((v = spx_cli_opt(argc, argv, &i, "--orbit", &bad))) orbit_s = v;
     else if ((v = spx_cli_opt(argc, argv, &i, "--elevations", &bad))) elev_s = v;
     else if ((v = spx_cli_opt(argc, argv, &i, "--distance", &bad))) dist_s = v;
     else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) size_s = v;
     else if ((v = spx_cli_opt(argc, argv, &i, "--focal", &bad))) focal_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) dev = v;
     else if (!strcmp(argv[i], "--force")) force = 1;
-    else if (!strcmp(argv[i], "--quiet")) quiet = 1;
     else return spx_cli_usage("dataset", bad ? "missing value for %s" : "unknown option %s", argv[i]);
   }
+  const char *mesh_path = o.mesh, *cam_path = o.cameras, *dir = o.out, *dev = o.device, *color = o.color;
+  int quiet = o.quiet;
   if (!mesh_path || !dir) return spx_cli_usage("dataset", "--mesh and --out are required");
   if (!cam_path == !orbit_s) return spx_cli_usage("dataset", "give --cameras C.json or --orbit N (one of them)");
   double split[3], elev[64], dist = 0, focal = 0;
@@ -196,10 +193,7 @@ int spx_cmd_dataset(int argc, char **argv) {
     rc = spx_cli_errorf("dataset", "%s: not empty (use --force to write into it)", dir);
     goto done;
   }
-  if (spx_mesh_load(ctx, mesh_path, &mesh)) {
-    rc = spx_cli_error("dataset", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "dataset", ctx, spx_mesh_load(ctx, mesh_path, &mesh))) goto done;
   if (mesh.nf == 0) {
     rc = spx_cli_errorf("dataset", "%s: no triangles (the targets are rasterized triangles)", mesh_path);
     goto done;
@@ -289,10 +283,9 @@ int spx_cmd_dataset(int argc, char **argv) {
   }
   if ((rc = spx_cli_open_device("dataset", ctx, dev))) goto done;
   rc = SPX_EXIT_ERROR;
-  if (spx_projector_create(ctx, &proj) || spx_rasterizer_create(ctx, &rast)) {
-    rc = spx_cli_error("dataset", ctx);
+  if (spx_cli_failed(&rc, "dataset", ctx,
+                     spx_projector_create(ctx, &proj) || spx_rasterizer_create(ctx, &rast)))
     goto done;
-  }
 
   double t0 = spx_cli_now();
   for (int c0 = 0; c0 < ncams; c0 += chunk) {
@@ -310,10 +303,9 @@ int spx_cmd_dataset(int argc, char **argv) {
     ra.cull = SPX_CULL_NONE;
     ra.layout = SPX_LAYOUT_HWC;
     ra.static_id = 1;
-    if (spx_project(ctx, proj, &pa, proj_img, NULL) || spx_raster(ctx, rast, &ra, rast_img, NULL)) {
-      rc = spx_cli_error("dataset", ctx);
+    if (spx_cli_failed(&rc, "dataset", ctx,
+                       spx_project(ctx, proj, &pa, proj_img, NULL) || spx_raster(ctx, rast, &ra, rast_img, NULL)))
       goto done;
-    }
     for (int c = 0; c < nc; c++) {
       int v = c0 + c;
       for (int io = 0; io < 2; io++) {

@@ -6,7 +6,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "cmd_fit.h"
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
@@ -92,18 +92,12 @@ int spx_cmd_register(int argc, char **argv) {
   spx_tx_begin(&tx, "register", 0);
   if ((rc = spx_tx_check(&tx, out_path)) || (params_path && (rc = spx_tx_check(&tx, params_path))))
     goto done; /* before the fit */
-  if (spx_mesh_load(ctx, scan_path, &scan)) {
-    rc = spx_cli_error("register", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "register", ctx, spx_mesh_load(ctx, scan_path, &scan))) goto done;
   if (scan.nv == 0) {
     rc = spx_cli_errorf("register", "%s: the scan has no points", scan_path);
     goto done;
   }
-  if (spx_body_load(ctx, model_path, &model)) {
-    rc = spx_cli_error("register", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "register", ctx, spx_body_load(ctx, model_path, &model))) goto done;
   spx_fit_options o;
   spx_fit_options_default(&o);
   o.stages = stages;
@@ -130,10 +124,7 @@ int spx_cmd_register(int argc, char **argv) {
   spx_status st = spx_fit_surface_distance(ctx, pts, scan.nv, rv, r.nv, r.faces, r.nf, NULL, &mean, &med, &p95);
   if (!st) st = spx_fit_check_result(ctx, pts, scan.nv, rv, r.nv, med); /* exit 1 with the figures, no output */
   free(rv);
-  if (st) {
-    rc = spx_cli_error("register", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "register", ctx, st)) goto done;
   printf("time: rigid %.1f s, pose %.1f s, free %.1f s\n", r.stage_seconds[0], r.stage_seconds[1], r.stage_seconds[2]);
   printf("scan -> surface distance: mean %.2f mm, median %.2f mm, 95th percentile %.2f mm\n", mean * 1e3, med * 1e3,
          p95 * 1e3);

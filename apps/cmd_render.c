@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "smplpix/camera.h"
 #include "smplpix/mesh.h"
 #include "smplpix/render.h"
@@ -53,10 +53,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
   spx_device_tensor *in = NULL;
   spx_tx tx;
   spx_tx_begin(&tx, "render", 0);
-  if (spx_mesh_load(ctx, mesh_path, &mesh)) {
-    rc = spx_cli_error("render", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "render", ctx, spx_mesh_load(ctx, mesh_path, &mesh))) goto done;
   if ((rc = spx_cli_load_cameras("render", ctx, cam_path, &cams, &ncams))) goto done;
   if ((rc = spx_cli_check_outputs(&tx, &outp, 1, ncams))) goto done; /* before any work */
   int W = cams[0].width, H = cams[0].height;
@@ -187,10 +184,7 @@ int spx_cmd_render(int argc, char **argv) {
     }
   }
   if ((rc = spx_cli_open_device("render", ctx, spec))) goto done;
-  if (spx_unet_load(ctx, ckpt, &u)) {
-    rc = spx_cli_error("render", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "render", ctx, spx_unet_load(ctx, ckpt, &u))) goto done;
   if (sig) spx_unet_set_sigmoid(u, !strcmp(sig, "on"));
   if (by_mesh) {
     rc = render_mesh(ctx, u, mesh, cam, color, outp, (int)batch, quiet);
