@@ -1,9 +1,25 @@
-/* Shared steps of project / raster / dataset: see cli_scene.h. */
+/* Shared steps of the subcommands (options; project / raster / dataset runs): see cli_scene.h. */
 #include "cli_scene.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+int spx_cli_take(int argc, char **argv, int *i, const spx_cli_optdef *defs, int *bad) {
+  for (const spx_cli_optdef *d = defs; d->name; d++) {
+    if (!d->value) {
+      if (strcmp(argv[*i], d->name)) continue;
+      *d->flag = 1;
+      return 1;
+    }
+    const char *v = spx_cli_opt(argc, argv, i, d->name, bad);
+    if (v) {
+      *d->value = v;
+      return 1;
+    }
+  }
+  return 0;
+}
 
 int spx_cli_scene_opt(int argc, char **argv, int *i, const char *camera_opt, spx_cli_scene_opts *o, int *bad) {
   const char *v;

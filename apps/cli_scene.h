@@ -1,5 +1,6 @@
-/* Pieces shared by the commands that draw a mesh through cameras (apps/cmd_project.c,
- * cmd_raster.c, cmd_dataset.c), and the one-line error step every command repeats. */
+/* Pieces the subcommands share beyond cli.h: table-driven options, the one-line error step every
+ * command repeats, and the run of the commands that draw a mesh through cameras
+ * (apps/cmd_project.c, cmd_raster.c, cmd_dataset.c). */
 #ifndef SPX_APPS_CLI_SCENE_H
 #define SPX_APPS_CLI_SCENE_H
 
@@ -15,6 +16,17 @@ static inline int spx_cli_failed(int *rc, const char *cmd, spx_ctx *ctx, spx_sta
   *rc = spx_cli_error(cmd, ctx);
   return 1;
 }
+
+/* One option of a command's table: "--name V" stores V in *value; a flag (value NULL) sets *flag. */
+typedef struct spx_cli_optdef {
+  const char *name;
+  const char **value;
+  int *flag;
+} spx_cli_optdef;
+
+/* argv[*i] names an option of defs (ended by a {NULL} entry): stores it (advancing *i past its
+ * value) and returns 1; else 0 (*bad set, like spx_cli_opt, when the value is missing). */
+int spx_cli_take(int argc, char **argv, int *i, const spx_cli_optdef *defs, int *bad);
 
 /* The options project, raster and dataset share. */
 typedef struct spx_cli_scene_opts {

@@ -278,33 +278,18 @@ int spx_cmd_animate(int argc, char **argv) {
   opts o;
   memset(&o, 0, sizeof o);
   int bad = 0;
+  const spx_cli_optdef defs[] = {{"--no-network", NULL, &o.no_net}, {"--no-mp4", NULL, &o.no_mp4},
+                                  {"--quiet", NULL, &o.quiet}, {"--registration", &o.reg, NULL},
+                                  {"--bvh", &o.bvh, NULL}, {"--amass", &o.amass, NULL}, {"--camera", &o.cam, NULL},
+                                  {"--out", &o.out, NULL}, {"--checkpoint", &o.ckpt, NULL},
+                                  {"--model", &o.model, NULL}, {"--device", &o.spec, NULL}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       animate_help();
       return SPX_EXIT_OK;
-    } else if (!strcmp(argv[i], "--no-network")) {
-      o.no_net = 1;
-    } else if (!strcmp(argv[i], "--no-mp4")) {
-      o.no_mp4 = 1;
-    } else if (!strcmp(argv[i], "--quiet")) {
-      o.quiet = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--registration", &bad))) {
-      o.reg = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--bvh", &bad))) {
-      o.bvh = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--amass", &bad))) {
-      o.amass = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--camera", &bad))) {
-      o.cam = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      o.out = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
-      o.ckpt = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
-      o.model = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
-      o.spec = v;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--frames", &bad))) {
       long s, e;
       if (!spx_anim_parse_frames(v, &s, &e))

@@ -13,8 +13,10 @@
 int spx_cmd_bake(int argc, char **argv) {
   const char *mesh_path = NULL, *scan_path = NULL, *out = NULL, *model_path = NULL, *size_s = "1024", *pad_s = "8";
   int bad = 0;
+  const spx_cli_optdef defs[] = {{"--mesh", &mesh_path, NULL}, {"--scan", &scan_path, NULL}, {"--out", &out, NULL},
+                                  {"--model", &model_path, NULL}, {"--size", &size_s, NULL}, {"--pad", &pad_s, NULL},
+                                  {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
-    const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       printf("usage: smplpix bake --mesh R.ply|R.obj --scan S.ply|S.obj --out T.png|T.exr\n"
              "                    [--size N] [--pad N] [--model M.npz]\n"
@@ -27,13 +29,8 @@ int spx_cmd_bake(int argc, char **argv) {
              "same texture coordinates (e.g. from `smplpix repose`).\n",
              DEFAULT_MODEL);
       return SPX_EXIT_OK;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--mesh", &bad))) mesh_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--scan", &bad))) scan_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) out = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) model_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) size_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--pad", &bad))) pad_s = v;
-    else return spx_cli_usage("bake", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+    } else if (!spx_cli_take(argc, argv, &i, defs, &bad))
+      return spx_cli_usage("bake", bad ? "missing value for %s" : "unknown option %s", argv[i]);
   }
   if (!mesh_path || !scan_path || !out) return spx_cli_usage("bake", "--mesh, --scan and --out are required");
   char *end;

@@ -31,17 +31,15 @@ int spx_cmd_export(int argc, char **argv) {
   char kbuf[MAX_META][128];
   int half = 0, bad = 0, nm = 0, nuser = 0;
   const char *user[MAX_META];
+  const spx_cli_optdef defs[] = {{"--half", NULL, &half}, {"--checkpoint", &in, NULL}, {"--out", &out, NULL},
+                                  {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help")) {
       export_help();
       return SPX_EXIT_OK;
-    } else if (!strcmp(argv[i], "--half")) {
-      half = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
-      in = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      out = v;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--meta", &bad))) {
       const char *eq = strchr(v, '=');
       if (!eq || eq == v || (size_t)(eq - v) >= sizeof kbuf[0])

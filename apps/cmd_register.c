@@ -40,6 +40,8 @@ int spx_cmd_register(int argc, char **argv) {
   const char *scan_path = NULL, *model_path = DEFAULT_MODEL, *out_path = NULL, *params_path = NULL;
   int stages = SPX_FIT_ALL, threads = 1, bad = 0;
   double units = 0;
+  const spx_cli_optdef defs[] = {{"--scan", &scan_path, NULL}, {"--model", &model_path, NULL},
+                                  {"--out", &out_path, NULL}, {"--params", &params_path, NULL}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help")) {
@@ -53,14 +55,8 @@ int spx_cmd_register(int argc, char **argv) {
              "and `smplpix reshape`. Reports mean / median / 95th-percentile scan-to-surface distance.\n",
              DEFAULT_MODEL);
       return SPX_EXIT_OK;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--scan", &bad))) {
-      scan_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
-      model_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      out_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--params", &bad))) {
-      params_path = v;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--stages", &bad))) {
       if (parse_stages(v, &stages)) return spx_cli_usage("register", "--stages: expected a list of rigid,pose,free, got '%s'", v);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--threads", &bad))) {

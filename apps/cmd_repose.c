@@ -107,6 +107,9 @@ int spx_cmd_repose(int argc, char **argv) {
              *view = NULL;
   long frame = 0, subdivide = 0;
   int bad = 0;
+  const spx_cli_optdef defs[] = {{"--registration", &reg_path, NULL}, {"--bvh", &bvh_path, NULL},
+                                  {"--pose", &pose_path, NULL}, {"--view", &view, NULL}, {"--out", &out_path, NULL},
+                                  {"--model", &model_arg, NULL}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help")) {
@@ -121,24 +124,14 @@ int spx_cmd_repose(int argc, char **argv) {
              "the subject's \"scan_pose\"), where the synth cameras look. --subdivide N adds N Loop steps\n"
              "(4^N times the faces; texture coordinates are then dropped).\n");
       return SPX_EXIT_OK;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--registration", &bad))) {
-      reg_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--bvh", &bad))) {
-      bvh_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--pose", &bad))) {
-      pose_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--view", &bad))) {
-      view = v;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--subdivide", &bad))) {
       char *end;
       errno = 0;
       subdivide = strtol(v, &end, 10);
       if (errno || end == v || *end || subdivide < 0 || subdivide > 3)
         return spx_cli_usage("repose", "--subdivide: expected 0..3, got '%s'", v);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      out_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
-      model_arg = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--frame", &bad))) {
       char *end;
       errno = 0;
@@ -199,6 +192,8 @@ int spx_cmd_reshape(int argc, char **argv) {
   enum { MAXSH = 64 };
   int sh_idx[MAXSH], nsh = 0, sh_rel[MAXSH], rest = 0, bad = 0;
   double sh_val[MAXSH];
+  const spx_cli_optdef defs[] = {{"--registration", &reg_path, NULL}, {"--out", &out_path, NULL},
+                                  {"--model", &model_arg, NULL}, {"--rest", NULL, &rest}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help")) {
@@ -208,14 +203,8 @@ int spx_cmd_reshape(int argc, char **argv) {
              "the fitted value, V without a sign replaces it. The personal detail (the unposed template)\n"
              "is kept; the registered pose is kept unless --rest. Writes the mesh in metres.\n");
       return SPX_EXIT_OK;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--registration", &bad))) {
-      reg_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      out_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
-      model_arg = v;
-    } else if (!strcmp(argv[i], "--rest")) {
-      rest = 1;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--shape", &bad))) {
       char *end;
       errno = 0;

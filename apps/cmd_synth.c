@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "smplpix/synth.h"
 #include "synth_out.h"
 
@@ -41,24 +41,17 @@ int spx_cmd_synth(int argc, char **argv) {
   const char *out = NULL, *size_s = "410x308", *body_path = NULL, *bvh_path = NULL, *parts_path = NULL;
   const char *subj_s = NULL, *views_s = NULL, *seed_s = NULL, *tex_s = "2048", *dev = NULL;
   int force = 0, quiet = 0, bad = 0;
+  const spx_cli_optdef defs[] = {{"--force", NULL, &force}, {"--quiet", NULL, &quiet}, {"--subjects", &subj_s, NULL},
+                                  {"--views", &views_s, NULL}, {"--seed", &seed_s, NULL}, {"--out", &out, NULL},
+                                  {"--size", &size_s, NULL}, {"--body", &body_path, NULL}, {"--bvh", &bvh_path, NULL},
+                                  {"--parts", &parts_path, NULL}, {"--texture-size", &tex_s, NULL},
+                                  {"--device", &dev, NULL}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
-    const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       fputs(USAGE, stdout);
       return SPX_EXIT_OK;
-    } else if (!strcmp(argv[i], "--force")) force = 1;
-    else if (!strcmp(argv[i], "--quiet")) quiet = 1;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--subjects", &bad))) subj_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--views", &bad))) views_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) seed_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) out = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) size_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--body", &bad))) body_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--bvh", &bad))) bvh_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--parts", &bad))) parts_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--texture-size", &bad))) tex_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) dev = v;
-    else return spx_cli_usage("synth", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+    } else if (!spx_cli_take(argc, argv, &i, defs, &bad))
+      return spx_cli_usage("synth", bad ? "missing value for %s" : "unknown option %s", argv[i]);
   }
   if (!subj_s || !views_s || !seed_s || !out)
     return spx_cli_usage("synth", "--subjects, --views, --seed and --out are required");
