@@ -21,16 +21,27 @@ int spx_cli_take(int argc, char **argv, int *i, const spx_cli_optdef *defs, int 
   return 0;
 }
 
-int spx_cli_scene_opt(int argc, char **argv, int *i, const char *camera_opt, spx_cli_scene_opts *o, int *bad) {
-  const char *v;
-  if ((v = spx_cli_opt(argc, argv, i, "--mesh", bad))) o->mesh = v;
-  else if ((v = spx_cli_opt(argc, argv, i, camera_opt, bad))) o->cameras = v;
-  else if ((v = spx_cli_opt(argc, argv, i, "--out", bad))) o->out = v;
-  else if ((v = spx_cli_opt(argc, argv, i, "--color", bad))) o->color = v;
-  else if ((v = spx_cli_opt(argc, argv, i, "--device", bad))) o->device = v;
-  else if (!strcmp(argv[*i], "--quiet")) o->quiet = 1;
-  else return 0;
-  return 1;
+int spx_cli_args(int argc, char **argv, const char *cmd, const char *usage, const spx_cli_optdef *defs,
+                 const spx_cli_optdef *more) {
+  int bad = 0;
+  for (int i = 1; i < argc; i++) {
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+      fputs(usage, stdout);
+      return SPX_EXIT_OK;
+    }
+    if (!spx_cli_take(argc, argv, &i, defs, &bad) && !(more && spx_cli_take(argc, argv, &i, more, &bad)))
+      return spx_cli_usage(cmd, bad ? "missing value for %s" : "unknown option %s", argv[i]);
+  }
+  return -1;
+}
+
+int spx_cli_scene_args(int argc, char **argv, const char *cmd, const char *usage, const char *camera_opt,
+                       spx_cli_scene_opts *o, const spx_cli_optdef *defs) {
+  const spx_cli_optdef shared[] = {{"--mesh", &o->mesh, NULL},     {camera_opt, &o->cameras, NULL},
+                                   {"--out", &o->out, NULL},       {"--color", &o->color, NULL},
+                                   {"--device", &o->device, NULL}, {"--quiet", NULL, &o->quiet},
+                                   {NULL, NULL, NULL}};
+  return spx_cli_args(argc, argv, cmd, usage, shared, defs);
 }
 
 int spx_cli_scene_begin(spx_cli_scene *s, const char *cmd, const char *mesh_path, const char *cam_path,

@@ -34,10 +34,15 @@ typedef struct spx_cli_scene_opts {
   int quiet;
 } spx_cli_scene_opts;
 
-/* argv[*i] is --mesh, `camera_opt` (--camera or --cameras), --out, --color, --device or --quiet:
- * stores its value in o (advancing *i) and returns 1; else 0 (*bad set, like spx_cli_opt, when the
- * value is missing). */
-int spx_cli_scene_opt(int argc, char **argv, int *i, const char *camera_opt, spx_cli_scene_opts *o, int *bad);
+/* A whole command line of plain options: --help / -h prints usage; every other argument must be
+ * an option of defs or of more (NULL: none). Returns -1 when the command goes on, else the exit
+ * code to return (SPX_EXIT_OK after the help; a usage error printed). */
+int spx_cli_args(int argc, char **argv, const char *cmd, const char *usage, const spx_cli_optdef *defs,
+                 const spx_cli_optdef *more);
+/* spx_cli_args with the shared options --mesh, `camera_opt` (--camera or --cameras), --out,
+ * --color, --device and --quiet stored in o, and the command's own options defs. */
+int spx_cli_scene_args(int argc, char **argv, const char *cmd, const char *usage, const char *camera_opt,
+                       spx_cli_scene_opts *o, const spx_cli_optdef *defs);
 
 /* One run drawing a mesh through an array of cameras into W x H RGB-D images (HWC, 4 floats a
  * pixel), its outputs staged in a transaction. Zero it, then spx_cli_scene_begin; always

@@ -120,25 +120,15 @@ int spx_cmd_dataset(int argc, char **argv) {
   spx_cli_scene_opts o = {.color = "auto"};
   const char *split_s = "0.8,0.1,0.1", *fmt = "exr", *elev_s = "0", *size_s = "410x308", *aa_s = "1";
   const char *orbit_s = NULL, *seed_s = "0", *dist_s = NULL, *focal_s = NULL;
-  int force = 0, bad = 0;
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      fputs(USAGE, stdout);
-      return SPX_EXIT_OK;
-    } else if (spx_cli_scene_opt(argc, argv, &i, "--cameras", &o, &bad)) continue;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--split", &bad))) split_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) seed_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--input-format", &bad))) fmt = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--aa", &bad))) aa_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--orbit", &bad))) orbit_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--elevations", &bad))) elev_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--distance", &bad))) dist_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) size_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--focal", &bad))) focal_s = v;
-    else if (!strcmp(argv[i], "--force")) force = 1;
-    else return spx_cli_usage("dataset", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-  }
+  int force = 0;
+  const spx_cli_optdef defs[] = {{"--split", &split_s, NULL},     {"--seed", &seed_s, NULL},
+                                  {"--input-format", &fmt, NULL},   {"--aa", &aa_s, NULL},
+                                  {"--orbit", &orbit_s, NULL},      {"--elevations", &elev_s, NULL},
+                                  {"--distance", &dist_s, NULL},    {"--size", &size_s, NULL},
+                                  {"--focal", &focal_s, NULL},      {"--force", NULL, &force},
+                                  {NULL, NULL, NULL}};
+  int rc = spx_cli_scene_args(argc, argv, "dataset", USAGE, "--cameras", &o, defs);
+  if (rc >= 0) return rc;
   const char *mesh_path = o.mesh, *cam_path = o.cameras, *dir = o.out, *dev = o.device, *color = o.color;
   int quiet = o.quiet;
   if (!mesh_path || !dir) return spx_cli_usage("dataset", "--mesh and --out are required");
@@ -174,7 +164,8 @@ int spx_cmd_dataset(int argc, char **argv) {
   spx_ctx *ctx = NULL;
   spx_mesh mesh = {0};
   spx_camera *cams = NULL;
-  int ncams = 0, rc = SPX_EXIT_ERROR;
+  int ncams = 0;
+  rc = SPX_EXIT_ERROR;
   float *colors = NULL, *proj_img = NULL, *rast_img = NULL;
   int *which = NULL;
   spx_projector *proj = NULL;

@@ -24,17 +24,9 @@ static const char *USAGE =
 int spx_cmd_project(int argc, char **argv) {
   spx_cli_scene_opts o = {.color = "auto"};
   const char *png = NULL, *npy = NULL;
-  int bad = 0;
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      fputs(USAGE, stdout);
-      return SPX_EXIT_OK;
-    } else if (spx_cli_scene_opt(argc, argv, &i, "--camera", &o, &bad)) continue;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--png", &bad))) png = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--npy", &bad))) npy = v;
-    else return spx_cli_usage("project", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-  }
+  const spx_cli_optdef defs[] = {{"--png", &png, NULL}, {"--npy", &npy, NULL}, {NULL, NULL, NULL}};
+  int rc = spx_cli_scene_args(argc, argv, "project", USAGE, "--camera", &o, defs);
+  if (rc >= 0) return rc;
   if (!o.mesh || !o.cameras || !o.out) return spx_cli_usage("project", "--mesh, --camera and --out are required");
   const char *outs[3] = {o.out, png, npy};
   for (int k = 0; k < 3; k++) {
@@ -47,7 +39,6 @@ int spx_cmd_project(int argc, char **argv) {
 
   spx_cli_scene s = {0};
   spx_projector *proj = NULL;
-  int rc;
   if ((rc = spx_cli_scene_begin(&s, "project", o.mesh, o.cameras, outs, 3))) goto done;
   if ((rc = spx_cli_scene_prepare(&s, o.mesh, o.color, o.device))) goto done;
   if (spx_cli_failed(&rc, "project", s.ctx, spx_projector_create(s.ctx, &proj))) goto done;

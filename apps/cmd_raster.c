@@ -26,18 +26,10 @@ static const char *USAGE =
 int spx_cmd_raster(int argc, char **argv) {
   spx_cli_scene_opts o = {.color = "auto"};
   const char *tex_path = NULL, *aa_s = "1", *cull_s = "none";
-  int bad = 0;
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      fputs(USAGE, stdout);
-      return SPX_EXIT_OK;
-    } else if (spx_cli_scene_opt(argc, argv, &i, "--camera", &o, &bad)) continue;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--texture", &bad))) tex_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--aa", &bad))) aa_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--cull", &bad))) cull_s = v;
-    else return spx_cli_usage("raster", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-  }
+  const spx_cli_optdef defs[] = {{"--texture", &tex_path, NULL}, {"--aa", &aa_s, NULL}, {"--cull", &cull_s, NULL},
+                                  {NULL, NULL, NULL}};
+  int rc = spx_cli_scene_args(argc, argv, "raster", USAGE, "--camera", &o, defs);
+  if (rc >= 0) return rc;
   const char *out = o.out, *color = o.color;
   if (!o.mesh || !o.cameras || !out) return spx_cli_usage("raster", "--mesh, --camera and --out are required");
   if (!spx_cli_image_ext_ok(out)) return spx_cli_usage("raster", "%s: output must end in .exr, .png or .npy", out);
@@ -59,7 +51,6 @@ int spx_cmd_raster(int argc, char **argv) {
   spx_cli_scene s = {0};
   spx_image tex = {0};
   spx_rasterizer *rast = NULL;
-  int rc;
   if ((rc = spx_cli_scene_begin(&s, "raster", o.mesh, o.cameras, &out, 1))) goto done;
   spx_ctx *ctx = s.ctx;
   rc = SPX_EXIT_ERROR;

@@ -40,19 +40,14 @@ static int parse_int(const char *s, long lo, long hi, long *out) {
 int spx_cmd_synth(int argc, char **argv) {
   const char *out = NULL, *size_s = "410x308", *body_path = NULL, *bvh_path = NULL, *parts_path = NULL;
   const char *subj_s = NULL, *views_s = NULL, *seed_s = NULL, *tex_s = "2048", *dev = NULL;
-  int force = 0, quiet = 0, bad = 0;
+  int force = 0, quiet = 0;
   const spx_cli_optdef defs[] = {{"--force", NULL, &force}, {"--quiet", NULL, &quiet}, {"--subjects", &subj_s, NULL},
                                   {"--views", &views_s, NULL}, {"--seed", &seed_s, NULL}, {"--out", &out, NULL},
                                   {"--size", &size_s, NULL}, {"--body", &body_path, NULL}, {"--bvh", &bvh_path, NULL},
                                   {"--parts", &parts_path, NULL}, {"--texture-size", &tex_s, NULL},
                                   {"--device", &dev, NULL}, {NULL, NULL, NULL}};
-  for (int i = 1; i < argc; i++) {
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      fputs(USAGE, stdout);
-      return SPX_EXIT_OK;
-    } else if (!spx_cli_take(argc, argv, &i, defs, &bad))
-      return spx_cli_usage("synth", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-  }
+  int parsed = spx_cli_args(argc, argv, "synth", USAGE, defs, NULL);
+  if (parsed >= 0) return parsed;
   if (!subj_s || !views_s || !seed_s || !out)
     return spx_cli_usage("synth", "--subjects, --views, --seed and --out are required");
   synth_opts o = {0};
