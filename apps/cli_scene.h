@@ -9,6 +9,10 @@
 #include "smplpix/image.h"
 #include "smplpix/mesh.h"
 
+/* The --color line of the usage of the commands that colour a mesh (project, raster). */
+#define SPX_CLI_COLOR_USAGE \
+  "--color: mesh = the file's vertex colors; normal = 0.5+0.5*vertex normal; white; auto (default)\n"
+
 /* st is not SPX_OK: prints cmd's one-line error from ctx (spx_cli_error), sets *rc to its exit
  * code and returns 1; else returns 0. Use: if (spx_cli_failed(&rc, "cmd", ctx, call)) goto done; */
 static inline int spx_cli_failed(int *rc, const char *cmd, spx_ctx *ctx, spx_status st) {

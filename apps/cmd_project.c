@@ -18,7 +18,7 @@ static const char *USAGE =
     "Projects every vertex of the mesh (or point cloud) through the camera(s) into an RGB-D image\n"
     "(R,G,B,depth; background 1,1,1,1; nearest vertex wins). A camera file holding an array of N\n"
     "cameras writes N images, named P_000.exr ... P_<N-1>.exr.\n"
-    "--color: mesh = the file's vertex colors; normal = 0.5+0.5*vertex normal; white; auto (default)\n"
+    SPX_CLI_COLOR_USAGE
     "= mesh colors when present, else normals (gray for point clouds).\n";
 
 int spx_cmd_project(int argc, char **argv) {

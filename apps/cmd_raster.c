@@ -20,7 +20,7 @@ static const char *USAGE =
     "holding an array of N cameras writes N images, named I_000.png ... I_<N-1>.png.\n"
     "--texture: multiply by the bilinear texture sample (needs a mesh with texture coordinates).\n"
     "--aa 2: 2x2 supersampling. --cull: drop back- or front-facing triangles (default none).\n"
-    "--color: mesh = the file's vertex colors; normal = 0.5+0.5*vertex normal; white; auto (default)\n"
+    SPX_CLI_COLOR_USAGE
     "= white when textured, else mesh colors when present, else normals.\n";
 
 int spx_cmd_raster(int argc, char **argv) {
