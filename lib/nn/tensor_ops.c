@@ -110,16 +110,25 @@ static spx_status concat_check(spx_ctx *ctx, const char *op, const spx_tensor *a
   return SPX_OK;
 }
 
-/* src (n x cs x hw) into channels [c0, c0 + cs) of dst (n x cd x hw) */
-static spx_status place(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
+/* The channel-slice kernels: spx_channel_place copies src (n x cs x hw) into channels [c0, c0 + cs)
+ * of dst (n x cd x hw), one work-item per element of src; spx_channel_slice_acc adds channels
+ * [c0, c0 + cd) of src (n x cs x hw) to dst, one per element of dst. `grid` is that tensor. */
+static spx_status channel_run(spx_ctx *ctx, const char *name, const spx_tensor *src, const spx_tensor *dst, int c0,
+                              const spx_tensor *grid) {
   cl_kernel k;
-  spx_status st = spx_cl_kernel(ctx, "tensor_ops.cl", "spx_channel_place", &k);
+  spx_status st = spx_cl_kernel(ctx, "tensor_ops.cl", name, &k);
   if (st) return st;
   cl_int hw = src->h * src->w;
   cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, src->c) | SPX_ARG(k, 5, c0) |
              SPX_ARG(k, 6, dst->c) | SPX_ARG(k, 7, hw);
-  if ((st = spx_cl_check(ctx, e, "spx_channel_place"))) return st;
-  return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)src->c, (size_t)src->n, "spx_channel_place");
+  if ((st = spx_cl_check(ctx, e, name))) return st;
+  return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)grid->c, (size_t)grid->n, name);
+}
+static spx_status place(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
+  return channel_run(ctx, "spx_channel_place", src, dst, c0, src);
+}
+static spx_status slice_acc(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
+  return channel_run(ctx, "spx_channel_slice_acc", src, dst, c0, dst);
 }
 
 spx_status spx_concat_forward(spx_ctx *ctx, const spx_tensor *a, const spx_tensor *b, const spx_tensor *out) {
@@ -129,17 +138,6 @@ spx_status spx_concat_forward(spx_ctx *ctx, const spx_tensor *a, const spx_tenso
       (st = place(ctx, a, out, 0)))
     return st;
   return place(ctx, b, out, a->c);
-}
-
-static spx_status slice_acc(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
-  cl_kernel k;
-  spx_status st = spx_cl_kernel(ctx, "tensor_ops.cl", "spx_channel_slice_acc", &k);
-  if (st) return st;
-  cl_int hw = src->h * src->w;
-  cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, src->c) | SPX_ARG(k, 5, c0) |
-             SPX_ARG(k, 6, dst->c) | SPX_ARG(k, 7, hw);
-  if ((st = spx_cl_check(ctx, e, "spx_channel_slice_acc"))) return st;
-  return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)dst->c, (size_t)dst->n, "spx_channel_slice_acc");
 }
 
 static spx_status part_check(spx_ctx *ctx, const spx_tensor *dout, const spx_tensor *d, const char *name) {
