@@ -4,7 +4,7 @@
 #include "nn/nn_internal.h"
 
 static spx_status run_planes(spx_ctx *ctx, cl_kernel k, int planes, const char *what) {
-  size_t l = (size_t)spx_cl_tune(ctx, "SPX_BN_WG");
+  size_t l = (size_t)ctx->tune.bn_wg;
   if (l > ctx->info.max_work_group)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_BN_WG=%zu exceeds the device's work-group limit %zu", what, l,
                     ctx->info.max_work_group);
@@ -23,10 +23,11 @@ static spx_status check_save(spx_ctx *ctx, const char *op, const spx_tensor *x, 
 
 /* spx_instnorm_fwd (x, save, y = a, eps) or spx_instnorm_bwd (x, save, dy = a, dx = b): one work-group
  * per plane. */
-static spx_status launch(spx_ctx *ctx, const char *name, const spx_tensor *x, const spx_tensor *save,
+static spx_status launch(spx_ctx *ctx, spx_kernel_id id, const spx_tensor *x, const spx_tensor *save,
                          const spx_tensor *a, const spx_tensor *b, float eps) {
+  const char *name = spx_cl_kernel_name(id);
   cl_kernel k;
-  spx_status st = spx_cl_kernel(ctx, "instnorm.cl", name, &k);
+  spx_status st = spx_cl_kernel(ctx, id, &k);
   if (st) return st;
   cl_int planes = x->n * x->c, hw = x->h * x->w, i = b ? 8 : 6;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, save) | spx_nn_arg(k, 4, a) | SPX_ARG(k, i, planes) |
@@ -46,7 +47,7 @@ spx_status spx_instnorm_forward(spx_ctx *ctx, const spx_tensor *x, float eps, co
   if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
   if (!(eps >= 0) || !isfinite(eps)) return spx_fail(ctx, SPX_E_ARG, "%s: eps %g invalid", op, eps);
   if (x->n < 1 || x->c < 1 || x->h < 1 || x->w < 1) return spx_fail(ctx, SPX_E_ARG, "%s: empty input", op);
-  return launch(ctx, "spx_instnorm_fwd", x, save, y, NULL, eps);
+  return launch(ctx, SPX_K_INSTNORM_FWD, x, save, y, NULL, eps);
 }
 
 spx_status spx_instnorm_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *save, const spx_tensor *dy,
@@ -59,5 +60,5 @@ spx_status spx_instnorm_backward(spx_ctx *ctx, const spx_tensor *x, const spx_te
     return st;
   if (!spx_nn_same_shape(x, dy)) return spx_nn_shape_mismatch(ctx, op, "dy vs x", dy, x);
   if (!spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, op, "dx vs x", dx, x);
-  return launch(ctx, "spx_instnorm_bwd", x, save, dy, dx, 0);
+  return launch(ctx, SPX_K_INSTNORM_BWD, x, save, dy, dx, 0);
 }

@@ -15,7 +15,7 @@ static spx_status shapes(spx_ctx *ctx, const char *op, const spx_tensor *x, cons
 spx_status spx_maxpool_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *y) {
   spx_status st;
   cl_kernel k;
-  if ((st = shapes(ctx, "maxpool_forward", x, y, "y")) || (st = spx_cl_kernel(ctx, "pool.cl", "spx_maxpool_fwd", &k)))
+  if ((st = shapes(ctx, "maxpool_forward", x, y, "y")) || (st = spx_cl_kernel(ctx, SPX_K_MAXPOOL_FWD, &k)))
     return st;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, x->h) | SPX_ARG(k, 5, x->w);
   if ((st = spx_cl_check(ctx, e, "spx_maxpool_fwd"))) return st;
@@ -29,7 +29,7 @@ spx_status spx_maxpool_backward(spx_ctx *ctx, const spx_tensor *x, const spx_ten
   if ((st = shapes(ctx, "maxpool_backward", x, dy, "dy")) || (st = spx_nn_check(ctx, dx, "maxpool_backward", "dx")))
     return st;
   if (!spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, "maxpool_backward", "dx vs x", dx, x);
-  if ((st = spx_cl_kernel(ctx, "pool.cl", "spx_maxpool_bwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_MAXPOOL_BWD, &k))) return st;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, dy) | spx_nn_arg(k, 4, dx) | SPX_ARG(k, 6, x->h) |
              SPX_ARG(k, 7, x->w);
   if ((st = spx_cl_check(ctx, e, "spx_maxpool_bwd"))) return st;
@@ -50,10 +50,11 @@ static spx_status avg_shapes(spx_ctx *ctx, const char *op, const spx_tensor *x, 
 
 /* spx_avgpool3_fwd (in = x, out = y) or spx_avgpool3_bwd (in = dy, out = dx): full is the
  * un-pooled tensor (x or dx), one work-item per element of grid (y or dx). */
-static spx_status avg_run(spx_ctx *ctx, const char *name, const spx_tensor *in, const spx_tensor *out,
+static spx_status avg_run(spx_ctx *ctx, spx_kernel_id id, const spx_tensor *in, const spx_tensor *out,
                           const spx_tensor *full, const spx_tensor *grid) {
+  const char *name = spx_cl_kernel_name(id);
   cl_kernel k;
-  spx_status st = spx_cl_kernel(ctx, "pool.cl", name, &k);
+  spx_status st = spx_cl_kernel(ctx, id, &k);
   if (st) return st;
   cl_int e = spx_nn_arg(k, 0, in) | spx_nn_arg(k, 2, out) | SPX_ARG(k, 4, full->h) | SPX_ARG(k, 5, full->w);
   if ((st = spx_cl_check(ctx, e, name))) return st;
@@ -62,11 +63,11 @@ static spx_status avg_run(spx_ctx *ctx, const char *name, const spx_tensor *in, 
 
 spx_status spx_avgpool3_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *y) {
   spx_status st = avg_shapes(ctx, "avgpool3_forward", x, y, "x", "y");
-  return st ? st : avg_run(ctx, "spx_avgpool3_fwd", x, y, x, y);
+  return st ? st : avg_run(ctx, SPX_K_AVGPOOL3_FWD, x, y, x, y);
 }
 
 spx_status spx_avgpool3_backward(spx_ctx *ctx, const spx_tensor *dy, const spx_tensor *dx) {
   if (!dx) return SPX_OK;
   spx_status st = avg_shapes(ctx, "avgpool3_backward", dx, dy, "dx", "dy");
-  return st ? st : avg_run(ctx, "spx_avgpool3_bwd", dy, dx, dx, dx);
+  return st ? st : avg_run(ctx, SPX_K_AVGPOOL3_BWD, dy, dx, dx, dx);
 }
