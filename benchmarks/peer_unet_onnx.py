@@ -14,7 +14,6 @@ includes the interpreter, torch and the engine).
                                         [--engines onnxruntime,openvino] [--onnx DIR]
 """
 import argparse
-import importlib.util
 import os
 import resource
 import sys
@@ -41,13 +40,10 @@ try:
 except ImportError as e:
     sys.exit("peer_unet_onnx.py: %s (needs numpy and torch for the export)" % e)
 
-spec = importlib.util.spec_from_file_location("golden", os.path.join(here, "..", "tests", "data", "unet",
-                                                                     "make_unet_golden.py"))
-golden = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(golden)
-spec = importlib.util.spec_from_file_location("peer_torch_gflop", os.path.join(here, "peer_unet_gflop.py"))
-flops = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(flops)
+sys.path.insert(0, os.path.join(here, "..", "tests", "data", "unet"))
+sys.dont_write_bytecode = True
+import make_unet_golden as golden  # noqa: E402
+import peer_unet_gflop as flops  # noqa: E402
 
 os.makedirs(a.onnx, exist_ok=True)
 path = os.path.join(a.onnx, "unet_w%d_%dx%dx%d.onnx" % (a.width, a.eval_batch, h, w))
