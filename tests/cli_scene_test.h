@@ -45,6 +45,11 @@ static inline void expect_fail(const char *args, const char *needle) {
             args);
 }
 
+/* each command line is a usage error (exit 2) */
+static inline void expect_usage(const char *const *args, int n) {
+  for (int i = 0; i < n; i++) CHECK_MSG(tool(args[i]) == 2, "usage error expected: %s", args[i]);
+}
+
 /* `cmd` refuses every mesh of write_bad_scene_inputs (and a missing one) through cam.json, and every
  * camera of it with good_mesh. */
 static inline void expect_bad_scene_inputs(const char *cmd, const char *good_mesh) {

@@ -112,6 +112,15 @@ static inline int spx_t_open_device(spx_ctx **ctx) {
   return spx_t_no_device(*ctx, st);
 }
 
+/* The tool with args; its stdout and stderr (err_only: stderr; stdout dropped) to the file log.
+ * Returns its exit status. */
+static inline int spx_t_tool_log(const char *args, const char *log, int err_only) {
+  char cmd[16384];
+  if (err_only) snprintf(cmd, sizeof cmd, "\"%s\" %s >/dev/null 2>\"%s\"", spx_t_tool(), args, log);
+  else snprintf(cmd, sizeof cmd, "\"%s\" %s >\"%s\" 2>&1", spx_t_tool(), args, log);
+  return spx_t_system(cmd);
+}
+
 static inline int spx_t_file_exists(const char *path) {
   FILE *f = fopen(path, "rb");
   if (!f) return 0;

@@ -154,14 +154,15 @@ static void test_bad_inputs(void) {
 }
 
 static void test_usage(void) {
-  CHECK(tool("raster --mesh quad.obj") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.tiff") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --aa 3") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --cull sideways") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --color red") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --texture t.bmp") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out") == 2);
-  CHECK(tool("raster --bogus") == 2);
+  const char *usage[] = {"raster --mesh quad.obj",
+                         "raster --mesh quad.obj --camera cam.json --out o.tiff",
+                         "raster --mesh quad.obj --camera cam.json --out o.png --aa 3",
+                         "raster --mesh quad.obj --camera cam.json --out o.png --cull sideways",
+                         "raster --mesh quad.obj --camera cam.json --out o.png --color red",
+                         "raster --mesh quad.obj --camera cam.json --out o.png --texture t.bmp",
+                         "raster --mesh quad.obj --camera cam.json --out",
+                         "raster --bogus"};
+  expect_usage(usage, 8);
   CHECK(tool("raster --help") == 0);
   CHECK(!exists("o.png"));
 }

@@ -33,18 +33,9 @@ static spx_ctx *ctx;
 
 static void path_in(char *out, size_t cap, const char *rel) { snprintf(out, cap, "%s/%s", dir, rel); }
 
-static int run(const char *args, const char *log) {
-  char cmd[16384];
-  snprintf(cmd, sizeof cmd, "\"%s\" %s >\"%s\" 2>&1", spx_t_tool(), args, log);
-  return spx_t_system(cmd);
-}
-
+static int run(const char *args, const char *log) { return spx_t_tool_log(args, log, 0); }
 /* stdout dropped: the log holds only what the tool says on stderr */
-static int run_err(const char *args, const char *log) {
-  char cmd[16384];
-  snprintf(cmd, sizeof cmd, "\"%s\" %s >/dev/null 2>\"%s\"", spx_t_tool(), args, log);
-  return spx_t_system(cmd);
-}
+static int run_err(const char *args, const char *log) { return spx_t_tool_log(args, log, 1); }
 
 static char *slurp(const char *path) {
   FILE *f = fopen(path, "rb");

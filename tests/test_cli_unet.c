@@ -22,11 +22,7 @@ static char dir[512];
 
 static void path_in(char *out, size_t cap, const char *rel) { snprintf(out, cap, "%s/%s", dir, rel); }
 
-static int run(const char *args, const char *log) {
-  char cmd[4096];
-  snprintf(cmd, sizeof cmd, "\"%s\" %s >\"%s\" 2>&1", spx_t_tool(), args, log);
-  return spx_t_system(cmd);
-}
+static int run(const char *args, const char *log) { return spx_t_tool_log(args, log, 0); }
 
 static int log_has(const char *log, const char *needle) {
   FILE *f = fopen(log, "r");
