@@ -67,6 +67,30 @@ static inline double spx_t_uniform(unsigned long long *s) {
   return (double)(spx_t_rng_next(s) >> 11) * (1.0 / 9007199254740992.0);
 }
 
+/* An AMASS-like archive for the motion tests: arr[0..4) under the names poses, trans, betas,
+ * mocap_framerate, without the one named drop (NULL: all), compressed, to path. */
+static inline spx_status spx_t_save_amass(spx_ctx *ctx, const char *path, const spx_array *arr, const char *drop) {
+  const char *keys[4] = {"poses", "trans", "betas", "mocap_framerate"};
+  spx_array keep[4];
+  const char *kk[4];
+  int n = 0;
+  for (int i = 0; i < 4; i++)
+    if (!drop || strcmp(drop, keys[i])) keep[n] = arr[i], kk[n] = keys[i], n++;
+  return spx_npz_save(ctx, path, n, kk, keep, 1);
+}
+
+/* A training pair for the CLI tests: in (h x w x 4, RGB-D) with smooth random content, tg (h x w x 3)
+ * = its RGB. */
+static inline void spx_t_smooth_pair(float *in, float *tg, int h, int w, unsigned long long *s) {
+  for (int y = 0; y < h; y++)
+    for (int x = 0; x < w; x++)
+      for (int c = 0; c < 4; c++) {
+        float v = 0.5f + 0.4f * sinf(0.3f * (float)x * (float)(c + 1) + 0.2f * (float)y) * (float)spx_t_uniform(s);
+        in[(y * w + x) * 4 + c] = v;
+        if (c < 3) tg[(y * w + x) * 3 + c] = v;
+      }
+}
+
 /* Scratch directory for files a test writes ($SPX_TEST_TMP, set by ctest). */
 static inline const char *spx_t_tmpdir(void) {
   const char *d = getenv("SPX_TEST_TMP");

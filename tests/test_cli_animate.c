@@ -127,15 +127,9 @@ static void write_amass(const char *name, int cols, const char *drop) {
                       {SPX_F64, 2, {3, 3}, trans, sizeof trans},
                       {SPX_F64, 1, {16}, betas, sizeof betas},
                       {SPX_F64, 0, {0}, &fps, 8}};
-  const char *keys[4] = {"poses", "trans", "betas", "mocap_framerate"};
-  spx_array keep[4];
-  const char *kk[4];
-  int n = 0;
-  for (int i = 0; i < 4; i++)
-    if (!drop || strcmp(drop, keys[i])) keep[n] = arr[i], kk[n] = keys[i], n++;
   char p[700];
   path_of(p, sizeof p, name);
-  CHECK_OK(ctx, spx_npz_save(ctx, p, n, kk, keep, 1));
+  CHECK_OK(ctx, spx_t_save_amass(ctx, p, arr, drop));
 }
 
 static void amass_pose(const char *name, long frame, double *pose, double trans[3]) {

@@ -74,13 +74,7 @@ static void mkdirs(const char *base) {
 /* an input RGB-D .npy with smooth random content and its target (= the input's RGB) as .npy */
 static void make_pair(const char *base, const char *name, int h, int w, unsigned long long *s) {
   float *in = malloc(sizeof(float) * (size_t)h * w * 4), *tg = malloc(sizeof(float) * (size_t)h * w * 3);
-  for (int y = 0; y < h; y++)
-    for (int x = 0; x < w; x++)
-      for (int c = 0; c < 4; c++) {
-        float v = 0.5f + 0.4f * sinf(0.3f * (float)x * (float)(c + 1) + 0.2f * (float)y) * (float)spx_t_uniform(s);
-        in[(y * w + x) * 4 + c] = v;
-        if (c < 3) tg[(y * w + x) * 3 + c] = v;
-      }
+  spx_t_smooth_pair(in, tg, h, w, s);
   char p[2048];
   int64_t si[3] = {h, w, 4}, so[3] = {h, w, 3};
   snprintf(p, sizeof p, "%s/train/input/%s.npy", base, name);
