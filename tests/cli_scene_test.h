@@ -9,6 +9,16 @@
 static const char *GOOD_CAM = "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
                               " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}";
 
+/* dir/name: an array of two GOOD_CAM cameras, the second at distance z2 instead of 3. */
+static inline void write_two_cameras(const char *name, int z2) {
+  char json[600];
+  snprintf(json, sizeof json,
+           "[%s, {\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]], \"R\": [[1,0,0],[0,1,0],[0,0,1]],"
+           " \"t\": [0,0,%d]}]",
+           GOOD_CAM, z2);
+  write_text(name, json);
+}
+
 /* Every output a run of the test may name, and the per-camera ones of a camera array. */
 static inline void clean_outputs(void) {
   char cmd[700];

@@ -31,10 +31,7 @@ static void test_good_run(void) {
   spx_ctx_destroy(ctx);
   /* a camera array writes one image per camera */
   clean_outputs();
-  write_text("cams.json", "[{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]},"
-                          "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,4]}]");
+  write_two_cameras("cams.json", 4);
   CHECK(tool("project --mesh tri.obj --camera cams.json --out o.exr") == 0);
   CHECK(exists("o_000.exr") && exists("o_001.exr") && !exists("o.exr"));
   clean_outputs();

@@ -92,10 +92,7 @@ static void test_good_runs(void) {
   CHECK_MSG(blended[0] == 0 && blended[1] > 40, "blended pixels: aa 1 %d, aa 2 %d", blended[0], blended[1]);
   /* a camera array writes one image per camera */
   clean_outputs();
-  write_text("cams.json", "[{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]},"
-                          "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,6]}]");
+  write_two_cameras("cams.json", 6);
   CHECK(tool("raster --mesh quad.obj --camera cams.json --out o.png") == 0);
   CHECK(exists("o_000.png") && exists("o_001.png") && !exists("o.png"));
   img = read_png(ctx, "o_001.png"); /* twice as far: a 10x10 square */
