@@ -8,6 +8,13 @@
 #include "smplpix/mesh.h"
 #include "smplpix/smplpix.h"
 
+/* One context for the whole fuzzing run (NULL when it cannot be made). */
+static inline spx_ctx *spx_fuzz_ctx(void) {
+  static spx_ctx *ctx;
+  if (!ctx && spx_ctx_create(&ctx) != SPX_OK) ctx = NULL;
+  return ctx;
+}
+
 /* A decoded image: read its first and last value (the sanitizers check the size) and free it. */
 static inline void spx_fuzz_touch_image(spx_image *img) {
   volatile float sink = img->data[0] + img->data[(size_t)img->width * img->height * img->channels - 1];

@@ -7,9 +7,9 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
-  static spx_ctx *ctx;
-  if (!ctx && spx_ctx_create(&ctx) != SPX_OK) return 0;
+  spx_ctx *ctx = spx_fuzz_ctx();
   spx_image img;
-  if (spx_png_read_mem(ctx, "fuzz.png", data, size, (int64_t)1 << 20, &img) == SPX_OK) spx_fuzz_touch_image(&img);
+  if (ctx && spx_png_read_mem(ctx, "fuzz.png", data, size, (int64_t)1 << 20, &img) == SPX_OK)
+    spx_fuzz_touch_image(&img);
   return 0;
 }
