@@ -114,14 +114,17 @@ static inline int spx_t_system(const char *cmd) {
   return (r >> 8) & 0xff;
 }
 
-/* Write `text` to path (best effort: a test checks what it reads back). */
-static inline void spx_t_write_text(const char *path, const char *text) {
+/* Write the first n bytes of data to path (best effort: a test checks what it reads back). */
+static inline void spx_t_write_bytes(const char *path, const void *data, size_t n) {
   FILE *f = fopen(path, "wb");
   if (f) {
-    fputs(text, f);
+    fwrite(data, 1, n, f);
     fclose(f);
   }
 }
+
+/* Write `text` to path (best effort: a test checks what it reads back). */
+static inline void spx_t_write_text(const char *path, const char *text) { spx_t_write_bytes(path, text, strlen(text)); }
 
 /* st is not SPX_OK: prints "no device: <the context's message>" and returns 1 (main's exit code). */
 static inline int spx_t_no_device(spx_ctx *ctx, spx_status st) {
