@@ -1,9 +1,29 @@
 /* Shared steps of the subcommands (options; project / raster / dataset runs): see cli_scene.h. */
 #include "cli_scene.h"
 
+#include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+int spx_cli_long(const char *v, long lo, long hi, long *out) {
+  char *end = NULL;
+  errno = 0;
+  long x = strtol(v, &end, 10);
+  if (errno || end == v || *end || x < lo || x > hi) return 0;
+  *out = x;
+  return 1;
+}
+
+int spx_cli_double(const char *v, double lo, double hi, double *out) {
+  char *end = NULL;
+  errno = 0;
+  double x = strtod(v, &end);
+  if (errno || end == v || *end || !isfinite(x) || x < lo || x > hi) return 0;
+  *out = x;
+  return 1;
+}
 
 int spx_cli_take(int argc, char **argv, int *i, const spx_cli_optdef *defs, int *bad) {
   for (const spx_cli_optdef *d = defs; d->name; d++) {

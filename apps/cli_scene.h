@@ -21,6 +21,11 @@ static inline int spx_cli_failed(int *rc, const char *cmd, spx_ctx *ctx, spx_sta
   return 1;
 }
 
+/* v is a whole decimal integer (strtol) in [lo, hi]: *out = it, returns 1; else 0. */
+int spx_cli_long(const char *v, long lo, long hi, long *out);
+/* v is a whole finite number (strtod) in [lo, hi]: *out = it, returns 1; else 0. */
+int spx_cli_double(const char *v, double lo, double hi, double *out);
+
 /* One option of a command's table: "--name V" stores V in *value; a flag (value NULL) sets *flag. */
 typedef struct spx_cli_optdef {
   const char *name;

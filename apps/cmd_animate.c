@@ -265,15 +265,6 @@ done:
   return rc;
 }
 
-static int parse_double(const char *v, double lo, double hi, double *out) {
-  char *end;
-  errno = 0;
-  double x = strtod(v, &end);
-  if (errno || end == v || *end || !isfinite(x) || x < lo || x > hi) return 0;
-  *out = x;
-  return 1;
-}
-
 int spx_cmd_animate(int argc, char **argv) {
   opts o;
   memset(&o, 0, sizeof o);
@@ -296,10 +287,10 @@ int spx_cmd_animate(int argc, char **argv) {
         return spx_cli_usage("animate", "--frames: expected A:B (frames A..B-1), A: or :B, got '%s'", v);
       o.frames = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--orbit", &bad))) {
-      if (!parse_double(v, -360, 360, &o.orbit))
+      if (!spx_cli_double(v, -360, 360, &o.orbit))
         return spx_cli_usage("animate", "--orbit: expected degrees per frame in [-360, 360], got '%s'", v);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--fps", &bad))) {
-      if (!parse_double(v, 0.01, 1000, &o.fps))
+      if (!spx_cli_double(v, 0.01, 1000, &o.fps))
         return spx_cli_usage("animate", "--fps: expected frames per second in [0.01, 1000], got '%s'", v);
     } else {
       return spx_cli_usage("animate", bad ? "missing value for %s" : "unknown option %s", argv[i]);

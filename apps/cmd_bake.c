@@ -33,14 +33,9 @@ int spx_cmd_bake(int argc, char **argv) {
       return spx_cli_usage("bake", bad ? "missing value for %s" : "unknown option %s", argv[i]);
   }
   if (!mesh_path || !scan_path || !out) return spx_cli_usage("bake", "--mesh, --scan and --out are required");
-  char *end;
-  errno = 0;
-  long size = strtol(size_s, &end, 10);
-  if (errno || end == size_s || *end || size < 1 || size > 16384)
-    return spx_cli_usage("bake", "--size %s: expected 1..16384", size_s);
-  errno = 0;
-  long pad = strtol(pad_s, &end, 10);
-  if (errno || end == pad_s || *end || pad < 0 || pad > 4096) return spx_cli_usage("bake", "--pad %s: expected 0..4096", pad_s);
+  long size, pad;
+  if (!spx_cli_long(size_s, 1, 16384, &size)) return spx_cli_usage("bake", "--size %s: expected 1..16384", size_s);
+  if (!spx_cli_long(pad_s, 0, 4096, &pad)) return spx_cli_usage("bake", "--pad %s: expected 0..4096", pad_s);
   char ext[16];
   spx_cli_ext(out, ext, sizeof ext);
   if (strcmp(ext, "png") && strcmp(ext, "exr")) return spx_cli_usage("bake", "--out %s: expected a .png or .exr file", out);

@@ -52,15 +52,6 @@ static int parse_list(const char *s, double *v, int cap) {
   }
 }
 
-static int parse_long(const char *v, long lo, long hi, long *out) {
-  char *end = NULL;
-  errno = 0;
-  long x = strtol(v, &end, 10);
-  if (errno || end == v || *end || x < lo || x > hi) return 0;
-  *out = x;
-  return 1;
-}
-
 /* 1 when dir exists and holds anything besides . and .. */
 static int dir_nonempty(const char *dir) {
   DIR *d = opendir(dir);
@@ -138,7 +129,7 @@ int spx_cmd_dataset(int argc, char **argv) {
   if (parse_list(split_s, split, 3) != 3 || split[0] < 0 || split[1] < 0 || split[2] < 0 ||
       fabs(split[0] + split[1] + split[2] - 1) > 1e-6)
     return spx_cli_usage("dataset", "--split %s: expected three fractions >= 0 that sum to 1", split_s);
-  if (!parse_long(seed_s, 0, 2147483647, &seed)) return spx_cli_usage("dataset", "--seed %s: expected an integer >= 0", seed_s);
+  if (!spx_cli_long(seed_s, 0, 2147483647, &seed)) return spx_cli_usage("dataset", "--seed %s: expected an integer >= 0", seed_s);
   if (strcmp(fmt, "exr") && strcmp(fmt, "npy"))
     return spx_cli_usage("dataset", "--input-format %s: expected exr or npy", fmt);
   if (!spx_cli_color_ok(color))
@@ -149,11 +140,11 @@ int spx_cmd_dataset(int argc, char **argv) {
   for (int k = 0; k < ne; k++)
     if (!(fabs(elev[k]) < 90)) return spx_cli_usage("dataset", "--elevations %s: each must lie in (-90, 90)", elev_s);
   char *x = NULL;
-  if (orbit_s && !parse_long(orbit_s, 1, 100000, &norbit))
+  if (orbit_s && !spx_cli_long(orbit_s, 1, 100000, &norbit))
     return spx_cli_usage("dataset", "--orbit %s: expected a number of views in [1, 100000]", orbit_s);
   errno = 0;
   W = strtol(size_s, &x, 10);
-  if (errno || !x || *x != 'x' || !parse_long(x + 1, 16, SPX_CAMERA_MAX_SIZE, &H) || W < 16 || W > SPX_CAMERA_MAX_SIZE)
+  if (errno || !x || *x != 'x' || !spx_cli_long(x + 1, 16, SPX_CAMERA_MAX_SIZE, &H) || W < 16 || W > SPX_CAMERA_MAX_SIZE)
     return spx_cli_usage("dataset", "--size %s: expected WxH, each in [16, %d]", size_s, SPX_CAMERA_MAX_SIZE);
   if (dist_s && (parse_list(dist_s, &dist, 1) != 1 || !(dist > 0)))
     return spx_cli_usage("dataset", "--distance %s: expected a positive number", dist_s);

@@ -60,10 +60,8 @@ int spx_cmd_register(int argc, char **argv) {
     } else if ((v = spx_cli_opt(argc, argv, &i, "--stages", &bad))) {
       if (parse_stages(v, &stages)) return spx_cli_usage("register", "--stages: expected a list of rigid,pose,free, got '%s'", v);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--threads", &bad))) {
-      char *end;
-      errno = 0;
-      long n = strtol(v, &end, 10);
-      if (errno || *end || n < 1 || n > 256) return spx_cli_usage("register", "--threads: expected 1..256, got '%s'", v);
+      long n;
+      if (!spx_cli_long(v, 1, 256, &n)) return spx_cli_usage("register", "--threads: expected 1..256, got '%s'", v);
       threads = (int)n;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--units", &bad))) {
       if (!strcmp(v, "m")) units = 1;

@@ -127,11 +127,7 @@ int spx_cmd_repose(int argc, char **argv) {
     } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
       continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--subdivide", &bad))) {
-      char *end;
-      errno = 0;
-      subdivide = strtol(v, &end, 10);
-      if (errno || end == v || *end || subdivide < 0 || subdivide > 3)
-        return spx_cli_usage("repose", "--subdivide: expected 0..3, got '%s'", v);
+      if (!spx_cli_long(v, 0, 3, &subdivide)) return spx_cli_usage("repose", "--subdivide: expected 0..3, got '%s'", v);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--frame", &bad))) {
       char *end;
       errno = 0;

@@ -28,15 +28,6 @@ static const char *USAGE =
     "  --force          replace DIR when it holds a previous synth output\n"
     "  --quiet          no progress\n";
 
-static int parse_int(const char *s, long lo, long hi, long *out) {
-  char *end;
-  errno = 0;
-  long v = strtol(s, &end, 10);
-  if (errno || end == s || *end || v < lo || v > hi) return 0;
-  *out = v;
-  return 1;
-}
-
 int spx_cmd_synth(int argc, char **argv) {
   const char *out = NULL, *size_s = "410x308", *body_path = NULL, *bvh_path = NULL, *parts_path = NULL;
   const char *subj_s = NULL, *views_s = NULL, *seed_s = NULL, *tex_s = "2048", *dev = NULL;
@@ -52,9 +43,9 @@ int spx_cmd_synth(int argc, char **argv) {
     return spx_cli_usage("synth", "--subjects, --views, --seed and --out are required");
   synth_opts o = {0};
   long n;
-  if (!parse_int(subj_s, 1, 9999, &n)) return spx_cli_usage("synth", "--subjects %s: expected 1..9999", subj_s);
+  if (!spx_cli_long(subj_s, 1, 9999, &n)) return spx_cli_usage("synth", "--subjects %s: expected 1..9999", subj_s);
   o.subjects = (int)n;
-  if (!parse_int(views_s, 1, 999, &n)) return spx_cli_usage("synth", "--views %s: expected 1..999", views_s);
+  if (!spx_cli_long(views_s, 1, 999, &n)) return spx_cli_usage("synth", "--views %s: expected 1..999", views_s);
   o.views = (int)n;
   char *end;
   errno = 0;
@@ -67,7 +58,7 @@ int spx_cmd_synth(int argc, char **argv) {
     return spx_cli_usage("synth", "--size %s: expected WxH, each 16..4096", size_s);
   o.width = w;
   o.height = h;
-  if (!parse_int(tex_s, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX, &n))
+  if (!spx_cli_long(tex_s, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX, &n))
     return spx_cli_usage("synth", "--texture-size %s: expected %d..%d", tex_s, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX);
   o.tex_size = (int32_t)n;
   /* DIR without trailing slashes (the temporary folder is its sibling); not ".", ".." or "/" */
