@@ -14,6 +14,7 @@ includes the interpreter, torch and the engine).
                                         [--engines onnxruntime,openvino] [--onnx DIR]
 """
 import argparse
+import importlib
 import os
 import resource
 import sys
@@ -82,12 +83,19 @@ def row(impl, version, best):
           flush=True)
 
 
+def engine(module, label):
+    """The engine's Python module, or None (said on stderr) when it is not installed."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as e:
+        print("peer_unet_onnx.py: %s skipped: %s" % (label, e), file=sys.stderr)
+        return None
+
+
 for eng in a.engines.split(","):
     if eng == "onnxruntime":
-        try:
-            import onnxruntime as ort
-        except ImportError as e:
-            print("peer_unet_onnx.py: ONNX Runtime skipped: %s" % e, file=sys.stderr)
+        ort = engine("onnxruntime", "ONNX Runtime")
+        if ort is None:
             continue
         so = ort.SessionOptions()
         so.intra_op_num_threads = threads
@@ -97,10 +105,8 @@ for eng in a.engines.split(","):
         row("onnxruntime", ort.__version__, timed(lambda: sess.run(None, {"x": x})))
         del sess
     elif eng == "openvino":
-        try:
-            import openvino as ov
-        except ImportError as e:
-            print("peer_unet_onnx.py: OpenVINO skipped: %s" % e, file=sys.stderr)
+        ov = engine("openvino", "OpenVINO")
+        if ov is None:
             continue
         core = ov.Core()
         cm = core.compile_model(path, "CPU", {"INFERENCE_NUM_THREADS": threads, "INFERENCE_PRECISION_HINT": "f32",
