@@ -12,6 +12,12 @@ static char dir[512];
 
 static inline void path_of(char *p, size_t cap, const char *name) { snprintf(p, cap, "%s/%s", dir, name); }
 
+/* main() of a CLI test: dir = the test's scratch folder, then the tests in order. */
+static inline int cli_test_main(const spx_t_test *tests, int n) {
+  snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
+  return spx_t_run_all(tests, n);
+}
+
 /* Write `text` to dir/name. */
 static inline void write_text(const char *name, const char *text) {
   char p[700];

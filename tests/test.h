@@ -43,17 +43,40 @@ static const char *spx_t_name = "";
     CHECK_MSG(spx_t_st == SPX_OK, "%s: %s", spx_status_name(spx_t_st), spx_ctx_message(ctx));     \
   } while (0)
 
-#define SPX_RUN(fn)                                                                                 \
-  do {                                                                                              \
-    spx_t_name = #fn;                                                                               \
-    spx_t_cur_fail = 0;                                                                             \
-    fn();                                                                                           \
-    fprintf(stderr, "%s %s\n", spx_t_cur_fail ? "[FAIL]" : "[ ok ]", #fn);                         \
-  } while (0)
+static inline void spx_t_run(const char *name, void (*fn)(void)) {
+  spx_t_name = name;
+  spx_t_cur_fail = 0;
+  fn();
+  fprintf(stderr, "%s %s\n", spx_t_cur_fail ? "[FAIL]" : "[ ok ]", name);
+}
+#define SPX_RUN(fn) spx_t_run(#fn, fn)
 
 static inline int spx_test_summary(void) {
   printf("%d passed, %d failed\n", spx_t_pass, spx_t_fail);
   return spx_t_fail ? 1 : 0;
+}
+
+/* A test function and its name, for a table of them: SPX_TEST(test_x). */
+typedef struct spx_t_test {
+  const char *name;
+  void (*fn)(void);
+} spx_t_test;
+#define SPX_TEST(fn) {#fn, fn}
+
+/* Runs tests[0..n) in order (as SPX_RUN) and returns spx_test_summary(). */
+static inline int spx_t_run_all(const spx_t_test *tests, int n) {
+  for (int i = 0; i < n; i++) spx_t_run(tests[i].name, tests[i].fn);
+  return spx_test_summary();
+}
+
+static inline int spx_t_open_device(spx_ctx **ctx);
+/* main() of a test whose functions share one context *ctx (with the device open when `device`):
+ * made first (exit 1 when it cannot be), the tests in order, destroyed last. */
+static inline int spx_t_main_ctx(spx_ctx **ctx, int device, const spx_t_test *tests, int n) {
+  if (device ? spx_t_open_device(ctx) : spx_ctx_create(ctx) != SPX_OK) return 1;
+  int rc = spx_t_run_all(tests, n);
+  spx_ctx_destroy(*ctx);
+  return rc;
 }
 
 /* Deterministic PRNG for tests (xorshift64*). */

@@ -204,9 +204,6 @@ static void test_retarget(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_load);
-  SPX_RUN(test_retarget);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  const spx_t_test tests[] = {SPX_TEST(test_load), SPX_TEST(test_retarget)};
+  return spx_t_main_ctx(&ctx, 0, tests, 2);
 }

@@ -60,9 +60,6 @@ static void test_usage(void) {
 }
 
 int main(void) {
-  snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  SPX_RUN(test_good_run);
-  SPX_RUN(test_bad_inputs);
-  SPX_RUN(test_usage);
-  return spx_test_summary();
+  const spx_t_test tests[] = {SPX_TEST(test_good_run), SPX_TEST(test_bad_inputs), SPX_TEST(test_usage)};
+  return cli_test_main(tests, 3);
 }

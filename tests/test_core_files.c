@@ -13,7 +13,9 @@
 static spx_ctx *ctx;
 static char base[600];
 
-static void at(char *out, size_t cap, const char *name) { snprintf(out, cap, "%s/%s", base, name); }
+static void at(char *out, size_t cap, const char *name) {
+  if (snprintf(out, cap, "%s/%s", base, name) >= (int)cap) out[0] = 0; /* too long: no such file */
+}
 
 static void touch(const char *name, const char *text) {
   char p[700];
