@@ -9,7 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 
 static void eval_help(void) {
   printf("usage: smplpix eval --pred P --target T [--mask M] [--per-image] [--json F] [--lpips W.safetensors]\n"
@@ -340,10 +340,7 @@ int spx_cmd_eval(int argc, char **argv) {
   if ((rc = pair_up(pred, target, mask, &l))) goto done;
   if (lpw) {
     if ((rc = spx_cli_open_device("eval", ctx, device))) goto done;
-    if (spx_lpips_load(ctx, lpw, &lp)) {
-      rc = spx_cli_error("eval", ctx);
-      goto done;
-    }
+    if (spx_cli_failed(&rc, "eval", ctx, spx_lpips_load(ctx, lpw, &lp))) goto done;
   }
   spx_metrics mean = {0};
   double mean_lp = 0;

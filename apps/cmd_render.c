@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "smplpix/camera.h"
 #include "smplpix/mesh.h"
 #include "smplpix/render.h"
@@ -53,10 +53,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
   spx_device_tensor *in = NULL;
   spx_tx tx;
   spx_tx_begin(&tx, "render", 0);
-  if (spx_mesh_load(ctx, mesh_path, &mesh)) {
-    rc = spx_cli_error("render", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "render", ctx, spx_mesh_load(ctx, mesh_path, &mesh))) goto done;
   if ((rc = spx_cli_load_cameras("render", ctx, cam_path, &cams, &ncams))) goto done;
   if ((rc = spx_cli_check_outputs(&tx, &outp, 1, ncams))) goto done; /* before any work */
   int W = cams[0].width, H = cams[0].height;
@@ -127,32 +124,21 @@ int spx_cmd_render(int argc, char **argv) {
   const char *color = "auto";
   int bad = 0, quiet = 0;
   long batch = 4;
+  const spx_cli_optdef defs[] = {{"--quiet", NULL, &quiet}, {"--checkpoint", &ckpt, NULL}, {"--input", &input, NULL},
+                                  {"--mesh", &mesh, NULL}, {"--camera", &cam, NULL}, {"--color", &color, NULL},
+                                  {"--out", &outp, NULL}, {"--device", &spec, NULL}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       render_help();
       return SPX_EXIT_OK;
-    } else if (!strcmp(argv[i], "--quiet")) {
-      quiet = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
-      ckpt = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--input", &bad))) {
-      input = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--mesh", &bad))) {
-      mesh = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--camera", &bad))) {
-      cam = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--color", &bad))) {
-      color = v;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--batch", &bad))) {
       char *end = NULL;
       batch = strtol(v, &end, 10);
       if (!end || *end || batch < 1 || batch > 4096)
         return spx_cli_usage("render", "--batch needs an integer in [1, 4096], not '%s'", v);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      outp = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
-      spec = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--sigmoid", &bad))) {
       sig = v;
       if (strcmp(v, "on") && strcmp(v, "off")) return spx_cli_usage("render", "--sigmoid takes on or off, not '%s'", v);
@@ -187,10 +173,7 @@ int spx_cmd_render(int argc, char **argv) {
     }
   }
   if ((rc = spx_cli_open_device("render", ctx, spec))) goto done;
-  if (spx_unet_load(ctx, ckpt, &u)) {
-    rc = spx_cli_error("render", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "render", ctx, spx_unet_load(ctx, ckpt, &u))) goto done;
   if (sig) spx_unet_set_sigmoid(u, !strcmp(sig, "on"));
   if (by_mesh) {
     rc = render_mesh(ctx, u, mesh, cam, color, outp, (int)batch, quiet);

@@ -30,8 +30,7 @@ static const spx_command commands[] = {
 
 int spx_cli_error(const char *cmd, spx_ctx *ctx) {
   const char *m = spx_ctx_message(ctx);
-  fprintf(stderr, "smplpix %s: error: %s\n", cmd, (m && *m) ? m : "unknown error");
-  return SPX_EXIT_ERROR;
+  return spx_cli_errorf(cmd, "%s", (m && *m) ? m : "unknown error");
 }
 
 int spx_cli_errorf(const char *cmd, const char *fmt, ...) {

@@ -399,10 +399,7 @@ static void test_large_and_fallback_division(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL) || spx_projector_create(ctx, &proj)) {
-    fprintf(stderr, "no device: %s\n", ctx ? spx_ctx_message(ctx) : "");
-    return 1;
-  }
+  if (spx_t_open_device(&ctx) || spx_t_no_device(ctx, spx_projector_create(ctx, &proj))) return 1;
   SPX_RUN(test_random_clouds);
   SPX_RUN(test_collisions_and_ties);
   SPX_RUN(test_borders_and_drops);

@@ -605,16 +605,9 @@ done:
 /* Copy tensor `name` from the file (F32 or F16, shape checked) into dst. */
 static spx_status load_floats(spx_ctx *ctx, const char *path, const spx_st_file *f, const char *name, int ndim,
                               const int64_t *shape, float *dst) {
-  char want[96], got[96];
-  spx_nn_shape_str(want, sizeof want, ndim, shape);
-  const spx_st_tensor *t = spx_st_find(f, name);
-  if (!t) return spx_fail(ctx, SPX_E_FORMAT, "%s: missing tensor %s (expected shape %s)", path, name, want);
-  int same = t->ndim == ndim;
-  for (int d = 0; d < ndim && same; d++) same = t->shape[d] == shape[d];
-  if (!same) {
-    spx_nn_shape_str(got, sizeof got, t->ndim, t->shape);
-    return spx_fail(ctx, SPX_E_FORMAT, "%s: tensor %s has shape %s, expected %s", path, name, got, want);
-  }
+  const spx_st_tensor *t;
+  spx_status st = spx_nn_st_find_shaped(ctx, path, f, name, ndim, shape, &t);
+  if (st) return st;
   size_t n = 1;
   for (int d = 0; d < ndim; d++) n *= (size_t)shape[d];
   const unsigned char *p = t->data;
