@@ -3,7 +3,7 @@ BUILD    ?= build
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build demo docs-demo model-card train-demo test asan fuzz bench bench-unet bench-latency install clean bench-python table1
+.PHONY: all deps build demo docs-demo model-card train-demo test asan fuzz bench bench-unet bench-memory bench-latency install clean bench-python table1
 
 all: build
 
@@ -79,6 +79,11 @@ bench: build
 # on 2 cores. The torch side is skipped, saying so, when /usr/bin/python3 cannot import torch.
 bench-unet: build
 	sh benchmarks/unet_vs_torch.sh $(BUILD)
+
+# Peak memory against PyTorch CPU (width-64 UNet train b1 / b4, eval b1, the stage-2 GAN+VGG step),
+# one process per row and side; ~10 min on 2 cores. Table on stdout, out/bench/memory_vs_torch.txt.
+bench-memory: build
+	sh benchmarks/memory_vs_torch.sh $(BUILD)
 
 # Renderer latency vs vertex count (also part of `make bench`): table on stdout,
 # out/bench/latency.{csv,json,png}.

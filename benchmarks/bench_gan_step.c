@@ -8,10 +8,12 @@
  *   bench_gan_step [--width 64] [--disc-width 64] [--size 308x410] [--batch 1] [--reps 2]
  *
  * Prints one machine-readable line:
- *   ROW impl=smplpix mode=gan_step width=W batch=N h=H w=W reps=R ms=... mem_bytes=(G only) */
+ *   ROW impl=smplpix mode=gan_step width=W batch=N h=H w=W reps=R ms=... mem_bytes=(G only)
+ *       peak_bytes=(device high-water mark of the process: G, D, VGG, scratch) rss_bytes=(ru_maxrss) */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -108,8 +110,11 @@ int main(int argc, char **argv) {
   }
   printf("ours: stage-2 step (G width %d + 3 D width %d + VGG19), %dx4x%dx%d: %.1f ms (min of %d)\n", width, dwidth, n,
          h, w, 1e3 * best, reps);
-  printf("ROW impl=smplpix mode=gan_step width=%d batch=%d h=%d w=%d reps=%d ms=%.3f mem_bytes=%zu\n", width, n, h, w,
-         reps, 1e3 * best, spx_unet_device_bytes(g));
+  struct rusage ru;
+  long maxrss = getrusage(RUSAGE_SELF, &ru) == 0 ? ru.ru_maxrss : 0; /* KiB on Linux */
+  printf("ROW impl=smplpix mode=gan_step width=%d batch=%d h=%d w=%d reps=%d ms=%.3f mem_bytes=%zu peak_bytes=%zu "
+         "rss_bytes=%ld\n",
+         width, n, h, w, reps, 1e3 * best, spx_unet_device_bytes(g), spx_device_peak_bytes(ctx), maxrss * 1024);
   rc = 0;
   goto done;
 err:

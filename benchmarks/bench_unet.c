@@ -15,14 +15,18 @@
  * (spx_unet_device_bytes: parameter, gradient, Adam and state slabs + activation and
  * activation-gradient arenas + convolution workspace; all grow-only, so this is the peak of the
  * rows run so far in this process; scratch allocated and released inside one op call is not
- * counted).
+ * counted). peak_bytes: the context's device-memory high-water mark over the row
+ * (spx_device_peak_bytes, reset before the row's warm-up: every device buffer, per-call scratch
+ * included); rss_bytes: this process's peak resident set (getrusage ru_maxrss: with PoCL the device
+ * memory is host memory, so this is the figure to set beside the torch peer's ru_maxrss).
  *
  * Besides the human-readable lines, every row prints one machine-readable line:
  *   ROW impl=smplpix mode=eval|train width=W batch=N h=H w=W reps=R ms=... gflop=... gflops=...
- *       mem_bytes=... mem_kind=device */
+ *       mem_bytes=... mem_kind=device peak_bytes=... rss_bytes=... */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <time.h>
 
 #include "smplpix/smplpix.h"
@@ -54,10 +58,13 @@ static double unet_gflop(int wd, int h, int w) {
   return f * 1e-9;
 }
 
-static void row(const char *mode, int width, int n, int h, int w, int reps, double s, double gflop, size_t bytes) {
+static void row(spx_ctx *ctx, const char *mode, int width, int n, int h, int w, int reps, double s, double gflop,
+                size_t bytes) {
+  struct rusage ru;
+  long maxrss = getrusage(RUSAGE_SELF, &ru) == 0 ? ru.ru_maxrss : 0; /* KiB on Linux */
   printf("ROW impl=smplpix mode=%s width=%d batch=%d h=%d w=%d reps=%d ms=%.3f gflop=%.3f gflops=%.3f "
-         "mem_bytes=%zu mem_kind=device\n",
-         mode, width, n, h, w, reps, 1e3 * s, gflop, gflop / s, bytes);
+         "mem_bytes=%zu mem_kind=device peak_bytes=%zu rss_bytes=%ld\n",
+         mode, width, n, h, w, reps, 1e3 * s, gflop, gflop / s, bytes, spx_device_peak_bytes(ctx), maxrss * 1024);
 }
 
 int main(int argc, char **argv) {
@@ -108,6 +115,7 @@ int main(int argc, char **argv) {
   double gf = unet_gflop(width, h, w);
   if (eval) {
     double best = 1e30;
+    spx_device_reset_peak(ctx);
     for (int r = 0; r <= reps; r++) { /* r == 0: warm-up */
       double t0 = now();
       if (spx_unet_forward(u, in, ebatch, h, w, 0, out) || spx_device_finish(ctx)) {
@@ -120,10 +128,11 @@ int main(int argc, char **argv) {
     size_t bytes = spx_unet_device_bytes(u);
     printf("unet width %d, %dx4x%dx%d: eval forward %.3f s (%.1f GFLOP, %.1f GFLOP/s), device memory %.1f MiB\n",
            width, ebatch, h, w, best, gf * ebatch, gf * ebatch / best, (double)bytes / 1048576.0);
-    row("eval", width, ebatch, h, w, reps, best, gf * ebatch, bytes);
+    row(ctx, "eval", width, ebatch, h, w, reps, best, gf * ebatch, bytes);
   }
   if (train) {
     double best = 1e30;
+    spx_device_reset_peak(ctx);
     float loss;
     for (int r = 0; r <= reps; r++) {
       double t0 = now();
@@ -139,7 +148,7 @@ int main(int argc, char **argv) {
     printf("unet width %d, %dx4x%dx%d: train step (fwd + L1 + bwd + Adam) %.3f s (~%.1f GFLOP/s at 3x forward "
            "flops), device memory %.1f MiB\n",
            width, batch, h, w, best, 3 * gf * batch / best, (double)bytes / 1048576.0);
-    row("train", width, batch, h, w, reps, best, 3 * gf * batch, bytes);
+    row(ctx, "train", width, batch, h, w, reps, best, 3 * gf * batch, bytes);
   }
   rc = 0;
 done:

@@ -1,13 +1,19 @@
 /* spx_unet_device_bytes (the device-memory figure of benchmarks/bench_unet): on a width-8 UNet,
- *  - right after creation it is exactly the four parameter slabs (value, gradient, Adam m and v:
- *    16 bytes per parameter) + the state slab (running mean / variance and the folded batch-norm
- *    scale / shift: 16 bytes per channel of every batch norm, i.e. 2x the running statistics);
- *  - an eval forward adds at least its input + output activations, a training step adds more
- *    (activation-gradient arena, larger activation plan), a larger batch more again;
+ *  - right after creation it is exactly the parameter slab (4 bytes per parameter) + the state
+ *    slab (running mean / variance and the folded batch-norm scale / shift: 16 bytes per channel
+ *    of every batch norm, i.e. 2x the running statistics); the gradient and Adam m / v slabs
+ *    (12 bytes per parameter) appear with the first training use, never for inference;
+ *  - an eval forward adds at least its input + output activations, a training step adds the
+ *    gradient and Adam slabs and more arena (gradients, saved activations), a larger batch more;
  *  - repeating a pass of an already planned shape adds nothing (grow-only, steady state);
- *  - the host backend holds no device memory (0). */
+ *  - the host backend holds no device memory (0).
+ * and the context's device-memory counter (spx_device_live_bytes / spx_device_peak_bytes):
+ *  - creating the UNet adds exactly its slabs to the live bytes, destroying it takes them off;
+ *  - after a pass the live bytes are the network's buffers (per-call scratch is gone), the peak is
+ *    at least that, and a reset brings the peak down to the live bytes. */
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "nn/unet.h"
 #include "nn_testutil.h"
@@ -15,6 +21,17 @@
 #include "smplpix/unet.h"
 
 enum { WD = 8, H = 32, W = 48 };
+
+/* OpenCL may delete a released buffer only once the queued commands using it are done (PoCL does
+ * it on its own thread), so the live count settles shortly after a finish: wait up to 5 s. */
+static size_t settled_live(spx_ctx *ctx, size_t want) {
+  spx_device_finish(ctx);
+  for (int i = 0; i < 500 && spx_device_live_bytes(ctx) != want; i++) {
+    struct timespec ts = {0, 10000000};
+    nanosleep(&ts, NULL);
+  }
+  return spx_device_live_bytes(ctx);
+}
 
 static void test_device_bytes(void) {
   spx_ctx *ctx = spx_nt_open();
@@ -28,8 +45,11 @@ static void test_device_bytes(void) {
   unsigned long long s = 7;
   spx_nt_rand(in, nin, 0.0f, 1.0f, &s);
   spx_nt_rand(tg, nout, 0.0f, 1.0f, &s);
+  size_t live0 = spx_device_live_bytes(ctx);
   CHECK_OK(ctx, spx_unet_create(ctx, WD, 0, 1, &u));
   if (!u) goto done;
+  CHECK_MSG(spx_device_live_bytes(ctx) == live0 + spx_unet_device_bytes(u), "live %zu after create, %zu + %zu",
+            spx_device_live_bytes(ctx), live0, spx_unet_device_bytes(u));
   size_t params = 0, stats = 0;
   for (int i = 0; i < spx_unet_tensor_count(u); i++) {
     int nd;
@@ -46,7 +66,7 @@ static void test_device_bytes(void) {
   }
   CHECK(params > 0 && stats > 0);
   size_t b0 = spx_unet_device_bytes(u);
-  CHECK_MSG(b0 == 16 * params + 8 * stats, "after create: %zu bytes, expected %zu", b0, 16 * params + 8 * stats);
+  CHECK_MSG(b0 == 4 * params + 8 * stats, "after create: %zu bytes, expected %zu", b0, 4 * params + 8 * stats);
 
   CHECK_OK(ctx, spx_unet_forward(u, in, 1, H, W, 0, out));
   size_t b1 = spx_unet_device_bytes(u);
@@ -58,21 +78,33 @@ static void test_device_bytes(void) {
   CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 1, H, W, NULL, &loss));
   CHECK_OK(ctx, spx_unet_backward(u));
   size_t b2 = spx_unet_device_bytes(u);
-  CHECK_MSG(b2 > b1 + (size_t)(4 + 3) * H * W * sizeof(float), "train b1: %zu -> %zu bytes", b1, b2);
+  CHECK_MSG(b2 > b1 + 12 * params + (size_t)(4 + 3) * H * W * sizeof(float), "train b1: %zu -> %zu bytes", b1, b2);
   CHECK_OK(ctx, spx_unet_adam_step(u, 1e-3));
   CHECK_OK(ctx, spx_unet_zero_grad(u));
   CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 1, H, W, NULL, &loss));
   CHECK_OK(ctx, spx_unet_backward(u));
   CHECK(spx_unet_device_bytes(u) == b2);
 
+  settled_live(ctx, live0 + b2); /* nothing of the finished passes pending: live = peak after the reset */
+  spx_device_reset_peak(ctx);
+  CHECK(spx_device_peak_bytes(ctx) == spx_device_live_bytes(ctx));
   CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 2, H, W, NULL, &loss));
   CHECK_OK(ctx, spx_unet_backward(u));
   size_t b3 = spx_unet_device_bytes(u);
   CHECK_MSG(b3 > b2, "train b2: %zu -> %zu bytes", b2, b3);
+  size_t live = settled_live(ctx, live0 + b3), peak = spx_device_peak_bytes(ctx);
+  CHECK_MSG(live == live0 + b3, "live %zu after a step, network %zu + %zu before", live, b3, live0);
+  CHECK_MSG(peak >= live && peak >= live0 + b2, "peak %zu, live %zu", peak, live);
+  spx_device_reset_peak(ctx);
+  CHECK(spx_device_peak_bytes(ctx) == live);
 
   CHECK_OK(ctx, spx_unet_create_ex(ctx, WD, 0, 1, SPX_TAPE_HOST, &hu));
   CHECK(hu && spx_unet_device_bytes(hu) == 0);
   CHECK(spx_unet_device_bytes(NULL) == 0);
+  spx_unet_destroy(u);
+  u = NULL;
+  size_t after = settled_live(ctx, live0);
+  CHECK_MSG(after == live0, "live %zu after destroy, %zu before", after, live0);
 done:
   spx_unet_destroy(hu);
   spx_unet_destroy(u);

@@ -57,7 +57,7 @@ static void run(spx_ctx *ctx, spx_tape_backend be) {
     if ((st = spx_tape_begin(t, 1, 1))) break;
     xi = spx_tape_input(t, 1, 3, H, W, x);
     int gi = spx_tape_input(t, 1, 3, H, W, x + np);
-    if (!spx_tape_measuring(t)) spx_tape_requires_grad(t, xi);
+    spx_tape_requires_grad(t, xi); /* every pass: it is part of the plan */
     loss = spx_vgg_loss(v, xi, gi);
     st = spx_tape_end(t, &again);
   } while (!st && again);

@@ -4,6 +4,7 @@
 #define SPX_CL_INTERNAL_H
 
 #include <CL/cl.h>
+#include <stdatomic.h>
 
 #include "cl/kernels.h"
 #include "cl/tunables.h"
@@ -17,6 +18,11 @@ struct spx_cl_program {
   cl_program prog;
   uint64_t uses; /* bit i: built with -D of tunable row i */
 };
+
+/* Live / peak bytes of the device buffers of a context (lib/cl/devmem.c). */
+typedef struct spx_devmem {
+  _Atomic size_t live, peak;
+} spx_devmem;
 
 /* The open OpenCL device: allocated by spx_device_open, pointed to by ctx->dev (NULL when no
  * device is open), released by spx_cl_close (which core reaches through ctx->dev_close). */
@@ -39,6 +45,7 @@ struct spx_cl_device {
   int nprograms;
   cl_kernel kernels[SPX_K_COUNT]; /* by spx_kernel_id; NULL until its program is built */
   spx_cache_stats cache;
+  spx_devmem devmem;
 };
 
 /* Release all device objects and free ctx->dev (spx_ctx_destroy calls it through ctx->dev_close). */
@@ -95,6 +102,8 @@ int spx_cl_cache_dir(char *out, size_t cap);
 /* Device buffers. Creation checks the device's max allocation and reports the size on failure. */
 spx_status spx_cl_alloc(spx_ctx *ctx, size_t bytes, const char *what, cl_mem *out);
 void spx_cl_free(cl_mem *m);
+/* Count a new buffer of `bytes` in ctx's live / peak device bytes until OpenCL deletes it. */
+spx_status spx_cl_count_alloc(spx_ctx *ctx, cl_mem mem, size_t bytes, const char *what);
 /* A grow-only scratch buffer. */
 typedef struct spx_cl_buf {
   cl_mem mem;

@@ -59,7 +59,8 @@ spx_status spx_cl_alloc(spx_ctx *ctx, size_t bytes, const char *what, cl_mem *ou
     *out = NULL;
     return spx_fail(ctx, SPX_E_DEVMEM, "%s: allocating %s on the device failed (%s)", what, sz, spx_cl_error_name(err));
   }
-  return SPX_OK;
+  if ((st = spx_cl_count_alloc(ctx, *out, bytes, what))) spx_cl_free(out);
+  return st;
 }
 
 void spx_cl_free(cl_mem *m) {

@@ -26,11 +26,12 @@ static spx_status d_forward(spx_patchgan *d, spx_tape *gt, int gy, const float *
   key = spx_hash64(&w, sizeof w, key);
   int again = 0, num_d = spx_patchgan_num_d(d);
   spx_status st;
+  spx_tape_set_retain(t, 1); /* backward runs twice over this pass: G's adversarial loss, then D's */
   do {
     if ((st = spx_tape_begin(t, 1, key))) return st;
     p->x = spx_tape_input(t, 2 * n, 7, h, w, xhost);
+    if (p->x >= 0 && (st = spx_tape_requires_grad(t, p->x))) return st;
     if (p->x >= 0 && !spx_tape_measuring(t)) {
-      st = spx_tape_requires_grad(t, p->x);
       for (int i = 0; i < n && !st; i++) /* the generated images into the fake half */
         st = spx_tape_transfer(t, p->x, ((size_t)i * 7 + 4) * hw, 0, gt, gy, (size_t)i * 3 * hw, 0, 3 * hw, 0);
       if (st) return st;
@@ -52,6 +53,9 @@ static spx_status d_forward(spx_patchgan *d, spx_tape *gt, int gy, const float *
     }
     p->gadv = spx_tape_axpby(t, 1.0f, p->gan, lambda_fm, p->fm);
     p->dloss = spx_tape_axpby(t, 0.5f, p->dfake, 0.5f, p->dreal);
+    int terms[6] = {p->gan, p->fm, p->gadv, p->dfake, p->dreal, p->dloss}; /* read after the backward */
+    for (int i = 0; i < 6; i++)
+      if (terms[i] >= 0) spx_tape_keep(t, terms[i]);
     st = spx_tape_end(t, &again);
   } while (!st && again);
   return st;
@@ -71,11 +75,9 @@ static spx_status vgg_forward(spx_vgg *v, spx_tape *gt, int gy, const float *tar
     if ((st = spx_tape_begin(t, 1, key))) return st;
     *x = spx_tape_input(t, n, 3, h, w, NULL);
     int tg = spx_tape_input(t, n, 3, h, w, target);
-    if (*x >= 0 && !spx_tape_measuring(t)) {
-      if ((st = spx_tape_requires_grad(t, *x)) ||
-          (st = spx_tape_transfer(t, *x, 0, 0, gt, gy, 0, 0, (size_t)n * chw, 0)))
-        return st;
-    }
+    if (*x >= 0 && (st = spx_tape_requires_grad(t, *x))) return st;
+    if (*x >= 0 && !spx_tape_measuring(t) && (st = spx_tape_transfer(t, *x, 0, 0, gt, gy, 0, 0, (size_t)n * chw, 0)))
+      return st;
     *loss = spx_vgg_loss(v, *x, tg);
     st = spx_tape_end(t, &again);
   } while (!st && again);

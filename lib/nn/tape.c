@@ -42,18 +42,21 @@ int spx_tp_new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, in
   v->space = space;
   v->n = n, v->c = c, v->h = h, v->w = w;
   v->needs_grad = space == SP_PARAM;
-  size_t *used = space == SP_ACT ? &t->act_used : space == SP_PARAM ? &t->nparam : &t->nstate;
-  if (numel > ((size_t)1 << 40) || *used > ((size_t)1 << 40)) {
+  v->root = t->nvals, v->delta = 0, v->flags = 0;
+  v->born = 2 * t->nnodes + 1; /* made by the op about to be recorded (spx_tape_input: 2 * nnodes) */
+  if (numel > ((size_t)1 << 40)) {
     t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: tensor %dx%dx%dx%d is too large", n, c, h, w);
     return -1;
   }
-  v->off = *used;
-  *used += numel;
-  if (space == SP_ACT && !t->measuring && (*used > t->act_cap || (t->train && *used > t->dact_cap))) {
-    t->err = spx_fail(t->ctx, SPX_E_STATE, "tape: the pass outgrew its memory plan (one plan key, two graphs?)");
-    return -1;
+  v->off = v->goff = 0;
+  if (space != SP_ACT) { /* params / state: bump allocation in their slab */
+    size_t *used = space == SP_PARAM ? &t->nparam : &t->nstate;
+    v->off = v->goff = *used;
+    *used += numel;
   }
-  return t->nvals++;
+  t->nvals++;
+  if (space == SP_ACT && !t->measuring) spx_tp_place(t, t->nvals - 1);
+  return t->err ? -1 : t->nvals - 1;
 }
 
 
@@ -65,8 +68,8 @@ spx_tensor spx_tape_tensor(const spx_tape *t, int id) {
 }
 spx_tensor spx_tape_grad_tensor(const spx_tape *t, int id) {
   const tvalue *v = &t->vals[id];
-  cl_mem m = v->space == SP_ACT ? t->dact : v->space == SP_PARAM ? t->grad : NULL;
-  return spx_tensor_view(m, v->off, v->n, v->c, v->h, v->w);
+  cl_mem m = v->space == SP_ACT ? t->act : v->space == SP_PARAM ? t->grad : NULL;
+  return spx_tensor_view(m, v->goff, v->n, v->c, v->h, v->w);
 }
 double *spx_tape_host(spx_tape *t, int id) {
   const tvalue *v = &t->vals[id];
@@ -75,8 +78,8 @@ double *spx_tape_host(spx_tape *t, int id) {
 }
 double *spx_tape_host_grad(spx_tape *t, int id) {
   const tvalue *v = &t->vals[id];
-  double *b = v->space == SP_ACT ? t->hdact : v->space == SP_PARAM ? t->hgrad : NULL;
-  return b ? b + v->off : NULL;
+  double *b = v->space == SP_ACT ? t->hact : v->space == SP_PARAM ? t->hgrad : NULL;
+  return b ? b + v->goff : NULL;
 }
 void spx_tape_shape(const spx_tape *t, int id, int32_t shape[4]) {
   const tvalue *v = &t->vals[id];
@@ -99,6 +102,9 @@ spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **ou
   t->ctx = ctx;
   t->backend = backend;
   t->prof = backend == SPX_TAPE_DEVICE && (spx_ctx_profile(ctx) & SPX_PROFILE_TAPE);
+  const char *pp = getenv("SPX_TAPE_POISON"); /* debug: tests run the network suite with it */
+  t->poison = pp && *pp && strcmp(pp, "0");
+  t->reuse = 1;
   *out = t;
   return SPX_OK;
 }
@@ -114,9 +120,10 @@ void spx_tape_destroy(spx_tape *t) {
                   t->prof_n[k][d]);
   }
   spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
-  spx_cl_free(&t->state), spx_cl_free(&t->act), spx_cl_free(&t->dact);
+  spx_cl_free(&t->state), spx_cl_free(&t->act);
   spx_conv2d_workspace_release(&t->ws);
-  free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact), free(t->hdact);
+  free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact);
+  for (int i = 0; i < t->nplans; i++) spx_tp_plan_free(&t->plans[i]);
   free(t->vals);
   free(t->nodes);
   free(t->xfer);
@@ -154,29 +161,48 @@ spx_status spx_tape_alloc_params(spx_tape *t) {
   if (t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters already allocated");
   if (t->backend == SPX_TAPE_DEVICE) {
     if ((st = dev_zeroed(t, t->nparam, "parameter slab", &t->param)) ||
-        (st = dev_zeroed(t, t->nparam, "gradient slab", &t->grad)) ||
-        (st = dev_zeroed(t, t->nparam, "Adam exp_avg slab", &t->m)) ||
-        (st = dev_zeroed(t, t->nparam, "Adam exp_avg_sq slab", &t->v)) ||
         (st = dev_zeroed(t, t->nstate, "state slab", &t->state)))
       return st;
   } else {
     size_t np = t->nparam ? t->nparam : 1, ns = t->nstate ? t->nstate : 1;
-    t->hparam = calloc(np, sizeof(double)), t->hgrad = calloc(np, sizeof(double));
-    t->hm = calloc(np, sizeof(double)), t->hv = calloc(np, sizeof(double));
+    t->hparam = calloc(np, sizeof(double));
     t->hstate = calloc(ns, sizeof(double));
-    if (!t->hparam || !t->hgrad || !t->hm || !t->hv || !t->hstate)
+    if (!t->hparam || !t->hstate)
       return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for %zu parameters", t->nparam);
   }
   t->allocated = 1;
   return SPX_OK;
 }
 
+/* The gradient and Adam slabs exist once something needs them (a network only ever run in
+ * inference holds its parameters and state only); they start at zero, as they always did. */
+spx_status spx_tp_train_slabs(spx_tape *t) {
+  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  if (t->grad || t->hgrad) return SPX_OK;
+  spx_status st;
+  if (t->backend == SPX_TAPE_DEVICE) {
+    if ((st = dev_zeroed(t, t->nparam, "gradient slab", &t->grad)) ||
+        (st = dev_zeroed(t, t->nparam, "Adam exp_avg slab", &t->m)) ||
+        (st = dev_zeroed(t, t->nparam, "Adam exp_avg_sq slab", &t->v))) {
+      spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
+      return st;
+    }
+    return SPX_OK;
+  }
+  size_t np = t->nparam ? t->nparam : 1;
+  t->hgrad = calloc(np, sizeof(double)), t->hm = calloc(np, sizeof(double)), t->hv = calloc(np, sizeof(double));
+  if (t->hgrad && t->hm && t->hv) return SPX_OK;
+  free(t->hgrad), free(t->hm), free(t->hv);
+  t->hgrad = t->hm = t->hv = NULL;
+  return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for the gradients of %zu parameters", t->nparam);
+}
+
 size_t spx_tape_device_bytes(const spx_tape *t) {
   if (!t || t->backend != SPX_TAPE_DEVICE) return 0;
   size_t b = 0;
-  if (t->allocated) b += (4 * (t->nparam ? t->nparam : 1) + (t->nstate ? t->nstate : 1)) * sizeof(float);
+  if (t->allocated)
+    b += ((t->grad ? 4 : 1) * (t->nparam ? t->nparam : 1) + (t->nstate ? t->nstate : 1)) * sizeof(float);
   if (t->act) b += t->act_cap * sizeof(float);
-  if (t->dact) b += t->dact_cap * sizeof(float);
   for (int i = 0; i < 3; i++)
     if (t->ws.buf[i].mem) b += t->ws.buf[i].bytes;
   return b;
@@ -191,14 +217,17 @@ static spx_status xfer(spx_tape *t, int id, int grad, int moment, float *rd, con
   if ((grad || moment) && v->space == SP_STATE) return spx_fail(t->ctx, SPX_E_ARG, "tape: state has no gradient");
   if (moment && v->space != SP_PARAM) return spx_fail(t->ctx, SPX_E_ARG, "tape: value %d is not a parameter", id);
   size_t n = spx_tp_numel(v);
+  spx_status st = spx_tp_check_live(t, id, grad, rd ? "read" : "write");
+  if (st || ((moment || (grad && v->space == SP_PARAM)) && (st = spx_tp_train_slabs(t)))) return st;
   if (t->backend == SPX_TAPE_DEVICE) {
     cl_mem m;
+    size_t off = grad ? v->goff : v->off;
     if (moment) m = moment == 1 ? t->m : t->v;
     else if (grad) m = spx_tape_grad_tensor(t, id).mem;
     else m = spx_tape_tensor(t, id).mem;
     if (!m) return spx_fail(t->ctx, SPX_E_STATE, "tape: value %d has no storage yet", id);
-    return rd ? spx_cl_read(t->ctx, m, v->off * sizeof(float), n * sizeof(float), rd)
-              : spx_cl_write(t->ctx, m, v->off * sizeof(float), n * sizeof(float), wr);
+    return rd ? spx_cl_read(t->ctx, m, off * sizeof(float), n * sizeof(float), rd)
+              : spx_cl_write(t->ctx, m, off * sizeof(float), n * sizeof(float), wr);
   }
   double *p;
   if (moment) p = (moment == 1 ? t->hm : t->hv) + v->off;
@@ -229,60 +258,61 @@ spx_status spx_tape_begin(spx_tape *t, int train, uint64_t plan_key) {
   t->err = SPX_OK;
   t->nvals = t->npersist;
   t->nnodes = 0;
-  t->act_used = 0;
   t->train = train != 0;
   t->in_pass = 1;
   if (t->train && spx_tape_sync_bn(t)) plan_key = spx_hash64("syncbn", 6, plan_key); /* + the ranks' scratch */
   t->measuring = 1;
-  for (int i = 0; i < t->nplans; i++)
-    if (t->plan_keys[i] == plan_key && t->plan_train[i] == t->train && t->plan_size[i] <= t->act_cap &&
-        (!t->train || t->plan_size[i] <= t->dact_cap))
-      t->measuring = 0;
-  if (t->measuring) { /* remember the key; end() stores the size */
-    if (t->nplans == 8) memmove(t->plan_keys, t->plan_keys + 1, 7 * sizeof(uint64_t)),
-                        memmove(t->plan_train, t->plan_train + 1, 7 * sizeof(int)),
-                        memmove(t->plan_size, t->plan_size + 1, 7 * sizeof(size_t)), t->nplans = 7;
-    t->plan_keys[t->nplans] = plan_key;
-    t->plan_train[t->nplans] = t->train;
-    t->plan_size[t->nplans] = 0;
-    t->nplans++;
+  t->cur = NULL;
+  t->phase = 0, t->dcur = t->bcur = 0, t->backward_runs = 0;
+  for (int i = 0; i < t->nplans; i++) {
+    tplan *p = &t->plans[i];
+    if (p->key == plan_key && p->train == t->train && p->retain == t->retain && p->reuse == t->reuse &&
+        p->size <= t->act_cap)
+      t->measuring = 0, t->cur = p;
   }
+  if (t->measuring && t->nplans == TP_MAXPLANS) { /* drop the oldest plan */
+    spx_tp_plan_free(&t->plans[0]);
+    memmove(t->plans, t->plans + 1, (TP_MAXPLANS - 1) * sizeof(tplan));
+    memset(&t->plans[TP_MAXPLANS - 1], 0, sizeof(tplan));
+    t->nplans--;
+  }
+  if (t->measuring) t->plans[t->nplans].key = plan_key; /* end() makes the plan */
   return SPX_OK;
 }
 
 int spx_tape_measuring(const spx_tape *t) { return t->measuring; }
 int spx_tape_plan_count(const spx_tape *t) { return t->nmeasured; }
 
-static spx_status grow_arena(spx_tape *t, size_t need, int grad) {
-  size_t *cap = grad ? &t->dact_cap : &t->act_cap;
-  if (need <= *cap) return SPX_OK;
+static spx_status grow_arena(spx_tape *t, size_t need) {
+  if (need <= t->act_cap) return SPX_OK;
   if (t->backend == SPX_TAPE_DEVICE) {
-    cl_mem *m = grad ? &t->dact : &t->act;
-    spx_cl_free(m);
-    *cap = 0;
-    spx_status st = spx_cl_alloc(t->ctx, need * sizeof(float), grad ? "activation-gradient arena" : "activation arena", m);
+    spx_cl_free(&t->act);
+    t->act_cap = 0;
+    spx_status st = spx_cl_alloc(t->ctx, need * sizeof(float), "activation arena", &t->act);
     if (st) return st;
   } else {
-    double **p = grad ? &t->hdact : &t->hact;
-    free(*p);
-    *cap = 0;
-    *p = calloc(need, sizeof(double));
-    if (!*p) return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for a %zu-float arena", need);
+    free(t->hact);
+    t->act_cap = 0;
+    if (!(t->hact = calloc(need, sizeof(double))))
+      return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for a %zu-float arena", need);
   }
-  *cap = need;
+  t->act_cap = need;
   return SPX_OK;
 }
 
 spx_status spx_tape_end(spx_tape *t, int *again) {
   *again = 0;
   t->in_pass = 0;
+  t->phase = 1;
   if (t->err) return t->err;
-  if (!t->measuring) return SPX_OK;
-  size_t need = t->act_used ? t->act_used : 1;
-  spx_status st = grow_arena(t, need, 0);
-  if (!st && t->train) st = grow_arena(t, need, 1);
+  if (!t->measuring) return t->err = spx_tp_advance(t, 2 * t->nnodes);
+  tplan *p = &t->plans[t->nplans];
+  uint64_t key = p->key;
+  spx_status st = spx_tp_plan(t, p);
   if (st) return st;
-  t->plan_size[t->nplans - 1] = need;
+  p->key = key;
+  t->nplans++;
+  if ((st = grow_arena(t, p->size))) return st;
   t->nmeasured++;
   *again = 1;
   return SPX_OK;
@@ -291,7 +321,7 @@ spx_status spx_tape_end(spx_tape *t, int *again) {
 /* An op may run when no error is pending and the pass is not a measuring one. */
 
 void spx_tp_record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, int s1, const int *iarg, const float *farg) {
-  if (!spx_tp_live(t) || !t->train) return;
+  if (t->err) return;
   if (t->nnodes == t->capnodes) {
     int cap = t->capnodes ? 2 * t->capnodes : 128;
     tnode *nn = realloc(t->nodes, sizeof(tnode) * (size_t)cap);
@@ -313,7 +343,10 @@ void spx_tp_record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, 
   int ng = 0;
   for (int i = 0; i < 3; i++)
     if (nd->in[i] >= 0 && t->vals[nd->in[i]].needs_grad) ng = 1;
-  t->vals[out].needs_grad = ng;
+  t->vals[out].needs_grad = ng && t->train;
+  /* the node runs now: what died before it may be poisoned (its output may reuse that memory) */
+  spx_status st = spx_tp_advance(t, 2 * t->nnodes - 1);
+  if (st) t->err = st;
 }
 
 int spx_tp_bad_id(spx_tape *t, const char *op, int id) {
@@ -332,8 +365,11 @@ int spx_tp_bad_id(spx_tape *t, const char *op, int id) {
 int spx_tape_input(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w, const float *data) {
   if (t->err) return -1;
   int id = spx_tp_new_value(t, SP_ACT, n, c, h, w);
-  if (id < 0 || !spx_tp_live(t) || !data) return id;
-  spx_status st = spx_tape_write(t, id, data);
+  if (id >= 0) t->vals[id].born = 2 * t->nnodes; /* between nodes */
+  if (id < 0 || !spx_tp_live(t)) return id;
+  /* what died before now may be poisoned before the input is written (by data or a transfer) */
+  spx_status st = spx_tp_advance(t, 2 * t->nnodes);
+  if (!st && data) st = spx_tape_write(t, id, data);
   if (st) t->err = st;
   return id;
 }
@@ -376,7 +412,11 @@ static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, i
     return -1;
   }
   int y = spx_tp_new_value(t, SP_ACT, xv->n, wv->n, ho, wo);
-  if (y < 0 || !spx_tp_live(t)) return y;
+  if (y < 0) return -1;
+  int ia[4] = {pad, stride, 0, 0};
+  spx_tp_record(t, OP_CONV, x, w, bias, y, -1, -1, ia, NULL);
+  if (!spx_tp_live(t)) return y;
+  xv = &t->vals[x], wv = &t->vals[w];
   if (HOST) {
     spx_conv2d_shape s = {xv->n, xv->c, xv->h, xv->w, wv->n, k, stride, pad};
     spx_ref_conv2d_forward(&s, HV(x), HV(w), bias >= 0 ? HV(bias) : NULL, scale >= 0 ? HV(scale) : NULL,
@@ -387,8 +427,6 @@ static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, i
     spx_conv2d_params p = {k, stride, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu, &t->ws};
     RUN(OP_CONV, spx_conv2d_forward(t->ctx, &tx, &tw, bias >= 0 ? &tb : NULL, &p, &ty));
   }
-  int ia[4] = {pad, stride, 0, 0};
-  spx_tp_record(t, OP_CONV, x, w, bias, y, -1, -1, ia, NULL);
   return y;
 }
 
@@ -410,7 +448,10 @@ int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int r
   int y = spx_tp_new_value(t, SP_ACT, xv->n, c, xv->h, xv->w);
   int sv = spx_tp_new_value(t, SP_ACT, 2 * c, 1, 1, 1); /* [mean, invstd] of the batch */
   int sync = spx_tape_sync_bn(t), sc = sync ? spx_tp_new_value(t, SP_ACT, 4 * c, 1, 1, 1) : -1; /* rank sums */
-  if (y < 0 || sv < 0 || (sync && sc < 0) || !spx_tp_live(t)) return y;
+  if (y < 0 || sv < 0 || (sync && sc < 0)) return -1;
+  float fa[2] = {momentum, eps};
+  spx_tp_record(t, OP_BN, x, gamma, beta, y, sv, sc, NULL, fa);
+  if (!spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_bn_train_forward(HV(x), xv->n, c, xv->h * xv->w, HV(gamma), HV(beta), HV(rmean), HV(rvar), momentum, eps,
@@ -426,8 +467,6 @@ int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int r
     int upd = !spx_tape_shard_empty(t); /* a stand-in sample never moves the running statistics */
     RUN(OP_BN, spx_bn_train_forward(t->ctx, &tx, &tg, &tb, &trm, &trv, momentum, eps, upd, &ts, &ty));
   }
-  float fa[2] = {momentum, eps};
-  spx_tp_record(t, OP_BN, x, gamma, beta, y, sv, sc, NULL, fa);
   return y;
 }
 
@@ -435,16 +474,17 @@ int spx_tape_act(spx_tape *t, spx_act_kind kind, float slope, int x) {
   if (spx_tp_bad_id(t, "activation", x)) return -1;
   const tvalue *xv = &t->vals[x];
   int y = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, xv->h, xv->w);
-  if (y < 0 || !spx_tp_live(t)) return y;
+  if (y < 0) return -1;
+  int ia[4] = {(int)kind, 0, 0, 0};
+  float fa[2] = {slope, 0};
+  spx_tp_record(t, OP_ACT, x, -1, -1, y, -1, -1, ia, fa);
+  if (!spx_tp_live(t)) return y;
   if (HOST) {
     spx_ref_act_forward(kind, slope, HV(x), HV(y), spx_tape_numel(t, x));
   } else {
     spx_tensor tx = TV(x), ty = TV(y);
     RUN(OP_ACT, spx_act_forward(t->ctx, kind, slope, &tx, &ty));
   }
-  int ia[4] = {(int)kind, 0, 0, 0};
-  float fa[2] = {slope, 0};
-  spx_tp_record(t, OP_ACT, x, -1, -1, y, -1, -1, ia, fa);
   return y;
 }
 
@@ -452,7 +492,9 @@ int spx_tape_maxpool2(spx_tape *t, int x) {
   if (spx_tp_bad_id(t, "maxpool", x)) return -1;
   const tvalue *xv = &t->vals[x];
   int y = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, xv->h / 2, xv->w / 2);
-  if (y < 0 || !spx_tp_live(t)) return y;
+  if (y < 0) return -1;
+  spx_tp_record(t, OP_MAXPOOL, x, -1, -1, y, -1, -1, NULL, NULL);
+  if (!spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_maxpool_forward(HV(x), xv->n, xv->c, xv->h, xv->w, HV(y));
@@ -460,7 +502,6 @@ int spx_tape_maxpool2(spx_tape *t, int x) {
     spx_tensor tx = TV(x), ty = TV(y);
     RUN(OP_MAXPOOL, spx_maxpool_forward(t->ctx, &tx, &ty));
   }
-  spx_tp_record(t, OP_MAXPOOL, x, -1, -1, y, -1, -1, NULL, NULL);
   return y;
 }
 
@@ -468,7 +509,9 @@ int spx_tape_upsample2(spx_tape *t, int x) {
   if (spx_tp_bad_id(t, "upsample", x)) return -1;
   const tvalue *xv = &t->vals[x];
   int y = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, xv->h * 2, xv->w * 2);
-  if (y < 0 || !spx_tp_live(t)) return y;
+  if (y < 0) return -1;
+  spx_tp_record(t, OP_UPSAMPLE, x, -1, -1, y, -1, -1, NULL, NULL);
+  if (!spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_upsample2x_forward(HV(x), xv->n, xv->c, xv->h, xv->w, 1, HV(y));
@@ -476,7 +519,6 @@ int spx_tape_upsample2(spx_tape *t, int x) {
     spx_tensor tx = TV(x), ty = TV(y);
     RUN(OP_UPSAMPLE, spx_upsample2x_forward(t->ctx, &tx, 1, &ty));
   }
-  spx_tp_record(t, OP_UPSAMPLE, x, -1, -1, y, -1, -1, NULL, NULL);
   return y;
 }
 
@@ -485,7 +527,10 @@ int spx_tape_pad(spx_tape *t, int x, int left, int right, int top, int bottom) {
   if (!left && !right && !top && !bottom) return x;
   const tvalue *xv = &t->vals[x];
   int y = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, xv->h + top + bottom, xv->w + left + right);
-  if (y < 0 || !spx_tp_live(t)) return y;
+  if (y < 0) return -1;
+  int ia[4] = {left, right, top, bottom};
+  spx_tp_record(t, OP_PAD, x, -1, -1, y, -1, -1, ia, NULL);
+  if (!spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_pad_forward(HV(x), xv->n, xv->c, xv->h, xv->w, left, right, top, bottom, HV(y));
@@ -493,8 +538,6 @@ int spx_tape_pad(spx_tape *t, int x, int left, int right, int top, int bottom) {
     spx_tensor tx = TV(x), ty = TV(y);
     RUN(OP_PAD, spx_pad_forward(t->ctx, &tx, left, right, top, bottom, &ty));
   }
-  int ia[4] = {left, right, top, bottom};
-  spx_tp_record(t, OP_PAD, x, -1, -1, y, -1, -1, ia, NULL);
   return y;
 }
 
@@ -507,7 +550,9 @@ int spx_tape_concat(spx_tape *t, int a, int b) {
     return -1;
   }
   int y = spx_tp_new_value(t, SP_ACT, av->n, av->c + bv->c, av->h, av->w);
-  if (y < 0 || !spx_tp_live(t)) return y;
+  if (y < 0) return -1;
+  spx_tp_record(t, OP_CONCAT, a, b, -1, y, -1, -1, NULL, NULL);
+  if (!spx_tp_live(t)) return y;
   av = &t->vals[a], bv = &t->vals[b];
   if (HOST) {
     spx_ref_concat_forward(HV(a), HV(b), av->n, av->c, bv->c, av->h * av->w, HV(y));
@@ -515,7 +560,6 @@ int spx_tape_concat(spx_tape *t, int a, int b) {
     spx_tensor ta = TV(a), tb = TV(b), ty = TV(y);
     RUN(OP_CONCAT, spx_concat_forward(t->ctx, &ta, &tb, &ty));
   }
-  spx_tp_record(t, OP_CONCAT, a, b, -1, y, -1, -1, NULL, NULL);
   return y;
 }
 
@@ -527,14 +571,15 @@ int spx_tape_l1(spx_tape *t, int pred, int target) {
     return -1;
   }
   int y = spx_tp_new_value(t, SP_ACT, 1, 1, 1, 1);
-  if (y < 0 || !spx_tp_live(t)) return y;
+  if (y < 0) return -1;
+  spx_tp_record(t, OP_L1, pred, target, -1, y, -1, -1, NULL, NULL);
+  if (!spx_tp_live(t)) return y;
   if (HOST) {
     *HV(y) = spx_ref_loss_forward(SPX_LOSS_L1, SPX_REDUCE_MEAN, HV(pred), HV(target), spx_tape_numel(t, pred));
   } else {
     spx_tensor tp = TV(pred), tt = TV(target), ty = TV(y);
     RUN(OP_L1, spx_loss_forward(t->ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &tp, &tt, &ty));
   }
-  spx_tp_record(t, OP_L1, pred, target, -1, y, -1, -1, NULL, NULL);
   return y;
 }
 
@@ -560,7 +605,7 @@ static spx_status back_host(spx_tape *t, const tnode *nd) {
     case OP_ACT: {
       spx_act_kind k = (spx_act_kind)nd->iarg[0];
       if (spx_tp_wants(t, nd->in[0]))
-        spx_ref_act_backward(k, nd->farg[0], spx_act_saves_output(k) ? HV(nd->out) : HV(nd->in[0]), dy,
+        spx_ref_act_backward(k, nd->farg[0], spx_tp_act_uses_output(k, nd->farg[0]) ? HV(nd->out) : HV(nd->in[0]), dy,
                              HG(nd->in[0]), spx_tp_numel(xv));
       break;
     }
@@ -618,7 +663,7 @@ static spx_status back_dev(spx_tape *t, const tnode *nd) {
     }
     case OP_ACT: {
       spx_act_kind k = (spx_act_kind)nd->iarg[0];
-      spx_tensor s = spx_act_saves_output(k) ? TV(nd->out) : x;
+      spx_tensor s = spx_tp_act_uses_output(k, nd->farg[0]) ? TV(nd->out) : x;
       return pdx ? spx_act_backward(ctx, k, nd->farg[0], &s, &dy, pdx) : SPX_OK;
     }
     case OP_MAXPOOL:
@@ -641,20 +686,33 @@ static spx_status back_dev(spx_tape *t, const tnode *nd) {
   return SPX_OK;
 }
 
-spx_status spx_tape_backward_begin(spx_tape *t) {
+static spx_status need_backward(spx_tape *t) {
   if (t->err) return t->err;
   if (!t->train || t->measuring || t->in_pass)
     return spx_fail(t->ctx, SPX_E_STATE, "tape: backward needs a finished training forward");
-  if (HOST) {
-    memset(t->hdact, 0, t->act_used * sizeof(double));
-    return SPX_OK;
-  }
-  return spx_cl_fill_f32(t->ctx, t->dact, 0, t->act_used, 0.0f);
+  return SPX_OK;
+}
+
+spx_status spx_tape_backward_begin(spx_tape *t) {
+  spx_status st = need_backward(t);
+  if (st || (st = spx_tp_train_slabs(t))) return st;
+  if (t->backward_runs && !t->retain)
+    return spx_fail(t->ctx, SPX_E_STATE,
+                    "tape: a second backward over one forward pass needs spx_tape_set_retain(t, 1) before the pass");
+  /* gradients are zeroed when they are born: those born here now, the others in backward_run */
+  t->phase = 2;
+  int tb = 2 * t->nnodes + 1;
+  t->dcur = t->bcur = 0;
+  while (t->dcur < t->cur->ndeaths && t->cur->deaths[t->dcur].time < tb) t->dcur++;
+  return spx_tp_advance(t, tb);
 }
 
 spx_status spx_tape_seed(spx_tape *t, int id, float value) {
   if (!spx_tp_valid(t, id) || spx_tp_numel(&t->vals[id]) != 1 || t->vals[id].space != SP_ACT)
     return spx_fail(t->ctx, SPX_E_ARG, "tape: backward from a value that is not a scalar activation");
+  spx_status st = t->phase == 2 ? spx_tp_check_live(t, id, 1, "seed")
+                                : spx_fail(t->ctx, SPX_E_STATE, "tape: seed outside backward_begin / backward_run");
+  if (st) return st;
   value *= spx_tape_seed_scale(t); /* this rank's share of the global batch (1 without a shard) */
   if (HOST) {
     spx_tape_host_grad(t, id)[0] += value;
@@ -662,43 +720,45 @@ spx_status spx_tape_seed(spx_tape *t, int id, float value) {
   }
   spx_tensor g = spx_tape_grad_tensor(t, id);
   float cur = 0;
-  spx_status st = spx_cl_read(t->ctx, g.mem, g.off * sizeof(float), sizeof cur, &cur);
+  st = spx_cl_read(t->ctx, g.mem, g.off * sizeof(float), sizeof cur, &cur);
   if (!st) st = spx_cl_fill_f32(t->ctx, g.mem, g.off, 1, cur + value);
   return st;
 }
 
 spx_status spx_tape_backward_run(spx_tape *t) {
-  spx_status st;
-  if (t->err) return t->err;
-  if (!t->train || t->measuring || t->in_pass)
-    return spx_fail(t->ctx, SPX_E_STATE, "tape: backward needs a finished training forward");
-  for (int i = t->nnodes - 1; i >= 0; i--) {
+  spx_status st = need_backward(t);
+  if (st) return st;
+  if (t->phase != 2) return spx_fail(t->ctx, SPX_E_STATE, "tape: backward_run without backward_begin");
+  int n = t->nnodes;
+  for (int i = n - 1; i >= 0; i--) {
     const tnode *nd = &t->nodes[i];
     if (!t->vals[nd->out].needs_grad) continue;
+    if ((st = spx_tp_advance(t, 4 * n - 2 * i + 1))) return st;
     double t0 = t->prof ? prof_begin(t) : 0;
     if ((st = HOST ? back_host(t, nd) : back_dev(t, nd))) return st;
     if (t->prof) prof_end(t, nd->kind, 1, t0);
   }
-  return SPX_OK;
+  t->phase = 3;
+  t->backward_runs++;
+  return spx_tp_advance(t, 4 * n + 2);
 }
 
 spx_status spx_tape_backward(spx_tape *t, int loss) {
-  spx_status st;
-  if (t->err) return t->err;
-  if (!t->train || t->measuring || t->in_pass)
-    return spx_fail(t->ctx, SPX_E_STATE, "tape: backward needs a finished training forward");
+  spx_status st = need_backward(t);
+  if (st) return st;
   if (!spx_tp_valid(t, loss) || spx_tp_numel(&t->vals[loss]) != 1 || t->vals[loss].space != SP_ACT)
     return spx_fail(t->ctx, SPX_E_ARG, "tape: backward from a value that is not a scalar activation");
-  /* zero the activation gradients of this pass, seed d loss = 1 */
-  if ((st = spx_tape_backward_begin(t))) return st;
+  /* activation gradients of this pass zeroed as they are born, d loss = 1 (this rank's share) */
+  if ((st = spx_tape_backward_begin(t)) || (st = spx_tp_check_live(t, loss, 1, "backward"))) return st;
   float seed = spx_tape_seed_scale(t); /* 1 without a shard */
   if (HOST) spx_tape_host_grad(t, loss)[0] = seed;
-  else if ((st = spx_cl_fill_f32(t->ctx, t->dact, t->vals[loss].off, 1, seed))) return st;
+  else if ((st = spx_cl_fill_f32(t->ctx, t->act, t->vals[loss].goff, 1, seed))) return st;
   return spx_tape_backward_run(t);
 }
 
 spx_status spx_tape_zero_grad(spx_tape *t) {
-  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  spx_status st = spx_tp_train_slabs(t);
+  if (st) return st;
   if (HOST) {
     memset(t->hgrad, 0, t->nparam * sizeof(double));
     return SPX_OK;
@@ -707,24 +767,25 @@ spx_status spx_tape_zero_grad(spx_tape *t) {
 }
 
 spx_status spx_tape_zero_moments(spx_tape *t) {
-  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  spx_status st = spx_tp_train_slabs(t);
+  if (st) return st;
   if (HOST) {
     memset(t->hm, 0, t->nparam * sizeof(double));
     memset(t->hv, 0, t->nparam * sizeof(double));
     return SPX_OK;
   }
-  spx_status st = SPX_OK;
   if (t->nparam && !(st = spx_cl_fill_f32(t->ctx, t->m, 0, t->nparam, 0.0f)))
     st = spx_cl_fill_f32(t->ctx, t->v, 0, t->nparam, 0.0f);
   return st;
 }
 
 spx_status spx_tape_adam(spx_tape *t, double lr, double beta1, double beta2, double eps, int64_t step) {
-  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  spx_status st = spx_tp_train_slabs(t);
+  if (st) return st;
   if (step < 1) return spx_fail(t->ctx, SPX_E_ARG, "tape: Adam step number %lld < 1", (long long)step);
   if (!t->nparam) return SPX_OK;
   if (t->nparam > (size_t)INT32_MAX) return spx_fail(t->ctx, SPX_E_ARG, "tape: %zu parameters is too many", t->nparam);
-  spx_status st = spx_tape_grad_allreduce(t); /* data-parallel: the global batch's gradient */
+  st = spx_tape_grad_allreduce(t); /* data-parallel: the global batch's gradient */
   if (st) return st;
   spx_adam_params hp = {lr, beta1, beta2, eps, 0.0};
   if (HOST) {

@@ -2,7 +2,7 @@
  *
  * A tape owns every float of a network: trainable parameters, their gradients and Adam moments
  * (four flat slabs with the same layout, so an optimizer step is one kernel), non-trainable
- * state (batch-norm running statistics), and an activation arena + activation-gradient arena
+ * state (batch-norm running statistics), and one arena for the activations and activation gradients
  * for the forward/backward of one input shape.
  *
  * Values are small integer ids. Parameters and state are declared once (spx_tape_param /
@@ -12,13 +12,14 @@
  * ids, integer args) to the tape. In inference mode nothing is recorded.
  *
  * Memory is planned once per input shape: when begin() sees a plan key it has not planned, the
- * pass is a MEASURING pass: ops only assign arena offsets (bump allocation, deterministic) and
- * run nothing; end() then sizes the arenas (grow-only) and asks the caller to run the pass again
+ * pass is a MEASURING pass: ops only record the graph and run nothing; end() then plans the
+ * arena offsets by liveness (lib/nn/tape_plan.c), sizes the arena (grow-only) and asks the
+ * caller to run the pass again
  *   do { spx_tape_begin(t, train, key); ...ops...; st = spx_tape_end(t, &again); } while (!st && again);
  * so the steady state creates no buffers at all.
  *
  * spx_tape_backward(t, loss) walks the nodes in reverse; every op's backward ACCUMULATES into the
- * gradients of its inputs (activation gradients are zeroed first; parameter gradients are only
+ * gradients of its inputs (activation gradients are zeroed when their storage is born; parameter gradients are only
  * zeroed by spx_tape_zero_grad, so gradients of several backward passes add up).
  *
  * Two backends with identical semantics: DEVICE (float32 cl_mem slabs, the lib/nn launchers)
@@ -48,8 +49,8 @@ int spx_tape_state(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w); /* 
 /* Allocate and zero the param/grad/m/v and state slabs. */
 spx_status spx_tape_alloc_params(spx_tape *t);
 size_t spx_tape_param_count(const spx_tape *t); /* floats in the parameter slab */
-/* Bytes of every device buffer the tape holds now: the param/grad/Adam/state slabs, the two
- * activation arenas and the convolution workspace (all grow-only, so after a pass this is the
+/* Bytes of every device buffer the tape holds now: the param/grad/Adam/state slabs, the
+ * activation arena and the convolution workspace (all grow-only, so after a pass this is the
  * pass's peak, less the short-lived per-call scratch of a few ops). 0 on the host backend. */
 size_t spx_tape_device_bytes(const spx_tape *t);
 
@@ -116,6 +117,11 @@ int spx_tape_slice_batch(spx_tape *t, int x, int n0, int count);
 /* Mark an activation (an input) as wanting its gradient: call right after creating it, before
  * any op uses it. Its gradient is then readable after backward (spx_tape_read_grad / transfer). */
 spx_status spx_tape_requires_grad(spx_tape *t, int id);
+/* Keep an activation (and its gradient) alive to the end of the pass and its backward, for reads
+ * or gradient transfers from outside after its last reader inside the tape has run. Call it in
+ * every pass (measuring included), like requires_grad. Values nothing reads (the outputs) are
+ * kept without it. */
+spx_status spx_tape_keep(spx_tape *t, int id);
 /* Copy (accumulate = 0) or add (accumulate = 1) `count` floats from the value or gradient
  * (src_grad) of src's value sid at float offset soff into the value or gradient (dst_grad) of
  * dst's value did at offset doff. Tapes of one context and backend; the device path stays on the
@@ -123,6 +129,23 @@ spx_status spx_tape_requires_grad(spx_tape *t, int id);
  * back (D's input gradient into G's output gradient, between backward_begin and backward_run). */
 spx_status spx_tape_transfer(spx_tape *dst, int did, size_t doff, int dst_grad, spx_tape *src, int sid, size_t soff,
                              int src_grad, size_t count, int accumulate);
+
+/* ---- memory (lib/nn/tape_plan.c) ----
+ * All activations and activation gradients of a pass live in ONE arena, at offsets the measuring
+ * pass plans from the recorded graph: a value's storage is reused once nothing later in the
+ * forward or the backward reads it (see tape_plan.c for the rules). Reading a value or gradient
+ * after its storage was given away fails with SPX_E_STATE (spx_tape_keep it). */
+/* Bytes of the arena the current pass's plan needs, and (without_reuse, may be NULL) the sum of all
+ * its activations and gradients, i.e. what it would need without reuse. 0 before a planned pass. */
+size_t spx_tape_plan_bytes(const spx_tape *t, size_t *without_reuse);
+/* Backward may run more than once over one forward (torch's retain_graph): everything backward
+ * reads stays alive. Set before the pass; plans are made per setting. */
+void spx_tape_set_retain(spx_tape *t, int on);
+/* 0: no reuse at all (every value keeps its own memory; tests compare against it). Default 1. */
+void spx_tape_set_reuse(spx_tape *t, int on);
+/* Debug: fill every storage with NaN the moment it dies (also SPX_TAPE_POISON=1 in the
+ * environment), so a read after the planned last use shows in the results. */
+void spx_tape_set_poison(spx_tape *t, int on);
 
 /* ---- backward and optimizer ---- */
 /* backward(t, loss) = backward_begin (activation gradients of the pass zeroed) + seed(loss, 1) +

@@ -13,10 +13,46 @@ enum { SP_ACT = 0, SP_PARAM = 1, SP_STATE = 2 };
 
 typedef struct tvalue {
   int space;
-  size_t off; /* floats from the start of its slab / arena */
+  size_t off;  /* floats from the start of its slab / arena */
+  size_t goff; /* activations: its gradient's offset in the same arena (params: = off in the grad slab) */
   int32_t n, c, h, w;
   int needs_grad;
+  int root;   /* activations: the value owning the storage (itself, or what detach/slice aliased) */
+  size_t delta; /* floats from root's storage to this value's */
+  int born;   /* time the value was created (lib/nn/tape_plan.c: 2k before node k, 2k+1 by node k) */
+  int flags;  /* TV_KEEP, TV_REQGRAD */
 } tvalue;
+
+enum { TV_KEEP = 1, TV_REQGRAD = 2 };
+#define TP_INF 0x7fffffff /* "until the tape is reused": kept values */
+
+/* One value of a planned pass (index id - npersist): its size, planned offsets and the live
+ * intervals [d0, d1] (data) and [g0, g1] (gradient; g0 = TP_INF: no gradient storage) of its
+ * storage, in the time units of lib/nn/tape_plan.c. */
+typedef struct tpval {
+  size_t numel, off, goff;
+  int flags, needs_grad;
+  int d0, d1, g0, g1;
+} tpval;
+
+/* A region to poison (debug mode) or zero (gradient birth) at a time. */
+typedef struct tpevent {
+  int time;
+  size_t off, n;
+} tpevent;
+
+typedef struct tplan {
+  uint64_t key;
+  int train, retain, reuse;
+  size_t size; /* floats of the arena the plan needs */
+  size_t sum;  /* floats of all its values and gradients without reuse (reporting) */
+  int nv, nnodes;
+  tpval *v;
+  tpevent *deaths, *births; /* sorted by time */
+  int ndeaths, nbirths;
+} tplan;
+
+#define TP_MAXPLANS 8
 
 enum { OP_CONV, OP_BN, OP_ACT, OP_MAXPOOL, OP_UPSAMPLE, OP_PAD, OP_CONCAT, OP_L1,
        /* lib/nn/tape_multi.c */
@@ -41,18 +77,20 @@ struct spx_tape {
   size_t nparam, nstate; /* floats */
   int allocated;
   /* slabs: device */
-  cl_mem param, grad, m, v, state, act, dact;
-  size_t act_cap, dact_cap; /* floats */
+  cl_mem param, grad, m, v, state, act; /* act: one arena for activations and their gradients */
+  size_t act_cap;                         /* floats */
   /* slabs: host */
-  double *hparam, *hgrad, *hm, *hv, *hstate, *hact, *hdact;
+  double *hparam, *hgrad, *hm, *hv, *hstate, *hact;
   /* current pass */
-  size_t act_used;
   int train, measuring, in_pass;
   spx_status err;
-  /* plans: keys already measured, with their sizes */
-  uint64_t plan_keys[8];
-  int plan_train[8];
-  size_t plan_size[8];
+  /* liveness (lib/nn/tape_plan.c): the plan of this pass (NULL while measuring), where the pass
+   * is (0 forward, 1 ended, 2 backward begun, 3 backward done), event cursors, options */
+  tplan *cur;
+  int phase, backward_runs, dcur, bcur;
+  int retain, reuse, poison;
+  /* plans: one per measured key, oldest dropped first */
+  tplan plans[TP_MAXPLANS];
   int nplans;
   int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
   spx_conv2d_workspace ws; /* conv scratch, grow-only: no allocation in the steady state */
@@ -85,11 +123,26 @@ int spx_tp_new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, in
 void spx_tp_record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, int s1, const int *iarg,
                    const float *farg);
 int spx_tp_bad_id(spx_tape *t, const char *op, int id);
+spx_status spx_tp_train_slabs(spx_tape *t); /* the gradient / Adam slabs, made on first need */
 static inline int spx_tp_valid(const spx_tape *t, int id) { return id >= 0 && id < t->nvals; }
 static inline int spx_tp_live(const spx_tape *t) { return !t->err && !t->measuring; }
 static inline int spx_tp_wants(const spx_tape *t, int id) { return id >= 0 && t->vals[id].needs_grad; }
 static inline size_t spx_tp_numel(const tvalue *v) {
   return (size_t)v->n * (size_t)v->c * (size_t)v->h * (size_t)v->w;
+}
+/* tape_plan.c: liveness plans */
+spx_status spx_tp_plan(spx_tape *t, tplan *p);       /* at the end of a measuring pass */
+void spx_tp_plan_free(tplan *p);
+void spx_tp_place(spx_tape *t, int id);              /* a new activation's offsets from the plan */
+spx_status spx_tp_advance(spx_tape *t, int time);    /* poison deaths before `time`, zero births up to it */
+int spx_tp_now(const spx_tape *t);                   /* the current time between steps */
+/* 0 when value id's data (grad = 0) or gradient (grad = 1) is live now; else records an error. */
+spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what);
+/* Backward of node i reads the data of these activations (up to 3, -1 padded). */
+void spx_tp_back_reads(const spx_tape *t, const tnode *nd, int r[3]);
+/* ReLU / LeakyReLU (slope >= 0) backward from the output: the same mask as from the input. */
+static inline int spx_tp_act_uses_output(spx_act_kind k, float slope) {
+  return spx_act_saves_output(k) || k == SPX_ACT_RELU || (k == SPX_ACT_LEAKY_RELU && slope >= 0.0f);
 }
 /* tape_dist.c: the synchronised batch norm's view of the ranks for input value x */
 spx_status spx_tape_bn_sync(spx_tape *t, int x, spx_bn_sync *out);
@@ -110,7 +163,6 @@ spx_status spx_tp_back_multi(spx_tape *t, const tnode *nd);
 
 #define HOST (t->backend == SPX_TAPE_HOST)
 #define TV(id) spx_tape_tensor(t, (id))
-#define HV(id) spx_tape_host(t, (id))
 #define HV(id) spx_tape_host(t, (id))
 
 #endif

@@ -23,7 +23,8 @@ static int alias(spx_tape *t, int x, size_t off, int32_t n, int needs_grad) {
   }
   tvalue *v = &t->vals[t->nvals];
   *v = t->vals[x];
-  v->off += off;
+  v->off += off, v->goff += off, v->delta += off; /* root: x's */
+  v->flags = 0;
   v->n = n;
   v->needs_grad = needs_grad;
   return t->nvals++;
@@ -45,20 +46,37 @@ int spx_tape_slice_batch(spx_tape *t, int x, int n0, int count) {
   return alias(t, x, (size_t)n0 * per, count, v->needs_grad);
 }
 
-spx_status spx_tape_requires_grad(spx_tape *t, int id) {
+/* Set a plan-relevant flag on an activation; the measuring pass must have set it too. */
+static spx_status set_flag(spx_tape *t, int id, int flag, const char *what) {
   if (t->err) return t->err;
-  if (!spx_tp_valid(t, id) || t->vals[id].space != SP_ACT)
-    return t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: requires_grad on %d, which is not an activation", id);
-  t->vals[id].needs_grad = 1;
+  if (!spx_tp_valid(t, id) || t->vals[id].space != SP_ACT || !t->in_pass)
+    return t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: %s on %d, which is not an activation of this pass", what, id);
+  if (t->cur && !(t->cur->v[id - t->npersist].flags & flag))
+    return t->err = spx_fail(t->ctx, SPX_E_STATE,
+                             "tape: %s on value %d in a pass whose measuring pass did not call it (call it in "
+                             "every pass)",
+                             what, id);
+  t->vals[id].flags |= flag;
   return SPX_OK;
 }
+
+spx_status spx_tape_requires_grad(spx_tape *t, int id) {
+  spx_status st = set_flag(t, id, TV_REQGRAD, "requires_grad");
+  if (!st) t->vals[id].needs_grad = 1;
+  return st;
+}
+
+spx_status spx_tape_keep(spx_tape *t, int id) { return set_flag(t, id, TV_KEEP, "keep"); }
 
 int spx_tape_instnorm(spx_tape *t, int x, float eps) {
   if (spx_tp_bad_id(t, "instnorm", x)) return -1;
   const tvalue *xv = &t->vals[x];
   int y = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, xv->h, xv->w);
   int sv = spx_tp_new_value(t, SP_ACT, 2 * t->vals[x].n * t->vals[x].c, 1, 1, 1); /* [mean, invstd] per plane */
-  if (y < 0 || sv < 0 || !spx_tp_live(t)) return y;
+  if (y < 0 || sv < 0) return -1;
+  float fa[2] = {eps, 0};
+  spx_tp_record(t, OP_INSTNORM, x, -1, -1, y, sv, -1, NULL, fa);
+  if (!spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_instnorm_forward(HV(x), xv->n * xv->c, xv->h * xv->w, eps, HV(sv), HV(y));
@@ -66,8 +84,6 @@ int spx_tape_instnorm(spx_tape *t, int x, float eps) {
     spx_tensor tx = TV(x), ts = TV(sv), ty = TV(y);
     RUN(OP_INSTNORM, spx_instnorm_forward(t->ctx, &tx, eps, &ts, &ty));
   }
-  float fa[2] = {eps, 0};
-  spx_tp_record(t, OP_INSTNORM, x, -1, -1, y, sv, -1, NULL, fa);
   return y;
 }
 
@@ -75,7 +91,9 @@ int spx_tape_avgpool3(spx_tape *t, int x) {
   if (spx_tp_bad_id(t, "avgpool3", x)) return -1;
   const tvalue *xv = &t->vals[x];
   int y = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, spx_avgpool3_out(xv->h), spx_avgpool3_out(xv->w));
-  if (y < 0 || !spx_tp_live(t)) return y;
+  if (y < 0) return -1;
+  spx_tp_record(t, OP_AVGPOOL3, x, -1, -1, y, -1, -1, NULL, NULL);
+  if (!spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_avgpool3_forward(HV(x), xv->n, xv->c, xv->h, xv->w, HV(y));
@@ -83,7 +101,6 @@ int spx_tape_avgpool3(spx_tape *t, int x) {
     spx_tensor tx = TV(x), ty = TV(y);
     RUN(OP_AVGPOOL3, spx_avgpool3_forward(t->ctx, &tx, &ty));
   }
-  spx_tp_record(t, OP_AVGPOOL3, x, -1, -1, y, -1, -1, NULL, NULL);
   return y;
 }
 
@@ -92,7 +109,10 @@ int spx_tape_mse_const(spx_tape *t, int x, float target) {
   const tvalue *xv = &t->vals[x];
   int c = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, xv->h, xv->w); /* the constant target, filled */
   int y = spx_tp_new_value(t, SP_ACT, 1, 1, 1, 1);
-  if (c < 0 || y < 0 || !spx_tp_live(t)) return y;
+  if (c < 0 || y < 0) return -1;
+  float fa[2] = {target, 0};
+  spx_tp_record(t, OP_MSE_CONST, x, c, -1, y, -1, -1, NULL, fa);
+  if (!spx_tp_live(t)) return y;
   size_t n = spx_tp_numel(&t->vals[x]);
   if (HOST) {
     double *pc = HV(c);
@@ -103,8 +123,6 @@ int spx_tape_mse_const(spx_tape *t, int x, float target) {
     RUN(OP_MSE_CONST, spx_fill(t->ctx, &tc, target));
     RUN(OP_MSE_CONST, spx_loss_forward(t->ctx, SPX_LOSS_MSE, SPX_REDUCE_MEAN, &tx, &tc, &ty));
   }
-  float fa[2] = {target, 0};
-  spx_tp_record(t, OP_MSE_CONST, x, c, -1, y, -1, -1, NULL, fa);
   return y;
 }
 
@@ -117,7 +135,10 @@ int spx_tape_axpby(spx_tape *t, float a, int x, float b, int z) {
     return -1;
   }
   int y = spx_tp_new_value(t, SP_ACT, xv->n, xv->c, xv->h, xv->w);
-  if (y < 0 || !spx_tp_live(t)) return y;
+  if (y < 0) return -1;
+  float fa[2] = {a, b};
+  spx_tp_record(t, OP_AXPBY, x, z, -1, y, -1, -1, NULL, fa);
+  if (!spx_tp_live(t)) return y;
   if (HOST) {
     const double *px = HV(x), *pz = z >= 0 ? HV(z) : NULL;
     double *py = HV(y);
@@ -128,8 +149,6 @@ int spx_tape_axpby(spx_tape *t, float a, int x, float b, int z) {
     RUN(OP_AXPBY, spx_scale(t->ctx, a, &ty));
     if (z >= 0) RUN(OP_AXPBY, spx_axpy(t->ctx, b, &tz, &ty));
   }
-  float fa[2] = {a, b};
-  spx_tp_record(t, OP_AXPBY, x, z, -1, y, -1, -1, NULL, fa);
   return y;
 }
 
@@ -200,6 +219,10 @@ spx_status spx_tape_transfer(spx_tape *dst, int did, size_t doff, int dst_grad, 
                     spx_tp_numel(dv), spx_tp_numel(sv));
   if ((dst_grad && dv->space == SP_STATE) || (src_grad && sv->space == SP_STATE))
     return spx_fail(ctx, SPX_E_ARG, "tape: transfer: state has no gradient");
+  spx_status st = spx_tp_check_live(dst, did, dst_grad, "transfer to");
+  if (!st && dst_grad && dv->space == SP_PARAM) st = spx_tp_train_slabs(dst);
+  if (!st && src_grad && sv->space == SP_PARAM) st = spx_tp_train_slabs(src);
+  if (st || (st = spx_tp_check_live(src, sid, src_grad, "transfer from"))) return st;
   if (dst->backend == SPX_TAPE_HOST) {
     double *d = (dst_grad ? spx_tape_host_grad(dst, did) : spx_tape_host(dst, did));
     const double *s = (src_grad ? spx_tape_host_grad(src, sid) : spx_tape_host(src, sid));

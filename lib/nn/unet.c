@@ -310,6 +310,7 @@ static spx_status run_forward(spx_unet *u, const float *input, cl_mem dev_in, si
     x = up_block(u, x, x1, 8, train);
     y = spx_tape_conv(t, x, u->outw, u->outb, 0, -1, -1, 0);
     if (u->sigmoid) y = spx_tape_act(t, SPX_ACT_SIGMOID, 0.0f, y);
+    if (y >= 0) spx_tape_keep(t, y); /* read by the caller; the GAN step hands gradients into it */
     if (target) {
       tg = spx_tape_input(t, n, SPX_UNET_OUT_CHANNELS, h, w, target);
       l = spx_tape_l1(t, y, tg);

@@ -31,6 +31,14 @@ spx_status spx_device_get_info(spx_ctx *ctx, spx_device_info *out);
 /* Wait for all queued device work. */
 spx_status spx_device_finish(spx_ctx *ctx);
 
+/* Device memory the library holds on ctx (every buffer it creates: network slabs and arenas,
+ * workspaces, per-call scratch, device tensors, renderer buffers): bytes alive now, and the most
+ * alive at once since the context was created or spx_device_reset_peak (which sets it to the
+ * live bytes). 0 without a device. */
+size_t spx_device_live_bytes(const spx_ctx *ctx);
+size_t spx_device_peak_bytes(const spx_ctx *ctx);
+void spx_device_reset_peak(spx_ctx *ctx);
+
 /* Enumerate all OpenCL devices on all platforms (no context needed). Writes up to max
  * entries to out (may be NULL) and the total to *count. */
 spx_status spx_device_list(spx_ctx *ctx, spx_device_info *out, int max, int *count);

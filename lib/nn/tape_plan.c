@@ -1,0 +1,268 @@
+/* Liveness plans of the tape (lib/nn/tape.h): from the graph a measuring pass recorded, when every
+ * activation and every activation gradient is live, and where in the one arena each one goes so
+ * that no two live at the same time overlap.
+ *
+ * Time: the steps of a pass in order. Node k of the forward runs at 2k + 1; an input created
+ * before node k is born at 2k (the gaps between nodes are even). With N nodes: the forward ends at
+ * 2N, backward_begin runs at 2N + 1, seeds and gradient transfers happen at 2N + 2, the backward of
+ * node j runs at 4N - 2j + 1 (node N-1 first, at 2N + 3) and the backward ends at 4N + 2.
+ *
+ * A storage (a value and the detach / slice aliases of it) holds its data from its birth to its
+ * last reader: forward ops reading it, and backward steps that read saved activations
+ * (spx_tp_back_reads). Storage that nothing reads (the outputs of the pass), storage marked with
+ * spx_tape_keep and, under spx_tape_set_retain, everything backward reads lives to the end
+ * (TP_INF). Its gradient lives from the first backward step that adds to it to the backward step
+ * of its producer; gradients that can be seeded or handed in from outside (no producer inside the
+ * tape adds to them, outputs, kept values) are born at backward_begin, and gradients of kept or
+ * requires_grad values live to the end. A gradient is zeroed at its birth.
+ *
+ * Offsets: the storages (data and gradient separately) sorted by size, largest first (ties by
+ * value id), each put at the lowest offset (16-float aligned) that overlaps no storage placed
+ * before it whose interval meets its own. All of it depends only on the recorded graph, so a pass
+ * always gets the same layout and the results do not depend on reuse. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "nn/tape_internal.h"
+
+#define ALIGN 16
+
+void spx_tp_plan_free(tplan *p) {
+  free(p->v), free(p->deaths), free(p->births);
+  memset(p, 0, sizeof *p);
+}
+
+void spx_tp_back_reads(const spx_tape *t, const tnode *nd, int r[3]) {
+  r[0] = r[1] = r[2] = -1;
+  int wx = spx_tp_wants(t, nd->in[0]);
+  switch (nd->kind) {
+    case OP_CONV: /* x for the weight gradient only; the data gradient needs w and dy */
+      if (spx_tp_wants(t, nd->in[1])) r[0] = nd->in[0];
+      break;
+    case OP_BN: /* saved[1]: the synchronised batch norm's rank sums (-1 without) */
+      r[0] = nd->in[0], r[1] = nd->saved[0], r[2] = nd->saved[1];
+      break;
+    case OP_ACT:
+      if (wx) r[0] = spx_tp_act_uses_output((spx_act_kind)nd->iarg[0], nd->farg[0]) ? nd->out : nd->in[0];
+      break;
+    case OP_MAXPOOL:
+      if (wx) r[0] = nd->in[0];
+      break;
+    case OP_L1:
+    case OP_MSE_CONST:
+      if (wx) r[0] = nd->in[0], r[1] = nd->in[1];
+      break;
+    case OP_INSTNORM:
+      if (wx) r[0] = nd->in[0], r[1] = nd->saved[0];
+      break;
+    default: /* upsample, pad, concat, avgpool3, axpby: dy only */
+      break;
+  }
+}
+
+typedef struct item {
+  size_t n, off;
+  int s, e, id, grad;
+} item;
+
+static int by_size(const void *a, const void *b) {
+  const item *x = a, *y = b;
+  if (x->n != y->n) return x->n > y->n ? -1 : 1;
+  if (x->id != y->id) return x->id < y->id ? -1 : 1;
+  return x->grad - y->grad;
+}
+static int by_off(const void *a, const void *b) {
+  const item *x = *(item *const *)a, *y = *(item *const *)b;
+  return x->off < y->off ? -1 : x->off > y->off;
+}
+static int by_time(const void *a, const void *b) {
+  const tpevent *x = a, *y = b;
+  if (x->time != y->time) return x->time < y->time ? -1 : 1;
+  return x->off < y->off ? -1 : x->off > y->off;
+}
+
+/* First fit of items[i] below/among the already placed items[0..i) whose intervals meet it. */
+static void place(item *it, int i, item **tmp) {
+  int m = 0;
+  for (int j = 0; j < i; j++)
+    if (it[j].s <= it[i].e && it[i].s <= it[j].e) tmp[m++] = &it[j];
+  qsort(tmp, (size_t)m, sizeof *tmp, by_off);
+  size_t off = 0;
+  for (int j = 0; j < m; j++) {
+    if (tmp[j]->off >= off + it[i].n) break;
+    size_t end = tmp[j]->off + tmp[j]->n;
+    end = (end + ALIGN - 1) / ALIGN * ALIGN;
+    if (end > off) off = end;
+  }
+  it[i].off = off;
+}
+
+static int imax(int a, int b) { return a > b ? a : b; }
+static int imin(int a, int b) { return a < b ? a : b; }
+
+spx_status spx_tp_plan(spx_tape *t, tplan *p) {
+  const int np = t->npersist, nv = t->nvals - np, N = t->nnodes;
+  const int tbegin = 2 * N + 1, tseed = 2 * N + 2;
+  p->nv = nv, p->nnodes = N;
+  p->train = t->train, p->retain = t->retain, p->reuse = t->reuse;
+  p->v = calloc((size_t)(nv ? nv : 1), sizeof *p->v);
+  /* per root (index id - np): last data use, backward data use, gradient access span, flags */
+  int *last = malloc(sizeof(int) * (size_t)(nv ? nv : 1) * 6);
+  item *it = malloc(sizeof *it * (size_t)(2 * nv + 1));
+  item **tmp = malloc(sizeof *tmp * (size_t)(2 * nv + 1));
+  p->deaths = malloc(sizeof *p->deaths * (size_t)(2 * nv + 1));
+  p->births = malloc(sizeof *p->births * (size_t)(nv + 1));
+  if (!p->v || !last || !it || !tmp || !p->deaths || !p->births) {
+    free(last), free(it), free(tmp);
+    spx_tp_plan_free(p);
+    return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for the plan of %d values", nv);
+  }
+  int *bused = last + nv, *gmin = last + 2 * nv, *gmax = last + 3 * nv, *written = last + 4 * nv, *fl = last + 5 * nv;
+  for (int i = 0; i < nv; i++) last[i] = -1, bused[i] = 0, gmin[i] = TP_INF, gmax[i] = -1, written[i] = 0, fl[i] = 0;
+#define ROOT(id) (t->vals[id].root - np)
+#define ACT(id) ((id) >= np && t->vals[id].space == SP_ACT)
+  for (int i = 0; i < nv; i++) {
+    const tvalue *v = &t->vals[np + i];
+    fl[ROOT(np + i)] |= v->flags | (v->needs_grad ? 4 : 0);
+  }
+  for (int k = 0; k < N; k++) {
+    const tnode *nd = &t->nodes[k];
+    for (int j = 0; j < 3; j++)
+      if (nd->in[j] >= 0 && ACT(nd->in[j])) last[ROOT(nd->in[j])] = imax(last[ROOT(nd->in[j])], 2 * k + 1);
+    if (!t->train || !t->vals[nd->out].needs_grad) continue;
+    int tb = 4 * N - 2 * k + 1, r[3];
+    spx_tp_back_reads(t, nd, r);
+    for (int j = 0; j < 3; j++)
+      if (r[j] >= 0 && ACT(r[j])) last[ROOT(r[j])] = imax(last[ROOT(r[j])], tb), bused[ROOT(r[j])] = 1;
+    int o = ROOT(nd->out);
+    gmin[o] = imin(gmin[o], tb), gmax[o] = imax(gmax[o], tb);
+    for (int j = 0; j < 3; j++)
+      if (nd->in[j] >= 0 && ACT(nd->in[j]) && spx_tp_wants(t, nd->in[j])) {
+        int a = ROOT(nd->in[j]);
+        gmin[a] = imin(gmin[a], tb), gmax[a] = imax(gmax[a], tb), written[a] = 1;
+      }
+  }
+  int ni = 0;
+  for (int i = 0; i < nv; i++) {
+    const tvalue *v = &t->vals[np + i];
+    tpval *e = &p->v[i];
+    if (v->root != np + i) continue;
+    int sink = last[i] < 0, keep = (fl[i] & TV_KEEP) != 0;
+    e->d0 = v->born;
+    e->d1 = sink || keep || (t->retain && bused[i]) ? TP_INF : last[i];
+    e->g0 = e->g1 = TP_INF;
+    if (t->train && (fl[i] & 4)) {
+      e->g0 = sink || keep || !written[i] ? tbegin : gmin[i];
+      e->g1 = imax(gmax[i], e->g0 == tbegin ? tseed : e->g0);
+      if (keep || (fl[i] & TV_REQGRAD)) e->g1 = TP_INF;
+    }
+    if (!t->reuse) { /* everything lives to the end: no two storages share memory */
+      e->d0 = 0, e->d1 = TP_INF;
+      if (e->g0 != TP_INF) e->g0 = tbegin, e->g1 = TP_INF;
+    }
+    size_t n = spx_tp_numel(v);
+    it[ni++] = (item){n, 0, e->d0, e->d1, i, 0};
+    if (e->g0 != TP_INF) it[ni++] = (item){n, 0, e->g0, e->g1, i, 1};
+  }
+  qsort(it, (size_t)ni, sizeof *it, by_size);
+  p->size = 1, p->sum = 0;
+  for (int i = 0; i < ni; i++) {
+    place(it, i, tmp);
+    p->sum += it[i].n;
+    if (it[i].off + it[i].n > p->size) p->size = it[i].off + it[i].n;
+    tpval *e = &p->v[it[i].id];
+    if (it[i].grad) e->goff = it[i].off;
+    else e->off = it[i].off;
+  }
+  p->ndeaths = p->nbirths = 0;
+  for (int i = 0; i < nv; i++) {
+    const tvalue *v = &t->vals[np + i];
+    tpval *e = &p->v[i];
+    const tpval *r = &p->v[ROOT(np + i)];
+    e->numel = spx_tp_numel(v), e->flags = v->flags, e->needs_grad = v->needs_grad;
+    if (v->root != np + i) {
+      e->off = r->off + v->delta, e->goff = r->goff + v->delta;
+      e->d0 = r->d0, e->d1 = r->d1, e->g0 = r->g0, e->g1 = r->g1;
+      continue;
+    }
+    if (e->d1 != TP_INF) p->deaths[p->ndeaths++] = (tpevent){e->d1, e->off, e->numel};
+    if (e->g0 != TP_INF) {
+      if (e->g1 != TP_INF) p->deaths[p->ndeaths++] = (tpevent){e->g1, e->goff, e->numel};
+      p->births[p->nbirths++] = (tpevent){e->g0, e->goff, e->numel};
+    }
+  }
+#undef ROOT
+#undef ACT
+  qsort(p->deaths, (size_t)p->ndeaths, sizeof *p->deaths, by_time);
+  qsort(p->births, (size_t)p->nbirths, sizeof *p->births, by_time);
+  free(last), free(it), free(tmp);
+  return SPX_OK;
+}
+
+size_t spx_tape_plan_bytes(const spx_tape *t, size_t *without_reuse) {
+  const tplan *p = t->cur;
+  size_t el = t->backend == SPX_TAPE_HOST ? sizeof(double) : sizeof(float);
+  if (without_reuse) *without_reuse = p ? p->sum * el : 0;
+  return p ? p->size * el : 0;
+}
+
+void spx_tape_set_retain(spx_tape *t, int on) { t->retain = on != 0; }
+void spx_tape_set_reuse(spx_tape *t, int on) { t->reuse = on != 0; }
+void spx_tape_set_poison(spx_tape *t, int on) { t->poison = on != 0; }
+
+void spx_tp_place(spx_tape *t, int id) {
+  tvalue *v = &t->vals[id];
+  int i = id - t->npersist;
+  if (!t->cur) return;
+  if (i >= t->cur->nv || t->cur->v[i].numel != spx_tp_numel(v)) {
+    t->err = spx_fail(t->ctx, SPX_E_STATE, "tape: value %d of the pass differs from its plan (one plan key, two graphs?)",
+                      id);
+    return;
+  }
+  v->off = t->cur->v[i].off;
+  v->goff = t->cur->v[i].goff;
+}
+
+int spx_tp_now(const spx_tape *t) {
+  int n = t->nnodes;
+  switch (t->phase) {
+    case 0: return 2 * n;
+    case 1: return 2 * n;
+    case 2: return 2 * n + 2;
+    default: return 4 * n + 2;
+  }
+}
+
+static spx_status fill(spx_tape *t, const tpevent *e, float value) {
+  if (t->backend == SPX_TAPE_HOST) {
+    for (size_t i = 0; i < e->n; i++) t->hact[e->off + i] = value;
+    return SPX_OK;
+  }
+  return spx_cl_fill_f32(t->ctx, t->act, e->off, e->n, value);
+}
+
+spx_status spx_tp_advance(spx_tape *t, int time) {
+  tplan *p = t->cur;
+  spx_status st;
+  if (!p) return SPX_OK;
+  for (; t->dcur < p->ndeaths && p->deaths[t->dcur].time < time; t->dcur++)
+    if (t->poison && (st = fill(t, &p->deaths[t->dcur], NAN))) return st;
+  for (; t->bcur < p->nbirths && p->births[t->bcur].time <= time; t->bcur++)
+    if ((st = fill(t, &p->births[t->bcur], 0.0f))) return st;
+  return SPX_OK;
+}
+
+spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what) {
+  if (!t->cur || t->measuring || t->vals[id].space != SP_ACT || id - t->npersist >= t->cur->nv) return SPX_OK;
+  const tpval *e = &t->cur->v[id - t->npersist];
+  int now = spx_tp_now(t), a = grad ? e->g0 : e->d0, b = grad ? e->g1 : e->d1;
+  if (grad && a == TP_INF)
+    return spx_fail(t->ctx, SPX_E_STATE, "tape: %s: value %d has no gradient in this pass", what, id);
+  if (now < a || now > b)
+    return spx_fail(t->ctx, SPX_E_STATE,
+                    "tape: %s: the %s of value %d is not live now (its storage was reused after its last use; "
+                    "spx_tape_keep it in the pass)",
+                    what, grad ? "gradient" : "data", id);
+  return SPX_OK;
+}

@@ -1,0 +1,192 @@
+/* Liveness planning of the tape's arena (lib/nn/tape_plan.c), on both backends:
+ *  - exact arena sizes of two hand-planned tiny graphs (an eval chain and a training graph);
+ *  - a UNet training step plans far less than the sum of its activations and gradients;
+ *  - reuse changes no float: a UNet training step (loss, output, every parameter gradient) and an
+ *    eval forward are bit-identical with reuse + NaN poisoning of every dead storage and without
+ *    reuse (a premature free would put NaNs or another value's data into the results);
+ *  - reading a value after its last use, or a second backward without retain, is refused. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "nn/tape.h"
+#include "nn/unet.h"
+#include "nn_testutil.h"
+#include "smplpix/smplpix.h"
+#include "smplpix/unet.h"
+
+static size_t elem(spx_tape_backend be) { return be == SPX_TAPE_HOST ? sizeof(double) : sizeof(float); }
+
+static spx_ctx *open_ctx(spx_tape_backend be) {
+  if (be == SPX_TAPE_DEVICE) return spx_nt_open();
+  spx_ctx *ctx = NULL;
+  return spx_ctx_create(&ctx) == SPX_OK ? ctx : NULL;
+}
+
+/* A context and a tape without parameters (NULL and a failed check when either cannot be made). */
+static spx_tape *bare_tape(spx_tape_backend be, spx_ctx **ctx) {
+  spx_tape *t = NULL;
+  *ctx = open_ctx(be);
+  CHECK(*ctx != NULL);
+  if (!*ctx) return NULL;
+  CHECK_OK(*ctx, spx_tape_create(*ctx, be, &t));
+  if (t) CHECK_OK(*ctx, spx_tape_alloc_params(t));
+  return t;
+}
+
+/* x -> relu -> relu -> relu (1x1x3x5 = 15 floats each, offsets 16-aligned), eval. x dies at node 0
+ * (time 1), a at 3, b at 5, c is the output. Largest-first / first-fit: x at 0, a at 16 (meets x),
+ * b at 0 (x is dead), c at 16: 16 + 15 = 31 floats, against 60 without reuse. */
+static void test_exact_eval(spx_tape_backend be) {
+  spx_ctx *ctx = NULL;
+  spx_tape *t = bare_tape(be, &ctx);
+  if (!t) {
+    spx_ctx_destroy(ctx);
+    return;
+  }
+  float x[15];
+  for (int i = 0; i < 15; i++) x[i] = (float)i - 7.0f;
+  int again = 0, c = -1, in = -1;
+  spx_status st;
+  do {
+    if ((st = spx_tape_begin(t, 0, 1))) break;
+    in = spx_tape_input(t, 1, 1, 3, 5, x);
+    c = spx_tape_act(t, SPX_ACT_RELU, 0, spx_tape_act(t, SPX_ACT_RELU, 0, spx_tape_act(t, SPX_ACT_RELU, 0, in)));
+    st = spx_tape_end(t, &again);
+  } while (!st && again);
+  CHECK_OK(ctx, st);
+  size_t sum = 0, size = spx_tape_plan_bytes(t, &sum);
+  CHECK_MSG(size == 31 * elem(be) && sum == 60 * elem(be), "eval chain: arena %zu, sum %zu bytes", size, sum);
+  float y[15];
+  CHECK_OK(ctx, spx_tape_read(t, c, y));
+  for (int i = 0; i < 15; i++) CHECK(y[i] == (x[i] > 0 ? x[i] : 0));
+  /* the input died at the first node: refused, not stale */
+  CHECK(spx_tape_read(t, in, y) == SPX_E_STATE);
+  spx_tape_destroy(t);
+  spx_ctx_destroy(ctx);
+}
+
+/* Training: x (requires_grad) -> y = relu(x) -> z = relu(y) -> l = mean((z - 0.5)^2) (c: the
+ * constant). Nodes at times 1, 3, 5; backward_begin 7, backward of node 2, 1, 0 at 9, 11, 13.
+ * Data: x [0,1] (ReLU's backward reads its output), y [1,13], z [3,11], c [5,9], l [5,inf).
+ * Gradients: l [7,9] (seeded), z [9,11], y [11,13], x [13,inf) (requires_grad).
+ * By size (15, then 1), ties by id, data before gradient: x.d 0, x.g 0, y.d 16, y.g 32, z.d 0,
+ * z.g 48, c 32, l.d 64, l.g 80 (below it: z.d, y.d, c, z.g, l.d) -> 81 floats; 7 x 15 + 2 = 107
+ * without reuse. */
+static void test_exact_train(spx_tape_backend be) {
+  spx_ctx *ctx = NULL;
+  spx_tape *t = bare_tape(be, &ctx);
+  if (!t) {
+    spx_ctx_destroy(ctx);
+    return;
+  }
+  float x[15], g[15];
+  for (int i = 0; i < 15; i++) x[i] = 0.1f * (float)i - 0.6f;
+  int again = 0, xi = -1, l = -1, y = -1;
+  spx_status st;
+  do {
+    if ((st = spx_tape_begin(t, 1, 2))) break;
+    xi = spx_tape_input(t, 1, 1, 3, 5, x);
+    if ((st = spx_tape_requires_grad(t, xi))) break;
+    y = spx_tape_act(t, SPX_ACT_RELU, 0, xi);
+    l = spx_tape_mse_const(t, spx_tape_act(t, SPX_ACT_RELU, 0, y), 0.5f);
+    st = spx_tape_end(t, &again);
+  } while (!st && again);
+  CHECK_OK(ctx, st);
+  size_t sum = 0, size = spx_tape_plan_bytes(t, &sum);
+  CHECK_MSG(size == 81 * elem(be) && sum == 107 * elem(be), "training graph: arena %zu, sum %zu bytes", size, sum);
+  CHECK_OK(ctx, spx_tape_backward(t, l));
+  CHECK_OK(ctx, spx_tape_read_grad(t, xi, g));
+  for (int i = 0; i < 15; i++) {
+    double want = x[i] > 0 ? 2.0 * ((double)x[i] - 0.5) / 15.0 : 0.0;
+    CHECK_NEAR(g[i], want, 0, 1e-6);
+  }
+  /* y's gradient died at node 0's backward; a second backward needs retain */
+  CHECK(spx_tape_read_grad(t, y, g) == SPX_E_STATE);
+  CHECK(spx_tape_backward(t, l) == SPX_E_STATE);
+  spx_tape_destroy(t);
+  spx_ctx_destroy(ctx);
+}
+
+enum { WD = 8, N = 2, H = 32, W = 48 };
+
+typedef struct step_out {
+  float loss, *out, *grads;
+  size_t nout, ngrad, arena, sum;
+} step_out;
+
+/* One training step and one eval forward of a width-8 UNet with fixed weights and data. */
+static void unet_step(spx_tape_backend be, int reuse, int poison, step_out *r) {
+  memset(r, 0, sizeof *r);
+  spx_ctx *ctx = open_ctx(be);
+  CHECK(ctx != NULL);
+  if (!ctx) return;
+  spx_unet *u = NULL;
+  CHECK_OK(ctx, spx_unet_create_ex(ctx, WD, 0, 5, be, &u));
+  size_t nin = (size_t)N * 4 * H * W;
+  r->nout = (size_t)2 * N * 3 * H * W;
+  float *in = malloc(nin * sizeof(float)), *tg = malloc(r->nout / 2 * sizeof(float));
+  r->out = malloc(r->nout * sizeof(float));
+  if (!u || !in || !tg || !r->out) goto done;
+  unsigned long long s = 11;
+  spx_nt_rand(in, nin, 0.0f, 1.0f, &s);
+  spx_nt_rand(tg, r->nout / 2, 0.0f, 1.0f, &s);
+  spx_tape *t = spx_unet_tape(u);
+  spx_tape_set_reuse(t, reuse);
+  spx_tape_set_poison(t, poison);
+  CHECK_OK(ctx, spx_unet_zero_grad(u));
+  CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, N, H, W, r->out, &r->loss));
+  r->arena = spx_tape_plan_bytes(t, &r->sum);
+  CHECK_OK(ctx, spx_unet_backward(u));
+  for (int i = 0; i < spx_unet_tensor_count(u); i++) {
+    const char *name = spx_unet_tensor_name(u, i, NULL, NULL);
+    int id = spx_unet_value_id(u, name);
+    if (strstr(name, "running_") || strncmp(name, "optimizer.", 10) == 0 || id < 0) continue;
+    size_t n = spx_tape_numel(t, id);
+    float *ng = realloc(r->grads, (r->ngrad + n) * sizeof(float));
+    if (!ng) break;
+    r->grads = ng;
+    CHECK_OK(ctx, spx_unet_read(u, name, SPX_UNET_GRAD, r->grads + r->ngrad, n));
+    r->ngrad += n;
+  }
+  CHECK_OK(ctx, spx_unet_forward(u, in, N, H, W, 0, r->out + r->nout / 2));
+done:
+  free(in), free(tg);
+  spx_unet_destroy(u);
+  spx_ctx_destroy(ctx);
+}
+
+static void test_unet_bit_exact(spx_tape_backend be) {
+  step_out a, b;
+  unet_step(be, 0, 0, &a);
+  unet_step(be, 1, 1, &b);
+  CHECK(a.ngrad > 0 && a.ngrad == b.ngrad && a.out && b.out);
+  if (a.ngrad > 0 && a.ngrad == b.ngrad && a.out && b.out) {
+    CHECK_MSG(memcmp(&a.loss, &b.loss, sizeof a.loss) == 0, "loss %.9g vs %.9g", a.loss, b.loss);
+    CHECK(memcmp(a.out, b.out, a.nout * sizeof(float)) == 0);
+    CHECK(memcmp(a.grads, b.grads, a.ngrad * sizeof(float)) == 0);
+    /* the whole step's values and gradients, against what the plan needs at once */
+    CHECK_MSG(b.arena * 2 < b.sum && a.arena >= a.sum, "arena %zu of %zu (without reuse: %zu of %zu)", b.arena, b.sum,
+              a.arena, a.sum);
+    printf("  %s: UNet w%d %dx4x%dx%d training arena %zu bytes with reuse, %zu without (%.2fx)\n",
+           be == SPX_TAPE_HOST ? "host" : "device", WD, N, H, W, b.arena, a.arena, (double)a.arena / (double)b.arena);
+  }
+  free(a.out), free(a.grads), free(b.out), free(b.grads);
+}
+
+static void test_host(void) {
+  test_exact_eval(SPX_TAPE_HOST);
+  test_exact_train(SPX_TAPE_HOST);
+  test_unet_bit_exact(SPX_TAPE_HOST);
+}
+static void test_device(void) {
+  test_exact_eval(SPX_TAPE_DEVICE);
+  test_exact_train(SPX_TAPE_DEVICE);
+  test_unet_bit_exact(SPX_TAPE_DEVICE);
+}
+
+int main(void) {
+  SPX_RUN(test_host);
+  SPX_RUN(test_device);
+  return spx_test_summary();
+}
