@@ -47,7 +47,16 @@ static const struct spx_tunable spx_tunables[] = {
      * on 2-core PoCL it measured no better than the radix sort at 10^6 points (both ~40-90 ms,
      * noisy), so it is off; unmeasured on GPUs */
     {"SPX_PROJ_COUNT_MIN", 0, 0, 0, 1 << 30, 0},
-    /* background pixels written per work-item of spx_project_keys */
+    /* 1: the projection runs the z-buffer path (kernels/project.cl spx_project_zbuf: one
+     * work-item per part walks its points like the plain-C loop, then a merge pass): on 2-core
+     * PoCL 1.1-1.2x faster than the fused sort at 6,890 points and 3-4x at 10^6 (benchmarks/
+     * RESULTS.md); 0: the sort paths (GPU: a serial loop per part wastes the device) */
+    {"SPX_PROJ_ZBUF", 1, 0, 0, 1, 0},
+    /* z-buffer path: points per part (parts = min(SPX_PROJ_ZB_PARTS, points / this), at least 1) */
+    {"SPX_PROJ_ZB_CHUNK", 16384, 16384, 1, 1 << 30, 0},
+    /* z-buffer path: most parts (0: the device's compute units); each holds a z-buffer of 8 bytes per pixel */
+    {"SPX_PROJ_ZB_PARTS", 0, 0, 0, 256, 0},
+    /* background pixels written per work-item of spx_project_keys and spx_project_zmerge */
     {"SPX_PROJ_FILL_PX", 64, 1, 1, 65536, 0},
     /* conv2d (kernels/conv2d.cl): forward register tile = CONV_TM out-channels x CONV_TN vectors
      * of CONV_VW pixels per work-item, CONV_LWS work-items per group (interleaved pixels) */
