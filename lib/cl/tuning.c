@@ -67,6 +67,13 @@ static const struct spx_tunable spx_tunables[] = {
     /* conv2d forward: channel tiles per work-item, walked per block of CONV_CB input channels */
     {"CONV_CT", 4, 1, 1, 64, 0},
     {"CONV_CB", 16, 1048576, 1, 1 << 30, 0},
+    /* conv2d: 1 = 3x3 stride-1 forwards (and backward data) run the local-memory tiled kernel
+     * (kernels/conv2d_lds.cl; needs CONV_VW = 1): tiles of CONV_LDS_TX columns x
+     * (CONV_LWS/CONV_LDS_TX)*CONV_TN rows, CONV_LDS_CB input channels per local-memory block.
+     * GPU values unmeasured (no GPU at hand; tested on PoCL with SPX_TUNE_CLASS=gpu) */
+    {"CONV_LDS", 0, 1, 0, 1, 0},
+    {"CONV_LDS_TX", 16, 16, 1, 1024, 0},
+    {"CONV_LDS_CB", 8, 8, 1, 256, 0},
     /* conv2d: inputs up to this many KiB (and smaller than the weights) run pixel-tile-fastest */
     {"CONV_XCACHE", 2048, 2048, 0, 1 << 20, 0},
     /* conv2d backward weights: tile of out-channels x weight columns; q-chunk of the split reduction */

@@ -152,10 +152,13 @@ static size_t guard_elems(int s, size_t q, int k, int wp, int vw) {
 static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, int cout, int coutp, int k, int s,
                           int wp, int plane, int ho, int wo, const spx_tensor *y, const spx_tensor *bias,
                           const spx_tensor *scale, const spx_tensor *shift, int flags) {
-  const char *name = s == 2 ? "spx_conv2d_fwd_s2" : s > 2 ? "spx_conv2d_fwd_sn"
+  const int lds = spx_conv2d_lds_applies(ctx, k, s); /* GPU: local-memory tiles (conv2d_lds.cl) */
+  const char *name = lds ? "spx_conv2d_fwd_k3s1_lds" : s == 2 ? "spx_conv2d_fwd_s2" : s > 2 ? "spx_conv2d_fwd_sn"
                      : k == 3 ? "spx_conv2d_fwd_k3s1" : k == 1 ? "spx_conv2d_fwd_k1s1" : "spx_conv2d_fwd_s1";
   cl_kernel kr;
-  spx_status st = spx_cl_kernel(ctx, s == 1 && (k == 3 || k == 1) ? "conv2d.cl" : "conv2d_strided.cl", name, &kr);
+  spx_status st = spx_cl_kernel(ctx, lds ? "conv2d_lds.cl" : s == 1 && (k == 3 || k == 1) ? "conv2d.cl"
+                                                                                    : "conv2d_strided.cl",
+                                name, &kr);
   if (st) return st;
   int tm = spx_cl_tune(ctx, "CONV_TM"), tn = spx_cl_tune(ctx, "CONV_TN"), vw = spx_cl_tune(ctx, "CONV_VW");
   int lws = spx_cl_tune(ctx, "CONV_LWS");
@@ -185,7 +188,8 @@ static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, i
   if (s > 2) e |= SPX_ARG(kr, 22, s);
   if ((st = spx_cl_check(ctx, e, name))) return st;
   int ct = spx_cl_tune(ctx, "CONV_CT"), ncst = (coutp / tm + ct - 1) / ct;
-  size_t gl[2] = {(size_t)ncst * groups * lws, (size_t)n}, lo[2] = {(size_t)lws, 1};
+  size_t gl[2] = {(lds ? spx_conv2d_lds_groups(ctx, coutp, ho, wo) : (size_t)ncst * groups) * lws, (size_t)n};
+  size_t lo[2] = {(size_t)lws, 1};
   const int epi = FL_BIAS | FL_SCALE | FL_SHIFT | FL_RELU;
   for (int ci0 = 0; ci0 < cin; ci0 += cib) {
     int ci1 = ci0 + cib < cin ? ci0 + cib : cin;

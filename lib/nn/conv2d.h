@@ -44,6 +44,12 @@ typedef struct spx_conv2d_params {
  * rounding (bounded error, see tests/test_nn_conv2d_winograd.c); the weight gradient always
  * runs direct. */
 
+/* How much larger F(4x4,3x3)'s rounding error is than the direct convolution's, for the worst
+ * output of a tile (31.4 rounded up; derived from the transform matrices in
+ * tests/test_nn_conv2d_winograd.c, which checks this value): tests that compare a network against
+ * a golden multiply their tolerance by it when Winograd is on. */
+#define SPX_WINO_RMS_GAIN 32
+
 /* Output size of one spatial dimension; <= 0 when the input is too small. */
 static inline int spx_conv2d_out_size(int in, int k, int stride, int pad) {
   int span = in + 2 * pad - k;
@@ -70,6 +76,13 @@ int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, 
 spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
                                int relu, int accumulate, const spx_tensor *y);
+
+/* ---- local-memory tiled 3x3 stride-1 forward for GPU-class devices (lib/nn/conv2d_lds.c) ---- */
+/* Nonzero when the forward kernel of a k x k / stride conv is spx_conv2d_fwd_k3s1_lds (tunable
+ * CONV_LDS, CONV_VW = 1, CONV_LWS a multiple of CONV_LDS_TX, its tiles fit the local memory). */
+int spx_conv2d_lds_applies(const spx_ctx *ctx, int k, int stride);
+/* Work-groups of that kernel for one image (dim 0 = this times CONV_LWS). */
+size_t spx_conv2d_lds_groups(const spx_ctx *ctx, int coutp, int ho, int wo);
 
 /* ---- plain-C double-precision reference (same semantics) ---- */
 typedef struct spx_conv2d_shape {
