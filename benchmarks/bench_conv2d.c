@@ -95,9 +95,9 @@ int main(int argc, char **argv) {
   if (spx_device_open(ctx, NULL)) return fail(ctx, "device");
   spx_device_info info;
   spx_device_get_info(ctx, &info);
-  printf("device: %s; tiles TMxTNxVW %dx%dx%d LWS %d; dw %dx%d chunk %d\n", info.name, spx_cl_tune(ctx, "CONV_TM"),
-         spx_cl_tune(ctx, "CONV_TN"), spx_cl_tune(ctx, "CONV_VW"), spx_cl_tune(ctx, "CONV_LWS"),
-         spx_cl_tune(ctx, "CONV_DW_TM"), spx_cl_tune(ctx, "CONV_DW_TN"), spx_cl_tune(ctx, "CONV_DW_QC"));
+  printf("device: %s; tiles TMxTNxVW %dx%dx%d LWS %d; dw %dx%d chunk %d\n", info.name, ctx->tune.conv_tm,
+         ctx->tune.conv_tn, ctx->tune.conv_vw, ctx->tune.conv_lws,
+         ctx->tune.conv_dw_tm, ctx->tune.conv_dw_tn, ctx->tune.conv_dw_qc);
   printf("%-22s %9s | %9s %7s | %9s %7s | %9s %7s\n", "shape (1x, HxW)", "GFLOP", "fwd ms", "GF/s", "bwd-x ms",
          "GF/s", "bwd-w ms", "GF/s");
   double wall_sum = 0;

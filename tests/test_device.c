@@ -31,7 +31,7 @@ static void test_bad_specs(void) {
   spx_device_info info;
   CHECK(spx_device_get_info(ctx, &info) == SPX_E_STATE);
   cl_kernel k;
-  CHECK(spx_cl_kernel(ctx, "prelude.h", "x", &k) == SPX_E_STATE);
+  CHECK(spx_cl_kernel(ctx, SPX_K_COPY, &k) == SPX_E_STATE);
   spx_ctx_destroy(ctx);
 }
 
@@ -40,8 +40,18 @@ static void test_unknown_kernel(void) {
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
   cl_kernel k;
-  CHECK(spx_cl_kernel(ctx, "no_such_file.cl", "nothing", &k) == SPX_E_ARG);
+  CHECK(spx_cl_kernel(ctx, SPX_K_COUNT, &k) == SPX_E_ARG);
+  CHECK(spx_cl_program_build(ctx, "no_such_file.cl") == SPX_E_ARG);
   CHECK(strstr(spx_ctx_message(ctx), "no_such_file.cl") != NULL);
+  /* a handle is created with its program, and fetched again by index */
+  cl_kernel a = NULL, b = NULL, c = NULL;
+  CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_AXPY, &a));
+  CHECK(ctx->kernels[SPX_K_COPY] != NULL); /* same program (tensor_ops.cl): made at once */
+  CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_AXPY, &b));
+  CHECK(a == b);
+  CHECK(ctx->kernels[SPX_K_ADAM_STEP] == NULL); /* another program: still lazy */
+  CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_ADAM_STEP, &c));
+  CHECK(!strcmp(spx_cl_kernel_name(SPX_K_ADAM_STEP), "spx_adam_step"));
   spx_ctx_destroy(ctx);
 }
 

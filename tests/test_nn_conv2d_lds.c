@@ -38,13 +38,19 @@ static cl_mem upload(spx_ctx *ctx, const double *a, size_t n) {
   return m;
 }
 
-/* Forward into fy and backward data (into ones) into fdx with CONV_LDS = lds. */
-static void run(spx_ctx *ctx, const lcase *c, int lds, cl_mem mx, cl_mem mw, cl_mem mb, cl_mem msc, cl_mem mdy,
-                float *fy, float *fdx) {
+/* Forward into fy and backward data (into ones) into fdx with CONV_LDS = lds, on a device opened
+ * for it (tunables are resolved when the device opens). */
+static void run(const lcase *c, int lds, const double *x, const double *w, const double *b, const double *sc,
+                const double *dy, float *fy, float *fdx) {
   setenv("SPX_TUNE_CONV_LDS", lds ? "1" : "0", 1);
+  spx_ctx *ctx;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
   CHECK(spx_conv2d_lds_applies(ctx, 3, 1) == lds);
   size_t nx = (size_t)c->n * c->cin * c->h * c->w, ny = (size_t)c->n * c->cout * c->h * c->w;
-  cl_mem my = NULL, mdx = NULL;
+  size_t nw = (size_t)c->cout * c->cin * 9, nb = (size_t)c->cout;
+  cl_mem mx = upload(ctx, x, nx), mw = upload(ctx, w, nw), mb = upload(ctx, b, nb), msc = upload(ctx, sc, nb);
+  cl_mem mdy = upload(ctx, dy, ny), my = NULL, mdx = NULL;
   CHECK_OK(ctx, spx_cl_alloc(ctx, ny * 4, "y", &my));
   CHECK_OK(ctx, spx_cl_alloc(ctx, nx * 4, "dx", &mdx));
   CHECK_OK(ctx, spx_cl_fill_f32(ctx, mdx, 0, nx, 1.0f));
@@ -57,11 +63,12 @@ static void run(spx_ctx *ctx, const lcase *c, int lds, cl_mem mx, cl_mem mw, cl_
   CHECK_OK(ctx, spx_conv2d_backward(ctx, &tx, &tw, &tdy, &tdx, NULL, NULL, &p));
   CHECK_OK(ctx, spx_cl_read(ctx, my, 0, ny * 4, fy));
   CHECK_OK(ctx, spx_cl_read(ctx, mdx, 0, nx * 4, fdx));
-  spx_cl_free(&my);
-  spx_cl_free(&mdx);
+  spx_cl_free(&mx), spx_cl_free(&mw), spx_cl_free(&mb), spx_cl_free(&msc), spx_cl_free(&mdy);
+  spx_cl_free(&my), spx_cl_free(&mdx);
+  spx_ctx_destroy(ctx);
 }
 
-static void run_case(spx_ctx *ctx, const lcase *c) {
+static void run_case(const lcase *c) {
   size_t nx = (size_t)c->n * c->cin * c->h * c->w, ny = (size_t)c->n * c->cout * c->h * c->w;
   size_t nw = (size_t)c->cout * c->cin * 9, nb = (size_t)c->cout;
   double *x = malloc(nx * 8), *w = malloc(nw * 8), *b = malloc(nb * 8), *sc = malloc(nb * 8), *dy = malloc(ny * 8);
@@ -76,16 +83,14 @@ static void run_case(spx_ctx *ctx, const lcase *c) {
   spx_ref_conv2d_forward(&s, x, w, c->affine ? NULL : b, c->affine ? sc : NULL, c->affine ? b : NULL, c->affine, y);
   spx_ref_conv2d_forward(&s, ax, aw, NULL, NULL, NULL, 0, my);
   spx_ref_conv2d_backward(&s, x, w, dy, dx, NULL, NULL);
-  cl_mem mx = upload(ctx, x, nx), mw = upload(ctx, w, nw), mb = upload(ctx, b, nb), msc = upload(ctx, sc, nb);
-  cl_mem mdy = upload(ctx, dy, ny);
-  for (size_t i = 0; i < ny; i++) dy[i] = fabs(dy[i]);
-  spx_ref_conv2d_backward(&s, x, aw, dy, mdx, NULL, NULL); /* sum |w||dy| */
   float *fy[2], *fdx[2];
   for (int lds = 0; lds < 2; lds++) {
     fy[lds] = malloc(ny * 4);
     fdx[lds] = malloc(nx * 4);
-    run(ctx, c, lds, mx, mw, mb, msc, mdy, fy[lds], fdx[lds]);
+    run(c, lds, x, w, b, sc, dy, fy[lds], fdx[lds]);
   }
+  for (size_t i = 0; i < ny; i++) dy[i] = fabs(dy[i]);
+  spx_ref_conv2d_backward(&s, x, aw, dy, mdx, NULL, NULL); /* sum |w||dy| */
   CHECK_MSG(!memcmp(fy[0], fy[1], ny * 4), "n=%d cin=%d %dx%d cout=%d: forward differs from the direct kernel", c->n,
             c->cin, c->h, c->w, c->cout);
   CHECK_MSG(!memcmp(fdx[0], fdx[1], nx * 4), "n=%d cin=%d %dx%d cout=%d: backward data differs from the direct kernel",
@@ -108,24 +113,18 @@ static void run_case(spx_ctx *ctx, const lcase *c) {
          c->affine ? " affine relu" : "", worst);
   CHECK(worst <= 1);
   for (int l = 0; l < 2; l++) free(fy[l]), free(fdx[l]);
-  spx_cl_free(&mx), spx_cl_free(&mw), spx_cl_free(&mb), spx_cl_free(&msc), spx_cl_free(&mdy);
   free(x), free(w), free(b), free(sc), free(dy), free(ax), free(aw), free(y), free(my), free(dx), free(mdx);
 }
 
 static void test_lds(void) {
   setenv("SPX_TUNE_CLASS", "gpu", 1);
   setenv("SPX_TUNE_CONV_WINO_MINC", "0", 1); /* direct convolutions only */
-  /* the GPU column's tiles, then other tile widths / channel blocks (programs are built with the
-   * tunables of the device open, so each variant opens its own) */
+  /* the GPU column's tiles, then other tile widths / channel blocks */
   static const char *variants[][2] = {{"16", "8"}, {"8", "3"}, {"64", "1"}};
   for (size_t v = 0; v < sizeof variants / sizeof variants[0]; v++) {
     setenv("SPX_TUNE_CONV_LDS_TX", variants[v][0], 1);
     setenv("SPX_TUNE_CONV_LDS_CB", variants[v][1], 1);
-    spx_ctx *ctx;
-    CHECK(spx_ctx_create(&ctx) == SPX_OK);
-    CHECK_OK(ctx, spx_device_open(ctx, NULL));
-    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) run_case(ctx, &cases[i]);
-    spx_ctx_destroy(ctx);
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) run_case(&cases[i]);
   }
 }
 

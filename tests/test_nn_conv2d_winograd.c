@@ -251,14 +251,16 @@ static void test_deterministic(void) {
 /* The rule: only 3x3 / stride 1 / pad 1 with both channel counts >= CONV_WINO_MINC; 0 = never;
  * training calls only with CONV_WINO_TRAIN. */
 static void test_rule(void) {
+  /* tunables are read when the device opens: each setting reopens it */
   spx_ctx *ctx;
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
-  CHECK_OK(ctx, spx_device_open(ctx, NULL));
   setenv("SPX_TUNE_CONV_WINO_MINC", "32", 1);
   setenv("SPX_TUNE_CONV_WINO_TRAIN", "0", 1);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
   CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, 32, 64, 1));
   CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 32, 64, 0));
   setenv("SPX_TUNE_CONV_WINO_TRAIN", "1", 1);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
   CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, 32, 64, 0));
   CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 31, 64, 1));
   CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 64, 16, 1));
@@ -267,6 +269,7 @@ static void test_rule(void) {
   CHECK(!spx_conv2d_winograd_applies(ctx, 1, 1, 0, 64, 64, 1));
   CHECK(!spx_conv2d_winograd_applies(ctx, 5, 1, 1, 64, 64, 1));
   setenv("SPX_TUNE_CONV_WINO_MINC", "0", 1);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
   CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 64, 64, 1));
   unsetenv("SPX_TUNE_CONV_WINO_MINC");
   unsetenv("SPX_TUNE_CONV_WINO_TRAIN");

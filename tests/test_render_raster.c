@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "cl/cl_internal.h"
 #include "smplpix/smplpix.h"
 #include "test.h"
 
@@ -593,9 +594,15 @@ int main(void) {
   /* the other device's forms: per-pixel tile kernel (GPU) and one face per setup work-item */
   const char *forms[][2] = {{"0", "1"}};
   for (int i = 0; i < 1; i++) {
-    setenv("SPX_RASTER_SERIAL", forms[i][0], 1);
-    setenv("SPX_RASTER_CHUNK", forms[i][1], 1);
-    fprintf(stderr, "SPX_RASTER_SERIAL=%s SPX_RASTER_CHUNK=%s\n", forms[i][0], forms[i][1]);
+    /* tunables are resolved when the device opens: reopen it (and the rasterizer's buffers) */
+    setenv("SPX_TUNE_RASTER_SERIAL", forms[i][0], 1);
+    setenv("SPX_TUNE_RASTER_CHUNK", forms[i][1], 1);
+    fprintf(stderr, "SPX_TUNE_RASTER_SERIAL=%s SPX_TUNE_RASTER_CHUNK=%s\n", forms[i][0], forms[i][1]);
+    spx_rasterizer_destroy(R);
+    R = NULL;
+    CHECK_OK(ctx, spx_device_open(ctx, NULL));
+    CHECK(ctx->tune.raster_serial == atoi(forms[i][0]) && ctx->tune.raster_chunk == atoi(forms[i][1]));
+    CHECK_OK(ctx, spx_rasterizer_create(ctx, &R));
     SPX_RUN(test_random_meshes);
     SPX_RUN(test_watertight);
     SPX_RUN(test_clip_overflow);

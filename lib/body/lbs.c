@@ -77,7 +77,7 @@ spx_status spx_body_forward_cl(spx_ctx *ctx, spx_body_model *m, int32_t batch, i
       (st = spx_cl_buf_ensure(ctx, &d->G, B * K * 12 * sizeof(float), "body transforms")))
     return st;
   cl_kernel kj, kl;
-  if ((st = spx_cl_kernel(ctx, "lbs.cl", "spx_body_joints", &kj)) || (st = spx_cl_kernel(ctx, "lbs.cl", "spx_body_lbs", &kl)))
+  if ((st = spx_cl_kernel(ctx, SPX_K_BODY_JOINTS, &kj)) || (st = spx_cl_kernel(ctx, SPX_K_BODY_LBS, &kl)))
     return st;
   int Bi = batch, N = m->nv, Ki = m->nj, S = m->nbetas, nb = nbetas, P = m->posedirs ? m->nposedirs : 0;
   cl_mem vb = vbase ? vbase : d->vt;
@@ -86,7 +86,7 @@ spx_status spx_body_forward_cl(spx_ctx *ctx, spx_body_model *m, int32_t batch, i
              SPX_ARG(kj, 9, trans) | SPX_ARG(kj, 10, d->jb.mem) | SPX_ARG(kj, 11, d->R.mem) | SPX_ARG(kj, 12, d->G.mem) |
              SPX_ARG(kj, 13, joints);
   if ((st = spx_cl_check(ctx, e, "spx_body_joints args"))) return st;
-  size_t l = (size_t)spx_cl_tune(ctx, "SPX_WG"), g = B;
+  size_t l = (size_t)ctx->tune.wg, g = B;
   size_t lj = 1; /* one work-item per body: tiny launch */
   if ((st = spx_cl_run(ctx, kj, 1, &g, &lj, "spx_body_joints"))) return st;
   e = SPX_ARG(kl, 0, Bi) | SPX_ARG(kl, 1, N) | SPX_ARG(kl, 2, Ki) | SPX_ARG(kl, 3, S) | SPX_ARG(kl, 4, nb) |

@@ -5,20 +5,16 @@
 
 #include <CL/cl.h>
 
+#include "cl/kernels.h"
+#include "cl/tunables.h"
 #include "core/internal.h"
 #include "smplpix/device.h"
 
 #define SPX_MAX_PROGRAMS 32
-#define SPX_MAX_KERNELS 128
 
 struct spx_cl_program {
   char name[64];
   cl_program prog;
-};
-struct spx_cl_kernel_entry {
-  const char *program; /* points into programs[].name */
-  char name[64];
-  cl_kernel kernel;
 };
 
 struct spx_ctx {
@@ -31,13 +27,18 @@ struct spx_ctx {
   cl_device_id device;
   cl_context context;
   cl_command_queue queue;
-  char build_options[4096];
+  /* tunables and kernels: resolved when the device opens (lib/cl/tuning.c), programs built on
+   * first use of any of their kernels (lib/cl/program.c) */
+  struct spx_tunables tune;                  /* read by host code: ctx->tune.conv_tm */
+  unsigned char tune_src[SPX_NTUNABLES];     /* spx_tune_source of each field */
+  char tune_note[5120];                      /* why a tuning file was ignored ("" when not) */
+  char tune_file[4096];                      /* the tuning file read (or looked for) */
+  char build_options[4096];                  /* -D list generated from tune */
   int cr_div; /* the device divides fp32 correctly rounded (set with build_options) */
   int tune_cpu; /* 1: kernels are built and launched with the CPU column of lib/cl/tuning.c */
   struct spx_cl_program programs[SPX_MAX_PROGRAMS];
   int nprograms;
-  struct spx_cl_kernel_entry kernels[SPX_MAX_KERNELS];
-  int nkernels;
+  cl_kernel kernels[SPX_K_COUNT]; /* by spx_kernel_id; NULL until its program is built */
   spx_cache_stats cache;
 };
 
@@ -52,9 +53,12 @@ const char *spx_cl_error_name(cl_int err);
 /* Map a cl_int to a status and record "what: CL_..." on failure. Returns SPX_OK on success. */
 spx_status spx_cl_check(spx_ctx *ctx, cl_int err, const char *what);
 
-/* The kernel `kernel` from program file `program` (e.g. "project.cl"); builds the program on
- * first use (from the binary cache when possible). The kernel object is owned by ctx. */
-spx_status spx_cl_kernel(spx_ctx *ctx, const char *program, const char *kernel, cl_kernel *out);
+/* The kernel with handle `id` (lib/cl/kernels.h). The first request of any kernel of a program
+ * builds the program (from the binary cache when possible) and creates all its kernels; later
+ * ones are an index. The kernel object is owned by ctx. */
+spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out);
+/* The kernel's function name ("spx_conv2d_pad"), for messages; "?" for an invalid id. */
+const char *spx_cl_kernel_name(spx_kernel_id id);
 
 /* The i-th embedded kernel program's file name ("conv2d.cl"), NULL past the last; and building
  * one program now (or loading it from the cache), as its first kernel lookup would
@@ -62,8 +66,28 @@ spx_status spx_cl_kernel(spx_ctx *ctx, const char *program, const char *kernel, 
 const char *spx_cl_program_name(int i);
 spx_status spx_cl_program_build(spx_ctx *ctx, const char *program);
 
-/* Per-device tunable integer (the same value is passed to kernels as -D<name>=<value>). */
-int spx_cl_tune(const spx_ctx *ctx, const char *name);
+/* Resolve ctx->tune for the device just opened (defaults, tuning file, SPX_TUNE_* overrides),
+ * check it and generate ctx->build_options (lib/cl/tuning.c). */
+spx_status spx_cl_tunables_resolve(spx_ctx *ctx);
+/* Tunable rows (lib/cl/tuning.c), i in [0, SPX_NTUNABLES): the field of row i in t; its name as
+ * users write it (CONV_TM for SPX_TUNE_CONV_TM); the row of a name of `len` bytes (-1: none). */
+int *spx_cl_tunable_field(struct spx_tunables *t, int i);
+const char *spx_cl_tunable_name(int i);
+int spx_cl_tunable_find(const char *name, size_t len);
+/* 0 when `val` is a legal value of row i on this device (stored in *out); else -1 and the reason
+ * ("expected an integer in [1, 1024]") in why. */
+int spx_cl_tunable_parse(const spx_ctx *ctx, int i, const char *val, int *out, char *why, size_t cap);
+/* The combinations of t against the device's limits (work-group sizes, local memory). */
+spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t);
+/* Apply the tuning file of the open device (lib/cl/tunefile.c) over the defaults in ctx->tune:
+ * a missing file changes nothing; an unreadable, corrupt or mismatched one is ignored as a whole
+ * and the reason kept in ctx->tune_note. Never fails. */
+void spx_cl_tunefile_apply(spx_ctx *ctx);
+
+/* Release every built program and kernel (the device stays open); the next launch rebuilds. */
+void spx_cl_programs_release(spx_ctx *ctx);
+/* The program-binary cache directory (created when missing); 0 when there is none. */
+int spx_cl_cache_dir(char *out, size_t cap);
 
 /* Device buffers. Creation checks the device's max allocation and reports the size on failure. */
 spx_status spx_cl_alloc(spx_ctx *ctx, size_t bytes, const char *what, cl_mem *out);

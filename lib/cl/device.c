@@ -131,8 +131,6 @@ static spx_status pick(spx_ctx *ctx, const char *spec, struct pick_state *s) {
   return SPX_OK;
 }
 
-spx_status spx_cl_build_options(spx_ctx *ctx); /* tuning.c: checks the tunables too */
-
 spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
   if (!ctx) return SPX_E_ARG;
   if (ctx->have_device) spx_cl_close(ctx);
@@ -155,7 +153,7 @@ spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
   fill_info(s.p, s.d, s.pi, s.di, &ctx->info);
   ctx->have_device = 1;
   memset(&ctx->cache, 0, sizeof ctx->cache);
-  if ((st = spx_cl_build_options(ctx))) {
+  if ((st = spx_cl_tunables_resolve(ctx))) {
     spx_cl_close(ctx); /* a bad SPX_TUNE_* override: the device is not usable as configured */
     return st;
   }
@@ -193,12 +191,9 @@ spx_status spx_device_cache_stats(spx_ctx *ctx, spx_cache_stats *out) {
 
 void spx_cl_close(spx_ctx *ctx) {
   if (!ctx || !ctx->have_device) return;
-  if (ctx->queue) clFinish(ctx->queue);
-  for (int i = 0; i < ctx->nkernels; i++) clReleaseKernel(ctx->kernels[i].kernel);
-  for (int i = 0; i < ctx->nprograms; i++) clReleaseProgram(ctx->programs[i].prog);
+  spx_cl_programs_release(ctx);
   if (ctx->queue) clReleaseCommandQueue(ctx->queue);
   if (ctx->context) clReleaseContext(ctx->context);
-  ctx->nkernels = ctx->nprograms = 0;
   ctx->queue = NULL;
   ctx->context = NULL;
   ctx->have_device = 0;

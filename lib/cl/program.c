@@ -117,7 +117,7 @@ static int cache_disabled(void) {
   return v && *v && strcmp(v, "0");
 }
 
-static int cache_dir(char *out, size_t cap) {
+int spx_cl_cache_dir(char *out, size_t cap) {
   const char *d = getenv("SPX_CACHE_DIR");
   if (d && *d) {
     snprintf(out, cap, "%s", d);
@@ -281,7 +281,7 @@ static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
   double t0 = spx_now();
   cl_program prog = NULL;
   char dir[4096], path[4400];
-  int use_cache = !cache_disabled() && cache_dir(dir, sizeof dir);
+  int use_cache = !cache_disabled() && spx_cl_cache_dir(dir, sizeof dir);
   struct cache_key key = make_key(ctx, src, len, ctx->build_options);
   if (use_cache) {
     cache_path(path, sizeof path, dir, name, key);
@@ -306,28 +306,62 @@ done:
   return st;
 }
 
-spx_status spx_cl_kernel(spx_ctx *ctx, const char *program, const char *kernel, cl_kernel *out) {
-  spx_status st = spx_cl_require(ctx, kernel);
-  if (st) return st;
-  for (int i = 0; i < ctx->nkernels; i++)
-    if (!strcmp(ctx->kernels[i].name, kernel) && !strcmp(ctx->kernels[i].program, program)) {
-      *out = ctx->kernels[i].kernel;
-      return SPX_OK;
-    }
-  if (ctx->nkernels == SPX_MAX_KERNELS) return spx_fail(ctx, SPX_E_STATE, "too many kernels");
+static const struct spx_kernel_row {
+  const char *program, *name;
+} kernel_rows[SPX_K_COUNT] = {
+#define SPX_K_ROW(id, file, kname) [SPX_K_##id] = {file, kname},
+    SPX_KERNEL_LIST(SPX_K_ROW)
+#undef SPX_K_ROW
+};
+
+const char *spx_cl_kernel_name(spx_kernel_id id) {
+  return (unsigned)id < SPX_K_COUNT ? kernel_rows[id].name : "?";
+}
+
+/* Build (or find) `program` and create every kernel of it (lib/cl/kernels.h) not made
+ * yet; a kernel the program lacks stays NULL and fails when it is asked for. */
+static spx_status program_kernels(spx_ctx *ctx, const char *program) {
   cl_program prog;
-  st = get_program(ctx, program, &prog);
+  spx_status st = get_program(ctx, program, &prog);
   if (st) return st;
-  cl_int err;
-  cl_kernel k = clCreateKernel(prog, kernel, &err);
-  if (err != CL_SUCCESS) return spx_fail(ctx, SPX_E_CL, "kernels/%s: no kernel %s (%s)", program, kernel, spx_cl_error_name(err));
-  struct spx_cl_kernel_entry *e = &ctx->kernels[ctx->nkernels++];
-  snprintf(e->name, sizeof e->name, "%s", kernel);
-  for (int i = 0; i < ctx->nprograms; i++)
-    if (ctx->programs[i].prog == prog) e->program = ctx->programs[i].name;
-  e->kernel = k;
-  *out = k;
+  for (int i = 0; i < SPX_K_COUNT; i++) {
+    if (ctx->kernels[i] || strcmp(kernel_rows[i].program, program)) continue;
+    cl_int err;
+    cl_kernel k = clCreateKernel(prog, kernel_rows[i].name, &err);
+    ctx->kernels[i] = err == CL_SUCCESS ? k : NULL;
+  }
   return SPX_OK;
+}
+
+spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out) {
+  if (ctx && (unsigned)id < SPX_K_COUNT && ctx->kernels[id]) {
+    *out = ctx->kernels[id];
+    return SPX_OK;
+  }
+  spx_status st = spx_cl_require(ctx, "spx_cl_kernel");
+  if (st) return st;
+  if ((unsigned)id >= SPX_K_COUNT) return spx_fail(ctx, SPX_E_ARG, "spx_cl_kernel: no kernel handle %d", (int)id);
+  const struct spx_kernel_row *r = &kernel_rows[id];
+  if ((st = program_kernels(ctx, r->program))) return st;
+  if (!ctx->kernels[id]) {
+    cl_program prog;
+    get_program(ctx, r->program, &prog);
+    cl_int err;
+    cl_kernel k = clCreateKernel(prog, r->name, &err);
+    if (err != CL_SUCCESS) return spx_fail(ctx, SPX_E_CL, "kernels/%s: no kernel %s (%s)", r->program, r->name, spx_cl_error_name(err));
+    ctx->kernels[id] = k;
+  }
+  *out = ctx->kernels[id];
+  return SPX_OK;
+}
+
+void spx_cl_programs_release(spx_ctx *ctx) {
+  if (ctx->queue) clFinish(ctx->queue);
+  for (int i = 0; i < SPX_K_COUNT; i++)
+    if (ctx->kernels[i]) clReleaseKernel(ctx->kernels[i]);
+  memset(ctx->kernels, 0, sizeof ctx->kernels);
+  for (int i = 0; i < ctx->nprograms; i++) clReleaseProgram(ctx->programs[i].prog);
+  ctx->nprograms = 0;
 }
 
 const char *spx_cl_program_name(int i) {
@@ -343,8 +377,7 @@ const char *spx_cl_program_name(int i) {
 spx_status spx_cl_program_build(spx_ctx *ctx, const char *program) {
   spx_status st = spx_cl_require(ctx, program);
   if (st) return st;
-  cl_program p;
-  return get_program(ctx, program, &p);
+  return program_kernels(ctx, program);
 }
 
 spx_status spx_device_warmup(spx_ctx *ctx) {
@@ -353,9 +386,7 @@ spx_status spx_device_warmup(spx_ctx *ctx) {
   for (const struct spx_embedded_kernel *k = spx_embedded_kernels; k->name; k++) {
     size_t n = strlen(k->name);
     if (n < 3 || strcmp(k->name + n - 3, ".cl")) continue;
-    cl_program p;
-    st = get_program(ctx, k->name, &p);
-    if (st) return st;
+    if ((st = program_kernels(ctx, k->name))) return st;
   }
   return SPX_OK;
 }

@@ -43,7 +43,7 @@ spx_status spx_maxpool3s2_forward(spx_ctx *ctx, const spx_tensor *x, const spx_t
   if (oh < 1 || ow < 1 || y->n != x->n || y->c != x->c || y->h != oh || y->w != ow)
     return spx_fail(ctx, SPX_E_ARG, "%s: y is %dx%dx%dx%d, 3x3/2 pooling of %dx%dx%dx%d gives %dx%dx%dx%d", op, y->n,
                     y->c, y->h, y->w, x->n, x->c, x->h, x->w, x->n, x->c, oh, ow);
-  if ((st = spx_cl_kernel(ctx, "metrics.cl", "spx_metrics_maxpool3s2", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_METRICS_MAXPOOL3S2, &k))) return st;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, x->h) | SPX_ARG(k, 5, x->w) |
              SPX_ARG(k, 6, oh) | SPX_ARG(k, 7, ow);
   if ((st = spx_cl_check(ctx, e, "spx_metrics_maxpool3s2"))) return st;

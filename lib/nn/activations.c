@@ -3,8 +3,8 @@
 
 #include "nn/nn_internal.h"
 
-static const char *const fwd_names[] = {"spx_relu_fwd", "spx_leaky_relu_fwd", "spx_sigmoid_fwd", "spx_tanh_fwd"};
-static const char *const bwd_names[] = {"spx_relu_bwd", "spx_leaky_relu_bwd", "spx_sigmoid_bwd", "spx_tanh_bwd"};
+static const spx_kernel_id fwd_kernels[] = {SPX_K_RELU_FWD, SPX_K_LEAKY_RELU_FWD, SPX_K_SIGMOID_FWD, SPX_K_TANH_FWD};
+static const spx_kernel_id bwd_kernels[] = {SPX_K_RELU_BWD, SPX_K_LEAKY_RELU_BWD, SPX_K_SIGMOID_BWD, SPX_K_TANH_BWD};
 
 static spx_status check_kind(spx_ctx *ctx, spx_act_kind kind, float slope, const char *op) {
   if (kind < SPX_ACT_RELU || kind > SPX_ACT_TANH) return spx_fail(ctx, SPX_E_ARG, "%s: unknown activation %d", op, (int)kind);
@@ -20,8 +20,8 @@ spx_status spx_act_forward(spx_ctx *ctx, spx_act_kind kind, float slope, const s
       (st = spx_nn_check(ctx, y, "act_forward", "y")))
     return st;
   if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, "act_forward", "y vs x", y, x);
-  const char *kname = fwd_names[kind];
-  if ((st = spx_cl_kernel(ctx, "activations.cl", kname, &k))) return st;
+  const char *kname = spx_cl_kernel_name(fwd_kernels[kind]);
+  if ((st = spx_cl_kernel(ctx, fwd_kernels[kind], &k))) return st;
   cl_int n = (cl_int)spx_tensor_numel(x);
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, n) | SPX_ARG(k, 5, slope);
   if ((st = spx_cl_check(ctx, e, kname))) return st;
@@ -38,8 +38,8 @@ spx_status spx_act_backward(spx_ctx *ctx, spx_act_kind kind, float slope, const 
     return st;
   if (!spx_nn_same_shape(s, dy)) return spx_nn_shape_mismatch(ctx, "act_backward", "dy vs saved", dy, s);
   if (!spx_nn_same_shape(s, dx)) return spx_nn_shape_mismatch(ctx, "act_backward", "dx vs saved", dx, s);
-  const char *kname = bwd_names[kind];
-  if ((st = spx_cl_kernel(ctx, "activations.cl", kname, &k))) return st;
+  const char *kname = spx_cl_kernel_name(bwd_kernels[kind]);
+  if ((st = spx_cl_kernel(ctx, bwd_kernels[kind], &k))) return st;
   cl_int n = (cl_int)spx_tensor_numel(s);
   cl_int e = spx_nn_arg(k, 0, s) | spx_nn_arg(k, 2, dy) | spx_nn_arg(k, 4, dx) | SPX_ARG(k, 6, n) | SPX_ARG(k, 7, slope);
   if ((st = spx_cl_check(ctx, e, kname))) return st;

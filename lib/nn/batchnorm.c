@@ -12,7 +12,7 @@ static spx_status vec_check(spx_ctx *ctx, const char *op, const spx_tensor *t, c
 }
 
 static spx_status run_group_per_channel(spx_ctx *ctx, cl_kernel k, int c, const char *what) {
-  size_t l = (size_t)spx_cl_tune(ctx, "SPX_BN_WG");
+  size_t l = (size_t)ctx->tune.bn_wg;
   if (l > ctx->info.max_work_group)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_BN_WG=%zu exceeds the device's work-group limit %zu", what, l,
                     ctx->info.max_work_group);
@@ -40,7 +40,7 @@ spx_status spx_bn_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_ten
                     x->n, x->c, x->h, x->w);
   if (!isfinite(momentum) || !isfinite(eps) || eps < 0)
     return spx_fail(ctx, SPX_E_ARG, "%s: momentum %g / eps %g invalid", op, momentum, eps);
-  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_train_fwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_BN_TRAIN_FWD, &k))) return st;
   const spx_tensor *rm = update_running ? running_mean : x, *rv = update_running ? running_var : x; /* unused if !update */
   cl_int hw = x->h * x->w, upd = update_running ? 1 : 0;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, bias) | spx_nn_arg(k, 6, rm) |
@@ -64,7 +64,7 @@ spx_status spx_bn_eval_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
       (st = vec_check(ctx, op, running_var, "running_var", c)))
     return st;
   if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
-  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_eval_fwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_BN_EVAL_FWD, &k))) return st;
   cl_int hw = x->h * x->w, planes = x->n * x->c;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, bias) | spx_nn_arg(k, 6, running_mean) |
              spx_nn_arg(k, 8, running_var) | spx_nn_arg(k, 10, y) | SPX_ARG(k, 12, x->c) | SPX_ARG(k, 13, hw) |
@@ -88,7 +88,7 @@ spx_status spx_bn_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_te
   if (dx && !spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, op, "dx vs x", dx, x);
   if ((dweight && (st = vec_check(ctx, op, dweight, "dweight", c))) || (dbias && (st = vec_check(ctx, op, dbias, "dbias", c))))
     return st;
-  if ((st = spx_cl_kernel(ctx, "batchnorm.cl", "spx_bn_train_bwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_BN_TRAIN_BWD, &k))) return st;
   cl_int hw = x->h * x->w, want = (dx ? 1 : 0) | (dweight ? 2 : 0) | (dbias ? 4 : 0);
   /* unwanted outputs get a harmless stand-in buffer that the kernel never writes */
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, save) | spx_nn_arg(k, 6, dy) |

@@ -5,16 +5,16 @@
 #include "nn/conv2d.h"
 
 int spx_conv2d_lds_applies(const spx_ctx *ctx, int k, int stride) {
-  if (k != 3 || stride != 1 || !spx_cl_tune(ctx, "CONV_LDS") || spx_cl_tune(ctx, "CONV_VW") != 1) return 0;
-  int lws = spx_cl_tune(ctx, "CONV_LWS"), tx = spx_cl_tune(ctx, "CONV_LDS_TX"), tn = spx_cl_tune(ctx, "CONV_TN");
-  int cb = spx_cl_tune(ctx, "CONV_LDS_CB"), tm = spx_cl_tune(ctx, "CONV_TM");
+  const struct spx_tunables *t = &ctx->tune;
+  if (k != 3 || stride != 1 || !t->conv_lds || t->conv_vw != 1) return 0;
+  int lws = t->conv_lws, tx = t->conv_lds_tx, tn = t->conv_tn, cb = t->conv_lds_cb, tm = t->conv_tm;
   if (tx < 1 || lws % tx) return 0;
   uint64_t local = 4ull * cb * ((uint64_t)(lws / tx * tn + 2) * (tx + 2) + 9ull * tm);
   return local <= ctx->info.local_mem;
 }
 
 size_t spx_conv2d_lds_groups(const spx_ctx *ctx, int coutp, int ho, int wo) {
-  int lws = spx_cl_tune(ctx, "CONV_LWS"), tx = spx_cl_tune(ctx, "CONV_LDS_TX"), tn = spx_cl_tune(ctx, "CONV_TN");
-  int ty = lws / tx * tn, tm = spx_cl_tune(ctx, "CONV_TM");
+  const struct spx_tunables *t = &ctx->tune;
+  int tx = t->conv_lds_tx, ty = t->conv_lws / tx * t->conv_tn, tm = t->conv_tm;
   return (size_t)(coutp / tm) * (size_t)((wo + tx - 1) / tx) * (size_t)((ho + ty - 1) / ty);
 }

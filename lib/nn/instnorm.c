@@ -4,7 +4,7 @@
 #include "nn/nn_internal.h"
 
 static spx_status run_planes(spx_ctx *ctx, cl_kernel k, int planes, const char *what) {
-  size_t l = (size_t)spx_cl_tune(ctx, "SPX_BN_WG");
+  size_t l = (size_t)ctx->tune.bn_wg;
   if (l > ctx->info.max_work_group)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_BN_WG=%zu exceeds the device's work-group limit %zu", what, l,
                     ctx->info.max_work_group);
@@ -32,7 +32,7 @@ spx_status spx_instnorm_forward(spx_ctx *ctx, const spx_tensor *x, float eps, co
   if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
   if (!(eps >= 0) || !isfinite(eps)) return spx_fail(ctx, SPX_E_ARG, "%s: eps %g invalid", op, eps);
   if (x->n < 1 || x->c < 1 || x->h < 1 || x->w < 1) return spx_fail(ctx, SPX_E_ARG, "%s: empty input", op);
-  if ((st = spx_cl_kernel(ctx, "instnorm.cl", "spx_instnorm_fwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_INSTNORM_FWD, &k))) return st;
   cl_int planes = x->n * x->c, hw = x->h * x->w;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, save) | spx_nn_arg(k, 4, y) | SPX_ARG(k, 6, planes) |
              SPX_ARG(k, 7, hw) | SPX_ARG(k, 8, eps);
@@ -51,7 +51,7 @@ spx_status spx_instnorm_backward(spx_ctx *ctx, const spx_tensor *x, const spx_te
     return st;
   if (!spx_nn_same_shape(x, dy)) return spx_nn_shape_mismatch(ctx, op, "dy vs x", dy, x);
   if (!spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, op, "dx vs x", dx, x);
-  if ((st = spx_cl_kernel(ctx, "instnorm.cl", "spx_instnorm_bwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_INSTNORM_BWD, &k))) return st;
   cl_int planes = x->n * x->c, hw = x->h * x->w;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, save) | spx_nn_arg(k, 4, dy) | spx_nn_arg(k, 6, dx) |
              SPX_ARG(k, 8, planes) | SPX_ARG(k, 9, hw);

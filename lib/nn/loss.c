@@ -9,7 +9,7 @@ static spx_status reduce_run(spx_ctx *ctx, const char *op, int kind, const spx_t
   spx_status st;
   cl_kernel k1, k2;
   cl_mem partial = NULL;
-  size_t wg = (size_t)spx_cl_tune(ctx, "SPX_RED_WG"), maxg = (size_t)spx_cl_tune(ctx, "SPX_RED_GROUPS");
+  size_t wg = (size_t)ctx->tune.red_wg, maxg = (size_t)ctx->tune.red_groups;
   if (wg > ctx->info.max_work_group)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_RED_WG=%zu exceeds the device's work-group limit %zu", op, wg,
                     ctx->info.max_work_group);
@@ -19,8 +19,8 @@ static spx_status reduce_run(spx_ctx *ctx, const char *op, int kind, const spx_t
   if (groups < 1) groups = 1;
   if (n > (size_t)INT_MAX - groups * wg) /* the kernel's grid-stride index must not overflow */
     return spx_fail(ctx, SPX_E_ARG, "%s: %zu elements are too many for one reduction", op, n);
-  if ((st = spx_cl_kernel(ctx, "loss.cl", "spx_reduce_stage1", &k1)) ||
-      (st = spx_cl_kernel(ctx, "loss.cl", "spx_reduce_stage2", &k2)))
+  if ((st = spx_cl_kernel(ctx, SPX_K_REDUCE_STAGE1, &k1)) ||
+      (st = spx_cl_kernel(ctx, SPX_K_REDUCE_STAGE2, &k2)))
     return st;
   /* released right after enqueueing: OpenCL frees it once the queued kernels are done */
   if ((st = spx_cl_alloc(ctx, groups * sizeof(float), "reduction partial sums", &partial))) return st;
@@ -68,7 +68,7 @@ static spx_status loss_grad(spx_ctx *ctx, spx_loss_kind kind, spx_reduction r, c
   cl_kernel k;
   if ((st = spx_nn_check(ctx, d, "loss_backward", sign > 0 ? "dpred" : "dtarget"))) return st;
   if (!spx_nn_same_shape(pred, d)) return spx_nn_shape_mismatch(ctx, "loss_backward", "gradient vs pred", d, pred);
-  if ((st = spx_cl_kernel(ctx, "loss.cl", "spx_loss_bwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_LOSS_BWD, &k))) return st;
   size_t n = spx_tensor_numel(pred);
   cl_int ni = (cl_int)n, kd = (cl_int)kind;
   float div = r == SPX_REDUCE_MEAN ? (float)n : 1.0f;

@@ -28,7 +28,7 @@ spx_status spx_adam_step(spx_ctx *ctx, const spx_adam_params *hp, int64_t step, 
   if ((st = spx_nn_check(ctx, params, op, "params"))) return st;
   size_t n = spx_tensor_numel(params);
   if ((st = flat_check(ctx, op, grads, "grads", n)) || (st = flat_check(ctx, op, m, "m", n)) ||
-      (st = flat_check(ctx, op, v, "v", n)) || (st = spx_cl_kernel(ctx, "optim.cl", "spx_adam_step", &k)))
+      (st = flat_check(ctx, op, v, "v", n)) || (st = spx_cl_kernel(ctx, SPX_K_ADAM_STEP, &k)))
     return st;
   double bc1 = 1.0 - pow(hp->beta1, (double)step), bc2 = 1.0 - pow(hp->beta2, (double)step);
   float beta1 = (float)hp->beta1, beta2 = (float)hp->beta2, omb1 = (float)(1.0 - hp->beta1),
@@ -60,7 +60,7 @@ spx_status spx_sgd_step(spx_ctx *ctx, const spx_sgd_params *hp, int first_step, 
   int use_m = hp->momentum != 0;
   if ((st = flat_check(ctx, op, grads, "grads", n))) return st;
   if (use_m && (st = flat_check(ctx, op, buf, "momentum buffer", n))) return st;
-  if ((st = spx_cl_kernel(ctx, "optim.cl", "spx_sgd_step", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_SGD_STEP, &k))) return st;
   float neg_lr = (float)-hp->lr, mom = (float)hp->momentum, omd = (float)(1.0 - hp->dampening),
         wd = (float)hp->weight_decay;
   cl_int ni = (cl_int)n, um = use_m, first = first_step ? 1 : 0, nest = hp->nesterov ? 1 : 0;

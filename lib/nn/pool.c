@@ -15,7 +15,7 @@ static spx_status shapes(spx_ctx *ctx, const char *op, const spx_tensor *x, cons
 spx_status spx_maxpool_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *y) {
   spx_status st;
   cl_kernel k;
-  if ((st = shapes(ctx, "maxpool_forward", x, y, "y")) || (st = spx_cl_kernel(ctx, "pool.cl", "spx_maxpool_fwd", &k)))
+  if ((st = shapes(ctx, "maxpool_forward", x, y, "y")) || (st = spx_cl_kernel(ctx, SPX_K_MAXPOOL_FWD, &k)))
     return st;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, x->h) | SPX_ARG(k, 5, x->w);
   if ((st = spx_cl_check(ctx, e, "spx_maxpool_fwd"))) return st;
@@ -29,7 +29,7 @@ spx_status spx_maxpool_backward(spx_ctx *ctx, const spx_tensor *x, const spx_ten
   if ((st = shapes(ctx, "maxpool_backward", x, dy, "dy")) || (st = spx_nn_check(ctx, dx, "maxpool_backward", "dx")))
     return st;
   if (!spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, "maxpool_backward", "dx vs x", dx, x);
-  if ((st = spx_cl_kernel(ctx, "pool.cl", "spx_maxpool_bwd", &k))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_MAXPOOL_BWD, &k))) return st;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, dy) | spx_nn_arg(k, 4, dx) | SPX_ARG(k, 6, x->h) |
              SPX_ARG(k, 7, x->w);
   if ((st = spx_cl_check(ctx, e, "spx_maxpool_bwd"))) return st;
@@ -52,7 +52,7 @@ spx_status spx_avgpool3_forward(spx_ctx *ctx, const spx_tensor *x, const spx_ten
   spx_status st;
   cl_kernel k;
   if ((st = avg_shapes(ctx, "avgpool3_forward", x, y, "x", "y")) ||
-      (st = spx_cl_kernel(ctx, "pool.cl", "spx_avgpool3_fwd", &k)))
+      (st = spx_cl_kernel(ctx, SPX_K_AVGPOOL3_FWD, &k)))
     return st;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, x->h) | SPX_ARG(k, 5, x->w);
   if ((st = spx_cl_check(ctx, e, "spx_avgpool3_fwd"))) return st;
@@ -64,7 +64,7 @@ spx_status spx_avgpool3_backward(spx_ctx *ctx, const spx_tensor *dy, const spx_t
   cl_kernel k;
   if (!dx) return SPX_OK;
   if ((st = avg_shapes(ctx, "avgpool3_backward", dx, dy, "dx", "dy")) ||
-      (st = spx_cl_kernel(ctx, "pool.cl", "spx_avgpool3_bwd", &k)))
+      (st = spx_cl_kernel(ctx, SPX_K_AVGPOOL3_BWD, &k)))
     return st;
   cl_int e = spx_nn_arg(k, 0, dy) | spx_nn_arg(k, 2, dx) | SPX_ARG(k, 4, dx->h) | SPX_ARG(k, 5, dx->w);
   if ((st = spx_cl_check(ctx, e, "spx_avgpool3_bwd"))) return st;

@@ -20,7 +20,7 @@ spx_status spx_copy(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *y) {
   spx_status st;
   cl_kernel k;
   if ((st = spx_nn_check(ctx, x, "copy", "x")) || (st = spx_nn_check(ctx, y, "copy", "y")) ||
-      (st = same_numel(ctx, "copy", x, y)) || (st = spx_cl_kernel(ctx, "tensor_ops.cl", "spx_copy", &k)))
+      (st = same_numel(ctx, "copy", x, y)) || (st = spx_cl_kernel(ctx, SPX_K_COPY, &k)))
     return st;
   cl_int n = (cl_int)spx_tensor_numel(x);
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, n);
@@ -32,7 +32,7 @@ spx_status spx_axpy(spx_ctx *ctx, float alpha, const spx_tensor *x, const spx_te
   spx_status st;
   cl_kernel k;
   if ((st = spx_nn_check(ctx, x, "axpy", "x")) || (st = spx_nn_check(ctx, y, "axpy", "y")) ||
-      (st = same_numel(ctx, "axpy", x, y)) || (st = spx_cl_kernel(ctx, "tensor_ops.cl", "spx_axpy", &k)))
+      (st = same_numel(ctx, "axpy", x, y)) || (st = spx_cl_kernel(ctx, SPX_K_AXPY, &k)))
     return st;
   cl_int n = (cl_int)spx_tensor_numel(x);
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, alpha) | SPX_ARG(k, 5, n);
@@ -43,7 +43,7 @@ spx_status spx_axpy(spx_ctx *ctx, float alpha, const spx_tensor *x, const spx_te
 spx_status spx_scale(spx_ctx *ctx, float alpha, const spx_tensor *x) {
   spx_status st;
   cl_kernel k;
-  if ((st = spx_nn_check(ctx, x, "scale", "x")) || (st = spx_cl_kernel(ctx, "tensor_ops.cl", "spx_scale", &k)))
+  if ((st = spx_nn_check(ctx, x, "scale", "x")) || (st = spx_cl_kernel(ctx, SPX_K_SCALE, &k)))
     return st;
   cl_int n = (cl_int)spx_tensor_numel(x);
   cl_int e = spx_nn_arg(k, 0, x) | SPX_ARG(k, 2, alpha) | SPX_ARG(k, 3, n);
@@ -56,7 +56,7 @@ spx_status spx_add(spx_ctx *ctx, const spx_tensor *a, const spx_tensor *b, const
   cl_kernel k;
   if ((st = spx_nn_check(ctx, a, "add", "a")) || (st = spx_nn_check(ctx, b, "add", "b")) ||
       (st = spx_nn_check(ctx, out, "add", "out")) || (st = same_numel(ctx, "add", a, b)) ||
-      (st = same_numel(ctx, "add", a, out)) || (st = spx_cl_kernel(ctx, "tensor_ops.cl", "spx_add", &k)))
+      (st = same_numel(ctx, "add", a, out)) || (st = spx_cl_kernel(ctx, SPX_K_ADD, &k)))
     return st;
   cl_int n = (cl_int)spx_tensor_numel(a);
   cl_int e = spx_nn_arg(k, 0, a) | spx_nn_arg(k, 2, b) | spx_nn_arg(k, 4, out) | SPX_ARG(k, 6, n);
@@ -76,10 +76,11 @@ static spx_status pad_check(spx_ctx *ctx, const char *op, const spx_tensor *x, c
   return SPX_OK;
 }
 
-static spx_status pad_run(spx_ctx *ctx, const char *kname, const spx_tensor *src, const spx_tensor *dst,
+static spx_status pad_run(spx_ctx *ctx, spx_kernel_id kid, const spx_tensor *src, const spx_tensor *dst,
                           const spx_tensor *x, const spx_tensor *o, int left, int top, const spx_tensor *range) {
   cl_kernel k;
-  spx_status st = spx_cl_kernel(ctx, "tensor_ops.cl", kname, &k);
+  const char *kname = spx_cl_kernel_name(kid);
+  spx_status st = spx_cl_kernel(ctx, kid, &k);
   if (st) return st;
   cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, x->h) | SPX_ARG(k, 5, x->w) |
              SPX_ARG(k, 6, o->h) | SPX_ARG(k, 7, o->w) | SPX_ARG(k, 8, left) | SPX_ARG(k, 9, top);
@@ -91,14 +92,14 @@ spx_status spx_pad_forward(spx_ctx *ctx, const spx_tensor *x, int left, int righ
                            const spx_tensor *out) {
   spx_status st = pad_check(ctx, "pad_forward", x, out, left, right, top, bottom);
   if (st) return st;
-  return pad_run(ctx, "spx_pad_fwd", x, out, x, out, left, top, out);
+  return pad_run(ctx, SPX_K_PAD_FWD, x, out, x, out, left, top, out);
 }
 
 spx_status spx_pad_backward(spx_ctx *ctx, const spx_tensor *dout, int left, int right, int top, int bottom,
                             const spx_tensor *dx) {
   spx_status st = pad_check(ctx, "pad_backward", dx, dout, left, right, top, bottom);
   if (st) return st;
-  return pad_run(ctx, "spx_pad_bwd", dout, dx, dx, dout, left, top, dx);
+  return pad_run(ctx, SPX_K_PAD_BWD, dout, dx, dx, dout, left, top, dx);
 }
 
 static spx_status concat_check(spx_ctx *ctx, const char *op, const spx_tensor *a, const spx_tensor *b,
@@ -113,7 +114,7 @@ static spx_status concat_check(spx_ctx *ctx, const char *op, const spx_tensor *a
 /* src (n x cs x hw) into channels [c0, c0 + cs) of dst (n x cd x hw) */
 static spx_status place(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
   cl_kernel k;
-  spx_status st = spx_cl_kernel(ctx, "tensor_ops.cl", "spx_channel_place", &k);
+  spx_status st = spx_cl_kernel(ctx, SPX_K_CHANNEL_PLACE, &k);
   if (st) return st;
   cl_int hw = src->h * src->w;
   cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, src->c) | SPX_ARG(k, 5, c0) |
@@ -133,7 +134,7 @@ spx_status spx_concat_forward(spx_ctx *ctx, const spx_tensor *a, const spx_tenso
 
 static spx_status slice_acc(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
   cl_kernel k;
-  spx_status st = spx_cl_kernel(ctx, "tensor_ops.cl", "spx_channel_slice_acc", &k);
+  spx_status st = spx_cl_kernel(ctx, SPX_K_CHANNEL_SLICE_ACC, &k);
   if (st) return st;
   cl_int hw = src->h * src->w;
   cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, src->c) | SPX_ARG(k, 5, c0) |

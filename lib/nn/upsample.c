@@ -17,7 +17,7 @@ static float scale_of(int in, int align) {
   return 0.5f;
 }
 
-static spx_status run(spx_ctx *ctx, const char *op, const char *kname, const spx_tensor *src, const spx_tensor *dst,
+static spx_status run(spx_ctx *ctx, const char *op, spx_kernel_id kid, const spx_tensor *src, const spx_tensor *dst,
                       const spx_tensor *small, const spx_tensor *big, int align, const spx_tensor *range) {
   spx_status st;
   cl_kernel k;
@@ -25,7 +25,8 @@ static spx_status run(spx_ctx *ctx, const char *op, const char *kname, const spx
   if (big->n != small->n || big->c != small->c || (long)big->h != 2L * small->h || (long)big->w != 2L * small->w)
     return spx_fail(ctx, SPX_E_ARG, "%s: %dx%dx%dx%d is not the x2 upsampling of %dx%dx%dx%d", op, big->n, big->c,
                     big->h, big->w, small->n, small->c, small->h, small->w);
-  if ((st = spx_cl_kernel(ctx, "upsample.cl", kname, &k))) return st;
+  const char *kname = spx_cl_kernel_name(kid);
+  if ((st = spx_cl_kernel(ctx, kid, &k))) return st;
   cl_int al = align ? 1 : 0;
   float sh = scale_of(small->h, align), sw = scale_of(small->w, align);
   cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, small->h) | SPX_ARG(k, 5, small->w) |
@@ -36,7 +37,7 @@ static spx_status run(spx_ctx *ctx, const char *op, const char *kname, const spx
 
 spx_status spx_upsample2x_forward(spx_ctx *ctx, const spx_tensor *x, int align_corners, const spx_tensor *y) {
   if (!x || !y) return spx_fail(ctx, SPX_E_ARG, "upsample2x_forward: missing tensor");
-  return run(ctx, "upsample2x_forward", "spx_upsample2x_fwd", x, y, x, y, align_corners, y);
+  return run(ctx, "upsample2x_forward", SPX_K_UPSAMPLE2X_FWD, x, y, x, y, align_corners, y);
 }
 
 spx_status spx_upsample2x_backward(spx_ctx *ctx, const spx_tensor *dy, int align_corners, const spx_tensor *dx) {
@@ -53,9 +54,9 @@ spx_status spx_upsample2x_backward(spx_ctx *ctx, const spx_tensor *dy, int align
   size_t planes = (size_t)dx->n * (size_t)dx->c, rows = 2 * (size_t)dx->h;
   if (planes * rows * (size_t)dx->w == 0) return SPX_OK;
   cl_kernel kw;
-  if ((st = spx_cl_kernel(ctx, "upsample.cl", "spx_upsample2x_bwd_rows", &k1)) ||
-      (st = spx_cl_kernel(ctx, "upsample.cl", "spx_upsample2x_bwd_cols", &k2)) ||
-      (st = spx_cl_kernel(ctx, "upsample.cl", "spx_upsample2x_weights", &kw)))
+  if ((st = spx_cl_kernel(ctx, SPX_K_UPSAMPLE2X_BWD_ROWS, &k1)) ||
+      (st = spx_cl_kernel(ctx, SPX_K_UPSAMPLE2X_BWD_COLS, &k2)) ||
+      (st = spx_cl_kernel(ctx, SPX_K_UPSAMPLE2X_WEIGHTS, &kw)))
     return st;
   /* scratch: the row-pass result (half of dy), then the x and y weight tables (5 per input
    * column / row); released right after enqueueing, OpenCL keeps it alive until the queued

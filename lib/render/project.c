@@ -73,7 +73,7 @@ static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project
   cl_int N = a->nverts, C = a->ncams, W = a->cams[0].width, H = a->cams[0].height, layout = (cl_int)a->layout;
   cl_int want_win = win != p->dummy.mem, has_col = a->col != NULL;
   cl_mem pos = a->pos ? a->pos : p->dummy.mem, col = a->col ? a->col : p->dummy.mem;
-  size_t per = (size_t)spx_cl_tune(ctx, "SPX_PROJ_ZB_CHUNK"), most = (size_t)spx_cl_tune(ctx, "SPX_PROJ_ZB_PARTS");
+  size_t per = (size_t)ctx->tune.proj_zb_chunk, most = (size_t)ctx->tune.proj_zb_parts;
   if (!most) most = ctx->info.compute_units ? ctx->info.compute_units : 1;
   size_t parts = ((size_t)npts + per - 1) / per;
   if (parts > most) parts = most;
@@ -90,8 +90,8 @@ static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project
   }
   p->zb_clear = 0; /* until both launches are enqueued */
   cl_kernel kz, km;
-  if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_zbuf", &kz))) return st;
-  if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_zmerge", &km))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ZBUF, &kz))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ZMERGE, &km))) return st;
   cl_int e = SPX_ARG(kz, 0, pos) | SPX_ARG(kz, 1, p->cams.mem) | SPX_ARG(kz, 2, N) | SPX_ARG(kz, 3, C) |
              SPX_ARG(kz, 4, W) | SPX_ARG(kz, 5, H) | SPX_ARG(kz, 6, npts) | SPX_ARG(kz, 7, chunk) |
              SPX_ARG(kz, 8, npix) | SPX_ARG(kz, 9, p->zb.mem);
@@ -102,8 +102,8 @@ static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project
       SPX_ARG(km, 4, N) | SPX_ARG(km, 5, C) | SPX_ARG(km, 6, W) | SPX_ARG(km, 7, H) | SPX_ARG(km, 8, npix) |
       SPX_ARG(km, 9, out) | SPX_ARG(km, 10, layout) | SPX_ARG(km, 11, win) | SPX_ARG(km, 12, want_win);
   if ((st = spx_cl_check(ctx, e, "spx_project_zmerge args"))) return st;
-  size_t fill_px = (size_t)spx_cl_tune(ctx, "SPX_PROJ_FILL_PX"), g = (npix + fill_px - 1) / fill_px;
-  size_t l = (size_t)spx_cl_tune(ctx, "SPX_WG");
+  size_t fill_px = (size_t)ctx->tune.proj_fill_px, g = (npix + fill_px - 1) / fill_px;
+  size_t l = (size_t)ctx->tune.wg;
   if ((st = spx_cl_run(ctx, km, 1, &g, &l, "spx_project_zmerge"))) return st;
   p->zb_clear = p->zb.bytes;
   return SPX_OK;
@@ -130,9 +130,9 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
    * 4 z-buffer per part + merge (CPU-class devices) */
   int path = force_path;
   if (!path)
-    path = spx_cl_tune(ctx, "SPX_PROJ_ZBUF")                        ? 4
-           : npts <= (cl_uint)spx_cl_tune(ctx, "SPX_PROJ_FAST_MAX") ? 1
-           : spx_cl_tune(ctx, "SPX_PROJ_COUNT_MIN") > 0 && npts >= (cl_uint)spx_cl_tune(ctx, "SPX_PROJ_COUNT_MIN")
+    path = ctx->tune.proj_zbuf                        ? 4
+           : npts <= (cl_uint)ctx->tune.proj_fast_max ? 1
+           : ctx->tune.proj_count_min > 0 && npts >= (cl_uint)ctx->tune.proj_count_min
                ? 3
                : 2;
   if (path == 4) {
@@ -149,26 +149,26 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
   }
   cl_mem counts = want_counts ? p->offs.mem : p->dummy.mem;
   cl_kernel kk;
-  if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_keys", &kk))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_KEYS, &kk))) return st;
   cl_int e = SPX_ARG(kk, 0, pos) | SPX_ARG(kk, 1, p->cams.mem) | SPX_ARG(kk, 2, N) | SPX_ARG(kk, 3, C) |
              SPX_ARG(kk, 4, W) | SPX_ARG(kk, 5, H) | SPX_ARG(kk, 6, npts) | SPX_ARG(kk, 7, p->keys.mem) |
              SPX_ARG(kk, 8, p->vals.mem) | SPX_ARG(kk, 9, npix) | SPX_ARG(kk, 10, out) | SPX_ARG(kk, 11, layout) |
              SPX_ARG(kk, 12, win) | SPX_ARG(kk, 13, want_win) | SPX_ARG(kk, 14, counts) |
              SPX_ARG(kk, 15, want_counts);
   if ((st = spx_cl_check(ctx, e, "spx_project_keys args"))) return st;
-  size_t fill_px = (size_t)spx_cl_tune(ctx, "SPX_PROJ_FILL_PX"), nfill = (npix + fill_px - 1) / fill_px;
-  size_t g = npts > nfill ? npts : nfill, l = (size_t)spx_cl_tune(ctx, "SPX_WG");
+  size_t fill_px = (size_t)ctx->tune.proj_fill_px, nfill = (npix + fill_px - 1) / fill_px;
+  size_t g = npts > nfill ? npts : nfill, l = (size_t)ctx->tune.wg;
   if ((st = spx_cl_run(ctx, kk, 1, &g, &l, "spx_project_keys"))) return st;
   if (npts == 0) return SPX_OK;
 
   /* sort by pixel only (bits [32, key_bits)) unless SPX_PROJ_SORT_DEPTH: see spx_project_head */
-  cl_uint key_bits = 32u + (cl_uint)bits_for(npix), lo_bit = spx_cl_tune(ctx, "SPX_PROJ_SORT_DEPTH") ? 0u : 32u;
+  cl_uint key_bits = 32u + (cl_uint)bits_for(npix), lo_bit = ctx->tune.proj_sort_depth ? 0u : 32u;
   p->last_path = path;
   if (path == 3) {
     if ((st = spx_scan_exclusive(ctx, &p->sorter, p->offs.mem, npix))) return st;
     cl_kernel kb, km;
-    if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_bucket", &kb))) return st;
-    if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_bucket_min", &km))) return st;
+    if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_BUCKET, &kb))) return st;
+    if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_BUCKET_MIN, &km))) return st;
     e = SPX_ARG(kb, 0, p->keys.mem) | SPX_ARG(kb, 1, npts) | SPX_ARG(kb, 2, npix) | SPX_ARG(kb, 3, p->offs.mem) |
         SPX_ARG(kb, 4, p->vals.mem);
     if ((st = spx_cl_check(ctx, e, "spx_project_bucket args"))) return st;
@@ -184,7 +184,7 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
   }
   if (path == 1) {
     cl_kernel k;
-    if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_sort_scatter", &k))) return st;
+    if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_SORT_SCATTER, &k))) return st;
     if ((st = spx_cl_buf_ensure(ctx, &p->sorter.keys2, (size_t)npts * sizeof(cl_ulong), "radix sort keys"))) return st;
     if ((st = spx_cl_buf_ensure(ctx, &p->sorter.vals2, (size_t)npts * sizeof(cl_uint), "radix sort values"))) return st;
     e = SPX_ARG(k, 0, p->keys.mem) | SPX_ARG(k, 1, p->vals.mem) | SPX_ARG(k, 2, p->sorter.keys2.mem) |
@@ -193,13 +193,13 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
         SPX_ARG(k, 12, H) | SPX_ARG(k, 13, npix) | SPX_ARG(k, 14, out) | SPX_ARG(k, 15, layout) |
         SPX_ARG(k, 16, win) | SPX_ARG(k, 17, want_win);
     if ((st = spx_cl_check(ctx, e, "spx_project_sort_scatter args"))) return st;
-    size_t wg = (size_t)spx_cl_tune(ctx, "SPX_SORT_WG");
+    size_t wg = (size_t)ctx->tune.sort_wg;
     return spx_cl_run(ctx, k, 1, &wg, &wg, "spx_project_sort_scatter");
   }
   if ((st = spx_radix_sort(ctx, &p->sorter, p->keys.mem, p->vals.mem, npts, (int)lo_bit, (int)key_bits,
                             SPX_SORT_AUTO))) return st;
   cl_kernel ks;
-  if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_scatter", &ks))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_SCATTER, &ks))) return st;
   e = SPX_ARG(ks, 0, p->keys.mem) | SPX_ARG(ks, 1, p->vals.mem) | SPX_ARG(ks, 2, npts) | SPX_ARG(ks, 3, col) |
       SPX_ARG(ks, 4, has_col) | SPX_ARG(ks, 5, N) | SPX_ARG(ks, 6, C) | SPX_ARG(ks, 7, W) | SPX_ARG(ks, 8, H) |
       SPX_ARG(ks, 9, npix) | SPX_ARG(ks, 10, out) | SPX_ARG(ks, 11, layout) | SPX_ARG(ks, 12, win) |
@@ -295,12 +295,12 @@ spx_status spx_project_backward_device(spx_ctx *ctx, spx_projector *p, const spx
   cl_int e = clEnqueueFillBuffer(ctx->queue, p->vpix.mem, &minus1, sizeof minus1, 0, nv * sizeof(cl_int), 0, NULL, NULL);
   if ((st = spx_cl_check(ctx, e, "spx_project_backward fill"))) return st;
   cl_kernel kv, kg;
-  if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_vpix", &kv))) return st;
-  if ((st = spx_cl_kernel(ctx, "project.cl", "spx_project_grad", &kg))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_VPIX, &kv))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_GRAD, &kg))) return st;
   e = SPX_ARG(kv, 0, winners) | SPX_ARG(kv, 1, npix) | SPX_ARG(kv, 2, N) | SPX_ARG(kv, 3, W) | SPX_ARG(kv, 4, H) |
       SPX_ARG(kv, 5, p->vpix.mem);
   if ((st = spx_cl_check(ctx, e, "spx_project_vpix args"))) return st;
-  size_t g = npix, l = (size_t)spx_cl_tune(ctx, "SPX_WG");
+  size_t g = npix, l = (size_t)ctx->tune.wg;
   if ((st = spx_cl_run(ctx, kv, 1, &g, &l, "spx_project_vpix"))) return st;
   cl_mem gc = gcol ? gcol : p->dummy.mem, gp = gpos ? gpos : p->dummy.mem;
   e = SPX_ARG(kg, 0, p->vpix.mem) | SPX_ARG(kg, 1, grad_img) | SPX_ARG(kg, 2, layout) | SPX_ARG(kg, 3, p->cams.mem) |

@@ -77,24 +77,20 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
   if (!r || !out) return spx_fail(ctx, SPX_E_ARG, "spx_raster: rasterizer or out is NULL");
   if ((st = spx_cl_require(ctx, "spx_raster"))) return st;
   cl_kernel kv, ks, kscan, kbin, kt, ksh, kd;
-  /* tile kernel form: per tile (CPU) or per pixel (GPU); SPX_RASTER_SERIAL=0/1 and
-   * SPX_RASTER_CHUNK=n override the device's tunables (tests run both forms) */
-  int serial = spx_cl_tune(ctx, "SPX_RASTER_SERIAL");
-  const char *env_serial = getenv("SPX_RASTER_SERIAL");
-  if (env_serial && *env_serial) serial = atoi(env_serial) != 0;
-  if ((st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_vert", &kv)) ||
-      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_setup", &ks)) ||
-      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_scan", &kscan)) ||
-      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_bin", &kbin)) ||
-      (st = spx_cl_kernel(ctx, "raster.cl", serial ? "spx_raster_tile_serial" : "spx_raster_tile", &kt)) ||
-      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_shade", &ksh)) ||
-      (st = spx_cl_kernel(ctx, "raster.cl", "spx_raster_down", &kd)))
+  /* tile kernel form: per tile (CPU) or per pixel (GPU); SPX_TUNE_RASTER_SERIAL=0/1 and
+   * SPX_TUNE_RASTER_CHUNK=n override the device's tunables (tests run both forms) */
+  int serial = ctx->tune.raster_serial;
+  if ((st = spx_cl_kernel(ctx, SPX_K_RASTER_VERT, &kv)) ||
+      (st = spx_cl_kernel(ctx, SPX_K_RASTER_SETUP, &ks)) ||
+      (st = spx_cl_kernel(ctx, SPX_K_RASTER_SCAN, &kscan)) ||
+      (st = spx_cl_kernel(ctx, SPX_K_RASTER_BIN, &kbin)) ||
+      (st = spx_cl_kernel(ctx, serial ? SPX_K_RASTER_TILE_SERIAL : SPX_K_RASTER_TILE, &kt)) ||
+      (st = spx_cl_kernel(ctx, SPX_K_RASTER_SHADE, &ksh)) ||
+      (st = spx_cl_kernel(ctx, SPX_K_RASTER_DOWN, &kd)))
     return st;
 
-  const int TS = spx_cl_tune(ctx, "SPX_RASTER_TILE"), WG = spx_cl_tune(ctx, "SPX_WG");
-  cl_int chunk = spx_cl_tune(ctx, "SPX_RASTER_CHUNK");
-  const char *env_chunk = getenv("SPX_RASTER_CHUNK");
-  if (env_chunk && atoi(env_chunk) > 0) chunk = atoi(env_chunk);
+  const int TS = ctx->tune.raster_tile, WG = ctx->tune.wg;
+  cl_int chunk = ctx->tune.raster_chunk;
   spx_rcam c0;
   spx_raster_camera(a, 0, &c0);
   const int W = c0.W, H = c0.H, W1 = a->cams[0].width, H1 = a->cams[0].height;
@@ -215,7 +211,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
         SPX_ARG(ksh, 21, mode) | SPX_ARG(ksh, 22, r->win.mem) | SPX_ARG(ksh, 23, win_off) | SPX_ARG(ksh, 24, hw);
     if ((st = spx_cl_check(ctx, e, "spx_raster_shade"))) return st;
     /* grid-stride: a fixed number of work-items, each shading covered pixels in turn */
-    g = (size_t)spx_cl_tune(ctx, "SPX_RASTER_SHADE_ITEMS");
+    g = (size_t)ctx->tune.raster_shade_items;
     if ((st = spx_cl_run(ctx, ksh, 1, &g, &lw, "spx_raster_shade"))) return st;
     prof(ctx, r, "spx_raster_shade");
 

@@ -12,13 +12,13 @@ void spx_sorter_release(spx_sorter *s) {
 
 static spx_status scan_level(spx_ctx *ctx, spx_sorter *s, cl_mem data, cl_uint n, int level) {
   if (level >= SPX_SORT_LEVELS) return spx_fail(ctx, SPX_E_ARG, "spx_scan_exclusive: too many elements");
-  size_t wg = (size_t)spx_cl_tune(ctx, "SPX_SORT_WG"), block = wg * (size_t)spx_cl_tune(ctx, "SPX_SORT_ITEMS");
+  size_t wg = (size_t)ctx->tune.sort_wg, block = wg * (size_t)ctx->tune.sort_items;
   cl_uint nb = (cl_uint)((n + block - 1) / block);
   spx_status st = spx_cl_buf_ensure(ctx, &s->sums[level], (size_t)nb * sizeof(cl_uint), "radix sort scan sums");
   if (st) return st;
   cl_kernel kb, ka;
-  if ((st = spx_cl_kernel(ctx, "radix_sort.cl", "spx_scan_block", &kb))) return st;
-  if ((st = spx_cl_kernel(ctx, "radix_sort.cl", "spx_scan_add", &ka))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_SCAN_BLOCK, &kb))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_SCAN_ADD, &ka))) return st;
   cl_mem sums = s->sums[level].mem;
   cl_int e = SPX_ARG(kb, 0, data) | SPX_ARG(kb, 1, n) | SPX_ARG(kb, 2, sums);
   if ((st = spx_cl_check(ctx, e, "spx_scan_block args"))) return st;
@@ -28,7 +28,7 @@ static spx_status scan_level(spx_ctx *ctx, spx_sorter *s, cl_mem data, cl_uint n
   if ((st = scan_level(ctx, s, sums, nb, level + 1))) return st;
   e = SPX_ARG(ka, 0, data) | SPX_ARG(ka, 1, n) | SPX_ARG(ka, 2, sums);
   if ((st = spx_cl_check(ctx, e, "spx_scan_add args"))) return st;
-  size_t ga = n, la = (size_t)spx_cl_tune(ctx, "SPX_WG");
+  size_t ga = n, la = (size_t)ctx->tune.wg;
   return spx_cl_run(ctx, ka, 1, &ga, &la, "spx_scan_add");
 }
 
@@ -47,16 +47,16 @@ spx_status spx_radix_sort(spx_ctx *ctx, spx_sorter *s, cl_mem keys, cl_mem vals,
   if (n > SPX_SORT_MAX_N)
     return spx_fail(ctx, SPX_E_ARG, "spx_radix_sort: %zu keys is more than the supported %u", n, SPX_SORT_MAX_N);
   if (n < 2 || key_bits == lo_bit) return SPX_OK;
-  int bits = spx_cl_tune(ctx, "SPX_SORT_BITS");
-  size_t wg = (size_t)spx_cl_tune(ctx, "SPX_SORT_WG"), block = wg * (size_t)spx_cl_tune(ctx, "SPX_SORT_ITEMS");
-  if (path == SPX_SORT_AUTO) path = n <= (size_t)spx_cl_tune(ctx, "SPX_SORT_SINGLE_MAX") ? SPX_SORT_SINGLE : SPX_SORT_MULTI;
+  int bits = ctx->tune.sort_bits;
+  size_t wg = (size_t)ctx->tune.sort_wg, block = wg * (size_t)ctx->tune.sort_items;
+  if (path == SPX_SORT_AUTO) path = n <= (size_t)ctx->tune.sort_single_max ? SPX_SORT_SINGLE : SPX_SORT_MULTI;
   if ((st = spx_cl_buf_ensure(ctx, &s->keys2, n * sizeof(cl_ulong), "radix sort keys"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &s->vals2, n * sizeof(cl_uint), "radix sort values"))) return st;
   cl_uint un = (cl_uint)n, ubits = (cl_uint)key_bits, ulo = (cl_uint)lo_bit;
   cl_int e;
   if (path == SPX_SORT_SINGLE) {
     cl_kernel k;
-    if ((st = spx_cl_kernel(ctx, "radix_sort.cl", "spx_sort_single", &k))) return st;
+    if ((st = spx_cl_kernel(ctx, SPX_K_SORT_SINGLE, &k))) return st;
     e = SPX_ARG(k, 0, keys) | SPX_ARG(k, 1, vals) | SPX_ARG(k, 2, s->keys2.mem) | SPX_ARG(k, 3, s->vals2.mem) |
         SPX_ARG(k, 4, un) | SPX_ARG(k, 5, ulo) | SPX_ARG(k, 6, ubits);
     if ((st = spx_cl_check(ctx, e, "spx_sort_single args"))) return st;
@@ -66,8 +66,8 @@ spx_status spx_radix_sort(spx_ctx *ctx, spx_sorter *s, cl_mem keys, cl_mem vals,
   size_t radix = (size_t)1 << bits;
   if ((st = spx_cl_buf_ensure(ctx, &s->hist, radix * nb * sizeof(cl_uint), "radix sort histogram"))) return st;
   cl_kernel kh, ks;
-  if ((st = spx_cl_kernel(ctx, "radix_sort.cl", "spx_sort_hist", &kh))) return st;
-  if ((st = spx_cl_kernel(ctx, "radix_sort.cl", "spx_sort_scatter", &ks))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_SORT_HIST, &kh))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_SORT_SCATTER, &ks))) return st;
   cl_mem a_k = keys, a_v = vals, b_k = s->keys2.mem, b_v = s->vals2.mem;
   size_t g = (size_t)nb * wg;
   int pass = 0;

@@ -47,6 +47,31 @@ typedef struct spx_cache_stats {
 } spx_cache_stats;
 spx_status spx_device_cache_stats(spx_ctx *ctx, spx_cache_stats *out);
 
+/* Tunables: integer parameters of the kernels (tile sizes, work-group sizes, algorithm
+ * switches), resolved when the device opens from the device class's defaults, then the tuning
+ * file `smplpix tune` wrote for this device (beside the program cache, keyed by device, driver
+ * and smplpix version), then SPX_TUNE_<NAME>=value environment overrides. */
+typedef struct spx_tunable_info {
+  const char *name;   /* as in SPX_TUNE_<name>, e.g. "CONV_TM" */
+  int value;          /* in effect on the open device */
+  int default_value;  /* the device class's built-in value */
+  int lo, hi;         /* legal range */
+  const char *source; /* "default", "tuned" (the tuning file), "env" or "set" (spx_device_set_tunable) */
+} spx_tunable_info;
+int spx_device_tunable_count(void);
+/* The i-th tunable (0 <= i < spx_device_tunable_count()) of the open device. */
+spx_status spx_device_tunable(spx_ctx *ctx, int i, spx_tunable_info *out);
+/* Set one tunable (checked like an override); the kernels built so far are dropped and rebuild
+ * with the new value on their next use. */
+spx_status spx_device_set_tunable(spx_ctx *ctx, const char *name, int value);
+/* The tuning file of the open device (where it is or would be; "" without a cache directory), and
+ * why it was ignored when the device opened ("" when it was used or absent). */
+const char *spx_device_tuning_path(const spx_ctx *ctx);
+const char *spx_device_tuning_note(const spx_ctx *ctx);
+/* Write the tuning file of the open device atomically: the n tunables names[i] = values[i]
+ * (each checked like an override). The next device open applies them. */
+spx_status spx_device_tuning_save(spx_ctx *ctx, const char *const *names, const int *values, int n);
+
 /* A float32 NCHW tensor in device memory: what the projection writes and the network reads, so a
  * frame goes projection -> UNet without crossing the host (spx_project_to_tensor in
  * smplpix/render.h, spx_unet_forward_tensor in smplpix/unet.h). It belongs to the context that

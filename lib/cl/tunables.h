@@ -1,0 +1,58 @@
+/* Per-device tunables as typed fields, resolved once when the device opens (lib/cl/tuning.c):
+ * the device class's defaults, then the tuning file `smplpix tune` wrote for this device
+ * (lib/cl/tunefile.c), then SPX_TUNE_<NAME> environment overrides. Host code reads
+ * ctx->tune.<field>; kernels see the same values as -D<NAME>=<value>, so launch sizes and kernel
+ * code agree. The field is the row's name lower-cased without a leading SPX_ (SPX_WG -> wg,
+ * CONV_TM -> conv_tm); every field is an int and has a row in lib/cl/tuning.c. */
+#ifndef SPX_CL_TUNABLES_H
+#define SPX_CL_TUNABLES_H
+
+struct spx_tunables {
+  int wg;                 /* generic 1-D work-group size */
+  int raster_tile;        /* mesh rasterizer */
+  int raster_serial;
+  int raster_chunk;
+  int raster_shade_items;
+  int sort_bits;          /* radix sort */
+  int sort_wg;
+  int sort_items;
+  int sort_single_max;
+  int proj_fast_max;      /* projection */
+  int proj_sort_depth;
+  int proj_count_min;
+  int proj_zbuf;
+  int proj_zb_chunk;
+  int proj_zb_parts;
+  int proj_fill_px;
+  int conv_vw;            /* conv2d forward */
+  int conv_tm;
+  int conv_tn;
+  int conv_lws;
+  int conv_ct;
+  int conv_cb;
+  int conv_lds;           /* local-memory 3x3 forward (GPU) */
+  int conv_lds_tx;
+  int conv_lds_cb;
+  int conv_xcache;
+  int conv_dw_tm;         /* conv2d backward weights */
+  int conv_dw_tn;
+  int conv_dw_qc;
+  int conv_dw_g;
+  int conv_dw_qb;
+  int conv_dw_lws;
+  int conv_wino_minc;     /* Winograd */
+  int conv_wino_train;
+  int conv_red_wg;        /* conv2d bias gradient */
+  int wg2_x;              /* 2-D (x, y, plane) kernels */
+  int wg2_y;
+  int bn_wg;              /* batch / instance norm */
+  int red_wg;             /* generic reductions */
+  int red_groups;
+};
+
+#define SPX_NTUNABLES ((int)(sizeof(struct spx_tunables) / sizeof(int)))
+
+/* Where a tunable's value came from. */
+typedef enum spx_tune_source { SPX_TSRC_DEFAULT = 0, SPX_TSRC_FILE = 1, SPX_TSRC_ENV = 2, SPX_TSRC_SET = 3 } spx_tune_source;
+
+#endif
