@@ -35,14 +35,14 @@ typedef struct spx_conv2d_params {
 
 /* Algorithm: Winograd F(4x4,3x3) (kernels/conv2d_winograd.cl, lib/nn/conv2d_winograd.c) for
  * 3x3 / stride 1 / pad 1 layers whose input and output channels are both >= the tunable
- * CONV_WINO_MINC (0: never; override with SPX_TUNE_CONV_WINO_MINC), else direct. By default only
- * INFERENCE forwards take it, recognised by the fused epilogue (scale or relu set: the tape
- * refuses those in training). Training (plain forward, backward data) takes it only with the
- * tunable CONV_WINO_TRAIN=1: it is implemented and tested, but the UNet training golden
- * (tests/test_nn_unet.c, 1e-4 after 3 Adam steps) does not hold with it (gradients 1.9e-4 off
- * PyTorch at width 8 with every layer on Winograd), so it is off. Winograd changes the float
- * rounding (bounded error, see tests/test_nn_conv2d_winograd.c); the weight gradient always
- * runs direct. */
+ * CONV_WINO_MINC (0: never; override with SPX_TUNE_CONV_WINO_MINC), else direct. Inference
+ * forwards (recognised by the fused epilogue: scale or relu set, which the tape refuses in
+ * training) always may take it; training forwards and backward data (the 3x3 conv of dy with the
+ * flipped, transposed weights) take it when the tunable CONV_WINO_TRAIN is 1 (CPU default:
+ * measured faster on the width-64 training step; GPU: unmeasured, 0). Winograd changes the float
+ * rounding: bounded in tests/test_nn_conv2d_winograd.c against the double reference, and larger
+ * than the direct path's by at most SPX_WINO_RMS_GAIN, by which golden tests widen their
+ * tolerance when it runs. The weight gradient always runs direct (see docs/ARCHITECTURE.md). */
 
 /* How much larger F(4x4,3x3)'s rounding error is than the direct convolution's, for the worst
  * output of a tile (31.4 rounded up; derived from the transform matrices in
