@@ -69,6 +69,7 @@ void spx_cli_print_coverage(int c, const spx_image *img, const char *what);
 
 /* Subcommand entry points. */
 int spx_cmd_devices(int argc, char **argv);
+int spx_cmd_tune(int argc, char **argv);    /* apps/cmd_tune.c */
 int spx_cmd_project(int argc, char **argv);
 int spx_cmd_render(int argc, char **argv); /* apps/cmd_render.c */
 int spx_cmd_train(int argc, char **argv);  /* apps/cmd_train.c */

@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "train_dist.h"
 #include "train_recipe.h"
 #include "train_state.h"
 #include "unet_io.h"
@@ -23,6 +24,7 @@ static void train_help(void) {
          "                     [--epochs E | --steps S] [--init W0.safetensors] [--resume] [--seed N]\n"
          "                     [--no-shuffle] [--loss l1|l1+gan|vgg|vgg+gan] [--vgg VGG19.safetensors]\n"
          "                     [--schedule paper] [--lr2 LR] [--disc-width N] [--sigmoid] [--device cpu|gpu|P:D]\n"
+         "                     [--local-bn]\n"
          "Trains on DIR/train/input/NAME.{exr,npy,png} (RGB-D) -> DIR/train/output/NAME.{png,exr,npy} (RGB),\n"
          "matched by NAME; all images of a split must have the same size (>= 16x16). Adam (betas 0.9,\n"
          "0.999, eps 1e-8), mean L1 loss. Defaults: --width 32 --batch 1 --lr 1e-3 --epochs 1 --seed 0.\n"
@@ -46,7 +48,12 @@ static void train_help(void) {
          "state in W.disc.safetensors; vgg / vgg+gan use the VGG19 perceptual loss and need --vgg.\n"
          "--schedule paper: stage 1 (l1, or vgg with --vgg) for --epochs (default 100) epochs at --lr\n"
          "(default 1e-4), then Adam restarts and stage 2 (+gan) runs as many epochs at --lr2 (default\n"
-         "1e-5); --batch defaults to 10. The stage is recorded in W, so --resume continues the right one.\n");
+         "1e-5); --batch defaults to 10. The stage is recorded in W, so --resume continues the right one.\n"
+         "Several processes: mpirun -np N smplpix train ... trains one network on N ranks (one OpenCL device\n"
+         "each, by local rank; ranks share the CPU when a node has fewer GPUs than ranks); --batch is the\n"
+         "global batch and must divide by N; gradients are summed over the ranks in a fixed order; batch\n"
+         "norm uses the global batch's statistics (--local-bn: each rank's own, like PyTorch DDP); rank 0\n"
+         "prints and writes W; SIGINT/SIGTERM stop every rank after the current step with W saved.\n");
 }
 
 typedef struct sample {
@@ -315,14 +322,49 @@ static void progress_show(progress *pg, int64_t step, int64_t epoch, double loss
   fflush(stderr);
 }
 
+static int train_run(int argc, char **argv, train_dist *dist);
+
+/* Save u (+ the discriminator) with the training state after `step` (durable, atomic). */
+static int save_checkpoint(spx_ctx *ctx, train_recipe *r, spx_unet *u, const char *outp, spx_train_state *ts,
+                           int64_t step, int64_t spe) {
+  train_recipe_record(r, ts);
+  ts->step = step, ts->epoch = step / spe;
+  return spx_train_checkpoint_save(ctx, u, train_recipe_disc(r), r->disc_path, outp, ts);
+}
+
+/* The network to train: from's weights (init: with a fresh optimizer; else --resume, as saved), or
+ * a new one. Prints the error; returns the exit code. */
+static int net_open(spx_ctx *ctx, const char *from, int init, long width, int sigmoid, long seed, spx_unet **u) {
+  if (!from) {
+    if (spx_unet_create(ctx, width ? (int)width : 32, sigmoid, (uint64_t)seed, u)) return spx_cli_error("train", ctx);
+    return SPX_EXIT_OK;
+  }
+  if (spx_unet_load(ctx, from, u)) return spx_cli_error("train", ctx);
+  if (width && width != spx_unet_width(*u))
+    return spx_cli_errorf("train", "%s has width %d, not the --width %ld asked for", from, spx_unet_width(*u), width);
+  if (init && spx_unet_reset_optimizer(*u)) return spx_cli_error("train", ctx);
+  if (!init && sigmoid && !spx_unet_sigmoid(*u))
+    return spx_cli_usage("train", "--sigmoid contradicts %s, trained without it (--resume takes it from the checkpoint)",
+                         from);
+  if (sigmoid) spx_unet_set_sigmoid(*u, 1);
+  return SPX_EXIT_OK;
+}
+
 int spx_cmd_train(int argc, char **argv) {
+  train_dist dist;
+  int rc = train_dist_start(&dist, argc, argv);
+  if (!rc) rc = train_run(argc, argv, &dist);
+  return train_dist_end(&dist, rc);
+}
+
+static int train_run(int argc, char **argv, train_dist *dist) {
   const char *data = NULL, *outp = NULL, *init = NULL, *spec = NULL, *loss_name = NULL, *vgg_path = NULL;
   const char *schedule = NULL;
   long width = 0, batch = -1, epochs = -1, steps = -1, seed = 0, save_every = 0, log_every = 10, disc_width = 64;
   double lr = -1, lr2 = 1e-5;
   train_recipe rcp;
   memset(&rcp, 0, sizeof rcp);
-  int resume = 0, shuffle = 1, sigmoid = 0, bad = 0, rc;
+  int resume = 0, shuffle = 1, sigmoid = 0, bad = 0, local_bn = 0, agreed = 0, rc = 0;
   int seed_given = 0, batch_given = 0, lr_given = 0, shuffle_given = 0, loss_given = 0, lr2_given = 0;
   int disc_width_given = 0;
   for (int i = 1; i < argc; i++) {
@@ -337,6 +379,8 @@ int spx_cmd_train(int argc, char **argv) {
       shuffle_given = 1;
     } else if (!strcmp(argv[i], "--sigmoid")) {
       sigmoid = 1;
+    } else if (!strcmp(argv[i], "--local-bn")) {
+      local_bn = 1;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--data", &bad))) {
       data = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
@@ -401,8 +445,8 @@ int spx_cmd_train(int argc, char **argv) {
   split tr = {0}, val = {0};
   int *perm = NULL;
   float *in = NULL, *tg = NULL;
-  struct sigaction old_int;
-  int handler_set = 0;
+  struct sigaction old_int, old_term;
+  int handler_set = 0, term_set = 0;
   progress pg = {0};
   pg.tty = isatty(STDERR_FILENO);
   spx_train_state ts;
@@ -410,7 +454,7 @@ int spx_cmd_train(int argc, char **argv) {
   { /* --out must be writable before any training (a failed save would throw the steps away) */
     spx_tx chk;
     spx_tx_begin(&chk, "train", 0);
-    if ((rc = spx_tx_check(&chk, outp))) goto done;
+    if (dist->comm.rank == 0 && (rc = spx_tx_check(&chk, outp))) goto done; /* only rank 0 writes */
   }
   if (resume) { /* the run's settings come from the checkpoint; flags may only repeat them */
     int has_state = 0, has_opt = 0;
@@ -478,31 +522,22 @@ int spx_cmd_train(int argc, char **argv) {
   rcp.disc_width = (int)disc_width, rcp.num_d = 3, rcp.seed = (uint64_t)seed;
   if ((rc = list_split(data, "train", 1, &tr)) || (rc = list_split(data, "validation", 0, &val))) goto done;
   if ((rc = probe_size(ctx, &tr)) || (val.n && (rc = probe_size(ctx, &val)))) goto done;
-  if ((rc = spx_cli_open_device("train", ctx, spec))) goto done;
-  const char *from = resume ? outp : init;
-  if (from) {
-    if (spx_unet_load(ctx, from, &u)) {
-      rc = spx_cli_error("train", ctx);
-      goto done;
-    }
-    if (width && width != spx_unet_width(u)) {
-      rc = spx_cli_errorf("train", "%s has width %d, not the --width %ld asked for", from, spx_unet_width(u), width);
-      goto done;
-    }
-    if (init && spx_unet_reset_optimizer(u)) {
-      rc = spx_cli_error("train", ctx);
-      goto done;
-    }
-    if (resume && sigmoid && !spx_unet_sigmoid(u)) {
-      rc = spx_cli_usage("train", "--sigmoid contradicts %s, trained without it (--resume takes it from the checkpoint)",
-                         outp);
-      goto done;
-    }
-    if (sigmoid) spx_unet_set_sigmoid(u, 1);
-  } else if (spx_unet_create(ctx, width ? (int)width : 32, sigmoid, (uint64_t)seed, &u)) {
-    rc = spx_cli_error("train", ctx);
+  if (dist->on && (batch > tr.n ? tr.n : batch) % dist->comm.size) {
+    rc = spx_cli_usage("train", "--batch %ld%s does not divide over %d ranks (--batch is the global batch)",
+                       batch > tr.n ? (long)tr.n : batch, resume ? " (recorded in the checkpoint)" : "", dist->comm.size);
     goto done;
   }
+  char devbuf[32];
+  if ((rc = spx_cli_open_device("train", ctx, train_dist_device(dist, spec, devbuf, sizeof devbuf)))) goto done;
+  const char *from = resume ? outp : init;
+  if (!dist->on || dist->comm.rank == 0) rc = net_open(ctx, from, init != NULL, width, sigmoid, seed, &u);
+  if (dist->on) { /* the others take rank 0's width, then its whole state */
+    if ((rc = train_dist_agree(dist, rc, NULL)) || (rc = train_dist_adopt(dist, ctx, &u, !local_bn))) {
+      agreed = 1;
+      goto done;
+    }
+  }
+  if (rc) goto done;
   if (resume && (ts.pairs != tr.n || ts.step != ts.stage_base + spx_unet_step(u))) {
     rc = ts.pairs != tr.n ? spx_cli_errorf("train", "%s/train has %d pairs, but %s was trained on %lld: the data order "
                                            "cannot continue", data, tr.n, outp, (long long)ts.pairs)
@@ -517,14 +552,23 @@ int spx_cmd_train(int argc, char **argv) {
   ts.seed = seed, ts.shuffle = shuffle, ts.batch = batch, ts.pairs = tr.n, ts.steps_per_epoch = spe;
   if (rcp.schedule) rcp.stage1_steps = target, target *= 2; /* the same length for both stages */
   /* resuming: the stage (and the schedule's stage-2 start) come from the record */
+  rcp.comm = dist->on ? &dist->comm : NULL; /* rank 0 loads the discriminator, the others take it */
   if ((rc = train_recipe_start(ctx, &rcp, u, outp, from, resume ? &ts : NULL))) goto done;
+  if (dist->on) {
+    if ((rc = train_dist_agree(dist, rc, NULL))) {
+      agreed = 1;
+      goto done;
+    }
+    if (rcp.d && spx_patchgan_broadcast(rcp.d)) train_dist_fatal(dist, spx_cli_error("train", ctx));
+  }
 #define GSTEP() train_recipe_step_count(&rcp, u)
   size_t hw = (size_t)tr.h * (size_t)tr.w;
   perm = malloc(sizeof(int) * (size_t)tr.n);
-  in = malloc((size_t)batch * SPX_UNET_IN_CHANNELS * hw * sizeof(float));
-  tg = malloc((size_t)batch * SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
+  long held = batch / dist->comm.size; /* images this rank holds at once (its shard) */
+  in = malloc((size_t)held * SPX_UNET_IN_CHANNELS * hw * sizeof(float));
+  tg = malloc((size_t)held * SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
   if (!perm || !in || !tg) {
-    rc = spx_cli_errorf("train", "out of memory for a batch of %ld %dx%d images (try a smaller --batch)", batch, tr.w,
+    rc = spx_cli_errorf("train", "out of memory for a batch of %ld %dx%d images (try a smaller --batch)", held, tr.w,
                         tr.h);
     goto done;
   }
@@ -534,7 +578,16 @@ int spx_cmd_train(int argc, char **argv) {
          (long long)GSTEP(), (long long)target, train_loss_name(&rcp),
          rcp.schedule ? (rcp.stage == 1 ? " (stage 1 of --schedule paper)" : " (stage 2 of --schedule paper)") : "");
   fflush(stdout);
-  if (val.n && GSTEP() < target) { /* the starting point, to compare the epochs against */
+  int rank0 = !dist->on || dist->comm.rank == 0; /* validates, saves and speaks */
+  if (dist->on) {
+    spx_device_info di;
+    char dev[300] = "?";
+    if (!spx_device_get_info(ctx, &di)) snprintf(dev, sizeof dev, "%s", di.name);
+    printf("train: %d ranks, %ld images per rank and step, %s batch norm; rank 0 on %s\n", dist->comm.size,
+           batch / dist->comm.size, local_bn ? "per-rank (--local-bn)" : "synchronised", dev);
+    fflush(stdout);
+  }
+  if (val.n && GSTEP() < target && rank0) { /* the starting point, to compare the epochs against */
     double vl = 0, vp = 0, vs = 0;
     if ((rc = validate(ctx, u, &val, &vl, &vp, &vs))) goto done;
     printf("step %lld: validation L1 %.6f, PSNR %.2f dB, SSIM %.4f\n", (long long)GSTEP(), vl, vp, vs);
@@ -548,9 +601,11 @@ int spx_cmd_train(int argc, char **argv) {
     sa.sa_flags = SA_RESTART;
     interrupted = 0;
     handler_set = sigaction(SIGINT, &sa, &old_int) == 0;
+    /* mpirun turns Ctrl-C into SIGTERM for every rank */
+    term_set = dist->on && sigaction(SIGTERM, &sa, &old_term) == 0;
   }
   double t0 = now_s(), ep_loss = 0;
-  int ep_count = 0;
+  int ep_count = 0, pend = 0; /* pend: a failure of rank 0 (validation, save) told at the next agreement */
   int64_t cur_epoch = -1;
   pg.t0 = t0;
   pg.start_step = GSTEP();
@@ -561,12 +616,35 @@ int spx_cmd_train(int argc, char **argv) {
       epoch_order(perm, tr.n, (uint64_t)seed, epoch, shuffle);
       cur_epoch = epoch;
     }
-    int first = (int)(pos * batch), count = (int)(tr.n - first < batch ? tr.n - first : batch);
+    int first = (int)(pos * batch), count = (int)(tr.n - first < batch ? tr.n - first : batch), off = 0, mine = count;
+    if (dist->on) train_dist_shard(dist, count, &off, &mine); /* mine = 0: a stand-in sample, counted for nothing */
     float loss = 0;
-    if ((rc = load_batch(ctx, &tr, perm + first, count, in, tg))) goto done;
+    rc = load_batch(ctx, &tr, perm + first + (mine ? off : 0), mine ? mine : 1, in, tg);
+    if (dist->on) { /* every rank has its shard (and nobody was interrupted) before a step starts */
+      int stop = interrupted;
+      if ((rc = train_dist_agree(dist, rc ? rc : pend, &stop))) {
+        agreed = 1;
+        goto done;
+      }
+      if (stop) { /* SIGINT / SIGTERM on some rank: every rank stops here, rank 0 saves */
+        progress_clear(&pg);
+        if (rank0 && !(rc = save_checkpoint(ctx, &rcp, u, outp, &ts, step, spe)))
+          fprintf(stderr, "smplpix train: interrupted after step %lld of %lld: saved %s (continue with --resume)\n",
+                  (long long)step, (long long)target, outp);
+        rc = rc ? rc : 130;
+        goto done;
+      }
+      rcp.share = (double)mine / (double)count;
+      if (spx_unet_set_shard(u, mine, count)) train_dist_fatal(dist, spx_cli_error("train", ctx));
+    } else if (rc) {
+      goto done;
+    }
     progress_clear(&pg); /* a stage switch prints a line */
-    if ((rc = train_recipe_step(ctx, &rcp, u, in, tg, count, tr.h, tr.w, &loss))) goto done;
-    if (!isfinite(loss)) {
+    if ((rc = train_recipe_step(ctx, &rcp, u, in, tg, mine ? mine : 1, tr.h, tr.w, &loss))) {
+      if (dist->on) train_dist_fatal(dist, rc); /* the other ranks wait inside the step */
+      goto done;
+    }
+    if (!isfinite(loss)) { /* the global loss: every rank stops here */
       progress_clear(&pg);
       rc = spx_cli_errorf("train", "the loss became %g at step %lld (learning rate too high?)", loss, (long long)step);
       goto done;
@@ -580,7 +658,10 @@ int spx_cmd_train(int argc, char **argv) {
       progress_show(&pg, now_step, epoch, ep_loss / ep_count, &rcp, end_epoch || last);
     if (end_epoch || last) {
       double vl = 0, vp = 0, vs = 0;
-      if (val.n && (rc = validate(ctx, u, &val, &vl, &vp, &vs))) goto done;
+      if (val.n && rank0 && (rc = validate(ctx, u, &val, &vl, &vp, &vs))) {
+        if (!dist->on) goto done;
+        pend = rc;
+      }
       progress_clear(&pg);
       char terms[160];
       train_recipe_terms(&rcp, terms, sizeof terms);
@@ -593,16 +674,13 @@ int spx_cmd_train(int argc, char **argv) {
       ep_count = 0;
       train_recipe_epoch_reset(&rcp);
     }
-    int save = save_every ? now_step % save_every == 0 : end_epoch;
-    if ((save || interrupted) && !last) {
-      train_recipe_record(&rcp, &ts);
-      ts.step = now_step, ts.epoch = now_step / spe;
-      if ((rc = spx_train_checkpoint_save(ctx, u, train_recipe_disc(&rcp), rcp.disc_path, outp, &ts))) {
-        progress_clear(&pg);
-        goto done;
-      }
+    int save = save_every ? now_step % save_every == 0 : end_epoch, sig = dist->on ? 0 : interrupted;
+    if ((save || sig) && !last && rank0 && !pend && (rc = save_checkpoint(ctx, &rcp, u, outp, &ts, now_step, spe))) {
+      progress_clear(&pg);
+      if (!dist->on) goto done;
+      pend = rc;
     }
-    if (interrupted && !last) {
+    if (sig && !last) {
       progress_clear(&pg);
       fprintf(stderr, "smplpix train: interrupted after step %lld of %lld: saved %s (continue with --resume)\n",
               (long long)now_step, (long long)target, outp);
@@ -611,14 +689,15 @@ int spx_cmd_train(int argc, char **argv) {
     }
   }
   progress_clear(&pg);
-  train_recipe_record(&rcp, &ts);
-  ts.step = GSTEP(), ts.epoch = ts.step / spe;
+  if ((rc = pend)) goto done;
   /* also when nothing was left to do */
-  if ((rc = spx_train_checkpoint_save(ctx, u, train_recipe_disc(&rcp), rcp.disc_path, outp, &ts))) goto done;
+  if (rank0 && (rc = save_checkpoint(ctx, &rcp, u, outp, &ts, GSTEP(), spe))) goto done;
   printf("wrote %s (step %lld)%s%s\n", outp, (long long)GSTEP(), train_recipe_disc(&rcp) ? " and " : "",
          train_recipe_disc(&rcp) ? rcp.disc_path : "");
 done:
+  if (dist->on && !agreed) rc = train_dist_agree(dist, rc, NULL); /* the others learn why, or that all went well */
   if (handler_set) sigaction(SIGINT, &old_int, NULL);
+  if (term_set) sigaction(SIGTERM, &old_term, NULL);
   free(perm), free(in), free(tg);
   split_free(&tr);
   split_free(&val);

@@ -25,6 +25,7 @@ static const spx_command commands[] = {
     {"animate", "animate a registered person with BVH / AMASS motion (PNG frames, MP4)", spx_cmd_animate},
     {"bake", "bake a coloured scan onto the registered body's UV texture", spx_cmd_bake},
     {"devices", "list OpenCL devices and warm the kernel cache", spx_cmd_devices},
+    {"tune", "time kernel tunables on this device, store the winners (--show: the tunables in effect)", spx_cmd_tune},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
 
@@ -56,6 +57,8 @@ int spx_cli_usage(const char *cmd, const char *fmt, ...) {
 
 int spx_cli_open_device(const char *cmd, spx_ctx *ctx, const char *spec) {
   if (spx_device_open(ctx, spec) != SPX_OK) return spx_cli_error(cmd, ctx);
+  const char *note = spx_device_tuning_note(ctx); /* a tuning file that was ignored */
+  if (*note) fprintf(stderr, "smplpix %s: warning: %s\n", cmd, note);
   return SPX_EXIT_OK;
 }
 

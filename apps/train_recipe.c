@@ -35,6 +35,7 @@ static int need_disc(spx_ctx *ctx, train_recipe *r, int load) {
   if (r->d || !r->gan[r->stage]) return 0;
   spx_status st = load ? spx_patchgan_open(ctx, r->disc_path, &r->d)
                        : spx_patchgan_new(ctx, r->disc_width, r->num_d, r->seed ^ 0xd15cULL, &r->d);
+  if (!st && r->comm) st = spx_patchgan_set_comm(r->d, r->comm);
   return st ? spx_cli_error("train", ctx) : 0;
 }
 
@@ -52,9 +53,10 @@ int train_recipe_start(spx_ctx *ctx, train_recipe *r, spx_unet *u, const char *o
     if (r->schedule) r->stage1_steps = rec->stage1_steps;
   }
   if (r->vgg && spx_vgg_open(ctx, r->vgg_path, &r->net_vgg)) return spx_cli_error("train", ctx);
-  int rc = need_disc(ctx, r, resume && r->gan[r->stage]);
+  int load = resume && r->gan[r->stage] && (!r->comm || r->comm->rank == 0); /* else rank 0's comes later */
+  int rc = need_disc(ctx, r, load);
   if (rc) return rc;
-  if (r->d && resume && spx_patchgan_step(r->d) != spx_unet_step(u))
+  if (r->d && load && spx_patchgan_step(r->d) != spx_unet_step(u))
     return spx_cli_errorf("train", "%s has %" PRId64 " discriminator steps but %s has %" PRId64
                           " generator steps in stage %d: they are not from the same run",
                           r->disc_path, spx_patchgan_step(r->d), from, spx_unet_step(u), r->stage);
@@ -91,6 +93,14 @@ int train_recipe_step(spx_ctx *ctx, train_recipe *r, spx_unet *u, const float *i
   }
   if (!st) {
     double v[6] = {*loss, gl.rec, gl.gan, gl.fm, gl.d_total, gl.vgg};
+    if (r->comm) { /* the global batch's mean terms: the ranks' means weighted by their shares */
+      float g[6];
+      for (int i = 0; i < 6; i++) g[i] = (float)(v[i] * r->share);
+      if (r->comm->allreduce_sum(r->comm->self, g, 6))
+        return spx_cli_errorf("train", "rank %d: summing the loss over %d ranks failed", r->comm->rank, r->comm->size);
+      for (int i = 0; i < 6; i++) v[i] = g[i];
+      *loss = g[0];
+    }
     for (int i = 0; i < 6; i++) r->sum[i] += v[i];
   }
   if (st) return st == SPX_E_DEVMEM || st == SPX_E_NOMEM

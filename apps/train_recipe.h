@@ -30,6 +30,9 @@ typedef struct train_recipe {
   double lr1, lr2;
   int disc_width, num_d;
   uint64_t seed;
+  const spx_comm *comm;       /* data-parallel (apps/train_dist.h): rank 0 loads the discriminator,
+                                the others take it; the reported terms are the global batch's */
+  double share;              /* this rank's part of the current global batch */
   /* state */
   int stage;
   int64_t base;

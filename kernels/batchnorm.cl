@@ -111,19 +111,14 @@ inline float spx_bn_partial(__global const float *x, int xo, __global const floa
   return s - comp;
 }
 
-/* Train mode: batch statistics over N, H, W (biased variance for the normalisation),
- * y = (x - mean) * invstd * weight + bias, save = [mean(C), invstd(C)] for the backward, and
- * when update != 0: running_mean = m * mean + (1 - m) * running_mean,
- * running_var = m * var * cnt / (cnt - 1) + (1 - m) * running_var (unbiased, like PyTorch). */
-__kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_train_fwd(
-    __global const float *x, int xo, __global const float *wt, int wo, __global const float *bs, int bo,
-    __global float *rm, int rmo, __global float *rv, int rvo, __global float *save, int so, __global float *y, int yo,
-    int n, int c, int hw, float momentum, float eps, int update) {
-  __local float buf[SPX_BN_WG];
-  int ch = get_group_id(0), lid = get_local_id(0);
-  float cnt = (float)n * (float)hw, unused;
-  float mean = spx_bn_group_sum(buf, spx_bn_partial(x, xo, x, xo, n, c, hw, ch, 0.0f, 0, &unused)) / cnt;
-  float var = spx_bn_group_sum(buf, spx_bn_partial(x, xo, x, xo, n, c, hw, ch, mean, 1, &unused)) / cnt;
+/* The normalisation of channel ch from its batch mean and biased variance over cnt values (the
+ * tail of spx_bn_train_fwd and spx_bn_sync_fwd): y, save = [mean, invstd], and when update the
+ * running statistics (unbiased variance var * cnt / (cnt - 1), like PyTorch). */
+inline void spx_bn_normalize(__global const float *x, int xo, __global const float *wt, int wo,
+                             __global const float *bs, int bo, __global float *rm, int rmo, __global float *rv,
+                             int rvo, __global float *save, int so, __global float *y, int yo, int n, int c, int hw,
+                             int ch, float mean, float var, float cnt, float momentum, float eps, int update) {
+  int lid = get_local_id(0);
   float invstd = 1.0f / sqrt(var + eps);
   float a = invstd * wt[wo + ch], b = bs[bo + ch];
   for (int k = 0; k < n; k++) {
@@ -140,6 +135,38 @@ __kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_trai
       rv[rvo + ch] = momentum * unbiased + (1.0f - momentum) * rv[rvo + ch];
     }
   }
+}
+
+/* dx += (dy - sdy / cnt - (x - mean) * sdyx * invstd^2 / cnt) * invstd * weight for channel ch
+ * (the tail of spx_bn_train_bwd and spx_bn_sync_bwd). */
+inline void spx_bn_dx(__global const float *x, int xo, __global const float *wt, int wo, __global const float *dy,
+                      int go, __global float *dx, int dxo, int n, int c, int hw, int ch, float mean, float invstd,
+                      float sdy, float sdyx, float cnt) {
+  int lid = get_local_id(0);
+  float gm = sdy / cnt, proj = sdyx * invstd * invstd / cnt, scale = invstd * wt[wo + ch];
+  for (int k = 0; k < n; k++) {
+    __global const float *p = x + xo + (k * c + ch) * hw;
+    __global const float *g = dy + go + (k * c + ch) * hw;
+    __global float *q = dx + dxo + (k * c + ch) * hw;
+    for (int i = lid; i < hw; i += SPX_BN_WG) q[i] += (g[i] - gm - (p[i] - mean) * proj) * scale;
+  }
+}
+
+/* Train mode: batch statistics over N, H, W (biased variance for the normalisation),
+ * y = (x - mean) * invstd * weight + bias, save = [mean(C), invstd(C)] for the backward, and
+ * when update != 0: running_mean = m * mean + (1 - m) * running_mean,
+ * running_var = m * var * cnt / (cnt - 1) + (1 - m) * running_var (unbiased, like PyTorch). */
+__kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_train_fwd(
+    __global const float *x, int xo, __global const float *wt, int wo, __global const float *bs, int bo,
+    __global float *rm, int rmo, __global float *rv, int rvo, __global float *save, int so, __global float *y, int yo,
+    int n, int c, int hw, float momentum, float eps, int update) {
+  __local float buf[SPX_BN_WG];
+  int ch = get_group_id(0);
+  float cnt = (float)n * (float)hw, unused;
+  float mean = spx_bn_group_sum(buf, spx_bn_partial(x, xo, x, xo, n, c, hw, ch, 0.0f, 0, &unused)) / cnt;
+  float var = spx_bn_group_sum(buf, spx_bn_partial(x, xo, x, xo, n, c, hw, ch, mean, 1, &unused)) / cnt;
+  spx_bn_normalize(x, xo, wt, wo, bs, bo, rm, rmo, rv, rvo, save, so, y, yo, n, c, hw, ch, mean, var, cnt, momentum,
+                   eps, update);
 }
 
 /* Eval mode: y = (x - running_mean) * (invstd * weight) + bias, invstd = 1 / sqrt(running_var + eps);
@@ -176,12 +203,60 @@ __kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_trai
     if (want & 2) dw[dwo + ch] += sdyx * invstd;
     if (want & 4) db[dbo + ch] += sdy;
   }
-  if (!(want & 1)) return;
-  float gm = sdy / cnt, proj = sdyx * invstd * invstd / cnt, scale = invstd * wt[wo + ch];
-  for (int k = 0; k < n; k++) {
-    __global const float *p = x + xo + (k * c + ch) * hw;
-    __global const float *g = dy + go + (k * c + ch) * hw;
-    __global float *q = dx + dxo + (k * c + ch) * hw;
-    for (int i = lid; i < hw; i += SPX_BN_WG) q[i] += (g[i] - gm - (p[i] - mean) * proj) * scale;
+  if (want & 1) spx_bn_dx(x, xo, wt, wo, dy, go, dx, dxo, n, c, hw, ch, mean, invstd, sdy, sdyx, cnt);
+}
+
+/* ---- data-parallel (synchronised) batch norm: lib/nn/batchnorm_sync.c ----
+ * The batch is split over several processes; the statistics are those of the whole (global)
+ * batch. Each kernel below does one rank's part; between them the host sums the per-channel
+ * partials over the ranks (smplpix/comm.h, a fixed rank order):
+ *   forward:  part(mode 0) = sum x        -> all ranks: mean = sum / cnt
+ *             part(mode 1) = sum (x-mean)^2 -> all ranks: var = sum / cnt (two-pass, as above)
+ *             spx_bn_sync_fwd: y, save, running statistics (cnt = the global count)
+ *   backward: part(mode 2) = sum dy, sum dy (x - mean) -> summed over the ranks
+ *             spx_bn_sync_bwd: dx from the global sums; dweight / dbias get this rank's LOCAL sums
+ *             (the gradient all-reduce before the optimizer step adds the other ranks' parts). */
+
+/* part[po + ch] (mode 2: and part[po + c + ch]) = this rank's sums for channel ch; mean is read
+ * from mean[mo + ch] in modes 1 and 2 (the global mean; the forward's save in mode 2). */
+__kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_sync_part(
+    __global const float *x, int xo, __global const float *dy, int go, __global const float *mean, int mo,
+    __global float *part, int po, int n, int c, int hw, int mode) {
+  __local float buf[SPX_BN_WG];
+  int ch = get_group_id(0), lid = get_local_id(0);
+  float p2 = 0.0f, m = mode ? mean[mo + ch] : 0.0f;
+  float p1 = spx_bn_group_sum(buf, spx_bn_partial(x, xo, dy, go, n, c, hw, ch, m, mode, &p2));
+  if (mode == 2) p2 = spx_bn_group_sum(buf, p2);
+  if (lid == 0) {
+    part[po + ch] = p1;
+    if (mode == 2) part[po + c + ch] = p2;
   }
+}
+
+/* stats[sto + ch] = global mean, stats[sto + c + ch] = global biased variance over cnt values. */
+__kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_sync_fwd(
+    __global const float *x, int xo, __global const float *wt, int wo, __global const float *bs, int bo,
+    __global float *rm, int rmo, __global float *rv, int rvo, __global const float *stats, int sto,
+    __global float *save, int so, __global float *y, int yo, int n, int c, int hw, float cnt, float momentum, float eps,
+    int update) {
+  int ch = get_group_id(0);
+  spx_bn_normalize(x, xo, wt, wo, bs, bo, rm, rmo, rv, rvo, save, so, y, yo, n, c, hw, ch, stats[sto + ch],
+                   stats[sto + c + ch], cnt, momentum, eps, update);
+}
+
+/* sums at suo: [local sum dy (c), local sum dy (x - mean) (c), global sum dy (c), global sum dy (x - mean) (c)];
+ * want as in spx_bn_train_bwd. ACCUMULATES. */
+__kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_sync_bwd(
+    __global const float *x, int xo, __global const float *wt, int wo, __global const float *save, int so,
+    __global const float *dy, int go, __global float *dx, int dxo, __global float *dw, int dwo, __global float *db,
+    int dbo, __global const float *sums, int suo, int n, int c, int hw, float cnt, int want) {
+  int ch = get_group_id(0), lid = get_local_id(0);
+  float mean = save[so + ch], invstd = save[so + c + ch];
+  if (lid == 0) {
+    if (want & 2) dw[dwo + ch] += sums[suo + c + ch] * invstd;
+    if (want & 4) db[dbo + ch] += sums[suo + ch];
+  }
+  if (want & 1)
+    spx_bn_dx(x, xo, wt, wo, dy, go, dx, dxo, n, c, hw, ch, mean, invstd, sums[suo + 2 * c + ch],
+              sums[suo + 3 * c + ch], cnt);
 }

@@ -60,3 +60,12 @@ if(NOT SPX_SANITIZE AND BUILD_SHARED_LIBS)
   set_tests_properties(python_bindings PROPERTIES TIMEOUT 900)
   set_tests_properties(python_pip_install PROPERTIES TIMEOUT 2400)
 endif()
+
+# Data-parallel training under mpirun (tests/test_cli_train_mpi.c): built against the launcher CMake
+# found with MPI; skipped (77, saying why) in a build without MPI.
+set_tests_properties(test_cli_train_mpi PROPERTIES SKIP_RETURN_CODE 77)
+if(SPX_HAVE_MPI AND MPIEXEC_EXECUTABLE)
+  target_compile_definitions(test_cli_train_mpi PRIVATE SPX_MPIEXEC="${MPIEXEC_EXECUTABLE}")
+endif()
+# the synchronised batch norm's test runs its ranks as threads
+target_link_libraries(test_nn_batchnorm_sync PRIVATE Threads::Threads)

@@ -15,6 +15,7 @@
 struct spx_cl_program {
   char name[64];
   cl_program prog;
+  uint64_t uses; /* bit i: built with -D of tunable row i */
 };
 
 struct spx_ctx {
@@ -33,8 +34,8 @@ struct spx_ctx {
   unsigned char tune_src[SPX_NTUNABLES];     /* spx_tune_source of each field */
   char tune_note[5120];                      /* why a tuning file was ignored ("" when not) */
   char tune_file[4096];                      /* the tuning file read (or looked for) */
-  char build_options[4096];                  /* -D list generated from tune */
-  int cr_div; /* the device divides fp32 correctly rounded (set with build_options) */
+  int cr_div;       /* the device divides fp32 correctly rounded (set with the tunables) */
+  int div_fallback; /* SPX_FORCE_DIV_FALLBACK: kernels divide in double although cr_div exists */
   int tune_cpu; /* 1: kernels are built and launched with the CPU column of lib/cl/tuning.c */
   struct spx_cl_program programs[SPX_MAX_PROGRAMS];
   int nprograms;
@@ -66,9 +67,12 @@ const char *spx_cl_kernel_name(spx_kernel_id id);
 const char *spx_cl_program_name(int i);
 spx_status spx_cl_program_build(spx_ctx *ctx, const char *program);
 
-/* Resolve ctx->tune for the device just opened (defaults, tuning file, SPX_TUNE_* overrides),
- * check it and generate ctx->build_options (lib/cl/tuning.c). */
+/* Resolve ctx->tune for the device just opened (defaults, tuning file, SPX_TUNE_* overrides) and
+ * check it (lib/cl/tuning.c). */
 spx_status spx_cl_tunables_resolve(spx_ctx *ctx);
+/* Build options of the program with (prelude + expanded) source src: -cl-std, the device class,
+ * -D<NAME>=<value> of every tunable src mentions, the division mode. Part of the cache key. */
+uint64_t spx_cl_program_options(const spx_ctx *ctx, const char *src, char *out, size_t cap);
 /* Tunable rows (lib/cl/tuning.c), i in [0, SPX_NTUNABLES): the field of row i in t; its name as
  * users write it (CONV_TM for SPX_TUNE_CONV_TM); the row of a name of `len` bytes (-1: none). */
 int *spx_cl_tunable_field(struct spx_tunables *t, int i);
@@ -84,8 +88,9 @@ spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t);
  * and the reason kept in ctx->tune_note. Never fails. */
 void spx_cl_tunefile_apply(spx_ctx *ctx);
 
-/* Release every built program and kernel (the device stays open); the next launch rebuilds. */
-void spx_cl_programs_release(spx_ctx *ctx);
+/* Release the built programs that use any tunable of the mask `uses` (~0: all) and their kernels
+ * (the device stays open); their next launch rebuilds them. */
+void spx_cl_programs_release(spx_ctx *ctx, uint64_t uses);
 /* The program-binary cache directory (created when missing); 0 when there is none. */
 int spx_cl_cache_dir(char *out, size_t cap);
 

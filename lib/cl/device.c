@@ -191,7 +191,7 @@ spx_status spx_device_cache_stats(spx_ctx *ctx, spx_cache_stats *out) {
 
 void spx_cl_close(spx_ctx *ctx) {
   if (!ctx || !ctx->have_device) return;
-  spx_cl_programs_release(ctx);
+  spx_cl_programs_release(ctx, ~0ull);
   if (ctx->queue) clReleaseCommandQueue(ctx->queue);
   if (ctx->context) clReleaseContext(ctx->context);
   ctx->queue = NULL;

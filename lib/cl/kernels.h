@@ -18,6 +18,9 @@
   X(BN_TRAIN_FWD, "batchnorm.cl", "spx_bn_train_fwd")                  \
   X(BN_EVAL_FWD, "batchnorm.cl", "spx_bn_eval_fwd")                    \
   X(BN_TRAIN_BWD, "batchnorm.cl", "spx_bn_train_bwd")                  \
+  X(BN_SYNC_PART, "batchnorm.cl", "spx_bn_sync_part")                  \
+  X(BN_SYNC_FWD, "batchnorm.cl", "spx_bn_sync_fwd")                    \
+  X(BN_SYNC_BWD, "batchnorm.cl", "spx_bn_sync_bwd")                    \
   X(CONV2D_FWD_K3S1, "conv2d.cl", "spx_conv2d_fwd_k3s1")               \
   X(CONV2D_FWD_K1S1, "conv2d.cl", "spx_conv2d_fwd_k1s1")               \
   X(CONV2D_FWD_K3S1_LDS, "conv2d_lds.cl", "spx_conv2d_fwd_k3s1_lds")   \

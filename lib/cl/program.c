@@ -282,14 +282,16 @@ static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
   cl_program prog = NULL;
   char dir[4096], path[4400];
   int use_cache = !cache_disabled() && spx_cl_cache_dir(dir, sizeof dir);
-  struct cache_key key = make_key(ctx, src, len, ctx->build_options);
+  char opts[4096];
+  uint64_t uses = spx_cl_program_options(ctx, src, opts, sizeof opts);
+  struct cache_key key = make_key(ctx, src, len, opts);
   if (use_cache) {
     cache_path(path, sizeof path, dir, name, key);
-    prog = cache_load(ctx, path, key, ctx->build_options);
+    prog = cache_load(ctx, path, key, opts);
     if (prog) ctx->cache.loaded++;
   }
   if (!prog) {
-    st = build_from_source(ctx, name, src, len, ctx->build_options, &prog);
+    st = build_from_source(ctx, name, src, len, opts, &prog);
     if (st) goto done;
     ctx->cache.compiled++;
     if (use_cache) cache_store(ctx, prog, path, key);
@@ -297,6 +299,7 @@ static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
   ctx->cache.build_seconds += spx_now() - t0;
   snprintf(ctx->programs[ctx->nprograms].name, sizeof ctx->programs[0].name, "%s", name);
   ctx->programs[ctx->nprograms].prog = prog;
+  ctx->programs[ctx->nprograms].uses = uses;
   ctx->nprograms++;
   *out = prog;
 done:
@@ -355,13 +358,19 @@ spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out) {
   return SPX_OK;
 }
 
-void spx_cl_programs_release(spx_ctx *ctx) {
+void spx_cl_programs_release(spx_ctx *ctx, uint64_t uses) {
   if (ctx->queue) clFinish(ctx->queue);
-  for (int i = 0; i < SPX_K_COUNT; i++)
-    if (ctx->kernels[i]) clReleaseKernel(ctx->kernels[i]);
-  memset(ctx->kernels, 0, sizeof ctx->kernels);
-  for (int i = 0; i < ctx->nprograms; i++) clReleaseProgram(ctx->programs[i].prog);
-  ctx->nprograms = 0;
+  for (int j = ctx->nprograms - 1; j >= 0; j--) {
+    struct spx_cl_program *p = &ctx->programs[j];
+    if (!(p->uses & uses) && uses != ~0ull) continue;
+    for (int i = 0; i < SPX_K_COUNT; i++)
+      if (ctx->kernels[i] && !strcmp(kernel_rows[i].program, p->name)) {
+        clReleaseKernel(ctx->kernels[i]);
+        ctx->kernels[i] = NULL;
+      }
+    clReleaseProgram(p->prog);
+    *p = ctx->programs[--ctx->nprograms]; /* order does not matter */
+  }
 }
 
 const char *spx_cl_program_name(int i) {

@@ -114,7 +114,7 @@ void spx_cl_tunefile_apply(spx_ctx *ctx) {
     memcpy(ctx->msg, keep, sizeof keep);
     ctx->last = last;
   }
-  if (why[0]) snprintf(ctx->tune_note, sizeof ctx->tune_note, "%s: %s; ignored, defaults apply", path, why);
+  if (why[0]) snprintf(ctx->tune_note, sizeof ctx->tune_note, "%.3900s: %.1099s; ignored, defaults apply", path, why);
   free(data);
 }
 

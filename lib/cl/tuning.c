@@ -2,7 +2,8 @@
  * the struct's order. When a device opens, spx_cl_tunables_resolve fills ctx->tune from the
  * device class's column, then the tuning file of `smplpix tune` (lib/cl/tunefile.c), then the
  * SPX_TUNE_<NAME> environment overrides (each checked against its row's range and rules), checks
- * the combinations against the device's limits and generates the -D<NAME>=<value> build options.
+ * the combinations against the device's limits; spx_cl_program_options gives each program
+ * -D<NAME>=<value> for the tunables its source mentions (so a change rebuilds only those).
  * Launch paths read the typed fields; nothing here runs per launch.
  * To add a tunable: a field in struct spx_tunables and a row here at the same place (with CPU
  * and GPU values measured), then read ctx->tune.<field> on the host and <NAME> in the kernel. */
@@ -123,6 +124,7 @@ static const struct spx_tunable spx_tunables[] = {
 #define NTUNABLES ((int)(sizeof spx_tunables / sizeof spx_tunables[0]))
 _Static_assert(sizeof spx_tunables / sizeof spx_tunables[0] == SPX_NTUNABLES,
                "one row of lib/cl/tuning.c per field of struct spx_tunables");
+_Static_assert(SPX_NTUNABLES <= 64, "spx_cl_program.uses is a 64-bit mask of tunables");
 
 int *spx_cl_tunable_field(struct spx_tunables *t, int i) { return (int *)((char *)t + spx_tunables[i].off); }
 #define field spx_cl_tunable_field
@@ -214,27 +216,35 @@ spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t) {
   return SPX_OK;
 }
 
-/* -cl-std, the device class, every tunable as -D<NAME>=<value>, the division mode. */
-static void build_options(spx_ctx *ctx) {
-  char *o = ctx->build_options;
-  size_t cap = sizeof ctx->build_options, n = 0;
-  n += (size_t)snprintf(o + n, cap - n, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1", ctx->tune_cpu ? "CPU" : "GPU");
-  for (int i = 0; i < NTUNABLES && n < cap; i++)
-    n += (size_t)snprintf(o + n, cap - n, " -D%s=%d", spx_tunables[i].name, field_value(&ctx->tune, i));
-  /* Bit-exact kernels (projection) need a correctly rounded fp32 '/'. When the device offers it,
-   * ask for it; otherwise kernels see SPX_CR_DIV=0 and divide in double (a/b computed in binary64
-   * and rounded to binary32 is the correctly rounded binary32 quotient, since 53 >= 2*24+2). */
+/* The division mode. Bit-exact kernels (projection) need a correctly rounded fp32 '/'. When the
+ * device offers it, ask for it; otherwise kernels see SPX_CR_DIV=0 and divide in double (a/b
+ * computed in binary64 and rounded to binary32 is the correctly rounded binary32 quotient, since
+ * 53 >= 2*24+2). */
+static void division_mode(spx_ctx *ctx) {
   cl_device_fp_config fp = 0;
-  int cr = clGetDeviceInfo(ctx->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS &&
-           (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT);
-  ctx->cr_div = cr;
-  if (n < cap)
-    n += (size_t)snprintf(o + n, cap - n, cr ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
-  if (n < cap && getenv("SPX_FORCE_DIV_FALLBACK") && ctx->info.fp64) {
+  ctx->cr_div = clGetDeviceInfo(ctx->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS &&
+                (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT);
+  ctx->div_fallback = 0;
+  if (getenv("SPX_FORCE_DIV_FALLBACK") && ctx->info.fp64) {
     /* testing hook: exercise the double-division path on a device that has both */
     ctx->cr_div = 0;
-    snprintf(o + n, cap - n, " -DSPX_FORCE_DIV_FALLBACK=1");
+    ctx->div_fallback = 1;
   }
+}
+
+uint64_t spx_cl_program_options(const spx_ctx *ctx, const char *src, char *o, size_t cap) {
+  uint64_t uses = 0;
+  size_t n = (size_t)snprintf(o, cap, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1", ctx->tune_cpu ? "CPU" : "GPU");
+  for (int i = 0; i < NTUNABLES && n < cap; i++)
+    if (strstr(src, spx_tunables[i].name)) {
+      n += (size_t)snprintf(o + n, cap - n, " -D%s=%d", spx_tunables[i].name, field_value(&ctx->tune, i));
+      uses |= 1ull << i;
+    }
+  if (n < cap)
+    n += (size_t)snprintf(o + n, cap - n,
+                          ctx->cr_div ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
+  if (n < cap && ctx->div_fallback) snprintf(o + n, cap - n, " -DSPX_FORCE_DIV_FALLBACK=1");
+  return uses;
 }
 
 spx_status spx_cl_tunables_resolve(spx_ctx *ctx) {
@@ -246,7 +256,7 @@ spx_status spx_cl_tunables_resolve(spx_ctx *ctx) {
   }
   spx_cl_tunefile_apply(ctx); /* never fails: a bad file is noted and ignored */
   if ((st = apply_env(ctx)) || (st = spx_cl_tunables_check(ctx, &ctx->tune))) return st;
-  build_options(ctx);
+  division_mode(ctx);
   return SPX_OK;
 }
 
@@ -281,9 +291,8 @@ spx_status spx_device_set_tunable(spx_ctx *ctx, const char *name, int value) {
     return spx_fail(ctx, SPX_E_ARG, "tunable %s=%s: %s", short_name(i), val, why);
   if ((st = spx_cl_tunables_check(ctx, &t))) return st;
   if (field_value(&ctx->tune, i) != value) {
-    spx_cl_programs_release(ctx); /* built with the old -D value */
+    spx_cl_programs_release(ctx, 1ull << i); /* those built with the old -D value */
     ctx->tune = t;
-    build_options(ctx);
   }
   ctx->tune_src[i] = SPX_TSRC_SET;
   return SPX_OK;

@@ -98,6 +98,8 @@ spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, spx_vgg *vgg
     memcpy(xh + (size_t)(n + i) * 7 * hw, in + (size_t)i * 4 * hw, 4 * hw * sizeof(float));
     memcpy(xh + ((size_t)(n + i) * 7 + 4) * hw, target + (size_t)i * 3 * hw, 3 * hw * sizeof(float));
   }
+  if (dt) spx_tape_copy_shard(dt, gt); /* data-parallel: D's and VGG's seeds take G's share of the batch */
+  if (vt) spx_tape_copy_shard(vt, gt);
   dpass p;
   memset(&p, 0, sizeof p);
   float rec = 0, vl = 0;

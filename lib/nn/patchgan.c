@@ -144,6 +144,24 @@ spx_status spx_patchgan_adam(spx_patchgan *d, double lr, double beta1, double be
   return st;
 }
 
+spx_status spx_patchgan_set_comm(spx_patchgan *d, const spx_comm *comm) {
+  if (comm && comm->size > 1 && (!comm->allreduce_sum || !comm->broadcast || comm->rank < 0 || comm->rank >= comm->size))
+    return spx_fail(d->ctx, SPX_E_ARG, "patchgan: comm of %d ranks lacks a callback or has rank %d", comm->size,
+                    comm->rank);
+  spx_tape_set_comm(d->tape, comm, 0); /* instance norm only: nothing to synchronise in the forward */
+  return SPX_OK;
+}
+
+spx_status spx_patchgan_broadcast(spx_patchgan *d) {
+  const spx_comm *c = spx_tape_comm(d->tape);
+  if (!c) return SPX_OK;
+  int64_t step = d->step;
+  if (c->broadcast(c->self, &step, sizeof step))
+    return spx_fail(d->ctx, SPX_E_IO, "patchgan: broadcast over %d ranks failed", c->size);
+  d->step = step;
+  return spx_tape_broadcast(d->tape);
+}
+
 spx_status spx_patchgan_reset_optimizer(spx_patchgan *d) {
   d->step = 0;
   return spx_tape_zero_moments(d->tape);

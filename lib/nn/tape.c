@@ -120,6 +120,7 @@ void spx_tape_destroy(spx_tape *t) {
   free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact), free(t->hdact);
   free(t->vals);
   free(t->nodes);
+  free(t->xfer);
   free(t);
 }
 
@@ -232,6 +233,7 @@ spx_status spx_tape_begin(spx_tape *t, int train, uint64_t plan_key) {
   t->act_used = 0;
   t->train = train != 0;
   t->in_pass = 1;
+  if (t->train && spx_tape_sync_bn(t)) plan_key = spx_hash64("syncbn", 6, plan_key); /* + the ranks' scratch */
   t->measuring = 1;
   for (int i = 0; i < t->nplans; i++)
     if (t->plan_keys[i] == plan_key && t->plan_train[i] == t->train && t->plan_size[i] <= t->act_cap &&
@@ -408,17 +410,25 @@ int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int r
   }
   int y = spx_tp_new_value(t, SP_ACT, xv->n, c, xv->h, xv->w);
   int sv = spx_tp_new_value(t, SP_ACT, 2 * c, 1, 1, 1); /* [mean, invstd] of the batch */
-  if (y < 0 || sv < 0 || !spx_tp_live(t)) return y;
+  int sync = spx_tape_sync_bn(t), sc = sync ? spx_tp_new_value(t, SP_ACT, 4 * c, 1, 1, 1) : -1; /* rank sums */
+  if (y < 0 || sv < 0 || (sync && sc < 0) || !spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_bn_train_forward(HV(x), xv->n, c, xv->h * xv->w, HV(gamma), HV(beta), HV(rmean), HV(rvar), momentum, eps,
                              HV(sv), HV(sv) + c, HV(y));
+  } else if (sync) {
+    spx_tensor tx = TV(x), tg = TV(gamma), tb = TV(beta), trm = TV(rmean), trv = TV(rvar), ty = TV(y), ts = TV(sv),
+               tsc = TV(sc);
+    spx_bn_sync bs;
+    RUN(OP_BN, spx_tape_bn_sync(t, x, &bs));
+    RUN(OP_BN, spx_bn_sync_train_forward(t->ctx, &tx, &tg, &tb, &trm, &trv, momentum, eps, 1, &ts, &tsc, &ty, &bs));
   } else {
     spx_tensor tx = TV(x), tg = TV(gamma), tb = TV(beta), trm = TV(rmean), trv = TV(rvar), ty = TV(y), ts = TV(sv);
-    RUN(OP_BN, spx_bn_train_forward(t->ctx, &tx, &tg, &tb, &trm, &trv, momentum, eps, 1, &ts, &ty));
+    int upd = !spx_tape_shard_empty(t); /* a stand-in sample never moves the running statistics */
+    RUN(OP_BN, spx_bn_train_forward(t->ctx, &tx, &tg, &tb, &trm, &trv, momentum, eps, upd, &ts, &ty));
   }
   float fa[2] = {momentum, eps};
-  spx_tp_record(t, OP_BN, x, gamma, beta, y, sv, -1, NULL, fa);
+  spx_tp_record(t, OP_BN, x, gamma, beta, y, sv, sc, NULL, fa);
   return y;
 }
 
@@ -598,8 +608,14 @@ static spx_status back_dev(spx_tape *t, const tnode *nd) {
     case OP_BN: {
       spx_tensor g = TV(nd->in[1]), sv = TV(nd->saved[0]);
       spx_tensor dg = spx_tape_grad_tensor(t, nd->in[1]), dbt = spx_tape_grad_tensor(t, nd->in[2]);
-      return spx_bn_train_backward(ctx, &x, &g, &sv, &dy, pdx, spx_tp_wants(t, nd->in[1]) ? &dg : NULL,
-                                   spx_tp_wants(t, nd->in[2]) ? &dbt : NULL);
+      const spx_tensor *pdg = spx_tp_wants(t, nd->in[1]) ? &dg : NULL, *pdb = spx_tp_wants(t, nd->in[2]) ? &dbt : NULL;
+      if (nd->saved[1] >= 0) { /* synchronised over the ranks (tape_dist.c) */
+        spx_tensor sc = TV(nd->saved[1]);
+        spx_bn_sync bs;
+        spx_status st = spx_tape_bn_sync(t, nd->in[0], &bs);
+        return st ? st : spx_bn_sync_train_backward(ctx, &x, &g, &sv, &sc, &dy, pdx, pdg, pdb, &bs);
+      }
+      return spx_bn_train_backward(ctx, &x, &g, &sv, &dy, pdx, pdg, pdb);
     }
     case OP_ACT: {
       spx_act_kind k = (spx_act_kind)nd->iarg[0];
@@ -640,6 +656,7 @@ spx_status spx_tape_backward_begin(spx_tape *t) {
 spx_status spx_tape_seed(spx_tape *t, int id, float value) {
   if (!spx_tp_valid(t, id) || spx_tp_numel(&t->vals[id]) != 1 || t->vals[id].space != SP_ACT)
     return spx_fail(t->ctx, SPX_E_ARG, "tape: backward from a value that is not a scalar activation");
+  value *= spx_tape_seed_scale(t); /* this rank's share of the global batch (1 without a shard) */
   if (HOST) {
     spx_tape_host_grad(t, id)[0] += value;
     return SPX_OK;
@@ -675,8 +692,9 @@ spx_status spx_tape_backward(spx_tape *t, int loss) {
     return spx_fail(t->ctx, SPX_E_ARG, "tape: backward from a value that is not a scalar activation");
   /* zero the activation gradients of this pass, seed d loss = 1 */
   if ((st = spx_tape_backward_begin(t))) return st;
-  if (HOST) spx_tape_host_grad(t, loss)[0] = 1.0;
-  else if ((st = spx_cl_fill_f32(t->ctx, t->dact, t->vals[loss].off, 1, 1.0f))) return st;
+  float seed = spx_tape_seed_scale(t); /* 1 without a shard */
+  if (HOST) spx_tape_host_grad(t, loss)[0] = seed;
+  else if ((st = spx_cl_fill_f32(t->ctx, t->dact, t->vals[loss].off, 1, seed))) return st;
   return spx_tape_backward_run(t);
 }
 
@@ -707,6 +725,8 @@ spx_status spx_tape_adam(spx_tape *t, double lr, double beta1, double beta2, dou
   if (step < 1) return spx_fail(t->ctx, SPX_E_ARG, "tape: Adam step number %lld < 1", (long long)step);
   if (!t->nparam) return SPX_OK;
   if (t->nparam > (size_t)INT32_MAX) return spx_fail(t->ctx, SPX_E_ARG, "tape: %zu parameters is too many", t->nparam);
+  spx_status st = spx_tape_grad_allreduce(t); /* data-parallel: the global batch's gradient */
+  if (st) return st;
   spx_adam_params hp = {lr, beta1, beta2, eps, 0.0};
   if (HOST) {
     spx_ref_adam_step(&hp, step, t->hparam, t->hgrad, t->hm, t->hv, t->nparam);

@@ -32,6 +32,7 @@
 
 #include "nn/activations.h"
 #include "nn/tensor.h"
+#include "smplpix/comm.h"
 
 typedef enum spx_tape_backend { SPX_TAPE_DEVICE = 0, SPX_TAPE_HOST = 1 } spx_tape_backend;
 
@@ -137,5 +138,30 @@ spx_status spx_tape_zero_moments(spx_tape *t);
 /* One Adam step (PyTorch semantics, no weight decay) over the whole parameter slab; `step` is the
  * 1-based step number used for bias correction. */
 spx_status spx_tape_adam(spx_tape *t, double lr, double beta1, double beta2, double eps, int64_t step);
+
+/* ---- data-parallel training (lib/nn/tape_dist.c; smplpix/comm.h) ----
+ * With a comm of size > 1: spx_tape_adam first sums the parameter gradients over the ranks
+ * (spx_tape_grad_allreduce), and training batch norms (when sync_bn) use the statistics of the
+ * global batch (spx_bn_sync_*; device backend only). The shard (local of global samples of this
+ * step) scales every backward seed by local / global, so that each rank's mean loss becomes its
+ * part of the global batch's mean and the summed gradients are those of the global batch; a rank
+ * with local = 0 runs a stand-in sample that contributes nothing (statistics and gradients
+ * zeroed, running statistics untouched by its local batch norms). Without a shard the seed is 1
+ * and nothing changes. comm is not copied: it must outlive its use. */
+void spx_tape_set_comm(spx_tape *t, const spx_comm *comm, int sync_bn);
+const spx_comm *spx_tape_comm(const spx_tape *t); /* NULL: a single process */
+void spx_tape_set_shard(spx_tape *t, int local_n, int global_n);
+void spx_tape_copy_shard(spx_tape *dst, const spx_tape *src);
+float spx_tape_seed_scale(const spx_tape *t);
+int spx_tape_shard_empty(const spx_tape *t);
+/* Training batch norms of this tape are synchronised over the ranks. */
+int spx_tape_sync_bn(const spx_tape *t);
+/* Samples of the global batch when a shard was given, else `local`. */
+int spx_tape_global_batch(const spx_tape *t, int local);
+spx_status spx_tape_grad_allreduce(spx_tape *t);
+/* Rank 0's parameters, Adam moments and state into every rank's tape (same layout required). */
+spx_status spx_tape_broadcast(spx_tape *t);
+/* Host staging of at least n floats for the comm (owned by the tape). */
+spx_status spx_tape_xfer(spx_tape *t, size_t n, float **out);
 
 #endif

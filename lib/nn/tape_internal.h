@@ -4,6 +4,7 @@
 #define SPX_NN_TAPE_INTERNAL_H
 
 #include "nn/tape.h"
+#include "nn/batchnorm.h"
 #include "nn/conv2d.h"
 #include <stdlib.h>
 #include "core/internal.h"
@@ -55,6 +56,13 @@ struct spx_tape {
   int nplans;
   int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
   spx_conv2d_workspace ws; /* conv scratch, grow-only: no allocation in the steady state */
+  /* data-parallel training (lib/nn/tape_dist.c): the ranks' comm (NULL: one process), batch
+   * norm synchronised over them, this step's shard (local of global samples; 0 of 0: none given),
+   * host staging for the comm (grow-only) */
+  const spx_comm *comm;
+  int sync_bn, shard_local, shard_global;
+  float *xfer;
+  size_t xfer_cap;
   /* SPX_TAPE_PROFILE=1: finish the queue around every device op and print the time per op kind
    * and direction when the tape is destroyed */
   int prof;
@@ -83,6 +91,8 @@ static inline int spx_tp_wants(const spx_tape *t, int id) { return id >= 0 && t-
 static inline size_t spx_tp_numel(const tvalue *v) {
   return (size_t)v->n * (size_t)v->c * (size_t)v->h * (size_t)v->w;
 }
+/* tape_dist.c: the synchronised batch norm's view of the ranks for input value x */
+spx_status spx_tape_bn_sync(spx_tape *t, int x, spx_bn_sync *out);
 /* tape_multi.c: backward of the OP_INSTNORM.. kinds */
 spx_status spx_tp_back_multi(spx_tape *t, const tnode *nd);
 

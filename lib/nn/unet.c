@@ -272,7 +272,9 @@ static spx_status run_forward(spx_unet *u, const float *input, cl_mem dev_in, si
   if (n < 1 || h < 16 || w < 16 || n > 4096 || h > 16384 || w > 16384)
     return spx_fail(u->ctx, SPX_E_ARG, "unet: input %dx%dx%dx%d: need batch >= 1 and height, width in [16, 16384]", n,
                     SPX_UNET_IN_CHANNELS, h, w);
-  if (train && (long)n * (h / 16) * (w / 16) < 2)
+  /* synchronised batch norm: the statistics are those of the global batch */
+  long nstat = spx_tape_sync_bn(u->tape) ? spx_tape_global_batch(u->tape, n) : n;
+  if (train && nstat * (h / 16) * (w / 16) < 2)
     return spx_fail(u->ctx, SPX_E_ARG,
                     "unet: training on %dx%dx%dx%d leaves one value per channel at the %dx%d bottleneck (batch norm "
                     "needs two): use a larger batch or image",
@@ -391,6 +393,35 @@ spx_status spx_unet_reset_optimizer(spx_unet *u) {
 }
 
 spx_status spx_unet_adam_step(spx_unet *u, double lr) { return spx_unet_adam_step_ex(u, lr, 0.9, 0.999, 1e-8); }
+
+/* ------------------------------------------------------------------ data-parallel training */
+
+spx_status spx_unet_set_comm(spx_unet *u, const spx_comm *comm, int sync_bn) {
+  if (comm && comm->size > 1 && (!comm->allreduce_sum || !comm->broadcast || comm->rank < 0 || comm->rank >= comm->size))
+    return spx_fail(u->ctx, SPX_E_ARG, "unet: comm of %d ranks lacks a callback or has rank %d", comm->size, comm->rank);
+  spx_tape_set_comm(u->tape, comm, sync_bn);
+  return SPX_OK;
+}
+
+spx_status spx_unet_set_shard(spx_unet *u, int local_n, int global_n) {
+  if (local_n < 0 || global_n < 1 || local_n > global_n)
+    return spx_fail(u->ctx, SPX_E_ARG, "unet: shard of %d samples in a global batch of %d", local_n, global_n);
+  spx_tape_set_shard(u->tape, local_n, global_n);
+  return SPX_OK;
+}
+
+spx_status spx_unet_broadcast(spx_unet *u) {
+  const spx_comm *c = spx_tape_comm(u->tape);
+  if (!c) return SPX_OK;
+  int64_t meta[2 + 2 * NDC] = {u->step, u->sigmoid};
+  for (int i = 0; i < NDC; i++) meta[2 + 2 * i] = u->dc[i].nbt[0], meta[3 + 2 * i] = u->dc[i].nbt[1];
+  if (c->broadcast(c->self, meta, sizeof meta))
+    return spx_fail(u->ctx, SPX_E_IO, "unet: broadcast over %d ranks failed", c->size);
+  u->step = meta[0], u->sigmoid = (int)meta[1];
+  for (int i = 0; i < NDC; i++) u->dc[i].nbt[0] = meta[2 + 2 * i], u->dc[i].nbt[1] = meta[3 + 2 * i];
+  u->fold_dirty = 1;
+  return spx_tape_broadcast(u->tape);
+}
 
 /* ------------------------------------------------------------------ introspection */
 

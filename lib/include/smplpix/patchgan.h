@@ -34,6 +34,12 @@ int spx_patchgan_ndf(const spx_patchgan *d);
 int64_t spx_patchgan_step(const spx_patchgan *d); /* Adam steps taken */
 spx_status spx_patchgan_reset_optimizer(spx_patchgan *d);
 
+/* Data-parallel training (smplpix/comm.h, as spx_unet_set_comm): Adam steps sum the
+ * discriminator's gradients over the ranks first; the shard of each step is the generator's
+ * (spx_unet_set_shard). broadcast: rank 0's weights, Adam state and step into every rank's. */
+spx_status spx_patchgan_set_comm(spx_patchgan *d, const spx_comm *comm);
+spx_status spx_patchgan_broadcast(spx_patchgan *d);
+
 typedef struct spx_gan_losses {
   float rec;     /* mean L1 between the generated image and the target */
   float vgg;     /* L_VGG (smplpix/vgg.h) when a VGG is given, else 0 */

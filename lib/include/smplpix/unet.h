@@ -11,6 +11,7 @@
 #ifndef SMPLPIX_UNET_H
 #define SMPLPIX_UNET_H
 
+#include "smplpix/comm.h"
 #include "smplpix/core.h"
 #include "smplpix/device.h"
 
@@ -59,6 +60,22 @@ spx_status spx_unet_zero_grad(spx_unet *u);
 spx_status spx_unet_adam_step(spx_unet *u, double lr);
 /* The same with every hyper-parameter (torch.optim.Adam(lr, betas=(beta1, beta2), eps)). */
 spx_status spx_unet_adam_step_ex(spx_unet *u, double lr, double beta1, double beta2, double eps);
+
+/* Data-parallel training (smplpix/comm.h): one network per process, each training step on one
+ * shard of a global batch. With a comm of size > 1, spx_unet_adam_step* first sums the gradients
+ * over the ranks (a fixed rank order: bit-reproducible), and with sync_bn every training batch
+ * norm uses the statistics of the global batch (PyTorch's SyncBatchNorm; without it each rank
+ * normalises its shard alone, like PyTorch's DistributedDataParallel). comm must outlive the
+ * network's use of it; NULL or size 1 = a single process, exactly as without the call.
+ * set_shard: the next steps hold local_n of the global batch's global_n samples on this rank; the
+ * loss gradients are scaled by local_n / global_n, so the summed gradients are those of the
+ * global batch's mean loss. local_n = 0: this rank has no sample this step; it must still take
+ * part (every rank runs every step), on any one stand-in sample, which then contributes nothing.
+ * broadcast: rank 0's weights, batch-norm statistics, Adam state and step count into every rank's
+ * network (same width everywhere). */
+spx_status spx_unet_set_comm(spx_unet *u, const spx_comm *comm, int sync_bn);
+spx_status spx_unet_set_shard(spx_unet *u, int local_n, int global_n);
+spx_status spx_unet_broadcast(spx_unet *u);
 
 /* Forget the optimizer state: Adam moments to zero, step count to 0 (fine-tuning from weights). */
 spx_status spx_unet_reset_optimizer(spx_unet *u);

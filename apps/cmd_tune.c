@@ -1,0 +1,137 @@
+/* smplpix tune: time candidate tunable values on the UNet's eval forward at the render shape and
+ * store the winners in the device's tuning file (read whenever that device opens); --show prints
+ * the tunables in effect and where each value came from. The search is apps/tune_search.c. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "cli_model.h"
+#include "tune_search.h"
+
+#define MAX_WIDTHS 8
+
+static int show(spx_ctx *ctx) {
+  spx_device_info info;
+  spx_device_get_info(ctx, &info);
+  const char *path = spx_device_tuning_path(ctx), *note = spx_device_tuning_note(ctx);
+  printf("device: %s | %s | driver %s\n", info.name, info.platform, info.driver);
+  int tuned = 0, n = spx_device_tunable_count();
+  spx_tunable_info t;
+  for (int i = 0; i < n; i++)
+    if (spx_device_tunable(ctx, i, &t) == SPX_OK && !strcmp(t.source, "tuned")) tuned++;
+  if (!*path) printf("tuning file: none (no cache directory)\n");
+  else if (*note) printf("tuning file: %s (ignored: %s)\n", path, note);
+  else printf("tuning file: %s (%s)\n", path, tuned ? "used" : "absent or empty");
+  printf("%-20s %10s %10s  %s\n", "tunable", "value", "default", "source");
+  for (int i = 0; i < n; i++) {
+    if (spx_device_tunable(ctx, i, &t)) return spx_cli_error("tune", ctx);
+    printf("%-20s %10d %10d  %s\n", t.name, t.value, t.default_value, t.source);
+  }
+  return SPX_EXIT_OK;
+}
+
+static int parse_size(const char *v, int *h, int *w) {
+  char tail;
+  return sscanf(v, "%dx%d%c", h, w, &tail) == 2 && *h >= 16 && *w >= 16 && *h <= 8192 && *w <= 8192;
+}
+
+/* The base widths to tune for: --width values, else the shipped network's (or --checkpoint's). */
+static int model_width(spx_ctx *ctx, const char *ckpt, int *width) {
+  spx_unet *u = NULL;
+  const char *p = spx_cli_checkpoint("tune", ckpt, "--width W");
+  if (!p) return SPX_EXIT_USAGE;
+  if (spx_unet_load(ctx, p, &u)) return spx_cli_error("tune", ctx);
+  *width = spx_unet_width(u);
+  spx_unet_destroy(u);
+  return SPX_EXIT_OK;
+}
+
+static const char usage[] =
+    "usage: smplpix tune [--quick] [--width W]... [--camera C.json | --size HxW] [--checkpoint W.safetensors]\n"
+    "                    [--repeat N] [--clock wall|cpu] [--device cpu|gpu|P:D]\n"
+    "       smplpix tune --show [--device cpu|gpu|P:D]\n"
+    "Times candidate values of the convolution tunables (Winograd threshold CONV_WINO_MINC, register\n"
+    "tiles CONV_TM x CONV_TN, vector width CONV_VW, channel tiles CONV_CT, work-group CONV_LWS, input\n"
+    "cache CONV_XCACHE) on the UNet's eval forward (batch 1) at the camera's image size (default\n"
+    "data/cameras/default.json) for each base width (--width, repeatable; default: the width of the\n"
+    "shipped network or --checkpoint), on the chosen device. One tunable (group) at a time, the others\n"
+    "at their best so far; a candidate whose output differs from the defaults' by more than 1e-3 of\n"
+    "its largest value is rejected. Prints candidate, ms per width and the choice, and writes the\n"
+    "winners to the device's tuning file beside the program cache (atomically; keyed by device,\n"
+    "driver and smplpix version), which every later device open applies; SPX_TUNE_<NAME> variables\n"
+    "still win (and those tunables are not tuned). --quick: a few candidates (well under a minute on\n"
+    "a 2-core CPU once the kernels are cached); --repeat: timed runs per candidate (min taken);\n"
+    "--clock cpu: time by this process's CPU time (a CPU device shared with other work; it does not\n"
+    "see lost parallelism), default wall.\n"
+    "--show prints every tunable in effect, its default and its source (default, tuned, env).\n";
+
+int spx_cmd_tune(int argc, char **argv) {
+  const char *spec = NULL, *camera = NULL, *ckpt = NULL;
+  int cpu_clock = 0, quick = 0, do_show = 0, bad = 0, nw = 0, widths[MAX_WIDTHS], h = 0, w = 0, reps = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *v;
+    if (!strcmp(argv[i], "--help")) {
+      fputs(usage, stdout);
+      return SPX_EXIT_OK;
+    } else if (!strcmp(argv[i], "--quick")) {
+      quick = 1;
+    } else if (!strcmp(argv[i], "--show")) {
+      do_show = 1;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
+      spec = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--clock", &bad))) {
+      if (strcmp(v, "wall") && strcmp(v, "cpu")) return spx_cli_usage("tune", "--clock %s: expected wall or cpu", v);
+      cpu_clock = !strcmp(v, "cpu");
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--camera", &bad))) {
+      camera = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
+      ckpt = v;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) {
+      if (!parse_size(v, &h, &w)) return spx_cli_usage("tune", "--size %s: expected HxW, each 16..8192", v);
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--repeat", &bad))) {
+      char *end;
+      long r = strtol(v, &end, 10);
+      if (*end || r < 1 || r > 100) return spx_cli_usage("tune", "--repeat %s: expected an integer in [1, 100]", v);
+      reps = (int)r;
+    } else if ((v = spx_cli_opt(argc, argv, &i, "--width", &bad))) {
+      char *end;
+      long x = strtol(v, &end, 10);
+      if (*end || (x != 8 && x != 16 && x != 32 && x != 64))
+        return spx_cli_usage("tune", "--width %s: expected 8, 16, 32 or 64", v);
+      if (nw == MAX_WIDTHS) return spx_cli_usage("tune", "at most %d --width options", MAX_WIDTHS);
+      widths[nw++] = (int)x;
+    } else {
+      return spx_cli_usage("tune", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+    }
+  }
+  if (camera && h) return spx_cli_usage("tune", "--camera and --size exclude each other");
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("tune", "out of memory");
+  int rc = spx_cli_open_device("tune", ctx, spec);
+  if (rc) goto done;
+  if (do_show) {
+    rc = show(ctx);
+    goto done;
+  }
+  if (!h) {
+    spx_camera *cams = NULL;
+    int nc = 0;
+    if ((rc = spx_cli_load_cameras("tune", ctx, camera ? camera : spx_cli_data_path("cameras/default.json"), &cams,
+                                   &nc))) {
+      free(cams);
+      goto done;
+    }
+    h = cams[0].height;
+    w = cams[0].width;
+    free(cams);
+  }
+  if (!nw && (rc = model_width(ctx, ckpt, &widths[nw++]))) goto done;
+  spx_tune_plan plan = {.quick = quick, .h = h, .w = w, .nwidths = nw, .repeat = reps ? reps : quick ? 3 : 5,
+                       .device = spec, .cpu_clock = cpu_clock};
+  memcpy(plan.widths, widths, sizeof(int) * (size_t)nw);
+  rc = spx_tune_search(ctx, &plan, stdout);
+done:
+  spx_ctx_destroy(ctx);
+  return rc;
+}

@@ -1,0 +1,312 @@
+/* The search of `smplpix tune`: coordinate descent over groups of tunables, scored on the UNet's
+ * eval forward. A stage takes one group; every candidate runs on a second context of the same
+ * device and is timed against the incumbent (the best values so far) alternately, forward for
+ * forward, so both see the same load; its score is the mean over the widths of its minimum time
+ * / the incumbent's. A candidate replaces the incumbent only when it scores below 0.98 (timing
+ * noise on a loaded machine is of that order) and its output agrees with the defaults' within
+ * TUNE_TOL of the largest value: the candidates change summation orders (tiles, channel blocks)
+ * or the algorithm (Winograd F(4x4,3x3), whose tests bound its error at ~1e-5 relative per
+ * layer); 1e-3 over the whole network leaves room for that while a wrong kernel is off by O(1). */
+#include "tune_search.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "cli.h"
+
+#define TUNE_TOL 1e-3
+#define TUNE_MARGIN 0.98
+#define MAXG 2  /* tunables per group */
+#define MAXC 64 /* candidates per group */
+#define MAXW 8
+
+typedef struct group {
+  const char *names[MAXG];
+  int n;              /* tunables in the group */
+  int full_only;      /* not in --quick */
+  const int *vals;    /* ncand tuples of n values */
+  int ncand;
+} group;
+
+static const int q_minc[] = {0, 16, 32, 64};
+static const int f_minc[] = {0, 8, 16, 32, 64, 128};
+static const int q_tile[] = {8, 3, 8, 2, 6, 4, 4, 6, 8, 4};
+static int f_tile[2 * MAXC];
+static const int f_vw[] = {1, 2, 4, 8, 16};
+static const int f_ct[] = {1, 2, 4, 8};
+static const int f_lws[] = {1, 16, 32, 64, 128, 256};
+static const int f_xcache[] = {0, 512, 1024, 2048, 4096, 8192};
+
+/* Two contexts on the device: A runs the incumbent, B the candidate, so every comparison times
+ * the two alternately in the same seconds (a loaded machine slows both alike) without
+ * rebuilding programs between the runs. */
+typedef struct run {
+  spx_ctx *ctx[2];
+  const spx_tune_plan *p;
+  FILE *out;
+  spx_unet *u[2][MAXW];
+  float *input, *buf, *ref[MAXW];
+  double refmax[MAXW];
+  size_t nout;
+  int have_ref; /* ref[] holds the defaults' outputs */
+} run;
+
+/* Seconds on the plan's clock: wall, or this process's CPU time (--clock cpu: on a CPU device
+ * shared with other work it counts our threads only; it does not see lost parallelism). */
+static double now(const run *r) {
+  struct timespec ts;
+  if (!r->p->cpu_clock || clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts)) return spx_cli_now();
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* One forward of width k on context c; *ms its time. */
+static spx_status forward(run *r, int c, int k, double *ms) {
+  double t0 = now(r);
+  spx_status st = spx_unet_forward(r->u[c][k], r->input, 1, r->p->h, r->p->w, 0, r->buf);
+  *ms = 1e3 * (now(r) - t0);
+  return st;
+}
+
+/* An untimed forward of every width on context c (it builds what a change dropped); the
+ * worst relative difference to the defaults' outputs in *diff (the first call stores them). */
+static spx_status warm(run *r, int c, double *diff) {
+  double ms;
+  *diff = 0;
+  for (int k = 0; k < r->p->nwidths; k++) {
+    spx_status st = forward(r, c, k, &ms);
+    if (st) return st;
+    if (!r->have_ref) {
+      memcpy(r->ref[k], r->buf, r->nout * sizeof(float));
+      r->refmax[k] = 0;
+      for (size_t i = 0; i < r->nout; i++) r->refmax[k] = fmax(r->refmax[k], fabs(r->buf[i]));
+    }
+    double d = 0;
+    for (size_t i = 0; i < r->nout; i++) d = fmax(d, fabs((double)r->buf[i] - r->ref[k][i]));
+    d /= r->refmax[k] > 0 ? r->refmax[k] : 1;
+    if (!(d <= *diff)) *diff = d; /* NaN sticks */
+  }
+  r->have_ref = 1;
+  return SPX_OK;
+}
+
+/* A and B alternately, `reps` times per width: the minimum ms of each; the score is the mean
+ * over the widths of B's / A's. */
+static spx_status duel(run *r, int reps, double *ms_a, double *ms_b, double *score) {
+  *score = 0;
+  for (int k = 0; k < r->p->nwidths; k++) {
+    ms_a[k] = ms_b[k] = INFINITY;
+    for (int rep = 0; rep < reps; rep++) {
+      double a, b;
+      spx_status st = forward(r, 0, k, &a);
+      if (st || (st = forward(r, 1, k, &b))) return st;
+      ms_a[k] = fmin(ms_a[k], a);
+      ms_b[k] = fmin(ms_b[k], b);
+    }
+    *score += ms_b[k] / ms_a[k] / r->p->nwidths;
+  }
+  return SPX_OK;
+}
+
+/* Set the group's tunables on context c to vals; on a refusal restore cur and copy the reason
+ * to why. */
+static spx_status set_group(run *r, int c, const group *g, const int *vals, const int *cur, char *why, size_t cap) {
+  for (int j = 0; j < g->n; j++) {
+    spx_status st = spx_device_set_tunable(r->ctx[c], g->names[j], vals[j]);
+    if (st) {
+      snprintf(why, cap, "%s", spx_ctx_message(r->ctx[c]));
+      for (int i = 0; i < j; i++) spx_device_set_tunable(r->ctx[c], g->names[i], cur[i]);
+      return st;
+    }
+  }
+  return SPX_OK;
+}
+
+static void row(const run *r, const group *g, const int *vals, const double *ms, const char *note) {
+  char c[96] = "";
+  size_t n = 0;
+  for (int j = 0; j < g->n; j++) n += (size_t)snprintf(c + n, sizeof c - n, "%s%s=%d", j ? " " : "", g->names[j], vals[j]);
+  fprintf(r->out, "  %-28s", c);
+  for (int k = 0; k < r->p->nwidths; k++)
+    if (ms) fprintf(r->out, " %9.1f", ms[k]);
+    else fprintf(r->out, " %9s", "-");
+  fprintf(r->out, "  %s\n", note);
+  fflush(r->out);
+}
+
+static int tunable(spx_ctx *ctx, const char *name, spx_tunable_info *out) {
+  for (int i = 0; i < spx_device_tunable_count(); i++)
+    if (spx_device_tunable(ctx, i, out) == SPX_OK && !strcmp(out->name, name)) return 1;
+  return 0;
+}
+
+/* One stage: every candidate against the incumbent cur (on A); both contexts end at the winner. */
+static spx_status stage(run *r, const group *g, int *cur) {
+  int nw = r->p->nwidths;
+  double ms_a[MAXW], ms_b[MAXW], inc_ms[MAXW], best_ms[MAXW], diff, sc, best = TUNE_MARGIN;
+  int win[MAXG];
+  char note[1200], why[1100];
+  memcpy(win, cur, sizeof win);
+  for (int k = 0; k < nw; k++) inc_ms[k] = INFINITY;
+  spx_status st = SPX_OK;
+  for (int c = 0; c < g->ncand; c++) {
+    const int *v = g->vals + c * g->n;
+    if (!memcmp(v, cur, sizeof(int) * (size_t)g->n)) continue;
+    if (set_group(r, 1, g, v, cur, why, sizeof why)) {
+      snprintf(note, sizeof note, "skipped: %s", why);
+      row(r, g, v, NULL, note);
+      continue;
+    }
+    if ((st = warm(r, 1, &diff))) return st;
+    if (!(diff <= TUNE_TOL)) {
+      snprintf(note, sizeof note, "rejected: output differs by %.2g of its largest value", diff);
+      row(r, g, v, NULL, note);
+      continue;
+    }
+    if ((st = duel(r, r->p->repeat, ms_a, ms_b, &sc))) return st;
+    for (int k = 0; k < nw; k++) inc_ms[k] = fmin(inc_ms[k], ms_a[k]);
+    snprintf(note, sizeof note, "%.3f of the incumbent's time%s", sc, sc < best ? ", best so far" : "");
+    if (sc < best) {
+      best = sc;
+      memcpy(best_ms, ms_b, sizeof(double) * (size_t)nw);
+      memcpy(win, v, sizeof(int) * (size_t)g->n);
+    }
+    row(r, g, v, ms_b, note);
+  }
+  row(r, g, cur, isinf(inc_ms[0]) ? NULL : inc_ms,
+      memcmp(win, cur, sizeof(int) * (size_t)g->n) ? "incumbent" : "incumbent, kept");
+  if ((st = set_group(r, 0, g, win, cur, why, sizeof why)) || (st = set_group(r, 1, g, win, cur, why, sizeof why)))
+    return st;
+  if (memcmp(win, cur, sizeof(int) * (size_t)g->n)) {
+    if ((st = warm(r, 0, &diff))) return st;
+    row(r, g, win, best_ms, "chosen");
+  }
+  memcpy(cur, win, sizeof win);
+  return SPX_OK;
+}
+
+static int build_groups(const spx_tune_plan *p, group *gs) {
+  int nt = 0;
+  for (int tm = 2; tm <= 16; tm += 2)
+    for (int tn = 1; tn <= 8; tn++)
+      if (tm * tn >= 8 && tm * tn <= 48 && nt < MAXC) f_tile[2 * nt] = tm, f_tile[2 * nt + 1] = tn, nt++;
+  int n = 0;
+  gs[n++] = (group){{"CONV_WINO_MINC", NULL}, 1, 0, p->quick ? q_minc : f_minc,
+                    p->quick ? (int)(sizeof q_minc / sizeof(int)) : (int)(sizeof f_minc / sizeof(int))};
+  gs[n++] = (group){{"CONV_TM", "CONV_TN"}, 2, 0, p->quick ? q_tile : f_tile,
+                    p->quick ? (int)(sizeof q_tile / sizeof(int) / 2) : nt};
+  gs[n++] = (group){{"CONV_VW", NULL}, 1, 1, f_vw, (int)(sizeof f_vw / sizeof(int))};
+  gs[n++] = (group){{"CONV_CT", NULL}, 1, 1, f_ct, (int)(sizeof f_ct / sizeof(int))};
+  gs[n++] = (group){{"CONV_LWS", NULL}, 1, 1, f_lws, (int)(sizeof f_lws / sizeof(int))};
+  gs[n++] = (group){{"CONV_XCACHE", NULL}, 1, 1, f_xcache, (int)(sizeof f_xcache / sizeof(int))};
+  return n;
+}
+
+int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
+  run r = {.ctx = {ctx, NULL}, .p = p, .out = out, .nout = (size_t)3 * p->h * p->w};
+  group gs[8];
+  int ng = build_groups(p, gs), rc = SPX_EXIT_ERROR, nsave = 0;
+  char names[16][32];
+  int vals[16], defs[16];
+  spx_status st = SPX_OK;
+  spx_ctx *failed = ctx;
+  double t_start = spx_cli_now();
+  r.input = malloc((size_t)4 * p->h * p->w * sizeof(float));
+  r.buf = malloc(r.nout * sizeof(float));
+  int fit = r.input && r.buf;
+  for (int k = 0; k < p->nwidths; k++) fit = fit && (r.ref[k] = malloc(r.nout * sizeof(float)));
+  if (!fit) {
+    rc = spx_cli_errorf("tune", "out of memory");
+    goto done;
+  }
+  uint64_t s = 0x9e3779b97f4a7c15ULL;
+  for (size_t i = 0; i < (size_t)4 * p->h * p->w; i++) r.input[i] = (float)((spx_cli_mix64(s++) >> 40) * 0x1p-24);
+  if (spx_ctx_create(&r.ctx[1])) {
+    rc = spx_cli_errorf("tune", "out of memory");
+    goto done;
+  }
+  for (int c = 0; c < 2; c++) {
+    failed = r.ctx[c];
+    if (c && (st = spx_device_open(r.ctx[1], p->device))) goto fail;
+    /* start from the built-in defaults (a previous tuning file is replaced) */
+    for (int i = 0; i < spx_device_tunable_count(); i++) {
+      spx_tunable_info t;
+      if ((st = spx_device_tunable(r.ctx[c], i, &t))) goto fail;
+      if (!strcmp(t.source, "tuned") && (st = spx_device_set_tunable(r.ctx[c], t.name, t.default_value))) goto fail;
+    }
+    for (int k = 0; k < p->nwidths; k++)
+      if ((st = spx_unet_create(r.ctx[c], p->widths[k], 1, 7, &r.u[c][k]))) goto fail;
+  }
+  spx_device_info info;
+  spx_device_get_info(ctx, &info);
+  fprintf(out, "tuning %s (%s) on the UNet eval forward, batch 1, 4x%dx%d, widths", info.name, info.driver, p->h,
+          p->w);
+  for (int k = 0; k < p->nwidths; k++) fprintf(out, " %d", p->widths[k]);
+  fprintf(out, "; %s search; each candidate timed against the incumbent alternately, min of %d runs (%s ms)\n",
+          p->quick ? "quick" : "full", p->repeat, p->cpu_clock ? "CPU" : "wall");
+  double diff;
+  failed = ctx;
+  if ((st = warm(&r, 0, &diff))) goto fail;
+  failed = r.ctx[1];
+  if ((st = warm(&r, 1, &diff))) goto fail;
+  fprintf(out, "  %-28s", "candidate");
+  for (int k = 0; k < p->nwidths; k++) fprintf(out, "  w%-2d ms  ", p->widths[k]);
+  fprintf(out, "  chosen\n");
+  for (int g = 0; g < ng; g++) {
+    if (gs[g].full_only && p->quick) continue;
+    int cur[MAXG] = {0}, skip = 0;
+    for (int j = 0; j < gs[g].n; j++) {
+      spx_tunable_info t;
+      if (!tunable(ctx, gs[g].names[j], &t)) skip = 1;
+      else if (!strcmp(t.source, "env")) {
+        fprintf(out, "  %s: set by SPX_TUNE_%s, not tuned\n", t.name, t.name);
+        skip = 1;
+      } else {
+        cur[j] = t.value;
+      }
+    }
+    if (skip) continue;
+    if ((st = stage(&r, &gs[g], cur))) goto fail_either;
+    for (int j = 0; j < gs[g].n && nsave < 16; j++) {
+      spx_tunable_info t;
+      tunable(ctx, gs[g].names[j], &t);
+      snprintf(names[nsave], sizeof names[nsave], "%s", gs[g].names[j]);
+      defs[nsave] = t.default_value;
+      vals[nsave++] = cur[j];
+    }
+  }
+  /* the defaults (A) against the winners (B), alternately */
+  failed = ctx;
+  for (int i = 0; i < nsave; i++)
+    if ((st = spx_device_set_tunable(ctx, names[i], defs[i]))) goto fail;
+  if ((st = warm(&r, 0, &diff))) goto fail;
+  double ms_def[MAXW], ms_tuned[MAXW], sc;
+  if ((st = duel(&r, 2 * p->repeat, ms_def, ms_tuned, &sc))) goto fail_either;
+  const char *np[16];
+  for (int i = 0; i < nsave; i++) np[i] = names[i];
+  if ((st = spx_device_tuning_save(ctx, np, vals, nsave))) goto fail;
+  fprintf(out, "chosen:");
+  for (int i = 0; i < nsave; i++) fprintf(out, " %s=%d%s", names[i], vals[i], vals[i] == defs[i] ? " (default)" : "");
+  fprintf(out, "\n");
+  for (int k = 0; k < p->nwidths; k++)
+    fprintf(out, "width %d: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n", p->widths[k], ms_def[k], ms_tuned[k],
+            ms_def[k] / ms_tuned[k]);
+  fprintf(out, "wrote %s (%.1f s)\n", spx_device_tuning_path(ctx), spx_cli_now() - t_start);
+  rc = SPX_EXIT_OK;
+  goto done;
+fail_either:
+  failed = spx_ctx_last_status(r.ctx[1]) == st ? r.ctx[1] : ctx;
+fail:
+  rc = spx_cli_error("tune", failed);
+done:
+  for (int k = 0; k < p->nwidths; k++) {
+    spx_unet_destroy(r.u[0][k]);
+    spx_unet_destroy(r.u[1][k]);
+    free(r.ref[k]);
+  }
+  spx_ctx_destroy(r.ctx[1]);
+  free(r.input);
+  free(r.buf);
+  return rc;
+}

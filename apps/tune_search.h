@@ -1,0 +1,23 @@
+/* The search of `smplpix tune` (apps/tune_search.c). */
+#ifndef SPX_APPS_TUNE_SEARCH_H
+#define SPX_APPS_TUNE_SEARCH_H
+
+#include <stdio.h>
+
+#include "smplpix/smplpix.h"
+
+typedef struct spx_tune_plan {
+  int quick;      /* a few candidates per tunable instead of the full lists */
+  int h, w;       /* image size of the UNet input */
+  int nwidths;    /* base widths to time (the score sums time / default time over them) */
+  int widths[8];
+  int repeat;     /* timed forwards per candidate and width; the minimum counts */
+  const char *device; /* the spec ctx was opened with (a second context opens the same device) */
+  int cpu_clock;      /* time by this process's CPU time instead of wall time */
+} spx_tune_plan;
+
+/* Run the search on ctx's open device, print the table to out, write the tuning file. Returns
+ * an exit code (errors printed). */
+int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *plan, FILE *out);
+
+#endif

@@ -1,0 +1,170 @@
+/* Tunables resolved at device open and the tuning file of `smplpix tune`: the tuner writes the
+ * file, the next open applies it (source "tuned"), SPX_TUNE_* still wins, a corrupt / mismatched
+ * file is ignored with a note and the defaults; spx_device_set_tunable checks like an override
+ * and a changed value rebuilds (a new cache key) only the programs that use it. Runs in its own
+ * cache directory so no other test sees a tuning file. */
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cl/cl_internal.h"
+#include "smplpix/smplpix.h"
+#include "test.h"
+
+static char cache[600];
+
+static int sh(const char *fmt, ...) {
+  char cmd[4096];
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(cmd, sizeof cmd, fmt, ap);
+  va_end(ap);
+  return spx_t_system(cmd);
+}
+
+static spx_ctx *open_ctx(void) {
+  spx_ctx *ctx = NULL;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
+  return ctx;
+}
+
+/* value and source of the tunable called name */
+static int get(spx_ctx *ctx, const char *name, spx_tunable_info *out) {
+  for (int i = 0; i < spx_device_tunable_count(); i++)
+    if (spx_device_tunable(ctx, i, out) == SPX_OK && !strcmp(out->name, name)) return 1;
+  return 0;
+}
+
+static int count_files(const char *prefix) {
+  return sh("test $(ls '%s' | grep -c '^%s') -eq 1", cache, prefix) == 0   ? 1
+         : sh("test $(ls '%s' | grep -c '^%s') -eq 2", cache, prefix) == 0 ? 2
+                                                                           : -1;
+}
+
+static void test_defaults_and_fields(void) {
+  spx_ctx *ctx = open_ctx();
+  spx_tunable_info t;
+  CHECK(spx_device_tunable_count() == SPX_NTUNABLES);
+  CHECK(get(ctx, "CONV_TM", &t) && t.value == ctx->tune.conv_tm && !strcmp(t.source, "default"));
+  CHECK(get(ctx, "WG", &t) && t.value == ctx->tune.wg && t.value == t.default_value);
+  CHECK(spx_device_tunable(ctx, SPX_NTUNABLES, &t) == SPX_E_ARG);
+  CHECK(!strcmp(spx_device_tuning_note(ctx), ""));
+  CHECK(strstr(spx_device_tuning_path(ctx), cache) == spx_device_tuning_path(ctx));
+  /* set: checked like an override, the typed field follows */
+  CHECK(spx_device_set_tunable(ctx, "CONV_TM", 0) == SPX_E_ARG);
+  CHECK(strstr(spx_ctx_message(ctx), "CONV_TM=0: expected an integer in [1, 32]") != NULL);
+  CHECK(spx_device_set_tunable(ctx, "WG", 48) == SPX_E_ARG);
+  CHECK(spx_device_set_tunable(ctx, "NO_SUCH", 1) == SPX_E_ARG);
+  CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_TM", 4));
+  CHECK(ctx->tune.conv_tm == 4 && get(ctx, "CONV_TM", &t) && !strcmp(t.source, "set"));
+  spx_ctx_destroy(ctx);
+}
+
+/* A changed value is a new build option of the programs that use it: a new cache key (compiled,
+ * a second binary on disk), while a program that does not use it keeps its key and object. */
+static void test_cache_key(void) {
+  spx_ctx *ctx = open_ctx();
+  spx_cache_stats a, b, c;
+  CHECK_OK(ctx, spx_cl_program_build(ctx, "conv2d.cl"));
+  CHECK_OK(ctx, spx_cl_program_build(ctx, "optim.cl"));
+  cl_kernel k0, k1;
+  CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_ADAM_STEP, &k0));
+  CHECK_OK(ctx, spx_device_cache_stats(ctx, &a));
+  CHECK(count_files("conv2d\\.cl-") == 1);
+  CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_TM", ctx->tune.conv_tm == 4 ? 6 : 4));
+  CHECK(ctx->kernels[SPX_K_CONV2D_PAD] == NULL); /* conv2d.cl was dropped ... */
+  CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_ADAM_STEP, &k1));
+  CHECK(k0 == k1); /* ... optim.cl (no CONV_TM) was not */
+  CHECK_OK(ctx, spx_cl_program_build(ctx, "conv2d.cl"));
+  CHECK_OK(ctx, spx_device_cache_stats(ctx, &b));
+  CHECK(b.compiled == a.compiled + 1 && b.loaded == a.loaded);
+  CHECK(count_files("conv2d\\.cl-") == 2);
+  /* and back: the first key again, loaded from the cache */
+  spx_ctx_destroy(ctx);
+  ctx = open_ctx();
+  CHECK_OK(ctx, spx_cl_program_build(ctx, "conv2d.cl"));
+  CHECK_OK(ctx, spx_device_cache_stats(ctx, &c));
+  CHECK(c.compiled == 0 && c.loaded == 1);
+  spx_ctx_destroy(ctx);
+}
+
+static void test_tune_then_open(void) {
+  char out[700];
+  spx_t_path(out, sizeof out, "tune.txt");
+  CHECK(sh("'%s' tune --quick --size 16x24 --width 8 --repeat 1 >'%s' 2>&1", spx_t_tool(), out) == 0);
+  CHECK(sh("grep -q '^chosen: CONV_WINO_MINC=' '%s' && grep -q '^wrote .*tuning-' '%s'", out, out) == 0);
+  CHECK(sh("grep -q 'CONV_TM=6 CONV_TN=4' '%s'", out) == 0); /* the candidate table */
+  spx_ctx *ctx = open_ctx();
+  const char *path = spx_device_tuning_path(ctx);
+  CHECK(spx_t_file_exists(path));
+  spx_tunable_info t;
+  CHECK(get(ctx, "CONV_WINO_MINC", &t) && !strcmp(t.source, "tuned"));
+  CHECK(get(ctx, "CONV_TM", &t) && !strcmp(t.source, "tuned") && t.value == ctx->tune.conv_tm);
+  CHECK(get(ctx, "WG", &t) && !strcmp(t.source, "default"));
+  char file[4200];
+  snprintf(file, sizeof file, "%s", path);
+  spx_ctx_destroy(ctx);
+  /* the show output says the same */
+  CHECK(sh("'%s' tune --show | grep -q '^CONV_WINO_MINC .* tuned$'", spx_t_tool()) == 0);
+  /* the environment wins over the file */
+  setenv("SPX_TUNE_CONV_WINO_MINC", "32", 1);
+  ctx = open_ctx();
+  CHECK(get(ctx, "CONV_WINO_MINC", &t) && t.value == 32 && !strcmp(t.source, "env"));
+  CHECK(get(ctx, "CONV_TM", &t) && !strcmp(t.source, "tuned"));
+  spx_ctx_destroy(ctx);
+  unsetenv("SPX_TUNE_CONV_WINO_MINC");
+
+  /* damaged files: ignored as a whole, with a note; the device opens with the defaults */
+  static const char *const bad[][2] = {
+      {"printf 'garbage\\n'", "header does not match"},
+      {"sed 's/^driver .*/driver 0.0/'", "header does not match"},
+      {"sed 's/^CONV_TM .*/CONV_TM 0/'", "CONV_TM=0: expected an integer in [1, 32]"},
+      {"sed 's/^CONV_TM .*/CONV_TM x/'", "CONV_TM=x: expected an integer"},
+      {"sed 's/^CONV_TM .*/NO_SUCH 1/'", "expected `NAME value` with a tunable's name"},
+      {"sed 's/^CONV_TM \\(.*\\)/CONV_TM \\1\\nCONV_TM \\1/'", "CONV_TM given twice"},
+  };
+  CHECK(sh("cp '%s' '%s.good'", file, file) == 0);
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    CHECK(sh("%s <'%s.good' >'%s'", bad[i][0], file, file) == 0);
+    ctx = open_ctx();
+    const char *note = spx_device_tuning_note(ctx);
+    CHECK_MSG(strstr(note, bad[i][1]) != NULL && strstr(note, "ignored, defaults apply"), "case %zu: note '%s'", i, note);
+    CHECK(get(ctx, "CONV_WINO_MINC", &t) && !strcmp(t.source, "default") && t.value == t.default_value);
+    CHECK(get(ctx, "CONV_TM", &t) && !strcmp(t.source, "default"));
+    spx_ctx_destroy(ctx);
+  }
+  /* the tool says so on stderr and goes on */
+  CHECK(sh("'%s' tune --show 2>'%s.err' | grep -q '^CONV_WINO_MINC .* default$'", spx_t_tool(), out) == 0);
+  CHECK(sh("grep -q 'smplpix tune: warning: .*ignored, defaults apply' '%s.err'", out) == 0);
+  /* unreadable (a directory in its place) */
+  CHECK(sh("rm -f '%s' && mkdir '%s'", file, file) == 0);
+  ctx = open_ctx();
+  CHECK(strstr(spx_device_tuning_note(ctx), "cannot be read") != NULL);
+  spx_ctx_destroy(ctx);
+  CHECK(sh("rmdir '%s' && cp '%s.good' '%s'", file, file, file) == 0);
+  ctx = open_ctx();
+  CHECK(!strcmp(spx_device_tuning_note(ctx), ""));
+  CHECK(get(ctx, "CONV_TM", &t) && !strcmp(t.source, "tuned"));
+  spx_ctx_destroy(ctx);
+}
+
+static void test_usage(void) {
+  CHECK(sh("'%s' tune --size 8x8 >/dev/null 2>&1", spx_t_tool()) == 2);
+  CHECK(sh("'%s' tune --width 12 >/dev/null 2>&1", spx_t_tool()) == 2);
+  CHECK(sh("'%s' tune --repeat 0 >/dev/null 2>&1", spx_t_tool()) == 2);
+  CHECK(sh("'%s' tune --clock sundial >/dev/null 2>&1", spx_t_tool()) == 2);
+  CHECK(sh("'%s' tune --size 16x16 --camera c.json >/dev/null 2>&1", spx_t_tool()) == 2);
+  CHECK(sh("'%s' tune --help | grep -q 'smplpix tune --show'", spx_t_tool()) == 0);
+}
+
+int main(void) {
+  spx_t_path(cache, sizeof cache, "cache");
+  if (sh("rm -rf '%s' && mkdir -p '%s'", cache, cache)) return 1;
+  setenv("SPX_CACHE_DIR", cache, 1);
+  SPX_RUN(test_usage);
+  SPX_RUN(test_defaults_and_fields);
+  SPX_RUN(test_cache_key);
+  SPX_RUN(test_tune_then_open);
+  return spx_test_summary();
+}
