@@ -2,6 +2,7 @@
 #ifndef SPX_APPS_CLI_H
 #define SPX_APPS_CLI_H
 
+#include "smplpix/files.h"
 #include "smplpix/smplpix.h"
 
 #include "cli_tx.h"
@@ -27,16 +28,12 @@ int spx_cli_open_device(const char *cmd, spx_ctx *ctx, const char *spec);
  * not --name. Exits with a usage error via *bad when the value is missing. */
 const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *bad);
 
-/* Lower-case extension of path without the dot ("" if none). */
-void spx_cli_ext(const char *path, char *ext, size_t cap);
 /* Path of a file shipped in data/: under $SPX_DATA_DIR when set, else the installed copy
  * (<datadir>/smplpix), else the source tree the tool was built from. Returns a static buffer. */
 const char *spx_cli_data_path(const char *rel);
 /* A 64-bit mixing function (splitmix64 finaliser) for seeded shuffles: the data order of
  * `train` and the split of `dataset` depend only on the seed. */
 uint64_t spx_cli_mix64(uint64_t z);
-/* Monotonic clock in seconds. */
-double spx_cli_now(void);
 
 /* apps/cli_common.c: pieces shared by project, raster and dataset. */
 /* Area-weighted vertex normals as [0,1] colors (nv*3; gray where undefined). */
@@ -49,12 +46,8 @@ int spx_cli_mesh_colors(const char *cmd, const char *mesh_path, const spx_mesh *
                         float **owned, const float **col, const char **used);
 /* "dir/name.ext" -> "dir/name_007.ext" when n > 1 (malloc'd; NULL when out of memory). */
 char *spx_cli_indexed_path(const char *path, int i, int n);
-/* The path ends in .exr, .png or .npy (any case). */
-int spx_cli_image_ext_ok(const char *path);
-/* Write an HWC image by extension: .exr (3 or 4 channels), .png (RGB), .npy (HxWxC float32). */
-spx_status spx_cli_write_image(spx_ctx *ctx, const char *path, const spx_image *img);
 /* Stage `path` (malloc'd, freed here; NULL = an allocation failed) in the run's transaction and
- * write img to its temporary with spx_cli_write_image: the file appears at path only when the
+ * write img to its temporary with spx_image_write (smplpix/image.h): the file appears at path only when the
  * transaction commits. Prints the one-line error itself; returns SPX_EXIT_OK or the exit code. */
 int spx_cli_write_output(const char *cmd, spx_ctx *ctx, spx_tx *tx, char *path, const spx_image *img);
 /* spx_tx_check for every output named by outs[0..nouts-1] (NULL entries skipped) indexed for

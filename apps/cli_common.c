@@ -9,26 +9,16 @@
 #include "smplpix/image.h"
 #include "smplpix/npy.h"
 
-/* Area-weighted vertex normals mapped to [0,1] colors; gray where undefined. */
+/* Area-weighted vertex normals (spx_vertex_normals) mapped to [0,1] colors; gray where undefined. */
 void spx_cli_normal_colors(const spx_mesh *m, float *col) {
-  double *acc = calloc((size_t)m->nv * 3, sizeof *acc);
-  if (!acc) {
+  double *n = calloc((size_t)m->nv * 3, sizeof *n);
+  if (!n) {
     for (int64_t i = 0; i < (int64_t)m->nv * 3; i++) col[i] = 0.5f;
     return;
   }
-  for (int32_t f = 0; f < m->nf; f++) {
-    const int32_t *t = m->faces + 3 * f;
-    const float *a = m->pos + 3 * t[0], *b = m->pos + 3 * t[1], *c = m->pos + 3 * t[2];
-    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-    for (int k = 0; k < 3; k++)
-      for (int j = 0; j < 3; j++) acc[3 * t[k] + j] += n[j];
-  }
-  for (int32_t v = 0; v < m->nv; v++) {
-    double *n = acc + 3 * v, l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    for (int j = 0; j < 3; j++) col[3 * v + j] = l > 0 ? (float)(0.5 + 0.5 * n[j] / l) : 0.5f;
-  }
-  free(acc);
+  spx_vertex_normals(m->pos, m->nv, m->faces, m->nf, n);
+  for (int64_t i = 0; i < (int64_t)m->nv * 3; i++) col[i] = (float)(0.5 + 0.5 * n[i]);
+  free(n);
 }
 
 int spx_cli_color_ok(const char *color) {
@@ -70,29 +60,11 @@ char *spx_cli_indexed_path(const char *path, int i, int n) {
   return out;
 }
 
-int spx_cli_image_ext_ok(const char *path) {
-  char ext[16];
-  spx_cli_ext(path, ext, sizeof ext);
-  return !strcmp(ext, "exr") || !strcmp(ext, "png") || !strcmp(ext, "npy");
-}
-
-spx_status spx_cli_write_image(spx_ctx *ctx, const char *path, const spx_image *img) {
-  char ext[16];
-  spx_cli_ext(path, ext, sizeof ext);
-  if (!strcmp(ext, "exr")) return spx_exr_write(ctx, path, img);
-  if (!strcmp(ext, "png")) return spx_png_write_rgb(ctx, path, img);
-  if (!strcmp(ext, "npy")) {
-    int64_t shape[3] = {img->height, img->width, img->channels};
-    return spx_npy_save_f32(ctx, path, img->data, 3, shape);
-  }
-  return SPX_E_ARG;
-}
-
 int spx_cli_write_output(const char *cmd, spx_ctx *ctx, spx_tx *tx, char *path, const spx_image *img) {
   const char *tmp = spx_tx_stage(tx, path);
   free(path);
   if (!tmp) return SPX_EXIT_ERROR; /* printed */
-  if (spx_cli_write_image(ctx, tmp, img)) return spx_cli_error(cmd, ctx);
+  if (spx_image_write(ctx, tmp, img)) return spx_cli_error(cmd, ctx);
   return SPX_EXIT_OK;
 }
 

@@ -74,7 +74,7 @@ const char *spx_tx_stage(spx_tx *tx, const char *target) {
   }
   /* the temporary keeps the target's extension, so writers that choose a format by it still do */
   char ext[16];
-  spx_cli_ext(target, ext, sizeof ext);
+  spx_path_ext(target, ext, sizeof ext);
   char *base = spx_file_temp_name(target), *tgt = strdup(target), *tmp = NULL;
   if (base) {
     size_t n = strlen(base) + strlen(ext) + 2;

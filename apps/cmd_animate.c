@@ -11,7 +11,7 @@
 #include <unistd.h>
 
 #include "animate.h"
-#include "cli.h"
+#include "cli_scene.h"
 #include "cli_model.h"
 #include "cmd_fit.h"
 
@@ -50,7 +50,7 @@ typedef struct progress {
 
 static void progress_show(progress *pg, int done, int total, int quiet) {
   if (quiet) return;
-  double t = spx_cli_now(), el = t - pg->t0, fps = el > 0 ? done / el : 0;
+  double t = spx_now(), el = t - pg->t0, fps = el > 0 ? done / el : 0;
   if (pg->tty) {
     if (done < total && pg->shown && t - pg->last < 0.1) return;
     char bar[21];
@@ -146,10 +146,7 @@ static int run(spx_ctx *ctx, const opts *o) {
   rc = SPX_EXIT_ERROR;
   if ((rc = spx_cli_open_device(C, ctx, o->spec))) goto done;
   rc = SPX_EXIT_ERROR;
-  if (ckpt && spx_unet_load(ctx, ckpt, &u)) {
-    rc = spx_cli_error(C, ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, C, ctx, ckpt && spx_unet_load(ctx, ckpt, &u))) goto done;
   size_t nv3 = (size_t)m.nv * 3, hw = (size_t)W * (size_t)H;
   pose = malloc((size_t)m.nj * 3 * sizeof(double));
   work = malloc(nv3 * sizeof(double));
@@ -160,12 +157,11 @@ static int run(spx_ctx *ctx, const opts *o) {
     rc = spx_cli_errorf(C, "out of memory");
     goto done;
   }
-  if (spx_projector_create(ctx, &proj) || (u && spx_device_tensor_create(ctx, 1, SPX_UNET_IN_CHANNELS, H, W, &tin))) {
-    rc = spx_cli_error(C, ctx);
+  if (spx_cli_failed(&rc, C, ctx,
+                     spx_projector_create(ctx, &proj) || (u && spx_device_tensor_create(ctx, 1, SPX_UNET_IN_CHANNELS, H, W, &tin))))
     goto done;
-  }
   int total = (int)(b - a);
-  double centre[3] = {0, 0, 0}, t_start = spx_cli_now();
+  double centre[3] = {0, 0, 0}, t_start = spx_now();
   progress pg = {isatty(STDERR_FILENO), 0, t_start, 0};
   for (long f = a; f < b; f++) {
     double trans[3];
@@ -204,7 +200,7 @@ static int run(spx_ctx *ctx, const opts *o) {
     if ((rc = spx_cli_write_output(C, ctx, &tx, path, &img))) goto done;
     progress_show(&pg, (int)(f - a + 1), total, o->quiet);
   }
-  double el = spx_cli_now() - t_start;
+  double el = spx_now() - t_start;
   rc = SPX_EXIT_ERROR;
   char mp4[4200] = "";
   const char *ffmpeg = o->no_mp4 ? NULL : spx_anim_find_ffmpeg();
@@ -269,56 +265,32 @@ done:
   return rc;
 }
 
-static int parse_double(const char *v, double lo, double hi, double *out) {
-  char *end;
-  errno = 0;
-  double x = strtod(v, &end);
-  if (errno || end == v || *end || !isfinite(x) || x < lo || x > hi) return 0;
-  *out = x;
-  return 1;
-}
-
 int spx_cmd_animate(int argc, char **argv) {
   opts o;
   memset(&o, 0, sizeof o);
   int bad = 0;
+  const spx_cli_optdef defs[] = {{"--no-network", NULL, &o.no_net}, {"--no-mp4", NULL, &o.no_mp4},
+                                  {"--quiet", NULL, &o.quiet}, {"--registration", &o.reg, NULL},
+                                  {"--bvh", &o.bvh, NULL}, {"--amass", &o.amass, NULL}, {"--camera", &o.cam, NULL},
+                                  {"--out", &o.out, NULL}, {"--checkpoint", &o.ckpt, NULL},
+                                  {"--model", &o.model, NULL}, {"--device", &o.spec, NULL}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       animate_help();
       return SPX_EXIT_OK;
-    } else if (!strcmp(argv[i], "--no-network")) {
-      o.no_net = 1;
-    } else if (!strcmp(argv[i], "--no-mp4")) {
-      o.no_mp4 = 1;
-    } else if (!strcmp(argv[i], "--quiet")) {
-      o.quiet = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--registration", &bad))) {
-      o.reg = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--bvh", &bad))) {
-      o.bvh = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--amass", &bad))) {
-      o.amass = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--camera", &bad))) {
-      o.cam = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      o.out = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
-      o.ckpt = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
-      o.model = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
-      o.spec = v;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--frames", &bad))) {
       long s, e;
       if (!spx_anim_parse_frames(v, &s, &e))
         return spx_cli_usage("animate", "--frames: expected A:B (frames A..B-1), A: or :B, got '%s'", v);
       o.frames = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--orbit", &bad))) {
-      if (!parse_double(v, -360, 360, &o.orbit))
+      if (!spx_cli_double(v, -360, 360, &o.orbit))
         return spx_cli_usage("animate", "--orbit: expected degrees per frame in [-360, 360], got '%s'", v);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--fps", &bad))) {
-      if (!parse_double(v, 0.01, 1000, &o.fps))
+      if (!spx_cli_double(v, 0.01, 1000, &o.fps))
         return spx_cli_usage("animate", "--fps: expected frames per second in [0.01, 1000], got '%s'", v);
     } else {
       return spx_cli_usage("animate", bad ? "missing value for %s" : "unknown option %s", argv[i]);

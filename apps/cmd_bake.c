@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "cmd_fit.h"
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
@@ -13,8 +13,10 @@
 int spx_cmd_bake(int argc, char **argv) {
   const char *mesh_path = NULL, *scan_path = NULL, *out = NULL, *model_path = NULL, *size_s = "1024", *pad_s = "8";
   int bad = 0;
+  const spx_cli_optdef defs[] = {{"--mesh", &mesh_path, NULL}, {"--scan", &scan_path, NULL}, {"--out", &out, NULL},
+                                  {"--model", &model_path, NULL}, {"--size", &size_s, NULL}, {"--pad", &pad_s, NULL},
+                                  {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
-    const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       printf("usage: smplpix bake --mesh R.ply|R.obj --scan S.ply|S.obj --out T.png|T.exr\n"
              "                    [--size N] [--pad N] [--model M.npz]\n"
@@ -27,25 +29,15 @@ int spx_cmd_bake(int argc, char **argv) {
              "same texture coordinates (e.g. from `smplpix repose`).\n",
              DEFAULT_MODEL);
       return SPX_EXIT_OK;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--mesh", &bad))) mesh_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--scan", &bad))) scan_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) out = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) model_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) size_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--pad", &bad))) pad_s = v;
-    else return spx_cli_usage("bake", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+    } else if (!spx_cli_take(argc, argv, &i, defs, &bad))
+      return spx_cli_usage("bake", bad ? "missing value for %s" : "unknown option %s", argv[i]);
   }
   if (!mesh_path || !scan_path || !out) return spx_cli_usage("bake", "--mesh, --scan and --out are required");
-  char *end;
-  errno = 0;
-  long size = strtol(size_s, &end, 10);
-  if (errno || end == size_s || *end || size < 1 || size > 16384)
-    return spx_cli_usage("bake", "--size %s: expected 1..16384", size_s);
-  errno = 0;
-  long pad = strtol(pad_s, &end, 10);
-  if (errno || end == pad_s || *end || pad < 0 || pad > 4096) return spx_cli_usage("bake", "--pad %s: expected 0..4096", pad_s);
+  long size, pad;
+  if (!spx_cli_long(size_s, 1, 16384, &size)) return spx_cli_usage("bake", "--size %s: expected 1..16384", size_s);
+  if (!spx_cli_long(pad_s, 0, 4096, &pad)) return spx_cli_usage("bake", "--pad %s: expected 0..4096", pad_s);
   char ext[16];
-  spx_cli_ext(out, ext, sizeof ext);
+  spx_path_ext(out, ext, sizeof ext);
   if (strcmp(ext, "png") && strcmp(ext, "exr")) return spx_cli_usage("bake", "--out %s: expected a .png or .exr file", out);
 
   spx_ctx *ctx = NULL;
@@ -59,10 +51,9 @@ int spx_cmd_bake(int argc, char **argv) {
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("bake", "out of memory");
   if ((rc = spx_tx_check(&tx, out))) goto done; /* before any work */
   rc = SPX_EXIT_ERROR;
-  if (spx_mesh_load(ctx, mesh_path, &mesh) || spx_mesh_load(ctx, scan_path, &scan)) {
-    rc = spx_cli_error("bake", ctx);
+  if (spx_cli_failed(&rc, "bake", ctx,
+                     spx_mesh_load(ctx, mesh_path, &mesh) || spx_mesh_load(ctx, scan_path, &scan)))
     goto done;
-  }
   if (mesh.nf == 0) {
     rc = spx_cli_errorf("bake", "%s: no triangles (the registered mesh is needed, not a point cloud)", mesh_path);
     goto done;
@@ -73,10 +64,7 @@ int spx_cmd_bake(int argc, char **argv) {
   }
   if (!mesh.uv || !mesh.face_uv) {
     const char *mp = model_path ? model_path : DEFAULT_MODEL;
-    if (spx_body_load(ctx, mp, &m)) {
-      rc = spx_cli_error("bake", ctx);
-      goto done;
-    }
+    if (spx_cli_failed(&rc, "bake", ctx, spx_body_load(ctx, mp, &m))) goto done;
     if (!m.vt || !m.ft || m.nf != mesh.nf || m.nv != mesh.nv) {
       rc = spx_cli_errorf("bake", "%s: no texture coordinates, and model %s has none for its %d faces / %d vertices",
                           mesh_path, mp, mesh.nf, mesh.nv);

@@ -11,7 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "smplpix/camera.h"
 #include "smplpix/image.h"
 #include "smplpix/mesh.h"
@@ -50,15 +50,6 @@ static int parse_list(const char *s, double *v, int cap) {
     if (*end != ',') return -1;
     p = end + 1;
   }
-}
-
-static int parse_long(const char *v, long lo, long hi, long *out) {
-  char *end = NULL;
-  errno = 0;
-  long x = strtol(v, &end, 10);
-  if (errno || end == v || *end || x < lo || x > hi) return 0;
-  *out = x;
-  return 1;
 }
 
 /* 1 when dir exists and holds anything besides . and .. */
@@ -117,33 +108,20 @@ static int orbit_cameras(spx_ctx *ctx, const spx_mesh *m, long n, const double *
 }
 
 int spx_cmd_dataset(int argc, char **argv) {
-  const char *mesh_path = NULL, *cam_path = NULL, *dir = NULL, *dev = NULL, *color = "auto";
+  spx_cli_scene_opts o = {.color = "auto"};
   const char *split_s = "0.8,0.1,0.1", *fmt = "exr", *elev_s = "0", *size_s = "410x308", *aa_s = "1";
   const char *orbit_s = NULL, *seed_s = "0", *dist_s = NULL, *focal_s = NULL;
-  int quiet = 0, force = 0, bad = 0;
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      fputs(USAGE, stdout);
-      return SPX_EXIT_OK;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--mesh", &bad))) mesh_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--cameras", &bad))) cam_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) dir = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--split", &bad))) split_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) seed_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--input-format", &bad))) fmt = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--color", &bad))) color = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--aa", &bad))) aa_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--orbit", &bad))) orbit_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--elevations", &bad))) elev_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--distance", &bad))) dist_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) size_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--focal", &bad))) focal_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) dev = v;
-    else if (!strcmp(argv[i], "--force")) force = 1;
-    else if (!strcmp(argv[i], "--quiet")) quiet = 1;
-    else return spx_cli_usage("dataset", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-  }
+  int force = 0;
+  const spx_cli_optdef defs[] = {{"--split", &split_s, NULL},     {"--seed", &seed_s, NULL},
+                                  {"--input-format", &fmt, NULL},   {"--aa", &aa_s, NULL},
+                                  {"--orbit", &orbit_s, NULL},      {"--elevations", &elev_s, NULL},
+                                  {"--distance", &dist_s, NULL},    {"--size", &size_s, NULL},
+                                  {"--focal", &focal_s, NULL},      {"--force", NULL, &force},
+                                  {NULL, NULL, NULL}};
+  int rc = spx_cli_scene_args(argc, argv, "dataset", USAGE, "--cameras", &o, defs);
+  if (rc >= 0) return rc;
+  const char *mesh_path = o.mesh, *cam_path = o.cameras, *dir = o.out, *dev = o.device, *color = o.color;
+  int quiet = o.quiet;
   if (!mesh_path || !dir) return spx_cli_usage("dataset", "--mesh and --out are required");
   if (!cam_path == !orbit_s) return spx_cli_usage("dataset", "give --cameras C.json or --orbit N (one of them)");
   double split[3], elev[64], dist = 0, focal = 0;
@@ -151,7 +129,7 @@ int spx_cmd_dataset(int argc, char **argv) {
   if (parse_list(split_s, split, 3) != 3 || split[0] < 0 || split[1] < 0 || split[2] < 0 ||
       fabs(split[0] + split[1] + split[2] - 1) > 1e-6)
     return spx_cli_usage("dataset", "--split %s: expected three fractions >= 0 that sum to 1", split_s);
-  if (!parse_long(seed_s, 0, 2147483647, &seed)) return spx_cli_usage("dataset", "--seed %s: expected an integer >= 0", seed_s);
+  if (!spx_cli_long(seed_s, 0, 2147483647, &seed)) return spx_cli_usage("dataset", "--seed %s: expected an integer >= 0", seed_s);
   if (strcmp(fmt, "exr") && strcmp(fmt, "npy"))
     return spx_cli_usage("dataset", "--input-format %s: expected exr or npy", fmt);
   if (!spx_cli_color_ok(color))
@@ -162,11 +140,11 @@ int spx_cmd_dataset(int argc, char **argv) {
   for (int k = 0; k < ne; k++)
     if (!(fabs(elev[k]) < 90)) return spx_cli_usage("dataset", "--elevations %s: each must lie in (-90, 90)", elev_s);
   char *x = NULL;
-  if (orbit_s && !parse_long(orbit_s, 1, 100000, &norbit))
+  if (orbit_s && !spx_cli_long(orbit_s, 1, 100000, &norbit))
     return spx_cli_usage("dataset", "--orbit %s: expected a number of views in [1, 100000]", orbit_s);
   errno = 0;
   W = strtol(size_s, &x, 10);
-  if (errno || !x || *x != 'x' || !parse_long(x + 1, 16, SPX_CAMERA_MAX_SIZE, &H) || W < 16 || W > SPX_CAMERA_MAX_SIZE)
+  if (errno || !x || *x != 'x' || !spx_cli_long(x + 1, 16, SPX_CAMERA_MAX_SIZE, &H) || W < 16 || W > SPX_CAMERA_MAX_SIZE)
     return spx_cli_usage("dataset", "--size %s: expected WxH, each in [16, %d]", size_s, SPX_CAMERA_MAX_SIZE);
   if (dist_s && (parse_list(dist_s, &dist, 1) != 1 || !(dist > 0)))
     return spx_cli_usage("dataset", "--distance %s: expected a positive number", dist_s);
@@ -177,7 +155,8 @@ int spx_cmd_dataset(int argc, char **argv) {
   spx_ctx *ctx = NULL;
   spx_mesh mesh = {0};
   spx_camera *cams = NULL;
-  int ncams = 0, rc = SPX_EXIT_ERROR;
+  int ncams = 0;
+  rc = SPX_EXIT_ERROR;
   float *colors = NULL, *proj_img = NULL, *rast_img = NULL;
   int *which = NULL;
   spx_projector *proj = NULL;
@@ -196,10 +175,7 @@ int spx_cmd_dataset(int argc, char **argv) {
     rc = spx_cli_errorf("dataset", "%s: not empty (use --force to write into it)", dir);
     goto done;
   }
-  if (spx_mesh_load(ctx, mesh_path, &mesh)) {
-    rc = spx_cli_error("dataset", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "dataset", ctx, spx_mesh_load(ctx, mesh_path, &mesh))) goto done;
   if (mesh.nf == 0) {
     rc = spx_cli_errorf("dataset", "%s: no triangles (the targets are rasterized triangles)", mesh_path);
     goto done;
@@ -289,12 +265,11 @@ int spx_cmd_dataset(int argc, char **argv) {
   }
   if ((rc = spx_cli_open_device("dataset", ctx, dev))) goto done;
   rc = SPX_EXIT_ERROR;
-  if (spx_projector_create(ctx, &proj) || spx_rasterizer_create(ctx, &rast)) {
-    rc = spx_cli_error("dataset", ctx);
+  if (spx_cli_failed(&rc, "dataset", ctx,
+                     spx_projector_create(ctx, &proj) || spx_rasterizer_create(ctx, &rast)))
     goto done;
-  }
 
-  double t0 = spx_cli_now();
+  double t0 = spx_now();
   for (int c0 = 0; c0 < ncams; c0 += chunk) {
     int nc = ncams - c0 < chunk ? ncams - c0 : chunk;
     spx_project_args pa = {1, mesh.nv, mesh.pos, col, nc, cams + c0, SPX_LAYOUT_HWC};
@@ -310,10 +285,9 @@ int spx_cmd_dataset(int argc, char **argv) {
     ra.cull = SPX_CULL_NONE;
     ra.layout = SPX_LAYOUT_HWC;
     ra.static_id = 1;
-    if (spx_project(ctx, proj, &pa, proj_img, NULL) || spx_raster(ctx, rast, &ra, rast_img, NULL)) {
-      rc = spx_cli_error("dataset", ctx);
+    if (spx_cli_failed(&rc, "dataset", ctx,
+                       spx_project(ctx, proj, &pa, proj_img, NULL) || spx_raster(ctx, rast, &ra, rast_img, NULL)))
       goto done;
-    }
     for (int c = 0; c < nc; c++) {
       int v = c0 + c;
       for (int io = 0; io < 2; io++) {
@@ -333,7 +307,7 @@ int spx_cmd_dataset(int argc, char **argv) {
     printf("dataset %s: %d views %dx%d (%s%s), train %d, validation %d, test %d; inputs .%s, outputs .png; "
            "%.2f s on %s\n",
            dir, ncams, Wc, Hc, used, cam_path ? "" : ", orbit", count[0], count[1], count[2], fmt,
-           spx_cli_now() - t0, info.name);
+           spx_now() - t0, info.name);
   }
   rc = SPX_EXIT_OK;
 done:

@@ -9,7 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "cli_model.h"
 #include "cli_tx.h"
 #include "demo_compose.h"
@@ -125,10 +125,7 @@ static int build_scene(spx_ctx *ctx, const demo_opts *o, demo_scene *s) {
     goto done;
   }
   spx_body_params p = {s->sub.nbetas, s->sub.betas, pose, trans, NULL};
-  if (spx_body_forward_ref(ctx, &s->m, &p, v, NULL)) {
-    rc = spx_cli_error("demo", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "demo", ctx, spx_body_forward_ref(ctx, &s->m, &p, v, NULL))) goto done;
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (int32_t k = 0; k < nv * 3; k++) {
     s->pos[k] = (float)v[k];
@@ -138,10 +135,9 @@ static int build_scene(spx_ctx *ctx, const demo_opts *o, demo_scene *s) {
   double target[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
   double ext_v = hi[1] - lo[1], ext_h = fmax(hi[0] - lo[0], hi[2] - lo[2]), focal = 1.4 * o->H;
   double dist = focal * fmax(ext_v / (0.8 * o->H), ext_h / (0.8 * o->W)) + 0.25 * ext_h;
-  if (spx_synth_camera(ctx, o->W, o->H, 0.0, 10 * PI / 180, dist, focal, target, &s->cam)) {
-    rc = spx_cli_error("demo", ctx);
+  if (spx_cli_failed(&rc, "demo", ctx,
+                     spx_synth_camera(ctx, o->W, o->H, 0.0, 10 * PI / 180, dist, focal, target, &s->cam)))
     goto done;
-  }
   rc = SPX_EXIT_OK;
 done:
   free(pose), free(v);
@@ -175,10 +171,9 @@ static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image 
   spx_raster_args ra = {0};
   ra.nverts = s->m.nv, ra.pos = s->pos, ra.col = s->col, ra.nfaces = s->m.nf, ra.faces = s->m.faces;
   ra.ncams = 1, ra.cams = &s->cam, ra.aa = 2, ra.cull = SPX_CULL_NONE, ra.layout = SPX_LAYOUT_HWC;
-  if (spx_project(ctx, proj, &pa, input->data, NULL) || spx_raster(ctx, rast, &ra, raster->data, NULL)) {
-    rc = spx_cli_error("demo", ctx);
+  if (spx_cli_failed(&rc, "demo", ctx,
+                     spx_project(ctx, proj, &pa, input->data, NULL) || spx_raster(ctx, rast, &ra, raster->data, NULL)))
     goto done;
-  }
   if (u) {
     nchw = malloc(hw * 4 * sizeof(float));
     out = malloc(hw * 3 * sizeof(float));
@@ -188,10 +183,7 @@ static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image 
     }
     for (size_t i = 0; i < hw; i++)
       for (int c = 0; c < 4; c++) nchw[c * hw + i] = input->data[i * 4 + c];
-    if (spx_unet_forward(u, nchw, 1, H, W, 0, out)) {
-      rc = spx_cli_error("demo", ctx);
-      goto done;
-    }
+    if (spx_cli_failed(&rc, "demo", ctx, spx_unet_forward(u, nchw, 1, H, W, 0, out))) goto done;
     for (size_t i = 0; i < hw; i++)
       for (int c = 0; c < 3; c++) net->data[i * 3 + c] = out[c * hw + i];
   }
@@ -256,7 +248,7 @@ int spx_cmd_demo(int argc, char **argv) {
   char shipped[4096];
   snprintf(shipped, sizeof shipped, "%s", spx_cli_data_path(SPX_CLI_DEFAULT_MODEL));
   if (!ckpt && access(shipped, R_OK) == 0) ckpt = shipped;
-  double t0 = spx_cli_now();
+  double t0 = spx_now();
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("demo", "out of memory");
   spx_tx tx;
@@ -274,10 +266,7 @@ int spx_cmd_demo(int argc, char **argv) {
     if (rc) goto done;
   }
   if ((rc = spx_cli_open_device("demo", ctx, o.device))) goto done;
-  if (ckpt && spx_unet_load(ctx, ckpt, &u)) {
-    rc = spx_cli_error("demo", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "demo", ctx, ckpt && spx_unet_load(ctx, ckpt, &u))) goto done;
   if ((rc = build_scene(ctx, &o, &s))) goto done;
   if ((rc = render_all(ctx, &s, u, &input, &raster, &net))) goto done;
   if ((rc = write_all(ctx, &tx, o.out_dir, o.zoom, &input, &raster, u ? &net : NULL))) goto done;
@@ -290,7 +279,7 @@ int spx_cmd_demo(int argc, char **argv) {
            s.sub.nbetas, "01_01.bvh", o.frame, o.W, o.H, u ? ckpt : "none");
     printf("wrote %s/demo.png (%s), demo_input.png, %sdemo_raster.png in %.2f s\n", o.out_dir,
            u ? "input | SMPLpix | per-vertex raster" : "input | per-vertex raster", u ? "demo_smplpix.png, " : "",
-           spx_cli_now() - t0);
+           spx_now() - t0);
   }
 done:
   spx_image_free(&input), spx_image_free(&raster), spx_image_free(&net);

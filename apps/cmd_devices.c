@@ -3,7 +3,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 
 static const char *kind_name(spx_device_kind k) {
   return k == SPX_DEVICE_GPU ? "gpu" : k == SPX_DEVICE_CPU ? "cpu" : "other";
@@ -32,10 +32,7 @@ int spx_cmd_devices(int argc, char **argv) {
   int rc = SPX_EXIT_OK;
   spx_device_info infos[32];
   int n = 0;
-  if (spx_device_list(ctx, infos, 32, &n)) {
-    rc = spx_cli_error("devices", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "devices", ctx, spx_device_list(ctx, infos, 32, &n))) goto done;
   for (int i = 0; i < n && i < 32; i++)
     printf("%d:%d  %-5s %s | %s | driver %s | %u CU | %.1f GiB\n", infos[i].platform_index, infos[i].device_index,
            kind_name(infos[i].kind), infos[i].name, infos[i].platform, infos[i].driver, infos[i].compute_units,
@@ -44,10 +41,7 @@ int spx_cmd_devices(int argc, char **argv) {
     if ((rc = spx_cli_open_device("devices", ctx, spec))) goto done;
     spx_device_info info;
     spx_device_get_info(ctx, &info);
-    if (spx_device_warmup(ctx)) {
-      rc = spx_cli_error("devices", ctx);
-      goto done;
-    }
+    if (spx_cli_failed(&rc, "devices", ctx, spx_device_warmup(ctx))) goto done;
     spx_cache_stats cs;
     spx_device_cache_stats(ctx, &cs);
     printf("warmup on %d:%d %s: %d programs compiled, %d loaded from cache, %d cached, %.3f s\n",

@@ -9,7 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 
 static void eval_help(void) {
   printf("usage: smplpix eval --pred P --target T [--mask M] [--per-image] [--json F] [--lpips W.safetensors]\n"
@@ -77,7 +77,7 @@ static int list_dir(const char *dir, char ***names, int *count) {
   int cap = 0, rc = SPX_EXIT_OK;
   struct dirent *e;
   while ((e = readdir(d))) {
-    if (e->d_name[0] == '.' || !spx_cli_image_ext_ok(e->d_name)) continue;
+    if (e->d_name[0] == '.' || !spx_image_ext_ok(e->d_name)) continue;
     if (*count == cap) {
       cap = cap ? 2 * cap : 64;
       char **nn = realloc(*names, sizeof(char *) * (size_t)cap);
@@ -198,34 +198,9 @@ done:
 
 /* Any image file as HWC floats: .png, .exr (R,G,B,Z), .npy (HxW or HxWxC, any numeric dtype). */
 static int load_image(spx_ctx *ctx, const char *path, int need_rgb, spx_image *img) {
-  char ext[16];
   memset(img, 0, sizeof *img);
-  spx_cli_ext(path, ext, sizeof ext);
-  if (!spx_cli_image_ext_ok(path)) return spx_cli_errorf("eval", "%s: unknown image type (expected .png, .exr or .npy)", path);
-  if (!strcmp(ext, "png") || !strcmp(ext, "exr")) {
-    if ((!strcmp(ext, "png") ? spx_png_read(ctx, path, img) : spx_exr_read(ctx, path, img)))
-      return spx_cli_error("eval", ctx);
-  } else {
-    spx_array a;
-    if (spx_npy_load(ctx, path, &a)) return spx_cli_error("eval", ctx);
-    float *f = NULL;
-    int rc = SPX_EXIT_OK;
-    if (a.ndim != 2 && a.ndim != 3)
-      rc = spx_cli_errorf("eval", "%s: expected an HxWxC or HxW image, not %d dimensions", path, a.ndim);
-    else if (a.shape[0] < 1 || a.shape[1] < 1 || a.shape[0] > 65536 || a.shape[1] > 65536 ||
-             (a.ndim == 3 && (a.shape[2] < 1 || a.shape[2] > 64)))
-      rc = spx_cli_errorf("eval", "%s: unsupported image shape %lldx%lld%s", path, (long long)a.shape[0],
-                          (long long)a.shape[1], a.ndim == 3 ? "xC (C in 1..64)" : "");
-    else if (spx_array_to_f32(ctx, &a, &f))
-      rc = spx_cli_error("eval", ctx);
-    if (!rc) {
-      img->height = (int32_t)a.shape[0], img->width = (int32_t)a.shape[1];
-      img->channels = a.ndim == 3 ? (int32_t)a.shape[2] : 1;
-      img->data = f;
-    }
-    spx_array_free(&a);
-    if (rc) return rc;
-  }
+  if (!spx_image_ext_ok(path)) return spx_cli_errorf("eval", "%s: unknown image type (expected .png, .exr or .npy)", path);
+  if (spx_image_read(ctx, path, img)) return spx_cli_error("eval", ctx);
   if (need_rgb && img->channels < 3) {
     int c = img->channels;
     spx_image_free(img);
@@ -365,10 +340,7 @@ int spx_cmd_eval(int argc, char **argv) {
   if ((rc = pair_up(pred, target, mask, &l))) goto done;
   if (lpw) {
     if ((rc = spx_cli_open_device("eval", ctx, device))) goto done;
-    if (spx_lpips_load(ctx, lpw, &lp)) {
-      rc = spx_cli_error("eval", ctx);
-      goto done;
-    }
+    if (spx_cli_failed(&rc, "eval", ctx, spx_lpips_load(ctx, lpw, &lp))) goto done;
   }
   spx_metrics mean = {0};
   double mean_lp = 0;

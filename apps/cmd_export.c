@@ -4,7 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "cli_tx.h"
 #include "smplpix/patchgan.h"
 #include "smplpix/safetensors.h"
@@ -31,17 +31,15 @@ int spx_cmd_export(int argc, char **argv) {
   char kbuf[MAX_META][128];
   int half = 0, bad = 0, nm = 0, nuser = 0;
   const char *user[MAX_META];
+  const spx_cli_optdef defs[] = {{"--half", NULL, &half}, {"--checkpoint", &in, NULL}, {"--out", &out, NULL},
+                                  {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help")) {
       export_help();
       return SPX_EXIT_OK;
-    } else if (!strcmp(argv[i], "--half")) {
-      half = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
-      in = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      out = v;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--meta", &bad))) {
       const char *eq = strchr(v, '=');
       if (!eq || eq == v || (size_t)(eq - v) >= sizeof kbuf[0])
@@ -56,7 +54,7 @@ int spx_cmd_export(int argc, char **argv) {
   }
   if (!in || !out) return spx_cli_usage("export", "--checkpoint and --out are required");
   char ext[16];
-  spx_cli_ext(out, ext, sizeof ext);
+  spx_path_ext(out, ext, sizeof ext);
   if (strcmp(ext, "safetensors")) return spx_cli_usage("export", "%s: output must end in .safetensors", out);
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("export", "out of memory");
@@ -68,10 +66,7 @@ int spx_cmd_export(int argc, char **argv) {
   int rc = SPX_EXIT_OK;
   char steps[32];
   if ((rc = spx_tx_check(&tx, out)) || (rc = spx_cli_open_device("export", ctx, NULL))) goto done;
-  if (spx_unet_load(ctx, in, &u) || spx_st_load(ctx, in, &f)) {
-    rc = spx_cli_error("export", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "export", ctx, spx_unet_load(ctx, in, &u) || spx_st_load(ctx, in, &f))) goto done;
   const char *carry[] = {"smplpix.loss", "smplpix.stage"};
   for (int k = 0; k < 2; k++) {
     const char *val = spx_st_meta(&f, carry[k]);
@@ -97,10 +92,7 @@ int spx_cmd_export(int argc, char **argv) {
     goto done;
   }
   spx_status st = half ? spx_unet_save_half(u, tmp, mk, mv, nm) : spx_unet_save_meta(u, tmp, 0, mk, mv, nm);
-  if (st) {
-    rc = spx_cli_error("export", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "export", ctx, st)) goto done;
   if ((rc = spx_tx_commit(&tx))) goto done;
   printf("wrote %s (width %d, %s, %s Adam steps recorded)\n", out, spx_unet_width(u), half ? "float16" : "float32",
          steps_used);

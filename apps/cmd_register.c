@@ -6,7 +6,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "cmd_fit.h"
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
@@ -40,6 +40,8 @@ int spx_cmd_register(int argc, char **argv) {
   const char *scan_path = NULL, *model_path = DEFAULT_MODEL, *out_path = NULL, *params_path = NULL;
   int stages = SPX_FIT_ALL, threads = 1, bad = 0;
   double units = 0;
+  const spx_cli_optdef defs[] = {{"--scan", &scan_path, NULL}, {"--model", &model_path, NULL},
+                                  {"--out", &out_path, NULL}, {"--params", &params_path, NULL}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help")) {
@@ -53,21 +55,13 @@ int spx_cmd_register(int argc, char **argv) {
              "and `smplpix reshape`. Reports mean / median / 95th-percentile scan-to-surface distance.\n",
              DEFAULT_MODEL);
       return SPX_EXIT_OK;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--scan", &bad))) {
-      scan_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
-      model_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      out_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--params", &bad))) {
-      params_path = v;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--stages", &bad))) {
       if (parse_stages(v, &stages)) return spx_cli_usage("register", "--stages: expected a list of rigid,pose,free, got '%s'", v);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--threads", &bad))) {
-      char *end;
-      errno = 0;
-      long n = strtol(v, &end, 10);
-      if (errno || *end || n < 1 || n > 256) return spx_cli_usage("register", "--threads: expected 1..256, got '%s'", v);
+      long n;
+      if (!spx_cli_long(v, 1, 256, &n)) return spx_cli_usage("register", "--threads: expected 1..256, got '%s'", v);
       threads = (int)n;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--units", &bad))) {
       if (!strcmp(v, "m")) units = 1;
@@ -92,24 +86,19 @@ int spx_cmd_register(int argc, char **argv) {
   spx_tx_begin(&tx, "register", 0);
   if ((rc = spx_tx_check(&tx, out_path)) || (params_path && (rc = spx_tx_check(&tx, params_path))))
     goto done; /* before the fit */
-  if (spx_mesh_load(ctx, scan_path, &scan)) {
-    rc = spx_cli_error("register", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "register", ctx, spx_mesh_load(ctx, scan_path, &scan))) goto done;
   if (scan.nv == 0) {
     rc = spx_cli_errorf("register", "%s: the scan has no points", scan_path);
     goto done;
   }
-  if (spx_body_load(ctx, model_path, &model)) {
-    rc = spx_cli_error("register", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "register", ctx, spx_body_load(ctx, model_path, &model))) goto done;
   spx_fit_options o;
   spx_fit_options_default(&o);
   o.stages = stages;
   o.threads = threads;
   o.unit_scale = units;
   o.progress = print_progress;
+  o.ceres_progress = getenv("SPX_FIT_CERES_PROGRESS") != NULL; /* debugging: Ceres's per-iteration output */
   printf("scan %s: %d points%s; model %s: %d vertices, %d joints, %d shape directions\n", scan_path, scan.nv,
          scan.col ? " with colours" : "", model_path, model.nv, model.nj, model.nbetas);
   if (spx_fit_register(ctx, &model, &scan, &o, &r)) {
@@ -130,10 +119,7 @@ int spx_cmd_register(int argc, char **argv) {
   spx_status st = spx_fit_surface_distance(ctx, pts, scan.nv, rv, r.nv, r.faces, r.nf, NULL, &mean, &med, &p95);
   if (!st) st = spx_fit_check_result(ctx, pts, scan.nv, rv, r.nv, med); /* exit 1 with the figures, no output */
   free(rv);
-  if (st) {
-    rc = spx_cli_error("register", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "register", ctx, st)) goto done;
   printf("time: rigid %.1f s, pose %.1f s, free %.1f s\n", r.stage_seconds[0], r.stage_seconds[1], r.stage_seconds[2]);
   printf("scan -> surface distance: mean %.2f mm, median %.2f mm, 95th percentile %.2f mm\n", mean * 1e3, med * 1e3,
          p95 * 1e3);

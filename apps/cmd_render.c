@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "smplpix/camera.h"
 #include "smplpix/mesh.h"
 #include "smplpix/render.h"
@@ -53,10 +53,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
   spx_device_tensor *in = NULL;
   spx_tx tx;
   spx_tx_begin(&tx, "render", 0);
-  if (spx_mesh_load(ctx, mesh_path, &mesh)) {
-    rc = spx_cli_error("render", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "render", ctx, spx_mesh_load(ctx, mesh_path, &mesh))) goto done;
   if ((rc = spx_cli_load_cameras("render", ctx, cam_path, &cams, &ncams))) goto done;
   if ((rc = spx_cli_check_outputs(&tx, &outp, 1, ncams))) goto done; /* before any work */
   int W = cams[0].width, H = cams[0].height;
@@ -79,7 +76,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
     rc = net_error(ctx, spx_ctx_last_status(ctx), chunk, H, W);
     goto done;
   }
-  double t0 = spx_cli_now();
+  double t0 = spx_now();
   for (int c0 = 0; c0 < ncams; c0 += chunk) {
     int n = ncams - c0 < chunk ? ncams - c0 : chunk;
     spx_project_args a = {1, mesh.nv, mesh.pos, col, n, cams + c0, SPX_LAYOUT_NCHW};
@@ -99,7 +96,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
       if (!tmp) goto done;
       spx_app_batch b = {1, SPX_UNET_OUT_CHANNELS, H, W, 1, out + (size_t)k * SPX_UNET_OUT_CHANNELS * hw};
       if (spx_app_save(ctx, tmp, &b)) {
-        rc = spx_app_error("render", ctx);
+        rc = spx_cli_error("render", ctx);
         goto done;
       }
     }
@@ -107,7 +104,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
   if ((rc = spx_tx_commit(&tx))) goto done;
   if (!quiet) {
     printf("rendered %d vertices (%s) through %d camera%s at %dx%d, %d per network batch, in %.2f s\n", mesh.nv,
-           used, ncams, ncams > 1 ? "s" : "", W, H, chunk, spx_cli_now() - t0);
+           used, ncams, ncams > 1 ? "s" : "", W, H, chunk, spx_now() - t0);
     for (int i = 0; i < spx_tx_count(&tx); i++) printf("wrote %s\n", spx_tx_target(&tx, i));
   }
   rc = SPX_EXIT_OK;
@@ -127,32 +124,21 @@ int spx_cmd_render(int argc, char **argv) {
   const char *color = "auto";
   int bad = 0, quiet = 0;
   long batch = 4;
+  const spx_cli_optdef defs[] = {{"--quiet", NULL, &quiet}, {"--checkpoint", &ckpt, NULL}, {"--input", &input, NULL},
+                                  {"--mesh", &mesh, NULL}, {"--camera", &cam, NULL}, {"--color", &color, NULL},
+                                  {"--out", &outp, NULL}, {"--device", &spec, NULL}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       render_help();
       return SPX_EXIT_OK;
-    } else if (!strcmp(argv[i], "--quiet")) {
-      quiet = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
-      ckpt = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--input", &bad))) {
-      input = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--mesh", &bad))) {
-      mesh = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--camera", &bad))) {
-      cam = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--color", &bad))) {
-      color = v;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--batch", &bad))) {
       char *end = NULL;
       batch = strtol(v, &end, 10);
       if (!end || *end || batch < 1 || batch > 4096)
         return spx_cli_usage("render", "--batch needs an integer in [1, 4096], not '%s'", v);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      outp = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
-      spec = v;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--sigmoid", &bad))) {
       sig = v;
       if (strcmp(v, "on") && strcmp(v, "off")) return spx_cli_usage("render", "--sigmoid takes on or off, not '%s'", v);
@@ -165,7 +151,7 @@ int spx_cmd_render(int argc, char **argv) {
     return spx_cli_usage("render", "--out and either --input or both --mesh and --camera are required");
   if (!spx_cli_color_ok(color))
     return spx_cli_usage("render", "--color %s: expected auto, mesh, normal or white", color);
-  if (!spx_cli_image_ext_ok(outp)) return spx_cli_usage("render", "%s: output must end in .exr, .png or .npy", outp);
+  if (!spx_image_ext_ok(outp)) return spx_cli_usage("render", "%s: output must end in .exr, .png or .npy", outp);
   if (!(ckpt = spx_cli_checkpoint("render", ckpt, NULL))) return SPX_EXIT_ERROR;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("render", "out of memory");
@@ -178,7 +164,7 @@ int spx_cmd_render(int argc, char **argv) {
   if (!by_mesh && (rc = spx_tx_check(&tx, outp))) goto done; /* before any work */
   if (!by_mesh) {
     if (spx_app_load(ctx, input, SPX_UNET_IN_CHANNELS, &in)) {
-      rc = spx_app_error("render", ctx);
+      rc = spx_cli_error("render", ctx);
       goto done;
     }
     if (in.h < 16 || in.w < 16) {
@@ -187,10 +173,7 @@ int spx_cmd_render(int argc, char **argv) {
     }
   }
   if ((rc = spx_cli_open_device("render", ctx, spec))) goto done;
-  if (spx_unet_load(ctx, ckpt, &u)) {
-    rc = spx_cli_error("render", ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "render", ctx, spx_unet_load(ctx, ckpt, &u))) goto done;
   if (sig) spx_unet_set_sigmoid(u, !strcmp(sig, "on"));
   if (by_mesh) {
     rc = render_mesh(ctx, u, mesh, cam, color, outp, (int)batch, quiet);
@@ -215,7 +198,7 @@ int spx_cmd_render(int argc, char **argv) {
   }
   const char *tmp = spx_tx_stage(&tx, outp);
   if (!tmp) rc = SPX_EXIT_ERROR;
-  else if (spx_app_save(ctx, tmp, &out)) rc = spx_app_error("render", ctx);
+  else if (spx_app_save(ctx, tmp, &out)) rc = spx_cli_error("render", ctx);
   else rc = spx_tx_commit(&tx);
 done:
   spx_tx_end(&tx);

@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "cmd_fit.h"
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
@@ -70,10 +70,7 @@ static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m,
     for (int a = 0; a < 3; a++) tx[a] = r->trans[a] + (R[a] * d[0] + R[3 + a] * d[1] + R[6 + a] * d[2]) / k;
   }
   spx_body_params p = {r->nbetas, betas, pose, scan_trans ? tx : trans, r->template_unposed};
-  if (spx_body_forward_ref(ctx, m, &p, v, NULL)) {
-    rc = spx_cli_error(cmd, ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, cmd, ctx, spx_body_forward_ref(ctx, m, &p, v, NULL))) goto done;
   for (int32_t i = 0; i < m->nv; i++) {
     const double *x = v + (size_t)i * 3;
     for (int a = 0; a < 3; a++)
@@ -87,10 +84,7 @@ static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m,
     memcpy(out.uv, m->vt, (size_t)m->nvt * 2 * sizeof(float));
     memcpy(out.face_uv, m->ft, (size_t)m->nf * 3 * sizeof(int32_t));
   }
-  if (subdivide > 0 && spx_mesh_subdivide(ctx, &out, subdivide, &sub)) {
-    rc = spx_cli_error(cmd, ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, cmd, ctx, subdivide > 0 && spx_mesh_subdivide(ctx, &out, subdivide, &sub))) goto done;
   const spx_mesh *save = subdivide > 0 ? &sub : &out;
   spx_tx otx;
   spx_tx_begin(&otx, cmd, 0);
@@ -113,6 +107,9 @@ int spx_cmd_repose(int argc, char **argv) {
              *view = NULL;
   long frame = 0, subdivide = 0;
   int bad = 0;
+  const spx_cli_optdef defs[] = {{"--registration", &reg_path, NULL}, {"--bvh", &bvh_path, NULL},
+                                  {"--pose", &pose_path, NULL}, {"--view", &view, NULL}, {"--out", &out_path, NULL},
+                                  {"--model", &model_arg, NULL}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help")) {
@@ -127,24 +124,10 @@ int spx_cmd_repose(int argc, char **argv) {
              "the subject's \"scan_pose\"), where the synth cameras look. --subdivide N adds N Loop steps\n"
              "(4^N times the faces; texture coordinates are then dropped).\n");
       return SPX_EXIT_OK;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--registration", &bad))) {
-      reg_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--bvh", &bad))) {
-      bvh_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--pose", &bad))) {
-      pose_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--view", &bad))) {
-      view = v;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--subdivide", &bad))) {
-      char *end;
-      errno = 0;
-      subdivide = strtol(v, &end, 10);
-      if (errno || end == v || *end || subdivide < 0 || subdivide > 3)
-        return spx_cli_usage("repose", "--subdivide: expected 0..3, got '%s'", v);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      out_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
-      model_arg = v;
+      if (!spx_cli_long(v, 0, 3, &subdivide)) return spx_cli_usage("repose", "--subdivide: expected 0..3, got '%s'", v);
     } else if ((v = spx_cli_opt(argc, argv, &i, "--frame", &bad))) {
       char *end;
       errno = 0;
@@ -176,23 +159,18 @@ int spx_cmd_repose(int argc, char **argv) {
     goto done;
   }
   if (pose_path) {
-    if (spx_pose_load_json(ctx, pose_path, view, m.nj, pose, trans, view ? scan_trans : NULL)) {
-      rc = spx_cli_error("repose", ctx);
+    if (spx_cli_failed(&rc, "repose", ctx,
+                       spx_pose_load_json(ctx, pose_path, view, m.nj, pose, trans, view ? scan_trans : NULL)))
       goto done;
-    }
   } else {
-    if (spx_bvh_load(ctx, bvh_path, &b) || spx_bvh_map_create(ctx, &b, &m, NULL, NULL, &map)) {
-      rc = spx_cli_error("repose", ctx);
+    if (spx_cli_failed(&rc, "repose", ctx,
+                       spx_bvh_load(ctx, bvh_path, &b) || spx_bvh_map_create(ctx, &b, &m, NULL, NULL, &map)))
       goto done;
-    }
     if (frame >= b.nframes) {
       rc = spx_cli_errorf("repose", "%s: frame %ld out of range (the clip has %d frames)", bvh_path, frame, b.nframes);
       goto done;
     }
-    if (spx_bvh_map_pose(ctx, &map, &b, &m, (int32_t)frame, pose, trans)) {
-      rc = spx_cli_error("repose", ctx);
-      goto done;
-    }
+    if (spx_cli_failed(&rc, "repose", ctx, spx_bvh_map_pose(ctx, &map, &b, &m, (int32_t)frame, pose, trans))) goto done;
   }
   rc = pose_and_save("repose", ctx, &m, &r, r.betas, pose, trans, view ? scan_trans : NULL, (int)subdivide, out_path);
 done:
@@ -210,6 +188,8 @@ int spx_cmd_reshape(int argc, char **argv) {
   enum { MAXSH = 64 };
   int sh_idx[MAXSH], nsh = 0, sh_rel[MAXSH], rest = 0, bad = 0;
   double sh_val[MAXSH];
+  const spx_cli_optdef defs[] = {{"--registration", &reg_path, NULL}, {"--out", &out_path, NULL},
+                                  {"--model", &model_arg, NULL}, {"--rest", NULL, &rest}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help")) {
@@ -219,14 +199,8 @@ int spx_cmd_reshape(int argc, char **argv) {
              "the fitted value, V without a sign replaces it. The personal detail (the unposed template)\n"
              "is kept; the registered pose is kept unless --rest. Writes the mesh in metres.\n");
       return SPX_EXIT_OK;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--registration", &bad))) {
-      reg_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      out_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--model", &bad))) {
-      model_arg = v;
-    } else if (!strcmp(argv[i], "--rest")) {
-      rest = 1;
+    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
+      continue;
     } else if ((v = spx_cli_opt(argc, argv, &i, "--shape", &bad))) {
       char *end;
       errno = 0;

@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "smplpix/synth.h"
 #include "synth_out.h"
 
@@ -28,45 +28,24 @@ static const char *USAGE =
     "  --force          replace DIR when it holds a previous synth output\n"
     "  --quiet          no progress\n";
 
-static int parse_int(const char *s, long lo, long hi, long *out) {
-  char *end;
-  errno = 0;
-  long v = strtol(s, &end, 10);
-  if (errno || end == s || *end || v < lo || v > hi) return 0;
-  *out = v;
-  return 1;
-}
-
 int spx_cmd_synth(int argc, char **argv) {
   const char *out = NULL, *size_s = "410x308", *body_path = NULL, *bvh_path = NULL, *parts_path = NULL;
   const char *subj_s = NULL, *views_s = NULL, *seed_s = NULL, *tex_s = "2048", *dev = NULL;
-  int force = 0, quiet = 0, bad = 0;
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      fputs(USAGE, stdout);
-      return SPX_EXIT_OK;
-    } else if (!strcmp(argv[i], "--force")) force = 1;
-    else if (!strcmp(argv[i], "--quiet")) quiet = 1;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--subjects", &bad))) subj_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--views", &bad))) views_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) seed_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) out = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) size_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--body", &bad))) body_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--bvh", &bad))) bvh_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--parts", &bad))) parts_path = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--texture-size", &bad))) tex_s = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) dev = v;
-    else return spx_cli_usage("synth", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-  }
+  int force = 0, quiet = 0;
+  const spx_cli_optdef defs[] = {{"--force", NULL, &force}, {"--quiet", NULL, &quiet}, {"--subjects", &subj_s, NULL},
+                                  {"--views", &views_s, NULL}, {"--seed", &seed_s, NULL}, {"--out", &out, NULL},
+                                  {"--size", &size_s, NULL}, {"--body", &body_path, NULL}, {"--bvh", &bvh_path, NULL},
+                                  {"--parts", &parts_path, NULL}, {"--texture-size", &tex_s, NULL},
+                                  {"--device", &dev, NULL}, {NULL, NULL, NULL}};
+  int parsed = spx_cli_args(argc, argv, "synth", USAGE, defs, NULL);
+  if (parsed >= 0) return parsed;
   if (!subj_s || !views_s || !seed_s || !out)
     return spx_cli_usage("synth", "--subjects, --views, --seed and --out are required");
   synth_opts o = {0};
   long n;
-  if (!parse_int(subj_s, 1, 9999, &n)) return spx_cli_usage("synth", "--subjects %s: expected 1..9999", subj_s);
+  if (!spx_cli_long(subj_s, 1, 9999, &n)) return spx_cli_usage("synth", "--subjects %s: expected 1..9999", subj_s);
   o.subjects = (int)n;
-  if (!parse_int(views_s, 1, 999, &n)) return spx_cli_usage("synth", "--views %s: expected 1..999", views_s);
+  if (!spx_cli_long(views_s, 1, 999, &n)) return spx_cli_usage("synth", "--views %s: expected 1..999", views_s);
   o.views = (int)n;
   char *end;
   errno = 0;
@@ -79,7 +58,7 @@ int spx_cmd_synth(int argc, char **argv) {
     return spx_cli_usage("synth", "--size %s: expected WxH, each 16..4096", size_s);
   o.width = w;
   o.height = h;
-  if (!parse_int(tex_s, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX, &n))
+  if (!spx_cli_long(tex_s, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX, &n))
     return spx_cli_usage("synth", "--texture-size %s: expected %d..%d", tex_s, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX);
   o.tex_size = (int32_t)n;
   /* DIR without trailing slashes (the temporary folder is its sibling); not ".", ".." or "/" */

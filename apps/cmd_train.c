@@ -155,10 +155,10 @@ static int load_batch(spx_ctx *ctx, split *sp, const int *idx, int count, float 
   for (int k = 0; k < count; k++) {
     const sample *s = &sp->s[idx[k]];
     spx_app_batch a = {0}, b = {0};
-    if (spx_app_load(ctx, s->in, SPX_UNET_IN_CHANNELS, &a)) return spx_app_error("train", ctx);
+    if (spx_app_load(ctx, s->in, SPX_UNET_IN_CHANNELS, &a)) return spx_cli_error("train", ctx);
     if (spx_app_load(ctx, s->out, SPX_UNET_OUT_CHANNELS, &b)) {
       spx_app_batch_free(&a);
-      return spx_app_error("train", ctx);
+      return spx_cli_error("train", ctx);
     }
     int rc = SPX_EXIT_OK;
     if (a.n != 1 || b.n != 1) rc = spx_cli_errorf("train", "%s: training files hold one image each", s->in);
@@ -181,18 +181,12 @@ static int load_batch(spx_ctx *ctx, split *sp, const int *idx, int count, float 
 
 static int probe_size(spx_ctx *ctx, split *sp) {
   spx_app_batch a = {0};
-  if (spx_app_load(ctx, sp->s[0].in, SPX_UNET_IN_CHANNELS, &a)) return spx_app_error("train", ctx);
+  if (spx_app_load(ctx, sp->s[0].in, SPX_UNET_IN_CHANNELS, &a)) return spx_cli_error("train", ctx);
   sp->h = a.h, sp->w = a.w;
   spx_app_batch_free(&a);
   if (sp->h < 16 || sp->w < 16)
     return spx_cli_errorf("train", "%s: %dx%d is too small (the UNet needs at least 16x16)", sp->s[0].in, sp->w, sp->h);
   return SPX_EXIT_OK;
-}
-
-static double now_s(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 /* Data order of an epoch: a function of (seed, epoch) only, so --resume continues exactly. */
@@ -298,7 +292,7 @@ static void progress_clear(progress *pg) {
 
 /* The bar is redrawn at most 10 times a second (always when force). */
 static void progress_show(progress *pg, int64_t step, int64_t epoch, double loss, const train_recipe *r, int force) {
-  double t = now_s();
+  double t = spx_now();
   if (pg->tty && !force && pg->bar_shown && t - pg->last_draw < 0.1) return;
   pg->last_draw = t;
   double el = t - pg->t0, ips = el > 0 ? (double)pg->images / el : 0;
@@ -604,7 +598,7 @@ static int train_run(int argc, char **argv, train_dist *dist) {
     /* mpirun turns Ctrl-C into SIGTERM for every rank */
     term_set = dist->on && sigaction(SIGTERM, &sa, &old_term) == 0;
   }
-  double t0 = now_s(), ep_loss = 0;
+  double t0 = spx_now(), ep_loss = 0;
   int ep_count = 0, pend = 0; /* pend: a failure of rank 0 (validation, save) told at the next agreement */
   int64_t cur_epoch = -1;
   pg.t0 = t0;
@@ -668,7 +662,7 @@ static int train_run(int argc, char **argv, train_dist *dist) {
       printf("epoch %lld step %lld: train %s %.6f%s", (long long)epoch + 1, (long long)now_step,
              rcp.gan[rcp.stage] || rcp.vgg ? "loss" : "L1", ep_loss / ep_count, terms);
       if (val.n) printf(", validation L1 %.6f, PSNR %.2f dB, SSIM %.4f", vl, vp, vs);
-      printf(", %.1f s\n", now_s() - t0);
+      printf(", %.1f s\n", spx_now() - t0);
       fflush(stdout);
       ep_loss = 0;
       ep_count = 0;

@@ -3,7 +3,6 @@
 #include <stdio.h>
 #include <string.h>
 #include <stdlib.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "cli.h"
@@ -31,8 +30,7 @@ static const spx_command commands[] = {
 
 int spx_cli_error(const char *cmd, spx_ctx *ctx) {
   const char *m = spx_ctx_message(ctx);
-  fprintf(stderr, "smplpix %s: error: %s\n", cmd, (m && *m) ? m : "unknown error");
-  return SPX_EXIT_ERROR;
+  return spx_cli_errorf(cmd, "%s", (m && *m) ? m : "unknown error");
 }
 
 int spx_cli_errorf(const char *cmd, const char *fmt, ...) {
@@ -55,7 +53,22 @@ int spx_cli_usage(const char *cmd, const char *fmt, ...) {
   return SPX_EXIT_USAGE;
 }
 
+/* The library's log lines (profiles) go to stderr. */
+static void log_stderr(void *user, const char *line) {
+  (void)user;
+  fprintf(stderr, "%s\n", line);
+}
+
+static int env_on(const char *name) {
+  const char *v = getenv(name);
+  return v && *v && strcmp(v, "0");
+}
+
 int spx_cli_open_device(const char *cmd, spx_ctx *ctx, const char *spec) {
+  /* SPX_TAPE_PROFILE=1 / SPX_RASTER_PROFILE=1: the library's profiles, printed to stderr */
+  spx_ctx_set_log(ctx, log_stderr, NULL);
+  spx_ctx_set_profile(ctx, (env_on("SPX_TAPE_PROFILE") ? SPX_PROFILE_TAPE : 0u) |
+                               (env_on("SPX_RASTER_PROFILE") ? SPX_PROFILE_RASTER : 0u));
   if (spx_device_open(ctx, spec) != SPX_OK) return spx_cli_error(cmd, ctx);
   const char *note = spx_device_tuning_note(ctx); /* a tuning file that was ignored */
   if (*note) fprintf(stderr, "smplpix %s: warning: %s\n", cmd, note);
@@ -71,14 +84,6 @@ const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *ba
   return argv[++*i];
 }
 
-void spx_cli_ext(const char *path, char *ext, size_t cap) {
-  const char *slash = strrchr(path, '/'), *dot = strrchr(path, '.');
-  size_t i = 0;
-  if (dot && (!slash || dot > slash))
-    for (const char *p = dot + 1; *p && i + 1 < cap; p++, i++) ext[i] = (char)((*p >= 'A' && *p <= 'Z') ? *p + 32 : *p);
-  if (cap) ext[i] = 0;
-}
-
 const char *spx_cli_data_path(const char *rel) {
   static char buf[4096];
   const char *env = getenv("SPX_DATA_DIR");
@@ -90,12 +95,6 @@ const char *spx_cli_data_path(const char *rel) {
   }
   snprintf(buf, sizeof buf, "%s/%s", SPX_SOURCE_DATA_DIR, rel);
   return buf;
-}
-
-double spx_cli_now(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 static void usage(FILE *fp) {

@@ -14,7 +14,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "cli.h"
+#include "cli_scene.h"
 #include "smplpix/bvh.h"
 #include "smplpix/files.h"
 #include "smplpix/synth.h"
@@ -118,7 +118,7 @@ typedef struct run_state {
 
 static void progress(run_state *s, int subj, int view, int force) {
   if (!s->o->progress) return;
-  double t = spx_cli_now();
+  double t = spx_now();
   if (s->tty && !force && s->bar && t - s->last < 0.1) return;
   s->last = t;
   double el = t - s->t0, eta = s->done > 0 ? el / s->done * (double)(s->total - s->done) : 0;
@@ -197,7 +197,7 @@ static int one_subject(run_state *s, int i) {
     goto done;
   }
   for (int v = 0; v < o->views; v++) vr[v].pose = poses + (size_t)v * nj * 3;
-  double t_start = spx_cli_now();
+  double t_start = spx_now();
   spx_synth_rng rng = {spx_cli_mix64(o->seed * 0x9E3779B97F4A7C15ULL + (uint64_t)i + 1)};
   if (spx_synth_subject_create(s->ctx, &s->body, &s->parts, spx_synth_rng_next(&rng), o->tex_size, &sub)) {
     rc = spx_cli_errorf("synth", "%s: %s", o->body_path, spx_ctx_message(s->ctx));
@@ -214,10 +214,7 @@ static int one_subject(run_state *s, int i) {
       (rc = mkdirf(s, "%s/s%03d/images", i)) || (rc = mkdirf(s, "%s/s%03d/masks", i)))
     goto done;
   /* the scan in its scan pose (rest), with colours, and the texture */
-  if (spx_synth_pose(s->ctx, &s->body, &sub, NULL, NULL, posed)) {
-    rc = spx_cli_error("synth", s->ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "synth", s->ctx, spx_synth_pose(s->ctx, &s->body, &sub, NULL, NULL, posed))) goto done;
   spx_mesh scan = {0};
   scan.nv = sub.nv;
   scan.nf = sub.nf;
@@ -225,19 +222,13 @@ static int one_subject(run_state *s, int i) {
   scan.col = sub.col;
   scan.faces = sub.faces;
   snprintf(p, sizeof p, "%s/%s/scan.ply", s->tmp, name);
-  if (spx_mesh_save(s->ctx, p, &scan, SPX_MESH_PLY_BINARY)) {
-    rc = spx_cli_error("synth", s->ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "synth", s->ctx, spx_mesh_save(s->ctx, p, &scan, SPX_MESH_PLY_BINARY))) goto done;
   spx_image tex = {sub.tex_size, sub.tex_size, 3, sub.tex};
   snprintf(p, sizeof p, "%s/%s/texture.png", s->tmp, name);
-  if (spx_png_write(s->ctx, p, &tex)) {
-    rc = spx_cli_error("synth", s->ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "synth", s->ctx, spx_png_write(s->ctx, p, &tex))) goto done;
   s->done++;
   progress(s, i, 0, 0);
-  double t_views = spx_cli_now();
+  double t_views = spx_now();
   s->t_scan += t_views - t_start;
   /* light fixed in the world for the subject: from the front-above, side drawn per subject */
   double side = spx_synth_rng_uniform(&rng, -0.8, 0.8);
@@ -245,10 +236,9 @@ static int one_subject(run_state *s, int i) {
   double az0 = spx_synth_rng_uniform(&rng, 0, 2 * PI);
   for (int v = 0; v < o->views; v++) {
     if ((rc = view_pose(s, &rng, v, &vr[v]))) goto done;
-    if (spx_synth_pose(s->ctx, &s->body, &sub, vr[v].pose, vr[v].trans, posed)) {
-      rc = spx_cli_error("synth", s->ctx);
+    if (spx_cli_failed(&rc, "synth", s->ctx,
+                       spx_synth_pose(s->ctx, &s->body, &sub, vr[v].pose, vr[v].trans, posed)))
       goto done;
-    }
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int32_t k = 0; k < sub.nv; k++)
       for (int c = 0; c < 3; c++) {
@@ -271,22 +261,16 @@ static int one_subject(run_state *s, int i) {
       goto done;
     }
     snprintf(p, sizeof p, "%s/%s/cameras/v%03d.json", s->tmp, name, v);
-    if (spx_camera_save(s->ctx, p, &cam, 1)) {
-      rc = spx_cli_error("synth", s->ctx);
-      goto done;
-    }
+    if (spx_cli_failed(&rc, "synth", s->ctx, spx_camera_save(s->ctx, p, &cam, 1))) goto done;
     spx_image im = {W, H, 3, rgb};
     snprintf(p, sizeof p, "%s/%s/images/v%03d.png", s->tmp, name, v);
-    if (spx_png_write(s->ctx, p, &im)) {
-      rc = spx_cli_error("synth", s->ctx);
-      goto done;
-    }
+    if (spx_cli_failed(&rc, "synth", s->ctx, spx_png_write(s->ctx, p, &im))) goto done;
     snprintf(p, sizeof p, "%s/%s/masks/v%03d.png", s->tmp, name, v);
     if ((rc = write_gray(s, p, mask, W, H))) goto done;
     s->done++;
     progress(s, i, v + 1, v + 1 == o->views);
   }
-  s->t_views += spx_cli_now() - t_views;
+  s->t_views += spx_now() - t_views;
   /* manifest entry */
   FILE *f = s->manifest;
   fprintf(f, "%s\n    {\"name\": \"%s\", \"betas\": ", i ? "," : "", name);
@@ -340,23 +324,14 @@ int synth_run(const synth_opts *o) {
   int rc = 0, have_map = 0, have_bvh = 0, have_body = 0;
   if (spx_ctx_create(&s.ctx)) return spx_cli_errorf("synth", "out of memory");
   /* inputs first: nothing is written before they all check out */
-  if (spx_body_load(s.ctx, o->body_path, &s.body)) {
-    rc = spx_cli_error("synth", s.ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "synth", s.ctx, spx_body_load(s.ctx, o->body_path, &s.body))) goto done;
   have_body = 1;
   if (!s.body.vt || !s.body.ft) {
     rc = spx_cli_errorf("synth", "%s: body model has no UVs (vt/ft), which synth needs for its textures", o->body_path);
     goto done;
   }
-  if (spx_png_read(s.ctx, o->parts_path, &s.parts)) {
-    rc = spx_cli_error("synth", s.ctx);
-    goto done;
-  }
-  if (spx_bvh_load(s.ctx, o->bvh_path, &s.bvh)) {
-    rc = spx_cli_error("synth", s.ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "synth", s.ctx, spx_png_read(s.ctx, o->parts_path, &s.parts))) goto done;
+  if (spx_cli_failed(&rc, "synth", s.ctx, spx_bvh_load(s.ctx, o->bvh_path, &s.bvh))) goto done;
   have_bvh = 1;
   if (s.bvh.nframes < 1) {
     rc = spx_cli_errorf("synth", "%s: no motion frames", o->bvh_path);
@@ -379,10 +354,7 @@ int synth_run(const synth_opts *o) {
     goto done;
   }
   if ((rc = spx_cli_open_device("synth", s.ctx, o->device))) goto done;
-  if (spx_rasterizer_create(s.ctx, &s.rast)) {
-    rc = spx_cli_error("synth", s.ctx);
-    goto done;
-  }
+  if (spx_cli_failed(&rc, "synth", s.ctx, spx_rasterizer_create(s.ctx, &s.rast))) goto done;
   size_t n = strlen(o->out) + 32;
   s.tmp = malloc(n);
   if (!s.tmp) {
@@ -410,7 +382,7 @@ int synth_run(const synth_opts *o) {
   json_str(s.manifest, o->bvh_path);
   fprintf(s.manifest, ", \"texture_size\": %d,\n  \"subjects\": [", (int)o->tex_size);
   s.tty = isatty(STDERR_FILENO);
-  s.t0 = spx_cli_now();
+  s.t0 = spx_now();
   s.total = (long)o->subjects * (o->views + 1);
   progress(&s, 0, 0, 1);
   for (int i = 0; i < o->subjects && !rc; i++) rc = one_subject(&s, i);
@@ -425,10 +397,7 @@ int synth_run(const synth_opts *o) {
     goto done;
   }
   { /* the files and their folder entries are on disk before the rename makes them the output */
-    if (spx_file_sync(s.ctx, mp) || spx_file_sync(s.ctx, s.tmp)) {
-      rc = spx_cli_error("synth", s.ctx);
-      goto done;
-    }
+    if (spx_cli_failed(&rc, "synth", s.ctx, spx_file_sync(s.ctx, mp) || spx_file_sync(s.ctx, s.tmp))) goto done;
   }
   char aside[4200] = "";
   if (out_state(o->out) != 1) { /* the previous output (or an empty folder) steps aside, kept until the end */
@@ -450,7 +419,7 @@ int synth_run(const synth_opts *o) {
   if (aside[0] && remove_tree(aside))
     fprintf(stderr, "smplpix synth: %s: could not remove the previous output %s (%s)\n", o->out, aside,
             strerror(errno));
-  double el = spx_cli_now() - s.t0;
+  double el = spx_now() - s.t0;
   printf("wrote %d subjects x %d views (%dx%d, textures %d^2) to %s in %.1f s: %.2f s per subject (scan, texture), "
          "%.3f s per view\n",
          o->subjects, o->views, o->width, o->height, (int)o->tex_size, o->out, el, s.t_scan / o->subjects,

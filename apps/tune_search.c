@@ -57,7 +57,7 @@ typedef struct run {
  * shared with other work it counts our threads only; it does not see lost parallelism). */
 static double now(const run *r) {
   struct timespec ts;
-  if (!r->p->cpu_clock || clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts)) return spx_cli_now();
+  if (!r->p->cpu_clock || clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts)) return spx_now();
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
@@ -211,7 +211,7 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   int vals[16], defs[16];
   spx_status st = SPX_OK;
   spx_ctx *failed = ctx;
-  double t_start = spx_cli_now();
+  double t_start = spx_now();
   r.input = malloc((size_t)4 * p->h * p->w * sizeof(float));
   r.buf = malloc(r.nout * sizeof(float));
   int fit = r.input && r.buf;
@@ -292,7 +292,7 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   for (int k = 0; k < p->nwidths; k++)
     fprintf(out, "width %d: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n", p->widths[k], ms_def[k], ms_tuned[k],
             ms_def[k] / ms_tuned[k]);
-  fprintf(out, "wrote %s (%.1f s)\n", spx_device_tuning_path(ctx), spx_cli_now() - t_start);
+  fprintf(out, "wrote %s (%.1f s)\n", spx_device_tuning_path(ctx), spx_now() - t_start);
   rc = SPX_EXIT_OK;
   goto done;
 fail_either:

@@ -8,43 +8,18 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <stdarg.h>
-
 #include "smplpix/npy.h"
 
-char spx_app_err[512];
-
-/* An application-level error: the message goes to spx_app_err (library errors stay in ctx). */
-#if defined(__GNUC__)
-__attribute__((format(printf, 2, 3)))
-#endif
-static spx_status fail(spx_status st, const char *fmt, ...) {
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(spx_app_err, sizeof spx_app_err, fmt, ap);
-  va_end(ap);
-  return st;
-}
-
-static void lower_ext(const char *path, char *ext, size_t cap) {
-  const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
-  ext[0] = 0;
-  if (!dot || (slash && dot < slash)) return;
-  size_t i = 0;
-  for (dot++; *dot && i + 1 < cap; dot++) ext[i++] = (char)((*dot >= 'A' && *dot <= 'Z') ? *dot + 32 : *dot);
-  ext[i] = 0;
-}
-
-static spx_status from_hwc(const char *path, const float *src, int h, int w, int cin, int want,
+static spx_status from_hwc(spx_ctx *ctx, const char *path, const float *src, int h, int w, int cin, int want,
                            spx_app_batch *out) {
   /* exact: an input is RGB-D (4) or RGB (3, depth taken as 1 = background); a target is RGB (3).
    * Extra channels are an error, never dropped (only a PNG's alpha is, by the caller). */
   if (cin != want && !(cin == 3 && want == 4))
-    return fail(SPX_E_FORMAT, "%s: image has %d channels, expected %d%s", path, cin, want, want == 4 ? " (or 3)" : "");
-  if (h < 1 || w < 1) return fail(SPX_E_FORMAT, "%s: empty image (%dx%d)", path, w, h);
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: image has %d channels, expected %d%s", path, cin, want, want == 4 ? " (or 3)" : "");
+  if (h < 1 || w < 1) return spx_fail(ctx, SPX_E_FORMAT, "%s: empty image (%dx%d)", path, w, h);
   size_t hw = (size_t)h * (size_t)w;
   out->data = malloc(hw * (size_t)want * sizeof(float));
-  if (!out->data) return fail(SPX_E_NOMEM, "%s: out of memory for %dx%d pixels", path, w, h);
+  if (!out->data) return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory for %dx%d pixels", path, w, h);
   for (int c = 0; c < want; c++)
     for (size_t p = 0; p < hw; p++) out->data[(size_t)c * hw + p] = c < cin ? src[p * (size_t)cin + (size_t)c] : 1.0f;
   out->n = 1, out->c = want, out->h = h, out->w = w, out->hwc = 1;
@@ -53,14 +28,12 @@ static spx_status from_hwc(const char *path, const float *src, int h, int w, int
 
 spx_status spx_app_load(spx_ctx *ctx, const char *path, int channels, spx_app_batch *out) {
   memset(out, 0, sizeof *out);
-  spx_app_err[0] = 0;
   char ext[16];
-  lower_ext(path, ext, sizeof ext);
+  spx_path_ext(path, ext, sizeof ext);
   spx_status st;
   if (!strcmp(ext, "exr") || !strcmp(ext, "png")) {
     spx_image img;
-    st = !strcmp(ext, "exr") ? spx_exr_read(ctx, path, &img) : spx_png_read(ctx, path, &img);
-    if (st) return st;
+    if ((st = spx_image_read(ctx, path, &img))) return st;
     int cin = img.channels;
     /* a PNG's alpha is not depth, and an RGB target does not use an EXR's depth: keep RGB */
     if (img.channels == 4 && (!strcmp(ext, "png") || channels == 3)) {
@@ -69,7 +42,7 @@ spx_status spx_app_load(spx_ctx *ctx, const char *path, int channels, spx_app_ba
         for (int c = 0; c < 3; c++) img.data[p * 3 + (size_t)c] = img.data[p * 4 + (size_t)c];
       cin = 3;
     }
-    st = from_hwc(path, img.data, img.height, img.width, cin, channels, out);
+    st = from_hwc(ctx, path, img.data, img.height, img.width, cin, channels, out);
     spx_image_free(&img);
     return st;
   }
@@ -82,56 +55,45 @@ spx_status spx_app_load(spx_ctx *ctx, const char *path, int channels, spx_app_ba
       return st;
     }
     if (a.ndim == 3 && a.shape[2] > 64) {
-      st = fail(SPX_E_FORMAT, "%s: %lld channels, expected %d", path, (long long)a.shape[2], channels);
+      st = spx_fail(ctx, SPX_E_FORMAT, "%s: %lld channels, expected %d", path, (long long)a.shape[2], channels);
     } else if (a.ndim == 3 && a.shape[0] <= 65536 && a.shape[1] <= 65536) {
-      st = from_hwc(path, f, (int)a.shape[0], (int)a.shape[1], (int)a.shape[2], channels, out);
+      st = from_hwc(ctx, path, f, (int)a.shape[0], (int)a.shape[1], (int)a.shape[2], channels, out);
     } else if (a.ndim == 4 && a.shape[1] == channels && a.shape[0] >= 1 && a.shape[0] <= 4096 && a.shape[2] >= 1 &&
                a.shape[2] <= 65536 && a.shape[3] >= 1 && a.shape[3] <= 65536) {
       out->n = (int)a.shape[0], out->c = channels, out->h = (int)a.shape[2], out->w = (int)a.shape[3];
       out->data = f;
       f = NULL;
     } else {
-      st = fail(SPX_E_FORMAT, "%s: expected an HxWxC image or an Nx%dxHxW batch (ndim %d)", path, channels,
+      st = spx_fail(ctx, SPX_E_FORMAT, "%s: expected an HxWxC image or an Nx%dxHxW batch (ndim %d)", path, channels,
                 a.ndim);
     }
     for (size_t i = 0; !st && out->data && i < (size_t)out->n * out->c * out->h * out->w; i++)
-      if (!isfinite(out->data[i])) st = fail(SPX_E_NUMERIC, "%s: NaN or Inf at element %ld", path, (long)i);
+      if (!isfinite(out->data[i])) st = spx_fail(ctx, SPX_E_NUMERIC, "%s: NaN or Inf at element %ld", path, (long)i);
     if (st) spx_app_batch_free(out);
     free(f);
     spx_array_free(&a);
     return st;
   }
-  return fail(SPX_E_ARG, "%s: unknown image type (expected .exr, .png or .npy)", path);
+  return spx_fail(ctx, SPX_E_ARG, "%s: unknown image type (expected .exr, .png or .npy)", path);
 }
 
 spx_status spx_app_save(spx_ctx *ctx, const char *path, const spx_app_batch *b) {
-  spx_app_err[0] = 0;
   char ext[16];
-  lower_ext(path, ext, sizeof ext);
+  spx_path_ext(path, ext, sizeof ext);
   size_t hw = (size_t)b->h * (size_t)b->w;
-  if (!strcmp(ext, "npy")) {
-    if (b->hwc && b->n == 1) {
-      float *t = malloc(hw * (size_t)b->c * sizeof(float));
-      if (!t) return fail(SPX_E_NOMEM, "%s: out of memory", path);
-      for (int c = 0; c < b->c; c++)
-        for (size_t p = 0; p < hw; p++) t[p * (size_t)b->c + (size_t)c] = b->data[(size_t)c * hw + p];
-      int64_t shape[3] = {b->h, b->w, b->c};
-      spx_status st = spx_npy_save_f32(ctx, path, t, 3, shape);
-      free(t);
-      return st;
-    }
+  if (!strcmp(ext, "npy") && !(b->hwc && b->n == 1)) { /* a batch: NxCxHxW */
     int64_t shape[4] = {b->n, b->c, b->h, b->w};
     return spx_npy_save_f32(ctx, path, b->data, 4, shape);
   }
-  if (strcmp(ext, "png") && strcmp(ext, "exr"))
-    return fail(SPX_E_ARG, "%s: unknown output type (expected .png, .exr or .npy)", path);
-  if (b->n != 1) return fail(SPX_E_ARG, "%s: a batch of %d images needs a .npy output", path, b->n);
-  spx_image img;
+  if (!spx_image_ext_ok(path))
+    return spx_fail(ctx, SPX_E_ARG, "%s: unknown output type (expected .png, .exr or .npy)", path);
+  if (b->n != 1) return spx_fail(ctx, SPX_E_ARG, "%s: a batch of %d images needs a .npy output", path, b->n);
+  spx_image img; /* one image: HWC, written by its extension */
   spx_status st = spx_image_alloc(ctx, b->w, b->h, b->c, &img);
   if (st) return st;
   for (int c = 0; c < b->c; c++)
     for (size_t p = 0; p < hw; p++) img.data[p * (size_t)b->c + (size_t)c] = b->data[(size_t)c * hw + p];
-  st = !strcmp(ext, "png") ? spx_png_write(ctx, path, &img) : spx_exr_write(ctx, path, &img);
+  st = spx_image_write(ctx, path, &img);
   spx_image_free(&img);
   return st;
 }
@@ -139,8 +101,4 @@ spx_status spx_app_save(spx_ctx *ctx, const char *path, const spx_app_batch *b) 
 void spx_app_batch_free(spx_app_batch *b) {
   free(b->data);
   memset(b, 0, sizeof *b);
-}
-
-int spx_app_error(const char *cmd, spx_ctx *ctx) {
-  return spx_app_err[0] ? spx_cli_errorf(cmd, "%s", spx_app_err) : spx_cli_error(cmd, ctx);
 }

@@ -11,11 +11,9 @@ typedef struct spx_app_batch {
   float *data;
 } spx_app_batch;
 
-/* Errors: a library failure leaves its message in ctx and spx_app_err empty; an error found here
- * (wrong channel count, unknown extension, ...) is described in spx_app_err. */
-extern char spx_app_err[512];
-/* Print either as "smplpix <cmd>: error: ..." and return the exit code. */
-int spx_app_error(const char *cmd, spx_ctx *ctx);
+/* Errors: every failure, the library's or one found here (wrong channel count, unknown
+ * extension, ...), leaves its one-line message in ctx. Print it as "smplpix <cmd>: error: ..." and return the exit code. */
+int spx_cli_error(const char *cmd, spx_ctx *ctx);
 
 /* Load `path` (.exr, .png, .npy) as `channels` channels (4: RGB-D input, 3: RGB target).
  * A 3-channel image asked for 4 gets depth 1 (background), like an EXR without Z; RGBA PNGs

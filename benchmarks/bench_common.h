@@ -5,8 +5,18 @@
 #define SPX_BENCH_COMMON_H
 
 #include <stddef.h>
+#include <stdio.h>
 
 #include "smplpix/mesh.h"
+
+/* In main(): print "<bench>: <printf args>: <ctx's message>" to stderr and return 1. */
+#define BENCH_DIE(bench, ctx, ...)                                                                                  \
+  do {                                                                                                              \
+    fprintf(stderr, "%s: ", bench);                                                                                 \
+    fprintf(stderr, __VA_ARGS__);                                                                                   \
+    fprintf(stderr, ": %s\n", spx_ctx_message(ctx));                                                                \
+    return 1;                                                                                                       \
+  } while (0)
 
 /* Summary of per-frame times, in milliseconds. */
 typedef struct bench_stats {

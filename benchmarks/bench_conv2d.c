@@ -71,7 +71,7 @@ static int time_op(spx_ctx *ctx, const shape *s, int mode, int reps, double *ms,
     spx_status st = mode == 0   ? spx_conv2d_forward(ctx, &x, &w, NULL, &p, &y)
                     : mode == 1 ? spx_conv2d_backward(ctx, &x, &w, &y, &x, NULL, NULL, &p)
                                 : spx_conv2d_backward(ctx, &x, &w, &y, NULL, &w, NULL, &p);
-    if (st || clFinish(ctx->queue) != CL_SUCCESS) goto done;
+    if (st || clFinish(ctx->dev->queue) != CL_SUCCESS) goto done;
     double t = (spx_now() - t0) * 1e3, c = (cpu_now() - c0) * 1e3;
     if (r > 0 && t < best) best = t, best_cpu = c;
   }
@@ -95,9 +95,9 @@ int main(int argc, char **argv) {
   if (spx_device_open(ctx, NULL)) return fail(ctx, "device");
   spx_device_info info;
   spx_device_get_info(ctx, &info);
-  printf("device: %s; tiles TMxTNxVW %dx%dx%d LWS %d; dw %dx%d chunk %d\n", info.name, ctx->tune.conv_tm,
-         ctx->tune.conv_tn, ctx->tune.conv_vw, ctx->tune.conv_lws,
-         ctx->tune.conv_dw_tm, ctx->tune.conv_dw_tn, ctx->tune.conv_dw_qc);
+  printf("device: %s; tiles TMxTNxVW %dx%dx%d LWS %d; dw %dx%d chunk %d\n", info.name, ctx->dev->tune.conv_tm,
+         ctx->dev->tune.conv_tn, ctx->dev->tune.conv_vw, ctx->dev->tune.conv_lws,
+         ctx->dev->tune.conv_dw_tm, ctx->dev->tune.conv_dw_tn, ctx->dev->tune.conv_dw_qc);
   printf("%-22s %9s | %9s %7s | %9s %7s | %9s %7s\n", "shape (1x, HxW)", "GFLOP", "fwd ms", "GF/s", "bwd-x ms",
          "GF/s", "bwd-w ms", "GF/s");
   double wall_sum = 0;

@@ -113,12 +113,7 @@ static void loadavg(char *buf, size_t cap) {
   fclose(f);
 }
 
-#define DIE(...)                                                                                                    \
-  do {                                                                                                              \
-    fprintf(stderr, "bench_latency: " __VA_ARGS__);                                                                \
-    fprintf(stderr, ": %s\n", spx_ctx_message(ctx));                                                               \
-    return 1;                                                                                                       \
-  } while (0)
+#define DIE(...) BENCH_DIE("bench_latency", ctx, __VA_ARGS__)
 
 static int usage(void) {
   fprintf(stderr, "usage: bench_latency [--frames N] [--slow-frames N] [--warmup N] [--widths 64,32,16] "

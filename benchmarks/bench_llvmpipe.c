@@ -23,11 +23,7 @@
 #include "smplpix/mesh.h"
 #include "smplpix/raster.h"
 
-#define DIE(what)                                                                                                   \
-  do {                                                                                                              \
-    fprintf(stderr, "bench_llvmpipe: %s: %s\n", what, spx_ctx_message(ctx));                                       \
-    return 1;                                                                                                       \
-  } while (0)
+#define DIE(...) BENCH_DIE("bench_llvmpipe", ctx, __VA_ARGS__)
 
 int main(int argc, char **argv) {
   int frames = argc > 1 ? atoi(argv[1]) : 21;

@@ -21,12 +21,7 @@
 #include "smplpix/mesh.h"
 #include "peer_llvmpipe.h"
 
-#define DIE(...)                                                                                                \
-  do {                                                                                                          \
-    fprintf(stderr, "bench_raster: " __VA_ARGS__);                                                             \
-    fprintf(stderr, ": %s\n", spx_ctx_message(ctx));                                                          \
-    return 1;                                                                                                   \
-  } while (0)
+#define DIE(...) BENCH_DIE("bench_raster", ctx, __VA_ARGS__)
 
 int main(int argc, char **argv) {
   int frames = argc > 1 ? atoi(argv[1]) : 21;

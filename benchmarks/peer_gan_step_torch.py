@@ -22,7 +22,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.dont_write_bytecode = True
 for sub in ("unet", "patchgan", "vgg"):
     sys.path.insert(0, os.path.join(HERE, "..", "tests", "data", sub))
-from make_patchgan_golden import MultiscaleD, lsgan  # noqa: E402
+from make_patchgan_golden import MultiscaleD, adam_steps, lsgan  # noqa: E402
 from make_unet_golden import UNet  # noqa: E402
 from make_vgg_golden import VGG19  # noqa: E402
 
@@ -75,12 +75,7 @@ def main():
         lv = sum((1.0 / 2 ** (5 - i)) * F.l1_loss(ff[i], fr[i]) for i in range(6))
         loss_g = lv + loss_g_gan + 0.1 * fm
         loss_d = 0.5 * (loss_d_fake + loss_d_real)
-        optG.zero_grad()
-        loss_g.backward()
-        optG.step()
-        optD.zero_grad()
-        loss_d.backward()
-        optD.step()
+        adam_steps(optG, loss_g, optD, loss_d)
         t = time.perf_counter() - t0
         if r > 0:
             best = min(best, t)

@@ -14,7 +14,7 @@ includes the interpreter, torch and the engine).
                                         [--engines onnxruntime,openvino] [--onnx DIR]
 """
 import argparse
-import importlib.util
+import importlib
 import os
 import resource
 import sys
@@ -41,13 +41,10 @@ try:
 except ImportError as e:
     sys.exit("peer_unet_onnx.py: %s (needs numpy and torch for the export)" % e)
 
-spec = importlib.util.spec_from_file_location("golden", os.path.join(here, "..", "tests", "data", "unet",
-                                                                     "make_unet_golden.py"))
-golden = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(golden)
-spec = importlib.util.spec_from_file_location("peer_torch_gflop", os.path.join(here, "peer_unet_gflop.py"))
-flops = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(flops)
+sys.path.insert(0, os.path.join(here, "..", "tests", "data", "unet"))
+sys.dont_write_bytecode = True
+import make_unet_golden as golden  # noqa: E402
+import peer_unet_gflop as flops  # noqa: E402
 
 os.makedirs(a.onnx, exist_ok=True)
 path = os.path.join(a.onnx, "unet_w%d_%dx%dx%d.onnx" % (a.width, a.eval_batch, h, w))
@@ -86,12 +83,19 @@ def row(impl, version, best):
           flush=True)
 
 
+def engine(module, label):
+    """The engine's Python module, or None (said on stderr) when it is not installed."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as e:
+        print("peer_unet_onnx.py: %s skipped: %s" % (label, e), file=sys.stderr)
+        return None
+
+
 for eng in a.engines.split(","):
     if eng == "onnxruntime":
-        try:
-            import onnxruntime as ort
-        except ImportError as e:
-            print("peer_unet_onnx.py: ONNX Runtime skipped: %s" % e, file=sys.stderr)
+        ort = engine("onnxruntime", "ONNX Runtime")
+        if ort is None:
             continue
         so = ort.SessionOptions()
         so.intra_op_num_threads = threads
@@ -101,10 +105,8 @@ for eng in a.engines.split(","):
         row("onnxruntime", ort.__version__, timed(lambda: sess.run(None, {"x": x})))
         del sess
     elif eng == "openvino":
-        try:
-            import openvino as ov
-        except ImportError as e:
-            print("peer_unet_onnx.py: OpenVINO skipped: %s" % e, file=sys.stderr)
+        ov = engine("openvino", "OpenVINO")
+        if ov is None:
             continue
         core = ov.Core()
         cm = core.compile_model(path, "CPU", {"INFERENCE_NUM_THREADS": threads, "INFERENCE_PRECISION_HINT": "f32",

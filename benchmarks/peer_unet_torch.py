@@ -15,7 +15,6 @@ row's first pass, for reference. Run one row per process for a per-row figure.
                                                   [--eval-batch N] [--no-train] [--no-eval]
 """
 import argparse
-import importlib.util
 import os
 import resource
 import sys
@@ -28,14 +27,10 @@ except ImportError:
     sys.exit("peer_unet_torch.py: PyTorch not found (apt install python3-torch; run with /usr/bin/python3)")
 
 here = os.path.dirname(os.path.abspath(__file__))
-spec = importlib.util.spec_from_file_location("golden", os.path.join(here, "..", "tests", "data", "unet",
-                                                                     "make_unet_golden.py"))
-golden = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(golden)
-spec = importlib.util.spec_from_file_location("peer_unet_gflop", os.path.join(here, "peer_unet_gflop.py"))
-_flops = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(_flops)
-unet_gflop = _flops.unet_gflop
+sys.path.insert(0, os.path.join(here, "..", "tests", "data", "unet"))
+sys.dont_write_bytecode = True
+import make_unet_golden as golden  # noqa: E402
+from peer_unet_gflop import unet_gflop  # noqa: E402
 
 
 def rss_now():

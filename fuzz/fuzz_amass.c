@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "smplpix/amass.h"
+#include "smplpix/body.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   spx_ctx *ctx;

@@ -3,17 +3,13 @@
 #include <stdint.h>
 
 #include "io/png_internal.h"
-#include "smplpix/smplpix.h"
+#include "fuzz_common.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
-  static spx_ctx *ctx;
-  if (!ctx && spx_ctx_create(&ctx) != SPX_OK) return 0;
+  spx_ctx *ctx = spx_fuzz_ctx();
   spx_image img;
-  if (spx_png_read_mem(ctx, "fuzz.png", data, size, (int64_t)1 << 20, &img) == SPX_OK) {
-    volatile float sink = img.data[0] + img.data[(size_t)img.width * img.height * img.channels - 1];
-    (void)sink;
-    spx_image_free(&img);
-  }
+  if (ctx && spx_png_read_mem(ctx, "fuzz.png", data, size, (int64_t)1 << 20, &img) == SPX_OK)
+    spx_fuzz_touch_image(&img);
   return 0;
 }

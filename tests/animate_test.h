@@ -1,5 +1,5 @@
 /* Shared by the animate / render end-to-end tests (test_cli_animate.c, test_cli_render_cloud.c):
- * the tool run with an environment prefix, and a look into its output files (cli_test.h's `dir`). */
+ * the tool run with an environment prefix (in cli_test.h's `dir`). */
 #ifndef SPX_TESTS_ANIMATE_TEST_H
 #define SPX_TESTS_ANIMATE_TEST_H
 
@@ -13,18 +13,6 @@ static int tool_env(const char *env, const char *args) {
   char cmd[4096];
   snprintf(cmd, sizeof cmd, "cd '%s' && %s '%s' %s >out.txt 2>err.txt", dir, env, spx_t_tool(), args);
   return spx_t_system(cmd);
-}
-
-static int file_has(const char *name, const char *needle) {
-  char p[700], buf[8192] = "";
-  path_of(p, sizeof p, name);
-  FILE *f = fopen(p, "rb");
-  if (!f) return 0;
-  size_t n = fread(buf, 1, sizeof buf - 1, f);
-  fclose(f);
-  buf[n] = 0;
-  if (!strstr(buf, needle)) fprintf(stderr, "  %s was: %s\n", name, buf);
-  return strstr(buf, needle) != NULL;
 }
 
 #endif

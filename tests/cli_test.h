@@ -12,15 +12,17 @@ static char dir[512];
 
 static inline void path_of(char *p, size_t cap, const char *name) { snprintf(p, cap, "%s/%s", dir, name); }
 
+/* main() of a CLI test: dir = the test's scratch folder, then the tests in order. */
+static inline int cli_test_main(const spx_t_test *tests, int n) {
+  snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
+  return spx_t_run_all(tests, n);
+}
+
 /* Write `text` to dir/name. */
 static inline void write_text(const char *name, const char *text) {
   char p[700];
   path_of(p, sizeof p, name);
-  FILE *f = fopen(p, "wb");
-  if (f) {
-    fputs(text, f);
-    fclose(f);
-  }
+  spx_t_write_text(p, text);
 }
 
 /* Run the tool with args in dir; stdout to dir/out.txt, stderr to dir/err.txt. Returns the exit code. */
@@ -30,22 +32,47 @@ static inline int tool(const char *args) {
   return spx_t_system(cmd);
 }
 
-/* The last run's stderr is exactly one line and contains `needle` (printed when not). */
-static inline int err_one_line_with(const char *needle) {
-  char p[700], buf[4096] = "";
-  path_of(p, sizeof p, "err.txt");
+/* dir/name's first cap-1 bytes into buf (NUL-terminated; "" when missing); the number of newlines, -1
+ * when the file cannot be read. */
+static inline int read_text(const char *name, char *buf, size_t cap) {
+  char p[700];
+  path_of(p, sizeof p, name);
+  buf[0] = 0;
   FILE *f = fopen(p, "rb");
-  if (!f) return 0;
-  size_t n = fread(buf, 1, sizeof buf - 1, f);
+  if (!f) return -1;
+  size_t n = fread(buf, 1, cap - 1, f);
   fclose(f);
   buf[n] = 0;
   int lines = 0;
   for (size_t i = 0; i < n; i++) lines += buf[i] == '\n';
+  return lines;
+}
+
+/* The last run's stderr is exactly one line and contains `needle` (printed when not). */
+static inline int err_one_line_with(const char *needle) {
+  char buf[4096];
+  int lines = read_text("err.txt", buf, sizeof buf);
+  if (lines < 0) return 0;
   if (lines != 1 || !strstr(buf, needle)) {
     fprintf(stderr, "  stderr was: %s", buf);
     return 0;
   }
   return 1;
+}
+
+/* dir/name (its first 16 KiB) holds needle (printed when not). */
+static inline int file_has(const char *name, const char *needle) {
+  char buf[16384];
+  if (read_text(name, buf, sizeof buf) < 0) return 0;
+  if (!strstr(buf, needle)) fprintf(stderr, "  %s was: %s\n", name, buf);
+  return strstr(buf, needle) != NULL;
+}
+
+/* Make the folder dir/name (best effort: a test checks what it needs). */
+static inline void make_dir(const char *name) {
+  char p[700];
+  path_of(p, sizeof p, name);
+  mkdir(p, 0777);
 }
 
 /* dir/name exists (file or folder). */

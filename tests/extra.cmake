@@ -69,3 +69,6 @@ if(SPX_HAVE_MPI AND MPIEXEC_EXECUTABLE)
 endif()
 # the synchronised batch norm's test runs its ranks as threads
 target_link_libraries(test_nn_batchnorm_sync PRIVATE Threads::Threads)
+# The layer rule of lib/ (stated in tests/layering.cmake): every #include of lib/ and of the
+# public headers goes to the includer's own module or a lower level; fails naming the back-edge.
+add_test(NAME layering COMMAND ${CMAKE_COMMAND} -DSPX_SOURCE_DIR=${CMAKE_SOURCE_DIR} -P ${CMAKE_CURRENT_SOURCE_DIR}/layering.cmake)

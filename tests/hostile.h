@@ -6,9 +6,13 @@
 #define SPX_HOSTILE_H
 
 #include <dirent.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
 
 #include "cli_test.h"
 
@@ -41,18 +45,39 @@ static inline int run_t(int secs, const char *fmt, ...) {
 }
 #define run(...) run_t(60, __VA_ARGS__)
 
+/* Start the tool in dir with args (stdout/stderr to /dev/null); returns its pid. */
+static inline pid_t spawn(const char *args) {
+  char cmd[2048];
+  snprintf(cmd, sizeof cmd, "cd '%s' && exec '%s' %s >/dev/null 2>&1", dir, spx_t_tool(), args);
+  pid_t pid = fork();
+  if (pid == 0) {
+    execl("/bin/sh", "sh", "-c", cmd, (char *)NULL);
+    _exit(127);
+  }
+  return pid;
+}
+
+static inline void sleep_ms(long ms) {
+  struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
+  nanosleep(&ts, NULL);
+}
+
+/* The tool with args, killed with SIGKILL after ms (or finished before); returns its wait status. */
+static inline int kill_after(const char *args, long ms) {
+  pid_t pid = spawn(args);
+  sleep_ms(ms);
+  kill(pid, SIGKILL);
+  int st = 0;
+  waitpid(pid, &st, 0);
+  return st;
+}
+
 /* The last run's stderr is one line "smplpix <cmd>: error: <first>..." (or "smplpix <cmd>: <first>"
  * for usage errors); printed when not. */
 static inline int err_is(const char *cmd, const char *first) {
-  char p[700], buf[4096] = "", want[256];
-  path_of(p, sizeof p, "err.txt");
-  FILE *f = fopen(p, "rb");
-  if (!f) return 0;
-  size_t n = fread(buf, 1, sizeof buf - 1, f);
-  fclose(f);
-  buf[n] = 0;
-  int lines = 0;
-  for (size_t i = 0; i < n; i++) lines += buf[i] == '\n';
+  char buf[4096], want[256];
+  int lines = read_text("err.txt", buf, sizeof buf);
+  if (lines < 0) return 0;
   snprintf(want, sizeof want, "smplpix %s: error: %s", cmd, first);
   int ok = lines == 1 && !strncmp(buf, want, strlen(want));
   if (!ok) {

@@ -105,6 +105,12 @@ static inline double spx_nt_err(const float *dev, const double *ref, size_t n, d
   }
   return worst;
 }
+/* max_i |a_i - b_i| */
+static inline double spx_nt_maxdiff(const double *a, const double *b, size_t n) {
+  double m = 0;
+  for (size_t i = 0; i < n; i++) m = fmax(m, fabs(a[i] - b[i]));
+  return m;
+}
 #define CHECK_CLOSE_ARR(dev, ref, n, atol, rtol)                                                   \
   do {                                                                                             \
     double spx_nt_e = spx_nt_err((dev), (ref), (n), (atol));                                       \
@@ -113,9 +119,7 @@ static inline double spx_nt_err(const float *dev, const double *ref, size_t n, d
 
 static inline spx_ctx *spx_nt_open(void) {
   spx_ctx *ctx = NULL;
-  if (spx_ctx_create(&ctx) != SPX_OK) return NULL;
-  if (spx_device_open(ctx, NULL) != SPX_OK) {
-    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
+  if (spx_t_open_device(&ctx)) {
     spx_ctx_destroy(ctx);
     return NULL;
   }
@@ -159,5 +163,28 @@ static inline double *spx_golden_get(const char *path, const char *name, int *co
   if (!out) fprintf(stderr, "golden %s: no record %s\n", path, name);
   return out;
 }
+
+
+/* The records of a one-input op's golden (make_<op>_golden.py): shape<sfx> (n, c, h, w), x<sfx>, the
+ * upstream gradient g<sfx>, and torch's y<sfx> and dx<sfx>. */
+typedef struct spx_golden_op {
+  double *shape, *x, *g, *y, *dx;
+  int nshape, nx, ng, ny, ndx;
+} spx_golden_op;
+
+/* CHECKs that all five records exist and the shape has 4 values; 1 when so. Free with
+ * spx_golden_op_free either way. */
+static inline int spx_golden_op_load(const char *path, const char *sfx, spx_golden_op *o) {
+  char nm[5][64];
+  const char *base[5] = {"shape", "x", "g", "y", "dx"};
+  for (int i = 0; i < 5; i++) snprintf(nm[i], sizeof nm[i], "%s%s", base[i], sfx);
+  o->shape = spx_golden_get(path, nm[0], &o->nshape), o->x = spx_golden_get(path, nm[1], &o->nx);
+  o->g = spx_golden_get(path, nm[2], &o->ng), o->y = spx_golden_get(path, nm[3], &o->ny);
+  o->dx = spx_golden_get(path, nm[4], &o->ndx);
+  int ok = o->shape && o->x && o->g && o->y && o->dx && o->nshape == 4;
+  CHECK(ok);
+  return ok;
+}
+static inline void spx_golden_op_free(spx_golden_op *o) { free(o->shape), free(o->x), free(o->g), free(o->y), free(o->dx); }
 
 #endif

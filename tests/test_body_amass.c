@@ -31,13 +31,7 @@ static void write_npz(const char *path, const motion *m, const char *drop, int f
       {SPX_F64, 2, {m->nf, 3}, (void *)m->trans, (size_t)m->nf * 3 * 8},
       {SPX_F64, 1, {10}, (void *)m->betas, sizeof m->betas},
       {SPX_F64, 0, {0}, (void *)&m->fps, 8}};
-  const char *keys[4] = {"poses", "trans", "betas", "mocap_framerate"};
-  spx_array keep[4];
-  const char *kk[4];
-  int n = 0;
-  for (int i = 0; i < 4; i++)
-    if (!drop || strcmp(drop, keys[i])) keep[n] = arr[i], kk[n] = keys[i], n++;
-  CHECK_OK(ctx, spx_npz_save(ctx, path, n, kk, keep, 1));
+  CHECK_OK(ctx, spx_t_save_amass(ctx, path, arr, drop));
 }
 
 static void rest_motion(motion *m, int nj) {
@@ -210,9 +204,6 @@ static void test_retarget(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_load);
-  SPX_RUN(test_retarget);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  const spx_t_test tests[] = {SPX_TEST(test_load), SPX_TEST(test_retarget)};
+  return spx_t_main_ctx(&ctx, 0, tests, 2);
 }

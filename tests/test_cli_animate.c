@@ -16,6 +16,7 @@
 #include <sys/stat.h>
 
 #include "animate_test.h"
+#include "rest_registration.h"
 
 #define BODY SPX_REPO_DATA "/body/default_body.npz"
 #define CLIP SPX_REPO_DATA "/mocap/01_01.bvh"
@@ -27,27 +28,16 @@ static spx_unet *net;
 
 /* reg.json: the default body at rest, coloured by height, with the model path recorded */
 static void write_registration(const char *name) {
-  spx_fit_result r;
-  memset(&r, 0, sizeof r);
-  r.nv = body.nv, r.nj = body.nj, r.nbetas = 0, r.nf = body.nf;
-  r.unit_scale = r.sim_scale = r.body_scale = 1.0;
-  r.sim_R[0] = r.sim_R[4] = r.sim_R[8] = 1.0;
-  double betas[1] = {0};
-  r.betas = betas;
-  r.pose = calloc((size_t)body.nj * 3, sizeof(double));
-  r.template_unposed = malloc((size_t)body.nv * 3 * sizeof(double));
-  r.colors = malloc((size_t)body.nv * 3 * sizeof(float));
-  if (!r.pose || !r.template_unposed || !r.colors) return;
-  for (int i = 0; i < body.nv; i++)
-    for (int c = 0; c < 3; c++) {
-      float y = body.v_template[i * 3 + 1], x = body.v_template[i * 3];
-      r.template_unposed[i * 3 + c] = body.v_template[i * 3 + c];
-      r.colors[i * 3 + c] = c == 0 ? 0.5f + 0.5f * y : c == 1 ? 0.5f + x : 0.3f;
-    }
+  float *colors = malloc((size_t)body.nv * 3 * sizeof(float));
+  if (!colors) return;
+  for (int i = 0; i < body.nv; i++) {
+    float y = body.v_template[i * 3 + 1], x = body.v_template[i * 3];
+    for (int c = 0; c < 3; c++) colors[i * 3 + c] = c == 0 ? 0.5f + 0.5f * y : c == 1 ? 0.5f + x : 0.3f;
+  }
   char p[700];
   path_of(p, sizeof p, name);
-  CHECK_OK(ctx, spx_fit_save_json(ctx, p, &r, BODY));
-  free(r.pose), free(r.template_unposed), free(r.colors);
+  CHECK_OK(ctx, spx_t_save_rest_registration(ctx, &body, colors, BODY, p));
+  free(colors);
   CHECK_OK(ctx, spx_fit_load_json(ctx, p, &reg, NULL));
 }
 
@@ -137,15 +127,9 @@ static void write_amass(const char *name, int cols, const char *drop) {
                       {SPX_F64, 2, {3, 3}, trans, sizeof trans},
                       {SPX_F64, 1, {16}, betas, sizeof betas},
                       {SPX_F64, 0, {0}, &fps, 8}};
-  const char *keys[4] = {"poses", "trans", "betas", "mocap_framerate"};
-  spx_array keep[4];
-  const char *kk[4];
-  int n = 0;
-  for (int i = 0; i < 4; i++)
-    if (!drop || strcmp(drop, keys[i])) keep[n] = arr[i], kk[n] = keys[i], n++;
   char p[700];
   path_of(p, sizeof p, name);
-  CHECK_OK(ctx, spx_npz_save(ctx, p, n, kk, keep, 1));
+  CHECK_OK(ctx, spx_t_save_amass(ctx, p, arr, drop));
 }
 
 static void amass_pose(const char *name, long frame, double *pose, double trans[3]) {
@@ -233,8 +217,7 @@ static void test_amass(void) {
 
 static void test_mp4(void) {
   char p[700];
-  path_of(p, sizeof p, "bin");
-  mkdir(p, 0777);
+  make_dir("bin");
   write_text("bin/ffmpeg", "#!/bin/sh\n"
                            "echo \"$@\" > ffargs.txt\n"
                            "prev=; for a; do last=$a; [ \"$prev\" = -i ] && pat=$a; [ \"$prev\" = -start_number ] && "
@@ -261,8 +244,7 @@ static void test_mp4(void) {
     CHECK_MSG(spx_t_system(cmd) != 0, "a temporary or the link folder is left in mp4/");
   }
   /* an ffmpeg that fails: one line, exit 1, nothing left */
-  path_of(p, sizeof p, "bad");
-  mkdir(p, 0777);
+  make_dir("bad");
   write_text("bad/ffmpeg", "#!/bin/sh\necho noise >&2\nexit 3\n");
   path_of(p, sizeof p, "bad/ffmpeg");
   chmod(p, 0755);
@@ -322,10 +304,7 @@ static void test_errors(void) {
 
 int main(void) {
   snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
+  if (spx_t_open_device(&ctx)) return 1;
   memset(&body, 0, sizeof body);
   CHECK_OK(ctx, spx_body_load(ctx, BODY, &body));
   write_registration("reg.json");

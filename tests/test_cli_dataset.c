@@ -275,9 +275,6 @@ static void test_train_tiny(void) {
 }
 
 int main(void) {
-  snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  SPX_RUN(test_layout);
-  SPX_RUN(test_bad);
-  SPX_RUN(test_train_tiny);
-  return spx_test_summary();
+  const spx_t_test tests[] = {SPX_TEST(test_layout), SPX_TEST(test_bad), SPX_TEST(test_train_tiny)};
+  return cli_test_main(tests, 3);
 }

@@ -59,14 +59,12 @@ static int entries(const char *name) {
 
 static void make_data_dir(void) {
   char p[700];
-  path_of(p, sizeof p, "data");
-  mkdir(p, 0777);
+  make_dir("data");
   path_of(p, sizeof p, "data/body");
   CHECK(symlink(SPX_REPO_DATA "/body", p) == 0 || exists("data/body"));
   path_of(p, sizeof p, "data/mocap");
   CHECK(symlink(SPX_REPO_DATA "/mocap", p) == 0 || exists("data/mocap"));
-  path_of(p, sizeof p, "data/models");
-  mkdir(p, 0777);
+  make_dir("data/models");
 }
 
 static void test_without_network(void) {
@@ -118,11 +116,8 @@ static void test_bad_input(void) {
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out afile --size 40x32") == 1);
   CHECK(err_one_line_with("afile"));
   /* an output the run cannot write: nothing of the set appears, no temporaries stay */
-  char p[700];
-  path_of(p, sizeof p, "b4");
-  mkdir(p, 0777);
-  path_of(p, sizeof p, "b4/demo.png");
-  mkdir(p, 0777);
+  make_dir("b4");
+  make_dir("b4/demo.png");
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out b4 --size 40x32") == 1);
   CHECK(err_one_line_with("b4/demo.png") && !exists("b4/demo_input.png") && !exists("b4/demo_raster.png"));
   CHECK(entries("b4") == 1); /* just the folder in the way */
@@ -134,15 +129,11 @@ static void test_bad_input(void) {
 
 int main(void) {
   snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
-  char p[700], cmd[1200];
+  if (spx_t_open_device(&ctx)) return 1;
+  char cmd[1200];
   snprintf(cmd, sizeof cmd, "rm -rf '%s'/* '%s'/.[!.]*", dir, dir); /* a clean scratch folder */
   CHECK(spx_t_system(cmd) == 0);
-  path_of(p, sizeof p, "o1");
-  mkdir(p, 0777);
+  make_dir("o1");
   make_data_dir();
   SPX_RUN(test_without_network);
   SPX_RUN(test_with_network);

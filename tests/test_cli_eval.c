@@ -269,12 +269,8 @@ static void test_errors(void) {
 }
 
 int main(void) {
+  const spx_t_test tests[] = {SPX_TEST(test_files), SPX_TEST(test_folders), SPX_TEST(test_lpips),
+                               SPX_TEST(test_errors)};
   snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_files);
-  SPX_RUN(test_folders);
-  SPX_RUN(test_lpips);
-  SPX_RUN(test_errors);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  return spx_t_main_ctx(&ctx, 0, tests, 4);
 }

@@ -140,13 +140,7 @@ static void test_export_cli(void) {
 }
 
 int main(void) {
+  const spx_t_test tests[] = {SPX_TEST(test_rounding), SPX_TEST(test_export_cli)};
   snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
-  SPX_RUN(test_rounding);
-  SPX_RUN(test_export_cli);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  return spx_t_main_ctx(&ctx, 1, tests, 2);
 }

@@ -4,16 +4,8 @@
 
 #include "smplpix/image.h"
 #include "smplpix/smplpix.h"
-#include "cli_test.h"
+#include "cli_scene_test.h"
 
-static void clean_outputs(void) {
-  char cmd[700];
-  snprintf(cmd, sizeof cmd, "cd '%s' && rm -f o.exr o.png o.npy o_*.exr", dir);
-  spx_t_system(cmd);
-}
-
-static const char *GOOD_CAM = "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                              " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}";
 static const char *GOOD_OBJ = "v 0 0 0 1 0 0\nv 0.1 0.1 0 0 1 0\nv -0.1 0.1 0.5 0 0 1\nf 1 2 3\n";
 
 static void test_good_run(void) {
@@ -39,54 +31,21 @@ static void test_good_run(void) {
   spx_ctx_destroy(ctx);
   /* a camera array writes one image per camera */
   clean_outputs();
-  write_text("cams.json", "[{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]},"
-                          "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,4]}]");
+  write_two_cameras("cams.json", 4);
   CHECK(tool("project --mesh tri.obj --camera cams.json --out o.exr") == 0);
   CHECK(exists("o_000.exr") && exists("o_001.exr") && !exists("o.exr"));
   clean_outputs();
 }
 
-/* a bad input: exit 1, one stderr line naming `needle`, no outputs */
-static void expect_fail(const char *args, const char *needle) {
-  clean_outputs();
-  int rc = tool(args);
-  CHECK_MSG(rc == 1, "exit %d for %s", rc, args);
-  CHECK_MSG(err_one_line_with(needle), "%s", args);
-  CHECK_MSG(!exists("o.exr") && !exists("o.png") && !exists("o.npy"), "output left by %s", args);
-}
-
 static void test_bad_inputs(void) {
-  write_text("cam.json", GOOD_CAM);
+  write_bad_scene_inputs();
   write_text("tri.obj", GOOD_OBJ);
-  write_text("trunc.obj", "v 0 0 0\nv 1 1\n");
-  write_text("garbage.obj", "\x7f\x45LF\x02\x01\x01 not an obj at all\nf 9 9 9\n");
-  write_text("nan.obj", "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-  write_text("badidx.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n");
-  write_text("lying.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1000000\nproperty float x\n"
-                          "property float y\nproperty float z\nend_header\n\x01\x02\x03");
   write_text("weird.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quaternion x\nend_header\n1\n");
-  write_text("noR.json", "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]], \"t\": [0,0,3]}");
-  write_text("skewR.json", "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                           " \"R\": [[1,0.1,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
   write_text("zerof.json", "{\"width\": 64, \"height\": 48, \"K\": [[0,0,32],[0,60,24],[0,0,1]],"
                            " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
-  write_text("huge.json", "{\"width\": 20000, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
-  write_text("notjson.json", "{\"width\": 64, \"height\": ");
-  expect_fail("project --mesh trunc.obj --camera cam.json --out o.exr", "trunc.obj");
-  expect_fail("project --mesh garbage.obj --camera cam.json --out o.exr", "garbage.obj");
-  expect_fail("project --mesh nan.obj --camera cam.json --out o.exr", "nan.obj");
-  expect_fail("project --mesh badidx.obj --camera cam.json --out o.exr", "badidx.obj");
-  expect_fail("project --mesh lying.ply --camera cam.json --out o.exr", "lying.ply");
+  expect_bad_scene_inputs("project", "tri.obj");
   expect_fail("project --mesh weird.ply --camera cam.json --out o.exr", "weird.ply");
-  expect_fail("project --mesh missing.obj --camera cam.json --out o.exr", "missing.obj");
-  expect_fail("project --mesh tri.obj --camera noR.json --out o.exr", "noR.json");
-  expect_fail("project --mesh tri.obj --camera skewR.json --out o.exr", "skewR.json");
   expect_fail("project --mesh tri.obj --camera zerof.json --out o.exr", "zerof.json");
-  expect_fail("project --mesh tri.obj --camera huge.json --out o.exr", "huge.json");
-  expect_fail("project --mesh tri.obj --camera notjson.json --out o.exr", "notjson.json");
   /* the second output cannot be written: the first must not stay behind */
   expect_fail("project --mesh tri.obj --camera cam.json --out o.exr --png no/such/dir/o.png", "o.png");
   /* a device that does not exist */
@@ -94,17 +53,13 @@ static void test_bad_inputs(void) {
 }
 
 static void test_usage(void) {
-  CHECK(tool("project --mesh tri.obj") == 2);
-  CHECK(tool("project --mesh tri.obj --camera cam.json --out o.tiff") == 2);
-  CHECK(tool("project --bogus") == 2);
-  CHECK(tool("nosuchcommand") == 2);
+  const char *usage[] = {"project --mesh tri.obj", "project --mesh tri.obj --camera cam.json --out o.tiff",
+                         "project --bogus", "nosuchcommand"};
+  expect_usage(usage, 4);
   CHECK(tool("project --help") == 0);
 }
 
 int main(void) {
-  snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  SPX_RUN(test_good_run);
-  SPX_RUN(test_bad_inputs);
-  SPX_RUN(test_usage);
-  return spx_test_summary();
+  const spx_t_test tests[] = {SPX_TEST(test_good_run), SPX_TEST(test_bad_inputs), SPX_TEST(test_usage)};
+  return cli_test_main(tests, 3);
 }

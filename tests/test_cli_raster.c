@@ -6,16 +6,8 @@
 #include "smplpix/image.h"
 #include "smplpix/npy.h"
 #include "smplpix/smplpix.h"
-#include "cli_test.h"
+#include "cli_scene_test.h"
 
-static void clean_outputs(void) {
-  char cmd[700];
-  snprintf(cmd, sizeof cmd, "cd '%s' && rm -f o.exr o.png o.npy o_*.exr o_*.png", dir);
-  spx_t_system(cmd);
-}
-
-static const char *GOOD_CAM = "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                              " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}";
 /* a red square, 1 x 1 at depth 3: columns 22..41, rows 14..33 */
 static const char *QUAD_OBJ = "v -0.5 -0.5 0 1 0 0\nv 0.5 -0.5 0 1 0 0\nv 0.5 0.5 0 1 0 0\nv -0.5 0.5 0 1 0 0\n"
                               "f 1 2 3\nf 1 3 4\n";
@@ -100,10 +92,7 @@ static void test_good_runs(void) {
   CHECK_MSG(blended[0] == 0 && blended[1] > 40, "blended pixels: aa 1 %d, aa 2 %d", blended[0], blended[1]);
   /* a camera array writes one image per camera */
   clean_outputs();
-  write_text("cams.json", "[{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]},"
-                          "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,6]}]");
+  write_two_cameras("cams.json", 6);
   CHECK(tool("raster --mesh quad.obj --camera cams.json --out o.png") == 0);
   CHECK(exists("o_000.png") && exists("o_001.png") && !exists("o.png"));
   img = read_png(ctx, "o_001.png"); /* twice as far: a 10x10 square */
@@ -137,49 +126,18 @@ static void test_good_runs(void) {
   spx_ctx_destroy(ctx);
 }
 
-/* a bad input: exit 1, one stderr line naming `needle`, no outputs */
-static void expect_fail(const char *args, const char *needle) {
-  clean_outputs();
-  int rc = tool(args);
-  CHECK_MSG(rc == 1, "exit %d for %s", rc, args);
-  CHECK_MSG(err_one_line_with(needle), "%s", args);
-  CHECK_MSG(!exists("o.exr") && !exists("o.png") && !exists("o.npy") && !exists("o_000.png"), "output left by %s",
-            args);
-}
-
 static void test_bad_inputs(void) {
-  write_text("cam.json", GOOD_CAM);
+  write_bad_scene_inputs();
   write_text("quad.obj", QUAD_OBJ);
   write_text("uv.obj", UV_OBJ);
-  write_text("trunc.obj", "v 0 0 0\nv 1 1\n");
-  write_text("garbage.obj", "\x7f\x45LF\x02\x01\x01 not an obj at all\nf 9 9 9\n");
-  write_text("nan.obj", "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-  write_text("badidx.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n");
   write_text("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
-  write_text("lying.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1000000\nproperty float x\n"
-                          "property float y\nproperty float z\nend_header\n\x01\x02\x03");
-  write_text("noR.json", "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]], \"t\": [0,0,3]}");
-  write_text("skewR.json", "{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                           " \"R\": [[1,0.1,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
-  write_text("huge.json", "{\"width\": 20000, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
-                          " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
-  write_text("notjson.json", "{\"width\": 64, \"height\": ");
   write_text("mixed.json", "[{\"width\": 64, \"height\": 48, \"K\": [[60,0,32],[0,60,24],[0,0,1]],"
                            " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]},"
                            "{\"width\": 32, \"height\": 48, \"K\": [[60,0,16],[0,60,24],[0,0,1]],"
                            " \"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}]");
   write_text("badtex.png", "\x89PNG\r\n\x1a\n but then nothing sensible");
-  expect_fail("raster --mesh trunc.obj --camera cam.json --out o.exr", "trunc.obj");
-  expect_fail("raster --mesh garbage.obj --camera cam.json --out o.exr", "garbage.obj");
-  expect_fail("raster --mesh nan.obj --camera cam.json --out o.exr", "nan.obj");
-  expect_fail("raster --mesh badidx.obj --camera cam.json --out o.exr", "badidx.obj");
+  expect_bad_scene_inputs("raster", "quad.obj");
   expect_fail("raster --mesh points.obj --camera cam.json --out o.exr", "points.obj");
-  expect_fail("raster --mesh lying.ply --camera cam.json --out o.exr", "lying.ply");
-  expect_fail("raster --mesh missing.obj --camera cam.json --out o.exr", "missing.obj");
-  expect_fail("raster --mesh quad.obj --camera noR.json --out o.exr", "noR.json");
-  expect_fail("raster --mesh quad.obj --camera skewR.json --out o.exr", "skewR.json");
-  expect_fail("raster --mesh quad.obj --camera huge.json --out o.exr", "huge.json");
-  expect_fail("raster --mesh quad.obj --camera notjson.json --out o.exr", "notjson.json");
   expect_fail("raster --mesh quad.obj --camera mixed.json --out o.png", "mixed.json");
   /* a texture needs texture coordinates: the error names the mesh */
   expect_fail("raster --mesh quad.obj --camera cam.json --out o.png --texture badtex.png", "quad.obj");
@@ -193,22 +151,20 @@ static void test_bad_inputs(void) {
 }
 
 static void test_usage(void) {
-  CHECK(tool("raster --mesh quad.obj") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.tiff") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --aa 3") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --cull sideways") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --color red") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out o.png --texture t.bmp") == 2);
-  CHECK(tool("raster --mesh quad.obj --camera cam.json --out") == 2);
-  CHECK(tool("raster --bogus") == 2);
+  const char *usage[] = {"raster --mesh quad.obj",
+                         "raster --mesh quad.obj --camera cam.json --out o.tiff",
+                         "raster --mesh quad.obj --camera cam.json --out o.png --aa 3",
+                         "raster --mesh quad.obj --camera cam.json --out o.png --cull sideways",
+                         "raster --mesh quad.obj --camera cam.json --out o.png --color red",
+                         "raster --mesh quad.obj --camera cam.json --out o.png --texture t.bmp",
+                         "raster --mesh quad.obj --camera cam.json --out",
+                         "raster --bogus"};
+  expect_usage(usage, 8);
   CHECK(tool("raster --help") == 0);
   CHECK(!exists("o.png"));
 }
 
 int main(void) {
-  snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  SPX_RUN(test_good_runs);
-  SPX_RUN(test_bad_inputs);
-  SPX_RUN(test_usage);
-  return spx_test_summary();
+  const spx_t_test tests[] = {SPX_TEST(test_good_runs), SPX_TEST(test_bad_inputs), SPX_TEST(test_usage)};
+  return cli_test_main(tests, 3);
 }

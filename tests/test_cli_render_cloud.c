@@ -111,10 +111,8 @@ static void test_point_cloud(void) {
 
 static void test_default_network(void) {
   char p[700];
-  path_of(p, sizeof p, "data");
-  mkdir(p, 0777);
-  path_of(p, sizeof p, "data/models");
-  mkdir(p, 0777);
+  make_dir("data");
+  make_dir("data/models");
   CHECK(tool_env("SPX_DATA_DIR=./nodata", "render --mesh cloud.ply --camera one.json --out none.npy") == 1);
   CHECK(err_one_line_with("nodata/models/default.safetensors") && err_one_line_with("--checkpoint"));
   CHECK(!exists("none.npy"));
@@ -126,10 +124,7 @@ static void test_default_network(void) {
 
 int main(void) {
   snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
+  if (spx_t_open_device(&ctx)) return 1;
   CHECK_OK(ctx, spx_unet_create(ctx, 8, 0, 17, &net));
   char p[700];
   path_of(p, sizeof p, "net.safetensors");

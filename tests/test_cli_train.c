@@ -33,18 +33,9 @@ static spx_ctx *ctx;
 
 static void path_in(char *out, size_t cap, const char *rel) { snprintf(out, cap, "%s/%s", dir, rel); }
 
-static int run(const char *args, const char *log) {
-  char cmd[16384];
-  snprintf(cmd, sizeof cmd, "\"%s\" %s >\"%s\" 2>&1", spx_t_tool(), args, log);
-  return spx_t_system(cmd);
-}
-
+static int run(const char *args, const char *log) { return spx_t_tool_log(args, log, 0); }
 /* stdout dropped: the log holds only what the tool says on stderr */
-static int run_err(const char *args, const char *log) {
-  char cmd[16384];
-  snprintf(cmd, sizeof cmd, "\"%s\" %s >/dev/null 2>\"%s\"", spx_t_tool(), args, log);
-  return spx_t_system(cmd);
-}
+static int run_err(const char *args, const char *log) { return spx_t_tool_log(args, log, 1); }
 
 static char *slurp(const char *path) {
   FILE *f = fopen(path, "rb");
@@ -83,13 +74,7 @@ static void mkdirs(const char *base) {
 /* an input RGB-D .npy with smooth random content and its target (= the input's RGB) as .npy */
 static void make_pair(const char *base, const char *name, int h, int w, unsigned long long *s) {
   float *in = malloc(sizeof(float) * (size_t)h * w * 4), *tg = malloc(sizeof(float) * (size_t)h * w * 3);
-  for (int y = 0; y < h; y++)
-    for (int x = 0; x < w; x++)
-      for (int c = 0; c < 4; c++) {
-        float v = 0.5f + 0.4f * sinf(0.3f * (float)x * (float)(c + 1) + 0.2f * (float)y) * (float)spx_t_uniform(s);
-        in[(y * w + x) * 4 + c] = v;
-        if (c < 3) tg[(y * w + x) * 3 + c] = v;
-      }
+  spx_t_smooth_pair(in, tg, h, w, s);
   char p[2048];
   int64_t si[3] = {h, w, 4}, so[3] = {h, w, 3};
   snprintf(p, sizeof p, "%s/train/input/%s.npy", base, name);
@@ -517,10 +502,7 @@ int main(void) {
   mkdir(dir, 0777);
   char log[1024];
   path_in(log, sizeof log, "help.log");
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device: %s\n", ctx ? spx_ctx_message(ctx) : "");
-    return 1;
-  }
+  if (spx_t_open_device(&ctx)) return 1;
   SPX_RUN(test_render_mesh);
   SPX_RUN(test_train_interrupt);
   SPX_RUN(test_train_tty);

@@ -54,17 +54,6 @@ static void make_data(void) {
   free(in), free(tg);
 }
 
-static int file_has(const char *name, const char *needle) {
-  char p[800], buf[16384] = "";
-  path_of(p, sizeof p, name);
-  FILE *f = fopen(p, "rb");
-  if (!f) return 0;
-  size_t n = fread(buf, 1, sizeof buf - 1, f);
-  fclose(f);
-  buf[n] = 0;
-  return strstr(buf, needle) != NULL;
-}
-
 static int meta_is(const char *name, const char *key, const char *want) {
   char p[800];
   path_of(p, sizeof p, name);
@@ -216,10 +205,7 @@ static void test_schedule_resume(void) {
 int main(void) {
   spx_t_path(dir, sizeof dir, "cligan");
   mkdir(dir, 0777);
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device\n");
-    return 1;
-  }
+  if (spx_t_open_device(&ctx)) return 1;
   make_data();
   SPX_RUN(test_offline_recipe);
   SPX_RUN(test_schedule);

@@ -22,11 +22,7 @@ static char dir[512];
 
 static void path_in(char *out, size_t cap, const char *rel) { snprintf(out, cap, "%s/%s", dir, rel); }
 
-static int run(const char *args, const char *log) {
-  char cmd[4096];
-  snprintf(cmd, sizeof cmd, "\"%s\" %s >\"%s\" 2>&1", spx_t_tool(), args, log);
-  return spx_t_system(cmd);
-}
+static int run(const char *args, const char *log) { return spx_t_tool_log(args, log, 0); }
 
 static int log_has(const char *log, const char *needle) {
   FILE *f = fopen(log, "r");
@@ -42,13 +38,7 @@ static int log_has(const char *log, const char *needle) {
 static void make_pair(spx_ctx *ctx, const char *split, const char *name, int in_kind, int out_kind,
                       unsigned long long *s) {
   float in[H * W * 4], tg[H * W * 3];
-  for (int y = 0; y < H; y++)
-    for (int x = 0; x < W; x++)
-      for (int c = 0; c < 4; c++) {
-        float v = 0.5f + 0.4f * sinf(0.3f * (float)x * (float)(c + 1) + 0.2f * (float)y) * (float)spx_t_uniform(s);
-        in[(y * W + x) * 4 + c] = v;
-        if (c < 3) tg[(y * W + x) * 3 + c] = v;
-      }
+  spx_t_smooth_pair(in, tg, H, W, s);
   char p[1024];
   snprintf(p, sizeof p, "%s/%s/input/%s.%s", dir, split, name, in_kind ? "exr" : "npy");
   if (in_kind) {

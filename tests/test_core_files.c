@@ -13,16 +13,14 @@
 static spx_ctx *ctx;
 static char base[600];
 
-static void at(char *out, size_t cap, const char *name) { snprintf(out, cap, "%s/%s", base, name); }
+static void at(char *out, size_t cap, const char *name) {
+  if (snprintf(out, cap, "%s/%s", base, name) >= (int)cap) out[0] = 0; /* too long: no such file */
+}
 
 static void touch(const char *name, const char *text) {
   char p[700];
   at(p, sizeof p, name);
-  FILE *f = fopen(p, "wb");
-  if (f) {
-    fputs(text, f);
-    fclose(f);
-  }
+  spx_t_write_text(p, text);
 }
 
 static int there(const char *name) {

@@ -3,7 +3,6 @@
 #include <unistd.h>
 
 #include "cl/cl_internal.h"
-#include "cl/layout.h"
 #include "smplpix/smplpix.h"
 #include "test.h"
 
@@ -46,10 +45,10 @@ static void test_unknown_kernel(void) {
   /* a handle is created with its program, and fetched again by index */
   cl_kernel a = NULL, b = NULL, c = NULL;
   CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_AXPY, &a));
-  CHECK(ctx->kernels[SPX_K_COPY] != NULL); /* same program (tensor_ops.cl): made at once */
+  CHECK(ctx->dev->kernels[SPX_K_COPY] != NULL); /* same program (tensor_ops.cl): made at once */
   CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_AXPY, &b));
   CHECK(a == b);
-  CHECK(ctx->kernels[SPX_K_ADAM_STEP] == NULL); /* another program: still lazy */
+  CHECK(ctx->dev->kernels[SPX_K_ADAM_STEP] == NULL); /* another program: still lazy */
   CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_ADAM_STEP, &c));
   CHECK(!strcmp(spx_cl_kernel_name(SPX_K_ADAM_STEP), "spx_adam_step"));
   spx_ctx_destroy(ctx);
@@ -110,36 +109,7 @@ static void test_cache_cold_warm(void) {
   spx_ctx_destroy(ctx);
 }
 
-/* layout kernels against their plain-C reference, odd sizes */
-static void test_layout(void) {
-  spx_ctx *ctx;
-  CHECK(spx_ctx_create(&ctx) == SPX_OK);
-  CHECK_OK(ctx, spx_device_open(ctx, NULL));
-  int n = 2, c = 4, h = 7, w = 13, total = n * c * h * w;
-  float *a = malloc(sizeof(float) * total), *b = malloc(sizeof(float) * total), *r = malloc(sizeof(float) * total);
-  unsigned long long s = 1;
-  for (int i = 0; i < total; i++) a[i] = (float)spx_t_uniform(&s);
-  cl_mem da, db;
-  CHECK_OK(ctx, spx_cl_alloc(ctx, sizeof(float) * total, "a", &da));
-  CHECK_OK(ctx, spx_cl_alloc(ctx, sizeof(float) * total, "b", &db));
-  CHECK_OK(ctx, spx_cl_write(ctx, da, 0, sizeof(float) * total, a));
-  CHECK_OK(ctx, spx_cl_hwc_to_nchw(ctx, da, db, n, c, h, w));
-  CHECK_OK(ctx, spx_cl_read(ctx, db, 0, sizeof(float) * total, b));
-  spx_ref_hwc_to_nchw(a, r, n, c, h, w);
-  CHECK(memcmp(b, r, sizeof(float) * total) == 0);
-  CHECK_OK(ctx, spx_cl_nchw_to_hwc(ctx, db, da, n, c, h, w));
-  CHECK_OK(ctx, spx_cl_read(ctx, da, 0, sizeof(float) * total, r));
-  CHECK(memcmp(a, r, sizeof(float) * total) == 0);
-  spx_cl_free(&da);
-  spx_cl_free(&db);
-  free(a);
-  free(b);
-  free(r);
-  spx_ctx_destroy(ctx);
-}
-
 int main(void) {
-  SPX_RUN(test_layout);
   SPX_RUN(test_open_default);
   SPX_RUN(test_bad_specs);
   SPX_RUN(test_unknown_kernel);

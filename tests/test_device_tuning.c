@@ -46,8 +46,8 @@ static void test_defaults_and_fields(void) {
   spx_ctx *ctx = open_ctx();
   spx_tunable_info t;
   CHECK(spx_device_tunable_count() == SPX_NTUNABLES);
-  CHECK(get(ctx, "CONV_TM", &t) && t.value == ctx->tune.conv_tm && !strcmp(t.source, "default"));
-  CHECK(get(ctx, "WG", &t) && t.value == ctx->tune.wg && t.value == t.default_value);
+  CHECK(get(ctx, "CONV_TM", &t) && t.value == ctx->dev->tune.conv_tm && !strcmp(t.source, "default"));
+  CHECK(get(ctx, "WG", &t) && t.value == ctx->dev->tune.wg && t.value == t.default_value);
   CHECK(spx_device_tunable(ctx, SPX_NTUNABLES, &t) == SPX_E_ARG);
   CHECK(!strcmp(spx_device_tuning_note(ctx), ""));
   CHECK(strstr(spx_device_tuning_path(ctx), cache) == spx_device_tuning_path(ctx));
@@ -57,7 +57,7 @@ static void test_defaults_and_fields(void) {
   CHECK(spx_device_set_tunable(ctx, "WG", 48) == SPX_E_ARG);
   CHECK(spx_device_set_tunable(ctx, "NO_SUCH", 1) == SPX_E_ARG);
   CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_TM", 4));
-  CHECK(ctx->tune.conv_tm == 4 && get(ctx, "CONV_TM", &t) && !strcmp(t.source, "set"));
+  CHECK(ctx->dev->tune.conv_tm == 4 && get(ctx, "CONV_TM", &t) && !strcmp(t.source, "set"));
   spx_ctx_destroy(ctx);
 }
 
@@ -72,8 +72,8 @@ static void test_cache_key(void) {
   CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_ADAM_STEP, &k0));
   CHECK_OK(ctx, spx_device_cache_stats(ctx, &a));
   CHECK(count_files("conv2d\\.cl-") == 1);
-  CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_TM", ctx->tune.conv_tm == 4 ? 6 : 4));
-  CHECK(ctx->kernels[SPX_K_CONV2D_PAD] == NULL); /* conv2d.cl was dropped ... */
+  CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_TM", ctx->dev->tune.conv_tm == 4 ? 6 : 4));
+  CHECK(ctx->dev->kernels[SPX_K_CONV2D_PAD] == NULL); /* conv2d.cl was dropped ... */
   CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_ADAM_STEP, &k1));
   CHECK(k0 == k1); /* ... optim.cl (no CONV_TM) was not */
   CHECK_OK(ctx, spx_cl_program_build(ctx, "conv2d.cl"));
@@ -100,7 +100,7 @@ static void test_tune_then_open(void) {
   CHECK(spx_t_file_exists(path));
   spx_tunable_info t;
   CHECK(get(ctx, "CONV_WINO_MINC", &t) && !strcmp(t.source, "tuned"));
-  CHECK(get(ctx, "CONV_TM", &t) && !strcmp(t.source, "tuned") && t.value == ctx->tune.conv_tm);
+  CHECK(get(ctx, "CONV_TM", &t) && !strcmp(t.source, "tuned") && t.value == ctx->dev->tune.conv_tm);
   CHECK(get(ctx, "WG", &t) && !strcmp(t.source, "default"));
   char file[4200];
   snprintf(file, sizeof file, "%s", path);

@@ -2,7 +2,7 @@
  * fitting through C callbacks, solver options and summary, failures reported (never thrown),
  * the evaluation callback, k-d tree queries against brute force, point-to-triangle distance, and a
  * finite-difference check of every registration residual's analytic Jacobian. */
-#include "fit/fit_internal.h"
+#include "fit/stage.h"
 #include "test.h"
 
 /* y = exp(a x + b): residual r = exp(a x + b) - y, blocks a(1), b(1) */
@@ -178,15 +178,103 @@ static void test_point_triangle(void) {
   CHECK_MSG(worst < 0.01, "worst gap %g", worst);
 }
 
+/* Compares fn's Jacobian blocks with central differences at the given parameters; returns the
+ * worst |analytic - numeric| / max(1, |numeric|). b: the body state to re-prepare at each point. */
+static double fd_check(spx_ceres_cost_fn fn, void *user, int nres, int nblk, const int *sizes, double **par,
+                       spx_fit_body *b) {
+  double worst = 0, *J[16], r0[64], rp[64], rm[64];
+  if (nres > 64 || nblk > 16) return INFINITY;
+  for (int k = 0; k < nblk; k++) J[k] = malloc((size_t)nres * (size_t)sizes[k] * sizeof(double));
+  if (b) spx_fit_body_prepare(b, 1, 1);
+  fn(user, (const double *const *)par, r0, J);
+  for (int k = 0; k < nblk; k++)
+    for (int c = 0; c < sizes[k]; c++) {
+      double x0 = par[k][c], h = 1e-6 * fmax(1.0, fabs(x0));
+      par[k][c] = x0 + h;
+      if (b) spx_fit_body_prepare(b, 0, 1);
+      fn(user, (const double *const *)par, rp, NULL);
+      par[k][c] = x0 - h;
+      if (b) spx_fit_body_prepare(b, 0, 1);
+      fn(user, (const double *const *)par, rm, NULL);
+      par[k][c] = x0;
+      for (int i = 0; i < nres; i++) {
+        double num = (rp[i] - rm[i]) / (2 * h), e = fabs(J[k][i * sizes[k] + c] - num) / fmax(1.0, fabs(num));
+        if (e > worst) worst = e;
+      }
+    }
+  for (int k = 0; k < nblk; k++) free(J[k]);
+  if (b) spx_fit_body_prepare(b, 1, 1);
+  return worst;
+}
+
+/* Every registration residual (lib/fit/stage.h) against central differences at random points. */
 static void test_gradients(void) {
   spx_ctx *ctx;
   spx_ctx_create(&ctx);
   spx_body_model m;
   CHECK_OK(ctx, spx_body_load(ctx, SPX_REPO_DATA "/body/default_body.npz", &m));
-  double worst[6];
-  CHECK_OK(ctx, spx_fit_gradient_selftest(ctx, &m, worst));
-  static const char *names[6] = {"rigid", "body plane", "body point", "priors", "laplacian", "free data"};
+  double worst[6] = {0};
+  uint64_t s = 12345;
+#define U() ((double)(spx_fit_rng_next(&s) >> 11) * (1.0 / 9007199254740992.0) - 0.5)
+  /* rigid */
+  double z[3] = {0.3, -0.7, 0.2}, w[3] = {0.4, -0.2, 0.9}, sc[1] = {1.3}, t[3] = {0.1, 0.2, -0.3};
+  spx_fit_rigid_pair rp = {z, {0.5, 0.1, -0.2}, 0.7};
+  int rs[3] = {3, 1, 3};
+  double *rpar[3] = {w, sc, t};
+  worst[0] = fd_check(spx_fit_rigid_cost, &rp, 3, 3, rs, rpar, NULL);
+  /* body point-to-plane, two vertices and normals */
+  int32_t nb = m.nbetas < 4 ? m.nbetas : 4, K3 = 3 * m.nj, ncol = spx_body_nparams(&m, nb);
+  spx_fit_body b;
+  memset(&b, 0, sizeof b);
+  b.ctx = ctx, b.m = &m, b.nb = nb, b.ncol = ncol, b.bscale[0] = 1.1;
+  b.pose = malloc((size_t)K3 * sizeof(double));
+  b.betas = malloc((size_t)(nb ? nb : 1) * sizeof(double));
+  b.F = malloc((size_t)m.nv * 3 * sizeof(double));
+  b.J = malloc((size_t)m.nv * 3 * (size_t)ncol * sizeof(double));
+  if (!b.pose || !b.betas || !b.F || !b.J) {
+    CHECK(!"out of memory");
+    free(b.pose), free(b.betas), free(b.F), free(b.J);
+    spx_body_free(&m);
+    spx_ctx_destroy(ctx);
+    return;
+  }
+  for (int32_t i = 0; i < K3; i++) b.pose[i] = 0.6 * U();
+  for (int32_t i = 0; i < nb; i++) b.betas[i] = 2 * U();
+  for (int d = 0; d < 3; d++) b.trans[d] = U();
+  spx_fit_body_pair bp = {&b, m.nv / 3, {0.1, 0.2, 0.3}, {0.48, 0.6, 0.64}, 0.9};
+  int bs[4] = {K3, nb, 3, 1};
+  double *bpar[4] = {b.pose, b.betas, b.trans, b.bscale};
+  if (!nb) bs[1] = 3, bs[2] = 1, bpar[1] = b.trans, bpar[2] = b.bscale;
+  worst[1] = fd_check(spx_fit_body_plane_cost, &bp, 1, nb ? 4 : 3, bs, bpar, &b);
+  bp.n[0] = -0.8, bp.n[1] = 0, bp.n[2] = 0.6, bp.j = m.nv - 1;
+  worst[2] = fd_check(spx_fit_body_plane_cost, &bp, 1, nb ? 4 : 3, bs, bpar, &b);
+  CHECK_MSG(b.st == SPX_OK, "body model: %s", spx_ctx_message(ctx));
+  /* priors */
+  double lims[64];
+  for (int i = 0; i < 64; i++) lims[i] = 0.1;
+  int n = K3 - 3 < 60 ? K3 - 3 : 60;
+  spx_fit_prior pl = {.n = n, .w = 0.5, .offset = 3, .lims = lims}, pp = {.n = n, .w = 0.3, .offset = 3};
+  spx_fit_prior pscale = {.n = 1, .w = 0.7, .target = 1.3};
+  int ps = n + 3, one = 1;
+  double *ppar[1] = {b.pose}, *spar[1] = {sc};
+  worst[3] = fmax(fd_check(spx_fit_limit_cost, &pl, n, 1, &ps, ppar, NULL),
+                  fd_check(spx_fit_l2_prior_cost, &pp, n, 1, &ps, ppar, NULL));
+  worst[3] = fmax(worst[3], fd_check(spx_fit_scale_prior_cost, &pscale, 1, 1, &one, spar, NULL));
+  /* free-vertex terms */
+  double x[5][3];
+  for (int i = 0; i < 5; i++)
+    for (int d = 0; d < 3; d++) x[i][d] = U();
+  spx_fit_lap ld = {4, 0.8, {0.01, -0.02, 0.03}};
+  int ls[5] = {3, 3, 3, 3, 3};
+  double *lpar[5] = {x[0], x[1], x[2], x[3], x[4]};
+  spx_fit_free_pair fp = {{0.1, 0.2, 0.3}, {0, 0.6, 0.8}, 1.3};
+  worst[4] = fd_check(spx_fit_lap_cost, &ld, 3, 5, ls, lpar, NULL);
+  worst[5] = fmax(fd_check(spx_fit_free_plane_cost, &fp, 1, 1, ls, lpar, NULL),
+                  fd_check(spx_fit_free_point_cost, &fp, 3, 1, ls, lpar, NULL));
+#undef U
+  static const char *names[6] = {"rigid", "body plane", "body plane 2", "priors", "laplacian", "free data"};
   for (int i = 0; i < 6; i++) CHECK_MSG(worst[i] < 1e-5, "%s: relative Jacobian error %g", names[i], worst[i]);
+  free(b.pose), free(b.betas), free(b.F), free(b.J);
   spx_body_free(&m);
   spx_ctx_destroy(ctx);
 }

@@ -4,14 +4,10 @@
  * written is refused before the work, and no temporary is left behind. synth's folder-level
  * commit: a run killed at any moment leaves the previous output whole, and the next run removes
  * the dead run's "<DIR>.tmp.<pid>.N" folders (putting back an output moved aside). */
-#include <signal.h>
-#include <sys/wait.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "hostile.h"
-#include "smplpix/body.h"
-#include "smplpix/fit.h"
+#include "rest_registration.h"
 
 #define BODY SPX_REPO_DATA "/body/default_body.npz"
 #define CLIP SPX_REPO_DATA "/mocap/01_01.bvh"
@@ -72,23 +68,9 @@ static int write_registration(const char *name) {
   spx_body_model body;
   memset(&body, 0, sizeof body);
   if (spx_body_load(ctx, BODY, &body)) return 0;
-  spx_fit_result r;
-  memset(&r, 0, sizeof r);
-  r.nv = body.nv, r.nj = body.nj, r.nbetas = 0, r.nf = body.nf;
-  r.unit_scale = r.sim_scale = r.body_scale = 1.0;
-  r.sim_R[0] = r.sim_R[4] = r.sim_R[8] = 1.0;
-  double betas[1] = {0};
-  r.betas = betas;
-  r.pose = calloc((size_t)body.nj * 3, sizeof(double));
-  r.template_unposed = malloc((size_t)body.nv * 3 * sizeof(double));
-  int ok = r.pose && r.template_unposed;
-  if (ok) {
-    for (int i = 0; i < body.nv * 3; i++) r.template_unposed[i] = body.v_template[i];
-    char p[700];
-    path_of(p, sizeof p, name);
-    ok = spx_fit_save_json(ctx, p, &r, BODY) == SPX_OK;
-  }
-  free(r.pose), free(r.template_unposed);
+  char p[700];
+  path_of(p, sizeof p, name);
+  int ok = spx_t_save_rest_registration(ctx, &body, NULL, BODY, p) == SPX_OK;
   spx_body_free(&body);
   return ok;
 }
@@ -150,22 +132,6 @@ static void test_animate(void) {
   CHECK(count_temps(".") == 0);
 }
 
-static pid_t spawn(const char *args) {
-  char cmd[2048];
-  snprintf(cmd, sizeof cmd, "cd '%s' && exec '%s' %s >/dev/null 2>&1", dir, spx_t_tool(), args);
-  pid_t pid = fork();
-  if (pid == 0) {
-    execl("/bin/sh", "sh", "-c", cmd, (char *)NULL);
-    _exit(127);
-  }
-  return pid;
-}
-
-static void sleep_ms(long ms) {
-  struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
-  nanosleep(&ts, NULL);
-}
-
 static void test_synth(void) {
   hostile_dir();
   fifo("f.bvh");
@@ -181,11 +147,7 @@ static void test_synth(void) {
   snap_take(&s, old);
   /* --force runs killed at a spread of moments: the previous output is whole after each */
   for (int k = 0; k < 4; k++) {
-    pid_t pid = spawn(SYNTH " --seed 2 --out s --force");
-    sleep_ms(200 + 400 * k);
-    kill(pid, SIGKILL);
-    int st = 0;
-    waitpid(pid, &st, 0);
+    int st = kill_after(SYNTH " --seed 2 --out s --force", 200 + 400 * k);
     if (WIFEXITED(st) && WEXITSTATUS(st) == 0) snap_take(&s, old); /* it finished first: the new one */
     CHECK_MSG(exists("s/synth.json") && snap_same(&s), "the output changed or went after a kill at %d ms",
               200 + 400 * k);

@@ -3,9 +3,6 @@
  * refused before the work starts; a run killed with SIGKILL while writing leaves the target whole,
  * and the next run writing the same target removes the dead run's temporaries (but not those of a
  * process that still runs). */
-#include <signal.h>
-#include <sys/wait.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "hostile.h"
@@ -122,23 +119,6 @@ static void test_network_writers(void) {
   CHECK(count_temps(".") == 0);
 }
 
-/* Start the tool in dir with args (stdout/stderr to /dev/null); returns its pid. */
-static pid_t spawn(const char *args) {
-  char cmd[2048];
-  snprintf(cmd, sizeof cmd, "cd '%s' && exec '%s' %s >/dev/null 2>&1", dir, spx_t_tool(), args);
-  pid_t pid = fork();
-  if (pid == 0) {
-    execl("/bin/sh", "sh", "-c", cmd, (char *)NULL);
-    _exit(127);
-  }
-  return pid;
-}
-
-static void sleep_ms(long ms) {
-  struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
-  nanosleep(&ts, NULL);
-}
-
 static void test_kill9(void) {
   hostile_dir();
   CHECK(make_scene(1));
@@ -147,10 +127,7 @@ static void test_kill9(void) {
   CHECK(run("train --data ds --out W.safetensors --width 8 --steps 1 --seed 2") == 0);
   int left = 0;
   for (int k = 0; k < 8; k++) {
-    pid_t pid = spawn("train --data ds --out W.safetensors --steps 100000 --save-every 1 --resume");
-    sleep_ms(300 + 97 * k);
-    kill(pid, SIGKILL);
-    waitpid(pid, NULL, 0);
+    kill_after("train --data ds --out W.safetensors --steps 100000 --save-every 1 --resume", 300 + 97 * k);
     left += count_temps(".");
     CHECK(run("render --checkpoint W.safetensors --input \"$(ls ds/train/input/*.exr | head -1)\" --out chk.png") == 0);
   }
@@ -175,20 +152,14 @@ static void test_kill9(void) {
    * next save removes the temporaries of both */
   CHECK(run("train --data ds --out G.safetensors --width 8 --disc-width 4 --loss l1+gan --steps 1 --seed 2") == 0);
   for (int k = 0; k < 6; k++) {
-    pid_t pid = spawn("train --data ds --out G.safetensors --steps 100000 --save-every 1 --resume");
-    sleep_ms(400 + 131 * k);
-    kill(pid, SIGKILL);
-    waitpid(pid, NULL, 0);
+    kill_after("train --data ds --out G.safetensors --steps 100000 --save-every 1 --resume", 400 + 131 * k);
     CHECK_MSG(run("train --data ds --out G.safetensors --steps 1 --resume") == 0,
               "G.safetensors and G.disc.safetensors do not resume after a kill at %d ms", 400 + 131 * k);
   }
   CHECK(count_temps(".") == 0);
   /* the same for dataset, killed while writing its files */
   for (int k = 0; k < 4; k++) {
-    pid_t pid = spawn("dataset --mesh quad.obj --out dk --orbit 60 --size 32x24 --force --quiet");
-    sleep_ms(150 + 250 * k);
-    kill(pid, SIGKILL);
-    waitpid(pid, NULL, 0);
+    kill_after("dataset --mesh quad.obj --out dk --orbit 60 --size 32x24 --force --quiet", 150 + 250 * k);
   }
   CHECK(run("dataset --mesh quad.obj --out dk --orbit 60 --size 32x24 --force --quiet") == 0);
   CHECK(count_temps("dk") == 0);

@@ -108,9 +108,6 @@ static void test_refusals(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_bit_for_bit);
-  SPX_RUN(test_refusals);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  const spx_t_test tests[] = {SPX_TEST(test_bit_for_bit), SPX_TEST(test_refusals)};
+  return spx_t_main_ctx(&ctx, 0, tests, 2);
 }

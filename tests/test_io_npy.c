@@ -169,35 +169,38 @@ static void test_bad_inputs(void) {
   CHECK(a.dtype == SPX_I32 && a.shape[0] == 3);
   spx_array_free(&a);
 
-  n = make_npy(buf, "{'descr': '<f4', 'fortran_order': False, 'shape': (2, 3), }\n", 23, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "short.npy", buf, n, &a), SPX_E_FORMAT, "short.npy", "truncated");
-  CHECK(t_is_zero(&a, sizeof a));
-  n = make_npy(buf, "{'descr': '<f4', 'fortran_order': False, 'shape': (2, 3), }\n", 25, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "long.npy", buf, n, &a), SPX_E_FORMAT, "long.npy", "trailing");
-  CHECK(t_is_zero(&a, sizeof a));
-  n = make_npy(buf, "{'descr': '<f4', 'fortran_order': False, 'shape': (4611686018427387904, 4611686018427387904), }\n",
-               0, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "huge.npy", buf, n, &a), SPX_E_FORMAT, "huge.npy", "overflow");
-  n = make_npy(buf, "{'descr': '<f4', 'fortran_order': False, 'shape': (99999999999999999999, ), }\n", 0, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "digits.npy", buf, n, &a), SPX_E_FORMAT, "digits.npy", "shape");
-  n = make_npy(buf, "{'descr': '<f4', 'fortran_order': False, 'shape': (-1,), }\n", 0, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "neg.npy", buf, n, &a), SPX_E_FORMAT, "neg.npy", "shape");
-  n = make_npy(buf, "{'descr': '<c8', 'fortran_order': False, 'shape': (1,), }\n", 8, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "complex.npy", buf, n, &a), SPX_E_UNSUPPORTED, "complex.npy", "<c8");
-  n = make_npy(buf, "{'descr': '|O', 'fortran_order': False, 'shape': (1,), }\n", 8, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "obj.npy", buf, n, &a), SPX_E_UNSUPPORTED, "obj.npy", "dtype");
-  n = make_npy(buf, "{'descr': [('a', '<f4')], 'fortran_order': False, 'shape': (1,), }\n", 4, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "rec.npy", buf, n, &a), SPX_E_UNSUPPORTED, "rec.npy", "structured");
-  n = make_npy(buf, "{'descr': '<f4', 'fortran_order': True, 'shape': (2, 2), }\n", 16, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "fort.npy", buf, n, &a), SPX_E_UNSUPPORTED, "fort.npy", "Fortran");
-  n = make_npy(buf, "{'descr': '<f4', 'fortran_order': False, }\n", 0, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "noshape.npy", buf, n, &a), SPX_E_FORMAT, "noshape.npy", "shape");
-  n = make_npy(buf, "{'descr': '<f4', 'fortran_order': False, 'shape': (1,1,1,1,1,1,1,1,1), }\n", 4, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "dims.npy", buf, n, &a), SPX_E_UNSUPPORTED, "dims.npy", "dimensions");
-  n = make_npy(buf, "{'descr': '<f4', 'fortran_order': False, 'shape': (1,), 'x': 1}\n", 4, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "key.npy", buf, n, &a), SPX_E_FORMAT, "key.npy", "'x'");
-  n = make_npy(buf, "{'descr': '<f4', 'fortran_order': False, 'shape': (1,), }", 4, 1);
-  CHECK_ERR(ctx, spx_npy_parse(ctx, "nonl.npy", buf, n, &a), SPX_E_FORMAT, "nonl.npy", "newline");
+  /* one header, data bytes, file name, status, message word; zeroed: the output is left all zero */
+  static const struct {
+    const char *dict;
+    size_t ndata;
+    const char *name;
+    spx_status want;
+    const char *needle;
+    int zeroed;
+  } bad[] = {
+      {"{'descr': '<f4', 'fortran_order': False, 'shape': (2, 3), }\n", 23, "short.npy", SPX_E_FORMAT, "truncated", 1},
+      {"{'descr': '<f4', 'fortran_order': False, 'shape': (2, 3), }\n", 25, "long.npy", SPX_E_FORMAT, "trailing", 1},
+      {"{'descr': '<f4', 'fortran_order': False, 'shape': (4611686018427387904, 4611686018427387904), }\n", 0,
+       "huge.npy", SPX_E_FORMAT, "overflow", 0},
+      {"{'descr': '<f4', 'fortran_order': False, 'shape': (99999999999999999999, ), }\n", 0, "digits.npy",
+       SPX_E_FORMAT, "shape", 0},
+      {"{'descr': '<f4', 'fortran_order': False, 'shape': (-1,), }\n", 0, "neg.npy", SPX_E_FORMAT, "shape", 0},
+      {"{'descr': '<c8', 'fortran_order': False, 'shape': (1,), }\n", 8, "complex.npy", SPX_E_UNSUPPORTED, "<c8", 0},
+      {"{'descr': '|O', 'fortran_order': False, 'shape': (1,), }\n", 8, "obj.npy", SPX_E_UNSUPPORTED, "dtype", 0},
+      {"{'descr': [('a', '<f4')], 'fortran_order': False, 'shape': (1,), }\n", 4, "rec.npy", SPX_E_UNSUPPORTED,
+       "structured", 0},
+      {"{'descr': '<f4', 'fortran_order': True, 'shape': (2, 2), }\n", 16, "fort.npy", SPX_E_UNSUPPORTED, "Fortran", 0},
+      {"{'descr': '<f4', 'fortran_order': False, }\n", 0, "noshape.npy", SPX_E_FORMAT, "shape", 0},
+      {"{'descr': '<f4', 'fortran_order': False, 'shape': (1,1,1,1,1,1,1,1,1), }\n", 4, "dims.npy", SPX_E_UNSUPPORTED,
+       "dimensions", 0},
+      {"{'descr': '<f4', 'fortran_order': False, 'shape': (1,), 'x': 1}\n", 4, "key.npy", SPX_E_FORMAT, "'x'", 0},
+      {"{'descr': '<f4', 'fortran_order': False, 'shape': (1,), }", 4, "nonl.npy", SPX_E_FORMAT, "newline", 0},
+  };
+  for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
+    n = make_npy(buf, bad[k].dict, bad[k].ndata, 1);
+    CHECK_ERR(ctx, spx_npy_parse(ctx, bad[k].name, buf, n, &a), bad[k].want, bad[k].name, bad[k].needle);
+    if (bad[k].zeroed) CHECK(t_is_zero(&a, sizeof a));
+  }
   /* header length beyond the file, and over 64 KiB (format 2.0) */
   n = make_npy(buf, "{'descr': '<f4', 'fortran_order': False, 'shape': (1,), }\n", 4, 1);
   buf[9] = 0x7f;

@@ -146,11 +146,7 @@ static void test_failed_save(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx) != SPX_OK) return 1;
-  SPX_RUN(test_roundtrip);
-  SPX_RUN(test_forms);
-  SPX_RUN(test_bad);
-  SPX_RUN(test_failed_save);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  const spx_t_test tests[] = {SPX_TEST(test_roundtrip), SPX_TEST(test_forms), SPX_TEST(test_bad),
+                               SPX_TEST(test_failed_save)};
+  return spx_t_main_ctx(&ctx, 0, tests, 4);
 }

@@ -17,6 +17,7 @@
 #include "nn/vgg.h"
 #include "nn_testutil.h"
 #include "smplpix/safetensors.h"
+#include "st_compare.h"
 
 #define DIR SPX_TEST_DATA "/patchgan/"
 #define TOL 1e-4
@@ -26,30 +27,17 @@ enum { SAMPLE = 2048 };
 static spx_st_file G;
 static double g_worst_loss, g_worst_g, g_worst_d;
 
-static float *gfloat(const char *name, size_t *count) {
-  const spx_st_tensor *t = spx_st_find(&G, name);
-  if (!t || t->dtype != SPX_F32) {
-    fprintf(stderr, "  golden tensor %s missing\n", name);
-    return NULL;
-  }
-  size_t n = t->nbytes / 4;
-  float *out = malloc(n * sizeof(float) + 1);
-  memcpy(out, t->data, n * sizeof(float));
-  if (count) *count = n;
-  return out;
-}
-
 /* ours (n floats) vs after.<tag><name> (complete or sampled + checksums); returns the error
  * relative to the tolerance (<= 1 passes). */
 static double compare(const char *tag, const char *name, const float *ours, size_t n) {
   char key[256];
   snprintf(key, sizeof key, "spread.%s%s", tag, name);
-  float *sp = gfloat(key, NULL);
+  float *sp = spx_t_st_floats(&G, key, NULL);
   double tol = fmax(TOL, SPREAD_FACTOR * (sp ? sp[0] : 1.0));
   free(sp);
   snprintf(key, sizeof key, "after.%s%s", tag, name);
   size_t cnt = 0;
-  float *g = gfloat(key, &cnt);
+  float *g = spx_t_st_floats(&G, key, &cnt);
   if (!g) return INFINITY;
   size_t stride = n <= SAMPLE ? 1 : (n + SAMPLE - 1) / SAMPLE, m = (n + stride - 1) / stride;
   double e = INFINITY;
@@ -61,7 +49,7 @@ static double compare(const char *tag, const char *name, const float *ours, size
   free(g);
   if (n > SAMPLE) {
     snprintf(key, sizeof key, "aftersum.%s%s", tag, name);
-    float *sums = gfloat(key, &cnt);
+    float *sums = spx_t_st_floats(&G, key, &cnt);
     if (!sums || cnt != 2) e = INFINITY;
     else {
       double dot = 0, l1 = 0;
@@ -93,7 +81,7 @@ static void run_step(int with_vgg) {
   CHECK_OK(ctx, spx_unet_load(ctx, DIR "G.safetensors", &g));
   CHECK_OK(ctx, spx_patchgan_load(ctx, DIR "D.safetensors", 7, SPX_TAPE_DEVICE, &d));
   size_t nin = 0, ntg = 0;
-  float *in = gfloat("input", &nin), *tg = gfloat("target", &ntg);
+  float *in = spx_t_st_floats(&G, "input", &nin), *tg = spx_t_st_floats(&G, "target", &ntg);
   if (!g || !d || !in || !tg) goto done;
   CHECK(spx_patchgan_num_d(d) == 3 && spx_patchgan_ndf(d) == 4 && spx_patchgan_step(d) == 0);
   spx_gan_opts o = {1e-3, 1e-3, 0.9, 0.999, 1e-3, 0.1f, 1.0f};
@@ -102,7 +90,7 @@ static void run_step(int with_vgg) {
   const char *ln[6] = {"loss.rec", "loss.gan", "loss.fm", "loss.d_fake", "loss.d_real", "loss.vgg"};
   float ours[6] = {tm.rec, tm.gan, tm.fm, tm.d_fake, tm.d_real, tm.vgg};
   for (int i = 0; i < (with_vgg ? 6 : 5); i++) {
-    float *v = gfloat(ln[i], NULL);
+    float *v = spx_t_st_floats(&G, ln[i], NULL);
     if (!v) continue;
     double e = fabs(ours[i] - v[0]) / fabs(v[0]);
     g_worst_loss = fmax(g_worst_loss, e);
@@ -164,21 +152,10 @@ static void run_step(int with_vgg) {
   /* a file without one tensor, and one with a misshapen tensor */
   spx_st_file f;
   CHECK_OK(ctx, spx_st_load(ctx, path, &f));
-  spx_st_entry *es = calloc((size_t)f.count, sizeof *es);
   for (int pass = 0; pass < 2; pass++) {
-    int ne = 0;
-    for (int i = 0; i < f.count; i++) {
-      if (pass == 0 && !strcmp(f.tensors[i].name, "scale1_layer2.0.bias")) continue;
-      es[ne].name = f.tensors[i].name;
-      es[ne].dtype = f.tensors[i].dtype;
-      es[ne].ndim = f.tensors[i].ndim;
-      memcpy(es[ne].shape, f.tensors[i].shape, sizeof es[ne].shape);
-      if (pass == 1 && !strcmp(f.tensors[i].name, "scale2_layer3.0.weight")) /* [32,16,4,4] as [16,32,4,4] */
-        es[ne].shape[0] = f.tensors[i].shape[1], es[ne].shape[1] = f.tensors[i].shape[0];
-      es[ne].data = f.tensors[i].data;
-      ne++;
-    }
-    CHECK_OK(ctx, spx_st_save(ctx, bad, es, ne, NULL, NULL, 0));
+    /* [32,16,4,4] as [16,32,4,4] */
+    CHECK_OK(ctx, spx_t_st_save_altered(ctx, &f, bad, pass == 0 ? "scale1_layer2.0.bias" : NULL,
+                                        pass == 1 ? "scale2_layer3.0.weight" : NULL));
     spx_patchgan *d3 = NULL;
     CHECK(spx_patchgan_load(ctx, bad, 7, SPX_TAPE_DEVICE, &d3) != SPX_OK && d3 == NULL);
     const char *msg = spx_ctx_message(ctx);
@@ -186,7 +163,6 @@ static void run_step(int with_vgg) {
     CHECK(strstr(msg, bad) && strstr(msg, pass == 0 ? "missing tensor scale1_layer2.0.bias" : "scale2_layer3.0.weight"));
     CHECK(!strchr(msg, '\n'));
   }
-  free(es);
   spx_st_free(&f);
   CHECK(spx_patchgan_load(ctx, DIR "G.safetensors", 7, SPX_TAPE_DEVICE, &d2) != SPX_OK);
   char cmd[1024];

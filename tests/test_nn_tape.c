@@ -30,19 +30,28 @@ static double host_loss(spx_unet *u, const float *in, const float *tg) {
   return spx_tape_host(spx_unet_tape(u), spx_unet_loss_id(u))[0];
 }
 
-static void test_fd_whole_unet(void) {
-  spx_ctx *ctx = NULL;
-  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+/* A host-tape UNet (width WIDTH) in a new context *ctx, and its data *in / *tg (make_data); NULL, the
+ * context destroyed, when it cannot be made. */
+static spx_unet *host_unet(spx_ctx **ctx, int sigmoid, uint64_t seed, float **in, float **tg) {
+  *ctx = NULL;
+  CHECK(spx_ctx_create(ctx) == SPX_OK);
   spx_unet *u = NULL;
-  CHECK_OK(ctx, spx_unet_create_ex(ctx, WIDTH, 1, 7, SPX_TAPE_HOST, &u));
+  CHECK_OK(*ctx, spx_unet_create_ex(*ctx, WIDTH, sigmoid, seed, SPX_TAPE_HOST, &u));
   if (!u) {
-    spx_ctx_destroy(ctx);
-    return;
+    spx_ctx_destroy(*ctx);
+    return NULL;
   }
+  *in = malloc((size_t)N * 4 * H * W * sizeof(float)), *tg = malloc((size_t)N * 3 * H * W * sizeof(float));
+  make_data(*in, *tg);
+  return u;
+}
+
+static void test_fd_whole_unet(void) {
+  spx_ctx *ctx;
+  float *in, *tg;
+  spx_unet *u = host_unet(&ctx, 1, 7, &in, &tg);
+  if (!u) return;
   spx_tape *t = spx_unet_tape(u);
-  size_t nin = (size_t)N * 4 * H * W, nout = (size_t)N * 3 * H * W;
-  float *in = malloc(nin * sizeof(float)), *tg = malloc(nout * sizeof(float));
-  make_data(in, tg);
   /* BN betas start at 0 and gammas at 1: perturb them so nothing is at a special point */
   unsigned long long s = 99;
   for (int i = 0; i < spx_unet_tensor_count(u); i++) {
@@ -105,18 +114,11 @@ static void test_fd_whole_unet(void) {
 }
 
 static void test_accumulate_and_plans(void) {
-  spx_ctx *ctx = NULL;
-  CHECK(spx_ctx_create(&ctx) == SPX_OK);
-  spx_unet *u = NULL;
-  CHECK_OK(ctx, spx_unet_create_ex(ctx, WIDTH, 0, 3, SPX_TAPE_HOST, &u));
-  if (!u) {
-    spx_ctx_destroy(ctx);
-    return;
-  }
+  spx_ctx *ctx;
+  float *in, *tg;
+  spx_unet *u = host_unet(&ctx, 0, 3, &in, &tg);
+  if (!u) return;
   spx_tape *t = spx_unet_tape(u);
-  size_t nin = (size_t)N * 4 * H * W, nout = (size_t)N * 3 * H * W;
-  float *in = malloc(nin * sizeof(float)), *tg = malloc(nout * sizeof(float));
-  make_data(in, tg);
   int id = spx_unet_value_id(u, "up2.conv.double_conv.3.weight");
   size_t n = spx_tape_numel(t, id);
   double *g1 = malloc(n * sizeof(double));
@@ -140,6 +142,7 @@ static void test_accumulate_and_plans(void) {
   for (size_t k = 0; k < n; k++) e = fmax(e, fabs(spx_tape_host_grad(t, id)[k]));
   CHECK(e == 0);
   /* inference: a new plan for the new mode, nothing recorded, backward refused */
+  size_t nout = (size_t)N * 3 * H * W;
   float *out = malloc(nout * sizeof(float));
   CHECK_OK(ctx, spx_unet_forward(u, in, N, H, W, 0, out));
   CHECK(spx_tape_plan_count(t) == plans + 1);

@@ -35,6 +35,7 @@
 #include "nn/unet.h"
 #include "nn_testutil.h"
 #include "smplpix/safetensors.h"
+#include "st_compare.h"
 #include "smplpix/smplpix.h"
 #include "smplpix/unet.h"
 
@@ -48,19 +49,6 @@ static spx_st_file G;
 static double g_worst[8]; /* max errors by check kind, printed at the end */
 static const char *g_kind[8] = {"output", "loss", "gradients", "losses(3 steps)", "weights after Adam",
                                 "running stats", "eval output", "grad/weight checksums"};
-
-static float *gfloat(const char *name, size_t *count) {
-  const spx_st_tensor *t = spx_st_find(&G, name);
-  if (!t || t->dtype != SPX_F32) {
-    fprintf(stderr, "  golden tensor %s missing\n", name);
-    return NULL;
-  }
-  size_t n = t->nbytes / 4;
-  float *out = malloc(n * sizeof(float) + 1);
-  memcpy(out, t->data, n * sizeof(float));
-  if (count) *count = n;
-  return out;
-}
 
 /* max |a - b| / max |b| */
 static double rel_err(const float *a, const float *b, size_t n) {
@@ -92,7 +80,7 @@ static double g_spread_ratio; /* max err / spread seen */
 static double spread_tol(const char *name, double err) {
   char k[256];
   snprintf(k, sizeof k, "golden.spread.%s", name);
-  float *sp = gfloat(k, NULL);
+  float *sp = spx_t_st_floats(&G, k, NULL);
   double spread = sp ? sp[0] : 0;
   free(sp);
   CHECK_MSG(spread > 0, "no %s", k);
@@ -107,7 +95,7 @@ static void compare_sampled(int kind, const char *prefix, const char *sumprefix,
   char key[256];
   snprintf(key, sizeof key, "%s%s", prefix, name);
   size_t cnt = 0;
-  float *g = gfloat(key, &cnt);
+  float *g = spx_t_st_floats(&G, key, &cnt);
   CHECK_MSG(g != NULL, "golden has no %s", key);
   if (!g) return;
   size_t stride = n <= SAMPLE ? 1 : (n + SAMPLE - 1) / SAMPLE, m = (n + stride - 1) / stride;
@@ -121,7 +109,7 @@ static void compare_sampled(int kind, const char *prefix, const char *sumprefix,
   free(s);
   if (n > SAMPLE) {
     snprintf(key, sizeof key, "%s%s", sumprefix, name);
-    float *sums = gfloat(key, &cnt);
+    float *sums = spx_t_st_floats(&G, key, &cnt);
     CHECK(sums && cnt == 2);
     if (sums && cnt == 2) {
       double dot = 0, l1 = 0;
@@ -175,9 +163,9 @@ static void test_golden(void) {
   CHECK_OK(ctx, spx_st_load(ctx, GOLDEN, &G));
   spx_unet *u = NULL;
   CHECK_OK(ctx, spx_unet_load(ctx, GOLDEN, &u)); /* the PyTorch-written checkpoint */
-  float *in = gfloat("golden.input", NULL), *tg = gfloat("golden.target", NULL);
-  float *gout = gfloat("golden.output", NULL), *gloss = gfloat("golden.loss", NULL);
-  float *glosses = gfloat("golden.losses", NULL), *geval = gfloat("golden.eval_output", NULL);
+  float *in = spx_t_st_floats(&G, "golden.input", NULL), *tg = spx_t_st_floats(&G, "golden.target", NULL);
+  float *gout = spx_t_st_floats(&G, "golden.output", NULL), *gloss = spx_t_st_floats(&G, "golden.loss", NULL);
+  float *glosses = spx_t_st_floats(&G, "golden.losses", NULL), *geval = spx_t_st_floats(&G, "golden.eval_output", NULL);
   size_t nout = (size_t)GN * 3 * GH * GW;
   float *out = malloc(nout * sizeof(float));
   if (!u || !in || !tg || !gout || !gloss || !glosses || !geval) goto done;

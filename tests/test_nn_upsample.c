@@ -3,33 +3,38 @@
  * forward/backward vs reference on odd shapes incl. 1-pixel sides, accumulate semantics,
  * bit-identical reruns. */
 #include "nn/upsample.h"
-#include "nn_testutil.h"
+#include "nn_opcase.h"
 
 #define GOLDEN SPX_TEST_DATA "/upsample/upsample_golden.txt"
 
-struct up_args {
-  int n, c, h, w, ac;
-};
-static void up_f(void *u, const double *in, double *out) {
-  struct up_args *a = u;
-  spx_ref_upsample2x_forward(in, a->n, a->c, a->h, a->w, a->ac, out);
+static void up_setup(spx_nt_case *k) {
+  k->oh = 2 * k->h, k->ow = 2 * k->w;
+  k->seed = 41 + (unsigned long long)k->h;
 }
-static void up_b(void *u, const double *in, const double *dout, double *din) {
-  struct up_args *a = u;
-  (void)in;
-  spx_ref_upsample2x_backward(dout, a->n, a->c, a->h, a->w, a->ac, din);
+static spx_status up_dev(spx_ctx *ctx, const spx_nt_case *k, const spx_tensor *x, spx_tensor *aux,
+                         const spx_tensor *gy, spx_tensor *out) {
+  (void)aux;
+  return gy ? spx_upsample2x_backward(ctx, gy, k->p, out) : spx_upsample2x_forward(ctx, x, k->p, out);
 }
+static void up_ref(const spx_nt_case *k, const double *x, double *aux, const double *gy, double *out) {
+  (void)aux;
+  if (gy) spx_ref_upsample2x_backward(gy, k->n, k->c, k->h, k->w, k->p, out);
+  else spx_ref_upsample2x_forward(x, k->n, k->c, k->h, k->w, k->p, out);
+}
+
+/* float rounding: errors are absolute (atol 1), ~1e-7 of O(1) data */
+static const spx_nt_op up_op = {"upsample2x", up_setup, NULL, up_dev, up_ref, 1.0, 1e-6, 1.0, 1e-6};
 
 static void test_reference_fd(void) {
   int shapes[][2] = {{3, 5}, {1, 4}, {4, 1}, {2, 2}};
   for (int s = 0; s < 4; s++)
     for (int ac = 0; ac < 2; ac++) {
-      struct up_args a = {2, 1, shapes[s][0], shapes[s][1], ac};
-      int nin = 2 * a.h * a.w, nout = 8 * a.h * a.w;
+      spx_nt_case a = {2, 1, shapes[s][0], shapes[s][1], .p = ac};
+      int nin = 2 * a.h * a.w;
       double x[40];
       unsigned long long seed = 3 + s;
       for (int i = 0; i < nin; i++) x[i] = 2 * spx_t_uniform(&seed) - 1;
-      double e = spx_fd_check(up_f, up_b, &a, x, nin, nout, 1e-3, 4 + s);
+      double e = spx_nt_op_fd(&up_op, a, x, 1e-3, 4 + s);
       CHECK_MSG(e < 1e-8, "%dx%d ac=%d: fd error %.3g", a.h, a.w, ac, e);
     }
 }
@@ -74,49 +79,15 @@ static void test_golden(void) {
   }
 }
 
-static void device_case(spx_ctx *ctx, int n, int c, int h, int w, int ac) {
-  size_t nin = (size_t)n * c * h * w, nout = 4 * nin;
-  float *x = malloc(4 * nin), *g = malloc(4 * nout), *pre = malloc(4 * nin), *got = malloc(4 * nout), *got2 = malloc(4 * nin);
-  double *xd = malloc(8 * nin), *gd = malloc(8 * nout), *ref = malloc(8 * nout);
-  unsigned long long s = 41 + h;
-  spx_nt_rand(x, nin, -1, 1, &s), spx_nt_rand(g, nout, -1, 1, &s), spx_nt_rand(pre, nin, -1, 1, &s);
-  spx_nt_to_double(x, xd, nin), spx_nt_to_double(g, gd, nout);
-  spx_tensor tx, ty, tg, tdx;
-  CHECK_OK(ctx, spx_nt_upload(ctx, x, n, c, h, w, &tx));
-  CHECK_OK(ctx, spx_nt_upload(ctx, NULL, n, c, 2 * h, 2 * w, &ty));
-  CHECK_OK(ctx, spx_nt_upload(ctx, g, n, c, 2 * h, 2 * w, &tg));
-  CHECK_OK(ctx, spx_nt_upload(ctx, pre, n, c, h, w, &tdx));
-  CHECK_OK(ctx, spx_upsample2x_forward(ctx, &tx, ac, &ty));
-  CHECK_OK(ctx, spx_nt_download(ctx, &ty, got));
-  spx_ref_upsample2x_forward(xd, n, c, h, w, ac, ref);
-  CHECK_MSG(spx_nt_err(got, ref, nout, 1.0) < 1e-6, "%dx%d ac=%d forward %.3g", h, w, ac, spx_nt_err(got, ref, nout, 1.0));
-  CHECK_OK(ctx, spx_upsample2x_backward(ctx, &tg, ac, &tdx));
-  CHECK_OK(ctx, spx_nt_download(ctx, &tdx, got));
-  spx_nt_to_double(pre, ref, nin);
-  spx_ref_upsample2x_backward(gd, n, c, h, w, ac, ref);
-  CHECK_MSG(spx_nt_err(got, ref, nin, 1.0) < 1e-6, "%dx%d ac=%d backward %.3g", h, w, ac, spx_nt_err(got, ref, nin, 1.0));
-  CHECK_OK(ctx, spx_cl_write(ctx, tdx.mem, tdx.off * 4, 4 * nin, pre));
-  CHECK_OK(ctx, spx_upsample2x_backward(ctx, &tg, ac, &tdx));
-  CHECK_OK(ctx, spx_nt_download(ctx, &tdx, got2));
-  CHECK(memcmp(got, got2, 4 * nin) == 0);
-  CHECK(spx_nt_guards_ok(ctx, &ty) && spx_nt_guards_ok(ctx, &tdx));
-  CHECK(spx_upsample2x_forward(ctx, &tx, ac, &tx) == SPX_E_ARG);
-  spx_nt_free(&tx), spx_nt_free(&ty), spx_nt_free(&tg), spx_nt_free(&tdx);
-  free(x), free(g), free(pre), free(got), free(got2), free(xd), free(gd), free(ref);
-}
-
 static void test_device(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
-  if (!ctx) return;
+  spx_nt_case cases[10];
   for (int ac = 0; ac < 2; ac++) {
-    device_case(ctx, 2, 3, 37, 53, ac);
-    device_case(ctx, 1, 2, 19, 25, ac);
-    device_case(ctx, 1, 1, 1, 7, ac);
-    device_case(ctx, 1, 1, 6, 1, ac);
-    device_case(ctx, 1, 1, 154, 205, ac); /* large: every gather window fully inside */
+    const int shapes[5][4] = {{2, 3, 37, 53}, {1, 2, 19, 25}, {1, 1, 1, 7}, {1, 1, 6, 1},
+                              {1, 1, 154, 205}}; /* large: every gather window fully inside */
+    for (int i = 0; i < 5; i++)
+      cases[ac * 5 + i] = (spx_nt_case){shapes[i][0], shapes[i][1], shapes[i][2], shapes[i][3], .p = ac};
   }
-  spx_ctx_destroy(ctx);
+  spx_nt_op_cases(&up_op, cases, 10);
 }
 
 int main(void) {

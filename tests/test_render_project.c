@@ -381,9 +381,9 @@ static void test_large_and_fallback_division(void) {
   CHECK(spx_ctx_create(&c2) == SPX_OK);
   CHECK_OK(c2, spx_device_open(c2, NULL));
   unsetenv("SPX_FORCE_DIV_FALLBACK");
-  if (c2 && c2->info.fp64) {
+  if (c2 && c2->dev->info.fp64) {
     ctx = c2;
-    CHECK(!c2->cr_div);
+    CHECK(!c2->dev->cr_div);
     CHECK_OK(c2, spx_projector_create(c2, &proj));
     a.nverts = 20000;
     check_vs_ref(&a, "double division", NULL, NULL);
@@ -399,10 +399,7 @@ static void test_large_and_fallback_division(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL) || spx_projector_create(ctx, &proj)) {
-    fprintf(stderr, "no device: %s\n", ctx ? spx_ctx_message(ctx) : "");
-    return 1;
-  }
+  if (spx_t_open_device(&ctx) || spx_t_no_device(ctx, spx_projector_create(ctx, &proj))) return 1;
   SPX_RUN(test_random_clouds);
   SPX_RUN(test_collisions_and_ties);
   SPX_RUN(test_borders_and_drops);

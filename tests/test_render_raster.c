@@ -577,10 +577,7 @@ static void test_errors(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL) || spx_rasterizer_create(ctx, &R)) {
-    fprintf(stderr, "no device: %s\n", ctx ? spx_ctx_message(ctx) : "");
-    return 1;
-  }
+  if (spx_t_open_device(&ctx) || spx_t_no_device(ctx, spx_rasterizer_create(ctx, &R))) return 1;
   SPX_RUN(test_random_meshes);
   SPX_RUN(test_sphere);
   SPX_RUN(test_watertight);
@@ -601,7 +598,7 @@ int main(void) {
     spx_rasterizer_destroy(R);
     R = NULL;
     CHECK_OK(ctx, spx_device_open(ctx, NULL));
-    CHECK(ctx->tune.raster_serial == atoi(forms[i][0]) && ctx->tune.raster_chunk == atoi(forms[i][1]));
+    CHECK(ctx->dev->tune.raster_serial == atoi(forms[i][0]) && ctx->dev->tune.raster_chunk == atoi(forms[i][1]));
     CHECK_OK(ctx, spx_rasterizer_create(ctx, &R));
     SPX_RUN(test_random_meshes);
     SPX_RUN(test_watertight);

@@ -119,10 +119,7 @@ static void test_bad_args(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
-    fprintf(stderr, "no device: %s\n", ctx ? spx_ctx_message(ctx) : "");
-    return 1;
-  }
+  if (spx_t_open_device(&ctx)) return 1;
   SPX_RUN(test_small_sizes);
   SPX_RUN(test_stability);
   SPX_RUN(test_key_bits);

@@ -248,10 +248,7 @@ static void test_errors(void) {
 
 int main(void) {
   char path[512];
-  if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL) || spx_rasterizer_create(ctx, &R)) {
-    fprintf(stderr, "no device: %s\n", ctx ? spx_ctx_message(ctx) : "");
-    return 1;
-  }
+  if (spx_t_open_device(&ctx) || spx_t_no_device(ctx, spx_rasterizer_create(ctx, &R))) return 1;
   snprintf(path, sizeof path, "%s/body/default_body.npz", SPX_REPO_DATA);
   if (spx_body_load(ctx, path, &body)) return fprintf(stderr, "%s\n", spx_ctx_message(ctx)), 1;
   snprintf(path, sizeof path, "%s/body/body_parts_segmentation.png", SPX_REPO_DATA);

@@ -11,11 +11,10 @@ features.N.weight/bias):
     tools/lpips_to_safetensors.py --lin alex.pth --alexnet alexnet-owt-7be5be79.pth -o lpips_alex.safetensors
 Needs torch only to read .pth files; the output is float32."""
 import argparse
-import json
-import struct
 import sys
 
 import numpy as np
+from spx_safetensors import st_save
 
 # torchvision alexnet.features index -> the lpips package's slice name
 SLICES = {0: "net.slice1.0", 3: "net.slice2.3", 6: "net.slice3.6", 8: "net.slice4.8", 10: "net.slice5.10"}
@@ -23,23 +22,6 @@ SHAPES = {0: (64, 3, 11, 11), 3: (192, 64, 5, 5), 6: (384, 192, 3, 3), 8: (256, 
 # the lpips package's ScalingLayer constants (also in its state_dict as buffers)
 SHIFT = [-.030, -.088, -.188]
 SCALE = [.458, .448, .450]
-
-
-def write_safetensors(path, tensors):
-    """Minimal safetensors writer: F32, C order, names sorted."""
-    header, blobs, off = {}, [], 0
-    for name in sorted(tensors):
-        a = np.ascontiguousarray(tensors[name], dtype="<f4")
-        header[name] = {"dtype": "F32", "shape": list(a.shape), "data_offsets": [off, off + a.nbytes]}
-        blobs.append(a.tobytes())
-        off += a.nbytes
-    h = json.dumps(header, separators=(",", ":")).encode()
-    h += b" " * ((8 - len(h) % 8) % 8)
-    with open(path, "wb") as f:
-        f.write(struct.pack("<Q", len(h)))
-        f.write(h)
-        for b in blobs:
-            f.write(b)
 
 
 def load_pth(path):
@@ -92,7 +74,7 @@ def main():
         t = convert(lin=load_pth(a.lin), alexnet=load_pth(a.alexnet))
     else:
         ap.error("give --state-dict, or --lin and --alexnet")
-    write_safetensors(a.out, t)
+    st_save(a.out, [(k, np.ascontiguousarray(t[k], dtype="<f4")) for k in sorted(t)])  # F32, names sorted
 
 
 if __name__ == "__main__":

@@ -9,9 +9,7 @@ The .pth is what torchvision downloads for models.vgg19(weights="IMAGENET1K_V1")
 `features` tensors are kept (the classifier is not used by the perceptual loss). Needs PyTorch and
 NumPy; the file is written to a temporary name and renamed.
 """
-import json
 import os
-import struct
 import sys
 
 
@@ -22,6 +20,7 @@ def main():
     src, dst = sys.argv[1], sys.argv[2]
     import numpy as np
     import torch
+    from spx_safetensors import st_save
 
     try:
         sd = torch.load(src, map_location="cpu")
@@ -39,23 +38,8 @@ def main():
               file=sys.stderr)
         return 1
     order = sorted(feats, key=lambda k: (int(k.split(".")[1]), k))
-    header, blobs, off = {}, [], 0
-    for k in order:
-        a = np.ascontiguousarray(feats[k].detach().float().numpy()).astype("<f4")
-        raw = a.tobytes()
-        header[k] = {"dtype": "F32", "shape": list(a.shape), "data_offsets": [off, off + len(raw)]}
-        blobs.append(raw)
-        off += len(raw)
-    header["__metadata__"] = {"format": "pt", "source": os.path.basename(src)}
-    h = json.dumps(header, separators=(",", ":")).encode()
-    h += b" " * ((8 - len(h) % 8) % 8)
-    tmp = dst + ".tmp%d" % os.getpid()
-    with open(tmp, "wb") as f:
-        f.write(struct.pack("<Q", len(h)))
-        f.write(h)
-        for b in blobs:
-            f.write(b)
-    os.replace(tmp, dst)
+    st_save(dst, [(k, np.ascontiguousarray(feats[k].detach().float().numpy()).astype("<f4")) for k in order],
+            {"format": "pt", "source": os.path.basename(src)})
     print("wrote %s: %d tensors (features.*) from %s" % (dst, len(order), src))
     return 0
 

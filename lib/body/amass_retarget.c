@@ -1,4 +1,4 @@
-/* Retargeting AMASS (SMPL / SMPL-H) motion onto a body model by joint name (smplpix/amass.h).
+/* Retargeting AMASS (SMPL / SMPL-H) motion onto a body model by joint name (smplpix/body.h, conventions in smplpix/amass.h).
  *
  * SMPL's rest skeleton is needed only for bone directions (the rest-pose corrections) and the
  * hip height (the translation scale). The table below is a T-pose skeleton with SMPL's joint
@@ -10,8 +10,7 @@
 
 #include "body/rot3.h"
 #include "core/internal.h"
-#include "smplpix/amass.h"
-#include "smplpix/bvh.h"
+#include "smplpix/body.h"
 
 #define NB SPX_AMASS_BODY_JOINTS
 

@@ -32,17 +32,17 @@ static spx_status upload(spx_ctx *ctx, const void *src, size_t bytes, const char
 spx_status spx_body_dev_ensure(spx_ctx *ctx, spx_body_model *m) {
   spx_status st = spx_cl_require(ctx, "body forward");
   if (st) return st;
-  if (m->dev && m->dev->clctx == ctx->context) return SPX_OK;
+  if (m->dev && m->dev->clctx == ctx->dev->context) return SPX_OK;
   spx_body_dev_free(m->dev);
   m->dev = calloc(1, sizeof *m->dev);
   if (!m->dev) return spx_fail(ctx, SPX_E_NOMEM, "body: out of memory");
   spx_body_dev *d = m->dev;
-  if ((st = spx_cl_check(ctx, clRetainContext(ctx->context), "clRetainContext"))) {
+  if ((st = spx_cl_check(ctx, clRetainContext(ctx->dev->context), "clRetainContext"))) {
     spx_body_dev_free(m->dev);
     m->dev = NULL;
     return st;
   }
-  d->clctx = ctx->context;
+  d->clctx = ctx->dev->context;
   size_t N = (size_t)m->nv, K = (size_t)m->nj, S = (size_t)m->nbetas, P = (size_t)m->nposedirs;
   float *jt = malloc(K * 3 * sizeof(float)), *jd = malloc((K * 3 * S + 1) * sizeof(float));
   if (!jt || !jd) {
@@ -86,7 +86,7 @@ spx_status spx_body_forward_cl(spx_ctx *ctx, spx_body_model *m, int32_t batch, i
              SPX_ARG(kj, 9, trans) | SPX_ARG(kj, 10, d->jb.mem) | SPX_ARG(kj, 11, d->R.mem) | SPX_ARG(kj, 12, d->G.mem) |
              SPX_ARG(kj, 13, joints);
   if ((st = spx_cl_check(ctx, e, "spx_body_joints args"))) return st;
-  size_t l = (size_t)ctx->tune.wg, g = B;
+  size_t l = (size_t)ctx->dev->tune.wg, g = B;
   size_t lj = 1; /* one work-item per body: tiny launch */
   if ((st = spx_cl_run(ctx, kj, 1, &g, &lj, "spx_body_joints"))) return st;
   e = SPX_ARG(kl, 0, Bi) | SPX_ARG(kl, 1, N) | SPX_ARG(kl, 2, Ki) | SPX_ARG(kl, 3, S) | SPX_ARG(kl, 4, nb) |

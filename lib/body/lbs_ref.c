@@ -1,54 +1,13 @@
 /* Plain-C double-precision body model: forward (shape blend, joint regression, Rodrigues, pose
- * correctives, kinematic chain, LBS), analytic Jacobians and unposing. */
+ * correctives, kinematic chain, LBS), analytic Jacobians and unposing. The 3x3 math (and
+ * spx_body_rodrigues itself) is lib/body/rot3.c. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "body/body_internal.h"
+#include "body/rot3.h"
 #include "core/internal.h"
-
-static void mat3_mul(const double *a, const double *b, double *o) {
-  for (int r = 0; r < 3; r++)
-    for (int c = 0; c < 3; c++) o[r * 3 + c] = a[r * 3] * b[c] + a[r * 3 + 1] * b[3 + c] + a[r * 3 + 2] * b[6 + c];
-}
-static void mat3_vec(const double *a, const double *v, double *o) {
-  for (int r = 0; r < 3; r++) o[r] = a[r * 3] * v[0] + a[r * 3 + 1] * v[1] + a[r * 3 + 2] * v[2];
-}
-static void cross(const double *a, const double *b, double *o) {
-  o[0] = a[1] * b[2] - a[2] * b[1];
-  o[1] = a[2] * b[0] - a[0] * b[2];
-  o[2] = a[0] * b[1] - a[1] * b[0];
-}
-
-/* R = I + a [r]x + b [r]x^2 with a = sin(t)/t, b = (1-cos t)/t^2, t = |r|. */
-void spx_body_rodrigues(const double r[3], double R[9], double dR[27]) {
-  double t2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2], t = sqrt(t2);
-  double a, b, da, db; /* da = a'(t)/t, db = b'(t)/t */
-  if (t < 1e-4) {
-    a = 1 - t2 / 6 + t2 * t2 / 120;
-    b = 0.5 - t2 / 24 + t2 * t2 / 720;
-    da = -1.0 / 3 + t2 / 30;
-    db = -1.0 / 12 + t2 / 180;
-  } else {
-    double s = sin(t), co = cos(t);
-    a = s / t;
-    b = (1 - co) / t2;
-    da = (t * co - s) / (t2 * t);
-    db = (t * s - 2 * (1 - co)) / (t2 * t2);
-  }
-  double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0}, K2[9];
-  mat3_mul(K, K, K2);
-  for (int i = 0; i < 9; i++) R[i] = (i % 4 == 0 ? 1.0 : 0.0) + a * K[i] + b * K2[i];
-  if (!dR) return;
-  for (int c = 0; c < 3; c++) {
-    double e[3] = {0, 0, 0};
-    e[c] = 1;
-    double E[9] = {0, -e[2], e[1], e[2], 0, -e[0], -e[1], e[0], 0}, EK[9], KE[9];
-    mat3_mul(E, K, EK);
-    mat3_mul(K, E, KE);
-    for (int i = 0; i < 9; i++) dR[c * 9 + i] = da * r[c] * K[i] + a * E[i] + db * r[c] * K2[i] + b * (EK[i] + KE[i]);
-  }
-}
 
 spx_status spx_body_check_params(spx_ctx *ctx, const spx_body_model *m, const spx_body_params *p) {
   if (!m || !p || m->nv <= 0) return spx_fail(ctx, SPX_E_ARG, "body: model or params missing");
@@ -94,12 +53,12 @@ spx_status spx_body_chain_compute(spx_ctx *ctx, const spx_body_model *m, const s
     } else {
       double rel[3] = {c->J[k * 3] - c->J[par * 3], c->J[k * 3 + 1] - c->J[par * 3 + 1], c->J[k * 3 + 2] - c->J[par * 3 + 2]};
       double o[3];
-      mat3_mul(c->Rg + par * 9, c->R + k * 9, c->Rg + k * 9);
-      mat3_vec(c->Rg + par * 9, rel, o);
+      spx_rot3_mul(c->Rg + par * 9, c->R + k * 9, c->Rg + k * 9);
+      spx_rot3_apply(c->Rg + par * 9, rel, o);
       for (int d = 0; d < 3; d++) c->tg[k * 3 + d] = o[d] + c->tg[par * 3 + d];
     }
     double rj[3];
-    mat3_vec(c->Rg + k * 9, c->J + k * 3, rj);
+    spx_rot3_apply(c->Rg + k * 9, c->J + k * 3, rj);
     for (int d = 0; d < 3; d++) c->Gt[k * 3 + d] = c->tg[k * 3 + d] - rj[d];
   }
   return SPX_OK;
@@ -148,7 +107,7 @@ spx_status spx_body_forward_ref(spx_ctx *ctx, const spx_body_model *m, const spx
       double v[3], M[9], t[3], o[3];
       spx_body_vposed(m, p, &c, i, v);
       blend(m, &c, i, M, t);
-      mat3_vec(M, v, o);
+      spx_rot3_apply(M, v, o);
       for (int d = 0; d < 3; d++) verts[(size_t)i * 3 + d] = o[d] + t[d] + tr[d];
     }
   spx_body_chain_free(&c);
@@ -181,12 +140,10 @@ static spx_status jac_prepare(spx_ctx *ctx, const spx_body_model *m, const spx_b
   unsigned char *anc = jp->anc;
   for (int32_t j = 0; j < K; j++) {
     for (int cc = 0; cc < 3; cc++) {
-      double Rt[9], Sk[9], wl[3];
-      for (int r = 0; r < 3; r++)
-        for (int q = 0; q < 3; q++) Rt[r * 3 + q] = c->R[j * 9 + q * 3 + r];
-      mat3_mul(c->dR + j * 27 + cc * 9, Rt, Sk);
+      double Sk[9], wl[3];
+      spx_rot3_mul_nt(c->dR + j * 27 + cc * 9, c->R + j * 9, Sk);
       wl[0] = 0.5 * (Sk[7] - Sk[5]), wl[1] = 0.5 * (Sk[2] - Sk[6]), wl[2] = 0.5 * (Sk[3] - Sk[1]);
-      if (m->parents[j] >= 0) mat3_vec(c->Rg + m->parents[j] * 9, wl, omega + j * 9 + cc * 3);
+      if (m->parents[j] >= 0) spx_rot3_apply(c->Rg + m->parents[j] * 9, wl, omega + j * 9 + cc * 3);
       else memcpy(omega + j * 9 + cc * 3, wl, sizeof wl);
     }
     int32_t par = m->parents[j];
@@ -195,7 +152,7 @@ static spx_status jac_prepare(spx_ctx *ctx, const spx_body_model *m, const spx_b
       for (int d = 0; d < 3; d++)
         dj[d] = m->J_shapedirs[(j * 3 + d) * S + s] - (par >= 0 ? m->J_shapedirs[(par * 3 + d) * S + s] : 0.0);
       if (par >= 0) {
-        mat3_vec(c->Rg + par * 9, dj, o);
+        spx_rot3_apply(c->Rg + par * 9, dj, o);
         for (int d = 0; d < 3; d++) dtg[(j * 3 + d) * nb + s] = o[d] + dtg[(par * 3 + d) * nb + s];
       } else {
         for (int d = 0; d < 3; d++) dtg[(j * 3 + d) * nb + s] = dj[d];
@@ -234,7 +191,7 @@ spx_status spx_body_joint_jacobian(spx_ctx *ctx, const spx_body_model *m, const 
       double arm[3] = {c.tg[k * 3] - c.tg[j * 3], c.tg[k * 3 + 1] - c.tg[j * 3 + 1], c.tg[k * 3 + 2] - c.tg[j * 3 + 2]};
       for (int cc = 0; cc < 3; cc++) {
         double o[3];
-        cross(jp.omega + j * 9 + cc * 3, arm, o);
+        spx_rot3_cross(jp.omega + j * 9 + cc * 3, arm, o);
         for (int d = 0; d < 3; d++) J0[(size_t)d * ncol + (size_t)(j * 3 + cc)] = o[d];
       }
     }
@@ -271,7 +228,7 @@ spx_status spx_body_jacobian(spx_ctx *ctx, const spx_body_model *m, const spx_bo
     double vp[3], M[9], t[3], x[3];
     spx_body_vposed(m, p, &c, i, vp);
     blend(m, &c, i, M, t);
-    mat3_vec(M, vp, x);
+    spx_rot3_apply(M, vp, x);
     for (int d = 0; d < 3; d++) x[d] += t[d];
     if (verts)
       for (int d = 0; d < 3; d++) verts[(size_t)q * 3 + d] = x[d] + (p->trans ? p->trans[d] : 0.0);
@@ -282,14 +239,14 @@ spx_status spx_body_jacobian(spx_ctx *ctx, const spx_body_model *m, const spx_bo
     for (int32_t k = 0; k < K; k++) {
       if (w[k] == 0) continue;
       double gv[3];
-      mat3_vec(c.Rg + k * 9, vp, gv);
+      spx_rot3_apply(c.Rg + k * 9, vp, gv);
       for (int d = 0; d < 3; d++) gv[d] += c.Gt[k * 3 + d];
       for (int32_t j = 0; j < K; j++) {
         if (!anc[k * K + j]) continue;
         double arm[3] = {gv[0] - c.tg[j * 3], gv[1] - c.tg[j * 3 + 1], gv[2] - c.tg[j * 3 + 2]};
         for (int cc = 0; cc < 3; cc++) {
           double o[3];
-          cross(omega + j * 9 + cc * 3, arm, o);
+          spx_rot3_cross(omega + j * 9 + cc * 3, arm, o);
           for (int d = 0; d < 3; d++) J0[(size_t)d * ncol + (size_t)(j * 3 + cc)] += w[k] * o[d];
         }
       }
@@ -298,7 +255,7 @@ spx_status spx_body_jacobian(spx_ctx *ctx, const spx_body_model *m, const spx_bo
         double u[3], o[3];
         for (int d = 0; d < 3; d++)
           u[d] = m->shapedirs[((size_t)i * 3 + (size_t)d) * (size_t)S + (size_t)s] - m->J_shapedirs[(k * 3 + d) * S + s];
-        mat3_vec(c.Rg + k * 9, u, o);
+        spx_rot3_apply(c.Rg + k * 9, u, o);
         for (int d = 0; d < 3; d++) J0[(size_t)d * ncol + (size_t)(3 * K + s)] += w[k] * (o[d] + dtg[(k * 3 + d) * nb + s]);
       }
     }
@@ -311,7 +268,7 @@ spx_status spx_body_jacobian(spx_ctx *ctx, const spx_body_model *m, const spx_bo
             const float *pd = m->posedirs + ((size_t)i * 3 + (size_t)d) * (size_t)P + (size_t)(j - 1) * 9;
             for (int e = 0; e < 9; e++) dv[d] += pd[e] * c.dR[j * 27 + cc * 9 + e];
           }
-          mat3_vec(M, dv, o);
+          spx_rot3_apply(M, dv, o);
           for (int d = 0; d < 3; d++) J0[(size_t)d * ncol + (size_t)(j * 3 + cc)] += o[d];
         }
     for (int d = 0; d < 3; d++) J0[(size_t)d * ncol + (size_t)(3 * K + nb + d)] = 1.0;
@@ -319,17 +276,6 @@ spx_status spx_body_jacobian(spx_ctx *ctx, const spx_body_model *m, const spx_bo
   jac_prep_free(&jp);
   spx_body_chain_free(&c);
   return st;
-}
-
-static int mat3_inv(const double *a, double *o) {
-  double c0 = a[4] * a[8] - a[5] * a[7], c1 = a[5] * a[6] - a[3] * a[8], c2 = a[3] * a[7] - a[4] * a[6];
-  double det = a[0] * c0 + a[1] * c1 + a[2] * c2;
-  if (!(fabs(det) > 1e-12)) return 0;
-  double id = 1.0 / det;
-  o[0] = c0 * id, o[1] = (a[2] * a[7] - a[1] * a[8]) * id, o[2] = (a[1] * a[5] - a[2] * a[4]) * id;
-  o[3] = c1 * id, o[4] = (a[0] * a[8] - a[2] * a[6]) * id, o[5] = (a[2] * a[3] - a[0] * a[5]) * id;
-  o[6] = c2 * id, o[7] = (a[1] * a[6] - a[0] * a[7]) * id, o[8] = (a[0] * a[4] - a[1] * a[3]) * id;
-  return 1;
 }
 
 spx_status spx_body_unpose_ref(spx_ctx *ctx, const spx_body_model *m, const spx_body_params *p, const double *posed,
@@ -343,13 +289,13 @@ spx_status spx_body_unpose_ref(spx_ctx *ctx, const spx_body_model *m, const spx_
   for (int32_t i = 0; i < m->nv && !st; i++) {
     double M[9], Mi[9], t[3], x[3], u[3], vt[3];
     blend(m, &c, i, M, t);
-    if (!mat3_inv(M, Mi)) {
+    if (!spx_rot3_inv(M, Mi)) {
       st = spx_fail(ctx, SPX_E_NUMERIC, "body unpose: vertex %d has a singular blended transform (weights sum %g)", i,
                     M[0] + M[4] + M[8]);
       break;
     }
     for (int d = 0; d < 3; d++) x[d] = posed[(size_t)i * 3 + d] - t[d] - (p->trans ? p->trans[d] : 0.0);
-    mat3_vec(Mi, x, u);
+    spx_rot3_apply(Mi, x, u);
     /* pose correctives and (optionally) the shape blend of vertex i: v_posed(0 base) */
     for (int d = 0; d < 3; d++) {
       size_t row = (size_t)i * 3 + (size_t)d;

@@ -7,19 +7,13 @@
 #include "core/internal.h"
 #include "smplpix/npz.h"
 
-static double f16_to_double(uint16_t h) {
-  int e = (h >> 10) & 0x1f, mant = h & 0x3ff;
-  double v = e == 0 ? ldexp(mant, -24) : e == 31 ? (mant ? NAN : INFINITY) : ldexp(mant + 1024, e - 25);
-  return (h & 0x8000) ? -v : v;
-}
-
 /* element i of any numeric array as double */
 static double elem(const spx_array *a, size_t i) {
   const void *d = a->data;
   switch (a->dtype) {
     case SPX_F32: return ((const float *)d)[i];
     case SPX_F64: return ((const double *)d)[i];
-    case SPX_F16: return f16_to_double(((const uint16_t *)d)[i]);
+    case SPX_F16: return spx_half_to_float(((const uint16_t *)d)[i]);
     case SPX_U8: return ((const uint8_t *)d)[i];
     case SPX_BOOL: return ((const uint8_t *)d)[i] != 0;
     case SPX_I8: return ((const int8_t *)d)[i];

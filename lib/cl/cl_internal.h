@@ -18,11 +18,9 @@ struct spx_cl_program {
   uint64_t uses; /* bit i: built with -D of tunable row i */
 };
 
-struct spx_ctx {
-  char msg[1024];
-  spx_status last;
-  /* device state, valid when have_device */
-  int have_device;
+/* The open OpenCL device: allocated by spx_device_open, pointed to by ctx->dev (NULL when no
+ * device is open), released by spx_cl_close (which core reaches through ctx->dev_close). */
+struct spx_cl_device {
   spx_device_info info;
   cl_platform_id platform;
   cl_device_id device;
@@ -30,7 +28,7 @@ struct spx_ctx {
   cl_command_queue queue;
   /* tunables and kernels: resolved when the device opens (lib/cl/tuning.c), programs built on
    * first use of any of their kernels (lib/cl/program.c) */
-  struct spx_tunables tune;                  /* read by host code: ctx->tune.conv_tm */
+  struct spx_tunables tune;                  /* read by host code: ctx->dev->tune.conv_tm */
   unsigned char tune_src[SPX_NTUNABLES];     /* spx_tune_source of each field */
   char tune_note[5120];                      /* why a tuning file was ignored ("" when not) */
   char tune_file[4096];                      /* the tuning file read (or looked for) */
@@ -43,7 +41,7 @@ struct spx_ctx {
   spx_cache_stats cache;
 };
 
-/* Release all device objects (used by spx_ctx_destroy). */
+/* Release all device objects and free ctx->dev (spx_ctx_destroy calls it through ctx->dev_close). */
 void spx_cl_close(spx_ctx *ctx);
 
 /* Fail with SPX_E_STATE unless a device is open. */
@@ -67,7 +65,7 @@ const char *spx_cl_kernel_name(spx_kernel_id id);
 const char *spx_cl_program_name(int i);
 spx_status spx_cl_program_build(spx_ctx *ctx, const char *program);
 
-/* Resolve ctx->tune for the device just opened (defaults, tuning file, SPX_TUNE_* overrides) and
+/* Resolve ctx->dev->tune for the device just opened (defaults, tuning file, SPX_TUNE_* overrides) and
  * check it (lib/cl/tuning.c). */
 spx_status spx_cl_tunables_resolve(spx_ctx *ctx);
 /* Build options of the program with (prelude + expanded) source src: -cl-std, the device class,
@@ -83,9 +81,9 @@ int spx_cl_tunable_find(const char *name, size_t len);
 int spx_cl_tunable_parse(const spx_ctx *ctx, int i, const char *val, int *out, char *why, size_t cap);
 /* The combinations of t against the device's limits (work-group sizes, local memory). */
 spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t);
-/* Apply the tuning file of the open device (lib/cl/tunefile.c) over the defaults in ctx->tune:
+/* Apply the tuning file of the open device (lib/cl/tunefile.c) over the defaults in ctx->dev->tune:
  * a missing file changes nothing; an unreadable, corrupt or mismatched one is ignored as a whole
- * and the reason kept in ctx->tune_note. Never fails. */
+ * and the reason kept in ctx->dev->tune_note. Never fails. */
 void spx_cl_tunefile_apply(spx_ctx *ctx);
 
 /* Release the built programs that use any tunable of the mask `uses` (~0: all) and their kernels

@@ -133,26 +133,31 @@ static spx_status pick(spx_ctx *ctx, const char *spec, struct pick_state *s) {
 
 spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
   if (!ctx) return SPX_E_ARG;
-  if (ctx->have_device) spx_cl_close(ctx);
+  if (ctx->dev) spx_cl_close(ctx);
   if (!spec) spec = getenv("SPX_DEVICE");
   struct pick_state s;
   spx_status st = pick(ctx, spec, &s);
   if (st) return st;
+  struct spx_cl_device *dev = calloc(1, sizeof *dev);
+  if (!dev) return spx_fail(ctx, SPX_E_NOMEM, "spx_device_open: out of memory");
   cl_int err;
   cl_context_properties props[] = {CL_CONTEXT_PLATFORM, (cl_context_properties)s.p, 0};
-  ctx->context = clCreateContext(props, 1, &s.d, NULL, NULL, &err);
-  if (err != CL_SUCCESS) return spx_cl_check(ctx, err, "clCreateContext");
-  ctx->queue = clCreateCommandQueue(ctx->context, s.d, 0, &err);
+  dev->context = clCreateContext(props, 1, &s.d, NULL, NULL, &err);
   if (err != CL_SUCCESS) {
-    clReleaseContext(ctx->context);
-    ctx->context = NULL;
+    free(dev);
+    return spx_cl_check(ctx, err, "clCreateContext");
+  }
+  dev->queue = clCreateCommandQueue(dev->context, s.d, 0, &err);
+  if (err != CL_SUCCESS) {
+    clReleaseContext(dev->context);
+    free(dev);
     return spx_cl_check(ctx, err, "clCreateCommandQueue");
   }
-  ctx->platform = s.p;
-  ctx->device = s.d;
-  fill_info(s.p, s.d, s.pi, s.di, &ctx->info);
-  ctx->have_device = 1;
-  memset(&ctx->cache, 0, sizeof ctx->cache);
+  dev->platform = s.p;
+  dev->device = s.d;
+  fill_info(s.p, s.d, s.pi, s.di, &dev->info);
+  ctx->dev = dev;
+  ctx->dev_close = spx_cl_close;
   if ((st = spx_cl_tunables_resolve(ctx))) {
     spx_cl_close(ctx); /* a bad SPX_TUNE_* override: the device is not usable as configured */
     return st;
@@ -160,11 +165,11 @@ spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
   return SPX_OK;
 }
 
-int spx_device_is_open(const spx_ctx *ctx) { return ctx && ctx->have_device; }
+int spx_device_is_open(const spx_ctx *ctx) { return ctx && ctx->dev; }
 
 spx_status spx_cl_require(spx_ctx *ctx, const char *what) {
   if (!ctx) return SPX_E_ARG;
-  if (!ctx->have_device)
+  if (!ctx->dev)
     return spx_fail(ctx, SPX_E_STATE, "%s: no OpenCL device is open (call spx_device_open first)", what);
   return SPX_OK;
 }
@@ -172,29 +177,29 @@ spx_status spx_cl_require(spx_ctx *ctx, const char *what) {
 spx_status spx_device_get_info(spx_ctx *ctx, spx_device_info *out) {
   spx_status st = spx_cl_require(ctx, "spx_device_get_info");
   if (st) return st;
-  *out = ctx->info;
+  *out = ctx->dev->info;
   return SPX_OK;
 }
 
 spx_status spx_device_finish(spx_ctx *ctx) {
   spx_status st = spx_cl_require(ctx, "spx_device_finish");
   if (st) return st;
-  return spx_cl_check(ctx, clFinish(ctx->queue), "clFinish");
+  return spx_cl_check(ctx, clFinish(ctx->dev->queue), "clFinish");
 }
 
 spx_status spx_device_cache_stats(spx_ctx *ctx, spx_cache_stats *out) {
   spx_status st = spx_cl_require(ctx, "spx_device_cache_stats");
   if (st) return st;
-  *out = ctx->cache;
+  *out = ctx->dev->cache;
   return SPX_OK;
 }
 
 void spx_cl_close(spx_ctx *ctx) {
-  if (!ctx || !ctx->have_device) return;
+  if (!ctx || !ctx->dev) return;
   spx_cl_programs_release(ctx, ~0ull);
-  if (ctx->queue) clReleaseCommandQueue(ctx->queue);
-  if (ctx->context) clReleaseContext(ctx->context);
-  ctx->queue = NULL;
-  ctx->context = NULL;
-  ctx->have_device = 0;
+  if (ctx->dev->queue) clReleaseCommandQueue(ctx->dev->queue);
+  if (ctx->dev->context) clReleaseContext(ctx->dev->context);
+  free(ctx->dev);
+  ctx->dev = NULL;
+  ctx->dev_close = NULL;
 }

@@ -40,8 +40,6 @@
   X(WINO_OUT, "conv2d_winograd.cl", "spx_wino_out")                    \
   X(INSTNORM_FWD, "instnorm.cl", "spx_instnorm_fwd")                   \
   X(INSTNORM_BWD, "instnorm.cl", "spx_instnorm_bwd")                   \
-  X(HWC_TO_NCHW, "layout.cl", "spx_hwc_to_nchw")                       \
-  X(NCHW_TO_HWC, "layout.cl", "spx_nchw_to_hwc")                       \
   X(BODY_JOINTS, "lbs.cl", "spx_body_joints")                          \
   X(BODY_LBS, "lbs.cl", "spx_body_lbs")                                \
   X(REDUCE_STAGE1, "loss.cl", "spx_reduce_stage1")                     \

@@ -149,7 +149,7 @@ struct cache_key {
 
 static struct cache_key make_key(const spx_ctx *ctx, const char *src, size_t len, const char *opts) {
   struct cache_key k;
-  const spx_device_info *i = &ctx->info;
+  const spx_device_info *i = &ctx->dev->info;
   uint64_t seeds[2] = {SPX_FNV_SEED, 0x9e3779b97f4a7c15ULL};
   for (int j = 0; j < 2; j++) {
     uint64_t h = seeds[j];
@@ -186,13 +186,13 @@ static cl_program cache_load(spx_ctx *ctx, const char *path, struct cache_key ke
   if (spx_hash64(bin, blen, SPX_FNV_SEED) != bhash) goto done;
   size_t len = blen;
   cl_int bstatus = CL_SUCCESS, err;
-  prog = clCreateProgramWithBinary(ctx->context, 1, &ctx->device, &len, &bin, &bstatus, &err);
+  prog = clCreateProgramWithBinary(ctx->dev->context, 1, &ctx->dev->device, &len, &bin, &bstatus, &err);
   if (err != CL_SUCCESS || bstatus != CL_SUCCESS) {
     if (prog) clReleaseProgram(prog);
     prog = NULL;
     goto done;
   }
-  if (clBuildProgram(prog, 1, &ctx->device, opts, NULL, NULL) != CL_SUCCESS) {
+  if (clBuildProgram(prog, 1, &ctx->dev->device, opts, NULL, NULL) != CL_SUCCESS) {
     clReleaseProgram(prog);
     prog = NULL;
   }
@@ -215,7 +215,7 @@ static void cache_store(spx_ctx *ctx, cl_program prog, const char *path, struct 
       fwrite(&l, sizeof l, 1, af.fp);
       fwrite(&h, sizeof h, 1, af.fp);
       fwrite(bin, 1, blen, af.fp);
-      if (spx_atomic_commit(NULL, &af) == SPX_OK) ctx->cache.stored++;
+      if (spx_atomic_commit(NULL, &af) == SPX_OK) ctx->dev->cache.stored++;
     }
   }
   free(bin);
@@ -224,16 +224,16 @@ static void cache_store(spx_ctx *ctx, cl_program prog, const char *path, struct 
 static spx_status build_from_source(spx_ctx *ctx, const char *name, const char *src, size_t len, const char *opts,
                                     cl_program *out) {
   cl_int err;
-  cl_program prog = clCreateProgramWithSource(ctx->context, 1, &src, &len, &err);
+  cl_program prog = clCreateProgramWithSource(ctx->dev->context, 1, &src, &len, &err);
   if (err != CL_SUCCESS) return spx_cl_check(ctx, err, "clCreateProgramWithSource");
-  err = clBuildProgram(prog, 1, &ctx->device, opts, NULL, NULL);
+  err = clBuildProgram(prog, 1, &ctx->dev->device, opts, NULL, NULL);
   if (err != CL_SUCCESS) {
     size_t loglen = 0;
     char log[768] = "";
-    clGetProgramBuildInfo(prog, ctx->device, CL_PROGRAM_BUILD_LOG, 0, NULL, &loglen);
+    clGetProgramBuildInfo(prog, ctx->dev->device, CL_PROGRAM_BUILD_LOG, 0, NULL, &loglen);
     if (loglen) {
       char *full = malloc(loglen + 1);
-      if (full && clGetProgramBuildInfo(prog, ctx->device, CL_PROGRAM_BUILD_LOG, loglen, full, NULL) == CL_SUCCESS) {
+      if (full && clGetProgramBuildInfo(prog, ctx->dev->device, CL_PROGRAM_BUILD_LOG, loglen, full, NULL) == CL_SUCCESS) {
         full[loglen] = 0;
         /* the first error line is the useful one */
         const char *e = strstr(full, "error");
@@ -249,13 +249,13 @@ static spx_status build_from_source(spx_ctx *ctx, const char *name, const char *
 }
 
 static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
-  for (int i = 0; i < ctx->nprograms; i++)
-    if (!strcmp(ctx->programs[i].name, name)) {
-      *out = ctx->programs[i].prog;
+  for (int i = 0; i < ctx->dev->nprograms; i++)
+    if (!strcmp(ctx->dev->programs[i].name, name)) {
+      *out = ctx->dev->programs[i].prog;
       return SPX_OK;
     }
-  if (ctx->nprograms == SPX_MAX_PROGRAMS) return spx_fail(ctx, SPX_E_STATE, "too many kernel programs");
-  if (strlen(name) >= sizeof ctx->programs[0].name) return spx_fail(ctx, SPX_E_ARG, "kernel file name too long");
+  if (ctx->dev->nprograms == SPX_MAX_PROGRAMS) return spx_fail(ctx, SPX_E_STATE, "too many kernel programs");
+  if (strlen(name) >= sizeof ctx->dev->programs[0].name) return spx_fail(ctx, SPX_E_ARG, "kernel file name too long");
 
   char *prelude = NULL, *body = NULL, *src = NULL;
   size_t plen = 0, blen = 0;
@@ -288,19 +288,19 @@ static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
   if (use_cache) {
     cache_path(path, sizeof path, dir, name, key);
     prog = cache_load(ctx, path, key, opts);
-    if (prog) ctx->cache.loaded++;
+    if (prog) ctx->dev->cache.loaded++;
   }
   if (!prog) {
     st = build_from_source(ctx, name, src, len, opts, &prog);
     if (st) goto done;
-    ctx->cache.compiled++;
+    ctx->dev->cache.compiled++;
     if (use_cache) cache_store(ctx, prog, path, key);
   }
-  ctx->cache.build_seconds += spx_now() - t0;
-  snprintf(ctx->programs[ctx->nprograms].name, sizeof ctx->programs[0].name, "%s", name);
-  ctx->programs[ctx->nprograms].prog = prog;
-  ctx->programs[ctx->nprograms].uses = uses;
-  ctx->nprograms++;
+  ctx->dev->cache.build_seconds += spx_now() - t0;
+  snprintf(ctx->dev->programs[ctx->dev->nprograms].name, sizeof ctx->dev->programs[0].name, "%s", name);
+  ctx->dev->programs[ctx->dev->nprograms].prog = prog;
+  ctx->dev->programs[ctx->dev->nprograms].uses = uses;
+  ctx->dev->nprograms++;
   *out = prog;
 done:
   free(prelude);
@@ -328,17 +328,17 @@ static spx_status program_kernels(spx_ctx *ctx, const char *program) {
   spx_status st = get_program(ctx, program, &prog);
   if (st) return st;
   for (int i = 0; i < SPX_K_COUNT; i++) {
-    if (ctx->kernels[i] || strcmp(kernel_rows[i].program, program)) continue;
+    if (ctx->dev->kernels[i] || strcmp(kernel_rows[i].program, program)) continue;
     cl_int err;
     cl_kernel k = clCreateKernel(prog, kernel_rows[i].name, &err);
-    ctx->kernels[i] = err == CL_SUCCESS ? k : NULL;
+    ctx->dev->kernels[i] = err == CL_SUCCESS ? k : NULL;
   }
   return SPX_OK;
 }
 
 spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out) {
-  if (ctx && (unsigned)id < SPX_K_COUNT && ctx->kernels[id]) {
-    *out = ctx->kernels[id];
+  if (ctx && ctx->dev && (unsigned)id < SPX_K_COUNT && ctx->dev->kernels[id]) {
+    *out = ctx->dev->kernels[id];
     return SPX_OK;
   }
   spx_status st = spx_cl_require(ctx, "spx_cl_kernel");
@@ -346,30 +346,30 @@ spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out) {
   if ((unsigned)id >= SPX_K_COUNT) return spx_fail(ctx, SPX_E_ARG, "spx_cl_kernel: no kernel handle %d", (int)id);
   const struct spx_kernel_row *r = &kernel_rows[id];
   if ((st = program_kernels(ctx, r->program))) return st;
-  if (!ctx->kernels[id]) {
+  if (!ctx->dev->kernels[id]) {
     cl_program prog;
     get_program(ctx, r->program, &prog);
     cl_int err;
     cl_kernel k = clCreateKernel(prog, r->name, &err);
     if (err != CL_SUCCESS) return spx_fail(ctx, SPX_E_CL, "kernels/%s: no kernel %s (%s)", r->program, r->name, spx_cl_error_name(err));
-    ctx->kernels[id] = k;
+    ctx->dev->kernels[id] = k;
   }
-  *out = ctx->kernels[id];
+  *out = ctx->dev->kernels[id];
   return SPX_OK;
 }
 
 void spx_cl_programs_release(spx_ctx *ctx, uint64_t uses) {
-  if (ctx->queue) clFinish(ctx->queue);
-  for (int j = ctx->nprograms - 1; j >= 0; j--) {
-    struct spx_cl_program *p = &ctx->programs[j];
+  if (ctx->dev->queue) clFinish(ctx->dev->queue);
+  for (int j = ctx->dev->nprograms - 1; j >= 0; j--) {
+    struct spx_cl_program *p = &ctx->dev->programs[j];
     if (!(p->uses & uses) && uses != ~0ull) continue;
     for (int i = 0; i < SPX_K_COUNT; i++)
-      if (ctx->kernels[i] && !strcmp(kernel_rows[i].program, p->name)) {
-        clReleaseKernel(ctx->kernels[i]);
-        ctx->kernels[i] = NULL;
+      if (ctx->dev->kernels[i] && !strcmp(kernel_rows[i].program, p->name)) {
+        clReleaseKernel(ctx->dev->kernels[i]);
+        ctx->dev->kernels[i] = NULL;
       }
     clReleaseProgram(p->prog);
-    *p = ctx->programs[--ctx->nprograms]; /* order does not matter */
+    *p = ctx->dev->programs[--ctx->dev->nprograms]; /* order does not matter */
   }
 }
 

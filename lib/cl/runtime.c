@@ -48,13 +48,13 @@ spx_status spx_cl_alloc(spx_ctx *ctx, size_t bytes, const char *what, cl_mem *ou
   char sz[64], lim[64];
   fmt_bytes(sz, sizeof sz, (double)bytes);
   if (bytes == 0) bytes = 4;
-  if (bytes > ctx->info.max_alloc) {
-    fmt_bytes(lim, sizeof lim, (double)ctx->info.max_alloc);
+  if (bytes > ctx->dev->info.max_alloc) {
+    fmt_bytes(lim, sizeof lim, (double)ctx->dev->info.max_alloc);
     return spx_fail(ctx, SPX_E_DEVMEM, "%s: needs a %s device buffer, more than the device's largest allocation (%s)",
                     what, sz, lim);
   }
   cl_int err;
-  *out = clCreateBuffer(ctx->context, CL_MEM_READ_WRITE, bytes, NULL, &err);
+  *out = clCreateBuffer(ctx->dev->context, CL_MEM_READ_WRITE, bytes, NULL, &err);
   if (err != CL_SUCCESS) {
     *out = NULL;
     return spx_fail(ctx, SPX_E_DEVMEM, "%s: allocating %s on the device failed (%s)", what, sz, spx_cl_error_name(err));
@@ -82,20 +82,20 @@ void spx_cl_buf_release(spx_cl_buf *b) {
 
 spx_status spx_cl_write(spx_ctx *ctx, cl_mem m, size_t offset, size_t bytes, const void *src) {
   if (bytes == 0) return SPX_OK;
-  return spx_cl_check(ctx, clEnqueueWriteBuffer(ctx->queue, m, CL_TRUE, offset, bytes, src, 0, NULL, NULL),
+  return spx_cl_check(ctx, clEnqueueWriteBuffer(ctx->dev->queue, m, CL_TRUE, offset, bytes, src, 0, NULL, NULL),
                       "clEnqueueWriteBuffer");
 }
 
 spx_status spx_cl_read(spx_ctx *ctx, cl_mem m, size_t offset, size_t bytes, void *dst) {
   if (bytes == 0) return SPX_OK;
-  return spx_cl_check(ctx, clEnqueueReadBuffer(ctx->queue, m, CL_TRUE, offset, bytes, dst, 0, NULL, NULL),
+  return spx_cl_check(ctx, clEnqueueReadBuffer(ctx->dev->queue, m, CL_TRUE, offset, bytes, dst, 0, NULL, NULL),
                       "clEnqueueReadBuffer");
 }
 
 spx_status spx_cl_fill_f32(spx_ctx *ctx, cl_mem m, size_t offset_elems, size_t count, float value) {
   if (count == 0) return SPX_OK;
   return spx_cl_check(ctx,
-                      clEnqueueFillBuffer(ctx->queue, m, &value, sizeof value, offset_elems * sizeof(float),
+                      clEnqueueFillBuffer(ctx->dev->queue, m, &value, sizeof value, offset_elems * sizeof(float),
                                           count * sizeof(float), 0, NULL, NULL),
                       "clEnqueueFillBuffer");
 }
@@ -108,5 +108,5 @@ spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *glo
     if (local && local[i]) g[i] = (g[i] + local[i] - 1) / local[i] * local[i];
     if (g[i] == 0) return SPX_OK; /* nothing to do */
   }
-  return spx_cl_check(ctx, clEnqueueNDRangeKernel(ctx->queue, k, dims, NULL, g, local, 0, NULL, NULL), what);
+  return spx_cl_check(ctx, clEnqueueNDRangeKernel(ctx->dev->queue, k, dims, NULL, g, local, 0, NULL, NULL), what);
 }

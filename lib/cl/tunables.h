@@ -1,7 +1,7 @@
 /* Per-device tunables as typed fields, resolved once when the device opens (lib/cl/tuning.c):
  * the device class's defaults, then the tuning file `smplpix tune` wrote for this device
  * (lib/cl/tunefile.c), then SPX_TUNE_<NAME> environment overrides. Host code reads
- * ctx->tune.<field>; kernels see the same values as -D<NAME>=<value>, so launch sizes and kernel
+ * ctx->dev->tune.<field>; kernels see the same values as -D<NAME>=<value>, so launch sizes and kernel
  * code agree. The field is the row's name lower-cased without a leading SPX_ (SPX_WG -> wg,
  * CONV_TM -> conv_tm); every field is an int and has a row in lib/cl/tuning.c. */
 #ifndef SPX_CL_TUNABLES_H

@@ -32,12 +32,12 @@ static void clean(char *dst, size_t cap, const char *src) {
 
 static void header(const spx_ctx *ctx, char *out, size_t cap) {
   char f[4][256];
-  clean(f[0], sizeof f[0], ctx->info.name);
-  clean(f[1], sizeof f[1], ctx->info.platform);
-  clean(f[2], sizeof f[2], ctx->info.driver);
-  clean(f[3], sizeof f[3], ctx->info.version);
+  clean(f[0], sizeof f[0], ctx->dev->info.name);
+  clean(f[1], sizeof f[1], ctx->dev->info.platform);
+  clean(f[2], sizeof f[2], ctx->dev->info.driver);
+  clean(f[3], sizeof f[3], ctx->dev->info.version);
   snprintf(out, cap, "smplpix-tuning 1\ndevice %s\nplatform %s\ndriver %s\nversion %s\nsmplpix %d.%d.%d\nclass %s\n", f[0],
-           f[1], f[2], f[3], SPX_VERSION_MAJOR, SPX_VERSION_MINOR, SPX_VERSION_PATCH, ctx->tune_cpu ? "cpu" : "gpu");
+           f[1], f[2], f[3], SPX_VERSION_MAJOR, SPX_VERSION_MINOR, SPX_VERSION_PATCH, ctx->dev->tune_cpu ? "cpu" : "gpu");
 }
 
 /* Parse the lines after the header into t / src; 0 on success, else -1 and the reason in why. */
@@ -75,26 +75,26 @@ static int parse_body(const spx_ctx *ctx, const char *p, const char *end, int li
 }
 
 void spx_cl_tunefile_apply(spx_ctx *ctx) {
-  ctx->tune_note[0] = 0;
-  ctx->tune_file[0] = 0;
+  ctx->dev->tune_note[0] = 0;
+  ctx->dev->tune_file[0] = 0;
   char dir[3900], head[2048];
   if (!spx_cl_cache_dir(dir, sizeof dir)) return;
   header(ctx, head, sizeof head);
-  const char *path = ctx->tune_file;
-  snprintf(ctx->tune_file, sizeof ctx->tune_file, "%s/tuning-%016llx.txt", dir,
+  const char *path = ctx->dev->tune_file;
+  snprintf(ctx->dev->tune_file, sizeof ctx->dev->tune_file, "%s/tuning-%016llx.txt", dir,
            (unsigned long long)spx_hash64(head, strlen(head), SPX_FNV_SEED));
   struct stat sb;
   if (stat(path, &sb) != 0) return; /* not tuned: the defaults */
   unsigned char *data = NULL;
   size_t n = 0;
   if (spx_read_file(NULL, path, TUNE_MAX_BYTES, &data, &n) != SPX_OK) {
-    snprintf(ctx->tune_note, sizeof ctx->tune_note, "%s: cannot be read; ignored, defaults apply", path);
+    snprintf(ctx->dev->tune_note, sizeof ctx->dev->tune_note, "%s: cannot be read; ignored, defaults apply", path);
     return;
   }
   size_t hl = strlen(head);
-  struct spx_tunables t = ctx->tune;
+  struct spx_tunables t = ctx->dev->tune;
   unsigned char src[SPX_NTUNABLES];
-  memcpy(src, ctx->tune_src, sizeof src);
+  memcpy(src, ctx->dev->tune_src, sizeof src);
   char why[1100];
   if (n < hl || memcmp(data, head, hl)) {
     snprintf(why, sizeof why, "its header does not match this device, driver and smplpix version");
@@ -105,8 +105,8 @@ void spx_cl_tunefile_apply(spx_ctx *ctx) {
     spx_status last = ctx->last;
     memcpy(keep, ctx->msg, sizeof keep);
     if (spx_cl_tunables_check(ctx, &t) == SPX_OK) {
-      ctx->tune = t;
-      memcpy(ctx->tune_src, src, sizeof src);
+      ctx->dev->tune = t;
+      memcpy(ctx->dev->tune_src, src, sizeof src);
       why[0] = 0;
     } else {
       snprintf(why, sizeof why, "%s", ctx->msg);
@@ -114,21 +114,21 @@ void spx_cl_tunefile_apply(spx_ctx *ctx) {
     memcpy(ctx->msg, keep, sizeof keep);
     ctx->last = last;
   }
-  if (why[0]) snprintf(ctx->tune_note, sizeof ctx->tune_note, "%.3900s: %.1099s; ignored, defaults apply", path, why);
+  if (why[0]) snprintf(ctx->dev->tune_note, sizeof ctx->dev->tune_note, "%.3900s: %.1099s; ignored, defaults apply", path, why);
   free(data);
 }
 
-const char *spx_device_tuning_path(const spx_ctx *ctx) { return ctx && ctx->have_device ? ctx->tune_file : ""; }
-const char *spx_device_tuning_note(const spx_ctx *ctx) { return ctx && ctx->have_device ? ctx->tune_note : ""; }
+const char *spx_device_tuning_path(const spx_ctx *ctx) { return ctx && ctx->dev ? ctx->dev->tune_file : ""; }
+const char *spx_device_tuning_note(const spx_ctx *ctx) { return ctx && ctx->dev ? ctx->dev->tune_note : ""; }
 
 spx_status spx_device_tuning_save(spx_ctx *ctx, const char *const *names, const int *values, int n) {
   spx_status st = spx_cl_require(ctx, "spx_device_tuning_save");
   if (st) return st;
-  if (!ctx->tune_file[0])
+  if (!ctx->dev->tune_file[0])
     return spx_fail(ctx, SPX_E_IO, "spx_device_tuning_save: no cache directory (set SPX_CACHE_DIR or HOME)");
   char head[2048];
   header(ctx, head, sizeof head);
-  struct spx_tunables t = ctx->tune;
+  struct spx_tunables t = ctx->dev->tune;
   for (int k = 0; k < n; k++) {
     int i = names[k] ? spx_cl_tunable_find(names[k], strlen(names[k])) : -1;
     char val[32], why[128];
@@ -138,7 +138,7 @@ spx_status spx_device_tuning_save(spx_ctx *ctx, const char *const *names, const 
       return spx_fail(ctx, SPX_E_ARG, "spx_device_tuning_save: %s=%s: %s", names[k], val, why);
   }
   spx_atomic_file af;
-  if ((st = spx_atomic_open(ctx, ctx->tune_file, &af))) return st;
+  if ((st = spx_atomic_open(ctx, ctx->dev->tune_file, &af))) return st;
   fputs(head, af.fp);
   for (int k = 0; k < n; k++) fprintf(af.fp, "%s %d\n", names[k], values[k]);
   return spx_atomic_commit(ctx, &af);

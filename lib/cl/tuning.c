@@ -1,12 +1,12 @@
 /* Per-device-class tunables: one row per field of struct spx_tunables (lib/cl/tunables.h), in
- * the struct's order. When a device opens, spx_cl_tunables_resolve fills ctx->tune from the
+ * the struct's order. When a device opens, spx_cl_tunables_resolve fills ctx->dev->tune from the
  * device class's column, then the tuning file of `smplpix tune` (lib/cl/tunefile.c), then the
  * SPX_TUNE_<NAME> environment overrides (each checked against its row's range and rules), checks
  * the combinations against the device's limits; spx_cl_program_options gives each program
  * -D<NAME>=<value> for the tunables its source mentions (so a change rebuilds only those).
  * Launch paths read the typed fields; nothing here runs per launch.
  * To add a tunable: a field in struct spx_tunables and a row here at the same place (with CPU
- * and GPU values measured), then read ctx->tune.<field> on the host and <NAME> in the kernel. */
+ * and GPU values measured), then read ctx->dev->tune.<field> on the host and <NAME> in the kernel. */
 #include <errno.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -151,7 +151,7 @@ static spx_status tune_column(spx_ctx *ctx) {
   const char *c = getenv("SPX_TUNE_CLASS");
   if (c && *c && strcmp(c, "cpu") && strcmp(c, "gpu"))
     return spx_fail(ctx, SPX_E_ARG, "SPX_TUNE_CLASS=%s: expected cpu or gpu", c);
-  ctx->tune_cpu = c && *c ? !strcmp(c, "cpu") : ctx->info.kind == SPX_DEVICE_CPU;
+  ctx->dev->tune_cpu = c && *c ? !strcmp(c, "cpu") : ctx->dev->info.kind == SPX_DEVICE_CPU;
   return SPX_OK;
 }
 
@@ -164,8 +164,8 @@ int spx_cl_tunable_parse(const spx_ctx *ctx, int i, const char *val, int *out, c
     snprintf(why, cap, "expected an integer in [%d, %d]", t->lo, t->hi);
   else if ((t->flags & T_POW2) && (x & (x - 1)))
     snprintf(why, cap, "must be a power of two");
-  else if ((t->flags & T_WG) && (size_t)x > ctx->info.max_work_group)
-    snprintf(why, cap, "more than the device's work-group limit %zu", ctx->info.max_work_group);
+  else if ((t->flags & T_WG) && (size_t)x > ctx->dev->info.max_work_group)
+    snprintf(why, cap, "more than the device's work-group limit %zu", ctx->dev->info.max_work_group);
   else {
     *out = (int)x;
     return 0;
@@ -188,17 +188,17 @@ static spx_status apply_env(spx_ctx *ctx) {
     if (i < 0) return spx_fail(ctx, SPX_E_ARG, "%.*s: no such tunable (see lib/cl/tuning.c)", (int)nl, *e);
     if (!*val) continue;
     char why[128];
-    if (spx_cl_tunable_parse(ctx, i, val, field(&ctx->tune, i), why, sizeof why))
+    if (spx_cl_tunable_parse(ctx, i, val, field(&ctx->dev->tune, i), why, sizeof why))
       return spx_fail(ctx, SPX_E_ARG, "%.*s=%s: %s", (int)nl, *e, val, why);
-    ctx->tune_src[i] = SPX_TSRC_ENV;
+    ctx->dev->tune_src[i] = SPX_TSRC_ENV;
   }
   return SPX_OK;
 }
 
 /* Combinations: work-groups of two dimensions and the local memory of the kernels that use it. */
 spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t) {
-  size_t wg = ctx->info.max_work_group;
-  uint64_t lm = ctx->info.local_mem;
+  size_t wg = ctx->dev->info.max_work_group;
+  uint64_t lm = ctx->dev->info.local_mem;
   long wx = t->wg2_x, wy = t->wg2_y;
   if ((size_t)(wx * wy) > wg)
     return spx_fail(ctx, SPX_E_ARG, "tunables SPX_WG2_X x SPX_WG2_Y = %ld x %ld: more than the device's work-group "
@@ -222,28 +222,28 @@ spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t) {
  * 53 >= 2*24+2). */
 static void division_mode(spx_ctx *ctx) {
   cl_device_fp_config fp = 0;
-  ctx->cr_div = clGetDeviceInfo(ctx->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS &&
+  ctx->dev->cr_div = clGetDeviceInfo(ctx->dev->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS &&
                 (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT);
-  ctx->div_fallback = 0;
-  if (getenv("SPX_FORCE_DIV_FALLBACK") && ctx->info.fp64) {
+  ctx->dev->div_fallback = 0;
+  if (getenv("SPX_FORCE_DIV_FALLBACK") && ctx->dev->info.fp64) {
     /* testing hook: exercise the double-division path on a device that has both */
-    ctx->cr_div = 0;
-    ctx->div_fallback = 1;
+    ctx->dev->cr_div = 0;
+    ctx->dev->div_fallback = 1;
   }
 }
 
 uint64_t spx_cl_program_options(const spx_ctx *ctx, const char *src, char *o, size_t cap) {
   uint64_t uses = 0;
-  size_t n = (size_t)snprintf(o, cap, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1", ctx->tune_cpu ? "CPU" : "GPU");
+  size_t n = (size_t)snprintf(o, cap, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1", ctx->dev->tune_cpu ? "CPU" : "GPU");
   for (int i = 0; i < NTUNABLES && n < cap; i++)
     if (strstr(src, spx_tunables[i].name)) {
-      n += (size_t)snprintf(o + n, cap - n, " -D%s=%d", spx_tunables[i].name, field_value(&ctx->tune, i));
+      n += (size_t)snprintf(o + n, cap - n, " -D%s=%d", spx_tunables[i].name, field_value(&ctx->dev->tune, i));
       uses |= 1ull << i;
     }
   if (n < cap)
     n += (size_t)snprintf(o + n, cap - n,
-                          ctx->cr_div ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
-  if (n < cap && ctx->div_fallback) snprintf(o + n, cap - n, " -DSPX_FORCE_DIV_FALLBACK=1");
+                          ctx->dev->cr_div ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
+  if (n < cap && ctx->dev->div_fallback) snprintf(o + n, cap - n, " -DSPX_FORCE_DIV_FALLBACK=1");
   return uses;
 }
 
@@ -251,11 +251,11 @@ spx_status spx_cl_tunables_resolve(spx_ctx *ctx) {
   spx_status st = tune_column(ctx);
   if (st) return st;
   for (int i = 0; i < NTUNABLES; i++) {
-    *field(&ctx->tune, i) = ctx->tune_cpu ? spx_tunables[i].cpu : spx_tunables[i].gpu;
-    ctx->tune_src[i] = SPX_TSRC_DEFAULT;
+    *field(&ctx->dev->tune, i) = ctx->dev->tune_cpu ? spx_tunables[i].cpu : spx_tunables[i].gpu;
+    ctx->dev->tune_src[i] = SPX_TSRC_DEFAULT;
   }
   spx_cl_tunefile_apply(ctx); /* never fails: a bad file is noted and ignored */
-  if ((st = apply_env(ctx)) || (st = spx_cl_tunables_check(ctx, &ctx->tune))) return st;
+  if ((st = apply_env(ctx)) || (st = spx_cl_tunables_check(ctx, &ctx->dev->tune))) return st;
   division_mode(ctx);
   return SPX_OK;
 }
@@ -271,11 +271,11 @@ spx_status spx_device_tunable(spx_ctx *ctx, int i, spx_tunable_info *out) {
   if (st) return st;
   if (i < 0 || i >= NTUNABLES) return spx_fail(ctx, SPX_E_ARG, "spx_device_tunable: index %d out of [0, %d)", i, NTUNABLES);
   out->name = short_name(i);
-  out->value = field_value(&ctx->tune, i);
-  out->default_value = ctx->tune_cpu ? spx_tunables[i].cpu : spx_tunables[i].gpu;
+  out->value = field_value(&ctx->dev->tune, i);
+  out->default_value = ctx->dev->tune_cpu ? spx_tunables[i].cpu : spx_tunables[i].gpu;
   out->lo = spx_tunables[i].lo;
   out->hi = spx_tunables[i].hi;
-  out->source = source_name(ctx->tune_src[i]);
+  out->source = source_name(ctx->dev->tune_src[i]);
   return SPX_OK;
 }
 
@@ -286,14 +286,14 @@ spx_status spx_device_set_tunable(spx_ctx *ctx, const char *name, int value) {
   if (i < 0) return spx_fail(ctx, SPX_E_ARG, "spx_device_set_tunable: no tunable named %s", name ? name : "(null)");
   char why[128], val[32];
   snprintf(val, sizeof val, "%d", value);
-  struct spx_tunables t = ctx->tune;
+  struct spx_tunables t = ctx->dev->tune;
   if (spx_cl_tunable_parse(ctx, i, val, field(&t, i), why, sizeof why))
     return spx_fail(ctx, SPX_E_ARG, "tunable %s=%s: %s", short_name(i), val, why);
   if ((st = spx_cl_tunables_check(ctx, &t))) return st;
-  if (field_value(&ctx->tune, i) != value) {
+  if (field_value(&ctx->dev->tune, i) != value) {
     spx_cl_programs_release(ctx, 1ull << i); /* those built with the old -D value */
-    ctx->tune = t;
+    ctx->dev->tune = t;
   }
-  ctx->tune_src[i] = SPX_TSRC_SET;
+  ctx->dev->tune_src[i] = SPX_TSRC_SET;
   return SPX_OK;
 }

@@ -4,7 +4,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cl/cl_internal.h"
 #include "core/internal.h"
 
 const char *spx_status_name(spx_status s) {
@@ -64,7 +63,7 @@ spx_status spx_ctx_create(spx_ctx **out) {
 
 void spx_ctx_destroy(spx_ctx *ctx) {
   if (!ctx) return;
-  spx_cl_close(ctx);
+  if (ctx->dev_close) ctx->dev_close(ctx);
   free(ctx);
 }
 
@@ -74,6 +73,27 @@ void spx_ctx_clear_error(spx_ctx *ctx) {
   if (!ctx) return;
   ctx->msg[0] = 0;
   ctx->last = SPX_OK;
+}
+
+void spx_ctx_set_log(spx_ctx *ctx, spx_log_fn fn, void *user) {
+  if (!ctx) return;
+  ctx->log = fn;
+  ctx->log_user = fn ? user : NULL;
+}
+
+void spx_ctx_set_profile(spx_ctx *ctx, unsigned flags) {
+  if (ctx) ctx->profile = flags;
+}
+unsigned spx_ctx_profile(const spx_ctx *ctx) { return ctx ? ctx->profile : 0; }
+
+void spx_log(spx_ctx *ctx, const char *fmt, ...) {
+  if (!ctx || !ctx->log) return;
+  char line[1024];
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(line, sizeof line, fmt, ap);
+  va_end(ap);
+  ctx->log(ctx->log_user, line);
 }
 
 spx_status spx_fail(spx_ctx *ctx, spx_status st, const char *fmt, ...) {

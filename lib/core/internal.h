@@ -14,9 +14,26 @@
 #define SPX_PRINTF(a, b)
 #endif
 
-/* Record an error on ctx (ctx may be NULL) and return st, so callers can write
- *   return spx_fail(ctx, SPX_E_FORMAT, "%s:%d: expected ...", path, line);          */
-spx_status spx_fail(spx_ctx *ctx, spx_status st, const char *fmt, ...) SPX_PRINTF(3, 4);
+/* The context (public handle spx_ctx): the error channel, the log callback and the profiling
+ * switches live here in core; the OpenCL device is an object of lib/cl (struct spx_cl_device,
+ * lib/cl/cl_internal.h) that the context only points to. lib/cl sets dev and dev_close when a
+ * device opens; spx_ctx_destroy closes it through that hook, so core never calls into cl. */
+struct spx_cl_device;
+struct spx_ctx {
+  char msg[1024];
+  spx_status last;
+  spx_log_fn log;
+  void *log_user;
+  unsigned profile;                    /* SPX_PROFILE_* */
+  struct spx_cl_device *dev;           /* NULL: no device open */
+  void (*dev_close)(struct spx_ctx *); /* set with dev by lib/cl: releases and frees dev */
+};
+
+/* One line to the context's log callback (nothing when none is installed). */
+void spx_log(spx_ctx *ctx, const char *fmt, ...) SPX_PRINTF(2, 3);
+
+/* spx_fail (record an error on ctx and return st) and spx_now (monotonic clock) are public:
+ * smplpix/core.h. spx_path_ext (lower-case extension) is public: smplpix/files.h. */
 
 /* Overflow-checked size arithmetic: returns 0 on overflow. */
 int spx_mul_size(size_t a, size_t b, size_t *out);
@@ -53,14 +70,29 @@ static inline int spx_hex_number(const char *p) {
   return p[0] == '0' && (p[1] == 'x' || p[1] == 'X');
 }
 
-/* Lower-case extension of path without the dot ("" if none), written to ext (cap bytes). */
-void spx_path_ext(const char *path, char *ext, size_t cap);
+
+/* Grow *v (elements of elem bytes, capacity *cap) to hold need elements: capacity doubles from
+ * 64. Errors are SPX_E_NOMEM naming `name` ("<name>: <one> array too large", "<name>: cannot
+ * allocate N <many>"); *v and *cap are unchanged then. */
+spx_status spx_array_grow(spx_ctx *ctx, void **v, size_t *cap, size_t need, size_t elem, const char *name,
+                          const char *one, const char *many);
+/* Growable int32 array (e.g. faces while their count is unknown; lib/core/util.c). Free v. */
+typedef struct spx_ivec {
+  int32_t *v;
+  size_t n, cap;
+} spx_ivec;
+/* Append k values; records SPX_E_NOMEM naming `name` on failure. */
+spx_status spx_ivec_push(spx_ctx *ctx, const char *name, spx_ivec *a, const int32_t *vals, size_t k);
 
 /* 64-bit FNV-1a, chainable (pass the previous hash as seed; start with SPX_FNV_SEED). */
 #define SPX_FNV_SEED 0xcbf29ce484222325ULL
 uint64_t spx_hash64(const void *data, size_t n, uint64_t seed);
 
-/* Monotonic wall clock in seconds. */
-double spx_now(void);
+/* IEEE 754 binary16 <-> binary32 (lib/core/half.c). spx_half_to_float is exact for every input
+ * (subnormals kept, Inf, NaN with its payload's top bits). spx_float_to_half rounds to nearest
+ * even, keeps subnormals and returns 0 (out untouched) when v is not finite or |v| rounds past
+ * 65504; else 1. */
+float spx_half_to_float(uint16_t h);
+int spx_float_to_half(float v, uint16_t *out);
 
 #endif

@@ -139,3 +139,28 @@ double spx_now(void) {
   clock_gettime(CLOCK_MONOTONIC, &ts);
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
+
+spx_status spx_array_grow(spx_ctx *ctx, void **v, size_t *cap, size_t need, size_t elem, const char *name,
+                          const char *one, const char *many) {
+  if (need <= *cap) return SPX_OK;
+  size_t c = *cap ? *cap : 64;
+  while (c < need) {
+    if (c > SIZE_MAX / 2 / elem) return spx_fail(ctx, SPX_E_NOMEM, "%s: %s array too large", name, one);
+    c *= 2;
+  }
+  void *nv = realloc(*v, c * elem);
+  if (!nv) return spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate %zu %s", name, c, many);
+  *v = nv;
+  *cap = c;
+  return SPX_OK;
+}
+
+spx_status spx_ivec_push(spx_ctx *ctx, const char *name, spx_ivec *a, const int32_t *vals, size_t k) {
+  void *v = a->v;
+  spx_status st = spx_array_grow(ctx, &v, &a->cap, a->n + k, sizeof(int32_t), name, "index", "indices");
+  a->v = v;
+  if (st) return st;
+  memcpy(a->v + a->n, vals, k * sizeof(int32_t));
+  a->n += k;
+  return SPX_OK;
+}

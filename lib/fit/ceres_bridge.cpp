@@ -23,6 +23,20 @@ void set_error(const char *what, const char *detail) {
   g_last_error = std::string(what) + (detail && *detail ? std::string(": ") + detail : std::string());
 }
 
+// f() with every exception caught: its message becomes the last error (what: the entry point)
+// and `fail` is returned instead.
+template <class R, class F>
+R guarded(const char *what, R fail, F &&f) {
+  try {
+    return f();
+  } catch (const std::exception &e) {
+    set_error(what, e.what());
+  } catch (...) {
+    set_error(what, "unknown exception");
+  }
+  return fail;
+}
+
 // A residual block whose values and Jacobians come from a C callback.
 class CCost final : public ceres::CostFunction {
  public:
@@ -92,7 +106,7 @@ void spx_ceres_options_default(spx_ceres_options *o) {
 }
 
 spx_ceres_problem *spx_ceres_problem_create(spx_ceres_prepare_fn prepare, void *prepare_user) {
-  try {
+  return guarded<spx_ceres_problem *>("ceres problem", nullptr, [&] {
     std::unique_ptr<spx_ceres_problem> p(new spx_ceres_problem);
     ceres::Problem::Options po;
     if (prepare) {
@@ -101,12 +115,7 @@ spx_ceres_problem *spx_ceres_problem_create(spx_ceres_prepare_fn prepare, void *
     }
     p->problem.reset(new ceres::Problem(po));
     return p.release();
-  } catch (const std::exception &e) {
-    set_error("ceres problem", e.what());
-  } catch (...) {
-    set_error("ceres problem", "unknown exception");
-  }
-  return nullptr;
+  });
 }
 
 void spx_ceres_problem_destroy(spx_ceres_problem *p) {
@@ -121,27 +130,19 @@ void spx_ceres_problem_destroy(spx_ceres_problem *p) {
 
 int spx_ceres_add_block(spx_ceres_problem *p, double *x, int size) {
   if (!p || !x || size <= 0) return set_error("ceres add block", "bad argument"), -1;
-  try {
+  return guarded("ceres add block", -1, [&] {
     p->problem->AddParameterBlock(x, size);
     return 0;
-  } catch (const std::exception &e) {
-    set_error("ceres add block", e.what());
-  } catch (...) {
-    set_error("ceres add block", "unknown exception");
-  }
-  return -1;
+  });
 }
 
 int spx_ceres_set_constant(spx_ceres_problem *p, double *x, int constant) {
   if (!p || !x || !p->problem->HasParameterBlock(x)) return set_error("ceres set constant", "unknown block"), -1;
-  try {
+  return guarded("ceres set constant", -1, [&] {
     if (constant) p->problem->SetParameterBlockConstant(x);
     else p->problem->SetParameterBlockVariable(x);
     return 0;
-  } catch (...) {
-    set_error("ceres set constant", "exception");
-  }
-  return -1;
+  });
 }
 
 int spx_ceres_add_residual(spx_ceres_problem *p, spx_ceres_cost_fn fn, void *user, int num_residuals, int nblocks,
@@ -149,7 +150,7 @@ int spx_ceres_add_residual(spx_ceres_problem *p, spx_ceres_cost_fn fn, void *use
   if (!p || !fn || num_residuals <= 0 || nblocks <= 0 || !block_sizes || !blocks)
     return set_error("ceres add residual", "bad argument"), -1;
   if (loss != SPX_LOSS_NONE && !(loss_scale > 0)) return set_error("ceres add residual", "loss scale must be > 0"), -1;
-  try {
+  return guarded("ceres add residual", -1, [&] {
     std::vector<int> sizes(block_sizes, block_sizes + nblocks);
     std::vector<double *> ptrs(blocks, blocks + nblocks);
     for (int i = 0; i < nblocks; i++)
@@ -159,12 +160,7 @@ int spx_ceres_add_residual(spx_ceres_problem *p, spx_ceres_cost_fn fn, void *use
     else if (loss == SPX_LOSS_CAUCHY) lf = new ceres::CauchyLoss(loss_scale);
     p->problem->AddResidualBlock(new CCost(fn, user, num_residuals, sizes), lf, ptrs);
     return 0;
-  } catch (const std::exception &e) {
-    set_error("ceres add residual", e.what());
-  } catch (...) {
-    set_error("ceres add residual", "unknown exception");
-  }
-  return -1;
+  });
 }
 
 int spx_ceres_num_residual_blocks(const spx_ceres_problem *p) { return p ? p->problem->NumResidualBlocks() : 0; }
@@ -172,7 +168,7 @@ int spx_ceres_num_residual_blocks(const spx_ceres_problem *p) { return p ? p->pr
 int spx_ceres_solve(spx_ceres_problem *p, const spx_ceres_options *o, spx_ceres_summary *s) {
   if (!p || !o || !s) return set_error("ceres solve", "bad argument"), -1;
   std::memset(s, 0, sizeof *s);
-  try {
+  return guarded("ceres solve", -1, [&] {
     ceres::Solver::Options so;
     switch (o->linear_solver) {
       case SPX_LS_DENSE_QR: so.linear_solver_type = ceres::DENSE_QR; break;
@@ -218,27 +214,17 @@ int spx_ceres_solve(spx_ceres_problem *p, const spx_ceres_options *o, spx_ceres_
     if (p->prepare && p->prepare->failed) return set_error("ceres solve", "evaluation callback failed"), -1;
     if (sum.termination_type == ceres::FAILURE) return set_error("ceres solve", sum.message.c_str()), -1;
     return 0;
-  } catch (const std::exception &e) {
-    set_error("ceres solve", e.what());
-  } catch (...) {
-    set_error("ceres solve", "unknown exception");
-  }
-  return -1;
+  });
 }
 
 spx_kdtree *spx_kdtree_build(const float *pts, int32_t n) {
   if (!pts || n <= 0) return set_error("kd-tree", "no points"), nullptr;
-  try {
+  return guarded<spx_kdtree *>("kd-tree build", nullptr, [&] {
     std::unique_ptr<spx_kdtree> t(new spx_kdtree);
     t->cloud.p.assign(pts, pts + (size_t)n * 3);
     t->tree.reset(new Tree(3, t->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16)));
     return t.release();
-  } catch (const std::exception &e) {
-    set_error("kd-tree build", e.what());
-  } catch (...) {
-    set_error("kd-tree build", "unknown exception");
-  }
-  return nullptr;
+  });
 }
 
 void spx_kdtree_free(spx_kdtree *t) { delete t; }
@@ -247,7 +233,7 @@ int spx_kdtree_query(const spx_kdtree *t, const float *q, int32_t nq, int k, int
   if (!t || (!q && nq > 0) || nq < 0 || k < 1 || !idx) return set_error("kd-tree query", "bad argument"), -1;
   size_t npts = t->cloud.kdtree_get_point_count();
   if ((size_t)k > npts) return set_error("kd-tree query", "k larger than the point count"), -1;
-  try {
+  return guarded("kd-tree query", -1, [&] {
     auto work = [&](int32_t a, int32_t b) {
       std::vector<uint32_t> ii((size_t)k);
       std::vector<float> dd((size_t)k);
@@ -273,12 +259,7 @@ int spx_kdtree_query(const spx_kdtree *t, const float *q, int32_t nq, int k, int
       for (auto &x : th) x.join();
     }
     return 0;
-  } catch (const std::exception &e) {
-    set_error("kd-tree query", e.what());
-  } catch (...) {
-    set_error("kd-tree query", "unknown exception");
-  }
-  return -1;
+  });
 }
 
 }  // extern "C"

@@ -16,8 +16,6 @@ spx_status spx_fit_vertex_faces(spx_ctx *ctx, int32_t nv, const int32_t *faces, 
 spx_status spx_fit_vertex_neighbours(spx_ctx *ctx, int32_t nv, const int32_t *faces, int32_t nf, spx_adj *out);
 void spx_adj_free(spx_adj *a);
 
-/* Area-weighted vertex normals (unit; zero for isolated vertices). */
-void spx_fit_vertex_normals_d(const double *v, int32_t nv, const int32_t *faces, int32_t nf, double *nrm);
 /* Squared distance from p to triangle (a, b, c). */
 double spx_fit_point_tri_d2(const double p[3], const double a[3], const double b[3], const double c[3]);
 /* Same as spx_fit_surface_distance, with an already computed vertex → face adjacency. */
@@ -28,8 +26,4 @@ spx_status spx_fit_kd_build(spx_ctx *ctx, const float *pts, int32_t n, spx_kdtre
 spx_status spx_fit_kd_query(spx_ctx *ctx, const spx_kdtree *t, const float *q, int32_t nq, int k, int32_t *idx,
                             float *d2, int threads);
 
-
-/* Tests: central-difference check of every residual's analytic Jacobian (rigid, body plane,
- * body point, priors + limits, Laplacian, free-vertex data). worst[i]: max relative error. */
-spx_status spx_fit_gradient_selftest(spx_ctx *ctx, const spx_body_model *m, double worst[6]);
 #endif

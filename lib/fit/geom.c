@@ -75,23 +75,6 @@ spx_status spx_fit_vertex_neighbours(spx_ctx *ctx, int32_t nv, const int32_t *fa
   return SPX_OK;
 }
 
-void spx_fit_vertex_normals_d(const double *v, int32_t nv, const int32_t *faces, int32_t nf, double *nrm) {
-  memset(nrm, 0, (size_t)nv * 3 * sizeof(double));
-  for (int32_t f = 0; f < nf; f++) {
-    const int32_t *F = faces + f * 3;
-    const double *a = v + F[0] * 3, *b = v + F[1] * 3, *c = v + F[2] * 3;
-    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-    for (int k = 0; k < 3; k++)
-      for (int d = 0; d < 3; d++) nrm[F[k] * 3 + d] += n[d];
-  }
-  for (int32_t i = 0; i < nv; i++) {
-    double *n = nrm + i * 3, l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    if (l > 0)
-      for (int d = 0; d < 3; d++) n[d] /= l;
-  }
-}
-
 static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 /* Closest point on a triangle by Voronoi regions (the classic construction). */

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "io/mesh_internal.h"
+#include "smplpix/files.h"
 
 spx_status spx_mesh_load(spx_ctx *ctx, const char *path, spx_mesh *out) {
   if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_mesh_load: no output mesh");

@@ -340,29 +340,6 @@ spx_status spx_npy_save_f32(spx_ctx *ctx, const char *path, const float *data, i
   return spx_npy_save(ctx, path, &a);
 }
 
-static float half_to_float(uint16_t h) {
-  uint32_t sign = (uint32_t)(h >> 15) << 31, exp = (h >> 10) & 0x1f, man = h & 0x3ff, bits;
-  if (exp == 0) {
-    if (man == 0) {
-      bits = sign;
-    } else { /* subnormal: normalise */
-      exp = 127 - 15 + 1;
-      while (!(man & 0x400)) {
-        man <<= 1;
-        exp--;
-      }
-      bits = sign | exp << 23 | (man & 0x3ff) << 13;
-    }
-  } else if (exp == 31) {
-    bits = sign | 0x7f800000u | man << 13;
-  } else {
-    bits = sign | (exp + 127 - 15) << 23 | man << 13;
-  }
-  float f;
-  memcpy(&f, &bits, 4);
-  return f;
-}
-
 spx_status spx_array_to_f32(spx_ctx *ctx, const spx_array *a, float **out) {
   if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_array_to_f32: no output");
   *out = NULL;
@@ -386,7 +363,7 @@ spx_status spx_array_to_f32(spx_ctx *ctx, const spx_array *a, float **out) {
     case SPX_U32: { uint32_t v; memcpy(&v, e, 4); f[i] = (float)v; break; }
     case SPX_I64: { int64_t v; memcpy(&v, e, 8); f[i] = (float)v; break; }
     case SPX_U64: { uint64_t v; memcpy(&v, e, 8); f[i] = (float)v; break; }
-    case SPX_F16: { uint16_t v; memcpy(&v, e, 2); f[i] = half_to_float(v); break; }
+    case SPX_F16: { uint16_t v; memcpy(&v, e, 2); f[i] = spx_half_to_float(v); break; }
     }
   }
   *out = f;

@@ -17,23 +17,6 @@
 
 #include "io/mesh_internal.h"
 
-spx_status spx_ivec_push(spx_ctx *ctx, const char *name, spx_ivec *a, const int32_t *vals, size_t k) {
-  if (a->n + k > a->cap) {
-    size_t cap = a->cap ? a->cap : 64;
-    while (cap < a->n + k) {
-      if (cap > SIZE_MAX / 2 / sizeof(int32_t)) return spx_fail(ctx, SPX_E_NOMEM, "%s: index array too large", name);
-      cap *= 2;
-    }
-    int32_t *nv = realloc(a->v, cap * sizeof(int32_t));
-    if (!nv) return spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate %zu indices", name, cap);
-    a->v = nv;
-    a->cap = cap;
-  }
-  memcpy(a->v + a->n, vals, k * sizeof(int32_t));
-  a->n += k;
-  return SPX_OK;
-}
-
 static const char *const obj_ignored[] = {"o",    "g",     "s",     "usemtl", "mtllib", "l",     "p",
                                           "vp",   "cstype", "deg",  "bmat",   "step",   "curv",  "curv2",
                                           "surf", "parm",  "trim",  "hole",   "scrv",   "sp",    "end",

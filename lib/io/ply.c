@@ -165,17 +165,10 @@ typedef struct fvec {
   size_t n, cap;
 } fvec;
 static spx_status fvec_push(spx_ctx *ctx, const char *name, fvec *a, const float *vals, size_t k) {
-  if (a->n + k > a->cap) {
-    size_t cap = a->cap ? a->cap : 64;
-    while (cap < a->n + k) {
-      if (cap > SIZE_MAX / 2 / sizeof(float)) return spx_fail(ctx, SPX_E_NOMEM, "%s: texcoord array too large", name);
-      cap *= 2;
-    }
-    float *nv = realloc(a->v, cap * sizeof(float));
-    if (!nv) return spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate %zu texcoords", name, cap);
-    a->v = nv;
-    a->cap = cap;
-  }
+  void *v = a->v;
+  spx_status st = spx_array_grow(ctx, &v, &a->cap, a->n + k, sizeof(float), name, "texcoord", "texcoords");
+  a->v = v;
+  if (st) return st;
   if (k) memcpy(a->v + a->n, vals, k * sizeof(float));
   a->n += k;
   return SPX_OK;

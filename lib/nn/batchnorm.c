@@ -14,10 +14,10 @@ static spx_status vec_check(spx_ctx *ctx, const char *op, const spx_tensor *t, c
 }
 
 static spx_status run_group_per_channel(spx_ctx *ctx, cl_kernel k, int c, const char *what) {
-  size_t l = (size_t)ctx->tune.bn_wg;
-  if (l > ctx->info.max_work_group)
+  size_t l = (size_t)ctx->dev->tune.bn_wg;
+  if (l > ctx->dev->info.max_work_group)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_BN_WG=%zu exceeds the device's work-group limit %zu", what, l,
-                    ctx->info.max_work_group);
+                    ctx->dev->info.max_work_group);
   size_t g = (size_t)c * l;
   return spx_cl_run(ctx, k, 1, &g, &l, what);
 }

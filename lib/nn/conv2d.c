@@ -120,7 +120,7 @@ static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_
              SPX_ARG(k, 9, left) | SPX_ARG(k, 10, d);
   if ((st = spx_cl_check(ctx, e, "spx_conv2d_pad args"))) return st;
   size_t gl[3] = {(size_t)wp, ((size_t)plane + wp - 1) / wp, (size_t)nc};
-  size_t lo[3] = {(size_t)ctx->tune.wg, 1, 1};
+  size_t lo[3] = {(size_t)ctx->dev->tune.wg, 1, 1};
   if ((size_t)wp < lo[0]) lo[0] = (size_t)wp;
   if ((st = spx_cl_run(ctx, k, 3, gl, lo, "spx_conv2d_pad"))) return st;
   size_t used = (size_t)nc * plane;
@@ -139,7 +139,7 @@ static spx_status pack_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot,
   cl_int e = SPX_ARG(kr, 0, w->mem) | SPX_ARG(kr, 1, wo) | SPX_ARG(kr, 2, out->mem) | SPX_ARG(kr, 3, cout) |
              SPX_ARG(kr, 4, cin) | SPX_ARG(kr, 5, k) | SPX_ARG(kr, 6, cols) | SPX_ARG(kr, 7, flip);
   if ((st = spx_cl_check(ctx, e, "spx_conv2d_pack args"))) return st;
-  size_t l = (size_t)ctx->tune.wg;
+  size_t l = (size_t)ctx->dev->tune.wg;
   return spx_cl_run(ctx, kr, 1, &total, &l, "spx_conv2d_pack");
 }
 
@@ -159,8 +159,8 @@ static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, i
   cl_kernel kr;
   spx_status st = spx_cl_kernel(ctx, kid, &kr);
   if (st) return st;
-  int tm = ctx->tune.conv_tm, tn = ctx->tune.conv_tn, vw = ctx->tune.conv_vw;
-  int lws = ctx->tune.conv_lws;
+  int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
+  int lws = ctx->dev->tune.conv_lws;
   size_t tile_q = (size_t)lws * tn * vw;
   size_t groups = round_up((size_t)ho * wp, tile_q) / tile_q;
   cl_mem bm = bias ? bias->mem : wpk, scm = scale ? scale->mem : wpk, shm = shift ? shift->mem : wpk;
@@ -175,7 +175,7 @@ static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, i
    * pixel-fastest so each weight panel is read once. When the input does not fit, split the
    * input channels into blocks that do (passes accumulate into y in a fixed order). */
   double wbytes = 4.0 * cin * k * k * coutp, xbytes = 4.0 * cin * plane;
-  double xcache = (double)ctx->tune.conv_xcache * 1024.0;
+  double xcache = (double)ctx->dev->tune.conv_xcache * 1024.0;
   int pix_major = wbytes > xbytes && xbytes <= xcache, cib = cin;
   if (wbytes > xbytes && xbytes > xcache && xcache > 0) {
     cib = (int)(xcache / (4.0 * plane));
@@ -186,7 +186,7 @@ static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, i
   e |= SPX_ARG(kr, 19, pix_major);
   if (s > 2) e |= SPX_ARG(kr, 22, s);
   if ((st = spx_cl_check(ctx, e, name))) return st;
-  int ct = ctx->tune.conv_ct, ncst = (coutp / tm + ct - 1) / ct;
+  int ct = ctx->dev->tune.conv_ct, ncst = (coutp / tm + ct - 1) / ct;
   size_t gl[2] = {(lds ? spx_conv2d_lds_groups(ctx, coutp, ho, wo) : (size_t)ncst * groups) * lws, (size_t)n};
   size_t lo[2] = {(size_t)lws, 1};
   const int epi = FL_BIAS | FL_SCALE | FL_SHIFT | FL_RELU;
@@ -211,8 +211,8 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
     return st;
   if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, p->scale || p->relu))
     return spx_conv2d_winograd(ctx, p->ws, x, w, 0, bias, p->scale, p->scale ? p->shift : NULL, p->relu, 0, y);
-  int tm = ctx->tune.conv_tm, tn = ctx->tune.conv_tn, vw = ctx->tune.conv_vw;
-  int lws = ctx->tune.conv_lws;
+  int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
+  int lws = ctx->dev->tune.conv_lws;
   int hp = g.h + 2 * g.pad, wp = g.w + 2 * g.pad, plane = hp * wp;
   size_t qv = round_up((size_t)g.ho * wp, (size_t)lws * tn * vw);
   size_t total = (size_t)g.n * g.cin * plane + guard_elems(g.s, qv, g.k, wp, vw);
@@ -237,8 +237,8 @@ static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const ge
                                 const spx_tensor *dy, const spx_tensor *dx) {
   if (spx_conv2d_winograd_applies(ctx, g->k, g->s, g->pad, g->cout, g->cin, 0))
     return spx_conv2d_winograd(ctx, ws, dy, w, 1, NULL, NULL, NULL, 0, 1, dx);
-  int tm = ctx->tune.conv_tm, tn = ctx->tune.conv_tn, vw = ctx->tune.conv_vw;
-  int lws = ctx->tune.conv_lws;
+  int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
+  int lws = ctx->dev->tune.conv_lws;
   int hd = g->h + g->k - 1, wd = g->w + g->k - 1, plane = hd * wd, top = g->k - 1 - g->pad;
   size_t qv = round_up((size_t)g->h * wd, (size_t)lws * tn * vw);
   size_t total = (size_t)g->n * g->cout * plane + guard_elems(1, qv, g->k, wd, vw);
@@ -260,8 +260,8 @@ done:
 /* dw += sum over (n, q) of dy x im2col(x): chunked partial sums, then a fixed-order reduction. */
 static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *x,
                                    const spx_tensor *dy, const spx_tensor *dw) {
-  int vw = ctx->tune.conv_vw, dtm = ctx->tune.conv_dw_tm, dtn = ctx->tune.conv_dw_tn;
-  int qc = (int)round_up((size_t)ctx->tune.conv_dw_qc, (size_t)vw);
+  int vw = ctx->dev->tune.conv_vw, dtm = ctx->dev->tune.conv_dw_tm, dtn = ctx->dev->tune.conv_dw_tn;
+  int qc = (int)round_up((size_t)ctx->dev->tune.conv_dw_qc, (size_t)vw);
   int hp = g->h + 2 * g->pad, wp = g->w + 2 * g->pad, plane = hp * wp;
   int qd = (int)round_up((size_t)g->ho * wp, (size_t)vw);
   int nchunks = (qd + qc - 1) / qc;
@@ -290,9 +290,9 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
                SPX_ARG(kr, 8, plane) | SPX_ARG(kr, 9, qd) | SPX_ARG(kr, 10, qc);
     if (g->s > 2) e |= SPX_ARG(kr, 11, g->s);
     if ((st = spx_cl_check(ctx, e, name))) goto done;
-    size_t per = (size_t)dtn * ctx->tune.conv_dw_g;
+    size_t per = (size_t)dtn * ctx->dev->tune.conv_dw_g;
     size_t gl[3] = {((size_t)kdim + per - 1) / per, ((size_t)g->cout + dtm - 1) / dtm, (size_t)nchunks};
-    size_t lo[3] = {(size_t)ctx->tune.conv_dw_lws, 1, 1};
+    size_t lo[3] = {(size_t)ctx->dev->tune.conv_dw_lws, 1, 1};
     if ((st = spx_cl_run(ctx, kr, 3, gl, lo, name))) goto done;
   }
   {
@@ -303,7 +303,7 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
     cl_int e = SPX_ARG(kr, 0, part) | SPX_ARG(kr, 1, dw->mem) | SPX_ARG(kr, 2, off) | SPX_ARG(kr, 3, cnt) |
                SPX_ARG(kr, 4, nchunks);
     if ((st = spx_cl_check(ctx, e, "spx_conv2d_dw_reduce"))) goto done;
-    size_t gl = count, l = (size_t)ctx->tune.wg;
+    size_t gl = count, l = (size_t)ctx->dev->tune.wg;
     st = spx_cl_run(ctx, kr, 1, &gl, &l, "spx_conv2d_dw_reduce");
   }
 done:
@@ -322,7 +322,7 @@ static spx_status backward_bias(spx_ctx *ctx, const geom *g, const spx_tensor *d
   cl_int e = SPX_ARG(kr, 0, dy->mem) | SPX_ARG(kr, 1, dyo) | SPX_ARG(kr, 2, db->mem) | SPX_ARG(kr, 3, dbo) |
              SPX_ARG(kr, 4, g->n) | SPX_ARG(kr, 5, g->cout) | SPX_ARG(kr, 6, hw);
   if ((st = spx_cl_check(ctx, e, "spx_conv2d_db"))) return st;
-  size_t l = (size_t)ctx->tune.conv_red_wg, gl = (size_t)g->cout * l;
+  size_t l = (size_t)ctx->dev->tune.conv_red_wg, gl = (size_t)g->cout * l;
   return spx_cl_run(ctx, kr, 1, &gl, &l, "spx_conv2d_db");
 }
 

@@ -5,16 +5,16 @@
 #include "nn/conv2d.h"
 
 int spx_conv2d_lds_applies(const spx_ctx *ctx, int k, int stride) {
-  const struct spx_tunables *t = &ctx->tune;
+  const struct spx_tunables *t = &ctx->dev->tune;
   if (k != 3 || stride != 1 || !t->conv_lds || t->conv_vw != 1) return 0;
   int lws = t->conv_lws, tx = t->conv_lds_tx, tn = t->conv_tn, cb = t->conv_lds_cb, tm = t->conv_tm;
   if (tx < 1 || lws % tx) return 0;
   uint64_t local = 4ull * cb * ((uint64_t)(lws / tx * tn + 2) * (tx + 2) + 9ull * tm);
-  return local <= ctx->info.local_mem;
+  return local <= ctx->dev->info.local_mem;
 }
 
 size_t spx_conv2d_lds_groups(const spx_ctx *ctx, int coutp, int ho, int wo) {
-  const struct spx_tunables *t = &ctx->tune;
+  const struct spx_tunables *t = &ctx->dev->tune;
   int tx = t->conv_lds_tx, ty = t->conv_lws / tx * t->conv_tn, tm = t->conv_tm;
   return (size_t)(coutp / tm) * (size_t)((wo + tx - 1) / tx) * (size_t)((ho + ty - 1) / ty);
 }

@@ -15,8 +15,8 @@
 #define FL_ACCUM 16
 
 int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int inference) {
-  int minc = ctx->tune.conv_wino_minc;
-  if (!inference && !ctx->tune.conv_wino_train) return 0;
+  int minc = ctx->dev->tune.conv_wino_minc;
+  if (!inference && !ctx->dev->tune.conv_wino_train) return 0;
   return minc > 0 && k == 3 && stride == 1 && pad == 1 && cin >= minc && cout >= minc;
 }
 
@@ -48,8 +48,8 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
                                int relu, int accumulate, const spx_tensor *y) {
   const int n = x->n, cin = x->c, h = x->h, wd = x->w, cout = y->c;
   const int Cout = w->n, Cin = w->c; /* the weight tensor's own dimensions */
-  const int tm = ctx->tune.conv_tm, tn = ctx->tune.conv_tn, vw = ctx->tune.conv_vw;
-  const int lws = ctx->tune.conv_lws;
+  const int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
+  const int lws = ctx->dev->tune.conv_lws;
   /* tiles: TH rows of TWp (TW rounded up to the vector width, so a vector of tiles is one row) */
   const int th = (h + 3) / 4, tw = (wd + 3) / 4, twp = (tw + vw - 1) / vw * vw, T = th * twp;
   const int hp = 4 * th + 2, wp = 4 * twp + 4, plane = hp * wp;
@@ -76,7 +76,7 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
       (st = wbuf_get(ctx, ws, 1, (size_t)36 * cin * coutp, "winograd weight transform", &U)) ||
       (st = wbuf_get(ctx, ws, 2, (size_t)n * 36 * cin * tp, "winograd input transform", &V)))
     goto done;
-  const size_t wg = (size_t)ctx->tune.wg;
+  const size_t wg = (size_t)ctx->dev->tune.wg;
   {
     cl_ulong xo = x->off;
     int one = 1;

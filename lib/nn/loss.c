@@ -9,10 +9,10 @@ static spx_status reduce_run(spx_ctx *ctx, const char *op, int kind, const spx_t
   spx_status st;
   cl_kernel k1, k2;
   cl_mem partial = NULL;
-  size_t wg = (size_t)ctx->tune.red_wg, maxg = (size_t)ctx->tune.red_groups;
-  if (wg > ctx->info.max_work_group)
+  size_t wg = (size_t)ctx->dev->tune.red_wg, maxg = (size_t)ctx->dev->tune.red_groups;
+  if (wg > ctx->dev->info.max_work_group)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_RED_WG=%zu exceeds the device's work-group limit %zu", op, wg,
-                    ctx->info.max_work_group);
+                    ctx->dev->info.max_work_group);
   if (spx_tensor_numel(out) != 1) return spx_fail(ctx, SPX_E_ARG, "%s: out must have one element", op);
   size_t n = spx_tensor_numel(a), groups = (n + wg - 1) / wg;
   if (groups > maxg) groups = maxg;

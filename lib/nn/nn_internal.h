@@ -40,7 +40,7 @@ static inline spx_status spx_nn_shape_mismatch(spx_ctx *ctx, const char *op, con
 
 /* Launch a 1-D kernel over `count` work-items with the generic SPX_WG work-group size. */
 static inline spx_status spx_nn_run1d(spx_ctx *ctx, cl_kernel k, size_t count, const char *what) {
-  size_t l = (size_t)ctx->tune.wg;
+  size_t l = (size_t)ctx->dev->tune.wg;
   return spx_cl_run(ctx, k, 1, &count, &l, what);
 }
 
@@ -55,8 +55,8 @@ static inline size_t spx_nn_pow2_cap(size_t v, size_t cap) {
 }
 static inline spx_status spx_nn_run3d(spx_ctx *ctx, cl_kernel k, size_t w, size_t h, size_t planes, const char *what) {
   size_t g[3] = {w, h, planes};
-  size_t l[3] = {spx_nn_pow2_cap(w, (size_t)ctx->tune.wg2_x),
-                 spx_nn_pow2_cap(h, (size_t)ctx->tune.wg2_y), 1};
+  size_t l[3] = {spx_nn_pow2_cap(w, (size_t)ctx->dev->tune.wg2_x),
+                 spx_nn_pow2_cap(h, (size_t)ctx->dev->tune.wg2_y), 1};
   return spx_cl_run(ctx, k, 3, g, l, what);
 }
 

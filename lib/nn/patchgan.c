@@ -162,11 +162,6 @@ spx_status spx_patchgan_broadcast(spx_patchgan *d) {
   return spx_tape_broadcast(d->tape);
 }
 
-spx_status spx_patchgan_reset_optimizer(spx_patchgan *d) {
-  d->step = 0;
-  return spx_tape_zero_moments(d->tape);
-}
-
 spx_status spx_patchgan_save(spx_patchgan *d, const char *path, int with_optimizer) {
   int cap = 3 * d->nents + 1, ne = 0;
   spx_st_entry *es = calloc((size_t)cap, sizeof *es);

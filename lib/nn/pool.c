@@ -48,25 +48,26 @@ static spx_status avg_shapes(spx_ctx *ctx, const char *op, const spx_tensor *x, 
   return SPX_OK;
 }
 
-spx_status spx_avgpool3_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *y) {
-  spx_status st;
+/* spx_avgpool3_fwd (in = x, out = y) or spx_avgpool3_bwd (in = dy, out = dx): full is the
+ * un-pooled tensor (x or dx), one work-item per element of grid (y or dx). */
+static spx_status avg_run(spx_ctx *ctx, spx_kernel_id id, const spx_tensor *in, const spx_tensor *out,
+                          const spx_tensor *full, const spx_tensor *grid) {
+  const char *name = spx_cl_kernel_name(id);
   cl_kernel k;
-  if ((st = avg_shapes(ctx, "avgpool3_forward", x, y, "x", "y")) ||
-      (st = spx_cl_kernel(ctx, SPX_K_AVGPOOL3_FWD, &k)))
-    return st;
-  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, x->h) | SPX_ARG(k, 5, x->w);
-  if ((st = spx_cl_check(ctx, e, "spx_avgpool3_fwd"))) return st;
-  return spx_nn_run3d(ctx, k, (size_t)y->w, (size_t)y->h, (size_t)y->n * (size_t)y->c, "spx_avgpool3_fwd");
+  spx_status st = spx_cl_kernel(ctx, id, &k);
+  if (st) return st;
+  cl_int e = spx_nn_arg(k, 0, in) | spx_nn_arg(k, 2, out) | SPX_ARG(k, 4, full->h) | SPX_ARG(k, 5, full->w);
+  if ((st = spx_cl_check(ctx, e, name))) return st;
+  return spx_nn_run3d(ctx, k, (size_t)grid->w, (size_t)grid->h, (size_t)grid->n * (size_t)grid->c, name);
+}
+
+spx_status spx_avgpool3_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *y) {
+  spx_status st = avg_shapes(ctx, "avgpool3_forward", x, y, "x", "y");
+  return st ? st : avg_run(ctx, SPX_K_AVGPOOL3_FWD, x, y, x, y);
 }
 
 spx_status spx_avgpool3_backward(spx_ctx *ctx, const spx_tensor *dy, const spx_tensor *dx) {
-  spx_status st;
-  cl_kernel k;
   if (!dx) return SPX_OK;
-  if ((st = avg_shapes(ctx, "avgpool3_backward", dx, dy, "dx", "dy")) ||
-      (st = spx_cl_kernel(ctx, SPX_K_AVGPOOL3_BWD, &k)))
-    return st;
-  cl_int e = spx_nn_arg(k, 0, dy) | spx_nn_arg(k, 2, dx) | SPX_ARG(k, 4, dx->h) | SPX_ARG(k, 5, dx->w);
-  if ((st = spx_cl_check(ctx, e, "spx_avgpool3_bwd"))) return st;
-  return spx_nn_run3d(ctx, k, (size_t)dx->w, (size_t)dx->h, (size_t)dx->n * (size_t)dx->c, "spx_avgpool3_bwd");
+  spx_status st = avg_shapes(ctx, "avgpool3_backward", dx, dy, "dx", "dy");
+  return st ? st : avg_run(ctx, SPX_K_AVGPOOL3_BWD, dy, dx, dx, dx);
 }

@@ -38,29 +38,28 @@ static void win(int o, int n, int *lo, int *hi) {
   *hi = 2 * o + 1 > n - 1 ? n - 1 : 2 * o + 1;
 }
 
-void spx_ref_avgpool3_forward(const double *x, int n, int c, int h, int w, double *y) {
+/* forward: y = the window's mean of x; backward: each dy / window size added to the window of dx */
+static void avgpool3(const double *in, int n, int c, int h, int w, int backward, double *out) {
   int oh = spx_avgpool3_out(h), ow = spx_avgpool3_out(w);
   for (int p = 0; p < n * c; p++)
     for (int oy = 0; oy < oh; oy++)
       for (int ox = 0; ox < ow; ox++) {
         int y0, y1, x0, x1;
         win(oy, h, &y0, &y1), win(ox, w, &x0, &x1);
-        double s = 0;
+        size_t o = ((size_t)p * oh + oy) * ow + ox;
+        double s = 0, g = backward ? in[o] / ((y1 - y0 + 1) * (x1 - x0 + 1)) : 0;
         for (int iy = y0; iy <= y1; iy++)
-          for (int ix = x0; ix <= x1; ix++) s += x[((size_t)p * h + iy) * w + ix];
-        y[((size_t)p * oh + oy) * ow + ox] = s / ((y1 - y0 + 1) * (x1 - x0 + 1));
+          for (int ix = x0; ix <= x1; ix++) {
+            size_t i = ((size_t)p * h + iy) * w + ix;
+            if (backward) out[i] += g;
+            else s += in[i];
+          }
+        if (!backward) out[o] = s / ((y1 - y0 + 1) * (x1 - x0 + 1));
       }
 }
 
+void spx_ref_avgpool3_forward(const double *x, int n, int c, int h, int w, double *y) { avgpool3(x, n, c, h, w, 0, y); }
+
 void spx_ref_avgpool3_backward(const double *dy, int n, int c, int h, int w, double *dx) {
-  int oh = spx_avgpool3_out(h), ow = spx_avgpool3_out(w);
-  for (int p = 0; p < n * c; p++)
-    for (int oy = 0; oy < oh; oy++)
-      for (int ox = 0; ox < ow; ox++) {
-        int y0, y1, x0, x1;
-        win(oy, h, &y0, &y1), win(ox, w, &x0, &x1);
-        double g = dy[((size_t)p * oh + oy) * ow + ox] / ((y1 - y0 + 1) * (x1 - x0 + 1));
-        for (int iy = y0; iy <= y1; iy++)
-          for (int ix = x0; ix <= x1; ix++) dx[((size_t)p * h + iy) * w + ix] += g;
-      }
+  avgpool3(dy, n, c, h, w, 1, dx);
 }

@@ -98,8 +98,7 @@ spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **ou
   if (!t) return spx_fail(ctx, SPX_E_NOMEM, "tape: out of memory");
   t->ctx = ctx;
   t->backend = backend;
-  const char *pe = getenv("SPX_TAPE_PROFILE");
-  t->prof = backend == SPX_TAPE_DEVICE && pe && *pe && strcmp(pe, "0");
+  t->prof = backend == SPX_TAPE_DEVICE && (spx_ctx_profile(ctx) & SPX_PROFILE_TAPE);
   *out = t;
   return SPX_OK;
 }
@@ -107,11 +106,11 @@ spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **ou
 void spx_tape_destroy(spx_tape *t) {
   if (!t) return;
   if (t->prof) {
-    fprintf(stderr, "tape profile (device time per op kind, all passes):\n");
+    spx_log(t->ctx, "tape profile (device time per op kind, all passes):");
     for (int k = 0; k < NOPS; k++)
       for (int d = 0; d < 2; d++)
         if (t->prof_n[k][d])
-          fprintf(stderr, "  %-10s %-8s %8.3f s  %6ld calls\n", op_names[k], d ? "backward" : "forward", t->prof_s[k][d],
+          spx_log(t->ctx, "  %-10s %-8s %8.3f s  %6ld calls", op_names[k], d ? "backward" : "forward", t->prof_s[k][d],
                   t->prof_n[k][d]);
   }
   spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);

@@ -63,8 +63,8 @@ struct spx_tape {
   int sync_bn, shard_local, shard_global;
   float *xfer;
   size_t xfer_cap;
-  /* SPX_TAPE_PROFILE=1: finish the queue around every device op and print the time per op kind
-   * and direction when the tape is destroyed */
+  /* SPX_PROFILE_TAPE on the context: finish the queue around every device op and log the time
+   * per op kind and direction when the tape is destroyed */
   int prof;
   double prof_s[NOPS][2];
   long prof_n[NOPS][2];

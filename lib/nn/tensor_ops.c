@@ -16,52 +16,50 @@ spx_status spx_fill(spx_ctx *ctx, const spx_tensor *t, float value) {
   return spx_cl_fill_f32(ctx, t->mem, t->off, spx_tensor_numel(t), value);
 }
 
+/* The elementwise kernels of tensor_ops.cl, one work-item per element of t[0]: the tensors t[0..nt)
+ * as arguments 0, 2, .., then alpha (when not NULL), then the element count. */
+static spx_status elementwise(spx_ctx *ctx, spx_kernel_id id, const spx_tensor *const *t, int nt, const float *alpha) {
+  const char *name = spx_cl_kernel_name(id);
+  cl_kernel k;
+  spx_status st = spx_cl_kernel(ctx, id, &k);
+  if (st) return st;
+  cl_int n = (cl_int)spx_tensor_numel(t[0]), e = CL_SUCCESS;
+  int a = 0;
+  for (int i = 0; i < nt; i++, a += 2) e |= spx_nn_arg(k, a, t[i]);
+  if (alpha) e |= SPX_ARG(k, a, *alpha), a++;
+  e |= SPX_ARG(k, a, n);
+  if ((st = spx_cl_check(ctx, e, name))) return st;
+  return spx_nn_run1d(ctx, k, (size_t)n, name);
+}
+
 spx_status spx_copy(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *y) {
   spx_status st;
-  cl_kernel k;
   if ((st = spx_nn_check(ctx, x, "copy", "x")) || (st = spx_nn_check(ctx, y, "copy", "y")) ||
-      (st = same_numel(ctx, "copy", x, y)) || (st = spx_cl_kernel(ctx, SPX_K_COPY, &k)))
+      (st = same_numel(ctx, "copy", x, y)))
     return st;
-  cl_int n = (cl_int)spx_tensor_numel(x);
-  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, n);
-  if ((st = spx_cl_check(ctx, e, "spx_copy"))) return st;
-  return spx_nn_run1d(ctx, k, (size_t)n, "spx_copy");
+  return elementwise(ctx, SPX_K_COPY, (const spx_tensor *[]){x, y}, 2, NULL);
 }
 
 spx_status spx_axpy(spx_ctx *ctx, float alpha, const spx_tensor *x, const spx_tensor *y) {
   spx_status st;
-  cl_kernel k;
   if ((st = spx_nn_check(ctx, x, "axpy", "x")) || (st = spx_nn_check(ctx, y, "axpy", "y")) ||
-      (st = same_numel(ctx, "axpy", x, y)) || (st = spx_cl_kernel(ctx, SPX_K_AXPY, &k)))
+      (st = same_numel(ctx, "axpy", x, y)))
     return st;
-  cl_int n = (cl_int)spx_tensor_numel(x);
-  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, alpha) | SPX_ARG(k, 5, n);
-  if ((st = spx_cl_check(ctx, e, "spx_axpy"))) return st;
-  return spx_nn_run1d(ctx, k, (size_t)n, "spx_axpy");
+  return elementwise(ctx, SPX_K_AXPY, (const spx_tensor *[]){x, y}, 2, &alpha);
 }
 
 spx_status spx_scale(spx_ctx *ctx, float alpha, const spx_tensor *x) {
-  spx_status st;
-  cl_kernel k;
-  if ((st = spx_nn_check(ctx, x, "scale", "x")) || (st = spx_cl_kernel(ctx, SPX_K_SCALE, &k)))
-    return st;
-  cl_int n = (cl_int)spx_tensor_numel(x);
-  cl_int e = spx_nn_arg(k, 0, x) | SPX_ARG(k, 2, alpha) | SPX_ARG(k, 3, n);
-  if ((st = spx_cl_check(ctx, e, "spx_scale"))) return st;
-  return spx_nn_run1d(ctx, k, (size_t)n, "spx_scale");
+  spx_status st = spx_nn_check(ctx, x, "scale", "x");
+  return st ? st : elementwise(ctx, SPX_K_SCALE, (const spx_tensor *[]){x}, 1, &alpha);
 }
 
 spx_status spx_add(spx_ctx *ctx, const spx_tensor *a, const spx_tensor *b, const spx_tensor *out) {
   spx_status st;
-  cl_kernel k;
   if ((st = spx_nn_check(ctx, a, "add", "a")) || (st = spx_nn_check(ctx, b, "add", "b")) ||
       (st = spx_nn_check(ctx, out, "add", "out")) || (st = same_numel(ctx, "add", a, b)) ||
-      (st = same_numel(ctx, "add", a, out)) || (st = spx_cl_kernel(ctx, SPX_K_ADD, &k)))
+      (st = same_numel(ctx, "add", a, out)))
     return st;
-  cl_int n = (cl_int)spx_tensor_numel(a);
-  cl_int e = spx_nn_arg(k, 0, a) | spx_nn_arg(k, 2, b) | spx_nn_arg(k, 4, out) | SPX_ARG(k, 6, n);
-  if ((st = spx_cl_check(ctx, e, "spx_add"))) return st;
-  return spx_nn_run1d(ctx, k, (size_t)n, "spx_add");
+  return elementwise(ctx, SPX_K_ADD, (const spx_tensor *[]){a, b, out}, 3, NULL);
 }
 
 /* x: the unpadded tensor, o: the padded one. */
@@ -111,16 +109,26 @@ static spx_status concat_check(spx_ctx *ctx, const char *op, const spx_tensor *a
   return SPX_OK;
 }
 
-/* src (n x cs x hw) into channels [c0, c0 + cs) of dst (n x cd x hw) */
-static spx_status place(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
+/* The channel-slice kernels: spx_channel_place copies src (n x cs x hw) into channels [c0, c0 + cs)
+ * of dst (n x cd x hw), one work-item per element of src; spx_channel_slice_acc adds channels
+ * [c0, c0 + cd) of src (n x cs x hw) to dst, one per element of dst. `grid` is that tensor. */
+static spx_status channel_run(spx_ctx *ctx, spx_kernel_id id, const spx_tensor *src, const spx_tensor *dst, int c0,
+                              const spx_tensor *grid) {
+  const char *name = spx_cl_kernel_name(id);
   cl_kernel k;
-  spx_status st = spx_cl_kernel(ctx, SPX_K_CHANNEL_PLACE, &k);
+  spx_status st = spx_cl_kernel(ctx, id, &k);
   if (st) return st;
   cl_int hw = src->h * src->w;
   cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, src->c) | SPX_ARG(k, 5, c0) |
              SPX_ARG(k, 6, dst->c) | SPX_ARG(k, 7, hw);
-  if ((st = spx_cl_check(ctx, e, "spx_channel_place"))) return st;
-  return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)src->c, (size_t)src->n, "spx_channel_place");
+  if ((st = spx_cl_check(ctx, e, name))) return st;
+  return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)grid->c, (size_t)grid->n, name);
+}
+static spx_status place(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
+  return channel_run(ctx, SPX_K_CHANNEL_PLACE, src, dst, c0, src);
+}
+static spx_status slice_acc(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
+  return channel_run(ctx, SPX_K_CHANNEL_SLICE_ACC, src, dst, c0, dst);
 }
 
 spx_status spx_concat_forward(spx_ctx *ctx, const spx_tensor *a, const spx_tensor *b, const spx_tensor *out) {
@@ -130,17 +138,6 @@ spx_status spx_concat_forward(spx_ctx *ctx, const spx_tensor *a, const spx_tenso
       (st = place(ctx, a, out, 0)))
     return st;
   return place(ctx, b, out, a->c);
-}
-
-static spx_status slice_acc(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
-  cl_kernel k;
-  spx_status st = spx_cl_kernel(ctx, SPX_K_CHANNEL_SLICE_ACC, &k);
-  if (st) return st;
-  cl_int hw = src->h * src->w;
-  cl_int e = spx_nn_arg(k, 0, src) | spx_nn_arg(k, 2, dst) | SPX_ARG(k, 4, src->c) | SPX_ARG(k, 5, c0) |
-             SPX_ARG(k, 6, dst->c) | SPX_ARG(k, 7, hw);
-  if ((st = spx_cl_check(ctx, e, "spx_channel_slice_acc"))) return st;
-  return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)dst->c, (size_t)dst->n, "spx_channel_slice_acc");
 }
 
 static spx_status part_check(spx_ctx *ctx, const spx_tensor *dout, const spx_tensor *d, const char *name) {

@@ -1,27 +1,28 @@
 /* Plain-C double references for kernels/tensor_ops.cl (pad/crop, concat). */
 #include "nn/tensor_ops.h"
 
-void spx_ref_pad_forward(const double *x, int n, int c, int h, int w, int left, int right, int top, int bottom,
-                         double *out) {
+/* forward: out = x padded with zeros; backward: dx += the interior of dout (in = dout, out = dx) */
+static void pad(const double *in, int n, int c, int h, int w, int left, int right, int top, int bottom, int backward,
+                double *out) {
   int oh = h + top + bottom, ow = w + left + right;
   for (int p = 0; p < n * c; p++)
     for (int oy = 0; oy < oh; oy++)
       for (int ox = 0; ox < ow; ox++) {
-        int iy = oy - top, ix = ox - left;
-        out[((size_t)p * oh + oy) * ow + ox] =
-            (iy >= 0 && iy < h && ix >= 0 && ix < w) ? x[((size_t)p * h + iy) * w + ix] : 0.0;
+        int iy = oy - top, ix = ox - left, inside = iy >= 0 && iy < h && ix >= 0 && ix < w;
+        size_t i = ((size_t)p * h + iy) * w + ix, o = ((size_t)p * oh + oy) * ow + ox;
+        if (!backward) out[o] = inside ? in[i] : 0.0;
+        else if (inside) out[i] += in[o];
       }
+}
+
+void spx_ref_pad_forward(const double *x, int n, int c, int h, int w, int left, int right, int top, int bottom,
+                         double *out) {
+  pad(x, n, c, h, w, left, right, top, bottom, 0, out);
 }
 
 void spx_ref_pad_backward(const double *dout, int n, int c, int h, int w, int left, int right, int top, int bottom,
                           double *dx) {
-  int oh = h + top + bottom, ow = w + left + right;
-  for (int p = 0; p < n * c; p++)
-    for (int oy = 0; oy < oh; oy++)
-      for (int ox = 0; ox < ow; ox++) {
-        int iy = oy - top, ix = ox - left;
-        if (iy >= 0 && iy < h && ix >= 0 && ix < w) dx[((size_t)p * h + iy) * w + ix] += dout[((size_t)p * oh + oy) * ow + ox];
-      }
+  pad(dout, n, c, h, w, left, right, top, bottom, 1, dx);
 }
 
 void spx_ref_concat_forward(const double *a, const double *b, int n, int ca, int cb, int hw, double *out) {

@@ -293,7 +293,7 @@ static spx_status run_forward(spx_unet *u, const float *input, cl_mem dev_in, si
     if (dev_in && in >= 0 && !spx_tape_measuring(t)) { /* device-to-device copy into the arena */
       spx_tensor iv = spx_tape_tensor(t, in);
       size_t bytes = spx_tensor_numel(&iv) * sizeof(float);
-      cl_int e = clEnqueueCopyBuffer(u->ctx->queue, dev_in, iv.mem, dev_off, iv.off * sizeof(float), bytes, 0, NULL,
+      cl_int e = clEnqueueCopyBuffer(u->ctx->dev->queue, dev_in, iv.mem, dev_off, iv.off * sizeof(float), bytes, 0, NULL,
                                      NULL);
       if (e != CL_SUCCESS && !cst)
         cst = spx_fail(u->ctx, SPX_E_CL, "unet: copying the %zu-byte device input failed (OpenCL error %d)", bytes,
@@ -508,33 +508,6 @@ spx_status spx_unet_save(spx_unet *u, const char *path, int with_optimizer) {
   return spx_unet_save_meta(u, path, with_optimizer, NULL, NULL, 0);
 }
 
-/* float -> IEEE half, round to nearest even; 0 when |v| does not fit (overflow to Inf). */
-static int float_to_half(float v, uint16_t *out) {
-  uint32_t b;
-  memcpy(&b, &v, 4);
-  uint32_t s = (b >> 16) & 0x8000u, e = (b >> 23) & 0xffu, m = b & 0x7fffffu;
-  int ex = (int)e - 127 + 15;
-  if (e == 0xffu) return 0;
-  if (ex >= 31) return 0;
-  if (ex <= 0) { /* subnormal half (or zero) */
-    if (ex < -10) {
-      *out = (uint16_t)s;
-      return 1;
-    }
-    m |= 0x800000u;
-    int shift = 14 - ex;
-    uint32_t hm = m >> shift, rem = m & ((1u << shift) - 1), half = 1u << (shift - 1);
-    if (rem > half || (rem == half && (hm & 1))) hm++;
-    *out = (uint16_t)(s | hm);
-    return 1;
-  }
-  uint32_t h = s | ((uint32_t)ex << 10) | (m >> 13), rem = m & 0x1fffu;
-  if (rem > 0x1000u || (rem == 0x1000u && (h & 1))) h++; /* may carry into the exponent: still correct */
-  if ((h & 0x7c00u) == 0x7c00u) return 0;
-  *out = (uint16_t)h;
-  return 1;
-}
-
 static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, int half, const char *const *mkeys,
                             const char *const *mvalues, int count);
 
@@ -596,7 +569,7 @@ static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, i
           float v;
           uint16_t h = 0;
           memcpy(&v, hb + 4 * k, 4);
-          if (float_to_half(v, &h)) memcpy(hb + 2 * k, &h, 2);
+          if (spx_float_to_half(v, &h)) memcpy(hb + 2 * k, &h, 2);
           else
             st = spx_fail(u->ctx, SPX_E_NUMERIC, "%s: tensor %s element %zu (%g) does not fit in float16", path,
                           o->name, k, (double)v);
@@ -628,37 +601,12 @@ done:
   return st;
 }
 
-static float half_to_float(uint16_t h) {
-  uint32_t s = (uint32_t)(h >> 15) << 31, e = (h >> 10) & 31, m = h & 1023u, bits;
-  if (e == 0) {
-    if (!m) bits = s;
-    else { /* subnormal */
-      float f = ldexpf((float)m, -24);
-      return s ? -f : f;
-    }
-  } else if (e == 31) {
-    bits = s | 0x7f800000u | (m << 13);
-  } else {
-    bits = s | ((e + 112) << 23) | (m << 13);
-  }
-  float f;
-  memcpy(&f, &bits, sizeof f);
-  return f;
-}
-
 /* Copy tensor `name` from the file (F32 or F16, shape checked) into dst. */
 static spx_status load_floats(spx_ctx *ctx, const char *path, const spx_st_file *f, const char *name, int ndim,
                               const int64_t *shape, float *dst) {
-  char want[96], got[96];
-  spx_nn_shape_str(want, sizeof want, ndim, shape);
-  const spx_st_tensor *t = spx_st_find(f, name);
-  if (!t) return spx_fail(ctx, SPX_E_FORMAT, "%s: missing tensor %s (expected shape %s)", path, name, want);
-  int same = t->ndim == ndim;
-  for (int d = 0; d < ndim && same; d++) same = t->shape[d] == shape[d];
-  if (!same) {
-    spx_nn_shape_str(got, sizeof got, t->ndim, t->shape);
-    return spx_fail(ctx, SPX_E_FORMAT, "%s: tensor %s has shape %s, expected %s", path, name, got, want);
-  }
+  const spx_st_tensor *t;
+  spx_status st = spx_nn_st_find_shaped(ctx, path, f, name, ndim, shape, &t);
+  if (st) return st;
   size_t n = 1;
   for (int d = 0; d < ndim; d++) n *= (size_t)shape[d];
   const unsigned char *p = t->data;
@@ -669,7 +617,7 @@ static spx_status load_floats(spx_ctx *ctx, const char *path, const spx_st_file 
     } else if (t->dtype == SPX_F16) {
       uint16_t hv;
       memcpy(&hv, p + 2 * i, 2);
-      v = half_to_float(hv);
+      v = spx_half_to_float(hv);
     } else {
       return spx_fail(ctx, SPX_E_FORMAT, "%s: tensor %s has dtype %s, expected F32 or F16", path, name,
                       spx_dtype_name(t->dtype));

@@ -13,9 +13,8 @@ spx_status spx_unet_create_ex(spx_ctx *ctx, int width, int sigmoid, uint64_t see
 spx_tape *spx_unet_tape(spx_unet *u);
 /* Tape value id of a state_dict tensor (-1 if unknown). */
 int spx_unet_value_id(const spx_unet *u, const char *name);
-/* Value id of the loss / input of the last forward_loss (-1 if none). */
+/* Value id of the loss of the last forward_loss (-1 if none). */
 int spx_unet_loss_id(const spx_unet *u);
-int spx_unet_input_id(const spx_unet *u);
 /* Value id of the network's output (the image) in the last forward (-1 if none). */
 int spx_unet_output_id(const spx_unet *u);
 spx_ctx *spx_unet_ctx(spx_unet *u);

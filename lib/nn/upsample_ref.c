@@ -25,7 +25,9 @@ static void src_index(int d, int in, int out, int align, int *i0, int *i1, doubl
   *l0 = 1.0f - l;
 }
 
-void spx_ref_upsample2x_forward(const double *x, int n, int c, int h, int w, int align_corners, double *y) {
+/* Both directions share the taps: forward y = sum of the 4 weighted taps of x; backward scatters
+ * each dy into the same taps of dx (accumulating). */
+static void bilinear(const double *in, int n, int c, int h, int w, int align_corners, int backward, double *out) {
   int oh = 2 * h, ow = 2 * w;
   for (int p = 0; p < n * c; p++)
     for (int oy = 0; oy < oh; oy++)
@@ -34,26 +36,25 @@ void spx_ref_upsample2x_forward(const double *x, int n, int c, int h, int w, int
         double lh0, lh1, lw0, lw1;
         src_index(oy, h, oh, align_corners, &h0, &h1, &lh0, &lh1);
         src_index(ox, w, ow, align_corners, &w0, &w1, &lw0, &lw1);
-        const double *q = x + (size_t)p * h * w;
-        y[((size_t)p * oh + oy) * ow + ox] =
-            lh0 * (lw0 * q[h0 * w + w0] + lw1 * q[h0 * w + w1]) + lh1 * (lw0 * q[h1 * w + w0] + lw1 * q[h1 * w + w1]);
+        size_t o = ((size_t)p * oh + oy) * ow + ox;
+        if (!backward) {
+          const double *q = in + (size_t)p * h * w;
+          out[o] = lh0 * (lw0 * q[h0 * w + w0] + lw1 * q[h0 * w + w1]) +
+                   lh1 * (lw0 * q[h1 * w + w0] + lw1 * q[h1 * w + w1]);
+        } else {
+          double g = in[o], *q = out + (size_t)p * h * w;
+          q[h0 * w + w0] += lh0 * lw0 * g;
+          q[h0 * w + w1] += lh0 * lw1 * g;
+          q[h1 * w + w0] += lh1 * lw0 * g;
+          q[h1 * w + w1] += lh1 * lw1 * g;
+        }
       }
 }
 
+void spx_ref_upsample2x_forward(const double *x, int n, int c, int h, int w, int align_corners, double *y) {
+  bilinear(x, n, c, h, w, align_corners, 0, y);
+}
+
 void spx_ref_upsample2x_backward(const double *dy, int n, int c, int h, int w, int align_corners, double *dx) {
-  int oh = 2 * h, ow = 2 * w;
-  for (int p = 0; p < n * c; p++)
-    for (int oy = 0; oy < oh; oy++)
-      for (int ox = 0; ox < ow; ox++) {
-        int h0, h1, w0, w1;
-        double lh0, lh1, lw0, lw1;
-        src_index(oy, h, oh, align_corners, &h0, &h1, &lh0, &lh1);
-        src_index(ox, w, ow, align_corners, &w0, &w1, &lw0, &lw1);
-        double g = dy[((size_t)p * oh + oy) * ow + ox];
-        double *q = dx + (size_t)p * h * w;
-        q[h0 * w + w0] += lh0 * lw0 * g;
-        q[h0 * w + w1] += lh0 * lw1 * g;
-        q[h1 * w + w0] += lh1 * lw0 * g;
-        q[h1 * w + w1] += lh1 * lw1 * g;
-      }
+  bilinear(dy, n, c, h, w, align_corners, 1, dx);
 }

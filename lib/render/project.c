@@ -56,7 +56,7 @@ static spx_status upload_cams(spx_ctx *ctx, spx_projector *p, int32_t ncams, con
 static spx_status check_device(spx_ctx *ctx, const char *fn) {
   spx_status st = spx_cl_require(ctx, fn);
   if (st) return st;
-  if (!ctx->cr_div && !ctx->info.fp64)
+  if (!ctx->dev->cr_div && !ctx->dev->info.fp64)
     return spx_fail(ctx, SPX_E_UNSUPPORTED,
                     "%s: the device has neither correctly rounded fp32 division nor fp64, so the projection cannot "
                     "be bit-exact",
@@ -73,8 +73,8 @@ static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project
   cl_int N = a->nverts, C = a->ncams, W = a->cams[0].width, H = a->cams[0].height, layout = (cl_int)a->layout;
   cl_int want_win = win != p->dummy.mem, has_col = a->col != NULL;
   cl_mem pos = a->pos ? a->pos : p->dummy.mem, col = a->col ? a->col : p->dummy.mem;
-  size_t per = (size_t)ctx->tune.proj_zb_chunk, most = (size_t)ctx->tune.proj_zb_parts;
-  if (!most) most = ctx->info.compute_units ? ctx->info.compute_units : 1;
+  size_t per = (size_t)ctx->dev->tune.proj_zb_chunk, most = (size_t)ctx->dev->tune.proj_zb_parts;
+  if (!most) most = ctx->dev->info.compute_units ? ctx->dev->info.compute_units : 1;
   size_t parts = ((size_t)npts + per - 1) / per;
   if (parts > most) parts = most;
   if (parts < 1) parts = 1;
@@ -84,7 +84,7 @@ static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project
   if (st) return st;
   if (p->zb_clear < zbytes) { /* empty (all ones) once; afterwards the merge clears what it read */
     cl_ulong empty = ~(cl_ulong)0;
-    cl_int fe = clEnqueueFillBuffer(ctx->queue, p->zb.mem, &empty, sizeof empty, 0, p->zb.bytes, 0, NULL, NULL);
+    cl_int fe = clEnqueueFillBuffer(ctx->dev->queue, p->zb.mem, &empty, sizeof empty, 0, p->zb.bytes, 0, NULL, NULL);
     if ((st = spx_cl_check(ctx, fe, "spx_project z-buffer fill"))) return st;
     p->zb_clear = p->zb.bytes;
   }
@@ -102,8 +102,8 @@ static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project
       SPX_ARG(km, 4, N) | SPX_ARG(km, 5, C) | SPX_ARG(km, 6, W) | SPX_ARG(km, 7, H) | SPX_ARG(km, 8, npix) |
       SPX_ARG(km, 9, out) | SPX_ARG(km, 10, layout) | SPX_ARG(km, 11, win) | SPX_ARG(km, 12, want_win);
   if ((st = spx_cl_check(ctx, e, "spx_project_zmerge args"))) return st;
-  size_t fill_px = (size_t)ctx->tune.proj_fill_px, g = (npix + fill_px - 1) / fill_px;
-  size_t l = (size_t)ctx->tune.wg;
+  size_t fill_px = (size_t)ctx->dev->tune.proj_fill_px, g = (npix + fill_px - 1) / fill_px;
+  size_t l = (size_t)ctx->dev->tune.wg;
   if ((st = spx_cl_run(ctx, km, 1, &g, &l, "spx_project_zmerge"))) return st;
   p->zb_clear = p->zb.bytes;
   return SPX_OK;
@@ -130,9 +130,9 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
    * 4 z-buffer per part + merge (CPU-class devices) */
   int path = force_path;
   if (!path)
-    path = ctx->tune.proj_zbuf                        ? 4
-           : npts <= (cl_uint)ctx->tune.proj_fast_max ? 1
-           : ctx->tune.proj_count_min > 0 && npts >= (cl_uint)ctx->tune.proj_count_min
+    path = ctx->dev->tune.proj_zbuf                        ? 4
+           : npts <= (cl_uint)ctx->dev->tune.proj_fast_max ? 1
+           : ctx->dev->tune.proj_count_min > 0 && npts >= (cl_uint)ctx->dev->tune.proj_count_min
                ? 3
                : 2;
   if (path == 4) {
@@ -143,7 +143,7 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
   if (want_counts) {
     cl_uint zero = 0;
     if ((st = spx_cl_buf_ensure(ctx, &p->offs, (size_t)npix * sizeof(cl_uint), "projection pixel counts"))) return st;
-    cl_int fe = clEnqueueFillBuffer(ctx->queue, p->offs.mem, &zero, sizeof zero, 0, (size_t)npix * sizeof(cl_uint), 0,
+    cl_int fe = clEnqueueFillBuffer(ctx->dev->queue, p->offs.mem, &zero, sizeof zero, 0, (size_t)npix * sizeof(cl_uint), 0,
                                     NULL, NULL);
     if ((st = spx_cl_check(ctx, fe, "spx_project counts fill"))) return st;
   }
@@ -156,13 +156,13 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
              SPX_ARG(kk, 12, win) | SPX_ARG(kk, 13, want_win) | SPX_ARG(kk, 14, counts) |
              SPX_ARG(kk, 15, want_counts);
   if ((st = spx_cl_check(ctx, e, "spx_project_keys args"))) return st;
-  size_t fill_px = (size_t)ctx->tune.proj_fill_px, nfill = (npix + fill_px - 1) / fill_px;
-  size_t g = npts > nfill ? npts : nfill, l = (size_t)ctx->tune.wg;
+  size_t fill_px = (size_t)ctx->dev->tune.proj_fill_px, nfill = (npix + fill_px - 1) / fill_px;
+  size_t g = npts > nfill ? npts : nfill, l = (size_t)ctx->dev->tune.wg;
   if ((st = spx_cl_run(ctx, kk, 1, &g, &l, "spx_project_keys"))) return st;
   if (npts == 0) return SPX_OK;
 
   /* sort by pixel only (bits [32, key_bits)) unless SPX_PROJ_SORT_DEPTH: see spx_project_head */
-  cl_uint key_bits = 32u + (cl_uint)bits_for(npix), lo_bit = ctx->tune.proj_sort_depth ? 0u : 32u;
+  cl_uint key_bits = 32u + (cl_uint)bits_for(npix), lo_bit = ctx->dev->tune.proj_sort_depth ? 0u : 32u;
   p->last_path = path;
   if (path == 3) {
     if ((st = spx_scan_exclusive(ctx, &p->sorter, p->offs.mem, npix))) return st;
@@ -193,7 +193,7 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
         SPX_ARG(k, 12, H) | SPX_ARG(k, 13, npix) | SPX_ARG(k, 14, out) | SPX_ARG(k, 15, layout) |
         SPX_ARG(k, 16, win) | SPX_ARG(k, 17, want_win);
     if ((st = spx_cl_check(ctx, e, "spx_project_sort_scatter args"))) return st;
-    size_t wg = (size_t)ctx->tune.sort_wg;
+    size_t wg = (size_t)ctx->dev->tune.sort_wg;
     return spx_cl_run(ctx, k, 1, &wg, &wg, "spx_project_sort_scatter");
   }
   if ((st = spx_radix_sort(ctx, &p->sorter, p->keys.mem, p->vals.mem, npts, (int)lo_bit, (int)key_bits,
@@ -292,7 +292,7 @@ spx_status spx_project_backward_device(spx_ctx *ctx, spx_projector *p, const spx
   if ((st = spx_cl_buf_ensure(ctx, &p->vpix, nv * sizeof(cl_int), "projection backward map"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &p->dummy, 16, "projection placeholder"))) return st;
   cl_int minus1 = -1;
-  cl_int e = clEnqueueFillBuffer(ctx->queue, p->vpix.mem, &minus1, sizeof minus1, 0, nv * sizeof(cl_int), 0, NULL, NULL);
+  cl_int e = clEnqueueFillBuffer(ctx->dev->queue, p->vpix.mem, &minus1, sizeof minus1, 0, nv * sizeof(cl_int), 0, NULL, NULL);
   if ((st = spx_cl_check(ctx, e, "spx_project_backward fill"))) return st;
   cl_kernel kv, kg;
   if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_VPIX, &kv))) return st;
@@ -300,7 +300,7 @@ spx_status spx_project_backward_device(spx_ctx *ctx, spx_projector *p, const spx
   e = SPX_ARG(kv, 0, winners) | SPX_ARG(kv, 1, npix) | SPX_ARG(kv, 2, N) | SPX_ARG(kv, 3, W) | SPX_ARG(kv, 4, H) |
       SPX_ARG(kv, 5, p->vpix.mem);
   if ((st = spx_cl_check(ctx, e, "spx_project_vpix args"))) return st;
-  size_t g = npix, l = (size_t)ctx->tune.wg;
+  size_t g = npix, l = (size_t)ctx->dev->tune.wg;
   if ((st = spx_cl_run(ctx, kv, 1, &g, &l, "spx_project_vpix"))) return st;
   cl_mem gc = gcol ? gcol : p->dummy.mem, gp = gpos ? gpos : p->dummy.mem;
   e = SPX_ARG(kg, 0, p->vpix.mem) | SPX_ARG(kg, 1, grad_img) | SPX_ARG(kg, 2, layout) | SPX_ARG(kg, 3, p->cams.mem) |

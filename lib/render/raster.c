@@ -18,15 +18,15 @@ struct spx_rasterizer {
   size_t static_sizes[4];
   spx_cl_buf tile_count, tile_start, cursor; /* per tile */
   spx_cl_buf counters, bins, cover, hi, out, win;
-  int profile;     /* $SPX_RASTER_PROFILE set: finish and print the wall time of each stage */
+  int profile;     /* SPX_PROFILE_RASTER on the context: finish and log the wall time of each stage */
   double prof_t0;
 };
 
 static void prof(spx_ctx *ctx, spx_rasterizer *r, const char *what) {
   if (!r->profile) return;
-  clFinish(ctx->queue);
+  clFinish(ctx->dev->queue);
   double t = spx_now();
-  if (*what) fprintf(stderr, "  %-8s %.3f ms\n", what, (t - r->prof_t0) * 1e3);
+  if (*what) spx_log(ctx, "  %-8s %.3f ms", what, (t - r->prof_t0) * 1e3);
   r->prof_t0 = t;
 }
 
@@ -79,7 +79,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
   cl_kernel kv, ks, kscan, kbin, kt, ksh, kd;
   /* tile kernel form: per tile (CPU) or per pixel (GPU); SPX_TUNE_RASTER_SERIAL=0/1 and
    * SPX_TUNE_RASTER_CHUNK=n override the device's tunables (tests run both forms) */
-  int serial = ctx->tune.raster_serial;
+  int serial = ctx->dev->tune.raster_serial;
   if ((st = spx_cl_kernel(ctx, SPX_K_RASTER_VERT, &kv)) ||
       (st = spx_cl_kernel(ctx, SPX_K_RASTER_SETUP, &ks)) ||
       (st = spx_cl_kernel(ctx, SPX_K_RASTER_SCAN, &kscan)) ||
@@ -89,16 +89,15 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
       (st = spx_cl_kernel(ctx, SPX_K_RASTER_DOWN, &kd)))
     return st;
 
-  const int TS = ctx->tune.raster_tile, WG = ctx->tune.wg;
-  cl_int chunk = ctx->tune.raster_chunk;
+  const int TS = ctx->dev->tune.raster_tile, WG = ctx->dev->tune.wg;
+  cl_int chunk = ctx->dev->tune.raster_chunk;
   spx_rcam c0;
   spx_raster_camera(a, 0, &c0);
   const int W = c0.W, H = c0.H, W1 = a->cams[0].width, H1 = a->cams[0].height;
   const int tiles_x = (W + TS - 1) / TS, tiles_y = (H + TS - 1) / TS, ntiles = tiles_x * tiles_y;
   const size_t nv = (size_t)a->nverts, nf = (size_t)a->nfaces, img = (size_t)W1 * H1 * 4;
   const int has_col = a->col != NULL, has_tex = a->tex != NULL, has_win = faces_out != NULL;
-  const char *env_prof = getenv("SPX_RASTER_PROFILE");
-  r->profile = env_prof && *env_prof && strcmp(env_prof, "0");
+  r->profile = (spx_ctx_profile(ctx) & SPX_PROFILE_RASTER) != 0;
 
   prof(ctx, r, "");
   size_t sizes[4] = {nf * 12, has_tex ? (size_t)a->nuv * 8 : 0, has_tex ? nf * 12 : 0,
@@ -211,7 +210,7 @@ spx_status spx_raster(spx_ctx *ctx, spx_rasterizer *r, const spx_raster_args *a,
         SPX_ARG(ksh, 21, mode) | SPX_ARG(ksh, 22, r->win.mem) | SPX_ARG(ksh, 23, win_off) | SPX_ARG(ksh, 24, hw);
     if ((st = spx_cl_check(ctx, e, "spx_raster_shade"))) return st;
     /* grid-stride: a fixed number of work-items, each shading covered pixels in turn */
-    g = (size_t)ctx->tune.raster_shade_items;
+    g = (size_t)ctx->dev->tune.raster_shade_items;
     if ((st = spx_cl_run(ctx, ksh, 1, &g, &lw, "spx_raster_shade"))) return st;
     prof(ctx, r, "spx_raster_shade");
 

@@ -12,7 +12,7 @@ void spx_sorter_release(spx_sorter *s) {
 
 static spx_status scan_level(spx_ctx *ctx, spx_sorter *s, cl_mem data, cl_uint n, int level) {
   if (level >= SPX_SORT_LEVELS) return spx_fail(ctx, SPX_E_ARG, "spx_scan_exclusive: too many elements");
-  size_t wg = (size_t)ctx->tune.sort_wg, block = wg * (size_t)ctx->tune.sort_items;
+  size_t wg = (size_t)ctx->dev->tune.sort_wg, block = wg * (size_t)ctx->dev->tune.sort_items;
   cl_uint nb = (cl_uint)((n + block - 1) / block);
   spx_status st = spx_cl_buf_ensure(ctx, &s->sums[level], (size_t)nb * sizeof(cl_uint), "radix sort scan sums");
   if (st) return st;
@@ -28,7 +28,7 @@ static spx_status scan_level(spx_ctx *ctx, spx_sorter *s, cl_mem data, cl_uint n
   if ((st = scan_level(ctx, s, sums, nb, level + 1))) return st;
   e = SPX_ARG(ka, 0, data) | SPX_ARG(ka, 1, n) | SPX_ARG(ka, 2, sums);
   if ((st = spx_cl_check(ctx, e, "spx_scan_add args"))) return st;
-  size_t ga = n, la = (size_t)ctx->tune.wg;
+  size_t ga = n, la = (size_t)ctx->dev->tune.wg;
   return spx_cl_run(ctx, ka, 1, &ga, &la, "spx_scan_add");
 }
 
@@ -47,9 +47,9 @@ spx_status spx_radix_sort(spx_ctx *ctx, spx_sorter *s, cl_mem keys, cl_mem vals,
   if (n > SPX_SORT_MAX_N)
     return spx_fail(ctx, SPX_E_ARG, "spx_radix_sort: %zu keys is more than the supported %u", n, SPX_SORT_MAX_N);
   if (n < 2 || key_bits == lo_bit) return SPX_OK;
-  int bits = ctx->tune.sort_bits;
-  size_t wg = (size_t)ctx->tune.sort_wg, block = wg * (size_t)ctx->tune.sort_items;
-  if (path == SPX_SORT_AUTO) path = n <= (size_t)ctx->tune.sort_single_max ? SPX_SORT_SINGLE : SPX_SORT_MULTI;
+  int bits = ctx->dev->tune.sort_bits;
+  size_t wg = (size_t)ctx->dev->tune.sort_wg, block = wg * (size_t)ctx->dev->tune.sort_items;
+  if (path == SPX_SORT_AUTO) path = n <= (size_t)ctx->dev->tune.sort_single_max ? SPX_SORT_SINGLE : SPX_SORT_MULTI;
   if ((st = spx_cl_buf_ensure(ctx, &s->keys2, n * sizeof(cl_ulong), "radix sort keys"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &s->vals2, n * sizeof(cl_uint), "radix sort values"))) return st;
   cl_uint un = (cl_uint)n, ubits = (cl_uint)key_bits, ulo = (cl_uint)lo_bit;
@@ -92,9 +92,9 @@ spx_status spx_radix_sort(spx_ctx *ctx, spx_sorter *s, cl_mem keys, cl_mem vals,
     b_v = t;
   }
   if (pass & 1) {
-    e = clEnqueueCopyBuffer(ctx->queue, a_k, keys, 0, 0, n * sizeof(cl_ulong), 0, NULL, NULL);
+    e = clEnqueueCopyBuffer(ctx->dev->queue, a_k, keys, 0, 0, n * sizeof(cl_ulong), 0, NULL, NULL);
     if ((st = spx_cl_check(ctx, e, "radix sort copy keys"))) return st;
-    e = clEnqueueCopyBuffer(ctx->queue, a_v, vals, 0, 0, n * sizeof(cl_uint), 0, NULL, NULL);
+    e = clEnqueueCopyBuffer(ctx->dev->queue, a_v, vals, 0, 0, n * sizeof(cl_uint), 0, NULL, NULL);
     if ((st = spx_cl_check(ctx, e, "radix sort copy values"))) return st;
   }
   return SPX_OK;

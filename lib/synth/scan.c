@@ -48,22 +48,6 @@ void spx_synth_subject_free(spx_synth_subject *s) {
   memset(s, 0, sizeof *s);
 }
 
-/* Area-weighted vertex normals (unit; zero where undefined). */
-static void vertex_normals(int32_t nv, const float *v, int32_t nf, const int32_t *f, double *n) {
-  memset(n, 0, (size_t)nv * 3 * sizeof *n);
-  for (int32_t t = 0; t < nf; t++) {
-    const float *a = v + (size_t)f[t * 3] * 3, *b = v + (size_t)f[t * 3 + 1] * 3, *c = v + (size_t)f[t * 3 + 2] * 3;
-    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double fn[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-    for (int k = 0; k < 3; k++)
-      for (int d = 0; d < 3; d++) n[(size_t)f[t * 3 + k] * 3 + d] += fn[d];
-  }
-  for (int32_t i = 0; i < nv; i++) {
-    double *p = n + (size_t)i * 3, l = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-    for (int d = 0; d < 3; d++) p[d] = l > 0 ? p[d] / l : 0;
-  }
-}
-
 /* out = S2 S1 in (dim channels); tmp holds p1.nv_out*dim floats. */
 static void subdivide2(const syn_priv *p, const float *in, int dim, float *tmp, float *out) {
   spx_loop_plan_apply(&p->p1, in, dim, tmp);
@@ -167,7 +151,7 @@ static spx_status build_scan(spx_ctx *ctx, const spx_body_model *m, const spx_im
   s->w_start[n2] = nnz;
   /* regions → displacement along the rest normals; colours from the texture */
   subdivide2(p, chain, SYN_NCHAINS, tmp, sub);
-  vertex_normals(n2, s->rest, s->nf, s->faces, nrm);
+  spx_vertex_normals(s->rest, n2, s->faces, s->nf, nrm);
   for (int32_t i = 0; i < n2; i++) {
     syn_point pt;
     for (int c = 0; c < 3; c++) pt.p[c] = tmpl2[i * 3 + c];
@@ -333,7 +317,7 @@ spx_status spx_synth_shade(spx_ctx *ctx, int32_t nv, const float *verts, int32_t
   if (!(l > 0) || !isfinite(l)) return spx_fail(ctx, SPX_E_ARG, "synth shade: light direction is zero or not finite");
   double *n = spx_alloc_array(ctx, (size_t)nv, 3 * sizeof(double), "synth shade");
   if (!n) return SPX_E_NOMEM;
-  vertex_normals(nv, verts, nf, faces, n);
+  spx_vertex_normals(verts, nv, faces, nf, n);
   for (int32_t i = 0; i < nv; i++) {
     double d = n[i * 3] * L[0] + n[i * 3 + 1] * L[1] + n[i * 3 + 2] * L[2];
     float v = (float)(ambient + diffuse * (d > 0 ? d : 0));

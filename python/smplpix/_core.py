@@ -112,21 +112,21 @@ class Context:
         """spx_device_finish: wait for all queued device work."""
         self.check(L.spx_device_finish(self.ptr))
 
+    def _handle(self, slot, create) -> ctypes.c_void_p:
+        """The reusable handle in self._handles[slot], made by create(ctx, &handle) on first use."""
+        if self._handles[slot] is None:
+            p = ctypes.c_void_p()
+            self.check(create(self.ptr, ctypes.byref(p)))
+            self._handles[slot] = p
+        return self._handles[slot]
+
     def projector(self) -> ctypes.c_void_p:
         """The context's reusable spx_projector (created on first use)."""
-        if self._handles[0] is None:
-            p = ctypes.c_void_p()
-            self.check(L.spx_projector_create(self.ptr, ctypes.byref(p)))
-            self._handles[0] = p
-        return self._handles[0]
+        return self._handle(0, L.spx_projector_create)
 
     def rasterizer(self) -> ctypes.c_void_p:
         """The context's reusable spx_rasterizer (created on first use)."""
-        if self._handles[1] is None:
-            p = ctypes.c_void_p()
-            self.check(L.spx_rasterizer_create(self.ptr, ctypes.byref(p)))
-            self._handles[1] = p
-        return self._handles[1]
+        return self._handle(1, L.spx_rasterizer_create)
 
     def __repr__(self) -> str:
         if self._ptr is None:

@@ -55,7 +55,7 @@ def register(ctx: Context, body: BodyModel, scan_points, scan_colors=None, scan_
     options: any field of spx_fit_options (threads, nbetas, unit_scale, max_points_rigid,
     max_points_pose, max_points_free, pose_steps, free_steps, inner_iterations,
     free_inner_iterations, w_shape, w_pose, w_limits, w_scale, w_pose_start, w_m2s, w_lap,
-    w_couple_start, w_couple_end, robust_m, seed); defaults from spx_fit_options_default.
+    w_couple_start, w_couple_end, robust_m, seed, ceres_progress); defaults from spx_fit_options_default.
     progress: called with a dict (stage, step, nsteps, energy, mean_dist, seconds, note) after
     every outer step. params_json: also write spx_fit_save_json's parameter file there."""
     o = L.spx_fit_options()

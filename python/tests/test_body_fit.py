@@ -1,6 +1,8 @@
 """BodyModel (against the SMPL equations in numpy and the plain-C reference) and register()
 (against `smplpix register`)."""
 import json
+import os
+import sys
 
 import numpy as np
 import pytest
@@ -9,13 +11,9 @@ import smplpix
 from conftest import BODY, MESH
 
 
-def rodrigues(r):
-    a = np.linalg.norm(r)
-    if a < 1e-12:
-        return np.eye(3)
-    k = r / a
-    Kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(a) * Kx + (1 - np.cos(a)) * Kx @ Kx
+# the Rodrigues formula of the C golden (tests/data/body/make_lbs_golden.py), numpy only
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "tests", "data", "body"))
+from make_lbs_golden import rodrigues  # noqa: E402
 
 
 def lbs_numpy(z, pose, betas, trans):

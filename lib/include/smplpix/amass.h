@@ -8,7 +8,7 @@
  * body joints + 30 finger joints); anything else (e.g. SMPL-X's 55) is refused with a message
  * saying which layouts fit. AMASS's world is Z up.
  *
- * Retargeting (lib/body/amass_retarget.c): every SMPL body joint (the first 22, common to both
+ * Retargeting (lib/body/amass_retarget.c, declared in smplpix/body.h): every SMPL body joint (the first 22, common to both
  * layouts; the hand joints are dropped) drives the model joint of the corresponding name: the
  * CMU/cmu_mb names of the default body (pelvis -> Hips, left_hip -> LeftUpLeg, left_knee ->
  * LeftLeg, left_ankle -> LeftFoot, left_foot -> LeftToeBase, spine1 -> LowerBack, spine2 -> Spine,
@@ -26,7 +26,6 @@
 #ifndef SMPLPIX_AMASS_H
 #define SMPLPIX_AMASS_H
 
-#include "smplpix/body.h"
 #include "smplpix/core.h"
 #include "smplpix/npz.h"
 
@@ -56,23 +55,6 @@ spx_status spx_amass_read(spx_ctx *ctx, const spx_npz *z, spx_amass *out);
 void spx_amass_free(spx_amass *a);
 /* SMPL's name of joint j (0..23: "pelvis", "left_hip", ..., "right_hand"), or NULL. */
 const char *spx_amass_joint_name(int32_t j);
-
-/* The retargeting of an AMASS layout onto a model (see above). */
-typedef struct spx_amass_map {
-  int32_t nj;      /* model joints */
-  int32_t *src;    /* nj: the SMPL joint driving model joint k, or -1 */
-  double *C;       /* nj*9 rest-pose corrections */
-  double F[9];     /* AMASS world axes -> model axes */
-  double scale;    /* SMPL metres -> model units (rest hip heights) */
-} spx_amass_map;
-
-/* axes: AMASS world -> model axes (row-major 3x3), NULL = Z up -> Y up (x stays, y = z, z = -y).
- * Fails (one line) when the model has no joint_names or none of them is a mapped name. */
-spx_status spx_amass_map_create(spx_ctx *ctx, const spx_body_model *m, const double *axes, spx_amass_map *out);
-/* pose: m->nj*3 axis-angle (model local rotations), trans: 3 (SMPL trans of the model). */
-spx_status spx_amass_map_pose(spx_ctx *ctx, const spx_amass_map *map, const spx_body_model *m, const spx_amass *a,
-                              int32_t frame, double *pose, double trans[3]);
-void spx_amass_map_free(spx_amass_map *map);
 
 #ifdef __cplusplus
 }

@@ -20,6 +20,8 @@
 #ifndef SMPLPIX_BODY_H
 #define SMPLPIX_BODY_H
 
+#include "smplpix/amass.h"
+#include "smplpix/bvh.h"
 #include "smplpix/core.h"
 
 #ifdef __cplusplus
@@ -97,6 +99,58 @@ spx_status spx_body_forward(spx_ctx *ctx, spx_body_model *m, int32_t batch, int3
 /* Rodrigues: axis-angle r (radians) to a row-major 3x3 rotation; dR (optional, 3x9) receives
  * dR/dr_c for c = 0..2 (stable near r = 0). */
 void spx_body_rodrigues(const double r[3], double R[9], double dR[27]);
+
+/* ---- Motion onto the body: parsing is io's (smplpix/bvh.h, smplpix/amass.h); the retargeting
+ * onto a model lives here in lib/body (bvh_retarget.c, amass_retarget.c). */
+
+/* Retargeting a BVH skeleton onto a body model.
+ * Model joint k is driven by the BVH joint of the same name (or names[k] when given). Its world
+ * orientation is W_k = F Q_b(f) F^T C_k, where Q_b(f) is the BVH joint's world rotation at frame
+ * f, F rotates BVH world axes to model axes, and C_k is a rest-pose correction: the smallest
+ * rotation taking the model's rest bone direction (joint k → its first mapped child) onto the
+ * BVH's rest bone direction (that child's OFFSET, in model axes). So a model in an A-pose follows
+ * a T-pose BVH with bones pointing the same way; twist about a bone is not corrected. The root
+ * gets C = I; joints without a usable child bone reuse their parent's C; unmapped model joints
+ * keep their rest orientation relative to the parent. Root translation is scaled by the ratio of
+ * rest hip heights (model / BVH) so the feet land near the model's floor. */
+typedef struct spx_bvh_map {
+  int32_t nj;         /* model joints */
+  int32_t *bvh_joint; /* nj: BVH joint index or -1 */
+  double *C;          /* nj*9 */
+  double F[9];
+  double scale; /* BVH units → model units */
+} spx_bvh_map;
+
+/* axes: BVH → model axes (row-major 3x3; NULL = identity, i.e. both Y up and facing +Z, as the
+ * CMU files and the default body). names: per model joint BVH name (NULL = model joint_names). */
+spx_status spx_bvh_map_create(spx_ctx *ctx, const spx_bvh *b, const spx_body_model *m, const char *const *names,
+                              const double *axes, spx_bvh_map *out);
+/* pose: nj*3 axis-angle (model local rotations), trans: 3 (SMPL trans: the root joint lands at
+ * the scaled BVH root position). */
+spx_status spx_bvh_map_pose(spx_ctx *ctx, const spx_bvh_map *map, const spx_bvh *b, const spx_body_model *m,
+                            int32_t frame, double *pose, double trans[3]);
+void spx_bvh_map_free(spx_bvh_map *map);
+
+/* Rotation matrix (row-major) → axis-angle (stable near 0 and pi). */
+void spx_rotmat_to_axis_angle(const double R[9], double r[3]);
+
+/* AMASS (smplpix/amass.h explains the joint table, F and C). */
+/* The retargeting of an AMASS layout onto a model. */
+typedef struct spx_amass_map {
+  int32_t nj;      /* model joints */
+  int32_t *src;    /* nj: the SMPL joint driving model joint k, or -1 */
+  double *C;       /* nj*9 rest-pose corrections */
+  double F[9];     /* AMASS world axes -> model axes */
+  double scale;    /* SMPL metres -> model units (rest hip heights) */
+} spx_amass_map;
+
+/* axes: AMASS world -> model axes (row-major 3x3), NULL = Z up -> Y up (x stays, y = z, z = -y).
+ * Fails (one line) when the model has no joint_names or none of them is a mapped name. */
+spx_status spx_amass_map_create(spx_ctx *ctx, const spx_body_model *m, const double *axes, spx_amass_map *out);
+/* pose: m->nj*3 axis-angle (model local rotations), trans: 3 (SMPL trans of the model). */
+spx_status spx_amass_map_pose(spx_ctx *ctx, const spx_amass_map *map, const spx_body_model *m, const spx_amass *a,
+                              int32_t frame, double *pose, double trans[3]);
+void spx_amass_map_free(spx_amass_map *map);
 
 #ifdef __cplusplus
 }

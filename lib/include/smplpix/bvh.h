@@ -1,9 +1,9 @@
-/* BVH motion capture: reader (HIERARCHY / MOTION, channels in any order and count) and
- * retargeting of a frame onto a body model's joints (per-joint axis-angle + translation). */
+/* BVH motion capture: reader (HIERARCHY / MOTION, channels in any order and count) and the local
+ * transforms of a frame (lib/io/bvh.c). The retargeting of a frame onto a body model's joints
+ * (spx_bvh_map_*) is body-level: smplpix/body.h (lib/body/bvh_retarget.c). */
 #ifndef SMPLPIX_BVH_H
 #define SMPLPIX_BVH_H
 
-#include "smplpix/body.h"
 #include "smplpix/core.h"
 
 #ifdef __cplusplus
@@ -48,37 +48,6 @@ int32_t spx_bvh_find(const spx_bvh *b, const char *name);
  * channels in file order (e.g. "Zrotation Yrotation Xrotation" gives Rz Ry Rx, angles in
  * degrees, column vectors), translation t = offset + position channels. */
 spx_status spx_bvh_local(const spx_bvh *b, int32_t frame, int32_t j, double R[9], double t[3]);
-
-/* Retargeting a BVH skeleton onto a body model.
- * Model joint k is driven by the BVH joint of the same name (or names[k] when given). Its world
- * orientation is W_k = F Q_b(f) F^T C_k, where Q_b(f) is the BVH joint's world rotation at frame
- * f, F rotates BVH world axes to model axes, and C_k is a rest-pose correction: the smallest
- * rotation taking the model's rest bone direction (joint k → its first mapped child) onto the
- * BVH's rest bone direction (that child's OFFSET, in model axes). So a model in an A-pose follows
- * a T-pose BVH with bones pointing the same way; twist about a bone is not corrected. The root
- * gets C = I; joints without a usable child bone reuse their parent's C; unmapped model joints
- * keep their rest orientation relative to the parent. Root translation is scaled by the ratio of
- * rest hip heights (model / BVH) so the feet land near the model's floor. */
-typedef struct spx_bvh_map {
-  int32_t nj;         /* model joints */
-  int32_t *bvh_joint; /* nj: BVH joint index or -1 */
-  double *C;          /* nj*9 */
-  double F[9];
-  double scale; /* BVH units → model units */
-} spx_bvh_map;
-
-/* axes: BVH → model axes (row-major 3x3; NULL = identity, i.e. both Y up and facing +Z, as the
- * CMU files and the default body). names: per model joint BVH name (NULL = model joint_names). */
-spx_status spx_bvh_map_create(spx_ctx *ctx, const spx_bvh *b, const spx_body_model *m, const char *const *names,
-                              const double *axes, spx_bvh_map *out);
-/* pose: nj*3 axis-angle (model local rotations), trans: 3 (SMPL trans: the root joint lands at
- * the scaled BVH root position). */
-spx_status spx_bvh_map_pose(spx_ctx *ctx, const spx_bvh_map *map, const spx_bvh *b, const spx_body_model *m,
-                            int32_t frame, double *pose, double trans[3]);
-void spx_bvh_map_free(spx_bvh_map *map);
-
-/* Rotation matrix (row-major) → axis-angle (stable near 0 and pi). */
-void spx_rotmat_to_axis_angle(const double R[9], double r[3]);
 
 #ifdef __cplusplus
 }

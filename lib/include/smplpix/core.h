@@ -46,6 +46,33 @@ const char *spx_ctx_message(const spx_ctx *ctx);
 spx_status spx_ctx_last_status(const spx_ctx *ctx);
 void spx_ctx_clear_error(spx_ctx *ctx);
 
+/* Record an error on ctx the way the library does (one line; a newline becomes a space) and
+ * return st, for code layered on the library that reports through the same context:
+ *   return spx_fail(ctx, SPX_E_FORMAT, "%s: expected 4 channels", path);
+ * The arguments may include spx_ctx_message(ctx) itself. ctx may be NULL (nothing recorded). */
+#if defined(__GNUC__)
+__attribute__((format(printf, 3, 4)))
+#endif
+spx_status spx_fail(spx_ctx *ctx, spx_status st, const char *fmt, ...);
+
+/* Monotonic wall clock in seconds (CLOCK_MONOTONIC), for timing. */
+double spx_now(void);
+
+/* The library never prints. Diagnostics that are not errors (the profiles below) go, one line
+ * at a time without a newline, to a callback the caller installs; with none they are dropped.
+ * fn = NULL removes it. */
+typedef void (*spx_log_fn)(void *user, const char *line);
+void spx_ctx_set_log(spx_ctx *ctx, spx_log_fn fn, void *user);
+
+/* Profiling switches (OR of SPX_PROFILE_*, default 0). TAPE: a device tape finishes the queue
+ * around every op and logs the device time per op kind when it is destroyed. RASTER: the
+ * rasterizer finishes the queue after each stage and logs its wall time. Both slow the work
+ * down; they are read when a tape / a raster call starts. */
+#define SPX_PROFILE_TAPE 1u
+#define SPX_PROFILE_RASTER 2u
+void spx_ctx_set_profile(spx_ctx *ctx, unsigned flags);
+unsigned spx_ctx_profile(const spx_ctx *ctx);
+
 /* Element types of arrays in files (.npy, .npz, safetensors). */
 typedef enum spx_dtype {
   SPX_F32 = 1,

@@ -15,6 +15,10 @@
 extern "C" {
 #endif
 
+/* Lower-case extension of path without the dot ("" when the last path component has none),
+ * written to ext (cap bytes, truncated). "a/B.PNG" -> "png"; "a.b/c" -> "". */
+void spx_path_ext(const char *path, char *ext, size_t cap);
+
 /* Open path for reading without ever blocking: the file is opened non-blocking and refused
  * ("<path>: not a regular file (a FIFO)") unless fstat says it is a regular file, so a FIFO,
  * socket, device or folder given as an input is an immediate one-line error, never a hang.

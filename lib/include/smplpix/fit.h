@@ -14,8 +14,9 @@
  *                  data terms.
  * Frames: "model frame" is the body model's space (metres); the scan is first multiplied by
  * unit_scale (1, 0.01 or 0.001), then x_scan_metres = sim_scale * sim_R * x_model + sim_t.
- * Ceres prints nothing unless the environment variable SPX_FIT_CERES_PROGRESS is set (debugging:
- * per-iteration progress of every solve on stdout). */
+ * Nothing is printed unless ceres_progress is set in the options (debugging: Ceres's
+ * per-iteration progress of every solve on stdout; `smplpix register` sets it when the
+ * environment variable SPX_FIT_CERES_PROGRESS is set). */
 #ifndef SMPLPIX_FIT_H
 #define SMPLPIX_FIT_H
 
@@ -57,6 +58,8 @@ typedef struct spx_fit_options {
   uint64_t seed;                  /* subsampling */
   spx_fit_progress_fn progress;
   void *progress_user;
+  int ceres_progress;             /* 1: Ceres prints per-iteration progress of every solve to
+                                     stdout (debugging; default 0: the library prints nothing) */
 } spx_fit_options;
 
 void spx_fit_options_default(spx_fit_options *o);

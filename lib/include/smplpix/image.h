@@ -35,6 +35,15 @@ spx_status spx_png_write(spx_ctx *ctx, const char *path, const spx_image *img);
 spx_status spx_png_write_rgb(spx_ctx *ctx, const char *path, const spx_image *img);
 spx_status spx_png_read(spx_ctx *ctx, const char *path, spx_image *out);
 
+/* By extension (any case; lib/io/image_file.c). spx_image_ext_ok: the path ends in .exr, .png
+ * or .npy. Write: .exr as spx_exr_write; .png the first three channels (spx_png_write_rgb: an
+ * RGB-D image loses its depth) or a 1-channel gray image; .npy an HxWxC float32 array. Read:
+ * .exr / .png as spx_exr_read / spx_png_read; .npy an HxW or HxWxC array (C <= 64, any numeric
+ * dtype) as float. Another extension is SPX_E_ARG naming the file. */
+int spx_image_ext_ok(const char *path);
+spx_status spx_image_write(spx_ctx *ctx, const char *path, const spx_image *img);
+spx_status spx_image_read(spx_ctx *ctx, const char *path, spx_image *out);
+
 #ifdef __cplusplus
 }
 #endif

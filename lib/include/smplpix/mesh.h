@@ -45,6 +45,13 @@ spx_status spx_mesh_copy(spx_ctx *ctx, const spx_mesh *src, spx_mesh *dst);
 /* Check finiteness and index ranges; `name` is used in messages. */
 spx_status spx_mesh_validate(spx_ctx *ctx, const char *name, const spx_mesh *m);
 
+/* Area-weighted vertex normals (lib/geom/normals.c): per vertex, the sum over its faces of
+ * (p1 - p0) x (p2 - p0), normalised; (0,0,0) where the sum is zero (isolated vertices,
+ * degenerate fans). Differences are taken in the positions' precision, the sums in double.
+ * pos: nv*3, faces: nf*3 valid indices, nrm: nv*3 out. */
+void spx_vertex_normals(const float *pos, int32_t nv, const int32_t *faces, int32_t nf, double *nrm);
+void spx_vertex_normals_d(const double *pos, int32_t nv, const int32_t *faces, int32_t nf, double *nrm);
+
 /* Loop subdivision as a sparse linear operator: every new vertex is a fixed weighted sum of old
  * vertices, so any per-vertex attribute (positions, colors, skinning weights, blend shapes) is
  * subdivided by applying the same operator. Boundaries use the standard crease rules.

@@ -3,6 +3,8 @@
 #define SMPLPIX_H
 
 #include "smplpix/core.h"
+#include "smplpix/files.h"
+#include "smplpix/comm.h"
 #include "smplpix/device.h"
 #include "smplpix/raster.h"
 

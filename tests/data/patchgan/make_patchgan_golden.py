@@ -42,7 +42,7 @@ import torch.nn.functional as F
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "unet"))
 sys.dont_write_bytecode = True
-from make_unet_golden import UNet, sampled, st_load, st_save  # noqa: E402
+from make_unet_golden import UNet, fp16_weights_random_bn, sampled, st_load, st_save  # noqa: E402
 
 sys.path.insert(0, os.path.join(HERE, "..", "vgg"))
 from make_vgg_golden import VGG19, vgg_loss  # noqa: E402
@@ -117,13 +117,18 @@ def step(G, D, optG, optD, x, real, vgg=None):
     lv = vgg_loss(vgg, fake, real) if vgg is not None else torch.zeros(())
     loss_g = (lv if vgg is not None else rec) + loss_g_gan + 0.1 * fm
     loss_d = 0.5 * (loss_d_fake + loss_d_real)
+    adam_steps(optG, loss_g, optD, loss_d)
+    return [t.item() for t in (rec, loss_g_gan, fm, loss_d_fake, loss_d_real, lv)]
+
+
+def adam_steps(optG, loss_g, optD, loss_d):
+    """pix2pixHD's update order: G from loss_g, then D from loss_d."""
     optG.zero_grad()
     loss_g.backward()
     optG.step()
     optD.zero_grad()
     loss_d.backward()
     optD.step()
-    return [t.item() for t in (rec, loss_g_gan, fm, loss_d_fake, loss_d_real, lv)]
 
 
 def main():
@@ -141,17 +146,8 @@ def main():
     torch.set_num_threads(1)
     G = UNet(4)
     D = MultiscaleD(7, NDF, NUM_D)
+    fp16_weights_random_bn(G)
     with torch.no_grad():
-        for name, p in G.named_parameters():
-            if name.endswith("weight") and p.dim() == 4:
-                p.copy_(p.half().float())
-        for m in G.modules():
-            if isinstance(m, nn.BatchNorm2d):
-                c = m.num_features
-                m.weight.copy_(torch.rand(c) + 0.5)
-                m.bias.copy_(torch.rand(c) * 0.2 - 0.1)
-                m.running_mean.copy_(torch.rand(c) * 0.2 - 0.1)
-                m.running_var.copy_(torch.rand(c) + 0.5)
         for name, p in D.named_parameters():  # pix2pixHD: conv weights N(0, 0.02)
             if name.endswith("weight"):
                 p.normal_(0.0, 0.02)

@@ -55,9 +55,7 @@ behaviour is checked on its own against PyTorch in tests/test_nn_optim.c.)
 """
 import argparse
 import copy
-import json
-import math
-import struct
+import os
 import sys
 
 import numpy as np
@@ -145,49 +143,27 @@ class UNet(nn.Module):
         return self.outc(x)
 
 
-# ---------------------------------------------------------------- safetensors by hand
-DTYPES = {np.dtype("float32"): "F32", np.dtype("float16"): "F16", np.dtype("int64"): "I64"}
-NP_OF = {"F32": "<f4", "F16": "<f2", "I64": "<i8", "F64": "<f8", "I32": "<i4", "U8": "u1"}
+# ---------------------------------------------------------------- safetensors by hand (tools/spx_safetensors.py)
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "tools"))
+from spx_safetensors import DTYPES, NP_OF, st_load, st_save  # noqa: E402,F401 (re-exported to the other goldens)
 
 
-def st_save(path, tensors, meta=None):
-    """tensors: list of (name, numpy array); written in that order, contiguous."""
-    header, blobs, off = {}, [], 0
-    for name, a in tensors:
-        a = np.ascontiguousarray(a)
-        dt = DTYPES[a.dtype]
-        raw = a.astype(a.dtype.newbyteorder("<"), copy=False).tobytes()
-        header[name] = {"dtype": dt, "shape": list(a.shape), "data_offsets": [off, off + len(raw)]}
-        blobs.append(raw)
-        off += len(raw)
-    if meta:
-        header["__metadata__"] = meta
-    h = json.dumps(header, separators=(",", ":")).encode()
-    h += b" " * ((8 - len(h) % 8) % 8)
-    with open(path, "wb") as f:
-        f.write(struct.pack("<Q", len(h)))
-        f.write(h)
-        for b in blobs:
-            f.write(b)
+def fp16_weights_random_bn(model):
+    """Conv weights made exactly representable in float16; batch-norm affine parameters and running
+    statistics drawn away from their defaults (torch's RNG, in module order)."""
+    with torch.no_grad():
+        for name, p in model.named_parameters():
+            if name.endswith("weight") and p.dim() == 4:
+                p.copy_(p.half().float())  # exactly representable in float16
+        for m in model.modules():
+            if isinstance(m, nn.BatchNorm2d):
+                c = m.num_features
+                m.weight.copy_(torch.rand(c) + 0.5)
+                m.bias.copy_(torch.rand(c) * 0.2 - 0.1)
+                m.running_mean.copy_(torch.rand(c) * 0.2 - 0.1)
+                m.running_var.copy_(torch.rand(c) + 0.5)
 
 
-def st_load(path):
-    with open(path, "rb") as f:
-        data = f.read()
-    (n,) = struct.unpack("<Q", data[:8])
-    header = json.loads(data[8 : 8 + n])
-    base = 8 + n
-    out = {}
-    for name, d in header.items():
-        if name == "__metadata__":
-            continue
-        b, e = d["data_offsets"]
-        a = np.frombuffer(data[base + b : base + e], dtype=NP_OF[d["dtype"]]).reshape(d["shape"])
-        out[name] = a.copy()
-    return out
-
-
-# ---------------------------------------------------------------- golden
 def rsign(n):
     i = np.arange(n, dtype=np.uint64)
     h = (i * np.uint64(2654435761)) & np.uint64(0xFFFFFFFF)
@@ -211,17 +187,7 @@ def make_golden(path):
     np.random.seed(20210105)
     torch.set_num_threads(1)
     model = UNet(8)
-    with torch.no_grad():
-        for name, p in model.named_parameters():
-            if name.endswith("weight") and p.dim() == 4:
-                p.copy_(p.half().float())  # exactly representable in float16
-        for m in model.modules():
-            if isinstance(m, nn.BatchNorm2d):
-                c = m.num_features
-                m.weight.copy_(torch.rand(c) + 0.5)
-                m.bias.copy_(torch.rand(c) * 0.2 - 0.1)
-                m.running_mean.copy_(torch.rand(c) * 0.2 - 0.1)
-                m.running_var.copy_(torch.rand(c) + 0.5)
+    fp16_weights_random_bn(model)
     out = []
     for name, t in model.state_dict().items():
         a = t.detach().numpy()
@@ -320,7 +286,6 @@ def main():
         m = UNet(a.width)
         st_save(a.export, [(k, v.numpy().copy()) for k, v in m.state_dict().items()], {"format": "pt"})
         return 0
-    import os
     path = a.out or os.path.join(os.path.dirname(os.path.abspath(__file__)), "unet_w8_golden.safetensors")
     make_golden(path)
     return 0

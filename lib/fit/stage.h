@@ -1,0 +1,175 @@
+/* Private: the registration's stages and what they share.
+ *
+ *   lib/fit/register.c     the driver: options, units, subsamples, the stages in order, outputs
+ *   lib/fit/stage_rigid.c  SPX_FIT_RIGID: candidate orientations + robust ICP (similarity)
+ *   lib/fit/stage_pose.c   SPX_FIT_POSE: pose + shape + translation + body scale with priors
+ *   lib/fit/stage_free.c   SPX_FIT_FREE: free vertices, coupling + Laplacian regulariser
+ *   lib/fit/color.c        colour transfer from the scan to the registered vertices
+ *   lib/fit/stage_common.c the tail every stage shares: two-way nearest neighbours, one Ceres
+ *                          solve from a stage's residual setup, measure + report of a step
+ *   lib/fit/sample.c       the deterministic RNG and subsampling
+ * 3x3 math is lib/body/rot3.h. The residual callbacks and their user data are declared here so
+ * that tests/test_fit_bridge.c can check every analytic Jacobian against central differences. */
+#ifndef SPX_FIT_STAGE_H
+#define SPX_FIT_STAGE_H
+
+#include "fit/fit_internal.h"
+
+/* ---------- sampling (sample.c) ---------- */
+
+/* xorshift64* step: the next 64-bit value of the stream s (s != 0). */
+uint64_t spx_fit_rng_next(uint64_t *s);
+/* Deterministic subsample of 0..n-1 down to at most k (k <= 0: all) by a partial Fisher-Yates
+ * shuffle: the first *out_k entries of the returned permutation (n entries, caller frees). */
+int32_t *spx_fit_subsample(spx_ctx *ctx, int32_t n, int32_t k, uint64_t seed, int32_t *out_k);
+
+/* ---------- residuals (Ceres cost callbacks, see fit/ceres_bridge.h) ---------- */
+
+/* rigid: x = s R(w) z + t; r = a (x - p). Blocks: w(3), s(1), t(3). */
+typedef struct spx_fit_rigid_pair {
+  const double *z; /* Rc (v - cm) of the model sample point */
+  double p[3];     /* scan point (metres) */
+  double a;        /* residual weight */
+} spx_fit_rigid_pair;
+int spx_fit_rigid_cost(void *user, const double *const *par, double *res, double **jac);
+
+/* The body model at the pose stage's parameters: F (and its Jacobian J when asked) recomputed by
+ * spx_fit_body_prepare before Ceres evaluates the residual blocks at a new point. */
+typedef struct spx_fit_body {
+  spx_ctx *ctx;
+  const spx_body_model *m;
+  int32_t nb, ncol;
+  double *pose, *betas, trans[3], bscale[1];
+  double *F; /* nv*3 forward vertices (unscaled) */
+  double *J; /* nv*3*ncol */
+  int have_jac;
+  spx_status st; /* a failure of the body model inside the solve */
+} spx_fit_body;
+int spx_fit_body_prepare(void *user, int want_jac, int new_point);
+
+/* r = a n.(s F_j - q). Blocks: pose, betas, trans, scale (betas omitted when nb = 0). */
+typedef struct spx_fit_body_pair {
+  const spx_fit_body *b;
+  int32_t j;
+  double q[3], n[3]; /* target point; plane normal */
+  double a;
+} spx_fit_body_pair;
+int spx_fit_body_plane_cost(void *user, const double *const *par, double *res, double **jac);
+
+/* Priors on one block: L2 (w x), soft limits (w (|x| - lims)+), scale (w (x target - 1)). */
+typedef struct spx_fit_prior {
+  int n;
+  double w;
+  int offset;         /* first component (pose prior skips the root) */
+  double target;      /* scale prior: w (x*target - 1) */
+  const double *lims; /* joint limits: |x_i| beyond lims[i] is penalised */
+} spx_fit_prior;
+int spx_fit_l2_prior_cost(void *user, const double *const *par, double *res, double **jac);
+int spx_fit_limit_cost(void *user, const double *const *par, double *res, double **jac);
+int spx_fit_scale_prior_cost(void *user, const double *const *par, double *res, double **jac);
+
+/* free vertices: plane r = a n.(x - q), point r = a (x - q). Block: x(3). */
+typedef struct spx_fit_free_pair {
+  double q[3], n[3], a;
+} spx_fit_free_pair;
+int spx_fit_free_plane_cost(void *user, const double *const *par, double *res, double **jac);
+int spx_fit_free_point_cost(void *user, const double *const *par, double *res, double **jac);
+
+/* r = a ((x_i - mean_j x_j) - target); blocks x_i, x_j... */
+typedef struct spx_fit_lap {
+  int32_t deg;
+  double a;
+  double target[3]; /* Laplacian of the posed model at this vertex */
+} spx_fit_lap;
+int spx_fit_lap_cost(void *user, const double *const *par, double *res, double **jac);
+
+/* ---------- the working set of the pose and free stages (owned by the driver) ---------- */
+
+typedef struct spx_fit_work {
+  float *Q;   /* scan subsample in model frame (pose stage) */
+  int32_t nq;
+  float *Qf;  /* scan subsample in model frame (free stage) */
+  int32_t nqf;
+  float *Vf;  /* current model vertices, float */
+  double *N;  /* normals */
+  int32_t *idx; /* per scan point: nearest model vertex */
+  float *d2;
+  float *dist;
+  double *area; /* per model vertex: its share of the rest surface area (sums to 1) */
+  double *lim;  /* nj*3 soft joint limits (radians) */
+  int32_t *msub; /* model vertices used by the pose stage's model → scan term */
+  int32_t nms;
+  double msub_w; /* 1 / (area share of the subset) */
+  int32_t *idx_m; /* per model vertex: nearest scan point */
+  float *d2_m;
+  spx_fit_body_pair *bp;
+  spx_fit_free_pair *fp;
+  spx_fit_lap *lp;
+  spx_adj vf, nb;
+} spx_fit_work;
+
+/* ---------- the shared tail (stage_common.c) ---------- */
+
+/* "registration (<stage>): <the bridge's last error>" into ctx, SPX_E_NUMERIC. */
+spx_status spx_fit_ceres_error(spx_ctx *ctx, const char *stage);
+/* The progress callback (if any) with a step's figures; t0: when the stage started. */
+void spx_fit_report(const spx_fit_options *o, const char *stage, int32_t step, int32_t n, double energy, double mean,
+                    double t0, const char *note);
+
+/* Nearest neighbours both ways between model points V (nv) and scan points Q (nq, k-d tree qt):
+ * *mt is rebuilt over V; idx/d2 (nq): each scan point's nearest model point; idx_m/d2_m (nv):
+ * each model point's nearest scan point. */
+spx_status spx_fit_match(spx_ctx *ctx, int threads, const float *V, int32_t nv, const float *Q, int32_t nq,
+                         const spx_kdtree *qt, spx_kdtree **mt, int32_t *idx, float *d2, int32_t *idx_m, float *d2_m);
+
+/* Adds one solve's residual blocks (step: the stage's outer iteration, 0-based). */
+typedef spx_status (*spx_fit_residuals_fn)(spx_ctx *ctx, spx_ceres_problem *pb, void *user, int32_t step);
+
+/* One Ceres solve of a stage: a problem built by `residuals`, solved with these settings and
+ * the options' threads and ceres_progress. */
+typedef struct spx_fit_solve_spec {
+  const char *stage;            /* names failures */
+  spx_fit_residuals_fn residuals;
+  void *user;
+  spx_ceres_prepare_fn prepare; /* evaluation callback, or NULL */
+  void *prepare_user;
+  spx_status *prepare_status;   /* where prepare records a failure (reset before the solve), or NULL */
+  int max_iterations;
+  int linear_solver;            /* spx_ceres_linear_solver */
+} spx_fit_solve_spec;
+spx_status spx_fit_solve(spx_ctx *ctx, const spx_fit_options *o, const spx_fit_solve_spec *s, int32_t step,
+                         spx_ceres_summary *sum);
+
+/* The outer loop of the pose and free stages. Per step: `vertices` (if any) updates V, then the
+ * model normals and the two-way matches against the scan sample Q go into w (N, Vf, idx, d2,
+ * idx_m, d2_m), one solve, `vertices` again, and the mean scan → surface distance (metres) is
+ * recorded in r's slot and reported. */
+typedef struct spx_fit_stage {
+  const char *name; /* "pose", "free" */
+  int slot;         /* index into r->stage_* */
+  int32_t steps;    /* >= 1 */
+  const float *Q;   /* scan sample, model frame */
+  int32_t nq;
+  double *V;        /* nv*3 model vertices, model frame */
+  spx_status (*vertices)(spx_ctx *ctx, void *user); /* V from the parameters; NULL: V are the parameters */
+  spx_fit_solve_spec solve; /* solve.user is also the user of `vertices` */
+} spx_fit_stage;
+spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
+                             const spx_fit_stage *s, spx_fit_result *r);
+
+/* ---------- the stages ---------- */
+
+/* Similarity model → scan into r->sim_*; Sc: the scan in metres (ns points). */
+spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, const float *Sc,
+                               int32_t ns, spx_fit_result *r);
+/* Pose + shape: b's parameters, r->verts_pose (model frame, with the body scale). */
+spx_status spx_fit_stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
+                              spx_fit_body *b, spx_fit_result *r);
+/* Free vertices: r->verts_model (starting at r->verts_pose). */
+spx_status spx_fit_stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
+                              spx_fit_result *r);
+/* r->colors (allocated here): at each registered vertex (r->verts_scan), the inverse-distance
+ * weighted colour of the (up to) 4 nearest points of the coloured scan (Sc: its points in metres). */
+spx_status spx_fit_transfer_colors(spx_ctx *ctx, const spx_mesh *scan, const float *Sc, int threads, spx_fit_result *r);
+
+#endif

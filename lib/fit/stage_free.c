@@ -1,0 +1,140 @@
+/* Stage 3 of the registration (SPX_FIT_FREE): every vertex free, coupled to the posed model
+ * (coupling weight annealed from w_couple_start to w_couple_end), with a uniform-Laplacian
+ * regulariser that keeps each vertex's Laplacian close to the posed model's, and the pose stage's
+ * data terms (both along the normal). */
+#include <math.h>
+#include <stdlib.h>
+
+#include "fit/stage.h"
+
+int spx_fit_free_plane_cost(void *user, const double *const *par, double *res, double **jac) {
+  const spx_fit_free_pair *q = user;
+  const double *x = par[0];
+  res[0] = q->a * (q->n[0] * (x[0] - q->q[0]) + q->n[1] * (x[1] - q->q[1]) + q->n[2] * (x[2] - q->q[2]));
+  if (jac && jac[0])
+    for (int d = 0; d < 3; d++) jac[0][d] = q->a * q->n[d];
+  return 1;
+}
+
+int spx_fit_free_point_cost(void *user, const double *const *par, double *res, double **jac) {
+  const spx_fit_free_pair *q = user;
+  for (int d = 0; d < 3; d++) res[d] = q->a * (par[0][d] - q->q[d]);
+  if (jac && jac[0])
+    for (int d = 0; d < 9; d++) jac[0][d] = (d % 4 == 0) ? q->a : 0.0;
+  return 1;
+}
+
+int spx_fit_lap_cost(void *user, const double *const *par, double *res, double **jac) {
+  const spx_fit_lap *l = user;
+  for (int d = 0; d < 3; d++) {
+    double s = 0;
+    for (int32_t k = 0; k < l->deg; k++) s += par[1 + k][d];
+    res[d] = l->a * (par[0][d] - s / l->deg - l->target[d]);
+  }
+  if (jac)
+    for (int32_t k = 0; k <= l->deg; k++) {
+      if (!jac[k]) continue;
+      double v = k == 0 ? l->a : -l->a / l->deg;
+      for (int d = 0; d < 9; d++) jac[k][d] = (d % 4 == 0) ? v : 0.0;
+    }
+  return 1;
+}
+
+
+/* One free step's problem over the vertices X (the parameters). */
+typedef struct free_stage {
+  const spx_fit_options *o;
+  spx_fit_work *w;
+  int32_t nv, steps;
+  double *X;        /* nv*3 vertices: the parameter blocks */
+  const double *Vp; /* the posed model (coupling target) */
+  int *sizes;       /* maxdeg+1 threes */
+  double **blocks;  /* maxdeg+1 */
+} free_stage;
+
+static spx_status free_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user, int32_t step) {
+  free_stage *fs = user;
+  const spx_fit_options *o = fs->o;
+  spx_fit_work *w = fs->w;
+  int32_t nv = fs->nv;
+  double *X = fs->X;
+  int *sizes = fs->sizes;
+  double frac = fs->steps > 1 ? (double)step / (fs->steps - 1) : 1.0;
+  double wc = o->w_couple_start * pow(o->w_couple_end / o->w_couple_start, frac);
+  double thr = 0.03;
+  double a1 = sqrt(1.0 / w->nqf), ac = sqrt(wc / nv), al = sqrt(o->w_lap / nv);
+  int32_t np = 0;
+  for (int32_t i = 0; i < w->nqf; i++) {
+    if (w->d2[i] > thr * thr) continue;
+    spx_fit_free_pair *q = w->fp + np++;
+    int32_t j = w->idx[i];
+    q->a = a1;
+    for (int d = 0; d < 3; d++) q->q[d] = w->Qf[i * 3 + d], q->n[d] = w->N[j * 3 + d];
+    double *blk = X + j * 3;
+    if (spx_ceres_add_residual(pb, spx_fit_free_plane_cost, q, 1, 1, sizes, &blk, SPX_LOSS_HUBER, a1 * o->robust_m * 0.5))
+      return spx_fit_ceres_error(ctx, "free");
+  }
+  for (int32_t j = 0; j < nv; j++) {
+    double *blk = X + j * 3;
+    if (w->d2_m[j] <= thr * thr) {
+      spx_fit_free_pair *q = w->fp + np++;
+      q->a = sqrt(o->w_m2s * w->area[j]);
+      for (int d = 0; d < 3; d++) q->q[d] = w->Qf[w->idx_m[j] * 3 + d], q->n[d] = w->N[j * 3 + d];
+      /* along the normal only: tangential sliding toward noisy samples would distort the mesh */
+      if (spx_ceres_add_residual(pb, spx_fit_free_plane_cost, q, 1, 1, sizes, &blk, SPX_LOSS_CAUCHY,
+                                 q->a * o->robust_m * 0.5))
+        return spx_fit_ceres_error(ctx, "free");
+    }
+    spx_fit_free_pair *c = w->fp + np++;
+    c->a = ac;
+    for (int d = 0; d < 3; d++) c->q[d] = fs->Vp[j * 3 + d];
+    if (spx_ceres_add_residual(pb, spx_fit_free_point_cost, c, 3, 1, sizes, &blk, SPX_LOSS_NONE, 0))
+      return spx_fit_ceres_error(ctx, "free");
+    spx_fit_lap *l = w->lp + j;
+    if (l->deg == 0) continue;
+    l->a = al;
+    fs->blocks[0] = blk;
+    for (int32_t k = 0; k < l->deg; k++) fs->blocks[1 + k] = X + w->nb.idx[w->nb.start[j] + k] * 3;
+    if (spx_ceres_add_residual(pb, spx_fit_lap_cost, l, 3, 1 + l->deg, sizes, fs->blocks, SPX_LOSS_NONE, 0))
+      return spx_fit_ceres_error(ctx, "free");
+  }
+  return SPX_OK;
+}
+
+spx_status spx_fit_stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
+                              spx_fit_result *r) {
+  int32_t nv = m->nv;
+  double *X = r->verts_model; /* starts at the posed model */
+  const double *Vp = r->verts_pose;
+  int32_t maxdeg = 0;
+  for (int32_t i = 0; i < nv; i++) {
+    int32_t dg = w->nb.start[i + 1] - w->nb.start[i];
+    if (dg > maxdeg) maxdeg = dg;
+  }
+  int *sizes = spx_alloc_array(ctx, (size_t)maxdeg + 1, sizeof(int), "free stage");
+  double **blocks = spx_alloc_array(ctx, (size_t)maxdeg + 1, sizeof(double *), "free stage");
+  spx_status st = SPX_OK;
+  if (!sizes || !blocks) {
+    st = SPX_E_NOMEM;
+    goto cleanup;
+  }
+  for (int32_t k = 0; k <= maxdeg; k++) sizes[k] = 3;
+  for (int32_t i = 0; i < nv; i++) {
+    spx_fit_lap *l = w->lp + i;
+    l->deg = w->nb.start[i + 1] - w->nb.start[i];
+    for (int d = 0; d < 3; d++) {
+      double s = 0;
+      for (int32_t k = w->nb.start[i]; k < w->nb.start[i + 1]; k++) s += Vp[w->nb.idx[k] * 3 + d];
+      l->target[d] = l->deg ? Vp[i * 3 + d] - s / l->deg : 0;
+    }
+  }
+  free_stage fs = {o, w, nv, o->free_steps > 0 ? o->free_steps : 1, X, Vp, sizes, blocks};
+  spx_fit_stage s = {"free", 2, fs.steps, w->Qf, w->nqf, X, NULL,
+                     {"free", free_residuals, &fs, NULL, NULL, NULL,
+                      o->free_inner_iterations > 0 ? o->free_inner_iterations : o->inner_iterations,
+                      SPX_LS_SPARSE_NORMAL_CHOLESKY}};
+  st = spx_fit_run_stage(ctx, m, o, w, &s, r);
+cleanup:
+  free(sizes), free(blocks);
+  return st;
+}

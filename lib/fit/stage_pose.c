@@ -1,0 +1,196 @@
+/* Stage 2 of the registration (SPX_FIT_POSE): pose + shape + translation + a body scale. Data
+ * terms both ways (scan point → plane of its nearest model vertex, Huber; model vertex → its
+ * nearest scan point along the model normal, Cauchy, area-weighted), an annealed pose prior, soft
+ * joint limits, a shape prior and a scale prior. The body model and its Jacobian are evaluated
+ * once per point in spx_fit_body_prepare; the residuals read them. */
+#include <math.h>
+#include <string.h>
+#include <strings.h>
+
+#include "fit/stage.h"
+
+int spx_fit_body_prepare(void *user, int want_jac, int new_point) {
+  spx_fit_body *b = user;
+  if (!new_point && (!want_jac || b->have_jac)) return 1;
+  spx_body_params p = {b->nb, b->betas, b->pose, b->trans, NULL};
+  spx_status st;
+  if (want_jac) st = spx_body_jacobian(b->ctx, b->m, &p, b->m->nv, NULL, b->F, b->J);
+  else st = spx_body_forward_ref(b->ctx, b->m, &p, b->F, NULL);
+  b->have_jac = want_jac;
+  if (st) b->st = st;
+  return st == SPX_OK;
+}
+
+static void body_jac_rows(const spx_fit_body *b, int32_t j, const double *wrow, int nrows, double s, double a,
+                          double **jac, int scale_block) {
+  /* wrow: nrows x 3 projection of the vertex (rows of n^T or I) */
+  int K3 = 3 * b->m->nj, nb = b->nb;
+  const double *Jv = b->J + (size_t)j * 3 * b->ncol;
+  for (int r = 0; r < nrows; r++) {
+    const double *w = wrow + r * 3;
+    if (jac[0])
+      for (int c = 0; c < K3; c++)
+        jac[0][r * K3 + c] = a * s * (w[0] * Jv[c] + w[1] * Jv[b->ncol + c] + w[2] * Jv[2 * b->ncol + c]);
+    int blk = 1;
+    if (nb) {
+      if (jac[blk])
+        for (int c = 0; c < nb; c++) {
+          int cc = K3 + c;
+          jac[blk][r * nb + c] = a * s * (w[0] * Jv[cc] + w[1] * Jv[b->ncol + cc] + w[2] * Jv[2 * b->ncol + cc]);
+        }
+      blk++;
+    }
+    if (jac[blk])
+      for (int c = 0; c < 3; c++) {
+        int cc = K3 + nb + c;
+        jac[blk][r * 3 + c] = a * s * (w[0] * Jv[cc] + w[1] * Jv[b->ncol + cc] + w[2] * Jv[2 * b->ncol + cc]);
+      }
+    if (jac[scale_block]) {
+      const double *F = b->F + (size_t)j * 3;
+      jac[scale_block][r] = a * (w[0] * F[0] + w[1] * F[1] + w[2] * F[2]);
+    }
+  }
+}
+
+int spx_fit_body_plane_cost(void *user, const double *const *par, double *res, double **jac) {
+  const spx_fit_body_pair *q = user;
+  const spx_fit_body *b = q->b;
+  int sb = b->nb ? 3 : 2;
+  double s = par[sb][0];
+  const double *F = b->F + (size_t)q->j * 3;
+  res[0] = q->a * (q->n[0] * (s * F[0] - q->q[0]) + q->n[1] * (s * F[1] - q->q[1]) + q->n[2] * (s * F[2] - q->q[2]));
+  if (jac) body_jac_rows(b, q->j, q->n, 1, s, q->a, jac, sb);
+  return 1;
+}
+
+int spx_fit_l2_prior_cost(void *user, const double *const *par, double *res, double **jac) {
+  const spx_fit_prior *d = user;
+  const double *x = par[0] + d->offset;
+  for (int i = 0; i < d->n; i++) res[i] = d->w * x[i];
+  if (jac && jac[0]) {
+    int ncols = d->n + d->offset;
+    memset(jac[0], 0, (size_t)d->n * (size_t)ncols * sizeof(double));
+    for (int i = 0; i < d->n; i++) jac[0][i * ncols + d->offset + i] = d->w;
+  }
+  return 1;
+}
+
+int spx_fit_limit_cost(void *user, const double *const *par, double *res, double **jac) {
+  const spx_fit_prior *d = user;
+  const double *x = par[0] + d->offset;
+  int ncols = d->n + d->offset;
+  if (jac && jac[0]) memset(jac[0], 0, (size_t)d->n * (size_t)ncols * sizeof(double));
+  for (int i = 0; i < d->n; i++) {
+    double e = fabs(x[i]) - d->lims[i];
+    res[i] = e > 0 ? d->w * e : 0.0;
+    if (jac && jac[0] && e > 0) jac[0][i * ncols + d->offset + i] = x[i] > 0 ? d->w : -d->w;
+  }
+  return 1;
+}
+
+int spx_fit_scale_prior_cost(void *user, const double *const *par, double *res, double **jac) {
+  const spx_fit_prior *d = user;
+  res[0] = d->w * (par[0][0] * d->target - 1.0);
+  if (jac && jac[0]) jac[0][0] = d->w * d->target;
+  return 1;
+}
+
+
+/* Soft joint limits (radians per axis-angle component): trunk, neck, head, clavicle and hip
+ * helper joints bend little; limbs, hands and feet up to 1.6. Names of the cmu_mb rig and SMPL. */
+static void joint_limits(const spx_body_model *m, double *lim) {
+  static const char *stiff[] = {"spine", "back", "neck", "head", "collar", "hipjoint", "pelvis", "jaw"};
+  for (int32_t k = 0; k < m->nj; k++) {
+    double l = 1.6;
+    const char *n = m->joint_names ? m->joint_names[k] : NULL;
+    for (size_t q = 0; n && q < sizeof stiff / sizeof stiff[0]; q++) {
+      size_t L = strlen(stiff[q]);
+      for (const char *c = n; *c; c++)
+        if (!strncasecmp(c, stiff[q], L)) l = 0.7;
+    }
+    for (int d = 0; d < 3; d++) lim[k * 3 + d] = l;
+  }
+}
+
+
+/* One pose step's problem: the data pairs matched by the stage loop, then the priors. */
+typedef struct pose_stage {
+  const spx_body_model *m;
+  const spx_fit_options *o;
+  spx_fit_work *w;
+  spx_fit_body *b;
+  spx_fit_result *r;
+  int32_t steps;
+  spx_fit_prior pr_pose, pr_lim, pr_shape, pr_scale;
+} pose_stage;
+
+/* verts_pose: the body at the current parameters, with the body scale */
+static spx_status pose_vertices(spx_ctx *ctx, void *user) {
+  pose_stage *ps = user;
+  spx_fit_body *b = ps->b;
+  spx_body_params p = {b->nb, b->betas, b->pose, b->trans, NULL};
+  spx_status st = spx_body_forward_ref(ctx, ps->m, &p, b->F, NULL);
+  if (st) return st;
+  for (int32_t i = 0; i < ps->m->nv * 3; i++) ps->r->verts_pose[i] = b->bscale[0] * b->F[i];
+  return SPX_OK;
+}
+
+static spx_status pose_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user, int32_t step) {
+  pose_stage *ps = user;
+  const spx_fit_options *o = ps->o;
+  spx_fit_work *w = ps->w;
+  spx_fit_body *b = ps->b;
+  int K3 = 3 * ps->m->nj, nb = b->nb;
+  double frac = ps->steps > 1 ? (double)step / (ps->steps - 1) : 1.0;
+  double thr = fmax(0.08, 0.3 * pow(0.7, step)); /* pair rejection distance (m) */
+  double robust = o->robust_m * pow(4.0, 1.0 - frac); /* 4x → 1x */
+  int sizes[4] = {K3, nb, 3, 1};
+  double *blocks[4] = {b->pose, b->betas, b->trans, b->bscale};
+  int nblk = 4;
+  if (!nb) sizes[1] = 3, sizes[2] = 1, blocks[1] = b->trans, blocks[2] = b->bscale, nblk = 3;
+  double a1 = sqrt(1.0 / w->nq);
+  int32_t np = 0;
+  for (int32_t i = 0; i < w->nq; i++) {
+    if (w->d2[i] > thr * thr) continue;
+    spx_fit_body_pair *q = w->bp + np++;
+    q->b = b, q->j = w->idx[i], q->a = a1;
+    for (int d = 0; d < 3; d++) q->q[d] = w->Q[i * 3 + d], q->n[d] = w->N[q->j * 3 + d];
+    if (spx_ceres_add_residual(pb, spx_fit_body_plane_cost, q, 1, nblk, sizes, blocks, SPX_LOSS_HUBER, a1 * robust))
+      return spx_fit_ceres_error(ctx, "pose");
+  }
+  for (int32_t jj = 0; jj < w->nms; jj++) {
+    int32_t j = w->msub[jj];
+    if (w->d2_m[j] > thr * thr) continue;
+    spx_fit_body_pair *q = w->bp + np++;
+    double a2 = sqrt(o->w_m2s * w->area[j] * w->msub_w);
+    q->b = b, q->j = j, q->a = a2;
+    for (int d = 0; d < 3; d++) q->q[d] = w->Q[w->idx_m[j] * 3 + d], q->n[d] = w->N[j * 3 + d];
+    /* point-to-plane (model normal): converges much faster than point-to-point */
+    if (spx_ceres_add_residual(pb, spx_fit_body_plane_cost, q, 1, nblk, sizes, blocks, SPX_LOSS_CAUCHY, a2 * 2 * robust))
+      return spx_fit_ceres_error(ctx, "pose");
+  }
+  /* priors: the pose prior is annealed from 10x down to 1x */
+  ps->pr_pose.w = o->w_pose_start * pow(o->w_pose / o->w_pose_start, frac);
+  int one = 1;
+  if (spx_ceres_add_residual(pb, spx_fit_l2_prior_cost, &ps->pr_pose, K3 - 3, 1, &K3, &b->pose, SPX_LOSS_NONE, 0) ||
+      spx_ceres_add_residual(pb, spx_fit_limit_cost, &ps->pr_lim, K3 - 3, 1, &K3, &b->pose, SPX_LOSS_NONE, 0) ||
+      (nb && spx_ceres_add_residual(pb, spx_fit_l2_prior_cost, &ps->pr_shape, nb, 1, &nb, &b->betas, SPX_LOSS_NONE, 0)) ||
+      spx_ceres_add_residual(pb, spx_fit_scale_prior_cost, &ps->pr_scale, 1, 1, &one, (double *const *)&blocks[nblk - 1],
+                             SPX_LOSS_NONE, 0))
+    return spx_fit_ceres_error(ctx, "pose");
+  b->have_jac = 0;
+  return SPX_OK;
+}
+
+spx_status spx_fit_stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
+                              spx_fit_body *b, spx_fit_result *r) {
+  int32_t K3 = 3 * m->nj, nb = b->nb;
+  joint_limits(m, w->lim);
+  pose_stage ps = {m, o, w, b, r, o->pose_steps > 0 ? o->pose_steps : 1,
+                   {.n = K3 - 3, .offset = 3}, {.n = K3 - 3, .w = o->w_limits, .offset = 3, .lims = w->lim + 3},
+                   {.n = nb, .w = o->w_shape}, {.n = 1, .w = o->w_scale, .target = r->sim_scale}};
+  spx_fit_stage s = {"pose", 1, ps.steps, w->Q, w->nq, r->verts_pose, pose_vertices,
+                     {"pose", pose_residuals, &ps, spx_fit_body_prepare, b, &b->st, o->inner_iterations,
+                      SPX_LS_DENSE_NORMAL_CHOLESKY}};
+  return spx_fit_run_stage(ctx, m, o, w, &s, r);
+}

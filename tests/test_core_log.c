@@ -1,0 +1,107 @@
+/* The library never prints: diagnostics reach a caller's log callback (spx_ctx_set_log), the
+ * profiles are switched on the context (spx_ctx_set_profile), and with no callback installed
+ * nothing is written to stderr even with profiling on. Also the context-level spx_fail. */
+#include <fcntl.h>
+#include <unistd.h>
+
+#include "smplpix/smplpix.h"
+#include "test.h"
+
+typedef struct lines {
+  int n;
+  char last[256];
+} lines;
+
+static void collect(void *user, const char *line) {
+  lines *l = user;
+  l->n++;
+  snprintf(l->last, sizeof l->last, "%s", line);
+}
+
+/* one triangle in front of a 32x32 camera, rasterized once */
+static spx_status raster_once(spx_ctx *ctx) {
+  static const float pos[9] = {-0.5f, -0.5f, 3, 0.5f, -0.5f, 3, 0, 0.5f, 3};
+  static const int32_t faces[3] = {0, 1, 2};
+  spx_camera cam = {32, 32, {{40, 0, 16}, {0, 40, 16}, {0, 0, 1}}, {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, {0, 0, 0}};
+  spx_raster_args a = {0};
+  a.nverts = 3, a.pos = pos, a.nfaces = 1, a.faces = faces, a.ncams = 1, a.cams = &cam, a.aa = 1;
+  a.layout = SPX_LAYOUT_HWC;
+  float *out = malloc(32 * 32 * 4 * sizeof(float));
+  spx_rasterizer *r = NULL;
+  spx_status st = out ? spx_rasterizer_create(ctx, &r) : SPX_E_NOMEM;
+  if (!st) st = spx_raster(ctx, r, &a, out, NULL);
+  spx_rasterizer_destroy(r);
+  free(out);
+  return st;
+}
+
+static void test_log_callback(void) {
+  spx_ctx *ctx;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK(spx_ctx_profile(ctx) == 0);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
+  lines l = {0};
+  spx_ctx_set_log(ctx, collect, &l);
+  CHECK_OK(ctx, raster_once(ctx)); /* profiling off: no line */
+  CHECK(l.n == 0);
+  spx_ctx_set_profile(ctx, SPX_PROFILE_RASTER);
+  CHECK(spx_ctx_profile(ctx) == SPX_PROFILE_RASTER);
+  CHECK_OK(ctx, raster_once(ctx));
+  CHECK_MSG(l.n >= 3, "%d profile lines", l.n); /* one per stage */
+  CHECK(strstr(l.last, " ms") != NULL && !strchr(l.last, '\n'));
+  int n = l.n;
+  spx_ctx_set_log(ctx, NULL, &l); /* removed: dropped again */
+  CHECK_OK(ctx, raster_once(ctx));
+  CHECK(l.n == n);
+  spx_ctx_destroy(ctx);
+}
+
+static void test_never_prints(void) {
+  char path[1024];
+  spx_t_path(path, sizeof path, "stderr.txt");
+  fflush(stderr);
+  int saved = dup(2), fd = open(path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  CHECK(saved >= 0 && fd >= 0);
+  if (saved < 0 || fd < 0) return;
+  dup2(fd, 2);
+  close(fd);
+  spx_ctx *ctx;
+  spx_status st = spx_ctx_create(&ctx);
+  if (!st) {
+    spx_ctx_set_profile(ctx, SPX_PROFILE_RASTER | SPX_PROFILE_TAPE); /* on, but no callback */
+    st = spx_device_open(ctx, NULL);
+    if (!st) st = raster_once(ctx);
+    spx_ctx_destroy(ctx);
+  }
+  fflush(stderr);
+  dup2(saved, 2);
+  close(saved);
+  CHECK(st == SPX_OK);
+  FILE *fp = fopen(path, "rb");
+  CHECK(fp != NULL);
+  if (!fp) return;
+  fseek(fp, 0, SEEK_END);
+  CHECK_MSG(ftell(fp) == 0, "the library wrote %ld bytes to stderr", ftell(fp));
+  fclose(fp);
+}
+
+static void test_fail(void) {
+  spx_ctx *ctx;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK(spx_fail(ctx, SPX_E_FORMAT, "%s: line\none", "f.png") == SPX_E_FORMAT);
+  CHECK(!strcmp(spx_ctx_message(ctx), "f.png: line one")); /* one line */
+  CHECK(spx_ctx_last_status(ctx) == SPX_E_FORMAT);
+  CHECK(spx_fail(ctx, SPX_E_IO, "outer: %s", spx_ctx_message(ctx)) == SPX_E_IO); /* may quote itself */
+  CHECK(!strcmp(spx_ctx_message(ctx), "outer: f.png: line one"));
+  CHECK(spx_fail(NULL, SPX_E_ARG, "nothing recorded") == SPX_E_ARG);
+  double t0 = spx_now(), t1 = spx_now();
+  CHECK(t0 > 0 && t1 >= t0);
+  spx_ctx_destroy(ctx);
+}
+
+int main(void) {
+  SPX_RUN(test_fail);
+  SPX_RUN(test_log_callback);
+  SPX_RUN(test_never_prints);
+  return spx_test_summary();
+}

@@ -1,0 +1,61 @@
+/* Images by extension (spx_image_read / spx_image_write / spx_image_ext_ok, lib/io/image_file.c). */
+#include "smplpix/files.h"
+#include "smplpix/smplpix.h"
+#include "test.h"
+
+static void test_ext(void) {
+  char e[8];
+  spx_path_ext("a/b.PnG", e, sizeof e);
+  CHECK(!strcmp(e, "png"));
+  spx_path_ext("a.b/c", e, sizeof e);
+  CHECK(!strcmp(e, ""));
+  spx_path_ext("x.verylongext", e, sizeof e);
+  CHECK(!strcmp(e, "verylon")); /* truncated to the buffer */
+  CHECK(spx_image_ext_ok("o.EXR") && spx_image_ext_ok("o.npy") && spx_image_ext_ok("d/o.png"));
+  CHECK(!spx_image_ext_ok("o.jpg") && !spx_image_ext_ok("png") && !spx_image_ext_ok("o.png/x"));
+}
+
+static void test_roundtrip(void) {
+  spx_ctx *ctx;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  spx_image img;
+  CHECK_OK(ctx, spx_image_alloc(ctx, 5, 3, 4, &img));
+  for (int i = 0; i < 5 * 3 * 4; i++) img.data[i] = (float)(i % 17) / 16.0f; /* in [0, 1]: PNG keeps it to 1/255 */
+  const char *names[3] = {"img.exr", "img.NPY", "img.png"};
+  for (int k = 0; k < 3; k++) {
+    char path[1024];
+    spx_t_path(path, sizeof path, names[k]);
+    CHECK_OK(ctx, spx_image_write(ctx, path, &img));
+    spx_image back;
+    CHECK_OK(ctx, spx_image_read(ctx, path, &back));
+    int png = k == 2;
+    CHECK(back.width == 5 && back.height == 3 && back.channels == (png ? 3 : 4)); /* PNG: RGB */
+    double err = 0;
+    for (int p = 0; p < 15 && back.data; p++)
+      for (int c = 0; c < back.channels; c++)
+        err = fmax(err, fabs(back.data[p * back.channels + c] - img.data[p * 4 + c]));
+    CHECK_MSG(err <= (png ? 0.5 / 255 + 1e-6 : 0), "%s: max error %g", names[k], err);
+    spx_image_free(&back);
+  }
+  char path[1024];
+  spx_t_path(path, sizeof path, "img.jpg");
+  CHECK(spx_image_write(ctx, path, &img) == SPX_E_ARG);
+  CHECK(strstr(spx_ctx_message(ctx), "img.jpg: unknown image type") != NULL);
+  spx_image back;
+  CHECK(spx_image_read(ctx, path, &back) == SPX_E_ARG && back.data == NULL);
+  /* a .npy that is not an image: one line naming the file */
+  float v[8] = {0};
+  int64_t shape[4] = {1, 2, 2, 2};
+  spx_t_path(path, sizeof path, "four_d.npy");
+  CHECK_OK(ctx, spx_npy_save_f32(ctx, path, v, 4, shape));
+  CHECK(spx_image_read(ctx, path, &back) == SPX_E_FORMAT);
+  CHECK(strstr(spx_ctx_message(ctx), "four_d.npy: expected an HxWxC or HxW image, not 4 dimensions") != NULL);
+  spx_image_free(&img);
+  spx_ctx_destroy(ctx);
+}
+
+int main(void) {
+  SPX_RUN(test_ext);
+  SPX_RUN(test_roundtrip);
+  return spx_test_summary();
+}
