@@ -123,7 +123,7 @@ int main(int argc, char **argv) {
     int hits = 0;
     for (size_t i = 0; i < hw; i++) hits += ref[i * 4 + 3] != 1.0f;
     printf("%-9d %12.3f %12.3f %7.2fx %14.3f %7s %7d\n", n, dev * 1e3, cpu * 1e3, dev / cpu, kern * 1e3,
-           p->last_path == 1 ? "fused" : p->last_path == 2 ? "radix" : "count", hits);
+           p->last_path == 1 ? "fused" : p->last_path == 2 ? "radix" : p->last_path == 3 ? "count" : "zbuf", hits);
     fflush(stdout);
     free(pos);
     free(col);

@@ -26,9 +26,8 @@
  * then a fixed-order sum): no atomics, bit-identical every run.
  *
  * Winograd F(4x4,3x3) for 3x3 stride-1 layers: kernels/conv2d_winograd.cl (inference by default).
- * Next step (not done): a local-memory (shared x and weight tiles) variant of conv_fwd for GPUs;
- * the GPU configuration (CONV_VW = 1, interleaved pixels) is register-tiled and coalesced but
- * keeps its operands in global memory / caches. */
+ * GPU-class devices (CONV_LDS) run the 3x3 stride-1 forward from local-memory tiles instead:
+ * kernels/conv2d_lds.cl (same arguments, same summation order, bit-identical results). */
 #include "conv2d_common.h"
 
 __kernel void spx_conv2d_fwd_k3s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 3); }

@@ -28,9 +28,9 @@
 #endif
 
 /* Pixel (row*W + col) and depth of one point, or 0 when it is dropped. */
-inline int spx_project_point(__global const float *cam, float x, float y, float z, int W, int H, uint *pix,
+inline int spx_project_point(const float *cam, float x, float y, float z, int W, int H, uint *pix,
                              float *depth) {
-  __global const float *K = cam, *R = cam + 9, *t = cam + 18;
+  const float *K = cam, *R = cam + 9, *t = cam + 18;
   float p0 = ((R[0] * x + R[1] * y) + R[2] * z) + t[0];
   float p1 = ((R[3] * x + R[4] * y) + R[5] * z) + t[1];
   float p2 = ((R[6] * x + R[7] * y) + R[8] * z) + t[2];
@@ -63,6 +63,19 @@ inline void spx_put_pixel(__global float *out, int layout, ulong img, uint pix, 
   }
 }
 
+/* Write point v of image img (its color, or white without colors) with depth d at pixel pix. */
+inline void spx_put_point(__global float *out, int layout, ulong img, uint pix, uint hw, __global const float *col,
+                          int has_col, int N, int C, uint v, float d) {
+  float r = 1.0f, g = 1.0f, b = 1.0f;
+  if (has_col) {
+    __global const float *cv = col + ((ulong)(img / (uint)C) * N + v) * 3;
+    r = cv[0];
+    g = cv[1];
+    b = cv[2];
+  }
+  spx_put_pixel(out, layout, img, pix, hw, r, g, b, d);
+}
+
 /* One work-item per point (keys) and per SPX_PROJ_FILL_PX pixels (background fill), whichever
  * needs more work-items. */
 __kernel void spx_project_keys(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
@@ -78,7 +91,9 @@ __kernel void spx_project_keys(__global const float *pos, __global const float *
     uint pix;
     float d;
     ulong key = (ulong)npix << 32; /* dropped: sorts after every pixel */
-    if (spx_project_point(cams + c * SPX_CAM_FLOATS, x[0], x[1], x[2], W, H, &pix, &d))
+    float cam[SPX_CAM_FLOATS];
+    for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[c * SPX_CAM_FLOATS + j];
+    if (spx_project_point(cam, x[0], x[1], x[2], W, H, &pix, &d))
     {
       key = ((ulong)img * hw + pix) << 32 | as_uint(d);
       if (want_counts) atomic_inc(&counts[img * hw + pix]); /* counting-sort path: bucket sizes */
@@ -118,14 +133,7 @@ inline void spx_project_head(__global const ulong *keys, __global const uint *va
     }
   }
   uint v = vals[best], img = pg / hw;
-  float r = 1.0f, g = 1.0f, b = 1.0f;
-  if (has_col) {
-    __global const float *cv = col + ((ulong)(img / (uint)C) * N + v) * 3;
-    r = cv[0];
-    g = cv[1];
-    b = cv[2];
-  }
-  spx_put_pixel(out, layout, img, pg % hw, hw, r, g, b, as_float(bd));
+  spx_put_point(out, layout, img, pg % hw, hw, col, has_col, N, C, v, as_float(bd));
   if (want_winners) winners[pg] = (int)v;
 }
 
@@ -180,15 +188,66 @@ __kernel void spx_project_bucket_min(__global const ulong *keys, __global const 
     }
   }
   uint hw = (uint)W * (uint)H, v = best % (uint)N, img = q / hw;
-  float r = 1.0f, g = 1.0f, b = 1.0f;
-  if (has_col) {
-    __global const float *cv = col + ((ulong)(img / (uint)C) * N + v) * 3;
-    r = cv[0];
-    g = cv[1];
-    b = cv[2];
-  }
-  spx_put_pixel(out, layout, img, q % hw, hw, r, g, b, as_float(bd));
+  spx_put_point(out, layout, img, q % hw, hw, col, has_col, N, C, v, as_float(bd));
   if (want_winners) winners[q] = (int)v;
+}
+
+/* Z-buffer path (CPU-class devices, SPX_PROJ_ZBUF): part k of the launch walks the points
+ * [k*chunk, min((k+1)*chunk, npts)) in order, like the plain-C loop, keeping per pixel the
+ * smallest key (depth bits << 32 | point index) in its own z-buffer zb + k*npix (d > 0, so the
+ * bits order like the depth; point index = img*N + v, so ties go to the smallest vertex index).
+ * spx_project_zmerge then takes the minimum over the parts: the same winner as the stable depth
+ * sort's first-of-run, whatever the number of parts. */
+__kernel void spx_project_zbuf(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
+                               uint npts, uint chunk, uint npix, __global ulong *zb) {
+  uint k = get_global_id(0), hw = (uint)W * (uint)H;
+  __global ulong *z = zb + (ulong)k * npix; /* empty (all ones) on entry: see spx_project_zmerge */
+  uint i = k * chunk, i1 = i + chunk < npts ? i + chunk : npts;
+  uint img = i / (uint)N, v = i % (uint)N; /* then walked without divisions */
+  float cam[SPX_CAM_FLOATS];
+  while (i < i1) {
+    for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
+    __global const float *x = pos + ((ulong)(img / (uint)C) * N) * 3;
+    __global ulong *zi = z + (ulong)img * hw;
+    uint vend = (uint)N - v < i1 - i ? (uint)N : v + (i1 - i);
+    for (; v < vend; v++, i++) {
+      uint pix;
+      float d;
+      if (!spx_project_point(cam, x[v * 3], x[v * 3 + 1], x[v * 3 + 2], W, H, &pix, &d)) continue;
+      ulong key = (ulong)as_uint(d) << 32 | i;
+      if (key < zi[pix]) zi[pix] = key;
+    }
+    img++;
+    v = 0;
+  }
+}
+
+/* SPX_PROJ_FILL_PX pixels per work-item: the nearest of the parts' winners, or the background;
+ * the parts' entries of a covered pixel are emptied again for the next call. */
+__kernel void spx_project_zmerge(__global ulong *zb, uint parts, __global const float *col, int has_col, int N,
+                                 int C, int W, int H, uint npix, __global float *out, int layout,
+                                 __global int *winners, int want_winners) {
+  uint q0 = get_global_id(0) * SPX_PROJ_FILL_PX, hw = (uint)W * (uint)H;
+  uint q1 = q0 + SPX_PROJ_FILL_PX < npix ? q0 + SPX_PROJ_FILL_PX : npix;
+  uint img = q0 / hw, pix = q0 % hw; /* then walked without divisions */
+  for (uint q = q0; q < q1; q++) {
+    ulong best = zb[q];
+    for (uint k = 1; k < parts; k++) best = min(best, zb[(ulong)k * npix + q]);
+    if (best == ~(ulong)0) {
+      if (layout == 0) vstore4((float4)(1.0f), q, out); /* q = img*hw + pix */
+      else spx_put_pixel(out, layout, img, pix, hw, 1.0f, 1.0f, 1.0f, 1.0f);
+      if (want_winners) winners[q] = -1;
+    } else {
+      for (uint k = 0; k < parts; k++) zb[(ulong)k * npix + q] = ~(ulong)0;
+      uint v = (uint)best % (uint)N;
+      spx_put_point(out, layout, img, pix, hw, col, has_col, N, C, v, as_float((uint)(best >> 32)));
+      if (want_winners) winners[q] = (int)v;
+    }
+    if (++pix == hw) {
+      pix = 0;
+      img++;
+    }
+  }
 }
 
 /* Backward, step 1: for each pixel with a winner, remember the pixel in vpix[img*N + winner]

@@ -25,6 +25,14 @@ foreach(name test_nn_tape test_nn_tape_multi test_nn_patchgan test_nn_vgg test_n
   spx_test_variant(${name}_poison ${name} "SPX_TAPE_POISON=1")
 endforeach()
 
+# The projection's z-buffer path (the CPU default) split into 3 parts from a few points on, so
+# the merge of several parts (and chunks that straddle images) is compared with the reference.
+add_test(NAME test_render_project_zbuf_parts COMMAND test_render_project)
+file(MAKE_DIRECTORY ${SPX_TEST_TMP}/test_render_project_zbuf_parts)
+set_tests_properties(test_render_project_zbuf_parts PROPERTIES
+  ENVIRONMENT "SPX_TUNE_PROJ_ZB_CHUNK=3;SPX_TUNE_PROJ_ZB_PARTS=3;SPX_TEST_TMP=${SPX_TEST_TMP}/test_render_project_zbuf_parts;SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache"
+  TIMEOUT 900)
+
 # The shipped network's PyTorch golden: ctest SKIP while data/models/default.safetensors is absent.
 set_tests_properties(test_model_golden PROPERTIES SKIP_RETURN_CODE 77)
 

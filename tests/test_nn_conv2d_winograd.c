@@ -16,7 +16,18 @@
  * direct path, whose bound is ~Cin*9 u sum |w||x|). The fused epilogue adds |scale| times that plus
  * a few roundings of the output's own size. A wrong transform or index gives errors of the
  * order of the outputs themselves, far above the bound; the observed worst error / bound ratio is
- * printed (typically ~0.01-0.05: the bound is a worst case). */
+ * printed (typically ~0.01-0.05: the bound is a worst case).
+ *
+ * Typical error against the direct convolution's (test_gain; the factor SPX_WINO_RMS_GAIN by
+ * which golden tests widen their tolerance when Winograd is on): model each rounding as an
+ * independent error of relative size u. Direct: output (i, j) is one sum of 9 Cin products, rms
+ * error ~ u sqrt(9 Cin) s_w s_x for i.i.d. weights / inputs of rms s_w, s_x. Winograd: the
+ * dominant roundings are those of the 36 Cin-term GEMM sums, each of rms u sqrt(Cin) |U_ab V_ab|
+ * with E[U_ab^2] = g2_a g2_b s_w^2, E[V_ab^2] = b2_a b2_b s_x^2 (g2_a = sum_k G_ak^2, b2_a =
+ * sum_p BT_ap^2), then mixed by the output transform with weights A^T_ia A^T_jb. So
+ *   rms_wino / rms_direct = sqrt(S_i S_j) / 3,   S_i = sum_a (A^T_ia)^2 g2_a b2_a,
+ * largest at the tile corner i = j = 3: S_3 = 94.33, ratio 31.4 (the transform stages' own
+ * roundings add terms of the same form with smaller weights). */
 #include <stdlib.h>
 
 #include "cl/cl_internal.h"
@@ -265,7 +276,33 @@ static void test_rule(void) {
   spx_ctx_destroy(ctx);
 }
 
+/* The transform matrices multiply out to the 3-tap correlation (sum_a A^T_ia G_ak B^T_ap = 1 iff
+ * p = i + k), and their rms error gain (see the top of the file) is what SPX_WINO_RMS_GAIN says. */
+static void test_gain(void) {
+  double worst = 0;
+  for (int i = 0; i < 4; i++) {
+    for (int k = 0; k < 3; k++)
+      for (int p = 0; p < 6; p++) {
+        double e = 0;
+        for (int a = 0; a < 6; a++) e += AT[i][a] * G[a][k] * BT[a][p];
+        CHECK_MSG(fabs(e - (p == i + k)) < 1e-12, "A^T G B^T [%d][%d][%d] = %g", i, k, p, e);
+      }
+    double si = 0;
+    for (int a = 0; a < 6; a++) {
+      double g2 = 0, b2 = 0;
+      for (int k = 0; k < 3; k++) g2 += G[a][k] * G[a][k];
+      for (int p = 0; p < 6; p++) b2 += BT[a][p] * BT[a][p];
+      si += AT[i][a] * AT[i][a] * g2 * b2;
+    }
+    if (si > worst) worst = si;
+  }
+  double gain = worst / 3.0; /* sqrt(S_3 S_3) / 3 */
+  printf("winograd rms error gain over direct: %.2f (SPX_WINO_RMS_GAIN %d)\n", gain, SPX_WINO_RMS_GAIN);
+  CHECK(gain > 31.0 && gain <= SPX_WINO_RMS_GAIN);
+}
+
 int main(void) {
+  SPX_RUN(test_gain);
   SPX_RUN(test_vs_reference);
   SPX_RUN(test_deterministic);
   SPX_RUN(test_rule);

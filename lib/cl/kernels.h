@@ -23,6 +23,7 @@
   X(BN_SYNC_BWD, "batchnorm.cl", "spx_bn_sync_bwd")                    \
   X(CONV2D_FWD_K3S1, "conv2d.cl", "spx_conv2d_fwd_k3s1")               \
   X(CONV2D_FWD_K1S1, "conv2d.cl", "spx_conv2d_fwd_k1s1")               \
+  X(CONV2D_FWD_K3S1_LDS, "conv2d_lds.cl", "spx_conv2d_fwd_k3s1_lds")   \
   X(CONV2D_PAD, "conv2d.cl", "spx_conv2d_pad")                         \
   X(CONV2D_PACK, "conv2d.cl", "spx_conv2d_pack")                       \
   X(CONV2D_DW_S1, "conv2d_bwd.cl", "spx_conv2d_dw_s1")                 \
@@ -58,6 +59,8 @@
   X(PROJECT_SORT_SCATTER, "project.cl", "spx_project_sort_scatter")    \
   X(PROJECT_VPIX, "project.cl", "spx_project_vpix")                    \
   X(PROJECT_GRAD, "project.cl", "spx_project_grad")                    \
+  X(PROJECT_ZBUF, "project.cl", "spx_project_zbuf")                    \
+  X(PROJECT_ZMERGE, "project.cl", "spx_project_zmerge")                \
   X(SORT_HIST, "radix_sort.cl", "spx_sort_hist")                       \
   X(SCAN_BLOCK, "radix_sort.cl", "spx_scan_block")                     \
   X(SCAN_ADD, "radix_sort.cl", "spx_scan_add")                         \

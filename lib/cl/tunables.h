@@ -20,6 +20,9 @@ struct spx_tunables {
   int proj_fast_max;      /* projection */
   int proj_sort_depth;
   int proj_count_min;
+  int proj_zbuf;
+  int proj_zb_chunk;
+  int proj_zb_parts;
   int proj_fill_px;
   int conv_vw;            /* conv2d forward */
   int conv_tm;
@@ -27,6 +30,9 @@ struct spx_tunables {
   int conv_lws;
   int conv_ct;
   int conv_cb;
+  int conv_lds;           /* local-memory 3x3 forward (GPU) */
+  int conv_lds_tx;
+  int conv_lds_cb;
   int conv_xcache;
   int conv_dw_tm;         /* conv2d backward weights */
   int conv_dw_tn;

@@ -57,7 +57,16 @@ static const struct spx_tunable spx_tunables[] = {
      * on 2-core PoCL it measured no better than the radix sort at 10^6 points (both ~40-90 ms,
      * noisy), so it is off; unmeasured on GPUs */
     {"SPX_PROJ_COUNT_MIN", F(proj_count_min), 0, 0, 0, 1 << 30, 0},
-    /* background pixels written per work-item of spx_project_keys */
+    /* 1: the projection runs the z-buffer path (kernels/project.cl spx_project_zbuf: one
+     * work-item per part walks its points like the plain-C loop, then a merge pass): on 2-core
+     * PoCL 1.1-1.2x faster than the fused sort at 6,890 points and 3-4x at 10^6 (benchmarks/
+     * RESULTS.md); 0: the sort paths (GPU: a serial loop per part wastes the device) */
+    {"SPX_PROJ_ZBUF", F(proj_zbuf), 1, 0, 0, 1, 0},
+    /* z-buffer path: points per part (parts = min(SPX_PROJ_ZB_PARTS, points / this), at least 1) */
+    {"SPX_PROJ_ZB_CHUNK", F(proj_zb_chunk), 16384, 16384, 1, 1 << 30, 0},
+    /* z-buffer path: most parts (0: the device's compute units); each holds a z-buffer of 8 bytes per pixel */
+    {"SPX_PROJ_ZB_PARTS", F(proj_zb_parts), 0, 0, 0, 256, 0},
+    /* background pixels written per work-item of spx_project_keys and spx_project_zmerge */
     {"SPX_PROJ_FILL_PX", F(proj_fill_px), 64, 1, 1, 65536, 0},
     /* conv2d (kernels/conv2d.cl): forward register tile = CONV_TM out-channels x CONV_TN vectors
      * of CONV_VW pixels per work-item, CONV_LWS work-items per group (interleaved pixels) */
@@ -68,6 +77,13 @@ static const struct spx_tunable spx_tunables[] = {
     /* conv2d forward: channel tiles per work-item, walked per block of CONV_CB input channels */
     {"CONV_CT", F(conv_ct), 4, 1, 1, 64, 0},
     {"CONV_CB", F(conv_cb), 16, 1048576, 1, 1 << 30, 0},
+    /* conv2d: 1 = 3x3 stride-1 forwards (and backward data) run the local-memory tiled kernel
+     * (kernels/conv2d_lds.cl; needs CONV_VW = 1): tiles of CONV_LDS_TX columns x
+     * (CONV_LWS/CONV_LDS_TX)*CONV_TN rows, CONV_LDS_CB input channels per local-memory block.
+     * GPU values unmeasured (no GPU at hand; tested on PoCL with SPX_TUNE_CLASS=gpu) */
+    {"CONV_LDS", F(conv_lds), 0, 1, 0, 1, 0},
+    {"CONV_LDS_TX", F(conv_lds_tx), 16, 16, 1, 1024, 0},
+    {"CONV_LDS_CB", F(conv_lds_cb), 8, 8, 1, 256, 0},
     /* conv2d: inputs up to this many KiB (and smaller than the weights) run pixel-tile-fastest */
     {"CONV_XCACHE", F(conv_xcache), 2048, 2048, 0, 1 << 20, 0},
     /* conv2d backward weights: tile of out-channels x weight columns; q-chunk of the split reduction */
@@ -84,9 +100,11 @@ static const struct spx_tunable spx_tunables[] = {
      * ~1.55x less with any of 16/32/64, width 16 best with 64 (16 costs ~5% more than direct);
      * GPU: unmeasured */
     {"CONV_WINO_MINC", F(conv_wino_minc), 64, 32, 0, 1 << 20, 0},
-    /* 1: training forwards and backward data take Winograd too (off: the UNet training golden
-     * does not hold with it; see lib/nn/conv2d.h) */
-    {"CONV_WINO_TRAIN", F(conv_wino_train), 0, 0, 0, 1, 0},
+    /* 1: training forwards and backward data take Winograd too (lib/nn/conv2d.h). CPU: the
+     * width-64 UNet training step at 1x4x308x410 takes ~15% less CPU time (2-core PoCL, load
+     * ~14; benchmarks/RESULTS.md); goldens widen their tolerance by SPX_WINO_RMS_GAIN with it.
+     * GPU: unmeasured, off */
+    {"CONV_WINO_TRAIN", F(conv_wino_train), 1, 0, 0, 1, 0},
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", F(conv_red_wg), 16, 256, 1, 1024, T_POW2|T_WG},
     /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,

@@ -152,7 +152,8 @@ static size_t guard_elems(int s, size_t q, int k, int wp, int vw) {
 static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, int cout, int coutp, int k, int s,
                           int wp, int plane, int ho, int wo, const spx_tensor *y, const spx_tensor *bias,
                           const spx_tensor *scale, const spx_tensor *shift, int flags) {
-  spx_kernel_id kid = s == 2 ? SPX_K_CONV2D_FWD_S2 : s > 2 ? SPX_K_CONV2D_FWD_SN
+  const int lds = spx_conv2d_lds_applies(ctx, k, s); /* GPU: local-memory tiles (conv2d_lds.cl) */
+  spx_kernel_id kid = lds ? SPX_K_CONV2D_FWD_K3S1_LDS : s == 2 ? SPX_K_CONV2D_FWD_S2 : s > 2 ? SPX_K_CONV2D_FWD_SN
                       : k == 3 ? SPX_K_CONV2D_FWD_K3S1 : k == 1 ? SPX_K_CONV2D_FWD_K1S1 : SPX_K_CONV2D_FWD_S1;
   const char *name = spx_cl_kernel_name(kid);
   cl_kernel kr;
@@ -186,7 +187,8 @@ static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, i
   if (s > 2) e |= SPX_ARG(kr, 22, s);
   if ((st = spx_cl_check(ctx, e, name))) return st;
   int ct = ctx->dev->tune.conv_ct, ncst = (coutp / tm + ct - 1) / ct;
-  size_t gl[2] = {(size_t)ncst * groups * lws, (size_t)n}, lo[2] = {(size_t)lws, 1};
+  size_t gl[2] = {(lds ? spx_conv2d_lds_groups(ctx, coutp, ho, wo) : (size_t)ncst * groups) * lws, (size_t)n};
+  size_t lo[2] = {(size_t)lws, 1};
   const int epi = FL_BIAS | FL_SCALE | FL_SHIFT | FL_RELU;
   for (int ci0 = 0; ci0 < cin; ci0 += cib) {
     int ci1 = ci0 + cib < cin ? ci0 + cib : cin;

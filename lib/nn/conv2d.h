@@ -35,14 +35,20 @@ typedef struct spx_conv2d_params {
 
 /* Algorithm: Winograd F(4x4,3x3) (kernels/conv2d_winograd.cl, lib/nn/conv2d_winograd.c) for
  * 3x3 / stride 1 / pad 1 layers whose input and output channels are both >= the tunable
- * CONV_WINO_MINC (0: never; override with SPX_TUNE_CONV_WINO_MINC), else direct. By default only
- * INFERENCE forwards take it, recognised by the fused epilogue (scale or relu set: the tape
- * refuses those in training). Training (plain forward, backward data) takes it only with the
- * tunable CONV_WINO_TRAIN=1: it is implemented and tested, but the UNet training golden
- * (tests/test_nn_unet.c, 1e-4 after 3 Adam steps) does not hold with it (gradients 1.9e-4 off
- * PyTorch at width 8 with every layer on Winograd), so it is off. Winograd changes the float
- * rounding (bounded error, see tests/test_nn_conv2d_winograd.c); the weight gradient always
- * runs direct. */
+ * CONV_WINO_MINC (0: never; override with SPX_TUNE_CONV_WINO_MINC), else direct. Inference
+ * forwards (recognised by the fused epilogue: scale or relu set, which the tape refuses in
+ * training) always may take it; training forwards and backward data (the 3x3 conv of dy with the
+ * flipped, transposed weights) take it when the tunable CONV_WINO_TRAIN is 1 (CPU default:
+ * measured faster on the width-64 training step; GPU: unmeasured, 0). Winograd changes the float
+ * rounding: bounded in tests/test_nn_conv2d_winograd.c against the double reference, and larger
+ * than the direct path's by at most SPX_WINO_RMS_GAIN, by which golden tests widen their
+ * tolerance when it runs. The weight gradient always runs direct (see docs/ARCHITECTURE.md). */
+
+/* How much larger F(4x4,3x3)'s rounding error is than the direct convolution's, for the worst
+ * output of a tile (31.4 rounded up; derived from the transform matrices in
+ * tests/test_nn_conv2d_winograd.c, which checks this value): tests that compare a network against
+ * a golden multiply their tolerance by it when Winograd is on. */
+#define SPX_WINO_RMS_GAIN 32
 
 /* Output size of one spatial dimension; <= 0 when the input is too small. */
 static inline int spx_conv2d_out_size(int in, int k, int stride, int pad) {
@@ -70,6 +76,13 @@ int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, 
 spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
                                int relu, int accumulate, const spx_tensor *y);
+
+/* ---- local-memory tiled 3x3 stride-1 forward for GPU-class devices (lib/nn/conv2d_lds.c) ---- */
+/* Nonzero when the forward kernel of a k x k / stride conv is spx_conv2d_fwd_k3s1_lds (tunable
+ * CONV_LDS, CONV_VW = 1, CONV_LWS a multiple of CONV_LDS_TX, its tiles fit the local memory). */
+int spx_conv2d_lds_applies(const spx_ctx *ctx, int k, int stride);
+/* Work-groups of that kernel for one image (dim 0 = this times CONV_LWS). */
+size_t spx_conv2d_lds_groups(const spx_ctx *ctx, int coutp, int ho, int wo);
 
 /* ---- plain-C double-precision reference (same semantics) ---- */
 typedef struct spx_conv2d_shape {

@@ -18,7 +18,7 @@ void spx_projector_destroy(spx_projector *p) {
   if (!p) return;
   spx_sorter_release(&p->sorter);
   spx_cl_buf *bufs[] = {&p->pos, &p->col, &p->cams, &p->keys, &p->vals, &p->img, &p->win,
-                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->offs, &p->dummy};
+                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->offs, &p->zb, &p->dummy};
   for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) spx_cl_buf_release(bufs[i]);
   free(p);
 }
@@ -64,6 +64,51 @@ static spx_status check_device(spx_ctx *ctx, const char *fn) {
   return SPX_OK;
 }
 
+/* Path 4: parts = min(SPX_PROJ_ZB_PARTS or the compute units, points / SPX_PROJ_ZB_CHUNK) z-buffers, each filled by one
+ * work-item walking its share of the points in order (the plain-C loop), then one merge pass
+ * over the pixels that also writes the background and empties the z-buffer entries it used (so
+ * no fill pass per call). The output does not depend on the number of parts. */
+static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out, cl_mem win,
+                               cl_uint npts, cl_uint npix) {
+  cl_int N = a->nverts, C = a->ncams, W = a->cams[0].width, H = a->cams[0].height, layout = (cl_int)a->layout;
+  cl_int want_win = win != p->dummy.mem, has_col = a->col != NULL;
+  cl_mem pos = a->pos ? a->pos : p->dummy.mem, col = a->col ? a->col : p->dummy.mem;
+  size_t per = (size_t)ctx->dev->tune.proj_zb_chunk, most = (size_t)ctx->dev->tune.proj_zb_parts;
+  if (!most) most = ctx->dev->info.compute_units ? ctx->dev->info.compute_units : 1;
+  size_t parts = ((size_t)npts + per - 1) / per;
+  if (parts > most) parts = most;
+  if (parts < 1) parts = 1;
+  cl_uint chunk = (cl_uint)(((size_t)npts + parts - 1) / parts), np = (cl_uint)parts;
+  size_t zbytes = parts * npix * sizeof(cl_ulong);
+  spx_status st = spx_cl_buf_ensure(ctx, &p->zb, zbytes, "projection z-buffers");
+  if (st) return st;
+  if (p->zb_clear < zbytes) { /* empty (all ones) once; afterwards the merge clears what it read */
+    cl_ulong empty = ~(cl_ulong)0;
+    cl_int fe = clEnqueueFillBuffer(ctx->dev->queue, p->zb.mem, &empty, sizeof empty, 0, p->zb.bytes, 0, NULL, NULL);
+    if ((st = spx_cl_check(ctx, fe, "spx_project z-buffer fill"))) return st;
+    p->zb_clear = p->zb.bytes;
+  }
+  p->zb_clear = 0; /* until both launches are enqueued */
+  cl_kernel kz, km;
+  if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ZBUF, &kz))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ZMERGE, &km))) return st;
+  cl_int e = SPX_ARG(kz, 0, pos) | SPX_ARG(kz, 1, p->cams.mem) | SPX_ARG(kz, 2, N) | SPX_ARG(kz, 3, C) |
+             SPX_ARG(kz, 4, W) | SPX_ARG(kz, 5, H) | SPX_ARG(kz, 6, npts) | SPX_ARG(kz, 7, chunk) |
+             SPX_ARG(kz, 8, npix) | SPX_ARG(kz, 9, p->zb.mem);
+  if ((st = spx_cl_check(ctx, e, "spx_project_zbuf args"))) return st;
+  size_t one = 1;
+  if ((st = spx_cl_run(ctx, kz, 1, &parts, &one, "spx_project_zbuf"))) return st;
+  e = SPX_ARG(km, 0, p->zb.mem) | SPX_ARG(km, 1, np) | SPX_ARG(km, 2, col) | SPX_ARG(km, 3, has_col) |
+      SPX_ARG(km, 4, N) | SPX_ARG(km, 5, C) | SPX_ARG(km, 6, W) | SPX_ARG(km, 7, H) | SPX_ARG(km, 8, npix) |
+      SPX_ARG(km, 9, out) | SPX_ARG(km, 10, layout) | SPX_ARG(km, 11, win) | SPX_ARG(km, 12, want_win);
+  if ((st = spx_cl_check(ctx, e, "spx_project_zmerge args"))) return st;
+  size_t fill_px = (size_t)ctx->dev->tune.proj_fill_px, g = (npix + fill_px - 1) / fill_px;
+  size_t l = (size_t)ctx->dev->tune.wg;
+  if ((st = spx_cl_run(ctx, km, 1, &g, &l, "spx_project_zmerge"))) return st;
+  p->zb_clear = p->zb.bytes;
+  return SPX_OK;
+}
+
 spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out,
                               cl_mem winners, int force_path) {
   spx_status st = check_device(ctx, "spx_project");
@@ -81,13 +126,19 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
   if ((st = spx_cl_buf_ensure(ctx, &p->keys, ((size_t)npts + 1) * sizeof(cl_ulong), "projection keys"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &p->vals, ((size_t)npts + 1) * sizeof(cl_uint), "projection values"))) return st;
 
-  /* path: 1 fused single-work-group sort, 2 radix sort + unique, 3 counting sort by pixel */
+  /* path: 1 fused single-work-group sort, 2 radix sort + unique, 3 counting sort by pixel,
+   * 4 z-buffer per part + merge (CPU-class devices) */
   int path = force_path;
   if (!path)
-    path = npts <= (cl_uint)ctx->dev->tune.proj_fast_max   ? 1
+    path = ctx->dev->tune.proj_zbuf                        ? 4
+           : npts <= (cl_uint)ctx->dev->tune.proj_fast_max ? 1
            : ctx->dev->tune.proj_count_min > 0 && npts >= (cl_uint)ctx->dev->tune.proj_count_min
                ? 3
                : 2;
+  if (path == 4) {
+    p->last_path = 4;
+    return project_zbuf(ctx, p, a, out, win, npts, npix);
+  }
   cl_int want_counts = path == 3 && npts > 0;
   if (want_counts) {
     cl_uint zero = 0;

@@ -1,0 +1,101 @@
+/* 3x3 stride-1 convolution forward with local-memory tiles, for GPU-class devices (tunable
+ * CONV_LDS; host: lib/nn/conv2d_lds.c, called from lib/nn/conv2d.c for every 3x3 stride-1
+ * forward and backward-data convolution that is not on the Winograd path; reference:
+ * lib/nn/conv2d_ref.c; test: tests/test_nn_conv2d_lds.c).
+ *
+ * Same inputs as conv2d.cl's spx_conv2d_fwd_k3s1 (xp zero-padded by spx_conv2d_pad into planes of
+ * Hp x Wp, output (oy, ox) reading xp[ci][oy+ky][ox+kx]; weights packed per channel tile as
+ * wpk[cot][ci*9 + ky*3 + kx][CONV_TM]), but the outputs are cut into 2-D tiles of
+ * LDS_TX columns x LDS_TY rows, one work-group of CONV_LWS work-items per (tile, channel tile of
+ * CONV_TM outputs, image). Work-item (lx, ly) owns column lx and rows ly + j*(CONV_LWS/LDS_TX),
+ * j < CONV_TN, for CONV_TM output channels. Per block of CONV_LDS_CB input channels the group
+ * copies the (LDS_TY+2) x (LDS_TX+2) input halo and the block's 9*CONV_TM weights into local
+ * memory once; every input value is then read from local memory by up to 9 outputs and every
+ * weight by all CONV_LWS work-items (the direct GPU kernel reads both from global memory /
+ * caches). Sums run over (ci, ky, kx) in order with fma: fixed order, bit-identical reruns. */
+#include "conv2d_common.h"
+
+#ifndef CONV_LDS_TX
+#define CONV_LDS_TX 16
+#endif
+#ifndef CONV_LDS_CB
+#define CONV_LDS_CB 8
+#endif
+#define LDS_TX CONV_LDS_TX
+#define LDS_WY (CONV_LWS / CONV_LDS_TX) /* work-item rows of a group */
+#define LDS_TY (LDS_WY * CONV_TN)       /* output rows of a tile */
+#define LDS_HX (LDS_TX + 2)             /* halo width */
+#define LDS_HY (LDS_TY + 2)
+
+#if CONV_LWS % CONV_LDS_TX == 0
+/* Global: dim0 = CoutP/CONV_TM * ceil(Wo/LDS_TX) * ceil(Ho/LDS_TY) groups of CONV_LWS (channel
+ * tile fastest), dim1 = N. Input channels [ci0, ci1) only (the host's channel-block passes). */
+__kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_fwd_k3s1_lds(CONV_FWD_ARGS) {
+  __local float xs[CONV_LDS_CB * LDS_HY * LDS_HX];
+  __local float ws[CONV_LDS_CB * 9 * CONV_TM];
+  const int ncot = CoutP / CONV_TM, ntx = (Wo + LDS_TX - 1) / LDS_TX, grp = (int)get_group_id(0);
+  const int cot = grp % ncot, tile = grp / ncot, ox0 = (tile % ntx) * LDS_TX, oy0 = (tile / ntx) * LDS_TY;
+  const int lid = (int)get_local_id(0), lx = lid % LDS_TX, ly = lid / LDS_TX, n = (int)get_global_id(1);
+  const __global float *xn = xp + (size_t)n * Cin * plane;
+  const __global float *wt = wpk + (size_t)cot * Cin * 9 * CONV_TM;
+  (void)pix_major;
+  (void)k;
+  float acc[CONV_TM][CONV_TN];
+#pragma unroll
+  for (int m = 0; m < CONV_TM; m++)
+#pragma unroll
+    for (int j = 0; j < CONV_TN; j++) acc[m][j] = 0.0f;
+
+  for (int cb = ci0; cb < ci1; cb += CONV_LDS_CB) {
+    const int nc = min(CONV_LDS_CB, ci1 - cb);
+    barrier(CLK_LOCAL_MEM_FENCE); /* the previous block is consumed */
+    for (int e = lid; e < nc * LDS_HY * LDS_HX; e += CONV_LWS) {
+      int c = e / (LDS_HY * LDS_HX), r = e - c * (LDS_HY * LDS_HX), hy = r / LDS_HX, hx = r - hy * LDS_HX;
+      int gy = oy0 + hy, gx = ox0 + hx;
+      xs[e] = gx < Wp && gy * Wp + gx < plane ? xn[(size_t)(cb + c) * plane + gy * Wp + gx] : 0.0f;
+    }
+    for (int e = lid; e < nc * 9 * CONV_TM; e += CONV_LWS) ws[e] = wt[(size_t)cb * 9 * CONV_TM + e];
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int c = 0; c < nc; c++)
+      for (int ky = 0; ky < 3; ky++)
+#pragma unroll
+        for (int kx = 0; kx < 3; kx++) {
+          const __local float *wr = ws + (c * 9 + ky * 3 + kx) * CONV_TM;
+          const __local float *xr = xs + (c * LDS_HY + ly + ky) * LDS_HX + lx + kx;
+          float xv[CONV_TN];
+#pragma unroll
+          for (int j = 0; j < CONV_TN; j++) xv[j] = xr[j * LDS_WY * LDS_HX];
+#pragma unroll
+          for (int m = 0; m < CONV_TM; m++) {
+            float wm = wr[m];
+#pragma unroll
+            for (int j = 0; j < CONV_TN; j++) acc[m][j] = fma(wm, xv[j], acc[m][j]);
+          }
+        }
+  }
+
+  /* epilogue as conv2d_common.h's conv_fwd_store: accumulate / bias / affine / ReLU */
+  const int ox = ox0 + lx, hw = Ho * Wo, co0 = cot * CONV_TM, mmax = min(CONV_TM, Cout - co0);
+  if (ox >= Wo) return;
+  __global float *yn = y + y_off + (size_t)n * Cout * hw;
+#pragma unroll
+  for (int m = 0; m < CONV_TM; m++) {
+    if (m >= mmax) break;
+    const int co = co0 + m;
+    const float b = (flags & FL_BIAS) ? bias[b_off + co] : 0.0f, sc = (flags & FL_SCALE) ? scale[sc_off + co] : 1.0f;
+    const float sh = (flags & FL_SHIFT) ? shift[sh_off + co] : 0.0f;
+#pragma unroll
+    for (int j = 0; j < CONV_TN; j++) {
+      int oy = oy0 + ly + j * LDS_WY;
+      if (oy >= Ho) break;
+      __global float *yo = yn + (size_t)co * hw + oy * Wo + ox;
+      float v = acc[m][j];
+      if (flags & FL_ACCUM) v = *yo + v;
+      if (flags & FL_BIAS) v = v + b;
+      if (flags & FL_SCALE) v = v * sc + sh;
+      if (flags & FL_RELU) v = fmax(v, 0.0f);
+      *yo = v;
+    }
+  }
+}
+#endif
