@@ -69,11 +69,12 @@ static inline int spx_t_run_all(const spx_t_test *tests, int n) {
   return spx_test_summary();
 }
 
+static inline spx_status spx_t_ctx_create(spx_ctx **ctx);
 static inline int spx_t_open_device(spx_ctx **ctx);
 /* main() of a test whose functions share one context *ctx (with the device open when `device`):
  * made first (exit 1 when it cannot be), the tests in order, destroyed last. */
 static inline int spx_t_main_ctx(spx_ctx **ctx, int device, const spx_t_test *tests, int n) {
-  if (device ? spx_t_open_device(ctx) : spx_ctx_create(ctx) != SPX_OK) return 1;
+  if (device ? spx_t_open_device(ctx) : spx_t_ctx_create(ctx) != SPX_OK) return 1;
   int rc = spx_t_run_all(tests, n);
   spx_ctx_destroy(*ctx);
   return rc;
@@ -156,8 +157,17 @@ static inline int spx_t_no_device(spx_ctx *ctx, spx_status st) {
   return 1;
 }
 /* *ctx: a new context with the device open; 1 (printed) when there is none. */
-static inline int spx_t_open_device(spx_ctx **ctx) {
+/* A context as every test makes it: SPX_TAPE_POISON=1 in the environment (the *_poison ctest
+ * variants, tests/extra.cmake) turns on the tapes' NaN poisoning of freed storage. */
+static inline spx_status spx_t_ctx_create(spx_ctx **ctx) {
   spx_status st = spx_ctx_create(ctx);
+  const char *p = getenv("SPX_TAPE_POISON");
+  if (st == SPX_OK && p && *p && strcmp(p, "0")) spx_ctx_set_profile(*ctx, SPX_DEBUG_TAPE_POISON);
+  return st;
+}
+
+static inline int spx_t_open_device(spx_ctx **ctx) {
+  spx_status st = spx_t_ctx_create(ctx);
   if (st == SPX_OK) st = spx_device_open(*ctx, NULL);
   return spx_t_no_device(*ctx, st);
 }

@@ -34,7 +34,7 @@ static double host_loss(spx_unet *u, const float *in, const float *tg) {
  * context destroyed, when it cannot be made. */
 static spx_unet *host_unet(spx_ctx **ctx, int sigmoid, uint64_t seed, float **in, float **tg) {
   *ctx = NULL;
-  CHECK(spx_ctx_create(ctx) == SPX_OK);
+  CHECK(spx_t_ctx_create(ctx) == SPX_OK);
   spx_unet *u = NULL;
   CHECK_OK(*ctx, spx_unet_create_ex(*ctx, WIDTH, sigmoid, seed, SPX_TAPE_HOST, &u));
   if (!u) {
@@ -169,7 +169,7 @@ static void test_device_matches_host(void) {
     return;
   }
   spx_ctx *hctx = NULL;
-  CHECK(spx_ctx_create(&hctx) == SPX_OK);
+  CHECK(spx_t_ctx_create(&hctx) == SPX_OK);
   spx_unet *ud = NULL, *uh = NULL;
   CHECK_OK(ctx, spx_unet_create_ex(ctx, WIDTH, 1, 11, SPX_TAPE_DEVICE, &ud));
   CHECK_OK(hctx, spx_unet_create_ex(hctx, WIDTH, 1, 11, SPX_TAPE_HOST, &uh));

@@ -105,7 +105,7 @@ static void make_data(void) {
 
 static void test_fd(void) {
   spx_ctx *ctx = NULL;
-  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK(spx_t_ctx_create(&ctx) == SPX_OK);
   spx_tape *t = NULL;
   CHECK_OK(ctx, spx_tape_create(ctx, SPX_TAPE_HOST, &t));
   net nt;
@@ -311,7 +311,7 @@ static void run_backend(spx_ctx *ctx, spx_tape_backend be, double **ref_grads, d
 
 static void test_backends(void) {
   spx_ctx *ctx = NULL;
-  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK(spx_t_ctx_create(&ctx) == SPX_OK);
   double loss = 0, *host[NP + 1] = {0};
   run_backend(ctx, SPX_TAPE_HOST, NULL, &loss, host);
   spx_ctx_destroy(ctx);

@@ -102,8 +102,7 @@ spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **ou
   t->ctx = ctx;
   t->backend = backend;
   t->prof = backend == SPX_TAPE_DEVICE && (spx_ctx_profile(ctx) & SPX_PROFILE_TAPE);
-  const char *pp = getenv("SPX_TAPE_POISON"); /* debug: tests run the network suite with it */
-  t->poison = pp && *pp && strcmp(pp, "0");
+  t->poison = (spx_ctx_profile(ctx) & SPX_DEBUG_TAPE_POISON) != 0;
   t->reuse = 1;
   *out = t;
   return SPX_OK;

@@ -143,8 +143,9 @@ size_t spx_tape_plan_bytes(const spx_tape *t, size_t *without_reuse);
 void spx_tape_set_retain(spx_tape *t, int on);
 /* 0: no reuse at all (every value keeps its own memory; tests compare against it). Default 1. */
 void spx_tape_set_reuse(spx_tape *t, int on);
-/* Debug: fill every storage with NaN the moment it dies (also SPX_TAPE_POISON=1 in the
- * environment), so a read after the planned last use shows in the results. */
+/* Debug: fill every storage with NaN the moment it dies (also the context switch
+ * SPX_DEBUG_TAPE_POISON, read when the tape is created), so a read after the planned last use
+ * shows in the results. */
 void spx_tape_set_poison(spx_tape *t, int on);
 
 /* ---- backward and optimizer ---- */

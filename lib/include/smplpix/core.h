@@ -64,12 +64,15 @@ double spx_now(void);
 typedef void (*spx_log_fn)(void *user, const char *line);
 void spx_ctx_set_log(spx_ctx *ctx, spx_log_fn fn, void *user);
 
-/* Profiling switches (OR of SPX_PROFILE_*, default 0). TAPE: a device tape finishes the queue
- * around every op and logs the device time per op kind when it is destroyed. RASTER: the
- * rasterizer finishes the queue after each stage and logs its wall time. Both slow the work
- * down; they are read when a tape / a raster call starts. */
+/* Profiling and debug switches (OR of SPX_PROFILE_* / SPX_DEBUG_*, default 0). TAPE: a device
+ * tape finishes the queue around every op and logs the device time per op kind when it is
+ * destroyed. RASTER: the rasterizer finishes the queue after each stage and logs its wall time.
+ * Both slow the work down. TAPE_POISON: a tape fills every activation/gradient storage with NaN
+ * the moment its liveness plan frees it, so a read of freed memory shows up as NaN (the same as
+ * spx_tape_set_poison on each tape). All are read when a tape / a raster call starts. */
 #define SPX_PROFILE_TAPE 1u
 #define SPX_PROFILE_RASTER 2u
+#define SPX_DEBUG_TAPE_POISON 4u
 void spx_ctx_set_profile(spx_ctx *ctx, unsigned flags);
 unsigned spx_ctx_profile(const spx_ctx *ctx);
 
