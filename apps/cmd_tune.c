@@ -53,7 +53,7 @@ static const char usage[] =
     "       smplpix tune --show [--device cpu|gpu|P:D]\n"
     "Times candidate values of the convolution tunables (Winograd threshold CONV_WINO_MINC, register\n"
     "tiles CONV_TM x CONV_TN, vector width CONV_VW, channel tiles CONV_CT, work-group CONV_LWS, input\n"
-    "cache CONV_XCACHE) on the UNet's eval forward (batch 1) at the camera's image size (default\n"
+    "cache CONV_XCACHE, local-memory conv CONV_LDS and its tile CONV_LDS_TX x CONV_LDS_CB) on the UNet's eval forward (batch 1) at the camera's image size (default\n"
     "data/cameras/default.json) for each base width (--width, repeatable; default: the width of the\n"
     "shipped network or --checkpoint), on the chosen device. One tunable (group) at a time, the others\n"
     "at their best so far; a candidate whose output differs from the defaults' by more than 1e-3 of\n"

@@ -38,6 +38,9 @@ static const int f_vw[] = {1, 2, 4, 8, 16};
 static const int f_ct[] = {1, 2, 4, 8};
 static const int f_lws[] = {1, 16, 32, 64, 128, 256};
 static const int f_xcache[] = {0, 512, 1024, 2048, 4096, 8192};
+/* the local-memory tiled conv (GPU class; needs CONV_VW = 1, refused otherwise) and its tile */
+static const int q_lds[] = {0, 1};
+static const int f_lds_tile[] = {8, 4, 8, 8, 16, 4, 16, 8, 16, 16, 32, 8};
 
 /* Two contexts on the device: A runs the incumbent, B the candidate, so every comparison times
  * the two alternately in the same seconds (a loaded machine slows both alike) without
@@ -200,12 +203,14 @@ static int build_groups(const spx_tune_plan *p, group *gs) {
   gs[n++] = (group){{"CONV_CT", NULL}, 1, 1, f_ct, (int)(sizeof f_ct / sizeof(int))};
   gs[n++] = (group){{"CONV_LWS", NULL}, 1, 1, f_lws, (int)(sizeof f_lws / sizeof(int))};
   gs[n++] = (group){{"CONV_XCACHE", NULL}, 1, 1, f_xcache, (int)(sizeof f_xcache / sizeof(int))};
+  gs[n++] = (group){{"CONV_LDS", NULL}, 1, 0, q_lds, (int)(sizeof q_lds / sizeof(int))};
+  gs[n++] = (group){{"CONV_LDS_TX", "CONV_LDS_CB"}, 2, 1, f_lds_tile, (int)(sizeof f_lds_tile / sizeof(int) / 2)};
   return n;
 }
 
 int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   run r = {.ctx = {ctx, NULL}, .p = p, .out = out, .nout = (size_t)3 * p->h * p->w};
-  group gs[8];
+  group gs[12];
   int ng = build_groups(p, gs), rc = SPX_EXIT_ERROR, nsave = 0;
   char names[16][32];
   int vals[16], defs[16];
