@@ -248,6 +248,32 @@ static void test_deterministic(void) {
   spx_ctx_destroy(ctx);
 }
 
+/* Passes over the batch (CONV_WINO_CHUNK: 0 = one sample per pass) give the same bits as one pass
+ * over the whole batch (case 1 has N = 2). */
+static void test_chunked(void) {
+  setenv("SPX_TUNE_CONV_WINO_MINC", "1", 1);
+  setenv("SPX_TUNE_CONV_WINO_TRAIN", "1", 1);
+  const wcase *c = &cases[1];
+  float *r[2][2];
+  unsigned long long keep = rng;
+  for (int k = 0; k < 2; k++) {
+    setenv("SPX_TUNE_CONV_WINO_CHUNK", k ? "0" : "32", 1);
+    spx_ctx *ctx;
+    CHECK(spx_ctx_create(&ctx) == SPX_OK);
+    CHECK_OK(ctx, spx_device_open(ctx, NULL));
+    rng = keep;
+    spx_conv2d_workspace ws = {0};
+    run_case(ctx, c, &ws, r[k]);
+    spx_conv2d_workspace_release(&ws);
+    spx_ctx_destroy(ctx);
+  }
+  unsetenv("SPX_TUNE_CONV_WINO_CHUNK");
+  size_t ny = (size_t)c->n * c->cout * c->h * c->w + 3 + 8, nx = (size_t)c->n * c->cin * c->h * c->w;
+  CHECK_MSG(memcmp(r[0][0], r[1][0], ny * 4) == 0, "forward differs with one sample per pass");
+  CHECK_MSG(memcmp(r[0][1], r[1][1], nx * 4) == 0, "backward data differs with one sample per pass");
+  for (int k = 0; k < 2; k++) free(r[k][0]), free(r[k][1]);
+}
+
 /* The rule: only 3x3 / stride 1 / pad 1 with both channel counts >= CONV_WINO_MINC; 0 = never;
  * training calls only with CONV_WINO_TRAIN. */
 static void test_rule(void) {
@@ -305,6 +331,7 @@ int main(void) {
   SPX_RUN(test_gain);
   SPX_RUN(test_vs_reference);
   SPX_RUN(test_deterministic);
+  SPX_RUN(test_chunked);
   SPX_RUN(test_rule);
   return spx_test_summary();
 }

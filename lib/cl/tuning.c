@@ -105,6 +105,10 @@ static const struct spx_tunable spx_tunables[] = {
      * ~14; benchmarks/RESULTS.md); goldens widen their tolerance by SPX_WINO_RMS_GAIN with it.
      * GPU: unmeasured, off */
     {"CONV_WINO_TRAIN", F(conv_wino_train), 1, 0, 0, 1, 0},
+    /* Winograd scratch (padded input / products + transformed input) per pass over the batch, in
+     * units of 2^20 floats (4 MiB); a pass takes as many samples as fit, at least one (0: always
+     * one). Bounds the transforms of a batch-4 training step (lib/nn/conv2d_winograd.c) */
+    {"CONV_WINO_CHUNK", F(conv_wino_chunk), 32, 32, 0, 1 << 16, 0},
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", F(conv_red_wg), 16, 256, 1, 1024, T_POW2|T_WG},
     /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,

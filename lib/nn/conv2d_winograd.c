@@ -56,13 +56,18 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
   const size_t quantum = (size_t)lws * tn * vw;
   const size_t tp = ((size_t)T + quantum - 1) / quantum * quantum;
   const int coutp = (cout + tm - 1) / tm * tm;
-  const double vmax = 36.0 * n * (double)(cin > coutp ? cin : coutp) * (double)tp;
-  if (vmax > (double)INT_MAX || (double)n * cin * plane > (double)INT_MAX)
+  /* per sample: slot 0 holds the padded input, then (once transformed) the products; slot 2 V */
+  const size_t f0 = (size_t)36 * coutp * tp > (size_t)cin * plane ? (size_t)36 * coutp * tp : (size_t)cin * plane;
+  const size_t f2 = (size_t)36 * cin * tp;
+  /* samples per pass: the scratch is sized for as many as fit in CONV_WINO_CHUNK x 2^20 floats (at
+   * least one), so a batch-4 training step does not hold 4x the largest layer's transforms; each
+   * sample's arithmetic is the same whatever the chunk, so results do not depend on it */
+  int nb = (int)(((size_t)ctx->dev->tune.conv_wino_chunk << 20) / (f0 + f2));
+  nb = nb < 1 ? 1 : nb > n ? n : nb;
+  const double vmax = 36.0 * nb * (double)(cin > coutp ? cin : coutp) * (double)tp;
+  if (vmax > (double)INT_MAX || (double)nb * cin * plane > (double)INT_MAX)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "conv2d winograd: %.0f transformed elements exceed the index range", vmax);
   const int Tp = (int)tp;
-  /* slot 0 holds the padded input, then (once transformed) the products */
-  const size_t s0 = (size_t)n * 36 * coutp * tp > (size_t)n * cin * plane ? (size_t)n * 36 * coutp * tp
-                                                                           : (size_t)n * cin * plane;
   wbuf XM = {0}, U = {0}, V = {0};
   spx_status st;
   cl_kernel kpad, kin, kw, kg, ko;
@@ -72,28 +77,11 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
       (st = spx_cl_kernel(ctx, SPX_K_WINO_GEMM, &kg)) ||
       (st = spx_cl_kernel(ctx, SPX_K_WINO_OUT, &ko)))
     return st;
-  if ((st = wbuf_get(ctx, ws, 0, s0, "winograd padded input / products", &XM)) ||
+  if ((st = wbuf_get(ctx, ws, 0, (size_t)nb * f0, "winograd padded input / products", &XM)) ||
       (st = wbuf_get(ctx, ws, 1, (size_t)36 * cin * coutp, "winograd weight transform", &U)) ||
-      (st = wbuf_get(ctx, ws, 2, (size_t)n * 36 * cin * tp, "winograd input transform", &V)))
+      (st = wbuf_get(ctx, ws, 2, (size_t)nb * f2, "winograd input transform", &V)))
     goto done;
   const size_t wg = (size_t)ctx->dev->tune.wg;
-  {
-    cl_ulong xo = x->off;
-    int one = 1;
-    cl_int e = SPX_ARG(kpad, 0, x->mem) | SPX_ARG(kpad, 1, xo) | SPX_ARG(kpad, 2, XM.mem) | SPX_ARG(kpad, 3, h) |
-               SPX_ARG(kpad, 4, wd) | SPX_ARG(kpad, 5, hp) | SPX_ARG(kpad, 6, wp) | SPX_ARG(kpad, 7, plane) |
-               SPX_ARG(kpad, 8, one) | SPX_ARG(kpad, 9, one) | SPX_ARG(kpad, 10, one);
-    if ((st = spx_cl_check(ctx, e, "spx_conv2d_pad args"))) goto done;
-    size_t gl[3] = {(size_t)wp, (size_t)hp, (size_t)n * cin}, lo[3] = {wg < (size_t)wp ? wg : (size_t)wp, 1, 1};
-    if ((st = spx_cl_run(ctx, kpad, 3, gl, lo, "spx_conv2d_pad"))) goto done;
-  }
-  {
-    cl_int e = SPX_ARG(kin, 0, XM.mem) | SPX_ARG(kin, 1, V.mem) | SPX_ARG(kin, 2, cin) | SPX_ARG(kin, 3, wp) |
-               SPX_ARG(kin, 4, plane) | SPX_ARG(kin, 5, twp) | SPX_ARG(kin, 6, T) | SPX_ARG(kin, 7, Tp);
-    if ((st = spx_cl_check(ctx, e, "spx_wino_in args"))) goto done;
-    size_t gl[3] = {tp / (size_t)vw, (size_t)cin, (size_t)n}, lo[3] = {1, 1, 1};
-    if ((st = spx_cl_run(ctx, kin, 3, gl, vw > 1 ? lo : NULL, "spx_wino_in"))) goto done;
-  }
   {
     cl_ulong wo = w->off;
     cl_int e = SPX_ARG(kw, 0, w->mem) | SPX_ARG(kw, 1, wo) | SPX_ARG(kw, 2, U.mem) | SPX_ARG(kw, 3, Cout) |
@@ -102,28 +90,48 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
     size_t gl = (size_t)cin * (coutp / tm);
     if ((st = spx_cl_run(ctx, kw, 1, &gl, &wg, "spx_wino_weights"))) goto done;
   }
-  {
-    cl_int e = SPX_ARG(kg, 0, V.mem) | SPX_ARG(kg, 1, U.mem) | SPX_ARG(kg, 2, XM.mem) | SPX_ARG(kg, 3, cin) |
-               SPX_ARG(kg, 4, coutp) | SPX_ARG(kg, 5, Tp);
-    if ((st = spx_cl_check(ctx, e, "spx_wino_gemm args"))) goto done;
-    size_t gl[2] = {(size_t)(coutp / tm) * (tp / quantum) * lws, (size_t)n * 36}, lo[2] = {(size_t)lws, 1};
-    if ((st = spx_cl_run(ctx, kg, 2, gl, lo, "spx_wino_gemm"))) goto done;
-  }
-  {
-    int flags = (accumulate ? FL_ACCUM : 0) | (bias ? FL_BIAS : 0) | (scale ? FL_SCALE : 0) |
-                (scale && shift ? FL_SHIFT : 0) | (relu ? FL_RELU : 0);
-    cl_mem bm = bias ? bias->mem : XM.mem, scm = scale ? scale->mem : XM.mem;
-    cl_mem shm = scale && shift ? shift->mem : XM.mem;
-    cl_ulong yo = y->off, bo = bias ? bias->off : 0, sco = scale ? scale->off : 0;
-    cl_ulong sho = scale && shift ? shift->off : 0;
-    cl_int e = SPX_ARG(ko, 0, XM.mem) | SPX_ARG(ko, 1, y->mem) | SPX_ARG(ko, 2, yo) | SPX_ARG(ko, 3, bm) |
-               SPX_ARG(ko, 4, bo) | SPX_ARG(ko, 5, scm) | SPX_ARG(ko, 6, sco) | SPX_ARG(ko, 7, shm) |
-               SPX_ARG(ko, 8, sho) | SPX_ARG(ko, 9, cout) | SPX_ARG(ko, 10, coutp) | SPX_ARG(ko, 11, h) |
-               SPX_ARG(ko, 12, wd) | SPX_ARG(ko, 13, twp) | SPX_ARG(ko, 14, T) | SPX_ARG(ko, 15, Tp) |
-               SPX_ARG(ko, 16, flags);
-    if ((st = spx_cl_check(ctx, e, "spx_wino_out args"))) goto done;
-    size_t gl[3] = {(size_t)T / (size_t)vw, (size_t)cout, (size_t)n}, lo[3] = {1, 1, 1};
-    st = spx_cl_run(ctx, ko, 3, gl, vw > 1 ? lo : NULL, "spx_wino_out");
+  for (int s0 = 0; s0 < n; s0 += nb) {
+    const int m = n - s0 < nb ? n - s0 : nb; /* samples in this pass */
+    {
+      cl_ulong xo = x->off + (size_t)s0 * cin * h * wd;
+      int one = 1;
+      cl_int e = SPX_ARG(kpad, 0, x->mem) | SPX_ARG(kpad, 1, xo) | SPX_ARG(kpad, 2, XM.mem) | SPX_ARG(kpad, 3, h) |
+                 SPX_ARG(kpad, 4, wd) | SPX_ARG(kpad, 5, hp) | SPX_ARG(kpad, 6, wp) | SPX_ARG(kpad, 7, plane) |
+                 SPX_ARG(kpad, 8, one) | SPX_ARG(kpad, 9, one) | SPX_ARG(kpad, 10, one);
+      if ((st = spx_cl_check(ctx, e, "spx_conv2d_pad args"))) goto done;
+      size_t gl[3] = {(size_t)wp, (size_t)hp, (size_t)m * cin}, lo[3] = {wg < (size_t)wp ? wg : (size_t)wp, 1, 1};
+      if ((st = spx_cl_run(ctx, kpad, 3, gl, lo, "spx_conv2d_pad"))) goto done;
+    }
+    {
+      cl_int e = SPX_ARG(kin, 0, XM.mem) | SPX_ARG(kin, 1, V.mem) | SPX_ARG(kin, 2, cin) | SPX_ARG(kin, 3, wp) |
+                 SPX_ARG(kin, 4, plane) | SPX_ARG(kin, 5, twp) | SPX_ARG(kin, 6, T) | SPX_ARG(kin, 7, Tp);
+      if ((st = spx_cl_check(ctx, e, "spx_wino_in args"))) goto done;
+      size_t gl[3] = {tp / (size_t)vw, (size_t)cin, (size_t)m}, lo[3] = {1, 1, 1};
+      if ((st = spx_cl_run(ctx, kin, 3, gl, vw > 1 ? lo : NULL, "spx_wino_in"))) goto done;
+    }
+    {
+      cl_int e = SPX_ARG(kg, 0, V.mem) | SPX_ARG(kg, 1, U.mem) | SPX_ARG(kg, 2, XM.mem) | SPX_ARG(kg, 3, cin) |
+                 SPX_ARG(kg, 4, coutp) | SPX_ARG(kg, 5, Tp);
+      if ((st = spx_cl_check(ctx, e, "spx_wino_gemm args"))) goto done;
+      size_t gl[2] = {(size_t)(coutp / tm) * (tp / quantum) * lws, (size_t)m * 36}, lo[2] = {(size_t)lws, 1};
+      if ((st = spx_cl_run(ctx, kg, 2, gl, lo, "spx_wino_gemm"))) goto done;
+    }
+    {
+      int flags = (accumulate ? FL_ACCUM : 0) | (bias ? FL_BIAS : 0) | (scale ? FL_SCALE : 0) |
+                  (scale && shift ? FL_SHIFT : 0) | (relu ? FL_RELU : 0);
+      cl_mem bm = bias ? bias->mem : XM.mem, scm = scale ? scale->mem : XM.mem;
+      cl_mem shm = scale && shift ? shift->mem : XM.mem;
+      cl_ulong yo = y->off + (size_t)s0 * cout * h * wd, bo = bias ? bias->off : 0, sco = scale ? scale->off : 0;
+      cl_ulong sho = scale && shift ? shift->off : 0;
+      cl_int e = SPX_ARG(ko, 0, XM.mem) | SPX_ARG(ko, 1, y->mem) | SPX_ARG(ko, 2, yo) | SPX_ARG(ko, 3, bm) |
+                 SPX_ARG(ko, 4, bo) | SPX_ARG(ko, 5, scm) | SPX_ARG(ko, 6, sco) | SPX_ARG(ko, 7, shm) |
+                 SPX_ARG(ko, 8, sho) | SPX_ARG(ko, 9, cout) | SPX_ARG(ko, 10, coutp) | SPX_ARG(ko, 11, h) |
+                 SPX_ARG(ko, 12, wd) | SPX_ARG(ko, 13, twp) | SPX_ARG(ko, 14, T) | SPX_ARG(ko, 15, Tp) |
+                 SPX_ARG(ko, 16, flags);
+      if ((st = spx_cl_check(ctx, e, "spx_wino_out args"))) goto done;
+      size_t gl[3] = {(size_t)T / (size_t)vw, (size_t)cout, (size_t)m}, lo[3] = {1, 1, 1};
+      if ((st = spx_cl_run(ctx, ko, 3, gl, vw > 1 ? lo : NULL, "spx_wino_out"))) goto done;
+    }
   }
 done:
   wbuf_put(&XM);
