@@ -19,9 +19,12 @@ struct spx_cl_program {
   uint64_t uses; /* bit i: built with -D of tunable row i */
 };
 
-/* Live / peak bytes of the device buffers of a context (lib/cl/devmem.c). */
+/* Live / peak bytes of the device buffers of a context (lib/cl/devmem.c). Reference-counted: the
+ * device holds one reference and every counted buffer one, because OpenCL may run a buffer's
+ * destructor callback (on its own thread) after the device has been closed and freed. */
 typedef struct spx_devmem {
   _Atomic size_t live, peak;
+  _Atomic int refs;
 } spx_devmem;
 
 /* The open OpenCL device: allocated by spx_device_open, pointed to by ctx->dev (NULL when no
@@ -45,7 +48,7 @@ struct spx_cl_device {
   int nprograms;
   cl_kernel kernels[SPX_K_COUNT]; /* by spx_kernel_id; NULL until its program is built */
   spx_cache_stats cache;
-  spx_devmem devmem;
+  spx_devmem *devmem; /* created by the first counted buffer */
 };
 
 /* Release all device objects and free ctx->dev (spx_ctx_destroy calls it through ctx->dev_close). */
@@ -104,6 +107,8 @@ spx_status spx_cl_alloc(spx_ctx *ctx, size_t bytes, const char *what, cl_mem *ou
 void spx_cl_free(cl_mem *m);
 /* Count a new buffer of `bytes` in ctx's live / peak device bytes until OpenCL deletes it. */
 spx_status spx_cl_count_alloc(spx_ctx *ctx, cl_mem mem, size_t bytes, const char *what);
+/* Drop one reference to a device-memory account (spx_cl_close drops the device's). */
+void spx_cl_devmem_unref(spx_devmem *m);
 /* A grow-only scratch buffer. */
 typedef struct spx_cl_buf {
   cl_mem mem;

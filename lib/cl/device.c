@@ -199,6 +199,7 @@ void spx_cl_close(spx_ctx *ctx) {
   spx_cl_programs_release(ctx, ~0ull);
   if (ctx->dev->queue) clReleaseCommandQueue(ctx->dev->queue);
   if (ctx->dev->context) clReleaseContext(ctx->dev->context);
+  spx_cl_devmem_unref(ctx->dev->devmem); /* buffers still alive keep the account */
   free(ctx->dev);
   ctx->dev = NULL;
   ctx->dev_close = NULL;
