@@ -1,6 +1,6 @@
-/* Shared by the conv2d programs (conv2d.cl, conv2d_strided.cl, conv2d_bwd.cl; #included by the
- * kernel loader): tunable defaults, the CONV_VW vector type, the forward implicit GEMM conv_fwd
- * and its epilogue. The layout and tiling are described at the top of kernels/conv2d.cl. */
+/* Shared by the conv2d programs (conv2d.cl, conv2d_strided.cl, conv2d_bwd.cl, conv2d_lds.cl,
+ * conv2d_winograd.cl; #included by the kernel loader): tunable defaults, the CONV_VW vector type,
+ * the epilogue flags, the forward implicit GEMM conv_fwd and its epilogue. The layout and tiling are described at the top of kernels/conv2d.cl. */
 #ifndef CONV_VW
 #define CONV_VW 1
 #endif

@@ -15,44 +15,8 @@
  * tile count is padded to Tp (a multiple of a work-group's tiles); padding tiles hold zeros.
  * Reduction orders are fixed: results are bit-identical from run to run (but not equal to the
  * direct convolution's; see the test for the error bound). */
-#ifndef CONV_VW
-#define CONV_VW 1
-#endif
-#ifndef CONV_TM
-#define CONV_TM 4
-#endif
-#ifndef CONV_TN
-#define CONV_TN 4
-#endif
-#ifndef CONV_LWS
-#define CONV_LWS 64
-#endif
-
-#if CONV_VW == 16
-typedef float16 vf;
-#define VLOAD(p) vload16(0, (p))
-#define VSTORE(v, p) vstore16((v), 0, (p))
-#elif CONV_VW == 8
-typedef float8 vf;
-#define VLOAD(p) vload8(0, (p))
-#define VSTORE(v, p) vstore8((v), 0, (p))
-#elif CONV_VW == 4
-typedef float4 vf;
-#define VLOAD(p) vload4(0, (p))
-#define VSTORE(v, p) vstore4((v), 0, (p))
-#elif CONV_VW == 1
-typedef float vf;
-#define VLOAD(p) (*(p))
-#define VSTORE(v, p) (*(p) = (v))
-#else
-#error "CONV_VW must be 1, 4, 8 or 16"
-#endif
-
-#define FL_BIAS 1
-#define FL_SCALE 2
-#define FL_SHIFT 4
-#define FL_RELU 8
-#define FL_ACCUM 16
+/* tunable defaults, the CONV_VW vector type vf, the FL_* epilogue flags */
+#include "conv2d_common.h"
 
 /* r = B^T d for one column of 6 (stride s between elements of the column). */
 #define WINO_BT(r, d, s)                                                                                     \

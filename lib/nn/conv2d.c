@@ -7,12 +7,6 @@
 
 #include "nn/conv2d.h"
 
-#define FL_BIAS 1
-#define FL_SCALE 2
-#define FL_SHIFT 4
-#define FL_RELU 8
-#define FL_ACCUM 16
-
 static size_t round_up(size_t a, size_t b) { return (a + b - 1) / b * b; }
 
 /* The tensor's elements [off, off + numel) must lie inside its buffer. */
@@ -84,13 +78,8 @@ void spx_conv2d_workspace_release(spx_conv2d_workspace *ws) {
   for (int i = 0; i < 3; i++) spx_cl_buf_release(&ws->buf[i]);
 }
 
-/* Scratch buffer `slot` of ws (grow-only), or a fresh buffer owned by the caller when ws is NULL. */
-typedef struct scratch {
-  cl_mem mem;
-  int owned;
-} scratch;
-static spx_status scratch_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, size_t bytes, const char *what,
-                              scratch *out) {
+spx_status spx_conv2d_scratch_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, size_t bytes, const char *what,
+                                  spx_conv2d_scratch *out) {
   out->mem = NULL;
   out->owned = 0;
   if (ws) {
@@ -101,7 +90,7 @@ static spx_status scratch_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, 
   out->owned = 1;
   return spx_cl_alloc(ctx, bytes, what, &out->mem);
 }
-static void scratch_put(scratch *s) {
+void spx_conv2d_scratch_put(spx_conv2d_scratch *s) {
   if (s->owned) spx_cl_free(&s->mem);
   s->mem = NULL;
 }
@@ -109,11 +98,11 @@ static void scratch_put(scratch *s) {
 /* Padded/dilated copy of src [nc][h][w] into a new scratch buffer (see spx_conv2d_pad). */
 static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_mem src, size_t src_off, int nc,
                            int h, int w, int hp, int wp, int plane, int top, int left, int d, size_t total,
-                           scratch *out) {
+                           spx_conv2d_scratch *out) {
   cl_kernel k;
   spx_status st = spx_cl_kernel(ctx, SPX_K_CONV2D_PAD, &k);
   if (st) return st;
-  if ((st = scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d padded scratch", out))) return st;
+  if ((st = spx_conv2d_scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d padded scratch", out))) return st;
   cl_ulong so = src_off;
   cl_int e = SPX_ARG(k, 0, src) | SPX_ARG(k, 1, so) | SPX_ARG(k, 2, out->mem) | SPX_ARG(k, 3, h) | SPX_ARG(k, 4, w) |
              SPX_ARG(k, 5, hp) | SPX_ARG(k, 6, wp) | SPX_ARG(k, 7, plane) | SPX_ARG(k, 8, top) |
@@ -129,12 +118,12 @@ static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_
 
 /* Packed weight panel (see spx_conv2d_pack). */
 static spx_status pack_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, const spx_tensor *w, int cout,
-                               int cin, int k, int cols, int flip, scratch *out) {
+                               int cin, int k, int cols, int flip, spx_conv2d_scratch *out) {
   cl_kernel kr;
   spx_status st = spx_cl_kernel(ctx, SPX_K_CONV2D_PACK, &kr);
   if (st) return st;
   size_t rows = (size_t)(flip ? cout : cin) * k * k, total = rows * (size_t)cols;
-  if ((st = scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d packed weights", out))) return st;
+  if ((st = spx_conv2d_scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d packed weights", out))) return st;
   cl_ulong wo = w->off;
   cl_int e = SPX_ARG(kr, 0, w->mem) | SPX_ARG(kr, 1, wo) | SPX_ARG(kr, 2, out->mem) | SPX_ARG(kr, 3, cout) |
              SPX_ARG(kr, 4, cin) | SPX_ARG(kr, 5, k) | SPX_ARG(kr, 6, cols) | SPX_ARG(kr, 7, flip);
@@ -189,10 +178,10 @@ static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, i
   int ct = ctx->dev->tune.conv_ct, ncst = (coutp / tm + ct - 1) / ct;
   size_t gl[2] = {(lds ? spx_conv2d_lds_groups(ctx, coutp, ho, wo) : (size_t)ncst * groups) * lws, (size_t)n};
   size_t lo[2] = {(size_t)lws, 1};
-  const int epi = FL_BIAS | FL_SCALE | FL_SHIFT | FL_RELU;
+  const int epi = SPX_CONV_FL_BIAS | SPX_CONV_FL_SCALE | SPX_CONV_FL_SHIFT | SPX_CONV_FL_RELU;
   for (int ci0 = 0; ci0 < cin; ci0 += cib) {
     int ci1 = ci0 + cib < cin ? ci0 + cib : cin;
-    int f = (flags & ~epi) | (ci0 > 0 ? FL_ACCUM : 0) | (ci1 == cin ? flags & epi : 0);
+    int f = (flags & ~epi) | (ci0 > 0 ? SPX_CONV_FL_ACCUM : 0) | (ci1 == cin ? flags & epi : 0);
     e = SPX_ARG(kr, 18, f) | SPX_ARG(kr, 20, ci0) | SPX_ARG(kr, 21, ci1);
     if ((st = spx_cl_check(ctx, e, name))) return st;
     if ((st = spx_cl_run(ctx, kr, 2, gl, lo, name))) return st;
@@ -217,18 +206,18 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
   size_t qv = round_up((size_t)g.ho * wp, (size_t)lws * tn * vw);
   size_t total = (size_t)g.n * g.cin * plane + guard_elems(g.s, qv, g.k, wp, vw);
   int coutp = (int)round_up((size_t)g.cout, (size_t)tm);
-  scratch xp = {0}, wpk = {0};
+  spx_conv2d_scratch xp = {0}, wpk = {0};
   if ((st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, hp, wp, plane, g.pad, g.pad, 1, total,
                      &xp)))
     goto done;
   if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, &wpk))) goto done;
-  int flags = (bias ? FL_BIAS : 0) | (p->scale ? FL_SCALE : 0) | (p->scale && p->shift ? FL_SHIFT : 0) |
-              (p->relu ? FL_RELU : 0);
+  int flags = (bias ? SPX_CONV_FL_BIAS : 0) | (p->scale ? SPX_CONV_FL_SCALE : 0) |
+              (p->scale && p->shift ? SPX_CONV_FL_SHIFT : 0) | (p->relu ? SPX_CONV_FL_RELU : 0);
   st = run_fwd(ctx, xp.mem, wpk.mem, g.n, g.cin, g.cout, coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale,
                p->scale ? p->shift : NULL, flags);
 done:
-  scratch_put(&xp);
-  scratch_put(&wpk);
+  spx_conv2d_scratch_put(&xp);
+  spx_conv2d_scratch_put(&wpk);
   return st;
 }
 
@@ -243,17 +232,17 @@ static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const ge
   size_t qv = round_up((size_t)g->h * wd, (size_t)lws * tn * vw);
   size_t total = (size_t)g->n * g->cout * plane + guard_elems(1, qv, g->k, wd, vw);
   int cinp = (int)round_up((size_t)g->cin, (size_t)tm);
-  scratch dyp = {0}, wpk = {0};
+  spx_conv2d_scratch dyp = {0}, wpk = {0};
   spx_status st;
   if ((st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, hd, wd, plane, top, top, g->s,
                      total, &dyp)))
     goto done;
   if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, &wpk))) goto done;
   st = run_fwd(ctx, dyp.mem, wpk.mem, g->n, g->cout, g->cin, cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL,
-               NULL, FL_ACCUM);
+               NULL, SPX_CONV_FL_ACCUM);
 done:
-  scratch_put(&dyp);
-  scratch_put(&wpk);
+  spx_conv2d_scratch_put(&dyp);
+  spx_conv2d_scratch_put(&wpk);
   return st;
 }
 
@@ -269,7 +258,7 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
   size_t xtotal = (size_t)g->n * g->cin * plane + guard_elems(g->s, (size_t)qd, g->k, wp, vw);
   size_t dtotal = (size_t)g->n * g->cout * qd;
   size_t count = (size_t)g->cout * kdim;
-  scratch xs = {0}, dys = {0}, ps = {0};
+  spx_conv2d_scratch xs = {0}, dys = {0}, ps = {0};
   spx_status st;
   if ((st = pad_copy(ctx, ws, 0, x->mem, x->off, g->n * g->cin, g->h, g->w, hp, wp, plane, g->pad, g->pad, 1, xtotal,
                      &xs)))
@@ -277,7 +266,7 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
   if ((st = pad_copy(ctx, ws, 1, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, g->ho, wp, qd, 0, 0, 1, dtotal,
                      &dys)))
     goto done;
-  if ((st = scratch_get(ctx, ws, 2, count * nchunks * sizeof(float), "conv2d weight-gradient partials", &ps)))
+  if ((st = spx_conv2d_scratch_get(ctx, ws, 2, count * nchunks * sizeof(float), "conv2d weight-gradient partials", &ps)))
     goto done;
   cl_mem xp = xs.mem, dyq = dys.mem, part = ps.mem;
   {
@@ -307,9 +296,9 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
     st = spx_cl_run(ctx, kr, 1, &gl, &l, "spx_conv2d_dw_reduce");
   }
 done:
-  scratch_put(&xs);
-  scratch_put(&dys);
-  scratch_put(&ps);
+  spx_conv2d_scratch_put(&xs);
+  spx_conv2d_scratch_put(&dys);
+  spx_conv2d_scratch_put(&ps);
   return st;
 }
 

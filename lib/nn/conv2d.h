@@ -22,6 +22,25 @@ typedef struct spx_conv2d_workspace {
 } spx_conv2d_workspace;
 void spx_conv2d_workspace_release(spx_conv2d_workspace *ws);
 
+/* Scratch buffer `slot` of ws (grow-only), or a fresh buffer owned by the caller when ws is NULL;
+ * spx_conv2d_scratch_put releases an owned one (OpenCL keeps it until its kernels finish). */
+typedef struct spx_conv2d_scratch {
+  cl_mem mem;
+  int owned;
+} spx_conv2d_scratch;
+spx_status spx_conv2d_scratch_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, size_t bytes, const char *what,
+                                  spx_conv2d_scratch *out);
+void spx_conv2d_scratch_put(spx_conv2d_scratch *s);
+
+/* Epilogue flags of the conv kernels (the same values as FL_* in kernels/conv2d_common.h). */
+enum {
+  SPX_CONV_FL_BIAS = 1,
+  SPX_CONV_FL_SCALE = 2,
+  SPX_CONV_FL_SHIFT = 4,
+  SPX_CONV_FL_RELU = 8,
+  SPX_CONV_FL_ACCUM = 16 /* y = y + acc, before bias / affine / ReLU */
+};
+
 typedef struct spx_conv2d_params {
   int k;      /* kernel size (k x k), >= 1 */
   int stride; /* >= 1 */

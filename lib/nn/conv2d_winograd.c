@@ -8,39 +8,10 @@
 
 #include "nn/conv2d.h"
 
-#define FL_BIAS 1
-#define FL_SCALE 2
-#define FL_SHIFT 4
-#define FL_RELU 8
-#define FL_ACCUM 16
-
 int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int inference) {
   int minc = ctx->dev->tune.conv_wino_minc;
   if (!inference && !ctx->dev->tune.conv_wino_train) return 0;
   return minc > 0 && k == 3 && stride == 1 && pad == 1 && cin >= minc && cout >= minc;
-}
-
-typedef struct wbuf {
-  cl_mem mem;
-  int owned;
-} wbuf;
-
-static spx_status wbuf_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, size_t floats, const char *what,
-                           wbuf *out) {
-  out->mem = NULL;
-  out->owned = 0;
-  if (ws) {
-    spx_status st = spx_cl_buf_ensure(ctx, &ws->buf[slot], floats * sizeof(float), what);
-    if (st == SPX_OK) out->mem = ws->buf[slot].mem;
-    return st;
-  }
-  out->owned = 1;
-  return spx_cl_alloc(ctx, floats * sizeof(float), what, &out->mem);
-}
-
-static void wbuf_put(wbuf *b) {
-  if (b->owned) spx_cl_free(&b->mem);
-  b->mem = NULL;
 }
 
 spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
@@ -68,7 +39,7 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
   if (vmax > (double)INT_MAX || (double)nb * cin * plane > (double)INT_MAX)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "conv2d winograd: %.0f transformed elements exceed the index range", vmax);
   const int Tp = (int)tp;
-  wbuf XM = {0}, U = {0}, V = {0};
+  spx_conv2d_scratch XM = {0}, U = {0}, V = {0};
   spx_status st;
   cl_kernel kpad, kin, kw, kg, ko;
   if ((st = spx_cl_kernel(ctx, SPX_K_CONV2D_PAD, &kpad)) ||
@@ -77,9 +48,10 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
       (st = spx_cl_kernel(ctx, SPX_K_WINO_GEMM, &kg)) ||
       (st = spx_cl_kernel(ctx, SPX_K_WINO_OUT, &ko)))
     return st;
-  if ((st = wbuf_get(ctx, ws, 0, (size_t)nb * f0, "winograd padded input / products", &XM)) ||
-      (st = wbuf_get(ctx, ws, 1, (size_t)36 * cin * coutp, "winograd weight transform", &U)) ||
-      (st = wbuf_get(ctx, ws, 2, (size_t)nb * f2, "winograd input transform", &V)))
+  const size_t fb = sizeof(float);
+  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, nb * f0 * fb, "winograd padded input / products", &XM)) ||
+      (st = spx_conv2d_scratch_get(ctx, ws, 1, (size_t)36 * cin * coutp * fb, "winograd weight transform", &U)) ||
+      (st = spx_conv2d_scratch_get(ctx, ws, 2, nb * f2 * fb, "winograd input transform", &V)))
     goto done;
   const size_t wg = (size_t)ctx->dev->tune.wg;
   {
@@ -117,8 +89,9 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
       if ((st = spx_cl_run(ctx, kg, 2, gl, lo, "spx_wino_gemm"))) goto done;
     }
     {
-      int flags = (accumulate ? FL_ACCUM : 0) | (bias ? FL_BIAS : 0) | (scale ? FL_SCALE : 0) |
-                  (scale && shift ? FL_SHIFT : 0) | (relu ? FL_RELU : 0);
+      int flags = (accumulate ? SPX_CONV_FL_ACCUM : 0) | (bias ? SPX_CONV_FL_BIAS : 0) |
+                  (scale ? SPX_CONV_FL_SCALE : 0) | (scale && shift ? SPX_CONV_FL_SHIFT : 0) |
+                  (relu ? SPX_CONV_FL_RELU : 0);
       cl_mem bm = bias ? bias->mem : XM.mem, scm = scale ? scale->mem : XM.mem;
       cl_mem shm = scale && shift ? shift->mem : XM.mem;
       cl_ulong yo = y->off + (size_t)s0 * cout * h * wd, bo = bias ? bias->off : 0, sco = scale ? scale->off : 0;
@@ -134,8 +107,8 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
     }
   }
 done:
-  wbuf_put(&XM);
-  wbuf_put(&U);
-  wbuf_put(&V);
+  spx_conv2d_scratch_put(&XM);
+  spx_conv2d_scratch_put(&U);
+  spx_conv2d_scratch_put(&V);
   return st;
 }
