@@ -14,31 +14,7 @@
  * the lanes and the tail with scalar Kahan. SPX_BN_WG > 1 (GPUs): item lid takes elements
  * lid, lid + WG, ... (coalesced) and the group folds by the tree. */
 
-#ifndef SPX_BN_WG
-#define SPX_BN_WG 64
-#endif
-
-/* Kahan-compensated accumulation: s + c is the running sum */
-#define SPX_KAHAN_ADD(s, c, v)                                                                      \
-  do {                                                                                              \
-    float y_ = (v) - (c);                                                                           \
-    float t_ = (s) + y_;                                                                            \
-    (c) = (t_ - (s)) - y_;                                                                          \
-    (s) = t_;                                                                                       \
-  } while (0)
-
-/* Sum of v over the group, pairwise tree; every work-item gets the result. */
-inline float spx_bn_group_sum(__local float *buf, float v) {
-  int lid = get_local_id(0);
-  barrier(CLK_LOCAL_MEM_FENCE);
-  buf[lid] = v;
-  barrier(CLK_LOCAL_MEM_FENCE);
-  for (int s = SPX_BN_WG / 2; s > 0; s >>= 1) {
-    if (lid < s) buf[lid] += buf[lid + s];
-    barrier(CLK_LOCAL_MEM_FENCE);
-  }
-  return buf[0];
-}
+#include "norm_reduce.h"
 
 #define SPX_KAHAN8(s, c, v)                                                                         \
   do {                                                                                              \

@@ -5,29 +5,7 @@
  * compensation, and the group combines the items by a pairwise tree in local memory.
  * save: [mean of every plane, then invstd of every plane]. */
 
-#ifndef SPX_BN_WG
-#define SPX_BN_WG 64
-#endif
-
-#define SPX_IN_KAHAN(s, c, v)                                                                       \
-  do {                                                                                              \
-    float y_ = (v) - (c);                                                                           \
-    float t_ = (s) + y_;                                                                            \
-    (c) = (t_ - (s)) - y_;                                                                          \
-    (s) = t_;                                                                                       \
-  } while (0)
-
-inline float spx_in_group_sum(__local float *buf, float v) {
-  int lid = get_local_id(0);
-  barrier(CLK_LOCAL_MEM_FENCE);
-  buf[lid] = v;
-  barrier(CLK_LOCAL_MEM_FENCE);
-  for (int s = SPX_BN_WG / 2; s > 0; s >>= 1) {
-    if (lid < s) buf[lid] += buf[lid + s];
-    barrier(CLK_LOCAL_MEM_FENCE);
-  }
-  return buf[0];
-}
+#include "norm_reduce.h"
 
 /* range: planes * SPX_BN_WG, groups of SPX_BN_WG */
 __kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_instnorm_fwd(
@@ -37,14 +15,14 @@ __kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_instnor
   int p = get_group_id(0), lid = get_local_id(0);
   __global const float *xp = x + xo + p * hw;
   float s = 0.0f, c = 0.0f;
-  for (int i = lid; i < hw; i += SPX_BN_WG) SPX_IN_KAHAN(s, c, xp[i]);
-  float mean = spx_in_group_sum(buf, s - c) / (float)hw;
+  for (int i = lid; i < hw; i += SPX_BN_WG) SPX_KAHAN_ADD(s, c, xp[i]);
+  float mean = spx_bn_group_sum(buf, s - c) / (float)hw;
   s = 0.0f, c = 0.0f;
   for (int i = lid; i < hw; i += SPX_BN_WG) {
     float d = xp[i] - mean;
-    SPX_IN_KAHAN(s, c, d * d);
+    SPX_KAHAN_ADD(s, c, d * d);
   }
-  float var = spx_in_group_sum(buf, s - c) / (float)hw;
+  float var = spx_bn_group_sum(buf, s - c) / (float)hw;
   float is = 1.0f / sqrt(var + eps);
   if (lid == 0) {
     save[so + p] = mean;
@@ -65,11 +43,11 @@ __kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_instnor
   float s = 0.0f, c = 0.0f, s2 = 0.0f, c2 = 0.0f;
   for (int i = lid; i < hw; i += SPX_BN_WG) {
     float g = gp[i];
-    SPX_IN_KAHAN(s, c, g);
-    SPX_IN_KAHAN(s2, c2, g * (xp[i] - mean) * is);
+    SPX_KAHAN_ADD(s, c, g);
+    SPX_KAHAN_ADD(s2, c2, g * (xp[i] - mean) * is);
   }
-  float mg = spx_in_group_sum(buf, s - c) / (float)hw;
-  float mgx = spx_in_group_sum(buf, s2 - c2) / (float)hw;
+  float mg = spx_bn_group_sum(buf, s - c) / (float)hw;
+  float mgx = spx_bn_group_sum(buf, s2 - c2) / (float)hw;
   __global float *dp = dx + dxo + p * hw;
   for (int i = lid; i < hw; i += SPX_BN_WG) dp[i] += is * (gp[i] - mg - (xp[i] - mean) * is * mgx);
 }
