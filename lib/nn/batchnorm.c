@@ -5,23 +5,6 @@
 
 #include <string.h>
 
-static spx_status vec_check(spx_ctx *ctx, const char *op, const spx_tensor *t, const char *name, size_t want) {
-  spx_status st = spx_nn_check(ctx, t, op, name);
-  if (st) return st;
-  if (spx_tensor_numel(t) != want)
-    return spx_fail(ctx, SPX_E_ARG, "%s: %s has %zu elements, expected %zu", op, name, spx_tensor_numel(t), want);
-  return SPX_OK;
-}
-
-static spx_status run_group_per_channel(spx_ctx *ctx, cl_kernel k, int c, const char *what) {
-  size_t l = (size_t)ctx->dev->tune.bn_wg;
-  if (l > ctx->dev->info.max_work_group)
-    return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_BN_WG=%zu exceeds the device's work-group limit %zu", what, l,
-                    ctx->dev->info.max_work_group);
-  size_t g = (size_t)c * l;
-  return spx_cl_run(ctx, k, 1, &g, &l, what);
-}
-
 /* The argument checks the train-mode forward launchers share (the sync one adds its own). */
 static spx_status fwd_check(spx_ctx *ctx, const char *op, const spx_tensor *x, const spx_tensor *weight,
                             const spx_tensor *bias, const spx_tensor *running_mean, const spx_tensor *running_var,
@@ -29,11 +12,12 @@ static spx_status fwd_check(spx_ctx *ctx, const char *op, const spx_tensor *x, c
   spx_status st;
   if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, y, op, "y"))) return st;
   size_t c = (size_t)x->c;
-  if ((st = vec_check(ctx, op, weight, "weight", c)) || (st = vec_check(ctx, op, bias, "bias", c)) ||
-      (st = vec_check(ctx, op, save, "save", 2 * c)))
+  if ((st = spx_nn_check_numel(ctx, weight, op, "weight", c)) || (st = spx_nn_check_numel(ctx, bias, op, "bias", c)) ||
+      (st = spx_nn_check_numel(ctx, save, op, "save", 2 * c)))
     return st;
   if (update_running &&
-      ((st = vec_check(ctx, op, running_mean, "running_mean", c)) || (st = vec_check(ctx, op, running_var, "running_var", c))))
+      ((st = spx_nn_check_numel(ctx, running_mean, op, "running_mean", c)) ||
+       (st = spx_nn_check_numel(ctx, running_var, op, "running_var", c))))
     return st;
   if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
   return SPX_OK;
@@ -46,11 +30,14 @@ static spx_status bwd_check(spx_ctx *ctx, const char *op, const spx_tensor *x, c
   spx_status st;
   if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, dy, op, "dy"))) return st;
   size_t c = (size_t)x->c;
-  if ((st = vec_check(ctx, op, weight, "weight", c)) || (st = vec_check(ctx, op, save, "save", 2 * c))) return st;
+  if ((st = spx_nn_check_numel(ctx, weight, op, "weight", c)) ||
+      (st = spx_nn_check_numel(ctx, save, op, "save", 2 * c)))
+    return st;
   if (!spx_nn_same_shape(x, dy)) return spx_nn_shape_mismatch(ctx, op, "dy vs x", dy, x);
   if (dx && (st = spx_nn_check(ctx, dx, op, "dx"))) return st;
   if (dx && !spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, op, "dx vs x", dx, x);
-  if ((dweight && (st = vec_check(ctx, op, dweight, "dweight", c))) || (dbias && (st = vec_check(ctx, op, dbias, "dbias", c))))
+  if ((dweight && (st = spx_nn_check_numel(ctx, dweight, op, "dweight", c))) ||
+      (dbias && (st = spx_nn_check_numel(ctx, dbias, op, "dbias", c))))
     return st;
   return SPX_OK;
 }
@@ -75,7 +62,7 @@ spx_status spx_bn_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_ten
              SPX_ARG(k, 15, x->c) | SPX_ARG(k, 16, hw) | SPX_ARG(k, 17, momentum) | SPX_ARG(k, 18, eps) |
              SPX_ARG(k, 19, upd);
   if ((st = spx_cl_check(ctx, e, "spx_bn_train_fwd"))) return st;
-  return run_group_per_channel(ctx, k, x->c, "spx_bn_train_fwd");
+  return spx_nn_run_groups(ctx, k, (size_t)x->c, "spx_bn_train_fwd");
 }
 
 spx_status spx_bn_eval_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *bias,
@@ -86,9 +73,9 @@ spx_status spx_bn_eval_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
   cl_kernel k;
   if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, y, op, "y"))) return st;
   size_t c = (size_t)x->c;
-  if ((st = vec_check(ctx, op, weight, "weight", c)) || (st = vec_check(ctx, op, bias, "bias", c)) ||
-      (st = vec_check(ctx, op, running_mean, "running_mean", c)) ||
-      (st = vec_check(ctx, op, running_var, "running_var", c)))
+  if ((st = spx_nn_check_numel(ctx, weight, op, "weight", c)) || (st = spx_nn_check_numel(ctx, bias, op, "bias", c)) ||
+      (st = spx_nn_check_numel(ctx, running_mean, op, "running_mean", c)) ||
+      (st = spx_nn_check_numel(ctx, running_var, op, "running_var", c)))
     return st;
   if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
   if ((st = spx_cl_kernel(ctx, SPX_K_BN_EVAL_FWD, &k))) return st;
@@ -116,7 +103,7 @@ spx_status spx_bn_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_te
              spx_nn_arg(k, 12, dbias ? dbias : weight) | SPX_ARG(k, 14, x->n) | SPX_ARG(k, 15, x->c) |
              SPX_ARG(k, 16, hw) | SPX_ARG(k, 17, want);
   if ((st = spx_cl_check(ctx, e, "spx_bn_train_bwd"))) return st;
-  return run_group_per_channel(ctx, k, x->c, "spx_bn_train_bwd");
+  return spx_nn_run_groups(ctx, k, (size_t)x->c, "spx_bn_train_bwd");
 }
 
 /* ------------------------------------------------------------------ data-parallel (sync) */
@@ -146,7 +133,7 @@ static spx_status sync_part(spx_ctx *ctx, const spx_tensor *x, const spx_tensor 
              SPX_ARG(k, 5, mo) | spx_nn_arg(k, 6, scratch) | SPX_ARG(k, 8, x->n) | SPX_ARG(k, 9, x->c) |
              SPX_ARG(k, 10, hw) | SPX_ARG(k, 11, md);
   if ((st = spx_cl_check(ctx, e, "spx_bn_sync_part"))) return st;
-  return run_group_per_channel(ctx, k, x->c, "spx_bn_sync_part");
+  return spx_nn_run_groups(ctx, k, (size_t)x->c, "spx_bn_sync_part");
 }
 
 static spx_status sync_check(spx_ctx *ctx, const char *op, const spx_tensor *x, const spx_tensor *scratch,
@@ -158,7 +145,7 @@ static spx_status sync_check(spx_ctx *ctx, const char *op, const spx_tensor *x, 
     return spx_fail(ctx, SPX_E_ARG, "%s: expected more than 1 value per channel in the global batch, got %.0f", op,
                     s->count);
   if ((st = spx_nn_check(ctx, x, op, "x"))) return st;
-  return vec_check(ctx, op, scratch, "scratch", 4 * (size_t)x->c);
+  return spx_nn_check_numel(ctx, scratch, op, "scratch", 4 * (size_t)x->c);
 }
 
 spx_status spx_bn_sync_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight,
@@ -190,7 +177,7 @@ spx_status spx_bn_sync_train_forward(spx_ctx *ctx, const spx_tensor *x, const sp
              SPX_ARG(k, 16, x->n) | SPX_ARG(k, 17, x->c) | SPX_ARG(k, 18, hw) | SPX_ARG(k, 19, cnt) |
              SPX_ARG(k, 20, momentum) | SPX_ARG(k, 21, eps) | SPX_ARG(k, 22, upd);
   if ((st = spx_cl_check(ctx, e, "spx_bn_sync_fwd"))) return st;
-  return run_group_per_channel(ctx, k, x->c, "spx_bn_sync_fwd");
+  return spx_nn_run_groups(ctx, k, (size_t)x->c, "spx_bn_sync_fwd");
 }
 
 spx_status spx_bn_sync_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight,
@@ -216,5 +203,5 @@ spx_status spx_bn_sync_train_backward(spx_ctx *ctx, const spx_tensor *x, const s
              spx_nn_arg(k, 12, dbias ? dbias : weight) | spx_nn_arg(k, 14, scratch) | SPX_ARG(k, 16, x->n) |
              SPX_ARG(k, 17, x->c) | SPX_ARG(k, 18, hw) | SPX_ARG(k, 19, cnt) | SPX_ARG(k, 20, want);
   if ((st = spx_cl_check(ctx, e, "spx_bn_sync_bwd"))) return st;
-  return run_group_per_channel(ctx, k, x->c, "spx_bn_sync_bwd");
+  return spx_nn_run_groups(ctx, k, (size_t)x->c, "spx_bn_sync_bwd");
 }

@@ -3,24 +3,6 @@
 
 #include "nn/nn_internal.h"
 
-static spx_status run_planes(spx_ctx *ctx, cl_kernel k, int planes, const char *what) {
-  size_t l = (size_t)ctx->dev->tune.bn_wg;
-  if (l > ctx->dev->info.max_work_group)
-    return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_BN_WG=%zu exceeds the device's work-group limit %zu", what, l,
-                    ctx->dev->info.max_work_group);
-  size_t g = (size_t)planes * l;
-  return spx_cl_run(ctx, k, 1, &g, &l, what);
-}
-
-static spx_status check_save(spx_ctx *ctx, const char *op, const spx_tensor *x, const spx_tensor *save) {
-  spx_status st = spx_nn_check(ctx, save, op, "save");
-  if (st) return st;
-  size_t want = 2 * (size_t)x->n * (size_t)x->c;
-  if (spx_tensor_numel(save) != want)
-    return spx_fail(ctx, SPX_E_ARG, "%s: save has %zu elements, expected %zu", op, spx_tensor_numel(save), want);
-  return SPX_OK;
-}
-
 /* spx_instnorm_fwd (x, save, y = a, eps) or spx_instnorm_bwd (x, save, dy = a, dx = b): one work-group
  * per plane. */
 static spx_status launch(spx_ctx *ctx, spx_kernel_id id, const spx_tensor *x, const spx_tensor *save,
@@ -34,7 +16,7 @@ static spx_status launch(spx_ctx *ctx, spx_kernel_id id, const spx_tensor *x, co
              SPX_ARG(k, i + 1, hw);
   e |= b ? spx_nn_arg(k, 6, b) : SPX_ARG(k, 8, eps);
   if ((st = spx_cl_check(ctx, e, name))) return st;
-  return run_planes(ctx, k, planes, name);
+  return spx_nn_run_groups(ctx, k, (size_t)planes, name);
 }
 
 spx_status spx_instnorm_forward(spx_ctx *ctx, const spx_tensor *x, float eps, const spx_tensor *save,
@@ -42,7 +24,7 @@ spx_status spx_instnorm_forward(spx_ctx *ctx, const spx_tensor *x, float eps, co
   const char *op = "instnorm_forward";
   spx_status st;
   if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, y, op, "y")) ||
-      (st = check_save(ctx, op, x, save)))
+      (st = spx_nn_check_numel(ctx, save, op, "save", 2 * (size_t)x->n * (size_t)x->c)))
     return st;
   if (!spx_nn_same_shape(x, y)) return spx_nn_shape_mismatch(ctx, op, "y vs x", y, x);
   if (!(eps >= 0) || !isfinite(eps)) return spx_fail(ctx, SPX_E_ARG, "%s: eps %g invalid", op, eps);
@@ -56,7 +38,8 @@ spx_status spx_instnorm_backward(spx_ctx *ctx, const spx_tensor *x, const spx_te
   spx_status st;
   if (!dx) return SPX_OK;
   if ((st = spx_nn_check(ctx, x, op, "x")) || (st = spx_nn_check(ctx, dy, op, "dy")) ||
-      (st = spx_nn_check(ctx, dx, op, "dx")) || (st = check_save(ctx, op, x, save)))
+      (st = spx_nn_check(ctx, dx, op, "dx")) ||
+      (st = spx_nn_check_numel(ctx, save, op, "save", 2 * (size_t)x->n * (size_t)x->c)))
     return st;
   if (!spx_nn_same_shape(x, dy)) return spx_nn_shape_mismatch(ctx, op, "dy vs x", dy, x);
   if (!spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, op, "dx vs x", dx, x);

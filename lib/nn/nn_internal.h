@@ -28,6 +28,16 @@ static inline spx_status spx_nn_check(spx_ctx *ctx, const spx_tensor *t, const c
   return SPX_OK;
 }
 
+/* spx_nn_check, and t must hold exactly `want` elements (vectors, saved statistics). */
+static inline spx_status spx_nn_check_numel(spx_ctx *ctx, const spx_tensor *t, const char *op, const char *name,
+                                            size_t want) {
+  spx_status st = spx_nn_check(ctx, t, op, name);
+  if (st) return st;
+  if (spx_tensor_numel(t) != want)
+    return spx_fail(ctx, SPX_E_ARG, "%s: %s has %zu elements, expected %zu", op, name, spx_tensor_numel(t), want);
+  return SPX_OK;
+}
+
 static inline int spx_nn_same_shape(const spx_tensor *a, const spx_tensor *b) {
   return a->n == b->n && a->c == b->c && a->h == b->h && a->w == b->w;
 }
@@ -42,6 +52,17 @@ static inline spx_status spx_nn_shape_mismatch(spx_ctx *ctx, const char *op, con
 static inline spx_status spx_nn_run1d(spx_ctx *ctx, cl_kernel k, size_t count, const char *what) {
   size_t l = (size_t)ctx->dev->tune.wg;
   return spx_cl_run(ctx, k, 1, &count, &l, what);
+}
+
+/* Launch `groups` work-groups of SPX_BN_WG work-items each (the normalisation kernels: one group
+ * per channel or plane, combined by a tree in local memory). */
+static inline spx_status spx_nn_run_groups(spx_ctx *ctx, cl_kernel k, size_t groups, const char *what) {
+  size_t l = (size_t)ctx->dev->tune.bn_wg;
+  if (l > ctx->dev->info.max_work_group)
+    return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_BN_WG=%zu exceeds the device's work-group limit %zu", what, l,
+                    ctx->dev->info.max_work_group);
+  size_t g = groups * l;
+  return spx_cl_run(ctx, k, 1, &g, &l, what);
 }
 
 /* Launch a 3-D kernel over (x, y, plane) = (w, h, planes): kernels index without divisions.
