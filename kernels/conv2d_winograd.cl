@@ -164,6 +164,14 @@ static inline vf wino_epi(vf v, const __global float *yo, int flags, float bv, f
   if (flags & FL_RELU) v = fmax(v, (vf)0.0f);
   return v;
 }
+/* The same for one float at yo (edge tiles), stored. */
+static inline void wino_epi1(float v, __global float *yo, int flags, float bv, float sc, float sh) {
+  if (flags & FL_ACCUM) v = *yo + v;
+  if (flags & FL_BIAS) v = v + bv;
+  if (flags & FL_SCALE) v = v * sc + sh;
+  if (flags & FL_RELU) v = fmax(v, 0.0f);
+  *yo = v;
+}
 
 __kernel void spx_wino_out(const __global float *M, __global float *y, ulong y_off, const __global float *bias,
                            ulong b_off, const __global float *scale, ulong sc_off, const __global float *shift,
@@ -213,13 +221,7 @@ __kernel void spx_wino_out(const __global float *M, __global float *y, ulong y_o
         vstore16(out[k], 0, tmp);
         for (int l = 0; l < 16; l++) {
           if (ox0 + 16 * k + l >= W) break;
-          float v = tmp[l];
-          __global float *yo = yr + 16 * k + l;
-          if (flags & FL_ACCUM) v = *yo + v;
-          if (flags & FL_BIAS) v = v + bv;
-          if (flags & FL_SCALE) v = v * sc + sh;
-          if (flags & FL_RELU) v = fmax(v, 0.0f);
-          *yo = v;
+          wino_epi1(tmp[l], yr + 16 * k + l, flags, bv, sc, sh);
         }
       }
     }
@@ -232,13 +234,7 @@ __kernel void spx_wino_out(const __global float *M, __global float *y, ulong y_o
     for (int l = 0; l < CONV_VW; l++)
       for (int j = 0; j < 4; j++) {
         if (ox0 + 4 * l + j >= W) break;
-        float v = oo[j][l];
-        __global float *yo = yr + 4 * l + j;
-        if (flags & FL_ACCUM) v = *yo + v;
-        if (flags & FL_BIAS) v = v + bv;
-        if (flags & FL_SCALE) v = v * sc + sh;
-        if (flags & FL_RELU) v = fmax(v, 0.0f);
-        *yo = v;
+        wino_epi1(oo[j][l], yr + 4 * l + j, flags, bv, sc, sh);
       }
 #endif
   }
