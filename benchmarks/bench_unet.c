@@ -31,6 +31,11 @@
 
 #include "smplpix/smplpix.h"
 
+static void log_stderr(void *user, const char *line) {
+  (void)user;
+  fprintf(stderr, "%s\n", line);
+}
+
 static double now(void) {
   struct timespec t;
   clock_gettime(CLOCK_MONOTONIC, &t);
@@ -91,6 +96,12 @@ int main(int argc, char **argv) {
   int nmax = batch > ebatch ? batch : ebatch;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return 1;
+  /* SPX_TAPE_PROFILE=1: the tape's per-op device times, printed to stderr when the network is freed */
+  const char *prof = getenv("SPX_TAPE_PROFILE");
+  if (prof && *prof && strcmp(prof, "0")) {
+    spx_ctx_set_log(ctx, log_stderr, NULL);
+    spx_ctx_set_profile(ctx, SPX_PROFILE_TAPE);
+  }
   spx_unet *u = NULL;
   int rc = 1;
   size_t nin = (size_t)nmax * 4 * h * w, nout = (size_t)nmax * 3 * h * w;
