@@ -6,7 +6,7 @@
  *    to the unfused device chain upsample -> pad -> concat, and close to the reference, on odd
  *    shapes with and without padding, batch 1 and 2; guard floats untouched; misuse refused;
  *  - the tape op: device and host backends agree with each other and with the unfused tape
- *    chain (value and gradients). */
+ *    chain (value and gradients); the per-op-instance tape profile logs one line per op. */
 #include "nn/tape.h"
 #include "nn/tensor_ops.h"
 #include "nn/upsample.h"
@@ -185,6 +185,14 @@ static void tape_run(spx_tape_backend be, int fused, const ucase *k, const float
   spx_tape_destroy(t);
 }
 
+/* the per-instance profile (SPX_PROFILE_TAPE_OPS) logs one line per forward op of the pass */
+static int prof_lines, prof_upcat;
+static void prof_log(void *user, const char *line) {
+  (void)user;
+  if (line[0] == ' ' && strstr(line, " #")) prof_lines++;
+  if (strstr(line, " upcat ") && strstr(line, " 2x5 ") && strstr(line, " 13x11 ")) prof_upcat++;
+}
+
 static void test_tape(void) {
   ucase k = {2, 3, 2, 6, 5, 13, 11};
   size_t ns = nskip(&k), nxx = nx(&k), no = nout(&k);
@@ -193,7 +201,12 @@ static void test_tape(void) {
   unsigned long long seed = 3;
   spx_nt_rand(s, ns, -1, 1, &seed), spx_nt_rand(x, nxx, -1, 1, &seed), spx_nt_rand(tg, no, -1, 1, &seed);
   for (int i = 0; i < 3; i++) o[i] = malloc(4 * no), gs[i] = malloc(4 * ns), gx[i] = malloc(4 * nxx);
+  spx_ctx_set_log(ctx, prof_log, NULL);
+  spx_ctx_set_profile(ctx, SPX_PROFILE_TAPE | SPX_PROFILE_TAPE_OPS);
   tape_run(SPX_TAPE_DEVICE, 1, &k, s, x, tg, o[0], gs[0], gx[0]);
+  spx_ctx_set_profile(ctx, 0);
+  spx_ctx_set_log(ctx, NULL, NULL);
+  CHECK_MSG(prof_lines == 2 && prof_upcat == 1, "profile: %d instance lines, %d upcat", prof_lines, prof_upcat);
   tape_run(SPX_TAPE_DEVICE, 0, &k, s, x, tg, o[1], gs[1], gx[1]);
   tape_run(SPX_TAPE_HOST, 1, &k, s, x, tg, o[2], gs[2], gx[2]);
   CHECK(memcmp(o[0], o[1], 4 * no) == 0);
