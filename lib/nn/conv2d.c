@@ -95,6 +95,21 @@ void spx_conv2d_scratch_put(spx_conv2d_scratch *s) {
   s->mem = NULL;
 }
 
+/* Register tile of a forward run producing `cols` output channels (k, stride s): the narrow
+ * tile of kernels/conv2d_narrow.cl for stride-1 3x3 / 1x1 runs with at most CONV_NARROW_MAXC
+ * columns (not on the local-memory GPU path), else the main tile. Both sum in the same order. */
+typedef struct fwd_tile {
+  int tm, tn, narrow;
+} fwd_tile;
+
+static fwd_tile pick_tile(spx_ctx *ctx, int cols, int k, int s) {
+  const struct spx_tunables *t = &ctx->dev->tune;
+  fwd_tile r = {t->conv_tm, t->conv_tn, 0};
+  if (s == 1 && (k == 3 || k == 1) && cols <= t->conv_narrow_maxc && !spx_conv2d_lds_applies(ctx, k, s))
+    r = (fwd_tile){t->conv_narrow_tm, t->conv_narrow_tn, 1};
+  return r;
+}
+
 /* Padded/dilated copy of src [nc][h][w] into a new scratch buffer (see spx_conv2d_pad). */
 static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_mem src, size_t src_off, int nc,
                            int h, int w, int hp, int wp, int plane, int top, int left, int d, size_t total,
@@ -118,9 +133,9 @@ static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_
 
 /* Packed weight panel (see spx_conv2d_pack). */
 static spx_status pack_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, const spx_tensor *w, int cout,
-                               int cin, int k, int cols, int flip, spx_conv2d_scratch *out) {
+                               int cin, int k, int cols, int flip, int narrow, spx_conv2d_scratch *out) {
   cl_kernel kr;
-  spx_status st = spx_cl_kernel(ctx, SPX_K_CONV2D_PACK, &kr);
+  spx_status st = spx_cl_kernel(ctx, narrow ? SPX_K_CONV2D_PACK_NARROW : SPX_K_CONV2D_PACK, &kr);
   if (st) return st;
   size_t rows = (size_t)(flip ? cout : cin) * k * k, total = rows * (size_t)cols;
   if ((st = spx_conv2d_scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d packed weights", out))) return st;
@@ -138,17 +153,19 @@ static size_t guard_elems(int s, size_t q, int k, int wp, int vw) {
 }
 
 /* The tiled forward kernel on an already padded input xp (planes of hp*wp, rows of wp). */
-static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, int cout, int coutp, int k, int s,
+static spx_status run_fwd(spx_ctx *ctx, fwd_tile tile, cl_mem xp, cl_mem wpk, int n, int cin, int cout, int coutp, int k, int s,
                           int wp, int plane, int ho, int wo, const spx_tensor *y, const spx_tensor *bias,
                           const spx_tensor *scale, const spx_tensor *shift, int flags) {
   const int lds = spx_conv2d_lds_applies(ctx, k, s); /* GPU: local-memory tiles (conv2d_lds.cl) */
   spx_kernel_id kid = lds ? SPX_K_CONV2D_FWD_K3S1_LDS : s == 2 ? SPX_K_CONV2D_FWD_S2 : s > 2 ? SPX_K_CONV2D_FWD_SN
-                      : k == 3 ? SPX_K_CONV2D_FWD_K3S1 : k == 1 ? SPX_K_CONV2D_FWD_K1S1 : SPX_K_CONV2D_FWD_S1;
+                      : k == 3 ? (tile.narrow ? SPX_K_CONV2D_FWD_K3S1_NARROW : SPX_K_CONV2D_FWD_K3S1)
+                      : k == 1 ? (tile.narrow ? SPX_K_CONV2D_FWD_K1S1_NARROW : SPX_K_CONV2D_FWD_K1S1)
+                               : SPX_K_CONV2D_FWD_S1;
   const char *name = spx_cl_kernel_name(kid);
   cl_kernel kr;
   spx_status st = spx_cl_kernel(ctx, kid, &kr);
   if (st) return st;
-  int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
+  int tm = tile.tm, tn = tile.tn, vw = ctx->dev->tune.conv_vw;
   int lws = ctx->dev->tune.conv_lws;
   size_t tile_q = (size_t)lws * tn * vw;
   size_t groups = round_up((size_t)ho * wp, tile_q) / tile_q;
@@ -200,7 +217,8 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
     return st;
   if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, p->scale || p->relu))
     return spx_conv2d_winograd(ctx, p->ws, x, w, 0, bias, p->scale, p->scale ? p->shift : NULL, p->relu, 0, y);
-  int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
+  const fwd_tile tile = pick_tile(ctx, g.cout, g.k, g.s);
+  int tm = tile.tm, tn = tile.tn, vw = ctx->dev->tune.conv_vw;
   int lws = ctx->dev->tune.conv_lws;
   int hp = g.h + 2 * g.pad, wp = g.w + 2 * g.pad, plane = hp * wp;
   size_t qv = round_up((size_t)g.ho * wp, (size_t)lws * tn * vw);
@@ -210,10 +228,10 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
   if ((st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, hp, wp, plane, g.pad, g.pad, 1, total,
                      &xp)))
     goto done;
-  if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, &wpk))) goto done;
+  if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, tile.narrow, &wpk))) goto done;
   int flags = (bias ? SPX_CONV_FL_BIAS : 0) | (p->scale ? SPX_CONV_FL_SCALE : 0) |
               (p->scale && p->shift ? SPX_CONV_FL_SHIFT : 0) | (p->relu ? SPX_CONV_FL_RELU : 0);
-  st = run_fwd(ctx, xp.mem, wpk.mem, g.n, g.cin, g.cout, coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale,
+  st = run_fwd(ctx, tile, xp.mem, wpk.mem, g.n, g.cin, g.cout, coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale,
                p->scale ? p->shift : NULL, flags);
 done:
   spx_conv2d_scratch_put(&xp);
@@ -226,7 +244,8 @@ static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const ge
                                 const spx_tensor *dy, const spx_tensor *dx) {
   if (spx_conv2d_winograd_applies(ctx, g->k, g->s, g->pad, g->cout, g->cin, 0))
     return spx_conv2d_winograd(ctx, ws, dy, w, 1, NULL, NULL, NULL, 0, 1, dx);
-  int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
+  const fwd_tile tile = pick_tile(ctx, g->cin, g->k, 1);
+  int tm = tile.tm, tn = tile.tn, vw = ctx->dev->tune.conv_vw;
   int lws = ctx->dev->tune.conv_lws;
   int hd = g->h + g->k - 1, wd = g->w + g->k - 1, plane = hd * wd, top = g->k - 1 - g->pad;
   size_t qv = round_up((size_t)g->h * wd, (size_t)lws * tn * vw);
@@ -237,8 +256,8 @@ static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const ge
   if ((st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, hd, wd, plane, top, top, g->s,
                      total, &dyp)))
     goto done;
-  if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, &wpk))) goto done;
-  st = run_fwd(ctx, dyp.mem, wpk.mem, g->n, g->cout, g->cin, cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL,
+  if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, tile.narrow, &wpk))) goto done;
+  st = run_fwd(ctx, tile, dyp.mem, wpk.mem, g->n, g->cout, g->cin, cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL,
                NULL, SPX_CONV_FL_ACCUM);
 done:
   spx_conv2d_scratch_put(&dyp);
