@@ -36,6 +36,8 @@ static const int q_tile[] = {8, 3, 8, 2, 6, 4, 4, 6, 8, 4};
 static int f_tile[2 * MAXC];
 static const int f_vw[] = {1, 2, 4, 8, 16};
 static const int f_ct[] = {1, 2, 4, 8};
+static const int q_narrow[] = {4, 6, 8, 3, 4, 5, 2, 12, 8, 2}; /* CONV_NARROW_TM, CONV_NARROW_TN */
+static const int f_narrow_maxc[] = {0, 16, 32, 64};
 static const int f_lws[] = {1, 16, 32, 64, 128, 256};
 static const int f_xcache[] = {0, 512, 1024, 2048, 4096, 8192};
 /* the local-memory tiled conv (GPU class; needs CONV_VW = 1, refused otherwise) and its tile */
@@ -199,6 +201,8 @@ static int build_groups(const spx_tune_plan *p, group *gs) {
                     p->quick ? (int)(sizeof q_minc / sizeof(int)) : (int)(sizeof f_minc / sizeof(int))};
   gs[n++] = (group){{"CONV_TM", "CONV_TN"}, 2, 0, p->quick ? q_tile : f_tile,
                     p->quick ? (int)(sizeof q_tile / sizeof(int) / 2) : nt};
+  gs[n++] = (group){{"CONV_NARROW_TM", "CONV_NARROW_TN"}, 2, 0, q_narrow, (int)(sizeof q_narrow / sizeof(int) / 2)};
+  gs[n++] = (group){{"CONV_NARROW_MAXC", NULL}, 1, 1, f_narrow_maxc, (int)(sizeof f_narrow_maxc / sizeof(int))};
   gs[n++] = (group){{"CONV_VW", NULL}, 1, 1, f_vw, (int)(sizeof f_vw / sizeof(int))};
   gs[n++] = (group){{"CONV_CT", NULL}, 1, 1, f_ct, (int)(sizeof f_ct / sizeof(int))};
   gs[n++] = (group){{"CONV_LWS", NULL}, 1, 1, f_lws, (int)(sizeof f_lws / sizeof(int))};
