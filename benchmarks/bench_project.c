@@ -4,7 +4,9 @@
  * Point sets: the SMPL-topology body data/body/human_woman.obj (6,890 vertices), its Loop
  * subdivision (27,554), and 10^6 points sampled on its triangles; colors random. The camera
  * looks at the body from the front so it fills the 410x308 image's height.
- * Usage: bench_project [runs] [mesh.obj] */
+ * --stages: the 6,890-point call taken apart instead (each stage enqueued alone and waited for
+ * with clFinish, wall clock, median of RUNS): what each piece of spx_project costs.
+ * Usage: bench_project [--stages] [runs] [mesh.obj] */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -50,7 +52,64 @@ static void sample_surface(const spx_mesh *m, float *pos, int n) {
     }                                                                                                         \
   } while (0)
 
+/* Median wall time (ms) of `runs` repetitions of STMT; STMT sets ok = 0 on failure. */
+#define STAGE(label, STMT)                                                                                    \
+  do {                                                                                                        \
+    for (int r = 0; r < runs; r++) {                                                                          \
+      double t0 = spx_now();                                                                                  \
+      int ok = 1;                                                                                             \
+      STMT;                                                                                                   \
+      if (!ok || clFinish(q) != CL_SUCCESS) {                                                                 \
+        fprintf(stderr, "bench_project: stage %s failed: %s\n", label, spx_ctx_message(ctx));               \
+        return 1;                                                                                             \
+      }                                                                                                       \
+      t[r] = spx_now() - t0;                                                                                  \
+    }                                                                                                         \
+    printf("  %-52s %8.4f ms\n", label, bench_median(t, runs) * 1e3);                                        \
+  } while (0)
+
+/* The pieces of one spx_project call at n points (HWC, no winners), each timed alone. */
+static int stages(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, float *out, double *t, int runs) {
+  cl_command_queue q = ctx->dev->queue;
+  size_t hw = (size_t)a->cams[0].width * a->cams[0].height, ib = hw * 4 * sizeof(float);
+  size_t vb = (size_t)a->nverts * 3 * sizeof(float);
+  printf("stages of one call at %d points (each followed by clFinish; wall clock, median of %d):\n", a->nverts, runs);
+  STAGE("whole spx_project call", ok = !spx_project(ctx, p, a, out, NULL));
+  STAGE("clFinish on an empty queue", (void)0);
+  STAGE("blocking write of the positions", ok = !spx_cl_write(ctx, p->pos.mem, 0, vb, a->pos));
+  STAGE("non-blocking write of the positions", ok = clEnqueueWriteBuffer(q, p->pos.mem, CL_FALSE, 0, vb, a->pos, 0,
+                                                                         NULL, NULL) == CL_SUCCESS);
+  spx_project_dev_args d = {1, a->nverts, p->pos.mem, p->col.mem, 1, a->cams, a->layout};
+  STAGE("kernels of the default path (enqueue)", ok = !spx_project_device(ctx, p, &d, p->img.mem, NULL, 0));
+  STAGE("blocking read of the image", ok = !spx_cl_read(ctx, p->img.mem, 0, ib, out));
+  float one = 1.0f;
+  STAGE("clEnqueueFillBuffer of the image", ok = clEnqueueFillBuffer(q, p->img.mem, &one, sizeof one, 0, ib, 0, NULL,
+                                                                     NULL) == CL_SUCCESS);
+  void *mp = NULL;
+  STAGE("map + memcpy + unmap of the image", {
+    cl_int e;
+    mp = clEnqueueMapBuffer(q, p->img.mem, CL_TRUE, CL_MAP_READ, 0, ib, 0, NULL, NULL, &e);
+    ok = e == CL_SUCCESS;
+    if (ok) memcpy(out, mp, ib);
+    ok = ok && clEnqueueUnmapMemObject(q, p->img.mem, mp, 0, NULL, NULL) == CL_SUCCESS;
+  });
+  float *src = calloc(hw * 4, sizeof *src);
+  if (!src) return 1;
+  STAGE("host memcpy of the image (no OpenCL)", memcpy(out, src, ib));
+  free(src);
+  STAGE("host fill of the image with 1 (no OpenCL)", for (size_t i = 0; i < hw * 4; i++) out[i] = 1.0f);
+  STAGE("plain-C reference (spx_project_ref)", ok = !spx_project_ref(ctx, a, out, NULL));
+  return 0;
+}
+
+static const char *path_names[] = {"?", "fused", "radix", "count", "zbuf", "one"};
+
 int main(int argc, char **argv) {
+  int want_stages = argc > 1 && !strcmp(argv[1], "--stages");
+  if (want_stages) {
+    argc--;
+    argv++;
+  }
   int runs = argc > 1 ? atoi(argv[1]) : 50;
   if (runs < 1) runs = 50;
   spx_ctx *ctx = NULL;
@@ -94,6 +153,14 @@ int main(int argc, char **argv) {
     else sample_surface(&mesh, pos, n);
     random_colors(col, n);
     spx_project_args a = {1, n, pos, col, 1, &cam, SPX_LAYOUT_HWC};
+    if (want_stages) {
+      CHECKED(spx_project(ctx, p, &a, out, NULL));
+      int rc = stages(ctx, p, &a, out, t, runs);
+      free(pos);
+      free(col);
+      if (rc) return rc;
+      break;
+    }
     for (int w = 0; w < 3; w++) CHECKED(spx_project(ctx, p, &a, out, NULL));
     for (int r = 0; r < runs; r++) {
       double t0 = spx_now();
@@ -123,7 +190,7 @@ int main(int argc, char **argv) {
     int hits = 0;
     for (size_t i = 0; i < hw; i++) hits += ref[i * 4 + 3] != 1.0f;
     printf("%-9d %12.3f %12.3f %7.2fx %14.3f %7s %7d\n", n, dev * 1e3, cpu * 1e3, dev / cpu, kern * 1e3,
-           p->last_path == 1 ? "fused" : p->last_path == 2 ? "radix" : p->last_path == 3 ? "count" : "zbuf", hits);
+           path_names[p->last_path < 1 || p->last_path > 5 ? 0 : p->last_path], hits);
     fflush(stdout);
     free(pos);
     free(col);

@@ -250,6 +250,77 @@ __kernel void spx_project_zmerge(__global ulong *zb, uint parts, __global const 
   }
 }
 
+/* One-launch path (path 5, small inputs on CPU-class devices): clear, project, resolve and write
+ * in one work-group of SPX_WG work-items.
+ *  1. Background: with clear & 1 every pixel of out (and, with want_winners and clear & 2, of
+ *     winners) is reset; otherwise only the ntouched[0] pixels listed in touched — the pixels the
+ *     previous call into this same image wrote, the rest still being background.
+ *  2. Every point's pixel (img*hw + row*W + col, or ~0 when dropped) and key (depth bits << 32 |
+ *     point index, as in spx_project_zbuf) into pixs / keys, in parallel.
+ *  3. Work-item 0 walks the points in order keeping per pixel the smallest key in zb (empty = all
+ *     ones on entry), listing each pixel the first time it is hit: the plain-C z-buffer loop.
+ *  4. The listed pixels get their winner's colour and depth, and their zb entry is emptied again.
+ * The winner is the one of spx_project_zbuf / the stable depth sort (nearest, ties to the smallest
+ * vertex index), so the output bits are the same. */
+__kernel __attribute__((reqd_work_group_size(SPX_WG, 1, 1))) void
+spx_project_one(__global const float *pos, __global const float *col, int has_col, __global const float *cams,
+                int N, int C, int W, int H, uint npts, uint npix, __global float *out, int layout,
+                __global int *winners, int want_winners, __global ulong *zb, __global ulong *keys,
+                __global uint *pixs, __global uint *touched, __global uint *ntouched, int clear) {
+  uint lid = get_local_id(0), hw = (uint)W * (uint)H;
+  uint nold = ntouched[0];
+  if (clear & 1) {
+    if (layout == 0)
+      for (uint q = lid; q < npix; q += SPX_WG) vstore4((float4)(1.0f), q, out);
+    else
+      for (uint q = lid; q < 4 * npix; q += SPX_WG) out[q] = 1.0f;
+  } else {
+    for (uint j = lid; j < nold; j += SPX_WG) {
+      uint q = touched[j];
+      spx_put_pixel(out, layout, q / hw, q % hw, hw, 1.0f, 1.0f, 1.0f, 1.0f);
+    }
+  }
+  if (want_winners) {
+    if (clear & 2)
+      for (uint q = lid; q < npix; q += SPX_WG) winners[q] = -1;
+    else
+      for (uint j = lid; j < nold; j += SPX_WG) winners[touched[j]] = -1;
+  }
+  for (uint i = lid; i < npts; i += SPX_WG) {
+    uint img = i / (uint)N, v = i % (uint)N, b = img / (uint)C, c = img % (uint)C, pix = 0;
+    __global const float *x = pos + ((ulong)b * N + v) * 3;
+    float cam[SPX_CAM_FLOATS], d = 0.0f;
+    for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[c * SPX_CAM_FLOATS + j];
+    int hit = spx_project_point(cam, x[0], x[1], x[2], W, H, &pix, &d);
+    pixs[i] = hit ? img * hw + pix : ~0u;
+    keys[i] = (ulong)as_uint(d) << 32 | i;
+  }
+  barrier(CLK_GLOBAL_MEM_FENCE);
+  if (lid == 0) {
+    uint n = 0;
+    for (uint i = 0; i < npts; i++) {
+      uint q = pixs[i];
+      if (q == ~0u) continue;
+      ulong key = keys[i], z = zb[q];
+      if (key < z) {
+        if (z == ~(ulong)0) touched[n++] = q;
+        zb[q] = key;
+      }
+    }
+    ntouched[0] = n;
+  }
+  barrier(CLK_GLOBAL_MEM_FENCE);
+  uint n = ntouched[0];
+  for (uint j = lid; j < n; j += SPX_WG) {
+    uint q = touched[j];
+    ulong best = zb[q];
+    zb[q] = ~(ulong)0;
+    uint v = (uint)best % (uint)N;
+    spx_put_point(out, layout, q / hw, q % hw, hw, col, has_col, N, C, v, as_float((uint)(best >> 32)));
+    if (want_winners) winners[q] = (int)v;
+  }
+}
+
 /* Backward, step 1: for each pixel with a winner, remember the pixel in vpix[img*N + winner]
  * (winners are unique per image, so no two work-items write the same slot). */
 __kernel void spx_project_vpix(__global const int *winners, uint npix, int N, int W, int H, __global int *vpix) {

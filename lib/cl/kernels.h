@@ -61,6 +61,7 @@
   X(PROJECT_GRAD, "project.cl", "spx_project_grad")                    \
   X(PROJECT_ZBUF, "project.cl", "spx_project_zbuf")                    \
   X(PROJECT_ZMERGE, "project.cl", "spx_project_zmerge")                \
+  X(PROJECT_ONE, "project.cl", "spx_project_one")                      \
   X(SORT_HIST, "radix_sort.cl", "spx_sort_hist")                       \
   X(SCAN_BLOCK, "radix_sort.cl", "spx_scan_block")                     \
   X(SCAN_ADD, "radix_sort.cl", "spx_scan_add")                         \
