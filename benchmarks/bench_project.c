@@ -52,6 +52,8 @@ static void sample_surface(const spx_mesh *m, float *pos, int n) {
     }                                                                                                         \
   } while (0)
 
+static const char *path_names[] = {"?", "fused", "radix", "count", "zbuf", "one"};
+
 /* Median wall time (ms) of `runs` repetitions of STMT; STMT sets ok = 0 on failure. */
 #define STAGE(label, STMT)                                                                                    \
   do {                                                                                                        \
@@ -80,7 +82,13 @@ static int stages(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, flo
   STAGE("non-blocking write of the positions", ok = clEnqueueWriteBuffer(q, p->pos.mem, CL_FALSE, 0, vb, a->pos, 0,
                                                                          NULL, NULL) == CL_SUCCESS);
   spx_project_dev_args d = {1, a->nverts, p->pos.mem, p->col.mem, 1, a->cams, a->layout};
-  STAGE("kernels of the default path (enqueue)", ok = !spx_project_device(ctx, p, &d, p->img.mem, NULL, 0));
+  STAGE("kernels of the default path", ok = !spx_project_device(ctx, p, &d, p->img.mem, NULL, 0));
+  printf("  (default path: %s)\n", path_names[p->last_path < 1 || p->last_path > 5 ? 0 : p->last_path]);
+  STAGE("kernels of the parts + merge path (4)", ok = !spx_project_device(ctx, p, &d, p->img.mem, NULL, 4));
+  cl_mem other = NULL;
+  if (spx_cl_alloc(ctx, ib, "bench image", &other)) return 1;
+  STAGE("one launch (5) into another image: full clear", ok = !spx_project_device(ctx, p, &d, other, NULL, 5));
+  spx_cl_free(&other);
   STAGE("blocking read of the image", ok = !spx_cl_read(ctx, p->img.mem, 0, ib, out));
   float one = 1.0f;
   STAGE("clEnqueueFillBuffer of the image", ok = clEnqueueFillBuffer(q, p->img.mem, &one, sizeof one, 0, ib, 0, NULL,
@@ -97,12 +105,9 @@ static int stages(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, flo
   if (!src) return 1;
   STAGE("host memcpy of the image (no OpenCL)", memcpy(out, src, ib));
   free(src);
-  STAGE("host fill of the image with 1 (no OpenCL)", for (size_t i = 0; i < hw * 4; i++) out[i] = 1.0f);
   STAGE("plain-C reference (spx_project_ref)", ok = !spx_project_ref(ctx, a, out, NULL));
   return 0;
 }
-
-static const char *path_names[] = {"?", "fused", "radix", "count", "zbuf", "one"};
 
 int main(int argc, char **argv) {
   int want_stages = argc > 1 && !strcmp(argv[1], "--stages");

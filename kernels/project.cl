@@ -255,29 +255,39 @@ __kernel void spx_project_zmerge(__global ulong *zb, uint parts, __global const 
  *  1. Background: with clear & 1 every pixel of out (and, with want_winners and clear & 2, of
  *     winners) is reset; otherwise only the ntouched[0] pixels listed in touched — the pixels the
  *     previous call into this same image wrote, the rest still being background.
- *  2. Every point's pixel (img*hw + row*W + col, or ~0 when dropped) and key (depth bits << 32 |
- *     point index, as in spx_project_zbuf) into pixs / keys, in parallel.
- *  3. Work-item 0 walks the points in order keeping per pixel the smallest key in zb (empty = all
- *     ones on entry), listing each pixel the first time it is hit: the plain-C z-buffer loop.
- *  4. The listed pixels get their winner's colour and depth, and their zb entry is emptied again.
+ *  2. Every point's pixel (img*hw + row*W + col, or ~0 when dropped) and depth bits (d > 0, so
+ *     they order like the depth) into pixs / dbits, in parallel.
+ *  3. Work-item 0 walks the points in order keeping per pixel q the smallest depth bits, that
+ *     point's vertex index and colour row in the z-buffer zb[4q], zb[4q+1], zb[4q+2] (zb[4q] all
+ *     ones on entry, whatever the image size; the others are read only where it is set), listing
+ *     each pixel and its image the first time it is hit: the plain-C z-buffer loop (a later equal
+ *     depth does not replace).
+ *  4. The listed pixels get their winner's colour and depth, and their zb[4q] is emptied again.
  * The winner is the one of spx_project_zbuf / the stable depth sort (nearest, ties to the smallest
- * vertex index), so the output bits are the same. */
+ * vertex index), so the output bits are the same. Loops over points and pixels run in rounds of
+ * SPX_WG items with a barrier per round, which makes the work-item loop the innermost one (PoCL
+ * vectorizes it); steps 1 and 4 divide nothing (integer division dominated them). */
 __kernel __attribute__((reqd_work_group_size(SPX_WG, 1, 1))) void
 spx_project_one(__global const float *pos, __global const float *col, int has_col, __global const float *cams,
                 int N, int C, int W, int H, uint npts, uint npix, __global float *out, int layout,
-                __global int *winners, int want_winners, __global ulong *zb, __global ulong *keys,
+                __global int *winners, int want_winners, __global uint *zb, __global uint *dbits,
                 __global uint *pixs, __global uint *touched, __global uint *ntouched, int clear) {
+  __global uint *timg = touched + npix;
   uint lid = get_local_id(0), hw = (uint)W * (uint)H;
   uint nold = ntouched[0];
   if (clear & 1) {
     if (layout == 0)
       for (uint q = lid; q < npix; q += SPX_WG) vstore4((float4)(1.0f), q, out);
     else
-      for (uint q = lid; q < 4 * npix; q += SPX_WG) out[q] = 1.0f;
+      for (ulong q = lid; q < 4 * (ulong)npix; q += SPX_WG) out[q] = 1.0f;
   } else {
-    for (uint j = lid; j < nold; j += SPX_WG) {
-      uint q = touched[j];
-      spx_put_pixel(out, layout, q / hw, q % hw, hw, 1.0f, 1.0f, 1.0f, 1.0f);
+    for (uint j0 = 0; j0 < nold; j0 += SPX_WG) {
+      uint j = j0 + lid;
+      if (j < nold) {
+        uint q = touched[j], img = timg[j];
+        spx_put_pixel(out, layout, img, q - img * hw, hw, 1.0f, 1.0f, 1.0f, 1.0f);
+      }
+      barrier(CLK_LOCAL_MEM_FENCE);
     }
   }
   if (want_winners) {
@@ -286,38 +296,65 @@ spx_project_one(__global const float *pos, __global const float *col, int has_co
     else
       for (uint j = lid; j < nold; j += SPX_WG) winners[touched[j]] = -1;
   }
-  for (uint i = lid; i < npts; i += SPX_WG) {
-    uint img = i / (uint)N, v = i % (uint)N, b = img / (uint)C, c = img % (uint)C, pix = 0;
-    __global const float *x = pos + ((ulong)b * N + v) * 3;
-    float cam[SPX_CAM_FLOATS], d = 0.0f;
-    for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[c * SPX_CAM_FLOATS + j];
-    int hit = spx_project_point(cam, x[0], x[1], x[2], W, H, &pix, &d);
-    pixs[i] = hit ? img * hw + pix : ~0u;
-    keys[i] = (ulong)as_uint(d) << 32 | i;
+  uint nimg = N > 0 ? npts / (uint)N : 0u;
+  for (uint img = 0; img < nimg; img++) {
+    float cam[SPX_CAM_FLOATS];
+    for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
+    __global const float *x = pos + (ulong)(img / (uint)C) * N * 3;
+    for (uint v0 = 0; v0 < (uint)N; v0 += SPX_WG) {
+      uint v = v0 + lid, i = img * (uint)N + v, pix = 0;
+      float d = 0.0f;
+      if (v < (uint)N) {
+        int hit = spx_project_point(cam, x[v * 3], x[v * 3 + 1], x[v * 3 + 2], W, H, &pix, &d);
+        pixs[i] = hit ? img * hw + pix : ~0u;
+        dbits[i] = as_uint(d);
+      }
+      barrier(CLK_LOCAL_MEM_FENCE);
+    }
   }
   barrier(CLK_GLOBAL_MEM_FENCE);
   if (lid == 0) {
-    uint n = 0;
-    for (uint i = 0; i < npts; i++) {
-      uint q = pixs[i];
-      if (q == ~0u) continue;
-      ulong key = keys[i], z = zb[q];
-      if (key < z) {
-        if (z == ~(ulong)0) touched[n++] = q;
-        zb[q] = key;
+    uint n = 0, i = 0;
+    for (uint img = 0; img < nimg; img++) {
+      uint row = img / (uint)C * (uint)N; /* colour row of vertex 0 of this image's set */
+      for (uint v = 0; v < (uint)N; v++, i++) {
+        uint q = pixs[i];
+        if (q == ~0u) continue;
+        __global uint *z = zb + (ulong)q * 4;
+        uint d = dbits[i], z0 = z[0];
+        if (d < z0) { /* nearer wins; an equal depth keeps the earlier, smaller index */
+          if (z0 == ~0u) {
+            touched[n] = q;
+            timg[n++] = img;
+          }
+          z[0] = d;
+          z[1] = v;
+          z[2] = row + v;
+        }
       }
     }
     ntouched[0] = n;
   }
   barrier(CLK_GLOBAL_MEM_FENCE);
   uint n = ntouched[0];
-  for (uint j = lid; j < n; j += SPX_WG) {
-    uint q = touched[j];
-    ulong best = zb[q];
-    zb[q] = ~(ulong)0;
-    uint v = (uint)best % (uint)N;
-    spx_put_point(out, layout, q / hw, q % hw, hw, col, has_col, N, C, v, as_float((uint)(best >> 32)));
-    if (want_winners) winners[q] = (int)v;
+  for (uint j0 = 0; j0 < n; j0 += SPX_WG) {
+    uint j = j0 + lid;
+    if (j < n) {
+      uint q = touched[j], img = timg[j];
+      __global uint *z = zb + (ulong)q * 4;
+      uint v = z[1];
+      float r = 1.0f, g = 1.0f, b = 1.0f, d = as_float(z[0]);
+      z[0] = ~0u;
+      if (has_col) {
+        __global const float *cv = col + (ulong)z[2] * 3;
+        r = cv[0];
+        g = cv[1];
+        b = cv[2];
+      }
+      spx_put_pixel(out, layout, img, q - img * hw, hw, r, g, b, d);
+      if (want_winners) winners[q] = (int)v;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
   }
 }
 

@@ -18,7 +18,7 @@ void spx_projector_destroy(spx_projector *p) {
   if (!p) return;
   spx_sorter_release(&p->sorter);
   spx_cl_buf *bufs[] = {&p->pos, &p->col, &p->cams, &p->keys, &p->vals, &p->img, &p->win,
-                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->offs, &p->zb, &p->touched,
+                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->offs, &p->zb, &p->zb1, &p->touched,
                         &p->ntouched, &p->dummy};
   for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) spx_cl_buf_release(bufs[i]);
   free(p);
@@ -65,17 +65,18 @@ static spx_status check_device(spx_ctx *ctx, const char *fn) {
   return SPX_OK;
 }
 
-/* At least `bytes` of z-buffer, empty (all ones): filled once, afterwards the kernels empty what
- * they used. zb_clear stays 0 until the caller has enqueued its launches (set it back then). */
-static spx_status ensure_zb(spx_ctx *ctx, spx_projector *p, size_t bytes) {
-  spx_status st = spx_cl_buf_ensure(ctx, &p->zb, bytes, "projection z-buffers");
+/* At least `bytes` of z-buffer *b, empty (all ones): filled once, afterwards the kernels empty
+ * what they used. *clear (the leading bytes known empty) stays 0 until the caller has enqueued its
+ * launches (it sets it back then). */
+static spx_status ensure_empty(spx_ctx *ctx, spx_cl_buf *b, size_t *clear, size_t bytes, const char *what) {
+  spx_status st = spx_cl_buf_ensure(ctx, b, bytes, what);
   if (st) return st;
-  if (p->zb_clear < bytes) {
-    cl_ulong empty = ~(cl_ulong)0;
-    cl_int fe = clEnqueueFillBuffer(ctx->dev->queue, p->zb.mem, &empty, sizeof empty, 0, p->zb.bytes, 0, NULL, NULL);
+  if (*clear < bytes) {
+    cl_uint empty = ~(cl_uint)0; /* 4 bytes: every size here is a multiple */
+    cl_int fe = clEnqueueFillBuffer(ctx->dev->queue, b->mem, &empty, sizeof empty, 0, b->bytes, 0, NULL, NULL);
     if ((st = spx_cl_check(ctx, fe, "spx_project z-buffer fill"))) return st;
   }
-  p->zb_clear = 0;
+  *clear = 0;
   return SPX_OK;
 }
 
@@ -90,25 +91,26 @@ static spx_status project_one(spx_ctx *ctx, spx_projector *p, const spx_project_
   cl_uint hw = (cl_uint)W * (cl_uint)H;
   int own_img = out == p->img.mem, own_win = win == p->win.mem;
   int same = own_img && p->one_img_ok && p->one_npix == npix && p->one_hw == hw && p->one_layout == layout;
-  if (p->touched.bytes < (size_t)npix * sizeof(cl_uint)) same = 0; /* a new list buffer lists nothing */
+  size_t list_bytes = 2 * (size_t)npix * sizeof(cl_uint); /* pixels, then their images */
+  if (p->touched.bytes < list_bytes) same = 0; /* a new list buffer lists nothing */
   cl_int clear = (same ? 0 : 1) | (want_win && !(same && own_win && p->one_win_ok) ? 2 : 0);
   p->one_img_ok = p->one_win_ok = 0; /* until the launch is enqueued */
-  spx_status st = ensure_zb(ctx, p, (size_t)npix * sizeof(cl_ulong));
+  spx_status st = ensure_empty(ctx, &p->zb1, &p->zb1_clear, 4 * (size_t)npix * sizeof(cl_uint), "projection z-buffer");
   if (st) return st;
-  if ((st = spx_cl_buf_ensure(ctx, &p->touched, (size_t)npix * sizeof(cl_uint), "projection touched pixels"))) return st;
+  if ((st = spx_cl_buf_ensure(ctx, &p->touched, list_bytes, "projection touched pixels"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &p->ntouched, sizeof(cl_uint), "projection touched count"))) return st;
   cl_kernel k;
   if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ONE, &k))) return st;
   cl_int e = SPX_ARG(k, 0, pos) | SPX_ARG(k, 1, col) | SPX_ARG(k, 2, has_col) | SPX_ARG(k, 3, p->cams.mem) |
              SPX_ARG(k, 4, N) | SPX_ARG(k, 5, C) | SPX_ARG(k, 6, W) | SPX_ARG(k, 7, H) | SPX_ARG(k, 8, npts) |
              SPX_ARG(k, 9, npix) | SPX_ARG(k, 10, out) | SPX_ARG(k, 11, layout) | SPX_ARG(k, 12, win) |
-             SPX_ARG(k, 13, want_win) | SPX_ARG(k, 14, p->zb.mem) | SPX_ARG(k, 15, p->keys.mem) |
+             SPX_ARG(k, 13, want_win) | SPX_ARG(k, 14, p->zb1.mem) | SPX_ARG(k, 15, p->keys.mem) |
              SPX_ARG(k, 16, p->vals.mem) | SPX_ARG(k, 17, p->touched.mem) | SPX_ARG(k, 18, p->ntouched.mem) |
              SPX_ARG(k, 19, clear);
   if ((st = spx_cl_check(ctx, e, "spx_project_one args"))) return st;
   size_t wg = (size_t)ctx->dev->tune.wg;
   if ((st = spx_cl_run(ctx, k, 1, &wg, &wg, "spx_project_one"))) return st;
-  p->zb_clear = p->zb.bytes;
+  p->zb1_clear = p->zb1.bytes;
   if (own_img) {
     p->one_img_ok = 1;
     p->one_win_ok = own_win && want_win;
@@ -134,7 +136,7 @@ static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project
   if (parts > most) parts = most;
   if (parts < 1) parts = 1;
   cl_uint chunk = (cl_uint)(((size_t)npts + parts - 1) / parts), np = (cl_uint)parts;
-  spx_status st = ensure_zb(ctx, p, parts * npix * sizeof(cl_ulong));
+  spx_status st = ensure_empty(ctx, &p->zb, &p->zb_clear, parts * npix * sizeof(cl_ulong), "projection z-buffers");
   if (st) return st;
   cl_kernel kz, km;
   if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ZBUF, &kz))) return st;
