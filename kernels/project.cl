@@ -27,9 +27,10 @@
 #define SPX_PROJ_FILL_PX 1
 #endif
 
-/* Pixel (row*W + col) and depth of one point, or 0 when it is dropped. */
-inline int spx_project_point(const float *cam, float x, float y, float z, int W, int H, uint *pix,
-                             float *depth) {
+/* Pixel (row*W + col) and depth of one point, or 0 when it is dropped. Always inlined: PoCL
+ * otherwise calls it, and a call keeps the work-item loop of spx_project_one from vectorizing. */
+__attribute__((always_inline)) inline int spx_project_point(const float *cam, float x, float y, float z, int W, int H,
+                                                            uint *pix, float *depth) {
   const float *K = cam, *R = cam + 9, *t = cam + 18;
   float p0 = ((R[0] * x + R[1] * y) + R[2] * z) + t[0];
   float p1 = ((R[3] * x + R[4] * y) + R[5] * z) + t[1];

@@ -1,8 +1,9 @@
 /* Projection with collision resolution (kernels/project.cl) against the plain-C z-buffer
  * reference, bit for bit: random clouds on every device path (fused sort, radix sort, counting
- * sort, z-buffer parts, one launch), forced collisions, equal depths, pixel borders, points behind the camera / outside /
- * non-finite, batching, layouts, determinism, winners; backward against its reference and
- * finite differences; argument errors. */
+ * sort, z-buffer parts, one launch), forced collisions, equal depths, pixel borders, points behind
+ * the camera / outside / non-finite, batching, layouts, determinism, winners, the one-launch
+ * path's image kept between calls; backward against its reference and finite differences;
+ * argument errors. */
 #include <float.h>
 #include <stdlib.h>
 

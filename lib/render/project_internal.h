@@ -17,7 +17,8 @@ struct spx_projector {
   spx_cl_buf zb1, touched, ntouched; /* path 5: its z-buffer, the pixels (and their images) its last call
                                         wrote into img (and win), their count */
   spx_cl_buf dummy;
-  int last_path; /* path of the last forward (1 fused, 2 radix sort, 3 counting sort, 4 z-buffer, 5 one launch; for tests/benchmarks) */
+  int last_path; /* path of the last forward (1 fused, 2 radix sort, 3 counting sort, 4 z-buffer, 5 one
+                   launch; for tests/benchmarks) */
   size_t zb_clear, zb1_clear; /* leading bytes of zb / zb1 known to be empty (all ones); 0 after a failed call */
   /* Path 5 state: img (win) holds the background except at the pixels listed in touched, for
    * images of one_hw pixels, one_npix pixels in all, layout one_layout; 0 when unknown (another
