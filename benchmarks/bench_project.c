@@ -2,7 +2,7 @@
  * read-back of the image) against the plain-C single-thread z-buffer with the same arithmetic
  * (spx_project_ref), in the same run. Median of RUNS runs after warm-up.
  * Point sets: the SMPL-topology body data/body/human_woman.obj (6,890 vertices), its Loop
- * subdivision (27,554), and 10^6 points sampled on its triangles; colors random. The camera
+ * subdivisions (27,554 and 110,210), and 10^6 points sampled on its triangles; colors random. The camera
  * looks at the body from the front so it fills the 410x308 image's height.
  * --stages: the 6,890-point call taken apart instead (each stage enqueued alone and waited for
  * with clFinish, wall clock, median of RUNS): what each piece of spx_project costs.
@@ -127,11 +127,13 @@ int main(int argc, char **argv) {
   spx_device_get_info(ctx, &info);
   printf("device: %s (%s)\n", info.name, info.platform);
   const char *path = argc > 2 ? argv[2] : SPX_REPO_DATA "/body/human_woman.obj";
-  spx_mesh mesh, sub;
+  spx_mesh mesh, sub, sub2;
   memset(&mesh, 0, sizeof mesh);
   memset(&sub, 0, sizeof sub);
+  memset(&sub2, 0, sizeof sub2);
   CHECKED(spx_mesh_load(ctx, path, &mesh));
   CHECKED(spx_mesh_subdivide(ctx, &mesh, 1, &sub));
+  CHECKED(spx_mesh_subdivide(ctx, &mesh, 2, &sub2));
   double lo[3] = {1e30, 1e30, 1e30}, hi[3] = {-1e30, -1e30, -1e30};
   for (int i = 0; i < mesh.nv; i++)
     for (int k = 0; k < 3; k++) {
@@ -143,8 +145,8 @@ int main(int argc, char **argv) {
   double eye[3] = {c[0], c[1], c[2] + dist}, up[3] = {0, 1, 0};
   spx_camera cam;
   CHECKED(spx_camera_look_at(ctx, 410, 308, 308.0 * dist / (1.1 * h), eye, c, up, &cam));
-  printf("mesh: %s, %d vertices (%d after one Loop step)\n", path, mesh.nv, sub.nv);
-  const int ns[] = {mesh.nv, sub.nv, 1000000};
+  printf("mesh: %s, %d vertices (%d / %d after one / two Loop steps)\n", path, mesh.nv, sub.nv, sub2.nv);
+  const int ns[] = {mesh.nv, sub.nv, sub2.nv, 1000000};
   size_t hw = (size_t)cam.width * cam.height;
   float *out = malloc(hw * 4 * sizeof(float)), *ref = malloc(hw * 4 * sizeof(float));
   double *t = malloc(sizeof(double) * (size_t)runs);
@@ -155,6 +157,7 @@ int main(int argc, char **argv) {
     float *pos = malloc(sizeof(float) * 3 * (size_t)n), *col = malloc(sizeof(float) * 3 * (size_t)n);
     if (s == 0) memcpy(pos, mesh.pos, sizeof(float) * 3 * (size_t)n);
     else if (s == 1) memcpy(pos, sub.pos, sizeof(float) * 3 * (size_t)n);
+    else if (s == 2) memcpy(pos, sub2.pos, sizeof(float) * 3 * (size_t)n);
     else sample_surface(&mesh, pos, n);
     random_colors(col, n);
     spx_project_args a = {1, n, pos, col, 1, &cam, SPX_LAYOUT_HWC};
@@ -205,6 +208,7 @@ int main(int argc, char **argv) {
   free(t);
   spx_mesh_free(&mesh);
   spx_mesh_free(&sub);
+  spx_mesh_free(&sub2);
   spx_projector_destroy(p);
   spx_ctx_destroy(ctx);
   return 0;

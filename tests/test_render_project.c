@@ -405,7 +405,7 @@ static void test_large_and_fallback_division(void) {
  * not, layouts, sizes and batches changing, the multi-launch path, a backward (which writes the
  * winners buffer) and a device-tensor call in between — each equal to the reference. */
 static void test_one_launch_sequence(void) {
-  int nmax = 140000; /* step 13: 70,000 points, above the CPU default SPX_PROJ_ONE_MAX (the parts + merge path) */
+  int nmax = 140000; /* step 13: above the CPU default SPX_PROJ_ONE_MAX (the parts + merge path) */
   float *pos = malloc(sizeof(float) * 3 * nmax), *col = malloc(sizeof(float) * 3 * nmax);
   spx_camera cams[2] = {make_cam(61, 47, 50.0, 0.05, -0.02, 0.5), make_cam(61, 47, 45.0, -0.03, 0.04, 0.45)};
   spx_camera big = make_cam(70, 50, 50.0, 0.05, -0.02, 0.5);
@@ -418,7 +418,7 @@ static void test_one_launch_sequence(void) {
     /* six phases of four calls with one geometry each; within a phase winners are asked for in
      * calls 0, 1 and 3 (so both the kept and the stale winners buffer are exercised) */
     int ph = step / 4, B = ph == 2 || ph == 4 ? 2 : 1, C = ph == 2 ? 2 : 1, want_w = step % 4 != 2;
-    int n = step == 13 ? nmax / 2 : step == 21 ? 0 : 200 + 300 * (step % 4);
+    int n = step == 13 ? nmax : step == 21 ? 0 : 200 + 300 * (step % 4);
     make_cloud(pos, col, n * B, 1.0 + 0.1 * (step % 3), 1000 + (unsigned long long)step);
     spx_project_args a = {B, n, n ? pos : NULL, step % 7 == 6 ? NULL : col, C, ph == 3 ? &big : cams,
                           ph == 1 || ph == 4 ? SPX_LAYOUT_NCHW : SPX_LAYOUT_HWC};
@@ -442,7 +442,7 @@ static void test_one_launch_sequence(void) {
     }
   }
   if (ctx->dev->tune.proj_zbuf && ctx->dev->tune.proj_one_max >= 2200) CHECK(saw5 >= 20);
-  if (ctx->dev->tune.proj_zbuf && ctx->dev->tune.proj_one_max < nmax / 2) CHECK(saw4 >= 1);
+  if (ctx->dev->tune.proj_zbuf && ctx->dev->tune.proj_one_max < nmax) CHECK(saw4 >= 1);
   free(pos);
   free(col);
   free(o);
