@@ -193,33 +193,61 @@ __kernel void spx_project_bucket_min(__global const ulong *keys, __global const 
   if (want_winners) winners[q] = (int)v;
 }
 
-/* Z-buffer path (CPU-class devices, SPX_PROJ_ZBUF): part k of the launch walks the points
- * [k*chunk, min((k+1)*chunk, npts)) in order, like the plain-C loop, keeping per pixel the
- * smallest key (depth bits << 32 | point index) in its own z-buffer zb + k*npix (d > 0, so the
- * bits order like the depth; point index = img*N + v, so ties go to the smallest vertex index).
- * spx_project_zmerge then takes the minimum over the parts: the same winner as the stable depth
- * sort's first-of-run, whatever the number of parts. */
-__kernel void spx_project_zbuf(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
-                               uint npts, uint chunk, uint npix, __global ulong *zb) {
-  uint k = get_global_id(0), hw = (uint)W * (uint)H;
-  __global ulong *z = zb + (ulong)k * npix; /* empty (all ones) on entry: see spx_project_zmerge */
-  uint i = k * chunk, i1 = i + chunk < npts ? i + chunk : npts;
-  uint img = i / (uint)N, v = i % (uint)N; /* then walked without divisions */
+/* Point i's pixel over all images (img*hw + row*W + col, ~0 when dropped) and depth bits (d > 0,
+ * so they order like the depth): what the z-buffer walks of paths 4 and 5 compare. */
+__attribute__((always_inline)) inline void spx_project_pix1(const float *cam, __global const float *x, uint q0, int W,
+                                                            int H, __global uint *pixs, __global uint *dbits, uint i) {
+  uint pix = 0;
+  float d = 0.0f;
+  int hit = spx_project_point(cam, x[0], x[1], x[2], W, H, &pix, &d);
+  pixs[i] = hit ? q0 + pix : ~0u;
+  dbits[i] = as_uint(d);
+}
+
+/* Points [v_begin, v_end) of image img (camera cam, vertices x of its set) through
+ * spx_project_pix1, by the whole work-group of SPX_WG items: in rounds with a barrier per round,
+ * so PoCL's work-item loop is the innermost one and vectorizes. */
+__attribute__((always_inline)) inline void spx_project_span(const float *cam, __global const float *x, uint img, int N,
+                                                            uint v_begin, uint v_end, int W, int H,
+                                                            __global uint *pixs, __global uint *dbits) {
+  for (uint v0 = v_begin; v0 < v_end; v0 += SPX_WG) {
+    uint v = v0 + get_local_id(0);
+    if (v < v_end)
+      spx_project_pix1(cam, x + (ulong)v * 3, img * (uint)W * (uint)H, W, H, pixs, dbits, img * (uint)N + v);
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+}
+
+#define SPX_PROJ_PIX_ROUNDS 16 /* rounds of SPX_WG points per work-group of spx_project_pix */
+
+/* Z-buffer path (path 4), step 1: every point's pixel and depth bits, work-group (g, img) taking
+ * SPX_PROJ_PIX_ROUNDS * SPX_WG points of image img (one camera load per work-group). */
+__kernel __attribute__((reqd_work_group_size(SPX_WG, 1, 1))) void
+spx_project_pix(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
+                __global uint *pixs, __global uint *dbits) {
+  uint img = get_group_id(1), v0 = get_group_id(0) * (SPX_PROJ_PIX_ROUNDS * SPX_WG);
+  uint v1 = min(v0 + SPX_PROJ_PIX_ROUNDS * SPX_WG, (uint)N);
   float cam[SPX_CAM_FLOATS];
-  while (i < i1) {
-    for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
-    __global const float *x = pos + ((ulong)(img / (uint)C) * N) * 3;
-    __global ulong *zi = z + (ulong)img * hw;
-    uint vend = (uint)N - v < i1 - i ? (uint)N : v + (i1 - i);
-    for (; v < vend; v++, i++) {
-      uint pix;
-      float d;
-      if (!spx_project_point(cam, x[v * 3], x[v * 3 + 1], x[v * 3 + 2], W, H, &pix, &d)) continue;
-      ulong key = (ulong)as_uint(d) << 32 | i;
-      if (key < zi[pix]) zi[pix] = key;
-    }
-    img++;
-    v = 0;
+  for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
+  spx_project_span(cam, pos + (ulong)(img / (uint)C) * N * 3, img, N, v0, v1, W, H, pixs, dbits);
+}
+
+/* Z-buffer path, step 2 (CPU-class devices, SPX_PROJ_ZBUF): part k of the launch walks the points
+ * [k*chunk, min((k+1)*chunk, npts)) in order, like the plain-C loop, keeping per pixel the
+ * smallest key (depth bits << 32 | point index) in its own z-buffer zb + k*npix (point index =
+ * img*N + v, so ties go to the smallest vertex index). spx_project_zmerge then takes the minimum
+ * over the parts: the same winner as the stable depth sort's first-of-run, whatever the number of
+ * parts. */
+__kernel void spx_project_zbuf(__global const uint *pixs, __global const uint *dbits, uint npts, uint chunk, uint npix,
+                               __global ulong *zb) {
+  uint k = get_global_id(0);
+  __global ulong *z = zb + (ulong)k * npix; /* empty (all ones) on entry: see spx_project_zmerge */
+  uint i1 = k * chunk + chunk < npts ? k * chunk + chunk : npts;
+  for (uint i = k * chunk; i < i1; i++) {
+    uint q = pixs[i];
+    if (q == ~0u) continue;
+    ulong key = (ulong)dbits[i] << 32 | i;
+    if (key < z[q]) z[q] = key;
   }
 }
 
@@ -301,17 +329,7 @@ spx_project_one(__global const float *pos, __global const float *col, int has_co
   for (uint img = 0; img < nimg; img++) {
     float cam[SPX_CAM_FLOATS];
     for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
-    __global const float *x = pos + (ulong)(img / (uint)C) * N * 3;
-    for (uint v0 = 0; v0 < (uint)N; v0 += SPX_WG) {
-      uint v = v0 + lid, i = img * (uint)N + v, pix = 0;
-      float d = 0.0f;
-      if (v < (uint)N) {
-        int hit = spx_project_point(cam, x[v * 3], x[v * 3 + 1], x[v * 3 + 2], W, H, &pix, &d);
-        pixs[i] = hit ? img * hw + pix : ~0u;
-        dbits[i] = as_uint(d);
-      }
-      barrier(CLK_LOCAL_MEM_FENCE);
-    }
+    spx_project_span(cam, pos + (ulong)(img / (uint)C) * N * 3, img, N, 0, (uint)N, W, H, pixs, dbits);
   }
   barrier(CLK_GLOBAL_MEM_FENCE);
   if (lid == 0) {

@@ -121,8 +121,9 @@ static spx_status project_one(spx_ctx *ctx, spx_projector *p, const spx_project_
   return SPX_OK;
 }
 
-/* Path 4: parts = min(SPX_PROJ_ZB_PARTS or the compute units, points / SPX_PROJ_ZB_CHUNK) z-buffers, each filled by one
- * work-item walking its share of the points in order (the plain-C loop), then one merge pass
+/* Path 4: every point's pixel and depth in parallel (spx_project_pix), then parts = min(SPX_PROJ_ZB_PARTS or the
+ * compute units, points / SPX_PROJ_ZB_CHUNK) z-buffers, each filled by one work-item walking its
+ * share of the points in order (the plain-C loop's comparisons), then one merge pass
  * over the pixels that also writes the background and empties the z-buffer entries it used (so
  * no fill pass per call). The output does not depend on the number of parts. */
 static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out, cl_mem win,
@@ -138,12 +139,19 @@ static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project
   cl_uint chunk = (cl_uint)(((size_t)npts + parts - 1) / parts), np = (cl_uint)parts;
   spx_status st = ensure_empty(ctx, &p->zb, &p->zb_clear, parts * npix * sizeof(cl_ulong), "projection z-buffers");
   if (st) return st;
-  cl_kernel kz, km;
+  cl_kernel kp, kz, km;
+  if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_PIX, &kp))) return st;
   if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ZBUF, &kz))) return st;
   if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ZMERGE, &km))) return st;
-  cl_int e = SPX_ARG(kz, 0, pos) | SPX_ARG(kz, 1, p->cams.mem) | SPX_ARG(kz, 2, N) | SPX_ARG(kz, 3, C) |
-             SPX_ARG(kz, 4, W) | SPX_ARG(kz, 5, H) | SPX_ARG(kz, 6, npts) | SPX_ARG(kz, 7, chunk) |
-             SPX_ARG(kz, 8, npix) | SPX_ARG(kz, 9, p->zb.mem);
+  /* pixels and depth bits of all points in parallel (pixs = vals, dbits = keys viewed as uints) */
+  cl_int e = SPX_ARG(kp, 0, pos) | SPX_ARG(kp, 1, p->cams.mem) | SPX_ARG(kp, 2, N) | SPX_ARG(kp, 3, C) |
+             SPX_ARG(kp, 4, W) | SPX_ARG(kp, 5, H) | SPX_ARG(kp, 6, p->vals.mem) | SPX_ARG(kp, 7, p->keys.mem);
+  if ((st = spx_cl_check(ctx, e, "spx_project_pix args"))) return st;
+  size_t wg = (size_t)ctx->dev->tune.wg, span = 16 * wg; /* SPX_PROJ_PIX_ROUNDS in kernels/project.cl */
+  size_t gp[2] = {((size_t)N + span - 1) / span * wg, (size_t)a->batch * (size_t)C}, lp[2] = {wg, 1};
+  if ((st = spx_cl_run(ctx, kp, 2, gp, lp, "spx_project_pix"))) return st;
+  e = SPX_ARG(kz, 0, p->vals.mem) | SPX_ARG(kz, 1, p->keys.mem) | SPX_ARG(kz, 2, npts) | SPX_ARG(kz, 3, chunk) |
+      SPX_ARG(kz, 4, npix) | SPX_ARG(kz, 5, p->zb.mem);
   if ((st = spx_cl_check(ctx, e, "spx_project_zbuf args"))) return st;
   size_t one = 1;
   if ((st = spx_cl_run(ctx, kz, 1, &parts, &one, "spx_project_zbuf"))) return st;
