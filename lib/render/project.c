@@ -80,20 +80,31 @@ static spx_status ensure_empty(spx_ctx *ctx, spx_cl_buf *b, size_t *clear, size_
   return SPX_OK;
 }
 
+/* The scalar and buffer arguments paths 4 and 5 pass to their kernels. */
+typedef struct launch_args {
+  cl_int N, C, W, H, layout, want_win, has_col;
+  cl_mem pos, col;
+} launch_args;
+
+static launch_args launch_args_of(const spx_projector *p, const spx_project_dev_args *a, cl_mem win) {
+  launch_args l = {a->nverts, a->ncams, a->cams[0].width, a->cams[0].height, (cl_int)a->layout,
+                   win != p->dummy.mem, a->col != NULL, a->pos ? a->pos : p->dummy.mem,
+                   a->col ? a->col : p->dummy.mem};
+  return l;
+}
+
 /* Path 5: one launch of one work-group (kernels/project.cl spx_project_one). Into the projector's
  * own img / win it clears only the pixels its previous call wrote when the state allows (same
  * geometry and layout, nothing else wrote there since); anything else is cleared in full. */
 static spx_status project_one(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out, cl_mem win,
                               cl_uint npts, cl_uint npix) {
-  cl_int N = a->nverts, C = a->ncams, W = a->cams[0].width, H = a->cams[0].height, layout = (cl_int)a->layout;
-  cl_int want_win = win != p->dummy.mem, has_col = a->col != NULL;
-  cl_mem pos = a->pos ? a->pos : p->dummy.mem, col = a->col ? a->col : p->dummy.mem;
-  cl_uint hw = (cl_uint)W * (cl_uint)H;
+  launch_args la = launch_args_of(p, a, win);
+  cl_uint hw = (cl_uint)la.W * (cl_uint)la.H;
   int own_img = out == p->img.mem, own_win = win == p->win.mem;
-  int same = own_img && p->one_img_ok && p->one_npix == npix && p->one_hw == hw && p->one_layout == layout;
+  int same = own_img && p->one_img_ok && p->one_npix == npix && p->one_hw == hw && p->one_layout == la.layout;
   size_t list_bytes = 2 * (size_t)npix * sizeof(cl_uint); /* pixels, then their images */
   if (p->touched.bytes < list_bytes) same = 0; /* a new list buffer lists nothing */
-  cl_int clear = (same ? 0 : 1) | (want_win && !(same && own_win && p->one_win_ok) ? 2 : 0);
+  cl_int clear = (same ? 0 : 1) | (la.want_win && !(same && own_win && p->one_win_ok) ? 2 : 0);
   p->one_img_ok = p->one_win_ok = 0; /* until the launch is enqueued */
   spx_status st = ensure_empty(ctx, &p->zb1, &p->zb1_clear, 4 * (size_t)npix * sizeof(cl_uint), "projection z-buffer");
   if (st) return st;
@@ -101,10 +112,10 @@ static spx_status project_one(spx_ctx *ctx, spx_projector *p, const spx_project_
   if ((st = spx_cl_buf_ensure(ctx, &p->ntouched, sizeof(cl_uint), "projection touched count"))) return st;
   cl_kernel k;
   if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ONE, &k))) return st;
-  cl_int e = SPX_ARG(k, 0, pos) | SPX_ARG(k, 1, col) | SPX_ARG(k, 2, has_col) | SPX_ARG(k, 3, p->cams.mem) |
-             SPX_ARG(k, 4, N) | SPX_ARG(k, 5, C) | SPX_ARG(k, 6, W) | SPX_ARG(k, 7, H) | SPX_ARG(k, 8, npts) |
-             SPX_ARG(k, 9, npix) | SPX_ARG(k, 10, out) | SPX_ARG(k, 11, layout) | SPX_ARG(k, 12, win) |
-             SPX_ARG(k, 13, want_win) | SPX_ARG(k, 14, p->zb1.mem) | SPX_ARG(k, 15, p->keys.mem) |
+  cl_int e = SPX_ARG(k, 0, la.pos) | SPX_ARG(k, 1, la.col) | SPX_ARG(k, 2, la.has_col) | SPX_ARG(k, 3, p->cams.mem) |
+             SPX_ARG(k, 4, la.N) | SPX_ARG(k, 5, la.C) | SPX_ARG(k, 6, la.W) | SPX_ARG(k, 7, la.H) | SPX_ARG(k, 8, npts) |
+             SPX_ARG(k, 9, npix) | SPX_ARG(k, 10, out) | SPX_ARG(k, 11, la.layout) | SPX_ARG(k, 12, win) |
+             SPX_ARG(k, 13, la.want_win) | SPX_ARG(k, 14, p->zb1.mem) | SPX_ARG(k, 15, p->keys.mem) |
              SPX_ARG(k, 16, p->vals.mem) | SPX_ARG(k, 17, p->touched.mem) | SPX_ARG(k, 18, p->ntouched.mem) |
              SPX_ARG(k, 19, clear);
   if ((st = spx_cl_check(ctx, e, "spx_project_one args"))) return st;
@@ -113,10 +124,10 @@ static spx_status project_one(spx_ctx *ctx, spx_projector *p, const spx_project_
   p->zb1_clear = p->zb1.bytes;
   if (own_img) {
     p->one_img_ok = 1;
-    p->one_win_ok = own_win && want_win;
+    p->one_win_ok = own_win && la.want_win;
     p->one_npix = npix;
     p->one_hw = hw;
-    p->one_layout = layout;
+    p->one_layout = la.layout;
   }
   return SPX_OK;
 }
@@ -128,9 +139,7 @@ static spx_status project_one(spx_ctx *ctx, spx_projector *p, const spx_project_
  * no fill pass per call). The output does not depend on the number of parts. */
 static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out, cl_mem win,
                                cl_uint npts, cl_uint npix) {
-  cl_int N = a->nverts, C = a->ncams, W = a->cams[0].width, H = a->cams[0].height, layout = (cl_int)a->layout;
-  cl_int want_win = win != p->dummy.mem, has_col = a->col != NULL;
-  cl_mem pos = a->pos ? a->pos : p->dummy.mem, col = a->col ? a->col : p->dummy.mem;
+  launch_args la = launch_args_of(p, a, win);
   size_t per = (size_t)ctx->dev->tune.proj_zb_chunk, most = (size_t)ctx->dev->tune.proj_zb_parts;
   if (!most) most = ctx->dev->info.compute_units ? ctx->dev->info.compute_units : 1;
   size_t parts = ((size_t)npts + per - 1) / per;
@@ -144,20 +153,20 @@ static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project
   if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ZBUF, &kz))) return st;
   if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ZMERGE, &km))) return st;
   /* pixels and depth bits of all points in parallel (pixs = vals, dbits = keys viewed as uints) */
-  cl_int e = SPX_ARG(kp, 0, pos) | SPX_ARG(kp, 1, p->cams.mem) | SPX_ARG(kp, 2, N) | SPX_ARG(kp, 3, C) |
-             SPX_ARG(kp, 4, W) | SPX_ARG(kp, 5, H) | SPX_ARG(kp, 6, p->vals.mem) | SPX_ARG(kp, 7, p->keys.mem);
+  cl_int e = SPX_ARG(kp, 0, la.pos) | SPX_ARG(kp, 1, p->cams.mem) | SPX_ARG(kp, 2, la.N) | SPX_ARG(kp, 3, la.C) |
+             SPX_ARG(kp, 4, la.W) | SPX_ARG(kp, 5, la.H) | SPX_ARG(kp, 6, p->vals.mem) | SPX_ARG(kp, 7, p->keys.mem);
   if ((st = spx_cl_check(ctx, e, "spx_project_pix args"))) return st;
   size_t wg = (size_t)ctx->dev->tune.wg, span = 16 * wg; /* SPX_PROJ_PIX_ROUNDS in kernels/project.cl */
-  size_t gp[2] = {((size_t)N + span - 1) / span * wg, (size_t)a->batch * (size_t)C}, lp[2] = {wg, 1};
+  size_t gp[2] = {((size_t)la.N + span - 1) / span * wg, (size_t)a->batch * (size_t)la.C}, lp[2] = {wg, 1};
   if ((st = spx_cl_run(ctx, kp, 2, gp, lp, "spx_project_pix"))) return st;
   e = SPX_ARG(kz, 0, p->vals.mem) | SPX_ARG(kz, 1, p->keys.mem) | SPX_ARG(kz, 2, npts) | SPX_ARG(kz, 3, chunk) |
       SPX_ARG(kz, 4, npix) | SPX_ARG(kz, 5, p->zb.mem);
   if ((st = spx_cl_check(ctx, e, "spx_project_zbuf args"))) return st;
   size_t one = 1;
   if ((st = spx_cl_run(ctx, kz, 1, &parts, &one, "spx_project_zbuf"))) return st;
-  e = SPX_ARG(km, 0, p->zb.mem) | SPX_ARG(km, 1, np) | SPX_ARG(km, 2, col) | SPX_ARG(km, 3, has_col) |
-      SPX_ARG(km, 4, N) | SPX_ARG(km, 5, C) | SPX_ARG(km, 6, W) | SPX_ARG(km, 7, H) | SPX_ARG(km, 8, npix) |
-      SPX_ARG(km, 9, out) | SPX_ARG(km, 10, layout) | SPX_ARG(km, 11, win) | SPX_ARG(km, 12, want_win);
+  e = SPX_ARG(km, 0, p->zb.mem) | SPX_ARG(km, 1, np) | SPX_ARG(km, 2, la.col) | SPX_ARG(km, 3, la.has_col) |
+      SPX_ARG(km, 4, la.N) | SPX_ARG(km, 5, la.C) | SPX_ARG(km, 6, la.W) | SPX_ARG(km, 7, la.H) | SPX_ARG(km, 8, npix) |
+      SPX_ARG(km, 9, out) | SPX_ARG(km, 10, la.layout) | SPX_ARG(km, 11, win) | SPX_ARG(km, 12, la.want_win);
   if ((st = spx_cl_check(ctx, e, "spx_project_zmerge args"))) return st;
   size_t fill_px = (size_t)ctx->dev->tune.proj_fill_px, g = (npix + fill_px - 1) / fill_px;
   size_t l = (size_t)ctx->dev->tune.wg;
