@@ -284,6 +284,11 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
     int cur[MAXG] = {0}, skip = 0;
     spx_tunable_info on;
     const char *needs = group_needs(&gs[g]);
+    if (p->quick && !strcmp(gs[g].names[0], "CONV_WINO_LDS") && tunable(ctx, "CONV_WINO_LDS", &on) &&
+        !on.default_value) { /* the GPU variant on a CPU: 10-40x slower on 2-core PoCL, not worth --quick's time */
+      fprintf(out, "  CONV_WINO_LDS: off by default on this device class, tried in the full search only\n");
+      continue;
+    }
     if (needs && tunable(ctx, needs, &on) && !on.value) {
       fprintf(out, "  %s%s%s: not tuned (%s is 0)\n", gs[g].names[0], gs[g].n > 1 ? " " : "",
               gs[g].n > 1 ? gs[g].names[1] : "", needs);
