@@ -138,13 +138,9 @@ __kernel void spx_wino_out(const __global float *M, __global float *y, ulong y_o
   const size_t es = (size_t)CoutP * Tp;
   for (int e = 0; e < 36; e++) m[e] = VLOAD(mp + e * es);
   /* r = A^T m (4x6), then o = r A (4x4) */
-  for (int j = 0; j < 6; j++) {
-    WINO_AT(vf, o0, o1, o2, o3, (m + j), 6);
-    r[j] = o0, r[6 + j] = o1, r[12 + j] = o2, r[18 + j] = o3;
-  }
-  const float bv = (flags & FL_BIAS) ? bias[b_off + co] : 0.0f;
-  const float sc = (flags & FL_SCALE) ? scale[sc_off + co] : 1.0f;
-  const float sh = (flags & FL_SHIFT) ? shift[sh_off + co] : 0.0f;
+  WINO_AT_COLS(vf, r, m);
+  float bv, sc, sh;
+  wino_epi_consts(flags, bias, b_off, scale, sc_off, shift, sh_off, co, &bv, &sc, &sh);
   const int ty = t0 / TWp, tx0 = t0 - ty * TWp, ox0 = 4 * tx0;
   __global float *yc = y + y_off + ((size_t)n * Cout + co) * H * W;
   for (int i = 0; i < 4; i++) {

@@ -141,13 +141,9 @@ __kernel __attribute__((reqd_work_group_size(WL_L, 1, 1))) void spx_wino_lds(
     if (co >= Cout || ox0 >= W) continue;
     float mm[36], r[24];
     for (int ee = 0; ee < 36; ee++) mm[ee] = ms[(ee * WL_BM + cl) * WL_BN + t];
-    for (int j = 0; j < 6; j++) {
-      WINO_AT(float, o0, o1, o2, o3, (mm + j), 6);
-      r[j] = o0, r[6 + j] = o1, r[12 + j] = o2, r[18 + j] = o3;
-    }
-    const float bv = (flags & FL_BIAS) ? bias[b_off + co] : 0.0f;
-    const float sc = (flags & FL_SCALE) ? scale[sc_off + co] : 1.0f;
-    const float sh = (flags & FL_SHIFT) ? shift[sh_off + co] : 0.0f;
+    WINO_AT_COLS(float, r, mm);
+    float bv, sc, sh;
+    wino_epi_consts(flags, bias, b_off, scale, sc_off, shift, sh_off, co, &bv, &sc, &sh);
     __global float *yc = y + y_off + ((size_t)n * Cout + co) * hw;
     for (int a = 0; a < 4; a++) {
       const int oy = 4 * ty + a;

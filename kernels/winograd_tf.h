@@ -29,6 +29,13 @@
     o3 = b_ + 8.0f * d_ + m5_;                                                                               \
   } while (0)
 
+/* r[0..23] (4 rows of 6) = A^T m for the 6x6 products m[0..35] of one tile, elements of type T. */
+#define WINO_AT_COLS(T, r, m)                                                                                \
+  for (int j_ = 0; j_ < 6; j_++) {                                                                           \
+    WINO_AT(T, o0_, o1_, o2_, o3_, (m + j_), 6);                                                             \
+    r[j_] = o0_, r[6 + j_] = o1_, r[12 + j_] = o2_, r[18 + j_] = o3_;                                        \
+  }
+
 /* u[0..35] = G g G^T of one 3x3 filter g[0..8] (row-major), h = G g first. */
 #define WINO_R6 0.16666667f /* 1/6, 1/12, 1/24 rounded to float (multiplications, not divisions) */
 #define WINO_R12 0.083333336f
@@ -64,6 +71,15 @@ static inline void wino_filter_of(const __global float *w, int Cin, int oc, int 
     if (c < oc) v = flip ? w[((size_t)r * Cin + c) * 9 + (8 - k)] : w[((size_t)c * Cin + r) * 9 + k];
     g[k] = v;
   }
+}
+
+/* The epilogue's per-channel values of output channel co (bias, scale, shift; neutral when off). */
+static inline void wino_epi_consts(int flags, const __global float *bias, ulong b_off, const __global float *scale,
+                                   ulong sc_off, const __global float *shift, ulong sh_off, int co, float *bv,
+                                   float *sc, float *sh) {
+  *bv = (flags & FL_BIAS) ? bias[b_off + co] : 0.0f;
+  *sc = (flags & FL_SCALE) ? scale[sc_off + co] : 1.0f;
+  *sh = (flags & FL_SHIFT) ? shift[sh_off + co] : 0.0f;
 }
 
 /* Epilogue of one output (accumulate / bias / affine / ReLU, as conv2d.cl), stored at yo. */

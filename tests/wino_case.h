@@ -9,6 +9,7 @@
 
 #include "cl/cl_internal.h"
 #include "nn/conv2d.h"
+#include "nn_testutil.h"
 
 static unsigned long long rng = 0x243f6a8885a308d3ULL;
 static void fill_rand(double *a, size_t n) {
@@ -88,16 +89,6 @@ static void wino_magnitude(int n, int cin, int h, int wd, int cout, const double
   free(vd);
 }
 
-static cl_mem upload(spx_ctx *ctx, const double *a, size_t n, size_t off) {
-  float *f = malloc((n + off) * sizeof(float));
-  for (size_t i = 0; i < off; i++) f[i] = 1234.5f;
-  for (size_t i = 0; i < n; i++) f[off + i] = (float)a[i];
-  cl_mem m = NULL;
-  CHECK_OK(ctx, spx_cl_alloc(ctx, (n + off) * sizeof(float), "test", &m));
-  if (m) CHECK_OK(ctx, spx_cl_write(ctx, m, 0, (n + off) * sizeof(float), f));
-  free(f);
-  return m;
-}
 
 typedef struct wcase {
   int n, cin, h, w, cout, bias, affine, relu;
@@ -124,8 +115,9 @@ static void run_case(spx_ctx *ctx, const wcase *c, spx_conv2d_workspace *ws, flo
       for (int k = 0; k < 9; k++) wt[((size_t)ci * c->cout + co) * 9 + k] = w[((size_t)co * c->cin + ci) * 9 + 8 - k];
   wino_magnitude(c->n, c->cout, c->h, c->w, c->cin, dy, wt, wdx);
 
-  cl_mem mx = upload(ctx, x, nx, off), mw = upload(ctx, w, nw, off), mb = upload(ctx, b, nb, off);
-  cl_mem msc = upload(ctx, sc, nb, off), msh = upload(ctx, sh, nb, off), mdy = upload(ctx, dy, ny, off);
+  cl_mem mx = spx_nt_upload_d(ctx, x, nx, off), mw = spx_nt_upload_d(ctx, w, nw, off);
+  cl_mem mb = spx_nt_upload_d(ctx, b, nb, off), msc = spx_nt_upload_d(ctx, sc, nb, off);
+  cl_mem msh = spx_nt_upload_d(ctx, sh, nb, off), mdy = spx_nt_upload_d(ctx, dy, ny, off);
   cl_mem my = NULL, mdx = NULL;
   CHECK_OK(ctx, spx_cl_alloc(ctx, (ny + off + 8) * 4, "y", &my));
   CHECK_OK(ctx, spx_cl_alloc(ctx, (nx + off) * 4, "dx", &mdx));
