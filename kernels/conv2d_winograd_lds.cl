@@ -11,8 +11,8 @@
  * (interleaved, so neighbouring work-items read neighbouring local words). Per block of
  * CONV_WLDS_KB input channels the group
  *   1. copies the block's input rows (6 rows x 4*BN+2 columns per channel, zero outside the
- *      image: no padded copy of the input) and the block's transformed weights U[e][ci][BM]
- *      into local memory,
+ *      image: no padded copy of the input) and the block's transformed weights (one contiguous
+ *      run of U[cb][ci][e][BM]) into local memory,
  *   2. transforms the input in local memory, V[ci][e][BN] = B^T d B (one work-item per channel
  *      and tile),
  *   3. accumulates M[e][co][t] += U[e][ci][co] V[ci][e][t] in registers;
@@ -56,9 +56,10 @@
 #define WL_MS (36 * WL_BM * WL_BN)
 #define WL_POOL (WL_XS + WL_VS + WL_US > WL_MS ? WL_XS + WL_VS + WL_US : WL_MS)
 
-/* U[e][r][c] = (G g G^T)[e] for GEMM column c (cols: the row count rounded up to WL_BM, extra
- * columns zero) and reduction index r; flip as in winograd_tf.h's wino_filter_of. One work-item
- * per (r, c), c fastest (stores are contiguous along c). Global: red * cols. */
+/* U[cb][r][e][m] = (G g G^T)[e] for GEMM column c = cb*WL_BM + m (cols: the row count rounded up
+ * to WL_BM, extra columns zero) and reduction index r; flip as in winograd_tf.h's wino_filter_of.
+ * A group's block of KB reduction indices is then one contiguous run of KB*36*WL_BM floats, in the
+ * order of its local copy (coalesced loads). One work-item per (r, c), c fastest. Global: red * cols. */
 __kernel void spx_wino_lds_weights(const __global float *w, ulong w_off, __global float *U, int Cout, int Cin,
                                    int cols, int flip) {
   const int i = SPX_GID0, red = flip ? Cout : Cin;
@@ -67,7 +68,8 @@ __kernel void spx_wino_lds_weights(const __global float *w, ulong w_off, __globa
   float g[9], u[36];
   wino_filter_of(w + w_off, Cin, flip ? Cin : Cout, c, r, flip, g);
   wino_filter(g, u);
-  for (int e = 0; e < 36; e++) U[((size_t)e * red + r) * cols + c] = u[e];
+  __global float *ub = U + (((size_t)(c / WL_BM) * red + r) * 36) * WL_BM + c % WL_BM;
+  for (int e = 0; e < 36; e++) ub[e * WL_BM] = u[e];
 }
 
 /* x [N][Cin][H][W] (the layer's input at its offset), U from spx_wino_lds_weights (CoutP columns),
@@ -99,10 +101,8 @@ __kernel __attribute__((reqd_work_group_size(WL_L, 1, 1))) void spx_wino_lds(
       int gy = gy0 + row, gx = gx0 + col;
       xs[i] = gy >= 0 && gy < H && gx >= 0 && gx < W ? xn[(size_t)(c0 + c) * hw + gy * W + gx] : 0.0f;
     }
-    for (int i = lid; i < nc * 36 * WL_BM; i += WL_L) {
-      int c = i / (36 * WL_BM), r = i - c * (36 * WL_BM), ee = r / WL_BM, co = r - ee * WL_BM;
-      us[i] = U[((size_t)ee * Cin + c0 + c) * CoutP + cb * WL_BM + co];
-    }
+    const __global float *ub = U + ((size_t)cb * Cin + c0) * 36 * WL_BM; /* [c][e][m] of this block */
+    for (int i = lid; i < nc * 36 * WL_BM; i += WL_L) us[i] = ub[i];
     barrier(CLK_LOCAL_MEM_FENCE);
     for (int i = lid; i < nc * WL_BN; i += WL_L) { /* V = B^T d B, as spx_wino_in */
       int c = i / WL_BN, t = i - c * WL_BN;
