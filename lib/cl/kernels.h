@@ -41,6 +41,8 @@
   X(WINO_WEIGHTS, "conv2d_winograd.cl", "spx_wino_weights")            \
   X(WINO_GEMM, "conv2d_winograd.cl", "spx_wino_gemm")                  \
   X(WINO_OUT, "conv2d_winograd.cl", "spx_wino_out")                    \
+  X(WINO_LDS_WEIGHTS, "conv2d_winograd_lds.cl", "spx_wino_lds_weights") \
+  X(WINO_LDS, "conv2d_winograd_lds.cl", "spx_wino_lds")                \
   X(INSTNORM_FWD, "instnorm.cl", "spx_instnorm_fwd")                   \
   X(INSTNORM_BWD, "instnorm.cl", "spx_instnorm_bwd")                   \
   X(BODY_JOINTS, "lbs.cl", "spx_body_joints")                          \
@@ -62,8 +64,10 @@
   X(PROJECT_SORT_SCATTER, "project.cl", "spx_project_sort_scatter")    \
   X(PROJECT_VPIX, "project.cl", "spx_project_vpix")                    \
   X(PROJECT_GRAD, "project.cl", "spx_project_grad")                    \
+  X(PROJECT_PIX, "project.cl", "spx_project_pix")                      \
   X(PROJECT_ZBUF, "project.cl", "spx_project_zbuf")                    \
   X(PROJECT_ZMERGE, "project.cl", "spx_project_zmerge")                \
+  X(PROJECT_ONE, "project.cl", "spx_project_one")                      \
   X(SORT_HIST, "radix_sort.cl", "spx_sort_hist")                       \
   X(SCAN_BLOCK, "radix_sort.cl", "spx_scan_block")                     \
   X(SCAN_ADD, "radix_sort.cl", "spx_scan_add")                         \
