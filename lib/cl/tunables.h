@@ -43,6 +43,7 @@ struct spx_tunables {
   int conv_wino_minc;     /* Winograd */
   int conv_wino_train;
   int conv_wino_chunk;
+  int conv_wino_dw;       /* Winograd weight gradient */
   int conv_red_wg;        /* conv2d bias gradient */
   int wg2_x;              /* 2-D (x, y, plane) kernels */
   int wg2_y;

@@ -109,6 +109,11 @@ static const struct spx_tunable spx_tunables[] = {
      * units of 2^20 floats (4 MiB); a pass takes as many samples as fit, at least one (0: always
      * one). Bounds the transforms of a batch-4 training step (lib/nn/conv2d_winograd.c) */
     {"CONV_WINO_CHUNK", F(conv_wino_chunk), 32, 32, 0, 1 << 16, 0},
+    /* training weight gradients of 3x3 / stride 1 / pad 1 layers with at least this many input
+     * and output channels (and CONV_WINO_TRAIN on) run Winograd F(4x4,3x3)
+     * (kernels/conv2d_winograd_dw.cl); 0 = never (direct, kernels/conv2d_bwd.cl). CPU: see
+     * benchmarks/RESULTS.md "Training step with Winograd (issue 16)"; GPU: unmeasured, off */
+    {"CONV_WINO_DW", F(conv_wino_dw), 64, 0, 0, 1 << 20, 0},
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", F(conv_red_wg), 16, 256, 1, 1024, T_POW2|T_WG},
     /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,
