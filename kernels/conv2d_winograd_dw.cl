@@ -8,7 +8,7 @@
  * summed over tiles (and samples). The sum over tiles moves inside the weight transform, so
  *   1. spx_wino_in (conv2d_winograd.cl) on the zero-padded input:  V[n][e][ci][t]
  *   2. spx_wino_dw_grad:    Q[n][e][co][t] = (A dY A^T)[e]       (e = 0..35, zero outside the image)
- *   3. spx_wino_dw_gemm:    P[e][co][ci] += sum_t Q[n][e][co][t] V[n][e][ci][t]  (36 GEMMs, the
+ *   3. spx_wino_dw_gemm:    P[co][ci][e] += sum_t Q[n][e][co][t] V[n][e][ci][t]  (36 GEMMs, the
  *                           tile axis is the reduction; one fixed-order sum per sample, added to P
  *                           sample after sample, so P does not depend on how the batch is split)
  *   4. spx_wino_dw_weights: dw[co][ci] += G^T P[.][co][ci] G     (6x6 -> 3x3)
@@ -71,11 +71,12 @@ __kernel void spx_wino_dw_grad(const __global float *dy, ulong dy_off, __global 
   for (int e = 0; e < 36; e++) VSTORE(q[e], qo + e * es);
 }
 
-/* The 36 GEMMs over the tiles of NS samples: P[e][co][ci] = (accum ? P : 0) + s_0 + s_1 + ...,
+/* The 36 GEMMs over the tiles of NS samples: P[co][ci][e] = (accum ? P : 0) + s_0 + s_1 + ...,
  * s_n = sum_t Q[n][e][co][t] V[n][e][ci][t] (CONV_VW lanes of partial sums, then VSUM). A
  * work-item owns CONV_DW_TM out channels x CONV_DW_G tiles of CONV_DW_TN in channels; it walks
  * the tiles in blocks of CONV_DW_QB and updates every channel tile per block, so the block of Q
- * stays in L1 while V streams. Global: (ceil(Cin / (TN*G)), ceil(Cout / TM), 36). */
+ * stays in L1 while V streams. (P's 36 entries of one weight pair are adjacent, so that
+ * spx_wino_dw_weights reads them in one line.) Global: (ceil(Cin / (TN*G)), ceil(Cout / TM), 36). */
 __kernel void spx_wino_dw_gemm(const __global float *Q, const __global float *V, __global float *P, int Cin,
                                int Cout, int T, int NS, int accum) {
   const int ct0 = (int)get_global_id(0) * CONV_DW_G, co0 = (int)get_global_id(1) * CONV_DW_TM;
@@ -133,7 +134,7 @@ __kernel void spx_wino_dw_gemm(const __global float *Q, const __global float *V,
         for (int j = 0; j < CONV_DW_TN; j++) {
           const int ci = (ct0 + g) * CONV_DW_TN + j;
           if (ci >= Cin) break;
-          __global float *pp = P + ((size_t)e * Cout + co) * Cin + ci;
+          __global float *pp = P + ((size_t)co * Cin + ci) * 36 + e;
           *pp = (accum || n > 0 ? *pp : 0.0f) + VSUM(sums[g][m][j]);
         }
       }
@@ -157,9 +158,8 @@ __kernel void spx_wino_dw_gemm(const __global float *Q, const __global float *V,
 __kernel void spx_wino_dw_weights(const __global float *P, __global float *dw, ulong dw_off, int Cout, int Cin) {
   const int i = SPX_GID0; /* co * Cin + ci */
   if (i >= Cout * Cin) return;
-  const size_t es = (size_t)Cout * Cin;
   float p[36], h[18], o[9];
-  for (int e = 0; e < 36; e++) p[e] = P[e * es + i];
+  for (int e = 0; e < 36; e++) p[e] = P[(size_t)i * 36 + e];
   for (int b = 0; b < 6; b++) WINO_GT((h + b), (p + b), 6, 6); /* columns: h (3x6) = G^T p */
   for (int a = 0; a < 3; a++) WINO_GT((o + 3 * a), (h + 6 * a), 1, 1); /* rows: o (3x3) = h G */
   __global float *dp = dw + dw_off + (size_t)i * 9;

@@ -146,7 +146,7 @@ static double run_case(spx_ctx *ctx, const dcase *c, spx_conv2d_workspace *ws, f
   CHECK_OK(ctx, spx_nt_upload(ctx, fw, c->cout, c->cin, 3, 3, &tw));
   CHECK_OK(ctx, spx_nt_upload(ctx, pre, c->cout, c->cin, 3, 3, &tdw));
   spx_conv2d_params p = {3, 1, 1, NULL, NULL, 0, ws};
-  CHECK(spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, c->cin, c->cout));
+  CHECK(spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, c->cin, c->cout, c->h, c->w));
   CHECK_OK(ctx, spx_conv2d_backward(ctx, &tx, &tw, &tdy, NULL, &tdw, NULL, &p));
   CHECK_OK(ctx, spx_nt_download(ctx, &tdw, got));
   CHECK(spx_nt_guards_ok(ctx, &tdw));
@@ -173,6 +173,7 @@ static double run_case(spx_ctx *ctx, const dcase *c, spx_conv2d_workspace *ws, f
 
 static spx_ctx *open_wino(const char *chunk) {
   setenv("SPX_TUNE_CONV_WINO_DW", "1", 1);
+  setenv("SPX_TUNE_CONV_WINO_DW_MINHW", "0", 1);
   setenv("SPX_TUNE_CONV_WINO_TRAIN", "1", 1);
   if (chunk) setenv("SPX_TUNE_CONV_WINO_CHUNK", chunk, 1);
   else unsetenv("SPX_TUNE_CONV_WINO_CHUNK");
@@ -262,27 +263,33 @@ static void test_finite_differences(void) {
 }
 
 /* The rule: only 3x3 / stride 1 / pad 1 with both channel counts >= CONV_WINO_DW, in training
- * with CONV_WINO_TRAIN; 0 = never. */
+ * with CONV_WINO_TRAIN, on images of at least CONV_WINO_DW_MINHW pixels; 0 = never. */
 static void test_rule(void) {
   spx_ctx *ctx;
+  unsetenv("SPX_TUNE_CONV_WINO_DW_MINHW");
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
   setenv("SPX_TUNE_CONV_WINO_DW", "32", 1);
   setenv("SPX_TUNE_CONV_WINO_TRAIN", "1", 1);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
-  CHECK(spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 32, 64));
-  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 31, 64));
-  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 64, 16));
-  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 2, 1, 64, 64));
-  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 1, 0, 64, 64));
-  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 1, 1, 0, 64, 64));
+  CHECK(spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 32, 64, 40, 40));
+  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 31, 64, 40, 40));
+  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 64, 16, 40, 40));
+  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 2, 1, 64, 64, 40, 40));
+  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 1, 0, 64, 64, 40, 40));
+  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 1, 1, 0, 64, 64, 40, 40));
+  setenv("SPX_TUNE_CONV_WINO_DW_MINHW", "1600", 1);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
+  CHECK(spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 64, 64, 40, 40));
+  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 64, 64, 40, 39));
   setenv("SPX_TUNE_CONV_WINO_TRAIN", "0", 1);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
-  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 64, 64));
+  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 64, 64, 40, 40));
   setenv("SPX_TUNE_CONV_WINO_TRAIN", "1", 1);
   setenv("SPX_TUNE_CONV_WINO_DW", "0", 1);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
-  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 64, 64));
+  CHECK(!spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 64, 64, 40, 40));
   unsetenv("SPX_TUNE_CONV_WINO_DW");
+  unsetenv("SPX_TUNE_CONV_WINO_DW_MINHW");
   unsetenv("SPX_TUNE_CONV_WINO_TRAIN");
   spx_ctx_destroy(ctx);
 }

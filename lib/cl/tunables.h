@@ -44,6 +44,7 @@ struct spx_tunables {
   int conv_wino_train;
   int conv_wino_chunk;
   int conv_wino_dw;       /* Winograd weight gradient */
+  int conv_wino_dw_minhw;
   int conv_red_wg;        /* conv2d bias gradient */
   int wg2_x;              /* 2-D (x, y, plane) kernels */
   int wg2_y;

@@ -114,6 +114,9 @@ static const struct spx_tunable spx_tunables[] = {
      * (kernels/conv2d_winograd_dw.cl); 0 = never (direct, kernels/conv2d_bwd.cl). CPU: see
      * benchmarks/RESULTS.md "Training step with Winograd (issue 16)"; GPU: unmeasured, off */
     {"CONV_WINO_DW", F(conv_wino_dw), 64, 0, 0, 1 << 20, 0},
+    /* ... and images of at least this many pixels (H*W): small deep layers (19x25 at 512
+     * channels) hold few tiles per 36-entry gradient of every weight pair and lose to direct */
+    {"CONV_WINO_DW_MINHW", F(conv_wino_dw_minhw), 1024, 1024, 0, 1 << 30, 0},
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", F(conv_red_wg), 16, 256, 1, 1024, T_POW2|T_WG},
     /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,

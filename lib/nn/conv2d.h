@@ -98,10 +98,10 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
                                int relu, int accumulate, const spx_tensor *y);
 
 /* ---- Winograd weight gradient (lib/nn/conv2d_winograd_dw.c), called by spx_conv2d_backward ---- */
-/* Nonzero when the weight gradient of a k x k / stride / pad conv of cin -> cout channels takes
- * the Winograd path: 3x3 / stride 1 / pad 1, CONV_WINO_TRAIN on, both channel counts >= the
- * tunable CONV_WINO_DW (0: never). */
-int spx_conv2d_winograd_dw_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout);
+/* Nonzero when the weight gradient of a k x k / stride / pad conv of cin -> cout channels on
+ * h x w images takes the Winograd path: 3x3 / stride 1 / pad 1, CONV_WINO_TRAIN on, both channel
+ * counts >= the tunable CONV_WINO_DW (0: never) and h*w >= CONV_WINO_DW_MINHW. */
+int spx_conv2d_winograd_dw_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int h, int w);
 /* Scratch of that path for x [n][cin][h][w] -> cout channels: bytes of workspace slots 0, 1, 2
  * (pure: depends only on the shape and the tunables); returns the samples per pass. */
 int spx_conv2d_winograd_dw_need(const spx_ctx *ctx, int n, int cin, int cout, int h, int w, size_t bytes[3]);

@@ -8,10 +8,10 @@
 
 #include "nn/conv2d.h"
 
-int spx_conv2d_winograd_dw_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout) {
+int spx_conv2d_winograd_dw_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int h, int w) {
   const int minc = ctx->dev->tune.conv_wino_dw;
   return ctx->dev->tune.conv_wino_train && minc > 0 && k == 3 && stride == 1 && pad == 1 && cin >= minc &&
-         cout >= minc;
+         cout >= minc && (double)h * w >= ctx->dev->tune.conv_wino_dw_minhw;
 }
 
 /* Tile grid of an h x w image: th rows of twp tiles (tw rounded up to CONV_VW), t = th * twp. */
