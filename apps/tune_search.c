@@ -100,18 +100,25 @@ static spx_status forward(run *r, int c, int k, int train, double *ms) {
   return st;
 }
 
+/* Elements of tensor i of u when it is a parameter (it has a gradient), else 0; its name in *name. */
+static size_t param_numel(spx_unet *u, int i, const char **name) {
+  int nd;
+  int64_t shape[4];
+  size_t n = 1;
+  *name = spx_unet_tensor_name(u, i, &nd, shape);
+  if (strstr(*name, "running_")) return 0;
+  while (nd > 0) n *= (size_t)shape[--nd];
+  return n;
+}
+
 /* Every parameter gradient of the last step of t[c][k], concatenated into r->gbuf. */
 static spx_status read_grads(run *r, int c, int k) {
   spx_unet *u = r->t[c][k];
   size_t at = 0;
   for (int i = 0; i < spx_unet_tensor_count(u); i++) {
-    int nd;
-    int64_t shape[4];
-    const char *name = spx_unet_tensor_name(u, i, &nd, shape);
-    if (strstr(name, "running_")) continue;
-    size_t n = 1;
-    for (int d = 0; d < nd; d++) n *= (size_t)shape[d];
-    spx_status st = spx_unet_read(u, name, SPX_UNET_GRAD, r->gbuf + at, n);
+    const char *name;
+    size_t n = param_numel(u, i, &name);
+    spx_status st = n ? spx_unet_read(u, name, SPX_UNET_GRAD, r->gbuf + at, n) : SPX_OK;
     if (st) return st;
     at += n;
   }
@@ -334,15 +341,8 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   }
   size_t most = 0;
   for (int k = 0; train && k < p->nwidths; k++) { /* gradient buffers: every parameter */
-    spx_unet *u = r.t[0][k];
-    for (int i = 0; i < spx_unet_tensor_count(u); i++) {
-      int nd;
-      int64_t shape[4];
-      size_t n = 1;
-      if (strstr(spx_unet_tensor_name(u, i, &nd, shape), "running_")) continue;
-      for (int d = 0; d < nd; d++) n *= (size_t)shape[d];
-      r.ngrad[k] += n;
-    }
+    const char *name;
+    for (int i = 0; i < spx_unet_tensor_count(r.t[0][k]); i++) r.ngrad[k] += param_numel(r.t[0][k], i, &name);
     if (!(r.gref[k] = malloc(r.ngrad[k] * sizeof(float)))) fit = 0;
     if (r.ngrad[k] > most) most = r.ngrad[k];
   }

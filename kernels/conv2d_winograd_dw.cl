@@ -103,25 +103,16 @@ __kernel void spx_wino_dw_gemm(const __global float *Q, const __global float *V,
       const int te = min(tb + WDW_QB, T);
       for (int g = 0; g < ng; g++) {
         vf a[CONV_DW_TM][CONV_DW_TN];
-#pragma unroll
-        for (int m = 0; m < CONV_DW_TM; m++)
-#pragma unroll
-          for (int j = 0; j < CONV_DW_TN; j++) a[m][j] = sums[g][m][j];
+        DW_TILE_COPY(a, sums[g]);
         for (int t = tb; t < te; t += CONV_VW) {
           vf qv[CONV_DW_TM], vv[CONV_DW_TN];
 #pragma unroll
           for (int m = 0; m < CONV_DW_TM; m++) qv[m] = VLOAD(qn + (size_t)qrow[m] * T + t);
 #pragma unroll
           for (int j = 0; j < CONV_DW_TN; j++) vv[j] = VLOAD(vn + (size_t)vrow[g][j] * T + t);
-#pragma unroll
-          for (int m = 0; m < CONV_DW_TM; m++)
-#pragma unroll
-            for (int j = 0; j < CONV_DW_TN; j++) a[m][j] = fma(qv[m], vv[j], a[m][j]);
+          DW_TILE_FMA(a, qv, vv);
         }
-#pragma unroll
-        for (int m = 0; m < CONV_DW_TM; m++)
-#pragma unroll
-          for (int j = 0; j < CONV_DW_TN; j++) sums[g][m][j] = a[m][j];
+        DW_TILE_COPY(sums[g], a);
       }
     }
     /* one sum per sample, added in sample order */

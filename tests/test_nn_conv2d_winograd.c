@@ -34,17 +34,17 @@
 #include "nn/conv2d.h"
 #include "smplpix/smplpix.h"
 #include "test.h"
+#include "wino_test.h"
 
 static unsigned long long rng = 0x243f6a8885a308d3ULL;
 static void fill_rand(double *a, size_t n) {
   for (size_t i = 0; i < n; i++) a[i] = 2.0 * spx_t_uniform(&rng) - 1.0;
 }
 
-static const double BT[6][6] = {{4, 0, -5, 0, 1, 0},  {0, -4, -4, 1, 1, 0}, {0, 4, -4, -1, 1, 0},
-                                {0, -2, -1, 2, 1, 0}, {0, 2, -1, -2, 1, 0}, {0, 4, 0, -5, 0, 1}};
-static const double G[6][3] = {{0.25, 0, 0},           {-1.0 / 6, -1.0 / 6, -1.0 / 6}, {-1.0 / 6, 1.0 / 6, -1.0 / 6},
-                               {1.0 / 24, 1.0 / 12, 1.0 / 6}, {1.0 / 24, -1.0 / 12, 1.0 / 6}, {0, 0, 1}};
-static const double AT[4][6] = {{1, 1, 1, 1, 1, 0}, {0, 1, -1, 2, -2, 0}, {0, 1, 1, 4, 4, 0}, {0, 1, -1, 8, -8, 1}};
+/* the transform matrices (tests/wino_test.h) */
+#define BT WT_BT
+#define G WT_G
+#define AT WT_AT
 
 /* W (see the top of the file) for every output of a 3x3/s1/p1 conv of x [n][cin][h][w] with
  * w [cout][cin][3][3], both taken in absolute value. */
@@ -71,25 +71,8 @@ static void wino_magnitude(int n, int cin, int h, int wd, int cout, const double
   for (int b = 0; b < n; b++)
     for (int ty = 0; ty < th; ty++)
       for (int tx = 0; tx < tw; tx++) {
-        for (int ci = 0; ci < cin; ci++) {
-          double d[6][6], t[6][6];
-          for (int i = 0; i < 6; i++)
-            for (int j = 0; j < 6; j++) {
-              int yy = 4 * ty - 1 + i, xx = 4 * tx - 1 + j;
-              d[i][j] = yy >= 0 && yy < h && xx >= 0 && xx < wd ? fabs(x[(((size_t)b * cin + ci) * h + yy) * wd + xx]) : 0;
-            }
-          for (int i = 0; i < 6; i++)
-            for (int j = 0; j < 6; j++) {
-              t[i][j] = 0;
-              for (int k = 0; k < 6; k++) t[i][j] += fabs(BT[i][k]) * d[k][j];
-            }
-          for (int i = 0; i < 6; i++)
-            for (int j = 0; j < 6; j++) {
-              double s = 0;
-              for (int k = 0; k < 6; k++) s += t[i][k] * fabs(BT[j][k]);
-              vd[(size_t)ci * 36 + i * 6 + j] = s;
-            }
-        }
+        for (int ci = 0; ci < cin; ci++)
+          wt_input_magnitude(x + ((size_t)b * cin + ci) * h * wd, h, wd, ty, tx, vd + (size_t)ci * 36);
         for (int co = 0; co < cout; co++) {
           double m[36] = {0}, r[4][6];
           for (int ci = 0; ci < cin; ci++)
@@ -305,21 +288,12 @@ static void test_rule(void) {
 /* The transform matrices multiply out to the 3-tap correlation (sum_a A^T_ia G_ak B^T_ap = 1 iff
  * p = i + k), and their rms error gain (see the top of the file) is what SPX_WINO_RMS_GAIN says. */
 static void test_gain(void) {
-  double worst = 0;
+  double worst = 0, ident = wt_identity_error();
+  CHECK_MSG(ident < 1e-12, "A^T G B^T is off the correlation by %g", ident);
   for (int i = 0; i < 4; i++) {
-    for (int k = 0; k < 3; k++)
-      for (int p = 0; p < 6; p++) {
-        double e = 0;
-        for (int a = 0; a < 6; a++) e += AT[i][a] * G[a][k] * BT[a][p];
-        CHECK_MSG(fabs(e - (p == i + k)) < 1e-12, "A^T G B^T [%d][%d][%d] = %g", i, k, p, e);
-      }
     double si = 0;
-    for (int a = 0; a < 6; a++) {
-      double g2 = 0, b2 = 0;
-      for (int k = 0; k < 3; k++) g2 += G[a][k] * G[a][k];
-      for (int p = 0; p < 6; p++) b2 += BT[a][p] * BT[a][p];
-      si += AT[i][a] * AT[i][a] * g2 * b2;
-    }
+    for (int a = 0; a < 6; a++)
+      si += AT[i][a] * AT[i][a] * wt_row_sq(&G[0][0], 3, 1, a, 3) * wt_row_sq(&BT[0][0], 6, 1, a, 6);
     if (si > worst) worst = si;
   }
   double gain = worst / 3.0; /* sqrt(S_3 S_3) / 3 */

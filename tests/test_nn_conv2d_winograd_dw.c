@@ -31,19 +31,9 @@
 #include "nn_testutil.h"
 #include "smplpix/smplpix.h"
 #include "test.h"
+#include "wino_test.h"
 
 static unsigned long long rng = 0x13198a2e03707344ULL;
-
-/* A (6x4), B^T (6x6) and G (6x3) of F(4x4,3x3), as kernels/conv2d_winograd*.cl use them. */
-static const double A6[6][4] = {{1, 0, 0, 0}, {1, 1, 1, 1}, {1, -1, 1, -1}, {1, 2, 4, 8}, {1, -2, 4, -8}, {0, 0, 0, 1}};
-static const double B6[6][6] = {{4, 0, -5, 0, 1, 0},  {0, -4, -4, 1, 1, 0}, {0, 4, -4, -1, 1, 0},
-                                {0, -2, -1, 2, 1, 0}, {0, 2, -1, -2, 1, 0}, {0, 4, 0, -5, 0, 1}};
-static const double G6[6][3] = {{0.25, 0, 0},
-                                {-1.0 / 6, -1.0 / 6, -1.0 / 6},
-                                {-1.0 / 6, 1.0 / 6, -1.0 / 6},
-                                {1.0 / 24, 1.0 / 12, 1.0 / 6},
-                                {1.0 / 24, -1.0 / 12, 1.0 / 6},
-                                {0, 0, 1}};
 
 /* W (see the top of the file) for every dw element of a 3x3/s1/p1 conv, x [n][cin][h][w],
  * dy [n][cout][h][w]; out [cout][cin][9]. */
@@ -53,62 +43,23 @@ static void dw_magnitude(int n, int cin, int h, int wd, int cout, const double *
   for (int b = 0; b < n; b++)
     for (int ty = 0; ty < th; ty++)
       for (int tx = 0; tx < tw; tx++) {
-        for (int ci = 0; ci < cin; ci++) { /* |B^T| |d| |B| */
-          double d[6][6], t[6][6];
-          for (int i = 0; i < 6; i++)
-            for (int j = 0; j < 6; j++) {
-              int yy = 4 * ty - 1 + i, xx = 4 * tx - 1 + j;
-              d[i][j] = yy >= 0 && yy < h && xx >= 0 && xx < wd ? fabs(x[(((size_t)b * cin + ci) * h + yy) * wd + xx]) : 0;
-            }
-          for (int i = 0; i < 6; i++)
-            for (int j = 0; j < 6; j++) {
-              t[i][j] = 0;
-              for (int k = 0; k < 6; k++) t[i][j] += fabs(B6[i][k]) * d[k][j];
-            }
-          for (int i = 0; i < 6; i++)
-            for (int j = 0; j < 6; j++) {
-              double s = 0;
-              for (int k = 0; k < 6; k++) s += t[i][k] * fabs(B6[j][k]);
-              vd[(size_t)ci * 36 + i * 6 + j] = s;
-            }
-        }
-        for (int co = 0; co < cout; co++) { /* |A| |dY| |A^T| */
-          double g[4][4], t[6][4];
+        for (int ci = 0; ci < cin; ci++) /* |B^T| |d| |B| */
+          wt_input_magnitude(x + ((size_t)b * cin + ci) * h * wd, h, wd, ty, tx, vd + (size_t)ci * 36);
+        for (int co = 0; co < cout; co++) { /* |A| |dY| |A^T|, A = (A^T)^T */
+          double g[16];
           for (int i = 0; i < 4; i++)
             for (int j = 0; j < 4; j++) {
               int yy = 4 * ty + i, xx = 4 * tx + j;
-              g[i][j] = yy < h && xx < wd ? fabs(dy[(((size_t)b * cout + co) * h + yy) * wd + xx]) : 0;
+              g[i * 4 + j] = yy < h && xx < wd ? fabs(dy[(((size_t)b * cout + co) * h + yy) * wd + xx]) : 0;
             }
-          for (int a = 0; a < 6; a++)
-            for (int j = 0; j < 4; j++) {
-              t[a][j] = 0;
-              for (int k = 0; k < 4; k++) t[a][j] += fabs(A6[a][k]) * g[k][j];
-            }
-          for (int a = 0; a < 6; a++)
-            for (int c = 0; c < 6; c++) {
-              double s = 0;
-              for (int k = 0; k < 4; k++) s += t[a][k] * fabs(A6[c][k]);
-              qd[(size_t)co * 36 + a * 6 + c] = s;
-            }
+          wt_abs_sandwich(&WT_AT[0][0], 1, 6, 6, 4, g, qd + (size_t)co * 36);
         }
         for (int co = 0; co < cout; co++)
           for (int ci = 0; ci < cin; ci++)
             for (int e = 0; e < 36; e++) p[((size_t)co * cin + ci) * 36 + e] += qd[(size_t)co * 36 + e] * vd[(size_t)ci * 36 + e];
       }
-  for (size_t i = 0; i < (size_t)cout * cin; i++) { /* |G^T| p |G| */
-    double r[3][6];
-    for (int k = 0; k < 3; k++)
-      for (int c = 0; c < 6; c++) {
-        r[k][c] = 0;
-        for (int a = 0; a < 6; a++) r[k][c] += fabs(G6[a][k]) * p[i * 36 + a * 6 + c];
-      }
-    for (int k = 0; k < 3; k++)
-      for (int l = 0; l < 3; l++) {
-        double s = 0;
-        for (int c = 0; c < 6; c++) s += r[k][c] * fabs(G6[c][l]);
-        out[i * 9 + k * 3 + l] = s;
-      }
-  }
+  for (size_t i = 0; i < (size_t)cout * cin; i++) /* |G^T| p |G|, G^T = G read transposed */
+    wt_abs_sandwich(&WT_G[0][0], 1, 3, 3, 6, p + i * 36, out + i * 9);
   free(vd), free(qd), free(p);
 }
 
@@ -297,22 +248,12 @@ static void test_rule(void) {
 /* A G B^T multiply out to the 3-tap correlation, and the rms error gain of this direction (see
  * the top of the file) is within SPX_WINO_RMS_GAIN. */
 static void test_gain(void) {
-  for (int i = 0; i < 4; i++)
-    for (int k = 0; k < 3; k++)
-      for (int p = 0; p < 6; p++) {
-        double e = 0;
-        for (int a = 0; a < 6; a++) e += A6[a][i] * G6[a][k] * B6[a][p];
-        CHECK_MSG(fabs(e - (p == i + k)) < 1e-12, "A G B^T [%d][%d][%d] = %g", i, k, p, e);
-      }
-  double worst = 0;
+  double ident = wt_identity_error(), worst = 0;
+  CHECK_MSG(ident < 1e-12, "A G B^T is off the correlation by %g", ident);
   for (int k = 0; k < 3; k++) {
     double sk = 0;
-    for (int a = 0; a < 6; a++) {
-      double a2 = 0, b2 = 0;
-      for (int j = 0; j < 4; j++) a2 += A6[a][j] * A6[a][j];
-      for (int p = 0; p < 6; p++) b2 += B6[a][p] * B6[a][p];
-      sk += G6[a][k] * G6[a][k] * a2 * b2;
-    }
+    for (int a = 0; a < 6; a++) /* a2_a: row a of A = column a of A^T */
+      sk += WT_G[a][k] * WT_G[a][k] * wt_row_sq(&WT_AT[0][0], 1, 6, a, 4) * wt_row_sq(&WT_BT[0][0], 6, 1, a, 6);
     worst = fmax(worst, sk);
   }
   double gain = worst / 4.0; /* sqrt(S_2 S_2) / 4 */

@@ -14,17 +14,16 @@ int spx_conv2d_winograd_dw_applies(const spx_ctx *ctx, int k, int stride, int pa
          cout >= minc && (double)h * w >= ctx->dev->tune.conv_wino_dw_minhw;
 }
 
-/* Tile grid of an h x w image: th rows of twp tiles (tw rounded up to CONV_VW), t = th * twp. */
-static void tiles(const spx_ctx *ctx, int h, int w, int *th, int *twp, int *wp, int *hp) {
+/* Tile grid of an h x w image: th rows of twp tiles (ceil(w / 4) rounded up to CONV_VW). */
+static void tiles(const spx_ctx *ctx, int h, int w, int *th, int *twp) {
   const int vw = ctx->dev->tune.conv_vw, tw = (w + 3) / 4;
   *th = (h + 3) / 4, *twp = (tw + vw - 1) / vw * vw;
-  *hp = 4 * *th + 2, *wp = 4 * *twp + 4;
 }
 
 int spx_conv2d_winograd_dw_need(const spx_ctx *ctx, int n, int cin, int cout, int h, int w, size_t bytes[3]) {
-  int th, twp, wp, hp;
-  tiles(ctx, h, w, &th, &twp, &wp, &hp);
-  const size_t T = (size_t)th * twp, plane = (size_t)hp * wp;
+  int th, twp;
+  tiles(ctx, h, w, &th, &twp);
+  const size_t T = (size_t)th * twp, plane = (size_t)(4 * th + 2) * (4 * twp + 4); /* padded input */
   /* per sample: slot 0 the padded input, then (once transformed) Q; slot 2 V */
   const size_t f0 = 36 * (size_t)cout * T > (size_t)cin * plane ? 36 * (size_t)cout * T : (size_t)cin * plane;
   const size_t f2 = 36 * (size_t)cin * T;
@@ -40,9 +39,9 @@ int spx_conv2d_winograd_dw_need(const spx_ctx *ctx, int n, int cin, int cout, in
 spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *dy,
                                   const spx_tensor *dw) {
   const int n = x->n, cin = x->c, h = x->h, wd = x->w, cout = dy->c, vw = ctx->dev->tune.conv_vw;
-  int th, twp, wp, hp;
-  tiles(ctx, h, wd, &th, &twp, &wp, &hp);
-  const int T = th * twp, plane = hp * wp;
+  int th, twp;
+  tiles(ctx, h, wd, &th, &twp);
+  const int T = th * twp;
   size_t bytes[3];
   const int nb = spx_conv2d_winograd_dw_need(ctx, n, cin, cout, h, wd, bytes);
   const double big = (bytes[0] > bytes[2] ? bytes[0] : bytes[2]) / (double)sizeof(float);
@@ -51,36 +50,19 @@ spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_conv2d_workspace *ws, const 
                     big);
   spx_conv2d_scratch XQ = {0}, P = {0}, V = {0};
   spx_status st;
-  cl_kernel kpad, kin, kq, kg, kw;
-  if ((st = spx_cl_kernel(ctx, SPX_K_CONV2D_PAD, &kpad)) || (st = spx_cl_kernel(ctx, SPX_K_WINO_IN, &kin)) ||
-      (st = spx_cl_kernel(ctx, SPX_K_WINO_DW_GRAD, &kq)) || (st = spx_cl_kernel(ctx, SPX_K_WINO_DW_GEMM, &kg)) ||
+  cl_kernel kq, kg, kw;
+  if ((st = spx_cl_kernel(ctx, SPX_K_WINO_DW_GRAD, &kq)) || (st = spx_cl_kernel(ctx, SPX_K_WINO_DW_GEMM, &kg)) ||
       (st = spx_cl_kernel(ctx, SPX_K_WINO_DW_WEIGHTS, &kw)))
     return st;
   if ((st = spx_conv2d_scratch_get(ctx, ws, 0, bytes[0], "winograd dw padded input / output-gradient transform", &XQ)) ||
       (st = spx_conv2d_scratch_get(ctx, ws, 1, bytes[1], "winograd dw gradient sums", &P)) ||
       (st = spx_conv2d_scratch_get(ctx, ws, 2, bytes[2], "winograd dw input transform", &V)))
     goto done;
-  const size_t wg = (size_t)ctx->dev->tune.wg;
   const int tm = ctx->dev->tune.conv_dw_tm, tn = ctx->dev->tune.conv_dw_tn, gg = ctx->dev->tune.conv_dw_g;
   for (int s0 = 0; s0 < n; s0 += nb) {
     const int m = n - s0 < nb ? n - s0 : nb; /* samples in this pass */
-    {
-      cl_ulong xo = x->off + (size_t)s0 * cin * h * wd;
-      int one = 1;
-      cl_int e = SPX_ARG(kpad, 0, x->mem) | SPX_ARG(kpad, 1, xo) | SPX_ARG(kpad, 2, XQ.mem) | SPX_ARG(kpad, 3, h) |
-                 SPX_ARG(kpad, 4, wd) | SPX_ARG(kpad, 5, hp) | SPX_ARG(kpad, 6, wp) | SPX_ARG(kpad, 7, plane) |
-                 SPX_ARG(kpad, 8, one) | SPX_ARG(kpad, 9, one) | SPX_ARG(kpad, 10, one);
-      if ((st = spx_cl_check(ctx, e, "spx_conv2d_pad args"))) goto done;
-      size_t gl[3] = {(size_t)wp, (size_t)hp, (size_t)m * cin}, lo[3] = {wg < (size_t)wp ? wg : (size_t)wp, 1, 1};
-      if ((st = spx_cl_run(ctx, kpad, 3, gl, lo, "spx_conv2d_pad"))) goto done;
-    }
-    { /* V, with the tile count unpadded (Tp = T, a multiple of CONV_VW) */
-      cl_int e = SPX_ARG(kin, 0, XQ.mem) | SPX_ARG(kin, 1, V.mem) | SPX_ARG(kin, 2, cin) | SPX_ARG(kin, 3, wp) |
-                 SPX_ARG(kin, 4, plane) | SPX_ARG(kin, 5, twp) | SPX_ARG(kin, 6, T) | SPX_ARG(kin, 7, T);
-      if ((st = spx_cl_check(ctx, e, "spx_wino_in args"))) goto done;
-      size_t gl[3] = {(size_t)T / vw, (size_t)cin, (size_t)m}, lo[3] = {1, 1, 1};
-      if ((st = spx_cl_run(ctx, kin, 3, gl, vw > 1 ? lo : NULL, "spx_wino_in"))) goto done;
-    }
+    /* V, with the tile count unpadded (Tp = T, a multiple of CONV_VW) */
+    if ((st = spx_conv2d_wino_input(ctx, x, s0, m, twp, T, XQ.mem, V.mem))) goto done;
     { /* Q overwrites the padded input (the in-order queue has finished V by then) */
       cl_ulong dyo = dy->off + (size_t)s0 * cout * h * wd;
       cl_int e = SPX_ARG(kq, 0, dy->mem) | SPX_ARG(kq, 1, dyo) | SPX_ARG(kq, 2, XQ.mem) | SPX_ARG(kq, 3, cout) |
