@@ -38,6 +38,8 @@
   X(WINO_WEIGHTS, "conv2d_winograd.cl", "spx_wino_weights")            \
   X(WINO_GEMM, "conv2d_winograd.cl", "spx_wino_gemm")                  \
   X(WINO_OUT, "conv2d_winograd.cl", "spx_wino_out")                    \
+  X(WINO_LDS_WEIGHTS, "conv2d_winograd_lds.cl", "spx_wino_lds_weights") \
+  X(WINO_LDS, "conv2d_winograd_lds.cl", "spx_wino_lds")                \
   X(WINO_DW_GRAD, "conv2d_winograd_dw.cl", "spx_wino_dw_grad")         \
   X(WINO_DW_GEMM, "conv2d_winograd_dw.cl", "spx_wino_dw_gemm")         \
   X(WINO_DW_WEIGHTS, "conv2d_winograd_dw.cl", "spx_wino_dw_weights")   \
@@ -86,6 +88,7 @@
   X(CHANNEL_SLICE_ACC, "tensor_ops.cl", "spx_channel_slice_acc")       \
   X(CHANNEL_PLACE, "tensor_ops.cl", "spx_channel_place")               \
   X(UPSAMPLE2X_FWD, "upsample.cl", "spx_upsample2x_fwd")               \
+  X(UPCAT_BORDER, "upsample.cl", "spx_upcat_border")                   \
   X(UPSAMPLE2X_WEIGHTS, "upsample.cl", "spx_upsample2x_weights")       \
   X(UPSAMPLE2X_BWD_ROWS, "upsample.cl", "spx_upsample2x_bwd_rows")     \
   X(UPSAMPLE2X_BWD_COLS, "upsample.cl", "spx_upsample2x_bwd_cols")

@@ -97,6 +97,16 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
                                int relu, int accumulate, const spx_tensor *y);
 
+/* ---- Winograd with local-memory tiles for GPU-class devices (lib/nn/conv2d_winograd_lds.c) ---- */
+/* Nonzero when spx_conv2d_winograd hands its calls to spx_conv2d_winograd_lds (tunable
+ * CONV_WINO_LDS; its work-group of 36 x CONV_WLDS_WM x CONV_WLDS_WN work-items and its local
+ * memory fit the device). Same results as the CPU variant, bit for bit. */
+int spx_conv2d_winograd_lds_applies(const spx_ctx *ctx);
+/* The arguments and semantics of spx_conv2d_winograd. */
+spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
+                                   int flip, const spx_tensor *bias, const spx_tensor *scale,
+                                   const spx_tensor *shift, int relu, int accumulate, const spx_tensor *y);
+
 /* Samples [s0, s0 + m) of x [n][c][h][w] zero-padded into xp (planes of (4 th + 2) x (4 twp + 4),
  * th = ceil(h / 4), twp = ceil(w / 4) rounded up to CONV_VW), then their input transform into V
  * [m][36][c][Tp] (Tp >= th * twp, a multiple of CONV_VW; tiles past th * twp are zeros). */

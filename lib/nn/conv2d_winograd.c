@@ -40,6 +40,8 @@ spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int 
 spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
                                int relu, int accumulate, const spx_tensor *y) {
+  if (spx_conv2d_winograd_lds_applies(ctx)) /* GPU class: the fused local-memory variant */
+    return spx_conv2d_winograd_lds(ctx, ws, x, w, flip, bias, scale, shift, relu, accumulate, y);
   const int n = x->n, cin = x->c, h = x->h, wd = x->w, cout = y->c;
   const int Cout = w->n, Cin = w->c; /* the weight tensor's own dimensions */
   const int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
