@@ -268,6 +268,8 @@ done:
 /* dw += sum over (n, q) of dy x im2col(x): chunked partial sums, then a fixed-order reduction. */
 static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *x,
                                    const spx_tensor *dy, const spx_tensor *dw) {
+  if (spx_conv2d_winograd_dw_applies(ctx, g->k, g->s, g->pad, g->cin, g->cout, g->h, g->w))
+    return spx_conv2d_winograd_dw(ctx, ws, x, dy, dw);
   int vw = ctx->dev->tune.conv_vw, dtm = ctx->dev->tune.conv_dw_tm, dtn = ctx->dev->tune.conv_dw_tn;
   int qc = (int)round_up((size_t)ctx->dev->tune.conv_dw_qc, (size_t)vw);
   int hp = g->h + 2 * g->pad, wp = g->w + 2 * g->pad, plane = hp * wp;
