@@ -13,17 +13,37 @@
 
 #include "nn/tensor.h"
 
-/* Optional persistent scratch (padded copies, packed weights, partial sums). Grow-only; reuse
- * one per network so steady-state calls allocate nothing. Calls that share a workspace must
- * be enqueued on the same (in-order) queue. Zero-initialise; release with
- * spx_conv2d_workspace_release. */
+/* Scratch of the convolution launchers (padded copies, packed / transformed weights, partial sums),
+ * in numbered slots (lib/nn/conv2d_workspace.c). Two modes:
+ * - grow-only (arena NULL; zero-initialise, release with spx_conv2d_workspace_release): slot i is
+ *   buf[i], enlarged on demand; reuse one per network so steady-state calls allocate nothing.
+ * - planned (arena set; the tape's liveness plan, lib/nn/tape_plan.c): slot i is the bytes
+ *   [base + off[i], base + off[i] + cap[i]) of the arena, handed out as a sub-buffer; a request
+ *   larger than cap[i] is an error (the need function and the launcher disagree). Nothing is
+ *   allocated, and the region is shared with activations that are not live during the op.
+ * Calls that share a workspace must be enqueued on the same (in-order) queue. */
+#define SPX_WS_SLOTS 4
 typedef struct spx_conv2d_workspace {
-  spx_cl_buf buf[3];
+  spx_cl_buf buf[SPX_WS_SLOTS];
+  cl_mem arena;
+  size_t base, off[SPX_WS_SLOTS], cap[SPX_WS_SLOTS];
 } spx_conv2d_workspace;
 void spx_conv2d_workspace_release(spx_conv2d_workspace *ws);
 
-/* Scratch buffer `slot` of ws (grow-only), or a fresh buffer owned by the caller when ws is NULL;
- * spx_conv2d_scratch_put releases an owned one (OpenCL keeps it until its kernels finish). */
+/* What one op needs, bytes per slot (0: slot unused). A launcher's need function computes it
+ * from shapes and tunables alone, with the same code the launcher sizes its requests with. */
+typedef struct spx_ws_need {
+  size_t slot[SPX_WS_SLOTS];
+} spx_ws_need;
+/* acc = the per-slot maximum of acc and n (calls that run one after another in one op). */
+void spx_ws_need_max(spx_ws_need *acc, const spx_ws_need *n);
+/* Lay the slots of n out one after another, each start a multiple of align bytes (a power of
+ * two): fills off/cap of ws (when not NULL) and returns the bytes of the whole region. */
+size_t spx_ws_layout(const spx_ws_need *n, size_t align, spx_conv2d_workspace *ws);
+
+/* Scratch buffer `slot` of ws (grow-only or planned), or a fresh buffer owned by the caller when
+ * ws is NULL; spx_conv2d_scratch_put releases an owned one (OpenCL keeps it until its kernels
+ * finish). */
 typedef struct spx_conv2d_scratch {
   cl_mem mem;
   int owned;
@@ -85,6 +105,20 @@ spx_status spx_conv2d_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
                                const spx_tensor *dx, const spx_tensor *dw, const spx_tensor *db,
                                const spx_conv2d_params *p);
 
+/* The shape of one convolution (also the reference's). */
+typedef struct spx_conv2d_shape {
+  int n, cin, h, w, cout, k, stride, pad;
+} spx_conv2d_shape;
+
+/* Passes of spx_conv2d_workspace_need (bit mask; backward data and weights run in one op). */
+enum { SPX_CONV_PASS_FWD = 1, SPX_CONV_PASS_BWD_DATA = 2, SPX_CONV_PASS_BWD_WEIGHTS = 4 };
+/* The workspace bytes per slot that the given passes of a convolution of shape s take (the
+ * per-slot maximum over them): a pure function of the shape and the device's tunables, computed
+ * by the code the launchers size their scratch with. inference: the forward has the fused
+ * epilogue (as spx_conv2d_winograd_applies). Shapes the launchers would refuse need nothing. */
+void spx_conv2d_workspace_need(const spx_ctx *ctx, const spx_conv2d_shape *s, int passes, int inference,
+                               spx_ws_need *need);
+
 /* ---- Winograd path (lib/nn/conv2d_winograd.c), called by the two functions above ---- */
 /* Nonzero when a k x k / stride / pad conv of cin -> cout channels takes the Winograd path
  * (forward; backward data asks with cin and cout swapped and inference = 0). */
@@ -96,6 +130,10 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
                                int relu, int accumulate, const spx_tensor *y);
 
+/* Slot bytes of spx_conv2d_winograd for x [n][cin][h][w] -> y [n][cout][h][w] (slot 0: padded
+ * input / products, 1: U, 2: V; the samples per pass follow CONV_WINO_CHUNK). */
+void spx_conv2d_winograd_need(const spx_ctx *ctx, int n, int cin, int h, int w, int cout, spx_ws_need *need);
+
 /* ---- local-memory tiled 3x3 stride-1 forward for GPU-class devices (lib/nn/conv2d_lds.c) ---- */
 /* Nonzero when the forward kernel of a k x k / stride conv is spx_conv2d_fwd_k3s1_lds (tunable
  * CONV_LDS, CONV_VW = 1, CONV_LWS a multiple of CONV_LDS_TX, its tiles fit the local memory). */
@@ -104,9 +142,6 @@ int spx_conv2d_lds_applies(const spx_ctx *ctx, int k, int stride);
 size_t spx_conv2d_lds_groups(const spx_ctx *ctx, int coutp, int ho, int wo);
 
 /* ---- plain-C double-precision reference (same semantics) ---- */
-typedef struct spx_conv2d_shape {
-  int n, cin, h, w, cout, k, stride, pad;
-} spx_conv2d_shape;
 
 /* scale/shift may be NULL (no affine), bias may be NULL. y overwritten. */
 void spx_ref_conv2d_forward(const spx_conv2d_shape *s, const double *x, const double *w, const double *bias,
