@@ -165,9 +165,12 @@ static void test_unet_bit_exact(spx_tape_backend be) {
     CHECK_MSG(memcmp(&a.loss, &b.loss, sizeof a.loss) == 0, "loss %.9g vs %.9g", a.loss, b.loss);
     CHECK(memcmp(a.out, b.out, a.nout * sizeof(float)) == 0);
     CHECK(memcmp(a.grads, b.grads, a.ngrad * sizeof(float)) == 0);
-    /* the whole step's values and gradients, against what the plan needs at once */
-    CHECK_MSG(b.arena * 2 < b.sum && a.arena >= a.sum, "arena %zu of %zu (without reuse: %zu of %zu)", b.arena, b.sum,
-              a.arena, a.sum);
+    /* the whole step's values and gradients (+ the largest op workspace, device), against what
+     * the plan needs at once: at least a quarter less (on the device the arena also holds every
+     * conv's workspace at its step; at 32x48 the deepest Winograd layers' transforms, padded to
+     * whole tile vectors, are most of that) */
+    CHECK_MSG(b.arena * 4 < b.sum * 3 && a.arena >= a.sum, "arena %zu of %zu (without reuse: %zu of %zu)", b.arena,
+              b.sum, a.arena, a.sum);
     printf("  %s: UNet w%d %dx4x%dx%d training arena %zu bytes with reuse, %zu without (%.2fx)\n",
            be == SPX_TAPE_HOST ? "host" : "device", WD, N, H, W, b.arena, a.arena, (double)a.arena / (double)b.arena);
   }

@@ -3,8 +3,10 @@
  *    slab (running mean / variance and the folded batch-norm scale / shift: 16 bytes per channel
  *    of every batch norm, i.e. 2x the running statistics); the gradient and Adam m / v slabs
  *    (12 bytes per parameter) appear with the first training use, never for inference;
- *  - an eval forward adds at least its input + output activations, a training step adds the
- *    gradient and Adam slabs and more arena (gradients, saved activations), a larger batch more;
+ *  - the arena (activations, gradients and every conv's workspace) is exactly the largest plan
+ *    so far (spx_tape_plan_bytes; an eval plan may be the larger one: inference forwards take
+ *    Winograd, whose weight transforms dominate at this size); a training step adds the gradient
+ *    and Adam slabs; a larger batch's plan is larger;
  *  - repeating a pass of an already planned shape adds nothing (grow-only, steady state);
  *  - the host backend holds no device memory (0).
  * and the context's device-memory counter (spx_device_live_bytes / spx_device_peak_bytes):
@@ -68,17 +70,20 @@ static void test_device_bytes(void) {
   size_t b0 = spx_unet_device_bytes(u);
   CHECK_MSG(b0 == 4 * params + 8 * stats, "after create: %zu bytes, expected %zu", b0, 4 * params + 8 * stats);
 
+  spx_tape *t = spx_unet_tape(u);
   CHECK_OK(ctx, spx_unet_forward(u, in, 1, H, W, 0, out));
-  size_t b1 = spx_unet_device_bytes(u);
-  CHECK_MSG(b1 >= b0 + (size_t)(4 + 3) * H * W * sizeof(float), "eval: %zu -> %zu bytes", b0, b1);
+  size_t b1 = spx_unet_device_bytes(u), pe = spx_tape_plan_bytes(t, NULL);
+  CHECK_MSG(pe >= (size_t)(4 + 3) * H * W * sizeof(float) && b1 == b0 + pe, "eval: %zu -> %zu bytes, plan %zu", b0,
+            b1, pe);
   CHECK_OK(ctx, spx_unet_forward(u, in, 1, H, W, 0, out));
   CHECK(spx_unet_device_bytes(u) == b1);
 
   float loss;
   CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 1, H, W, NULL, &loss));
   CHECK_OK(ctx, spx_unet_backward(u));
-  size_t b2 = spx_unet_device_bytes(u);
-  CHECK_MSG(b2 > b1 + 12 * params + (size_t)(4 + 3) * H * W * sizeof(float), "train b1: %zu -> %zu bytes", b1, b2);
+  size_t b2 = spx_unet_device_bytes(u), pt1 = spx_tape_plan_bytes(t, NULL);
+  size_t arena = pt1 > pe ? pt1 : pe;
+  CHECK_MSG(b2 == b0 + 12 * params + arena, "train b1: %zu -> %zu bytes, plan %zu", b1, b2, pt1);
   CHECK_OK(ctx, spx_unet_adam_step(u, 1e-3));
   CHECK_OK(ctx, spx_unet_zero_grad(u));
   CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 1, H, W, NULL, &loss));
@@ -90,8 +95,9 @@ static void test_device_bytes(void) {
   CHECK(spx_device_peak_bytes(ctx) == spx_device_live_bytes(ctx));
   CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 2, H, W, NULL, &loss));
   CHECK_OK(ctx, spx_unet_backward(u));
-  size_t b3 = spx_unet_device_bytes(u);
-  CHECK_MSG(b3 > b2, "train b2: %zu -> %zu bytes", b2, b3);
+  size_t b3 = spx_unet_device_bytes(u), pt2 = spx_tape_plan_bytes(t, NULL);
+  arena = pt2 > arena ? pt2 : arena;
+  CHECK_MSG(pt2 > pt1 && b3 == b0 + 12 * params + arena, "train b2: %zu -> %zu bytes, plan %zu", b2, b3, pt2);
   size_t live = settled_live(ctx, live0 + b3), peak = spx_device_peak_bytes(ctx);
   CHECK_MSG(live == live0 + b3, "live %zu after a step, network %zu + %zu before", live, b3, live0);
   CHECK_MSG(peak >= live && peak >= live0 + b2, "peak %zu, live %zu", peak, live);

@@ -120,7 +120,6 @@ void spx_tape_destroy(spx_tape *t) {
   }
   spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
   spx_cl_free(&t->state), spx_cl_free(&t->act);
-  spx_conv2d_workspace_release(&t->ws);
   free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact);
   for (int i = 0; i < t->nplans; i++) spx_tp_plan_free(&t->plans[i]);
   free(t->vals);
@@ -201,9 +200,7 @@ size_t spx_tape_device_bytes(const spx_tape *t) {
   size_t b = 0;
   if (t->allocated)
     b += ((t->grad ? 4 : 1) * (t->nparam ? t->nparam : 1) + (t->nstate ? t->nstate : 1)) * sizeof(float);
-  if (t->act) b += t->act_cap * sizeof(float);
-  for (int i = 0; i < 3; i++)
-    if (t->ws.buf[i].mem) b += t->ws.buf[i].bytes;
+  if (t->act) b += t->act_cap * sizeof(float); /* the conv workspace lies inside it */
   return b;
 }
 
@@ -260,6 +257,8 @@ spx_status spx_tape_begin(spx_tape *t, int train, uint64_t plan_key) {
   t->train = train != 0;
   t->in_pass = 1;
   if (t->train && spx_tape_sync_bn(t)) plan_key = spx_hash64("syncbn", 6, plan_key); /* + the ranks' scratch */
+  /* the conv workspace regions of a plan follow the tunables (spx_device_set_tunable may change them) */
+  if (t->backend == SPX_TAPE_DEVICE) plan_key = spx_hash64(&t->ctx->dev->tune, sizeof t->ctx->dev->tune, plan_key);
   t->measuring = 1;
   t->cur = NULL;
   t->phase = 0, t->dcur = t->bcur = 0, t->backward_runs = 0;
@@ -412,7 +411,7 @@ static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, i
   }
   int y = spx_tp_new_value(t, SP_ACT, xv->n, wv->n, ho, wo);
   if (y < 0) return -1;
-  int ia[4] = {pad, stride, 0, 0};
+  int ia[4] = {pad, stride, scale >= 0 || relu, 0}; /* [2]: the forward is an inference one (workspace plan) */
   spx_tp_record(t, OP_CONV, x, w, bias, y, -1, -1, ia, NULL);
   if (!spx_tp_live(t)) return y;
   xv = &t->vals[x], wv = &t->vals[w];
@@ -423,7 +422,9 @@ static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, i
   } else {
     spx_tensor tx = TV(x), tw = TV(w), tb = bias >= 0 ? TV(bias) : tx, ts = scale >= 0 ? TV(scale) : tx,
                tsh = shift >= 0 ? TV(shift) : tx, ty = TV(y);
-    spx_conv2d_params p = {k, stride, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu, &t->ws};
+    spx_conv2d_workspace ws;
+    spx_conv2d_params p = {k,    stride, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu,
+                           spx_tp_ws(t, t->nnodes - 1, 0, &ws)};
     RUN(OP_CONV, spx_conv2d_forward(t->ctx, &tx, &tw, bias >= 0 ? &tb : NULL, &p, &ty));
   }
   return y;
@@ -644,7 +645,9 @@ static spx_status back_dev(spx_tape *t, const tnode *nd) {
     case OP_CONV: {
       spx_tensor w = TV(nd->in[1]), dw = spx_tape_grad_tensor(t, nd->in[1]), db;
       if (nd->in[2] >= 0) db = spx_tape_grad_tensor(t, nd->in[2]);
-      spx_conv2d_params p = {t->vals[nd->in[1]].h, nd->iarg[1], nd->iarg[0], NULL, NULL, 0, &t->ws};
+      spx_conv2d_workspace ws;
+      spx_conv2d_params p = {t->vals[nd->in[1]].h, nd->iarg[1], nd->iarg[0], NULL, NULL, 0,
+                             spx_tp_ws(t, (int)(nd - t->nodes), 1, &ws)};
       return spx_conv2d_backward(ctx, &x, &w, &dy, pdx, spx_tp_wants(t, nd->in[1]) ? &dw : NULL,
                                  nd->in[2] >= 0 && spx_tp_wants(t, nd->in[2]) ? &db : NULL, &p);
     }

@@ -134,9 +134,12 @@ spx_status spx_tape_transfer(spx_tape *dst, int did, size_t doff, int dst_grad, 
  * All activations and activation gradients of a pass live in ONE arena, at offsets the measuring
  * pass plans from the recorded graph: a value's storage is reused once nothing later in the
  * forward or the backward reads it (see tape_plan.c for the rules). Reading a value or gradient
- * after its storage was given away fails with SPX_E_STATE (spx_tape_keep it). */
+ * after its storage was given away fails with SPX_E_STATE (spx_tape_keep it). On the device the
+ * arena also holds each op's scratch (conv workspace) at that op's step, sized by the op's need
+ * function: no scratch is allocated while a planned pass runs. */
 /* Bytes of the arena the current pass's plan needs, and (without_reuse, may be NULL) the sum of all
- * its activations and gradients, i.e. what it would need without reuse. 0 before a planned pass. */
+ * its activations and gradients plus the largest op scratch, i.e. what it would need without
+ * reuse. 0 before a planned pass. */
 size_t spx_tape_plan_bytes(const spx_tape *t, size_t *without_reuse);
 /* Backward may run more than once over one forward (torch's retain_graph): everything backward
  * reads stays alive. Set before the pass; plans are made per setting. */
