@@ -89,8 +89,21 @@ const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *ba
 const char *spx_cli_data_path(const char *rel) {
   static char buf[4096];
   const char *env = getenv("SPX_DATA_DIR");
-  const char *dirs[3] = {env && *env ? env : NULL, SPX_INSTALL_DATA_DIR, SPX_SOURCE_DATA_DIR};
-  for (int i = 0; i < 3; i++) {
+  /* the installed copy beside this executable (<bindir>/SPX_BIN_TO_DATA), so a tree installed
+   * with `make install PREFIX=P` and then moved or installed elsewhere still finds its data */
+  static char exe_data[4096];
+  const char *rel_dir = NULL;
+  ssize_t len = readlink("/proc/self/exe", exe_data, sizeof exe_data - 1);
+  if (len > 0) {
+    exe_data[len] = '\0';
+    char *slash = strrchr(exe_data, '/');
+    if (slash && (size_t)(slash - exe_data) + sizeof "/" SPX_BIN_TO_DATA < sizeof exe_data) {
+      strcpy(slash + 1, SPX_BIN_TO_DATA);
+      rel_dir = exe_data;
+    }
+  }
+  const char *dirs[4] = {env && *env ? env : NULL, rel_dir, SPX_INSTALL_DATA_DIR, SPX_SOURCE_DATA_DIR};
+  for (int i = 0; i < 4; i++) {
     if (!dirs[i]) continue;
     snprintf(buf, sizeof buf, "%s/%s", dirs[i], rel);
     if (access(buf, R_OK) == 0 || i == 0) return buf; /* an explicit $SPX_DATA_DIR is final */
