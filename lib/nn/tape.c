@@ -578,7 +578,9 @@ int spx_tape_l1(spx_tape *t, int pred, int target) {
     *HV(y) = spx_ref_loss_forward(SPX_LOSS_L1, SPX_REDUCE_MEAN, HV(pred), HV(target), spx_tape_numel(t, pred));
   } else {
     spx_tensor tp = TV(pred), tt = TV(target), ty = TV(y);
-    RUN(OP_L1, spx_loss_forward(t->ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &tp, &tt, &ty));
+    spx_conv2d_workspace ws;
+    RUN(OP_L1, spx_loss_forward_ws(t->ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &tp, &tt, &ty,
+                                   spx_tp_ws(t, t->nnodes - 1, 0, &ws)));
   }
   return y;
 }
@@ -670,8 +672,10 @@ static spx_status back_dev(spx_tape *t, const tnode *nd) {
     }
     case OP_MAXPOOL:
       return pdx ? spx_maxpool_backward(ctx, &x, &dy, pdx) : SPX_OK;
-    case OP_UPSAMPLE:
-      return pdx ? spx_upsample2x_backward(ctx, &dy, 1, pdx) : SPX_OK;
+    case OP_UPSAMPLE: {
+      spx_conv2d_workspace ws;
+      return pdx ? spx_upsample2x_backward_ws(ctx, &dy, 1, pdx, spx_tp_ws(t, (int)(nd - t->nodes), 1, &ws)) : SPX_OK;
+    }
     case OP_PAD:
       return pdx ? spx_pad_backward(ctx, &dy, nd->iarg[0], nd->iarg[1], nd->iarg[2], nd->iarg[3], pdx) : SPX_OK;
     case OP_CONCAT: {

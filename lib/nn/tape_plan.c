@@ -24,7 +24,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "nn/loss.h"
 #include "nn/tape_internal.h"
+#include "nn/upsample.h"
 
 #define ALIGN 16
 
@@ -100,6 +102,33 @@ static void place(item *it, int i, item **tmp) {
   it[i].off = off;
 }
 
+/* Scratch of one node's device launchers, need[0] forward, need[1] backward (zero: none). A new
+ * launcher that takes a workspace adds its op's need here. */
+static void op_need(const spx_tape *t, const tnode *nd, spx_ws_need need[2]) {
+  const tvalue *x = &t->vals[nd->in[0]];
+  const int back = t->train && t->vals[nd->out].needs_grad, dx = back && spx_tp_wants(t, nd->in[0]);
+  switch (nd->kind) {
+    case OP_CONV: {
+      const tvalue *w = &t->vals[nd->in[1]];
+      spx_conv2d_shape sh = {x->n, x->c, x->h, x->w, w->n, w->h, nd->iarg[1], nd->iarg[0]};
+      int passes = (dx ? SPX_CONV_PASS_BWD_DATA : 0) |
+                   (back && spx_tp_wants(t, nd->in[1]) ? SPX_CONV_PASS_BWD_WEIGHTS : 0);
+      spx_conv2d_workspace_need(t->ctx, &sh, SPX_CONV_PASS_FWD, nd->iarg[2], &need[0]);
+      if (passes) spx_conv2d_workspace_need(t->ctx, &sh, passes, 0, &need[1]);
+      break;
+    }
+    case OP_UPSAMPLE:
+      if (dx) spx_upsample2x_backward_need(x->n, x->c, x->h, x->w, &need[1]);
+      break;
+    case OP_L1:
+    case OP_MSE_CONST:
+      spx_loss_forward_need(t->ctx, spx_tp_numel(x), &need[0]);
+      break;
+    default:
+      break;
+  }
+}
+
 /* The device's op scratch: node k's forward (at 2k + 1) and backward (at its backward step) each
  * get one region of the arena, sized by the op's need function (conv: spx_conv2d_workspace_need,
  * every slot's maximum over the calls of that step), live only at that step. Appends the items. */
@@ -117,15 +146,7 @@ static spx_status ws_items(spx_tape *t, tplan *p, item *it, int *ni) {
   if (!p->wsneed || !p->wsoff)
     return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for the workspace plan of %d nodes", N);
   for (int k = 0; k < N; k++) {
-    const tnode *nd = &t->nodes[k];
-    if (nd->kind != OP_CONV) continue;
-    const tvalue *x = &t->vals[nd->in[0]], *w = &t->vals[nd->in[1]];
-    spx_conv2d_shape sh = {x->n, x->c, x->h, x->w, w->n, w->h, nd->iarg[1], nd->iarg[0]};
-    int back = (t->train && t->vals[nd->out].needs_grad) ? (spx_tp_wants(t, nd->in[0]) ? SPX_CONV_PASS_BWD_DATA : 0) |
-                                                                (spx_tp_wants(t, nd->in[1]) ? SPX_CONV_PASS_BWD_WEIGHTS : 0)
-                                                          : 0;
-    spx_conv2d_workspace_need(t->ctx, &sh, SPX_CONV_PASS_FWD, nd->iarg[2], &p->wsneed[2 * k]);
-    if (back) spx_conv2d_workspace_need(t->ctx, &sh, back, 0, &p->wsneed[2 * k + 1]);
+    op_need(t, &t->nodes[k], &p->wsneed[2 * k]);
     for (int b = 0; b < 2; b++) {
       size_t bytes = spx_ws_layout(&p->wsneed[2 * k + b], p->wsalign * sizeof(float), NULL);
       int time = b ? 4 * N - 2 * k + 1 : 2 * k + 1;

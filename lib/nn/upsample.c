@@ -7,6 +7,8 @@
  * weight 0) and d < (i+1)/s = 2i+2 + (i+1)/(in-1) <= 2i+4 (in >= 2; for in == 1 every output
  * reads row 0 and there are only rows 0 and 1). Float rounding of src moves it by ~d*eps, far
  * less than the margins (~1/(2in) relative) of these bounds. */
+#include <string.h>
+
 #include "nn/upsample.h"
 
 #include "nn/nn_internal.h"
@@ -40,10 +42,26 @@ spx_status spx_upsample2x_forward(spx_ctx *ctx, const spx_tensor *x, int align_c
   return run(ctx, "upsample2x_forward", SPX_K_UPSAMPLE2X_FWD, x, y, x, y, align_corners, y);
 }
 
+/* scratch floats: the row-pass result (half of dy), then the x and y weight tables */
+static size_t bwd_scratch(int n, int c, int h, int w) {
+  return (size_t)n * c * 2 * h * w + 5 * (size_t)w + 5 * (size_t)h;
+}
+
+void spx_upsample2x_backward_need(int n, int c, int h, int w, spx_ws_need *need) {
+  memset(need, 0, sizeof *need);
+  if (n > 0 && c > 0 && h > 0 && w > 0) need->slot[0] = bwd_scratch(n, c, h, w) * sizeof(float);
+}
+
 spx_status spx_upsample2x_backward(spx_ctx *ctx, const spx_tensor *dy, int align_corners, const spx_tensor *dx) {
+  return spx_upsample2x_backward_ws(ctx, dy, align_corners, dx, NULL);
+}
+
+spx_status spx_upsample2x_backward_ws(spx_ctx *ctx, const spx_tensor *dy, int align_corners, const spx_tensor *dx,
+                                      spx_conv2d_workspace *ws) {
   const char *op = "upsample2x_backward";
   spx_status st;
   cl_kernel k1, k2;
+  spx_conv2d_scratch sc = {0};
   cl_mem t = NULL;
   if (!dx) return SPX_OK;
   if (!dy) return spx_fail(ctx, SPX_E_ARG, "%s: missing dy", op);
@@ -62,9 +80,10 @@ spx_status spx_upsample2x_backward(spx_ctx *ctx, const spx_tensor *dy, int align
    * column / row); released right after enqueueing, OpenCL keeps it alive until the queued
    * kernels are done */
   size_t tn = planes * rows * (size_t)dx->w, wxo = tn, wyo = tn + 5 * (size_t)dx->w;
-  size_t total = wyo + 5 * (size_t)dx->h;
+  size_t total = bwd_scratch(dx->n, dx->c, dx->h, dx->w);
   if (total > (size_t)INT_MAX) return spx_fail(ctx, SPX_E_ARG, "%s: tensor too large", op);
-  if ((st = spx_cl_alloc(ctx, total * sizeof(float), "upsample backward scratch", &t))) return st;
+  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, total * sizeof(float), "upsample backward scratch", &sc))) return st;
+  t = sc.mem;
   cl_int al = align_corners ? 1 : 0, go = (cl_int)dy->off, wxoi = (cl_int)wxo, wyoi = (cl_int)wyo;
   float sh = scale_of(dx->h, align_corners), sw = scale_of(dx->w, align_corners);
   cl_int e = SPX_ARG(kw, 0, t) | SPX_ARG(kw, 1, wxoi) | SPX_ARG(kw, 2, dx->w) | SPX_ARG(kw, 3, sw) | SPX_ARG(kw, 4, al);
@@ -85,6 +104,6 @@ spx_status spx_upsample2x_backward(spx_ctx *ctx, const spx_tensor *dy, int align
   if (!(st = spx_cl_check(ctx, e, "spx_upsample2x_bwd_cols")))
     st = spx_nn_run3d(ctx, k2, (size_t)dx->w, (size_t)dx->h, planes, "spx_upsample2x_bwd_cols");
 done:
-  spx_cl_free(&t);
+  spx_conv2d_scratch_put(&sc);
   return st;
 }

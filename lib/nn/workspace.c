@@ -1,6 +1,6 @@
-/* The convolution launchers' scratch slots (lib/nn/conv2d.h: spx_conv2d_workspace): grow-only
+/* The device launchers' scratch slots (lib/nn/workspace.h: spx_conv2d_workspace): grow-only
  * buffers, a planned region of the tape's arena (sub-buffers), or per-call buffers. */
-#include "nn/conv2d.h"
+#include "nn/workspace.h"
 
 void spx_conv2d_workspace_release(spx_conv2d_workspace *ws) {
   if (!ws) return;
