@@ -49,9 +49,9 @@ int spx_tape_state(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w); /* 
 /* Allocate and zero the param/grad/m/v and state slabs. */
 spx_status spx_tape_alloc_params(spx_tape *t);
 size_t spx_tape_param_count(const spx_tape *t); /* floats in the parameter slab */
-/* Bytes of every device buffer the tape holds now: the param/grad/Adam/state slabs, the
- * activation arena and the convolution workspace (all grow-only, so after a pass this is the
- * pass's peak, less the short-lived per-call scratch of a few ops). 0 on the host backend. */
+/* Bytes of every device buffer the tape holds now: the param/grad/Adam/state slabs and the
+ * activation arena, which also holds the ops' scratch (all grow-only, and a planned pass allocates
+ * nothing, so after a pass this is the pass's peak). 0 on the host backend. */
 size_t spx_tape_device_bytes(const spx_tape *t);
 
 /* Host access to any value's data / gradient as float32 (values of the last forward, params,

@@ -19,7 +19,12 @@
  * Offsets: the storages (data and gradient separately) sorted by size, largest first (ties by
  * value id), each put at the lowest offset (16-float aligned) that overlaps no storage placed
  * before it whose interval meets its own. All of it depends only on the recorded graph, so a pass
- * always gets the same layout and the results do not depend on reuse. */
+ * always gets the same layout and the results do not depend on reuse.
+ *
+ * Op scratch (device backend; lib/nn/workspace.h): node k's forward and its backward step each
+ * get one region of the arena holding the slots its launchers ask for (op_need: the launchers'
+ * need functions), live at that one time and placed among the storages by the same first fit (its
+ * start aligned to the device's sub-buffer alignment), so the pass allocates nothing. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
