@@ -1,8 +1,11 @@
 /* Times the non-convolution network ops at the UNet's largest shapes (width 64, 308x410,
  * batch 1) on the default device: median of 5 runs after a warm-up, with the memory traffic
- * each op needs at minimum, as effective GB/s. Usage: bench_nn_ops [width] */
+ * each op needs at minimum, as effective GB/s, and the process's CPU time (all threads: steadier
+ * than the wall time on a loaded machine). Usage: bench_nn_ops [width [name-substring]] */
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <time.h>
 
 #include "nn/activations.h"
 #include "nn/batchnorm.h"
@@ -23,20 +26,25 @@ static int cmpd(const void *a, const void *b) {
 }
 
 typedef spx_status (*op_fn)(void);
+static const char *only; /* argv[2]: run only the ops whose name contains it */
 static void bench(const char *name, op_fn f, double bytes) {
-  double t[5];
+  double t[5], c[5];
+  if (only && !strstr(name, only)) return;
   if (f() || spx_device_finish(ctx)) {
     printf("%-28s failed: %s\n", name, spx_ctx_message(ctx));
     return;
   }
   for (int r = 0; r < 5; r++) {
     double t0 = spx_now();
+    clock_t c0 = clock();
     f();
     spx_device_finish(ctx);
     t[r] = spx_now() - t0;
+    c[r] = (double)(clock() - c0) / CLOCKS_PER_SEC;
   }
   qsort(t, 5, sizeof t[0], cmpd);
-  printf("%-28s %9.3f ms  %7.2f GB/s\n", name, t[2] * 1e3, bytes / t[2] * 1e-9);
+  qsort(c, 5, sizeof c[0], cmpd);
+  printf("%-28s %9.3f ms  %7.2f GB/s  (process CPU %.3f ms)\n", name, t[2] * 1e3, bytes / t[2] * 1e-9, c[2] * 1e3);
 }
 
 static int W = 64, H = 308, X = 410;
@@ -84,6 +92,26 @@ static spx_status cat_b(void) {
   spx_tensor a = T(0, 1, W, H, X), b = T(1, 1, W, H, X), o = T(2, 1, 2 * W, H, X);
   return spx_concat_backward(ctx, &o, &a, &b);
 }
+/* The UNet's last up-block input: concat(skip, upsample2x(x)), as the chain and as one op */
+static spx_status upcat_chain_f(void) {
+  spx_tensor x = T(0, 1, W, H / 2, X / 2), u = T(3, 1, W, H, X), s = T(1, 1, W, H, X), o = T(2, 1, 2 * W, H, X);
+  spx_status st = spx_upsample2x_forward(ctx, &x, 1, &u);
+  return st ? st : spx_concat_forward(ctx, &s, &u, &o);
+}
+static spx_status upcat_f(void) {
+  spx_tensor x = T(0, 1, W, H / 2, X / 2), s = T(1, 1, W, H, X), o = T(2, 1, 2 * W, H, X);
+  return spx_upcat_forward(ctx, &s, &x, 0, 0, 1, &o);
+}
+static spx_status upcat_chain_b(void) {
+  spx_tensor g = T(2, 1, 2 * W, H, X), u = T(3, 1, W, H, X), ds = T(1, 1, W, H, X), dx = T(0, 1, W, H / 2, X / 2);
+  spx_status st = spx_fill(ctx, &u, 0.0f);
+  if (!st) st = spx_concat_backward(ctx, &g, &ds, &u);
+  return st ? st : spx_upsample2x_backward(ctx, &u, 1, &dx);
+}
+static spx_status upcat_b(void) {
+  spx_tensor g = T(2, 1, 2 * W, H, X), ds = T(1, 1, W, H, X), dx = T(0, 1, W, H / 2, X / 2);
+  return spx_upcat_backward(ctx, &g, 0, 0, 1, &ds, &dx);
+}
 static spx_status mse_fb(void) {
   spx_tensor p = T(0, 1, 3, H, X), t = T(1, 1, 3, H, X), d = T(2, 1, 3, H, X), o = T(3, 1, 1, 1, 1);
   spx_status st = spx_loss_forward(ctx, SPX_LOSS_MSE, SPX_REDUCE_MEAN, &p, &t, &o);
@@ -103,6 +131,7 @@ static spx_status adam(void) {
 
 int main(int argc, char **argv) {
   if (argc > 1) W = atoi(argv[1]);
+  if (argc > 2) only = argv[2];
   if (W < 1 || W > 256) return 2;
   if (spx_ctx_create(&ctx) || spx_device_open(ctx, NULL)) {
     fprintf(stderr, "bench_nn_ops: %s\n", spx_ctx_message(ctx));
@@ -128,6 +157,10 @@ int main(int argc, char **argv) {
   bench("upsample x2 (ac) backward", up_b, 1.5 * b);
   bench("concat forward", cat_f, 4 * b);
   bench("concat backward", cat_b, 6 * b);
+  bench("up block chain forward", upcat_chain_f, 5.25 * b);
+  bench("upcat (fused) forward", upcat_f, 3.25 * b);
+  bench("up block chain backward", upcat_chain_b, 8.5 * b);
+  bench("upcat (fused) backward", upcat_b, 5.5 * b);
   bench("mse loss fwd+bwd (3 ch)", mse_fb, 4 * 4.0 * 3 * H * X);
   bench("sum reduction", sum_big, b);
   bench("adam step (17.3M params)", adam, 7 * 4.0 * NP);

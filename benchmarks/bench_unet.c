@@ -95,11 +95,12 @@ int main(int argc, char **argv) {
   int nmax = batch > ebatch ? batch : ebatch;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return 1;
-  /* SPX_TAPE_PROFILE=1: the tape's per-op device times, printed to stderr when the network is freed */
+  /* SPX_TAPE_PROFILE=1: the tape's per-op-kind device times, printed to stderr when the network is
+   * freed; =2: also one line per op instance (layer) */
   const char *prof = getenv("SPX_TAPE_PROFILE");
   if (prof && *prof && strcmp(prof, "0")) {
     spx_ctx_set_log(ctx, log_stderr, NULL);
-    spx_ctx_set_profile(ctx, SPX_PROFILE_TAPE);
+    spx_ctx_set_profile(ctx, SPX_PROFILE_TAPE | (!strcmp(prof, "2") ? SPX_PROFILE_TAPE_OPS : 0u));
   }
   spx_unet *u = NULL;
   int rc = 1;

@@ -17,14 +17,20 @@ inline int spx_pool_argmax(__global const float *p, int w) {
   return a;
 }
 
-/* range (ow, oh, planes) */
+/* range (ow, oh, planes). The value of spx_pool_argmax's element, branch-free from two row loads
+ * (the same comparisons in the same order: the first maximum, NaN wins). */
 __kernel void spx_maxpool_fwd(__global const float *x, int xo, __global float *y, int yo, int h, int w) {
   int oh = h / 2, ow = w / 2;
   int ox = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
   if (ox >= ow || oy >= oh) return;
   __global const float *q = x + xo + (p * h + 2 * oy) * w + 2 * ox;
-  int a = spx_pool_argmax(q, w);
-  y[yo + (p * oh + oy) * ow + ox] = q[(a >> 1) * w + (a & 1)];
+  float m = q[0], v = q[1];
+  m = (v > m || isnan(v)) ? v : m;
+  v = q[w];
+  m = (v > m || isnan(v)) ? v : m;
+  v = q[w + 1];
+  m = (v > m || isnan(v)) ? v : m;
+  y[yo + (p * oh + oy) * ow + ox] = m;
 }
 
 /* range (ow, oh, planes): one work-item per window adds dy to the argmax element of its window.

@@ -21,18 +21,43 @@ inline void spx_up_src(int d, int in, float scale, int align, int *i0, int *i1, 
   *l0 = 1.0f - l;
 }
 
-/* range (ow, oh, planes) */
-__kernel void spx_upsample2x_fwd(__global const float *x, int xo, __global float *y, int yo, int h, int w, float sh,
-                                 float sw, int align) {
-  int oh = 2 * h, ow = 2 * w;
-  int ox = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
-  if (ox >= ow || oy >= oh) return;
+/* Output (oy, ox) of the x2 upsampling of the h x w plane q: the one expression both forward
+ * kernels use, so the fused spx_upcat_fwd is bit-identical to upsample -> pad -> concat. */
+inline float spx_up_at(__global const float *q, int h, int w, int oy, int ox, float sh, float sw, int align) {
   int h0, h1, w0, w1;
   float lh0, lh1, lw0, lw1;
   spx_up_src(oy, h, sh, align, &h0, &h1, &lh0, &lh1);
   spx_up_src(ox, w, sw, align, &w0, &w1, &lw0, &lw1);
-  __global const float *q = x + xo + p * h * w;
-  y[yo + (p * oh + oy) * ow + ox] = lh0 * (lw0 * q[h0 * w + w0] + lw1 * q[h0 * w + w1]) + lh1 * (lw0 * q[h1 * w + w0] + lw1 * q[h1 * w + w1]);
+  return lh0 * (lw0 * q[h0 * w + w0] + lw1 * q[h0 * w + w1]) + lh1 * (lw0 * q[h1 * w + w0] + lw1 * q[h1 * w + w1]);
+}
+
+/* range (ow, oh, planes) of the 2h x 2w output; output planes start ps apart at yo, rows rs
+ * apart (the plain upsampling: ps = oh * ow, rs = ow; the fused up block writes its channels of
+ * the concatenation in place, at the pad offset). */
+__kernel void spx_upsample2x_fwd(__global const float *x, int xo, __global float *y, int yo, int h, int w, float sh,
+                                 float sw, int align, int ps, int rs) {
+  int oh = 2 * h, ow = 2 * w;
+  int ox = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
+  if (ox >= ow || oy >= oh) return;
+  y[yo + p * ps + oy * rs + ox] = spx_up_at(x + xo + p * h * w, h, w, oy, ox, sh, sw, align);
+}
+
+/* The zero border around the upsampled planes of the fused up block (pad > 0 only): the rows
+ * outside [top, top + uh) (rows = 1, range (ow, oh - uh, planes)) or the columns outside
+ * [left, left + uw) of the rows inside (rows = 0, range (ow - uw, uh, planes)) of the oh x ow
+ * planes starting at oo. */
+__kernel void spx_upcat_border(__global float *out, int oo, int oh, int ow, int top, int left, int uh, int uw,
+                               int rows) {
+  int i = get_global_id(0), j = get_global_id(1), p = get_global_id(2);
+  int oy, ox;
+  if (rows) {
+    if (i >= ow || j >= oh - uh) return;
+    oy = j < top ? j : j + uh, ox = i;
+  } else {
+    if (i >= ow - uw || j >= uh) return;
+    oy = top + j, ox = i < left ? i : i + uw;
+  }
+  out[oo + (p * oh + oy) * ow + ox] = 0.0f;
 }
 
 /* weight with which output coordinate d reads input coordinate i */
@@ -72,20 +97,23 @@ __kernel void spx_upsample2x_weights(__global float *tab, int to, int in, float 
   for (int k = 0; k < 5; k++) tab[to + k * in + i] = wt[k];
 }
 
-/* Pass 1, range (w, oh, planes): t[p, oy, ix] = sum_b wx[b] * dy[p, oy, 2ix - 1 + b]. */
-__kernel void spx_upsample2x_bwd_rows(__global const float *dy, int go, __global float *t, __global const float *tab,
-                                      int wxo, int h, int w) {
+/* Pass 1, range (w, oh, planes): t[to + p, oy, ix] = sum_b wx[b] * dy[p, oy, 2ix - 1 + b]. dy's
+ * planes start ps apart at go, rows rs apart (the plain upsampling: ps = oh * ow, rs = ow, all
+ * samples in one launch; the fused up block reads its slice of the concatenated gradient in
+ * place, one launch per sample). */
+__kernel void spx_upsample2x_bwd_rows(__global const float *dy, int go, __global float *t, int to,
+                                      __global const float *tab, int wxo, int h, int w, int ps, int rs) {
   int oh = 2 * h, ow = 2 * w;
   int ix = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
   if (ix >= w || oy >= oh) return;
-  __global const float *g = dy + go + (p * oh + oy) * ow;
+  __global const float *g = dy + go + p * ps + oy * rs;
   float row = 0.0f;
 #pragma unroll
   for (int b = 0; b < 5; b++) {
     float wb = tab[wxo + b * w + ix], v = g[clamp(2 * ix - 1 + b, 0, ow - 1)];
     row += wb != 0.0f ? wb * v : 0.0f;
   }
-  t[(p * oh + oy) * w + ix] = row;
+  t[to + (p * oh + oy) * w + ix] = row;
 }
 
 /* Pass 2, range (w, h, planes): dx[p, iy, ix] += sum_a wy[a] * t[p, 2iy - 1 + a, ix]. */

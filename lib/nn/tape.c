@@ -15,10 +15,6 @@
 #include "nn/tensor_ops.h"
 #include "nn/upsample.h"
 
-
-static const char *const op_names[NOPS] = {"conv",     "batchnorm", "activation", "maxpool",  "upsample", "pad",
-                                           "concat",   "l1",        "instnorm",   "avgpool3", "mse",      "axpby"};
-
 /* ------------------------------------------------------------------ values */
 
 int spx_tp_new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, int32_t w) {
@@ -101,7 +97,8 @@ spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **ou
   if (!t) return spx_fail(ctx, SPX_E_NOMEM, "tape: out of memory");
   t->ctx = ctx;
   t->backend = backend;
-  t->prof = backend == SPX_TAPE_DEVICE && (spx_ctx_profile(ctx) & SPX_PROFILE_TAPE);
+  t->prof = backend != SPX_TAPE_DEVICE ? 0 : (spx_ctx_profile(ctx) & SPX_PROFILE_TAPE_OPS) ? 2
+            : (spx_ctx_profile(ctx) & SPX_PROFILE_TAPE) ? 1 : 0;
   t->poison = (spx_ctx_profile(ctx) & SPX_DEBUG_TAPE_POISON) != 0;
   t->reuse = 1;
   *out = t;
@@ -110,14 +107,7 @@ spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **ou
 
 void spx_tape_destroy(spx_tape *t) {
   if (!t) return;
-  if (t->prof) {
-    spx_log(t->ctx, "tape profile (device time per op kind, all passes):");
-    for (int k = 0; k < NOPS; k++)
-      for (int d = 0; d < 2; d++)
-        if (t->prof_n[k][d])
-          spx_log(t->ctx, "  %-10s %-8s %8.3f s  %6ld calls", op_names[k], d ? "backward" : "forward", t->prof_s[k][d],
-                  t->prof_n[k][d]);
-  }
+  spx_tp_prof_report(t);
   spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
   spx_cl_free(&t->state), spx_cl_free(&t->act);
   free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact);
@@ -253,7 +243,7 @@ spx_status spx_tape_begin(spx_tape *t, int train, uint64_t plan_key) {
   if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
   t->err = SPX_OK;
   t->nvals = t->npersist;
-  t->nnodes = 0;
+  t->nnodes = 0, t->prof_op = 0;
   t->train = train != 0;
   t->in_pass = 1;
   if (t->train && spx_tape_sync_bn(t)) plan_key = spx_hash64("syncbn", 6, plan_key); /* + the ranks' scratch */
@@ -425,6 +415,7 @@ static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, i
     spx_conv2d_workspace ws;
     spx_conv2d_params p = {k,    stride, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu,
                            spx_tp_ws(t, t->nnodes - 1, 0, &ws)};
+    if (t->prof > 1) spx_tp_prof_conv_note(t, xv->c, wv->n, k, stride, pad, scale >= 0 || relu);
     RUN(OP_CONV, spx_conv2d_forward(t->ctx, &tx, &tw, bias >= 0 ? &tb : NULL, &p, &ty));
   }
   return y;

@@ -94,6 +94,10 @@ int spx_tape_maxpool2(spx_tape *t, int x);
 int spx_tape_upsample2(spx_tape *t, int x); /* bilinear x2, align_corners = true */
 int spx_tape_pad(spx_tape *t, int x, int left, int right, int top, int bottom);
 int spx_tape_concat(spx_tape *t, int a, int b); /* channels: [a, b] */
+/* concat(skip, pad(upsample2(x))) in one op and pass (lib/nn/tape_fused.c), the pads splitting
+ * the size difference like the UNet's up block (F.pad(x, [dx / 2, dx - dx / 2, dy / 2, dy - dy / 2]));
+ * bit-identical to the three ops. skip must not be smaller than the upsampled x. */
+int spx_tape_upcat(spx_tape *t, int skip, int x);
 /* mean |pred - target| as a 1-element value; must be the root of backward. */
 int spx_tape_l1(spx_tape *t, int pred, int target);
 

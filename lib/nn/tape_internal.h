@@ -61,7 +61,9 @@ typedef struct tplan {
 
 enum { OP_CONV, OP_BN, OP_ACT, OP_MAXPOOL, OP_UPSAMPLE, OP_PAD, OP_CONCAT, OP_L1,
        /* lib/nn/tape_multi.c */
-       OP_INSTNORM, OP_AVGPOOL3, OP_MSE_CONST, OP_AXPBY, NOPS };
+       OP_INSTNORM, OP_AVGPOOL3, OP_MSE_CONST, OP_AXPBY,
+       /* lib/nn/tape_fused.c */
+       OP_UPCAT, NOPS };
 
 typedef struct tnode {
   int kind;
@@ -107,10 +109,20 @@ struct spx_tape {
   size_t xfer_cap;
   /* SPX_PROFILE_TAPE on the context: finish the queue around every device op and log the time
    * per op kind and direction when the tape is destroyed */
-  int prof;
+  int prof; /* 1: per op kind; 2 (SPX_PROFILE_TAPE_OPS): also per op instance (lib/nn/tape_prof.c) */
   double prof_s[NOPS][2];
   long prof_n[NOPS][2];
+  int prof_op;          /* forward ops run so far in this pass: the instance index */
+  char prof_note[64];   /* what the next profiled op adds to its line (conv: shape, algorithm) */
+  struct tp_prof_inst *prof_inst;
+  int prof_ninst, prof_cap;
 };
+
+/* tape_prof.c: the profile's per-instance records and the report at destroy */
+void spx_tp_prof_inst(spx_tape *t, int kind, double seconds);
+void spx_tp_prof_conv_note(spx_tape *t, int cin, int cout, int k, int stride, int pad, int inference);
+void spx_tp_prof_report(spx_tape *t); /* logs the profile (when on) and frees its records */
+const char *spx_tp_op_name(int kind);
 
 static inline double prof_begin(spx_tape *t) {
   spx_device_finish(t->ctx);
@@ -118,8 +130,10 @@ static inline double prof_begin(spx_tape *t) {
 }
 static inline void prof_end(spx_tape *t, int kind, int dir, double t0) {
   spx_device_finish(t->ctx);
-  t->prof_s[kind][dir] += spx_now() - t0;
+  double dt = spx_now() - t0;
+  t->prof_s[kind][dir] += dt;
   t->prof_n[kind][dir]++;
+  if (t->prof > 1 && dir == 0) spx_tp_prof_inst(t, kind, dt);
 }
 
 /* tape.c */
@@ -155,6 +169,8 @@ static inline int spx_tp_act_uses_output(spx_act_kind k, float slope) {
 spx_status spx_tape_bn_sync(spx_tape *t, int x, spx_bn_sync *out);
 /* tape_multi.c: backward of the OP_INSTNORM.. kinds */
 spx_status spx_tp_back_multi(spx_tape *t, const tnode *nd);
+/* tape_fused.c: backward of OP_UPCAT */
+spx_status spx_tp_back_fused(spx_tape *t, const tnode *nd);
 
 /* Run a status-returning call, making the error sticky. */
 #define RUN(kind, call)                                                                                             \

@@ -155,6 +155,7 @@ int spx_tape_axpby(spx_tape *t, float a, int x, float b, int z) {
 }
 
 spx_status spx_tp_back_multi(spx_tape *t, const tnode *nd) {
+  if (nd->kind == OP_UPCAT) return spx_tp_back_fused(t, nd);
   spx_ctx *ctx = t->ctx;
   const tvalue *xv = &t->vals[nd->in[0]];
   int wx = spx_tp_wants(t, nd->in[0]);

@@ -125,6 +125,11 @@ static void op_need(const spx_tape *t, const tnode *nd, spx_ws_need need[2]) {
     case OP_UPSAMPLE:
       if (dx) spx_upsample2x_backward_need(x->n, x->c, x->h, x->w, &need[1]);
       break;
+    case OP_UPCAT: { /* in[1]: the upsampled input */
+      const tvalue *u = &t->vals[nd->in[1]];
+      if (back && spx_tp_wants(t, nd->in[1])) spx_upsample2x_backward_need(u->n, u->c, u->h, u->w, &need[1]);
+      break;
+    }
     case OP_L1:
     case OP_MSE_CONST:
       spx_loss_forward_need(t->ctx, spx_tp_numel(x), &need[0]);

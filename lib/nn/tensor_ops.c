@@ -124,7 +124,7 @@ static spx_status channel_run(spx_ctx *ctx, spx_kernel_id id, const spx_tensor *
   if ((st = spx_cl_check(ctx, e, name))) return st;
   return spx_nn_run3d(ctx, k, (size_t)hw, (size_t)grid->c, (size_t)grid->n, name);
 }
-static spx_status place(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
+spx_status spx_channel_place(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
   return channel_run(ctx, SPX_K_CHANNEL_PLACE, src, dst, c0, src);
 }
 static spx_status slice_acc(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
@@ -135,9 +135,9 @@ spx_status spx_concat_forward(spx_ctx *ctx, const spx_tensor *a, const spx_tenso
   spx_status st;
   if ((st = spx_nn_check(ctx, a, "concat_forward", "a")) || (st = spx_nn_check(ctx, b, "concat_forward", "b")) ||
       (st = spx_nn_check(ctx, out, "concat_forward", "out")) || (st = concat_check(ctx, "concat_forward", a, b, out)) ||
-      (st = place(ctx, a, out, 0)))
+      (st = spx_channel_place(ctx, a, out, 0)))
     return st;
-  return place(ctx, b, out, a->c);
+  return spx_channel_place(ctx, b, out, a->c);
 }
 
 static spx_status part_check(spx_ctx *ctx, const spx_tensor *dout, const spx_tensor *d, const char *name) {

@@ -22,6 +22,9 @@ spx_status spx_pad_backward(spx_ctx *ctx, const spx_tensor *dout, int left, int 
 /* torch.cat([a, b], dim=1). Backward splits dout and accumulates into da / db (either may be NULL). */
 spx_status spx_concat_forward(spx_ctx *ctx, const spx_tensor *a, const spx_tensor *b, const spx_tensor *out);
 spx_status spx_concat_backward(spx_ctx *ctx, const spx_tensor *dout, const spx_tensor *da, const spx_tensor *db);
+/* One half of concat forward: src (n x cs x h x w) into channels [c0, c0 + cs) of dst (n x cd x
+ * h x w); the caller checks the shapes. */
+spx_status spx_channel_place(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0);
 
 /* References (double, NCHW, same semantics). */
 void spx_ref_pad_forward(const double *x, int n, int c, int h, int w, int left, int right, int top, int bottom,

@@ -253,16 +253,10 @@ static int double_conv(spx_unet *u, int x, int i, int train) {
   return x;
 }
 
+/* Up(): upsample x2, pad to the skip's size, concat(skip, up), double conv; the first three are
+ * one fused op (spx_tape_upcat, the same numbers as spx_tape_upsample2 / _pad / _concat). */
 static int up_block(spx_unet *u, int x, int skip, int i, int train) {
-  spx_tape *t = u->tape;
-  int up = spx_tape_upsample2(t, x);
-  if (up < 0 || skip < 0) return -1;
-  int32_t su[4], ss[4];
-  spx_tape_shape(t, up, su);
-  spx_tape_shape(t, skip, ss);
-  int dy = ss[2] - su[2], dx = ss[3] - su[3];
-  up = spx_tape_pad(t, up, dx / 2, dx - dx / 2, dy / 2, dy - dy / 2);
-  return double_conv(u, spx_tape_concat(t, skip, up), i, train);
+  return double_conv(u, spx_tape_upcat(u->tape, skip, x), i, train);
 }
 
 static spx_status run_forward(spx_unet *u, const float *input, cl_mem dev_in, size_t dev_off, const float *target,
