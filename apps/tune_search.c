@@ -30,6 +30,13 @@ typedef struct group {
   int ncand;
 } group;
 
+/* NULL, or a tunable that must be on (nonzero) for group g to matter: the Winograd variant is not
+ * timed while Winograd is off (CONV_WINO_MINC = 0), nor its local-memory tiles while it is off. */
+static const char *group_needs(const group *g) {
+  if (!strcmp(g->names[0], "CONV_WINO_LDS")) return "CONV_WINO_MINC";
+  return strncmp(g->names[0], "CONV_WLDS_", 10) ? NULL : "CONV_WINO_LDS";
+}
+
 static const int q_minc[] = {0, 16, 32, 64};
 static const int f_minc[] = {0, 8, 16, 32, 64, 128};
 static const int q_tile[] = {8, 3, 8, 2, 6, 4, 4, 6, 8, 4};
@@ -41,6 +48,15 @@ static const int f_xcache[] = {0, 512, 1024, 2048, 4096, 8192};
 /* the local-memory tiled conv (GPU class; needs CONV_VW = 1, refused otherwise) and its tile */
 static const int q_lds[] = {0, 1};
 static const int f_lds_tile[] = {8, 4, 8, 8, 16, 4, 16, 8, 16, 16, 32, 8};
+/* Winograd with local-memory tiles (GPU class; refused or falling back to the CPU variant where a
+ * group does not fit the device): on/off, the register tile TM x TN, the work-items per transform
+ * position WM x WN (groups of 36*WM*WN <= 432 work-items), the channel block KB. After them the
+ * Winograd threshold is searched once more, with the variant and tiles chosen (the first pass
+ * ran with the defaults), so the per-shape choice direct / Winograd sees the faster variant. */
+static const int q_wlds[] = {0, 1};
+static const int f_wlds_tile[] = {1, 1, 2, 2, 2, 4, 4, 2, 4, 4, 4, 8, 8, 4, 8, 8};
+static const int f_wlds_wg[] = {1, 1, 1, 2, 2, 1, 2, 2, 1, 4, 4, 1, 2, 3, 3, 2, 2, 4, 4, 2, 3, 4, 4, 3};
+static const int f_wlds_kb[] = {2, 4, 8, 12, 16};
 
 /* Two contexts on the device: A runs the incumbent, B the candidate, so every comparison times
  * the two alternately in the same seconds (a loaded machine slows both alike) without
@@ -205,15 +221,20 @@ static int build_groups(const spx_tune_plan *p, group *gs) {
   gs[n++] = (group){{"CONV_XCACHE", NULL}, 1, 1, f_xcache, (int)(sizeof f_xcache / sizeof(int))};
   gs[n++] = (group){{"CONV_LDS", NULL}, 1, 0, q_lds, (int)(sizeof q_lds / sizeof(int))};
   gs[n++] = (group){{"CONV_LDS_TX", "CONV_LDS_CB"}, 2, 1, f_lds_tile, (int)(sizeof f_lds_tile / sizeof(int) / 2)};
+  gs[n++] = (group){{"CONV_WINO_LDS", NULL}, 1, 0, q_wlds, (int)(sizeof q_wlds / sizeof(int))};
+  gs[n++] = (group){{"CONV_WLDS_TM", "CONV_WLDS_TN"}, 2, 1, f_wlds_tile, (int)(sizeof f_wlds_tile / sizeof(int) / 2)};
+  gs[n++] = (group){{"CONV_WLDS_WM", "CONV_WLDS_WN"}, 2, 1, f_wlds_wg, (int)(sizeof f_wlds_wg / sizeof(int) / 2)};
+  gs[n++] = (group){{"CONV_WLDS_KB", NULL}, 1, 1, f_wlds_kb, (int)(sizeof f_wlds_kb / sizeof(int))};
+  gs[n++] = gs[0]; /* the threshold again, with the variant chosen (see q_wlds) */
   return n;
 }
 
 int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   run r = {.ctx = {ctx, NULL}, .p = p, .out = out, .nout = (size_t)3 * p->h * p->w};
-  group gs[12];
+  group gs[24];
   int ng = build_groups(p, gs), rc = SPX_EXIT_ERROR, nsave = 0;
-  char names[16][32];
-  int vals[16], defs[16];
+  char names[32][32];
+  int vals[32], defs[32];
   spx_status st = SPX_OK;
   spx_ctx *failed = ctx;
   double t_start = spx_now();
@@ -261,6 +282,18 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   for (int g = 0; g < ng; g++) {
     if (gs[g].full_only && p->quick) continue;
     int cur[MAXG] = {0}, skip = 0;
+    spx_tunable_info on;
+    const char *needs = group_needs(&gs[g]);
+    if (p->quick && !strcmp(gs[g].names[0], "CONV_WINO_LDS") && tunable(ctx, "CONV_WINO_LDS", &on) &&
+        !on.default_value) { /* the GPU variant on a CPU: 10-40x slower on 2-core PoCL, not worth --quick's time */
+      fprintf(out, "  CONV_WINO_LDS: off by default on this device class, tried in the full search only\n");
+      continue;
+    }
+    if (needs && tunable(ctx, needs, &on) && !on.value) {
+      fprintf(out, "  %s%s%s: not tuned (%s is 0)\n", gs[g].names[0], gs[g].n > 1 ? " " : "",
+              gs[g].n > 1 ? gs[g].names[1] : "", needs);
+      continue;
+    }
     for (int j = 0; j < gs[g].n; j++) {
       spx_tunable_info t;
       if (!tunable(ctx, gs[g].names[j], &t)) skip = 1;
@@ -273,12 +306,15 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
     }
     if (skip) continue;
     if ((st = stage(&r, &gs[g], cur))) goto fail_either;
-    for (int j = 0; j < gs[g].n && nsave < 16; j++) {
+    for (int j = 0; j < gs[g].n && nsave < 32; j++) {
       spx_tunable_info t;
       tunable(ctx, gs[g].names[j], &t);
-      snprintf(names[nsave], sizeof names[nsave], "%s", gs[g].names[j]);
-      defs[nsave] = t.default_value;
-      vals[nsave++] = cur[j];
+      int at = 0; /* a group searched twice keeps its first place, with the last value */
+      while (at < nsave && strcmp(names[at], gs[g].names[j])) at++;
+      snprintf(names[at], sizeof names[at], "%s", gs[g].names[j]);
+      defs[at] = t.default_value;
+      vals[at] = cur[j];
+      if (at == nsave) nsave++;
     }
   }
   /* the defaults (A) against the winners (B), alternately */
@@ -288,7 +324,7 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   if ((st = warm(&r, 0, &diff))) goto fail;
   double ms_def[MAXW], ms_tuned[MAXW], sc;
   if ((st = duel(&r, 2 * p->repeat, ms_def, ms_tuned, &sc))) goto fail_either;
-  const char *np[16];
+  const char *np[32];
   for (int i = 0; i < nsave; i++) np[i] = names[i];
   if ((st = spx_device_tuning_save(ctx, np, vals, nsave))) goto fail;
   fprintf(out, "chosen:");

@@ -17,18 +17,8 @@
  * direct convolution's; see the test for the error bound). */
 /* tunable defaults, the CONV_VW vector type vf, the FL_* epilogue flags */
 #include "conv2d_common.h"
-
-/* r = B^T d for one column of 6 (stride s between elements of the column). */
-#define WINO_BT(r, d, s)                                                                                     \
-  do {                                                                                                       \
-    vf d0 = d[0], d1 = d[(s)], d2 = d[2 * (s)], d3 = d[3 * (s)], d4 = d[4 * (s)], d5 = d[5 * (s)];         \
-    r[0] = 4.0f * d0 - 5.0f * d2 + d4;                                                                      \
-    r[(s)] = -4.0f * (d1 + d2) + (d3 + d4);                                                                  \
-    r[2 * (s)] = 4.0f * (d1 - d2) + (d4 - d3);                                                               \
-    r[3 * (s)] = 2.0f * (d3 - d1) + (d4 - d2);                                                               \
-    r[4 * (s)] = 2.0f * (d1 - d3) + (d4 - d2);                                                               \
-    r[5 * (s)] = 4.0f * d1 - 5.0f * d3 + d5;                                                                 \
-  } while (0)
+/* the transforms (WINO_BT, WINO_AT, wino_filter), shared with conv2d_winograd_lds.cl */
+#include "winograd_tf.h"
 
 /* Input transform. xp is the input zero-padded by spx_conv2d_pad: planes of Hp = 4*TH+2 rows of
  * Wp = 4*TWp+4 floats (data at row 1 + y, column 1 + x), so no bounds tests. Tiles are numbered
@@ -67,8 +57,8 @@ __kernel void spx_wino_in(const __global float *xp, __global float *V, int C, in
     }
 #endif
   }
-  for (int j = 0; j < 6; j++) WINO_BT((r + j), (d + j), 6); /* columns: r = B^T d */
-  for (int i = 0; i < 6; i++) WINO_BT((d + 6 * i), (r + 6 * i), 1); /* rows: d = r B */
+  for (int j = 0; j < 6; j++) WINO_BT(vf, (r + j), (d + j), 6); /* columns: r = B^T d */
+  for (int i = 0; i < 6; i++) WINO_BT(vf, (d + 6 * i), (r + 6 * i), 1); /* rows: d = r B */
   for (int e = 0; e < 36; e++) VSTORE(d[e], v + e * es);
 }
 
@@ -76,9 +66,6 @@ __kernel void spx_wino_in(const __global float *xp, __global float *V, int C, in
  * reduction `red`. flip = 0: out co, reduction ci, g = w[co][ci]; flip = 1 (backward data): out
  * ci, reduction co, g[ky][kx] = w[co][ci][2-ky][2-kx]. U[e][cot][r][m]. Global: red * cols/CONV_TM
  * (one work-item per reduction index and channel tile). */
-#define R6 0.16666667f  /* 1/6, 1/12, 1/24 rounded to float (multiplications, not divisions) */
-#define R12 0.083333336f
-#define R24 0.041666668f
 __kernel void spx_wino_weights(const __global float *w, ulong w_off, __global float *U, int Cout, int Cin, int cols,
                                int flip) {
   const int i = SPX_GID0;
@@ -86,38 +73,15 @@ __kernel void spx_wino_weights(const __global float *w, ulong w_off, __global fl
   if (i >= red * ncot) return;
   const int r = i % red, cot = i / red;
   const int oc = flip ? Cin : Cout;
-  float u[36][CONV_TM];
+  float u[CONV_TM][36];
   for (int m = 0; m < CONV_TM; m++) {
-    const int c = cot * CONV_TM + m;
-    float g[9], h[18];
-    for (int k = 0; k < 9; k++) {
-      float v = 0.0f;
-      if (c < oc) v = flip ? w[w_off + ((size_t)r * Cin + c) * 9 + (8 - k)] : w[w_off + ((size_t)c * Cin + r) * 9 + k];
-      g[k] = v;
-    }
-    /* h = G g (6x3), then u = h G^T (6x6) */
-    for (int j = 0; j < 3; j++) {
-      float g0 = g[j], g1 = g[3 + j], g2 = g[6 + j];
-      h[j] = g0 * 0.25f;
-      h[3 + j] = -(g0 + g1 + g2) * R6;
-      h[6 + j] = -(g0 - g1 + g2) * R6;
-      h[9 + j] = g0 * R24 + g1 * R12 + g2 * R6;
-      h[12 + j] = g0 * R24 - g1 * R12 + g2 * R6;
-      h[15 + j] = g2;
-    }
-    for (int a = 0; a < 6; a++) {
-      float g0 = h[3 * a], g1 = h[3 * a + 1], g2 = h[3 * a + 2];
-      u[6 * a][m] = g0 * 0.25f;
-      u[6 * a + 1][m] = -(g0 + g1 + g2) * R6;
-      u[6 * a + 2][m] = -(g0 - g1 + g2) * R6;
-      u[6 * a + 3][m] = g0 * R24 + g1 * R12 + g2 * R6;
-      u[6 * a + 4][m] = g0 * R24 - g1 * R12 + g2 * R6;
-      u[6 * a + 5][m] = g2;
-    }
+    float g[9];
+    wino_filter_of(w + w_off, Cin, oc, cot * CONV_TM + m, r, flip, g);
+    wino_filter(g, u[m]);
   }
   for (int e = 0; e < 36; e++) {
     __global float *ue = U + (((size_t)e * ncot + cot) * red + r) * CONV_TM;
-    for (int m = 0; m < CONV_TM; m++) ue[m] = u[e][m];
+    for (int m = 0; m < CONV_TM; m++) ue[m] = u[m][e];
   }
 }
 
@@ -164,15 +128,6 @@ static inline vf wino_epi(vf v, const __global float *yo, int flags, float bv, f
   if (flags & FL_RELU) v = fmax(v, (vf)0.0f);
   return v;
 }
-/* The same for one float at yo (edge tiles), stored. */
-static inline void wino_epi1(float v, __global float *yo, int flags, float bv, float sc, float sh) {
-  if (flags & FL_ACCUM) v = *yo + v;
-  if (flags & FL_BIAS) v = v + bv;
-  if (flags & FL_SCALE) v = v * sc + sh;
-  if (flags & FL_RELU) v = fmax(v, 0.0f);
-  *yo = v;
-}
-
 __kernel void spx_wino_out(const __global float *M, __global float *y, ulong y_off, const __global float *bias,
                            ulong b_off, const __global float *scale, ulong sc_off, const __global float *shift,
                            ulong sh_off, int Cout, int CoutP, int H, int W, int TWp, int T, int Tp, int flags) {
@@ -183,25 +138,15 @@ __kernel void spx_wino_out(const __global float *M, __global float *y, ulong y_o
   const size_t es = (size_t)CoutP * Tp;
   for (int e = 0; e < 36; e++) m[e] = VLOAD(mp + e * es);
   /* r = A^T m (4x6), then o = r A (4x4) */
-  for (int j = 0; j < 6; j++) {
-    vf m0 = m[j], m1 = m[6 + j], m2 = m[12 + j], m3 = m[18 + j], m4 = m[24 + j], m5 = m[30 + j];
-    vf a = m1 + m2, b = m1 - m2, c = m3 + m4, d = m3 - m4;
-    r[j] = m0 + a + c;
-    r[6 + j] = b + 2.0f * d;
-    r[12 + j] = a + 4.0f * c;
-    r[18 + j] = b + 8.0f * d + m5;
-  }
-  const float bv = (flags & FL_BIAS) ? bias[b_off + co] : 0.0f;
-  const float sc = (flags & FL_SCALE) ? scale[sc_off + co] : 1.0f;
-  const float sh = (flags & FL_SHIFT) ? shift[sh_off + co] : 0.0f;
+  WINO_AT_COLS(vf, r, m);
+  float bv, sc, sh;
+  wino_epi_consts(flags, bias, b_off, scale, sc_off, shift, sh_off, co, &bv, &sc, &sh);
   const int ty = t0 / TWp, tx0 = t0 - ty * TWp, ox0 = 4 * tx0;
   __global float *yc = y + y_off + ((size_t)n * Cout + co) * H * W;
   for (int i = 0; i < 4; i++) {
     const int oy = 4 * ty + i;
     if (oy >= H) break;
-    vf m0 = r[6 * i], m1 = r[6 * i + 1], m2 = r[6 * i + 2], m3 = r[6 * i + 3], m4 = r[6 * i + 4], m5 = r[6 * i + 5];
-    vf a = m1 + m2, b = m1 - m2, c = m3 + m4, d = m3 - m4;
-    vf o0 = m0 + a + c, o1 = b + 2.0f * d, o2 = a + 4.0f * c, o3 = b + 8.0f * d + m5;
+    WINO_AT(vf, o0, o1, o2, o3, (r + 6 * i), 1);
     __global float *yr = yc + (size_t)oy * W + ox0;
 #if CONV_VW == 16
     /* interleave: output column 4l + j of lane l */

@@ -70,3 +70,12 @@ target_link_libraries(test_nn_batchnorm_sync PRIVATE Threads::Threads)
 # The layer rule of lib/ (stated in tests/layering.cmake): every #include of lib/ and of the
 # public headers goes to the includer's own module or a lower level; fails naming the back-edge.
 add_test(NAME layering COMMAND ${CMAKE_COMMAND} -DSPX_SOURCE_DIR=${CMAKE_SOURCE_DIR} -P ${CMAKE_CURRENT_SOURCE_DIR}/layering.cmake)
+
+# The UNet's PyTorch golden with the GPU column and every 3x3 stride-1 convolution, training ones
+# included, on Winograd (the GPU column's local-memory variant, kernels/conv2d_winograd_lds.cl):
+# test_nn_unet widens its tolerance by SPX_WINO_RMS_GAIN when Winograd runs in training (see
+# there). And the shipped network's golden with the GPU column (its eval forward on that variant).
+spx_test_variant(test_nn_unet_gpu_wino test_nn_unet
+  "SPX_TUNE_CLASS=gpu;SPX_TUNE_CONV_WINO_TRAIN=1;SPX_TUNE_CONV_WINO_MINC=1")
+spx_test_variant(test_model_golden_gpu_paths test_model_golden "SPX_TUNE_CLASS=gpu")
+set_tests_properties(test_model_golden_gpu_paths PROPERTIES SKIP_RETURN_CODE 77)

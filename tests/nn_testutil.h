@@ -79,6 +79,17 @@ static inline spx_status spx_nt_upload(spx_ctx *ctx, const float *data, int n, i
   if (data) return spx_cl_write(ctx, t->mem, SPX_NT_PAD * sizeof(float), numel * sizeof(float), data);
   return spx_cl_fill_f32(ctx, t->mem, SPX_NT_PAD, numel, 0.0f);
 }
+/* A new buffer holding pad_before sentinel floats (1234.5), then a[0..n) rounded to float. */
+static inline cl_mem spx_nt_upload_d(spx_ctx *ctx, const double *a, size_t n, size_t pad_before) {
+  float *f = malloc((n + pad_before) * sizeof(float));
+  for (size_t i = 0; i < pad_before; i++) f[i] = 1234.5f;
+  for (size_t i = 0; i < n; i++) f[pad_before + i] = (float)a[i];
+  cl_mem m = NULL;
+  CHECK_OK(ctx, spx_cl_alloc(ctx, (n + pad_before) * sizeof(float), "test", &m));
+  if (m) CHECK_OK(ctx, spx_cl_write(ctx, m, 0, (n + pad_before) * sizeof(float), f));
+  free(f);
+  return m;
+}
 static inline spx_status spx_nt_download(spx_ctx *ctx, const spx_tensor *t, float *out) {
   return spx_cl_read(ctx, t->mem, t->off * sizeof(float), spx_tensor_numel(t) * sizeof(float), out);
 }

@@ -9,6 +9,7 @@
 #include "nn/conv2d.h"
 #include "smplpix/smplpix.h"
 #include "test.h"
+#include "nn_testutil.h"
 
 static unsigned long long rng = 0x9e3779b97f4a7c15ULL;
 static void fill_rand(double *a, size_t n) {
@@ -91,16 +92,6 @@ typedef struct dev_case {
   int use_bias, use_affine, relu;
 } dev_case;
 
-static cl_mem upload(spx_ctx *ctx, const double *a, size_t n, size_t pad_before) {
-  float *f = malloc((n + pad_before) * sizeof(float));
-  for (size_t i = 0; i < pad_before; i++) f[i] = 1234.5f; /* sentinel before the tensor */
-  for (size_t i = 0; i < n; i++) f[pad_before + i] = (float)a[i];
-  cl_mem m = NULL;
-  CHECK_OK(ctx, spx_cl_alloc(ctx, (n + pad_before) * sizeof(float), "test", &m));
-  if (m) CHECK_OK(ctx, spx_cl_write(ctx, m, 0, (n + pad_before) * sizeof(float), f));
-  free(f);
-  return m;
-}
 static float *download(spx_ctx *ctx, cl_mem m, size_t off, size_t n) {
   float *f = malloc(n * sizeof(float));
   CHECK_OK(ctx, spx_cl_read(ctx, m, off * sizeof(float), n * sizeof(float), f));
@@ -145,8 +136,9 @@ static void device_case(spx_ctx *ctx, const dev_case *c, int accumulate, spx_con
 
   /* tensors live at nonzero offsets inside their buffers */
   size_t off = 5;
-  cl_mem mx = upload(ctx, x, nx, off), mw = upload(ctx, w, nw, off), mb = upload(ctx, b, nb, off);
-  cl_mem msc = upload(ctx, sc, nb, off), msh = upload(ctx, sh, nb, off), mdy = upload(ctx, dy, ny, off);
+  cl_mem mx = spx_nt_upload_d(ctx, x, nx, off), mw = spx_nt_upload_d(ctx, w, nw, off);
+  cl_mem mb = spx_nt_upload_d(ctx, b, nb, off), msc = spx_nt_upload_d(ctx, sc, nb, off);
+  cl_mem msh = spx_nt_upload_d(ctx, sh, nb, off), mdy = spx_nt_upload_d(ctx, dy, ny, off);
   cl_mem my = NULL, mdx = NULL, mdw = NULL, mdb = NULL;
   CHECK_OK(ctx, spx_cl_alloc(ctx, (ny + off) * 4, "y", &my));
   CHECK_OK(ctx, spx_cl_alloc(ctx, (nx + off) * 4, "dx", &mdx));

@@ -43,6 +43,12 @@ struct spx_tunables {
   int conv_wino_minc;     /* Winograd */
   int conv_wino_train;
   int conv_wino_chunk;
+  int conv_wino_lds;      /* Winograd with local-memory tiles (GPU) */
+  int conv_wlds_tm;
+  int conv_wlds_tn;
+  int conv_wlds_wm;
+  int conv_wlds_wn;
+  int conv_wlds_kb;
   int conv_red_wg;        /* conv2d bias gradient */
   int wg2_x;              /* 2-D (x, y, plane) kernels */
   int wg2_y;

@@ -109,6 +109,20 @@ static const struct spx_tunable spx_tunables[] = {
      * units of 2^20 floats (4 MiB); a pass takes as many samples as fit, at least one (0: always
      * one). Bounds the transforms of a batch-4 training step (lib/nn/conv2d_winograd.c) */
     {"CONV_WINO_CHUNK", F(conv_wino_chunk), 32, 32, 0, 1 << 16, 0},
+    /* 1: the Winograd layers run the fused local-memory variant (kernels/conv2d_winograd_lds.cl:
+     * input transform, GEMM and output transform in one kernel, bit-identical to the CPU
+     * variant). A work-group of 36 x CONV_WLDS_WM x CONV_WLDS_WN work-items owns CONV_WLDS_WM *
+     * CONV_WLDS_TM output channels x CONV_WLDS_WN * CONV_WLDS_TN tiles, each work-item a register
+     * tile of CONV_WLDS_TM x CONV_WLDS_TN of one transform position; CONV_WLDS_KB input channels
+     * per local-memory block (4 * KB * (6 * (4 BN + 2) + 36 (BM + BN)) bytes). Falls back to the CPU
+     * variant where the group or its local memory does not fit the device. GPU values
+     * unmeasured (no GPU at hand; tested on PoCL with SPX_TUNE_CLASS=gpu); `smplpix tune` times them */
+    {"CONV_WINO_LDS", F(conv_wino_lds), 0, 1, 0, 1, 0},
+    {"CONV_WLDS_TM", F(conv_wlds_tm), 4, 4, 1, 16, 0},
+    {"CONV_WLDS_TN", F(conv_wlds_tn), 4, 4, 1, 16, 0},
+    {"CONV_WLDS_WM", F(conv_wlds_wm), 2, 2, 1, 28, 0},
+    {"CONV_WLDS_WN", F(conv_wlds_wn), 2, 2, 1, 28, 0},
+    {"CONV_WLDS_KB", F(conv_wlds_kb), 8, 8, 1, 64, 0},
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", F(conv_red_wg), 16, 256, 1, 1024, T_POW2|T_WG},
     /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,

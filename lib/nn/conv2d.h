@@ -97,6 +97,18 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
  * input / products, 1: U, 2: V; the samples per pass follow CONV_WINO_CHUNK). */
 void spx_conv2d_winograd_need(const spx_ctx *ctx, int n, int cin, int h, int w, int cout, spx_ws_need *need);
 
+/* ---- Winograd with local-memory tiles for GPU-class devices (lib/nn/conv2d_winograd_lds.c) ---- */
+/* Nonzero when spx_conv2d_winograd hands its calls to spx_conv2d_winograd_lds (tunable
+ * CONV_WINO_LDS; its work-group of 36 x CONV_WLDS_WM x CONV_WLDS_WN work-items and its local
+ * memory fit the device). Same results as the CPU variant, bit for bit. */
+int spx_conv2d_winograd_lds_applies(const spx_ctx *ctx);
+/* Its workspace need (slot 1: U) for cin -> cout channels. */
+void spx_conv2d_winograd_lds_need(const spx_ctx *ctx, int cin, int cout, spx_ws_need *need);
+/* The arguments and semantics of spx_conv2d_winograd. */
+spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
+                                   int flip, const spx_tensor *bias, const spx_tensor *scale,
+                                   const spx_tensor *shift, int relu, int accumulate, const spx_tensor *y);
+
 /* ---- local-memory tiled 3x3 stride-1 forward for GPU-class devices (lib/nn/conv2d_lds.c) ---- */
 /* Nonzero when the forward kernel of a k x k / stride conv is spx_conv2d_fwd_k3s1_lds (tunable
  * CONV_LDS, CONV_VW = 1, CONV_LWS a multiple of CONV_LDS_TX, its tiles fit the local memory). */

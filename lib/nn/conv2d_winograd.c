@@ -48,6 +48,10 @@ static void layout(const spx_ctx *ctx, int n, int cin, int h, int wd, int cout, 
 }
 
 void spx_conv2d_winograd_need(const spx_ctx *ctx, int n, int cin, int h, int w, int cout, spx_ws_need *need) {
+  if (spx_conv2d_winograd_lds_applies(ctx)) { /* as spx_conv2d_winograd dispatches */
+    spx_conv2d_winograd_lds_need(ctx, cin, cout, need);
+    return;
+  }
   wlay L;
   layout(ctx, n, cin, h, w, cout, &L);
   *need = L.need;
@@ -56,6 +60,8 @@ void spx_conv2d_winograd_need(const spx_ctx *ctx, int n, int cin, int h, int w, 
 spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
                                int relu, int accumulate, const spx_tensor *y) {
+  if (spx_conv2d_winograd_lds_applies(ctx)) /* GPU class: the fused local-memory variant */
+    return spx_conv2d_winograd_lds(ctx, ws, x, w, flip, bias, scale, shift, relu, accumulate, y);
   const int n = x->n, cin = x->c, h = x->h, wd = x->w, cout = y->c;
   const int Cout = w->n, Cin = w->c; /* the weight tensor's own dimensions */
   const int tm = ctx->dev->tune.conv_tm, vw = ctx->dev->tune.conv_vw, lws = ctx->dev->tune.conv_lws;
