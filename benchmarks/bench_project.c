@@ -2,9 +2,11 @@
  * read-back of the image) against the plain-C single-thread z-buffer with the same arithmetic
  * (spx_project_ref), in the same run. Median of RUNS runs after warm-up.
  * Point sets: the SMPL-topology body data/body/human_woman.obj (6,890 vertices), its Loop
- * subdivision (27,554), and 10^6 points sampled on its triangles; colors random. The camera
+ * subdivisions (27,554 and 110,210), and 10^6 points sampled on its triangles; colors random. The camera
  * looks at the body from the front so it fills the 410x308 image's height.
- * Usage: bench_project [runs] [mesh.obj] */
+ * --stages: the 6,890-point call taken apart instead (each stage enqueued alone and waited for
+ * with clFinish, wall clock, median of RUNS): what each piece of spx_project costs.
+ * Usage: bench_project [--stages] [runs] [mesh.obj] */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -50,7 +52,69 @@ static void sample_surface(const spx_mesh *m, float *pos, int n) {
     }                                                                                                         \
   } while (0)
 
+static const char *path_names[] = {"?", "fused", "radix", "count", "zbuf", "one"};
+
+/* Median wall time (ms) of `runs` repetitions of STMT; STMT sets ok = 0 on failure. */
+#define STAGE(label, STMT)                                                                                    \
+  do {                                                                                                        \
+    for (int r = 0; r < runs; r++) {                                                                          \
+      double t0 = spx_now();                                                                                  \
+      int ok = 1;                                                                                             \
+      STMT;                                                                                                   \
+      if (!ok || clFinish(q) != CL_SUCCESS) {                                                                 \
+        fprintf(stderr, "bench_project: stage %s failed: %s\n", label, spx_ctx_message(ctx));               \
+        return 1;                                                                                             \
+      }                                                                                                       \
+      t[r] = spx_now() - t0;                                                                                  \
+    }                                                                                                         \
+    printf("  %-52s %8.4f ms\n", label, bench_median(t, runs) * 1e3);                                        \
+  } while (0)
+
+/* The pieces of one spx_project call at n points (HWC, no winners), each timed alone. */
+static int stages(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, float *out, double *t, int runs) {
+  cl_command_queue q = ctx->dev->queue;
+  size_t hw = (size_t)a->cams[0].width * a->cams[0].height, ib = hw * 4 * sizeof(float);
+  size_t vb = (size_t)a->nverts * 3 * sizeof(float);
+  printf("stages of one call at %d points (each followed by clFinish; wall clock, median of %d):\n", a->nverts, runs);
+  STAGE("whole spx_project call", ok = !spx_project(ctx, p, a, out, NULL));
+  STAGE("clFinish on an empty queue", (void)0);
+  STAGE("blocking write of the positions", ok = !spx_cl_write(ctx, p->pos.mem, 0, vb, a->pos));
+  STAGE("non-blocking write of the positions", ok = clEnqueueWriteBuffer(q, p->pos.mem, CL_FALSE, 0, vb, a->pos, 0,
+                                                                         NULL, NULL) == CL_SUCCESS);
+  spx_project_dev_args d = {1, a->nverts, p->pos.mem, p->col.mem, 1, a->cams, a->layout};
+  STAGE("kernels of the default path", ok = !spx_project_device(ctx, p, &d, p->img.mem, NULL, 0));
+  printf("  (default path: %s)\n", path_names[p->last_path < 1 || p->last_path > 5 ? 0 : p->last_path]);
+  STAGE("kernels of the parts + merge path (4)", ok = !spx_project_device(ctx, p, &d, p->img.mem, NULL, 4));
+  cl_mem other = NULL;
+  if (spx_cl_alloc(ctx, ib, "bench image", &other)) return 1;
+  STAGE("one launch (5) into another image: full clear", ok = !spx_project_device(ctx, p, &d, other, NULL, 5));
+  spx_cl_free(&other);
+  STAGE("blocking read of the image", ok = !spx_cl_read(ctx, p->img.mem, 0, ib, out));
+  float one = 1.0f;
+  STAGE("clEnqueueFillBuffer of the image", ok = clEnqueueFillBuffer(q, p->img.mem, &one, sizeof one, 0, ib, 0, NULL,
+                                                                     NULL) == CL_SUCCESS);
+  void *mp = NULL;
+  STAGE("map + memcpy + unmap of the image", {
+    cl_int e;
+    mp = clEnqueueMapBuffer(q, p->img.mem, CL_TRUE, CL_MAP_READ, 0, ib, 0, NULL, NULL, &e);
+    ok = e == CL_SUCCESS;
+    if (ok) memcpy(out, mp, ib);
+    ok = ok && clEnqueueUnmapMemObject(q, p->img.mem, mp, 0, NULL, NULL) == CL_SUCCESS;
+  });
+  float *src = calloc(hw * 4, sizeof *src);
+  if (!src) return 1;
+  STAGE("host memcpy of the image (no OpenCL)", memcpy(out, src, ib));
+  free(src);
+  STAGE("plain-C reference (spx_project_ref)", ok = !spx_project_ref(ctx, a, out, NULL));
+  return 0;
+}
+
 int main(int argc, char **argv) {
+  int want_stages = argc > 1 && !strcmp(argv[1], "--stages");
+  if (want_stages) {
+    argc--;
+    argv++;
+  }
   int runs = argc > 1 ? atoi(argv[1]) : 50;
   if (runs < 1) runs = 50;
   spx_ctx *ctx = NULL;
@@ -63,11 +127,13 @@ int main(int argc, char **argv) {
   spx_device_get_info(ctx, &info);
   printf("device: %s (%s)\n", info.name, info.platform);
   const char *path = argc > 2 ? argv[2] : SPX_REPO_DATA "/body/human_woman.obj";
-  spx_mesh mesh, sub;
+  spx_mesh mesh, sub, sub2;
   memset(&mesh, 0, sizeof mesh);
   memset(&sub, 0, sizeof sub);
+  memset(&sub2, 0, sizeof sub2);
   CHECKED(spx_mesh_load(ctx, path, &mesh));
   CHECKED(spx_mesh_subdivide(ctx, &mesh, 1, &sub));
+  CHECKED(spx_mesh_subdivide(ctx, &mesh, 2, &sub2));
   double lo[3] = {1e30, 1e30, 1e30}, hi[3] = {-1e30, -1e30, -1e30};
   for (int i = 0; i < mesh.nv; i++)
     for (int k = 0; k < 3; k++) {
@@ -79,8 +145,8 @@ int main(int argc, char **argv) {
   double eye[3] = {c[0], c[1], c[2] + dist}, up[3] = {0, 1, 0};
   spx_camera cam;
   CHECKED(spx_camera_look_at(ctx, 410, 308, 308.0 * dist / (1.1 * h), eye, c, up, &cam));
-  printf("mesh: %s, %d vertices (%d after one Loop step)\n", path, mesh.nv, sub.nv);
-  const int ns[] = {mesh.nv, sub.nv, 1000000};
+  printf("mesh: %s, %d vertices (%d / %d after one / two Loop steps)\n", path, mesh.nv, sub.nv, sub2.nv);
+  const int ns[] = {mesh.nv, sub.nv, sub2.nv, 1000000};
   size_t hw = (size_t)cam.width * cam.height;
   float *out = malloc(hw * 4 * sizeof(float)), *ref = malloc(hw * 4 * sizeof(float));
   double *t = malloc(sizeof(double) * (size_t)runs);
@@ -91,9 +157,18 @@ int main(int argc, char **argv) {
     float *pos = malloc(sizeof(float) * 3 * (size_t)n), *col = malloc(sizeof(float) * 3 * (size_t)n);
     if (s == 0) memcpy(pos, mesh.pos, sizeof(float) * 3 * (size_t)n);
     else if (s == 1) memcpy(pos, sub.pos, sizeof(float) * 3 * (size_t)n);
+    else if (s == 2) memcpy(pos, sub2.pos, sizeof(float) * 3 * (size_t)n);
     else sample_surface(&mesh, pos, n);
     random_colors(col, n);
     spx_project_args a = {1, n, pos, col, 1, &cam, SPX_LAYOUT_HWC};
+    if (want_stages) {
+      CHECKED(spx_project(ctx, p, &a, out, NULL));
+      int rc = stages(ctx, p, &a, out, t, runs);
+      free(pos);
+      free(col);
+      if (rc) return rc;
+      break;
+    }
     for (int w = 0; w < 3; w++) CHECKED(spx_project(ctx, p, &a, out, NULL));
     for (int r = 0; r < runs; r++) {
       double t0 = spx_now();
@@ -123,7 +198,7 @@ int main(int argc, char **argv) {
     int hits = 0;
     for (size_t i = 0; i < hw; i++) hits += ref[i * 4 + 3] != 1.0f;
     printf("%-9d %12.3f %12.3f %7.2fx %14.3f %7s %7d\n", n, dev * 1e3, cpu * 1e3, dev / cpu, kern * 1e3,
-           p->last_path == 1 ? "fused" : p->last_path == 2 ? "radix" : p->last_path == 3 ? "count" : "zbuf", hits);
+           path_names[p->last_path < 1 || p->last_path > 5 ? 0 : p->last_path], hits);
     fflush(stdout);
     free(pos);
     free(col);
@@ -133,6 +208,7 @@ int main(int argc, char **argv) {
   free(t);
   spx_mesh_free(&mesh);
   spx_mesh_free(&sub);
+  spx_mesh_free(&sub2);
   spx_projector_destroy(p);
   spx_ctx_destroy(ctx);
   return 0;

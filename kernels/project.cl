@@ -27,9 +27,10 @@
 #define SPX_PROJ_FILL_PX 1
 #endif
 
-/* Pixel (row*W + col) and depth of one point, or 0 when it is dropped. */
-inline int spx_project_point(const float *cam, float x, float y, float z, int W, int H, uint *pix,
-                             float *depth) {
+/* Pixel (row*W + col) and depth of one point, or 0 when it is dropped. Always inlined: PoCL
+ * otherwise calls it, and a call keeps the work-item loop of spx_project_one from vectorizing. */
+__attribute__((always_inline)) inline int spx_project_point(const float *cam, float x, float y, float z, int W, int H,
+                                                            uint *pix, float *depth) {
   const float *K = cam, *R = cam + 9, *t = cam + 18;
   float p0 = ((R[0] * x + R[1] * y) + R[2] * z) + t[0];
   float p1 = ((R[3] * x + R[4] * y) + R[5] * z) + t[1];
@@ -192,33 +193,61 @@ __kernel void spx_project_bucket_min(__global const ulong *keys, __global const 
   if (want_winners) winners[q] = (int)v;
 }
 
-/* Z-buffer path (CPU-class devices, SPX_PROJ_ZBUF): part k of the launch walks the points
- * [k*chunk, min((k+1)*chunk, npts)) in order, like the plain-C loop, keeping per pixel the
- * smallest key (depth bits << 32 | point index) in its own z-buffer zb + k*npix (d > 0, so the
- * bits order like the depth; point index = img*N + v, so ties go to the smallest vertex index).
- * spx_project_zmerge then takes the minimum over the parts: the same winner as the stable depth
- * sort's first-of-run, whatever the number of parts. */
-__kernel void spx_project_zbuf(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
-                               uint npts, uint chunk, uint npix, __global ulong *zb) {
-  uint k = get_global_id(0), hw = (uint)W * (uint)H;
-  __global ulong *z = zb + (ulong)k * npix; /* empty (all ones) on entry: see spx_project_zmerge */
-  uint i = k * chunk, i1 = i + chunk < npts ? i + chunk : npts;
-  uint img = i / (uint)N, v = i % (uint)N; /* then walked without divisions */
+/* Point i's pixel over all images (img*hw + row*W + col, ~0 when dropped) and depth bits (d > 0,
+ * so they order like the depth): what the z-buffer walks of paths 4 and 5 compare. */
+__attribute__((always_inline)) inline void spx_project_pix1(const float *cam, __global const float *x, uint q0, int W,
+                                                            int H, __global uint *pixs, __global uint *dbits, uint i) {
+  uint pix = 0;
+  float d = 0.0f;
+  int hit = spx_project_point(cam, x[0], x[1], x[2], W, H, &pix, &d);
+  pixs[i] = hit ? q0 + pix : ~0u;
+  dbits[i] = as_uint(d);
+}
+
+/* Points [v_begin, v_end) of image img (camera cam, vertices x of its set) through
+ * spx_project_pix1, by the whole work-group of SPX_WG items: in rounds with a barrier per round,
+ * so PoCL's work-item loop is the innermost one and vectorizes. */
+__attribute__((always_inline)) inline void spx_project_span(const float *cam, __global const float *x, uint img, int N,
+                                                            uint v_begin, uint v_end, int W, int H,
+                                                            __global uint *pixs, __global uint *dbits) {
+  for (uint v0 = v_begin; v0 < v_end; v0 += SPX_WG) {
+    uint v = v0 + get_local_id(0);
+    if (v < v_end)
+      spx_project_pix1(cam, x + (ulong)v * 3, img * (uint)W * (uint)H, W, H, pixs, dbits, img * (uint)N + v);
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+}
+
+#define SPX_PROJ_PIX_ROUNDS 16 /* rounds of SPX_WG points per work-group of spx_project_pix */
+
+/* Z-buffer path (path 4), step 1: every point's pixel and depth bits, work-group (g, img) taking
+ * SPX_PROJ_PIX_ROUNDS * SPX_WG points of image img (one camera load per work-group). */
+__kernel __attribute__((reqd_work_group_size(SPX_WG, 1, 1))) void
+spx_project_pix(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
+                __global uint *pixs, __global uint *dbits) {
+  uint img = get_group_id(1), v0 = get_group_id(0) * (SPX_PROJ_PIX_ROUNDS * SPX_WG);
+  uint v1 = min(v0 + SPX_PROJ_PIX_ROUNDS * SPX_WG, (uint)N);
   float cam[SPX_CAM_FLOATS];
-  while (i < i1) {
-    for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
-    __global const float *x = pos + ((ulong)(img / (uint)C) * N) * 3;
-    __global ulong *zi = z + (ulong)img * hw;
-    uint vend = (uint)N - v < i1 - i ? (uint)N : v + (i1 - i);
-    for (; v < vend; v++, i++) {
-      uint pix;
-      float d;
-      if (!spx_project_point(cam, x[v * 3], x[v * 3 + 1], x[v * 3 + 2], W, H, &pix, &d)) continue;
-      ulong key = (ulong)as_uint(d) << 32 | i;
-      if (key < zi[pix]) zi[pix] = key;
-    }
-    img++;
-    v = 0;
+  for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
+  spx_project_span(cam, pos + (ulong)(img / (uint)C) * N * 3, img, N, v0, v1, W, H, pixs, dbits);
+}
+
+/* Z-buffer path, step 2 (CPU-class devices, SPX_PROJ_ZBUF): part k of the launch walks the points
+ * [k*chunk, min((k+1)*chunk, npts)) in order, like the plain-C loop, keeping per pixel the
+ * smallest key (depth bits << 32 | point index) in its own z-buffer zb + k*npix (point index =
+ * img*N + v, so ties go to the smallest vertex index). spx_project_zmerge then takes the minimum
+ * over the parts: the same winner as the stable depth sort's first-of-run, whatever the number of
+ * parts. */
+__kernel void spx_project_zbuf(__global const uint *pixs, __global const uint *dbits, uint npts, uint chunk, uint npix,
+                               __global ulong *zb) {
+  uint k = get_global_id(0);
+  __global ulong *z = zb + (ulong)k * npix; /* empty (all ones) on entry: see spx_project_zmerge */
+  uint i1 = k * chunk + chunk < npts ? k * chunk + chunk : npts;
+  for (uint i = k * chunk; i < i1; i++) {
+    uint q = pixs[i];
+    if (q == ~0u) continue;
+    ulong key = (ulong)dbits[i] << 32 | i;
+    if (key < z[q]) z[q] = key;
   }
 }
 
@@ -247,6 +276,104 @@ __kernel void spx_project_zmerge(__global ulong *zb, uint parts, __global const 
       pix = 0;
       img++;
     }
+  }
+}
+
+/* One-launch path (path 5, small inputs on CPU-class devices): clear, project, resolve and write
+ * in one work-group of SPX_WG work-items.
+ *  1. Background: with clear & 1 every pixel of out (and, with want_winners and clear & 2, of
+ *     winners) is reset; otherwise only the ntouched[0] pixels listed in touched — the pixels the
+ *     previous call into this same image wrote, the rest still being background.
+ *  2. Every point's pixel (img*hw + row*W + col, or ~0 when dropped) and depth bits (d > 0, so
+ *     they order like the depth) into pixs / dbits, in parallel.
+ *  3. Work-item 0 walks the points in order keeping per pixel q the smallest depth bits, that
+ *     point's vertex index and colour row in the z-buffer zb[4q], zb[4q+1], zb[4q+2] (zb[4q] all
+ *     ones on entry, whatever the image size; the others are read only where it is set), listing
+ *     each pixel and its image the first time it is hit: the plain-C z-buffer loop (a later equal
+ *     depth does not replace).
+ *  4. The listed pixels get their winner's colour and depth, and their zb[4q] is emptied again.
+ * The winner is the one of spx_project_zbuf / the stable depth sort (nearest, ties to the smallest
+ * vertex index), so the output bits are the same. Loops over points and pixels run in rounds of
+ * SPX_WG items with a barrier per round, which makes the work-item loop the innermost one (PoCL
+ * vectorizes it); steps 1 and 4 divide nothing (integer division dominated them). */
+__kernel __attribute__((reqd_work_group_size(SPX_WG, 1, 1))) void
+spx_project_one(__global const float *pos, __global const float *col, int has_col, __global const float *cams,
+                int N, int C, int W, int H, uint npts, uint npix, __global float *out, int layout,
+                __global int *winners, int want_winners, __global uint *zb, __global uint *dbits,
+                __global uint *pixs, __global uint *touched, __global uint *ntouched, int clear) {
+  __global uint *timg = touched + npix;
+  uint lid = get_local_id(0), hw = (uint)W * (uint)H;
+  uint nold = ntouched[0];
+  if (clear & 1) {
+    if (layout == 0)
+      for (uint q = lid; q < npix; q += SPX_WG) vstore4((float4)(1.0f), q, out);
+    else
+      for (ulong q = lid; q < 4 * (ulong)npix; q += SPX_WG) out[q] = 1.0f;
+  } else {
+    for (uint j0 = 0; j0 < nold; j0 += SPX_WG) {
+      uint j = j0 + lid;
+      if (j < nold) {
+        uint q = touched[j], img = timg[j];
+        spx_put_pixel(out, layout, img, q - img * hw, hw, 1.0f, 1.0f, 1.0f, 1.0f);
+      }
+      barrier(CLK_LOCAL_MEM_FENCE);
+    }
+  }
+  if (want_winners) {
+    if (clear & 2)
+      for (uint q = lid; q < npix; q += SPX_WG) winners[q] = -1;
+    else
+      for (uint j = lid; j < nold; j += SPX_WG) winners[touched[j]] = -1;
+  }
+  uint nimg = N > 0 ? npts / (uint)N : 0u;
+  for (uint img = 0; img < nimg; img++) {
+    float cam[SPX_CAM_FLOATS];
+    for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
+    spx_project_span(cam, pos + (ulong)(img / (uint)C) * N * 3, img, N, 0, (uint)N, W, H, pixs, dbits);
+  }
+  barrier(CLK_GLOBAL_MEM_FENCE);
+  if (lid == 0) {
+    uint n = 0, i = 0;
+    for (uint img = 0; img < nimg; img++) {
+      uint row = img / (uint)C * (uint)N; /* colour row of vertex 0 of this image's set */
+      for (uint v = 0; v < (uint)N; v++, i++) {
+        uint q = pixs[i];
+        if (q == ~0u) continue;
+        __global uint *z = zb + (ulong)q * 4;
+        uint d = dbits[i], z0 = z[0];
+        if (d < z0) { /* nearer wins; an equal depth keeps the earlier, smaller index */
+          if (z0 == ~0u) {
+            touched[n] = q;
+            timg[n++] = img;
+          }
+          z[0] = d;
+          z[1] = v;
+          z[2] = row + v;
+        }
+      }
+    }
+    ntouched[0] = n;
+  }
+  barrier(CLK_GLOBAL_MEM_FENCE);
+  uint n = ntouched[0];
+  for (uint j0 = 0; j0 < n; j0 += SPX_WG) {
+    uint j = j0 + lid;
+    if (j < n) {
+      uint q = touched[j], img = timg[j];
+      __global uint *z = zb + (ulong)q * 4;
+      uint v = z[1];
+      float r = 1.0f, g = 1.0f, b = 1.0f, d = as_float(z[0]);
+      z[0] = ~0u;
+      if (has_col) {
+        __global const float *cv = col + (ulong)z[2] * 3;
+        r = cv[0];
+        g = cv[1];
+        b = cv[2];
+      }
+      spx_put_pixel(out, layout, img, q - img * hw, hw, r, g, b, d);
+      if (want_winners) winners[q] = (int)v;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
   }
 }
 

@@ -1,8 +1,9 @@
 /* Projection with collision resolution (kernels/project.cl) against the plain-C z-buffer
- * reference, bit for bit: random clouds on both device paths (fused small-input and general
- * sort), forced collisions, equal depths, pixel borders, points behind the camera / outside /
- * non-finite, batching, layouts, determinism, winners; backward against its reference and
- * finite differences; argument errors. */
+ * reference, bit for bit: random clouds on every device path (fused sort, radix sort, counting
+ * sort, z-buffer parts, one launch), forced collisions, equal depths, pixel borders, points behind
+ * the camera / outside / non-finite, batching, layouts, determinism, winners, the one-launch
+ * path's image kept between calls; backward against its reference and finite differences;
+ * argument errors. */
 #include <float.h>
 #include <stdlib.h>
 
@@ -47,7 +48,8 @@ static void make_cloud(float *pos, float *col, int n, double spread, unsigned lo
   }
 }
 
-/* The device path chosen by force (0 auto, 1 fused, 2 general) on uploaded buffers. */
+/* The device path chosen by force (0 auto, 1 fused, 2 radix, 3 counting, 4 z-buffer parts, 5 one
+ * launch into a foreign, fully cleared image) on uploaded buffers. */
 static void run_dev(const spx_project_args *a, int force, float *out, int32_t *win) {
   size_t npix = (size_t)a->batch * a->ncams * a->cams[0].width * a->cams[0].height;
   size_t vb = (size_t)a->batch * a->nverts * 3 * sizeof(float) + 4;
@@ -69,13 +71,13 @@ static void run_dev(const spx_project_args *a, int force, float *out, int32_t *w
   spx_cl_free(&w);
 }
 
-/* Device (public API and both forced paths) == reference, bit for bit. Returns the reference. */
+/* Device (public API and every forced path) == reference, bit for bit. Returns the reference. */
 static void check_vs_ref(const spx_project_args *a, const char *what, float **ref_out, int32_t **ref_win) {
   size_t npix = (size_t)a->batch * a->ncams * a->cams[0].width * a->cams[0].height;
   float *ro = malloc(npix * 16), *o = malloc(npix * 16);
   int32_t *rw = malloc(npix * 4), *w = malloc(npix * 4);
   CHECK_OK(ctx, spx_project_ref(ctx, a, ro, rw));
-  for (int force = 0; force <= 3; force++) {
+  for (int force = 0; force <= 5; force++) {
     memset(o, 0, npix * 16);
     memset(w, 0, npix * 4);
     if (force == 0) CHECK_OK(ctx, spx_project(ctx, proj, a, o, w));
@@ -398,6 +400,59 @@ static void test_large_and_fallback_division(void) {
   free(col);
 }
 
+/* Path 5 keeps the projector's image between calls and clears only what its last call wrote:
+ * a long sequence of spx_project calls on one projector — moving point sets, winners asked for or
+ * not, layouts, sizes and batches changing, the multi-launch path, a backward (which writes the
+ * winners buffer) and a device-tensor call in between — each equal to the reference. */
+static void test_one_launch_sequence(void) {
+  int nmax = 140000; /* step 13: above the CPU default SPX_PROJ_ONE_MAX (the parts + merge path) */
+  float *pos = malloc(sizeof(float) * 3 * nmax), *col = malloc(sizeof(float) * 3 * nmax);
+  spx_camera cams[2] = {make_cam(61, 47, 50.0, 0.05, -0.02, 0.5), make_cam(61, 47, 45.0, -0.03, 0.04, 0.45)};
+  spx_camera big = make_cam(70, 50, 50.0, 0.05, -0.02, 0.5);
+  size_t npmax = (size_t)2 * 2 * 70 * 50;
+  float *o = malloc(npmax * 16), *ro = malloc(npmax * 16), *G = calloc(npmax * 4, sizeof(float));
+  float *gc = calloc((size_t)nmax * 3, sizeof(float));
+  int32_t *w = malloc(npmax * 4), *rw = malloc(npmax * 4);
+  int saw5 = 0, saw4 = 0;
+  for (int step = 0; step < 24; step++) {
+    /* six phases of four calls with one geometry each; within a phase winners are asked for in
+     * calls 0, 1 and 3 (so both the kept and the stale winners buffer are exercised) */
+    int ph = step / 4, B = ph == 2 || ph == 4 ? 2 : 1, C = ph == 2 ? 2 : 1, want_w = step % 4 != 2;
+    int n = step == 13 ? nmax : step == 21 ? 0 : 200 + 300 * (step % 4);
+    make_cloud(pos, col, n * B, 1.0 + 0.1 * (step % 3), 1000 + (unsigned long long)step);
+    spx_project_args a = {B, n, n ? pos : NULL, step % 7 == 6 ? NULL : col, C, ph == 3 ? &big : cams,
+                          ph == 1 || ph == 4 ? SPX_LAYOUT_NCHW : SPX_LAYOUT_HWC};
+    size_t np = (size_t)B * C * a.cams[0].width * a.cams[0].height;
+    memset(o, 0, np * 16);
+    memset(w, 0, np * 4);
+    CHECK_OK(ctx, spx_project(ctx, proj, &a, o, want_w ? w : NULL));
+    saw5 += proj->last_path == 5;
+    saw4 += proj->last_path == 4;
+    CHECK_OK(ctx, spx_project_ref(ctx, &a, ro, rw));
+    CHECK_MSG(memcmp(o, ro, np * 16) == 0, "step %d (n=%d, B=%d, C=%d): image differs", step, n, B, C);
+    CHECK_MSG(!want_w || memcmp(w, rw, np * 4) == 0, "step %d: winners differ", step);
+    if (step == 17) CHECK_OK(ctx, spx_project_backward(ctx, proj, &a, rw, G, gc, NULL));
+    if (step == 18) {
+      spx_device_tensor *t = NULL;
+      spx_project_args nchw = a;
+      nchw.layout = SPX_LAYOUT_NCHW;
+      CHECK_OK(ctx, spx_device_tensor_create(ctx, B * C, 4, a.cams[0].height, a.cams[0].width, &t));
+      CHECK_OK(ctx, spx_project_to_tensor(ctx, proj, &nchw, t));
+      spx_device_tensor_free(t);
+    }
+  }
+  if (ctx->dev->tune.proj_zbuf && ctx->dev->tune.proj_one_max >= 2200) CHECK(saw5 >= 20);
+  if (ctx->dev->tune.proj_zbuf && ctx->dev->tune.proj_one_max < nmax) CHECK(saw4 >= 1);
+  free(pos);
+  free(col);
+  free(o);
+  free(ro);
+  free(G);
+  free(gc);
+  free(w);
+  free(rw);
+}
+
 int main(void) {
   if (spx_t_open_device(&ctx) || spx_t_no_device(ctx, spx_projector_create(ctx, &proj))) return 1;
   SPX_RUN(test_random_clouds);
@@ -405,6 +460,7 @@ int main(void) {
   SPX_RUN(test_borders_and_drops);
   SPX_RUN(test_batched_layouts_determinism);
   SPX_RUN(test_backward);
+  SPX_RUN(test_one_launch_sequence);
   SPX_RUN(test_errors_and_empty);
   SPX_RUN(test_large_and_fallback_division);
   spx_projector_destroy(proj);

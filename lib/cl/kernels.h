@@ -61,8 +61,10 @@
   X(PROJECT_SORT_SCATTER, "project.cl", "spx_project_sort_scatter")    \
   X(PROJECT_VPIX, "project.cl", "spx_project_vpix")                    \
   X(PROJECT_GRAD, "project.cl", "spx_project_grad")                    \
+  X(PROJECT_PIX, "project.cl", "spx_project_pix")                      \
   X(PROJECT_ZBUF, "project.cl", "spx_project_zbuf")                    \
   X(PROJECT_ZMERGE, "project.cl", "spx_project_zmerge")                \
+  X(PROJECT_ONE, "project.cl", "spx_project_one")                      \
   X(SORT_HIST, "radix_sort.cl", "spx_sort_hist")                       \
   X(SCAN_BLOCK, "radix_sort.cl", "spx_scan_block")                     \
   X(SCAN_ADD, "radix_sort.cl", "spx_scan_add")                         \

@@ -24,6 +24,7 @@ struct spx_tunables {
   int proj_zb_chunk;
   int proj_zb_parts;
   int proj_fill_px;
+  int proj_one_max;
   int conv_vw;            /* conv2d forward */
   int conv_tm;
   int conv_tn;

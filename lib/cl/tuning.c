@@ -68,6 +68,11 @@ static const struct spx_tunable spx_tunables[] = {
     {"SPX_PROJ_ZB_PARTS", F(proj_zb_parts), 0, 0, 0, 256, 0},
     /* background pixels written per work-item of spx_project_keys and spx_project_zmerge */
     {"SPX_PROJ_FILL_PX", F(proj_fill_px), 64, 1, 1, 65536, 0},
+    /* z-buffer path: up to this many projected points, spx_project runs them in one launch of one
+     * work-group into its own image, clearing only the pixels its previous call wrote
+     * (spx_project_one, path 5); more points take the parts + merge launches (0: never). On 2-core
+     * PoCL (load ~7) path 5 was 2-3x faster at 6,890-27,554 points and 1.3-3x at 110,210 */
+    {"SPX_PROJ_ONE_MAX", F(proj_one_max), 131072, 0, 0, 1 << 28, 0},
     /* conv2d (kernels/conv2d.cl): forward register tile = CONV_TM out-channels x CONV_TN vectors
      * of CONV_VW pixels per work-item, CONV_LWS work-items per group (interleaved pixels) */
     {"CONV_VW", F(conv_vw), 16, 1, 1, 16, T_POW2},

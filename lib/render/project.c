@@ -18,7 +18,8 @@ void spx_projector_destroy(spx_projector *p) {
   if (!p) return;
   spx_sorter_release(&p->sorter);
   spx_cl_buf *bufs[] = {&p->pos, &p->col, &p->cams, &p->keys, &p->vals, &p->img, &p->win,
-                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->offs, &p->zb, &p->dummy};
+                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->offs, &p->zb, &p->zb1, &p->touched,
+                        &p->ntouched, &p->dummy};
   for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) spx_cl_buf_release(bufs[i]);
   free(p);
 }
@@ -64,43 +65,108 @@ static spx_status check_device(spx_ctx *ctx, const char *fn) {
   return SPX_OK;
 }
 
-/* Path 4: parts = min(SPX_PROJ_ZB_PARTS or the compute units, points / SPX_PROJ_ZB_CHUNK) z-buffers, each filled by one
- * work-item walking its share of the points in order (the plain-C loop), then one merge pass
+/* At least `bytes` of z-buffer *b, empty (all ones): filled once, afterwards the kernels empty
+ * what they used. *clear (the leading bytes known empty) stays 0 until the caller has enqueued its
+ * launches (it sets it back then). */
+static spx_status ensure_empty(spx_ctx *ctx, spx_cl_buf *b, size_t *clear, size_t bytes, const char *what) {
+  spx_status st = spx_cl_buf_ensure(ctx, b, bytes, what);
+  if (st) return st;
+  if (*clear < bytes) {
+    cl_uint empty = ~(cl_uint)0; /* 4 bytes: every size here is a multiple */
+    cl_int fe = clEnqueueFillBuffer(ctx->dev->queue, b->mem, &empty, sizeof empty, 0, b->bytes, 0, NULL, NULL);
+    if ((st = spx_cl_check(ctx, fe, "spx_project z-buffer fill"))) return st;
+  }
+  *clear = 0;
+  return SPX_OK;
+}
+
+/* The scalar and buffer arguments paths 4 and 5 pass to their kernels. */
+typedef struct launch_args {
+  cl_int N, C, W, H, layout, want_win, has_col;
+  cl_mem pos, col;
+} launch_args;
+
+static launch_args launch_args_of(const spx_projector *p, const spx_project_dev_args *a, cl_mem win) {
+  launch_args l = {a->nverts, a->ncams, a->cams[0].width, a->cams[0].height, (cl_int)a->layout,
+                   win != p->dummy.mem, a->col != NULL, a->pos ? a->pos : p->dummy.mem,
+                   a->col ? a->col : p->dummy.mem};
+  return l;
+}
+
+/* Path 5: one launch of one work-group (kernels/project.cl spx_project_one). Into the projector's
+ * own img / win it clears only the pixels its previous call wrote when the state allows (same
+ * geometry and layout, nothing else wrote there since); anything else is cleared in full. */
+static spx_status project_one(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out, cl_mem win,
+                              cl_uint npts, cl_uint npix) {
+  launch_args la = launch_args_of(p, a, win);
+  cl_uint hw = (cl_uint)la.W * (cl_uint)la.H;
+  int own_img = out == p->img.mem, own_win = win == p->win.mem;
+  int same = own_img && p->one_img_ok && p->one_npix == npix && p->one_hw == hw && p->one_layout == la.layout;
+  size_t list_bytes = 2 * (size_t)npix * sizeof(cl_uint); /* pixels, then their images */
+  if (p->touched.bytes < list_bytes) same = 0; /* a new list buffer lists nothing */
+  cl_int clear = (same ? 0 : 1) | (la.want_win && !(same && own_win && p->one_win_ok) ? 2 : 0);
+  p->one_img_ok = p->one_win_ok = 0; /* until the launch is enqueued */
+  spx_status st = ensure_empty(ctx, &p->zb1, &p->zb1_clear, 4 * (size_t)npix * sizeof(cl_uint), "projection z-buffer");
+  if (st) return st;
+  if ((st = spx_cl_buf_ensure(ctx, &p->touched, list_bytes, "projection touched pixels"))) return st;
+  if ((st = spx_cl_buf_ensure(ctx, &p->ntouched, sizeof(cl_uint), "projection touched count"))) return st;
+  cl_kernel k;
+  if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ONE, &k))) return st;
+  cl_int e = SPX_ARG(k, 0, la.pos) | SPX_ARG(k, 1, la.col) | SPX_ARG(k, 2, la.has_col) | SPX_ARG(k, 3, p->cams.mem) |
+             SPX_ARG(k, 4, la.N) | SPX_ARG(k, 5, la.C) | SPX_ARG(k, 6, la.W) | SPX_ARG(k, 7, la.H) | SPX_ARG(k, 8, npts) |
+             SPX_ARG(k, 9, npix) | SPX_ARG(k, 10, out) | SPX_ARG(k, 11, la.layout) | SPX_ARG(k, 12, win) |
+             SPX_ARG(k, 13, la.want_win) | SPX_ARG(k, 14, p->zb1.mem) | SPX_ARG(k, 15, p->keys.mem) |
+             SPX_ARG(k, 16, p->vals.mem) | SPX_ARG(k, 17, p->touched.mem) | SPX_ARG(k, 18, p->ntouched.mem) |
+             SPX_ARG(k, 19, clear);
+  if ((st = spx_cl_check(ctx, e, "spx_project_one args"))) return st;
+  size_t wg = (size_t)ctx->dev->tune.wg;
+  if ((st = spx_cl_run(ctx, k, 1, &wg, &wg, "spx_project_one"))) return st;
+  p->zb1_clear = p->zb1.bytes;
+  if (own_img) {
+    p->one_img_ok = 1;
+    p->one_win_ok = own_win && la.want_win;
+    p->one_npix = npix;
+    p->one_hw = hw;
+    p->one_layout = la.layout;
+  }
+  return SPX_OK;
+}
+
+/* Path 4: every point's pixel and depth in parallel (spx_project_pix), then parts = min(SPX_PROJ_ZB_PARTS or the
+ * compute units, points / SPX_PROJ_ZB_CHUNK) z-buffers, each filled by one work-item walking its
+ * share of the points in order (the plain-C loop's comparisons), then one merge pass
  * over the pixels that also writes the background and empties the z-buffer entries it used (so
  * no fill pass per call). The output does not depend on the number of parts. */
 static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out, cl_mem win,
                                cl_uint npts, cl_uint npix) {
-  cl_int N = a->nverts, C = a->ncams, W = a->cams[0].width, H = a->cams[0].height, layout = (cl_int)a->layout;
-  cl_int want_win = win != p->dummy.mem, has_col = a->col != NULL;
-  cl_mem pos = a->pos ? a->pos : p->dummy.mem, col = a->col ? a->col : p->dummy.mem;
+  launch_args la = launch_args_of(p, a, win);
   size_t per = (size_t)ctx->dev->tune.proj_zb_chunk, most = (size_t)ctx->dev->tune.proj_zb_parts;
   if (!most) most = ctx->dev->info.compute_units ? ctx->dev->info.compute_units : 1;
   size_t parts = ((size_t)npts + per - 1) / per;
   if (parts > most) parts = most;
   if (parts < 1) parts = 1;
   cl_uint chunk = (cl_uint)(((size_t)npts + parts - 1) / parts), np = (cl_uint)parts;
-  size_t zbytes = parts * npix * sizeof(cl_ulong);
-  spx_status st = spx_cl_buf_ensure(ctx, &p->zb, zbytes, "projection z-buffers");
+  spx_status st = ensure_empty(ctx, &p->zb, &p->zb_clear, parts * npix * sizeof(cl_ulong), "projection z-buffers");
   if (st) return st;
-  if (p->zb_clear < zbytes) { /* empty (all ones) once; afterwards the merge clears what it read */
-    cl_ulong empty = ~(cl_ulong)0;
-    cl_int fe = clEnqueueFillBuffer(ctx->dev->queue, p->zb.mem, &empty, sizeof empty, 0, p->zb.bytes, 0, NULL, NULL);
-    if ((st = spx_cl_check(ctx, fe, "spx_project z-buffer fill"))) return st;
-    p->zb_clear = p->zb.bytes;
-  }
-  p->zb_clear = 0; /* until both launches are enqueued */
-  cl_kernel kz, km;
+  cl_kernel kp, kz, km;
+  if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_PIX, &kp))) return st;
   if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ZBUF, &kz))) return st;
   if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_ZMERGE, &km))) return st;
-  cl_int e = SPX_ARG(kz, 0, pos) | SPX_ARG(kz, 1, p->cams.mem) | SPX_ARG(kz, 2, N) | SPX_ARG(kz, 3, C) |
-             SPX_ARG(kz, 4, W) | SPX_ARG(kz, 5, H) | SPX_ARG(kz, 6, npts) | SPX_ARG(kz, 7, chunk) |
-             SPX_ARG(kz, 8, npix) | SPX_ARG(kz, 9, p->zb.mem);
+  /* pixels and depth bits of all points in parallel (pixs = vals, dbits = keys viewed as uints) */
+  cl_int e = SPX_ARG(kp, 0, la.pos) | SPX_ARG(kp, 1, p->cams.mem) | SPX_ARG(kp, 2, la.N) | SPX_ARG(kp, 3, la.C) |
+             SPX_ARG(kp, 4, la.W) | SPX_ARG(kp, 5, la.H) | SPX_ARG(kp, 6, p->vals.mem) | SPX_ARG(kp, 7, p->keys.mem);
+  if ((st = spx_cl_check(ctx, e, "spx_project_pix args"))) return st;
+  size_t wg = (size_t)ctx->dev->tune.wg, span = 16 * wg; /* SPX_PROJ_PIX_ROUNDS in kernels/project.cl */
+  size_t gp[2] = {((size_t)la.N + span - 1) / span * wg, (size_t)a->batch * (size_t)la.C}, lp[2] = {wg, 1};
+  if ((st = spx_cl_run(ctx, kp, 2, gp, lp, "spx_project_pix"))) return st;
+  e = SPX_ARG(kz, 0, p->vals.mem) | SPX_ARG(kz, 1, p->keys.mem) | SPX_ARG(kz, 2, npts) | SPX_ARG(kz, 3, chunk) |
+      SPX_ARG(kz, 4, npix) | SPX_ARG(kz, 5, p->zb.mem);
   if ((st = spx_cl_check(ctx, e, "spx_project_zbuf args"))) return st;
   size_t one = 1;
   if ((st = spx_cl_run(ctx, kz, 1, &parts, &one, "spx_project_zbuf"))) return st;
-  e = SPX_ARG(km, 0, p->zb.mem) | SPX_ARG(km, 1, np) | SPX_ARG(km, 2, col) | SPX_ARG(km, 3, has_col) |
-      SPX_ARG(km, 4, N) | SPX_ARG(km, 5, C) | SPX_ARG(km, 6, W) | SPX_ARG(km, 7, H) | SPX_ARG(km, 8, npix) |
-      SPX_ARG(km, 9, out) | SPX_ARG(km, 10, layout) | SPX_ARG(km, 11, win) | SPX_ARG(km, 12, want_win);
+  e = SPX_ARG(km, 0, p->zb.mem) | SPX_ARG(km, 1, np) | SPX_ARG(km, 2, la.col) | SPX_ARG(km, 3, la.has_col) |
+      SPX_ARG(km, 4, la.N) | SPX_ARG(km, 5, la.C) | SPX_ARG(km, 6, la.W) | SPX_ARG(km, 7, la.H) | SPX_ARG(km, 8, npix) |
+      SPX_ARG(km, 9, out) | SPX_ARG(km, 10, la.layout) | SPX_ARG(km, 11, win) | SPX_ARG(km, 12, la.want_win);
   if ((st = spx_cl_check(ctx, e, "spx_project_zmerge args"))) return st;
   size_t fill_px = (size_t)ctx->dev->tune.proj_fill_px, g = (npix + fill_px - 1) / fill_px;
   size_t l = (size_t)ctx->dev->tune.wg;
@@ -130,11 +196,20 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
    * 4 z-buffer per part + merge (CPU-class devices) */
   int path = force_path;
   if (!path)
-    path = ctx->dev->tune.proj_zbuf                        ? 4
+    path = ctx->dev->tune.proj_zbuf && npts <= (cl_uint)ctx->dev->tune.proj_one_max && out == p->img.mem &&
+                   (!winners || winners == p->win.mem)
+               ? 5
+           : ctx->dev->tune.proj_zbuf                      ? 4
            : npts <= (cl_uint)ctx->dev->tune.proj_fast_max ? 1
            : ctx->dev->tune.proj_count_min > 0 && npts >= (cl_uint)ctx->dev->tune.proj_count_min
                ? 3
                : 2;
+  if (path == 5) {
+    p->last_path = 5;
+    return project_one(ctx, p, a, out, win, npts, npix);
+  }
+  if (out == p->img.mem) p->one_img_ok = 0; /* another path writes all of it */
+  if (winners == p->win.mem) p->one_win_ok = 0;
   if (path == 4) {
     p->last_path = 4;
     return project_zbuf(ctx, p, a, out, win, npts, npix);
@@ -219,8 +294,16 @@ static spx_status host_args(spx_ctx *ctx, const char *fn, const spx_project_args
   return SPX_OK;
 }
 
-/* Upload the vertex sets into the projector's scratch and describe them for the device path. */
-static spx_status upload_sets(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, spx_project_dev_args *d) {
+static spx_status write_buf(spx_ctx *ctx, cl_mem m, size_t bytes, const void *src, cl_bool blocking) {
+  return spx_cl_check(ctx, clEnqueueWriteBuffer(ctx->dev->queue, m, blocking, 0, bytes, src, 0, NULL, NULL),
+                      "clEnqueueWriteBuffer");
+}
+
+/* Upload the vertex sets into the projector's scratch and describe them for the device path.
+ * blocking CL_FALSE: the caller waits for the queue before it returns (the copies read a->pos
+ * and a->col until they have run). */
+static spx_status upload_sets(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, spx_project_dev_args *d,
+                              cl_bool blocking) {
   size_t vbytes = (size_t)a->batch * a->nverts * 3 * sizeof(float);
   spx_status st;
   memset(d, 0, sizeof *d);
@@ -231,11 +314,11 @@ static spx_status upload_sets(spx_ctx *ctx, spx_projector *p, const spx_project_
   d->layout = a->layout;
   if (a->nverts > 0) {
     if ((st = spx_cl_buf_ensure(ctx, &p->pos, vbytes, "projection positions"))) return st;
-    if ((st = spx_cl_write(ctx, p->pos.mem, 0, vbytes, a->pos))) return st;
+    if ((st = write_buf(ctx, p->pos.mem, vbytes, a->pos, blocking))) return st;
     d->pos = p->pos.mem;
     if (a->col) {
       if ((st = spx_cl_buf_ensure(ctx, &p->col, vbytes, "projection colors"))) return st;
-      if ((st = spx_cl_write(ctx, p->col.mem, 0, vbytes, a->col))) return st;
+      if ((st = write_buf(ctx, p->col.mem, vbytes, a->col, blocking))) return st;
       d->col = p->col.mem;
     }
   }
@@ -250,11 +333,22 @@ spx_status spx_project(spx_ctx *ctx, spx_projector *p, const spx_project_args *a
   size_t npix = (size_t)a->batch * a->ncams * a->cams[0].width * a->cams[0].height;
   if ((st = spx_cl_buf_ensure(ctx, &p->img, npix * 4 * sizeof(float), "projection images"))) return st;
   if (winners && (st = spx_cl_buf_ensure(ctx, &p->win, npix * sizeof(int32_t), "projection winners"))) return st;
+  /* one wait per call: uploads, launch and the image's read-back are queued, the last read blocks */
   spx_project_dev_args d;
-  if ((st = upload_sets(ctx, p, a, &d))) return st;
-  if ((st = spx_project_device(ctx, p, &d, p->img.mem, winners ? p->win.mem : NULL, 0))) return st;
-  if ((st = spx_cl_read(ctx, p->img.mem, 0, npix * 4 * sizeof(float), out))) return st;
-  if (winners) st = spx_cl_read(ctx, p->win.mem, 0, npix * sizeof(int32_t), winners);
+  cl_command_queue q = ctx->dev->queue;
+  if (!(st = upload_sets(ctx, p, a, &d, CL_FALSE)))
+    st = spx_project_device(ctx, p, &d, p->img.mem, winners ? p->win.mem : NULL, 0);
+  if (!st)
+    st = spx_cl_check(ctx, clEnqueueReadBuffer(q, p->img.mem, winners ? CL_FALSE : CL_TRUE, 0, npix * 4 * sizeof(float),
+                                               out, 0, NULL, NULL),
+                      "clEnqueueReadBuffer");
+  if (!st && winners) st = spx_cl_read(ctx, p->win.mem, 0, npix * sizeof(int32_t), winners);
+  if (st) {
+    p->one_img_ok = p->one_win_ok = 0; /* whatever ran, the images' state is unknown */
+    /* queued copies read a->pos / a->col and write out: let them end before returning (the error
+     * already reported is the first one; a failing finish adds nothing to it) */
+    if (clFinish(q) != CL_SUCCESS) return st;
+  }
   return st;
 }
 
@@ -273,7 +367,7 @@ spx_status spx_project_to_tensor(spx_ctx *ctx, spx_projector *p, const spx_proje
                     n, a->cams[0].height, a->cams[0].width, need, out->capacity);
   if ((st = spx_device_tensor_reshape(ctx, out, n, 4, a->cams[0].height, a->cams[0].width))) return st;
   spx_project_dev_args d;
-  if ((st = upload_sets(ctx, p, a, &d))) return st;
+  if ((st = upload_sets(ctx, p, a, &d, CL_TRUE))) return st;
   return spx_project_device(ctx, p, &d, out->mem, NULL, 0);
 }
 
@@ -345,6 +439,7 @@ spx_status spx_project_backward(spx_ctx *ctx, spx_projector *p, const spx_projec
   if (st) return st;
   if ((st = spx_cl_buf_ensure(ctx, &p->win, npix * sizeof(int32_t), "projection winners"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &p->gimg, npix * 4 * sizeof(float), "projection image gradient"))) return st;
+  p->one_win_ok = 0; /* the caller's winners replace what path 5 left there */
   if ((st = spx_cl_write(ctx, p->win.mem, 0, npix * sizeof(int32_t), winners))) return st;
   if ((st = spx_cl_write(ctx, p->gimg.mem, 0, npix * 4 * sizeof(float), grad_img))) return st;
   if (grad_col) {

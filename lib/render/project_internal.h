@@ -14,9 +14,17 @@ struct spx_projector {
   spx_sorter sorter;
   spx_cl_buf pos, col, cams, keys, vals, img, win; /* grow-only scratch */
   spx_cl_buf gimg, gcol, gpos, vpix, offs, zb;
+  spx_cl_buf zb1, touched, ntouched; /* path 5: its z-buffer, the pixels (and their images) its last call
+                                        wrote into img (and win), their count */
   spx_cl_buf dummy;
-  int last_path; /* path of the last forward (1 fused, 2 radix sort, 3 counting sort, 4 z-buffer; for tests/benchmarks) */
-  size_t zb_clear; /* leading bytes of zb known to be empty (all ones); 0 after a failed call */
+  int last_path; /* path of the last forward (1 fused, 2 radix sort, 3 counting sort, 4 z-buffer, 5 one
+                   launch; for tests/benchmarks) */
+  size_t zb_clear, zb1_clear; /* leading bytes of zb / zb1 known to be empty (all ones); 0 after a failed call */
+  /* Path 5 state: img (win) holds the background except at the pixels listed in touched, for
+   * images of one_hw pixels, one_npix pixels in all, layout one_layout; 0 when unknown (another
+   * path or a copy wrote there, the buffer was reallocated, a call failed). */
+  int one_img_ok, one_win_ok, one_layout;
+  uint32_t one_hw, one_npix;
   int ncams_on_device;                  /* cameras in `cams` equal to cam_host (0: unknown) */
   float cam_host[16 * SPX_CAM_FLOATS]; /* what was uploaded last, to skip repeated uploads */
 };
@@ -32,9 +40,11 @@ typedef struct spx_project_dev_args {
 
 /* Forward into device buffers: out B*C*4*H*W floats (layout as asked; the network wants
  * SPX_LAYOUT_NCHW), winners B*C*H*W ints or NULL. Only enqueues work. force_path: 0 auto
- * (tunables SPX_PROJ_ZBUF, SPX_PROJ_FAST_MAX, SPX_PROJ_COUNT_MIN), 1 fused single-work-group sort
- * + unique, 2 radix sort + unique, 3 counting sort by pixel + per-pixel nearest, 4 z-buffer per
- * part + merge (tests compare all). */
+ * (tunables SPX_PROJ_ZBUF, SPX_PROJ_ONE_MAX, SPX_PROJ_FAST_MAX, SPX_PROJ_COUNT_MIN), 1 fused
+ * single-work-group sort + unique, 2 radix sort + unique, 3 counting sort by pixel + per-pixel
+ * nearest, 4 z-buffer per part + merge, 5 one launch (clear, project, resolve; auto only into the
+ * projector's own img / win, whose background it keeps between calls: see struct spx_projector)
+ * (tests compare all). */
 spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out,
                               cl_mem winners, int force_path);
 
