@@ -1,5 +1,7 @@
 /* The search of `smplpix tune`: coordinate descent over groups of tunables, scored on the UNet's
- * eval forward. A stage takes one group; every candidate runs on a second context of the same
+ * eval forward, or for the training-side groups (Winograd in training, the weight gradient's
+ * algorithm and tiles) on a training step (zero_grad + forward + L1 + backward, batch 1, the
+ * gradients compared with the defaults' like the outputs below). A stage takes one group; every candidate runs on a second context of the same
  * device and is timed against the incumbent (the best values so far) alternately, forward for
  * forward, so both see the same load; its score is the mean over the widths of its minimum time
  * / the incumbent's. A candidate replaces the incumbent only when it scores below 0.98 (timing
@@ -21,6 +23,7 @@
 #define MAXG 2  /* tunables per group */
 #define MAXC 64 /* candidates per group */
 #define MAXW 8
+#define MAXS 48 /* tunables saved */
 
 typedef struct group {
   const char *names[MAXG];
@@ -57,6 +60,15 @@ static const int q_wlds[] = {0, 1};
 static const int f_wlds_tile[] = {1, 1, 2, 2, 2, 4, 4, 2, 4, 4, 4, 8, 8, 4, 8, 8};
 static const int f_wlds_wg[] = {1, 1, 1, 2, 2, 1, 2, 2, 1, 4, 4, 1, 2, 3, 3, 2, 2, 4, 4, 2, 3, 4, 4, 3};
 static const int f_wlds_kb[] = {2, 4, 8, 12, 16};
+/* training side: Winograd in training, the Winograd weight gradient's thresholds (channels, pixels)
+ * and the weight-gradient register tiles / blocks (direct kernel and Winograd GEMM share them) */
+static const int q_onoff[] = {0, 1};
+static const int q_wdw[] = {0, 64};
+static const int f_wdw[] = {0, 32, 64, 128, 256};
+static const int f_wdw_hw[] = {0, 512, 1024, 2048, 4096, 8192};
+static const int f_dw_tile[] = {6, 4, 4, 4, 8, 4, 4, 8, 6, 2, 8, 2, 2, 8, 4, 6};
+static const int f_dw_block[] = {8, 256, 4, 256, 16, 256, 8, 128, 8, 512, 4, 1024, 1, 1024};
+static const int f_dw_qc[] = {1024, 2048, 4096, 8192};
 
 /* Two contexts on the device: A runs the incumbent, B the candidate, so every comparison times
  * the two alternately in the same seconds (a loaded machine slows both alike) without
@@ -70,6 +82,13 @@ typedef struct run {
   double refmax[MAXW];
   size_t nout;
   int have_ref; /* ref[] holds the defaults' outputs */
+  /* training groups: networks of their own (a training forward updates the batch-norm running
+   * statistics, which the eval forward of u[] must not see), the target, the defaults' gradients */
+  spx_unet *t[2][MAXW];
+  float *target, *gbuf, *gref[MAXW];
+  double grefmax[MAXW];
+  size_t ngrad[MAXW];
+  int have_gref;
 } run;
 
 /* Seconds on the plan's clock: wall, or this process's CPU time (--clock cpu: on a CPU device
@@ -80,12 +99,69 @@ static double now(const run *r) {
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* One forward of width k on context c; *ms its time. */
-static spx_status forward(run *r, int c, int k, double *ms) {
+/* One forward of width k on context c (train: a training step instead); *ms its time. */
+static spx_status forward(run *r, int c, int k, int train, double *ms) {
   double t0 = now(r);
-  spx_status st = spx_unet_forward(r->u[c][k], r->input, 1, r->p->h, r->p->w, 0, r->buf);
+  spx_status st;
+  if (train) {
+    float loss;
+    spx_unet *u = r->t[c][k];
+    if (!(st = spx_unet_zero_grad(u)) &&
+        !(st = spx_unet_forward_loss(u, r->input, r->target, 1, r->p->h, r->p->w, NULL, &loss)))
+      st = spx_unet_backward(u);
+  } else {
+    st = spx_unet_forward(r->u[c][k], r->input, 1, r->p->h, r->p->w, 0, r->buf);
+  }
   *ms = 1e3 * (now(r) - t0);
   return st;
+}
+
+/* Elements of tensor i of u when it is a parameter (it has a gradient), else 0; its name in *name. */
+static size_t param_numel(spx_unet *u, int i, const char **name) {
+  int nd;
+  int64_t shape[4];
+  size_t n = 1;
+  *name = spx_unet_tensor_name(u, i, &nd, shape);
+  if (strstr(*name, "running_")) return 0;
+  while (nd > 0) n *= (size_t)shape[--nd];
+  return n;
+}
+
+/* Every parameter gradient of the last step of t[c][k], concatenated into r->gbuf. */
+static spx_status read_grads(run *r, int c, int k) {
+  spx_unet *u = r->t[c][k];
+  size_t at = 0;
+  for (int i = 0; i < spx_unet_tensor_count(u); i++) {
+    const char *name;
+    size_t n = param_numel(u, i, &name);
+    spx_status st = n ? spx_unet_read(u, name, SPX_UNET_GRAD, r->gbuf + at, n) : SPX_OK;
+    if (st) return st;
+    at += n;
+  }
+  return SPX_OK;
+}
+
+/* An untimed training step of every width on context c; the worst relative difference of its
+ * gradients to the defaults' in *diff (the first call stores them). */
+static spx_status warm_train(run *r, int c, double *diff) {
+  double ms;
+  *diff = 0;
+  for (int k = 0; k < r->p->nwidths; k++) {
+    spx_status st = forward(r, c, k, 1, &ms);
+    if (st || (st = read_grads(r, c, k))) return st;
+    size_t n = r->ngrad[k];
+    if (!r->have_gref) {
+      memcpy(r->gref[k], r->gbuf, n * sizeof(float));
+      r->grefmax[k] = 0;
+      for (size_t i = 0; i < n; i++) r->grefmax[k] = fmax(r->grefmax[k], fabs(r->gbuf[i]));
+    }
+    double d = 0;
+    for (size_t i = 0; i < n; i++) d = fmax(d, fabs((double)r->gbuf[i] - r->gref[k][i]));
+    d /= r->grefmax[k] > 0 ? r->grefmax[k] : 1;
+    if (!(d <= *diff)) *diff = d;
+  }
+  r->have_gref = 1;
+  return SPX_OK;
 }
 
 /* An untimed forward of every width on context c (it builds what a change dropped); the
@@ -94,7 +170,7 @@ static spx_status warm(run *r, int c, double *diff) {
   double ms;
   *diff = 0;
   for (int k = 0; k < r->p->nwidths; k++) {
-    spx_status st = forward(r, c, k, &ms);
+    spx_status st = forward(r, c, k, 0, &ms);
     if (st) return st;
     if (!r->have_ref) {
       memcpy(r->ref[k], r->buf, r->nout * sizeof(float));
@@ -112,14 +188,14 @@ static spx_status warm(run *r, int c, double *diff) {
 
 /* A and B alternately, `reps` times per width: the minimum ms of each; the score is the mean
  * over the widths of B's / A's. */
-static spx_status duel(run *r, int reps, double *ms_a, double *ms_b, double *score) {
+static spx_status duel(run *r, int train, int reps, double *ms_a, double *ms_b, double *score) {
   *score = 0;
   for (int k = 0; k < r->p->nwidths; k++) {
     ms_a[k] = ms_b[k] = INFINITY;
     for (int rep = 0; rep < reps; rep++) {
       double a, b;
-      spx_status st = forward(r, 0, k, &a);
-      if (st || (st = forward(r, 1, k, &b))) return st;
+      spx_status st = forward(r, 0, k, train, &a);
+      if (st || (st = forward(r, 1, k, train, &b))) return st;
       ms_a[k] = fmin(ms_a[k], a);
       ms_b[k] = fmin(ms_b[k], b);
     }
@@ -161,7 +237,7 @@ static int tunable(spx_ctx *ctx, const char *name, spx_tunable_info *out) {
 }
 
 /* One stage: every candidate against the incumbent cur (on A); both contexts end at the winner. */
-static spx_status stage(run *r, const group *g, int *cur) {
+static spx_status stage(run *r, const group *g, int train, int *cur) {
   int nw = r->p->nwidths;
   double ms_a[MAXW], ms_b[MAXW], inc_ms[MAXW], best_ms[MAXW], diff, sc, best = TUNE_MARGIN;
   int win[MAXG];
@@ -177,13 +253,14 @@ static spx_status stage(run *r, const group *g, int *cur) {
       row(r, g, v, NULL, note);
       continue;
     }
-    if ((st = warm(r, 1, &diff))) return st;
+    if ((st = train ? warm_train(r, 1, &diff) : warm(r, 1, &diff))) return st;
     if (!(diff <= TUNE_TOL)) {
-      snprintf(note, sizeof note, "rejected: output differs by %.2g of its largest value", diff);
+      snprintf(note, sizeof note, "rejected: %s differs by %.2g of its largest value", train ? "gradient" : "output",
+               diff);
       row(r, g, v, NULL, note);
       continue;
     }
-    if ((st = duel(r, r->p->repeat, ms_a, ms_b, &sc))) return st;
+    if ((st = duel(r, train, r->p->repeat, ms_a, ms_b, &sc))) return st;
     for (int k = 0; k < nw; k++) inc_ms[k] = fmin(inc_ms[k], ms_a[k]);
     snprintf(note, sizeof note, "%.3f of the incumbent's time%s", sc, sc < best ? ", best so far" : "");
     if (sc < best) {
@@ -198,7 +275,7 @@ static spx_status stage(run *r, const group *g, int *cur) {
   if ((st = set_group(r, 0, g, win, cur, why, sizeof why)) || (st = set_group(r, 1, g, win, cur, why, sizeof why)))
     return st;
   if (memcmp(win, cur, sizeof(int) * (size_t)g->n)) {
-    if ((st = warm(r, 0, &diff))) return st;
+    if ((st = warm(r, 0, &diff)) || (train && (st = warm_train(r, 0, &diff)))) return st;
     row(r, g, win, best_ms, "chosen");
   }
   memcpy(cur, win, sizeof win);
@@ -229,25 +306,42 @@ static int build_groups(const spx_tune_plan *p, group *gs) {
   return n;
 }
 
+/* The groups scored on a training step (after the eval-forward ones). */
+static int build_train_groups(const spx_tune_plan *p, group *gs) {
+  int n = 0;
+  gs[n++] = (group){{"CONV_WINO_TRAIN", NULL}, 1, 1, q_onoff, 2};
+  gs[n++] = (group){{"CONV_WINO_DW", NULL}, 1, 0, p->quick ? q_wdw : f_wdw,
+                    p->quick ? (int)(sizeof q_wdw / sizeof(int)) : (int)(sizeof f_wdw / sizeof(int))};
+  gs[n++] = (group){{"CONV_WINO_DW_MINHW", NULL}, 1, 1, f_wdw_hw, (int)(sizeof f_wdw_hw / sizeof(int))};
+  gs[n++] = (group){{"CONV_DW_TM", "CONV_DW_TN"}, 2, 1, f_dw_tile, (int)(sizeof f_dw_tile / sizeof(int) / 2)};
+  gs[n++] = (group){{"CONV_DW_G", "CONV_DW_QB"}, 2, 1, f_dw_block, (int)(sizeof f_dw_block / sizeof(int) / 2)};
+  gs[n++] = (group){{"CONV_DW_QC", NULL}, 1, 1, f_dw_qc, (int)(sizeof f_dw_qc / sizeof(int))};
+  return n;
+}
+
 int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   run r = {.ctx = {ctx, NULL}, .p = p, .out = out, .nout = (size_t)3 * p->h * p->w};
-  group gs[24];
-  int ng = build_groups(p, gs), rc = SPX_EXIT_ERROR, nsave = 0;
-  char names[32][32];
-  int vals[32], defs[32];
+  group gs[40];
+  const int ng_eval = build_groups(p, gs); /* groups from ng_eval on are scored on a training step */
+  int ng = ng_eval + build_train_groups(p, gs + ng_eval), rc = SPX_EXIT_ERROR, nsave = 0;
+  char names[MAXS][32];
+  int vals[MAXS], defs[MAXS];
   spx_status st = SPX_OK;
   spx_ctx *failed = ctx;
   double t_start = spx_now();
   r.input = malloc((size_t)4 * p->h * p->w * sizeof(float));
   r.buf = malloc(r.nout * sizeof(float));
-  int fit = r.input && r.buf;
+  int fit = r.input && r.buf, train = 0;
   for (int k = 0; k < p->nwidths; k++) fit = fit && (r.ref[k] = malloc(r.nout * sizeof(float)));
+  for (int g = ng_eval; g < ng; g++) train |= !(gs[g].full_only && p->quick);
+  if (train) fit = fit && (r.target = malloc(r.nout * sizeof(float)));
   if (!fit) {
     rc = spx_cli_errorf("tune", "out of memory");
     goto done;
   }
   uint64_t s = 0x9e3779b97f4a7c15ULL;
   for (size_t i = 0; i < (size_t)4 * p->h * p->w; i++) r.input[i] = (float)((spx_cli_mix64(s++) >> 40) * 0x1p-24);
+  for (size_t i = 0; train && i < r.nout; i++) r.target[i] = (float)((spx_cli_mix64(s++) >> 40) * 0x1p-24);
   if (spx_ctx_create(&r.ctx[1])) {
     rc = spx_cli_errorf("tune", "out of memory");
     goto done;
@@ -262,25 +356,42 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
       if (!strcmp(t.source, "tuned") && (st = spx_device_set_tunable(r.ctx[c], t.name, t.default_value))) goto fail;
     }
     for (int k = 0; k < p->nwidths; k++)
-      if ((st = spx_unet_create(r.ctx[c], p->widths[k], 1, 7, &r.u[c][k]))) goto fail;
+      if ((st = spx_unet_create(r.ctx[c], p->widths[k], 1, 7, &r.u[c][k])) ||
+          (train && (st = spx_unet_create(r.ctx[c], p->widths[k], 1, 7, &r.t[c][k]))))
+        goto fail;
+  }
+  size_t most = 0;
+  for (int k = 0; train && k < p->nwidths; k++) { /* gradient buffers: every parameter */
+    const char *name;
+    for (int i = 0; i < spx_unet_tensor_count(r.t[0][k]); i++) r.ngrad[k] += param_numel(r.t[0][k], i, &name);
+    if (!(r.gref[k] = malloc(r.ngrad[k] * sizeof(float)))) fit = 0;
+    if (r.ngrad[k] > most) most = r.ngrad[k];
+  }
+  if (train && (!fit || !(r.gbuf = malloc(most * sizeof(float))))) {
+    rc = spx_cli_errorf("tune", "out of memory");
+    goto done;
   }
   spx_device_info info;
   spx_device_get_info(ctx, &info);
-  fprintf(out, "tuning %s (%s) on the UNet eval forward, batch 1, 4x%dx%d, widths", info.name, info.driver, p->h,
-          p->w);
+  fprintf(out, "tuning %s (%s) on the UNet eval forward%s, batch 1, 4x%dx%d, widths", info.name, info.driver,
+          train ? " (training groups: a training step)" : "", p->h, p->w);
   for (int k = 0; k < p->nwidths; k++) fprintf(out, " %d", p->widths[k]);
   fprintf(out, "; %s search; each candidate timed against the incumbent alternately, min of %d runs (%s ms)\n",
           p->quick ? "quick" : "full", p->repeat, p->cpu_clock ? "CPU" : "wall");
   double diff;
   failed = ctx;
   if ((st = warm(&r, 0, &diff))) goto fail;
+  if (train && warm_train(&r, 0, &diff)) { /* e.g. an image too small to train at batch 1 */
+    fprintf(out, "  training groups skipped: %s\n", spx_ctx_message(ctx));
+    train = 0;
+  }
   failed = r.ctx[1];
-  if ((st = warm(&r, 1, &diff))) goto fail;
+  if ((st = warm(&r, 1, &diff)) || (train && (st = warm_train(&r, 1, &diff)))) goto fail;
   fprintf(out, "  %-28s", "candidate");
   for (int k = 0; k < p->nwidths; k++) fprintf(out, "  w%-2d ms  ", p->widths[k]);
   fprintf(out, "  chosen\n");
   for (int g = 0; g < ng; g++) {
-    if (gs[g].full_only && p->quick) continue;
+    if ((gs[g].full_only && p->quick) || (g >= ng_eval && !train)) continue;
     int cur[MAXG] = {0}, skip = 0;
     spx_tunable_info on;
     const char *needs = group_needs(&gs[g]);
@@ -305,8 +416,8 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
       }
     }
     if (skip) continue;
-    if ((st = stage(&r, &gs[g], cur))) goto fail_either;
-    for (int j = 0; j < gs[g].n && nsave < 32; j++) {
+    if ((st = stage(&r, &gs[g], g >= ng_eval, cur))) goto fail_either;
+    for (int j = 0; j < gs[g].n && nsave < MAXS; j++) {
       spx_tunable_info t;
       tunable(ctx, gs[g].names[j], &t);
       int at = 0; /* a group searched twice keeps its first place, with the last value */
@@ -321,18 +432,24 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   failed = ctx;
   for (int i = 0; i < nsave; i++)
     if ((st = spx_device_set_tunable(ctx, names[i], defs[i]))) goto fail;
-  if ((st = warm(&r, 0, &diff))) goto fail;
-  double ms_def[MAXW], ms_tuned[MAXW], sc;
-  if ((st = duel(&r, 2 * p->repeat, ms_def, ms_tuned, &sc))) goto fail_either;
-  const char *np[32];
+  if ((st = warm(&r, 0, &diff)) || (train && (st = warm_train(&r, 0, &diff)))) goto fail;
+  double ms_def[MAXW], ms_tuned[MAXW], tr_def[MAXW], tr_tuned[MAXW], sc;
+  if ((st = duel(&r, 0, 2 * p->repeat, ms_def, ms_tuned, &sc)) ||
+      (train && (st = duel(&r, 1, p->repeat, tr_def, tr_tuned, &sc))))
+    goto fail_either;
+  const char *np[MAXS];
   for (int i = 0; i < nsave; i++) np[i] = names[i];
   if ((st = spx_device_tuning_save(ctx, np, vals, nsave))) goto fail;
   fprintf(out, "chosen:");
   for (int i = 0; i < nsave; i++) fprintf(out, " %s=%d%s", names[i], vals[i], vals[i] == defs[i] ? " (default)" : "");
   fprintf(out, "\n");
-  for (int k = 0; k < p->nwidths; k++)
+  for (int k = 0; k < p->nwidths; k++) {
     fprintf(out, "width %d: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n", p->widths[k], ms_def[k], ms_tuned[k],
             ms_def[k] / ms_tuned[k]);
+    if (train)
+      fprintf(out, "width %d training step: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n", p->widths[k],
+              tr_def[k], tr_tuned[k], tr_def[k] / tr_tuned[k]);
+  }
   fprintf(out, "wrote %s (%.1f s)\n", spx_device_tuning_path(ctx), spx_now() - t_start);
   rc = SPX_EXIT_OK;
   goto done;
@@ -344,10 +461,15 @@ done:
   for (int k = 0; k < p->nwidths; k++) {
     spx_unet_destroy(r.u[0][k]);
     spx_unet_destroy(r.u[1][k]);
+    spx_unet_destroy(r.t[0][k]);
+    spx_unet_destroy(r.t[1][k]);
     free(r.ref[k]);
+    free(r.gref[k]);
   }
   spx_ctx_destroy(r.ctx[1]);
   free(r.input);
   free(r.buf);
+  free(r.target);
+  free(r.gbuf);
   return rc;
 }

@@ -46,25 +46,16 @@ static inline __attribute__((always_inline)) void conv_dw(const __global float *
       const int qbe = min(qb + CONV_DW_QB, qe);
       for (int g = 0; g < ntiles; g++) {
         vf acc[CONV_DW_TM][CONV_DW_TN];
-#pragma unroll
-        for (int m = 0; m < CONV_DW_TM; m++)
-#pragma unroll
-          for (int j = 0; j < CONV_DW_TN; j++) acc[m][j] = accs[g][m][j];
+        DW_TILE_COPY(acc, accs[g]);
         for (int q = qb; q < qbe; q += CONV_VW) {
           vf dv[CONV_DW_TM], xv[CONV_DW_TN];
 #pragma unroll
           for (int m = 0; m < CONV_DW_TM; m++) dv[m] = VLOAD(dn + yoff[m] + q);
 #pragma unroll
           for (int j = 0; j < CONV_DW_TN; j++) xv[j] = vload_s(xn + xoff[g][j] + S * q, S);
-#pragma unroll
-          for (int m = 0; m < CONV_DW_TM; m++)
-#pragma unroll
-            for (int j = 0; j < CONV_DW_TN; j++) acc[m][j] = fma(dv[m], xv[j], acc[m][j]);
+          DW_TILE_FMA(acc, dv, xv);
         }
-#pragma unroll
-        for (int m = 0; m < CONV_DW_TM; m++)
-#pragma unroll
-          for (int j = 0; j < CONV_DW_TN; j++) accs[g][m][j] = acc[m][j];
+        DW_TILE_COPY(accs[g], acc);
       }
     }
   }

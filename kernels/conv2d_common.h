@@ -1,5 +1,5 @@
 /* Shared by the conv2d programs (conv2d.cl, conv2d_strided.cl, conv2d_bwd.cl, conv2d_lds.cl,
- * conv2d_winograd.cl; #included by the kernel loader): tunable defaults, the CONV_VW vector type,
+ * conv2d_winograd.cl, conv2d_winograd_dw.cl; #included by the kernel loader): tunable defaults, the CONV_VW vector type,
  * the epilogue flags, the forward implicit GEMM conv_fwd and its epilogue. The layout and tiling are described at the top of kernels/conv2d.cl. */
 #ifndef CONV_VW
 #define CONV_VW 1
@@ -34,6 +34,16 @@
 #ifndef CONV_RED_WG
 #define CONV_RED_WG 64
 #endif
+
+/* The weight gradients' register tile (conv2d_bwd.cl, conv2d_winograd_dw.cl): acc[m][j] +=
+ * a[m] b[j] (fma) over CONV_DW_TM x CONV_DW_TN, and a copy of such a tile. */
+#define DW_TILE_FMA(acc, a, b)                                  \
+  _Pragma("unroll") for (int m_ = 0; m_ < CONV_DW_TM; m_++)     \
+      _Pragma("unroll") for (int j_ = 0; j_ < CONV_DW_TN; j_++) \
+          (acc)[m_][j_] = fma((a)[m_], (b)[j_], (acc)[m_][j_])
+#define DW_TILE_COPY(dst, src)                                  \
+  _Pragma("unroll") for (int m_ = 0; m_ < CONV_DW_TM; m_++)     \
+      _Pragma("unroll") for (int j_ = 0; j_ < CONV_DW_TN; j_++) (dst)[m_][j_] = (src)[m_][j_]
 
 #if CONV_VW == 16
 typedef float16 vf;

@@ -19,6 +19,12 @@ endforeach()
 # run head (the default is the paper's (pixel, depth) sort); both must give identical bits.
 spx_test_variant(test_render_project_pixel_sort test_render_project "SPX_TUNE_PROJ_SORT_DEPTH=0")
 
+# The UNet golden with every 3x3 convolution's forward, input gradient and weight gradient on
+# Winograd F(4x4,3x3) (defaults leave this width-8 network's small layers direct): the PyTorch
+# gradients within the tolerance widened by SPX_WINO_RMS_GAIN (tests/test_nn_unet.c).
+spx_test_variant(test_nn_unet_wino_all test_nn_unet
+  "SPX_TUNE_CONV_WINO_MINC=1;SPX_TUNE_CONV_WINO_TRAIN=1;SPX_TUNE_CONV_WINO_DW=1;SPX_TUNE_CONV_WINO_DW_MINHW=0")
+
 # The network tests again with every dead tape storage filled with NaN the moment it dies
 # (lib/nn/tape_plan.c): a read past a value's planned last use shows as NaN / wrong results.
 foreach(name test_nn_tape test_nn_tape_multi test_nn_patchgan test_nn_vgg test_nn_unet)

@@ -89,6 +89,20 @@ static void test_cache_key(void) {
   spx_ctx_destroy(ctx);
 }
 
+/* The training-side groups (apps/tune_search.c): timed on a training step where the image is large
+ * enough to train at batch 1 (their rows and the step's summary), skipped with the reason where not.
+ * Runs before test_tune_then_open, which rewrites the tuning file this leaves. */
+static void test_tune_training_groups(void) {
+  char out[700];
+  spx_t_path(out, sizeof out, "tune_train.txt");
+  CHECK(sh("'%s' tune --quick --size 32x48 --width 8 --repeat 1 >'%s' 2>&1", spx_t_tool(), out) == 0);
+  CHECK(sh("grep -q '^  CONV_WINO_DW=0 ' '%s' && grep -q '^width 8 training step: ' '%s'", out, out) == 0);
+  CHECK(sh("grep -q '^chosen: .* CONV_WINO_DW=' '%s'", out) == 0);
+  CHECK(sh("'%s' tune --quick --size 16x24 --width 8 --repeat 1 >'%s' 2>&1", spx_t_tool(), out) == 0);
+  CHECK(sh("grep -q '^  training groups skipped: .*bottleneck' '%s'", out) == 0);
+  CHECK(sh("grep -q 'CONV_WINO_DW' '%s'", out) != 0);
+}
+
 static void test_tune_then_open(void) {
   char out[700];
   spx_t_path(out, sizeof out, "tune.txt");
@@ -165,6 +179,7 @@ int main(void) {
   SPX_RUN(test_usage);
   SPX_RUN(test_defaults_and_fields);
   SPX_RUN(test_cache_key);
+  SPX_RUN(test_tune_training_groups);
   SPX_RUN(test_tune_then_open);
   return spx_test_summary();
 }

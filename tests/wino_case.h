@@ -10,17 +10,17 @@
 #include "cl/cl_internal.h"
 #include "nn/conv2d.h"
 #include "nn_testutil.h"
+#include "wino_test.h"
 
 static unsigned long long rng = 0x243f6a8885a308d3ULL;
 static void fill_rand(double *a, size_t n) {
   for (size_t i = 0; i < n; i++) a[i] = 2.0 * spx_t_uniform(&rng) - 1.0;
 }
 
-static const double BT[6][6] = {{4, 0, -5, 0, 1, 0},  {0, -4, -4, 1, 1, 0}, {0, 4, -4, -1, 1, 0},
-                                {0, -2, -1, 2, 1, 0}, {0, 2, -1, -2, 1, 0}, {0, 4, 0, -5, 0, 1}};
-static const double G[6][3] = {{0.25, 0, 0},           {-1.0 / 6, -1.0 / 6, -1.0 / 6}, {-1.0 / 6, 1.0 / 6, -1.0 / 6},
-                               {1.0 / 24, 1.0 / 12, 1.0 / 6}, {1.0 / 24, -1.0 / 12, 1.0 / 6}, {0, 0, 1}};
-static const double AT[4][6] = {{1, 1, 1, 1, 1, 0}, {0, 1, -1, 2, -2, 0}, {0, 1, 1, 4, 4, 0}, {0, 1, -1, 8, -8, 1}};
+/* the transform matrices (tests/wino_test.h) */
+#define BT WT_BT
+#define G WT_G
+#define AT WT_AT
 
 /* W (see the top of tests/test_nn_conv2d_winograd.c) for every output of a 3x3/s1/p1 conv of
  * x [n][cin][h][w] with w [cout][cin][3][3], both taken in absolute value. */
@@ -47,25 +47,8 @@ static void wino_magnitude(int n, int cin, int h, int wd, int cout, const double
   for (int b = 0; b < n; b++)
     for (int ty = 0; ty < th; ty++)
       for (int tx = 0; tx < tw; tx++) {
-        for (int ci = 0; ci < cin; ci++) {
-          double d[6][6], t[6][6];
-          for (int i = 0; i < 6; i++)
-            for (int j = 0; j < 6; j++) {
-              int yy = 4 * ty - 1 + i, xx = 4 * tx - 1 + j;
-              d[i][j] = yy >= 0 && yy < h && xx >= 0 && xx < wd ? fabs(x[(((size_t)b * cin + ci) * h + yy) * wd + xx]) : 0;
-            }
-          for (int i = 0; i < 6; i++)
-            for (int j = 0; j < 6; j++) {
-              t[i][j] = 0;
-              for (int k = 0; k < 6; k++) t[i][j] += fabs(BT[i][k]) * d[k][j];
-            }
-          for (int i = 0; i < 6; i++)
-            for (int j = 0; j < 6; j++) {
-              double s = 0;
-              for (int k = 0; k < 6; k++) s += t[i][k] * fabs(BT[j][k]);
-              vd[(size_t)ci * 36 + i * 6 + j] = s;
-            }
-        }
+        for (int ci = 0; ci < cin; ci++)
+          wt_input_magnitude(x + ((size_t)b * cin + ci) * h * wd, h, wd, ty, tx, vd + (size_t)ci * 36);
         for (int co = 0; co < cout; co++) {
           double m[36] = {0}, r[4][6];
           for (int ci = 0; ci < cin; ci++)

@@ -40,6 +40,9 @@
   X(WINO_OUT, "conv2d_winograd.cl", "spx_wino_out")                    \
   X(WINO_LDS_WEIGHTS, "conv2d_winograd_lds.cl", "spx_wino_lds_weights") \
   X(WINO_LDS, "conv2d_winograd_lds.cl", "spx_wino_lds")                \
+  X(WINO_DW_GRAD, "conv2d_winograd_dw.cl", "spx_wino_dw_grad")         \
+  X(WINO_DW_GEMM, "conv2d_winograd_dw.cl", "spx_wino_dw_gemm")         \
+  X(WINO_DW_WEIGHTS, "conv2d_winograd_dw.cl", "spx_wino_dw_weights")   \
   X(INSTNORM_FWD, "instnorm.cl", "spx_instnorm_fwd")                   \
   X(INSTNORM_BWD, "instnorm.cl", "spx_instnorm_bwd")                   \
   X(BODY_JOINTS, "lbs.cl", "spx_body_joints")                          \

@@ -128,6 +128,14 @@ static const struct spx_tunable spx_tunables[] = {
     {"CONV_WLDS_WM", F(conv_wlds_wm), 2, 2, 1, 28, 0},
     {"CONV_WLDS_WN", F(conv_wlds_wn), 2, 2, 1, 28, 0},
     {"CONV_WLDS_KB", F(conv_wlds_kb), 8, 8, 1, 64, 0},
+    /* training weight gradients of 3x3 / stride 1 / pad 1 layers with at least this many input
+     * and output channels (and CONV_WINO_TRAIN on) run Winograd F(4x4,3x3)
+     * (kernels/conv2d_winograd_dw.cl); 0 = never (direct, kernels/conv2d_bwd.cl). CPU: see
+     * benchmarks/RESULTS.md "Training step with Winograd (issue 16)"; GPU: unmeasured, off */
+    {"CONV_WINO_DW", F(conv_wino_dw), 64, 0, 0, 1 << 20, 0},
+    /* ... and images of at least this many pixels (H*W): small deep layers (19x25 at 512
+     * channels) hold few tiles per 36-entry gradient of every weight pair and lose to direct */
+    {"CONV_WINO_DW_MINHW", F(conv_wino_dw_minhw), 1024, 1024, 0, 1 << 30, 0},
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", F(conv_red_wg), 16, 256, 1, 1024, T_POW2|T_WG},
     /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,

@@ -180,7 +180,14 @@ void spx_conv2d_workspace_need(const spx_ctx *ctx, const spx_conv2d_shape *s, in
     spx_ws_need_max(need, &one);
   }
   if (passes & SPX_CONV_PASS_BWD_WEIGHTS) {
-    bwd_weights_layout(ctx, &g, &L), layout_need(&L, &one);
+    if (spx_conv2d_winograd_dw_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, g.h, g.w)) {
+      size_t b[3];
+      spx_conv2d_winograd_dw_need(ctx, g.n, g.cin, g.cout, g.h, g.w, b);
+      memset(&one, 0, sizeof one);
+      for (int i = 0; i < 3; i++) one.slot[i] = b[i];
+    } else {
+      bwd_weights_layout(ctx, &g, &L), layout_need(&L, &one);
+    }
     spx_ws_need_max(need, &one);
   }
 }
@@ -291,6 +298,8 @@ done:
 /* dw += sum over (n, q) of dy x im2col(x): chunked partial sums, then a fixed-order reduction. */
 static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *x,
                                    const spx_tensor *dy, const spx_tensor *dw) {
+  if (spx_conv2d_winograd_dw_applies(ctx, g->k, g->s, g->pad, g->cin, g->cout, g->h, g->w))
+    return spx_conv2d_winograd_dw(ctx, ws, x, dy, dw);
   int dtm = ctx->dev->tune.conv_dw_tm, dtn = ctx->dev->tune.conv_dw_tn;
   dlay L;
   bwd_weights_layout(ctx, g, &L);

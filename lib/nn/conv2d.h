@@ -44,7 +44,8 @@ typedef struct spx_conv2d_params {
  * measured faster on the width-64 training step; GPU: unmeasured, 0). Winograd changes the float
  * rounding: bounded in tests/test_nn_conv2d_winograd.c against the double reference, and larger
  * than the direct path's by at most SPX_WINO_RMS_GAIN, by which golden tests widen their
- * tolerance when it runs. The weight gradient always runs direct (see docs/ARCHITECTURE.md). */
+ * tolerance when it runs. The weight gradient takes Winograd too when
+ * spx_conv2d_winograd_dw_applies (kernels/conv2d_winograd_dw.cl; tunable CONV_WINO_DW), else direct. */
 
 /* How much larger F(4x4,3x3)'s rounding error is than the direct convolution's, for the worst
  * output of a tile (31.4 rounded up; derived from the transform matrices in
@@ -108,6 +109,25 @@ void spx_conv2d_winograd_lds_need(const spx_ctx *ctx, int cin, int cout, spx_ws_
 spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                    int flip, const spx_tensor *bias, const spx_tensor *scale,
                                    const spx_tensor *shift, int relu, int accumulate, const spx_tensor *y);
+
+/* Samples [s0, s0 + m) of x [n][c][h][w] zero-padded into xp (planes of (4 th + 2) x (4 twp + 4),
+ * th = ceil(h / 4), twp = ceil(w / 4) rounded up to CONV_VW), then their input transform into V
+ * [m][36][c][Tp] (Tp >= th * twp, a multiple of CONV_VW; tiles past th * twp are zeros). */
+spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int twp, int Tp, cl_mem xp,
+                                 cl_mem V);
+
+/* ---- Winograd weight gradient (lib/nn/conv2d_winograd_dw.c), called by spx_conv2d_backward ---- */
+/* Nonzero when the weight gradient of a k x k / stride / pad conv of cin -> cout channels on
+ * h x w images takes the Winograd path: 3x3 / stride 1 / pad 1, CONV_WINO_TRAIN on, both channel
+ * counts >= the tunable CONV_WINO_DW (0: never) and h*w >= CONV_WINO_DW_MINHW. */
+int spx_conv2d_winograd_dw_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int h, int w);
+/* Scratch of that path for x [n][cin][h][w] -> cout channels: bytes of workspace slots 0, 1, 2
+ * (pure: depends only on the shape and the tunables); returns the samples per pass. */
+int spx_conv2d_winograd_dw_need(const spx_ctx *ctx, int n, int cin, int cout, int h, int w, size_t bytes[3]);
+/* dw [Cout][Cin][3][3] += the weight gradient of the 3x3/s1/p1 conv of x [n][cin][h][w] given
+ * dy [n][Cout][h][w]. Shapes are pre-validated. */
+spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *dy,
+                                  const spx_tensor *dw);
 
 /* ---- local-memory tiled 3x3 stride-1 forward for GPU-class devices (lib/nn/conv2d_lds.c) ---- */
 /* Nonzero when the forward kernel of a k x k / stride conv is spx_conv2d_fwd_k3s1_lds (tunable

@@ -57,6 +57,29 @@ void spx_conv2d_winograd_need(const spx_ctx *ctx, int n, int cin, int h, int w, 
   *need = L.need;
 }
 
+spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int twp, int Tp, cl_mem xp,
+                                 cl_mem V) {
+  const int cin = x->c, h = x->h, wd = x->w, vw = ctx->dev->tune.conv_vw;
+  const int th = (h + 3) / 4, T = th * twp, hp = 4 * th + 2, wp = 4 * twp + 4, plane = hp * wp;
+  const size_t wg = (size_t)ctx->dev->tune.wg;
+  cl_kernel kpad, kin;
+  spx_status st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_CONV2D_PAD, &kpad)) || (st = spx_cl_kernel(ctx, SPX_K_WINO_IN, &kin))) return st;
+  cl_ulong xo = x->off + (size_t)s0 * cin * h * wd;
+  int one = 1;
+  cl_int e = SPX_ARG(kpad, 0, x->mem) | SPX_ARG(kpad, 1, xo) | SPX_ARG(kpad, 2, xp) | SPX_ARG(kpad, 3, h) |
+             SPX_ARG(kpad, 4, wd) | SPX_ARG(kpad, 5, hp) | SPX_ARG(kpad, 6, wp) | SPX_ARG(kpad, 7, plane) |
+             SPX_ARG(kpad, 8, one) | SPX_ARG(kpad, 9, one) | SPX_ARG(kpad, 10, one);
+  if ((st = spx_cl_check(ctx, e, "spx_conv2d_pad args"))) return st;
+  size_t gl[3] = {(size_t)wp, (size_t)hp, (size_t)m * cin}, lo[3] = {wg < (size_t)wp ? wg : (size_t)wp, 1, 1};
+  if ((st = spx_cl_run(ctx, kpad, 3, gl, lo, "spx_conv2d_pad"))) return st;
+  e = SPX_ARG(kin, 0, xp) | SPX_ARG(kin, 1, V) | SPX_ARG(kin, 2, cin) | SPX_ARG(kin, 3, wp) | SPX_ARG(kin, 4, plane) |
+      SPX_ARG(kin, 5, twp) | SPX_ARG(kin, 6, T) | SPX_ARG(kin, 7, Tp);
+  if ((st = spx_cl_check(ctx, e, "spx_wino_in args"))) return st;
+  size_t gi[3] = {(size_t)Tp / (size_t)vw, (size_t)cin, (size_t)m}, li[3] = {1, 1, 1};
+  return spx_cl_run(ctx, kin, 3, gi, vw > 1 ? li : NULL, "spx_wino_in");
+}
+
 spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
                                int relu, int accumulate, const spx_tensor *y) {
@@ -67,7 +90,7 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
   const int tm = ctx->dev->tune.conv_tm, vw = ctx->dev->tune.conv_vw, lws = ctx->dev->tune.conv_lws;
   wlay L;
   layout(ctx, n, cin, h, wd, cout, &L);
-  const int twp = L.twp, T = L.T, hp = L.hp, wp = L.wp, plane = L.plane, coutp = L.coutp, nb = L.nb;
+  const int twp = L.twp, T = L.T, plane = L.plane, coutp = L.coutp, nb = L.nb;
   const size_t quantum = L.quantum, tp = L.tp;
   const double vmax = 36.0 * nb * (double)(cin > coutp ? cin : coutp) * (double)tp;
   if (vmax > (double)INT_MAX || (double)nb * cin * plane > (double)INT_MAX)
@@ -75,10 +98,8 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
   const int Tp = (int)tp;
   spx_conv2d_scratch XM = {0}, U = {0}, V = {0};
   spx_status st;
-  cl_kernel kpad, kin, kw, kg, ko;
-  if ((st = spx_cl_kernel(ctx, SPX_K_CONV2D_PAD, &kpad)) ||
-      (st = spx_cl_kernel(ctx, SPX_K_WINO_IN, &kin)) ||
-      (st = spx_cl_kernel(ctx, SPX_K_WINO_WEIGHTS, &kw)) ||
+  cl_kernel kw, kg, ko;
+  if ((st = spx_cl_kernel(ctx, SPX_K_WINO_WEIGHTS, &kw)) ||
       (st = spx_cl_kernel(ctx, SPX_K_WINO_GEMM, &kg)) ||
       (st = spx_cl_kernel(ctx, SPX_K_WINO_OUT, &ko)))
     return st;
@@ -97,23 +118,7 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
   }
   for (int s0 = 0; s0 < n; s0 += nb) {
     const int m = n - s0 < nb ? n - s0 : nb; /* samples in this pass */
-    {
-      cl_ulong xo = x->off + (size_t)s0 * cin * h * wd;
-      int one = 1;
-      cl_int e = SPX_ARG(kpad, 0, x->mem) | SPX_ARG(kpad, 1, xo) | SPX_ARG(kpad, 2, XM.mem) | SPX_ARG(kpad, 3, h) |
-                 SPX_ARG(kpad, 4, wd) | SPX_ARG(kpad, 5, hp) | SPX_ARG(kpad, 6, wp) | SPX_ARG(kpad, 7, plane) |
-                 SPX_ARG(kpad, 8, one) | SPX_ARG(kpad, 9, one) | SPX_ARG(kpad, 10, one);
-      if ((st = spx_cl_check(ctx, e, "spx_conv2d_pad args"))) goto done;
-      size_t gl[3] = {(size_t)wp, (size_t)hp, (size_t)m * cin}, lo[3] = {wg < (size_t)wp ? wg : (size_t)wp, 1, 1};
-      if ((st = spx_cl_run(ctx, kpad, 3, gl, lo, "spx_conv2d_pad"))) goto done;
-    }
-    {
-      cl_int e = SPX_ARG(kin, 0, XM.mem) | SPX_ARG(kin, 1, V.mem) | SPX_ARG(kin, 2, cin) | SPX_ARG(kin, 3, wp) |
-                 SPX_ARG(kin, 4, plane) | SPX_ARG(kin, 5, twp) | SPX_ARG(kin, 6, T) | SPX_ARG(kin, 7, Tp);
-      if ((st = spx_cl_check(ctx, e, "spx_wino_in args"))) goto done;
-      size_t gl[3] = {tp / (size_t)vw, (size_t)cin, (size_t)m}, lo[3] = {1, 1, 1};
-      if ((st = spx_cl_run(ctx, kin, 3, gl, vw > 1 ? lo : NULL, "spx_wino_in"))) goto done;
-    }
+    if ((st = spx_conv2d_wino_input(ctx, x, s0, m, twp, Tp, XM.mem, V.mem))) goto done;
     {
       cl_int e = SPX_ARG(kg, 0, V.mem) | SPX_ARG(kg, 1, U.mem) | SPX_ARG(kg, 2, XM.mem) | SPX_ARG(kg, 3, cin) |
                  SPX_ARG(kg, 4, coutp) | SPX_ARG(kg, 5, Tp);
