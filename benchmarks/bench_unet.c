@@ -12,10 +12,9 @@
  * (forward + input gradient + weight gradient). GFLOP/s = those FLOPs / the minimum time.
  *
  * Memory: the bytes of every device buffer the network holds at the end of the row
- * (spx_unet_device_bytes: parameter, gradient, Adam and state slabs + activation and
- * activation-gradient arenas + convolution workspace; all grow-only, so this is the peak of the
- * rows run so far in this process; scratch allocated and released inside one op call is not
- * counted). peak_bytes: the context's device-memory high-water mark over the row
+ * (spx_unet_device_bytes: parameter, gradient, Adam and state slabs + the arena of activations,
+ * activation gradients and the ops' scratch; all grow-only, so this is the peak of the rows run so
+ * far in this process). peak_bytes: the context's device-memory high-water mark over the row
  * (spx_device_peak_bytes, reset before the row's warm-up: every device buffer, per-call scratch
  * included); rss_bytes: this process's peak resident set (getrusage ru_maxrss: with PoCL the device
  * memory is host memory, so this is the figure to set beside the torch peer's ru_maxrss).

@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "nn/loss.h"
 #include "nn/tape.h"
 #include "nn/unet.h"
 #include "nn_testutil.h"
@@ -72,7 +73,8 @@ static void test_exact_eval(spx_tape_backend be) {
  * Gradients: l [7,9] (seeded), z [9,11], y [11,13], x [13,inf) (requires_grad).
  * By size (15, then 1), ties by id, data before gradient: x.d 0, x.g 0, y.d 16, y.g 32, z.d 0,
  * z.g 48, c 32, l.d 64, l.g 80 (below it: z.d, y.d, c, z.g, l.d) -> 81 floats; 7 x 15 + 2 = 107
- * without reuse. */
+ * without reuse. On the device the loss's reduction scratch (node 2's forward workspace, live at
+ * 5 only) also lies in the arena (it still fits in 81 floats) and "without reuse" counts it. */
 static void test_exact_train(spx_tape_backend be) {
   spx_ctx *ctx = NULL;
   spx_tape *t = bare_tape(be, &ctx);
@@ -94,7 +96,10 @@ static void test_exact_train(spx_tape_backend be) {
   } while (!st && again);
   CHECK_OK(ctx, st);
   size_t sum = 0, size = spx_tape_plan_bytes(t, &sum);
-  CHECK_MSG(size == 81 * elem(be) && sum == 107 * elem(be), "training graph: arena %zu, sum %zu bytes", size, sum);
+  spx_ws_need red = {{0}};
+  if (be == SPX_TAPE_DEVICE) spx_loss_forward_need(ctx, 15, &red);
+  CHECK_MSG(size == 81 * elem(be) && sum == 107 * elem(be) + red.slot[0], "training graph: arena %zu, sum %zu bytes",
+            size, sum);
   CHECK_OK(ctx, spx_tape_backward(t, l));
   CHECK_OK(ctx, spx_tape_read_grad(t, xi, g));
   for (int i = 0; i < 15; i++) {
@@ -165,9 +170,12 @@ static void test_unet_bit_exact(spx_tape_backend be) {
     CHECK_MSG(memcmp(&a.loss, &b.loss, sizeof a.loss) == 0, "loss %.9g vs %.9g", a.loss, b.loss);
     CHECK(memcmp(a.out, b.out, a.nout * sizeof(float)) == 0);
     CHECK(memcmp(a.grads, b.grads, a.ngrad * sizeof(float)) == 0);
-    /* the whole step's values and gradients, against what the plan needs at once */
-    CHECK_MSG(b.arena * 2 < b.sum && a.arena >= a.sum, "arena %zu of %zu (without reuse: %zu of %zu)", b.arena, b.sum,
-              a.arena, a.sum);
+    /* the whole step's values and gradients (+ the largest op workspace, device), against what
+     * the plan needs at once: at least a quarter less (on the device the arena also holds every
+     * conv's workspace at its step; at 32x48 the deepest Winograd layers' transforms, padded to
+     * whole tile vectors, are most of that) */
+    CHECK_MSG(b.arena * 4 < b.sum * 3 && a.arena >= a.sum, "arena %zu of %zu (without reuse: %zu of %zu)", b.arena,
+              b.sum, a.arena, a.sum);
     printf("  %s: UNet w%d %dx4x%dx%d training arena %zu bytes with reuse, %zu without (%.2fx)\n",
            be == SPX_TAPE_HOST ? "host" : "device", WD, N, H, W, b.arena, a.arena, (double)a.arena / (double)b.arena);
   }

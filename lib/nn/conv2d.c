@@ -4,6 +4,7 @@
  * spx_conv2d_workspace when given, else they are allocated per call and released after
  * enqueueing (OpenCL keeps them alive until the kernels that use them finish). */
 #include <limits.h>
+#include <string.h>
 
 #include "nn/conv2d.h"
 
@@ -73,28 +74,6 @@ static spx_status check_common(spx_ctx *ctx, const spx_tensor *x, const spx_tens
   return SPX_OK;
 }
 
-void spx_conv2d_workspace_release(spx_conv2d_workspace *ws) {
-  if (!ws) return;
-  for (int i = 0; i < 3; i++) spx_cl_buf_release(&ws->buf[i]);
-}
-
-spx_status spx_conv2d_scratch_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, size_t bytes, const char *what,
-                                  spx_conv2d_scratch *out) {
-  out->mem = NULL;
-  out->owned = 0;
-  if (ws) {
-    spx_status st = spx_cl_buf_ensure(ctx, &ws->buf[slot], bytes, what);
-    if (st == SPX_OK) out->mem = ws->buf[slot].mem;
-    return st;
-  }
-  out->owned = 1;
-  return spx_cl_alloc(ctx, bytes, what, &out->mem);
-}
-void spx_conv2d_scratch_put(spx_conv2d_scratch *s) {
-  if (s->owned) spx_cl_free(&s->mem);
-  s->mem = NULL;
-}
-
 /* Register tile of a forward run producing `cols` output channels (k, stride s): the narrow
  * tile of kernels/conv2d_narrow.cl for stride-1 3x3 / 1x1 runs with at most CONV_NARROW_MAXC
  * columns (not on the local-memory GPU path), else the main tile. Both sum in the same order. */
@@ -102,7 +81,7 @@ typedef struct fwd_tile {
   int tm, tn, narrow;
 } fwd_tile;
 
-static fwd_tile pick_tile(spx_ctx *ctx, int cols, int k, int s) {
+static fwd_tile pick_tile(const spx_ctx *ctx, int cols, int k, int s) {
   const struct spx_tunables *t = &ctx->dev->tune;
   fwd_tile r = {t->conv_tm, t->conv_tn, 0};
   if (s == 1 && (k == 3 || k == 1) && cols <= t->conv_narrow_maxc && !spx_conv2d_lds_applies(ctx, k, s))
@@ -150,6 +129,84 @@ static spx_status pack_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot,
 /* Zeros after the last plane so that vector loads of the last tiles stay inside the buffer. */
 static size_t guard_elems(int s, size_t q, int k, int wp, int vw) {
   return (size_t)s * q + (size_t)k * wp + (size_t)k + 2 * (size_t)vw * s + 64;
+}
+
+/* Scratch layouts of the three direct passes, in floats per workspace slot: the launchers and
+ * spx_conv2d_workspace_need both size the slots from these, so the two cannot disagree. */
+typedef struct dlay {
+  int hp, wp, plane; /* the padded (forward, weight gradient) or dilated (data gradient) planes */
+  fwd_tile tile;     /* forward / data gradient: the register tile (pick_tile) */
+  int cp;            /* forward: Cout, data gradient: Cin, rounded up to the tile's TM */
+  int qd, qc, nchunks; /* weight gradient: dy plane rounded to CONV_VW, chunk, partial-sum chunks */
+  size_t total[3];
+} dlay;
+
+/* Forward (dgrad = 0) or data gradient (dgrad = 1: dy dilated by the stride and padded by k-1-pad
+ * on every side, convolved at stride 1 with the flipped, transposed weights). */
+static void direct_layout(const spx_ctx *ctx, const geom *g, int dgrad, dlay *L) {
+  int ci = dgrad ? g->cout : g->cin, co = dgrad ? g->cin : g->cout, rows = dgrad ? g->h : g->ho;
+  L->tile = pick_tile(ctx, co, g->k, dgrad ? 1 : g->s);
+  int tm = L->tile.tm, tn = L->tile.tn, vw = ctx->dev->tune.conv_vw;
+  int lws = ctx->dev->tune.conv_lws;
+  int grow = dgrad ? g->k - 1 : 2 * g->pad;
+  L->hp = g->h + grow, L->wp = g->w + grow, L->plane = L->hp * L->wp;
+  size_t qv = round_up((size_t)rows * L->wp, (size_t)lws * tn * vw);
+  L->cp = (int)round_up((size_t)co, (size_t)tm);
+  L->total[0] = (size_t)g->n * ci * L->plane + guard_elems(dgrad ? 1 : g->s, qv, g->k, L->wp, vw);
+  L->total[1] = (size_t)ci * g->k * g->k * L->cp;
+  L->total[2] = 0;
+}
+
+static void bwd_weights_layout(const spx_ctx *ctx, const geom *g, dlay *L) {
+  int vw = ctx->dev->tune.conv_vw, qc = (int)round_up((size_t)ctx->dev->tune.conv_dw_qc, (size_t)vw);
+  L->qc = qc;
+  L->hp = g->h + 2 * g->pad, L->wp = g->w + 2 * g->pad, L->plane = L->hp * L->wp;
+  L->qd = (int)round_up((size_t)g->ho * L->wp, (size_t)vw);
+  L->nchunks = (L->qd + qc - 1) / qc;
+  L->cp = 0;
+  L->total[0] = (size_t)g->n * g->cin * L->plane + guard_elems(g->s, (size_t)L->qd, g->k, L->wp, vw);
+  L->total[1] = (size_t)g->n * g->cout * L->qd;
+  L->total[2] = (size_t)g->cout * g->cin * g->k * g->k * L->nchunks;
+}
+
+static void layout_need(const dlay *L, spx_ws_need *need) {
+  for (int i = 0; i < SPX_WS_SLOTS; i++) need->slot[i] = i < 3 ? L->total[i] * sizeof(float) : 0;
+}
+
+void spx_conv2d_workspace_need(const spx_ctx *ctx, const spx_conv2d_shape *s, int passes, int inference,
+                               spx_ws_need *need) {
+  memset(need, 0, sizeof *need);
+  geom g = {s->n, s->cin, s->h, s->w, s->cout, s->k, s->stride, s->pad, 0, 0};
+  if (g.n < 1 || g.cin < 1 || g.cout < 1 || g.k < 1 || g.s < 1 || g.pad < 0 || g.pad >= g.k) return;
+  g.ho = spx_conv2d_out_size(g.h, g.k, g.s, g.pad), g.wo = spx_conv2d_out_size(g.w, g.k, g.s, g.pad);
+  if (g.ho < 1 || g.wo < 1) return;
+  spx_ws_need one;
+  dlay L;
+  if (passes & SPX_CONV_PASS_FWD) {
+    if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, inference))
+      spx_conv2d_winograd_need(ctx, g.n, g.cin, g.h, g.w, g.cout, &one);
+    else
+      direct_layout(ctx, &g, 0, &L), layout_need(&L, &one);
+    spx_ws_need_max(need, &one);
+  }
+  if (passes & SPX_CONV_PASS_BWD_DATA) {
+    if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cout, g.cin, 0))
+      spx_conv2d_winograd_need(ctx, g.n, g.cout, g.ho, g.wo, g.cin, &one);
+    else
+      direct_layout(ctx, &g, 1, &L), layout_need(&L, &one);
+    spx_ws_need_max(need, &one);
+  }
+  if (passes & SPX_CONV_PASS_BWD_WEIGHTS) {
+    if (spx_conv2d_winograd_dw_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, g.h, g.w)) {
+      size_t b[3];
+      spx_conv2d_winograd_dw_need(ctx, g.n, g.cin, g.cout, g.h, g.w, b);
+      memset(&one, 0, sizeof one);
+      for (int i = 0; i < 3; i++) one.slot[i] = b[i];
+    } else {
+      bwd_weights_layout(ctx, &g, &L), layout_need(&L, &one);
+    }
+    spx_ws_need_max(need, &one);
+  }
 }
 
 /* The tiled forward kernel on an already padded input xp (planes of hp*wp, rows of wp). */
@@ -217,16 +274,13 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
     return st;
   if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, p->scale || p->relu))
     return spx_conv2d_winograd(ctx, p->ws, x, w, 0, bias, p->scale, p->scale ? p->shift : NULL, p->relu, 0, y);
-  const fwd_tile tile = pick_tile(ctx, g.cout, g.k, g.s);
-  int tm = tile.tm, tn = tile.tn, vw = ctx->dev->tune.conv_vw;
-  int lws = ctx->dev->tune.conv_lws;
-  int hp = g.h + 2 * g.pad, wp = g.w + 2 * g.pad, plane = hp * wp;
-  size_t qv = round_up((size_t)g.ho * wp, (size_t)lws * tn * vw);
-  size_t total = (size_t)g.n * g.cin * plane + guard_elems(g.s, qv, g.k, wp, vw);
-  int coutp = (int)round_up((size_t)g.cout, (size_t)tm);
+  dlay L;
+  direct_layout(ctx, &g, 0, &L);
+  int wp = L.wp, plane = L.plane, coutp = L.cp;
+  const fwd_tile tile = L.tile;
   spx_conv2d_scratch xp = {0}, wpk = {0};
-  if ((st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, hp, wp, plane, g.pad, g.pad, 1, total,
-                     &xp)))
+  if ((st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, L.hp, wp, plane, g.pad, g.pad, 1,
+                     L.total[0], &xp)))
     goto done;
   if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, tile.narrow, &wpk))) goto done;
   int flags = (bias ? SPX_CONV_FL_BIAS : 0) | (p->scale ? SPX_CONV_FL_SCALE : 0) |
@@ -244,17 +298,14 @@ static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const ge
                                 const spx_tensor *dy, const spx_tensor *dx) {
   if (spx_conv2d_winograd_applies(ctx, g->k, g->s, g->pad, g->cout, g->cin, 0))
     return spx_conv2d_winograd(ctx, ws, dy, w, 1, NULL, NULL, NULL, 0, 1, dx);
-  const fwd_tile tile = pick_tile(ctx, g->cin, g->k, 1);
-  int tm = tile.tm, tn = tile.tn, vw = ctx->dev->tune.conv_vw;
-  int lws = ctx->dev->tune.conv_lws;
-  int hd = g->h + g->k - 1, wd = g->w + g->k - 1, plane = hd * wd, top = g->k - 1 - g->pad;
-  size_t qv = round_up((size_t)g->h * wd, (size_t)lws * tn * vw);
-  size_t total = (size_t)g->n * g->cout * plane + guard_elems(1, qv, g->k, wd, vw);
-  int cinp = (int)round_up((size_t)g->cin, (size_t)tm);
+  dlay L;
+  direct_layout(ctx, g, 1, &L);
+  int wd = L.wp, plane = L.plane, top = g->k - 1 - g->pad, cinp = L.cp;
+  const fwd_tile tile = L.tile;
   spx_conv2d_scratch dyp = {0}, wpk = {0};
   spx_status st;
-  if ((st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, hd, wd, plane, top, top, g->s,
-                     total, &dyp)))
+  if ((st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, L.hp, wd, plane, top, top, g->s,
+                     L.total[0], &dyp)))
     goto done;
   if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, tile.narrow, &wpk))) goto done;
   st = run_fwd(ctx, tile, dyp.mem, wpk.mem, g->n, g->cout, g->cin, cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL,
@@ -270,14 +321,12 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
                                    const spx_tensor *dy, const spx_tensor *dw) {
   if (spx_conv2d_winograd_dw_applies(ctx, g->k, g->s, g->pad, g->cin, g->cout, g->h, g->w))
     return spx_conv2d_winograd_dw(ctx, ws, x, dy, dw);
-  int vw = ctx->dev->tune.conv_vw, dtm = ctx->dev->tune.conv_dw_tm, dtn = ctx->dev->tune.conv_dw_tn;
-  int qc = (int)round_up((size_t)ctx->dev->tune.conv_dw_qc, (size_t)vw);
-  int hp = g->h + 2 * g->pad, wp = g->w + 2 * g->pad, plane = hp * wp;
-  int qd = (int)round_up((size_t)g->ho * wp, (size_t)vw);
-  int nchunks = (qd + qc - 1) / qc;
+  int dtm = ctx->dev->tune.conv_dw_tm, dtn = ctx->dev->tune.conv_dw_tn;
+  dlay L;
+  bwd_weights_layout(ctx, g, &L);
+  int hp = L.hp, wp = L.wp, plane = L.plane, qd = L.qd, qc = L.qc, nchunks = L.nchunks;
   int kdim = g->cin * g->k * g->k;
-  size_t xtotal = (size_t)g->n * g->cin * plane + guard_elems(g->s, (size_t)qd, g->k, wp, vw);
-  size_t dtotal = (size_t)g->n * g->cout * qd;
+  size_t xtotal = L.total[0], dtotal = L.total[1];
   size_t count = (size_t)g->cout * kdim;
   spx_conv2d_scratch xs = {0}, dys = {0}, ps = {0};
   spx_status st;
@@ -287,7 +336,7 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
   if ((st = pad_copy(ctx, ws, 1, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, g->ho, wp, qd, 0, 0, 1, dtotal,
                      &dys)))
     goto done;
-  if ((st = spx_conv2d_scratch_get(ctx, ws, 2, count * nchunks * sizeof(float), "conv2d weight-gradient partials", &ps)))
+  if ((st = spx_conv2d_scratch_get(ctx, ws, 2, L.total[2] * sizeof(float), "conv2d weight-gradient partials", &ps)))
     goto done;
   cl_mem xp = xs.mem, dyq = dys.mem, part = ps.mem;
   {

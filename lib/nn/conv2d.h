@@ -12,25 +12,8 @@
 #define SPX_NN_CONV2D_H
 
 #include "nn/tensor.h"
+#include "nn/workspace.h"
 
-/* Optional persistent scratch (padded copies, packed weights, partial sums). Grow-only; reuse
- * one per network so steady-state calls allocate nothing. Calls that share a workspace must
- * be enqueued on the same (in-order) queue. Zero-initialise; release with
- * spx_conv2d_workspace_release. */
-typedef struct spx_conv2d_workspace {
-  spx_cl_buf buf[3];
-} spx_conv2d_workspace;
-void spx_conv2d_workspace_release(spx_conv2d_workspace *ws);
-
-/* Scratch buffer `slot` of ws (grow-only), or a fresh buffer owned by the caller when ws is NULL;
- * spx_conv2d_scratch_put releases an owned one (OpenCL keeps it until its kernels finish). */
-typedef struct spx_conv2d_scratch {
-  cl_mem mem;
-  int owned;
-} spx_conv2d_scratch;
-spx_status spx_conv2d_scratch_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, size_t bytes, const char *what,
-                                  spx_conv2d_scratch *out);
-void spx_conv2d_scratch_put(spx_conv2d_scratch *s);
 
 /* Epilogue flags of the conv kernels (the same values as FL_* in kernels/conv2d_common.h). */
 enum {
@@ -86,6 +69,20 @@ spx_status spx_conv2d_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
                                const spx_tensor *dx, const spx_tensor *dw, const spx_tensor *db,
                                const spx_conv2d_params *p);
 
+/* The shape of one convolution (also the reference's). */
+typedef struct spx_conv2d_shape {
+  int n, cin, h, w, cout, k, stride, pad;
+} spx_conv2d_shape;
+
+/* Passes of spx_conv2d_workspace_need (bit mask; backward data and weights run in one op). */
+enum { SPX_CONV_PASS_FWD = 1, SPX_CONV_PASS_BWD_DATA = 2, SPX_CONV_PASS_BWD_WEIGHTS = 4 };
+/* The workspace bytes per slot that the given passes of a convolution of shape s take (the
+ * per-slot maximum over them): a pure function of the shape and the device's tunables, computed
+ * by the code the launchers size their scratch with. inference: the forward has the fused
+ * epilogue (as spx_conv2d_winograd_applies). Shapes the launchers would refuse need nothing. */
+void spx_conv2d_workspace_need(const spx_ctx *ctx, const spx_conv2d_shape *s, int passes, int inference,
+                               spx_ws_need *need);
+
 /* ---- Winograd path (lib/nn/conv2d_winograd.c), called by the two functions above ---- */
 /* Nonzero when a k x k / stride / pad conv of cin -> cout channels takes the Winograd path
  * (forward; backward data asks with cin and cout swapped and inference = 0). */
@@ -97,11 +94,17 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
                                int relu, int accumulate, const spx_tensor *y);
 
+/* Slot bytes of spx_conv2d_winograd for x [n][cin][h][w] -> y [n][cout][h][w] (slot 0: padded
+ * input / products, 1: U, 2: V; the samples per pass follow CONV_WINO_CHUNK). */
+void spx_conv2d_winograd_need(const spx_ctx *ctx, int n, int cin, int h, int w, int cout, spx_ws_need *need);
+
 /* ---- Winograd with local-memory tiles for GPU-class devices (lib/nn/conv2d_winograd_lds.c) ---- */
 /* Nonzero when spx_conv2d_winograd hands its calls to spx_conv2d_winograd_lds (tunable
  * CONV_WINO_LDS; its work-group of 36 x CONV_WLDS_WM x CONV_WLDS_WN work-items and its local
  * memory fit the device). Same results as the CPU variant, bit for bit. */
 int spx_conv2d_winograd_lds_applies(const spx_ctx *ctx);
+/* Its workspace need (slot 1: U) for cin -> cout channels. */
+void spx_conv2d_winograd_lds_need(const spx_ctx *ctx, int cin, int cout, spx_ws_need *need);
 /* The arguments and semantics of spx_conv2d_winograd. */
 spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                    int flip, const spx_tensor *bias, const spx_tensor *scale,
@@ -134,9 +137,6 @@ int spx_conv2d_lds_applies(const spx_ctx *ctx, int k, int stride);
 size_t spx_conv2d_lds_groups(const spx_ctx *ctx, int coutp, int ho, int wo);
 
 /* ---- plain-C double-precision reference (same semantics) ---- */
-typedef struct spx_conv2d_shape {
-  int n, cin, h, w, cout, k, stride, pad;
-} spx_conv2d_shape;
 
 /* scale/shift may be NULL (no affine), bias may be NULL. y overwritten. */
 void spx_ref_conv2d_forward(const spx_conv2d_shape *s, const double *x, const double *w, const double *bias,

@@ -5,6 +5,7 @@
  * weights), 2 (V, transformed input), else buffers allocated per call and released after
  * enqueueing. */
 #include <limits.h>
+#include <string.h>
 
 #include "nn/conv2d.h"
 
@@ -12,6 +13,48 @@ int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, 
   int minc = ctx->dev->tune.conv_wino_minc;
   if (!inference && !ctx->dev->tune.conv_wino_train) return 0;
   return minc > 0 && k == 3 && stride == 1 && pad == 1 && cin >= minc && cout >= minc;
+}
+
+/* Tile geometry and scratch of one call: spx_conv2d_winograd and spx_conv2d_winograd_need size
+ * the slots from this alone. */
+typedef struct wlay {
+  int th, tw, twp, T, hp, wp, plane, coutp, nb;
+  size_t quantum, tp, f0, f2;
+  spx_ws_need need;
+} wlay;
+
+static void layout(const spx_ctx *ctx, int n, int cin, int h, int wd, int cout, wlay *L) {
+  const int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
+  const int lws = ctx->dev->tune.conv_lws;
+  /* tiles: TH rows of TWp (TW rounded up to the vector width, so a vector of tiles is one row) */
+  L->th = (h + 3) / 4, L->tw = (wd + 3) / 4, L->twp = (L->tw + vw - 1) / vw * vw, L->T = L->th * L->twp;
+  L->hp = 4 * L->th + 2, L->wp = 4 * L->twp + 4, L->plane = L->hp * L->wp;
+  L->quantum = (size_t)lws * tn * vw;
+  L->tp = ((size_t)L->T + L->quantum - 1) / L->quantum * L->quantum;
+  L->coutp = (cout + tm - 1) / tm * tm;
+  /* per sample: slot 0 holds the padded input, then (once transformed) the products; slot 2 V */
+  const size_t m = (size_t)36 * L->coutp * L->tp, x = (size_t)cin * L->plane;
+  L->f0 = m > x ? m : x;
+  L->f2 = (size_t)36 * cin * L->tp;
+  /* samples per pass: the scratch is sized for as many as fit in CONV_WINO_CHUNK x 2^20 floats (at
+   * least one), so a batch-4 training step does not hold 4x the largest layer's transforms; each
+   * sample's arithmetic is the same whatever the chunk, so results do not depend on it */
+  int nb = (int)(((size_t)ctx->dev->tune.conv_wino_chunk << 20) / (L->f0 + L->f2));
+  L->nb = nb < 1 ? 1 : nb > n ? n : nb;
+  memset(&L->need, 0, sizeof L->need);
+  L->need.slot[0] = L->nb * L->f0 * sizeof(float);
+  L->need.slot[1] = (size_t)36 * cin * L->coutp * sizeof(float);
+  L->need.slot[2] = L->nb * L->f2 * sizeof(float);
+}
+
+void spx_conv2d_winograd_need(const spx_ctx *ctx, int n, int cin, int h, int w, int cout, spx_ws_need *need) {
+  if (spx_conv2d_winograd_lds_applies(ctx)) { /* as spx_conv2d_winograd dispatches */
+    spx_conv2d_winograd_lds_need(ctx, cin, cout, need);
+    return;
+  }
+  wlay L;
+  layout(ctx, n, cin, h, w, cout, &L);
+  *need = L.need;
 }
 
 spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int twp, int Tp, cl_mem xp,
@@ -44,22 +87,11 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
     return spx_conv2d_winograd_lds(ctx, ws, x, w, flip, bias, scale, shift, relu, accumulate, y);
   const int n = x->n, cin = x->c, h = x->h, wd = x->w, cout = y->c;
   const int Cout = w->n, Cin = w->c; /* the weight tensor's own dimensions */
-  const int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
-  const int lws = ctx->dev->tune.conv_lws;
-  /* tiles: TH rows of TWp (TW rounded up to the vector width, so a vector of tiles is one row) */
-  const int th = (h + 3) / 4, tw = (wd + 3) / 4, twp = (tw + vw - 1) / vw * vw, T = th * twp;
-  const int hp = 4 * th + 2, wp = 4 * twp + 4, plane = hp * wp;
-  const size_t quantum = (size_t)lws * tn * vw;
-  const size_t tp = ((size_t)T + quantum - 1) / quantum * quantum;
-  const int coutp = (cout + tm - 1) / tm * tm;
-  /* per sample: slot 0 holds the padded input, then (once transformed) the products; slot 2 V */
-  const size_t f0 = (size_t)36 * coutp * tp > (size_t)cin * plane ? (size_t)36 * coutp * tp : (size_t)cin * plane;
-  const size_t f2 = (size_t)36 * cin * tp;
-  /* samples per pass: the scratch is sized for as many as fit in CONV_WINO_CHUNK x 2^20 floats (at
-   * least one), so a batch-4 training step does not hold 4x the largest layer's transforms; each
-   * sample's arithmetic is the same whatever the chunk, so results do not depend on it */
-  int nb = (int)(((size_t)ctx->dev->tune.conv_wino_chunk << 20) / (f0 + f2));
-  nb = nb < 1 ? 1 : nb > n ? n : nb;
+  const int tm = ctx->dev->tune.conv_tm, vw = ctx->dev->tune.conv_vw, lws = ctx->dev->tune.conv_lws;
+  wlay L;
+  layout(ctx, n, cin, h, wd, cout, &L);
+  const int twp = L.twp, T = L.T, plane = L.plane, coutp = L.coutp, nb = L.nb;
+  const size_t quantum = L.quantum, tp = L.tp;
   const double vmax = 36.0 * nb * (double)(cin > coutp ? cin : coutp) * (double)tp;
   if (vmax > (double)INT_MAX || (double)nb * cin * plane > (double)INT_MAX)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "conv2d winograd: %.0f transformed elements exceed the index range", vmax);
@@ -71,10 +103,9 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
       (st = spx_cl_kernel(ctx, SPX_K_WINO_GEMM, &kg)) ||
       (st = spx_cl_kernel(ctx, SPX_K_WINO_OUT, &ko)))
     return st;
-  const size_t fb = sizeof(float);
-  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, nb * f0 * fb, "winograd padded input / products", &XM)) ||
-      (st = spx_conv2d_scratch_get(ctx, ws, 1, (size_t)36 * cin * coutp * fb, "winograd weight transform", &U)) ||
-      (st = spx_conv2d_scratch_get(ctx, ws, 2, nb * f2 * fb, "winograd input transform", &V)))
+  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, L.need.slot[0], "winograd padded input / products", &XM)) ||
+      (st = spx_conv2d_scratch_get(ctx, ws, 1, L.need.slot[1], "winograd weight transform", &U)) ||
+      (st = spx_conv2d_scratch_get(ctx, ws, 2, L.need.slot[2], "winograd input transform", &V)))
     goto done;
   const size_t wg = (size_t)ctx->dev->tune.wg;
   {

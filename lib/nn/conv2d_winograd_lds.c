@@ -4,6 +4,7 @@
  * caller's workspace slot 1 (U, the transformed weights), else a buffer allocated per call and
  * released after enqueueing; unlike the CPU variant there is no padded input, V or M. */
 #include <limits.h>
+#include <string.h>
 
 #include "nn/conv2d.h"
 
@@ -20,6 +21,12 @@ int spx_conv2d_winograd_lds_applies(const spx_ctx *ctx) {
   if (!t->conv_wino_lds) return 0;
   uint64_t items = 36ull * t->conv_wlds_wm * t->conv_wlds_wn;
   return items <= ctx->dev->info.max_work_group && 4 * pool_floats(t) <= ctx->dev->info.local_mem;
+}
+
+void spx_conv2d_winograd_lds_need(const spx_ctx *ctx, int cin, int cout, spx_ws_need *need) {
+  const int bm = ctx->dev->tune.conv_wlds_wm * ctx->dev->tune.conv_wlds_tm, coutp = (cout + bm - 1) / bm * bm;
+  memset(need, 0, sizeof *need);
+  need->slot[1] = (size_t)36 * cin * coutp * sizeof(float);
 }
 
 spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
@@ -40,9 +47,9 @@ spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const
   if ((st = spx_cl_kernel(ctx, SPX_K_WINO_LDS_WEIGHTS, &kw)) || (st = spx_cl_kernel(ctx, SPX_K_WINO_LDS, &kc)))
     return st;
   spx_conv2d_scratch U = {0};
-  if ((st = spx_conv2d_scratch_get(ctx, ws, 1, (size_t)36 * cin * coutp * sizeof(float),
-                                   "winograd weight transform", &U)))
-    return st;
+  spx_ws_need need;
+  spx_conv2d_winograd_lds_need(ctx, cin, cout, &need);
+  if ((st = spx_conv2d_scratch_get(ctx, ws, 1, need.slot[1], "winograd weight transform", &U))) return st;
   {
     cl_ulong wo = w->off;
     cl_int e = SPX_ARG(kw, 0, w->mem) | SPX_ARG(kw, 1, wo) | SPX_ARG(kw, 2, U.mem) | SPX_ARG(kw, 3, Cout) |

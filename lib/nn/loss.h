@@ -6,6 +6,7 @@
 #define SPX_NN_LOSS_H
 
 #include "nn/tensor.h"
+#include "nn/workspace.h"
 
 typedef enum spx_loss_kind { SPX_LOSS_L1 = 1, SPX_LOSS_MSE = 2 } spx_loss_kind;
 typedef enum spx_reduction { SPX_REDUCE_MEAN = 0, SPX_REDUCE_SUM = 1 } spx_reduction;
@@ -15,6 +16,11 @@ spx_status spx_reduce(spx_ctx *ctx, spx_reduction r, const spx_tensor *x, const 
 
 spx_status spx_loss_forward(spx_ctx *ctx, spx_loss_kind kind, spx_reduction r, const spx_tensor *pred,
                             const spx_tensor *target, const spx_tensor *out);
+/* The same with the reduction's partial sums (slot 0) from ws (NULL: allocated per call); their
+ * need for a pred of numel elements from spx_loss_forward_need. */
+spx_status spx_loss_forward_ws(spx_ctx *ctx, spx_loss_kind kind, spx_reduction r, const spx_tensor *pred,
+                               const spx_tensor *target, const spx_tensor *out, spx_conv2d_workspace *ws);
+void spx_loss_forward_need(const spx_ctx *ctx, size_t numel, spx_ws_need *need);
 spx_status spx_loss_backward(spx_ctx *ctx, spx_loss_kind kind, spx_reduction r, const spx_tensor *pred,
                              const spx_tensor *target, const spx_tensor *dout, const spx_tensor *dpred,
                              const spx_tensor *dtarget);

@@ -110,7 +110,6 @@ void spx_tape_destroy(spx_tape *t) {
   spx_tp_prof_report(t);
   spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
   spx_cl_free(&t->state), spx_cl_free(&t->act);
-  spx_conv2d_workspace_release(&t->ws);
   free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact);
   for (int i = 0; i < t->nplans; i++) spx_tp_plan_free(&t->plans[i]);
   free(t->vals);
@@ -191,9 +190,7 @@ size_t spx_tape_device_bytes(const spx_tape *t) {
   size_t b = 0;
   if (t->allocated)
     b += ((t->grad ? 4 : 1) * (t->nparam ? t->nparam : 1) + (t->nstate ? t->nstate : 1)) * sizeof(float);
-  if (t->act) b += t->act_cap * sizeof(float);
-  for (int i = 0; i < 3; i++)
-    if (t->ws.buf[i].mem) b += t->ws.buf[i].bytes;
+  if (t->act) b += t->act_cap * sizeof(float); /* the conv workspace lies inside it */
   return b;
 }
 
@@ -250,6 +247,8 @@ spx_status spx_tape_begin(spx_tape *t, int train, uint64_t plan_key) {
   t->train = train != 0;
   t->in_pass = 1;
   if (t->train && spx_tape_sync_bn(t)) plan_key = spx_hash64("syncbn", 6, plan_key); /* + the ranks' scratch */
+  /* the conv workspace regions of a plan follow the tunables (spx_device_set_tunable may change them) */
+  if (t->backend == SPX_TAPE_DEVICE) plan_key = spx_hash64(&t->ctx->dev->tune, sizeof t->ctx->dev->tune, plan_key);
   t->measuring = 1;
   t->cur = NULL;
   t->phase = 0, t->dcur = t->bcur = 0, t->backward_runs = 0;
@@ -402,7 +401,7 @@ static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, i
   }
   int y = spx_tp_new_value(t, SP_ACT, xv->n, wv->n, ho, wo);
   if (y < 0) return -1;
-  int ia[4] = {pad, stride, 0, 0};
+  int ia[4] = {pad, stride, scale >= 0 || relu, 0}; /* [2]: the forward is an inference one (workspace plan) */
   spx_tp_record(t, OP_CONV, x, w, bias, y, -1, -1, ia, NULL);
   if (!spx_tp_live(t)) return y;
   xv = &t->vals[x], wv = &t->vals[w];
@@ -413,7 +412,9 @@ static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, i
   } else {
     spx_tensor tx = TV(x), tw = TV(w), tb = bias >= 0 ? TV(bias) : tx, ts = scale >= 0 ? TV(scale) : tx,
                tsh = shift >= 0 ? TV(shift) : tx, ty = TV(y);
-    spx_conv2d_params p = {k, stride, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu, &t->ws};
+    spx_conv2d_workspace ws;
+    spx_conv2d_params p = {k,    stride, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu,
+                           spx_tp_ws(t, t->nnodes - 1, 0, &ws)};
     if (t->prof > 1) spx_tp_prof_conv_note(t, xv->c, wv->n, k, stride, pad, scale >= 0 || relu);
     RUN(OP_CONV, spx_conv2d_forward(t->ctx, &tx, &tw, bias >= 0 ? &tb : NULL, &p, &ty));
   }
@@ -568,7 +569,9 @@ int spx_tape_l1(spx_tape *t, int pred, int target) {
     *HV(y) = spx_ref_loss_forward(SPX_LOSS_L1, SPX_REDUCE_MEAN, HV(pred), HV(target), spx_tape_numel(t, pred));
   } else {
     spx_tensor tp = TV(pred), tt = TV(target), ty = TV(y);
-    RUN(OP_L1, spx_loss_forward(t->ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &tp, &tt, &ty));
+    spx_conv2d_workspace ws;
+    RUN(OP_L1, spx_loss_forward_ws(t->ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &tp, &tt, &ty,
+                                   spx_tp_ws(t, t->nnodes - 1, 0, &ws)));
   }
   return y;
 }
@@ -635,7 +638,9 @@ static spx_status back_dev(spx_tape *t, const tnode *nd) {
     case OP_CONV: {
       spx_tensor w = TV(nd->in[1]), dw = spx_tape_grad_tensor(t, nd->in[1]), db;
       if (nd->in[2] >= 0) db = spx_tape_grad_tensor(t, nd->in[2]);
-      spx_conv2d_params p = {t->vals[nd->in[1]].h, nd->iarg[1], nd->iarg[0], NULL, NULL, 0, &t->ws};
+      spx_conv2d_workspace ws;
+      spx_conv2d_params p = {t->vals[nd->in[1]].h, nd->iarg[1], nd->iarg[0], NULL, NULL, 0,
+                             spx_tp_ws(t, (int)(nd - t->nodes), 1, &ws)};
       return spx_conv2d_backward(ctx, &x, &w, &dy, pdx, spx_tp_wants(t, nd->in[1]) ? &dw : NULL,
                                  nd->in[2] >= 0 && spx_tp_wants(t, nd->in[2]) ? &db : NULL, &p);
     }
@@ -658,8 +663,10 @@ static spx_status back_dev(spx_tape *t, const tnode *nd) {
     }
     case OP_MAXPOOL:
       return pdx ? spx_maxpool_backward(ctx, &x, &dy, pdx) : SPX_OK;
-    case OP_UPSAMPLE:
-      return pdx ? spx_upsample2x_backward(ctx, &dy, 1, pdx) : SPX_OK;
+    case OP_UPSAMPLE: {
+      spx_conv2d_workspace ws;
+      return pdx ? spx_upsample2x_backward_ws(ctx, &dy, 1, pdx, spx_tp_ws(t, (int)(nd - t->nodes), 1, &ws)) : SPX_OK;
+    }
     case OP_PAD:
       return pdx ? spx_pad_backward(ctx, &dy, nd->iarg[0], nd->iarg[1], nd->iarg[2], nd->iarg[3], pdx) : SPX_OK;
     case OP_CONCAT: {

@@ -49,9 +49,9 @@ int spx_tape_state(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w); /* 
 /* Allocate and zero the param/grad/m/v and state slabs. */
 spx_status spx_tape_alloc_params(spx_tape *t);
 size_t spx_tape_param_count(const spx_tape *t); /* floats in the parameter slab */
-/* Bytes of every device buffer the tape holds now: the param/grad/Adam/state slabs, the
- * activation arena and the convolution workspace (all grow-only, so after a pass this is the
- * pass's peak, less the short-lived per-call scratch of a few ops). 0 on the host backend. */
+/* Bytes of every device buffer the tape holds now: the param/grad/Adam/state slabs and the
+ * activation arena, which also holds the ops' scratch (all grow-only, and a planned pass allocates
+ * nothing, so after a pass this is the pass's peak). 0 on the host backend. */
 size_t spx_tape_device_bytes(const spx_tape *t);
 
 /* Host access to any value's data / gradient as float32 (values of the last forward, params,
@@ -138,9 +138,12 @@ spx_status spx_tape_transfer(spx_tape *dst, int did, size_t doff, int dst_grad, 
  * All activations and activation gradients of a pass live in ONE arena, at offsets the measuring
  * pass plans from the recorded graph: a value's storage is reused once nothing later in the
  * forward or the backward reads it (see tape_plan.c for the rules). Reading a value or gradient
- * after its storage was given away fails with SPX_E_STATE (spx_tape_keep it). */
+ * after its storage was given away fails with SPX_E_STATE (spx_tape_keep it). On the device the
+ * arena also holds each op's scratch (conv workspace) at that op's step, sized by the op's need
+ * function: no scratch is allocated while a planned pass runs. */
 /* Bytes of the arena the current pass's plan needs, and (without_reuse, may be NULL) the sum of all
- * its activations and gradients, i.e. what it would need without reuse. 0 before a planned pass. */
+ * its activations and gradients plus the largest op scratch, i.e. what it would need without
+ * reuse. 0 before a planned pass. */
 size_t spx_tape_plan_bytes(const spx_tape *t, size_t *without_reuse);
 /* Backward may run more than once over one forward (torch's retain_graph): everything backward
  * reads stays alive. Set before the pass; plans are made per setting. */

@@ -45,5 +45,7 @@ spx_status spx_tp_back_fused(spx_tape *t, const tnode *nd) {
   }
   spx_tensor dout = spx_tape_grad_tensor(t, nd->out), ds = spx_tape_grad_tensor(t, nd->in[0]);
   spx_tensor dxt = spx_tape_grad_tensor(t, nd->in[1]);
-  return spx_upcat_backward(t->ctx, &dout, nd->iarg[0], nd->iarg[1], 1, ws ? &ds : NULL, wx ? &dxt : NULL);
+  spx_conv2d_workspace sws; /* the upsampling backward's scratch, planned (lib/nn/tape_plan.c: op_need) */
+  return spx_upcat_backward_ws(t->ctx, &dout, nd->iarg[0], nd->iarg[1], 1, ws ? &ds : NULL, wx ? &dxt : NULL,
+                               spx_tp_ws(t, (int)(nd - t->nodes), 1, &sws));
 }

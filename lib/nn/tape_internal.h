@@ -50,6 +50,11 @@ typedef struct tplan {
   tpval *v;
   tpevent *deaths, *births; /* sorted by time */
   int ndeaths, nbirths;
+  /* the device's op scratch (conv workspace) inside the arena: per node, [2k] its forward's and
+   * [2k + 1] its backward's need per slot and region offset (floats); regions start at multiples
+   * of wsalign floats (the device's sub-buffer alignment). NULL on the host backend. */
+  spx_ws_need *wsneed;
+  size_t *wsoff, wsalign;
 } tplan;
 
 #define TP_MAXPLANS 8
@@ -95,7 +100,6 @@ struct spx_tape {
   tplan plans[TP_MAXPLANS];
   int nplans;
   int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
-  spx_conv2d_workspace ws; /* conv scratch, grow-only: no allocation in the steady state */
   /* data-parallel training (lib/nn/tape_dist.c): the ranks' comm (NULL: one process), batch
    * norm synchronised over them, this step's shard (local of global samples; 0 of 0: none given),
    * host staging for the comm (grow-only) */
@@ -152,6 +156,9 @@ spx_status spx_tp_advance(spx_tape *t, int time);    /* poison deaths before `ti
 int spx_tp_now(const spx_tape *t);                   /* the current time between steps */
 /* 0 when value id's data (grad = 0) or gradient (grad = 1) is live now; else records an error. */
 spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what);
+/* The planned workspace of node `node`'s forward (bwd = 0) or backward (1) in ws, returned; NULL
+ * (scratch allocated per call) when the plan has none. */
+spx_conv2d_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_conv2d_workspace *ws);
 /* Backward of node i reads the data of these activations (up to 3, -1 padded). */
 void spx_tp_back_reads(const spx_tape *t, const tnode *nd, int r[3]);
 /* ReLU / LeakyReLU (slope >= 0) backward from the output: the same mask as from the input. */

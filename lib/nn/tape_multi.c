@@ -121,7 +121,9 @@ int spx_tape_mse_const(spx_tape *t, int x, float target) {
   } else {
     spx_tensor tx = TV(x), tc = TV(c), ty = TV(y);
     RUN(OP_MSE_CONST, spx_fill(t->ctx, &tc, target));
-    RUN(OP_MSE_CONST, spx_loss_forward(t->ctx, SPX_LOSS_MSE, SPX_REDUCE_MEAN, &tx, &tc, &ty));
+    spx_conv2d_workspace ws;
+    RUN(OP_MSE_CONST, spx_loss_forward_ws(t->ctx, SPX_LOSS_MSE, SPX_REDUCE_MEAN, &tx, &tc, &ty,
+                                          spx_tp_ws(t, t->nnodes - 1, 0, &ws)));
   }
   return y;
 }

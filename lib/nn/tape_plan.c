@@ -19,17 +19,24 @@
  * Offsets: the storages (data and gradient separately) sorted by size, largest first (ties by
  * value id), each put at the lowest offset (16-float aligned) that overlaps no storage placed
  * before it whose interval meets its own. All of it depends only on the recorded graph, so a pass
- * always gets the same layout and the results do not depend on reuse. */
+ * always gets the same layout and the results do not depend on reuse.
+ *
+ * Op scratch (device backend; lib/nn/workspace.h): node k's forward and its backward step each
+ * get one region of the arena holding the slots its launchers ask for (op_need: the launchers'
+ * need functions), live at that one time and placed among the storages by the same first fit (its
+ * start aligned to the device's sub-buffer alignment), so the pass allocates nothing. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "nn/loss.h"
 #include "nn/tape_internal.h"
+#include "nn/upsample.h"
 
 #define ALIGN 16
 
 void spx_tp_plan_free(tplan *p) {
-  free(p->v), free(p->deaths), free(p->births);
+  free(p->v), free(p->deaths), free(p->births), free(p->wsneed), free(p->wsoff);
   memset(p, 0, sizeof *p);
 }
 
@@ -61,8 +68,10 @@ void spx_tp_back_reads(const spx_tape *t, const tnode *nd, int r[3]) {
   }
 }
 
+/* grad: 0 data, 1 gradient (id: the value), 2 / 3 the forward / backward workspace of node id;
+ * al: its start's alignment (floats) */
 typedef struct item {
-  size_t n, off;
+  size_t n, off, al;
   int s, e, id, grad;
 } item;
 
@@ -92,10 +101,69 @@ static void place(item *it, int i, item **tmp) {
   for (int j = 0; j < m; j++) {
     if (tmp[j]->off >= off + it[i].n) break;
     size_t end = tmp[j]->off + tmp[j]->n;
-    end = (end + ALIGN - 1) / ALIGN * ALIGN;
+    end = (end + it[i].al - 1) / it[i].al * it[i].al;
     if (end > off) off = end;
   }
   it[i].off = off;
+}
+
+/* Scratch of one node's device launchers, need[0] forward, need[1] backward (zero: none). A new
+ * launcher that takes a workspace adds its op's need here. */
+static void op_need(const spx_tape *t, const tnode *nd, spx_ws_need need[2]) {
+  const tvalue *x = &t->vals[nd->in[0]];
+  const int back = t->train && t->vals[nd->out].needs_grad, dx = back && spx_tp_wants(t, nd->in[0]);
+  switch (nd->kind) {
+    case OP_CONV: {
+      const tvalue *w = &t->vals[nd->in[1]];
+      spx_conv2d_shape sh = {x->n, x->c, x->h, x->w, w->n, w->h, nd->iarg[1], nd->iarg[0]};
+      int passes = (dx ? SPX_CONV_PASS_BWD_DATA : 0) |
+                   (back && spx_tp_wants(t, nd->in[1]) ? SPX_CONV_PASS_BWD_WEIGHTS : 0);
+      spx_conv2d_workspace_need(t->ctx, &sh, SPX_CONV_PASS_FWD, nd->iarg[2], &need[0]);
+      if (passes) spx_conv2d_workspace_need(t->ctx, &sh, passes, 0, &need[1]);
+      break;
+    }
+    case OP_UPSAMPLE:
+      if (dx) spx_upsample2x_backward_need(x->n, x->c, x->h, x->w, &need[1]);
+      break;
+    case OP_UPCAT: { /* in[1]: the upsampled input */
+      const tvalue *u = &t->vals[nd->in[1]];
+      if (back && spx_tp_wants(t, nd->in[1])) spx_upsample2x_backward_need(u->n, u->c, u->h, u->w, &need[1]);
+      break;
+    }
+    case OP_L1:
+    case OP_MSE_CONST:
+      spx_loss_forward_need(t->ctx, spx_tp_numel(x), &need[0]);
+      break;
+    default:
+      break;
+  }
+}
+
+/* The device's op scratch: node k's forward (at 2k + 1) and backward (at its backward step) each
+ * get one region of the arena, sized by the op's need function (conv: spx_conv2d_workspace_need,
+ * every slot's maximum over the calls of that step), live only at that step. Appends the items. */
+static spx_status ws_items(spx_tape *t, tplan *p, item *it, int *ni) {
+  const int N = t->nnodes;
+  if (t->backend != SPX_TAPE_DEVICE) return SPX_OK;
+  cl_uint bits = 0;
+  spx_status st = spx_cl_check(t->ctx, clGetDeviceInfo(t->ctx->dev->device, CL_DEVICE_MEM_BASE_ADDR_ALIGN,
+                                                       sizeof bits, &bits, NULL),
+                               "clGetDeviceInfo(CL_DEVICE_MEM_BASE_ADDR_ALIGN)");
+  if (st) return st;
+  p->wsalign = bits / 32 > ALIGN ? bits / 32 : ALIGN;
+  p->wsneed = calloc((size_t)(2 * N + 1), sizeof *p->wsneed);
+  p->wsoff = calloc((size_t)(2 * N + 1), sizeof *p->wsoff);
+  if (!p->wsneed || !p->wsoff)
+    return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for the workspace plan of %d nodes", N);
+  for (int k = 0; k < N; k++) {
+    op_need(t, &t->nodes[k], &p->wsneed[2 * k]);
+    for (int b = 0; b < 2; b++) {
+      size_t bytes = spx_ws_layout(&p->wsneed[2 * k + b], p->wsalign * sizeof(float), NULL);
+      int time = b ? 4 * N - 2 * k + 1 : 2 * k + 1;
+      if (bytes) it[(*ni)++] = (item){(bytes + sizeof(float) - 1) / sizeof(float), 0, p->wsalign, time, time, k, 2 + b};
+    }
+  }
+  return SPX_OK;
 }
 
 static int imax(int a, int b) { return a > b ? a : b; }
@@ -109,8 +177,8 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
   p->v = calloc((size_t)(nv ? nv : 1), sizeof *p->v);
   /* per root (index id - np): last data use, backward data use, gradient access span, flags */
   int *last = malloc(sizeof(int) * (size_t)(nv ? nv : 1) * 6);
-  item *it = malloc(sizeof *it * (size_t)(2 * nv + 1));
-  item **tmp = malloc(sizeof *tmp * (size_t)(2 * nv + 1));
+  item *it = malloc(sizeof *it * (size_t)(2 * nv + 2 * N + 1));
+  item **tmp = malloc(sizeof *tmp * (size_t)(2 * nv + 2 * N + 1));
   p->deaths = malloc(sizeof *p->deaths * (size_t)(2 * nv + 1));
   p->births = malloc(sizeof *p->births * (size_t)(nv + 1));
   if (!p->v || !last || !it || !tmp || !p->deaths || !p->births) {
@@ -162,19 +230,32 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
       if (e->g0 != TP_INF) e->g0 = tbegin, e->g1 = TP_INF;
     }
     size_t n = spx_tp_numel(v);
-    it[ni++] = (item){n, 0, e->d0, e->d1, i, 0};
-    if (e->g0 != TP_INF) it[ni++] = (item){n, 0, e->g0, e->g1, i, 1};
+    it[ni++] = (item){n, 0, ALIGN, e->d0, e->d1, i, 0};
+    if (e->g0 != TP_INF) it[ni++] = (item){n, 0, ALIGN, e->g0, e->g1, i, 1};
+  }
+  spx_status st = ws_items(t, p, it, &ni);
+  if (st) {
+    free(last), free(it), free(tmp);
+    spx_tp_plan_free(p);
+    return st;
   }
   qsort(it, (size_t)ni, sizeof *it, by_size);
   p->size = 1, p->sum = 0;
+  size_t wsmax = 0; /* "without reuse" counts the largest op workspace once, as a separate buffer */
   for (int i = 0; i < ni; i++) {
     place(it, i, tmp);
-    p->sum += it[i].n;
     if (it[i].off + it[i].n > p->size) p->size = it[i].off + it[i].n;
+    if (it[i].grad >= 2) {
+      p->wsoff[2 * it[i].id + it[i].grad - 2] = it[i].off;
+      if (it[i].n > wsmax) wsmax = it[i].n;
+      continue;
+    }
+    p->sum += it[i].n;
     tpval *e = &p->v[it[i].id];
     if (it[i].grad) e->goff = it[i].off;
     else e->off = it[i].off;
   }
+  p->sum += wsmax;
   p->ndeaths = p->nbirths = 0;
   for (int i = 0; i < nv; i++) {
     const tvalue *v = &t->vals[np + i];
@@ -265,4 +346,14 @@ spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what) {
                     "spx_tape_keep it in the pass)",
                     what, grad ? "gradient" : "data", id);
   return SPX_OK;
+}
+
+spx_conv2d_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_conv2d_workspace *ws) {
+  const tplan *p = t->cur;
+  memset(ws, 0, sizeof *ws);
+  if (!p || !p->wsneed || !t->act || node < 0 || node >= p->nnodes) return NULL;
+  spx_ws_layout(&p->wsneed[2 * node + bwd], p->wsalign * sizeof(float), ws);
+  ws->arena = t->act;
+  ws->base = p->wsoff[2 * node + bwd] * sizeof(float);
+  return ws;
 }

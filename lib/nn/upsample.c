@@ -7,6 +7,8 @@
  * weight 0) and d < (i+1)/s = 2i+2 + (i+1)/(in-1) <= 2i+4 (in >= 2; for in == 1 every output
  * reads row 0 and there are only rows 0 and 1). Float rounding of src moves it by ~d*eps, far
  * less than the margins (~1/(2in) relative) of these bounds. */
+#include <string.h>
+
 #include "nn/upsample.h"
 
 #include "nn/nn_internal.h"
@@ -46,14 +48,26 @@ spx_status spx_upsample2x_forward(spx_ctx *ctx, const spx_tensor *x, int align_c
                     (size_t)y->w, align_corners);
 }
 
+/* scratch floats of the backward for dx of n x c x h x w: the row-pass result (half of dy), then
+ * the x and y weight tables (5 per input column / row) */
+static size_t bwd_scratch(int n, int c, int h, int w) {
+  return (size_t)n * c * 2 * h * w + 5 * (size_t)w + 5 * (size_t)h;
+}
+
+void spx_upsample2x_backward_need(int n, int c, int h, int w, spx_ws_need *need) {
+  memset(need, 0, sizeof *need);
+  if (n > 0 && c > 0 && h > 0 && w > 0) need->slot[0] = bwd_scratch(n, c, h, w) * sizeof(float);
+}
+
 /* dx += the x2-upsampling backward of the gradient dy (planes addressed by strides, see
  * spx_upsample2x_bwd_rows; the samples' planes start ns apart at dyo, each ps apart): the shared
  * body of the plain and the fused (up-block) backward. Plain: one row-pass launch over all the
- * planes; strided: one per sample. */
+ * planes; strided: one per sample. Scratch: slot 0 of ws (NULL: allocated per call). */
 static spx_status up_backward(spx_ctx *ctx, const char *op, cl_mem dy, size_t dyo, size_t ns, size_t ps, size_t rs,
-                              int align_corners, const spx_tensor *dx) {
+                              int align_corners, const spx_tensor *dx, spx_conv2d_workspace *ws) {
   spx_status st;
   cl_kernel k1, k2, kw;
+  spx_conv2d_scratch sc = {0};
   cl_mem t = NULL;
   size_t planes = (size_t)dx->n * (size_t)dx->c, rows = 2 * (size_t)dx->h;
   if (planes * rows * (size_t)dx->w == 0) return SPX_OK;
@@ -65,10 +79,11 @@ static spx_status up_backward(spx_ctx *ctx, const char *op, cl_mem dy, size_t dy
    * column / row); released right after enqueueing, OpenCL keeps it alive until the queued
    * kernels are done */
   size_t tn = planes * rows * (size_t)dx->w, wxo = tn, wyo = tn + 5 * (size_t)dx->w;
-  size_t total = wyo + 5 * (size_t)dx->h;
+  size_t total = bwd_scratch(dx->n, dx->c, dx->h, dx->w);
   if (total > (size_t)INT_MAX || dyo + (size_t)dx->n * ns > (size_t)INT_MAX)
     return spx_fail(ctx, SPX_E_ARG, "%s: tensor too large", op);
-  if ((st = spx_cl_alloc(ctx, total * sizeof(float), "upsample backward scratch", &t))) return st;
+  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, total * sizeof(float), "upsample backward scratch", &sc))) return st;
+  t = sc.mem;
   cl_int al = align_corners ? 1 : 0, wxoi = (cl_int)wxo, wyoi = (cl_int)wyo, psi = (cl_int)ps, rsi = (cl_int)rs;
   float sh = scale_of(dx->h, align_corners), sw = scale_of(dx->w, align_corners);
   cl_int e = SPX_ARG(kw, 0, t) | SPX_ARG(kw, 1, wxoi) | SPX_ARG(kw, 2, dx->w) | SPX_ARG(kw, 3, sw) | SPX_ARG(kw, 4, al);
@@ -94,11 +109,16 @@ static spx_status up_backward(spx_ctx *ctx, const char *op, cl_mem dy, size_t dy
   if (!(st = spx_cl_check(ctx, e, "spx_upsample2x_bwd_cols")))
     st = spx_nn_run3d(ctx, k2, (size_t)dx->w, (size_t)dx->h, planes, "spx_upsample2x_bwd_cols");
 done:
-  spx_cl_free(&t);
+  spx_conv2d_scratch_put(&sc);
   return st;
 }
 
 spx_status spx_upsample2x_backward(spx_ctx *ctx, const spx_tensor *dy, int align_corners, const spx_tensor *dx) {
+  return spx_upsample2x_backward_ws(ctx, dy, align_corners, dx, NULL);
+}
+
+spx_status spx_upsample2x_backward_ws(spx_ctx *ctx, const spx_tensor *dy, int align_corners, const spx_tensor *dx,
+                                      spx_conv2d_workspace *ws) {
   const char *op = "upsample2x_backward";
   spx_status st;
   if (!dx) return SPX_OK;
@@ -108,7 +128,7 @@ spx_status spx_upsample2x_backward(spx_ctx *ctx, const spx_tensor *dy, int align
     return spx_fail(ctx, SPX_E_ARG, "%s: %dx%dx%dx%d is not the x2 upsampling of %dx%dx%dx%d", op, dy->n, dy->c, dy->h,
                     dy->w, dx->n, dx->c, dx->h, dx->w);
   size_t ps = (size_t)dy->h * (size_t)dy->w;
-  return up_backward(ctx, op, dy->mem, dy->off, (size_t)dy->c * ps, ps, (size_t)dy->w, align_corners, dx);
+  return up_backward(ctx, op, dy->mem, dy->off, (size_t)dy->c * ps, ps, (size_t)dy->w, align_corners, dx, ws);
 }
 
 /* skip, x, out: the up-block's shapes (out = concat(skip, pad(upsample2x(x)))), pads >= 0. */
@@ -161,6 +181,11 @@ spx_status spx_upcat_forward(spx_ctx *ctx, const spx_tensor *skip, const spx_ten
 
 spx_status spx_upcat_backward(spx_ctx *ctx, const spx_tensor *dout, int top, int left, int align_corners,
                               const spx_tensor *dskip, const spx_tensor *dx) {
+  return spx_upcat_backward_ws(ctx, dout, top, left, align_corners, dskip, dx, NULL);
+}
+
+spx_status spx_upcat_backward_ws(spx_ctx *ctx, const spx_tensor *dout, int top, int left, int align_corners,
+                                 const spx_tensor *dskip, const spx_tensor *dx, spx_conv2d_workspace *ws) {
   const char *op = "upcat_backward";
   spx_status st;
   if (!dout) return spx_fail(ctx, SPX_E_ARG, "%s: missing dout", op);
@@ -175,5 +200,5 @@ spx_status spx_upcat_backward(spx_ctx *ctx, const spx_tensor *dout, int top, int
   /* x's gradient is the cropped last dx->c channels of dout, read in place */
   size_t ps = (size_t)dout->h * (size_t)dout->w;
   size_t off = dout->off + (size_t)(dout->c - dx->c) * ps + (size_t)top * dout->w + (size_t)left;
-  return up_backward(ctx, op, dout->mem, off, (size_t)dout->c * ps, ps, (size_t)dout->w, align_corners, dx);
+  return up_backward(ctx, op, dout->mem, off, (size_t)dout->c * ps, ps, (size_t)dout->w, align_corners, dx, ws);
 }
