@@ -18,8 +18,17 @@
 
 static size_t elem(spx_tape_backend be) { return be == SPX_TAPE_HOST ? sizeof(double) : sizeof(float); }
 
+/* The device's op scratch is planned inside the arena in every class (TAPE_WS_ARENA 1: the
+ * layouts checked here count it there; the separate-buffer mode is in test_nn_unet_memory.c). */
 static spx_ctx *open_ctx(spx_tape_backend be) {
-  if (be == SPX_TAPE_DEVICE) return spx_nt_open();
+  if (be == SPX_TAPE_DEVICE) {
+    spx_ctx *dctx = spx_nt_open();
+    if (dctx && spx_device_set_tunable(dctx, "TAPE_WS_ARENA", 1) != SPX_OK) {
+      spx_ctx_destroy(dctx);
+      return NULL;
+    }
+    return dctx;
+  }
   spx_ctx *ctx = NULL;
   return spx_ctx_create(&ctx) == SPX_OK ? ctx : NULL;
 }

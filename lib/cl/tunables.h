@@ -55,6 +55,7 @@ struct spx_tunables {
   int conv_wlds_kb;
   int conv_wino_dw;       /* Winograd weight gradient */
   int conv_wino_dw_minhw;
+  int tape_ws_arena;      /* op scratch inside the tape's activation arena */
   int conv_red_wg;        /* conv2d bias gradient */
   int wg2_x;              /* 2-D (x, y, plane) kernels */
   int wg2_y;

@@ -144,6 +144,13 @@ static const struct spx_tunable spx_tunables[] = {
     /* ... and images of at least this many pixels (H*W): small deep layers (19x25 at 512
      * channels) hold few tiles per 36-entry gradient of every weight pair and lose to direct */
     {"CONV_WINO_DW_MINHW", F(conv_wino_dw_minhw), 1024, 1024, 0, 1 << 30, 0},
+    /* 1: the ops' scratch (conv workspace, upsample/loss scratch) is planned inside the tape's
+     * activation arena and handed out as sub-buffers of it, sharing memory with values dead at
+     * that step (CPU: the batch-4 training peak drops to the planned bytes). 0: one separate
+     * buffer sized by the plan's largest op scratch. GPU class 0: OpenCL leaves a kernel that
+     * reads a buffer and writes a sub-buffer of the same buffer undefined (CL 1.2 5.2.1), even
+     * disjoint; PoCL's CPU device is host memory and handles it */
+    {"TAPE_WS_ARENA", F(tape_ws_arena), 1, 0, 0, 1, 0},
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", F(conv_red_wg), 16, 256, 1, 1024, T_POW2|T_WG},
     /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,

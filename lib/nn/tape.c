@@ -109,7 +109,7 @@ void spx_tape_destroy(spx_tape *t) {
   if (!t) return;
   spx_tp_prof_report(t);
   spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
-  spx_cl_free(&t->state), spx_cl_free(&t->act);
+  spx_cl_free(&t->state), spx_cl_free(&t->act), spx_cl_free(&t->ws);
   free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact);
   for (int i = 0; i < t->nplans; i++) spx_tp_plan_free(&t->plans[i]);
   free(t->vals);
@@ -190,7 +190,8 @@ size_t spx_tape_device_bytes(const spx_tape *t) {
   size_t b = 0;
   if (t->allocated)
     b += ((t->grad ? 4 : 1) * (t->nparam ? t->nparam : 1) + (t->nstate ? t->nstate : 1)) * sizeof(float);
-  if (t->act) b += t->act_cap * sizeof(float); /* the conv workspace lies inside it */
+  if (t->act) b += t->act_cap * sizeof(float); /* the op scratch lies inside it (TAPE_WS_ARENA 1) */
+  if (t->ws) b += t->ws_cap;                    /* ... or here (0) */
   return b;
 }
 
@@ -301,6 +302,12 @@ spx_status spx_tape_end(spx_tape *t, int *again) {
   p->key = key;
   t->nplans++;
   if ((st = grow_arena(t, p->size))) return st;
+  if (p->wsmax > t->ws_cap) { /* the separate op scratch (TAPE_WS_ARENA 0): grow-only, like the arena */
+    spx_cl_free(&t->ws);
+    t->ws_cap = 0;
+    if ((st = spx_cl_alloc(t->ctx, p->wsmax, "op scratch", &t->ws))) return st;
+    t->ws_cap = p->wsmax;
+  }
   t->nmeasured++;
   *again = 1;
   return SPX_OK;

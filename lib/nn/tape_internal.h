@@ -55,6 +55,10 @@ typedef struct tplan {
    * of wsalign floats (the device's sub-buffer alignment). NULL on the host backend. */
   spx_ws_need *wsneed;
   size_t *wsoff, wsalign;
+  /* TAPE_WS_ARENA off: the scratch is one separate buffer (spx_tape.ws), wsoff all 0, wsmax its
+   * bytes (the largest op's layout) */
+  int ws_in_arena;
+  size_t wsmax;
 } tplan;
 
 #define TP_MAXPLANS 8
@@ -86,6 +90,8 @@ struct spx_tape {
   /* slabs: device */
   cl_mem param, grad, m, v, state, act; /* act: one arena for activations and their gradients */
   size_t act_cap;                         /* floats */
+  cl_mem ws;                              /* op scratch when not inside act (TAPE_WS_ARENA 0) */
+  size_t ws_cap;                          /* bytes */
   /* slabs: host */
   double *hparam, *hgrad, *hm, *hv, *hstate, *hact;
   /* current pass */

@@ -151,6 +151,7 @@ static spx_status ws_items(spx_tape *t, tplan *p, item *it, int *ni) {
                                "clGetDeviceInfo(CL_DEVICE_MEM_BASE_ADDR_ALIGN)");
   if (st) return st;
   p->wsalign = bits / 32 > ALIGN ? bits / 32 : ALIGN;
+  p->ws_in_arena = t->ctx->dev->tune.tape_ws_arena;
   p->wsneed = calloc((size_t)(2 * N + 1), sizeof *p->wsneed);
   p->wsoff = calloc((size_t)(2 * N + 1), sizeof *p->wsoff);
   if (!p->wsneed || !p->wsoff)
@@ -160,7 +161,10 @@ static spx_status ws_items(spx_tape *t, tplan *p, item *it, int *ni) {
     for (int b = 0; b < 2; b++) {
       size_t bytes = spx_ws_layout(&p->wsneed[2 * k + b], p->wsalign * sizeof(float), NULL);
       int time = b ? 4 * N - 2 * k + 1 : 2 * k + 1;
-      if (bytes) it[(*ni)++] = (item){(bytes + sizeof(float) - 1) / sizeof(float), 0, p->wsalign, time, time, k, 2 + b};
+      if (!p->ws_in_arena) {
+        if (bytes > p->wsmax) p->wsmax = bytes;
+      } else if (bytes)
+        it[(*ni)++] = (item){(bytes + sizeof(float) - 1) / sizeof(float), 0, p->wsalign, time, time, k, 2 + b};
     }
   }
   return SPX_OK;
@@ -255,7 +259,7 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
     if (it[i].grad) e->goff = it[i].off;
     else e->off = it[i].off;
   }
-  p->sum += wsmax;
+  p->sum += wsmax + (p->wsmax + sizeof(float) - 1) / sizeof(float); /* one of the two is 0 (TAPE_WS_ARENA) */
   p->ndeaths = p->nbirths = 0;
   for (int i = 0; i < nv; i++) {
     const tvalue *v = &t->vals[np + i];
@@ -351,9 +355,9 @@ spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what) {
 spx_conv2d_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_conv2d_workspace *ws) {
   const tplan *p = t->cur;
   memset(ws, 0, sizeof *ws);
-  if (!p || !p->wsneed || !t->act || node < 0 || node >= p->nnodes) return NULL;
+  if (!p || !p->wsneed || !(p->ws_in_arena ? t->act : t->ws) || node < 0 || node >= p->nnodes) return NULL;
   spx_ws_layout(&p->wsneed[2 * node + bwd], p->wsalign * sizeof(float), ws);
-  ws->arena = t->act;
-  ws->base = p->wsoff[2 * node + bwd] * sizeof(float);
+  ws->arena = p->ws_in_arena ? t->act : t->ws;
+  ws->base = p->ws_in_arena ? p->wsoff[2 * node + bwd] * sizeof(float) : 0;
   return ws;
 }
