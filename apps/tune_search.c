@@ -34,9 +34,11 @@ typedef struct group {
 } group;
 
 /* NULL, or a tunable that must be on (nonzero) for group g to matter: the Winograd variant is not
- * timed while Winograd is off (CONV_WINO_MINC = 0), nor its local-memory tiles while it is off. */
+ * timed while Winograd is off (CONV_WINO_MINC = 0), nor its local-memory tiles while it is off,
+ * nor the narrow conv tile while no layer takes it (CONV_NARROW_MAXC = 0, e.g. the GPU class). */
 static const char *group_needs(const group *g) {
   if (!strcmp(g->names[0], "CONV_WINO_LDS")) return "CONV_WINO_MINC";
+  if (!strcmp(g->names[0], "CONV_NARROW_TM")) return "CONV_NARROW_MAXC";
   return strncmp(g->names[0], "CONV_WLDS_", 10) ? NULL : "CONV_WINO_LDS";
 }
 
@@ -46,6 +48,8 @@ static const int q_tile[] = {8, 3, 8, 2, 6, 4, 4, 6, 8, 4};
 static int f_tile[2 * MAXC];
 static const int f_vw[] = {1, 2, 4, 8, 16};
 static const int f_ct[] = {1, 2, 4, 8};
+static const int q_narrow[] = {4, 6, 8, 3, 4, 5, 2, 12, 8, 2}; /* CONV_NARROW_TM, CONV_NARROW_TN */
+static const int f_narrow_maxc[] = {0, 16, 32, 64};
 static const int f_lws[] = {1, 16, 32, 64, 128, 256};
 static const int f_xcache[] = {0, 512, 1024, 2048, 4096, 8192};
 /* the local-memory tiled conv (GPU class; needs CONV_VW = 1, refused otherwise) and its tile */
@@ -292,6 +296,8 @@ static int build_groups(const spx_tune_plan *p, group *gs) {
                     p->quick ? (int)(sizeof q_minc / sizeof(int)) : (int)(sizeof f_minc / sizeof(int))};
   gs[n++] = (group){{"CONV_TM", "CONV_TN"}, 2, 0, p->quick ? q_tile : f_tile,
                     p->quick ? (int)(sizeof q_tile / sizeof(int) / 2) : nt};
+  gs[n++] = (group){{"CONV_NARROW_TM", "CONV_NARROW_TN"}, 2, 0, q_narrow, (int)(sizeof q_narrow / sizeof(int) / 2)};
+  gs[n++] = (group){{"CONV_NARROW_MAXC", NULL}, 1, 1, f_narrow_maxc, (int)(sizeof f_narrow_maxc / sizeof(int))};
   gs[n++] = (group){{"CONV_VW", NULL}, 1, 1, f_vw, (int)(sizeof f_vw / sizeof(int))};
   gs[n++] = (group){{"CONV_CT", NULL}, 1, 1, f_ct, (int)(sizeof f_ct / sizeof(int))};
   gs[n++] = (group){{"CONV_LWS", NULL}, 1, 1, f_lws, (int)(sizeof f_lws / sizeof(int))};

@@ -3,7 +3,9 @@
  * thread on a small shape. Peer: benchmarks/peer_conv_torch.py times the same shapes in PyTorch.
  *
  *   bench_conv2d [reps]          (default 3; the minimum over reps is reported)
- *   bench_conv2d --unet [reps]   also time every conv of a UNet-64 eval forward (sum)        */
+ *   bench_conv2d --unet [reps]   also time every conv of a UNet-64 eval forward (sum)
+ *   bench_conv2d --w16 [reps]    also time the direct (non-Winograd) convs of a UNet-16 eval
+ *                                forward, wall and process CPU per layer (SPX_BENCH_UNET filters) */
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -32,6 +34,14 @@ static const shape unet[] = {
     {"u2a", 512, 256, 77, 102, 3, 1},    {"u2b", 256, 128, 77, 102, 3, 1},     {"u3a", 256, 128, 154, 205, 3, 1},
     {"u3b", 128, 64, 154, 205, 3, 1},    {"u4a", 128, 64, 308, 410, 3, 1},     {"u4b", 64, 64, 308, 410, 3, 1},
     {"outc", 64, 3, 308, 410, 1, 0},
+};
+
+/* the small-channel convs of the width-16 UNet at 308x410 that run direct (below CONV_WINO_MINC) */
+static const shape unet16[] = {
+    {"inc1", 4, 16, 308, 410, 3, 1},   {"inc2", 16, 16, 308, 410, 3, 1}, {"d1a", 16, 32, 154, 205, 3, 1},
+    {"d1b", 32, 32, 154, 205, 3, 1},   {"d2a", 32, 64, 77, 102, 3, 1},   {"u2b", 64, 32, 77, 102, 3, 1},
+    {"u3a", 64, 32, 154, 205, 3, 1},   {"u3b", 32, 16, 154, 205, 3, 1},  {"u4a", 32, 16, 308, 410, 3, 1},
+    {"u4b", 16, 16, 308, 410, 3, 1},   {"outc", 16, 3, 308, 410, 1, 0},
 };
 
 static int fail(spx_ctx *ctx, const char *what) {
@@ -88,6 +98,7 @@ int main(int argc, char **argv) {
   int reps = 3, do_unet = 0;
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--unet")) do_unet = 1;
+    else if (!strcmp(argv[i], "--w16")) do_unet = 2;
     else reps = atoi(argv[i]) > 0 ? atoi(argv[i]) : 3;
   }
   spx_ctx *ctx;
@@ -119,18 +130,21 @@ int main(int argc, char **argv) {
   printf("sum of the table: %.1f ms wall, %.1f ms CPU (all threads; wall x cores when the machine is idle)\n", wall_sum,
          cpu_ms_sum);
   if (do_unet) {
+    const shape *tab = do_unet == 2 ? unet16 : unet;
+    size_t nt = do_unet == 2 ? sizeof unet16 / sizeof unet16[0] : sizeof unet / sizeof unet[0];
     double tot = 0, gtot = 0, ctot = 0;
-    for (size_t i = 0; i < sizeof unet / sizeof unet[0]; i++) {
+    for (size_t i = 0; i < nt; i++) {
       const char *only = getenv("SPX_BENCH_UNET"); /* comma list of layer names */
-      if (only && !strstr(only, unet[i].name)) continue;
+      if (only && !strstr(only, tab[i].name)) continue;
       double ms, cpu;
-      if (time_op(ctx, &unet[i], 0, reps, &ms, &cpu)) return fail(ctx, unet[i].name);
-      tot += ms, gtot += flops(&unet[i]) * 1e-9, ctot += cpu;
-      if (getenv("SPX_BENCH_CPU")) printf("  %-5s %4d->%-4d %3dx%-3d wall %7.1f ms cpu %7.1f ms\n", unet[i].name,
-                                          unet[i].cin, unet[i].cout, unet[i].h, unet[i].w, ms, cpu);
+      if (time_op(ctx, &tab[i], 0, reps, &ms, &cpu)) return fail(ctx, tab[i].name);
+      tot += ms, gtot += flops(&tab[i]) * 1e-9, ctot += cpu;
+      if (getenv("SPX_BENCH_CPU") || do_unet == 2)
+        printf("  %-5s %4d->%-4d %3dx%-3d wall %7.2f ms cpu %7.2f ms  %6.1f GFLOP/s (cpu)\n", tab[i].name, tab[i].cin,
+               tab[i].cout, tab[i].h, tab[i].w, ms, cpu, flops(&tab[i]) * 1e-6 / cpu);
     }
-    printf("UNet-64 all %zu convs, eval forward: %.1f ms, %.1f GFLOP, %.1f GFLOP/s (CPU %.1f ms)\n",
-           sizeof unet / sizeof unet[0], tot, gtot, gtot / tot * 1e3, ctot);
+    printf("UNet-%d %s convs, eval forward: %.1f ms, %.1f GFLOP, %.1f GFLOP/s (CPU %.1f ms)\n",
+           do_unet == 2 ? 16 : 64, do_unet == 2 ? "direct" : "all", tot, gtot, gtot / tot * 1e3, ctot);
   }
   /* plain-C double reference, one thread */
   {

@@ -27,7 +27,9 @@
  *
  * Winograd F(4x4,3x3) for 3x3 stride-1 layers: kernels/conv2d_winograd.cl (inference by default).
  * GPU-class devices (CONV_LDS) run the 3x3 stride-1 forward from local-memory tiles instead:
- * kernels/conv2d_lds.cl (same arguments, same summation order, bit-identical results). */
+ * kernels/conv2d_lds.cl (same arguments, same summation order, bit-identical results).
+ * Layers with few output channels (CONV_NARROW_MAXC) take the same kernels compiled with a
+ * narrower, longer register tile: kernels/conv2d_narrow.cl (bit-identical results). */
 #include "conv2d_common.h"
 
 __kernel void spx_conv2d_fwd_k3s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 3); }
@@ -54,25 +56,5 @@ __kernel void spx_conv2d_pad(const __global float *src, ulong src_off, __global 
   dst[(size_t)nc * plane + r] = v;
 }
 
-/* Pack weights w [Cout][Cin][k][k] into GEMM panels of CONV_TM columns, wpk[ct][r][m] with
- * column c = ct*CONV_TM + m (cols = columns rounded up to CONV_TM, extra columns zero):
- *  flip = 0: rows r = kk = (ci*k+ky)*k+kx, columns co:  w[co][ci][ky][kx]
- *  flip = 1: rows r = (co*k+ky)*k+kx, columns ci:       w[co][ci][k-1-ky][k-1-kx]
- * (flip = 1 is the weight of the backward-data convolution). */
-__kernel void spx_conv2d_pack(const __global float *w, ulong w_off, __global float *wpk, int Cout, int Cin, int k,
-                              int cols, int flip) {
-  int i = SPX_GID0;
-  int kk2 = k * k;
-  int rows = (flip ? Cout : Cin) * kk2;
-  if (i >= rows * cols) return;
-  int m = i % CONV_TM, t0 = i / CONV_TM, r = t0 % rows, ct = t0 / rows;
-  int c = ct * CONV_TM + m;
-  float v = 0.0f;
-  if (!flip) {
-    if (c < Cout) v = w[w_off + (size_t)c * Cin * kk2 + r];
-  } else if (c < Cin) {
-    int co = r / kk2, t = r - co * kk2, ky = t / k, kx = t - ky * k;
-    v = w[w_off + (((size_t)co * Cin + c) * k + (k - 1 - ky)) * k + (k - 1 - kx)];
-  }
-  wpk[i] = v;
-}
+/* Weight panels of CONV_TM columns (conv_pack in conv2d_common.h). */
+__kernel void spx_conv2d_pack(CONV_PACK_ARGS) { conv_pack(w, w_off, wpk, Cout, Cin, k, cols, flip); }

@@ -227,6 +227,31 @@ static inline __attribute__((always_inline)) void conv_fwd(
     conv_fwd_store(accs[t], y, bias, scale, shift, Cout, (cst * CONV_CT + t) * CONV_TM, n, q0, Wp, Ho, Wo, flags);
 }
 
+/* Pack weights w [Cout][Cin][k][k] into GEMM panels of CONV_TM columns, wpk[ct][r][m] with
+ * column c = ct*CONV_TM + m (cols = columns rounded up to CONV_TM, extra columns zero):
+ *  flip = 0: rows r = kk = (ci*k+ky)*k+kx, columns co:  w[co][ci][ky][kx]
+ *  flip = 1: rows r = (co*k+ky)*k+kx, columns ci:       w[co][ci][k-1-ky][k-1-kx]
+ * (flip = 1 is the weight of the backward-data convolution). Global: rows * cols. */
+static inline void conv_pack(const __global float *w, ulong w_off, __global float *wpk, int Cout, int Cin, int k,
+                             int cols, int flip) {
+  int i = SPX_GID0;
+  int kk2 = k * k;
+  int rows = (flip ? Cout : Cin) * kk2;
+  if (i >= rows * cols) return;
+  int m = i % CONV_TM, t0 = i / CONV_TM, r = t0 % rows, ct = t0 / rows;
+  int c = ct * CONV_TM + m;
+  float v = 0.0f;
+  if (!flip) {
+    if (c < Cout) v = w[w_off + (size_t)c * Cin * kk2 + r];
+  } else if (c < Cin) {
+    int co = r / kk2, t = r - co * kk2, ky = t / k, kx = t - ky * k;
+    v = w[w_off + (((size_t)co * Cin + c) * k + (k - 1 - ky)) * k + (k - 1 - kx)];
+  }
+  wpk[i] = v;
+}
+#define CONV_PACK_ARGS                                                                                        \
+  const __global float *w, ulong w_off, __global float *wpk, int Cout, int Cin, int k, int cols, int flip
+
 #define CONV_FWD_ARGS                                                                                         \
   const __global float *xp, const __global float *wpk, __global float *y, ulong y_off,                        \
       const __global float *bias, ulong b_off, const __global float *scale, ulong sc_off,                     \

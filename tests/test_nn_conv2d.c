@@ -249,6 +249,56 @@ static void test_device_deterministic(void) {
   spx_ctx_destroy(ctx);
 }
 
+/* Narrow layers (at most CONV_NARROW_MAXC output channels, stride-1 3x3 / 1x1) run the narrow
+ * register tile of kernels/conv2d_narrow.cl in the forward and the backward data: each case is
+ * checked against the reference with the default narrow tile, an odd narrow tile (2 x 5) and the
+ * main tile (CONV_NARROW_MAXC = 0), and the three must agree bit for bit (same summation order). */
+static const dev_case narrow_cases[] = {
+    {{1, 4, 31, 43, 16, 3, 1, 1}, 1, 0, 0},  /* first layer: Cin 4, odd size */
+    {{2, 16, 13, 29, 16, 3, 1, 1}, 0, 1, 1}, /* N=2, 16->16, fused affine + relu */
+    {{1, 32, 11, 37, 16, 3, 1, 1}, 1, 0, 1}, /* 32->16, bias + relu */
+    {{1, 16, 9, 23, 13, 3, 1, 1}, 0, 0, 0},  /* Cout not a multiple of the tile, no epilogue */
+    {{1, 16, 10, 21, 3, 1, 1, 0}, 1, 0, 0},  /* 1x1 16->3 (the output layer) */
+    {{1, 20, 7, 9, 32, 3, 1, 1}, 0, 1, 0},   /* Cout = CONV_NARROW_MAXC */
+    {{1, 3700, 10, 10, 20, 3, 1, 1}, 1, 1, 1}, /* input-channel passes (FL_ACCUM between them) */
+};
+
+static void test_device_narrow(void) {
+  spx_ctx *ctx;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
+  static const char *names[3] = {"CONV_NARROW_TM", "CONV_NARROW_TN", "CONV_NARROW_MAXC"};
+  int opened[3] = {-1, -1, -1};
+  for (int i = 0; i < SPX_NTUNABLES; i++) {
+    spx_tunable_info t;
+    CHECK_OK(ctx, spx_device_tunable(ctx, i, &t));
+    for (int j = 0; j < 3; j++)
+      if (!strcmp(t.name, names[j])) opened[j] = t.value;
+  }
+  CHECK(opened[0] > 0 && opened[1] > 0 && opened[2] >= 0);
+  const int tiles[3][3] = {{opened[0], opened[1], opened[2]}, {2, 5, 64}, {opened[0], opened[1], 0}};
+  for (size_t i = 0; i < sizeof narrow_cases / sizeof narrow_cases[0]; i++) {
+    const dev_case *c = &narrow_cases[i];
+    const spx_conv2d_shape *s = &c->s;
+    size_t sizes[4] = {(size_t)s->n * s->cout * out_h(s) * out_w(s) + 5, (size_t)s->n * s->cin * s->h * s->w,
+                       (size_t)s->cout * s->cin * s->k * s->k, (size_t)s->cout};
+    float *o[3][4];
+    unsigned long long keep = rng;
+    for (int v = 0; v < 3; v++) {
+      for (int j = 0; j < 3; j++) CHECK_OK(ctx, spx_device_set_tunable(ctx, names[j], tiles[v][j]));
+      rng = keep; /* same inputs */
+      device_case(ctx, c, i % 2, NULL, o[v]);
+    }
+    for (int v = 1; v < 3; v++)
+      for (int j = 0; j < 4; j++)
+        CHECK_MSG(!memcmp(o[0][j], o[v][j], sizes[j] * sizeof(float)), "narrow case %zu: output %d differs (tile %d)",
+                  i, j, v);
+    for (int v = 0; v < 3; v++)
+      for (int j = 0; j < 4; j++) free(o[v][j]);
+  }
+  spx_ctx_destroy(ctx);
+}
+
 static void test_bad_args(void) {
   spx_ctx *ctx;
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
@@ -288,6 +338,7 @@ int main(void) {
   SPX_RUN(test_device_vs_ref);
   SPX_RUN(test_device_accumulate);
   SPX_RUN(test_device_deterministic);
+  SPX_RUN(test_device_narrow);
   SPX_RUN(test_bad_args);
   return spx_test_summary();
 }

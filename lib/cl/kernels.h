@@ -26,6 +26,9 @@
   X(CONV2D_FWD_K3S1_LDS, "conv2d_lds.cl", "spx_conv2d_fwd_k3s1_lds")   \
   X(CONV2D_PAD, "conv2d.cl", "spx_conv2d_pad")                         \
   X(CONV2D_PACK, "conv2d.cl", "spx_conv2d_pack")                       \
+  X(CONV2D_FWD_K3S1_NARROW, "conv2d_narrow.cl", "spx_conv2d_fwd_k3s1_narrow") \
+  X(CONV2D_FWD_K1S1_NARROW, "conv2d_narrow.cl", "spx_conv2d_fwd_k1s1_narrow") \
+  X(CONV2D_PACK_NARROW, "conv2d_narrow.cl", "spx_conv2d_pack_narrow")   \
   X(CONV2D_DW_S1, "conv2d_bwd.cl", "spx_conv2d_dw_s1")                 \
   X(CONV2D_DW_S2, "conv2d_bwd.cl", "spx_conv2d_dw_s2")                 \
   X(CONV2D_DW_SN, "conv2d_bwd.cl", "spx_conv2d_dw_sn")                 \

@@ -31,6 +31,9 @@ struct spx_tunables {
   int conv_lws;
   int conv_ct;
   int conv_cb;
+  int conv_narrow_maxc;   /* conv2d forward, narrow layers (kernels/conv2d_narrow.cl) */
+  int conv_narrow_tm;
+  int conv_narrow_tn;
   int conv_lds;           /* local-memory 3x3 forward (GPU) */
   int conv_lds_tx;
   int conv_lds_cb;

@@ -82,6 +82,14 @@ static const struct spx_tunable spx_tunables[] = {
     /* conv2d forward: channel tiles per work-item, walked per block of CONV_CB input channels */
     {"CONV_CT", F(conv_ct), 4, 1, 1, 64, 0},
     {"CONV_CB", F(conv_cb), 16, 1048576, 1, 1 << 30, 0},
+    /* conv2d stride-1 3x3 / 1x1 forwards (and backward data) with at most CONV_NARROW_MAXC output
+     * channels use the tile CONV_NARROW_TM x CONV_NARROW_TN (kernels/conv2d_narrow.cl; same bits);
+     * 0 = never. CPU: 4 x 6 takes ~25-30% less CPU time than 8 x 3 on the full-resolution 16/32
+     * channel layers of the width-16 UNet, neutral at half resolution (2-core PoCL, load ~11);
+     * 64-channel layers stay on the main tile. GPU: unmeasured, off */
+    {"CONV_NARROW_MAXC", F(conv_narrow_maxc), 32, 0, 0, 1 << 20, 0},
+    {"CONV_NARROW_TM", F(conv_narrow_tm), 4, 8, 1, 32, 0},
+    {"CONV_NARROW_TN", F(conv_narrow_tn), 6, 4, 1, 32, 0},
     /* conv2d: 1 = 3x3 stride-1 forwards (and backward data) run the local-memory tiled kernel
      * (kernels/conv2d_lds.cl; needs CONV_VW = 1): tiles of CONV_LDS_TX columns x
      * (CONV_LWS/CONV_LDS_TX)*CONV_TN rows, CONV_LDS_CB input channels per local-memory block.

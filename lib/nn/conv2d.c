@@ -74,6 +74,21 @@ static spx_status check_common(spx_ctx *ctx, const spx_tensor *x, const spx_tens
   return SPX_OK;
 }
 
+/* Register tile of a forward run producing `cols` output channels (k, stride s): the narrow
+ * tile of kernels/conv2d_narrow.cl for stride-1 3x3 / 1x1 runs with at most CONV_NARROW_MAXC
+ * columns (not on the local-memory GPU path), else the main tile. Both sum in the same order. */
+typedef struct fwd_tile {
+  int tm, tn, narrow;
+} fwd_tile;
+
+static fwd_tile pick_tile(const spx_ctx *ctx, int cols, int k, int s) {
+  const struct spx_tunables *t = &ctx->dev->tune;
+  fwd_tile r = {t->conv_tm, t->conv_tn, 0};
+  if (s == 1 && (k == 3 || k == 1) && cols <= t->conv_narrow_maxc && !spx_conv2d_lds_applies(ctx, k, s))
+    r = (fwd_tile){t->conv_narrow_tm, t->conv_narrow_tn, 1};
+  return r;
+}
+
 /* Padded/dilated copy of src [nc][h][w] into a new scratch buffer (see spx_conv2d_pad). */
 static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_mem src, size_t src_off, int nc,
                            int h, int w, int hp, int wp, int plane, int top, int left, int d, size_t total,
@@ -97,9 +112,9 @@ static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_
 
 /* Packed weight panel (see spx_conv2d_pack). */
 static spx_status pack_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, const spx_tensor *w, int cout,
-                               int cin, int k, int cols, int flip, spx_conv2d_scratch *out) {
+                               int cin, int k, int cols, int flip, int narrow, spx_conv2d_scratch *out) {
   cl_kernel kr;
-  spx_status st = spx_cl_kernel(ctx, SPX_K_CONV2D_PACK, &kr);
+  spx_status st = spx_cl_kernel(ctx, narrow ? SPX_K_CONV2D_PACK_NARROW : SPX_K_CONV2D_PACK, &kr);
   if (st) return st;
   size_t rows = (size_t)(flip ? cout : cin) * k * k, total = rows * (size_t)cols;
   if ((st = spx_conv2d_scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d packed weights", out))) return st;
@@ -120,7 +135,8 @@ static size_t guard_elems(int s, size_t q, int k, int wp, int vw) {
  * spx_conv2d_workspace_need both size the slots from these, so the two cannot disagree. */
 typedef struct dlay {
   int hp, wp, plane; /* the padded (forward, weight gradient) or dilated (data gradient) planes */
-  int cp;            /* forward: Cout, data gradient: Cin, rounded up to CONV_TM */
+  fwd_tile tile;     /* forward / data gradient: the register tile (pick_tile) */
+  int cp;            /* forward: Cout, data gradient: Cin, rounded up to the tile's TM */
   int qd, qc, nchunks; /* weight gradient: dy plane rounded to CONV_VW, chunk, partial-sum chunks */
   size_t total[3];
 } dlay;
@@ -128,9 +144,10 @@ typedef struct dlay {
 /* Forward (dgrad = 0) or data gradient (dgrad = 1: dy dilated by the stride and padded by k-1-pad
  * on every side, convolved at stride 1 with the flipped, transposed weights). */
 static void direct_layout(const spx_ctx *ctx, const geom *g, int dgrad, dlay *L) {
-  int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
-  int lws = ctx->dev->tune.conv_lws;
   int ci = dgrad ? g->cout : g->cin, co = dgrad ? g->cin : g->cout, rows = dgrad ? g->h : g->ho;
+  L->tile = pick_tile(ctx, co, g->k, dgrad ? 1 : g->s);
+  int tm = L->tile.tm, tn = L->tile.tn, vw = ctx->dev->tune.conv_vw;
+  int lws = ctx->dev->tune.conv_lws;
   int grow = dgrad ? g->k - 1 : 2 * g->pad;
   L->hp = g->h + grow, L->wp = g->w + grow, L->plane = L->hp * L->wp;
   size_t qv = round_up((size_t)rows * L->wp, (size_t)lws * tn * vw);
@@ -193,17 +210,19 @@ void spx_conv2d_workspace_need(const spx_ctx *ctx, const spx_conv2d_shape *s, in
 }
 
 /* The tiled forward kernel on an already padded input xp (planes of hp*wp, rows of wp). */
-static spx_status run_fwd(spx_ctx *ctx, cl_mem xp, cl_mem wpk, int n, int cin, int cout, int coutp, int k, int s,
+static spx_status run_fwd(spx_ctx *ctx, fwd_tile tile, cl_mem xp, cl_mem wpk, int n, int cin, int cout, int coutp, int k, int s,
                           int wp, int plane, int ho, int wo, const spx_tensor *y, const spx_tensor *bias,
                           const spx_tensor *scale, const spx_tensor *shift, int flags) {
   const int lds = spx_conv2d_lds_applies(ctx, k, s); /* GPU: local-memory tiles (conv2d_lds.cl) */
   spx_kernel_id kid = lds ? SPX_K_CONV2D_FWD_K3S1_LDS : s == 2 ? SPX_K_CONV2D_FWD_S2 : s > 2 ? SPX_K_CONV2D_FWD_SN
-                      : k == 3 ? SPX_K_CONV2D_FWD_K3S1 : k == 1 ? SPX_K_CONV2D_FWD_K1S1 : SPX_K_CONV2D_FWD_S1;
+                      : k == 3 ? (tile.narrow ? SPX_K_CONV2D_FWD_K3S1_NARROW : SPX_K_CONV2D_FWD_K3S1)
+                      : k == 1 ? (tile.narrow ? SPX_K_CONV2D_FWD_K1S1_NARROW : SPX_K_CONV2D_FWD_K1S1)
+                               : SPX_K_CONV2D_FWD_S1;
   const char *name = spx_cl_kernel_name(kid);
   cl_kernel kr;
   spx_status st = spx_cl_kernel(ctx, kid, &kr);
   if (st) return st;
-  int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
+  int tm = tile.tm, tn = tile.tn, vw = ctx->dev->tune.conv_vw;
   int lws = ctx->dev->tune.conv_lws;
   size_t tile_q = (size_t)lws * tn * vw;
   size_t groups = round_up((size_t)ho * wp, tile_q) / tile_q;
@@ -258,14 +277,15 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
   dlay L;
   direct_layout(ctx, &g, 0, &L);
   int wp = L.wp, plane = L.plane, coutp = L.cp;
+  const fwd_tile tile = L.tile;
   spx_conv2d_scratch xp = {0}, wpk = {0};
   if ((st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, L.hp, wp, plane, g.pad, g.pad, 1,
                      L.total[0], &xp)))
     goto done;
-  if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, &wpk))) goto done;
+  if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, tile.narrow, &wpk))) goto done;
   int flags = (bias ? SPX_CONV_FL_BIAS : 0) | (p->scale ? SPX_CONV_FL_SCALE : 0) |
               (p->scale && p->shift ? SPX_CONV_FL_SHIFT : 0) | (p->relu ? SPX_CONV_FL_RELU : 0);
-  st = run_fwd(ctx, xp.mem, wpk.mem, g.n, g.cin, g.cout, coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale,
+  st = run_fwd(ctx, tile, xp.mem, wpk.mem, g.n, g.cin, g.cout, coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale,
                p->scale ? p->shift : NULL, flags);
 done:
   spx_conv2d_scratch_put(&xp);
@@ -281,13 +301,14 @@ static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const ge
   dlay L;
   direct_layout(ctx, g, 1, &L);
   int wd = L.wp, plane = L.plane, top = g->k - 1 - g->pad, cinp = L.cp;
+  const fwd_tile tile = L.tile;
   spx_conv2d_scratch dyp = {0}, wpk = {0};
   spx_status st;
   if ((st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, L.hp, wd, plane, top, top, g->s,
                      L.total[0], &dyp)))
     goto done;
-  if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, &wpk))) goto done;
-  st = run_fwd(ctx, dyp.mem, wpk.mem, g->n, g->cout, g->cin, cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL,
+  if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, tile.narrow, &wpk))) goto done;
+  st = run_fwd(ctx, tile, dyp.mem, wpk.mem, g->n, g->cout, g->cin, cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL,
                NULL, SPX_CONV_FL_ACCUM);
 done:
   spx_conv2d_scratch_put(&dyp);
