@@ -301,13 +301,7 @@ spx_status spx_tape_end(spx_tape *t, int *again) {
   if (st) return st;
   p->key = key;
   t->nplans++;
-  if ((st = grow_arena(t, p->size))) return st;
-  if (p->wsmax > t->ws_cap) { /* the separate op scratch (TAPE_WS_ARENA 0): grow-only, like the arena */
-    spx_cl_free(&t->ws);
-    t->ws_cap = 0;
-    if ((st = spx_cl_alloc(t->ctx, p->wsmax, "op scratch", &t->ws))) return st;
-    t->ws_cap = p->wsmax;
-  }
+  if ((st = grow_arena(t, p->size)) || (st = spx_tp_ws_reserve(t, p))) return st;
   t->nmeasured++;
   *again = 1;
   return SPX_OK;

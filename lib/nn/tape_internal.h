@@ -165,6 +165,8 @@ spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what);
 /* The planned workspace of node `node`'s forward (bwd = 0) or backward (1) in ws, returned; NULL
  * (scratch allocated per call) when the plan has none. */
 spx_conv2d_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_conv2d_workspace *ws);
+/* Grows the separate op-scratch buffer (TAPE_WS_ARENA 0) to plan p's largest op; grow-only. */
+spx_status spx_tp_ws_reserve(spx_tape *t, const tplan *p);
 /* Backward of node i reads the data of these activations (up to 3, -1 padded). */
 void spx_tp_back_reads(const spx_tape *t, const tnode *nd, int r[3]);
 /* ReLU / LeakyReLU (slope >= 0) backward from the output: the same mask as from the input. */

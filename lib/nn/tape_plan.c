@@ -352,6 +352,15 @@ spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what) {
   return SPX_OK;
 }
 
+spx_status spx_tp_ws_reserve(spx_tape *t, const tplan *p) {
+  if (p->wsmax <= t->ws_cap) return SPX_OK;
+  spx_cl_free(&t->ws);
+  t->ws_cap = 0;
+  spx_status st = spx_cl_alloc(t->ctx, p->wsmax, "op scratch", &t->ws);
+  if (!st) t->ws_cap = p->wsmax;
+  return st;
+}
+
 spx_conv2d_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_conv2d_workspace *ws) {
   const tplan *p = t->cur;
   memset(ws, 0, sizeof *ws);
