@@ -58,3 +58,8 @@ __kernel void spx_conv2d_pad(const __global float *src, ulong src_off, __global 
 
 /* Weight panels of CONV_TM columns (conv_pack in conv2d_common.h). */
 __kernel void spx_conv2d_pack(CONV_PACK_ARGS) { conv_pack(w, w_off, wpk, Cout, Cin, k, cols, flip); }
+
+/* The same forwards read from the unpadded input (kernels/conv2d_nopad.h; CONV_NOPAD). */
+#include "conv2d_nopad.h"
+__kernel void spx_conv2d_fwd_k3s1_np(CONV_NP_ARGS) { conv_fwd_np(CONV_NP_PASS(3)); }
+__kernel void spx_conv2d_fwd_k1s1_np(CONV_NP_ARGS) { conv_fwd_np(CONV_NP_PASS(1)); }

@@ -21,3 +21,6 @@
 __kernel void spx_conv2d_fwd_k3s1_narrow(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 3); }
 __kernel void spx_conv2d_fwd_k1s1_narrow(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 1); }
 __kernel void spx_conv2d_pack_narrow(CONV_PACK_ARGS) { conv_pack(w, w_off, wpk, Cout, Cin, k, cols, flip); }
+#include "conv2d_nopad.h"
+__kernel void spx_conv2d_fwd_k3s1_narrow_np(CONV_NP_ARGS) { conv_fwd_np(CONV_NP_PASS(3)); }
+__kernel void spx_conv2d_fwd_k1s1_narrow_np(CONV_NP_ARGS) { conv_fwd_np(CONV_NP_PASS(1)); }

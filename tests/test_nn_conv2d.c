@@ -299,6 +299,64 @@ static void test_device_narrow(void) {
   spx_ctx_destroy(ctx);
 }
 
+/* The stride-1 'same' forwards and data gradients read the unpadded input when CONV_NOPAD is on
+ * (kernels/conv2d_nopad.h: plain, edge-masked and bounds-tested work-items): every case against the
+ * reference and bit for bit against the padded copy (CONV_NOPAD = 0), with the narrow tile, an
+ * odd narrow tile and the main tile. The shapes give each work-item kind: images narrower than a
+ * vector, one row, one column, one pixel, N = 2, 1x1 layers, input-channel passes. */
+static const dev_case nopad_cases[] = {
+    {{1, 4, 31, 43, 16, 3, 1, 1}, 1, 0, 0},   /* first layer: Cin 4, odd size */
+    {{2, 16, 37, 53, 16, 3, 1, 1}, 0, 1, 1},  /* N=2, fused affine + relu */
+    {{1, 9, 64, 70, 40, 3, 1, 1}, 1, 0, 1},   /* main tile (Cout > CONV_NARROW_MAXC) */
+    {{1, 3, 5, 3, 7, 3, 1, 1}, 1, 1, 0},      /* W narrower than a vector */
+    {{1, 5, 1, 40, 6, 3, 1, 1}, 0, 0, 0},     /* one row */
+    {{2, 5, 40, 1, 6, 3, 1, 1}, 1, 0, 0},     /* one column */
+    {{1, 2, 1, 1, 3, 3, 1, 1}, 1, 0, 0},      /* one pixel */
+    {{1, 16, 10, 21, 3, 1, 1, 0}, 1, 0, 0},   /* 1x1 16->3 (the output layer) */
+    {{2, 6, 7, 150, 5, 1, 1, 0}, 0, 1, 1},    /* 1x1, N=2 */
+    {{1, 3700, 10, 10, 20, 3, 1, 1}, 1, 1, 1}, /* input-channel passes (FL_ACCUM between them) */
+};
+
+static void test_device_nopad(void) {
+  spx_ctx *ctx;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
+  static const char *names[4] = {"CONV_NOPAD", "CONV_NARROW_TM", "CONV_NARROW_TN", "CONV_NARROW_MAXC"};
+  int opened[4] = {-1, -1, -1, -1};
+  for (int i = 0; i < SPX_NTUNABLES; i++) {
+    spx_tunable_info t;
+    CHECK_OK(ctx, spx_device_tunable(ctx, i, &t));
+    for (int j = 0; j < 4; j++)
+      if (!strcmp(t.name, names[j])) opened[j] = t.value;
+  }
+  CHECK(opened[1] > 0 && opened[2] > 0 && opened[3] >= 0);
+  const int var[4][4] = {{0, opened[1], opened[2], opened[3]},
+                         {1, opened[1], opened[2], opened[3]},
+                         {1, 2, 5, 64},
+                         {1, opened[1], opened[2], 0}};
+  for (size_t i = 0; i < sizeof nopad_cases / sizeof nopad_cases[0]; i++) {
+    const dev_case *c = &nopad_cases[i];
+    const spx_conv2d_shape *s = &c->s;
+    size_t sizes[4] = {(size_t)s->n * s->cout * out_h(s) * out_w(s) + 5, (size_t)s->n * s->cin * s->h * s->w,
+                       (size_t)s->cout * s->cin * s->k * s->k, (size_t)s->cout};
+    float *o[4][4];
+    unsigned long long keep = rng;
+    for (int v = 0; v < 4; v++) {
+      for (int j = 0; j < 4; j++) CHECK_OK(ctx, spx_device_set_tunable(ctx, names[j], var[v][j]));
+      rng = keep; /* same inputs */
+      device_case(ctx, c, i % 2, NULL, o[v]);
+    }
+    for (int v = 1; v < 4; v++)
+      for (int j = 0; j < 2; j++) /* y and dx: the passes CONV_NOPAD changes */
+        CHECK_MSG(!memcmp(o[0][j], o[v][j], sizes[j] * sizeof(float)), "nopad case %zu: output %d differs (variant %d)",
+                  i, j, v);
+    for (int v = 0; v < 4; v++)
+      for (int j = 0; j < 4; j++) free(o[v][j]);
+  }
+  for (int j = 0; j < 4; j++) CHECK_OK(ctx, spx_device_set_tunable(ctx, names[j], opened[j]));
+  spx_ctx_destroy(ctx);
+}
+
 static void test_bad_args(void) {
   spx_ctx *ctx;
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
@@ -339,6 +397,7 @@ int main(void) {
   SPX_RUN(test_device_accumulate);
   SPX_RUN(test_device_deterministic);
   SPX_RUN(test_device_narrow);
+  SPX_RUN(test_device_nopad);
   SPX_RUN(test_bad_args);
   return spx_test_summary();
 }

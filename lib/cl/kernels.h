@@ -29,6 +29,10 @@
   X(CONV2D_FWD_K3S1_NARROW, "conv2d_narrow.cl", "spx_conv2d_fwd_k3s1_narrow") \
   X(CONV2D_FWD_K1S1_NARROW, "conv2d_narrow.cl", "spx_conv2d_fwd_k1s1_narrow") \
   X(CONV2D_PACK_NARROW, "conv2d_narrow.cl", "spx_conv2d_pack_narrow")   \
+  X(CONV2D_FWD_K3S1_NP, "conv2d.cl", "spx_conv2d_fwd_k3s1_np")         \
+  X(CONV2D_FWD_K1S1_NP, "conv2d.cl", "spx_conv2d_fwd_k1s1_np")         \
+  X(CONV2D_FWD_K3S1_NARROW_NP, "conv2d_narrow.cl", "spx_conv2d_fwd_k3s1_narrow_np") \
+  X(CONV2D_FWD_K1S1_NARROW_NP, "conv2d_narrow.cl", "spx_conv2d_fwd_k1s1_narrow_np") \
   X(CONV2D_DW_S1, "conv2d_bwd.cl", "spx_conv2d_dw_s1")                 \
   X(CONV2D_DW_S2, "conv2d_bwd.cl", "spx_conv2d_dw_s2")                 \
   X(CONV2D_DW_SN, "conv2d_bwd.cl", "spx_conv2d_dw_sn")                 \

@@ -90,6 +90,11 @@ static const struct spx_tunable spx_tunables[] = {
     {"CONV_NARROW_MAXC", F(conv_narrow_maxc), 32, 0, 0, 1 << 20, 0},
     {"CONV_NARROW_TM", F(conv_narrow_tm), 4, 8, 1, 32, 0},
     {"CONV_NARROW_TN", F(conv_narrow_tn), 6, 4, 1, 32, 0},
+    /* conv2d: 1 = the stride-1 3x3 pad-1 / 1x1 pad-0 forwards (and backward data) of the register
+     * tiles read the unpadded input (kernels/conv2d_nopad.h) instead of a zero-padded copy of it
+     * (same bits). CPU: the copies were ~15% of a width-16 UNet eval pass. GPU: off (its 3x3 runs
+     * the local-memory kernel, which keeps the padded copy) */
+    {"CONV_NOPAD", F(conv_nopad), 1, 0, 0, 1, 0},
     /* conv2d: 1 = 3x3 stride-1 forwards (and backward data) run the local-memory tiled kernel
      * (kernels/conv2d_lds.cl; needs CONV_VW = 1): tiles of CONV_LDS_TX columns x
      * (CONV_LWS/CONV_LDS_TX)*CONV_TN rows, CONV_LDS_CB input channels per local-memory block.

@@ -89,6 +89,13 @@ static fwd_tile pick_tile(const spx_ctx *ctx, int cols, int k, int s) {
   return r;
 }
 
+/* The stride-1 'same' forwards (3x3 pad 1, 1x1 pad 0; a data gradient of such a layer is one too)
+ * of the register tiles can read the unpadded input (kernels/conv2d_nopad.h, CONV_NOPAD). */
+static int nopad_applies(const spx_ctx *ctx, int k, int s, int pad) {
+  return ctx->dev->tune.conv_nopad && s == 1 && ((k == 3 && pad == 1) || (k == 1 && pad == 0)) &&
+         !spx_conv2d_lds_applies(ctx, k, s);
+}
+
 /* Padded/dilated copy of src [nc][h][w] into a new scratch buffer (see spx_conv2d_pad). */
 static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_mem src, size_t src_off, int nc,
                            int h, int w, int hp, int wp, int plane, int top, int left, int d, size_t total,
@@ -136,6 +143,7 @@ static size_t guard_elems(int s, size_t q, int k, int wp, int vw) {
 typedef struct dlay {
   int hp, wp, plane; /* the padded (forward, weight gradient) or dilated (data gradient) planes */
   fwd_tile tile;     /* forward / data gradient: the register tile (pick_tile) */
+  int nopad;         /* forward / data gradient: read the unpadded input (hp, wp = its size, no slot 0) */
   int cp;            /* forward: Cout, data gradient: Cin, rounded up to the tile's TM */
   int qd, qc, nchunks; /* weight gradient: dy plane rounded to CONV_VW, chunk, partial-sum chunks */
   size_t total[3];
@@ -149,10 +157,13 @@ static void direct_layout(const spx_ctx *ctx, const geom *g, int dgrad, dlay *L)
   int tm = L->tile.tm, tn = L->tile.tn, vw = ctx->dev->tune.conv_vw;
   int lws = ctx->dev->tune.conv_lws;
   int grow = dgrad ? g->k - 1 : 2 * g->pad;
+  /* a data gradient is a stride-1 convolution padded by k-1-pad */
+  L->nopad = dgrad ? g->s == 1 && nopad_applies(ctx, g->k, 1, g->k - 1 - g->pad) : nopad_applies(ctx, g->k, g->s, g->pad);
+  if (L->nopad) grow = 0;
   L->hp = g->h + grow, L->wp = g->w + grow, L->plane = L->hp * L->wp;
   size_t qv = round_up((size_t)rows * L->wp, (size_t)lws * tn * vw);
   L->cp = (int)round_up((size_t)co, (size_t)tm);
-  L->total[0] = (size_t)g->n * ci * L->plane + guard_elems(dgrad ? 1 : g->s, qv, g->k, L->wp, vw);
+  L->total[0] = L->nopad ? 0 : (size_t)g->n * ci * L->plane + guard_elems(dgrad ? 1 : g->s, qv, g->k, L->wp, vw);
   L->total[1] = (size_t)ci * g->k * g->k * L->cp;
   L->total[2] = 0;
 }
@@ -164,6 +175,7 @@ static void bwd_weights_layout(const spx_ctx *ctx, const geom *g, dlay *L) {
   L->qd = (int)round_up((size_t)g->ho * L->wp, (size_t)vw);
   L->nchunks = (L->qd + qc - 1) / qc;
   L->cp = 0;
+  L->nopad = 0;
   L->total[0] = (size_t)g->n * g->cin * L->plane + guard_elems(g->s, (size_t)L->qd, g->k, L->wp, vw);
   L->total[1] = (size_t)g->n * g->cout * L->qd;
   L->total[2] = (size_t)g->cout * g->cin * g->k * g->k * L->nchunks;
@@ -209,12 +221,15 @@ void spx_conv2d_workspace_need(const spx_ctx *ctx, const spx_conv2d_shape *s, in
   }
 }
 
-/* The tiled forward kernel on an already padded input xp (planes of hp*wp, rows of wp). */
-static spx_status run_fwd(spx_ctx *ctx, fwd_tile tile, cl_mem xp, cl_mem wpk, int n, int cin, int cout, int coutp, int k, int s,
-                          int wp, int plane, int ho, int wo, const spx_tensor *y, const spx_tensor *bias,
-                          const spx_tensor *scale, const spx_tensor *shift, int flags) {
+/* The tiled forward kernel on an already padded input xp (planes of hp*wp, rows of wp), or with
+ * nopad on the unpadded input xp from float x_off (wp = wo, plane = ho*wo). */
+static spx_status run_fwd(spx_ctx *ctx, fwd_tile tile, int nopad, cl_mem xp, size_t x_off, cl_mem wpk, int n, int cin,
+                          int cout, int coutp, int k, int s, int wp, int plane, int ho, int wo, const spx_tensor *y,
+                          const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift, int flags) {
   const int lds = spx_conv2d_lds_applies(ctx, k, s); /* GPU: local-memory tiles (conv2d_lds.cl) */
-  spx_kernel_id kid = lds ? SPX_K_CONV2D_FWD_K3S1_LDS : s == 2 ? SPX_K_CONV2D_FWD_S2 : s > 2 ? SPX_K_CONV2D_FWD_SN
+  spx_kernel_id kid = nopad ? (k == 3 ? (tile.narrow ? SPX_K_CONV2D_FWD_K3S1_NARROW_NP : SPX_K_CONV2D_FWD_K3S1_NP)
+                                      : (tile.narrow ? SPX_K_CONV2D_FWD_K1S1_NARROW_NP : SPX_K_CONV2D_FWD_K1S1_NP))
+                      : lds ? SPX_K_CONV2D_FWD_K3S1_LDS : s == 2 ? SPX_K_CONV2D_FWD_S2 : s > 2 ? SPX_K_CONV2D_FWD_SN
                       : k == 3 ? (tile.narrow ? SPX_K_CONV2D_FWD_K3S1_NARROW : SPX_K_CONV2D_FWD_K3S1)
                       : k == 1 ? (tile.narrow ? SPX_K_CONV2D_FWD_K1S1_NARROW : SPX_K_CONV2D_FWD_K1S1)
                                : SPX_K_CONV2D_FWD_S1;
@@ -237,17 +252,21 @@ static spx_status run_fwd(spx_ctx *ctx, fwd_tile tile, cl_mem xp, cl_mem wpk, in
    * weights stream; when the weights outweigh a cache-resident input (deep, small layers) go
    * pixel-fastest so each weight panel is read once. When the input does not fit, split the
    * input channels into blocks that do (passes accumulate into y in a fixed order). */
-  double wbytes = 4.0 * cin * k * k * coutp, xbytes = 4.0 * cin * plane;
+  /* (sized by the padded plane in both layouts, so that CONV_NOPAD keeps the same passes: same bits) */
+  double pplane = nopad ? (double)(ho + k - 1) * (wo + k - 1) : (double)plane;
+  double wbytes = 4.0 * cin * k * k * coutp, xbytes = 4.0 * cin * pplane;
   double xcache = (double)ctx->dev->tune.conv_xcache * 1024.0;
   int pix_major = wbytes > xbytes && xbytes <= xcache, cib = cin;
   if (wbytes > xbytes && xbytes > xcache && xcache > 0) {
-    cib = (int)(xcache / (4.0 * plane));
+    cib = (int)(xcache / (4.0 * pplane));
     if (cib < 16) cib = 16;
     if (cib < cin) pix_major = 1;
     else cib = cin;
   }
   e |= SPX_ARG(kr, 19, pix_major);
-  if (s > 2) e |= SPX_ARG(kr, 22, s);
+  cl_ulong xo = x_off;
+  if (nopad) e |= SPX_ARG(kr, 22, xo);
+  else if (s > 2) e |= SPX_ARG(kr, 22, s);
   if ((st = spx_cl_check(ctx, e, name))) return st;
   int ct = ctx->dev->tune.conv_ct, ncst = (coutp / tm + ct - 1) / ct;
   size_t gl[2] = {(lds ? spx_conv2d_lds_groups(ctx, coutp, ho, wo) : (size_t)ncst * groups) * lws, (size_t)n};
@@ -279,14 +298,14 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
   int wp = L.wp, plane = L.plane, coutp = L.cp;
   const fwd_tile tile = L.tile;
   spx_conv2d_scratch xp = {0}, wpk = {0};
-  if ((st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, L.hp, wp, plane, g.pad, g.pad, 1,
-                     L.total[0], &xp)))
+  if (!L.nopad && (st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, L.hp, wp, plane, g.pad, g.pad,
+                                 1, L.total[0], &xp)))
     goto done;
   if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, tile.narrow, &wpk))) goto done;
   int flags = (bias ? SPX_CONV_FL_BIAS : 0) | (p->scale ? SPX_CONV_FL_SCALE : 0) |
               (p->scale && p->shift ? SPX_CONV_FL_SHIFT : 0) | (p->relu ? SPX_CONV_FL_RELU : 0);
-  st = run_fwd(ctx, tile, xp.mem, wpk.mem, g.n, g.cin, g.cout, coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale,
-               p->scale ? p->shift : NULL, flags);
+  st = run_fwd(ctx, tile, L.nopad, L.nopad ? x->mem : xp.mem, L.nopad ? x->off : 0, wpk.mem, g.n, g.cin, g.cout,
+               coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale, p->scale ? p->shift : NULL, flags);
 done:
   spx_conv2d_scratch_put(&xp);
   spx_conv2d_scratch_put(&wpk);
@@ -304,12 +323,12 @@ static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const ge
   const fwd_tile tile = L.tile;
   spx_conv2d_scratch dyp = {0}, wpk = {0};
   spx_status st;
-  if ((st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, L.hp, wd, plane, top, top, g->s,
-                     L.total[0], &dyp)))
+  if (!L.nopad && (st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, L.hp, wd, plane, top,
+                                 top, g->s, L.total[0], &dyp)))
     goto done;
   if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, tile.narrow, &wpk))) goto done;
-  st = run_fwd(ctx, tile, dyp.mem, wpk.mem, g->n, g->cout, g->cin, cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL,
-               NULL, SPX_CONV_FL_ACCUM);
+  st = run_fwd(ctx, tile, L.nopad, L.nopad ? dy->mem : dyp.mem, L.nopad ? dy->off : 0, wpk.mem, g->n, g->cout, g->cin,
+               cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL, NULL, SPX_CONV_FL_ACCUM);
 done:
   spx_conv2d_scratch_put(&dyp);
   spx_conv2d_scratch_put(&wpk);
