@@ -298,6 +298,7 @@ static int build_groups(const spx_tune_plan *p, group *gs) {
                     p->quick ? (int)(sizeof q_tile / sizeof(int) / 2) : nt};
   gs[n++] = (group){{"CONV_NARROW_TM", "CONV_NARROW_TN"}, 2, 0, q_narrow, (int)(sizeof q_narrow / sizeof(int) / 2)};
   gs[n++] = (group){{"CONV_NARROW_MAXC", NULL}, 1, 1, f_narrow_maxc, (int)(sizeof f_narrow_maxc / sizeof(int))};
+  gs[n++] = (group){{"CONV_NOPAD", NULL}, 1, 0, q_onoff, 2};
   gs[n++] = (group){{"CONV_VW", NULL}, 1, 1, f_vw, (int)(sizeof f_vw / sizeof(int))};
   gs[n++] = (group){{"CONV_CT", NULL}, 1, 1, f_ct, (int)(sizeof f_ct / sizeof(int))};
   gs[n++] = (group){{"CONV_LWS", NULL}, 1, 1, f_lws, (int)(sizeof f_lws / sizeof(int))};

@@ -29,7 +29,9 @@
  * GPU-class devices (CONV_LDS) run the 3x3 stride-1 forward from local-memory tiles instead:
  * kernels/conv2d_lds.cl (same arguments, same summation order, bit-identical results).
  * Layers with few output channels (CONV_NARROW_MAXC) take the same kernels compiled with a
- * narrower, longer register tile: kernels/conv2d_narrow.cl (bit-identical results). */
+ * narrower, longer register tile: kernels/conv2d_narrow.cl (bit-identical results).
+ * With CONV_NOPAD (CPU class) the stride-1 3x3 pad-1 and 1x1 pad-0 forwards and their data
+ * gradients skip the padded copy and read the input itself: kernels/conv2d_nopad.h (same bits). */
 #include "conv2d_common.h"
 
 __kernel void spx_conv2d_fwd_k3s1(CONV_FWD_ARGS) { conv_fwd(CONV_FWD_PASS, 1, 3); }
