@@ -83,19 +83,22 @@ static void test_device_bytes(void) {
 
   spx_tape *t = spx_unet_tape(u);
   CHECK_OK(ctx, spx_unet_forward(u, in, 1, H, W, 0, out));
-  size_t b1 = spx_unet_device_bytes(u), pe = spx_tape_plan_bytes(t, NULL);
-  CHECK_MSG(pe >= (size_t)(4 + 3) * H * W * sizeof(float) && b1 == b0 + pe, "eval: %zu -> %zu bytes, plan %zu", b0,
-            b1, pe);
+  /* an eval pass keeps its convolutions' prepared weights (CONV_WPREP, on in both classes) */
+  size_t b1 = spx_unet_device_bytes(u), pe = spx_tape_plan_bytes(t, NULL), wp = spx_tape_wprep_bytes(t);
+  CHECK_MSG(pe >= (size_t)(4 + 3) * H * W * sizeof(float) && wp > 0 && b1 == b0 + pe + wp,
+            "eval: %zu -> %zu bytes, plan %zu, prepared weights %zu", b0, b1, pe, wp);
   CHECK_OK(ctx, spx_unet_forward(u, in, 1, H, W, 0, out));
-  CHECK(spx_unet_device_bytes(u) == b1);
+  CHECK(spx_unet_device_bytes(u) == b1 && spx_tape_wprep_bytes(t) == wp);
 
   float loss;
   CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 1, H, W, NULL, &loss));
   CHECK_OK(ctx, spx_unet_backward(u));
   size_t b2 = spx_unet_device_bytes(u), pt1 = spx_tape_plan_bytes(t, NULL);
   size_t arena = pt1 > pe ? pt1 : pe;
-  CHECK_MSG(b2 == b0 + 12 * params + arena, "train b1: %zu -> %zu bytes, plan %zu", b1, b2, pt1);
-  CHECK_OK(ctx, spx_unet_adam_step(u, 1e-3));
+  CHECK_MSG(b2 == b0 + 12 * params + arena + wp, "train b1: %zu -> %zu bytes, plan %zu", b1, b2, pt1);
+  CHECK_OK(ctx, spx_unet_adam_step(u, 1e-3)); /* new weights: the prepared ones are released */
+  CHECK(spx_tape_wprep_bytes(t) == 0);
+  b2 -= wp;
   CHECK_OK(ctx, spx_unet_zero_grad(u));
   CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 1, H, W, NULL, &loss));
   CHECK_OK(ctx, spx_unet_backward(u));

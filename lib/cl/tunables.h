@@ -34,6 +34,7 @@ struct spx_tunables {
   int conv_narrow_maxc;   /* conv2d forward, narrow layers (kernels/conv2d_narrow.cl) */
   int conv_narrow_tm;
   int conv_narrow_tn;
+  int conv_wprep;         /* inference convs keep prepared weights between passes (lib/nn/tape.c) */
   int conv_nopad;         /* stride-1 'same' forwards read the unpadded input (kernels/conv2d_nopad.h) */
   int conv_lds;           /* local-memory 3x3 forward (GPU) */
   int conv_lds_tx;

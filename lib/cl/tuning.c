@@ -95,6 +95,10 @@ static const struct spx_tunable spx_tunables[] = {
      * (same bits). CPU: the copies were ~15% of a width-16 UNet eval pass. GPU: off (its 3x3 runs
      * the local-memory kernel, which keeps the padded copy) */
     {"CONV_NOPAD", F(conv_nopad), 1, 0, 0, 1, 0},
+    /* network tape: 1 = an inference convolution keeps its packed / Winograd-transformed weights
+     * from one pass to the next until a parameter changes (more device memory: a Winograd layer's
+     * U is 4x its weights; width-64 eval skips ~9% of its work) */
+    {"CONV_WPREP", F(conv_wprep), 1, 1, 0, 1, 0},
     /* conv2d: 1 = 3x3 stride-1 forwards (and backward data) run the local-memory tiled kernel
      * (kernels/conv2d_lds.cl; needs CONV_VW = 1): tiles of CONV_LDS_TX columns x
      * (CONV_LWS/CONV_LDS_TX)*CONV_TN rows, CONV_LDS_CB input channels per local-memory block.

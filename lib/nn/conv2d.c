@@ -117,20 +117,60 @@ static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_
   return spx_cl_fill_f32(ctx, out->mem, used, total - used, 0.0f);
 }
 
-/* Packed weight panel (see spx_conv2d_pack). */
+void spx_conv2d_wprep_release(spx_conv2d_wprep *wp) {
+  if (!wp) return;
+  spx_cl_free(&wp->mem);
+  wp->cap = 0, wp->key = 0;
+}
+
+spx_status spx_conv2d_wprep_lookup(spx_ctx *ctx, spx_conv2d_wprep *wp, const int *what, int nwhat,
+                                   const spx_tensor *w, size_t bytes, int *hit, cl_mem *mem) {
+  uint64_t key = spx_hash64(what, (size_t)nwhat * sizeof(int), 0x9e3779b97f4a7c15ull);
+  cl_mem wm = w->mem;
+  size_t wo = w->off;
+  key = spx_hash64(&wm, sizeof wm, key);
+  key = spx_hash64(&wo, sizeof wo, key);
+  key |= 1; /* never 0 */
+  *hit = wp->key == key && wp->mem && wp->cap >= bytes;
+  if (!*hit) {
+    wp->key = 0;
+    if (wp->cap < bytes) {
+      spx_cl_free(&wp->mem);
+      wp->cap = 0;
+      spx_status st = spx_cl_alloc(ctx, bytes, "conv2d prepared weights", &wp->mem);
+      if (st) return st;
+      wp->cap = bytes;
+    }
+  }
+  *mem = wp->mem;
+  if (!*hit) wp->key = key; /* valid once the caller's enqueued preparation runs */
+  return SPX_OK;
+}
+
+/* Packed weight panel (see spx_conv2d_pack); with wp, kept there and reused while it matches. */
 static spx_status pack_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, const spx_tensor *w, int cout,
-                               int cin, int k, int cols, int flip, int narrow, spx_conv2d_scratch *out) {
+                               int cin, int k, int cols, int flip, int narrow, spx_conv2d_wprep *wp,
+                               spx_conv2d_scratch *out) {
   cl_kernel kr;
   spx_status st = spx_cl_kernel(ctx, narrow ? SPX_K_CONV2D_PACK_NARROW : SPX_K_CONV2D_PACK, &kr);
   if (st) return st;
   size_t rows = (size_t)(flip ? cout : cin) * k * k, total = rows * (size_t)cols;
-  if ((st = spx_conv2d_scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d packed weights", out))) return st;
+  if (wp) {
+    const int what[] = {1, cout, cin, k, cols, flip, narrow};
+    int hit = 0;
+    memset(out, 0, sizeof *out);
+    if ((st = spx_conv2d_wprep_lookup(ctx, wp, what, 7, w, total * sizeof(float), &hit, &out->mem))) return st;
+    if (hit) return SPX_OK;
+  } else if ((st = spx_conv2d_scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d packed weights", out))) {
+    return st;
+  }
   cl_ulong wo = w->off;
   cl_int e = SPX_ARG(kr, 0, w->mem) | SPX_ARG(kr, 1, wo) | SPX_ARG(kr, 2, out->mem) | SPX_ARG(kr, 3, cout) |
              SPX_ARG(kr, 4, cin) | SPX_ARG(kr, 5, k) | SPX_ARG(kr, 6, cols) | SPX_ARG(kr, 7, flip);
-  if ((st = spx_cl_check(ctx, e, "spx_conv2d_pack args"))) return st;
   size_t l = (size_t)ctx->dev->tune.wg;
-  return spx_cl_run(ctx, kr, 1, &total, &l, "spx_conv2d_pack");
+  if (!(st = spx_cl_check(ctx, e, "spx_conv2d_pack args"))) st = spx_cl_run(ctx, kr, 1, &total, &l, "spx_conv2d_pack");
+  if (st && wp) wp->key = 0; /* the preparation did not run */
+  return st;
 }
 
 /* Zeros after the last plane so that vector loads of the last tiles stay inside the buffer. */
@@ -285,6 +325,11 @@ static spx_status run_fwd(spx_ctx *ctx, fwd_tile tile, int nopad, cl_mem xp, siz
 
 spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,
                               const spx_conv2d_params *p, const spx_tensor *y) {
+  return spx_conv2d_forward_prep(ctx, x, w, bias, p, NULL, y);
+}
+
+spx_status spx_conv2d_forward_prep(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,
+                                   const spx_conv2d_params *p, spx_conv2d_wprep *prep, const spx_tensor *y) {
   geom g = {0};
   spx_status st = check_common(ctx, x, w, p, &g);
   if (st) return st;
@@ -292,7 +337,7 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
       (st = check_vec(ctx, p->scale, g.cout, "scale")) || (st = check_vec(ctx, p->shift, g.cout, "shift")))
     return st;
   if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, p->scale || p->relu))
-    return spx_conv2d_winograd(ctx, p->ws, x, w, 0, bias, p->scale, p->scale ? p->shift : NULL, p->relu, 0, y);
+    return spx_conv2d_winograd(ctx, p->ws, x, w, 0, bias, p->scale, p->scale ? p->shift : NULL, p->relu, 0, y, prep);
   dlay L;
   direct_layout(ctx, &g, 0, &L);
   int wp = L.wp, plane = L.plane, coutp = L.cp;
@@ -301,7 +346,7 @@ spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tenso
   if (!L.nopad && (st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, L.hp, wp, plane, g.pad, g.pad,
                                  1, L.total[0], &xp)))
     goto done;
-  if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, tile.narrow, &wpk))) goto done;
+  if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, tile.narrow, prep, &wpk))) goto done;
   int flags = (bias ? SPX_CONV_FL_BIAS : 0) | (p->scale ? SPX_CONV_FL_SCALE : 0) |
               (p->scale && p->shift ? SPX_CONV_FL_SHIFT : 0) | (p->relu ? SPX_CONV_FL_RELU : 0);
   st = run_fwd(ctx, tile, L.nopad, L.nopad ? x->mem : xp.mem, L.nopad ? x->off : 0, wpk.mem, g.n, g.cin, g.cout,
@@ -316,7 +361,7 @@ done:
 static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *w,
                                 const spx_tensor *dy, const spx_tensor *dx) {
   if (spx_conv2d_winograd_applies(ctx, g->k, g->s, g->pad, g->cout, g->cin, 0))
-    return spx_conv2d_winograd(ctx, ws, dy, w, 1, NULL, NULL, NULL, 0, 1, dx);
+    return spx_conv2d_winograd(ctx, ws, dy, w, 1, NULL, NULL, NULL, 0, 1, dx, NULL);
   dlay L;
   direct_layout(ctx, g, 1, &L);
   int wd = L.wp, plane = L.plane, top = g->k - 1 - g->pad, cinp = L.cp;
@@ -326,7 +371,7 @@ static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const ge
   if (!L.nopad && (st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, L.hp, wd, plane, top,
                                  top, g->s, L.total[0], &dyp)))
     goto done;
-  if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, tile.narrow, &wpk))) goto done;
+  if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, tile.narrow, NULL, &wpk))) goto done;
   st = run_fwd(ctx, tile, L.nopad, L.nopad ? dy->mem : dyp.mem, L.nopad ? dy->off : 0, wpk.mem, g->n, g->cout, g->cin,
                cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL, NULL, SPX_CONV_FL_ACCUM);
 done:

@@ -63,6 +63,27 @@ static inline int spx_conv2d_out_size(int in, int k, int stride, int pad) {
 spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,
                               const spx_conv2d_params *p, const spx_tensor *y);
 
+/* Prepared weights kept between calls (inference with unchanged weights): the packed panel of
+ * the direct path or Winograd's transformed U, computed once and reused while `key` (the
+ * algorithm, tile, shapes and the weight tensor's buffer and offset) matches. The OWNER must
+ * clear it (spx_conv2d_wprep_release) whenever the weights' values change: a stale key cannot
+ * see a write. The network tape does this on every parameter write, Adam step and broadcast. */
+typedef struct spx_conv2d_wprep {
+  cl_mem mem;
+  size_t cap;   /* bytes */
+  uint64_t key; /* 0: holds nothing */
+} spx_conv2d_wprep;
+void spx_conv2d_wprep_release(spx_conv2d_wprep *wp);
+/* (launchers) *mem = wp's buffer, grown to `bytes`; *hit = it already holds the preparation
+ * described by what[0..nwhat) of weights w, else the caller enqueues it there now. */
+spx_status spx_conv2d_wprep_lookup(spx_ctx *ctx, spx_conv2d_wprep *wp, const int *what, int nwhat,
+                                   const spx_tensor *w, size_t bytes, int *hit, cl_mem *mem);
+
+/* spx_conv2d_forward, reusing (or filling) wp's prepared weights; wp NULL: as spx_conv2d_forward.
+ * (The GPU class's fused Winograd transforms its weights inside every call and ignores wp.) */
+spx_status spx_conv2d_forward_prep(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,
+                                   const spx_conv2d_params *p, spx_conv2d_wprep *wp, const spx_tensor *y);
+
 /* Gradients of the plain convolution (the epilogue fields of p are ignored): dx [N,Cin,H,W],
  * dw [Cout,Cin,k,k], db [Cout], each accumulated (+=) when non-NULL. */
 spx_status spx_conv2d_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *dy,
@@ -92,7 +113,7 @@ int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, 
  * transposed, cin = Cout, cout = Cin). bias/scale/shift may be NULL. Shapes are pre-validated. */
 spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
-                               int relu, int accumulate, const spx_tensor *y);
+                               int relu, int accumulate, const spx_tensor *y, spx_conv2d_wprep *wp);
 
 /* Slot bytes of spx_conv2d_winograd for x [n][cin][h][w] -> y [n][cout][h][w] (slot 0: padded
  * input / products, 1: U, 2: V; the samples per pass follow CONV_WINO_CHUNK). */

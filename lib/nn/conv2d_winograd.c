@@ -82,7 +82,7 @@ spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int 
 
 spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
-                               int relu, int accumulate, const spx_tensor *y) {
+                               int relu, int accumulate, const spx_tensor *y, spx_conv2d_wprep *wp) {
   if (spx_conv2d_winograd_lds_applies(ctx)) /* GPU class: the fused local-memory variant */
     return spx_conv2d_winograd_lds(ctx, ws, x, w, flip, bias, scale, shift, relu, accumulate, y);
   const int n = x->n, cin = x->c, h = x->h, wd = x->w, cout = y->c;
@@ -97,18 +97,23 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "conv2d winograd: %.0f transformed elements exceed the index range", vmax);
   const int Tp = (int)tp;
   spx_conv2d_scratch XM = {0}, U = {0}, V = {0};
+  int have_u = 0; /* U already in wp (prepared weights kept between inference calls) */
   spx_status st;
   cl_kernel kw, kg, ko;
   if ((st = spx_cl_kernel(ctx, SPX_K_WINO_WEIGHTS, &kw)) ||
       (st = spx_cl_kernel(ctx, SPX_K_WINO_GEMM, &kg)) ||
       (st = spx_cl_kernel(ctx, SPX_K_WINO_OUT, &ko)))
     return st;
+  if (wp) {
+    const int what[] = {2, Cout, Cin, coutp, tm, flip};
+    if ((st = spx_conv2d_wprep_lookup(ctx, wp, what, 6, w, L.need.slot[1], &have_u, &U.mem))) goto done;
+  }
   if ((st = spx_conv2d_scratch_get(ctx, ws, 0, L.need.slot[0], "winograd padded input / products", &XM)) ||
-      (st = spx_conv2d_scratch_get(ctx, ws, 1, L.need.slot[1], "winograd weight transform", &U)) ||
+      (!wp && (st = spx_conv2d_scratch_get(ctx, ws, 1, L.need.slot[1], "winograd weight transform", &U))) ||
       (st = spx_conv2d_scratch_get(ctx, ws, 2, L.need.slot[2], "winograd input transform", &V)))
     goto done;
   const size_t wg = (size_t)ctx->dev->tune.wg;
-  {
+  if (!have_u) {
     cl_ulong wo = w->off;
     cl_int e = SPX_ARG(kw, 0, w->mem) | SPX_ARG(kw, 1, wo) | SPX_ARG(kw, 2, U.mem) | SPX_ARG(kw, 3, Cout) |
                SPX_ARG(kw, 4, Cin) | SPX_ARG(kw, 5, coutp) | SPX_ARG(kw, 6, flip);
@@ -145,6 +150,7 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
     }
   }
 done:
+  if (st && wp && !have_u) wp->key = 0; /* the preparation may not have run */
   spx_conv2d_scratch_put(&XM);
   spx_conv2d_scratch_put(&U);
   spx_conv2d_scratch_put(&V);

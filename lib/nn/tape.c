@@ -105,9 +105,16 @@ spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **ou
   return SPX_OK;
 }
 
+void spx_tp_wprep_drop(spx_tape *t) {
+  if (!t->wprep) return;
+  for (int i = 0; i < t->npersist; i++) spx_conv2d_wprep_release(&t->wprep[i]);
+}
+
 void spx_tape_destroy(spx_tape *t) {
   if (!t) return;
   spx_tp_prof_report(t);
+  spx_tp_wprep_drop(t);
+  free(t->wprep);
   spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
   spx_cl_free(&t->state), spx_cl_free(&t->act), spx_cl_free(&t->ws);
   free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact);
@@ -192,6 +199,12 @@ size_t spx_tape_device_bytes(const spx_tape *t) {
     b += ((t->grad ? 4 : 1) * (t->nparam ? t->nparam : 1) + (t->nstate ? t->nstate : 1)) * sizeof(float);
   if (t->act) b += t->act_cap * sizeof(float); /* the op scratch lies inside it (TAPE_WS_ARENA 1) */
   if (t->ws) b += t->ws_cap;                    /* ... or here (0) */
+  return b + spx_tape_wprep_bytes(t);
+}
+
+size_t spx_tape_wprep_bytes(const spx_tape *t) {
+  size_t b = 0;
+  for (int i = 0; t && t->wprep && i < t->npersist; i++) b += t->wprep[i].cap;
   return b;
 }
 
@@ -206,6 +219,7 @@ static spx_status xfer(spx_tape *t, int id, int grad, int moment, float *rd, con
   size_t n = spx_tp_numel(v);
   spx_status st = spx_tp_check_live(t, id, grad, rd ? "read" : "write");
   if (st || ((moment || (grad && v->space == SP_PARAM)) && (st = spx_tp_train_slabs(t)))) return st;
+  if (wr && !grad && !moment && v->space == SP_PARAM) spx_tp_wprep_drop(t); /* new weights */
   if (t->backend == SPX_TAPE_DEVICE) {
     cl_mem m;
     size_t off = grad ? v->goff : v->off;
@@ -417,7 +431,13 @@ static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, i
     spx_conv2d_params p = {k,    stride, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu,
                            spx_tp_ws(t, t->nnodes - 1, 0, &ws)};
     if (t->prof > 1) spx_tp_prof_conv_note(t, xv->c, wv->n, k, stride, pad, scale >= 0 || relu);
-    RUN(OP_CONV, spx_conv2d_forward(t->ctx, &tx, &tw, bias >= 0 ? &tb : NULL, &p, &ty));
+    /* an inference forward of a parameter keeps its prepared weights for the next pass */
+    spx_conv2d_wprep *prep = NULL;
+    if ((scale >= 0 || relu) && wv->space == SP_PARAM && t->ctx->dev->tune.conv_wprep) {
+      if (!t->wprep) t->wprep = calloc((size_t)t->npersist, sizeof *t->wprep);
+      prep = t->wprep ? &t->wprep[w] : NULL; /* out of memory: prepare per call */
+    }
+    RUN(OP_CONV, spx_conv2d_forward_prep(t->ctx, &tx, &tw, bias >= 0 ? &tb : NULL, &p, prep, &ty));
   }
   return y;
 }
@@ -778,6 +798,7 @@ spx_status spx_tape_zero_moments(spx_tape *t) {
 }
 
 spx_status spx_tape_adam(spx_tape *t, double lr, double beta1, double beta2, double eps, int64_t step) {
+  spx_tp_wprep_drop(t); /* the step changes the weights */
   spx_status st = spx_tp_train_slabs(t);
   if (st) return st;
   if (step < 1) return spx_fail(t->ctx, SPX_E_ARG, "tape: Adam step number %lld < 1", (long long)step);

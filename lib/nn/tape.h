@@ -145,6 +145,9 @@ spx_status spx_tape_transfer(spx_tape *dst, int did, size_t doff, int dst_grad, 
  * its activations and gradients plus the largest op scratch, i.e. what it would need without
  * reuse. 0 before a planned pass. */
 size_t spx_tape_plan_bytes(const spx_tape *t, size_t *without_reuse);
+/* Bytes of the inference convolutions' prepared weights the tape holds now (CONV_WPREP; part of
+ * spx_tape_device_bytes; 0 after any parameter write, Adam step or broadcast). */
+size_t spx_tape_wprep_bytes(const spx_tape *t);
 /* Backward may run more than once over one forward (torch's retain_graph): everything backward
  * reads stays alive. Set before the pass; plans are made per setting. */
 void spx_tape_set_retain(spx_tape *t, int on);

@@ -75,6 +75,7 @@ spx_status spx_tape_broadcast(spx_tape *t) {
   if (!t->comm) return SPX_OK;
   if (!t->allocated || t->backend != SPX_TAPE_DEVICE)
     return spx_fail(t->ctx, SPX_E_STATE, "tape: broadcast needs allocated device parameters");
+  spx_tp_wprep_drop(t); /* rank 0's weights replace these */
   spx_status sst = spx_tp_train_slabs(t); /* the Adam slabs are broadcast too */
   if (sst) return sst;
   uint64_t sizes[2] = {t->nparam, t->nstate}, root[2];

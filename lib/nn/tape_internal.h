@@ -92,6 +92,10 @@ struct spx_tape {
   size_t act_cap;                         /* floats */
   cl_mem ws;                              /* op scratch when not inside act (TAPE_WS_ARENA 0) */
   size_t ws_cap;                          /* bytes */
+  /* inference convolutions' prepared weights (packed / Winograd-transformed), per weight value
+   * id < npersist, kept between passes while the parameters do not change (CONV_WPREP); every
+   * parameter write, Adam step and broadcast drops them all (spx_tp_wprep_drop) */
+  spx_conv2d_wprep *wprep;
   /* slabs: host */
   double *hparam, *hgrad, *hm, *hv, *hstate, *hact;
   /* current pass */
@@ -123,6 +127,9 @@ struct spx_tape {
   struct tp_prof_inst *prof_inst;
   int prof_ninst, prof_cap;
 };
+
+/* tape.c: release every prepared weight (the parameters change, or the tape goes) */
+void spx_tp_wprep_drop(spx_tape *t);
 
 /* tape_prof.c: the profile's per-instance records and the report at destroy */
 void spx_tp_prof_inst(spx_tape *t, int kind, double seconds);
