@@ -42,6 +42,53 @@ __kernel void spx_upsample2x_fwd(__global const float *x, int xo, __global float
   y[yo + p * ps + oy * rs + ox] = spx_up_at(x + xo + p * h * w, h, w, oy, ox, sh, sw, align);
 }
 
+/* The same outputs, CPU class (tunable UP_ROWS = 1): one work-item writes UP_V = 16 consecutive
+ * columns of one output row for a block of `pb` planes. The row's and the 16 columns' source
+ * indices and weights come from spx_up_src once per work-item, not once per output. Away from
+ * the left and right edges, output column 2j reads input columns j-1, j and column 2j+1 reads
+ * j, j+1 (both align_corners modes); where the computed indices follow that pattern, each plane
+ * reads the 10 input floats of each source row once and the lanes take their columns by two
+ * constant swizzles. Elsewhere (the first chunk of a row, the last, images narrower than 16
+ * columns) each lane reads its own. Every lane evaluates spx_up_at's expression on the same
+ * operands: bit-identical to spx_upsample2x_fwd. range (ceil(ow / UP_V), oh, ceil(planes / pb)). */
+#define UP_V 16
+__kernel void spx_upsample2x_fwd_rows(__global const float *x, int xo, __global float *y, int yo, int h, int w,
+                                      float sh, float sw, int align, int ps, int rs, int planes, int pb) {
+  const int oh = 2 * h, ow = 2 * w;
+  const int ox0 = get_global_id(0) * UP_V, oy = get_global_id(1), p0 = get_global_id(2) * pb;
+  if (ox0 >= ow || oy >= oh || p0 >= planes) return;
+  const int p1 = min(p0 + pb, planes), n = min(UP_V, ow - ox0), hw = h * w;
+  int h0, h1;
+  float lh0, lh1;
+  spx_up_src(oy, h, sh, align, &h0, &h1, &lh0, &lh1);
+  int c0[UP_V], c1[UP_V];
+  float a0[UP_V], a1[UP_V];
+  const int s = ox0 / 2 - 1; /* the pattern's first input column */
+  int fast = n == UP_V && s >= 0;
+  for (int l = 0; l < n; l++) {
+    spx_up_src(ox0 + l, w, sw, align, &c0[l], &c1[l], &a0[l], &a1[l]);
+    fast &= c0[l] == s + (l + 1) / 2 && c1[l] == c0[l] + 1;
+  }
+  __global float *yr = y + yo + oy * rs + ox0;
+  if (fast) {
+    const float16 lw0 = vload16(0, a0), lw1 = vload16(0, a1);
+    for (int p = p0; p < p1; p++) {
+      __global const float *q0 = x + xo + p * hw + h0 * w + s, *q1 = x + xo + p * hw + h1 * w + s;
+      const float16 r0 = (float16)(vload8(0, q0), vload2(0, q0 + 8), (float2)(0.0f), (float4)(0.0f));
+      const float16 r1 = (float16)(vload8(0, q1), vload2(0, q1 + 8), (float2)(0.0f), (float4)(0.0f));
+      const float16 v = lh0 * (lw0 * r0.s0112233445566778 + lw1 * r0.s1223344556677889) +
+                        lh1 * (lw0 * r1.s0112233445566778 + lw1 * r1.s1223344556677889);
+      vstore16(v, 0, yr + p * ps);
+    }
+  } else {
+    for (int p = p0; p < p1; p++) {
+      __global const float *q0 = x + xo + p * hw + h0 * w, *q1 = x + xo + p * hw + h1 * w;
+      for (int l = 0; l < n; l++)
+        yr[p * ps + l] = lh0 * (a0[l] * q0[c0[l]] + a1[l] * q0[c1[l]]) + lh1 * (a0[l] * q1[c0[l]] + a1[l] * q1[c1[l]]);
+    }
+  }
+}
+
 /* The zero border around the upsampled planes of the fused up block (pad > 0 only): the rows
  * outside [top, top + uh) (rows = 1, range (ow, oh - uh, planes)) or the columns outside
  * [left, left + uw) of the rows inside (rows = 0, range (ow - uw, uh, planes)) of the oh x ow

@@ -137,6 +137,14 @@ static inline spx_ctx *spx_nt_open(void) {
   return ctx;
 }
 
+/* The value in effect of the tunable `name` (as `smplpix tune --show` names it), -1 if unknown. */
+static inline int spx_nt_tunable(spx_ctx *ctx, const char *name) {
+  spx_tunable_info t;
+  for (int i = 0; i < spx_device_tunable_count(); i++)
+    if (spx_device_tunable(ctx, i, &t) == SPX_OK && !strcmp(t.name, name)) return t.value;
+  return -1;
+}
+
 /* ---------- text goldens ----------
  * File: one record per line, "name count v0 v1 ...", values as printed by Python repr/%.9g.
  * spx_golden_get returns a malloc'd array of `count` doubles for `name` (NULL if absent). */

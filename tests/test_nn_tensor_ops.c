@@ -118,10 +118,18 @@ static void test_concat(void) {
   CHECK_OK(ctx, spx_nt_upload(ctx, fg, n, ca + cb, h, w, &tg));
   CHECK_OK(ctx, spx_nt_upload(ctx, pa, n, ca, h, w, &tda));
   CHECK_OK(ctx, spx_nt_upload(ctx, pb, n, cb, h, w, &tdb));
-  CHECK_OK(ctx, spx_concat_forward(ctx, &ta, &tb, &to));
-  CHECK_OK(ctx, spx_nt_download(ctx, &to, got));
   spx_ref_concat_forward(da, db, n, ca, cb, hw, ref);
-  CHECK_CLOSE_ARR(got, ref, no, 0, 0);
+  /* both placements: the element-wise kernel and one buffer copy per sample (SPX_PLACE_COPY) */
+  const int pc = spx_nt_tunable(ctx, "PLACE_COPY");
+  CHECK(pc >= 0);
+  for (int v = 0; v < 2; v++) {
+    CHECK_OK(ctx, spx_device_set_tunable(ctx, "PLACE_COPY", v));
+    CHECK_OK(ctx, spx_fill(ctx, &to, -3.0f));
+    CHECK_OK(ctx, spx_concat_forward(ctx, &ta, &tb, &to));
+    CHECK_OK(ctx, spx_nt_download(ctx, &to, got));
+    CHECK_CLOSE_ARR(got, ref, no, 0, 0);
+  }
+  CHECK_OK(ctx, spx_device_set_tunable(ctx, "PLACE_COPY", pc));
   /* only db wanted: da stays untouched */
   CHECK_OK(ctx, spx_concat_backward(ctx, &tg, NULL, &tdb));
   CHECK_OK(ctx, spx_concat_backward(ctx, &tg, &tda, NULL));

@@ -1,7 +1,7 @@
 /* Bilinear x2 upsampling (kernels/upsample.cl), align_corners true and false: FD check of the
  * reference backward; reference vs PyTorch's F.interpolate golden (tests/data/upsample); device
  * forward/backward vs reference on odd shapes incl. 1-pixel sides, accumulate semantics,
- * bit-identical reruns. */
+ * bit-identical reruns; the CPU row-vector forward bit for bit against the per-output one. */
 #include "nn/upsample.h"
 #include "nn_opcase.h"
 
@@ -90,9 +90,46 @@ static void test_device(void) {
   spx_nt_op_cases(&up_op, cases, 10);
 }
 
+/* The row-vector forward (SPX_UP_ROWS = 1: 16 columns of a row per work-item, swizzled source
+ * rows where the column pattern holds, per-lane reads elsewhere) against the per-output kernel
+ * (0), bit for bit: images narrower than 16 columns, exactly 16, partial last chunks, more
+ * planes than a work-item's block, batch 2, both align_corners modes; guard floats untouched. */
+static void test_device_rows(void) {
+  spx_ctx *ctx = spx_nt_open();
+  CHECK(ctx != NULL);
+  if (!ctx) return;
+  const int opened = spx_nt_tunable(ctx, "UP_ROWS");
+  CHECK(opened >= 0);
+  const int shapes[][4] = {{1, 1, 3, 7}, {1, 2, 5, 15}, {1, 3, 4, 16}, {2, 19, 9, 17}, {1, 35, 11, 53},
+                           {1, 1, 1, 40}, {1, 16, 38, 51}, {1, 2, 154, 205}};
+  for (size_t i = 0; i < sizeof shapes / sizeof shapes[0]; i++)
+    for (int ac = 0; ac < 2; ac++) {
+      const int n = shapes[i][0], c = shapes[i][1], h = shapes[i][2], w = shapes[i][3];
+      size_t nx = (size_t)n * c * h * w, ny = 4 * nx;
+      float *x = malloc(4 * nx), *y[2] = {malloc(4 * ny), malloc(4 * ny)};
+      unsigned long long s = 97 + i;
+      spx_nt_rand(x, nx, -1, 1, &s);
+      spx_tensor tx, ty;
+      CHECK_OK(ctx, spx_nt_upload(ctx, x, n, c, h, w, &tx));
+      CHECK_OK(ctx, spx_nt_upload(ctx, NULL, n, c, 2 * h, 2 * w, &ty));
+      for (int v = 0; v < 2; v++) {
+        CHECK_OK(ctx, spx_device_set_tunable(ctx, "UP_ROWS", v));
+        CHECK_OK(ctx, spx_upsample2x_forward(ctx, &tx, ac, &ty));
+        CHECK_OK(ctx, spx_nt_download(ctx, &ty, y[v]));
+        CHECK(spx_nt_guards_ok(ctx, &ty));
+      }
+      CHECK_MSG(!memcmp(y[0], y[1], 4 * ny), "%dx%dx%dx%d ac=%d: row-vector forward differs", n, c, h, w, ac);
+      spx_nt_free(&tx), spx_nt_free(&ty);
+      free(x), free(y[0]), free(y[1]);
+    }
+  CHECK_OK(ctx, spx_device_set_tunable(ctx, "UP_ROWS", opened));
+  spx_ctx_destroy(ctx);
+}
+
 int main(void) {
   SPX_RUN(test_reference_fd);
   SPX_RUN(test_golden);
   SPX_RUN(test_device);
+  SPX_RUN(test_device_rows);
   return spx_test_summary();
 }

@@ -97,6 +97,7 @@
   X(CHANNEL_SLICE_ACC, "tensor_ops.cl", "spx_channel_slice_acc")       \
   X(CHANNEL_PLACE, "tensor_ops.cl", "spx_channel_place")               \
   X(UPSAMPLE2X_FWD, "upsample.cl", "spx_upsample2x_fwd")               \
+  X(UPSAMPLE2X_FWD_ROWS, "upsample.cl", "spx_upsample2x_fwd_rows")     \
   X(UPCAT_BORDER, "upsample.cl", "spx_upcat_border")                   \
   X(UPSAMPLE2X_WEIGHTS, "upsample.cl", "spx_upsample2x_weights")       \
   X(UPSAMPLE2X_BWD_ROWS, "upsample.cl", "spx_upsample2x_bwd_rows")     \

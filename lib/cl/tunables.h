@@ -61,6 +61,8 @@ struct spx_tunables {
   int conv_red_wg;        /* conv2d bias gradient */
   int wg2_x;              /* 2-D (x, y, plane) kernels */
   int wg2_y;
+  int up_rows;            /* bilinear x2 upsampling forward: row-vector kernel (CPU) */
+  int place_copy;         /* channel placement (concat, up block) by buffer copies */
   int bn_wg;              /* batch / instance norm */
   int red_wg;             /* generic reductions */
   int red_groups;

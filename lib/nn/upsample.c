@@ -20,19 +20,33 @@ static float scale_of(int in, int align) {
   return 0.5f;
 }
 
-/* y (planes ps apart from yo, rows rs apart) = the x2 upsampling of x: `planes` planes. */
+/* Planes per work-item of the row-vector kernel: the source indices and weights are computed
+ * once for this many planes. */
+#define UP_ROWS_PLANES 16
+
+/* y (planes ps apart from yo, rows rs apart) = the x2 upsampling of x: `planes` planes. Per
+ * output (spx_upsample2x_fwd) or 16 columns of a row per work-item (spx_upsample2x_fwd_rows,
+ * tunable SPX_UP_ROWS): the same bits. */
 static spx_status up_forward(spx_ctx *ctx, cl_mem x, size_t xo, int h, int w, size_t planes, cl_mem y, size_t yo,
                              size_t ps, size_t rs, int align) {
-  const char *kname = spx_cl_kernel_name(SPX_K_UPSAMPLE2X_FWD);
+  const int rows = ctx->dev->tune.up_rows;
+  const spx_kernel_id id = rows ? SPX_K_UPSAMPLE2X_FWD_ROWS : SPX_K_UPSAMPLE2X_FWD;
+  const char *kname = spx_cl_kernel_name(id);
   cl_kernel k;
-  spx_status st = spx_cl_kernel(ctx, SPX_K_UPSAMPLE2X_FWD, &k);
+  spx_status st = spx_cl_kernel(ctx, id, &k);
   if (st) return st;
+  if (planes > (size_t)INT_MAX) return spx_fail(ctx, SPX_E_ARG, "upsample2x_forward: tensor too large");
   cl_int al = align ? 1 : 0, xoi = (cl_int)xo, yoi = (cl_int)yo, psi = (cl_int)ps, rsi = (cl_int)rs;
+  cl_int np = (cl_int)planes, pb = UP_ROWS_PLANES;
   float sh = scale_of(h, align), sw = scale_of(w, align);
   cl_int e = SPX_ARG(k, 0, x) | SPX_ARG(k, 1, xoi) | SPX_ARG(k, 2, y) | SPX_ARG(k, 3, yoi) | SPX_ARG(k, 4, h) |
              SPX_ARG(k, 5, w) | SPX_ARG(k, 6, sh) | SPX_ARG(k, 7, sw) | SPX_ARG(k, 8, al) | SPX_ARG(k, 9, psi) |
              SPX_ARG(k, 10, rsi);
+  if (rows) e |= SPX_ARG(k, 11, np) | SPX_ARG(k, 12, pb);
   if ((st = spx_cl_check(ctx, e, kname))) return st;
+  if (rows)
+    return spx_nn_run3d(ctx, k, (2 * (size_t)w + 15) / 16, 2 * (size_t)h, (planes + UP_ROWS_PLANES - 1) / UP_ROWS_PLANES,
+                        kname);
   return spx_nn_run3d(ctx, k, 2 * (size_t)w, 2 * (size_t)h, planes, kname);
 }
 
