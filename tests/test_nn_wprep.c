@@ -2,7 +2,7 @@
  * lib/nn/conv2d.h): an eval pass that reuses them gives the same bits as one that prepares its
  * weights again (CONV_WPREP = 0), and every way the weights change (Adam step, spx_unet_write,
  * a checkpoint-style write of all tensors) is seen by the next pass, on the direct path and with
- * every 3x3 layer on Winograd. */
+ * every 3x3 layer on Winograd; so is a change of the register tile the panels were packed for. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -89,6 +89,21 @@ static void run(spx_ctx *ctx, int wino) {
   CHECK(changed && spx_tape_wprep_bytes(t) == 0);
   same(ctx, u, in, a, b, nout, "after spx_unet_write");
   CHECK_MSG(memcmp(a, first, nout * sizeof(float)), "rewriting a convolution's weights did not change the output");
+
+  /* a register tile changed between passes (as `smplpix tune` does on a live network): the panels
+   * kept for the old tile are not reused. Same bits as a fresh preparation under the new tile,
+   * and (same summation order) as before the change. */
+  if (!wino) {
+    const int tm = tunable(ctx, "CONV_TM"), ntm = tunable(ctx, "CONV_NARROW_TM");
+    memcpy(first, a, nout * sizeof(float));
+    eval(ctx, u, in, 1, a); /* kept under the opened tiles */
+    CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_TM", tm == 8 ? 4 : 8));
+    CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_NARROW_TM", ntm == 8 ? 4 : 8));
+    same(ctx, u, in, a, b, nout, "after a register-tile change");
+    CHECK_MSG(!memcmp(a, first, nout * sizeof(float)), "a register-tile change changed the output");
+    CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_TM", tm));
+    CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_NARROW_TM", ntm));
+  }
 done:
   spx_unet_destroy(u);
   free(in), free(tg), free(a), free(b), free(first);

@@ -156,10 +156,13 @@ static spx_status pack_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot,
   if (st) return st;
   size_t rows = (size_t)(flip ? cout : cin) * k * k, total = rows * (size_t)cols;
   if (wp) {
-    const int what[] = {1, cout, cin, k, cols, flip, narrow};
+    /* the panel layout depends on the tile's column count too (wpk[ct][r][m], m < TM): a kept
+     * panel packed under another CONV_TM / CONV_NARROW_TM (a tuner's candidate) is not reused */
+    const int tm = narrow ? ctx->dev->tune.conv_narrow_tm : ctx->dev->tune.conv_tm;
+    const int what[] = {1, cout, cin, k, cols, flip, narrow, tm};
     int hit = 0;
     memset(out, 0, sizeof *out);
-    if ((st = spx_conv2d_wprep_lookup(ctx, wp, what, 7, w, total * sizeof(float), &hit, &out->mem))) return st;
+    if ((st = spx_conv2d_wprep_lookup(ctx, wp, what, 8, w, total * sizeof(float), &hit, &out->mem))) return st;
     if (hit) return SPX_OK;
   } else if ((st = spx_conv2d_scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d packed weights", out))) {
     return st;
