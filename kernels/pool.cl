@@ -33,6 +33,39 @@ __kernel void spx_maxpool_fwd(__global const float *x, int xo, __global float *y
   y[yo + (p * oh + oy) * ow + ox] = m;
 }
 
+/* The same outputs, CPU class (tunable ROW_VEC = 1): 16 windows of one row per work-item from
+ * two 16-float loads of each source row, the same comparisons lane by lane (NaN wins, the first
+ * maximum). The last chunk of a row when ow is not a multiple of 16 goes window by window.
+ * range (ceil(ow / 16), oh, planes). */
+__kernel void spx_maxpool_fwd_rows(__global const float *x, int xo, __global float *y, int yo, int h, int w) {
+  int oh = h / 2, ow = w / 2;
+  int ox0 = get_global_id(0) * 16, oy = get_global_id(1), p = get_global_id(2);
+  if (ox0 >= ow || oy >= oh) return;
+  __global const float *q = x + xo + (p * h + 2 * oy) * w + 2 * ox0;
+  __global float *yr = y + yo + (p * oh + oy) * ow + ox0;
+  if (ox0 + 16 > ow) {
+    for (int l = 0; l < ow - ox0; l++) {
+      __global const float *ql = q + 2 * l;
+      float m = ql[0], v = ql[1];
+      m = (v > m || isnan(v)) ? v : m;
+      v = ql[w];
+      m = (v > m || isnan(v)) ? v : m;
+      v = ql[w + 1];
+      m = (v > m || isnan(v)) ? v : m;
+      yr[l] = m;
+    }
+    return;
+  }
+  const float16 a0 = vload16(0, q), a1 = vload16(0, q + 16), b0 = vload16(0, q + w), b1 = vload16(0, q + w + 16);
+  float16 m = (float16)(a0.even, a1.even), v = (float16)(a0.odd, a1.odd);
+  m = select(m, v, (v > m) | isnan(v));
+  v = (float16)(b0.even, b1.even);
+  m = select(m, v, (v > m) | isnan(v));
+  v = (float16)(b0.odd, b1.odd);
+  m = select(m, v, (v > m) | isnan(v));
+  vstore16(m, 0, yr);
+}
+
 /* range (ow, oh, planes): one work-item per window adds dy to the argmax element of its window.
  * Windows do not overlap (stride 2), so every dx element has at most one writer: no atomics. */
 __kernel void spx_maxpool_bwd(__global const float *x, int xo, __global const float *dy, int go, __global float *dx,

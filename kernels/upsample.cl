@@ -42,7 +42,7 @@ __kernel void spx_upsample2x_fwd(__global const float *x, int xo, __global float
   y[yo + p * ps + oy * rs + ox] = spx_up_at(x + xo + p * h * w, h, w, oy, ox, sh, sw, align);
 }
 
-/* The same outputs, CPU class (tunable UP_ROWS = 1): one work-item writes UP_V = 16 consecutive
+/* The same outputs, CPU class (tunable ROW_VEC = 1): one work-item writes UP_V = 16 consecutive
  * columns of one output row for a block of `pb` planes. The row's and the 16 columns' source
  * indices and weights come from spx_up_src once per work-item, not once per output. Away from
  * the left and right edges, output column 2j reads input columns j-1, j and column 2j+1 reads

@@ -1,6 +1,7 @@
 /* Max pool 2x2/2 floor mode (kernels/pool.cl): FD check of the reference; device forward and
  * backward vs reference on odd shapes (dropped last row/col), with many ties (first max in
- * row-major order wins) and accumulate semantics; bit-identical reruns. */
+ * row-major order wins) and accumulate semantics; bit-identical reruns; the CPU row-vector forward
+ * bit for bit against the per-window one. */
 #include "nn/pool.h"
 #include "nn_opcase.h"
 
@@ -68,9 +69,48 @@ static void test_golden(void) {
 static const spx_nt_case pool_cases[] = {{2, 3, 37, 53, .p = 0}, {2, 3, 37, 53, .p = 3}, {1, 2, 38, 51, .p = 2}, {1, 1, 3, 2, .p = 0}};
 static void test_device(void) { spx_nt_op_cases(&pool_op, pool_cases, 4); }
 
+/* The row-vector forward (SPX_ROW_VEC = 1: 16 windows of a row per work-item) against the
+ * per-window kernel, bit for bit, on data with NaNs, infinities and ties: rows of exactly 16
+ * windows, full chunks with a partial last one, fewer than 16, batch 2. */
+static void test_device_rows(void) {
+  spx_ctx *ctx = spx_nt_open();
+  CHECK(ctx != NULL);
+  if (!ctx) return;
+  const int opened = spx_nt_tunable(ctx, "ROW_VEC");
+  CHECK(opened >= 0);
+  const int shapes[][4] = {{1, 2, 6, 32}, {1, 2, 64, 70}, {2, 3, 37, 53}, {1, 1, 5, 9}, {1, 3, 17, 33}};
+  for (size_t i = 0; i < sizeof shapes / sizeof shapes[0]; i++) {
+    const int n = shapes[i][0], c = shapes[i][1], h = shapes[i][2], w = shapes[i][3];
+    size_t nx = (size_t)n * c * h * w, ny = (size_t)n * c * (h / 2) * (w / 2);
+    float *x = malloc(4 * nx), *y[2] = {malloc(4 * ny), malloc(4 * ny)};
+    unsigned long long s = 5 + i;
+    spx_nt_rand(x, nx, -1, 1, &s);
+    for (size_t j = 0; j < nx; j++) { /* ties, NaNs and infinities in every position of a window */
+      if (j % 7 == 3) x[j] = floorf(x[j] * 2.0f);
+      if (j % 29 == 5) x[j] = NAN;
+      if (j % 31 == 8) x[j] = j % 2 ? INFINITY : -INFINITY;
+    }
+    spx_tensor tx, ty;
+    CHECK_OK(ctx, spx_nt_upload(ctx, x, n, c, h, w, &tx));
+    CHECK_OK(ctx, spx_nt_upload(ctx, NULL, n, c, h / 2, w / 2, &ty));
+    for (int v = 0; v < 2; v++) {
+      CHECK_OK(ctx, spx_device_set_tunable(ctx, "ROW_VEC", v));
+      CHECK_OK(ctx, spx_maxpool_forward(ctx, &tx, &ty));
+      CHECK_OK(ctx, spx_nt_download(ctx, &ty, y[v]));
+      CHECK(spx_nt_guards_ok(ctx, &ty));
+    }
+    CHECK_MSG(!memcmp(y[0], y[1], 4 * ny), "%dx%dx%dx%d: row-vector forward differs", n, c, h, w);
+    spx_nt_free(&tx), spx_nt_free(&ty);
+    free(x), free(y[0]), free(y[1]);
+  }
+  CHECK_OK(ctx, spx_device_set_tunable(ctx, "ROW_VEC", opened));
+  spx_ctx_destroy(ctx);
+}
+
 int main(void) {
   SPX_RUN(test_reference);
   SPX_RUN(test_golden);
   SPX_RUN(test_device);
+  SPX_RUN(test_device_rows);
   return spx_test_summary();
 }

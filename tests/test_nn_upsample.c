@@ -90,7 +90,7 @@ static void test_device(void) {
   spx_nt_op_cases(&up_op, cases, 10);
 }
 
-/* The row-vector forward (SPX_UP_ROWS = 1: 16 columns of a row per work-item, swizzled source
+/* The row-vector forward (SPX_ROW_VEC = 1: 16 columns of a row per work-item, swizzled source
  * rows where the column pattern holds, per-lane reads elsewhere) against the per-output kernel
  * (0), bit for bit: images narrower than 16 columns, exactly 16, partial last chunks, more
  * planes than a work-item's block, batch 2, both align_corners modes; guard floats untouched. */
@@ -98,7 +98,7 @@ static void test_device_rows(void) {
   spx_ctx *ctx = spx_nt_open();
   CHECK(ctx != NULL);
   if (!ctx) return;
-  const int opened = spx_nt_tunable(ctx, "UP_ROWS");
+  const int opened = spx_nt_tunable(ctx, "ROW_VEC");
   CHECK(opened >= 0);
   const int shapes[][4] = {{1, 1, 3, 7}, {1, 2, 5, 15}, {1, 3, 4, 16}, {2, 19, 9, 17}, {1, 35, 11, 53},
                            {1, 1, 1, 40}, {1, 16, 38, 51}, {1, 2, 154, 205}};
@@ -113,7 +113,7 @@ static void test_device_rows(void) {
       CHECK_OK(ctx, spx_nt_upload(ctx, x, n, c, h, w, &tx));
       CHECK_OK(ctx, spx_nt_upload(ctx, NULL, n, c, 2 * h, 2 * w, &ty));
       for (int v = 0; v < 2; v++) {
-        CHECK_OK(ctx, spx_device_set_tunable(ctx, "UP_ROWS", v));
+        CHECK_OK(ctx, spx_device_set_tunable(ctx, "ROW_VEC", v));
         CHECK_OK(ctx, spx_upsample2x_forward(ctx, &tx, ac, &ty));
         CHECK_OK(ctx, spx_nt_download(ctx, &ty, y[v]));
         CHECK(spx_nt_guards_ok(ctx, &ty));
@@ -122,7 +122,7 @@ static void test_device_rows(void) {
       spx_nt_free(&tx), spx_nt_free(&ty);
       free(x), free(y[0]), free(y[1]);
     }
-  CHECK_OK(ctx, spx_device_set_tunable(ctx, "UP_ROWS", opened));
+  CHECK_OK(ctx, spx_device_set_tunable(ctx, "ROW_VEC", opened));
   spx_ctx_destroy(ctx);
 }
 

@@ -61,6 +61,7 @@
   X(ADAM_STEP, "optim.cl", "spx_adam_step")                            \
   X(SGD_STEP, "optim.cl", "spx_sgd_step")                              \
   X(MAXPOOL_FWD, "pool.cl", "spx_maxpool_fwd")                         \
+  X(MAXPOOL_FWD_ROWS, "pool.cl", "spx_maxpool_fwd_rows")               \
   X(MAXPOOL_BWD, "pool.cl", "spx_maxpool_bwd")                         \
   X(AVGPOOL3_FWD, "pool.cl", "spx_avgpool3_fwd")                       \
   X(AVGPOOL3_BWD, "pool.cl", "spx_avgpool3_bwd")                       \

@@ -61,7 +61,7 @@ struct spx_tunables {
   int conv_red_wg;        /* conv2d bias gradient */
   int wg2_x;              /* 2-D (x, y, plane) kernels */
   int wg2_y;
-  int up_rows;            /* bilinear x2 upsampling forward: row-vector kernel (CPU) */
+  int row_vec;            /* upsampling / max-pool forwards: row-vector kernels (CPU) */
   int place_copy;         /* channel placement (concat, up block) by buffer copies */
   int bn_wg;              /* batch / instance norm */
   int red_wg;             /* generic reductions */

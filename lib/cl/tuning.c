@@ -166,12 +166,12 @@ static const struct spx_tunable spx_tunables[] = {
      * upsample, batch-norm eval (lib/nn/nn_internal.h spx_nn_run3d) */
     {"SPX_WG2_X", F(wg2_x), 64, 32, 1, 1024, T_POW2|T_WG},
     {"SPX_WG2_Y", F(wg2_y), 1, 8, 1, 1024, T_POW2|T_WG},
-    /* bilinear x2 upsampling forward (kernels/upsample.cl): 1 = 16 columns of a row per
-     * work-item, source indices and weights computed once for a block of planes, the source rows
-     * read as vectors and the columns picked by shuffles (same bits as 0); 0 = one work-item per
-     * output (GPU). CPU: the width-16 UNet's full-resolution upsampling took ~4x less time
-     * (benchmarks/RESULTS.md) */
-    {"SPX_UP_ROWS", F(up_rows), 1, 0, 0, 1, 0},
+    /* the x2 upsampling and 2x2 max-pool forwards (kernels/upsample.cl, kernels/pool.cl): 1 = 16
+     * output columns of a row per work-item from vector loads of the source rows (the upsampling
+     * computes its indices and weights once for a block of planes); same bits as 0 = one
+     * work-item per output (GPU). CPU: the full-resolution upsampling of the width-16 UNet took
+     * ~6x less time, the max-pool ~2x (benchmarks/RESULTS.md) */
+    {"SPX_ROW_VEC", F(row_vec), 1, 0, 0, 1, 0},
     /* 1: concat / up-block channel placement as one clEnqueueCopyBuffer per sample (CPU: PoCL's
      * memcpy); 0: the element-wise kernel spx_channel_place (GPU: unmeasured, kept) */
     {"SPX_PLACE_COPY", F(place_copy), 1, 0, 0, 1, 0},

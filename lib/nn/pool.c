@@ -15,11 +15,16 @@ static spx_status shapes(spx_ctx *ctx, const char *op, const spx_tensor *x, cons
 spx_status spx_maxpool_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *y) {
   spx_status st;
   cl_kernel k;
-  if ((st = shapes(ctx, "maxpool_forward", x, y, "y")) || (st = spx_cl_kernel(ctx, SPX_K_MAXPOOL_FWD, &k)))
+  /* per window, or 16 windows of a row per work-item (tunable SPX_ROW_VEC): the same bits */
+  const int rows = ctx->dev->tune.row_vec;
+  const char *name = rows ? "spx_maxpool_fwd_rows" : "spx_maxpool_fwd";
+  if ((st = shapes(ctx, "maxpool_forward", x, y, "y")) ||
+      (st = spx_cl_kernel(ctx, rows ? SPX_K_MAXPOOL_FWD_ROWS : SPX_K_MAXPOOL_FWD, &k)))
     return st;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, y) | SPX_ARG(k, 4, x->h) | SPX_ARG(k, 5, x->w);
-  if ((st = spx_cl_check(ctx, e, "spx_maxpool_fwd"))) return st;
-  return spx_nn_run3d(ctx, k, (size_t)y->w, (size_t)y->h, (size_t)y->n * (size_t)y->c, "spx_maxpool_fwd");
+  if ((st = spx_cl_check(ctx, e, name))) return st;
+  return spx_nn_run3d(ctx, k, rows ? ((size_t)y->w + 15) / 16 : (size_t)y->w, (size_t)y->h,
+                      (size_t)y->n * (size_t)y->c, name);
 }
 
 spx_status spx_maxpool_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *dy, const spx_tensor *dx) {

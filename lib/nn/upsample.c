@@ -26,10 +26,10 @@ static float scale_of(int in, int align) {
 
 /* y (planes ps apart from yo, rows rs apart) = the x2 upsampling of x: `planes` planes. Per
  * output (spx_upsample2x_fwd) or 16 columns of a row per work-item (spx_upsample2x_fwd_rows,
- * tunable SPX_UP_ROWS): the same bits. */
+ * tunable SPX_ROW_VEC): the same bits. */
 static spx_status up_forward(spx_ctx *ctx, cl_mem x, size_t xo, int h, int w, size_t planes, cl_mem y, size_t yo,
                              size_t ps, size_t rs, int align) {
-  const int rows = ctx->dev->tune.up_rows;
+  const int rows = ctx->dev->tune.row_vec;
   const spx_kernel_id id = rows ? SPX_K_UPSAMPLE2X_FWD_ROWS : SPX_K_UPSAMPLE2X_FWD;
   const char *kname = spx_cl_kernel_name(id);
   cl_kernel k;
