@@ -17,20 +17,23 @@ inline int spx_pool_argmax(__global const float *p, int w) {
   return a;
 }
 
-/* range (ow, oh, planes). The value of spx_pool_argmax's element, branch-free from two row loads
- * (the same comparisons in the same order: the first maximum, NaN wins). */
-__kernel void spx_maxpool_fwd(__global const float *x, int xo, __global float *y, int yo, int h, int w) {
-  int oh = h / 2, ow = w / 2;
-  int ox = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
-  if (ox >= ow || oy >= oh) return;
-  __global const float *q = x + xo + (p * h + 2 * oy) * w + 2 * ox;
+/* The value of spx_pool_argmax's element of the window whose top-left is q, branch-free (the
+ * same comparisons in the same order: the first maximum, NaN wins). */
+inline float spx_pool_max(__global const float *q, int w) {
   float m = q[0], v = q[1];
   m = (v > m || isnan(v)) ? v : m;
   v = q[w];
   m = (v > m || isnan(v)) ? v : m;
   v = q[w + 1];
-  m = (v > m || isnan(v)) ? v : m;
-  y[yo + (p * oh + oy) * ow + ox] = m;
+  return (v > m || isnan(v)) ? v : m;
+}
+
+/* range (ow, oh, planes): one work-item per window. */
+__kernel void spx_maxpool_fwd(__global const float *x, int xo, __global float *y, int yo, int h, int w) {
+  int oh = h / 2, ow = w / 2;
+  int ox = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
+  if (ox >= ow || oy >= oh) return;
+  y[yo + (p * oh + oy) * ow + ox] = spx_pool_max(x + xo + (p * h + 2 * oy) * w + 2 * ox, w);
 }
 
 /* The same outputs, CPU class (tunable ROW_VEC = 1): 16 windows of one row per work-item from
@@ -44,16 +47,7 @@ __kernel void spx_maxpool_fwd_rows(__global const float *x, int xo, __global flo
   __global const float *q = x + xo + (p * h + 2 * oy) * w + 2 * ox0;
   __global float *yr = y + yo + (p * oh + oy) * ow + ox0;
   if (ox0 + 16 > ow) {
-    for (int l = 0; l < ow - ox0; l++) {
-      __global const float *ql = q + 2 * l;
-      float m = ql[0], v = ql[1];
-      m = (v > m || isnan(v)) ? v : m;
-      v = ql[w];
-      m = (v > m || isnan(v)) ? v : m;
-      v = ql[w + 1];
-      m = (v > m || isnan(v)) ? v : m;
-      yr[l] = m;
-    }
+    for (int l = 0; l < ow - ox0; l++) yr[l] = spx_pool_max(q + 2 * l, w);
     return;
   }
   const float16 a0 = vload16(0, q), a1 = vload16(0, q + 16), b0 = vload16(0, q + w), b1 = vload16(0, q + w + 16);

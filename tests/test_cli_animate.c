@@ -1,7 +1,7 @@
 /* End to end: `smplpix animate` (apps/cmd_animate.c) on the default body registration written by
  * the test, small cameras, a width-8 network the test saves through the library.
  *  - BVH: one frame with --no-network equals the library's projection of the same retargeted pose
- *    (8-bit rounding), and "ffmpeg is not on PATH" is said; two frames through --checkpoint equal
+ *    (8-bit rounding), and "ffmpeg is not on PATH" is said (PATH holds only the linker PoCL needs); two frames through --checkpoint equal
  *    projection + spx_unet_forward; --orbit turns the view;
  *  - AMASS: a small SMPL-layout .npz written here renders one frame through the network, equal to
  *    the library (spx_amass_map_pose + projection + network); SMPL-H renders too;
@@ -154,7 +154,7 @@ static void test_bvh(void) {
   camera_for(pos, "cam.json", 1);
   long drawn = 0;
   /* one frame, raw projection; no ffmpeg on PATH */
-  CHECK(tool_env("PATH=/nonexistent", "animate --registration reg.json --bvh " CLIP
+  CHECK(tool_env(path_without_ffmpeg(), "animate --registration reg.json --bvh " CLIP
                                       " --frames 0:1 --camera cam.json --out raw --no-network") == 0);
   CHECK(exists("raw/frame_000000.png") && !exists("raw/frame_000001.png") && !exists("raw/animation.mp4"));
   CHECK(file_has("out.txt", "ffmpeg is not on PATH") && file_has("out.txt", "frames/s"));
@@ -163,7 +163,7 @@ static void test_bvh(void) {
   CHECK_MSG(d <= 0.5 / 255 + 1e-6, "raw frame differs from the library by %g", d);
   CHECK_MSG(drawn > 100, "only %ld pixels of the body drawn", drawn);
   /* frames 1 and 2 through the network */
-  CHECK(tool_env("PATH=/nonexistent", "animate --registration reg.json --bvh " CLIP
+  CHECK(tool_env(path_without_ffmpeg(), "animate --registration reg.json --bvh " CLIP
                                       " --frames 1:3 --camera cam.json --out net --checkpoint net.safetensors") == 0);
   CHECK(file_has("out.txt", "through the network"));
   for (long f = 1; f < 3; f++) {
@@ -176,7 +176,7 @@ static void test_bvh(void) {
   }
   CHECK(!exists("net/frame_000000.png") && !exists("net/frame_000003.png"));
   /* --orbit: frame 1 seen from 90 degrees round differs from the straight view */
-  CHECK(tool_env("PATH=/nonexistent", "animate --registration reg.json --bvh " CLIP
+  CHECK(tool_env(path_without_ffmpeg(), "animate --registration reg.json --bvh " CLIP
                                       " --frames 0:2 --camera cam.json --out orbit --no-network --orbit 90 --quiet") == 0);
   spx_image a = {0}, b = {0};
   char pa[700], pb[700];
@@ -202,7 +202,7 @@ static void test_amass(void) {
   amass_pose("walk.npz", 1, pose, trans);
   posed_verts(pose, trans, pos);
   camera_for(pos, "acam.json", 1);
-  CHECK(tool_env("PATH=/nonexistent", "animate --registration reg.json --amass walk.npz --frames 1:2 --camera "
+  CHECK(tool_env(path_without_ffmpeg(), "animate --registration reg.json --amass walk.npz --frames 1:2 --camera "
                                       "acam.json --out amass --checkpoint net.safetensors") == 0);
   long drawn = 0;
   double d = frame_diff("amass/frame_000001.png", pos, "acam.json", net, &drawn);
