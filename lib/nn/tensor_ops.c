@@ -130,7 +130,7 @@ static spx_status channel_run(spx_ctx *ctx, spx_kernel_id id, const spx_tensor *
 spx_status spx_channel_place(spx_ctx *ctx, const spx_tensor *src, const spx_tensor *dst, int c0) {
   if (!ctx->dev->tune.place_copy) return channel_run(ctx, SPX_K_CHANNEL_PLACE, src, dst, c0, src);
   const size_t hw = (size_t)src->h * src->w, bytes = (size_t)src->c * hw * sizeof(float);
-  for (int k = 0; k < src->n; k++) {
+  for (int k = 0; k < src->n && bytes; k++) { /* (a zero-byte copy is an OpenCL error) */
     size_t so = (src->off + (size_t)k * src->c * hw) * sizeof(float);
     size_t dof = (dst->off + ((size_t)k * dst->c + (size_t)c0) * hw) * sizeof(float);
     cl_int e = clEnqueueCopyBuffer(ctx->dev->queue, src->mem, dst->mem, so, dof, bytes, 0, NULL, NULL);
