@@ -145,6 +145,29 @@ static inline int spx_nt_tunable(spx_ctx *ctx, const char *name) {
   return -1;
 }
 
+/* One device op run with the tunable `name` = 0 and then = 1 (the value in effect is restored
+ * after): op(ctx, user) writes `out`, whose guards are checked after each run. 1 when the two runs
+ * give the same bits (the tests of a faster path against the one it replaces). */
+typedef spx_status (*spx_nt_run_fn)(spx_ctx *ctx, void *user);
+static inline int spx_nt_same_bits_both(spx_ctx *ctx, const char *name, spx_nt_run_fn op, void *user,
+                                        const spx_tensor *out) {
+  const int opened = spx_nt_tunable(ctx, name);
+  const size_t n = spx_tensor_numel(out);
+  float *y[2] = {malloc(n * sizeof(float)), malloc(n * sizeof(float))};
+  CHECK_MSG(opened >= 0, "no tunable %s", name);
+  int ok = opened >= 0 && y[0] && y[1];
+  for (int v = 0; v < 2 && ok; v++) {
+    CHECK_OK(ctx, spx_device_set_tunable(ctx, name, v));
+    CHECK_OK(ctx, op(ctx, user));
+    CHECK_OK(ctx, spx_nt_download(ctx, out, y[v]));
+    CHECK(spx_nt_guards_ok(ctx, out));
+  }
+  ok = ok && !memcmp(y[0], y[1], n * sizeof(float));
+  if (opened >= 0) CHECK_OK(ctx, spx_device_set_tunable(ctx, name, opened));
+  free(y[0]), free(y[1]);
+  return ok;
+}
+
 /* ---------- text goldens ----------
  * File: one record per line, "name count v0 v1 ...", values as printed by Python repr/%.9g.
  * spx_golden_get returns a malloc'd array of `count` doubles for `name` (NULL if absent). */
