@@ -170,7 +170,7 @@ static const struct spx_tunable spx_tunables[] = {
      * output columns of a row per work-item from vector loads of the source rows (the upsampling
      * computes its indices and weights once for a block of planes); same bits as 0 = one
      * work-item per output (GPU). CPU: the full-resolution upsampling of the width-16 UNet took
-     * ~6x less time, the max-pool ~2x (benchmarks/RESULTS.md) */
+     * ~6x less time, the max-pool ~3x (benchmarks/RESULTS.md) */
     {"SPX_ROW_VEC", F(row_vec), 1, 0, 0, 1, 0},
     /* 1: concat / up-block channel placement as one clEnqueueCopyBuffer per sample (CPU: PoCL's
      * memcpy); 0: the element-wise kernel spx_channel_place (GPU: unmeasured, kept) */
