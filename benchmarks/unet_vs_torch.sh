@@ -110,13 +110,14 @@ awk '
     for (i = 1; i <= n; i++) {
       k = order[i]
       t = (k in theirs) ? sprintf("%.1f", theirs[k]) : "-"
-      ra = (k in theirs && theirs[k] > 0 && k in ours) ? sprintf("%.2f", ours[k] / theirs[k]) : "-"
+      ra = (k in theirs && theirs[k] > 0 && ours[k] > 0) ? sprintf("%.2f", ours[k] / theirs[k]) : "-"
       rm = (k in rss) ? sprintf("%.0f", rss[k] / 1048576) : "-"
       printf "| %-14s | %10.1f | %10s | %6s | %11.1f | %14.0f | %16s |\n", k, ours[k], t, ra, gfs[k], mem[k] / 1048576, rm
       if (k ~ /^w64 / && (k in theirs)) {
         goal = (k ~ / eval /) ? 1.5 : 2.0
-        verdict[++nv] = sprintf("goal %s: ours/torch %.2f vs <= %.1f: %s", k, ours[k] / theirs[k], goal,
-                                ours[k] / theirs[k] <= goal ? "HOLDS" : "MISSED")
+        if (!(ours[k] > 0)) verdict[++nv] = sprintf("goal %s: ours did not run (see the raw output): MISSED", k)
+        else verdict[++nv] = sprintf("goal %s: ours/torch %.2f vs <= %.1f: %s", k, ours[k] / theirs[k], goal,
+                                     ours[k] / theirs[k] <= goal ? "HOLDS" : "MISSED")
       }
     }
     for (i = 1; i <= nv; i++) print verdict[i]
