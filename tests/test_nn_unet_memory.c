@@ -14,7 +14,10 @@
  *  - after a pass the live bytes are the network's buffers (per-call scratch is gone), the peak is
  *    at least that, and a reset brings the peak down to the live bytes;
  *  - a training step allocates nothing but the slabs and the planned arena (every op's scratch
- *    lies in it): over a fresh network's first step the peak is exactly the live bytes after it. */
+ *    lies in it): over a fresh network's first step the peak is exactly the live bytes after it;
+ *  - an arena split into chunks (TAPE_CHUNK_MB: buffers of at most that size, what a device whose
+ *    largest allocation is below the plan gets) gives the same bits as one buffer, and a storage
+ *    larger than a chunk is a one-line error. */
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -194,8 +197,113 @@ static void test_peak_is_plan(void) {
   peak_is_plan(0);
 }
 
+/* Eval output, loss and every parameter gradient of a batch-2 training step, one buffer of the
+ * arena (chunk_mb 0) or chunks of chunk_mb MiB; *plan: the plan's bytes. Returns the floats
+ * written to res (NULL on failure). */
+static float *chunked_run(int chunk_mb, const float *in, const float *tg, size_t *nres, size_t *plan) {
+  spx_ctx *ctx = spx_nt_open();
+  spx_unet *u = NULL;
+  float *res = NULL;
+  size_t n = 0, cap = 0;
+  CHECK(ctx != NULL);
+  if (!ctx) return NULL;
+  CHECK_OK(ctx, spx_device_set_tunable(ctx, "TAPE_WS_ARENA", 1));
+  CHECK_OK(ctx, spx_device_set_tunable(ctx, "TAPE_CHUNK_MB", chunk_mb));
+  CHECK_OK(ctx, spx_unet_create(ctx, WD, 0, 3, &u));
+  if (!u) goto done;
+  for (int i = 0; i < spx_unet_tensor_count(u); i++) {
+    int nd;
+    int64_t sh[4];
+    spx_unet_tensor_name(u, i, &nd, sh);
+    size_t m = 1;
+    for (int d = 0; d < nd; d++) m *= (size_t)sh[d];
+    cap += m;
+  }
+  cap += (size_t)2 * 3 * H * W + 1;
+  res = calloc(cap, sizeof(float));
+  CHECK(res != NULL);
+  if (!res) goto done;
+  CHECK_OK(ctx, spx_unet_forward(u, in, 2, H, W, 0, res));
+  n += (size_t)2 * 3 * H * W;
+  CHECK_OK(ctx, spx_unet_forward_loss(u, in, tg, 2, H, W, NULL, &res[n++]));
+  CHECK_OK(ctx, spx_unet_backward(u));
+  *plan = spx_tape_plan_bytes(spx_unet_tape(u), NULL);
+  for (int i = 0; i < spx_unet_tensor_count(u); i++) {
+    int nd;
+    int64_t sh[4];
+    const char *name = spx_unet_tensor_name(u, i, &nd, sh);
+    size_t m = 1;
+    for (int d = 0; d < nd; d++) m *= (size_t)sh[d];
+    if (strncmp(name, "optimizer.", 10) == 0 || strstr(name, "running_")) continue;
+    CHECK_OK(ctx, spx_unet_read(u, name, SPX_UNET_GRAD, res + n, m));
+    n += m;
+  }
+done:
+  *nres = n;
+  spx_unet_destroy(u);
+  spx_ctx_destroy(ctx);
+  return res;
+}
+
+/* Nonzero when a batch-2 training pass cannot run with chunks of mb MiB. */
+static int chunk_fails(int mb, const float *in, const float *tg) {
+  spx_ctx *ctx = spx_nt_open();
+  spx_unet *u = NULL;
+  float loss;
+  int bad = !ctx || spx_device_set_tunable(ctx, "TAPE_WS_ARENA", 1) || spx_device_set_tunable(ctx, "TAPE_CHUNK_MB", mb) ||
+            spx_unet_create(ctx, WD, 0, 3, &u) || spx_unet_forward_loss(u, in, tg, 2, H, W, NULL, &loss) ||
+            spx_unet_backward(u);
+  spx_unet_destroy(u);
+  spx_ctx_destroy(ctx);
+  return bad;
+}
+
+static void test_arena_chunks(void) {
+  size_t nin = (size_t)2 * 4 * H * W, nout = (size_t)2 * 3 * H * W, n1 = 0, n2 = 0, plan1 = 0, plan2 = 0;
+  float *in = malloc(nin * sizeof(float)), *tg = malloc(nout * sizeof(float));
+  CHECK(in && tg);
+  if (!in || !tg) goto done;
+  unsigned long long s = 11;
+  spx_nt_rand(in, nin, 0.0f, 1.0f, &s);
+  spx_nt_rand(tg, nout, 0.0f, 1.0f, &s);
+  float *one = chunked_run(0, in, tg, &n1, &plan1), *split = NULL;
+  /* the largest chunk below the plan that holds its largest storage (a conv's scratch: 3.7 of
+   * 4.8 MiB in the CPU class), so that the plan needs at least two */
+  int mb = (int)((plan1 - 1) >> 20);
+  while (mb > 1 && chunk_fails(mb, in, tg)) mb--;
+  CHECK_MSG(mb >= 1 && ((size_t)mb << 20) < plan1, "no chunk size splits a %zu-byte plan", plan1);
+  split = chunked_run(mb, in, tg, &n2, &plan2);
+  CHECK_MSG(plan2 >= plan1, "plans: %zu bytes in one buffer, %zu in %d MiB chunks", plan1, plan2, mb);
+  CHECK(one && split && n1 == n2 && n1 > nout);
+  if (one && split && n1 == n2) {
+    size_t bad = 0;
+    for (size_t i = 0; i < n1; i++) bad += memcmp(&one[i], &split[i], sizeof(float)) != 0;
+    CHECK_MSG(bad == 0, "%zu of %zu floats differ between one arena buffer and %d MiB chunks", bad, n1, mb);
+  }
+  free(one), free(split);
+  /* a 1 MiB chunk is smaller than a conv's scratch of this pass: a clear error, no pass */
+  spx_ctx *ctx = spx_nt_open();
+  spx_unet *u = NULL;
+  CHECK(ctx != NULL);
+  if (ctx) {
+    CHECK_OK(ctx, spx_device_set_tunable(ctx, "TAPE_WS_ARENA", 1));
+    CHECK_OK(ctx, spx_device_set_tunable(ctx, "TAPE_CHUNK_MB", 1));
+    CHECK_OK(ctx, spx_unet_create(ctx, WD, 0, 3, &u));
+    float *out = malloc(nout * sizeof(float));
+    spx_status st = u && out ? spx_unet_forward(u, in, 2, H, W, 0, out) : SPX_E_NOMEM;
+    const char *msg = spx_ctx_message(ctx);
+    CHECK_MSG(st == SPX_E_DEVMEM && strstr(msg, "more than an arena buffer may hold"), "status %d: %s", (int)st, msg);
+    free(out);
+    spx_unet_destroy(u);
+    spx_ctx_destroy(ctx);
+  }
+done:
+  free(in), free(tg);
+}
+
 int main(void) {
   SPX_RUN(test_device_bytes);
+  SPX_RUN(test_arena_chunks);
   SPX_RUN(test_peak_is_plan);
   return spx_test_summary();
 }

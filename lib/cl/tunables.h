@@ -58,6 +58,7 @@ struct spx_tunables {
   int conv_wino_dw;       /* Winograd weight gradient */
   int conv_wino_dw_minhw;
   int tape_ws_arena;      /* op scratch inside the tape's activation arena */
+  int tape_chunk_mb;      /* the tape arena's largest buffer (0: the device's largest allocation) */
   int conv_red_wg;        /* conv2d bias gradient */
   int wg2_x;              /* 2-D (x, y, plane) kernels */
   int wg2_y;

@@ -160,6 +160,11 @@ static const struct spx_tunable spx_tunables[] = {
      * reads a buffer and writes a sub-buffer of the same buffer undefined (CL 1.2 5.2.1), even
      * disjoint; PoCL's CPU device is host memory and handles it */
     {"TAPE_WS_ARENA", F(tape_ws_arena), 1, 0, 0, 1, 0},
+    /* the tape's activation arena is one buffer per chunk of at most the device's largest
+     * allocation (CL_DEVICE_MAX_MEM_ALLOC_SIZE; a width-64 batch-4 training step needs more
+     * than PoCL's 2 GiB); >0: chunks of at most this many MiB (tests split small arenas; a
+     * driver that fails large allocations below its stated maximum) */
+    {"TAPE_CHUNK_MB", F(tape_chunk_mb), 0, 0, 0, 1 << 20, 0},
     /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
     {"CONV_RED_WG", F(conv_red_wg), 16, 256, 1, 1024, T_POW2|T_WG},
     /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,

@@ -57,15 +57,26 @@ int spx_tp_new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, in
 
 
 
+cl_mem spx_tp_act_mem(const spx_tape *t, size_t off, size_t *local) {
+  size_t i = t->act_chunk ? off / t->act_chunk : 0;
+  *local = off;
+  if (i >= (size_t)t->nact) return NULL;
+  *local = off - i * t->act_chunk;
+  return t->act[i];
+}
+
+/* A value's storage never crosses a chunk's end, so its start's chunk holds all of it. */
 spx_tensor spx_tape_tensor(const spx_tape *t, int id) {
   const tvalue *v = &t->vals[id];
-  cl_mem m = v->space == SP_ACT ? t->act : v->space == SP_PARAM ? t->param : t->state;
-  return spx_tensor_view(m, v->off, v->n, v->c, v->h, v->w);
+  size_t off = v->off;
+  cl_mem m = v->space == SP_ACT ? spx_tp_act_mem(t, v->off, &off) : v->space == SP_PARAM ? t->param : t->state;
+  return spx_tensor_view(m, off, v->n, v->c, v->h, v->w);
 }
 spx_tensor spx_tape_grad_tensor(const spx_tape *t, int id) {
   const tvalue *v = &t->vals[id];
-  cl_mem m = v->space == SP_ACT ? t->act : v->space == SP_PARAM ? t->grad : NULL;
-  return spx_tensor_view(m, v->goff, v->n, v->c, v->h, v->w);
+  size_t off = v->goff;
+  cl_mem m = v->space == SP_ACT ? spx_tp_act_mem(t, v->goff, &off) : v->space == SP_PARAM ? t->grad : NULL;
+  return spx_tensor_view(m, off, v->n, v->c, v->h, v->w);
 }
 double *spx_tape_host(spx_tape *t, int id) {
   const tvalue *v = &t->vals[id];
@@ -116,7 +127,9 @@ void spx_tape_destroy(spx_tape *t) {
   spx_tp_wprep_drop(t);
   free(t->wprep);
   spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
-  spx_cl_free(&t->state), spx_cl_free(&t->act), spx_cl_free(&t->ws);
+  spx_cl_free(&t->state), spx_cl_free(&t->ws);
+  for (int i = 0; i < t->nact; i++) spx_cl_free(&t->act[i]);
+  free(t->act), free(t->act_len);
   free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact);
   for (int i = 0; i < t->nplans; i++) spx_tp_plan_free(&t->plans[i]);
   free(t->vals);
@@ -197,7 +210,7 @@ size_t spx_tape_device_bytes(const spx_tape *t) {
   size_t b = 0;
   if (t->allocated)
     b += ((t->grad ? 4 : 1) * (t->nparam ? t->nparam : 1) + (t->nstate ? t->nstate : 1)) * sizeof(float);
-  if (t->act) b += t->act_cap * sizeof(float); /* the op scratch lies inside it (TAPE_WS_ARENA 1) */
+  for (int i = 0; i < t->nact; i++) b += t->act_len[i] * sizeof(float); /* with the op scratch (TAPE_WS_ARENA 1) */
   if (t->ws) b += t->ws_cap;                    /* ... or here (0) */
   return b + spx_tape_wprep_bytes(t);
 }
@@ -222,10 +235,12 @@ static spx_status xfer(spx_tape *t, int id, int grad, int moment, float *rd, con
   if (wr && !grad && !moment && v->space == SP_PARAM) spx_tp_wprep_drop(t); /* new weights */
   if (t->backend == SPX_TAPE_DEVICE) {
     cl_mem m;
-    size_t off = grad ? v->goff : v->off;
+    size_t off = v->off;
     if (moment) m = moment == 1 ? t->m : t->v;
-    else if (grad) m = spx_tape_grad_tensor(t, id).mem;
-    else m = spx_tape_tensor(t, id).mem;
+    else {
+      spx_tensor tv = grad ? spx_tape_grad_tensor(t, id) : spx_tape_tensor(t, id);
+      m = tv.mem, off = tv.off;
+    }
     if (!m) return spx_fail(t->ctx, SPX_E_STATE, "tape: value %d has no storage yet", id);
     return rd ? spx_cl_read(t->ctx, m, off * sizeof(float), n * sizeof(float), rd)
               : spx_cl_write(t->ctx, m, off * sizeof(float), n * sizeof(float), wr);
@@ -270,7 +285,7 @@ spx_status spx_tape_begin(spx_tape *t, int train, uint64_t plan_key) {
   for (int i = 0; i < t->nplans; i++) {
     tplan *p = &t->plans[i];
     if (p->key == plan_key && p->train == t->train && p->retain == t->retain && p->reuse == t->reuse &&
-        p->size <= t->act_cap)
+        p->size <= t->act_cap && p->chunk == t->act_chunk)
       t->measuring = 0, t->cur = p;
   }
   if (t->measuring && t->nplans == TP_MAXPLANS) { /* drop the oldest plan */
@@ -286,20 +301,52 @@ spx_status spx_tape_begin(spx_tape *t, int train, uint64_t plan_key) {
 int spx_tape_measuring(const spx_tape *t) { return t->measuring; }
 int spx_tape_plan_count(const spx_tape *t) { return t->nmeasured; }
 
-static spx_status grow_arena(spx_tape *t, size_t need) {
-  if (need <= t->act_cap) return SPX_OK;
-  if (t->backend == SPX_TAPE_DEVICE) {
-    spx_cl_free(&t->act);
-    t->act_cap = 0;
-    spx_status st = spx_cl_alloc(t->ctx, need * sizeof(float), "activation arena", &t->act);
-    if (st) return st;
-  } else {
+/* The arena for plan p: host, one block; device, chunks of p->chunk floats covering p->size
+ * (grow-only per chunk; all of it anew when the chunk size changes). */
+static spx_status grow_arena(spx_tape *t, const tplan *p) {
+  size_t need = p->size;
+  if (t->backend != SPX_TAPE_DEVICE) {
+    if (need <= t->act_cap) return SPX_OK;
     free(t->hact);
     t->act_cap = 0;
     if (!(t->hact = calloc(need, sizeof(double))))
       return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for a %zu-float arena", need);
+    t->act_cap = need, t->act_chunk = p->chunk;
+    return SPX_OK;
   }
-  t->act_cap = need;
+  if (need <= t->act_cap && p->chunk == t->act_chunk) return SPX_OK;
+  size_t n = (need + p->chunk - 1) / p->chunk;
+  if (p->chunk != t->act_chunk) { /* a new layout: none of the old chunks */
+    for (int i = 0; i < t->nact; i++) spx_cl_free(&t->act[i]);
+    t->nact = 0;
+  }
+  t->act_chunk = p->chunk, t->act_cap = 0;
+  if (n > (size_t)t->nact) {
+    cl_mem *a = realloc(t->act, n * sizeof *a);
+    if (a) t->act = a;
+    size_t *l = a ? realloc(t->act_len, n * sizeof *l) : NULL;
+    if (l) t->act_len = l;
+    if (!a || !l) return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for %zu arena chunks", n);
+    for (size_t i = (size_t)t->nact; i < n; i++) t->act[i] = NULL, t->act_len[i] = 0;
+    t->nact = (int)n;
+  }
+  for (size_t i = 0; i < n; i++) {
+    size_t len = i + 1 < n ? p->chunk : need - i * p->chunk;
+    if (len <= t->act_len[i]) continue;
+    spx_cl_free(&t->act[i]);
+    t->act_len[i] = 0;
+    char what[80];
+    if (n > 1) snprintf(what, sizeof what, "activation arena (chunk %zu of %zu)", i + 1, n);
+    else snprintf(what, sizeof what, "activation arena");
+    spx_status st = spx_cl_alloc(t->ctx, len * sizeof(float), what, &t->act[i]);
+    if (st) return st;
+    t->act_len[i] = len;
+  }
+  /* the extent the chunks cover: every chunk before the last one is full */
+  for (int i = 0; i < t->nact; i++) {
+    t->act_cap += t->act_len[i];
+    if (t->act_len[i] < t->act_chunk) break;
+  }
   return SPX_OK;
 }
 
@@ -315,7 +362,7 @@ spx_status spx_tape_end(spx_tape *t, int *again) {
   if (st) return st;
   p->key = key;
   t->nplans++;
-  if ((st = grow_arena(t, p->size)) || (st = spx_tp_ws_reserve(t, p))) return st;
+  if ((st = grow_arena(t, p)) || (st = spx_tp_ws_reserve(t, p))) return st;
   t->nmeasured++;
   *again = 1;
   return SPX_OK;
@@ -770,7 +817,10 @@ spx_status spx_tape_backward(spx_tape *t, int loss) {
   if ((st = spx_tape_backward_begin(t)) || (st = spx_tp_check_live(t, loss, 1, "backward"))) return st;
   float seed = spx_tape_seed_scale(t); /* 1 without a shard */
   if (HOST) spx_tape_host_grad(t, loss)[0] = seed;
-  else if ((st = spx_cl_fill_f32(t->ctx, t->act, t->vals[loss].goff, 1, seed))) return st;
+  else {
+    spx_tensor g = spx_tape_grad_tensor(t, loss);
+    if ((st = spx_cl_fill_f32(t->ctx, g.mem, g.off, 1, seed))) return st;
+  }
   return spx_tape_backward_run(t);
 }
 

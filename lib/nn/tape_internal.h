@@ -44,7 +44,9 @@ typedef struct tpevent {
 typedef struct tplan {
   uint64_t key;
   int train, retain, reuse;
-  size_t size; /* floats of the arena the plan needs */
+  size_t size;  /* floats of the arena the plan needs */
+  size_t chunk; /* floats per arena chunk (device: the largest allocation; no storage crosses a
+                 * multiple of it); SIZE_MAX on the host */
   size_t sum;  /* floats of all its values and gradients without reuse (reporting) */
   int nv, nnodes;
   tpval *v;
@@ -88,8 +90,16 @@ struct spx_tape {
   size_t nparam, nstate; /* floats */
   int allocated;
   /* slabs: device */
-  cl_mem param, grad, m, v, state, act; /* act: one arena for activations and their gradients */
-  size_t act_cap;                         /* floats */
+  cl_mem param, grad, m, v, state;
+  /* the activation arena: the activations and their gradients (and, TAPE_WS_ARENA 1, the ops'
+   * scratch) at planned float offsets [0, act_cap). On the device it is nact buffers ("chunks")
+   * of act_chunk floats each (the last one act_len[nact - 1]): offset o lies in chunk
+   * o / act_chunk, and the plan puts no storage across a chunk's end (lib/nn/tape_plan.c), so
+   * an arena larger than the device's largest allocation still runs. Host: hact, one chunk. */
+  cl_mem *act;
+  size_t *act_len;
+  int nact;
+  size_t act_cap, act_chunk; /* floats */
   cl_mem ws;                              /* op scratch when not inside act (TAPE_WS_ARENA 0) */
   size_t ws_cap;                          /* bytes */
   /* inference convolutions' prepared weights (packed / Winograd-transformed), per weight value
@@ -127,6 +137,10 @@ struct spx_tape {
   struct tp_prof_inst *prof_inst;
   int prof_ninst, prof_cap;
 };
+
+/* tape.c: the arena chunk holding arena float offset off, and off's offset inside it (device;
+ * NULL before the arena exists) */
+cl_mem spx_tp_act_mem(const spx_tape *t, size_t off, size_t *local);
 
 /* tape.c: release every prepared weight (the parameters change, or the tape goes) */
 void spx_tp_wprep_drop(spx_tape *t);

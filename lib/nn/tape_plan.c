@@ -18,7 +18,8 @@
  *
  * Offsets: the storages (data and gradient separately) sorted by size, largest first (ties by
  * value id), each put at the lowest offset (16-float aligned) that overlaps no storage placed
- * before it whose interval meets its own. All of it depends only on the recorded graph, so a pass
+ * before it whose interval meets its own and crosses no multiple of the plan's chunk (the device's
+ * largest allocation: the arena is one buffer per chunk, lib/nn/tape.c grow_arena). All of it depends only on the recorded graph, so a pass
  * always gets the same layout and the results do not depend on reuse.
  *
  * Op scratch (device backend; lib/nn/workspace.h): node k's forward and its backward step each
@@ -91,20 +92,39 @@ static int by_time(const void *a, const void *b) {
   return x->off < y->off ? -1 : x->off > y->off;
 }
 
-/* First fit of items[i] below/among the already placed items[0..i) whose intervals meet it. */
-static void place(item *it, int i, item **tmp) {
+/* [off, off + n) moved to the next multiple of chunk when it would cross one (n <= chunk). */
+static size_t in_chunk(size_t off, size_t n, size_t chunk) {
+  size_t end = (off / chunk + 1) * chunk;
+  return off + n > end ? end : off;
+}
+
+/* First fit of items[i] below/among the already placed items[0..i) whose intervals meet it, not
+ * across a multiple of chunk (a multiple of every alignment). */
+static void place(item *it, int i, item **tmp, size_t chunk) {
   int m = 0;
   for (int j = 0; j < i; j++)
     if (it[j].s <= it[i].e && it[i].s <= it[j].e) tmp[m++] = &it[j];
   qsort(tmp, (size_t)m, sizeof *tmp, by_off);
   size_t off = 0;
   for (int j = 0; j < m; j++) {
+    off = in_chunk(off, it[i].n, chunk);
     if (tmp[j]->off >= off + it[i].n) break;
     size_t end = tmp[j]->off + tmp[j]->n;
     end = (end + it[i].al - 1) / it[i].al * it[i].al;
     if (end > off) off = end;
   }
-  it[i].off = off;
+  it[i].off = in_chunk(off, it[i].n, chunk);
+}
+
+/* Floats per arena chunk: the device's largest allocation (TAPE_CHUNK_MB: at most that many MiB),
+ * a multiple of align; SIZE_MAX (one block) on the host. */
+static size_t arena_chunk(const spx_tape *t, size_t align) {
+  if (t->backend != SPX_TAPE_DEVICE) return SIZE_MAX;
+  uint64_t bytes = t->ctx->dev->info.max_alloc;
+  uint64_t cap = (uint64_t)t->ctx->dev->tune.tape_chunk_mb << 20;
+  if (cap && cap < bytes) bytes = cap;
+  size_t c = (size_t)(bytes / sizeof(float)) / align * align;
+  return c ? c : align;
 }
 
 /* Scratch of one node's device launchers, need[0] forward, need[1] backward (zero: none). A new
@@ -145,12 +165,6 @@ static void op_need(const spx_tape *t, const tnode *nd, spx_ws_need need[2]) {
 static spx_status ws_items(spx_tape *t, tplan *p, item *it, int *ni) {
   const int N = t->nnodes;
   if (t->backend != SPX_TAPE_DEVICE) return SPX_OK;
-  cl_uint bits = 0;
-  spx_status st = spx_cl_check(t->ctx, clGetDeviceInfo(t->ctx->dev->device, CL_DEVICE_MEM_BASE_ADDR_ALIGN,
-                                                       sizeof bits, &bits, NULL),
-                               "clGetDeviceInfo(CL_DEVICE_MEM_BASE_ADDR_ALIGN)");
-  if (st) return st;
-  p->wsalign = bits / 32 > ALIGN ? bits / 32 : ALIGN;
   p->ws_in_arena = t->ctx->dev->tune.tape_ws_arena;
   p->wsneed = calloc((size_t)(2 * N + 1), sizeof *p->wsneed);
   p->wsoff = calloc((size_t)(2 * N + 1), sizeof *p->wsoff);
@@ -237,7 +251,29 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
     it[ni++] = (item){n, 0, ALIGN, e->d0, e->d1, i, 0};
     if (e->g0 != TP_INF) it[ni++] = (item){n, 0, ALIGN, e->g0, e->g1, i, 1};
   }
-  spx_status st = ws_items(t, p, it, &ni);
+  spx_status st = SPX_OK;
+  p->wsalign = ALIGN;
+  if (t->backend == SPX_TAPE_DEVICE) { /* sub-buffers (op scratch) start at the device's alignment */
+    cl_uint bits = 0;
+    st = spx_cl_check(t->ctx, clGetDeviceInfo(t->ctx->dev->device, CL_DEVICE_MEM_BASE_ADDR_ALIGN, sizeof bits, &bits,
+                                              NULL),
+                      "clGetDeviceInfo(CL_DEVICE_MEM_BASE_ADDR_ALIGN)");
+    if (bits / 32 > ALIGN) p->wsalign = bits / 32;
+  }
+  p->chunk = arena_chunk(t, p->wsalign);
+  if (!st) st = ws_items(t, p, it, &ni);
+  for (int i = 0; i < ni && !st; i++)
+    if (it[i].n > p->chunk) {
+      char what[64];
+      if (it[i].grad >= 2)
+        snprintf(what, sizeof what, "the %s scratch of op %d (%s)", it[i].grad == 2 ? "forward" : "backward", it[i].id,
+                 spx_tp_op_name(t->nodes[it[i].id].kind));
+      else snprintf(what, sizeof what, "the %s of value %d", it[i].grad ? "gradient" : "data", np + it[i].id);
+      st = spx_fail(t->ctx, SPX_E_DEVMEM,
+                    "tape: %s needs %.1f MiB in one buffer, more than an arena buffer may hold (%.1f MiB: the device's "
+                    "largest allocation, or TAPE_CHUNK_MB)",
+                    what, (double)it[i].n * sizeof(float) / (1 << 20), (double)p->chunk * sizeof(float) / (1 << 20));
+    }
   if (st) {
     free(last), free(it), free(tmp);
     spx_tp_plan_free(p);
@@ -247,7 +283,7 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
   p->size = 1, p->sum = 0;
   size_t wsmax = 0; /* "without reuse" counts the largest op workspace once, as a separate buffer */
   for (int i = 0; i < ni; i++) {
-    place(it, i, tmp);
+    place(it, i, tmp, p->chunk);
     if (it[i].off + it[i].n > p->size) p->size = it[i].off + it[i].n;
     if (it[i].grad >= 2) {
       p->wsoff[2 * it[i].id + it[i].grad - 2] = it[i].off;
@@ -324,7 +360,9 @@ static spx_status fill(spx_tape *t, const tpevent *e, float value) {
     for (size_t i = 0; i < e->n; i++) t->hact[e->off + i] = value;
     return SPX_OK;
   }
-  return spx_cl_fill_f32(t->ctx, t->act, e->off, e->n, value);
+  size_t off;
+  cl_mem m = spx_tp_act_mem(t, e->off, &off);
+  return spx_cl_fill_f32(t->ctx, m, off, e->n, value);
 }
 
 spx_status spx_tp_advance(spx_tape *t, int time) {
@@ -364,9 +402,12 @@ spx_status spx_tp_ws_reserve(spx_tape *t, const tplan *p) {
 spx_conv2d_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_conv2d_workspace *ws) {
   const tplan *p = t->cur;
   memset(ws, 0, sizeof *ws);
-  if (!p || !p->wsneed || !(p->ws_in_arena ? t->act : t->ws) || node < 0 || node >= p->nnodes) return NULL;
+  if (!p || !p->wsneed || node < 0 || node >= p->nnodes) return NULL;
+  size_t off = 0;
+  cl_mem m = p->ws_in_arena ? spx_tp_act_mem(t, p->wsoff[2 * node + bwd], &off) : t->ws;
+  if (!m) return NULL;
   spx_ws_layout(&p->wsneed[2 * node + bwd], p->wsalign * sizeof(float), ws);
-  ws->arena = p->ws_in_arena ? t->act : t->ws;
-  ws->base = p->ws_in_arena ? p->wsoff[2 * node + bwd] * sizeof(float) : 0;
+  ws->arena = m;
+  ws->base = off * sizeof(float);
   return ws;
 }
