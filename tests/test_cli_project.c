@@ -52,6 +52,31 @@ static void test_bad_inputs(void) {
   expect_fail("project --mesh tri.obj --camera cam.json --out o.exr --device 42:0", "42:0");
 }
 
+/* PoCL's CPU device with no `ld` on PATH (it links each kernel it compiles with it, and aborts
+ * the process when there is none): a one-line error at device open, exit 1, no output. */
+static void test_no_linker(void) {
+  spx_ctx *c = NULL;
+  spx_device_info info;
+  int pocl_cpu = 0;
+  if (spx_ctx_create(&c) == SPX_OK && spx_device_open(c, NULL) == SPX_OK && spx_device_get_info(c, &info) == SPX_OK)
+    pocl_cpu = info.kind == SPX_DEVICE_CPU && strstr(info.platform, "Portable Computing Language") != NULL;
+  spx_ctx_destroy(c);
+  if (!pocl_cpu || !strchr(spx_t_tool(), '/')) {
+    printf("  skipped: the default device is not PoCL's CPU device, or SPX_TOOL is not a path\n");
+    return;
+  }
+  clean_outputs();
+  write_text("tri.obj", GOOD_OBJ);
+  char cmd[2048];
+  snprintf(cmd, sizeof cmd,
+           "cd '%s' && PATH=/nonexistent '%s' project --mesh tri.obj --camera cam.json --out o.exr >out.txt 2>err.txt", dir,
+           spx_t_tool());
+  int rc = spx_t_system(cmd);
+  CHECK_MSG(rc == 1, "exit %d without ld on PATH", rc);
+  CHECK(err_one_line_with("no ld is on PATH"));
+  CHECK(!exists("o.exr"));
+}
+
 static void test_usage(void) {
   const char *usage[] = {"project --mesh tri.obj", "project --mesh tri.obj --camera cam.json --out o.tiff",
                          "project --bogus", "nosuchcommand"};
@@ -60,6 +85,7 @@ static void test_usage(void) {
 }
 
 int main(void) {
-  const spx_t_test tests[] = {SPX_TEST(test_good_run), SPX_TEST(test_bad_inputs), SPX_TEST(test_usage)};
+  const spx_t_test tests[] = {SPX_TEST(test_good_run), SPX_TEST(test_bad_inputs), SPX_TEST(test_no_linker),
+                               SPX_TEST(test_usage)};
   return cli_test_main(tests, 3);
 }

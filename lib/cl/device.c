@@ -2,6 +2,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cl/cl_internal.h"
 
@@ -131,6 +132,36 @@ static spx_status pick(spx_ctx *ctx, const char *spec, struct pick_state *s) {
   return SPX_OK;
 }
 
+/* An executable `name` in one of PATH's folders (unset PATH: /usr/bin and /bin, as exec does). */
+static int on_path(const char *name) {
+  const char *path = getenv("PATH");
+  if (!path) path = "/usr/bin:/bin";
+  for (const char *p = path;; p++) {
+    const char *e = strchr(p, ':');
+    size_t n = e ? (size_t)(e - p) : strlen(p);
+    char file[4096];
+    if (n + strlen(name) + 2 < sizeof file) {
+      if (n) snprintf(file, sizeof file, "%.*s/%s", (int)n, p, name);
+      else snprintf(file, sizeof file, "./%s", name); /* an empty entry: the current folder */
+      if (access(file, X_OK) == 0) return 1;
+    }
+    if (!e) return 0;
+    p = e;
+  }
+}
+
+/* PoCL's CPU devices link every kernel they compile (at its first launch, when PoCL's own cache
+ * does not hold it yet) with the system linker found on PATH, and abort the process when there
+ * is none: say so at open instead. */
+static spx_status check_linker(spx_ctx *ctx, const spx_device_info *info) {
+  if (info->kind != SPX_DEVICE_CPU || !strstr(info->platform, "Portable Computing Language") || on_path("ld"))
+    return SPX_OK;
+  return spx_fail(ctx, SPX_E_UNSUPPORTED,
+                  "device %s (PoCL): PoCL links the kernels it compiles with the system linker `ld`, and no ld is on "
+                  "PATH (install binutils, or add the folder holding ld to PATH)",
+                  info->name);
+}
+
 spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
   if (!ctx) return SPX_E_ARG;
   if (ctx->dev) spx_cl_close(ctx);
@@ -138,6 +169,9 @@ spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
   struct pick_state s;
   spx_status st = pick(ctx, spec, &s);
   if (st) return st;
+  spx_device_info probe;
+  fill_info(s.p, s.d, s.pi, s.di, &probe);
+  if ((st = check_linker(ctx, &probe))) return st;
   struct spx_cl_device *dev = calloc(1, sizeof *dev);
   if (!dev) return spx_fail(ctx, SPX_E_NOMEM, "spx_device_open: out of memory");
   cl_int err;
@@ -155,7 +189,7 @@ spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
   }
   dev->platform = s.p;
   dev->device = s.d;
-  fill_info(s.p, s.d, s.pi, s.di, &dev->info);
+  dev->info = probe;
   ctx->dev = dev;
   ctx->dev_close = spx_cl_close;
   if ((st = spx_cl_tunables_resolve(ctx))) {
