@@ -8,7 +8,7 @@
  *   2. spx_wino_weights: U[e][cot][ci][m] = (G g G^T)[e] of out channel cot*CONV_TM+m
  *   3. spx_wino_gemm:    M[n][e][co][t] = sum_ci U[e][co][ci] V[n][e][ci][t]  (36 GEMMs per image)
  *   4. spx_wino_out:     y = A^T M A + epilogue (accumulate / bias / affine / ReLU, as conv2d.cl)
- * (spx_wino_in reads the input zero-padded by conv2d.cl's spx_conv2d_pad.)
+ * (spx_wino_in reads the input itself, with zeros outside the image.)
  * 36 GEMMs of Cout x Cin x T do the work of one direct convolution of Cout x 9Cin x 16T: 4x fewer
  * multiply-adds. The GEMM uses the direct kernel's register tiling and tunables (CONV_TM out
  * channels x CONV_TN vectors of CONV_VW tiles, CONV_LWS work-items with interleaved tiles). The
@@ -20,11 +20,57 @@
 /* the transforms (WINO_BT, WINO_AT, wino_filter), shared with conv2d_winograd_lds.cl */
 #include "winograd_tf.h"
 
-/* Input transform. xp is the input zero-padded by spx_conv2d_pad: planes of Hp = 4*TH+2 rows of
- * Wp = 4*TWp+4 floats (data at row 1 + y, column 1 + x), so no bounds tests. Tiles are numbered
- * t = ty*TWp + tx with TWp = TW rounded up to CONV_VW: the CONV_VW tiles of one work-item lie in
- * one tile row. Global: (Tp / CONV_VW, C, N); tiles past TH*TWp are written as zeros. */
-__kernel void spx_wino_in(const __global float *xp, __global float *V, int C, int Wp, int plane, int TWp, int T,
+/* Row i of the 6 x 6 patches of the CONV_VW tiles of one work-item (d[i*6 + j] lane l = the
+ * patch row's element 4l + j), from the row's first 4*CONV_VW + 4 elements as CONV_VW == 16:
+ * eight 16-float vectors L(0), L(16), L(32), L(48), L(4), L(20), L(36), L(52) (L(o): elements
+ * o .. o+15), de-interleaved by 4; other widths: gathered lane by lane with G(k) (element k). */
+#if CONV_VW == 16
+#define WINO_IN_ROW(L, G, i)                                                           \
+  do {                                                                                 \
+    float16 a0 = L(0), a1 = L(16), a2 = L(32), a3 = L(48);                             \
+    float16 b0 = L(4), b1 = L(20), b2 = L(36), b3 = L(52);                             \
+    d[(i) * 6 + 0] = (float16)(a0.s048c, a1.s048c, a2.s048c, a3.s048c);                \
+    d[(i) * 6 + 1] = (float16)(a0.s159d, a1.s159d, a2.s159d, a3.s159d);                \
+    d[(i) * 6 + 2] = (float16)(a0.s26ae, a1.s26ae, a2.s26ae, a3.s26ae);                \
+    d[(i) * 6 + 3] = (float16)(a0.s37bf, a1.s37bf, a2.s37bf, a3.s37bf);                \
+    d[(i) * 6 + 4] = (float16)(b0.s048c, b1.s048c, b2.s048c, b3.s048c);                \
+    d[(i) * 6 + 5] = (float16)(b0.s159d, b1.s159d, b2.s159d, b3.s159d);                \
+  } while (0)
+#else
+#define WINO_IN_ROW(L, G, i)                                          \
+  do {                                                                \
+    for (int j = 0; j < 6; j++) {                                     \
+      float lanes[CONV_VW];                                           \
+      for (int l = 0; l < CONV_VW; l++) lanes[l] = G(4 * l + j);      \
+      d[(i) * 6 + j] = VLOAD(lanes);                                  \
+    }                                                                 \
+  } while (0)
+#endif
+#define WINO_IN_COLS (4 * CONV_VW + 4)
+
+/* Elements x .. x+15 of an image row (NULL: a row outside the image), zero outside [0, W). */
+static inline float16 wino_row16(const __global float *row, int x, int W) {
+  if (!row) return (float16)0.0f;
+  if (x >= 0 && x + 16 <= W) return vload16(0, row + x);
+  float t[16];
+  for (int l = 0; l < 16; l++) t[l] = x + l >= 0 && x + l < W ? row[x + l] : 0.0f;
+  return vload16(0, t);
+}
+/* Element x of an image row (NULL: outside the image), zero outside [0, W). */
+static inline float wino_row1(const __global float *row, int x, int W) {
+  return row && x >= 0 && x < W ? row[x] : 0.0f;
+}
+
+/* Input transform, read straight from the input x [N][C][H][W] (from x_off): the patch of tile
+ * (ty, tx) covers rows 4ty-1 .. 4ty+4 and columns 4tx-1 .. 4tx+4, zero outside the image (the
+ * padding). Tiles are numbered t = ty*TWp + tx with TWp = TW rounded up to CONV_VW: the CONV_VW
+ * tiles of one work-item lie in one tile row. A work-item whose rows and columns (with the
+ * loads' overrun) lie inside the image loads them as vectors; the others (image borders, tiles
+ * past TW) load each 16-float piece that lies inside as a vector and gather the rest with bounds
+ * tests. The values are the same
+ * either way, as were those of the zero-padded copy this kernel used to read: same bits.
+ * Global: (Tp / CONV_VW, C, N); tiles past TH*TWp are written as zeros. */
+__kernel void spx_wino_in(const __global float *x, ulong x_off, __global float *V, int C, int H, int W, int TWp, int T,
                           int Tp) {
   const int t0 = (int)get_global_id(0) * CONV_VW, c = (int)get_global_id(1), n = (int)get_global_id(2);
   if (t0 >= Tp) return;
@@ -36,26 +82,27 @@ __kernel void spx_wino_in(const __global float *xp, __global float *V, int C, in
     return;
   }
   const int ty = t0 / TWp, tx0 = t0 - ty * TWp;
-  const __global float *xc = xp + ((size_t)n * C + c) * plane + (size_t)(4 * ty) * Wp + 4 * tx0;
-  for (int i = 0; i < 6; i++) {
-    const __global float *p = xc + i * Wp;
-#if CONV_VW == 16
-    /* lane l needs p[4l + j], j = 0..5: four 16-float loads, de-interleaved by 4 (and again from p + 4) */
-    float16 a0 = vload16(0, p), a1 = vload16(0, p + 16), a2 = vload16(0, p + 32), a3 = vload16(0, p + 48);
-    float16 b0 = vload16(0, p + 4), b1 = vload16(0, p + 20), b2 = vload16(0, p + 36), b3 = vload16(0, p + 52);
-    d[i * 6 + 0] = (float16)(a0.s048c, a1.s048c, a2.s048c, a3.s048c);
-    d[i * 6 + 1] = (float16)(a0.s159d, a1.s159d, a2.s159d, a3.s159d);
-    d[i * 6 + 2] = (float16)(a0.s26ae, a1.s26ae, a2.s26ae, a3.s26ae);
-    d[i * 6 + 3] = (float16)(a0.s37bf, a1.s37bf, a2.s37bf, a3.s37bf);
-    d[i * 6 + 4] = (float16)(b0.s048c, b1.s048c, b2.s048c, b3.s048c);
-    d[i * 6 + 5] = (float16)(b0.s159d, b1.s159d, b2.s159d, b3.s159d);
-#else
-    for (int j = 0; j < 6; j++) {
-      float lanes[CONV_VW];
-      for (int l = 0; l < CONV_VW; l++) lanes[l] = p[4 * l + j];
-      d[i * 6 + j] = VLOAD(lanes);
+  const int y0 = 4 * ty - 1, x0 = 4 * tx0 - 1;
+  const __global float *xc = x + x_off + ((size_t)n * C + c) * H * W;
+  if (y0 >= 0 && y0 + 5 < H && x0 >= 0 && x0 + WINO_IN_COLS <= W) {
+    for (int i = 0; i < 6; i++) {
+      const __global float *p = xc + (size_t)(y0 + i) * W + x0;
+#define LD_IN(o) vload16(0, p + (o))
+#define G_IN(k) p[k]
+      WINO_IN_ROW(LD_IN, G_IN, i);
+#undef LD_IN
+#undef G_IN
     }
-#endif
+  } else {
+    for (int i = 0; i < 6; i++) {
+      const int yy = y0 + i;
+      const __global float *row = yy >= 0 && yy < H ? xc + (size_t)yy * W : NULL;
+#define LD_EDGE(o) wino_row16(row, x0 + (o), W)
+#define G_EDGE(k) wino_row1(row, x0 + (k), W)
+      WINO_IN_ROW(LD_EDGE, G_EDGE, i);
+#undef LD_EDGE
+#undef G_EDGE
+    }
   }
   for (int j = 0; j < 6; j++) WINO_BT(vf, (r + j), (d + j), 6); /* columns: r = B^T d */
   for (int i = 0; i < 6; i++) WINO_BT(vf, (d + 6 * i), (r + 6 * i), 1); /* rows: d = r B */

@@ -6,7 +6,7 @@
  * V = B^T d B (kernels/conv2d_winograd.cl). Differentiating, with dY the tile's 4x4 output gradient:
  *   dL/dU = (A dY A^T) .* V,   dL/dg = G^T (dL/dU) G,
  * summed over tiles (and samples). The sum over tiles moves inside the weight transform, so
- *   1. spx_wino_in (conv2d_winograd.cl) on the zero-padded input:  V[n][e][ci][t]
+ *   1. spx_wino_in (conv2d_winograd.cl) on the input:               V[n][e][ci][t]
  *   2. spx_wino_dw_grad:    Q[n][e][co][t] = (A dY A^T)[e]       (e = 0..35, zero outside the image)
  *   3. spx_wino_dw_gemm:    P[co][ci][e] += sum_t Q[n][e][co][t] V[n][e][ci][t]  (36 GEMMs, the
  *                           tile axis is the reduction; one fixed-order sum per sample, added to P

@@ -131,11 +131,10 @@ spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const
                                    int flip, const spx_tensor *bias, const spx_tensor *scale,
                                    const spx_tensor *shift, int relu, int accumulate, const spx_tensor *y);
 
-/* Samples [s0, s0 + m) of x [n][c][h][w] zero-padded into xp (planes of (4 th + 2) x (4 twp + 4),
- * th = ceil(h / 4), twp = ceil(w / 4) rounded up to CONV_VW), then their input transform into V
- * [m][36][c][Tp] (Tp >= th * twp, a multiple of CONV_VW; tiles past th * twp are zeros). */
-spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int twp, int Tp, cl_mem xp,
-                                 cl_mem V);
+/* The input transform of samples [s0, s0 + m) of x [n][c][h][w] (zero outside the image) into V
+ * [m][36][c][Tp]: th = ceil(h / 4) rows of twp tiles (ceil(w / 4) rounded up to CONV_VW), Tp >=
+ * th * twp a multiple of CONV_VW; tiles past th * twp are zeros. */
+spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int twp, int Tp, cl_mem V);
 
 /* ---- Winograd weight gradient (lib/nn/conv2d_winograd_dw.c), called by spx_conv2d_backward ---- */
 /* Nonzero when the weight gradient of a k x k / stride / pad conv of cin -> cout channels on

@@ -1,8 +1,8 @@
 /* Winograd F(4x4,3x3) convolution: launchers for kernels/conv2d_winograd.cl (the four stages and
  * the buffer layouts are described at the top of the kernel file). Called by lib/nn/conv2d.c for
  * the forward and backward-data convolutions of 3x3 / stride 1 / pad 1 layers. Scratch: the
- * caller's workspace slots 0 (zero-padded input, then M, the products), 1 (U, transformed
- * weights), 2 (V, transformed input), else buffers allocated per call and released after
+ * caller's workspace slots 0 (M, the products), 1 (U, transformed weights), 2 (V, transformed
+ * input), else buffers allocated per call and released after
  * enqueueing. */
 #include <limits.h>
 #include <string.h>
@@ -18,7 +18,7 @@ int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, 
 /* Tile geometry and scratch of one call: spx_conv2d_winograd and spx_conv2d_winograd_need size
  * the slots from this alone. */
 typedef struct wlay {
-  int th, tw, twp, T, hp, wp, plane, coutp, nb;
+  int th, tw, twp, T, coutp, nb;
   size_t quantum, tp, f0, f2;
   spx_ws_need need;
 } wlay;
@@ -28,13 +28,11 @@ static void layout(const spx_ctx *ctx, int n, int cin, int h, int wd, int cout, 
   const int lws = ctx->dev->tune.conv_lws;
   /* tiles: TH rows of TWp (TW rounded up to the vector width, so a vector of tiles is one row) */
   L->th = (h + 3) / 4, L->tw = (wd + 3) / 4, L->twp = (L->tw + vw - 1) / vw * vw, L->T = L->th * L->twp;
-  L->hp = 4 * L->th + 2, L->wp = 4 * L->twp + 4, L->plane = L->hp * L->wp;
   L->quantum = (size_t)lws * tn * vw;
   L->tp = ((size_t)L->T + L->quantum - 1) / L->quantum * L->quantum;
   L->coutp = (cout + tm - 1) / tm * tm;
-  /* per sample: slot 0 holds the padded input, then (once transformed) the products; slot 2 V */
-  const size_t m = (size_t)36 * L->coutp * L->tp, x = (size_t)cin * L->plane;
-  L->f0 = m > x ? m : x;
+  /* per sample: slot 0 holds the products M, slot 2 V */
+  L->f0 = (size_t)36 * L->coutp * L->tp;
   L->f2 = (size_t)36 * cin * L->tp;
   /* samples per pass: the scratch is sized for as many as fit in CONV_WINO_CHUNK x 2^20 floats (at
    * least one), so a batch-4 training step does not hold 4x the largest layer's transforms; each
@@ -57,24 +55,15 @@ void spx_conv2d_winograd_need(const spx_ctx *ctx, int n, int cin, int h, int w, 
   *need = L.need;
 }
 
-spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int twp, int Tp, cl_mem xp,
-                                 cl_mem V) {
+spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int twp, int Tp, cl_mem V) {
   const int cin = x->c, h = x->h, wd = x->w, vw = ctx->dev->tune.conv_vw;
-  const int th = (h + 3) / 4, T = th * twp, hp = 4 * th + 2, wp = 4 * twp + 4, plane = hp * wp;
-  const size_t wg = (size_t)ctx->dev->tune.wg;
-  cl_kernel kpad, kin;
+  const int T = (h + 3) / 4 * twp;
+  cl_kernel kin;
   spx_status st;
-  if ((st = spx_cl_kernel(ctx, SPX_K_CONV2D_PAD, &kpad)) || (st = spx_cl_kernel(ctx, SPX_K_WINO_IN, &kin))) return st;
+  if ((st = spx_cl_kernel(ctx, SPX_K_WINO_IN, &kin))) return st;
   cl_ulong xo = x->off + (size_t)s0 * cin * h * wd;
-  int one = 1;
-  cl_int e = SPX_ARG(kpad, 0, x->mem) | SPX_ARG(kpad, 1, xo) | SPX_ARG(kpad, 2, xp) | SPX_ARG(kpad, 3, h) |
-             SPX_ARG(kpad, 4, wd) | SPX_ARG(kpad, 5, hp) | SPX_ARG(kpad, 6, wp) | SPX_ARG(kpad, 7, plane) |
-             SPX_ARG(kpad, 8, one) | SPX_ARG(kpad, 9, one) | SPX_ARG(kpad, 10, one);
-  if ((st = spx_cl_check(ctx, e, "spx_conv2d_pad args"))) return st;
-  size_t gl[3] = {(size_t)wp, (size_t)hp, (size_t)m * cin}, lo[3] = {wg < (size_t)wp ? wg : (size_t)wp, 1, 1};
-  if ((st = spx_cl_run(ctx, kpad, 3, gl, lo, "spx_conv2d_pad"))) return st;
-  e = SPX_ARG(kin, 0, xp) | SPX_ARG(kin, 1, V) | SPX_ARG(kin, 2, cin) | SPX_ARG(kin, 3, wp) | SPX_ARG(kin, 4, plane) |
-      SPX_ARG(kin, 5, twp) | SPX_ARG(kin, 6, T) | SPX_ARG(kin, 7, Tp);
+  cl_int e = SPX_ARG(kin, 0, x->mem) | SPX_ARG(kin, 1, xo) | SPX_ARG(kin, 2, V) | SPX_ARG(kin, 3, cin) |
+             SPX_ARG(kin, 4, h) | SPX_ARG(kin, 5, wd) | SPX_ARG(kin, 6, twp) | SPX_ARG(kin, 7, T) | SPX_ARG(kin, 8, Tp);
   if ((st = spx_cl_check(ctx, e, "spx_wino_in args"))) return st;
   size_t gi[3] = {(size_t)Tp / (size_t)vw, (size_t)cin, (size_t)m}, li[3] = {1, 1, 1};
   return spx_cl_run(ctx, kin, 3, gi, vw > 1 ? li : NULL, "spx_wino_in");
@@ -90,10 +79,10 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
   const int tm = ctx->dev->tune.conv_tm, vw = ctx->dev->tune.conv_vw, lws = ctx->dev->tune.conv_lws;
   wlay L;
   layout(ctx, n, cin, h, wd, cout, &L);
-  const int twp = L.twp, T = L.T, plane = L.plane, coutp = L.coutp, nb = L.nb;
+  const int twp = L.twp, T = L.T, coutp = L.coutp, nb = L.nb;
   const size_t quantum = L.quantum, tp = L.tp;
   const double vmax = 36.0 * nb * (double)(cin > coutp ? cin : coutp) * (double)tp;
-  if (vmax > (double)INT_MAX || (double)nb * cin * plane > (double)INT_MAX)
+  if (vmax > (double)INT_MAX)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "conv2d winograd: %.0f transformed elements exceed the index range", vmax);
   const int Tp = (int)tp;
   spx_conv2d_scratch XM = {0}, U = {0}, V = {0};
@@ -108,7 +97,7 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
     const int what[] = {2, Cout, Cin, coutp, tm, flip};
     if ((st = spx_conv2d_wprep_lookup(ctx, wp, what, 6, w, L.need.slot[1], &have_u, &U.mem))) goto done;
   }
-  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, L.need.slot[0], "winograd padded input / products", &XM)) ||
+  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, L.need.slot[0], "winograd products", &XM)) ||
       (!wp && (st = spx_conv2d_scratch_get(ctx, ws, 1, L.need.slot[1], "winograd weight transform", &U))) ||
       (st = spx_conv2d_scratch_get(ctx, ws, 2, L.need.slot[2], "winograd input transform", &V)))
     goto done;
@@ -123,7 +112,7 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
   }
   for (int s0 = 0; s0 < n; s0 += nb) {
     const int m = n - s0 < nb ? n - s0 : nb; /* samples in this pass */
-    if ((st = spx_conv2d_wino_input(ctx, x, s0, m, twp, Tp, XM.mem, V.mem))) goto done;
+    if ((st = spx_conv2d_wino_input(ctx, x, s0, m, twp, Tp, V.mem))) goto done;
     {
       cl_int e = SPX_ARG(kg, 0, V.mem) | SPX_ARG(kg, 1, U.mem) | SPX_ARG(kg, 2, XM.mem) | SPX_ARG(kg, 3, cin) |
                  SPX_ARG(kg, 4, coutp) | SPX_ARG(kg, 5, Tp);

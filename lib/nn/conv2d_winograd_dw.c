@@ -1,7 +1,7 @@
 /* Winograd F(4x4,3x3) weight gradient: launchers for kernels/conv2d_winograd_dw.cl (the stages and
  * layouts are described at the top of the kernel file). Called by lib/nn/conv2d.c for the weight
  * gradient of 3x3 / stride 1 / pad 1 layers when spx_conv2d_winograd_dw_applies. Scratch: the
- * caller's workspace slots 0 (zero-padded input, then Q, the transformed output gradients),
+ * caller's workspace slots 0 (Q, the transformed output gradients),
  * 1 (P, the 36 gradient GEMMs' sums) and 2 (V, the transformed input), sized by
  * spx_conv2d_winograd_dw_need, else buffers allocated per call and released after enqueueing. */
 #include <limits.h>
@@ -23,9 +23,9 @@ static void tiles(const spx_ctx *ctx, int h, int w, int *th, int *twp) {
 int spx_conv2d_winograd_dw_need(const spx_ctx *ctx, int n, int cin, int cout, int h, int w, size_t bytes[3]) {
   int th, twp;
   tiles(ctx, h, w, &th, &twp);
-  const size_t T = (size_t)th * twp, plane = (size_t)(4 * th + 2) * (4 * twp + 4); /* padded input */
-  /* per sample: slot 0 the padded input, then (once transformed) Q; slot 2 V */
-  const size_t f0 = 36 * (size_t)cout * T > (size_t)cin * plane ? 36 * (size_t)cout * T : (size_t)cin * plane;
+  const size_t T = (size_t)th * twp;
+  /* per sample: slot 0 Q, slot 2 V */
+  const size_t f0 = 36 * (size_t)cout * T;
   const size_t f2 = 36 * (size_t)cin * T;
   /* samples per pass as the forward's (CONV_WINO_CHUNK x 2^20 floats, at least one) */
   size_t nb = ((size_t)ctx->dev->tune.conv_wino_chunk << 20) / (f0 + f2);
@@ -54,7 +54,7 @@ spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_conv2d_workspace *ws, const 
   if ((st = spx_cl_kernel(ctx, SPX_K_WINO_DW_GRAD, &kq)) || (st = spx_cl_kernel(ctx, SPX_K_WINO_DW_GEMM, &kg)) ||
       (st = spx_cl_kernel(ctx, SPX_K_WINO_DW_WEIGHTS, &kw)))
     return st;
-  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, bytes[0], "winograd dw padded input / output-gradient transform", &XQ)) ||
+  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, bytes[0], "winograd dw output-gradient transform", &XQ)) ||
       (st = spx_conv2d_scratch_get(ctx, ws, 1, bytes[1], "winograd dw gradient sums", &P)) ||
       (st = spx_conv2d_scratch_get(ctx, ws, 2, bytes[2], "winograd dw input transform", &V)))
     goto done;
@@ -62,8 +62,8 @@ spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_conv2d_workspace *ws, const 
   for (int s0 = 0; s0 < n; s0 += nb) {
     const int m = n - s0 < nb ? n - s0 : nb; /* samples in this pass */
     /* V, with the tile count unpadded (Tp = T, a multiple of CONV_VW) */
-    if ((st = spx_conv2d_wino_input(ctx, x, s0, m, twp, T, XQ.mem, V.mem))) goto done;
-    { /* Q overwrites the padded input (the in-order queue has finished V by then) */
+    if ((st = spx_conv2d_wino_input(ctx, x, s0, m, twp, T, V.mem))) goto done;
+    {
       cl_ulong dyo = dy->off + (size_t)s0 * cout * h * wd;
       cl_int e = SPX_ARG(kq, 0, dy->mem) | SPX_ARG(kq, 1, dyo) | SPX_ARG(kq, 2, XQ.mem) | SPX_ARG(kq, 3, cout) |
                  SPX_ARG(kq, 4, h) | SPX_ARG(kq, 5, wd) | SPX_ARG(kq, 6, twp) | SPX_ARG(kq, 7, T);
