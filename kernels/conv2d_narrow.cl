@@ -5,12 +5,13 @@
  * order per output (input channel, then ky, kx, one fma each) as conv2d.cl: bit-identical
  * results, only the work split differs. On 2-core PoCL the full-resolution 16/32-channel layers
  * of the width-16 UNet run ~25-30% less CPU time with a 4 x 6 tile than with 8 x 3 (more pixels
- * per work-item, half the weight broadcasts per input vector; benchmarks/RESULTS.md). */
+ * per work-item, half the weight broadcasts per input vector; benchmarks/RESULTS.md); on Zen 5,
+ * 4 x 5 (the CPU default, lib/cl/tuning.c). */
 #ifndef CONV_NARROW_TM
 #define CONV_NARROW_TM 4
 #endif
 #ifndef CONV_NARROW_TN
-#define CONV_NARROW_TN 6
+#define CONV_NARROW_TN 5
 #endif
 #undef CONV_TM
 #undef CONV_TN

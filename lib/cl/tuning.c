@@ -84,12 +84,14 @@ static const struct spx_tunable spx_tunables[] = {
     {"CONV_CB", F(conv_cb), 16, 1048576, 1, 1 << 30, 0},
     /* conv2d stride-1 3x3 / 1x1 forwards (and backward data) with at most CONV_NARROW_MAXC output
      * channels use the tile CONV_NARROW_TM x CONV_NARROW_TN (kernels/conv2d_narrow.cl; same bits);
-     * 0 = never. CPU: 4 x 6 takes ~25-30% less CPU time than 8 x 3 on the full-resolution 16/32
-     * channel layers of the width-16 UNet, neutral at half resolution (2-core PoCL, load ~11);
-     * 64-channel layers stay on the main tile. GPU: unmeasured, off */
+     * 0 = never. CPU: on a Zen 4-class host 4 x 6 took ~25-30% less CPU time than 8 x 3 on the
+     * full-resolution 16/32 channel layers of the width-16 UNet; on the Zen 5 host of session 7
+     * 4 x 5 is ~4% faster than 4 x 6 over the whole width-16 eval pass (six alternating pairs, and
+     * the tuner's own A/B: 1.07x), training neutral; 64-channel layers stay on the main tile.
+     * GPU: unmeasured, off */
     {"CONV_NARROW_MAXC", F(conv_narrow_maxc), 32, 0, 0, 1 << 20, 0},
     {"CONV_NARROW_TM", F(conv_narrow_tm), 4, 8, 1, 32, 0},
-    {"CONV_NARROW_TN", F(conv_narrow_tn), 6, 4, 1, 32, 0},
+    {"CONV_NARROW_TN", F(conv_narrow_tn), 5, 4, 1, 32, 0},
     /* conv2d: 1 = the stride-1 3x3 pad-1 / 1x1 pad-0 forwards (and backward data) of the register
      * tiles read the unpadded input (kernels/conv2d_nopad.h) instead of a zero-padded copy of it
      * (same bits). CPU: the copies were ~15% of a width-16 UNet eval pass. GPU: off (its 3x3 runs
