@@ -31,15 +31,22 @@ inline void spx_fold8(float8 s8, float8 c8, float *s, float *c) {
   for (int j = 0; j < 8; j++) SPX_KAHAN_ADD(*s, *c, l[j]);
 }
 
+/* The output gradient the batch norm's backward sums: dy, or with the fused ReLU (relu != 0) dy
+ * where the forward's output (x - mean) * a + b (computed as spx_bn_normalize does) is > 0 and 0
+ * elsewhere, plus 0.0f: exactly the value the separate ReLU backward used to accumulate into
+ * the zeroed gradient (0 + dy; -0 becomes +0), so fused and separate give the same bits. */
+#define SPX_BN_DY(g, xv, mean, a, b, relu) ((relu) ? (((((xv) - (mean)) * (a) + (b)) > 0.0f ? (g) : 0.0f) + 0.0f) : (g))
+
 /* Per-item partial sums over channel ch of an n x c x hw tensor (x at xo; dy at go for mode 2):
  *   mode 0: sum x            mode 1: sum (x - mean)^2
- *   mode 2: sum dy and sum dy * (x - mean)  (second result in *r2)
+ *   mode 2: sum dy and sum dy * (x - mean)  (second result in *r2; with relu, dy masked by
+ *           SPX_BN_DY with the forward's scale ra and shift rb)
  * Returns the item's compensated partial (to be summed over the group). */
 inline float spx_bn_partial(__global const float *x, int xo, __global const float *dy, int go, int n, int c, int hw,
-                            int ch, float mean, int mode, float *r2) {
+                            int ch, float mean, int mode, float ra, float rb, int relu, float *r2) {
   float s = 0.0f, comp = 0.0f, s2 = 0.0f, comp2 = 0.0f;
 #if SPX_BN_WG == 1
-  float8 a8 = 0.0f, c8 = 0.0f, b8 = 0.0f, d8 = 0.0f, m8 = (float8)(mean);
+  float8 a8 = 0.0f, c8 = 0.0f, b8 = 0.0f, d8 = 0.0f, m8 = (float8)(mean), ra8 = (float8)(ra), rb8 = (float8)(rb);
   for (int k = 0; k < n; k++) {
     __global const float *p = x + xo + (k * c + ch) * hw;
     __global const float *g = dy + go + (k * c + ch) * hw;
@@ -51,18 +58,26 @@ inline float spx_bn_partial(__global const float *x, int xo, __global const floa
         float8 d = vload8(0, p + i) - m8;
         SPX_KAHAN8(a8, c8, d * d);
       }
-    else
+    else if (!relu)
       for (; i + 8 <= hw; i += 8) {
         float8 gv = vload8(0, g + i);
         SPX_KAHAN8(a8, c8, gv);
         SPX_KAHAN8(b8, d8, gv * (vload8(0, p + i) - m8));
       }
+    else
+      for (; i + 8 <= hw; i += 8) {
+        float8 xv = vload8(0, p + i), gv = vload8(0, g + i);
+        gv = select((float8)0.0f, gv, (xv - m8) * ra8 + rb8 > 0.0f) + 0.0f; /* SPX_BN_DY, lane-wise */
+        SPX_KAHAN8(a8, c8, gv);
+        SPX_KAHAN8(b8, d8, gv * (xv - m8));
+      }
     for (; i < hw; i++) {
       if (mode == 0) SPX_KAHAN_ADD(s, comp, p[i]);
       else if (mode == 1) SPX_KAHAN_ADD(s, comp, (p[i] - mean) * (p[i] - mean));
       else {
-        SPX_KAHAN_ADD(s, comp, g[i]);
-        SPX_KAHAN_ADD(s2, comp2, g[i] * (p[i] - mean));
+        float gi = SPX_BN_DY(g[i], p[i], mean, ra, rb, relu);
+        SPX_KAHAN_ADD(s, comp, gi);
+        SPX_KAHAN_ADD(s2, comp2, gi * (p[i] - mean));
       }
     }
   }
@@ -77,8 +92,9 @@ inline float spx_bn_partial(__global const float *x, int xo, __global const floa
       if (mode == 0) SPX_KAHAN_ADD(s, comp, p[i]);
       else if (mode == 1) SPX_KAHAN_ADD(s, comp, (p[i] - mean) * (p[i] - mean));
       else {
-        SPX_KAHAN_ADD(s, comp, g[i]);
-        SPX_KAHAN_ADD(s2, comp2, g[i] * (p[i] - mean));
+        float gi = SPX_BN_DY(g[i], p[i], mean, ra, rb, relu);
+        SPX_KAHAN_ADD(s, comp, gi);
+        SPX_KAHAN_ADD(s2, comp2, gi * (p[i] - mean));
       }
     }
   }
@@ -93,14 +109,21 @@ inline float spx_bn_partial(__global const float *x, int xo, __global const floa
 inline void spx_bn_normalize(__global const float *x, int xo, __global const float *wt, int wo,
                              __global const float *bs, int bo, __global float *rm, int rmo, __global float *rv,
                              int rvo, __global float *save, int so, __global float *y, int yo, int n, int c, int hw,
-                             int ch, float mean, float var, float cnt, float momentum, float eps, int update) {
+                             int ch, float mean, float var, float cnt, float momentum, float eps, int update,
+                             int relu) {
   int lid = get_local_id(0);
   float invstd = 1.0f / sqrt(var + eps);
   float a = invstd * wt[wo + ch], b = bs[bo + ch];
   for (int k = 0; k < n; k++) {
     __global const float *p = x + xo + (k * c + ch) * hw;
     __global float *q = y + yo + (k * c + ch) * hw;
-    for (int i = lid; i < hw; i += SPX_BN_WG) q[i] = (p[i] - mean) * a + b; /* WG 1: contiguous */
+    if (relu) /* the fused ReLU: kernels/activations.cl's v > 0 ? v : 0 */
+      for (int i = lid; i < hw; i += SPX_BN_WG) {
+        float v = (p[i] - mean) * a + b;
+        q[i] = v > 0.0f ? v : 0.0f;
+      }
+    else
+      for (int i = lid; i < hw; i += SPX_BN_WG) q[i] = (p[i] - mean) * a + b; /* WG 1: contiguous */
   }
   if (lid == 0) {
     save[so + ch] = mean;
@@ -117,32 +140,35 @@ inline void spx_bn_normalize(__global const float *x, int xo, __global const flo
  * (the tail of spx_bn_train_bwd and spx_bn_sync_bwd). */
 inline void spx_bn_dx(__global const float *x, int xo, __global const float *wt, int wo, __global const float *dy,
                       int go, __global float *dx, int dxo, int n, int c, int hw, int ch, float mean, float invstd,
-                      float sdy, float sdyx, float cnt) {
+                      float sdy, float sdyx, float cnt, float rb, int relu) {
   int lid = get_local_id(0);
   float gm = sdy / cnt, proj = sdyx * invstd * invstd / cnt, scale = invstd * wt[wo + ch];
   for (int k = 0; k < n; k++) {
     __global const float *p = x + xo + (k * c + ch) * hw;
     __global const float *g = dy + go + (k * c + ch) * hw;
     __global float *q = dx + dxo + (k * c + ch) * hw;
-    for (int i = lid; i < hw; i += SPX_BN_WG) q[i] += (g[i] - gm - (p[i] - mean) * proj) * scale;
+    for (int i = lid; i < hw; i += SPX_BN_WG)
+      q[i] += (SPX_BN_DY(g[i], p[i], mean, scale, rb, relu) - gm - (p[i] - mean) * proj) * scale;
   }
 }
 
 /* Train mode: batch statistics over N, H, W (biased variance for the normalisation),
  * y = (x - mean) * invstd * weight + bias, save = [mean(C), invstd(C)] for the backward, and
  * when update != 0: running_mean = m * mean + (1 - m) * running_mean,
- * running_var = m * var * cnt / (cnt - 1) + (1 - m) * running_var (unbiased, like PyTorch). */
+ * running_var = m * var * cnt / (cnt - 1) + (1 - m) * running_var (unbiased, like PyTorch).
+ * relu != 0: y = ReLU of that (batch norm + ReLU fused: one pass over the output less, and the
+ * pre-activation is never stored). */
 __kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_train_fwd(
     __global const float *x, int xo, __global const float *wt, int wo, __global const float *bs, int bo,
     __global float *rm, int rmo, __global float *rv, int rvo, __global float *save, int so, __global float *y, int yo,
-    int n, int c, int hw, float momentum, float eps, int update) {
+    int n, int c, int hw, float momentum, float eps, int update, int relu) {
   __local float buf[SPX_BN_WG];
   int ch = get_group_id(0);
   float cnt = (float)n * (float)hw, unused;
-  float mean = spx_bn_group_sum(buf, spx_bn_partial(x, xo, x, xo, n, c, hw, ch, 0.0f, 0, &unused)) / cnt;
-  float var = spx_bn_group_sum(buf, spx_bn_partial(x, xo, x, xo, n, c, hw, ch, mean, 1, &unused)) / cnt;
+  float mean = spx_bn_group_sum(buf, spx_bn_partial(x, xo, x, xo, n, c, hw, ch, 0.0f, 0, 0.0f, 0.0f, 0, &unused)) / cnt;
+  float var = spx_bn_group_sum(buf, spx_bn_partial(x, xo, x, xo, n, c, hw, ch, mean, 1, 0.0f, 0.0f, 0, &unused)) / cnt;
   spx_bn_normalize(x, xo, wt, wo, bs, bo, rm, rmo, rv, rvo, save, so, y, yo, n, c, hw, ch, mean, var, cnt, momentum,
-                   eps, update);
+                   eps, update, relu);
 }
 
 /* Eval mode: y = (x - running_mean) * (invstd * weight) + bias, invstd = 1 / sqrt(running_var + eps);
@@ -162,24 +188,28 @@ __kernel void spx_bn_eval_fwd(__global const float *x, int xo, __global const fl
  *   sdy = sum dy, sdyx = sum dy * (x - mean)
  *   dweight += sdyx * invstd, dbias += sdy
  *   dx += (dy - sdy / cnt - (x - mean) * sdyx * invstd^2 / cnt) * invstd * weight
- * want: bit 0 dx, bit 1 dweight, bit 2 dbias (buffers of unwanted ones are never touched). */
+ * want: bit 0 dx, bit 1 dweight, bit 2 dbias (buffers of unwanted ones are never touched).
+ * relu != 0 (the fused forward): dy is the ReLU output's gradient, masked here by SPX_BN_DY with
+ * the pre-activation recomputed from x, save, weight and bias (bs). */
 __kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_train_bwd(
     __global const float *x, int xo, __global const float *wt, int wo, __global const float *save, int so,
     __global const float *dy, int go, __global float *dx, int dxo, __global float *dw, int dwo, __global float *db,
-    int dbo, int n, int c, int hw, int want) {
+    int dbo, int n, int c, int hw, int want, __global const float *bs, int bo, int relu) {
   __local float buf[SPX_BN_WG];
   int ch = get_group_id(0), lid = get_local_id(0);
   float cnt = (float)n * (float)hw;
   float mean = save[so + ch], invstd = save[so + c + ch];
+  /* the forward's scale and shift (spx_bn_normalize), for the fused ReLU's mask */
+  float ra = invstd * wt[wo + ch], rb = relu ? bs[bo + ch] : 0.0f;
   float part2;
-  float part1 = spx_bn_partial(x, xo, dy, go, n, c, hw, ch, mean, 2, &part2);
+  float part1 = spx_bn_partial(x, xo, dy, go, n, c, hw, ch, mean, 2, ra, rb, relu, &part2);
   float sdy = spx_bn_group_sum(buf, part1);
   float sdyx = spx_bn_group_sum(buf, part2);
   if (lid == 0) {
     if (want & 2) dw[dwo + ch] += sdyx * invstd;
     if (want & 4) db[dbo + ch] += sdy;
   }
-  if (want & 1) spx_bn_dx(x, xo, wt, wo, dy, go, dx, dxo, n, c, hw, ch, mean, invstd, sdy, sdyx, cnt);
+  if (want & 1) spx_bn_dx(x, xo, wt, wo, dy, go, dx, dxo, n, c, hw, ch, mean, invstd, sdy, sdyx, cnt, rb, relu);
 }
 
 /* ---- data-parallel (synchronised) batch norm: lib/nn/batchnorm_sync.c ----
@@ -201,7 +231,7 @@ __kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_sync
   __local float buf[SPX_BN_WG];
   int ch = get_group_id(0), lid = get_local_id(0);
   float p2 = 0.0f, m = mode ? mean[mo + ch] : 0.0f;
-  float p1 = spx_bn_group_sum(buf, spx_bn_partial(x, xo, dy, go, n, c, hw, ch, m, mode, &p2));
+  float p1 = spx_bn_group_sum(buf, spx_bn_partial(x, xo, dy, go, n, c, hw, ch, m, mode, 0.0f, 0.0f, 0, &p2));
   if (mode == 2) p2 = spx_bn_group_sum(buf, p2);
   if (lid == 0) {
     part[po + ch] = p1;
@@ -217,7 +247,7 @@ __kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_sync
     int update) {
   int ch = get_group_id(0);
   spx_bn_normalize(x, xo, wt, wo, bs, bo, rm, rmo, rv, rvo, save, so, y, yo, n, c, hw, ch, stats[sto + ch],
-                   stats[sto + c + ch], cnt, momentum, eps, update);
+                   stats[sto + c + ch], cnt, momentum, eps, update, 0);
 }
 
 /* sums at suo: [local sum dy (c), local sum dy (x - mean) (c), global sum dy (c), global sum dy (x - mean) (c)];
@@ -234,5 +264,5 @@ __kernel __attribute__((reqd_work_group_size(SPX_BN_WG, 1, 1))) void spx_bn_sync
   }
   if (want & 1)
     spx_bn_dx(x, xo, wt, wo, dy, go, dx, dxo, n, c, hw, ch, mean, invstd, sums[suo + 2 * c + ch],
-              sums[suo + 3 * c + ch], cnt);
+              sums[suo + 3 * c + ch], cnt, 0.0f, 0);
 }

@@ -45,7 +45,15 @@ static spx_status bwd_check(spx_ctx *ctx, const char *op, const spx_tensor *x, c
 spx_status spx_bn_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *bias,
                                 const spx_tensor *running_mean, const spx_tensor *running_var, float momentum,
                                 float eps, int update_running, const spx_tensor *save, const spx_tensor *y) {
-  const char *op = "bn_train_forward";
+  return spx_bn_relu_train_forward(ctx, x, weight, bias, running_mean, running_var, momentum, eps, update_running, save,
+                                   0, y);
+}
+
+spx_status spx_bn_relu_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight,
+                                     const spx_tensor *bias, const spx_tensor *running_mean,
+                                     const spx_tensor *running_var, float momentum, float eps, int update_running,
+                                     const spx_tensor *save, int relu, const spx_tensor *y) {
+  const char *op = relu ? "bn_relu_train_forward" : "bn_train_forward";
   spx_status st;
   cl_kernel k;
   if ((st = fwd_check(ctx, op, x, weight, bias, running_mean, running_var, update_running, save, y))) return st;
@@ -56,11 +64,11 @@ spx_status spx_bn_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_ten
     return spx_fail(ctx, SPX_E_ARG, "%s: momentum %g / eps %g invalid", op, momentum, eps);
   if ((st = spx_cl_kernel(ctx, SPX_K_BN_TRAIN_FWD, &k))) return st;
   const spx_tensor *rm = update_running ? running_mean : x, *rv = update_running ? running_var : x; /* unused if !update */
-  cl_int hw = x->h * x->w, upd = update_running ? 1 : 0;
+  cl_int hw = x->h * x->w, upd = update_running ? 1 : 0, rl = relu != 0;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, weight) | spx_nn_arg(k, 4, bias) | spx_nn_arg(k, 6, rm) |
              spx_nn_arg(k, 8, rv) | spx_nn_arg(k, 10, save) | spx_nn_arg(k, 12, y) | SPX_ARG(k, 14, x->n) |
              SPX_ARG(k, 15, x->c) | SPX_ARG(k, 16, hw) | SPX_ARG(k, 17, momentum) | SPX_ARG(k, 18, eps) |
-             SPX_ARG(k, 19, upd);
+             SPX_ARG(k, 19, upd) | SPX_ARG(k, 20, rl);
   if ((st = spx_cl_check(ctx, e, "spx_bn_train_fwd"))) return st;
   return spx_nn_run_groups(ctx, k, (size_t)x->c, "spx_bn_train_fwd");
 }
@@ -90,11 +98,19 @@ spx_status spx_bn_eval_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
 spx_status spx_bn_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *save,
                                  const spx_tensor *dy, const spx_tensor *dx, const spx_tensor *dweight,
                                  const spx_tensor *dbias) {
-  const char *op = "bn_train_backward";
+  return spx_bn_relu_train_backward(ctx, x, weight, NULL, save, dy, dx, dweight, dbias);
+}
+
+spx_status spx_bn_relu_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight,
+                                      const spx_tensor *bias, const spx_tensor *save, const spx_tensor *dy,
+                                      const spx_tensor *dx, const spx_tensor *dweight, const spx_tensor *dbias) {
+  const char *op = bias ? "bn_relu_train_backward" : "bn_train_backward";
   spx_status st;
   cl_kernel k;
   if (!dx && !dweight && !dbias) return SPX_OK;
-  if ((st = bwd_check(ctx, op, x, weight, save, dy, dx, dweight, dbias))) return st;
+  if ((st = bwd_check(ctx, op, x, weight, save, dy, dx, dweight, dbias)) ||
+      (bias && (st = spx_nn_check_numel(ctx, bias, op, "bias", (size_t)x->c))))
+    return st;
   if ((st = spx_cl_kernel(ctx, SPX_K_BN_TRAIN_BWD, &k))) return st;
   cl_int hw = x->h * x->w, want = (dx ? 1 : 0) | (dweight ? 2 : 0) | (dbias ? 4 : 0);
   /* unwanted outputs get a harmless stand-in buffer that the kernel never writes */
@@ -102,6 +118,8 @@ spx_status spx_bn_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_te
              spx_nn_arg(k, 8, dx ? dx : dy) | spx_nn_arg(k, 10, dweight ? dweight : weight) |
              spx_nn_arg(k, 12, dbias ? dbias : weight) | SPX_ARG(k, 14, x->n) | SPX_ARG(k, 15, x->c) |
              SPX_ARG(k, 16, hw) | SPX_ARG(k, 17, want);
+  cl_int rl = bias != NULL;
+  e |= spx_nn_arg(k, 18, bias ? bias : weight) | SPX_ARG(k, 20, rl);
   if ((st = spx_cl_check(ctx, e, "spx_bn_train_bwd"))) return st;
   return spx_nn_run_groups(ctx, k, (size_t)x->c, "spx_bn_train_bwd");
 }

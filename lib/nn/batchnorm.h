@@ -23,6 +23,18 @@ spx_status spx_bn_eval_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
 spx_status spx_bn_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight, const spx_tensor *save,
                                  const spx_tensor *dy, const spx_tensor *dx, const spx_tensor *dweight,
                                  const spx_tensor *dbias);
+/* Batch norm + ReLU fused (training): the forward with relu != 0 writes relu(batch norm of x)
+ * (the same bits as spx_bn_train_forward then the ReLU of lib/nn/activations.h); the backward takes
+ * the gradient of that output and the forward's bias (bias NULL: the plain batch norm backward)
+ * and recomputes the ReLU's mask from x, save, weight and bias (the same bits as the ReLU
+ * backward into a zeroed gradient, then spx_bn_train_backward). */
+spx_status spx_bn_relu_train_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight,
+                                     const spx_tensor *bias, const spx_tensor *running_mean,
+                                     const spx_tensor *running_var, float momentum, float eps, int update_running,
+                                     const spx_tensor *save, int relu, const spx_tensor *y);
+spx_status spx_bn_relu_train_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *weight,
+                                      const spx_tensor *bias, const spx_tensor *save, const spx_tensor *dy,
+                                      const spx_tensor *dx, const spx_tensor *dweight, const spx_tensor *dbias);
 
 /* Data-parallel ("synchronised") batch norm: the batch is spread over comm's ranks and the
  * statistics are those of the whole batch (PyTorch's SyncBatchNorm). Every rank calls these with
@@ -57,5 +69,10 @@ void spx_ref_bn_eval_forward(const double *x, int n, int c, int hw, const double
 void spx_ref_bn_train_backward(const double *x, int n, int c, int hw, const double *weight, const double *save_mean,
                                const double *save_invstd, const double *dy, double *dx, double *dweight,
                                double *dbias);
+/* The fused ReLU's backward: dy masked where (x - mean) * invstd * weight + bias > 0, then
+ * spx_ref_bn_train_backward. Returns -1 when out of memory (nothing written), else 0. */
+int spx_ref_bn_relu_train_backward(const double *x, int n, int c, int hw, const double *weight, const double *bias,
+                                   const double *save_mean, const double *save_invstd, const double *dy, double *dx,
+                                   double *dweight, double *dbias);
 
 #endif

@@ -1,5 +1,6 @@
 /* Plain-C double references for kernels/batchnorm.cl (two-pass statistics in double). */
 #include <math.h>
+#include <stdlib.h>
 
 #include "nn/batchnorm.h"
 
@@ -54,4 +55,22 @@ void spx_ref_bn_train_backward(const double *x, int n, int c, int hw, const doub
           dx[AT(k, ch, i)] += (dy[AT(k, ch, i)] - sdy / cnt - (x[AT(k, ch, i)] - mean) * sdyx * invstd * invstd / cnt) *
                               invstd * weight[ch];
   }
+}
+
+int spx_ref_bn_relu_train_backward(const double *x, int n, int c, int hw, const double *weight, const double *bias,
+                                   const double *save_mean, const double *save_invstd, const double *dy, double *dx,
+                                   double *dweight, double *dbias) {
+  size_t total = (size_t)n * c * hw;
+  double *g = malloc((total ? total : 1) * sizeof *g);
+  if (!g) return -1;
+  for (int k = 0; k < n; k++)
+    for (int ch = 0; ch < c; ch++)
+      for (int i = 0; i < hw; i++) {
+        size_t j = AT(k, ch, i);
+        double y = (x[j] - save_mean[ch]) * save_invstd[ch] * weight[ch] + bias[ch];
+        g[j] = y > 0 ? dy[j] : 0.0;
+      }
+  spx_ref_bn_train_backward(x, n, c, hw, weight, save_mean, save_invstd, g, dx, dweight, dbias);
+  free(g);
+  return 0;
 }

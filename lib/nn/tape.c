@@ -316,6 +316,17 @@ static spx_status grow_arena(spx_tape *t, const tplan *p) {
   }
   if (need <= t->act_cap && p->chunk == t->act_chunk) return SPX_OK;
   size_t n = (need + p->chunk - 1) / p->chunk;
+  /* Chunks may together exceed the device's memory (each one passes the largest-allocation
+   * check): refuse before allocating, not by an out-of-memory kill on a host device */
+  size_t held = 0, live = spx_device_live_bytes(t->ctx), total = t->ctx->dev->info.global_mem;
+  for (int i = 0; i < t->nact; i++) held += t->act_len[i] * sizeof(float);
+  size_t other = live > held ? live - held : 0;
+  if (total && need > (total - (other < total ? other : total)) / sizeof(float))
+    return spx_fail(t->ctx, SPX_E_DEVMEM,
+                    "activation arena: needs %.2f GiB of device memory, more than the device's %.2f GiB less the %.2f "
+                    "GiB in use",
+                    (double)need * sizeof(float) / 1073741824.0, (double)total / 1073741824.0,
+                    (double)other / 1073741824.0);
   if (p->chunk != t->act_chunk) { /* a new layout: none of the old chunks */
     for (int i = 0; i < t->nact; i++) spx_cl_free(&t->act[i]);
     t->nact = 0;
@@ -489,7 +500,10 @@ static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, i
   return y;
 }
 
-int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int rvar, float momentum, float eps) {
+/* Batch norm (relu 0), or batch norm + ReLU as one node (relu 1: kernels/batchnorm.cl's fused
+ * forward and backward; the synchronised batch norm keeps the two ops). */
+static int batchnorm_op(spx_tape *t, int x, int gamma, int beta, int rmean, int rvar, float momentum, float eps,
+                        int relu) {
   if (spx_tp_bad_id(t, "batchnorm", x) || spx_tp_bad_id(t, "batchnorm", gamma) || spx_tp_bad_id(t, "batchnorm", beta) ||
       spx_tp_bad_id(t, "batchnorm", rmean) || spx_tp_bad_id(t, "batchnorm", rvar))
     return -1;
@@ -509,12 +523,14 @@ int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int r
   int sync = spx_tape_sync_bn(t), sc = sync ? spx_tp_new_value(t, SP_ACT, 4 * c, 1, 1, 1) : -1; /* rank sums */
   if (y < 0 || sv < 0 || (sync && sc < 0)) return -1;
   float fa[2] = {momentum, eps};
-  spx_tp_record(t, OP_BN, x, gamma, beta, y, sv, sc, NULL, fa);
+  int ia[4] = {relu, 0, 0, 0};
+  spx_tp_record(t, OP_BN, x, gamma, beta, y, sv, sc, ia, fa);
   if (!spx_tp_live(t)) return y;
   xv = &t->vals[x];
   if (HOST) {
     spx_ref_bn_train_forward(HV(x), xv->n, c, xv->h * xv->w, HV(gamma), HV(beta), HV(rmean), HV(rvar), momentum, eps,
                              HV(sv), HV(sv) + c, HV(y));
+    if (relu) spx_ref_act_forward(SPX_ACT_RELU, 0.0f, HV(y), HV(y), spx_tape_numel(t, y));
   } else if (sync) {
     spx_tensor tx = TV(x), tg = TV(gamma), tb = TV(beta), trm = TV(rmean), trv = TV(rvar), ty = TV(y), ts = TV(sv),
                tsc = TV(sc);
@@ -524,9 +540,19 @@ int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int r
   } else {
     spx_tensor tx = TV(x), tg = TV(gamma), tb = TV(beta), trm = TV(rmean), trv = TV(rvar), ty = TV(y), ts = TV(sv);
     int upd = !spx_tape_shard_empty(t); /* a stand-in sample never moves the running statistics */
-    RUN(OP_BN, spx_bn_train_forward(t->ctx, &tx, &tg, &tb, &trm, &trv, momentum, eps, upd, &ts, &ty));
+    RUN(OP_BN, spx_bn_relu_train_forward(t->ctx, &tx, &tg, &tb, &trm, &trv, momentum, eps, upd, &ts, relu, &ty));
   }
   return y;
+}
+
+int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int rvar, float momentum, float eps) {
+  return batchnorm_op(t, x, gamma, beta, rmean, rvar, momentum, eps, 0);
+}
+
+int spx_tape_batchnorm_relu(spx_tape *t, int x, int gamma, int beta, int rmean, int rvar, float momentum, float eps) {
+  if (spx_tape_sync_bn(t)) /* the synchronised kernels have no fused variant */
+    return spx_tape_act(t, SPX_ACT_RELU, 0.0f, batchnorm_op(t, x, gamma, beta, rmean, rvar, momentum, eps, 0));
+  return batchnorm_op(t, x, gamma, beta, rmean, rvar, momentum, eps, 1);
 }
 
 int spx_tape_act(spx_tape *t, spx_act_kind kind, float slope, int x) {
@@ -660,8 +686,13 @@ static spx_status back_host(spx_tape *t, const tnode *nd) {
       break;
     }
     case OP_BN:
-      spx_ref_bn_train_backward(HV(nd->in[0]), xv->n, xv->c, xv->h * xv->w, HV(nd->in[1]), HV(nd->saved[0]),
-                                HV(nd->saved[0]) + xv->c, dy, HG(nd->in[0]), HG(nd->in[1]), HG(nd->in[2]));
+      if (!nd->iarg[0])
+        spx_ref_bn_train_backward(HV(nd->in[0]), xv->n, xv->c, xv->h * xv->w, HV(nd->in[1]), HV(nd->saved[0]),
+                                  HV(nd->saved[0]) + xv->c, dy, HG(nd->in[0]), HG(nd->in[1]), HG(nd->in[2]));
+      else if (spx_ref_bn_relu_train_backward(HV(nd->in[0]), xv->n, xv->c, xv->h * xv->w, HV(nd->in[1]), HV(nd->in[2]),
+                                              HV(nd->saved[0]), HV(nd->saved[0]) + xv->c, dy, HG(nd->in[0]),
+                                              HG(nd->in[1]), HG(nd->in[2])))
+        return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for a batch norm + ReLU backward");
       break;
     case OP_ACT: {
       spx_act_kind k = (spx_act_kind)nd->iarg[0];
@@ -722,7 +753,8 @@ static spx_status back_dev(spx_tape *t, const tnode *nd) {
         spx_status st = spx_tape_bn_sync(t, nd->in[0], &bs);
         return st ? st : spx_bn_sync_train_backward(ctx, &x, &g, &sv, &sc, &dy, pdx, pdg, pdb, &bs);
       }
-      return spx_bn_train_backward(ctx, &x, &g, &sv, &dy, pdx, pdg, pdb);
+      spx_tensor b = TV(nd->in[2]); /* the fused ReLU's mask needs the forward's shift */
+      return spx_bn_relu_train_backward(ctx, &x, &g, nd->iarg[0] ? &b : NULL, &sv, &dy, pdx, pdg, pdb);
     }
     case OP_ACT: {
       spx_act_kind k = (spx_act_kind)nd->iarg[0];

@@ -89,6 +89,11 @@ int spx_tape_conv(spx_tape *t, int x, int w, int bias, int pad, int scale, int s
 /* Batch norm over N,H,W in training mode (batch statistics; running_mean/var updated with
  * momentum, unbiased variance, like torch.nn.BatchNorm2d). gamma/beta params, rmean/rvar state. */
 int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int rvar, float momentum, float eps);
+/* relu(batch norm of x) as one node: the same values and gradients, bit for bit, as
+ * spx_tape_batchnorm then spx_tape_act(SPX_ACT_RELU), with one pass over the activation less each
+ * way and no stored pre-activation (kernels/batchnorm.cl); two nodes under a synchronised batch
+ * norm. */
+int spx_tape_batchnorm_relu(spx_tape *t, int x, int gamma, int beta, int rmean, int rvar, float momentum, float eps);
 int spx_tape_act(spx_tape *t, spx_act_kind kind, float slope, int x);
 int spx_tape_maxpool2(spx_tape *t, int x);
 int spx_tape_upsample2(spx_tape *t, int x); /* bilinear x2, align_corners = true */

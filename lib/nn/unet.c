@@ -244,8 +244,7 @@ static int double_conv(spx_unet *u, int x, int i, int train) {
   for (int j = 0; j < 2; j++) {
     if (train) {
       x = spx_tape_conv(t, x, d->w[j], -1, 1, -1, -1, 0);
-      x = spx_tape_batchnorm(t, x, d->g[j], d->b[j], d->rm[j], d->rv[j], SPX_BN_MOMENTUM, SPX_BN_EPS);
-      x = spx_tape_act(t, SPX_ACT_RELU, 0.0f, x);
+      x = spx_tape_batchnorm_relu(t, x, d->g[j], d->b[j], d->rm[j], d->rv[j], SPX_BN_MOMENTUM, SPX_BN_EPS);
     } else {
       x = spx_tape_conv(t, x, d->w[j], -1, 1, d->fs[j], d->fh[j], 1);
     }
