@@ -72,6 +72,51 @@ __kernel void spx_maxpool_bwd(__global const float *x, int xo, __global const fl
   dx[dxo + base + (a >> 1) * w + (a & 1)] += dy[go + (p * oh + oy) * ow + ox];
 }
 
+/* The same gradients, CPU class (tunable ROW_VEC = 1): 16 windows of one row per work-item. The
+ * argmax of each lane is found by spx_pool_max's comparisons in its order (the first maximum,
+ * NaN wins); each of the window's four dx elements gets dy where it is the argmax and keeps its
+ * bits elsewhere (a select, not + 0). The last chunk of a row when ow is not a multiple of 16
+ * goes window by window. range (ceil(ow / 16), oh, planes). */
+__kernel void spx_maxpool_bwd_rows(__global const float *x, int xo, __global const float *dy, int go,
+                                   __global float *dx, int dxo, int h, int w) {
+  int oh = h / 2, ow = w / 2;
+  int ox0 = get_global_id(0) * 16, oy = get_global_id(1), p = get_global_id(2);
+  if (ox0 >= ow || oy >= oh) return;
+  const int base = (p * h + 2 * oy) * w + 2 * ox0;
+  __global const float *g = dy + go + (p * oh + oy) * ow + ox0;
+  if (ox0 + 16 > ow) {
+    for (int l = 0; l < ow - ox0; l++) {
+      int a = spx_pool_argmax(x + xo + base + 2 * l, w);
+      dx[dxo + base + 2 * l + (a >> 1) * w + (a & 1)] += g[l];
+    }
+    return;
+  }
+  __global const float *q = x + xo + base;
+  const float16 a0 = vload16(0, q), a1 = vload16(0, q + 16), b0 = vload16(0, q + w), b1 = vload16(0, q + w + 16);
+  float16 m = (float16)(a0.even, a1.even), v = (float16)(a0.odd, a1.odd);
+  int16 k = (int16)0, c = (v > m) | isnan(v);
+  m = select(m, v, c), k = select(k, (int16)1, c);
+  v = (float16)(b0.even, b1.even);
+  c = (v > m) | isnan(v);
+  m = select(m, v, c), k = select(k, (int16)2, c);
+  v = (float16)(b0.odd, b1.odd);
+  c = (v > m) | isnan(v);
+  k = select(k, (int16)3, c);
+  const float16 gv = vload16(0, g);
+  /* window l's elements are lanes 2l (left) and 2l + 1 (right) of the row's 32 floats */
+  const int16 par = (int16)(0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1);
+  const int16 klo = k.s0011223344556677, khi = k.s8899aabbccddeeff;
+  const float16 glo = gv.s0011223344556677, ghi = gv.s8899aabbccddeeff;
+  for (int r = 0; r < 2; r++) {
+    __global float *d = dx + dxo + base + r * w;
+    float16 lo = vload16(0, d), hi = vload16(0, d + 16);
+    lo = select(lo, lo + glo, klo == par + 2 * r);
+    hi = select(hi, hi + ghi, khi == par + 2 * r);
+    vstore16(lo, 0, d);
+    vstore16(hi, 0, d + 16);
+  }
+}
+
 /* Average pool 3x3, stride 2, padding 1, count_include_pad = False (nn.AvgPool2d(3, 2, 1,
  * count_include_pad=False)): output (oy, ox) averages rows 2oy-1..2oy+1 and columns 2ox-1..2ox+1
  * clipped to the image. */

@@ -1,7 +1,7 @@
 /* Max pool 2x2/2 floor mode (kernels/pool.cl): FD check of the reference; device forward and
  * backward vs reference on odd shapes (dropped last row/col), with many ties (first max in
  * row-major order wins) and accumulate semantics; bit-identical reruns; the CPU row-vector forward
- * bit for bit against the per-window one. */
+ * and backward bit for bit against the per-window ones. */
 #include "nn/pool.h"
 #include "nn_opcase.h"
 
@@ -80,6 +80,19 @@ static spx_status pool_run(spx_ctx *ctx, void *user) {
   return spx_maxpool_forward(ctx, r->x, r->y);
 }
 
+/* ... and the backward: dx is first reset to its pre-filled values (with -0.0, which elements
+ * other than the argmax must keep: the kernel selects, it does not add 0), then accumulated */
+struct pool_bwd_run {
+  const spx_tensor *x, *dy, *dx;
+  const float *pre;
+};
+static spx_status pool_bwd_run(spx_ctx *ctx, void *user) {
+  const struct pool_bwd_run *r = user;
+  spx_status st = spx_cl_write(ctx, r->dx->mem, r->dx->off * sizeof(float), spx_tensor_numel(r->dx) * sizeof(float),
+                               r->pre);
+  return st ? st : spx_maxpool_backward(ctx, r->x, r->dy, r->dx);
+}
+
 static void test_device_rows(void) {
   spx_ctx *ctx = spx_nt_open();
   CHECK(ctx != NULL);
@@ -102,8 +115,19 @@ static void test_device_rows(void) {
     struct pool_run r = {&tx, &ty};
     CHECK_MSG(spx_nt_same_bits_both(ctx, "ROW_VEC", pool_run, &r, &ty), "%dx%dx%dx%d: row-vector forward differs", n,
               c, h, w);
-    spx_nt_free(&tx), spx_nt_free(&ty);
-    free(x);
+    size_t ny = (size_t)n * c * (h / 2) * (w / 2);
+    float *g = malloc(4 * ny), *pre = malloc(4 * nx);
+    spx_nt_rand(g, ny, -1, 1, &s);
+    spx_nt_rand(pre, nx, -1, 1, &s);
+    for (size_t j = 0; j < nx; j += 5) pre[j] = -0.0f;
+    spx_tensor tg, tdx;
+    CHECK_OK(ctx, spx_nt_upload(ctx, g, n, c, h / 2, w / 2, &tg));
+    CHECK_OK(ctx, spx_nt_upload(ctx, pre, n, c, h, w, &tdx));
+    struct pool_bwd_run rb = {&tx, &tg, &tdx, pre};
+    CHECK_MSG(spx_nt_same_bits_both(ctx, "ROW_VEC", pool_bwd_run, &rb, &tdx), "%dx%dx%dx%d: row-vector backward differs",
+              n, c, h, w);
+    spx_nt_free(&tx), spx_nt_free(&ty), spx_nt_free(&tg), spx_nt_free(&tdx);
+    free(x), free(g), free(pre);
   }
   spx_ctx_destroy(ctx);
 }

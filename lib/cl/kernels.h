@@ -63,6 +63,7 @@
   X(MAXPOOL_FWD, "pool.cl", "spx_maxpool_fwd")                         \
   X(MAXPOOL_FWD_ROWS, "pool.cl", "spx_maxpool_fwd_rows")               \
   X(MAXPOOL_BWD, "pool.cl", "spx_maxpool_bwd")                         \
+  X(MAXPOOL_BWD_ROWS, "pool.cl", "spx_maxpool_bwd_rows")               \
   X(AVGPOOL3_FWD, "pool.cl", "spx_avgpool3_fwd")                       \
   X(AVGPOOL3_BWD, "pool.cl", "spx_avgpool3_bwd")                       \
   X(PROJECT_KEYS, "project.cl", "spx_project_keys")                    \

@@ -34,11 +34,15 @@ spx_status spx_maxpool_backward(spx_ctx *ctx, const spx_tensor *x, const spx_ten
   if ((st = shapes(ctx, "maxpool_backward", x, dy, "dy")) || (st = spx_nn_check(ctx, dx, "maxpool_backward", "dx")))
     return st;
   if (!spx_nn_same_shape(x, dx)) return spx_nn_shape_mismatch(ctx, "maxpool_backward", "dx vs x", dx, x);
-  if ((st = spx_cl_kernel(ctx, SPX_K_MAXPOOL_BWD, &k))) return st;
+  /* per window, or 16 windows of a row per work-item (tunable SPX_ROW_VEC): the same bits */
+  const int rows = ctx->dev->tune.row_vec;
+  const char *name = rows ? "spx_maxpool_bwd_rows" : "spx_maxpool_bwd";
+  if ((st = spx_cl_kernel(ctx, rows ? SPX_K_MAXPOOL_BWD_ROWS : SPX_K_MAXPOOL_BWD, &k))) return st;
   cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, dy) | spx_nn_arg(k, 4, dx) | SPX_ARG(k, 6, x->h) |
              SPX_ARG(k, 7, x->w);
-  if ((st = spx_cl_check(ctx, e, "spx_maxpool_bwd"))) return st;
-  return spx_nn_run3d(ctx, k, (size_t)dy->w, (size_t)dy->h, (size_t)dy->n * (size_t)dy->c, "spx_maxpool_bwd");
+  if ((st = spx_cl_check(ctx, e, name))) return st;
+  return spx_nn_run3d(ctx, k, rows ? ((size_t)dy->w + 15) / 16 : (size_t)dy->w, (size_t)dy->h,
+                      (size_t)dy->n * (size_t)dy->c, name);
 }
 
 static spx_status avg_shapes(spx_ctx *ctx, const char *op, const spx_tensor *x, const spx_tensor *y, const char *xn,
