@@ -148,27 +148,20 @@ __kernel void spx_upsample2x_weights(__global float *tab, int to, int in, float 
  * planes start ps apart at go, rows rs apart (the plain upsampling: ps = oh * ow, rs = ow, all
  * samples in one launch; the fused up block reads its slice of the concatenated gradient in
  * place, one launch per sample). */
-__kernel void spx_upsample2x_bwd_rows(__global const float *dy, int go, __global float *t, int to,
-                                      __global const float *tab, int wxo, int h, int w, int ps, int rs) {
-  int oh = 2 * h, ow = 2 * w;
-  int ix = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
-  if (ix >= w || oy >= oh) return;
-  __global const float *g = dy + go + p * ps + oy * rs;
+/* t's element of input column ix in dy row g (the work of one work-item of the pass). */
+inline float spx_up_bwd_row1(__global const float *g, __global const float *tab, int wxo, int w, int ix) {
   float row = 0.0f;
 #pragma unroll
   for (int b = 0; b < 5; b++) {
-    float wb = tab[wxo + b * w + ix], v = g[clamp(2 * ix - 1 + b, 0, ow - 1)];
+    float wb = tab[wxo + b * w + ix], v = g[clamp(2 * ix - 1 + b, 0, 2 * w - 1)];
     row += wb != 0.0f ? wb * v : 0.0f;
   }
-  t[to + (p * oh + oy) * w + ix] = row;
+  return row;
 }
-
-/* Pass 2, range (w, h, planes): dx[p, iy, ix] += sum_a wy[a] * t[p, 2iy - 1 + a, ix]. */
-__kernel void spx_upsample2x_bwd_cols(__global const float *t, __global const float *tab, int wyo,
-                                      __global float *dx, int xo, int h, int w) {
+/* dx's increment at (iy, ix) of plane p from the row-pass result t. */
+inline float spx_up_bwd_col1(__global const float *t, __global const float *tab, int wyo, int h, int w, int p, int iy,
+                             int ix) {
   int oh = 2 * h;
-  int ix = get_global_id(0), iy = get_global_id(1), p = get_global_id(2);
-  if (ix >= w || iy >= h) return;
   __global const float *q = t + p * oh * w + ix;
   float acc = 0.0f;
 #pragma unroll
@@ -176,5 +169,73 @@ __kernel void spx_upsample2x_bwd_cols(__global const float *t, __global const fl
     float wa = tab[wyo + a * h + iy], v = q[clamp(2 * iy - 1 + a, 0, oh - 1) * w];
     acc += wa != 0.0f ? wa * v : 0.0f;
   }
-  dx[xo + (p * h + iy) * w + ix] += acc;
+  return acc;
+}
+
+__kernel void spx_upsample2x_bwd_rows(__global const float *dy, int go, __global float *t, int to,
+                                      __global const float *tab, int wxo, int h, int w, int ps, int rs) {
+  int oh = 2 * h;
+  int ix = get_global_id(0), oy = get_global_id(1), p = get_global_id(2);
+  if (ix >= w || oy >= oh) return;
+  t[to + (p * oh + oy) * w + ix] = spx_up_bwd_row1(dy + go + p * ps + oy * rs, tab, wxo, w, ix);
+}
+
+/* Pass 2, range (w, h, planes): dx[p, iy, ix] += sum_a wy[a] * t[p, 2iy - 1 + a, ix]. */
+__kernel void spx_upsample2x_bwd_cols(__global const float *t, __global const float *tab, int wyo,
+                                      __global float *dx, int xo, int h, int w) {
+  int ix = get_global_id(0), iy = get_global_id(1), p = get_global_id(2);
+  if (ix >= w || iy >= h) return;
+  dx[xo + (p * h + iy) * w + ix] += spx_up_bwd_col1(t, tab, wyo, h, w, p, iy, ix);
+}
+
+/* The two passes, CPU class (tunable ROW_VEC = 1): 16 consecutive input columns per work-item,
+ * the same terms in the same order lane by lane (same bits). Pass 1 reads the 36 dy elements
+ * 2ix0-2 .. 2ix0+33 as six vectors and takes tap b of lane l (element 2(ix0+l)-1+b) by .odd /
+ * .even; a chunk whose taps would be clamped (the first one, and those ending within 17 columns
+ * of the right edge) goes lane by lane. Pass 2 loads its rows of t as vectors (the weights are
+ * per row). Ranges (ceil(w / 16), oh or h, planes). */
+__kernel void spx_upsample2x_bwd_rows_v(__global const float *dy, int go, __global float *t, int to,
+                                        __global const float *tab, int wxo, int h, int w, int ps, int rs) {
+  int oh = 2 * h;
+  int ix0 = get_global_id(0) * 16, oy = get_global_id(1), p = get_global_id(2);
+  if (ix0 >= w || oy >= oh) return;
+  __global const float *g = dy + go + p * ps + oy * rs;
+  __global float *tr = t + to + (p * oh + oy) * w;
+  if (ix0 < 1 || ix0 + 17 > w) {
+    for (int ix = ix0; ix < min(ix0 + 16, w); ix++) tr[ix] = spx_up_bwd_row1(g, tab, wxo, w, ix);
+    return;
+  }
+  __global const float *b0 = g + 2 * ix0 - 2;
+  const float16 l0 = vload16(0, b0), l1 = vload16(0, b0 + 16), m0 = vload16(0, b0 + 2), m1 = vload16(0, b0 + 18);
+  const float16 n0 = vload16(0, b0 + 4), n1 = vload16(0, b0 + 20);
+  const float16 v[5] = {(float16)(l0.odd, l1.odd), (float16)(m0.even, m1.even), (float16)(m0.odd, m1.odd),
+                        (float16)(n0.even, n1.even), (float16)(n0.odd, n1.odd)};
+  float16 row = (float16)0.0f;
+#pragma unroll
+  for (int b = 0; b < 5; b++) {
+    const float16 wb = vload16(0, tab + wxo + b * w + ix0);
+    row += select((float16)0.0f, wb * v[b], wb != 0.0f);
+  }
+  vstore16(row, 0, tr + ix0);
+}
+
+__kernel void spx_upsample2x_bwd_cols_v(__global const float *t, __global const float *tab, int wyo,
+                                        __global float *dx, int xo, int h, int w) {
+  int oh = 2 * h;
+  int ix0 = get_global_id(0) * 16, iy = get_global_id(1), p = get_global_id(2);
+  if (ix0 >= w || iy >= h) return;
+  __global float *d = dx + xo + (p * h + iy) * w;
+  if (ix0 + 16 > w) {
+    for (int ix = ix0; ix < w; ix++) d[ix] += spx_up_bwd_col1(t, tab, wyo, h, w, p, iy, ix);
+    return;
+  }
+  __global const float *q = t + p * oh * w + ix0;
+  float16 acc = (float16)0.0f;
+#pragma unroll
+  for (int a = 0; a < 5; a++) {
+    const float wa = tab[wyo + a * h + iy];
+    const float16 v = vload16(0, q + clamp(2 * iy - 1 + a, 0, oh - 1) * w);
+    acc += wa != 0.0f ? wa * v : (float16)0.0f;
+  }
+  vstore16(vload16(0, d + ix0) + acc, 0, d + ix0);
 }

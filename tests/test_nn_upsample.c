@@ -103,6 +103,28 @@ static spx_status up_run(spx_ctx *ctx, void *user) {
   return spx_upsample2x_forward(ctx, r->x, r->ac, r->y);
 }
 
+/* ... and the backward (both passes), plain and as the fused up block's (its gradient slice read
+ * in place, one row-pass launch per sample): dx reset to its pre-filled values, then accumulated;
+ * dy holds infinities where a zero weight must keep them out. */
+struct up_bwd_run {
+  const spx_tensor *dy, *dx, *dout, *dskip, *dup;
+  const float *pre, *pre_skip;
+  int ac;
+};
+static spx_status up_bwd_run(spx_ctx *ctx, void *user) {
+  const struct up_bwd_run *r = user;
+  spx_status st = spx_cl_write(ctx, r->dx->mem, r->dx->off * 4, spx_tensor_numel(r->dx) * 4, r->pre);
+  if (!st) st = spx_upsample2x_backward(ctx, r->dy, r->ac, r->dx);
+  return st;
+}
+static spx_status upcat_bwd_run(spx_ctx *ctx, void *user) {
+  const struct up_bwd_run *r = user;
+  spx_status st = spx_cl_write(ctx, r->dup->mem, r->dup->off * 4, spx_tensor_numel(r->dup) * 4, r->pre);
+  if (!st) st = spx_cl_write(ctx, r->dskip->mem, r->dskip->off * 4, spx_tensor_numel(r->dskip) * 4, r->pre_skip);
+  if (!st) st = spx_upcat_backward(ctx, r->dout, 1, 0, r->ac, r->dskip, r->dup);
+  return st;
+}
+
 static void test_device_rows(void) {
   spx_ctx *ctx = spx_nt_open();
   CHECK(ctx != NULL);
@@ -122,8 +144,30 @@ static void test_device_rows(void) {
       struct up_run r = {&tx, &ty, ac};
       CHECK_MSG(spx_nt_same_bits_both(ctx, "ROW_VEC", up_run, &r, &ty), "%dx%dx%dx%d ac=%d: row-vector forward differs",
                 n, c, h, w, ac);
-      spx_nt_free(&tx), spx_nt_free(&ty);
-      free(x);
+      /* backward: dy (4hw per plane) with a few infinities, dx pre-filled */
+      size_t ny = 4 * nx;
+      float *g = malloc(4 * ny), *pre = malloc(4 * nx);
+      spx_nt_rand(g, ny, -1, 1, &s), spx_nt_rand(pre, nx, -1, 1, &s);
+      for (size_t j = 0; j < ny; j += 37) g[j] = INFINITY;
+      spx_tensor tg, tdx;
+      CHECK_OK(ctx, spx_nt_upload(ctx, g, n, c, 2 * h, 2 * w, &tg));
+      CHECK_OK(ctx, spx_nt_upload(ctx, pre, n, c, h, w, &tdx));
+      struct up_bwd_run rb = {&tg, &tdx, NULL, NULL, NULL, pre, NULL, ac};
+      CHECK_MSG(spx_nt_same_bits_both(ctx, "ROW_VEC", up_bwd_run, &rb, &tdx),
+                "%dx%dx%dx%d ac=%d: row-vector backward differs", n, c, h, w, ac);
+      /* the up block: out = [skip (3 channels) | upsampled x padded by one row on top], 2h+1 x 2w */
+      const int cs = 3, oh = 2 * h + 1, ow = 2 * w;
+      size_t nout = (size_t)n * (cs + c) * oh * ow, nskip = (size_t)n * cs * oh * ow;
+      float *go = malloc(4 * nout), *pskip = malloc(4 * nskip);
+      spx_nt_rand(go, nout, -1, 1, &s), spx_nt_rand(pskip, nskip, -1, 1, &s);
+      spx_tensor tgo, tds;
+      CHECK_OK(ctx, spx_nt_upload(ctx, go, n, cs + c, oh, ow, &tgo));
+      CHECK_OK(ctx, spx_nt_upload(ctx, pskip, n, cs, oh, ow, &tds));
+      struct up_bwd_run ru = {NULL, NULL, &tgo, &tds, &tdx, pre, pskip, ac};
+      CHECK_MSG(spx_nt_same_bits_both(ctx, "ROW_VEC", upcat_bwd_run, &ru, &tdx),
+                "%dx%dx%dx%d ac=%d: row-vector up-block backward differs", n, c, h, w, ac);
+      spx_nt_free(&tx), spx_nt_free(&ty), spx_nt_free(&tg), spx_nt_free(&tdx), spx_nt_free(&tgo), spx_nt_free(&tds);
+      free(x), free(g), free(pre), free(go), free(pskip);
     }
   spx_ctx_destroy(ctx);
 }

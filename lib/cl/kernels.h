@@ -103,6 +103,8 @@
   X(UPCAT_BORDER, "upsample.cl", "spx_upcat_border")                   \
   X(UPSAMPLE2X_WEIGHTS, "upsample.cl", "spx_upsample2x_weights")       \
   X(UPSAMPLE2X_BWD_ROWS, "upsample.cl", "spx_upsample2x_bwd_rows")     \
+  X(UPSAMPLE2X_BWD_ROWS_V, "upsample.cl", "spx_upsample2x_bwd_rows_v") \
+  X(UPSAMPLE2X_BWD_COLS_V, "upsample.cl", "spx_upsample2x_bwd_cols_v") \
   X(UPSAMPLE2X_BWD_COLS, "upsample.cl", "spx_upsample2x_bwd_cols")
 
 typedef enum spx_kernel_id {

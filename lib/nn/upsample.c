@@ -85,8 +85,13 @@ static spx_status up_backward(spx_ctx *ctx, const char *op, cl_mem dy, size_t dy
   cl_mem t = NULL;
   size_t planes = (size_t)dx->n * (size_t)dx->c, rows = 2 * (size_t)dx->h;
   if (planes * rows * (size_t)dx->w == 0) return SPX_OK;
-  if ((st = spx_cl_kernel(ctx, SPX_K_UPSAMPLE2X_BWD_ROWS, &k1)) ||
-      (st = spx_cl_kernel(ctx, SPX_K_UPSAMPLE2X_BWD_COLS, &k2)) ||
+  /* one work-item per output, or 16 consecutive columns (tunable SPX_ROW_VEC): the same bits */
+  const int vec = ctx->dev->tune.row_vec;
+  const char *n1 = vec ? "spx_upsample2x_bwd_rows_v" : "spx_upsample2x_bwd_rows";
+  const char *n2 = vec ? "spx_upsample2x_bwd_cols_v" : "spx_upsample2x_bwd_cols";
+  const size_t gx = vec ? ((size_t)dx->w + 15) / 16 : (size_t)dx->w;
+  if ((st = spx_cl_kernel(ctx, vec ? SPX_K_UPSAMPLE2X_BWD_ROWS_V : SPX_K_UPSAMPLE2X_BWD_ROWS, &k1)) ||
+      (st = spx_cl_kernel(ctx, vec ? SPX_K_UPSAMPLE2X_BWD_COLS_V : SPX_K_UPSAMPLE2X_BWD_COLS, &k2)) ||
       (st = spx_cl_kernel(ctx, SPX_K_UPSAMPLE2X_WEIGHTS, &kw)))
     return st;
   /* scratch: the row-pass result (half of dy), then the x and y weight tables (5 per input
@@ -114,14 +119,12 @@ static spx_status up_backward(spx_ctx *ctx, const char *op, cl_mem dy, size_t dy
     e = SPX_ARG(k1, 0, dy) | SPX_ARG(k1, 1, go) | SPX_ARG(k1, 2, t) | SPX_ARG(k1, 3, to) | SPX_ARG(k1, 4, t) |
         SPX_ARG(k1, 5, wxoi) | SPX_ARG(k1, 6, dx->h) | SPX_ARG(k1, 7, dx->w) | SPX_ARG(k1, 8, psi) |
         SPX_ARG(k1, 9, rsi);
-    if ((st = spx_cl_check(ctx, e, "spx_upsample2x_bwd_rows")) ||
-        (st = spx_nn_run3d(ctx, k1, (size_t)dx->w, rows, whole ? planes : (size_t)dx->c, "spx_upsample2x_bwd_rows")))
+    if ((st = spx_cl_check(ctx, e, n1)) || (st = spx_nn_run3d(ctx, k1, gx, rows, whole ? planes : (size_t)dx->c, n1)))
       goto done;
   }
   e = SPX_ARG(k2, 0, t) | SPX_ARG(k2, 1, t) | SPX_ARG(k2, 2, wyoi) | spx_nn_arg(k2, 3, dx) | SPX_ARG(k2, 5, dx->h) |
       SPX_ARG(k2, 6, dx->w);
-  if (!(st = spx_cl_check(ctx, e, "spx_upsample2x_bwd_cols")))
-    st = spx_nn_run3d(ctx, k2, (size_t)dx->w, (size_t)dx->h, planes, "spx_upsample2x_bwd_cols");
+  if (!(st = spx_cl_check(ctx, e, n2))) st = spx_nn_run3d(ctx, k2, gx, (size_t)dx->h, planes, n2);
 done:
   spx_conv2d_scratch_put(&sc);
   return st;
