@@ -20,68 +20,74 @@
 /* the transforms (WINO_BT, WINO_AT, wino_filter), shared with conv2d_winograd_lds.cl */
 #include "winograd_tf.h"
 
-/* Row i of the 6 x 6 patches of the CONV_VW tiles of one work-item (d[i*6 + j] lane l = the
+/* Row i of the 6 x 6 patches of the CONV_VW tiles of one work-item (D[i*6 + j] lane l = the
  * patch row's element 4l + j), from the row's first 4*CONV_VW + 4 elements as CONV_VW == 16:
  * eight 16-float vectors L(0), L(16), L(32), L(48), L(4), L(20), L(36), L(52) (L(o): elements
  * o .. o+15), de-interleaved by 4; other widths: gathered lane by lane with G(k) (element k). */
 #if CONV_VW == 16
-#define WINO_IN_ROW(L, G, i)                                                           \
+#define WINO_IN_ROW(D, L, G, i)                                                           \
   do {                                                                                 \
     float16 a0 = L(0), a1 = L(16), a2 = L(32), a3 = L(48);                             \
     float16 b0 = L(4), b1 = L(20), b2 = L(36), b3 = L(52);                             \
-    d[(i) * 6 + 0] = (float16)(a0.s048c, a1.s048c, a2.s048c, a3.s048c);                \
-    d[(i) * 6 + 1] = (float16)(a0.s159d, a1.s159d, a2.s159d, a3.s159d);                \
-    d[(i) * 6 + 2] = (float16)(a0.s26ae, a1.s26ae, a2.s26ae, a3.s26ae);                \
-    d[(i) * 6 + 3] = (float16)(a0.s37bf, a1.s37bf, a2.s37bf, a3.s37bf);                \
-    d[(i) * 6 + 4] = (float16)(b0.s048c, b1.s048c, b2.s048c, b3.s048c);                \
-    d[(i) * 6 + 5] = (float16)(b0.s159d, b1.s159d, b2.s159d, b3.s159d);                \
+    (D)[(i) * 6 + 0] = (float16)(a0.s048c, a1.s048c, a2.s048c, a3.s048c);                \
+    (D)[(i) * 6 + 1] = (float16)(a0.s159d, a1.s159d, a2.s159d, a3.s159d);                \
+    (D)[(i) * 6 + 2] = (float16)(a0.s26ae, a1.s26ae, a2.s26ae, a3.s26ae);                \
+    (D)[(i) * 6 + 3] = (float16)(a0.s37bf, a1.s37bf, a2.s37bf, a3.s37bf);                \
+    (D)[(i) * 6 + 4] = (float16)(b0.s048c, b1.s048c, b2.s048c, b3.s048c);                \
+    (D)[(i) * 6 + 5] = (float16)(b0.s159d, b1.s159d, b2.s159d, b3.s159d);                \
   } while (0)
 #else
-#define WINO_IN_ROW(L, G, i)                                          \
+#define WINO_IN_ROW(D, L, G, i)                                          \
   do {                                                                \
     for (int j = 0; j < 6; j++) {                                     \
       float lanes[CONV_VW];                                           \
       for (int l = 0; l < CONV_VW; l++) lanes[l] = G(4 * l + j);      \
-      d[(i) * 6 + j] = VLOAD(lanes);                                  \
+      (D)[(i) * 6 + j] = VLOAD(lanes);                                  \
     }                                                                 \
   } while (0)
 #endif
 #define WINO_IN_COLS (4 * CONV_VW + 4)
 
 /* Elements x .. x+15 of an image row (NULL: a row outside the image), zero outside [0, W). */
-static inline float16 wino_row16(const __global float *row, int x, int W) {
+static inline __attribute__((always_inline)) float16 wino_row16(const __global float *row, int x, int W) {
   if (!row) return (float16)0.0f;
   if (x >= 0 && x + 16 <= W) return vload16(0, row + x);
-  float t[16];
-  for (int l = 0; l < 16; l++) t[l] = x + l >= 0 && x + l < W ? row[x + l] : 0.0f;
-  return vload16(0, t);
+  /* built from scalars (a private array written by parts and read as one vector stalls on store
+   * forwarding) */
+#define WR1(l) (x + (l) >= 0 && x + (l) < W ? row[x + (l)] : 0.0f)
+  return (float16)(WR1(0), WR1(1), WR1(2), WR1(3), WR1(4), WR1(5), WR1(6), WR1(7), WR1(8), WR1(9), WR1(10), WR1(11),
+                   WR1(12), WR1(13), WR1(14), WR1(15));
+#undef WR1
 }
 /* Element x of an image row (NULL: outside the image), zero outside [0, W). */
-static inline float wino_row1(const __global float *row, int x, int W) {
+static inline __attribute__((always_inline)) float wino_row1(const __global float *row, int x, int W) {
   return row && x >= 0 && x < W ? row[x] : 0.0f;
 }
 
 /* Input transform, read straight from the input x [N][C][H][W] (from x_off): the patch of tile
  * (ty, tx) covers rows 4ty-1 .. 4ty+4 and columns 4tx-1 .. 4tx+4, zero outside the image (the
- * padding). Tiles are numbered t = ty*TWp + tx with TWp = TW rounded up to CONV_VW: the CONV_VW
- * tiles of one work-item lie in one tile row. A work-item whose rows and columns (with the
+ * padding). Tiles are numbered t = ty*TWp + tx. Row-padded (TWp = TW rounded up to CONV_VW) the
+ * CONV_VW tiles of one work-item lie in one tile row; packed (TWp = TW, lib/nn/conv2d_winograd.c
+ * CONV_WINO_PACK: no GEMM columns spent on padding tiles) a work-item's tiles may run into the
+ * next rows, and it loads each row segment separately. A work-item whose rows and columns (with the
  * loads' overrun) lie inside the image loads them as vectors; the others (image borders, tiles
  * past TW) load each 16-float piece that lies inside as a vector and gather the rest with bounds
  * tests. The values are the same
  * either way, as were those of the zero-padded copy this kernel used to read: same bits.
  * Global: (Tp / CONV_VW, C, N); tiles past TH*TWp are written as zeros. */
 __kernel void spx_wino_in(const __global float *x, ulong x_off, __global float *V, int C, int H, int W, int TWp, int T,
-                          int Tp) {
-  const int t0 = (int)get_global_id(0) * CONV_VW, c = (int)get_global_id(1), n = (int)get_global_id(2);
-  if (t0 >= Tp) return;
-  __global float *v = V + ((size_t)n * 36 * C + c) * Tp + t0;
+                          int Tp, int TWs) {
+  const int g = (int)get_global_id(0), c = (int)get_global_id(1), n = (int)get_global_id(2);
+  const int TWg = TWp / CONV_VW, ty = g / TWg, tx0 = (g - ty * TWg) * CONV_VW;
+  const int col0 = ty * TWs + tx0; /* row-padded (TWs = TWp): col0 = g * CONV_VW */
+  __global float *v = V + ((size_t)n * 36 * C + c) * Tp + col0;
   const size_t es = (size_t)C * Tp;
   vf d[36], r[36];
-  if (t0 >= T) {
-    for (int e = 0; e < 36; e++) VSTORE((vf)0.0f, v + e * es);
+  if (col0 >= T) { /* row-padded: the GEMM's padding columns past T are zeros */
+    if (TWs == TWp && col0 < Tp)
+      for (int e = 0; e < 36; e++) VSTORE((vf)0.0f, v + e * es);
     return;
   }
-  const int ty = t0 / TWp, tx0 = t0 - ty * TWp;
   const int y0 = 4 * ty - 1, x0 = 4 * tx0 - 1;
   const __global float *xc = x + x_off + ((size_t)n * C + c) * H * W;
   if (y0 >= 0 && y0 + 5 < H && x0 >= 0 && x0 + WINO_IN_COLS <= W) {
@@ -89,7 +95,7 @@ __kernel void spx_wino_in(const __global float *x, ulong x_off, __global float *
       const __global float *p = xc + (size_t)(y0 + i) * W + x0;
 #define LD_IN(o) vload16(0, p + (o))
 #define G_IN(k) p[k]
-      WINO_IN_ROW(LD_IN, G_IN, i);
+      WINO_IN_ROW(d, LD_IN, G_IN, i);
 #undef LD_IN
 #undef G_IN
     }
@@ -99,13 +105,21 @@ __kernel void spx_wino_in(const __global float *x, ulong x_off, __global float *
       const __global float *row = yy >= 0 && yy < H ? xc + (size_t)yy * W : NULL;
 #define LD_EDGE(o) wino_row16(row, x0 + (o), W)
 #define G_EDGE(k) wino_row1(row, x0 + (k), W)
-      WINO_IN_ROW(LD_EDGE, G_EDGE, i);
+      WINO_IN_ROW(d, LD_EDGE, G_EDGE, i);
 #undef LD_EDGE
 #undef G_EDGE
     }
   }
   for (int j = 0; j < 6; j++) WINO_BT(vf, (r + j), (d + j), 6); /* columns: r = B^T d */
   for (int i = 0; i < 6; i++) WINO_BT(vf, (d + 6 * i), (r + 6 * i), 1); /* rows: d = r B */
+  if (TWs != TWp && tx0 + CONV_VW > TWs) { /* packed: the row's last tiles only (the next row follows) */
+    for (int e = 0; e < 36; e++) {
+      float lanes[CONV_VW];
+      VSTORE(d[e], lanes);
+      for (int l = 0; l < TWs - tx0; l++) v[e * es + l] = lanes[l];
+    }
+    return;
+  }
   for (int e = 0; e < 36; e++) VSTORE(d[e], v + e * es);
 }
 
@@ -167,7 +181,8 @@ __kernel void spx_wino_gemm(const __global float *V, const __global float *U, __
     for (int j = 0; j < CONV_TN; j++) VSTORE(acc[m][j], mb + (size_t)m * Tp + j * (CONV_LWS * CONV_VW));
 }
 
-/* Output transform + epilogue on CONV_VW tiles of one tile row. Global: (Tp / CONV_VW, Cout, N). */
+/* Output transform + epilogue on CONV_VW tiles of one tile row (packed tiles across rows: lane by
+ * lane). Global: (ceil(T / CONV_VW), Cout, N). */
 static inline vf wino_epi(vf v, const __global float *yo, int flags, float bv, float sc, float sh) {
   if (flags & FL_ACCUM) v = VLOAD(yo) + v;
   if (flags & FL_BIAS) v = v + bv;
@@ -177,18 +192,27 @@ static inline vf wino_epi(vf v, const __global float *yo, int flags, float bv, f
 }
 __kernel void spx_wino_out(const __global float *M, __global float *y, ulong y_off, const __global float *bias,
                            ulong b_off, const __global float *scale, ulong sc_off, const __global float *shift,
-                           ulong sh_off, int Cout, int CoutP, int H, int W, int TWp, int T, int Tp, int flags) {
-  const int t0 = (int)get_global_id(0) * CONV_VW, co = (int)get_global_id(1), n = (int)get_global_id(2);
-  if (t0 >= T) return;
+                           ulong sh_off, int Cout, int CoutP, int H, int W, int TWp, int T, int Tp, int flags, int TWs) {
+  const int g = (int)get_global_id(0), co = (int)get_global_id(1), n = (int)get_global_id(2);
+  const int TWg = TWp / CONV_VW, ty = g / TWg, tx0 = (g - ty * TWg) * CONV_VW, col0 = ty * TWs + tx0;
+  if (col0 >= T) return;
   vf m[36], r[24];
-  const __global float *mp = M + ((size_t)n * 36 * CoutP + co) * Tp + t0;
+  const __global float *mp = M + ((size_t)n * 36 * CoutP + co) * Tp + col0;
   const size_t es = (size_t)CoutP * Tp;
-  for (int e = 0; e < 36; e++) m[e] = VLOAD(mp + e * es);
+  if (TWs != TWp && tx0 + CONV_VW > TWs) { /* packed: the row's last tiles (lanes past them are not written) */
+    for (int e = 0; e < 36; e++) {
+      float lanes[CONV_VW];
+      for (int l = 0; l < CONV_VW; l++) lanes[l] = l < TWs - tx0 ? mp[e * es + l] : 0.0f;
+      m[e] = VLOAD(lanes);
+    }
+  } else {
+    for (int e = 0; e < 36; e++) m[e] = VLOAD(mp + e * es);
+  }
   /* r = A^T m (4x6), then o = r A (4x4) */
   WINO_AT_COLS(vf, r, m);
   float bv, sc, sh;
   wino_epi_consts(flags, bias, b_off, scale, sc_off, shift, sh_off, co, &bv, &sc, &sh);
-  const int ty = t0 / TWp, tx0 = t0 - ty * TWp, ox0 = 4 * tx0;
+  const int ox0 = 4 * tx0;
   __global float *yc = y + y_off + ((size_t)n * Cout + co) * H * W;
   for (int i = 0; i < 4; i++) {
     const int oy = 4 * ty + i;

@@ -102,6 +102,37 @@ static void test_chunked(void) {
   for (int k = 0; k < 2; k++) free(r[k][0]), free(r[k][1]);
 }
 
+/* Packed tiles (CONV_WINO_PACK 1: no GEMM columns for the padding of tile rows to CONV_VW) give
+ * the same bits as row-padded ones (0), forward and backward data, on every case (with CONV_VW
+ * 16 the rows of 2, 5, 6, 3, 1, 1 and 13 tiles are all packed: work-items span several tile
+ * rows, a row's last work-item is partial) and at 38x51 (13 -> 16), 77x102 (26 -> 32), N = 2. */
+static void test_packed(void) {
+  setenv("SPX_TUNE_CONV_WINO_MINC", "1", 1);
+  setenv("SPX_TUNE_CONV_WINO_TRAIN", "1", 1);
+  const wcase extra[] = {{2, 16, 38, 51, 24, 1, 1, 0}, {1, 32, 77, 102, 16, 0, 0, 1}};
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0] + 2; i++) {
+    const wcase *c = i < sizeof cases / sizeof cases[0] ? &cases[i] : &extra[i - sizeof cases / sizeof cases[0]];
+    float *r[2][2];
+    unsigned long long keep = rng;
+    for (int k = 0; k < 2; k++) {
+      setenv("SPX_TUNE_CONV_WINO_PACK", k ? "1" : "0", 1);
+      spx_ctx *ctx;
+      CHECK(spx_ctx_create(&ctx) == SPX_OK);
+      CHECK_OK(ctx, spx_device_open(ctx, NULL));
+      rng = keep;
+      spx_conv2d_workspace ws = {0};
+      run_case(ctx, c, &ws, r[k]);
+      spx_conv2d_workspace_release(&ws);
+      spx_ctx_destroy(ctx);
+    }
+    size_t ny = (size_t)c->n * c->cout * c->h * c->w + 3 + 8, nx = (size_t)c->n * c->cin * c->h * c->w;
+    CHECK_MSG(memcmp(r[0][0], r[1][0], ny * 4) == 0, "case %zu: forward differs with packed tiles", i);
+    CHECK_MSG(memcmp(r[0][1], r[1][1], nx * 4) == 0, "case %zu: backward data differs with packed tiles", i);
+    for (int k = 0; k < 2; k++) free(r[k][0]), free(r[k][1]);
+  }
+  unsetenv("SPX_TUNE_CONV_WINO_PACK");
+}
+
 /* The rule: only 3x3 / stride 1 / pad 1 with both channel counts >= CONV_WINO_MINC; 0 = never;
  * training calls only with CONV_WINO_TRAIN. */
 static void test_rule(void) {
@@ -151,6 +182,7 @@ int main(void) {
   SPX_RUN(test_vs_reference);
   SPX_RUN(test_deterministic);
   SPX_RUN(test_chunked);
+  SPX_RUN(test_packed);
   SPX_RUN(test_rule);
   return spx_test_summary();
 }

@@ -49,6 +49,7 @@ struct spx_tunables {
   int conv_wino_minc;     /* Winograd */
   int conv_wino_train;
   int conv_wino_chunk;
+  int conv_wino_pack;     /* Winograd tiles packed across tile rows */
   int conv_wino_lds;      /* Winograd with local-memory tiles (GPU) */
   int conv_wlds_tm;
   int conv_wlds_tn;

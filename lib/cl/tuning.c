@@ -133,6 +133,12 @@ static const struct spx_tunable spx_tunables[] = {
      * units of 2^20 floats (4 MiB); a pass takes as many samples as fit, at least one (0: always
      * one). Bounds the transforms of a batch-4 training step (lib/nn/conv2d_winograd.c) */
     {"CONV_WINO_CHUNK", F(conv_wino_chunk), 32, 32, 0, 1 << 16, 0},
+    /* Winograd (kernels/conv2d_winograd.cl): 1 = number the tiles of a layer whose tile rows
+     * would be padded by more than 10% to a multiple of CONV_VW (77x102: 26 -> 32 tiles, 38x51: 13 ->
+     * 16, 19x25: 7 -> 16) row after row without padding, so the GEMMs do no work on padding tiles;
+     * the transforms load a work-item's row segments separately. Same bits (each tile's arithmetic
+     * is unchanged). 0: row-padded always. GPU: its Winograd is the local-memory variant */
+    {"CONV_WINO_PACK", F(conv_wino_pack), 1, 0, 0, 1, 0},
     /* 1: the Winograd layers run the fused local-memory variant (kernels/conv2d_winograd_lds.cl:
      * input transform, GEMM and output transform in one kernel, bit-identical to the CPU
      * variant). A work-group of 36 x CONV_WLDS_WM x CONV_WLDS_WN work-items owns CONV_WLDS_WM *

@@ -132,9 +132,10 @@ spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const
                                    const spx_tensor *shift, int relu, int accumulate, const spx_tensor *y);
 
 /* The input transform of samples [s0, s0 + m) of x [n][c][h][w] (zero outside the image) into V
- * [m][36][c][Tp]: th = ceil(h / 4) rows of twp tiles (ceil(w / 4) rounded up to CONV_VW), Tp >=
- * th * twp a multiple of CONV_VW; tiles past th * twp are zeros. */
-spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int twp, int Tp, cl_mem V);
+ * [m][36][c][Tp]: th = ceil(h / 4) rows of tiles stored tws to a row (tile (ty, tx) at column
+ * ty * tws + tx): tws = ceil(w / 4) rounded up to CONV_VW (row-padded; columns th * tws .. Tp are
+ * zeros) or = ceil(w / 4) (packed, CONV_WINO_PACK). Tp >= th * tws, a multiple of CONV_VW. */
+spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int tws, int Tp, cl_mem V);
 
 /* ---- Winograd weight gradient (lib/nn/conv2d_winograd_dw.c), called by spx_conv2d_backward ---- */
 /* Nonzero when the weight gradient of a k x k / stride / pad conv of cin -> cout channels on

@@ -18,7 +18,7 @@ int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, 
 /* Tile geometry and scratch of one call: spx_conv2d_winograd and spx_conv2d_winograd_need size
  * the slots from this alone. */
 typedef struct wlay {
-  int th, tw, twp, T, coutp, nb;
+  int th, tw, twp, tws, T, coutp, nb;
   size_t quantum, tp, f0, f2;
   spx_ws_need need;
 } wlay;
@@ -26,8 +26,12 @@ typedef struct wlay {
 static void layout(const spx_ctx *ctx, int n, int cin, int h, int wd, int cout, wlay *L) {
   const int tm = ctx->dev->tune.conv_tm, tn = ctx->dev->tune.conv_tn, vw = ctx->dev->tune.conv_vw;
   const int lws = ctx->dev->tune.conv_lws;
-  /* tiles: TH rows of TWp (TW rounded up to the vector width, so a vector of tiles is one row) */
-  L->th = (h + 3) / 4, L->tw = (wd + 3) / 4, L->twp = (L->tw + vw - 1) / vw * vw, L->T = L->th * L->twp;
+  /* tiles: TH rows of TWp (TW rounded up to the vector width, so a vector of tiles is one row);
+   * stored (the GEMM's columns) TWs to a row: TWp, or packed (TWs = TW, CONV_WINO_PACK) where the
+   * rounding would add more than 10% */
+  L->th = (h + 3) / 4, L->tw = (wd + 3) / 4, L->twp = (L->tw + vw - 1) / vw * vw, L->tws = L->twp;
+  if (ctx->dev->tune.conv_wino_pack && 10 * (L->twp - L->tw) > L->twp) L->tws = L->tw;
+  L->T = L->th * L->tws;
   L->quantum = (size_t)lws * tn * vw;
   L->tp = ((size_t)L->T + L->quantum - 1) / L->quantum * L->quantum;
   L->coutp = (cout + tm - 1) / tm * tm;
@@ -55,17 +59,21 @@ void spx_conv2d_winograd_need(const spx_ctx *ctx, int n, int cin, int h, int w, 
   *need = L.need;
 }
 
-spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int twp, int Tp, cl_mem V) {
+spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int tws, int Tp, cl_mem V) {
   const int cin = x->c, h = x->h, wd = x->w, vw = ctx->dev->tune.conv_vw;
-  const int T = (h + 3) / 4 * twp;
+  const int th = (h + 3) / 4, twp = ((wd + 3) / 4 + vw - 1) / vw * vw, T = th * tws;
   cl_kernel kin;
   spx_status st;
   if ((st = spx_cl_kernel(ctx, SPX_K_WINO_IN, &kin))) return st;
   cl_ulong xo = x->off + (size_t)s0 * cin * h * wd;
   cl_int e = SPX_ARG(kin, 0, x->mem) | SPX_ARG(kin, 1, xo) | SPX_ARG(kin, 2, V) | SPX_ARG(kin, 3, cin) |
-             SPX_ARG(kin, 4, h) | SPX_ARG(kin, 5, wd) | SPX_ARG(kin, 6, twp) | SPX_ARG(kin, 7, T) | SPX_ARG(kin, 8, Tp);
+             SPX_ARG(kin, 4, h) | SPX_ARG(kin, 5, wd) | SPX_ARG(kin, 6, twp) | SPX_ARG(kin, 7, T) | SPX_ARG(kin, 8, Tp) |
+             SPX_ARG(kin, 9, tws);
   if ((st = spx_cl_check(ctx, e, "spx_wino_in args"))) return st;
-  size_t gi[3] = {(size_t)Tp / (size_t)vw, (size_t)cin, (size_t)m}, li[3] = {1, 1, 1};
+  /* one work-item per CONV_VW tiles of a tile row (row-padded grid); row-padded storage (tws =
+   * twp) also zeroes the GEMM's padding columns up to Tp */
+  size_t groups = (size_t)th * (size_t)(twp / vw), cols = (size_t)Tp / (size_t)vw;
+  size_t gi[3] = {groups > cols ? groups : cols, (size_t)cin, (size_t)m}, li[3] = {1, 1, 1};
   return spx_cl_run(ctx, kin, 3, gi, vw > 1 ? li : NULL, "spx_wino_in");
 }
 
@@ -79,7 +87,7 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
   const int tm = ctx->dev->tune.conv_tm, vw = ctx->dev->tune.conv_vw, lws = ctx->dev->tune.conv_lws;
   wlay L;
   layout(ctx, n, cin, h, wd, cout, &L);
-  const int twp = L.twp, T = L.T, coutp = L.coutp, nb = L.nb;
+  const int twp = L.twp, tws = L.tws, T = L.T, coutp = L.coutp, nb = L.nb;
   const size_t quantum = L.quantum, tp = L.tp;
   const double vmax = 36.0 * nb * (double)(cin > coutp ? cin : coutp) * (double)tp;
   if (vmax > (double)INT_MAX)
@@ -112,7 +120,7 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
   }
   for (int s0 = 0; s0 < n; s0 += nb) {
     const int m = n - s0 < nb ? n - s0 : nb; /* samples in this pass */
-    if ((st = spx_conv2d_wino_input(ctx, x, s0, m, twp, Tp, V.mem))) goto done;
+    if ((st = spx_conv2d_wino_input(ctx, x, s0, m, tws, Tp, V.mem))) goto done;
     {
       cl_int e = SPX_ARG(kg, 0, V.mem) | SPX_ARG(kg, 1, U.mem) | SPX_ARG(kg, 2, XM.mem) | SPX_ARG(kg, 3, cin) |
                  SPX_ARG(kg, 4, coutp) | SPX_ARG(kg, 5, Tp);
@@ -132,9 +140,9 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
                  SPX_ARG(ko, 4, bo) | SPX_ARG(ko, 5, scm) | SPX_ARG(ko, 6, sco) | SPX_ARG(ko, 7, shm) |
                  SPX_ARG(ko, 8, sho) | SPX_ARG(ko, 9, cout) | SPX_ARG(ko, 10, coutp) | SPX_ARG(ko, 11, h) |
                  SPX_ARG(ko, 12, wd) | SPX_ARG(ko, 13, twp) | SPX_ARG(ko, 14, T) | SPX_ARG(ko, 15, Tp) |
-                 SPX_ARG(ko, 16, flags);
+                 SPX_ARG(ko, 16, flags) | SPX_ARG(ko, 17, tws);
       if ((st = spx_cl_check(ctx, e, "spx_wino_out args"))) goto done;
-      size_t gl[3] = {(size_t)T / (size_t)vw, (size_t)cout, (size_t)m}, lo[3] = {1, 1, 1};
+      size_t gl[3] = {(size_t)L.th * (size_t)(twp / vw), (size_t)cout, (size_t)m}, lo[3] = {1, 1, 1};
       if ((st = spx_cl_run(ctx, ko, 3, gl, vw > 1 ? lo : NULL, "spx_wino_out"))) goto done;
     }
   }
