@@ -76,16 +76,15 @@ static void test_deterministic(void) {
   spx_ctx_destroy(ctx);
 }
 
-/* Passes over the batch (CONV_WINO_CHUNK: 0 = one sample per pass) give the same bits as one pass
- * over the whole batch (case 1 has N = 2). */
-static void test_chunked(void) {
+/* Case c run with the tunable `name` at v0 and at v1 (a fresh context each): forward and backward
+ * data must give the same bits. */
+static void same_bits_under(const wcase *c, const char *name, const char *v0, const char *v1, const char *what) {
   setenv("SPX_TUNE_CONV_WINO_MINC", "1", 1);
   setenv("SPX_TUNE_CONV_WINO_TRAIN", "1", 1);
-  const wcase *c = &cases[1];
   float *r[2][2];
   unsigned long long keep = rng;
   for (int k = 0; k < 2; k++) {
-    setenv("SPX_TUNE_CONV_WINO_CHUNK", k ? "0" : "32", 1);
+    setenv(name, k ? v1 : v0, 1);
     spx_ctx *ctx;
     CHECK(spx_ctx_create(&ctx) == SPX_OK);
     CHECK_OK(ctx, spx_device_open(ctx, NULL));
@@ -95,42 +94,29 @@ static void test_chunked(void) {
     spx_conv2d_workspace_release(&ws);
     spx_ctx_destroy(ctx);
   }
-  unsetenv("SPX_TUNE_CONV_WINO_CHUNK");
+  unsetenv(name);
   size_t ny = (size_t)c->n * c->cout * c->h * c->w + 3 + 8, nx = (size_t)c->n * c->cin * c->h * c->w;
-  CHECK_MSG(memcmp(r[0][0], r[1][0], ny * 4) == 0, "forward differs with one sample per pass");
-  CHECK_MSG(memcmp(r[0][1], r[1][1], nx * 4) == 0, "backward data differs with one sample per pass");
+  CHECK_MSG(memcmp(r[0][0], r[1][0], ny * 4) == 0, "%dx%dx%dx%d: forward differs %s", c->n, c->cin, c->h, c->w, what);
+  CHECK_MSG(memcmp(r[0][1], r[1][1], nx * 4) == 0, "%dx%dx%dx%d: backward data differs %s", c->n, c->cin, c->h, c->w,
+            what);
   for (int k = 0; k < 2; k++) free(r[k][0]), free(r[k][1]);
+}
+
+/* Passes over the batch (CONV_WINO_CHUNK: 0 = one sample per pass) give the same bits as one pass
+ * over the whole batch (case 1 has N = 2). */
+static void test_chunked(void) {
+  same_bits_under(&cases[1], "SPX_TUNE_CONV_WINO_CHUNK", "32", "0", "with one sample per pass");
 }
 
 /* Packed tiles (CONV_WINO_PACK 1: no GEMM columns for the padding of tile rows to CONV_VW) give
  * the same bits as row-padded ones (0), forward and backward data, on every case (with CONV_VW
- * 16 the rows of 2, 5, 6, 3, 1, 1 and 13 tiles are all packed: work-items span several tile
+ * 16 the rows of 2, 5, 5, 3, 1, 1 and 13 tiles are all packed: work-items span several tile
  * rows, a row's last work-item is partial) and at 38x51 (13 -> 16), 77x102 (26 -> 32), N = 2. */
 static void test_packed(void) {
-  setenv("SPX_TUNE_CONV_WINO_MINC", "1", 1);
-  setenv("SPX_TUNE_CONV_WINO_TRAIN", "1", 1);
   const wcase extra[] = {{2, 16, 38, 51, 24, 1, 1, 0}, {1, 32, 77, 102, 16, 0, 0, 1}};
-  for (size_t i = 0; i < sizeof cases / sizeof cases[0] + 2; i++) {
-    const wcase *c = i < sizeof cases / sizeof cases[0] ? &cases[i] : &extra[i - sizeof cases / sizeof cases[0]];
-    float *r[2][2];
-    unsigned long long keep = rng;
-    for (int k = 0; k < 2; k++) {
-      setenv("SPX_TUNE_CONV_WINO_PACK", k ? "1" : "0", 1);
-      spx_ctx *ctx;
-      CHECK(spx_ctx_create(&ctx) == SPX_OK);
-      CHECK_OK(ctx, spx_device_open(ctx, NULL));
-      rng = keep;
-      spx_conv2d_workspace ws = {0};
-      run_case(ctx, c, &ws, r[k]);
-      spx_conv2d_workspace_release(&ws);
-      spx_ctx_destroy(ctx);
-    }
-    size_t ny = (size_t)c->n * c->cout * c->h * c->w + 3 + 8, nx = (size_t)c->n * c->cin * c->h * c->w;
-    CHECK_MSG(memcmp(r[0][0], r[1][0], ny * 4) == 0, "case %zu: forward differs with packed tiles", i);
-    CHECK_MSG(memcmp(r[0][1], r[1][1], nx * 4) == 0, "case %zu: backward data differs with packed tiles", i);
-    for (int k = 0; k < 2; k++) free(r[k][0]), free(r[k][1]);
-  }
-  unsetenv("SPX_TUNE_CONV_WINO_PACK");
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++)
+    same_bits_under(&cases[i], "SPX_TUNE_CONV_WINO_PACK", "0", "1", "with packed tiles");
+  for (size_t i = 0; i < 2; i++) same_bits_under(&extra[i], "SPX_TUNE_CONV_WINO_PACK", "0", "1", "with packed tiles");
 }
 
 /* The rule: only 3x3 / stride 1 / pad 1 with both channel counts >= CONV_WINO_MINC; 0 = never;
