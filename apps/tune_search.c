@@ -33,11 +33,12 @@ typedef struct group {
   int ncand;
 } group;
 
-/* NULL, or a tunable that must be on (nonzero) for group g to matter: the Winograd variant is not
- * timed while Winograd is off (CONV_WINO_MINC = 0), nor its local-memory tiles while it is off,
- * nor the narrow conv tile while no layer takes it (CONV_NARROW_MAXC = 0, e.g. the GPU class). */
+/* NULL, or a tunable that must be on (nonzero) for group g to matter: the Winograd variant and its
+ * tile packing are not timed while Winograd is off (CONV_WINO_MINC = 0), nor its local-memory
+ * tiles while it is off, nor the narrow conv tile while no layer takes it (CONV_NARROW_MAXC = 0,
+ * e.g. the GPU class). */
 static const char *group_needs(const group *g) {
-  if (!strcmp(g->names[0], "CONV_WINO_LDS")) return "CONV_WINO_MINC";
+  if (!strcmp(g->names[0], "CONV_WINO_LDS") || !strcmp(g->names[0], "CONV_WINO_PACK")) return "CONV_WINO_MINC";
   if (!strcmp(g->names[0], "CONV_NARROW_TM")) return "CONV_NARROW_MAXC";
   return strncmp(g->names[0], "CONV_WLDS_", 10) ? NULL : "CONV_WINO_LDS";
 }
@@ -321,6 +322,7 @@ static int build_groups(const spx_tune_plan *p, group *gs) {
   gs[n++] = (group){{"CONV_NARROW_TM", "CONV_NARROW_TN"}, 2, 0, q_narrow, (int)(sizeof q_narrow / sizeof(int) / 2)};
   gs[n++] = (group){{"CONV_NARROW_MAXC", NULL}, 1, 1, f_narrow_maxc, (int)(sizeof f_narrow_maxc / sizeof(int))};
   gs[n++] = (group){{"CONV_NOPAD", NULL}, 1, 0, q_onoff, 2};
+  gs[n++] = (group){{"CONV_WINO_PACK", NULL}, 1, 0, q_onoff, 2};
   gs[n++] = (group){{"CONV_VW", NULL}, 1, 1, f_vw, (int)(sizeof f_vw / sizeof(int))};
   gs[n++] = (group){{"CONV_CT", NULL}, 1, 1, f_ct, (int)(sizeof f_ct / sizeof(int))};
   gs[n++] = (group){{"CONV_LWS", NULL}, 1, 1, f_lws, (int)(sizeof f_lws / sizeof(int))};
