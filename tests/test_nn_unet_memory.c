@@ -59,18 +59,31 @@ static void count_tensors(spx_unet *u, size_t *params, size_t *stats) {
   }
 }
 
+/* A batch-2 input and target of uniform values in [0, 1) from seed (malloc'd; 0 when either
+ * allocation failed, the other freed). */
+static int make_batch(unsigned long long seed, float **in, float **tg) {
+  size_t nin = (size_t)2 * 4 * H * W, nout = (size_t)2 * 3 * H * W;
+  *in = malloc(nin * sizeof(float)), *tg = malloc(nout * sizeof(float));
+  CHECK(*in && *tg);
+  if (!*in || !*tg) {
+    free(*in), free(*tg);
+    *in = *tg = NULL;
+    return 0;
+  }
+  spx_nt_rand(*in, nin, 0.0f, 1.0f, &seed);
+  spx_nt_rand(*tg, nout, 0.0f, 1.0f, &seed);
+  return 1;
+}
+
 static void test_device_bytes(void) {
   spx_ctx *ctx = spx_nt_open();
   CHECK(ctx != NULL);
   if (!ctx) return;
   spx_unet *u = NULL, *hu = NULL;
-  size_t nin = (size_t)2 * 4 * H * W, nout = (size_t)2 * 3 * H * W;
-  float *in = malloc(nin * sizeof(float)), *tg = malloc(nout * sizeof(float)), *out = malloc(nout * sizeof(float));
-  CHECK(in && tg && out);
-  if (!in || !tg || !out) goto done;
-  unsigned long long s = 7;
-  spx_nt_rand(in, nin, 0.0f, 1.0f, &s);
-  spx_nt_rand(tg, nout, 0.0f, 1.0f, &s);
+  size_t nout = (size_t)2 * 3 * H * W;
+  float *in = NULL, *tg = NULL, *out = malloc(nout * sizeof(float));
+  CHECK(out != NULL);
+  if (!make_batch(7, &in, &tg) || !out) goto done;
   /* the op scratch inside the arena (the CPU default; the GPU-class variant of this test too) */
   CHECK_OK(ctx, spx_device_set_tunable(ctx, "TAPE_WS_ARENA", 1));
   size_t live0 = spx_device_live_bytes(ctx);
@@ -157,13 +170,8 @@ static void peak_is_plan(int in_arena) {
   CHECK(ctx != NULL);
   if (!ctx) return;
   spx_unet *u = NULL;
-  size_t nin = (size_t)2 * 4 * H * W, nout = (size_t)2 * 3 * H * W;
-  float *in = malloc(nin * sizeof(float)), *tg = malloc(nout * sizeof(float));
-  CHECK(in && tg);
-  if (!in || !tg) goto done;
-  unsigned long long s = 5;
-  spx_nt_rand(in, nin, 0.0f, 1.0f, &s);
-  spx_nt_rand(tg, nout, 0.0f, 1.0f, &s);
+  float *in = NULL, *tg = NULL;
+  if (!make_batch(5, &in, &tg)) goto done;
   CHECK_OK(ctx, spx_device_set_tunable(ctx, "TAPE_WS_ARENA", in_arena));
   CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_WINO_TRAIN", 1));
   CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_WINO_MINC", WD));
@@ -259,13 +267,9 @@ static int chunk_fails(int mb, const float *in, const float *tg) {
 }
 
 static void test_arena_chunks(void) {
-  size_t nin = (size_t)2 * 4 * H * W, nout = (size_t)2 * 3 * H * W, n1 = 0, n2 = 0, plan1 = 0, plan2 = 0;
-  float *in = malloc(nin * sizeof(float)), *tg = malloc(nout * sizeof(float));
-  CHECK(in && tg);
-  if (!in || !tg) goto done;
-  unsigned long long s = 11;
-  spx_nt_rand(in, nin, 0.0f, 1.0f, &s);
-  spx_nt_rand(tg, nout, 0.0f, 1.0f, &s);
+  size_t nout = (size_t)2 * 3 * H * W, n1 = 0, n2 = 0, plan1 = 0, plan2 = 0;
+  float *in = NULL, *tg = NULL;
+  if (!make_batch(11, &in, &tg)) goto done;
   float *one = chunked_run(0, in, tg, &n1, &plan1), *split = NULL;
   /* the largest chunk below the plan that holds its largest storage (a conv's scratch: 3.7 of
    * 4.8 MiB in the CPU class), so that the plan needs at least two */

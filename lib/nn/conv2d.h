@@ -131,6 +131,10 @@ spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const
                                    int flip, const spx_tensor *bias, const spx_tensor *scale,
                                    const spx_tensor *shift, int relu, int accumulate, const spx_tensor *y);
 
+/* The Winograd tile grid of an h x w image: th = ceil(h / 4) rows of twp tiles (ceil(w / 4)
+ * rounded up to CONV_VW: a work-item's CONV_VW tiles lie in one row). */
+void spx_conv2d_wino_tiles(const spx_ctx *ctx, int h, int w, int *th, int *twp);
+
 /* The input transform of samples [s0, s0 + m) of x [n][c][h][w] (zero outside the image) into V
  * [m][36][c][Tp]: th = ceil(h / 4) rows of tiles stored tws to a row (tile (ty, tx) at column
  * ty * tws + tx): tws = ceil(w / 4) rounded up to CONV_VW (row-padded; columns th * tws .. Tp are

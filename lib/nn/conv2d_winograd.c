@@ -15,6 +15,11 @@ int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, 
   return minc > 0 && k == 3 && stride == 1 && pad == 1 && cin >= minc && cout >= minc;
 }
 
+void spx_conv2d_wino_tiles(const spx_ctx *ctx, int h, int w, int *th, int *twp) {
+  const int vw = ctx->dev->tune.conv_vw, tw = (w + 3) / 4;
+  *th = (h + 3) / 4, *twp = (tw + vw - 1) / vw * vw;
+}
+
 /* Tile geometry and scratch of one call: spx_conv2d_winograd and spx_conv2d_winograd_need size
  * the slots from this alone. */
 typedef struct wlay {
@@ -29,7 +34,8 @@ static void layout(const spx_ctx *ctx, int n, int cin, int h, int wd, int cout, 
   /* tiles: TH rows of TWp (TW rounded up to the vector width, so a vector of tiles is one row);
    * stored (the GEMM's columns) TWs to a row: TWp, or packed (TWs = TW, CONV_WINO_PACK) where the
    * rounding would add more than 10% */
-  L->th = (h + 3) / 4, L->tw = (wd + 3) / 4, L->twp = (L->tw + vw - 1) / vw * vw, L->tws = L->twp;
+  spx_conv2d_wino_tiles(ctx, h, wd, &L->th, &L->twp);
+  L->tw = (wd + 3) / 4, L->tws = L->twp;
   if (ctx->dev->tune.conv_wino_pack && 10 * (L->twp - L->tw) > L->twp) L->tws = L->tw;
   L->T = L->th * L->tws;
   L->quantum = (size_t)lws * tn * vw;
@@ -61,7 +67,9 @@ void spx_conv2d_winograd_need(const spx_ctx *ctx, int n, int cin, int h, int w, 
 
 spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int tws, int Tp, cl_mem V) {
   const int cin = x->c, h = x->h, wd = x->w, vw = ctx->dev->tune.conv_vw;
-  const int th = (h + 3) / 4, twp = ((wd + 3) / 4 + vw - 1) / vw * vw, T = th * tws;
+  int th, twp;
+  spx_conv2d_wino_tiles(ctx, h, wd, &th, &twp);
+  const int T = th * tws;
   cl_kernel kin;
   spx_status st;
   if ((st = spx_cl_kernel(ctx, SPX_K_WINO_IN, &kin))) return st;

@@ -14,15 +14,10 @@ int spx_conv2d_winograd_dw_applies(const spx_ctx *ctx, int k, int stride, int pa
          cout >= minc && (double)h * w >= ctx->dev->tune.conv_wino_dw_minhw;
 }
 
-/* Tile grid of an h x w image: th rows of twp tiles (ceil(w / 4) rounded up to CONV_VW). */
-static void tiles(const spx_ctx *ctx, int h, int w, int *th, int *twp) {
-  const int vw = ctx->dev->tune.conv_vw, tw = (w + 3) / 4;
-  *th = (h + 3) / 4, *twp = (tw + vw - 1) / vw * vw;
-}
 
 int spx_conv2d_winograd_dw_need(const spx_ctx *ctx, int n, int cin, int cout, int h, int w, size_t bytes[3]) {
   int th, twp;
-  tiles(ctx, h, w, &th, &twp);
+  spx_conv2d_wino_tiles(ctx, h, w, &th, &twp);
   const size_t T = (size_t)th * twp;
   /* per sample: slot 0 Q, slot 2 V */
   const size_t f0 = 36 * (size_t)cout * T;
@@ -40,7 +35,7 @@ spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_conv2d_workspace *ws, const 
                                   const spx_tensor *dw) {
   const int n = x->n, cin = x->c, h = x->h, wd = x->w, cout = dy->c, vw = ctx->dev->tune.conv_vw;
   int th, twp;
-  tiles(ctx, h, wd, &th, &twp);
+  spx_conv2d_wino_tiles(ctx, h, wd, &th, &twp);
   const int T = th * twp;
   size_t bytes[3];
   const int nb = spx_conv2d_winograd_dw_need(ctx, n, cin, cout, h, wd, bytes);
