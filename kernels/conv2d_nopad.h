@@ -10,8 +10,12 @@
  *    last column: plain vector loads (most work-items);
  *  - NP_MASK: the same, but some lane is at ox = 0 / ox = W-1: its kx = 0 / kx = K-1 taps, which
  *    read the neighbouring row's edge, are replaced by zero with a select;
- *  - NP_SAFE: the work-item touches the first or last row or the end of the grid: every lane
- *    gathers its taps with bounds tests (a few work-items per image).
+ *  - NP_SAFE: the work-item touches the first or last row or the end of the grid (a few
+ *    work-items per image): a tap vector that lies inside the plane is loaded and masked as on
+ *    NP_MASK; only one that crosses the plane's start or end gathers its lanes one by one with
+ *    bounds tests. (A lane whose tap leaves the image through the top or bottom reads before the
+ *    plane's start or past its end, except the corner taps (dx = +1 at the last column, dx = -1
+ *    at the first), which the column masks zero; lanes past the grid are dropped at the store.)
  * A zero tap is fma(w, 0, acc), exactly what conv_fwd does with the padded zeros, in the same
  * (ci, ky, kx) order: the results are bit-identical to the padded path. */
 #define NP_PLAIN 0
@@ -59,7 +63,7 @@ static inline __attribute__((always_inline)) void conv_fwd_np_body(
       int tl[CONV_VW], tr[CONV_VW];
       for (int l = 0; l < CONV_VW; l++) {
         int q = NP_Q(q0, j) + l, yy = q / W, xx = q - yy * W;
-        /* past the grid: a row no tap reaches, so the lane gathers zeros (its output is dropped) */
+        /* past the grid: a row no tap reaches, so the lane reads zeros (its output is dropped) */
         oy[j][l] = q < HW ? yy : H + K, ox[j][l] = xx;
         tl[l] = xx == 0 ? -1 : 0;
         tr[l] = xx == W - 1 ? -1 : 0;
@@ -95,12 +99,14 @@ static inline __attribute__((always_inline)) void conv_fwd_np_body(
             vf xv[CONV_TN];
 #pragma unroll
             for (int j = 0; j < CONV_TN; j++) {
-              if (MODE == NP_SAFE) {
+              if (MODE == NP_SAFE && (NP_Q(q0, j) + (ky - P) * W + (kx - P) < 0 ||
+                                      NP_Q(q0, j) + (ky - P) * W + (kx - P) + CONV_VW > HW)) {
                 xv[j] = np_gather(xc, oy[j], ox[j], H, W, ky - P, kx - P);
               } else {
+                /* (pointer + each term: the compiler folds the taps into load displacements) */
                 xv[j] = VLOAD(xc + NP_Q(q0, j) + (ky - P) * W + (kx - P));
-                if (MODE == NP_MASK && P > 0 && kx == 0) xv[j] = select(xv[j], zero, mL[j]);
-                if (MODE == NP_MASK && P > 0 && kx == K - 1) xv[j] = select(xv[j], zero, mR[j]);
+                if (MODE != NP_PLAIN && P > 0 && kx == 0) xv[j] = select(xv[j], zero, mL[j]);
+                if (MODE != NP_PLAIN && P > 0 && kx == K - 1) xv[j] = select(xv[j], zero, mR[j]);
               }
             }
 #pragma unroll
