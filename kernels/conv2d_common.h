@@ -93,6 +93,35 @@ static inline vf vload_s(const __global float *p, const int S) {
   return VLOAD(t);
 }
 
+/* Lanes 0 .. cnt-1 of v to p[0 .. cnt-1] (0 <= cnt <= CONV_VW): one store per set bit of cnt,
+ * rotating the stored lanes out with constant shuffles. (Through a private array instead, the
+ * vector written whole and read back by parts, or written by parts and read whole, stalls on
+ * store-to-load forwarding: it had been a fifth of the Winograd input transform's time.) */
+static inline __attribute__((always_inline)) void vstore_head(vf v, int cnt, __global float *p) {
+#if CONV_VW == 16
+  if (cnt >= 16) {
+    vstore16(v, 0, p);
+    return;
+  }
+  if (cnt & 8) vstore8(v.lo, 0, p), v = (float16)(v.hi, v.lo), p += 8;
+  if (cnt & 4) vstore4(v.s0123, 0, p), v = v.s456789abcdef0123, p += 4;
+  if (cnt & 2) vstore2(v.s01, 0, p), v = v.s23456789abcdef01, p += 2;
+  if (cnt & 1) p[0] = v.s0;
+#elif CONV_VW == 8
+  if (cnt >= 8) {
+    vstore8(v, 0, p);
+    return;
+  }
+  if (cnt & 4) vstore4(v.lo, 0, p), v = (float8)(v.hi, v.lo), p += 4;
+  if (cnt & 2) vstore2(v.s01, 0, p), v = v.s23456701, p += 2;
+  if (cnt & 1) p[0] = v.s0;
+#else
+  float t[CONV_VW];
+  VSTORE(v, t);
+  for (int l = 0; l < cnt; l++) p[l] = t[l];
+#endif
+}
+
 #define FL_BIAS 1
 #define FL_SCALE 2
 #define FL_SHIFT 4

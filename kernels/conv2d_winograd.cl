@@ -48,10 +48,19 @@
 #endif
 #define WINO_IN_COLS (4 * CONV_VW + 4)
 
-/* Elements x .. x+15 of an image row (NULL: a row outside the image), zero outside [0, W). */
-static inline __attribute__((always_inline)) float16 wino_row16(const __global float *row, int x, int W) {
-  if (!row) return (float16)0.0f;
+/* Elements x .. x+15 of an image row (NULL: a row outside the image), zero outside [0, W). The
+ * row's plane spans row[lo .. hi) (lo <= 0 < W <= hi): a piece that crosses the row's start or
+ * end but lies inside the plane is loaded whole (its lanes outside the row read the neighbouring
+ * rows) and those lanes are zeroed with a select; only at the plane's first and last element is
+ * it built from scalars. */
+static inline __attribute__((always_inline)) float16 wino_row16(const __global float *row, int x, int W, int lo,
+                                                                int hi) {
+  if (!row || x >= W || x + 16 <= 0) return (float16)0.0f;
   if (x >= 0 && x + 16 <= W) return vload16(0, row + x);
+  if (x >= lo && x + 16 <= hi) {
+    const int16 c = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15) + x;
+    return select(vload16(0, row + x), (float16)0.0f, c < 0 || c >= W);
+  }
   /* built from scalars (a private array written by parts and read as one vector stalls on store
    * forwarding) */
 #define WR1(l) (x + (l) >= 0 && x + (l) < W ? row[x + (l)] : 0.0f)
@@ -103,7 +112,7 @@ __kernel void spx_wino_in(const __global float *x, ulong x_off, __global float *
     for (int i = 0; i < 6; i++) {
       const int yy = y0 + i;
       const __global float *row = yy >= 0 && yy < H ? xc + (size_t)yy * W : NULL;
-#define LD_EDGE(o) wino_row16(row, x0 + (o), W)
+#define LD_EDGE(o) wino_row16(row, x0 + (o), W, -yy * W, (H - yy) * W)
 #define G_EDGE(k) wino_row1(row, x0 + (k), W)
       WINO_IN_ROW(d, LD_EDGE, G_EDGE, i);
 #undef LD_EDGE
@@ -113,11 +122,7 @@ __kernel void spx_wino_in(const __global float *x, ulong x_off, __global float *
   for (int j = 0; j < 6; j++) WINO_BT(vf, (r + j), (d + j), 6); /* columns: r = B^T d */
   for (int i = 0; i < 6; i++) WINO_BT(vf, (d + 6 * i), (r + 6 * i), 1); /* rows: d = r B */
   if (TWs != TWp && tx0 + CONV_VW > TWs) { /* packed: the row's last tiles only (the next row follows) */
-    for (int e = 0; e < 36; e++) {
-      float lanes[CONV_VW];
-      VSTORE(d[e], lanes);
-      for (int l = 0; l < TWs - tx0; l++) v[e * es + l] = lanes[l];
-    }
+    for (int e = 0; e < 36; e++) vstore_head(d[e], TWs - tx0, v + e * es);
     return;
   }
   for (int e = 0; e < 36; e++) VSTORE(d[e], v + e * es);
@@ -199,7 +204,10 @@ __kernel void spx_wino_out(const __global float *M, __global float *y, ulong y_o
   vf m[36], r[24];
   const __global float *mp = M + ((size_t)n * 36 * CoutP + co) * Tp + col0;
   const size_t es = (size_t)CoutP * Tp;
-  if (TWs != TWp && tx0 + CONV_VW > TWs) { /* packed: the row's last tiles (lanes past them are not written) */
+  /* packed: the row's last tiles. Their lanes past the row end (the next row's first tiles, or
+   * the GEMM's padding columns) only feed outputs past W, which are not written: a whole vector
+   * is loaded where it lies inside M's Tp columns, lane by lane only at the end of M. */
+  if (TWs != TWp && tx0 + CONV_VW > TWs && col0 + CONV_VW > Tp) {
     for (int e = 0; e < 36; e++) {
       float lanes[CONV_VW];
       for (int l = 0; l < CONV_VW; l++) lanes[l] = l < TWs - tx0 ? mp[e * es + l] : 0.0f;
