@@ -61,12 +61,13 @@ static inline __attribute__((always_inline)) float16 wino_row16(const __global f
     const int16 c = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15) + x;
     return select(vload16(0, row + x), (float16)0.0f, c < 0 || c >= W);
   }
-  /* built from scalars (a private array written by parts and read as one vector stalls on store
-   * forwarding) */
-#define WR1(l) (x + (l) >= 0 && x + (l) < W ? row[x + (l)] : 0.0f)
-  return (float16)(WR1(0), WR1(1), WR1(2), WR1(3), WR1(4), WR1(5), WR1(6), WR1(7), WR1(8), WR1(9), WR1(10), WR1(11),
-                   WR1(12), WR1(13), WR1(14), WR1(15));
-#undef WR1
+  /* lane by lane, in a loop the compiler keeps rolled: unrolled, it hoisted the sixteen lanes'
+   * bounds tests of every piece out of the row loop into each work-item's prologue, where they
+   * cost more than the transform (this path only runs at the plane's first and last element) */
+  float t[16];
+#pragma unroll 1
+  for (int l = 0; l < 16; l++) t[l] = x + l >= 0 && x + l < W ? row[x + l] : 0.0f;
+  return vload16(0, t);
 }
 /* Element x of an image row (NULL: outside the image), zero outside [0, W). */
 static inline __attribute__((always_inline)) float wino_row1(const __global float *row, int x, int W) {
@@ -109,9 +110,35 @@ __kernel void spx_wino_in(const __global float *x, ulong x_off, __global float *
 #undef G_IN
     }
   } else {
+#if CONV_VW == 16
+    /* which lanes of each row piece lie inside the row: the same for the six rows */
+    const int16 cx = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15) + x0;
+#define KEEP(o) const int16 keep##o = cx + (o) >= 0 && cx + (o) < W
+    KEEP(0);
+    KEEP(16);
+    KEEP(32);
+    KEEP(48);
+    KEEP(4);
+    KEEP(20);
+    KEEP(36);
+    KEEP(52);
+#undef KEEP
+#endif
     for (int i = 0; i < 6; i++) {
       const int yy = y0 + i;
       const __global float *row = yy >= 0 && yy < H ? xc + (size_t)yy * W : NULL;
+#if CONV_VW == 16
+      /* a row inside the image whose pieces all lie inside the plane: whole-vector loads, the
+       * lanes outside the row (the neighbouring rows' elements) zeroed by a select */
+      if (row && yy * W + x0 >= 0 && yy * W + x0 + WINO_IN_COLS <= H * W) {
+#define LD_ROW(o) select((float16)0.0f, vload16(0, row + x0 + (o)), keep##o)
+#define G_ROW(k) row[x0 + (k)]
+        WINO_IN_ROW(d, LD_ROW, G_ROW, i);
+#undef LD_ROW
+#undef G_ROW
+        continue;
+      }
+#endif
 #define LD_EDGE(o) wino_row16(row, x0 + (o), W, -yy * W, (H - yy) * W)
 #define G_EDGE(k) wino_row1(row, x0 + (k), W)
       WINO_IN_ROW(d, LD_EDGE, G_EDGE, i);
