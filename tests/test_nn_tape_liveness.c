@@ -4,6 +4,8 @@
  *  - reuse changes no float: a UNet training step (loss, output, every parameter gradient) and an
  *    eval forward are bit-identical with reuse + NaN poisoning of every dead storage and without
  *    reuse (a premature free would put NaNs or another value's data into the results);
+ *  - a batch-1 device eval forward puts each up block's skip inside its concatenation (no copy)
+ *    and gives the same bits as without reuse;
  *  - reading a value after its last use, or a second backward without retain, is refused. */
 #include <math.h>
 #include <stdlib.h>
@@ -11,6 +13,7 @@
 
 #include "nn/loss.h"
 #include "nn/tape.h"
+#include "nn/tape_internal.h"
 #include "nn/unet.h"
 #include "nn_testutil.h"
 #include "smplpix/smplpix.h"
@@ -125,9 +128,21 @@ static void test_exact_train(spx_tape_backend be) {
 enum { WD = 8, N = 2, H = 32, W = 48 };
 
 typedef struct step_out {
-  float loss, *out, *grads;
+  float loss, *out, *grads, *out1; /* out1: a batch-1 eval forward */
   size_t nout, ngrad, arena, sum;
+  int in_place; /* device batch-1 eval: upcats whose skip lies at their output's start */
 } step_out;
+
+/* The upcats of the tape's last pass whose skip lies where their output starts (the planned
+ * concatenation in place, lib/nn/tape_plan.c). */
+static int upcats_in_place(const spx_tape *t) {
+  int n = 0;
+  for (int k = 0; k < t->nnodes; k++) {
+    const tnode *nd = &t->nodes[k];
+    n += nd->kind == OP_UPCAT && t->vals[nd->in[0]].off == t->vals[nd->out].off;
+  }
+  return n;
+}
 
 /* One training step and one eval forward of a width-8 UNet with fixed weights and data. */
 static void unet_step(spx_tape_backend be, int reuse, int poison, step_out *r) {
@@ -164,6 +179,11 @@ static void unet_step(spx_tape_backend be, int reuse, int poison, step_out *r) {
     r->ngrad += n;
   }
   CHECK_OK(ctx, spx_unet_forward(u, in, N, H, W, 0, r->out + r->nout / 2));
+  r->out1 = malloc((size_t)3 * H * W * sizeof(float));
+  if (r->out1) {
+    CHECK_OK(ctx, spx_unet_forward(u, in, 1, H, W, 0, r->out1));
+    r->in_place = upcats_in_place(t);
+  }
 done:
   free(in), free(tg);
   spx_unet_destroy(u);
@@ -179,6 +199,10 @@ static void test_unet_bit_exact(spx_tape_backend be) {
     CHECK_MSG(memcmp(&a.loss, &b.loss, sizeof a.loss) == 0, "loss %.9g vs %.9g", a.loss, b.loss);
     CHECK(memcmp(a.out, b.out, a.nout * sizeof(float)) == 0);
     CHECK(memcmp(a.grads, b.grads, a.ngrad * sizeof(float)) == 0);
+    CHECK(a.out1 && b.out1 && memcmp(a.out1, b.out1, (size_t)3 * H * W * sizeof(float)) == 0);
+    /* the four up blocks' skips are planned in place on the device with reuse, never without */
+    CHECK_MSG(a.in_place == 0 && b.in_place == (be == SPX_TAPE_DEVICE ? 4 : 0), "skips in place: %d without reuse, %d with",
+              a.in_place, b.in_place);
     /* the whole step's values and gradients (+ the largest op workspace, device), against what
      * the plan needs at once: at least a quarter less (on the device the arena also holds every
      * conv's workspace at its step; at 32x48 the deepest Winograd layers' transforms, padded to
@@ -188,7 +212,7 @@ static void test_unet_bit_exact(spx_tape_backend be) {
     printf("  %s: UNet w%d %dx4x%dx%d training arena %zu bytes with reuse, %zu without (%.2fx)\n",
            be == SPX_TAPE_HOST ? "host" : "device", WD, N, H, W, b.arena, a.arena, (double)a.arena / (double)b.arena);
   }
-  free(a.out), free(a.grads), free(b.out), free(b.grads);
+  free(a.out), free(a.grads), free(b.out), free(b.grads), free(a.out1), free(b.out1);
 }
 
 static void test_host(void) {

@@ -187,6 +187,28 @@ static spx_status ws_items(spx_tape *t, tplan *p, item *it, int *ni) {
 static int imax(int a, int b) { return a > b ? a : b; }
 static int imin(int a, int b) { return a < b ? a : b; }
 
+/* Concatenation in place (device inference, batch 1): the skip input of an up block's fused
+ * upcat (spx_tape_upcat) is the first channels of its output, so the skip's storage becomes that
+ * output's: the op producing the skip writes it where the concatenation will be, and
+ * spx_upcat_forward, seeing skip and output at one address, leaves out the copy (a third of an
+ * upcat's bytes; on CPU devices a single-threaded memcpy). The merged storage lives from the
+ * skip's birth to the concatenation's last reader. Only a skip that is a storage of its own (not
+ * kept, no detach / slice alias of it) is placed so. rt: each value's storage (index - npersist). */
+static void concat_in_place(const spx_tape *t, int *rt) {
+  const int np = t->npersist, nv = t->nvals - np;
+  for (int k = 0; k < t->nnodes; k++) {
+    const tnode *nd = &t->nodes[k];
+    if (nd->kind != OP_UPCAT) continue;
+    const int s = nd->in[0], o = nd->out;
+    if (s < np || o < np || t->vals[s].space != SP_ACT || t->vals[o].space != SP_ACT || t->vals[s].n != 1 ||
+        (t->vals[s].flags & TV_KEEP) || rt[s - np] != s - np || rt[o - np] != o - np)
+      continue;
+    int shared = 0;
+    for (int i = 0; i < nv && !shared; i++) shared = i != s - np && rt[i] == s - np;
+    if (!shared) rt[s - np] = o - np;
+  }
+}
+
 spx_status spx_tp_plan(spx_tape *t, tplan *p) {
   const int np = t->npersist, nv = t->nvals - np, N = t->nnodes;
   const int tbegin = 2 * N + 1, tseed = 2 * N + 2;
@@ -194,7 +216,7 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
   p->train = t->train, p->retain = t->retain, p->reuse = t->reuse;
   p->v = calloc((size_t)(nv ? nv : 1), sizeof *p->v);
   /* per root (index id - np): last data use, backward data use, gradient access span, flags */
-  int *last = malloc(sizeof(int) * (size_t)(nv ? nv : 1) * 6);
+  int *last = malloc(sizeof(int) * (size_t)(nv ? nv : 1) * 8);
   item *it = malloc(sizeof *it * (size_t)(2 * nv + 2 * N + 1));
   item **tmp = malloc(sizeof *tmp * (size_t)(2 * nv + 2 * N + 1));
   p->deaths = malloc(sizeof *p->deaths * (size_t)(2 * nv + 1));
@@ -205,9 +227,13 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
     return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for the plan of %d values", nv);
   }
   int *bused = last + nv, *gmin = last + 2 * nv, *gmax = last + 3 * nv, *written = last + 4 * nv, *fl = last + 5 * nv;
+  int *rt = last + 6 * nv, *b0 = last + 7 * nv; /* the storage each value lives in; a storage's first birth */
   for (int i = 0; i < nv; i++) last[i] = -1, bused[i] = 0, gmin[i] = TP_INF, gmax[i] = -1, written[i] = 0, fl[i] = 0;
-#define ROOT(id) (t->vals[id].root - np)
+#define ROOT(id) rt[(id) - np]
 #define ACT(id) ((id) >= np && t->vals[id].space == SP_ACT)
+  for (int i = 0; i < nv; i++) rt[i] = t->vals[np + i].root - np, b0[i] = TP_INF;
+  if (t->backend == SPX_TAPE_DEVICE && !t->train && t->reuse) concat_in_place(t, rt);
+  for (int i = 0; i < nv; i++) b0[rt[i]] = imin(b0[rt[i]], t->vals[np + i].born);
   for (int i = 0; i < nv; i++) {
     const tvalue *v = &t->vals[np + i];
     fl[ROOT(np + i)] |= v->flags | (v->needs_grad ? 4 : 0);
@@ -233,9 +259,9 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
   for (int i = 0; i < nv; i++) {
     const tvalue *v = &t->vals[np + i];
     tpval *e = &p->v[i];
-    if (v->root != np + i) continue;
+    if (rt[i] != i) continue;
     int sink = last[i] < 0, keep = (fl[i] & TV_KEEP) != 0;
-    e->d0 = v->born;
+    e->d0 = b0[i];
     e->d1 = sink || keep || (t->retain && bused[i]) ? TP_INF : last[i];
     e->g0 = e->g1 = TP_INF;
     if (t->train && (fl[i] & 4)) {
@@ -302,8 +328,9 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
     tpval *e = &p->v[i];
     const tpval *r = &p->v[ROOT(np + i)];
     e->numel = spx_tp_numel(v), e->flags = v->flags, e->needs_grad = v->needs_grad;
-    if (v->root != np + i) {
-      e->off = r->off + v->delta, e->goff = r->goff + v->delta;
+    if (rt[i] != i) { /* (a skip placed in its concatenation sits at its start: delta 0) */
+      const size_t delta = v->root == np + i ? 0 : v->delta;
+      e->off = r->off + delta, e->goff = r->goff + delta;
       e->d0 = r->d0, e->d1 = r->d1, e->g0 = r->g0, e->g1 = r->g1;
       continue;
     }

@@ -178,7 +178,10 @@ spx_status spx_upcat_forward(spx_ctx *ctx, const spx_tensor *skip, const spx_ten
   const int uh = 2 * x->h, uw = 2 * x->w, pads = out->h > uh || out->w > uw;
   cl_int e = SPX_ARG(k, 0, out->mem) | SPX_ARG(k, 2, out->h) | SPX_ARG(k, 3, out->w) | SPX_ARG(k, 4, top) |
              SPX_ARG(k, 5, left) | SPX_ARG(k, 6, uh) | SPX_ARG(k, 7, uw);
-  if ((st = spx_cl_check(ctx, e, "spx_upcat_border")) || (st = spx_channel_place(ctx, skip, out, 0))) return st;
+  /* (a tape may have planned the skip inside the output already, lib/nn/tape_plan.c: no copy) */
+  const int in_place = skip->mem == out->mem && skip->off == out->off && out->n == 1;
+  if ((st = spx_cl_check(ctx, e, "spx_upcat_border")) || (!in_place && (st = spx_channel_place(ctx, skip, out, 0))))
+    return st;
   size_t ps = (size_t)out->h * out->w, xs = (size_t)x->h * x->w;
   for (int s = 0; s < out->n && !st; s++) {
     size_t oo = out->off + ((size_t)s * out->c + skip->c) * ps;
