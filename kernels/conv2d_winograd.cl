@@ -266,6 +266,9 @@ __kernel void spx_wino_out(const __global float *M, __global float *y, ulong y_o
                       shuffle2(p01h, p23h, q1)};
     if (ox0 + 64 <= W) {
       for (int k = 0; k < 4; k++) vstore16(wino_epi(out[k], yr + 16 * k, flags, bv, sc, sh), 0, yr + 16 * k);
+    } else if (!(flags & FL_ACCUM)) { /* the row's end: whole-vector epilogue, the first lanes stored */
+      for (int k = 0; k < 4 && ox0 + 16 * k < W; k++)
+        vstore_head(wino_epi(out[k], yr + 16 * k, flags, bv, sc, sh), W - ox0 - 16 * k, yr + 16 * k);
     } else {
       for (int k = 0; k < 4; k++) {
         float tmp[16];
