@@ -119,30 +119,43 @@ static void test_packed(void) {
   for (size_t i = 0; i < 2; i++) same_bits_under(&extra[i], "SPX_TUNE_CONV_WINO_PACK", "0", "1", "with packed tiles");
 }
 
-/* The rule: only 3x3 / stride 1 / pad 1 with both channel counts >= CONV_WINO_MINC; 0 = never;
- * training calls only with CONV_WINO_TRAIN. */
+/* The rule: only 3x3 / stride 1 / pad 1 with both channel counts >= CONV_WINO_MINC, or in
+ * inference >= half of it on images of at most CONV_WINO_SMALL_HW pixels; 0 = never; training
+ * calls only with CONV_WINO_TRAIN. */
 static void test_rule(void) {
   /* tunables are read when the device opens: each setting reopens it */
   spx_ctx *ctx;
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  const int big = 1 << 30;
   setenv("SPX_TUNE_CONV_WINO_MINC", "32", 1);
   setenv("SPX_TUNE_CONV_WINO_TRAIN", "0", 1);
+  setenv("SPX_TUNE_CONV_WINO_SMALL_HW", "1000", 1);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
-  CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, 32, 64, 1));
-  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 32, 64, 0));
+  CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, 32, 64, big, 1));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 32, 64, big, 0));
+  /* small images: from 16 channels in inference, never in training */
+  CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, 16, 64, 1000, 1));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 15, 64, 1000, 1));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 16, 64, 1001, 1));
   setenv("SPX_TUNE_CONV_WINO_TRAIN", "1", 1);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
-  CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, 32, 64, 0));
-  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 31, 64, 1));
-  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 64, 16, 1));
-  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 2, 1, 64, 64, 1));
-  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 0, 64, 64, 1));
-  CHECK(!spx_conv2d_winograd_applies(ctx, 1, 1, 0, 64, 64, 1));
-  CHECK(!spx_conv2d_winograd_applies(ctx, 5, 1, 1, 64, 64, 1));
-  setenv("SPX_TUNE_CONV_WINO_MINC", "0", 1);
+  CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, 32, 64, big, 0));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 16, 64, 1000, 0));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 31, 64, big, 1));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 64, 16, big, 1));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 2, 1, 64, 64, big, 1));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 0, 64, 64, big, 1));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 1, 1, 0, 64, 64, big, 1));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 5, 1, 1, 64, 64, 1000, 1));
+  setenv("SPX_TUNE_CONV_WINO_SMALL_HW", "0", 1);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
-  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 64, 64, 1));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 16, 64, 1, 1));
+  setenv("SPX_TUNE_CONV_WINO_MINC", "0", 1);
+  setenv("SPX_TUNE_CONV_WINO_SMALL_HW", "1000", 1);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
+  CHECK(!spx_conv2d_winograd_applies(ctx, 3, 1, 1, 64, 64, 1000, 1));
   unsetenv("SPX_TUNE_CONV_WINO_MINC");
+  unsetenv("SPX_TUNE_CONV_WINO_SMALL_HW");
   unsetenv("SPX_TUNE_CONV_WINO_TRAIN");
   spx_ctx_destroy(ctx);
 }

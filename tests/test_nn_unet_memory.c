@@ -176,7 +176,7 @@ static void peak_is_plan(int in_arena) {
   CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_WINO_TRAIN", 1));
   CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_WINO_MINC", WD));
   CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_WINO_CHUNK", 0));
-  CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, WD, WD, 0));
+  CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, WD, WD, 1 << 30, 0));
   size_t live0 = settled_live(ctx, spx_device_live_bytes(ctx));
   CHECK_OK(ctx, spx_unet_create(ctx, WD, 0, 1, &u));
   if (!u) goto done;

@@ -114,7 +114,7 @@ static void run_case(spx_ctx *ctx, const wcase *c, spx_conv2d_workspace *ws, flo
   spx_tensor tdy = spx_tensor_view(mdy, off, c->n, c->cout, c->h, c->w);
   spx_tensor tdx = spx_tensor_view(mdx, off, c->n, c->cin, c->h, c->w);
   spx_conv2d_params p = {3, 1, 1, c->affine ? &tsc : NULL, c->affine ? &tsh : NULL, c->relu, ws};
-  CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, c->cin, c->cout, 0));
+  CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, c->cin, c->cout, c->h * c->w, 0));
   CHECK_OK(ctx, spx_conv2d_forward(ctx, &tx, &tw, c->bias ? &tb : NULL, &p, &ty));
   CHECK_OK(ctx, spx_conv2d_backward(ctx, &tx, &tw, &tdy, &tdx, NULL, NULL, &p));
   float *fy = malloc((ny + off + 8) * 4), *fdx = malloc(nx * 4);

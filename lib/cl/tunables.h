@@ -47,6 +47,7 @@ struct spx_tunables {
   int conv_dw_qb;
   int conv_dw_lws;
   int conv_wino_minc;     /* Winograd */
+  int conv_wino_small_hw; /* ... from half the channels on small images (inference) */
   int conv_wino_train;
   int conv_wino_chunk;
   int conv_wino_pack;     /* Winograd tiles packed across tile rows */

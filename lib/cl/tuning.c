@@ -124,6 +124,13 @@ static const struct spx_tunable spx_tunables[] = {
      * ~1.55x less with any of 16/32/64, width 16 best with 64 (16 costs ~5% more than direct);
      * GPU: unmeasured */
     {"CONV_WINO_MINC", F(conv_wino_minc), 64, 32, 0, 1 << 20, 0},
+    /* inference forwards on images of at most this many pixels take Winograd from half
+     * CONV_WINO_MINC channels (lib/nn/conv2d_winograd.c); 0 = never. CPU (session 8, Zen 5,
+     * bench_conv2d --w16, CPU ms): the width-16 UNet's 77x102 layers 32->64 1.56 -> 1.06 and
+     * 64->32 1.67 -> 1.36 (their transforms' scratch stays in cache), but at 154x205 32->32
+     * 2.9 -> 3.3 and 64->32 5.6 -> 7.3: the threshold sits between 7,854 and 31,570 pixels.
+     * GPU: unmeasured, off */
+    {"CONV_WINO_SMALL_HW", F(conv_wino_small_hw), 16384, 0, 0, 1 << 30, 0},
     /* 1: training forwards and backward data take Winograd too (lib/nn/conv2d.h). CPU: the
      * width-64 UNet training step at 1x4x308x410 takes ~15% less CPU time (2-core PoCL, load
      * ~14; benchmarks/RESULTS.md); goldens widen their tolerance by SPX_WINO_RMS_GAIN with it.

@@ -238,14 +238,14 @@ void spx_conv2d_workspace_need(const spx_ctx *ctx, const spx_conv2d_shape *s, in
   spx_ws_need one;
   dlay L;
   if (passes & SPX_CONV_PASS_FWD) {
-    if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, inference))
+    if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, g.ho * g.wo, inference))
       spx_conv2d_winograd_need(ctx, g.n, g.cin, g.h, g.w, g.cout, &one);
     else
       direct_layout(ctx, &g, 0, &L), layout_need(&L, &one);
     spx_ws_need_max(need, &one);
   }
   if (passes & SPX_CONV_PASS_BWD_DATA) {
-    if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cout, g.cin, 0))
+    if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cout, g.cin, g.h * g.w, 0))
       spx_conv2d_winograd_need(ctx, g.n, g.cout, g.ho, g.wo, g.cin, &one);
     else
       direct_layout(ctx, &g, 1, &L), layout_need(&L, &one);
@@ -339,7 +339,7 @@ spx_status spx_conv2d_forward_prep(spx_ctx *ctx, const spx_tensor *x, const spx_
   if ((st = check_shape(ctx, "y", y, g.n, g.cout, g.ho, g.wo)) || (st = check_vec(ctx, bias, g.cout, "bias")) ||
       (st = check_vec(ctx, p->scale, g.cout, "scale")) || (st = check_vec(ctx, p->shift, g.cout, "shift")))
     return st;
-  if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, p->scale || p->relu))
+  if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, g.ho * g.wo, p->scale || p->relu))
     return spx_conv2d_winograd(ctx, p->ws, x, w, 0, bias, p->scale, p->scale ? p->shift : NULL, p->relu, 0, y, prep);
   dlay L;
   direct_layout(ctx, &g, 0, &L);
@@ -363,7 +363,7 @@ done:
 /* dx += conv(dilate_s(dy) padded by k-1-pad, flipped and transposed w), stride 1. */
 static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *w,
                                 const spx_tensor *dy, const spx_tensor *dx) {
-  if (spx_conv2d_winograd_applies(ctx, g->k, g->s, g->pad, g->cout, g->cin, 0))
+  if (spx_conv2d_winograd_applies(ctx, g->k, g->s, g->pad, g->cout, g->cin, g->h * g->w, 0))
     return spx_conv2d_winograd(ctx, ws, dy, w, 1, NULL, NULL, NULL, 0, 1, dx, NULL);
   dlay L;
   direct_layout(ctx, g, 1, &L);

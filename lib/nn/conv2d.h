@@ -105,9 +105,12 @@ void spx_conv2d_workspace_need(const spx_ctx *ctx, const spx_conv2d_shape *s, in
                                spx_ws_need *need);
 
 /* ---- Winograd path (lib/nn/conv2d_winograd.c), called by the two functions above ---- */
-/* Nonzero when a k x k / stride / pad conv of cin -> cout channels takes the Winograd path
- * (forward; backward data asks with cin and cout swapped and inference = 0). */
-int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int inference);
+/* Nonzero when a k x k / stride / pad conv of cin -> cout channels on images of hw pixels takes
+ * the Winograd path (forward; backward data asks with cin and cout swapped and inference = 0):
+ * 3x3 / stride 1 / pad 1 with both channel counts >= CONV_WINO_MINC, or, in inference, >= half of
+ * it on images of at most CONV_WINO_SMALL_HW pixels (lib/cl/tuning.c). */
+int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int hw,
+                                int inference);
 /* y (=, or += with accumulate) = conv3x3/s1/p1 of x [n][cin][h][w] with w [Cout][Cin][3][3]
  * (flip = 0: cout = Cout, cin = Cin; flip = 1: the backward-data conv, weights flipped and
  * transposed, cin = Cout, cout = Cin). bias/scale/shift may be NULL. Shapes are pre-validated. */

@@ -9,9 +9,13 @@
 
 #include "nn/conv2d.h"
 
-int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int inference) {
+int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int hw,
+                                int inference) {
   int minc = ctx->dev->tune.conv_wino_minc;
   if (!inference && !ctx->dev->tune.conv_wino_train) return 0;
+  /* small images: the transforms' scratch stays in cache, so fewer channels pay (inference only:
+   * training keeps one rule for its forward, data and weight gradients) */
+  if (inference && hw <= ctx->dev->tune.conv_wino_small_hw) minc = (minc + 1) / 2;
   return minc > 0 && k == 3 && stride == 1 && pad == 1 && cin >= minc && cout >= minc;
 }
 

@@ -488,7 +488,7 @@ static int conv_impl(spx_tape *t, int x, int w, int bias, int stride, int pad, i
     spx_conv2d_workspace ws;
     spx_conv2d_params p = {k,    stride, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu,
                            spx_tp_ws(t, t->nnodes - 1, 0, &ws)};
-    if (t->prof > 1) spx_tp_prof_conv_note(t, xv->c, wv->n, k, stride, pad, scale >= 0 || relu);
+    if (t->prof > 1) spx_tp_prof_conv_note(t, xv->c, wv->n, xv->h * xv->w, k, stride, pad, scale >= 0 || relu);
     /* an inference forward of a parameter keeps its prepared weights for the next pass */
     spx_conv2d_wprep *prep = NULL;
     if ((scale >= 0 || relu) && wv->space == SP_PARAM && t->ctx->dev->tune.conv_wprep) {

@@ -147,7 +147,7 @@ void spx_tp_wprep_drop(spx_tape *t);
 
 /* tape_prof.c: the profile's per-instance records and the report at destroy */
 void spx_tp_prof_inst(spx_tape *t, int kind, double seconds);
-void spx_tp_prof_conv_note(spx_tape *t, int cin, int cout, int k, int stride, int pad, int inference);
+void spx_tp_prof_conv_note(spx_tape *t, int cin, int cout, int hw, int k, int stride, int pad, int inference);
 void spx_tp_prof_report(spx_tape *t); /* logs the profile (when on) and frees its records */
 const char *spx_tp_op_name(int kind);
 

@@ -23,8 +23,8 @@ struct tp_prof_inst {
   long n;
 };
 
-void spx_tp_prof_conv_note(spx_tape *t, int cin, int cout, int k, int stride, int pad, int inference) {
-  const char *alg = spx_conv2d_winograd_applies(t->ctx, k, stride, pad, cin, cout, inference) ? "winograd-f4x4"
+void spx_tp_prof_conv_note(spx_tape *t, int cin, int cout, int hw, int k, int stride, int pad, int inference) {
+  const char *alg = spx_conv2d_winograd_applies(t->ctx, k, stride, pad, cin, cout, hw, inference) ? "winograd-f4x4"
                     : spx_conv2d_lds_applies(t->ctx, k, stride)                                ? "direct-lds"
                                                                                                : "direct";
   snprintf(t->prof_note, sizeof t->prof_note, "%dx%d s%d %d->%d %s", k, k, stride, cin, cout, alg);
