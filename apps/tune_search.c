@@ -38,12 +38,15 @@ typedef struct group {
  * tiles while it is off, nor the narrow conv tile while no layer takes it (CONV_NARROW_MAXC = 0,
  * e.g. the GPU class). */
 static const char *group_needs(const group *g) {
-  if (!strcmp(g->names[0], "CONV_WINO_LDS") || !strcmp(g->names[0], "CONV_WINO_PACK")) return "CONV_WINO_MINC";
+  if (!strcmp(g->names[0], "CONV_WINO_LDS") || !strcmp(g->names[0], "CONV_WINO_PACK") ||
+      !strcmp(g->names[0], "CONV_WINO_SMALL_HW"))
+    return "CONV_WINO_MINC";
   if (!strcmp(g->names[0], "CONV_NARROW_TM")) return "CONV_NARROW_MAXC";
   return strncmp(g->names[0], "CONV_WLDS_", 10) ? NULL : "CONV_WINO_LDS";
 }
 
 static const int q_minc[] = {0, 16, 32, 64};
+static const int q_small_hw[] = {0, 4096, 16384, 65536}; /* pixels: 64x64, 128x128, 256x256 */
 static const int f_minc[] = {0, 8, 16, 32, 64, 128};
 static const int q_tile[] = {8, 3, 8, 2, 6, 4, 4, 6, 8, 4};
 static int f_tile[2 * MAXC];
@@ -323,6 +326,7 @@ static int build_groups(const spx_tune_plan *p, group *gs) {
   gs[n++] = (group){{"CONV_NARROW_MAXC", NULL}, 1, 1, f_narrow_maxc, (int)(sizeof f_narrow_maxc / sizeof(int))};
   gs[n++] = (group){{"CONV_NOPAD", NULL}, 1, 0, q_onoff, 2};
   gs[n++] = (group){{"CONV_WINO_PACK", NULL}, 1, 0, q_onoff, 2};
+  gs[n++] = (group){{"CONV_WINO_SMALL_HW", NULL}, 1, 0, q_small_hw, (int)(sizeof q_small_hw / sizeof(int))};
   gs[n++] = (group){{"CONV_VW", NULL}, 1, 1, f_vw, (int)(sizeof f_vw / sizeof(int))};
   gs[n++] = (group){{"CONV_CT", NULL}, 1, 1, f_ct, (int)(sizeof f_ct / sizeof(int))};
   gs[n++] = (group){{"CONV_LWS", NULL}, 1, 1, f_lws, (int)(sizeof f_lws / sizeof(int))};
