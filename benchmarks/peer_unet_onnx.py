@@ -11,7 +11,11 @@ ROW lines as bench_unet (impl=onnxruntime / impl=openvino; memory: peak RSS of t
 includes the interpreter, torch and the engine).
 
     python benchmarks/peer_unet_onnx.py [--width W] [--size HxW] [--reps N] [--eval-batch N]
-                                        [--engines onnxruntime,openvino] [--onnx DIR]
+                                        [--engines onnxruntime,openvino] [--onnx DIR] [--profile]
+
+--profile: OpenVINO also lists its per-layer times of the last timed inference (its PERF_COUNT
+profiling; the timed row then includes the counters' overhead), to set beside
+`SPX_TAPE_PROFILE=2 bench_unet` or `bench_conv2d --w16`.
 """
 import argparse
 import importlib
@@ -30,6 +34,7 @@ ap.add_argument("--reps", type=int, default=3)
 ap.add_argument("--eval-batch", type=int, default=1)
 ap.add_argument("--engines", default="onnxruntime,openvino")
 ap.add_argument("--onnx", default="out/bench", help="directory for the exported .onnx files")
+ap.add_argument("--profile", action="store_true", help="OpenVINO: print per-layer times")
 a = ap.parse_args()
 a.reps = max(a.reps, 1)
 h, w = (int(v) for v in a.size.split("x"))
@@ -109,10 +114,20 @@ for eng in a.engines.split(","):
         if ov is None:
             continue
         core = ov.Core()
-        cm = core.compile_model(path, "CPU", {"INFERENCE_NUM_THREADS": threads, "INFERENCE_PRECISION_HINT": "f32",
-                                             "PERFORMANCE_HINT": "LATENCY"})
+        cfg = {"INFERENCE_NUM_THREADS": threads, "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY"}
+        if a.profile:
+            cfg["PERF_COUNT"] = "YES"
+        cm = core.compile_model(path, "CPU", cfg)
         req = cm.create_infer_request()
         row("openvino", ov.__version__.split("-")[0], timed(lambda: req.infer({0: x})))
+        if a.profile:
+            total = 0.0
+            for p in req.profiling_info:
+                us = p.real_time.total_seconds() * 1e6
+                if us > 0:
+                    total += us
+                    print("  openvino layer %-44s %-12s %-24s %8.0f us" % (p.node_name[:44], p.node_type, p.exec_type, us))
+            print("  openvino layers: %.0f us in all" % total)
         del req, cm
     else:
         sys.exit("peer_unet_onnx.py: unknown engine %r (onnxruntime, openvino)" % eng)
