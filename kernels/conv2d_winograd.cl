@@ -4,9 +4,11 @@
  * Every 4x4 output tile is A^T [ (G g G^T) .* (B^T d B) ] A, d being the 6x6 input patch around
  * it (rows 4ty-1 .. 4ty+4, zero outside the image) and g the 3x3 filter (Lavin & Gray 2016, points
  * 0, +-1, +-2, inf). The sum over input channels moves inside the transform, so a layer becomes
- *   1. spx_wino_in:      V[n][e][ci][t] = (B^T d B)[e]          (e = 0..35, t = tile index)
+ *   1. spx_wino_in:      V[n][ci][e][t] = (B^T d B)[e]          (e = 0..35, t = tile index; a
+ *                        channel's 36 planes together, so that a work-item's 36 stores lie within
+ *                        36 Tp floats: 36 C Tp apart they had made this kernel wait on its stores)
  *   2. spx_wino_weights: U[e][cot][ci][m] = (G g G^T)[e] of out channel cot*CONV_TM+m
- *   3. spx_wino_gemm:    M[n][e][co][t] = sum_ci U[e][co][ci] V[n][e][ci][t]  (36 GEMMs per image)
+ *   3. spx_wino_gemm:    M[n][e][co][t] = sum_ci U[e][co][ci] V[n][ci][e][t]  (36 GEMMs per image)
  *   4. spx_wino_out:     y = A^T M A + epilogue (accumulate / bias / affine / ReLU, as conv2d.cl)
  * (spx_wino_in reads the input itself, with zeros outside the image.)
  * 36 GEMMs of Cout x Cin x T do the work of one direct convolution of Cout x 9Cin x 16T: 4x fewer
@@ -90,8 +92,8 @@ __kernel void spx_wino_in(const __global float *x, ulong x_off, __global float *
   const int g = (int)get_global_id(0), c = (int)get_global_id(1), n = (int)get_global_id(2);
   const int TWg = TWp / CONV_VW, ty = g / TWg, tx0 = (g - ty * TWg) * CONV_VW;
   const int col0 = ty * TWs + tx0; /* row-padded (TWs = TWp): col0 = g * CONV_VW */
-  __global float *v = V + ((size_t)n * 36 * C + c) * Tp + col0;
-  const size_t es = (size_t)C * Tp;
+  __global float *v = V + ((size_t)n * C + c) * 36 * Tp + col0;
+  const size_t es = (size_t)Tp;
   vf d[36], r[36];
   if (col0 >= T) { /* row-padded: the GEMM's padding columns past T are zeros */
     if (TWs == TWp && col0 < Tp)
@@ -186,7 +188,7 @@ __kernel void spx_wino_gemm(const __global float *V, const __global float *U, __
   const int cot = grp % ncot, pg = grp / ncot;
   const int lid = (int)get_local_id(0), ne = (int)get_global_id(1), e = ne % 36;
   const int t0 = pg * (CONV_LWS * CONV_TN * CONV_VW) + lid * CONV_VW;
-  const __global float *vb = V + (size_t)ne * Cin * Tp + t0;
+  const __global float *vb = V + ((size_t)(ne / 36) * Cin * 36 + e) * Tp + t0;
   const __global float *ub = U + ((size_t)e * ncot + cot) * Cin * CONV_TM;
   vf acc[CONV_TM][CONV_TN];
 #pragma unroll
@@ -194,7 +196,7 @@ __kernel void spx_wino_gemm(const __global float *V, const __global float *U, __
 #pragma unroll
     for (int j = 0; j < CONV_TN; j++) acc[m][j] = (vf)0.0f;
   for (int ci = 0; ci < Cin; ci++) {
-    const __global float *vr = vb + (size_t)ci * Tp;
+    const __global float *vr = vb + (size_t)ci * 36 * Tp;
     const __global float *ur = ub + ci * CONV_TM;
     vf xv[CONV_TN];
 #pragma unroll

@@ -6,9 +6,9 @@
  * V = B^T d B (kernels/conv2d_winograd.cl). Differentiating, with dY the tile's 4x4 output gradient:
  *   dL/dU = (A dY A^T) .* V,   dL/dg = G^T (dL/dU) G,
  * summed over tiles (and samples). The sum over tiles moves inside the weight transform, so
- *   1. spx_wino_in (conv2d_winograd.cl) on the input:               V[n][e][ci][t]
+ *   1. spx_wino_in (conv2d_winograd.cl) on the input:               V[n][ci][e][t]
  *   2. spx_wino_dw_grad:    Q[n][e][co][t] = (A dY A^T)[e]       (e = 0..35, zero outside the image)
- *   3. spx_wino_dw_gemm:    P[co][ci][e] += sum_t Q[n][e][co][t] V[n][e][ci][t]  (36 GEMMs, the
+ *   3. spx_wino_dw_gemm:    P[co][ci][e] += sum_t Q[n][e][co][t] V[n][ci][e][t]  (36 GEMMs, the
  *                           tile axis is the reduction; one fixed-order sum per sample, added to P
  *                           sample after sample, so P does not depend on how the batch is split)
  *   4. spx_wino_dw_weights: dw[co][ci] += G^T P[.][co][ci] G     (6x6 -> 3x3)
@@ -72,7 +72,7 @@ __kernel void spx_wino_dw_grad(const __global float *dy, ulong dy_off, __global 
 }
 
 /* The 36 GEMMs over the tiles of NS samples: P[co][ci][e] = (accum ? P : 0) + s_0 + s_1 + ...,
- * s_n = sum_t Q[n][e][co][t] V[n][e][ci][t] (CONV_VW lanes of partial sums, then VSUM). A
+ * s_n = sum_t Q[n][e][co][t] V[n][ci][e][t] (CONV_VW lanes of partial sums, then VSUM). A
  * work-item owns CONV_DW_TM out channels x CONV_DW_G tiles of CONV_DW_TN in channels; it walks
  * the tiles in blocks of CONV_DW_QB and updates every channel tile per block, so the block of Q
  * stays in L1 while V streams. (P's 36 entries of one weight pair are adjacent, so that
@@ -93,7 +93,7 @@ __kernel void spx_wino_dw_gemm(const __global float *Q, const __global float *V,
   vf sums[CONV_DW_G][CONV_DW_TM][CONV_DW_TN];
   for (int n = 0; n < NS; n++) {
     const __global float *qn = Q + ((size_t)n * 36 + e) * Cout * T;
-    const __global float *vn = V + ((size_t)n * 36 + e) * Cin * T;
+    const __global float *vn = V + ((size_t)n * Cin * 36 + e) * T;
     for (int g = 0; g < CONV_DW_G; g++)
 #pragma unroll
       for (int m = 0; m < CONV_DW_TM; m++)
@@ -109,7 +109,7 @@ __kernel void spx_wino_dw_gemm(const __global float *Q, const __global float *V,
 #pragma unroll
           for (int m = 0; m < CONV_DW_TM; m++) qv[m] = VLOAD(qn + (size_t)qrow[m] * T + t);
 #pragma unroll
-          for (int j = 0; j < CONV_DW_TN; j++) vv[j] = VLOAD(vn + (size_t)vrow[g][j] * T + t);
+          for (int j = 0; j < CONV_DW_TN; j++) vv[j] = VLOAD(vn + (size_t)vrow[g][j] * 36 * T + t);
           DW_TILE_FMA(a, qv, vv);
         }
         DW_TILE_COPY(sums[g], a);
