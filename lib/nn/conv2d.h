@@ -139,7 +139,7 @@ spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const
 void spx_conv2d_wino_tiles(const spx_ctx *ctx, int h, int w, int *th, int *twp);
 
 /* The input transform of samples [s0, s0 + m) of x [n][c][h][w] (zero outside the image) into V
- * [m][36][c][Tp]: th = ceil(h / 4) rows of tiles stored tws to a row (tile (ty, tx) at column
+ * [m][c][36][Tp]: th = ceil(h / 4) rows of tiles stored tws to a row (tile (ty, tx) at column
  * ty * tws + tx): tws = ceil(w / 4) rounded up to CONV_VW (row-padded; columns th * tws .. Tp are
  * zeros) or = ceil(w / 4) (packed, CONV_WINO_PACK). Tp >= th * tws, a multiple of CONV_VW. */
 spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int m, int tws, int Tp, cl_mem V);
