@@ -460,8 +460,9 @@ static void test_errors(void) {
 /* A batch that cannot fit: the failing size is reported with the options to change. The pairs
  * are constant 308x410 EXR/PNG files (tiny compressed); their number is chosen from the device's
  * memory (a width-32 training step needs ~440 MB per image; asking for twice the device's memory
- * fails when the activation arena is sized, before it is allocated: the arena is split into
- * buffers of at most the largest allocation, so it is the total that does not fit). */
+ * fails when the activation arena is planned, before anything is allocated: usually the total
+ * does not fit, since the arena is split into buffers of at most the largest allocation; at some
+ * sizes one op's scratch alone is already larger than such a buffer, and that is said first). */
 static void test_out_of_memory(void) {
   spx_device_info info;
   CHECK_OK(ctx, spx_device_get_info(ctx, &info));
@@ -493,7 +494,11 @@ static void test_out_of_memory(void) {
   CHECK(one_line(log));
   char want[64];
   snprintf(want, sizeof want, "a step on %ld images of 410x308 at width 32", n);
-  CHECK_MSG(log_has(log, want) && log_has(log, "GiB of device memory") && log_has(log, "try a smaller --batch or --width"),
+  /* the plan refuses either the total (more than the device's memory) or, first, a single
+   * storage larger than one arena buffer may be: which one comes first depends on how much
+   * memory the device reports at the moment (PoCL: part of the free RAM) */
+  CHECK_MSG(log_has(log, want) && (log_has(log, "GiB of device memory") || log_has(log, "in one buffer")) &&
+                log_has(log, "try a smaller --batch or --width"),
             "no out-of-memory message (see %s)", log);
   CHECK(!spx_t_file_exists(out));
 }
