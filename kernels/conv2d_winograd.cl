@@ -50,22 +50,15 @@
 #endif
 #define WINO_IN_COLS (4 * CONV_VW + 4)
 
-/* Elements x .. x+15 of an image row (NULL: a row outside the image), zero outside [0, W). The
- * row's plane spans row[lo .. hi) (lo <= 0 < W <= hi): a piece that crosses the row's start or
- * end but lies inside the plane is loaded whole (its lanes outside the row read the neighbouring
- * rows) and those lanes are zeroed with a select; only at the plane's first and last element is
- * it built from scalars. */
-static inline __attribute__((always_inline)) float16 wino_row16(const __global float *row, int x, int W, int lo,
-                                                                int hi) {
+/* Elements x .. x+15 of an image row (NULL: a row outside the image), zero outside [0, W), for
+ * the rows spx_wino_in does not load whole (outside the image, or touching its plane's first or
+ * last element). */
+static inline __attribute__((always_inline)) float16 wino_row16(const __global float *row, int x, int W) {
   if (!row || x >= W || x + 16 <= 0) return (float16)0.0f;
   if (x >= 0 && x + 16 <= W) return vload16(0, row + x);
-  if (x >= lo && x + 16 <= hi) {
-    const int16 c = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15) + x;
-    return select(vload16(0, row + x), (float16)0.0f, c < 0 || c >= W);
-  }
   /* lane by lane, in a loop the compiler keeps rolled: unrolled, it hoisted the sixteen lanes'
    * bounds tests of every piece out of the row loop into each work-item's prologue, where they
-   * cost more than the transform (this path only runs at the plane's first and last element) */
+   * cost more than the transform (a piece crossing the row's start or end, in those few rows) */
   float t[16];
 #pragma unroll 1
   for (int l = 0; l < 16; l++) t[l] = x + l >= 0 && x + l < W ? row[x + l] : 0.0f;
@@ -141,7 +134,7 @@ __kernel void spx_wino_in(const __global float *x, ulong x_off, __global float *
         continue;
       }
 #endif
-#define LD_EDGE(o) wino_row16(row, x0 + (o), W, -yy * W, (H - yy) * W)
+#define LD_EDGE(o) wino_row16(row, x0 + (o), W)
 #define G_EDGE(k) wino_row1(row, x0 + (k), W)
       WINO_IN_ROW(d, LD_EDGE, G_EDGE, i);
 #undef LD_EDGE
