@@ -37,7 +37,7 @@ if [ "${TABLE1_QUICK:-0}" = 1 ]; then
   out=${TABLE1_OUT:-$root/out/table1-quick}
   report=${TABLE1_REPORT:-$out}
 else
-  # 60 minutes on 2 CPU cores: see README "make table1" for the time per stage.
+  # 60 minutes on 2 CPU cores: see benchmarks/RESULTS.md "Table 1 pipeline" for the time per stage.
   mode=full SUBJECTS=${TABLE1_SUBJECTS:-8} NTRAIN=${TABLE1_NTRAIN:-6} VIEWS=${TABLE1_VIEWS:-16} VTRAIN=${TABLE1_VTRAIN:-12}
   SIZE=${TABLE1_SIZE:-128x96} WIDTH=${TABLE1_WIDTH:-16} STEPS=${TABLE1_STEPS:-3000} GANSTEPS=${TABLE1_GANSTEPS:-500}
   BATCH=${TABLE1_BATCH:-4} POINTS=50000 TEX=1024 SYNTEX=2048 SEED=${TABLE1_SEED:-1}

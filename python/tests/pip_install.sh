@@ -1,5 +1,5 @@
 #!/bin/sh
-# ctest python_pip_install: what the README tells Python users to run, in a fresh venv:
+# ctest python_pip_install: what docs/python.md tells Python users to run, in a fresh venv:
 #   python3 -m venv V && V/bin/pip install ./python
 # then the pytest suite against the installed wheel (its own libsmplpix, not the build tree's).
 # usage: pip_install.sh BUILD_DIR. Exit 77 (ctest SKIP) with a message when python3-venv / pip

@@ -1,5 +1,5 @@
 """smplpix.torch.project: gradcheck in float64 against the plain-C reference path, the device
-path's gradients equal to the reference's, and the PyTorch3D-style semantics the README states."""
+path's gradients equal to the reference's, and the PyTorch3D-style semantics docs/python.md states."""
 import numpy as np
 import pytest
 
