@@ -73,8 +73,9 @@ gan=0
 ganloss=l1+gan
 [ $vggstage = 1 ] && $tool train --help 2>&1 | grep -q 'vgg16+gan' && ganloss=vgg16+gan
 
-# The work directory: continued when it holds a run of the same settings, replaced with
-# TABLE1_FRESH=1 when it is one (its log.txt), refused otherwise.
+# The work directory: continued when it holds a run of the same settings; a table1 work directory
+# (its log.txt) of other settings is replaced when it holds no finished unit or TABLE1_FRESH=1 is
+# set, refused otherwise; anything else is refused.
 config="mode=$mode subjects=$SUBJECTS ntrain=$NTRAIN views=$VIEWS vtrain=$VTRAIN size=$SIZE width=$WIDTH steps=$STEPS \
 vggsteps=$VGGSTEPS/$vggstage gansteps=$GANSTEPS/$ganloss batch=$BATCH seeds=$SEEDS discw=$DISCW synth=${TABLE1_SYNTH:-}"
 if [ -e "$out" ] && { [ ! -d "$out" ] || { [ -n "$(ls -A "$out")" ] && [ ! -f "$out/log.txt" ]; }; }; then
@@ -83,7 +84,7 @@ fi
 if [ -f "$out/config.txt" ] && [ "$(cat "$out/config.txt")" = "$config" ] && [ "${TABLE1_FRESH:-0}" != 1 ]; then
   resumed=1
 else
-  if [ -f "$out/log.txt" ] && [ -f "$out/config.txt" ] && [ "${TABLE1_FRESH:-0}" != 1 ]; then
+  if [ -f "$out/config.txt" ] && [ -n "$(ls "$out/done" 2>/dev/null | grep -v '^time\.')" ] && [ "${TABLE1_FRESH:-0}" != 1 ]; then
     die "$out: holds a run with other settings ($(cat "$out/config.txt")); TABLE1_FRESH=1 replaces it"
   fi
   resumed=0
