@@ -6,7 +6,13 @@
  *   table1_tool grid --out G.png --cols C [--cell WxH] A.png B.png ...
  *       a grid of PNG images (row-major, C per row, 4-pixel white gaps), each scaled by nearest
  *       neighbour to the cell size (default: the first image's size); written with the library's
- *       PNG writer. Bad input: one line naming the file, exit 1, nothing written. */
+ *       PNG writer.
+ *   table1_tool time --mesh M --camera C.json [--checkpoint W] [--texture T.png] [--frames N]
+ *       in-process time per frame of each Table 1 renderer on one test view, after warm-up:
+ *       SMPLpix (projection straight into the UNet of W on the device, image read back), the
+ *       per-vertex raster and, with --texture, the textured raster (both 2x2 AA, as the table's
+ *       images). Prints "NAME_ms MEDIAN" lines (smplpix_ms, raster_ms, textured_ms).
+ * Bad input: one line naming the file, exit 1, nothing written. */
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -14,6 +20,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bench_common.h"
 #include "smplpix/smplpix.h"
 
 static int fail(const char *fmt, const char *a, const char *b) {
@@ -189,10 +196,119 @@ done:
   return rc;
 }
 
+typedef struct time_job {
+  spx_ctx *ctx;
+  spx_projector *proj;
+  spx_project_args pa;
+  spx_device_tensor *dimg;
+  spx_unet *unet;      /* NULL: a raster frame */
+  spx_rasterizer *rast;
+  spx_raster_args ra;
+  float *out;
+} time_job;
+
+static int time_frame(void *user) {
+  time_job *j = user;
+  if (j->unet) {
+    spx_status st = spx_project_to_tensor(j->ctx, j->proj, &j->pa, j->dimg);
+    return st ? st : spx_unet_forward_tensor(j->unet, j->dimg, j->out);
+  }
+  return spx_raster(j->ctx, j->rast, &j->ra, j->out, NULL);
+}
+
+static int cmd_time(int argc, char **argv) {
+  const char *mesh_path = NULL, *cam_path = NULL, *ckpt = NULL, *tex_path = NULL;
+  long frames = 20;
+  int ok = 1;
+  for (int i = 2; i < argc; i++) {
+    if (i + 1 >= argc) return fail("time: missing value for %s%s", argv[i], ""), 2;
+    if (!strcmp(argv[i], "--mesh")) mesh_path = argv[++i];
+    else if (!strcmp(argv[i], "--camera")) cam_path = argv[++i];
+    else if (!strcmp(argv[i], "--checkpoint")) ckpt = argv[++i];
+    else if (!strcmp(argv[i], "--texture")) tex_path = argv[++i];
+    else if (!strcmp(argv[i], "--frames")) frames = parse_long(argv[++i], 1, 100000, &ok);
+    else return fail("time: unknown option %s%s", argv[i], ""), 2;
+    if (!ok) return fail("time: bad value for %s: '%s'", argv[i - 1], argv[i]), 2;
+  }
+  if (!mesh_path || !cam_path) return fail("time: --mesh and --camera are required%s%s", "", ""), 2;
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return fail("out of memory%s%s", "", "");
+  spx_mesh m = {0};
+  spx_camera *cams = NULL;
+  int ncams = 0, rc = 1;
+  spx_image tex = {0};
+  spx_projector *proj = NULL;
+  spx_unet *unet = NULL;
+  spx_device_tensor *dimg = NULL;
+  spx_rasterizer *rast = NULL;
+  float *col = NULL, *out = NULL;
+  if (spx_device_open(ctx, NULL) || spx_mesh_load(ctx, mesh_path, &m) || spx_camera_load(ctx, cam_path, &cams, &ncams) ||
+      (tex_path && spx_png_read(ctx, tex_path, &tex)) || (ckpt && spx_unet_load(ctx, ckpt, &unet))) {
+    rc = failctx(ctx);
+    goto done;
+  }
+  if (m.nf < 1) {
+    rc = fail("%s: no triangles to rasterize%s", mesh_path, "");
+    goto done;
+  }
+  if (tex_path && (!m.uv || !m.face_uv || tex.channels < 3)) {
+    rc = fail("%s: needs texture coordinates and %s an RGB texture", mesh_path, tex_path);
+    goto done;
+  }
+  const spx_camera cam = cams[0];
+  const size_t npx = (size_t)cam.width * (size_t)cam.height;
+  col = malloc(sizeof(float) * 3 * (size_t)m.nv);
+  out = malloc(sizeof(float) * 4 * npx);
+  if (!col || !out) {
+    rc = fail("out of memory timing %s%s", mesh_path, "");
+    goto done;
+  }
+  for (size_t k = 0; k < 3 * (size_t)m.nv; k++) col[k] = m.col ? m.col[k] : 0.5f;
+  if (spx_projector_create(ctx, &proj) || spx_rasterizer_create(ctx, &rast) ||
+      spx_device_tensor_create(ctx, 1, 4, cam.height, cam.width, &dimg)) {
+    rc = failctx(ctx);
+    goto done;
+  }
+  time_job j = {ctx, proj, {1, m.nv, m.pos, col, 1, &cam, SPX_LAYOUT_NCHW}, dimg, NULL, rast, {0}, out};
+  j.ra.nverts = m.nv, j.ra.pos = m.pos, j.ra.col = col, j.ra.nfaces = m.nf, j.ra.faces = m.faces;
+  j.ra.ncams = 1, j.ra.cams = &cam, j.ra.aa = 2, j.ra.layout = SPX_LAYOUT_HWC, j.ra.static_id = 1;
+  const char *names[3] = {"smplpix_ms", "raster_ms", "textured_ms"};
+  for (int r = 0; r < 3; r++) {
+    if ((r == 0 && !unet) || (r == 2 && !tex_path)) continue;
+    j.unet = r == 0 ? unet : NULL;
+    if (r == 2) {
+      j.ra.nuv = m.nuv, j.ra.uv = m.uv, j.ra.face_uv = m.face_uv, j.ra.tex = tex.data;
+      j.ra.tex_width = tex.width, j.ra.tex_height = tex.height, j.ra.tex_channels = tex.channels;
+      j.ra.wrap = SPX_WRAP_REPEAT, j.ra.static_id = 2;
+    }
+    bench_stats st;
+    if (bench_time(time_frame, &j, 2, (int)frames, 1e9, (int)frames, &st, NULL)) {
+      rc = failctx(ctx);
+      goto done;
+    }
+    printf("%s %.3f\n", names[r], st.med);
+  }
+  rc = 0;
+done:
+  spx_rasterizer_destroy(rast);
+  spx_device_tensor_free(dimg);
+  spx_unet_destroy(unet);
+  spx_projector_destroy(proj);
+  spx_image_free(&tex);
+  free(col);
+  free(out);
+  free(cams);
+  spx_mesh_free(&m);
+  spx_ctx_destroy(ctx);
+  return rc;
+}
+
 int main(int argc, char **argv) {
   if (argc >= 2 && !strcmp(argv[1], "sample")) return cmd_sample(argc, argv);
   if (argc >= 2 && !strcmp(argv[1], "grid")) return cmd_grid(argc, argv);
+  if (argc >= 2 && !strcmp(argv[1], "time")) return cmd_time(argc, argv);
   fprintf(stderr, "usage: table1_tool sample --mesh S.ply --points N --seed K --out P.ply\n"
-                  "       table1_tool grid --out G.png --cols C [--cell WxH] A.png B.png ...\n");
+                  "       table1_tool grid --out G.png --cols C [--cell WxH] A.png B.png ...\n"
+                  "       table1_tool time --mesh M --camera C.json [--checkpoint W] [--texture T.png] [--frames N]\n");
   return 2;
 }

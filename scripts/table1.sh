@@ -1,24 +1,31 @@
 #!/usr/bin/env bash
 # make table1: the paper's experiment (Table 1 of SMPLpix, WACV 2021) end to end on synthetic
-# scanned people. Stages (each timed):
+# scanned people. Stages (each timed, each unit's outputs complete before its done-mark is set):
 #   synth     smplpix synth: subjects (scan, cameras, view poses, ground-truth photos)
 #   register  per subject: a coloured point cloud sampled from the scan (table1_tool sample),
 #             smplpix register (rigid, pose, free), smplpix bake (scan colours -> body UV texture)
 #   inputs    per view: smplpix repose (the view's pose from synth.json) at 13,380 vertices and
 #             after 1 Loop step (53,514), smplpix project -> sparse RGB-D inputs
 #   baselines per test view: smplpix raster per-vertex colours (both counts), textured (baked)
-#   train     smplpix train --loss l1 (stage 1), then --loss l1+gan when the tool has it (stage 2)
-#   render    smplpix render on every test input
-#   eval      smplpix eval (PSNR, SSIM; LPIPS with TABLE1_LPIPS=weights) full image and mask
+#   train     per vertex count and seed: stage 1 l1, stage 2 the VGG16 perceptual loss (--loss
+#             vgg16, fine-tuning stage 1; skipped, saying so, without the VGG16 weights of
+#             `make weights`), stage 3 + multi-scale GAN and feature matching; every stage's
+#             network renders the test views and is scored
+#   eval      smplpix eval (PSNR, SSIM, LPIPS with the cached weights) full image and mask
+#   time      table1_tool time: each renderer's frame in one process, after warm-up
 #   report    TABLE1.md and table1.png (ground truth | input | per-vertex | textured | SMPLpix)
 # Splits: subjects 0..NTRAIN-1 train, the rest are unseen test subjects; training uses views
 # 0..VTRAIN-1 (view VTRAIN of each training subject is the validation set), tests use views
 # VTRAIN.. of the test subjects (other poses of the clip and other cameras).
-# Environment: TABLE1_QUICK=1 (tiny, < 5 min: checks the pipeline and the files, not the
-# scores), TABLE1_OUT (work dir, default out/table1 or out/table1-quick), TABLE1_BUILD (default
-# build), TABLE1_REPORT (where TABLE1.md and table1.png go; default benchmarks/, quick: the work
-# dir), TABLE1_LPIPS (LPIPS weights for smplpix eval), TABLE1_SYNTH (use this existing synth
-# output instead of running smplpix synth; its sizes must match the mode's). Bad input: one line, exit 1.
+# Resuming: the work dir keeps a done-mark per finished unit (done/), and a stopped run started
+# again with the same settings continues from there (an interrupted training stage continues from
+# its last saved checkpoint with --resume); other settings are refused unless TABLE1_FRESH=1.
+# Environment: TABLE1_QUICK=1 (tiny: checks the pipeline and the files, not the scores),
+# TABLE1_OUT (work dir, default out/table1 or out/table1-quick), TABLE1_BUILD (default build),
+# TABLE1_REPORT (where TABLE1.md and table1.png go; default benchmarks/, quick: the work dir),
+# TABLE1_LPIPS (LPIPS weights for smplpix eval; default: its cached ones), TABLE1_SYNTH (use this
+# existing synth output instead of running smplpix synth; its sizes must match the mode's),
+# TABLE1_FRESH=1 (start over), sizes: see below. Bad input: one line, exit 1.
 set -eu
 set -o pipefail
 
@@ -32,54 +39,96 @@ helper=$build/benchmarks/table1_tool
 command -v jq >/dev/null || die "jq: not found (apt-get install jq)"
 
 if [ "${TABLE1_QUICK:-0}" = 1 ]; then
-  mode=quick SUBJECTS=2 NTRAIN=1 VIEWS=3 VTRAIN=2 SIZE=64x48 WIDTH=8 STEPS=20 GANSTEPS=10 BATCH=2
-  POINTS=8000 TEX=256 SYNTEX=256 SEED=7 DISCW=8
+  mode=quick SUBJECTS=2 NTRAIN=1 VIEWS=3 VTRAIN=2 SIZE=64x48 WIDTH=8 STEPS=20 VGGSTEPS=6 GANSTEPS=10 BATCH=2
+  POINTS=8000 TEX=256 SYNTEX=256 SEEDS=${TABLE1_SEEDS:-7} DISCW=8 SAVE=10
   out=${TABLE1_OUT:-$root/out/table1-quick}
   report=${TABLE1_REPORT:-$out}
 else
-  # 60 minutes on 2 CPU cores: see benchmarks/RESULTS.md "Table 1 pipeline" for the time per stage.
-  mode=full SUBJECTS=${TABLE1_SUBJECTS:-8} NTRAIN=${TABLE1_NTRAIN:-6} VIEWS=${TABLE1_VIEWS:-16} VTRAIN=${TABLE1_VTRAIN:-12}
-  SIZE=${TABLE1_SIZE:-128x96} WIDTH=${TABLE1_WIDTH:-16} STEPS=${TABLE1_STEPS:-3000} GANSTEPS=${TABLE1_GANSTEPS:-500}
-  BATCH=${TABLE1_BATCH:-4} POINTS=50000 TEX=1024 SYNTEX=2048 SEED=${TABLE1_SEED:-1}
-  DISCW=${TABLE1_DISCW:-32}
+  # sized for about 150 minutes on 2 quiet CPU cores (docs/table1.md; times per stage: benchmarks/RESULTS.md)
+  mode=full SUBJECTS=${TABLE1_SUBJECTS:-72} NTRAIN=${TABLE1_NTRAIN:-64} VIEWS=${TABLE1_VIEWS:-6} VTRAIN=${TABLE1_VTRAIN:-4}
+  SIZE=${TABLE1_SIZE:-256x192} WIDTH=${TABLE1_WIDTH:-16} STEPS=${TABLE1_STEPS:-2000} VGGSTEPS=${TABLE1_VGGSTEPS:-200}
+  GANSTEPS=${TABLE1_GANSTEPS:-300} BATCH=${TABLE1_BATCH:-4} POINTS=50000 TEX=1024 SYNTEX=2048 SEEDS=${TABLE1_SEEDS:-1}
+  DISCW=${TABLE1_DISCW:-32} SAVE=100
   out=${TABLE1_OUT:-$root/out/table1}
   report=${TABLE1_REPORT:-$root/benchmarks}
 fi
+SEED=${SEEDS%% *} # the data's seed: the first training seed
+for v in SUBJECTS NTRAIN VIEWS VTRAIN WIDTH STEPS VGGSTEPS GANSTEPS BATCH DISCW; do
+  case ${!v} in '' | *[!0-9]*) die "TABLE1_$v=${!v}: expected a whole number" ;; esac
+done
+for s in $SEEDS; do case $s in *[!0-9]*) die "TABLE1_SEEDS=$SEEDS: expected whole numbers separated by spaces" ;; esac; done
+[ -n "$SEED" ] || die "TABLE1_SEEDS is empty"
 [ "$NTRAIN" -ge 1 ] && [ "$NTRAIN" -lt "$SUBJECTS" ] || die "TABLE1_NTRAIN=$NTRAIN: need 1..SUBJECTS-1 training subjects"
 [ "$VTRAIN" -ge 1 ] && [ "$VTRAIN" -lt "$VIEWS" ] || die "TABLE1_VTRAIN=$VTRAIN: need 1..VIEWS-1 training views"
+[ "$STEPS" -ge 1 ] || die "TABLE1_STEPS=$STEPS: need at least 1 step of stage 1"
+case $SIZE in [1-9]*x[1-9]*) ;; *) die "TABLE1_SIZE=$SIZE: expected WxH" ;; esac
 
-# the work directory is replaced: only when it is one (its log.txt) or empty
+# The perceptual stage needs VGG16 (make weights); LPIPS needs AlexNet's (the eval default).
+weights=${SPX_CACHE_DIR:-${HOME:-/nonexistent}/.cache/smplpix}/weights
+vgg16=$weights/vgg16.safetensors
+vggstage=1
+{ [ "$VGGSTEPS" -gt 0 ] && [ -f "$vgg16" ] && $tool train --help 2>&1 | grep -q vgg16; } || vggstage=0
+gan=0
+[ "$GANSTEPS" -gt 0 ] && $tool train --help 2>&1 | grep -q 'l1+gan' && gan=1
+ganloss=l1+gan
+[ $vggstage = 1 ] && $tool train --help 2>&1 | grep -q 'vgg16+gan' && ganloss=vgg16+gan
+
+# The work directory: continued when it holds a run of the same settings; a table1 work directory
+# (its log.txt) of other settings is replaced when it holds no finished unit or TABLE1_FRESH=1 is
+# set, refused otherwise; anything else is refused.
+config="mode=$mode subjects=$SUBJECTS ntrain=$NTRAIN views=$VIEWS vtrain=$VTRAIN size=$SIZE width=$WIDTH steps=$STEPS \
+vggsteps=$VGGSTEPS/$vggstage gansteps=$GANSTEPS/$ganloss batch=$BATCH seeds=$SEEDS discw=$DISCW synth=${TABLE1_SYNTH:-}"
 if [ -e "$out" ] && { [ ! -d "$out" ] || { [ -n "$(ls -A "$out")" ] && [ ! -f "$out/log.txt" ]; }; }; then
   die "$out: exists and is not a table1 work directory (no log.txt); choose another TABLE1_OUT"
 fi
-rm -rf "$out"
-mkdir -p "$out" "$report" || die "$out or $report: cannot create"
+if [ -f "$out/config.txt" ] && [ "$(cat "$out/config.txt")" = "$config" ] && [ "${TABLE1_FRESH:-0}" != 1 ]; then
+  resumed=1
+else
+  if [ -f "$out/config.txt" ] && [ -n "$(ls "$out/done" 2>/dev/null | grep -v '^time\.')" ] && [ "${TABLE1_FRESH:-0}" != 1 ]; then
+    die "$out: holds a run with other settings ($(cat "$out/config.txt")); TABLE1_FRESH=1 replaces it"
+  fi
+  resumed=0
+  rm -rf "$out"
+fi
+mkdir -p "$out/done" "$report" || die "$out or $report: cannot create"
+[ $resumed = 1 ] || printf '%s\n' "$config" >"$out/config.txt"
 log=$out/log.txt
-: >"$log"
+touch "$log"
 t_start=$(date +%s.%N)
-declare -A stage_s
-stage() { # stage NAME CMD...: run, log, add the wall time to stage_s[NAME]
+# Seconds spent per stage, kept across sittings (done/time.<stage>).
+addtime() { # addtime NAME SECONDS
+  local f=$out/done/time.$1 prev=0
+  [ -f "$f" ] && prev=$(cat "$f")
+  calc "$prev + $2" >"$f.tmp" && mv "$f.tmp" "$f"
+}
+stage() { # stage NAME CMD...: run, log, add the wall time to stage NAME
   local name=$1 t0 t1
   shift
   t0=$(date +%s.%N)
   "$@" >>"$log" 2>&1 || die "stage $name: $(tail -n 1 "$log") (log: $log)"
   t1=$(date +%s.%N)
-  stage_s[$name]=$(calc "${stage_s[$name]:-0} + $t1 - $t0")
+  addtime "$name" "$(calc "$t1 - $t0")"
 }
+done_mark() { : >"$out/done/$1"; }
+is_done() { [ -f "$out/done/$1" ]; }
 now() { date +%s.%N; }
 calc() { awk "BEGIN { printf \"%.6f\", $1 }"; }
 secs() { calc "$2 - $1"; }
 say() { printf 'table1 [%s] %s\n' "$(date -u +%H:%M:%S)" "$*"; }
+[ $resumed = 1 ] && say "continuing $out (done: $(ls "$out/done" | grep -vc '^time\.' || true) units)"
 
 # ---- synth ------------------------------------------------------------------------------------
-say "$mode: $SUBJECTS subjects ($NTRAIN train) x $VIEWS views ($VTRAIN train), ${SIZE}, width $WIDTH, seed $SEED"
-if [ -n "${TABLE1_SYNTH:-}" ]; then # an existing `smplpix synth` output (read only; copied)
-  [ -f "$TABLE1_SYNTH/synth.json" ] || die "$TABLE1_SYNTH/synth.json: no such file (TABLE1_SYNTH)"
-  cp -r "$TABLE1_SYNTH" "$out/synth"
-else
-  $tool synth --help >/dev/null 2>&1 || die "smplpix synth: not in this build (branch h/synth not merged)"
-  stage synth $tool synth --subjects "$SUBJECTS" --views "$VIEWS" --seed "$SEED" --out "$out/synth" --size "$SIZE" \
-    --texture-size "$SYNTEX" --quiet
+say "$mode: $SUBJECTS subjects ($NTRAIN train) x $VIEWS views ($VTRAIN train), ${SIZE}, width $WIDTH, seeds $SEEDS"
+if ! is_done synth; then
+  rm -rf "$out/synth"
+  if [ -n "${TABLE1_SYNTH:-}" ]; then # an existing `smplpix synth` output (read only; copied)
+    [ -f "$TABLE1_SYNTH/synth.json" ] || die "$TABLE1_SYNTH/synth.json: no such file (TABLE1_SYNTH)"
+    cp -r "$TABLE1_SYNTH" "$out/synth"
+  else
+    $tool synth --help >/dev/null 2>&1 || die "smplpix synth: not in this build"
+    stage synth $tool synth --subjects "$SUBJECTS" --views "$VIEWS" --seed "$SEED" --out "$out/synth" --size "$SIZE" \
+      --texture-size "$SYNTEX" --quiet
+  fi
 fi
 man=$out/synth/synth.json
 manname=${TABLE1_SYNTH:+$TABLE1_SYNTH/synth.json}
@@ -103,38 +152,32 @@ while IFS=$'\t' read -r si vi vname cam img mask src; do
   [ "$vi" -lt "$VIEWS" ] || die "$manname: subject $si has more than $VIEWS views"
 done <"$out/views.tsv"
 [ "$(wc -l <"$out/views.tsv")" = $((SUBJECTS * VIEWS)) ] || die "$manname: expected $VIEWS views per subject"
+done_mark synth
 
 # ---- register + bake --------------------------------------------------------------------------
 say "register: $SUBJECTS scans ($POINTS-point clouds), bake ${TEX}x${TEX} textures"
 for s in $(seq 0 $((SUBJECTS - 1))); do
   name=$(jq -r ".subjects[$s].name" "$man")
+  is_done "register.$name" && continue
   scan=$out/synth/$(jq -r ".subjects[$s].scan" "$man")
   d=$out/subjects/$name
   mkdir -p "$d"
   stage register "$helper" sample --mesh "$scan" --points "$POINTS" --seed "$((SEED * 1000 + s))" --out "$d/cloud.ply"
   stage register $tool register --scan "$d/cloud.ply" --out "$d/reg.ply" --params "$d/reg.json" --threads 2 --units m
   stage bake $tool bake --mesh "$d/reg.ply" --scan "$scan" --out "$d/texture.png" --size "$TEX"
+  done_mark "register.$name"
 done
 
 # ---- inputs and baselines ---------------------------------------------------------------------
 say "inputs: repose to every view's pose, project at 13k and 53k vertices; rasterize the test views"
-declare -A t_frames n_frames
 for n in 13k 53k; do
   for split in train validation test; do mkdir -p "$out/data$n/$split/input" "$out/data$n/$split/output"; done
 done
 mkdir -p "$out/methods/gt" "$out/methods/mask" "$out/methods/pervertex13k" "$out/methods/pervertex53k" \
-  "$out/methods/textured13k" "$out/methods/smplpix13k" "$out/methods/smplpix53k" "$out/methods/input13k"
-timed() { # timed KEY CMD...: run once, add the wall time to t_frames[KEY] (one frame per call)
-  local key=$1 t0 t1
-  shift
-  t0=$(now)
-  "$@" >>"$log" 2>&1 || die "$key: $(tail -n 1 "$log") (log: $log)"
-  t1=$(now)
-  t_frames[$key]=$(calc "${t_frames[$key]:-0} + $t1 - $t0")
-  n_frames[$key]=$((${n_frames[$key]:-0} + 1))
-}
-ntest=0
+  "$out/methods/textured13k" "$out/methods/input13k"
+quiet() { "$@" >>"$log" 2>&1 || die "$1 ${2:-}: $(tail -n 1 "$log") (log: $log)"; }
 t0=$(now)
+first_test=
 while IFS=$'\t' read -r si vi vname cam img mask src; do
   subj=$(jq -r ".subjects[$si].name" "$man")
   d=$out/subjects/$subj
@@ -143,29 +186,30 @@ while IFS=$'\t' read -r si vi vname cam img mask src; do
   else
     [ "$vi" -ge "$VTRAIN" ] || continue # unseen subjects: only the test poses and cameras
     split=test
+    [ -n "$first_test" ] || first_test="$d/$vname $out/synth/$cam"
   fi
-  $tool repose --registration "$d/reg.json" --pose "$man" --view "$vname" --out "$d/$vname.13k.obj" >>"$log" 2>&1 ||
-    die "repose: $(tail -n 1 "$log") (log: $log)"
-  $tool repose --registration "$d/reg.json" --pose "$man" --view "$vname" --subdivide 1 --out "$d/$vname.53k.ply" >>"$log" 2>&1 ||
-    die "repose: $(tail -n 1 "$log") (log: $log)"
+  is_done "inputs.$vname" && continue
+  quiet $tool repose --registration "$d/reg.json" --pose "$man" --view "$vname" --out "$d/$vname.13k.obj"
+  quiet $tool repose --registration "$d/reg.json" --pose "$man" --view "$vname" --subdivide 1 --out "$d/$vname.53k.ply"
   for n in 13k 53k; do
     ext=obj && [ $n = 53k ] && ext=ply
-    timed "project$n" $tool project --mesh "$d/$vname.$n.$ext" --camera "$out/synth/$cam" --out "$out/data$n/$split/input/$vname.exr" \
+    quiet $tool project --mesh "$d/$vname.$n.$ext" --camera "$out/synth/$cam" --out "$out/data$n/$split/input/$vname.exr" \
       --png "$out/data$n/$split/input/$vname.png" --color mesh --quiet
     cp "$out/synth/$img" "$out/data$n/$split/output/$vname.png"
   done
   if [ $split = test ]; then
-    ntest=$((ntest + 1))
     cp "$out/synth/$img" "$out/methods/gt/$vname.png"
     cp "$out/synth/$mask" "$out/methods/mask/$vname.png"
     cp "$out/data13k/test/input/$vname.png" "$out/methods/input13k/$vname.png"
-    timed raster13k $tool raster --mesh "$d/$vname.13k.obj" --camera "$out/synth/$cam" --out "$out/methods/pervertex13k/$vname.png" --color mesh --aa 2 --quiet
-    timed raster53k $tool raster --mesh "$d/$vname.53k.ply" --camera "$out/synth/$cam" --out "$out/methods/pervertex53k/$vname.png" --color mesh --aa 2 --quiet
-    timed textured $tool raster --mesh "$d/$vname.13k.obj" --camera "$out/synth/$cam" --texture "$d/texture.png" \
+    quiet $tool raster --mesh "$d/$vname.13k.obj" --camera "$out/synth/$cam" --out "$out/methods/pervertex13k/$vname.png" --color mesh --aa 2 --quiet
+    quiet $tool raster --mesh "$d/$vname.53k.ply" --camera "$out/synth/$cam" --out "$out/methods/pervertex53k/$vname.png" --color mesh --aa 2 --quiet
+    quiet $tool raster --mesh "$d/$vname.13k.obj" --camera "$out/synth/$cam" --texture "$d/texture.png" \
       --out "$out/methods/textured13k/$vname.png" --aa 2 --quiet
   fi
+  done_mark "inputs.$vname"
 done <"$out/views.tsv"
-stage_s[inputs]=$(secs "$t0" "$(now)")
+addtime inputs "$(secs "$t0" "$(now)")"
+ntest=$(ls "$out/methods/gt" | wc -l)
 [ "$ntest" -gt 0 ] || die "$manname: no test views (need subjects >= $((NTRAIN + 1)) with views >= $((VTRAIN + 1)))"
 
 # test poses never seen in training: compare the pose sources of the two splits
@@ -180,41 +224,103 @@ frames() { # frames SUBJECT_TEST VIEW_TEST: "min..max" of the BVH frames of thos
 }
 train_frames=$(frames 0 0) test_frames=$(frames 1 1)
 
-# ---- train ------------------------------------------------------------------------------------
-gan=0
-$tool train --help 2>&1 | grep -q 'l1+gan' && gan=1
-for n in 13k 53k; do
-  say "train $n: width $WIDTH, $STEPS steps of l1$([ $gan = 1 ] && echo ", then $GANSTEPS of l1+gan")"
-  stage "train$n" $tool train --data "$out/data$n" --out "$out/unet$n.stage1.safetensors" --width "$WIDTH" --batch "$BATCH" \
-    --lr 2e-3 --steps "$STEPS" --seed "$SEED" --loss l1 --log-every 50
-  ckpt=$out/unet$n.stage1.safetensors
-  if [ $gan = 1 ]; then
-    stage "train$n" $tool train --data "$out/data$n" --out "$out/unet$n.stage2.safetensors" --width "$WIDTH" --batch "$BATCH" \
-      --lr 2e-4 --steps "$GANSTEPS" --seed "$SEED" --loss l1+gan --disc-width "$DISCW" --init "$ckpt" --log-every 50
-    ckpt=$out/unet$n.stage2.safetensors
-  fi
-  cp "$ckpt" "$out/unet$n.safetensors"
-  for f in "$out/data$n/test/input/"*.exr; do
-    v=$(basename "$f" .exr)
-    timed "unet$n" $tool render --checkpoint "$out/unet$n.safetensors" --input "$f" --out "$out/methods/smplpix$n/$v.png" --quiet
-  done
-done
-
-# ---- eval -------------------------------------------------------------------------------------
-methods="pervertex13k pervertex53k textured13k smplpix13k smplpix53k"
+# ---- eval helper --------------------------------------------------------------------------------
 have_eval=0
 $tool eval --help >/dev/null 2>&1 && have_eval=1
-t0=$(now)
-if [ $have_eval = 1 ]; then
-  say "eval: $ntest test views x 5 methods"
-  lp=()
-  [ -n "${TABLE1_LPIPS:-}" ] && lp=(--lpips "$TABLE1_LPIPS")
-  for m in $methods; do
-    $tool eval --pred "$out/methods/$m" --target "$out/methods/gt" --mask "$out/methods/mask" --json "$out/eval_$m.json" \
-      "${lp[@]}" >>"$log" 2>&1 || die "eval: $(tail -n 1 "$log") (log: $log)"
+lp=()
+[ -n "${TABLE1_LPIPS:-}" ] && lp=(--lpips "$TABLE1_LPIPS")
+score() { # score METHOD_DIR JSON: smplpix eval against the ground truth, full image and mask
+  [ $have_eval = 1 ] || return 0
+  local t0
+  t0=$(now)
+  quiet $tool eval --pred "$1" --target "$out/methods/gt" --mask "$out/methods/mask" --json "$2.tmp.json" "${lp[@]}"
+  mv "$2.tmp.json" "$2"
+  addtime eval "$(secs "$t0" "$(now)")"
+}
+for m in pervertex13k pervertex53k textured13k; do
+  is_done "eval.$m" || { score "$out/methods/$m" "$out/eval_$m.json" && done_mark "eval.$m"; }
+done
+
+# ---- train: per vertex count and seed, three stages, each scored ------------------------------
+# train_stage KEY LOSS STEPS LR INIT [EXTRA...]: one `smplpix train` to $out/KEY.safetensors, continued
+# with --resume after an interruption; then its network renders every test view and is scored.
+train_stage() {
+  local key=$1 loss=$2 steps=$3 lr=$4 init=$5 n=$6 seed=$7
+  shift 7
+  local w=$out/$key.safetensors
+  is_done "train.$key" && return 0
+  if [ -f "$w" ]; then
+    stage "train$n" $tool train --data "$out/data$n" --out "$w" --resume --steps "$steps" --log-every 50
+  else
+    local from=()
+    [ -n "$init" ] && from=(--init "$init")
+    stage "train$n" $tool train --data "$out/data$n" --out "$w" --width "$WIDTH" --batch "$BATCH" --lr "$lr" \
+      --steps "$steps" --seed "$seed" --loss "$loss" --log-every 50 --save-every "$SAVE" "${from[@]}" "$@"
+  fi
+  done_mark "train.$key"
+}
+render_score() { # render_score KEY n: every test input through $out/KEY.safetensors, then eval
+  local key=$1 n=$2 dir=$out/methods/$1 f v
+  is_done "eval.$key" && return 0
+  rm -rf "$dir" && mkdir -p "$dir"
+  for f in "$out/data$n/test/input/"*.exr; do
+    v=$(basename "$f" .exr)
+    quiet $tool render --checkpoint "$out/$key.safetensors" --input "$f" --out "$dir/$v.png" --quiet
   done
-fi
-stage_s[eval]=$(secs "$t0" "$(now)")
+  score "$dir" "$out/eval_$key.json"
+  done_mark "eval.$key"
+}
+stages="1"
+[ $vggstage = 1 ] && stages="$stages 2"
+[ $gan = 1 ] && stages="$stages 3"
+last=${stages##* }
+[ $vggstage = 1 ] || say "stage 2 (VGG16 perceptual) skipped: $vgg16 is absent (make weights) or VGGSTEPS=0"
+for n in 13k 53k; do
+  for seed in $SEEDS; do
+    say "train $n, seed $seed: stages $stages (l1 $STEPS, vgg16 $VGGSTEPS, $ganloss $GANSTEPS steps)"
+    k=unet$n.s$seed
+    train_stage "$k.stage1" l1 "$STEPS" 2e-3 "" $n "$seed"
+    render_score "$k.stage1" $n
+    prev=$out/$k.stage1.safetensors
+    if [ $vggstage = 1 ]; then
+      train_stage "$k.stage2" vgg16 "$VGGSTEPS" 2e-4 "$prev" $n "$seed" --vgg "$vgg16"
+      render_score "$k.stage2" $n
+      prev=$out/$k.stage2.safetensors
+    fi
+    if [ $gan = 1 ]; then
+      vggarg=()
+      [ $ganloss = vgg16+gan ] && vggarg=(--vgg "$vgg16")
+      train_stage "$k.stage3" "$ganloss" "$GANSTEPS" 2e-4 "$prev" $n "$seed" --disc-width "$DISCW" "${vggarg[@]}"
+      render_score "$k.stage3" $n
+    fi
+  done
+  # the final network of the first seed is this vertex count's SMPLpix (shipped, timed, in the grid)
+  cp "$out/unet$n.s$SEED.stage$last.safetensors" "$out/unet$n.safetensors"
+  rm -rf "$out/methods/smplpix$n" && cp -r "$out/methods/unet$n.s$SEED.stage$last" "$out/methods/smplpix$n"
+done
+
+# ---- time per frame, in process ---------------------------------------------------------------
+# one test view (the first), every renderer in one process after warm-up (table1_tool time)
+say "time: each renderer's frame on one test view, in process"
+set -- $first_test
+tview=$1 tcam=$2
+tex=$(dirname "$tview")/texture.png
+declare -A ms
+frames_n=20
+[ $mode = quick ] && frames_n=3
+parse_ms() { awk -v k="$1" '$1 == k {printf "%.1f", $2}' "$out/time_$2.txt"; }
+for n in 13k 53k; do
+  ext=obj && [ $n = 53k ] && ext=ply
+  if ! is_done "time.$n"; then
+    args=(--mesh "$tview.$n.$ext" --camera "$tcam" --checkpoint "$out/unet$n.safetensors" --frames $frames_n)
+    [ $n = 13k ] && args+=(--texture "$tex")
+    "$helper" time "${args[@]}" >"$out/time_$n.txt.tmp" 2>>"$log" || die "time: $(tail -n 1 "$log") (log: $log)"
+    mv "$out/time_$n.txt.tmp" "$out/time_$n.txt"
+    done_mark "time.$n"
+  fi
+  ms[smplpix$n]=$(parse_ms smplpix_ms $n) ms[pervertex$n]=$(parse_ms raster_ms $n)
+  [ $n = 13k ] && ms[textured13k]=$(parse_ms textured_ms $n)
+done
 
 # ---- report -----------------------------------------------------------------------------------
 grid_imgs=()
@@ -224,48 +330,72 @@ for v in $(ls "$out/methods/gt" | head -n 4); do
 done
 "$helper" grid --out "$out/table1.png.tmp.png" --cols 5 "${grid_imgs[@]}" >>"$log" 2>&1 || die "grid: $(tail -n 1 "$log") (log: $log)"
 
-metric() { # metric FILE KEY: the mean of KEY from an eval JSON, or "—"
-  [ -f "$1" ] || { echo "—"; return; }
-  jq -r --arg k "$2" '.[$k] | if type == "number" then (. * 1000 | round / 1000 | tostring) else empty end' "$1" 2>/dev/null |
-    head -n 1 | grep . || echo "—"
+# stat KEY FIELD: the mean over seeds of FIELD in eval_unet<KEY>.s<seed>.json files (KEY = 13k.stage1 ...),
+# with the spread (min..max) when there are several seeds; for a baseline method, its value
+stat() {
+  local files=() s
+  case $1 in
+  pervertex* | textured*) files=("$out/eval_$1.json") ;;
+  *) for s in $SEEDS; do files+=("$out/eval_unet${1%%.*}.s$s.${1#*.}.json"); done ;;
+  esac
+  for f in "${files[@]}"; do [ -f "$f" ] || { echo "—"; return; }; done
+  jq -rs --arg k "$2" 'map(.[$k]) | if all(type == "number") then
+      (add / length) as $m | (min) as $lo | (max) as $hi |
+      if length > 1 then "\($m * 1000 | round / 1000) (\($lo * 1000 | round / 1000)..\($hi * 1000 | round / 1000))"
+      else "\($m * 1000 | round / 1000)" end
+    else "—" end' "${files[@]}"
 }
-ms() { [ -n "${t_frames[$1]:-}" ] && printf '%.0f' "$(calc "${t_frames[$1]} * 1000 / ${n_frames[$1]}")" || echo "—"; }
+mean() { stat "$1" "$2" | awk '{print $1}'; }
+stage_label() {
+  case $1 in
+  1) echo "stage 1: l1, $STEPS steps" ;;
+  2) echo "stage 2: VGG16 perceptual, $VGGSTEPS steps from stage 1" ;;
+  3) echo "stage 3: $ganloss (PatchGAN x3 + 0.1 feature matching), $GANSTEPS steps" ;;
+  esac
+}
 total=$(secs "$t_start" "$(now)")
-stage_name="stage 1 (l1, ${STEPS} steps)"
-[ $gan = 1 ] && stage_name="stage 1 + 2 (l1 ${STEPS} steps, then l1+gan ${GANSTEPS} steps: offline variant, no VGG)"
 md=$out/TABLE1.md.tmp
+nseeds=$(echo $SEEDS | wc -w)
 {
   echo "# Table 1 on synthetic scanned people ($mode run)"
   echo
   echo "The paper's Table 1 (SMPLpix vs mesh rasterization) reproduced on \`smplpix synth\` subjects: every"
   echo "method renders the same $ntest test views of $((SUBJECTS - NTRAIN)) unseen subjects, in poses and from cameras"
   echo "never seen in training. Scores from \`smplpix eval\` (mean over the test views), full image and inside"
-  echo "the subject's mask. Time per frame: wall time of one CLI call per frame (process start, OpenCL set-up"
-  echo "and file I/O included; SMPLpix = projection + network)."
+  echo "the subject's mask$([ $nseeds -gt 1 ] && echo "; SMPLpix rows: mean over $nseeds training seeds ($SEEDS), (min..max) over the seeds")."
+  echo "Time per frame: one renderer's frame in one process after warm-up (\`table1_tool time\`: upload the"
+  echo "posed vertices, render, read the image back; SMPLpix = projection + network), on one test view."
   echo
-  echo "| method | vertices | PSNR full | SSIM full | LPIPS full | PSNR mask | SSIM mask | time/frame (ms) |"
-  echo "|---|---|---|---|---|---|---|---|"
-  row() { # row LABEL VERTS METHOD TIMEKEY
-    local j=$out/eval_$3.json
-    echo "| $1 | $2 | $(metric "$j" psnr) | $(metric "$j" ssim) | $(metric "$j" lpips) | $(metric "$j" psnr_masked) | $(metric "$j" ssim_masked) | $4 |"
+  echo "| method | vertices | PSNR full | SSIM full | LPIPS full | PSNR mask | SSIM mask | LPIPS mask | time/frame (ms) |"
+  echo "|---|---|---|---|---|---|---|---|---|"
+  row() { # row LABEL VERTS KEY TIME
+    echo "| $1 | $2 | $(stat "$3" psnr) | $(stat "$3" ssim) | $(stat "$3" lpips) | $(stat "$3" psnr_masked) | $(stat "$3" ssim_masked) | $(stat "$3" lpips_masked) | $4 |"
   }
-  row "per-vertex colours, rasterized (paper: NMR per-verts)" "13,380" pervertex13k "$(ms raster13k)"
-  row "per-vertex colours, rasterized (paper: NMR per-verts)" "53,514 (1 Loop step; paper: 27k)" pervertex53k "$(ms raster53k)"
-  row "full texture baked from the scan, rasterized (paper: NMR full textures)" "13,380" textured13k "$(ms textured)"
-  row "SMPLpix, $stage_name" "13,380" smplpix13k "$(printf '%s + %s' "$(ms project13k)" "$(ms unet13k)")"
-  row "SMPLpix, $stage_name" "53,514 (1 Loop step; paper: 27k)" smplpix53k "$(printf '%s + %s' "$(ms project53k)" "$(ms unet53k)")"
+  v13="13,380" v53="53,514 (1 Loop step; paper: 27k)"
+  row "per-vertex colours, rasterized (paper: NMR per-verts)" "$v13" pervertex13k "${ms[pervertex13k]:-—}"
+  row "per-vertex colours, rasterized (paper: NMR per-verts)" "$v53" pervertex53k "${ms[pervertex53k]:-—}"
+  row "full texture baked from the scan, rasterized (paper: NMR full textures)" "$v13" textured13k "${ms[textured13k]:-—}"
+  for n in 13k 53k; do
+    vv=$v13 && [ $n = 53k ] && vv=$v53
+    for st in $stages; do
+      row "SMPLpix, $(stage_label $st)" "$vv" "$n.stage$st" "$([ $st = $last ] && echo "${ms[smplpix$n]:-—}" || echo "")"
+    done
+  done
   echo
   if [ $have_eval = 1 ]; then
-    pv=$(metric "$out/eval_pervertex13k.json" psnr) tx=$(metric "$out/eval_textured13k.json" psnr)
-    sp=$(metric "$out/eval_smplpix13k.json" psnr)
-    awk -v pv="$pv" -v tx="$tx" -v sp="$sp" 'BEGIN {
-      if (pv == "—" || tx == "—" || sp == "—") { print "Goal: not evaluated (a PSNR is missing)."; exit }
-      d1 = sp - pv; d2 = tx - sp
-      printf "Goal (issue 15), 13,380 vertices, full-image PSNR: SMPLpix - per-vertex = %+.2f dB (goal >= +2: %s); ", d1, (d1 >= 2 ? "met" : "not met")
-      printf "textured - SMPLpix = %+.2f dB (goal <= 0.5: %s).\n", d2, (d2 <= 0.5 ? "met" : "not met") }'
+    for n in 13k 53k; do
+      awk -v n="$n" -v pv="$(mean pervertex$n psnr)" -v sp="$(mean $n.stage$last psnr)" -v lpv="$(mean pervertex$n lpips)" \
+        -v lsp="$(mean $n.stage$last lpips)" -v ltx="$(mean textured13k lpips)" 'BEGIN {
+        if (pv == "—" || sp == "—") { printf "Goal, %s: not evaluated (a PSNR is missing).\n", n; exit }
+        d = sp - pv
+        printf "Goal, %s vertices, final stage: SMPLpix - per-vertex = %+.2f dB PSNR (goal >= +2.0: %s)", n, d, (d >= 2 ? "met" : "not met")
+        if (lpv == "—" || lsp == "—" || ltx == "—") { printf "; LPIPS not measured (make weights).\n"; exit }
+        r = lsp / lpv
+        printf "; LPIPS SMPLpix / per-vertex = %.2f (goal <= 0.75: %s), SMPLpix %s the textured raster (%.3f; goal: below).\n", r, (r <= 0.75 ? "met" : "not met"), (lsp < ltx ? "below" : "not below"), ltx }'
+    done
+  else
+    echo "**No scores: \`smplpix eval\` is not in this build; the images are in $out/methods.**"
   fi
-  [ $have_eval = 1 ] || echo "**No scores: \`smplpix eval\` is not in this build (branch h/eval not merged); the images are in $out/methods.**"
-  [ $gan = 1 ] || echo "**Stage 2 (l1+gan) not run: \`smplpix train\` has no --loss l1+gan in this build (branch h/recipe not merged).**"
   echo
   echo "## Setup"
   echo
@@ -277,12 +407,19 @@ md=$out/TABLE1.md.tmp
   echo "  (rigid, pose, free); the registered vertices and colours are reposed to each view's pose"
   echo "  (\`smplpix repose --pose synth.json --view NAME\`), at 13,380 vertices and after one Loop step (53,514;"
   echo "  the paper's 27k row is one subdivision of its 7k body). Texture: \`smplpix bake\` (${TEX}x${TEX})."
-  echo "- Rasterizers: \`smplpix raster --aa 2\` (2x2 supersampling, as NMR and the synth photos), unlit colours."
-  echo "- Network: UNet width $WIDTH, batch $BATCH, Adam lr 2e-3, $STEPS steps of l1$([ $gan = 1 ] && echo ", then $GANSTEPS of l1+gan at lr 2e-4, PatchGAN width $DISCW"); seed $SEED."
-  echo "- Time per stage (s): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$([ $k = inputs ] && echo 'inputs+rasterizers' || echo $k)" "${stage_s[$k]:-0}"; done)total $(printf '%.0f' "$total")."
-  echo "- Machine: $(uname -srm), $(nproc) CPU cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')), OpenCL device: $($tool devices 2>/dev/null | head -n 1 | sed 's/^ *//')."
+  echo "- Rasterizers: \`smplpix raster --aa 2\` (2x2 supersampling, as the synth photos), unlit colours."
+  echo "- Network: UNet width $WIDTH, batch $BATCH, Adam; stage 1 \`--loss l1\` $STEPS steps at lr 2e-3;"
+  if [ $vggstage = 1 ]; then
+    echo "  stage 2 \`--loss vgg16\` (the official SMPLpix re-implementation's VGG16 loss, ImageNet weights from \`make weights\`) $VGGSTEPS steps at lr 2e-4 from stage 1;"
+  else
+    echo "  stage 2 (VGG16 perceptual) not run: no VGG16 weights (\`make weights\`);"
+  fi
+  [ $gan = 1 ] && echo "  stage 3 \`--loss $ganloss\` $GANSTEPS steps at lr 2e-4 from the previous stage, PatchGAN width $DISCW;"
+  echo "  seeds $SEEDS (the data's seed: $SEED). Validation during training: view $VTRAIN of each training subject."
+  echo "- Time per stage (s): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$([ $k = inputs ] && echo 'inputs+rasterizers' || echo $k)" "$(cat "$out/done/time.$k" 2>/dev/null || echo 0)"; done)this sitting $(printf '%.0f' "$total")."
+  echo "- Machine: $(uname -srm), $(nproc) CPU cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')), load average at the end $(cut -d' ' -f1-3 /proc/loadavg), OpenCL device: $($tool devices 2>/dev/null | head -n 1 | sed 's/^ *//')."
   echo "- Command: \`$([ $mode = quick ] && echo 'TABLE1_QUICK=1 ')make table1\`, $(date -u '+%Y-%m-%d %H:%M UTC'); grid: table1.png (rows: test views;"
-  echo "  columns: ground truth | input projection | per-vertex raster | textured raster | SMPLpix, 13k)."
+  echo "  columns: ground truth | input projection | per-vertex raster | textured raster | SMPLpix, 13k, final stage)."
 } >"$md"
 mv "$out/table1.png.tmp.png" "$report/table1.png"
 mv "$md" "$report/TABLE1.md"

@@ -82,17 +82,38 @@ out=$tmp/run report=$tmp/report
 TABLE1_QUICK=1 TABLE1_BUILD=$build TABLE1_OUT=$out TABLE1_REPORT=$report bash "$script" >"$tmp/run.txt" || fail "TABLE1_QUICK=1 scripts/table1.sh"
 md=$report/TABLE1.md
 if [ -f "$md" ]; then
-  grep -q '^| method .*PSNR' "$md" || fail "$md: no header with PSNR"
-  [ "$(grep -c '^| SMPLpix' "$md")" -eq 2 ] || fail "$md: not 2 SMPLpix rows"
+  grep -q '^| method .*PSNR.*LPIPS.*LPIPS mask' "$md" || fail "$md: no header with PSNR, LPIPS and masked LPIPS"
+  nsp=$(grep -c '^| SMPLpix' "$md")
+  [ "$nsp" -ge 2 ] && [ $((nsp % 2)) -eq 0 ] || fail "$md: $nsp SMPLpix rows, want the same stages at both vertex counts"
   [ "$(grep -c '^| per-vertex' "$md")" -eq 2 ] || fail "$md: not 2 per-vertex rows"
   [ "$(grep -c '^| full texture' "$md")" -eq 1 ] || fail "$md: no textured row"
   if "$tool" eval --help >/dev/null 2>&1; then
     grep '^| per-vertex\|^| SMPLpix\|^| full' "$md" | awk -F'|' '$4 !~ /^ *[0-9.]+ *$/ {bad = 1} END {exit bad}' ||
       fail "$md: a PSNR cell is not a number"
   fi
+  # every renderer's in-process time per frame is a number (SMPLpix: on its final stage's row)
+  grep '^| per-vertex\|^| full' "$md" | awk -F'|' '$10 !~ /^ *[0-9.]+ *$/ {bad = 1} END {exit bad}' ||
+    fail "$md: a rasterizer's time per frame is not a number"
+  [ "$(grep '^| SMPLpix' "$md" | awk -F'|' '$10 ~ /^ *[0-9.]+ *$/' | wc -l)" -eq 2 ] ||
+    fail "$md: not one timed SMPLpix row per vertex count"
+  grep -q '^Goal, 13k vertices' "$md" && grep -q '^Goal, 53k vertices' "$md" || fail "$md: no goal line per vertex count"
 else
   fail "no $md"
 fi
+# started again with the same settings, the run continues: nothing is trained again and the scores
+# are the same
+cp "$md" "$tmp/first.md" 2>/dev/null
+ls -l --time-style=+%s.%N "$out"/unet*.safetensors >"$tmp/ckpt1.txt" 2>/dev/null
+TABLE1_QUICK=1 TABLE1_BUILD=$build TABLE1_OUT=$out TABLE1_REPORT=$report bash "$script" >"$tmp/rerun.txt" 2>&1 ||
+  fail "a second TABLE1_QUICK=1 run: $(tail -n 1 "$tmp/rerun.txt")"
+grep -q 'continuing' "$tmp/rerun.txt" || fail "a second run did not continue the first"
+ls -l --time-style=+%s.%N "$out"/unet*.s*.stage*.safetensors >"$tmp/ckpt2.txt" 2>/dev/null
+grep -v 'unet[0-9]*k.safetensors' "$tmp/ckpt1.txt" | cmp -s - "$tmp/ckpt2.txt" || fail "a continued run trained again"
+[ "$(grep '^|' "$tmp/first.md" | cut -d'|' -f1-9)" = "$(grep '^|' "$md" | cut -d'|' -f1-9)" ] ||
+  fail "a continued run changed the scores"
+# another configuration in the same work dir is refused (TABLE1_FRESH=1 would replace it)
+expect_error "holds a run with other settings" env TABLE1_QUICK=1 TABLE1_SEEDS="7 8" TABLE1_BUILD=$build TABLE1_OUT=$out \
+  TABLE1_REPORT=$tmp/report-other bash "$script"
 head -c 8 "$report/table1.png" 2>/dev/null | od -An -c | grep -q 'P   N   G' || fail "$report/table1.png: not a PNG"
 n=$(ls "$out/methods/gt" 2>/dev/null | wc -l)
 [ "$n" -ge 1 ] || fail "no test views"
