@@ -103,7 +103,7 @@ clean:
 
 # The paper's Table 1 on synthetic scanned people (scripts/table1.sh): synth -> register -> bake ->
 # repose/project -> rasterizers and SMPLpix (train, render) -> eval -> benchmarks/TABLE1.md and
-# benchmarks/table1.png. About 60 minutes on 2 CPU cores; TABLE1_QUICK=1 runs it tiny (< 5 min,
+# benchmarks/table1.png. About 150 minutes on 2 quiet CPU cores, resumable; TABLE1_QUICK=1 runs it tiny (< 5 min,
 # writing to out/table1-quick instead of benchmarks/).
 table1: build
 	TABLE1_BUILD=$(CURDIR)/$(BUILD) bash scripts/table1.sh

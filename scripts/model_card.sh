@@ -37,11 +37,11 @@ sigmoid=$(meta smplpix.sigmoid)
 source=$(meta smplpix.source)
 imsize=$(meta smplpix.image_size)
 
-# from TABLE1.md: the title, the table, the goal line and the setup bullets
+# from TABLE1.md: the title, the table, the goal lines and the setup bullets
 title=$(grep -m1 '^# ' "$table" | sed 's/^# //')
 rows=$(grep '^|' "$table" || true)
 [ -n "$rows" ] || die "$table: no table rows (| ... |)"
-goal=$(grep -m1 '^Goal' "$table" || true)
+goal=$(grep '^Goal' "$table" || true)
 setup=$(sed -n '/^## Setup/,$p' "$table" | tail -n +2 | sed '/^$/d')
 [ -n "$setup" ] || die "$table: no '## Setup' section"
 [ -n "$imsize" ] || imsize=$(printf '%s\n' "$setup" | grep -o -- '--size [0-9]*x[0-9]*' | head -n 1 | cut -d' ' -f2)
