@@ -1,6 +1,8 @@
-/* smplpix demo: the shipped body with a synthetic subject's appearance, reposed to a frame of the
- * shipped motion, projected (the SMPLpix input), through the shipped network, next to the
- * classic per-vertex raster of the same coloured mesh (`make demo`). */
+/* smplpix demo: the shipped body with a synthetic subject's shape and appearance, reposed to a
+ * frame of the shipped motion: the subject's lit photo (what the network learnt to draw), the
+ * projected coloured vertices (the SMPLpix input), the shipped network's output and the classic
+ * per-vertex raster of the same coloured mesh, side by side (`make demo`). The image size and the
+ * vertex count (13,380, or 53,514 after one Loop step) are those the network was trained at. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -14,6 +16,7 @@
 #include "cli_tx.h"
 #include "demo_compose.h"
 #include "smplpix/bvh.h"
+#include "smplpix/safetensors.h"
 #include "smplpix/synth.h"
 
 #define PI 3.14159265358979323846
@@ -23,23 +26,26 @@ static void demo_help(void) {
          "                    [--zoom Z] [--device cpu|gpu|P:D] [--quiet]\n"
          "Renders the shipped body (data/body/default_body.npz) with the appearance of synthetic subject S\n"
          "(smplpix synth's texture sampled at the body's UVs; its shape too), reposed to frame N (default 600)\n"
-         "of the shipped motion (data/mocap/01_01.bvh), seen from the front at WxH (default 128x96, the\n"
-         "size the shipped network was trained at). Writes to DIR (default out; made if missing, its\n"
-         "parent must exist), all files at once or none:\n"
+         "of the shipped motion (data/mocap/01_01.bvh), seen from the front at WxH (default: the size the\n"
+         "network was trained at, its metadata smplpix.image_size, else 128x96), with as many vertices as\n"
+         "the network was trained on (smplpix.source ending in 53k: one Loop step, 53,514; else 13,380).\n"
+         "Writes to DIR (default out; made if missing, its parent must exist), all files at once or none:\n"
+         "  demo_photo.png    the ground truth: the subject's textured scan in that pose, lit, as smplpix\n"
+         "                    synth draws the photos the network learns from\n"
          "  demo_input.png    the SMPLpix input: the projected coloured vertices (RGB of the RGB-D image)\n"
          "  demo_smplpix.png  the network's output on that input\n"
          "  demo_raster.png   the classic baseline: the same coloured mesh rasterized (per-vertex colours)\n"
-         "  demo.png          input | SMPLpix | per-vertex raster side by side, labelled, each panel\n"
+         "  demo.png          photo | input | SMPLpix | per-vertex raster side by side, labelled, each panel\n"
          "                    enlarged Z times (nearest pixel; --zoom 1..8, default 1)\n"
          "The network is --checkpoint, else the shipped data/models/default.safetensors. Without either,\n"
-         "a note says so and demo.png is input | per-vertex raster (no demo_smplpix.png).\n");
+         "a note says so and demo.png is photo | input | per-vertex raster (no demo_smplpix.png).\n");
 }
 
 typedef struct demo_opts {
   const char *out_dir, *ckpt, *device;
   long frame;
   uint64_t seed;
-  int W, H, zoom, quiet;
+  int W, H, zoom, quiet, size_given;
 } demo_opts;
 
 static int parse(int argc, char **argv, demo_opts *o) {
@@ -74,7 +80,7 @@ static int parse(int argc, char **argv, demo_opts *o) {
       int w = 0, h = 0, n = 0;
       if (sscanf(v, "%dx%d%n", &w, &h, &n) != 2 || v[n] || w < 16 || h < 16 || w > 4096 || h > 4096)
         return spx_cli_usage("demo", "--size: expected WxH with 16 <= W, H <= 4096, got '%s'", v);
-      o->W = w, o->H = h;
+      o->W = w, o->H = h, o->size_given = 1;
     } else {
       return spx_cli_usage("demo", bad ? "missing value for %s" : "unknown option %s", argv[i]);
     }
@@ -82,15 +88,38 @@ static int parse(int argc, char **argv, demo_opts *o) {
   return SPX_EXIT_OK;
 }
 
-/* The posed, coloured body and the camera looking at it from the front. */
+/* The posed, coloured body (subdivided when the network was trained on subdivided bodies), its
+ * pose and the camera looking at it from the front. */
 typedef struct demo_scene {
   spx_body_model m;
   spx_synth_subject sub;
-  float *pos, *col;
+  spx_mesh body; /* posed positions, colours and faces: the input's and the raster's vertices */
+  double *pose, trans[3];
   spx_camera cam;
 } demo_scene;
 
-static int build_scene(spx_ctx *ctx, const demo_opts *o, demo_scene *s) {
+/* What the network was trained at, from its metadata: the image size (when --size is not given)
+ * and the vertex count (smplpix.source ending in "53k": one Loop step). */
+static int network_setup(spx_ctx *ctx, const char *ckpt, demo_opts *o, int *subdivide) {
+  *subdivide = 0;
+  if (!ckpt) return SPX_EXIT_OK;
+  spx_st_file f;
+  if (spx_st_load(ctx, ckpt, &f)) return spx_cli_error("demo", ctx);
+  const char *size = spx_st_meta(&f, "smplpix.image_size"), *src = spx_st_meta(&f, "smplpix.source");
+  int w = 0, h = 0, n = 0, rc = SPX_EXIT_OK;
+  if (!o->size_given && size) {
+    if (sscanf(size, "%dx%d%n", &w, &h, &n) != 2 || size[n] || w < 16 || h < 16 || w > 4096 || h > 4096)
+      rc = spx_cli_errorf("demo", "%s: metadata smplpix.image_size '%s' is not WxH (16..4096)", ckpt, size);
+    else
+      o->W = w, o->H = h;
+  }
+  size_t len = src ? strlen(src) : 0;
+  *subdivide = len >= 3 && !strcmp(src + len - 3, "53k");
+  spx_st_free(&f);
+  return rc;
+}
+
+static int build_scene(spx_ctx *ctx, const demo_opts *o, int subdivide, demo_scene *s) {
   const char *body_path = spx_cli_data_path("body/default_body.npz");
   if (spx_body_load(ctx, body_path, &s->m)) return spx_cli_error("demo", ctx);
   char parts_path[4096], bvh_path[4096];
@@ -99,7 +128,7 @@ static int build_scene(spx_ctx *ctx, const demo_opts *o, demo_scene *s) {
   spx_image parts = {0};
   spx_bvh b = {0};
   spx_bvh_map map = {0};
-  double *pose = NULL, *v = NULL, trans[3];
+  double *v = NULL;
   int rc = SPX_EXIT_ERROR, nv = s->m.nv;
   if (spx_png_read(ctx, parts_path, &parts) || spx_bvh_load(ctx, bvh_path, &b) ||
       spx_bvh_map_create(ctx, &b, &s->m, NULL, NULL, &map)) {
@@ -110,25 +139,27 @@ static int build_scene(spx_ctx *ctx, const demo_opts *o, demo_scene *s) {
     rc = spx_cli_errorf("demo", "%s: --frame %ld out of range (the clip has %d frames)", bvh_path, o->frame, b.nframes);
     goto done;
   }
-  pose = malloc((size_t)s->m.nj * 3 * sizeof(double));
+  s->pose = malloc((size_t)s->m.nj * 3 * sizeof(double));
   v = malloc((size_t)nv * 3 * sizeof(double));
-  s->pos = malloc((size_t)nv * 3 * sizeof(float));
-  s->col = malloc((size_t)nv * 3 * sizeof(float));
-  if (!pose || !v || !s->pos || !s->col) {
+  spx_mesh base = {0};
+  base.nv = nv, base.nf = s->m.nf, base.faces = s->m.faces;
+  base.pos = malloc((size_t)nv * 3 * sizeof(float));
+  base.col = malloc((size_t)nv * 3 * sizeof(float));
+  if (!s->pose || !v || !base.pos || !base.col) {
     rc = spx_cli_errorf("demo", "out of memory");
     goto done;
   }
-  if (spx_bvh_map_pose(ctx, &map, &b, &s->m, (int32_t)o->frame, pose, trans) ||
+  if (spx_bvh_map_pose(ctx, &map, &b, &s->m, (int32_t)o->frame, s->pose, s->trans) ||
       spx_synth_subject_create(ctx, &s->m, &parts, o->seed, SPX_SYNTH_TEX_MIN, &s->sub) ||
-      spx_synth_body_colors(ctx, &s->m, &s->sub, s->col)) {
+      spx_synth_body_colors(ctx, &s->m, &s->sub, base.col)) {
     rc = spx_cli_errorf("demo", "%s: %s", body_path, spx_ctx_message(ctx));
     goto done;
   }
-  spx_body_params p = {s->sub.nbetas, s->sub.betas, pose, trans, NULL};
+  spx_body_params p = {s->sub.nbetas, s->sub.betas, s->pose, s->trans, NULL};
   if (spx_cli_failed(&rc, "demo", ctx, spx_body_forward_ref(ctx, &s->m, &p, v, NULL))) goto done;
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (int32_t k = 0; k < nv * 3; k++) {
-    s->pos[k] = (float)v[k];
+    base.pos[k] = (float)v[k];
     lo[k % 3] = fmin(lo[k % 3], v[k]), hi[k % 3] = fmax(hi[k % 3], v[k]);
   }
   /* framed like the synth photos the network learnt from: focal 1.4 H, the body filling 80% */
@@ -138,9 +169,20 @@ static int build_scene(spx_ctx *ctx, const demo_opts *o, demo_scene *s) {
   if (spx_cli_failed(&rc, "demo", ctx,
                      spx_synth_camera(ctx, o->W, o->H, 0.0, 10 * PI / 180, dist, focal, target, &s->cam)))
     goto done;
+  if (subdivide) {
+    if (spx_cli_failed(&rc, "demo", ctx, spx_mesh_subdivide(ctx, &base, 1, &s->body))) goto done;
+  } else {
+    s->body = base, base.pos = base.col = NULL;
+    if (!(s->body.faces = malloc((size_t)s->m.nf * 3 * sizeof(int32_t)))) {
+      rc = spx_cli_errorf("demo", "out of memory");
+      goto done;
+    }
+    memcpy(s->body.faces, s->m.faces, (size_t)s->m.nf * 3 * sizeof(int32_t));
+  }
   rc = SPX_EXIT_OK;
 done:
-  free(pose), free(v);
+  free(base.pos), free(base.col);
+  free(v);
   spx_bvh_map_free(&map);
   spx_bvh_free(&b);
   spx_image_free(&parts);
@@ -148,31 +190,44 @@ done:
 }
 
 static void free_scene(demo_scene *s) {
-  free(s->pos), free(s->col);
+  spx_mesh_free(&s->body);
+  free(s->pose);
   spx_synth_subject_free(&s->sub);
   spx_body_free(&s->m);
 }
 
-/* input (projection, RGB-D HWC), raster (RGB + coverage HWC), net (RGB HWC, or NULL). */
-static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image *input, spx_image *raster,
-                      spx_image *net) {
+/* The light of the photo: fixed in the world, from the front-above and a little from the side
+ * (smplpix synth draws the side per subject from the same range). */
+static const spx_synth_light demo_light = {{0.4, 1.0, 0.8}, 0.45, 0.7};
+
+/* photo (RGB HWC), input (projection, RGB-D HWC), raster (RGB + coverage HWC), net (RGB HWC, or
+ * NULL). */
+static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image *photo, spx_image *input,
+                      spx_image *raster, spx_image *net) {
   int W = s->cam.width, H = s->cam.height, rc = SPX_EXIT_ERROR;
   size_t hw = (size_t)W * H;
   spx_projector *proj = NULL;
   spx_rasterizer *rast = NULL;
   float *nchw = NULL, *out = NULL;
-  if (spx_image_alloc(ctx, W, H, 4, input) || spx_image_alloc(ctx, W, H, 4, raster) ||
+  uint8_t *mask = malloc(hw);
+  if (!mask) return spx_cli_errorf("demo", "out of memory");
+  if (spx_image_alloc(ctx, W, H, 3, photo) || spx_image_alloc(ctx, W, H, 4, input) ||
+      spx_image_alloc(ctx, W, H, 4, raster) ||
       (u && spx_image_alloc(ctx, W, H, 3, net)) || spx_projector_create(ctx, &proj) ||
       spx_rasterizer_create(ctx, &rast)) {
     rc = spx_cli_error("demo", ctx);
     goto done;
   }
-  spx_project_args pa = {1, s->m.nv, s->pos, s->col, 1, &s->cam, SPX_LAYOUT_HWC};
+  const spx_mesh *b = &s->body;
+  spx_project_args pa = {1, b->nv, b->pos, b->col, 1, &s->cam, SPX_LAYOUT_HWC};
   spx_raster_args ra = {0};
-  ra.nverts = s->m.nv, ra.pos = s->pos, ra.col = s->col, ra.nfaces = s->m.nf, ra.faces = s->m.faces;
+  ra.nverts = b->nv, ra.pos = b->pos, ra.col = b->col, ra.nfaces = b->nf, ra.faces = b->faces;
   ra.ncams = 1, ra.cams = &s->cam, ra.aa = 2, ra.cull = SPX_CULL_NONE, ra.layout = SPX_LAYOUT_HWC;
   if (spx_cli_failed(&rc, "demo", ctx,
-                     spx_project(ctx, proj, &pa, input->data, NULL) || spx_raster(ctx, rast, &ra, raster->data, NULL)))
+                     spx_synth_photo(ctx, rast, &s->m, &s->sub, s->pose, s->trans, &s->cam, &demo_light, 0,
+                                     photo->data, mask, NULL) ||
+                         spx_project(ctx, proj, &pa, input->data, NULL) ||
+                         spx_raster(ctx, rast, &ra, raster->data, NULL)))
     goto done;
   if (u) {
     nchw = malloc(hw * 4 * sizeof(float));
@@ -189,14 +244,15 @@ static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image 
   }
   rc = SPX_EXIT_OK;
 done:
-  free(nchw), free(out);
+  free(nchw), free(out), free(mask);
   spx_projector_destroy(proj);
   spx_rasterizer_destroy(rast);
   return rc;
 }
 
-enum { NOUT = 4 };
-static const char *const out_names[NOUT] = {"demo_input.png", "demo_raster.png", "demo_smplpix.png", "demo.png"};
+enum { NOUT = 5 };
+static const char *const out_names[NOUT] = {"demo_photo.png", "demo_input.png", "demo_raster.png", "demo_smplpix.png",
+                                            "demo.png"};
 
 static char *out_path(const char *dir, int k) {
   size_t cap = strlen(dir) + strlen(out_names[k]) + 2;
@@ -207,23 +263,24 @@ static char *out_path(const char *dir, int k) {
 
 /* Write the images as one set on the run's output transaction (apps/cli_tx.h): all appear
  * together at the commit, or none (a failed run leaves the old set). */
-static int write_all(spx_ctx *ctx, spx_tx *tx, const char *dir, int zoom, const spx_image *input,
-                     const spx_image *raster, const spx_image *net) {
-  const spx_image *panels[3];
-  const char *labels[3];
+static int write_all(spx_ctx *ctx, spx_tx *tx, const char *dir, int zoom, const spx_image *photo,
+                     const spx_image *input, const spx_image *raster, const spx_image *net) {
+  const spx_image *panels[4];
+  const char *labels[4];
   int n = 0;
+  panels[n] = photo, labels[n++] = "PHOTO";
   panels[n] = input, labels[n++] = "INPUT";
   if (net) panels[n] = net, labels[n++] = "SMPLPIX";
   panels[n] = raster, labels[n++] = "RASTER";
   spx_image strip = {0};
-  const spx_image *imgs[NOUT] = {input, raster, net, &strip};
+  const spx_image *imgs[NOUT] = {photo, input, raster, net, &strip};
   int rc = SPX_EXIT_OK;
   if (spx_demo_compose(ctx, panels, labels, n, zoom, &strip)) rc = spx_cli_error("demo", ctx);
   for (int k = 0; k < NOUT && !rc; k++)
     if (imgs[k]) rc = spx_cli_write_output("demo", ctx, tx, out_path(dir, k), imgs[k]);
   if (!rc) rc = spx_tx_commit(tx);
   if (!rc && !net) { /* no network: an earlier run's output must not pass for this one's */
-    char *p = out_path(dir, 2);
+    char *p = out_path(dir, 3);
     if (!p) rc = spx_cli_errorf("demo", "out of memory");
     else if (unlink(p) && errno != ENOENT) rc = spx_cli_errorf("demo", "%s: cannot remove: %s", p, strerror(errno));
     free(p);
@@ -256,7 +313,8 @@ int spx_cmd_demo(int argc, char **argv) {
   demo_scene s;
   memset(&s, 0, sizeof s);
   spx_unet *u = NULL;
-  spx_image input = {0}, raster = {0}, net = {0};
+  spx_image photo = {0}, input = {0}, raster = {0}, net = {0};
+  int subdivide = 0;
   /* the folder (removed again by a failed run that made it) and the targets, before the work */
   if ((rc = spx_tx_mkdir(&tx, o.out_dir))) goto done;
   for (int k = 0; k < NOUT; k++) {
@@ -267,22 +325,24 @@ int spx_cmd_demo(int argc, char **argv) {
   }
   if ((rc = spx_cli_open_device("demo", ctx, o.device))) goto done;
   if (spx_cli_failed(&rc, "demo", ctx, ckpt && spx_unet_load(ctx, ckpt, &u))) goto done;
-  if ((rc = build_scene(ctx, &o, &s))) goto done;
-  if ((rc = render_all(ctx, &s, u, &input, &raster, &net))) goto done;
-  if ((rc = write_all(ctx, &tx, o.out_dir, o.zoom, &input, &raster, u ? &net : NULL))) goto done;
+  if ((rc = network_setup(ctx, ckpt, &o, &subdivide))) goto done;
+  if ((rc = build_scene(ctx, &o, subdivide, &s))) goto done;
+  if ((rc = render_all(ctx, &s, u, &photo, &input, &raster, &net))) goto done;
+  if ((rc = write_all(ctx, &tx, o.out_dir, o.zoom, &photo, &input, &raster, u ? &net : NULL))) goto done;
   if (!o.quiet) {
     if (!u)
       printf("note: no network is shipped yet (%s is absent) and no --checkpoint was given:\n"
-             "      %s/demo.png is input | per-vertex raster only (train one: make table1, then see data/models/README.md)\n",
+             "      %s/demo.png is photo | input | per-vertex raster only (train one: make table1, then see "
+             "data/models/README.md)\n",
              shipped, o.out_dir);
-    printf("subject seed %llu (%d betas), %s frame %ld, %dx%d, network %s\n", (unsigned long long)o.seed,
-           s.sub.nbetas, "01_01.bvh", o.frame, o.W, o.H, u ? ckpt : "none");
-    printf("wrote %s/demo.png (%s), demo_input.png, %sdemo_raster.png in %.2f s\n", o.out_dir,
-           u ? "input | SMPLpix | per-vertex raster" : "input | per-vertex raster", u ? "demo_smplpix.png, " : "",
-           spx_now() - t0);
+    printf("subject seed %llu (%d betas), %s frame %ld, %dx%d, %d vertices, network %s\n", (unsigned long long)o.seed,
+           s.sub.nbetas, "01_01.bvh", o.frame, o.W, o.H, s.body.nv, u ? ckpt : "none");
+    printf("wrote %s/demo.png (%s), demo_photo.png, demo_input.png, %sdemo_raster.png in %.2f s\n", o.out_dir,
+           u ? "photo | input | SMPLpix | per-vertex raster" : "photo | input | per-vertex raster",
+           u ? "demo_smplpix.png, " : "", spx_now() - t0);
   }
 done:
-  spx_image_free(&input), spx_image_free(&raster), spx_image_free(&net);
+  spx_image_free(&photo), spx_image_free(&input), spx_image_free(&raster), spx_image_free(&net);
   spx_unet_destroy(u);
   free_scene(&s);
   spx_tx_end(&tx);

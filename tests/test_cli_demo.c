@@ -1,11 +1,13 @@
 /* `smplpix demo` (make demo) on a tiny size, with its data found through SPX_DATA_DIR = a scratch
  * data directory holding links to the repository's body and motion:
- *  - no shipped network: a note saying so, demo.png = input | per-vertex raster (2 panels), no
- *    demo_smplpix.png (and an earlier run's is removed);
+ *  - no shipped network: a note saying so, demo.png = photo | input | per-vertex raster (3
+ *    panels), no demo_smplpix.png (and an earlier run's is removed);
  *  - a stand-in network written here with the library (spx_unet_save_half, the shipping format)
- *    as <data>/models/default.safetensors: demo.png has 3 panels; the SMPLpix panel is the
- *    network's output (it differs from the input and the raster), the run is deterministic, and
- *    --checkpoint names one explicitly;
+ *    as <data>/models/default.safetensors: demo.png has 4 panels; the SMPLpix panel is the
+ *    network's output (it differs from the photo, the input and the raster), the run is
+ *    deterministic, and --checkpoint names one explicitly;
+ *  - a network whose metadata says it was trained at 48x36 on 53k-vertex inputs: the demo renders
+ *    at that size (unless --size) with the body after one Loop step (53,514 vertices);
  *  - bad input: one line, exit 1 (2 for usage), nothing written; an output that cannot be written
  *    (a folder named demo.png) fails before any file of the set appears, no temporaries left. */
 #include <dirent.h>
@@ -70,9 +72,11 @@ static void make_data_dir(void) {
 static void test_without_network(void) {
   write_text("o1/demo_smplpix.png", "stale");
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o1 --size 40x32") == 0);
-  CHECK(file_has("out.txt", "no network is shipped yet"));
+  CHECK(file_has("out.txt", "no network is shipped yet") && file_has("out.txt", "13380 vertices"));
   int w = 0, h = 0;
-  CHECK(png_size("o1/demo.png", &w, &h) && w == 2 * W + 2 && h > H);
+  CHECK(png_size("o1/demo.png", &w, &h) && w == 3 * W + 4 && h > H);
+  CHECK(png_size("o1/demo_photo.png", &w, &h) && w == W && h == H);
+  CHECK(!same_file("o1/demo_photo.png", "o1/demo_raster.png"));
   CHECK(png_size("o1/demo_input.png", &w, &h) && w == W && h == H);
   CHECK(png_size("o1/demo_raster.png", &w, &h) && w == W && h == H);
   CHECK(!exists("o1/demo_smplpix.png"));
@@ -89,9 +93,10 @@ static void test_with_network(void) {
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o2 --size 40x32 --frame 10 --seed 5") == 0);
   CHECK(file_has("out.txt", "demo_smplpix.png") && file_has("out.txt", "network ./data/models/default.safetensors"));
   int w = 0, h = 0;
-  CHECK(png_size("o2/demo.png", &w, &h) && w == 3 * W + 4 && h > H);
+  CHECK(png_size("o2/demo.png", &w, &h) && w == 4 * W + 6 && h > H);
   CHECK(png_size("o2/demo_smplpix.png", &w, &h) && w == W && h == H);
   CHECK(!same_file("o2/demo_smplpix.png", "o2/demo_input.png") && !same_file("o2/demo_smplpix.png", "o2/demo_raster.png"));
+  CHECK(!same_file("o2/demo_smplpix.png", "o2/demo_photo.png"));
   /* deterministic; --checkpoint names the same network explicitly */
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o3 --size 40x32 --frame 10 --seed 5 --checkpoint data/models/default.safetensors") == 0);
   CHECK(same_file("o2/demo.png", "o3/demo.png") && same_file("o2/demo_smplpix.png", "o3/demo_smplpix.png"));
@@ -100,8 +105,33 @@ static void test_with_network(void) {
   CHECK(!same_file("o2/demo_input.png", "o4/demo_input.png"));
   /* --zoom enlarges the panels of demo.png only */
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o5 --size 40x32 --frame 10 --seed 5 --zoom 2") == 0);
-  CHECK(png_size("o5/demo.png", &w, &h) && w == 3 * 2 * W + 4 && h > 2 * H);
+  CHECK(png_size("o5/demo.png", &w, &h) && w == 4 * 2 * W + 6 && h > 2 * H);
   CHECK(same_file("o2/demo_smplpix.png", "o5/demo_smplpix.png"));
+}
+
+/* the image size and vertex count come from the network's metadata */
+static void test_network_metadata(void) {
+  spx_unet *u = NULL;
+  CHECK_OK(ctx, spx_unet_create(ctx, 8, 1, 22, &u));
+  if (!u) return;
+  char p[700];
+  path_of(p, sizeof p, "n53k.safetensors");
+  const char *keys[2] = {"smplpix.image_size", "smplpix.source"}, *vals[2] = {"48x36", "make-table1/unet53k"};
+  CHECK_OK(ctx, spx_unet_save_half(u, p, keys, vals, 2));
+  path_of(p, sizeof p, "nbad.safetensors");
+  const char *bad[2] = {"48by36", "make-table1/unet13k"};
+  CHECK_OK(ctx, spx_unet_save_half(u, p, keys, bad, 2));
+  spx_unet_destroy(u);
+  int w = 0, h = 0;
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out m1 --checkpoint n53k.safetensors") == 0);
+  CHECK(file_has("out.txt", "48x36, 53514 vertices"));
+  CHECK(png_size("m1/demo_smplpix.png", &w, &h) && w == 48 && h == 36);
+  CHECK(png_size("m1/demo_photo.png", &w, &h) && w == 48 && h == 36);
+  /* --size wins over the metadata; the vertex count still follows the network */
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out m2 --checkpoint n53k.safetensors --size 40x32") == 0);
+  CHECK(file_has("out.txt", "40x32, 53514 vertices"));
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out m3 --checkpoint nbad.safetensors") == 1);
+  CHECK(err_one_line_with("nbad.safetensors") && err_one_line_with("48by36") && !exists("m3"));
 }
 
 static void test_bad_input(void) {
@@ -119,7 +149,8 @@ static void test_bad_input(void) {
   make_dir("b4");
   make_dir("b4/demo.png");
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out b4 --size 40x32") == 1);
-  CHECK(err_one_line_with("b4/demo.png") && !exists("b4/demo_input.png") && !exists("b4/demo_raster.png"));
+  CHECK(err_one_line_with("b4/demo.png") && !exists("b4/demo_input.png") && !exists("b4/demo_raster.png") &&
+        !exists("b4/demo_photo.png"));
   CHECK(entries("b4") == 1); /* just the folder in the way */
   CHECK(tool("demo --size 8x8") == 2 && tool("demo --frame -1") == 2 && tool("demo --seed x") == 2);
   CHECK(tool("demo --zoom 9") == 2 && tool("demo --zoom 0") == 2);
@@ -137,6 +168,7 @@ int main(void) {
   make_data_dir();
   SPX_RUN(test_without_network);
   SPX_RUN(test_with_network);
+  SPX_RUN(test_network_metadata);
   SPX_RUN(test_bad_input);
   spx_ctx_destroy(ctx);
   return spx_test_summary();
