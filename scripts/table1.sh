@@ -9,7 +9,8 @@
 #   baselines per test view: smplpix raster per-vertex colours (both counts), textured (baked)
 #   train     smplpix train --loss l1 (stage 1), then --loss l1+gan when the tool has it (stage 2)
 #   render    smplpix render on every test input
-#   eval      smplpix eval (PSNR, SSIM; LPIPS with TABLE1_LPIPS=weights) full image and mask
+#   eval      smplpix eval (PSNR, SSIM, LPIPS with the weights of `make weights` or TABLE1_LPIPS)
+#             full image and mask
 #   report    TABLE1.md and table1.png (ground truth | input | per-vertex | textured | SMPLpix)
 # Splits: subjects 0..NTRAIN-1 train, the rest are unseen test subjects; training uses views
 # 0..VTRAIN-1 (view VTRAIN of each training subject is the validation set), tests use views
@@ -17,7 +18,8 @@
 # Environment: TABLE1_QUICK=1 (tiny, < 5 min: checks the pipeline and the files, not the
 # scores), TABLE1_OUT (work dir, default out/table1 or out/table1-quick), TABLE1_BUILD (default
 # build), TABLE1_REPORT (where TABLE1.md and table1.png go; default benchmarks/, quick: the work
-# dir), TABLE1_LPIPS (LPIPS weights for smplpix eval), TABLE1_SYNTH (use this existing synth
+# dir), TABLE1_LPIPS (LPIPS weights for smplpix eval; default: the cached ones of `make weights`,
+# ${SPX_CACHE_DIR:-~/.cache/smplpix}/weights/lpips_alex.safetensors), TABLE1_SYNTH (use this existing synth
 # output instead of running smplpix synth; its sizes must match the mode's). Bad input: one line, exit 1.
 set -eu
 set -o pipefail
@@ -201,6 +203,9 @@ for n in 13k 53k; do
 done
 
 # ---- eval -------------------------------------------------------------------------------------
+lpips_cached=${SPX_CACHE_DIR:-${HOME:-}/.cache/smplpix}/weights/lpips_alex.safetensors
+lpips_src=${TABLE1_LPIPS:-}
+[ -z "$lpips_src" ] && [ -f "$lpips_cached" ] && lpips_src=$lpips_cached
 methods="pervertex13k pervertex53k textured13k smplpix13k smplpix53k"
 have_eval=0
 $tool eval --help >/dev/null 2>&1 && have_eval=1
@@ -209,6 +214,7 @@ if [ $have_eval = 1 ]; then
   say "eval: $ntest test views x 5 methods"
   lp=()
   [ -n "${TABLE1_LPIPS:-}" ] && lp=(--lpips "$TABLE1_LPIPS")
+  [ -n "$lpips_src" ] || say "eval: no LPIPS weights ($lpips_cached is absent: run make weights); LPIPS is n/a"
   for m in $methods; do
     $tool eval --pred "$out/methods/$m" --target "$out/methods/gt" --mask "$out/methods/mask" --json "$out/eval_$m.json" \
       "${lp[@]}" >>"$log" 2>&1 || die "eval: $(tail -n 1 "$log") (log: $log)"
@@ -277,6 +283,12 @@ md=$out/TABLE1.md.tmp
   echo "  (rigid, pose, free); the registered vertices and colours are reposed to each view's pose"
   echo "  (\`smplpix repose --pose synth.json --view NAME\`), at 13,380 vertices and after one Loop step (53,514;"
   echo "  the paper's 27k row is one subdivision of its 7k body). Texture: \`smplpix bake\` (${TEX}x${TEX})."
+  if [ -n "$lpips_src" ]; then
+    echo "- LPIPS: v0.1 AlexNet as the \`lpips\` package computes it (\`smplpix eval\`), weights $lpips_src"
+    echo "  ($([ "$lpips_src" = "$lpips_cached" ] && echo 'from `make weights`' || echo 'TABLE1_LPIPS'))."
+  else
+    echo "- LPIPS: not measured (no weights: \`make weights\` puts them in $lpips_cached)."
+  fi
   echo "- Rasterizers: \`smplpix raster --aa 2\` (2x2 supersampling, as NMR and the synth photos), unlit colours."
   echo "- Network: UNet width $WIDTH, batch $BATCH, Adam lr 2e-3, $STEPS steps of l1$([ $gan = 1 ] && echo ", then $GANSTEPS of l1+gan at lr 2e-4, PatchGAN width $DISCW"); seed $SEED."
   echo "- Time per stage (s): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$([ $k = inputs ] && echo 'inputs+rasterizers' || echo $k)" "${stage_s[$k]:-0}"; done)total $(printf '%.0f' "$total")."
