@@ -49,9 +49,9 @@ static void train_help(void) {
          "VGG19.safetensors; vgg16 / vgg16+gan the official SMPLpix code's VGG16 loss, with the weights of\n"
          "`make weights` (${SPX_CACHE_DIR:-~/.cache/smplpix}/weights/vgg16.safetensors) or --vgg VGG16 file.\n"
          "--schedule paper: stage 1 (vgg16 with the cached VGG16, vgg with --vgg, else l1: the offline recipe)\n"
-         "for --epochs (default 100) epochs at --lr\n"
-         "(default 1e-4), then Adam restarts and stage 2 (+gan) runs as many epochs at --lr2 (default\n"
-         "1e-5); --batch defaults to 10. The stage is recorded in W, so --resume continues the right one.\n"
+         "for --epochs (default 100) epochs at --lr (default 1e-4), then Adam restarts and stage 2 (+gan)\n"
+         "runs as many epochs at --lr2 (default 1e-5); --batch defaults to 10. The stage is recorded in W,\n"
+         "so --resume continues the right one.\n"
          "Several processes: mpirun -np N smplpix train ... trains one network on N ranks (one OpenCL device\n"
          "each, by local rank; ranks share the CPU when a node has fewer GPUs than ranks); --batch is the\n"
          "global batch and must divide by N; gradients are summed over the ranks in a fixed order; batch\n"
@@ -499,8 +499,8 @@ static int train_run(int argc, char **argv, train_dist *dist) {
   if (schedule && !resume) {
     use_vgg = vgg_path ? TRAIN_VGG19 : have16 == 1 ? TRAIN_VGG16 : 0;
     if (!use_vgg && (!dist->on || dist->comm.rank == 0))
-      fprintf(stderr, "train: --schedule paper: no VGG16 at %s (make weights) and no --vgg: stage 1 is l1, stage 2 "
-              "l1+gan\n", have16 < 0 ? "${SPX_CACHE_DIR:-~/.cache/smplpix}/weights" : cached_vgg);
+      fprintf(stderr, "smplpix train: --schedule paper: no VGG16 at %s (make weights) and no --vgg: stage 1 is l1, "
+              "stage 2 l1+gan\n", have16 < 0 ? "${SPX_CACHE_DIR:-~/.cache/smplpix}/weights" : cached_vgg);
   }
   int stage_gan;
   if (resume && ts.schedule[0] && (rc = train_loss_parse(ts.loss, &stage_gan, &use_vgg))) goto done;

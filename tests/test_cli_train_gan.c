@@ -215,6 +215,9 @@ static void test_vgg16(void) {
   CHECK(!exists("g3.safetensors"));
   CHECK(tool("train " COMMON " --out gs.safetensors --schedule paper --steps 4 --resume") == 1);
   CHECK(err_one_line_with("--loss vgg16+gan needs the VGG16 weights"));
+  CHECK(tool("train " COMMON " --out gl.safetensors --schedule paper --steps 1") == 0); /* the offline recipe */
+  CHECK(file_has("err.txt", "no VGG16 at ") && file_has("err.txt", "stage 1 is l1"));
+  CHECK(meta_is("gl.safetensors", "smplpix.train.loss", "l1+gan"));
   if (keep) setenv("SPX_CACHE_DIR", keep, 1);
   else unsetenv("SPX_CACHE_DIR");
   free(keep);
