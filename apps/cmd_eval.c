@@ -1,5 +1,6 @@
-/* smplpix eval: PSNR, SSIM (and LPIPS with --lpips) of predicted images against targets, for two
- * files or two folders matched by name (smplpix/metrics.h does the arithmetic). */
+/* smplpix eval: PSNR, SSIM and LPIPS (the cached weights of `make weights`, or --lpips W) of
+ * predicted images against targets, for two files or two folders matched by name
+ * (smplpix/metrics.h does the arithmetic). */
 #include <dirent.h>
 #include <errno.h>
 #include <math.h>
@@ -12,8 +13,8 @@
 #include "cli_scene.h"
 
 static void eval_help(void) {
-  printf("usage: smplpix eval --pred P --target T [--mask M] [--per-image] [--json F] [--lpips W.safetensors]\n"
-         "                    [--device cpu|gpu|P:D]\n"
+  printf("usage: smplpix eval --pred P --target T [--mask M] [--per-image] [--json F]\n"
+         "                    [--lpips W.safetensors | --no-lpips] [--device cpu|gpu|P:D]\n"
          "P and T are two image files, or two folders whose files are matched by name (the extension may\n"
          "differ: .png, .exr, .npy as HxWxC or HxW). Only the first three channels (RGB in [0,1]) are\n"
          "compared: the alpha of an RGBA PNG, the depth of an RGB-D EXR are ignored.\n"
@@ -23,8 +24,11 @@ static void eval_help(void) {
          "--mask M: a mask file (used for every image) or a folder of masks matched by name; the first\n"
          "channel nonzero = foreground. Adds the masked values: PSNR of the foreground pixels' MSE, and\n"
          "the SSIM map averaged over the foreground (see smplpix/metrics.h).\n"
-         "--lpips W: also LPIPS (AlexNet, the lpips package's v0.1 weights converted to safetensors by\n"
-         "tools/lpips_to_safetensors.py); runs on the OpenCL device; images of at least 31x31.\n"
+         "LPIPS (v0.1, AlexNet, as the lpips package computes it) runs on the OpenCL device, for images\n"
+         "of at least 31x31, with the weights `make weights` puts in ${SPX_CACHE_DIR:-~/.cache/smplpix}/\n"
+         "weights/lpips_alex.safetensors when that file exists (smaller images: n/a); --lpips W uses W\n"
+         "instead (tools/lpips_to_safetensors.py converts the lpips package's; smaller images: an error);\n"
+         "--no-lpips leaves LPIPS out.\n"
          "--per-image: one line per image before the mean. --json F: {\"count\", \"psnr\", \"ssim\",\n"
          "\"lpips\", \"images\": [{\"name\", \"psnr\", \"ssim\", \"lpips\"}]} (+ \"psnr_masked\",\n"
          "\"ssim_masked\" with --mask), null where a value is infinite, undefined or not asked for.\n"
@@ -209,8 +213,9 @@ static int load_image(spx_ctx *ctx, const char *path, int need_rgb, spx_image *i
   return SPX_EXIT_OK;
 }
 
-/* One image pair: load, check sizes, compute. */
-static int measure(spx_ctx *ctx, spx_lpips *lp, item *it) {
+/* One image pair: load, check sizes, compute. lp_opt: LPIPS was not asked for by --lpips (the
+ * cached weights), so an image too small for AlexNet gets n/a instead of an error. */
+static int measure(spx_ctx *ctx, spx_lpips *lp, int lp_opt, item *it) {
   spx_image p = {0}, t = {0}, m = {0};
   int rc;
   if ((rc = load_image(ctx, it->pred, 1, &p)) || (rc = load_image(ctx, it->target, 1, &t)) ||
@@ -235,6 +240,7 @@ static int measure(spx_ctx *ctx, spx_lpips *lp, item *it) {
     goto done;
   }
   it->lpips = NAN;
+  if (lp && lp_opt && (p.width < SPX_LPIPS_MIN_SIZE || p.height < SPX_LPIPS_MIN_SIZE)) goto done; /* n/a */
   if (lp && spx_lpips_distance(lp, &p, &t, &it->lpips)) rc = spx_cli_errorf("eval", "%s: %s", it->pred, spx_ctx_message(ctx));
 done:
   spx_image_free(&p), spx_image_free(&t), spx_image_free(&m);
@@ -310,7 +316,8 @@ static int write_json(spx_tx *tx, const char *path, const list *l, const spx_met
 
 int spx_cmd_eval(int argc, char **argv) {
   const char *pred = NULL, *target = NULL, *mask = NULL, *json = NULL, *lpw = NULL, *device = NULL;
-  int per_image = 0, bad = 0;
+  int per_image = 0, bad = 0, no_lpips = 0;
+  char cached[4096];
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
@@ -324,11 +331,15 @@ int spx_cmd_eval(int argc, char **argv) {
     else if ((v = spx_cli_opt(argc, argv, &i, "--lpips", &bad))) lpw = v;
     else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) device = v;
     else if (!strcmp(argv[i], "--per-image")) per_image = 1;
+    else if (!strcmp(argv[i], "--no-lpips")) no_lpips = 1;
     else if (bad) return spx_cli_usage("eval", "%s needs a value", argv[i]);
     else return spx_cli_usage("eval", "unknown option '%s'", argv[i]);
     if (bad) return spx_cli_usage("eval", "%s needs a value", argv[i]);
   }
   if (!pred || !target) return spx_cli_usage("eval", "--pred and --target are required");
+  if (lpw && no_lpips) return spx_cli_usage("eval", "give --lpips W or --no-lpips, not both");
+  int lp_opt = !lpw && !no_lpips && spx_weights_path(SPX_WEIGHTS_LPIPS_ALEX, cached, sizeof cached) == 1;
+  if (lp_opt) lpw = cached;
   spx_ctx *ctx = NULL;
   spx_lpips *lp = NULL;
   list l = {0};
@@ -340,13 +351,18 @@ int spx_cmd_eval(int argc, char **argv) {
   if ((rc = pair_up(pred, target, mask, &l))) goto done;
   if (lpw) {
     if ((rc = spx_cli_open_device("eval", ctx, device))) goto done;
-    if (spx_cli_failed(&rc, "eval", ctx, spx_lpips_load(ctx, lpw, &lp))) goto done;
+    if (spx_lpips_load(ctx, lpw, &lp)) {
+      rc = lp_opt ? spx_cli_errorf("eval", "%s (the cached LPIPS weights: `make weights` makes them again, --no-lpips "
+                                   "skips LPIPS)", spx_ctx_message(ctx))
+                  : spx_cli_error("eval", ctx);
+      goto done;
+    }
   }
   spx_metrics mean = {0};
   double mean_lp = 0;
   for (int i = 0; i < l.n; i++) {
     item *it = &l.it[i];
-    if ((rc = measure(ctx, lp, it))) goto done;
+    if ((rc = measure(ctx, lp, lp_opt, it))) goto done;
     if (per_image) print_line(it->name, &it->m, it->lpips, lp != NULL, mask != NULL);
     mean.psnr += it->m.psnr, mean.ssim += it->m.ssim, mean.psnr_fg += it->m.psnr_fg, mean.ssim_fg += it->m.ssim_fg;
     mean_lp += it->lpips;

@@ -22,7 +22,7 @@
 static void train_help(void) {
   printf("usage: smplpix train --data DIR --out W.safetensors [--width 8|16|32|64] [--batch B] [--lr LR]\n"
          "                     [--epochs E | --steps S] [--init W0.safetensors] [--resume] [--seed N]\n"
-         "                     [--no-shuffle] [--loss l1|l1+gan|vgg|vgg+gan] [--vgg VGG19.safetensors]\n"
+         "                     [--no-shuffle] [--loss l1|l1+gan|vgg|vgg+gan|vgg16|vgg16+gan] [--vgg VGG.safetensors]\n"
          "                     [--schedule paper] [--lr2 LR] [--disc-width N] [--sigmoid] [--device cpu|gpu|P:D]\n"
          "                     [--local-bn]\n"
          "Trains on DIR/train/input/NAME.{exr,npy,png} (RGB-D) -> DIR/train/output/NAME.{png,exr,npy} (RGB),\n"
@@ -45,10 +45,13 @@ static void train_help(void) {
          "Losses (the paper, §3.3): l1 = mean L1; l1+gan adds pix2pixHD's multi-scale PatchGAN (3 scales,\n"
          "conditional on the RGB-D input, LSGAN) and 0.1 x feature matching, the discriminator (width\n"
          "--disc-width, default 64) trained beside the generator with the same lr and kept with its Adam\n"
-         "state in W.disc.safetensors; vgg / vgg+gan use the VGG19 perceptual loss and need --vgg.\n"
-         "--schedule paper: stage 1 (l1, or vgg with --vgg) for --epochs (default 100) epochs at --lr\n"
-         "(default 1e-4), then Adam restarts and stage 2 (+gan) runs as many epochs at --lr2 (default\n"
-         "1e-5); --batch defaults to 10. The stage is recorded in W, so --resume continues the right one.\n"
+         "state in W.disc.safetensors; vgg / vgg+gan use the VGG19 perceptual loss of eq. 5 and need --vgg\n"
+         "VGG19.safetensors; vgg16 / vgg16+gan the official SMPLpix code's VGG16 loss, with the weights of\n"
+         "`make weights` (${SPX_CACHE_DIR:-~/.cache/smplpix}/weights/vgg16.safetensors) or --vgg VGG16 file.\n"
+         "--schedule paper: stage 1 (vgg16 with the cached VGG16, vgg with --vgg, else l1: the offline recipe)\n"
+         "for --epochs (default 100) epochs at --lr (default 1e-4), then Adam restarts and stage 2 (+gan)\n"
+         "runs as many epochs at --lr2 (default 1e-5); --batch defaults to 10. The stage is recorded in W,\n"
+         "so --resume continues the right one.\n"
          "Several processes: mpirun -np N smplpix train ... trains one network on N ranks (one OpenCL device\n"
          "each, by local rank; ranks share the CPU when a node has fewer GPUs than ranks); --batch is the\n"
          "global batch and must divide by N; gradients are summed over the ranks in a fixed order; batch\n"
@@ -491,8 +494,25 @@ static int train_run(int argc, char **argv, train_dist *dist) {
   }
   /* the recipe, from the flags or (--resume) the checkpoint's record */
   if (loss_name && (rc = train_loss_parse(loss_name, &use_gan, &use_vgg))) goto done;
-  if (schedule) use_vgg = vgg_path != NULL;
-  if (resume && ts.schedule[0]) use_vgg = !strncmp(ts.loss, "vgg", 3);
+  char cached_vgg[4096];
+  int have16 = spx_weights_path(SPX_WEIGHTS_VGG16, cached_vgg, sizeof cached_vgg);
+  if (schedule && !resume) {
+    use_vgg = vgg_path ? TRAIN_VGG19 : have16 == 1 ? TRAIN_VGG16 : 0;
+    if (!use_vgg && (!dist->on || dist->comm.rank == 0))
+      fprintf(stderr, "smplpix train: --schedule paper: no VGG16 at %s (make weights) and no --vgg: stage 1 is l1, "
+              "stage 2 l1+gan\n", have16 < 0 ? "${SPX_CACHE_DIR:-~/.cache/smplpix}/weights" : cached_vgg);
+  }
+  int stage_gan;
+  if (resume && ts.schedule[0] && (rc = train_loss_parse(ts.loss, &stage_gan, &use_vgg))) goto done;
+  if (use_vgg == TRAIN_VGG16 && !vgg_path) {
+    if (have16 != 1) {
+      rc = spx_cli_errorf("train", "--loss %s needs the VGG16 weights: %s is absent (`make weights` writes it; or "
+                          "--vgg VGG16.safetensors)", loss_name ? loss_name : ts.loss,
+                          have16 < 0 ? "${SPX_CACHE_DIR:-~/.cache/smplpix}/weights/vgg16.safetensors" : cached_vgg);
+      goto done;
+    }
+    vgg_path = cached_vgg;
+  }
   if (use_vgg && !vgg_path) {
     rc = spx_cli_errorf("train", "--loss %s needs the VGG19 weights: --vgg VGG19.safetensors (torchvision's "
                         "features.N.weight/bias; tools/vgg19_pth_to_safetensors.py converts a .pth)",
@@ -500,7 +520,7 @@ static int train_run(int argc, char **argv, train_dist *dist) {
     goto done;
   }
   if (vgg_path && !use_vgg) {
-    rc = spx_cli_usage("train", "--vgg is only used by --loss vgg or vgg+gan");
+    rc = spx_cli_usage("train", "--vgg is only used by --loss vgg, vgg+gan, vgg16 or vgg16+gan");
     goto done;
   }
   if (lr < 0) lr = schedule ? 1e-4 : 1e-3;

@@ -6,19 +6,17 @@
 #include <stdlib.h>
 #include <string.h>
 
+static const char *const loss_names[3][2] = {{"l1", "l1+gan"}, {"vgg", "vgg+gan"}, {"vgg16", "vgg16+gan"}};
+
 int train_loss_parse(const char *name, int *gan, int *vgg) {
+  for (int v = 0; v < 3; v++)
+    for (int g = 0; g < 2; g++)
+      if (!strcmp(name, loss_names[v][g])) return *vgg = v, *gan = g, 0;
   *gan = *vgg = 0;
-  if (!strcmp(name, "l1")) return 0;
-  if (!strcmp(name, "l1+gan")) return *gan = 1, 0;
-  if (!strcmp(name, "vgg")) return *vgg = 1, 0;
-  if (!strcmp(name, "vgg+gan")) return *vgg = *gan = 1, 0;
-  return spx_cli_usage("train", "--loss must be l1, l1+gan, vgg or vgg+gan, not '%s'", name);
+  return spx_cli_usage("train", "--loss must be l1, l1+gan, vgg, vgg+gan, vgg16 or vgg16+gan, not '%s'", name);
 }
 
-const char *train_loss_name(const train_recipe *r) {
-  int g = r->gan[r->stage];
-  return r->vgg ? (g ? "vgg+gan" : "vgg") : (g ? "l1+gan" : "l1");
-}
+const char *train_loss_name(const train_recipe *r) { return loss_names[r->vgg][r->gan[r->stage] ? 1 : 0]; }
 
 int64_t train_recipe_step_count(const train_recipe *r, const spx_unet *u) { return r->base + spx_unet_step(u); }
 
@@ -52,7 +50,9 @@ int train_recipe_start(spx_ctx *ctx, train_recipe *r, spx_unet *u, const char *o
     r->stage = (int)rec->stage, r->base = rec->stage_base;
     if (r->schedule) r->stage1_steps = rec->stage1_steps;
   }
-  if (r->vgg && spx_vgg_open(ctx, r->vgg_path, &r->net_vgg)) return spx_cli_error("train", ctx);
+  if (r->vgg && (r->vgg == TRAIN_VGG16 ? spx_vgg16_open(ctx, r->vgg_path, &r->net_vgg)
+                                       : spx_vgg_open(ctx, r->vgg_path, &r->net_vgg)))
+    return spx_cli_error("train", ctx);
   int load = resume && r->gan[r->stage] && (!r->comm || r->comm->rank == 0); /* else rank 0's comes later */
   int rc = need_disc(ctx, r, load);
   if (rc) return rc;

@@ -1,9 +1,9 @@
 /* The paper's training recipe for `smplpix train` (apps/train_recipe.c): which loss each stage
  * uses, the discriminator beside the generator, the stage record in the checkpoint.
  *
- * Stages: a run is stage 1 (--loss l1 or vgg: the generator alone) and/or stage 2 (--loss
- * l1+gan or vgg+gan: + multi-scale PatchGAN and feature matching). --schedule paper runs stage 1
- * for --epochs epochs, then restarts Adam and runs stage 2 for as many more. The global step is
+ * Stages: a run is stage 1 (--loss l1, vgg or vgg16: the generator alone) and/or stage 2 (--loss
+ * l1+gan, vgg+gan or vgg16+gan: + multi-scale PatchGAN and feature matching). --schedule paper
+ * runs stage 1 for --epochs epochs, then restarts Adam and runs stage 2 for as many more. The global step is
  * base + the generator's Adam step count (Adam restarts at stage 2, base = the step it started).
  *
  * Files: the generator W (the UNet checkpoint) carries the whole training state (train_state.h:
@@ -24,8 +24,9 @@ typedef struct train_recipe {
   /* configuration */
   int schedule;              /* --schedule paper */
   int gan[3];                /* gan[s]: stage s uses the GAN (index 1, 2) */
-  int vgg;                   /* the reconstruction term is the VGG perceptual loss */
-  const char *vgg_path;      /* --vgg */
+  int vgg;                   /* the reconstruction term: 0 the mean L1, else the perceptual loss of
+                                TRAIN_VGG19 (eq. 5) or TRAIN_VGG16 (the official code's) */
+  const char *vgg_path;      /* --vgg, or the cached VGG16 */
   int64_t stage1_steps;      /* schedule: steps of stage 1 (stage 2 starts there) */
   double lr1, lr2;
   int disc_width, num_d;
@@ -44,7 +45,10 @@ typedef struct train_recipe {
   int count;
 } train_recipe;
 
-/* Parse a --loss name: 0 on success (gan / vgg set), else a usage exit code. */
+enum { TRAIN_VGG19 = 1, TRAIN_VGG16 = 2 };
+
+/* Parse a --loss name: 0 on success (gan 0/1, vgg 0 / TRAIN_VGG19 / TRAIN_VGG16), else a usage
+ * exit code. */
 int train_loss_parse(const char *name, int *gan, int *vgg);
 const char *train_loss_name(const train_recipe *r);
 

@@ -227,6 +227,10 @@ train_frames=$(frames 0 0) test_frames=$(frames 1 1)
 # ---- eval helper --------------------------------------------------------------------------------
 have_eval=0
 $tool eval --help >/dev/null 2>&1 && have_eval=1
+lpips_cached=$weights/lpips_alex.safetensors
+lpips_src=${TABLE1_LPIPS:-}
+[ -z "$lpips_src" ] && [ -f "$lpips_cached" ] && lpips_src=$lpips_cached
+[ -n "$lpips_src" ] || say "eval: no LPIPS weights ($lpips_cached is absent: run make weights); LPIPS is n/a"
 lp=()
 [ -n "${TABLE1_LPIPS:-}" ] && lp=(--lpips "$TABLE1_LPIPS")
 score() { # score METHOD_DIR JSON: smplpix eval against the ground truth, full image and mask
@@ -408,6 +412,12 @@ nseeds=$(echo $SEEDS | wc -w)
   echo "  (\`smplpix repose --pose synth.json --view NAME\`), at 13,380 vertices and after one Loop step (53,514;"
   echo "  the paper's 27k row is one subdivision of its 7k body). Texture: \`smplpix bake\` (${TEX}x${TEX})."
   echo "- Rasterizers: \`smplpix raster --aa 2\` (2x2 supersampling, as the synth photos), unlit colours."
+  if [ -n "$lpips_src" ]; then
+    echo "- LPIPS: v0.1 AlexNet as the \`lpips\` package computes it (\`smplpix eval\`), weights $lpips_src"
+    echo "  ($([ "$lpips_src" = "$lpips_cached" ] && echo 'from `make weights`' || echo 'TABLE1_LPIPS'))."
+  else
+    echo "- LPIPS: not measured (no weights: \`make weights\` puts them in $lpips_cached)."
+  fi
   echo "- Network: UNet width $WIDTH, batch $BATCH, Adam; stage 1 \`--loss l1\` $STEPS steps at lr 2e-3;"
   if [ $vggstage = 1 ]; then
     echo "  stage 2 \`--loss vgg16\` (the official SMPLpix re-implementation's VGG16 loss, ImageNet weights from \`make weights\`) $VGGSTEPS steps at lr 2e-4 from stage 1;"

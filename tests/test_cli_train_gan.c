@@ -7,7 +7,8 @@
  *  - --schedule paper runs stage 1 (l1) then stage 2 (l1+gan) with Adam restarted; a run
  *    interrupted (Ctrl-C) in stage 1 or in stage 2 and resumed ends with the same generator and
  *    discriminator files, bit for bit, as the uninterrupted run;
- *  - --loss vgg then vgg+gan with a (small, random) VGG19 file;
+ *  - --loss vgg then vgg+gan with a (small, random) VGG19 file; --loss vgg16, vgg16+gan and
+ *    --schedule paper with a (small, random) VGG16 in the cache of `make weights`;
  *  - one-line errors: a discriminator file from another run, --loss vgg without --vgg or with a
  *    file that is no VGG19 (exit 1); an unknown --loss, or --resume with flags contradicting the
  *    record (--loss, --schedule, --lr2, --disc-width) (exit 2). */
@@ -180,6 +181,48 @@ static int run_interrupted(char *const *argv, const char *trigger) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
+/* VGG16 (the official code's loss) from the cache of `make weights` (here the small random VGG16
+ * in ${SPX_CACHE_DIR}/weights): --loss vgg16, vgg16+gan, --schedule paper without --vgg (and its
+ * resume); without the cached file, or given a VGG19 file: one line, exit 1, no output. */
+static void test_vgg16(void) {
+  char cache[700], cmd[3000];
+  const char *old = getenv("SPX_CACHE_DIR");
+  char *keep = old ? strdup(old) : NULL;
+  path_of(cache, sizeof cache, "c16");
+  snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s/weights' && cp '" SPX_TEST_DATA "/vgg/vgg16_w4.safetensors' "
+           "'%s/weights/vgg16.safetensors'", cache, cache, cache);
+  CHECK(spx_t_system(cmd) == 0);
+  setenv("SPX_CACHE_DIR", cache, 1);
+  CHECK(tool("train " COMMON " --out g.safetensors --epochs 1 --loss vgg16") == 0);
+  CHECK(file_has("out.txt", "(VGG ") && meta_is("g.safetensors", "smplpix.train.loss", "vgg16"));
+  CHECK(tool("train " COMMON " --out g2.safetensors --init g.safetensors --epochs 1 --loss vgg16+gan") == 0);
+  CHECK(file_has("out.txt", "GAN ") && meta_is("g2.safetensors", "smplpix.train.loss", "vgg16+gan"));
+  CHECK(tool("train " COMMON " --out gs.safetensors --schedule paper --steps 2 --lr 1e-3 --lr2 1e-4") == 0);
+  CHECK(file_has("out.txt", "loss vgg16 (stage 1 of --schedule paper)") && file_has("out.txt", "--loss vgg16+gan"));
+  CHECK(meta_is("gs.safetensors", "smplpix.train.loss", "vgg16+gan"));
+  CHECK(meta_is("gs.safetensors", "smplpix.train.stage", "2"));
+  CHECK(tool("train " COMMON " --out gs.safetensors --schedule paper --steps 3 --resume") == 0);
+  CHECK(meta_is("gs.safetensors", "smplpix.train.loss", "vgg16+gan"));
+  CHECK(meta_is("gs.safetensors", "smplpix.train.step", "6"));
+  CHECK(tool("train " COMMON " --out g3.safetensors --epochs 1 --loss vgg16 --vgg '" SPX_TEST_DATA
+             "/vgg/vgg_w4.safetensors'") == 1);
+  CHECK(err_one_line_with("vgg_w4.safetensors: holds a VGG19"));
+  CHECK(!exists("g3.safetensors"));
+  path_of(cache, sizeof cache, "c16-empty");
+  setenv("SPX_CACHE_DIR", cache, 1);
+  CHECK(tool("train " COMMON " --out g3.safetensors --epochs 1 --loss vgg16") == 1);
+  CHECK(err_one_line_with("c16-empty/weights/vgg16.safetensors is absent") && err_one_line_with("make weights"));
+  CHECK(!exists("g3.safetensors"));
+  CHECK(tool("train " COMMON " --out gs.safetensors --schedule paper --steps 4 --resume") == 1);
+  CHECK(err_one_line_with("--loss vgg16+gan needs the VGG16 weights"));
+  CHECK(tool("train " COMMON " --out gl.safetensors --schedule paper --steps 1") == 0); /* the offline recipe */
+  CHECK(file_has("err.txt", "no VGG16 at ") && file_has("err.txt", "stage 1 is l1"));
+  CHECK(meta_is("gl.safetensors", "smplpix.train.loss", "l1+gan"));
+  if (keep) setenv("SPX_CACHE_DIR", keep, 1);
+  else unsetenv("SPX_CACHE_DIR");
+  free(keep);
+}
+
 static void test_schedule_resume(void) {
   CHECK(tool("train " COMMON " --out full.safetensors --schedule paper --epochs 2 --lr 1e-3 --lr2 1e-4") == 0);
   const char *trig[2] = {"step 2/8", "step 5/8"}, *name[2] = {"i1", "i2"};
@@ -211,6 +254,7 @@ int main(void) {
   SPX_RUN(test_schedule);
   SPX_RUN(test_schedule_resume);
   SPX_RUN(test_vgg);
+  SPX_RUN(test_vgg16);
   spx_ctx_destroy(ctx);
   return spx_test_summary();
 }

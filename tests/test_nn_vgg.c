@@ -1,9 +1,12 @@
-/* The VGG19 perceptual loss (lib/nn/vgg.c, eq. 5 of the paper) against PyTorch
- * (tests/data/vgg/make_vgg_golden.py: torchvision's layer order and names at 1/16 width, random
- * weights): the loss value and its gradient w.r.t. the prediction, on the HOST backend (double
- * references: vs PyTorch's float64 run) and the DEVICE backend (vs PyTorch float32, within
- * max(1e-4, 10 x its float32-vs-float64 spread)); the frozen weights have no gradient or optimizer
- * slabs; a file without a tensor or with a misshapen one fails with one line naming both. */
+/* The VGG perceptual losses (lib/nn/vgg.c) against PyTorch: VGG19, eq. 5 of the paper
+ * (tests/data/vgg/make_vgg_golden.py), and VGG16 as the official SMPLpix code computes it
+ * (make_vgg16_golden.py: its Vgg16Features + L1Loss, batch 2), both with torchvision's layer order
+ * and names at 1/16 width and random weights: the loss value and its gradient w.r.t. the
+ * prediction, on the HOST backend (double references: vs PyTorch's float64 run) and the DEVICE
+ * backend (vs PyTorch float32, within max(1e-4, 10 x its float32-vs-float64 spread)); the frozen
+ * weights have no gradient or optimizer slabs; a file without a tensor or with a misshapen one
+ * fails with one line naming both, and so does the other network's file. (The real VGG16 of
+ * `make weights`: tests/test_weights_golden.c.) */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -14,9 +17,10 @@
 #include "st_compare.h"
 
 #define DIR SPX_TEST_DATA "/vgg/"
-enum { H = 35, W = 42 };
 
 static spx_st_file G;
+static const char *const wfile[2] = {DIR "vgg_w4.safetensors", DIR "vgg16_w4.safetensors"};
+static const char *const gfile[2] = {DIR "vgg_golden.safetensors", DIR "vgg16_golden.safetensors"};
 
 static const void *gdata(const char *name, size_t *n) {
   const spx_st_tensor *t = spx_st_find(&G, name);
@@ -37,17 +41,22 @@ static double at(const void *p, size_t i, int f64) {
   return f;
 }
 
-static void run(spx_ctx *ctx, spx_tape_backend be) {
+static void run(spx_ctx *ctx, spx_vgg_kind kind, spx_tape_backend be) {
   spx_vgg *v = NULL;
-  CHECK_OK(ctx, spx_vgg_open_ex(ctx, DIR "vgg_w4.safetensors", be, &v));
+  CHECK_OK(ctx, spx_vgg_open_ex(ctx, wfile[kind], kind, be, &v));
   if (!v) return;
+  CHECK(spx_vgg_get_kind(v) == kind);
+  const spx_st_tensor *pt = spx_st_find(&G, "pred");
+  CHECK(pt && pt->ndim == 4 && pt->shape[1] == 3);
+  if (!pt || pt->ndim != 4) goto done;
+  int N = (int)pt->shape[0], H = (int)pt->shape[2], W = (int)pt->shape[3];
   spx_tape *t = spx_vgg_tape(v);
   CHECK(spx_vgg_width(v) == 4 && spx_tape_param_count(t) == 0); /* frozen: no trainable slab */
   size_t np = 0, ng = 0, nl = 0, ngr = 0;
   const float *pred = gdata("pred", &np), *gt = gdata("gt", &ng);
   const float *gl = gdata(be == SPX_TAPE_HOST ? "loss64" : "loss", &nl);
   const void *gg = gdata(be == SPX_TAPE_HOST ? "grad64" : "grad", &ngr);
-  CHECK(pred && gt && gl && gg && np == 3 * H * W && ngr == np);
+  CHECK(pred && gt && gl && gg && np == (size_t)N * 3 * H * W && ngr == np);
   if (!pred || !gt || !gl || !gg) goto done;
   float *x = malloc(2 * np * 4), *grad = malloc(2 * np * 4);
   memcpy(x, pred, np * 4), memcpy(x + np, gt, np * 4);
@@ -55,8 +64,8 @@ static void run(spx_ctx *ctx, spx_tape_backend be) {
   spx_status st;
   do {
     if ((st = spx_tape_begin(t, 1, 1))) break;
-    xi = spx_tape_input(t, 1, 3, H, W, x);
-    int gi = spx_tape_input(t, 1, 3, H, W, x + np);
+    xi = spx_tape_input(t, N, 3, H, W, x);
+    int gi = spx_tape_input(t, N, 3, H, W, x + np);
     spx_tape_requires_grad(t, xi); /* every pass: it is part of the plan */
     loss = spx_vgg_loss(v, xi, gi);
     st = spx_tape_end(t, &again);
@@ -81,9 +90,9 @@ static void run(spx_ctx *ctx, spx_tape_backend be) {
    * float32 in the tape (as on the device): ~1e-8 from PyTorch's float64 */
   double tl = be == SPX_TAPE_HOST ? 1e-6 : fmax(1e-4, 10.0 * sl[0]);
   double tg = be == SPX_TAPE_HOST ? 1e-6 : fmax(1e-4, 10.0 * sg[0]);
-  printf("  %s vs PyTorch %s: loss %.3g, gradient w.r.t. the prediction %.3g (tolerances %.3g, %.3g)\n",
-         be == SPX_TAPE_HOST ? "host (double)" : "device (float32)", be == SPX_TAPE_HOST ? "float64" : "float32", el,
-         eg, tl, tg);
+  printf("  %s %s vs PyTorch %s: loss %.3g, gradient w.r.t. the prediction %.3g (tolerances %.3g, %.3g)\n",
+         kind ? "VGG16" : "VGG19", be == SPX_TAPE_HOST ? "host (double)" : "device (float32)",
+         be == SPX_TAPE_HOST ? "float64" : "float32", el, eg, tl, tg);
   CHECK_MSG(el <= tl && eg <= tg, "loss %.3g gradient %.3g", el, eg);
   free(x), free(grad);
 done:
@@ -94,10 +103,12 @@ static void test_golden(void) {
   spx_ctx *ctx = spx_nt_open();
   CHECK(ctx != NULL);
   if (!ctx) return;
-  CHECK_OK(ctx, spx_st_load(ctx, DIR "vgg_golden.safetensors", &G));
-  run(ctx, SPX_TAPE_HOST);
-  run(ctx, SPX_TAPE_DEVICE);
-  spx_st_free(&G);
+  for (int kind = 0; kind < 2; kind++) {
+    CHECK_OK(ctx, spx_st_load(ctx, gfile[kind], &G));
+    run(ctx, (spx_vgg_kind)kind, SPX_TAPE_HOST);
+    run(ctx, (spx_vgg_kind)kind, SPX_TAPE_DEVICE);
+    spx_st_free(&G);
+  }
   spx_ctx_destroy(ctx);
 }
 
@@ -122,6 +133,26 @@ static void test_bad_files(void) {
   spx_vgg *v = NULL;
   CHECK(spx_vgg_open(ctx, SPX_TEST_DATA "/patchgan/D.safetensors", &v) != SPX_OK);
   CHECK(strstr(spx_ctx_message(ctx), "features.0.weight") != NULL);
+  CHECK(spx_vgg16_open(ctx, SPX_TEST_DATA "/patchgan/D.safetensors", &v) != SPX_OK && !v);
+  CHECK(strstr(spx_ctx_message(ctx), "features.0.weight") && strstr(spx_ctx_message(ctx), "VGG16"));
+  /* each network's file given to the other */
+  CHECK(spx_vgg16_open(ctx, DIR "vgg_w4.safetensors", &v) != SPX_OK && !v);
+  printf("  %s\n", spx_ctx_message(ctx));
+  CHECK(strstr(spx_ctx_message(ctx), "vgg_w4.safetensors: holds a VGG19") != NULL);
+  CHECK(spx_vgg_open(ctx, DIR "vgg16_w4.safetensors", &v) != SPX_OK && !v);
+  printf("  %s\n", spx_ctx_message(ctx));
+  CHECK(strstr(spx_ctx_message(ctx), "vgg16_w4.safetensors: holds a VGG16") != NULL);
+  /* VGG16: a missing and a misshapen tensor */
+  CHECK_OK(ctx, spx_st_load(ctx, DIR "vgg16_w4.safetensors", &f));
+  for (int pass = 0; pass < 2; pass++) {
+    CHECK_OK(ctx, spx_t_st_save_altered(ctx, &f, path, pass == 0 ? "features.21.bias" : NULL,
+                                        pass == 1 ? "features.17.weight" : NULL));
+    CHECK(spx_vgg16_open(ctx, path, &v) != SPX_OK && !v);
+    const char *m = spx_ctx_message(ctx);
+    printf("  %s\n", m);
+    CHECK(strstr(m, path) && strstr(m, pass ? "features.17.weight" : "missing tensor features.21.bias") && !strchr(m, '\n'));
+  }
+  spx_st_free(&f);
   spx_ctx_destroy(ctx);
 }
 

@@ -14,7 +14,7 @@ NP_OF = {"F32": "<f4", "F16": "<f2", "I64": "<i8", "F64": "<f8", "I32": "<i4", "
 
 def st_save(path, tensors, meta=None):
     """tensors: list of (name, numpy array); written in that order, contiguous. The file appears
-    whole (written to a temporary next to it, then renamed)."""
+    whole (written to a temporary next to it, then renamed) or not at all."""
     header, blobs, off = {}, [], 0
     for name, a in tensors:
         a = np.ascontiguousarray(a)
@@ -28,12 +28,17 @@ def st_save(path, tensors, meta=None):
     h = json.dumps(header, separators=(",", ":")).encode()
     h += b" " * ((8 - len(h) % 8) % 8)
     tmp = "%s.tmp%d" % (path, os.getpid())
-    with open(tmp, "wb") as f:
-        f.write(struct.pack("<Q", len(h)))
-        f.write(h)
-        for b in blobs:
-            f.write(b)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as f:
+            f.write(struct.pack("<Q", len(h)))
+            f.write(h)
+            for b in blobs:
+                f.write(b)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
 
 
 def st_load(path):

@@ -195,7 +195,8 @@ spx_status spx_lpips_distance(spx_lpips *lp, const spx_image *pred, const spx_im
     h[l] = spx_conv2d_out_size(ph[l], layers[l].k, layers[l].stride, layers[l].pad);
     w[l] = spx_conv2d_out_size(pw[l], layers[l].k, layers[l].stride, layers[l].pad);
     if (ph[l] < 1 || pw[l] < 1 || h[l] < 1 || w[l] < 1)
-      return spx_fail(ctx, SPX_E_ARG, "lpips: %dx%d is too small for AlexNet (at least 31x31)", iw, ih);
+      return spx_fail(ctx, SPX_E_ARG, "lpips: %dx%d is too small for AlexNet (at least %dx%d)", iw, ih,
+                      SPX_LPIPS_MIN_SIZE, SPX_LPIPS_MIN_SIZE);
   }
   /* activation layout: input, then per layer [pooled input], features */
   size_t in_off = 0, total = (size_t)2 * 3 * (size_t)ih * (size_t)iw, pool_off[NLAYERS], feat_off[NLAYERS];

@@ -1,7 +1,8 @@
-/* The frozen VGG19 perceptual loss (smplpix/vgg.h). The 13 convolutions' weights live in the
- * tape's STATE slab (no gradient or Adam slabs exist for them), so backward computes only the
- * input gradients. The ImageNet normalisation is a 1x1 convolution with the diagonal weights
- * 1/std and bias -mean/std (exactly the per-channel affine map, differentiable like any conv). */
+/* The frozen VGG perceptual losses (smplpix/vgg.h): VGG19 (eq. 5) and VGG16 (the official SMPLpix
+ * code's). The convolutions' weights live in the tape's STATE slab (no gradient or Adam slabs exist
+ * for them), so backward computes only the input gradients. VGG19's ImageNet normalisation is a
+ * 1x1 convolution with the diagonal weights 1/std and bias -mean/std (exactly the per-channel
+ * affine map, differentiable like any conv). */
 #include "nn/vgg.h"
 
 #include <math.h>
@@ -12,20 +13,38 @@
 #include "nn/st_take.h"
 #include "smplpix/safetensors.h"
 
-static const int conv_index[SPX_VGG_NCONV] = {0, 2, 5, 7, 10, 12, 14, 16, 19, 21, 23, 25, 28};
-/* channel multiplier of each conv's output (x width) */
-static const int conv_mult[SPX_VGG_NCONV] = {1, 1, 2, 2, 4, 4, 4, 4, 8, 8, 8, 8, 8};
+/* The convolutions each loss uses (torchvision's features.N), their output channels (x the base
+ * width), which are followed by a 2x2 max pool, and which ReLU outputs are the loss's features
+ * (1-based feature number, 0 = none). */
+typedef struct vgg_arch {
+  const char *name;
+  int nconv;
+  int index[SPX_VGG_NCONV], mult[SPX_VGG_NCONV], pool_after[SPX_VGG_NCONV], feat_after[SPX_VGG_NCONV];
+  const char *mark, *not_mark; /* a conv of this network only; the same index's conv of the other */
+} vgg_arch;
+
+static const vgg_arch arch[2] = {
+    /* VGG19 (cfg "E"): relu1_1, relu2_1, relu3_1, relu4_1, relu5_1 */
+    {"VGG19", 13, {0, 2, 5, 7, 10, 12, 14, 16, 19, 21, 23, 25, 28}, {1, 1, 2, 2, 4, 4, 4, 4, 8, 8, 8, 8, 8},
+     {0, 1, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0}, {1, 0, 2, 0, 3, 0, 0, 0, 4, 0, 0, 0, 5}, "features.16.weight",
+     "features.17.weight"},
+    /* VGG16 (cfg "D") up to relu4_3: relu1_2, relu2_2, relu3_3, relu4_3 */
+    {"VGG16", 10, {0, 2, 5, 7, 10, 12, 14, 17, 19, 21}, {1, 1, 2, 2, 4, 4, 4, 8, 8, 8},
+     {0, 1, 0, 1, 0, 0, 1, 0, 0, 0}, {0, 1, 0, 2, 0, 0, 3, 0, 0, 4}, "features.17.weight", "features.16.weight"},
+};
 
 struct spx_vgg {
   spx_ctx *ctx;
   spx_tape *tape;
+  spx_vgg_kind kind;
   int width;
   int w[SPX_VGG_NCONV], b[SPX_VGG_NCONV];
-  int nw, nb; /* normalisation 1x1 conv */
+  int nw, nb; /* VGG19: the normalisation 1x1 conv */
 };
 
 spx_tape *spx_vgg_tape(spx_vgg *v) { return v->tape; }
 int spx_vgg_width(const spx_vgg *v) { return v->width; }
+spx_vgg_kind spx_vgg_get_kind(const spx_vgg *v) { return v->kind; }
 
 void spx_vgg_destroy(spx_vgg *v) {
   if (!v) return;
@@ -33,8 +52,11 @@ void spx_vgg_destroy(spx_vgg *v) {
   free(v);
 }
 
-spx_status spx_vgg_open_ex(spx_ctx *ctx, const char *path, spx_tape_backend backend, spx_vgg **out) {
+spx_status spx_vgg_open_ex(spx_ctx *ctx, const char *path, spx_vgg_kind kind, spx_tape_backend backend,
+                           spx_vgg **out) {
   *out = NULL;
+  if (kind != SPX_VGG19_EQ5 && kind != SPX_VGG16_SMPLPIX) return spx_fail(ctx, SPX_E_ARG, "vgg: unknown kind %d", kind);
+  const vgg_arch *a = &arch[kind];
   spx_st_file f;
   memset(&f, 0, sizeof f);
   spx_status st = spx_st_load(ctx, path, &f);
@@ -44,8 +66,13 @@ spx_status spx_vgg_open_ex(spx_ctx *ctx, const char *path, spx_tape_backend back
   const spx_st_tensor *t0 = spx_st_find(&f, "features.0.weight");
   if (!t0 || t0->ndim != 4 || t0->shape[1] != 3 || t0->shape[2] != 3 || t0->shape[3] != 3 || t0->shape[0] < 1 ||
       t0->shape[0] > 64) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: %s tensor features.0.weight of shape [64, 3, 3, 3] (a torchvision VGG19 "
-                  "state_dict)", path, t0 ? "needs a" : "missing");
+    st = spx_fail(ctx, SPX_E_FORMAT, "%s: %s tensor features.0.weight of shape [64, 3, 3, 3] (a torchvision %s "
+                  "state_dict)", path, t0 ? "needs a" : "missing", a->name);
+    goto done;
+  }
+  if (!spx_st_find(&f, a->mark) && spx_st_find(&f, a->not_mark)) {
+    st = spx_fail(ctx, SPX_E_FORMAT, "%s: holds a %s (it has %s, no %s); this loss needs torchvision's %s", path,
+                  arch[1 - kind].name, a->not_mark, a->mark, a->name);
     goto done;
   }
   if (!(v = calloc(1, sizeof *v))) {
@@ -53,17 +80,21 @@ spx_status spx_vgg_open_ex(spx_ctx *ctx, const char *path, spx_tape_backend back
     goto done;
   }
   v->ctx = ctx;
+  v->kind = kind;
   v->width = (int)t0->shape[0];
+  v->nw = v->nb = -1;
   if ((st = spx_tape_create(ctx, backend, &v->tape))) goto done;
   int cin = 3;
-  for (int i = 0; i < SPX_VGG_NCONV; i++) {
-    int co = conv_mult[i] * v->width;
+  for (int i = 0; i < a->nconv; i++) {
+    int co = a->mult[i] * v->width;
     v->w[i] = spx_tape_state(v->tape, co, cin, 3, 3);
     v->b[i] = spx_tape_state(v->tape, co, 1, 1, 1);
     cin = co;
   }
-  v->nw = spx_tape_state(v->tape, 3, 3, 1, 1);
-  v->nb = spx_tape_state(v->tape, 3, 1, 1, 1);
+  if (kind == SPX_VGG19_EQ5) {
+    v->nw = spx_tape_state(v->tape, 3, 3, 1, 1);
+    v->nb = spx_tape_state(v->tape, 3, 1, 1, 1);
+  }
   if ((st = spx_tape_alloc_params(v->tape))) goto done;
   size_t cap = (size_t)64 * 8 * 8 * 64 * 9;
   if (!(buf = malloc(cap * sizeof(float)))) {
@@ -71,17 +102,17 @@ spx_status spx_vgg_open_ex(spx_ctx *ctx, const char *path, spx_tape_backend back
     goto done;
   }
   cin = 3;
-  for (int i = 0; i < SPX_VGG_NCONV && !st; i++) {
-    int co = conv_mult[i] * v->width;
+  for (int i = 0; i < a->nconv && !st; i++) {
+    int co = a->mult[i] * v->width;
     char name[64];
     int64_t ws[4] = {co, cin, 3, 3}, bs[1] = {co};
-    snprintf(name, sizeof name, "features.%d.weight", conv_index[i]);
+    snprintf(name, sizeof name, "features.%d.weight", a->index[i]);
     if ((st = spx_nn_st_take_f32(ctx, path, &f, name, 4, ws, buf)) || (st = spx_tape_write(v->tape, v->w[i], buf))) break;
-    snprintf(name, sizeof name, "features.%d.bias", conv_index[i]);
+    snprintf(name, sizeof name, "features.%d.bias", a->index[i]);
     if ((st = spx_nn_st_take_f32(ctx, path, &f, name, 1, bs, buf)) || (st = spx_tape_write(v->tape, v->b[i], buf))) break;
     cin = co;
   }
-  if (!st) {
+  if (!st && kind == SPX_VGG19_EQ5) {
     static const double mean[3] = {0.485, 0.456, 0.406}, sd[3] = {0.229, 0.224, 0.225};
     float nw[9] = {0}, nb[3];
     for (int c = 0; c < 3; c++) nw[c * 3 + c] = (float)(1.0 / sd[c]), nb[c] = (float)(-mean[c] / sd[c]);
@@ -96,25 +127,51 @@ done:
 }
 
 spx_status spx_vgg_open(spx_ctx *ctx, const char *path, spx_vgg **out) {
-  return spx_vgg_open_ex(ctx, path, SPX_TAPE_DEVICE, out);
+  return spx_vgg_open_ex(ctx, path, SPX_VGG19_EQ5, SPX_TAPE_DEVICE, out);
 }
 
-/* The features f_1..f_5 of x (ids into feat[0..4]). */
-static void features(spx_vgg *v, int x, int feat[5]) {
+spx_status spx_vgg16_open(spx_ctx *ctx, const char *path, spx_vgg **out) {
+  return spx_vgg_open_ex(ctx, path, SPX_VGG16_SMPLPIX, SPX_TAPE_DEVICE, out);
+}
+
+/* The features of x (ids into feat[0 .. 4] for VGG19, [0 .. 3] for VGG16); VGG19 first
+ * normalises x. */
+static void features(spx_vgg *v, int x, int *feat) {
   spx_tape *t = v->tape;
-  /* conv i is followed by a max pool before conv i+1 for i = 1, 3, 7, 11 (features 4, 9, 18, 27) */
-  static const int pool_after[SPX_VGG_NCONV] = {0, 1, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0};
-  /* the slice ends (relu1_1 .. relu5_1) come after convs 0, 2, 4, 8, 12 */
-  static const int feat_after[SPX_VGG_NCONV] = {1, 0, 2, 0, 3, 0, 0, 0, 4, 0, 0, 0, 5};
-  int h = spx_tape_conv(t, x, v->nw, v->nb, 0, -1, -1, 0);
-  for (int i = 0; i < SPX_VGG_NCONV; i++) {
+  const vgg_arch *a = &arch[v->kind];
+  int h = v->kind == SPX_VGG19_EQ5 ? spx_tape_conv(t, x, v->nw, v->nb, 0, -1, -1, 0) : x;
+  for (int i = 0; i < a->nconv; i++) {
     h = spx_tape_act(t, SPX_ACT_RELU, 0.0f, spx_tape_conv(t, h, v->w[i], v->b[i], 1, -1, -1, 0));
-    if (feat_after[i]) feat[feat_after[i] - 1] = h;
-    if (pool_after[i]) h = spx_tape_maxpool2(t, h);
+    if (a->feat_after[i]) feat[a->feat_after[i] - 1] = h;
+    if (a->pool_after[i]) h = spx_tape_maxpool2(t, h);
   }
 }
 
+/* VGG16: pieces x, relu1_2, relu2_2, relu3_3, relu4_3 weighted 1, 1/16, 1/8, 1/4, 1 and one mean
+ * over all their elements, i.e. sum_k w_k (count_k / total) mean_k |f_k(pred) - f_k(gt)|. */
+static int loss16(spx_vgg *v, int pred, int gt) {
+  spx_tape *t = v->tape;
+  static const double wk[5] = {1.0, 1.0 / 16, 1.0 / 8, 1.0 / 4, 1.0};
+  int fp[5] = {pred, -1, -1, -1, -1}, fg[5] = {gt, -1, -1, -1, -1};
+  features(v, gt, fg + 1);
+  features(v, pred, fp + 1);
+  double cnt[5], total = 0;
+  for (int k = 0; k < 5; k++) {
+    if (fp[k] < 0 || fg[k] < 0) return -1; /* the tape's error is recorded */
+    cnt[k] = (double)spx_tape_numel(t, fp[k]);
+    total += cnt[k];
+  }
+  int loss = -1;
+  for (int k = 0; k < 5; k++) {
+    float c = (float)(wk[k] * cnt[k] / total);
+    int l1 = spx_tape_l1(t, fp[k], fg[k]);
+    loss = k ? spx_tape_axpby(t, 1.0f, loss, c, l1) : spx_tape_axpby(t, c, l1, 0.0f, -1);
+  }
+  return loss;
+}
+
 int spx_vgg_loss(spx_vgg *v, int pred, int gt) {
+  if (v->kind == SPX_VGG16_SMPLPIX) return loss16(v, pred, gt);
   spx_tape *t = v->tape;
   int fp[5], fg[5];
   features(v, gt, fg);

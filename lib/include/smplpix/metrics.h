@@ -56,10 +56,23 @@ spx_status spx_image_metrics(spx_ctx *ctx, const spx_image *pred, const spx_imag
  *   net.slice3.6.{weight,bias}  [384,192,3,3]  net.slice4.8.{weight,bias}  [256,384,3,3]
  *   net.slice5.10.{weight,bias} [256,256,3,3]  lin0..lin4.model.1.weight   [1,C,1,1]
  * (F32 or F64; tools/lpips_to_safetensors.py writes it). Images must be at least 31x31. */
+#define SPX_LPIPS_MIN_SIZE 31 /* pixels, in both dimensions */
 typedef struct spx_lpips spx_lpips;
 spx_status spx_lpips_load(spx_ctx *ctx, const char *path, spx_lpips **out);
 spx_status spx_lpips_distance(spx_lpips *lp, const spx_image *pred, const spx_image *target, double *out);
 void spx_lpips_free(spx_lpips *lp);
+
+/* The pretrained perceptual networks `make weights` (scripts/weights.sh) puts in the user's cache:
+ *   SPX_WEIGHTS_LPIPS_ALEX  LPIPS v0.1 AlexNet, the file spx_lpips_load reads (`smplpix eval` uses it
+ *                           without --lpips);
+ *   SPX_WEIGHTS_VGG16       VGG16's convolutions, the file spx_vgg16_open reads (smplpix/vgg.h;
+ *                           `smplpix train --loss vgg16` and `--schedule paper` without --vgg).
+ * spx_weights_path writes ${SPX_CACHE_DIR:-$HOME/.cache/smplpix}/weights/NAME to out: 1 when the
+ * file exists, 0 when it does not (out still holds where it would be), -1 when neither
+ * SPX_CACHE_DIR nor HOME is set or the path does not fit in cap (out = ""). Nothing is created. */
+#define SPX_WEIGHTS_LPIPS_ALEX "lpips_alex.safetensors"
+#define SPX_WEIGHTS_VGG16 "vgg16.safetensors"
+int spx_weights_path(const char *name, char *out, size_t cap);
 
 #ifdef __cplusplus
 }
