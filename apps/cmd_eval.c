@@ -23,7 +23,8 @@ static void eval_help(void) {
          "data_range=1.0, channel_axis=-1) (images of at least 11x11); both are averaged over the images.\n"
          "--mask M: a mask file (used for every image) or a folder of masks matched by name; the first\n"
          "channel nonzero = foreground. Adds the masked values: PSNR of the foreground pixels' MSE, and\n"
-         "the SSIM map averaged over the foreground (see smplpix/metrics.h).\n"
+         "the SSIM map averaged over the foreground, and with LPIPS the lpips package's spatial LPIPS map\n"
+         "averaged over the foreground (see smplpix/metrics.h).\n"
          "LPIPS (v0.1, AlexNet, as the lpips package computes it) runs on the OpenCL device, for images\n"
          "of at least 31x31, with the weights `make weights` puts in ${SPX_CACHE_DIR:-~/.cache/smplpix}/\n"
          "weights/lpips_alex.safetensors when that file exists (smaller images: n/a); --lpips W uses W\n"
@@ -31,7 +32,8 @@ static void eval_help(void) {
          "--no-lpips leaves LPIPS out.\n"
          "--per-image: one line per image before the mean. --json F: {\"count\", \"psnr\", \"ssim\",\n"
          "\"lpips\", \"images\": [{\"name\", \"psnr\", \"ssim\", \"lpips\"}]} (+ \"psnr_masked\",\n"
-         "\"ssim_masked\" with --mask), null where a value is infinite, undefined or not asked for.\n"
+         "\"ssim_masked\", \"lpips_masked\" with --mask), null where a value is infinite, undefined or not\n"
+         "asked for.\n"
          "A size mismatch, an unreadable file or a name present on one side only: one line, exit 1,\n"
          "no JSON written.\n");
 }
@@ -39,7 +41,7 @@ static void eval_help(void) {
 typedef struct item {
   char *name, *pred, *target, *mask;
   spx_metrics m;
-  double lpips;
+  double lpips[2]; /* whole image, inside the mask (NAN without one) */
 } item;
 
 typedef struct list {
@@ -239,9 +241,10 @@ static int measure(spx_ctx *ctx, spx_lpips *lp, int lp_opt, item *it) {
     rc = spx_cli_errorf("eval", "%s: the mask has no foreground pixels", it->mask);
     goto done;
   }
-  it->lpips = NAN;
+  it->lpips[0] = it->lpips[1] = NAN;
   if (lp && lp_opt && (p.width < SPX_LPIPS_MIN_SIZE || p.height < SPX_LPIPS_MIN_SIZE)) goto done; /* n/a */
-  if (lp && spx_lpips_distance(lp, &p, &t, &it->lpips)) rc = spx_cli_errorf("eval", "%s: %s", it->pred, spx_ctx_message(ctx));
+  if (lp && spx_lpips_distance_masked(lp, &p, &t, it->mask ? &m : NULL, &it->lpips[0], &it->lpips[1]))
+    rc = spx_cli_errorf("eval", "%s: %s", it->pred, spx_ctx_message(ctx));
 done:
   spx_image_free(&p), spx_image_free(&t), spx_image_free(&m);
   return rc;
@@ -255,12 +258,13 @@ static const char *num(char *buf, size_t cap, const char *fmt, double v) {
   return buf;
 }
 
-static void print_line(const char *lead, const spx_metrics *m, double lpips, int has_lpips, int has_mask) {
+static void print_line(const char *lead, const spx_metrics *m, const double *lpips, int has_lpips, int has_mask) {
   char a[32], b[32], c[32];
   printf("%s: PSNR %s dB, SSIM %s", lead, num(a, sizeof a, "%.3f", m->psnr), num(b, sizeof b, "%.4f", m->ssim));
-  if (has_lpips) printf(", LPIPS %s", num(c, sizeof c, "%.4f", lpips));
+  if (has_lpips) printf(", LPIPS %s", num(c, sizeof c, "%.4f", lpips[0]));
   if (has_mask)
     printf("; masked: PSNR %s dB, SSIM %s", num(a, sizeof a, "%.3f", m->psnr_fg), num(b, sizeof b, "%.4f", m->ssim_fg));
+  if (has_mask && has_lpips) printf(", LPIPS %s", num(c, sizeof c, "%.4f", lpips[1]));
   printf("\n");
 }
 
@@ -279,19 +283,20 @@ static void json_str(FILE *f, const char *s) {
   fputc('"', f);
 }
 
-static void json_metrics(FILE *f, const spx_metrics *m, double lpips, int has_mask) {
+static void json_metrics(FILE *f, const spx_metrics *m, const double *lpips, int has_mask) {
   json_num(f, "psnr", m->psnr, 0);
   json_num(f, "ssim", m->ssim, 0);
   if (has_mask) {
     json_num(f, "psnr_masked", m->psnr_fg, 0);
     json_num(f, "ssim_masked", m->ssim_fg, 0);
+    json_num(f, "lpips_masked", lpips[1], 0);
   }
-  json_num(f, "lpips", lpips, 1);
+  json_num(f, "lpips", lpips[0], 1);
 }
 
 /* Write the report to path in the run's transaction (apps/cli_tx.h): F appears whole, when the
  * run succeeds, or not at all; an F that was there before a failed run stays as it was. */
-static int write_json(spx_tx *tx, const char *path, const list *l, const spx_metrics *mean, double mean_lpips,
+static int write_json(spx_tx *tx, const char *path, const list *l, const spx_metrics *mean, const double *mean_lpips,
                       int has_mask) {
   const char *tmp = spx_tx_stage(tx, path);
   if (!tmp) return SPX_EXIT_ERROR; /* printed */
@@ -359,16 +364,17 @@ int spx_cmd_eval(int argc, char **argv) {
     }
   }
   spx_metrics mean = {0};
-  double mean_lp = 0;
+  double mean_lp[2] = {0, 0};
   for (int i = 0; i < l.n; i++) {
     item *it = &l.it[i];
     if ((rc = measure(ctx, lp, lp_opt, it))) goto done;
     if (per_image) print_line(it->name, &it->m, it->lpips, lp != NULL, mask != NULL);
     mean.psnr += it->m.psnr, mean.ssim += it->m.ssim, mean.psnr_fg += it->m.psnr_fg, mean.ssim_fg += it->m.ssim_fg;
-    mean_lp += it->lpips;
+    mean_lp[0] += it->lpips[0], mean_lp[1] += it->lpips[1];
   }
   mean.psnr /= l.n, mean.ssim /= l.n, mean.psnr_fg /= l.n, mean.ssim_fg /= l.n;
-  mean_lp = lp ? mean_lp / l.n : NAN;
+  mean_lp[0] = lp ? mean_lp[0] / l.n : NAN;
+  mean_lp[1] = lp && mask ? mean_lp[1] / l.n : NAN;
   if (json && (rc = write_json(&tx, json, &l, &mean, mean_lp, mask != NULL))) goto done;
   char lead[64];
   snprintf(lead, sizeof lead, "mean over %d images", l.n); /* the fixed form of the design, also for 1 */

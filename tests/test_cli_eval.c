@@ -192,6 +192,24 @@ static void test_lpips(void) {
   CHECK(out_has(", LPIPS 0.1852\n"));
   cJSON *j = json("l.json");
   CHECK_NEAR(num(j, "lpips"), 0.18518037343347837, 0, 1e-5); /* tests/data/metrics/lpips_expected.txt */
+  CHECK(j && !cJSON_GetObjectItem(j, "lpips_masked")); /* no mask, no masked value */
+  cJSON_Delete(j);
+  /* with a mask: the lpips package's spatial map averaged over it (lpips_masked_expected.txt: the
+   * rectangle x in [W/4, 3W/4), y in [H/5, 4H/5) of the 40x48 pair) */
+  spx_image rect = {0};
+  CHECK_OK(ctx, spx_image_alloc(ctx, 40, 48, 1, &rect));
+  for (int y = 0; y < 48; y++)
+    for (int x = 0; x < 40; x++) rect.data[y * 40 + x] = x >= 10 && x < 30 && y >= 9 && y < 38;
+  char mp[700];
+  path_of(mp, sizeof mp, "lprect.npy");
+  int64_t rshape[2] = {48, 40};
+  CHECK_OK(ctx, spx_npy_save_f32(ctx, mp, rect.data, 2, rshape));
+  spx_image_free(&rect);
+  CHECK(tool("eval --pred lpp.npy --target lpt.npy --mask lprect.npy --lpips lp.safetensors --json lm.json") == 0);
+  CHECK(out_has(", LPIPS 0.1852; masked: PSNR ") && out_has(", LPIPS 0.1842\n"));
+  j = json("lm.json");
+  CHECK_NEAR(num(j, "lpips"), 0.18518037343347837, 0, 1e-5);
+  CHECK_NEAR(num(j, "lpips_masked"), 0.18420818097205149, 0, 1e-5);
   cJSON_Delete(j);
   path_of(w, sizeof w, "lpbad.safetensors");
   CHECK(spx_t_lpips_weights(ctx, w, "net.slice4.8.bias", NULL));

@@ -107,6 +107,59 @@ static void test_golden(void) {
   spx_ctx_destroy(ctx);
 }
 
+/* The masked LPIPS against the lpips package's spatial map (tools/make_lpips_golden.py --masked):
+ * the mean over the rectangle x in [W/4, 3W/4), y in [H/5, 4H/5). */
+static void test_masked_golden(void) {
+  spx_ctx *ctx = spx_nt_open();
+  CHECK(ctx != NULL);
+  if (!ctx) return;
+  char w[700], line[256], p[1024];
+  spx_t_path(w, sizeof w, "lpips_golden_m.safetensors");
+  CHECK(spx_t_lpips_weights(ctx, w, NULL, NULL));
+  spx_lpips *lp = NULL;
+  CHECK_OK(ctx, spx_lpips_load(ctx, w, &lp));
+  snprintf(p, sizeof p, "%s/metrics/lpips_masked_expected.txt", SPX_TEST_DATA);
+  FILE *f = fopen(p, "r");
+  CHECK(f && lp);
+  int cases = 0;
+  while (f && lp && fgets(line, sizeof line, f)) {
+    char name[64], pn[96], tn[96];
+    double want, want32;
+    if (line[0] == '#' || sscanf(line, "%63s %lf %lf", name, &want, &want32) != 3) continue;
+    snprintf(pn, sizeof pn, "%s_pred", name);
+    snprintf(tn, sizeof tn, "%s_target", name);
+    spx_image a = {0}, b = {0}, m = {0};
+    CHECK(load_npy(ctx, pn, &a) && load_npy(ctx, tn, &b));
+    CHECK_OK(ctx, spx_image_alloc(ctx, a.width, a.height, 1, &m));
+    for (int y = 0; y < a.height; y++)
+      for (int x = 0; x < a.width; x++)
+        m.data[(size_t)y * a.width + x] = x >= a.width / 4 && x < 3 * a.width / 4 && y >= a.height / 5 && y < 4 * a.height / 5;
+    double full = -1, got = -1, plain = -2, none = 0;
+    CHECK_OK(ctx, spx_lpips_distance_masked(lp, &a, &b, &m, &full, &got));
+    CHECK_OK(ctx, spx_lpips_distance(lp, &a, &b, &plain));
+    CHECK(full == plain); /* the mask changes nothing of the full-image value */
+    CHECK_OK(ctx, spx_lpips_distance_masked(lp, &a, &b, NULL, &full, &none));
+    CHECK(isnan(none));
+    fprintf(stderr, "  %-10s masked LPIPS %.10g (lpips float64 %.10g, float32 %.10g): rel %.2g\n", name, got, want,
+            want32, want ? fabs(got - want) / want : fabs(got));
+    CHECK_NEAR(got, want, 1e-9, 1e-5);
+    /* a mask of another size, a mask without foreground: errors naming the problem */
+    spx_image small = {0};
+    CHECK_OK(ctx, spx_image_alloc(ctx, a.width - 1, a.height, 1, &small));
+    CHECK(spx_lpips_distance_masked(lp, &a, &b, &small, &full, &got) == SPX_E_ARG &&
+          strstr(spx_ctx_message(ctx), "mask"));
+    memset(m.data, 0, sizeof(float) * (size_t)a.width * a.height);
+    CHECK(spx_lpips_distance_masked(lp, &a, &b, &m, &full, &got) == SPX_E_ARG &&
+          strstr(spx_ctx_message(ctx), "no foreground"));
+    spx_image_free(&a), spx_image_free(&b), spx_image_free(&m), spx_image_free(&small);
+    cases++;
+  }
+  if (f) fclose(f);
+  CHECK(cases == 3);
+  spx_lpips_free(lp);
+  spx_ctx_destroy(ctx);
+}
+
 static void bad_file(spx_ctx *ctx, const char *skip, const char *bad, const char *needle) {
   char w[700];
   spx_t_path(w, sizeof w, "lpips_bad.safetensors");
@@ -134,6 +187,7 @@ static void test_bad_weights(void) {
 int main(void) {
   SPX_RUN(test_pool);
   SPX_RUN(test_golden);
+  SPX_RUN(test_masked_golden);
   SPX_RUN(test_bad_weights);
   return spx_test_summary();
 }

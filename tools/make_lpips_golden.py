@@ -3,7 +3,11 @@
 random AlexNet: lpips.LPIPS(net='alex', pretrained=False, pnet_rand=True) (no download), whose
 weights are then replaced by values the C test regenerates bit for bit (splitmix64 of the element
 index, see weights()), so no weight file is committed. Writes image pairs (HxWx3 float32 .npy) and
-lpips_expected.txt (LPIPS in float64, and float32 for the float32-vs-float64 spread).
+lpips_expected.txt (LPIPS in float64, and float32 for the float32-vs-float64 spread), and
+lpips_masked_expected.txt: the masked LPIPS of the committed pairs, the mean over a rectangle's
+pixels (x in [W/4, 3W/4), y in [H/5, 4H/5), integer division) of lpips.LPIPS(spatial=True)'s map
+(each layer's distance map upsampled to the image size, bilinear, align_corners=False, summed).
+With --masked it writes only that file, from the pairs already in the folder.
 Needs: python3 -m venv --system-site-packages /tmp/lp && /tmp/lp/bin/pip install --no-deps lpips tqdm
 (and Debian's python3-torch, python3-torchvision). Run: /tmp/lp/bin/python tools/make_lpips_golden.py tests/data/metrics"""
 import os
@@ -51,12 +55,41 @@ def weights(sd):
     return sd
 
 
-def main(out):
+def model(spatial=False):
     torch.manual_seed(0)
-    m = lpips.LPIPS(net="alex", pretrained=False, pnet_rand=True, verbose=False)
+    m = lpips.LPIPS(net="alex", pretrained=False, pnet_rand=True, spatial=spatial, verbose=False)
     sd = weights(m.state_dict())
     m.load_state_dict(sd)
     m.eval()
+    return m
+
+
+def masked(out, names=("lp_random", "lp_odd", "lp_same")):
+    m = model(spatial=True)
+    lines = []
+    for name in names:
+        p = np.load(os.path.join(out, name + "_pred.npy"))
+        t = np.load(os.path.join(out, name + "_target.npy"))
+        h, w = p.shape[:2]
+        fg = np.zeros((h, w), bool)
+        fg[h // 5:(4 * h) // 5, w // 4:(3 * w) // 4] = True
+        vals = []
+        for dt in (torch.float64, torch.float32):
+            mm = m.to(dt)
+            a = torch.from_numpy(p).permute(2, 0, 1)[None].to(dt)
+            b = torch.from_numpy(t).permute(2, 0, 1)[None].to(dt)
+            with torch.no_grad():
+                vals.append(float(mm(a, b, normalize=True)[0, 0].numpy()[fg].mean()))
+        lines.append("%s %.17g %.17g" % (name, vals[0], vals[1]))
+    with open(os.path.join(out, "lpips_masked_expected.txt"), "w") as f:
+        f.write("# name masked_lpips_float64 masked_lpips_float32: mean over the rectangle x in [W/4, 3W/4), y in "
+                "[H/5, 4H/5) of LPIPS(spatial=True) (lpips %s, torch %s; tools/make_lpips_golden.py --masked)\n"
+                % (lpips.__version__ if hasattr(lpips, "__version__") else "0.1.4", torch.__version__))
+        f.write("\n".join(lines) + "\n")
+
+
+def main(out):
+    m = model()
     rng = np.random.default_rng(7)
     pairs = []
     t = rng.random((48, 40, 3), dtype=np.float32)
@@ -83,7 +116,13 @@ def main(out):
         f.write("# name lpips_float64 lpips_float32 (lpips %s, torch %s; made by tools/make_lpips_golden.py)\n"
                 % (lpips.__version__ if hasattr(lpips, "__version__") else "0.1.4", torch.__version__))
         f.write("\n".join(lines) + "\n")
+    masked(out)
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "tests/data/metrics")
+    args = [a for a in sys.argv[1:] if a != "--masked"]
+    folder = args[0] if args else "tests/data/metrics"
+    if "--masked" in sys.argv[1:]:
+        masked(folder)
+    else:
+        main(folder)

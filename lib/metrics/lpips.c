@@ -156,7 +156,9 @@ void spx_lpips_free(spx_lpips *lp) {
 }
 
 /* One layer's LPIPS term from the two feature maps (planes [c][hw] of image 0, then image 1). */
-static double layer_term(const float *f, int c, size_t hw, const double *lin) {
+/* One layer's distance: map[p] (hw values) = sum_k lin[k] (a_k/|a| - b_k/|b|)^2 at pixel p of the
+ * two feature maps f = [a; b] (c channels each); returns the mean over the pixels. */
+static double layer_term(const float *f, int c, size_t hw, const double *lin, double *map) {
   const float *a = f, *b = f + (size_t)c * hw;
   double sum = 0;
   for (size_t p = 0; p < hw; p++) {
@@ -173,12 +175,49 @@ static double layer_term(const float *f, int c, size_t hw, const double *lin) {
       double e = a[(size_t)k * hw + p] / na - b[(size_t)k * hw + p] / nb;
       d += lin[k] * e * e;
     }
+    map[p] = d;
     sum += d;
   }
   return sum / (double)hw;
 }
 
+/* torch's bilinear source coordinate for an output index (align_corners=False, size given):
+ * i0, i1 and the weight of i1. */
+static void bilinear_src(int o, int in, int out, int *i0, int *i1, double *w1) {
+  double src = ((double)in / (double)out) * ((double)o + 0.5) - 0.5;
+  if (src < 0) src = 0;
+  *i0 = (int)src;
+  *i1 = *i0 + (*i0 < in - 1);
+  *w1 = src - *i0;
+}
+
+/* Sum over the foreground pixels of the layer's map (h x w) upsampled to H x W as the lpips
+ * package's spatial mode does (nn.Upsample, bilinear, align_corners=False). */
+static double masked_sum(const double *map, int h, int w, const spx_image *mask) {
+  int H = mask->height, W = mask->width;
+  double sum = 0;
+  for (int y = 0; y < H; y++) {
+    int y0, y1;
+    double wy;
+    bilinear_src(y, h, H, &y0, &y1, &wy);
+    for (int x = 0; x < W; x++) {
+      if (mask->data[((size_t)y * W + (size_t)x) * (size_t)mask->channels] == 0.0f) continue;
+      int x0, x1;
+      double wx;
+      bilinear_src(x, w, W, &x0, &x1, &wx);
+      const double *r0 = map + (size_t)y0 * w, *r1 = map + (size_t)y1 * w;
+      sum += (1 - wy) * ((1 - wx) * r0[x0] + wx * r0[x1]) + wy * ((1 - wx) * r1[x0] + wx * r1[x1]);
+    }
+  }
+  return sum;
+}
+
 spx_status spx_lpips_distance(spx_lpips *lp, const spx_image *pred, const spx_image *target, double *out) {
+  return spx_lpips_distance_masked(lp, pred, target, NULL, out, NULL);
+}
+
+spx_status spx_lpips_distance_masked(spx_lpips *lp, const spx_image *pred, const spx_image *target,
+                                     const spx_image *mask, double *out, double *out_masked) {
   spx_ctx *ctx = lp->ctx;
   spx_status st = SPX_OK;
   if (!pred || !target || !pred->data || !target->data || pred->channels < 3 || target->channels < 3)
@@ -186,6 +225,15 @@ spx_status spx_lpips_distance(spx_lpips *lp, const spx_image *pred, const spx_im
   if (pred->width != target->width || pred->height != target->height)
     return spx_fail(ctx, SPX_E_ARG, "lpips: the predicted image is %dx%d but the target is %dx%d", pred->width,
                     pred->height, target->width, target->height);
+  int64_t fg = 0;
+  if (mask) {
+    if (!mask->data || mask->channels < 1 || mask->width != pred->width || mask->height != pred->height)
+      return spx_fail(ctx, SPX_E_ARG, "lpips: the mask is %dx%d but the images are %dx%d", mask->width, mask->height,
+                      pred->width, pred->height);
+    for (size_t p = 0; p < (size_t)mask->width * (size_t)mask->height; p++)
+      fg += mask->data[p * (size_t)mask->channels] != 0.0f;
+    if (!fg) return spx_fail(ctx, SPX_E_ARG, "lpips: the mask has no foreground pixels");
+  }
   /* the spatial sizes through the network: conv1, pool, conv2, pool, conv3..5 */
   int h[NLAYERS], w[NLAYERS], ph[NLAYERS], pw[NLAYERS];
   int ih = pred->height, iw = pred->width;
@@ -212,7 +260,11 @@ spx_status spx_lpips_distance(spx_lpips *lp, const spx_image *pred, const spx_im
     if (s > maxfeat) maxfeat = s;
   }
   float *host = spx_alloc_array(ctx, maxfeat > 6 * hw0 ? maxfeat : 6 * hw0, sizeof(float), "LPIPS host buffer");
-  if (!host) return SPX_E_NOMEM;
+  double *map = spx_alloc_array(ctx, maxfeat / 2 + 1, sizeof(double), "LPIPS distance map");
+  if (!host || !map) {
+    free(host);
+    return SPX_E_NOMEM;
+  }
   /* input: [-1,1] then the scaling layer, NCHW, image 0 = pred, image 1 = target */
   for (int i = 0; i < 2; i++) {
     const spx_image *im = i ? target : pred;
@@ -226,7 +278,7 @@ spx_status spx_lpips_distance(spx_lpips *lp, const spx_image *pred, const spx_im
       (st = spx_cl_write(ctx, lp->act.mem, 0, 6 * hw0 * sizeof(float), host)))
     goto done;
   spx_tensor prev = spx_tensor_view(lp->act.mem, in_off, 2, 3, ih, iw);
-  double sum = 0;
+  double sum = 0, sum_fg = 0;
   for (int l = 0; l < NLAYERS; l++) {
     spx_tensor x = prev;
     if (layers[l].pool_before) {
@@ -240,11 +292,14 @@ spx_status spx_lpips_distance(spx_lpips *lp, const spx_image *pred, const spx_im
     if ((st = spx_conv2d_forward(ctx, &x, &wt, &bt, &p, &y))) goto done;
     size_t n = spx_tensor_numel(&y);
     if ((st = spx_cl_read(ctx, lp->act.mem, feat_off[l] * sizeof(float), n * sizeof(float), host))) goto done;
-    sum += layer_term(host, layers[l].cout, (size_t)h[l] * (size_t)w[l], lp->lin[l]);
+    sum += layer_term(host, layers[l].cout, (size_t)h[l] * (size_t)w[l], lp->lin[l], map);
+    if (mask) sum_fg += masked_sum(map, h[l], w[l], mask);
     prev = y;
   }
   *out = sum;
+  if (out_masked) *out_masked = mask ? sum_fg / (double)fg : NAN;
 done:
   free(host);
+  free(map);
   return st;
 }

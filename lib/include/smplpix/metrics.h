@@ -60,6 +60,12 @@ spx_status spx_image_metrics(spx_ctx *ctx, const spx_image *pred, const spx_imag
 typedef struct spx_lpips spx_lpips;
 spx_status spx_lpips_load(spx_ctx *ctx, const char *path, spx_lpips **out);
 spx_status spx_lpips_distance(spx_lpips *lp, const spx_image *pred, const spx_image *target, double *out);
+/* LPIPS and its masked value: *out_masked = the mean over the mask's foreground pixels (first
+ * channel nonzero; at least one) of the lpips package's LPIPS(spatial=True) map (each layer's
+ * per-pixel distance upsampled to the image size, bilinear with align_corners=False, summed over
+ * the layers). mask: NULL (then *out_masked, when given, is NAN) or an image of the images' size. */
+spx_status spx_lpips_distance_masked(spx_lpips *lp, const spx_image *pred, const spx_image *target,
+                                     const spx_image *mask, double *out, double *out_masked);
 void spx_lpips_free(spx_lpips *lp);
 
 /* The pretrained perceptual networks `make weights` (scripts/weights.sh) puts in the user's cache:
