@@ -17,15 +17,8 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "bench_common.h"
 #include "smplpix/smplpix.h"
-
-static uint64_t mix(uint64_t *s) {
-  uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-static float unif(uint64_t *s) { return (float)((double)(mix(s) >> 11) / 9007199254740992.0); }
 
 static FILE *out;
 
@@ -68,8 +61,8 @@ static spx_status unet_case(spx_ctx *ctx, int width, int h, int w) {
   spx_device_tensor *dt = NULL;
   spx_status st = in && tg && y ? SPX_OK : SPX_E_NOMEM;
   uint64_t s = 0xb17e5ULL + (uint64_t)width * 1000 + (uint64_t)h;
-  for (size_t k = 0; !st && k < N * 4 * hw; k++) in[k] = unif(&s);
-  for (size_t k = 0; !st && k < N * 3 * hw; k++) tg[k] = unif(&s);
+  for (size_t k = 0; !st && k < N * 4 * hw; k++) in[k] = bench_unif(&s);
+  for (size_t k = 0; !st && k < N * 3 * hw; k++) tg[k] = bench_unif(&s);
   char what[64];
   float loss = 0;
   printf("unet width %d, %dx4x%dx%d\n", width, N, h, w);
@@ -99,37 +92,6 @@ static spx_status unet_case(spx_ctx *ctx, int width, int h, int w) {
   return st;
 }
 
-/* a random torchvision-named VGG19 of base width wd */
-static spx_status write_vgg(spx_ctx *ctx, const char *path, int wd) {
-  static const int idx[13] = {0, 2, 5, 7, 10, 12, 14, 16, 19, 21, 23, 25, 28};
-  static const int mult[13] = {1, 1, 2, 2, 4, 4, 4, 4, 8, 8, 8, 8, 8};
-  spx_st_entry es[26];
-  char names[26][32];
-  float *bufs[26] = {0};
-  uint64_t s = 7;
-  int cin = 3;
-  spx_status st = SPX_OK;
-  for (int i = 0; i < 13 && !st; i++) {
-    int co = mult[i] * wd;
-    size_t nw = (size_t)co * cin * 9;
-    bufs[2 * i] = malloc(nw * 4), bufs[2 * i + 1] = malloc((size_t)co * 4);
-    if (!bufs[2 * i] || !bufs[2 * i + 1]) {
-      st = SPX_E_NOMEM;
-      break;
-    }
-    for (size_t k = 0; k < nw; k++) bufs[2 * i][k] = (unif(&s) - 0.5f) * 4.0f / (float)(cin * 9);
-    for (int k = 0; k < co; k++) bufs[2 * i + 1][k] = (unif(&s) - 0.5f) * 0.1f;
-    snprintf(names[2 * i], sizeof names[0], "features.%d.weight", idx[i]);
-    snprintf(names[2 * i + 1], sizeof names[0], "features.%d.bias", idx[i]);
-    es[2 * i] = (spx_st_entry){names[2 * i], SPX_F32, 4, {co, cin, 3, 3}, bufs[2 * i]};
-    es[2 * i + 1] = (spx_st_entry){names[2 * i + 1], SPX_F32, 1, {co}, bufs[2 * i + 1]};
-    cin = co;
-  }
-  if (!st) st = spx_st_save(ctx, path, es, 26, NULL, NULL, 0);
-  for (int i = 0; i < 26; i++) free(bufs[i]);
-  return st;
-}
-
 static int dump_losses(const char *tag, const spx_gan_losses *l) {
   float v[8] = {l->rec, l->vgg, l->gan, l->fm, l->g_total, l->d_fake, l->d_real, l->d_total};
   return dump(tag, v, 8);
@@ -140,14 +102,14 @@ static spx_status gan_case(spx_ctx *ctx, const char *vpath) {
   size_t hw = (size_t)H * W;
   float in[N * 4 * H * W], tg[N * 3 * H * W];
   uint64_t s = 0x6a11;
-  for (size_t k = 0; k < N * 4 * hw; k++) in[k] = unif(&s);
-  for (size_t k = 0; k < N * 3 * hw; k++) tg[k] = unif(&s);
+  for (size_t k = 0; k < N * 4 * hw; k++) in[k] = bench_unif(&s);
+  for (size_t k = 0; k < N * 3 * hw; k++) tg[k] = bench_unif(&s);
   spx_unet *g = NULL;
   spx_patchgan *d = NULL;
   spx_vgg *v = NULL;
   spx_gan_losses l;
   printf("gan step: unet width 8, patchgan ndf 8 x 2 scales, vgg19 width 4, %dx4x%dx%d\n", N, H, W);
-  spx_status st = write_vgg(ctx, vpath, 4);
+  spx_status st = bench_write_vgg19(ctx, vpath, 4);
   if (!st) st = spx_vgg_open(ctx, vpath, &v);
   if (!st) st = spx_unet_create(ctx, 8, 0, 3, &g);
   if (!st) st = spx_patchgan_new(ctx, 8, 2, 9, &d);

@@ -37,6 +37,21 @@ static double at(const void *p, size_t i, int f64) {
   return f;
 }
 
+typedef struct vpass {
+  spx_vgg *v;
+  const float *x, *gt;
+  int xi, loss; /* ids the build leaves behind */
+} vpass;
+
+static spx_status vgg_build(spx_tape *t, void *user) {
+  vpass *p = user;
+  p->xi = spx_tape_input(t, 1, 3, H, W, p->x);
+  int gi = spx_tape_input(t, 1, 3, H, W, p->gt);
+  spx_tape_requires_grad(t, p->xi); /* in the build: it is part of the plan */
+  p->loss = spx_vgg_loss(p->v, p->xi, gi);
+  return SPX_OK;
+}
+
 static void run(spx_ctx *ctx, spx_tape_backend be) {
   spx_vgg *v = NULL;
   CHECK_OK(ctx, spx_vgg_open_ex(ctx, DIR "vgg_w4.safetensors", be, &v));
@@ -51,17 +66,9 @@ static void run(spx_ctx *ctx, spx_tape_backend be) {
   if (!pred || !gt || !gl || !gg) goto done;
   float *x = malloc(2 * np * 4), *grad = malloc(2 * np * 4);
   memcpy(x, pred, np * 4), memcpy(x + np, gt, np * 4);
-  int again = 0, xi = -1, loss = -1;
-  spx_status st;
-  do {
-    if ((st = spx_tape_begin(t, 1, 1))) break;
-    xi = spx_tape_input(t, 1, 3, H, W, x);
-    int gi = spx_tape_input(t, 1, 3, H, W, x + np);
-    spx_tape_requires_grad(t, xi); /* every pass: it is part of the plan */
-    loss = spx_vgg_loss(v, xi, gi);
-    st = spx_tape_end(t, &again);
-  } while (!st && again);
-  CHECK_OK(ctx, st);
+  vpass p = {v, x, x + np, -1, -1};
+  CHECK_OK(ctx, spx_tape_pass(t, 1, 1, vgg_build, &p));
+  const int xi = p.xi, loss = p.loss;
   CHECK_OK(ctx, spx_tape_backward(t, loss));
   float lv = 0;
   CHECK_OK(ctx, spx_tape_read(t, loss, &lv));

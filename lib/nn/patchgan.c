@@ -127,7 +127,7 @@ int spx_patchgan_forward(spx_patchgan *d, int x, int feat[SPX_PG_MAX_D][SPX_PG_L
     int h = in;
     for (int j = 0; j < SPX_PG_LAYERS; j++) {
       const pg_entry *w = &d->ents[2 * (scale * SPX_PG_LAYERS + j)];
-      h = spx_tape_conv_s(t, h, w[0].id, w[1].id, j < 3 ? 2 : 1, 2);
+      h = spx_tape_conv_strided(t, h, w[0].id, w[1].id, j < 3 ? 2 : 1, 2);
       if (j >= 1 && j <= 3) h = spx_tape_instnorm(t, h, SPX_IN_EPS);
       if (j < 4) h = spx_tape_act(t, SPX_ACT_LEAKY_RELU, 0.2f, h);
       feat[k][j] = h;

@@ -106,9 +106,9 @@ static void features(spx_vgg *v, int x, int feat[5]) {
   static const int pool_after[SPX_VGG_NCONV] = {0, 1, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0};
   /* the slice ends (relu1_1 .. relu5_1) come after convs 0, 2, 4, 8, 12 */
   static const int feat_after[SPX_VGG_NCONV] = {1, 0, 2, 0, 3, 0, 0, 0, 4, 0, 0, 0, 5};
-  int h = spx_tape_conv(t, x, v->nw, v->nb, 0, -1, -1, 0);
+  int h = spx_tape_conv(t, x, v->nw, v->nb);
   for (int i = 0; i < SPX_VGG_NCONV; i++) {
-    h = spx_tape_act(t, SPX_ACT_RELU, 0.0f, spx_tape_conv(t, h, v->w[i], v->b[i], 1, -1, -1, 0));
+    h = spx_tape_act(t, SPX_ACT_RELU, 0.0f, spx_tape_conv(t, h, v->w[i], v->b[i]));
     if (feat_after[i]) feat[feat_after[i] - 1] = h;
     if (pool_after[i]) h = spx_tape_maxpool2(t, h);
   }
