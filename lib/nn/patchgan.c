@@ -35,13 +35,7 @@ static int ch_out(int ndf, int j) {
 }
 static int ch_in(int in_ch, int ndf, int j) { return j == 0 ? in_ch : ch_out(ndf, j - 1); }
 
-static uint64_t mix(uint64_t *s) {
-  uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-static double unif(uint64_t *s) { return ((double)(mix(s) >> 11) + 0.5) / 9007199254740992.0; }
+static double unif(uint64_t *s) { return ((double)(spx_splitmix64(s) >> 11) + 0.5) / 9007199254740992.0; }
 
 spx_status spx_patchgan_create(spx_ctx *ctx, int in_ch, int ndf, int num_d, uint64_t seed, spx_tape_backend backend,
                                spx_patchgan **out) {

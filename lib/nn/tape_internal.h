@@ -207,7 +207,7 @@ int spx_tp_now(const spx_tape *t);                   /* the current time between
 spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what);
 /* The planned workspace of node `node`'s forward (bwd = 0) or backward (1) in ws, returned; NULL
  * (scratch allocated per call) when the plan has none. */
-spx_conv2d_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_conv2d_workspace *ws);
+spx_op_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_op_workspace *ws);
 /* Grows the separate op-scratch buffer (TAPE_WS_ARENA 0) to plan p's largest op; grow-only. */
 spx_status spx_tp_ws_reserve(spx_tape *t, const tplan *p);
 /* tape_pass.c: the arena for plan p (grow-only) */

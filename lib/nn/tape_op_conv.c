@@ -46,7 +46,7 @@ static int conv_op(spx_tape *t, int x, int w, int bias, int stride, int pad, int
   }
   spx_tensor tx = TV(x), tw = TV(w), tb = bias >= 0 ? TV(bias) : tx, ts = scale >= 0 ? TV(scale) : tx,
              tsh = shift >= 0 ? TV(shift) : tx, ty = TV(y);
-  spx_conv2d_workspace ws;
+  spx_op_workspace ws;
   spx_conv2d_params p = {k,    stride, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu,
                          spx_tp_ws(t, t->nnodes - 1, 0, &ws)};
   spx_tp_prof_conv_note(t, xv->c, wv->n, xv->h * xv->w, k, stride, pad, inference);
@@ -102,7 +102,7 @@ static spx_status conv_back_dev(spx_tape *t, const tnode *nd) {
   spx_tensor x = TV(nd->in[0]), w = TV(nd->in[1]), dy = spx_tape_grad_tensor(t, nd->out);
   spx_tensor dx = spx_tape_grad_tensor(t, nd->in[0]), dw = spx_tape_grad_tensor(t, nd->in[1]), db;
   if (nd->in[2] >= 0) db = spx_tape_grad_tensor(t, nd->in[2]);
-  spx_conv2d_workspace ws;
+  spx_op_workspace ws;
   spx_conv2d_params p = {t->vals[nd->in[1]].h, nd->arg.conv.stride, nd->arg.conv.pad, NULL, NULL, 0,
                          spx_tp_ws(t, (int)(nd - t->nodes), 1, &ws)};
   return spx_conv2d_backward(t->ctx, &x, &w, &dy, spx_tp_wants(t, nd->in[0]) ? &dx : NULL,

@@ -115,7 +115,7 @@ static spx_status upcat_back_host(spx_tape *t, const tnode *nd) {
 static spx_status upcat_back_dev(spx_tape *t, const tnode *nd) {
   spx_tensor dout = spx_tape_grad_tensor(t, nd->out), ds = spx_tape_grad_tensor(t, nd->in[0]);
   spx_tensor dxt = spx_tape_grad_tensor(t, nd->in[1]);
-  spx_conv2d_workspace sws; /* the upsampling backward's scratch, planned (upcat_ws_need) */
+  spx_op_workspace sws; /* the upsampling backward's scratch, planned (upcat_ws_need) */
   return spx_upcat_backward_ws(t->ctx, &dout, nd->arg.upcat.top, nd->arg.upcat.left, 1,
                                spx_tp_wants(t, nd->in[0]) ? &ds : NULL, spx_tp_wants(t, nd->in[1]) ? &dxt : NULL,
                                spx_tp_ws(t, (int)(nd - t->nodes), 1, &sws));

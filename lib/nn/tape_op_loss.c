@@ -21,7 +21,7 @@ int spx_tape_l1(spx_tape *t, int pred, int target) {
     return y;
   }
   spx_tensor tp = TV(pred), tt = TV(target), ty = TV(y);
-  spx_conv2d_workspace ws;
+  spx_op_workspace ws;
   double t0 = spx_tp_prof_begin(t);
   spx_status st = spx_loss_forward_ws(t->ctx, SPX_LOSS_L1, SPX_REDUCE_MEAN, &tp, &tt, &ty,
                                       spx_tp_ws(t, t->nnodes - 1, 0, &ws));
@@ -44,7 +44,7 @@ int spx_tape_mse_const(spx_tape *t, int x, float target) {
     return y;
   }
   spx_tensor tx = TV(x), tc = TV(c), ty = TV(y);
-  spx_conv2d_workspace ws;
+  spx_op_workspace ws;
   double t0 = spx_tp_prof_begin(t);
   spx_status st = spx_fill(t->ctx, &tc, target);
   if (!st)

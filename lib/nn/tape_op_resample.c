@@ -81,7 +81,7 @@ static spx_status upsample_back_host(spx_tape *t, const tnode *nd) {
 static spx_status upsample_back_dev(spx_tape *t, const tnode *nd) {
   if (!spx_tp_wants(t, nd->in[0])) return SPX_OK;
   spx_tensor dy = spx_tape_grad_tensor(t, nd->out), dx = spx_tape_grad_tensor(t, nd->in[0]);
-  spx_conv2d_workspace ws;
+  spx_op_workspace ws;
   return spx_upsample2x_backward_ws(t->ctx, &dy, 1, &dx, spx_tp_ws(t, (int)(nd - t->nodes), 1, &ws));
 }
 

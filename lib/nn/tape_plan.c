@@ -372,7 +372,7 @@ spx_status spx_tp_ws_reserve(spx_tape *t, const tplan *p) {
   return st;
 }
 
-spx_conv2d_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_conv2d_workspace *ws) {
+spx_op_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_op_workspace *ws) {
   const tplan *p = t->cur;
   memset(ws, 0, sizeof *ws);
   if (!p || !p->wsneed || node < 0 || node >= p->nnodes) return NULL;

@@ -15,7 +15,6 @@
 
 #include "cl/tensor.h"
 #include "nn/batchnorm.h"
-#include "smplpix/patchgan.h"
 #include "smplpix/safetensors.h"
 
 #define NDC 9 /* inc, down1..4, up1..4 */
@@ -71,11 +70,7 @@ static void add_entry(spx_unet *u, const char *prefix, const char *suffix, int k
 
 /* splitmix64 -> uniform in [lo, hi) */
 static double rnd(uint64_t *s, double lo, double hi) {
-  uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  z ^= z >> 31;
-  return lo + (hi - lo) * (double)(z >> 11) * (1.0 / 9007199254740992.0);
+  return lo + (hi - lo) * (double)(spx_splitmix64(s) >> 11) * (1.0 / 9007199254740992.0);
 }
 
 static spx_status init_weights(spx_unet *u, uint64_t seed) {
