@@ -222,12 +222,60 @@ static void test_unet_bit_exact(spx_tape_backend be) {
   free(a.out), free(a.grads), free(b.out), free(b.grads), free(a.out1), free(b.out1);
 }
 
+/* A build handing its own input to another tape: refused while its pass measures (no data yet),
+ * done on the planned run. */
+typedef struct handoff {
+  spx_tape *dst;
+  int did;
+  const float *x;
+  int runs, refused;
+} handoff;
+
+static spx_status handoff_build(spx_tape *t, void *user) {
+  handoff *h = user;
+  int in = spx_tape_input(t, 1, 1, 3, 5, h->x);
+  spx_status st = spx_tape_transfer(h->dst, h->did, 0, 0, t, in, 0, 0, 15, 0);
+  h->runs++;
+  if (st == SPX_E_STATE) h->refused++;
+  return h->runs == 1 ? SPX_OK : st; /* the measuring run goes on to be planned */
+}
+
+/* Inputs outside a pass and transfers out of a measuring pass are refused; a transfer into a
+ * measuring pass copies nothing (the two-tape graphs of test_nn_tape_multi use it). */
+static void test_pass_rules(spx_tape_backend be) {
+  spx_ctx *ctx = NULL;
+  spx_tape *t = bare_tape(be, &ctx), *t2 = NULL;
+  CHECK(t == NULL || spx_tape_create(ctx, be, &t2) == SPX_OK);
+  if (!t || !t2 || spx_tape_alloc_params(t2)) {
+    spx_tape_destroy(t), spx_tape_destroy(t2);
+    spx_ctx_destroy(ctx);
+    return;
+  }
+  float x[15], y[15];
+  for (int i = 0; i < 15; i++) x[i] = (float)i;
+  CHECK(spx_tape_input(t, 1, 1, 3, 5, x) < 0);
+  CHECK(strstr(spx_ctx_message(ctx), "outside spx_tape_pass") != NULL);
+  chain ch = {x, -1, -1, -1};
+  CHECK_OK(ctx, spx_tape_pass(t2, 0, 1, eval_chain, &ch)); /* t2's output: the destination */
+  chain c0 = {x, -1, -1, -1};
+  CHECK_OK(ctx, spx_tape_pass(t, 0, 1, eval_chain, &c0)); /* t's arena exists: a read would "work" */
+  handoff h = {t2, ch.out, x, 0, 0};
+  CHECK_OK(ctx, spx_tape_pass(t, 0, 3, handoff_build, &h));
+  CHECK_MSG(h.runs == 2 && h.refused == 1, "%d runs, %d refused", h.runs, h.refused);
+  CHECK_OK(ctx, spx_tape_read(t2, ch.out, y));
+  CHECK(memcmp(x, y, sizeof x) == 0);
+  spx_tape_destroy(t), spx_tape_destroy(t2);
+  spx_ctx_destroy(ctx);
+}
+
 static void test_host(void) {
+  test_pass_rules(SPX_TAPE_HOST);
   test_exact_eval(SPX_TAPE_HOST);
   test_exact_train(SPX_TAPE_HOST);
   test_unet_bit_exact(SPX_TAPE_HOST);
 }
 static void test_device(void) {
+  test_pass_rules(SPX_TAPE_DEVICE);
   test_exact_eval(SPX_TAPE_DEVICE);
   test_exact_train(SPX_TAPE_DEVICE);
   test_unet_bit_exact(SPX_TAPE_DEVICE);

@@ -1,6 +1,7 @@
-/* The multi-network tape ops (lib/nn/tape_op_*.c: instance norm, average pool, MSE, axpby, strided conv; aliases in lib/nn/tape.c) on a tiny
- * PatchGAN-like graph: 4x4 convolutions with stride 2 / 1 and padding 2, instance norm, LeakyReLU,
- * 3x3 average pooling, batch slices, MSE against constants, L1, weighted sums (axpby).
+/* The multi-network tape ops (lib/nn/tape_op_*.c: strided conv, instance norm, average pool, MSE,
+ * axpby; detach / slice aliases and transfers in lib/nn/tape.c) on a tiny PatchGAN-like graph:
+ * 4x4 convolutions with stride 2 / 1 and padding 2, instance norm, LeakyReLU, 3x3 average
+ * pooling, batch slices, MSE against constants, L1, weighted sums (axpby).
  *  - finite differences on the HOST backend (double references) for every parameter and the input;
  *  - detach: a detached branch adds nothing to the gradients (and the same branch undetached does);
  *  - two tapes chained by spx_tape_transfer (values forward, the input gradient back between

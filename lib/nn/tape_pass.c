@@ -169,6 +169,7 @@ int spx_tape_input_device(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t 
   size_t bytes = spx_tensor_numel(&v) * sizeof(float);
   cl_int e = clEnqueueCopyBuffer(t->ctx->dev->queue, src, v.mem, offset, v.off * sizeof(float), bytes, 0, NULL, NULL);
   if (e != CL_SUCCESS)
-    t->err = spx_fail(t->ctx, SPX_E_CL, "tape: copying the %zu-byte device input failed (OpenCL error %d)", bytes, (int)e);
+    t->err =
+        spx_fail(t->ctx, SPX_E_CL, "tape: copying the %zu-byte device input failed (OpenCL error %d)", bytes, (int)e);
   return id;
 }

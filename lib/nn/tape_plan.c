@@ -8,8 +8,8 @@
  * node j runs at 4N - 2j + 1 (node N-1 first, at 2N + 3) and the backward ends at 4N + 2.
  *
  * A storage (a value and the detach / slice aliases of it) holds its data from its birth to its
- * last reader: forward ops reading it, and backward steps that read saved activations
- * (the op table's back_reads). Storage that nothing reads (the outputs of the pass), storage marked with
+ * last reader: forward ops reading it, and backward steps that read saved activations (the op
+ * table's back_reads). Storage that nothing reads (the outputs of the pass), storage marked with
  * spx_tape_keep and, under spx_tape_set_retain, everything backward reads lives to the end
  * (TP_INF). Its gradient lives from the first backward step that adds to it to the backward step
  * of its producer; gradients that can be seeded or handed in from outside (no producer inside the
@@ -19,8 +19,9 @@
  * Offsets: the storages (data and gradient separately) sorted by size, largest first (ties by
  * value id), each put at the lowest offset (16-float aligned) that overlaps no storage placed
  * before it whose interval meets its own and crosses no multiple of the plan's chunk (the device's
- * largest allocation: the arena is one buffer per chunk, lib/nn/tape_pass.c spx_tp_grow_arena). All of it depends only on the recorded graph, so a pass
- * always gets the same layout and the results do not depend on reuse.
+ * largest allocation: the arena is one buffer per chunk, lib/nn/tape_pass.c spx_tp_grow_arena).
+ * All of it depends only on the recorded graph, so a pass always gets the same layout and the
+ * results do not depend on reuse.
  *
  * Op scratch (device backend; lib/nn/workspace.h): node k's forward and its backward step each
  * get one region of the arena holding the slots its launchers ask for (the op table's ws_need:

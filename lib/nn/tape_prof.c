@@ -34,7 +34,8 @@ spx_status spx_tp_prof_create(spx_tape *t) {
   int level = t->backend != SPX_TAPE_DEVICE ? 0 : (f & SPX_PROFILE_TAPE_OPS) ? 2 : (f & SPX_PROFILE_TAPE) ? 1 : 0;
   t->prof = NULL;
   if (!level) return SPX_OK;
-  if (!(t->prof = calloc(1, sizeof *t->prof))) return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for its profile");
+  if (!(t->prof = calloc(1, sizeof *t->prof)))
+    return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for its profile");
   t->prof->level = level;
   return SPX_OK;
 }
