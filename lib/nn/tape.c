@@ -107,8 +107,8 @@ spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **ou
   if (!t) return spx_fail(ctx, SPX_E_NOMEM, "tape: out of memory");
   t->ctx = ctx;
   t->backend = backend;
-  t->poison = (spx_ctx_profile(ctx) & SPX_DEBUG_TAPE_POISON) != 0;
-  t->reuse = 1;
+  t->pl.poison = (spx_ctx_profile(ctx) & SPX_DEBUG_TAPE_POISON) != 0;
+  t->pl.reuse = 1;
   spx_status st = spx_tp_dist_create(t);
   if (!st) st = spx_tp_prof_create(t);
   if (st) {
@@ -135,7 +135,7 @@ void spx_tape_destroy(spx_tape *t) {
   for (int i = 0; i < t->nact; i++) spx_cl_free(&t->act[i]);
   free(t->act), free(t->act_len);
   free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact);
-  for (int i = 0; i < t->nplans; i++) spx_tp_plan_free(&t->plans[i]);
+  for (int i = 0; i < t->pl.nplans; i++) spx_tp_plan_free(&t->pl.plans[i]);
   spx_tp_dist_destroy(t);
   free(t->vals);
   free(t->nodes);
@@ -360,7 +360,7 @@ static spx_status set_flag(spx_tape *t, int id, int flag, const char *what) {
   if (t->err) return t->err;
   if (!spx_tp_valid(t, id) || t->vals[id].space != SP_ACT || !t->in_pass)
     return t->err = spx_fail(t->ctx, SPX_E_ARG, "tape: %s on %d, which is not an activation of this pass", what, id);
-  if (t->cur && !(t->cur->v[id - t->npersist].flags & flag))
+  if (t->pl.cur && !(t->pl.cur->v[id - t->npersist].flags & flag))
     return t->err = spx_fail(t->ctx, SPX_E_STATE,
                              "tape: %s on value %d in a pass whose measuring pass did not call it (call it in "
                              "every pass)",

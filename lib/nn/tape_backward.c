@@ -18,21 +18,21 @@ static spx_status need_backward(spx_tape *t) {
 spx_status spx_tape_backward_begin(spx_tape *t) {
   spx_status st = need_backward(t);
   if (st || (st = spx_tp_train_slabs(t))) return st;
-  if (t->backward_runs && !t->retain)
+  if (t->pl.backward_runs && !t->pl.retain)
     return spx_fail(t->ctx, SPX_E_STATE,
                     "tape: a second backward over one forward pass needs spx_tape_set_retain(t, 1) before the pass");
   /* gradients are zeroed when they are born: those born here now, the others in backward_run */
-  t->phase = 2;
+  t->pl.phase = 2;
   int tb = 2 * t->nnodes + 1;
-  t->dcur = t->bcur = 0;
-  while (t->dcur < t->cur->ndeaths && t->cur->deaths[t->dcur].time < tb) t->dcur++;
+  t->pl.dcur = t->pl.bcur = 0;
+  while (t->pl.dcur < t->pl.cur->ndeaths && t->pl.cur->deaths[t->pl.dcur].time < tb) t->pl.dcur++;
   return spx_tp_advance(t, tb);
 }
 
 spx_status spx_tape_seed(spx_tape *t, int id, float value) {
   if (!spx_tp_valid(t, id) || spx_tp_numel(&t->vals[id]) != 1 || t->vals[id].space != SP_ACT)
     return spx_fail(t->ctx, SPX_E_ARG, "tape: backward from a value that is not a scalar activation");
-  spx_status st = t->phase == 2 ? spx_tp_check_live(t, id, 1, "seed")
+  spx_status st = t->pl.phase == 2 ? spx_tp_check_live(t, id, 1, "seed")
                                 : spx_fail(t->ctx, SPX_E_STATE, "tape: seed outside backward_begin / backward_run");
   if (st) return st;
   value *= spx_tape_seed_scale(t); /* this rank's share of the global batch (1 without a shard) */
@@ -50,7 +50,7 @@ spx_status spx_tape_seed(spx_tape *t, int id, float value) {
 spx_status spx_tape_backward_run(spx_tape *t) {
   spx_status st = need_backward(t);
   if (st) return st;
-  if (t->phase != 2) return spx_fail(t->ctx, SPX_E_STATE, "tape: backward_run without backward_begin");
+  if (t->pl.phase != 2) return spx_fail(t->ctx, SPX_E_STATE, "tape: backward_run without backward_begin");
   int n = t->nnodes;
   for (int i = n - 1; i >= 0; i--) {
     const tnode *nd = &t->nodes[i];
@@ -61,8 +61,8 @@ spx_status spx_tape_backward_run(spx_tape *t) {
     if ((st = HOST ? op->back_host(t, nd) : op->back_dev(t, nd))) return st;
     spx_tp_prof_end(t, nd->kind, 1, t0);
   }
-  t->phase = 3;
-  t->backward_runs++;
+  t->pl.phase = 3;
+  t->pl.backward_runs++;
   return spx_tp_advance(t, 4 * n + 2);
 }
 

@@ -152,14 +152,16 @@ struct spx_tape {
   int train, measuring, in_pass;
   spx_status err;
   /* liveness (lib/nn/tape_plan.c): the plan of this pass (NULL while measuring), where the pass
-   * is (0 forward, 1 ended, 2 backward begun, 3 backward done), event cursors, options */
-  tplan *cur;
-  int phase, backward_runs, dcur, bcur;
-  int retain, reuse, poison;
-  /* plans: one per measured key, oldest dropped first */
-  tplan plans[TP_MAXPLANS];
-  int nplans;
-  int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
+   * is (0 forward, 1 ended, 2 backward begun, 3 backward done), event cursors, options, and the
+   * plans, one per measured key (oldest dropped first) */
+  struct {
+    tplan *cur;
+    int phase, backward_runs, dcur, bcur;
+    int retain, reuse, poison;
+    tplan plans[TP_MAXPLANS];
+    int nplans;
+    int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
+  } pl;
   struct tp_dist *dist; /* data-parallel training: comm, shard, host staging */
   struct tp_prof *prof; /* device-time profile; NULL: off */
 };

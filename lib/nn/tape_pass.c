@@ -21,21 +21,21 @@ static void pass_begin(spx_tape *t, int train, uint64_t plan_key) {
   /* the conv workspace regions of a plan follow the tunables (spx_device_set_tunable may change them) */
   if (t->backend == SPX_TAPE_DEVICE) plan_key = spx_hash64(&t->ctx->dev->tune, sizeof t->ctx->dev->tune, plan_key);
   t->measuring = 1;
-  t->cur = NULL;
-  t->phase = 0, t->dcur = t->bcur = 0, t->backward_runs = 0;
-  for (int i = 0; i < t->nplans; i++) {
-    tplan *p = &t->plans[i];
-    if (p->key == plan_key && p->train == t->train && p->retain == t->retain && p->reuse == t->reuse &&
+  t->pl.cur = NULL;
+  t->pl.phase = 0, t->pl.dcur = t->pl.bcur = 0, t->pl.backward_runs = 0;
+  for (int i = 0; i < t->pl.nplans; i++) {
+    tplan *p = &t->pl.plans[i];
+    if (p->key == plan_key && p->train == t->train && p->retain == t->pl.retain && p->reuse == t->pl.reuse &&
         p->size <= t->act_cap && p->chunk == t->act_chunk)
-      t->measuring = 0, t->cur = p;
+      t->measuring = 0, t->pl.cur = p;
   }
-  if (t->measuring && t->nplans == TP_MAXPLANS) { /* drop the oldest plan */
-    spx_tp_plan_free(&t->plans[0]);
-    memmove(t->plans, t->plans + 1, (TP_MAXPLANS - 1) * sizeof(tplan));
-    memset(&t->plans[TP_MAXPLANS - 1], 0, sizeof(tplan));
-    t->nplans--;
+  if (t->measuring && t->pl.nplans == TP_MAXPLANS) { /* drop the oldest plan */
+    spx_tp_plan_free(&t->pl.plans[0]);
+    memmove(t->pl.plans, t->pl.plans + 1, (TP_MAXPLANS - 1) * sizeof(tplan));
+    memset(&t->pl.plans[TP_MAXPLANS - 1], 0, sizeof(tplan));
+    t->pl.nplans--;
   }
-  if (t->measuring) t->plans[t->nplans].key = plan_key; /* pass_end makes the plan */
+  if (t->measuring) t->pl.plans[t->pl.nplans].key = plan_key; /* pass_end makes the plan */
 }
 
 /* The pass ends: a measuring one plans the recorded graph and sizes the arena (*again: run it
@@ -43,17 +43,17 @@ static void pass_begin(spx_tape *t, int train, uint64_t plan_key) {
 static spx_status pass_end(spx_tape *t, int *again) {
   *again = 0;
   t->in_pass = 0;
-  t->phase = 1;
+  t->pl.phase = 1;
   if (t->err) return t->err;
   if (!t->measuring) return t->err = spx_tp_advance(t, 2 * t->nnodes);
-  tplan *p = &t->plans[t->nplans];
+  tplan *p = &t->pl.plans[t->pl.nplans];
   uint64_t key = p->key;
   spx_status st = spx_tp_plan(t, p);
   if (st) return st;
   p->key = key;
-  t->nplans++;
+  t->pl.nplans++;
   if ((st = spx_tp_grow_arena(t, p)) || (st = spx_tp_ws_reserve(t, p))) return st;
-  t->nmeasured++;
+  t->pl.nmeasured++;
   *again = 1;
   return SPX_OK;
 }
@@ -70,7 +70,7 @@ spx_status spx_tape_pass(spx_tape *t, int train, uint64_t plan_key, spx_tape_bui
   }
 }
 
-int spx_tape_plan_count(const spx_tape *t) { return t->nmeasured; }
+int spx_tape_plan_count(const spx_tape *t) { return t->pl.nmeasured; }
 
 /* The arena for plan p: host, one block; device, chunks of p->chunk floats covering p->size
  * (grow-only per chunk; all of it anew when the chunk size changes). */

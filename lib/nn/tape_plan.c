@@ -160,7 +160,7 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
   const int np = t->npersist, nv = t->nvals - np, N = t->nnodes;
   const int tbegin = 2 * N + 1, tseed = 2 * N + 2;
   p->nv = nv, p->nnodes = N;
-  p->train = t->train, p->retain = t->retain, p->reuse = t->reuse;
+  p->train = t->train, p->retain = t->pl.retain, p->reuse = t->pl.reuse;
   p->v = calloc((size_t)(nv ? nv : 1), sizeof *p->v);
   /* per root (index id - np): last data use, backward data use, gradient access span, flags */
   int *last = malloc(sizeof(int) * (size_t)(nv ? nv : 1) * 8);
@@ -179,7 +179,7 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
 #define ROOT(id) rt[(id) - np]
 #define ACT(id) ((id) >= np && t->vals[id].space == SP_ACT)
   for (int i = 0; i < nv; i++) rt[i] = t->vals[np + i].root - np, b0[i] = TP_INF;
-  if (t->backend == SPX_TAPE_DEVICE && !t->train && t->reuse) concat_in_place(t, rt);
+  if (t->backend == SPX_TAPE_DEVICE && !t->train && t->pl.reuse) concat_in_place(t, rt);
   for (int i = 0; i < nv; i++) b0[rt[i]] = imin(b0[rt[i]], t->vals[np + i].born);
   for (int i = 0; i < nv; i++) {
     const tvalue *v = &t->vals[np + i];
@@ -209,14 +209,14 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
     if (rt[i] != i) continue;
     int sink = last[i] < 0, keep = (fl[i] & TV_KEEP) != 0;
     e->d0 = b0[i];
-    e->d1 = sink || keep || (t->retain && bused[i]) ? TP_INF : last[i];
+    e->d1 = sink || keep || (t->pl.retain && bused[i]) ? TP_INF : last[i];
     e->g0 = e->g1 = TP_INF;
     if (t->train && (fl[i] & 4)) {
       e->g0 = sink || keep || !written[i] ? tbegin : gmin[i];
       e->g1 = imax(gmax[i], e->g0 == tbegin ? tseed : e->g0);
       if (keep || (fl[i] & TV_REQGRAD)) e->g1 = TP_INF;
     }
-    if (!t->reuse) { /* everything lives to the end: no two storages share memory */
+    if (!t->pl.reuse) { /* everything lives to the end: no two storages share memory */
       e->d0 = 0, e->d1 = TP_INF;
       if (e->g0 != TP_INF) e->g0 = tbegin, e->g1 = TP_INF;
     }
@@ -296,32 +296,32 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
 }
 
 size_t spx_tape_plan_bytes(const spx_tape *t, size_t *without_reuse) {
-  const tplan *p = t->cur;
+  const tplan *p = t->pl.cur;
   size_t el = t->backend == SPX_TAPE_HOST ? sizeof(double) : sizeof(float);
   if (without_reuse) *without_reuse = p ? p->sum * el : 0;
   return p ? p->size * el : 0;
 }
 
-void spx_tape_set_retain(spx_tape *t, int on) { t->retain = on != 0; }
-void spx_tape_set_reuse(spx_tape *t, int on) { t->reuse = on != 0; }
-void spx_tape_set_poison(spx_tape *t, int on) { t->poison = on != 0; }
+void spx_tape_set_retain(spx_tape *t, int on) { t->pl.retain = on != 0; }
+void spx_tape_set_reuse(spx_tape *t, int on) { t->pl.reuse = on != 0; }
+void spx_tape_set_poison(spx_tape *t, int on) { t->pl.poison = on != 0; }
 
 void spx_tp_place(spx_tape *t, int id) {
   tvalue *v = &t->vals[id];
   int i = id - t->npersist;
-  if (!t->cur) return;
-  if (i >= t->cur->nv || t->cur->v[i].numel != spx_tp_numel(v)) {
+  if (!t->pl.cur) return;
+  if (i >= t->pl.cur->nv || t->pl.cur->v[i].numel != spx_tp_numel(v)) {
     t->err = spx_fail(t->ctx, SPX_E_STATE, "tape: value %d of the pass differs from its plan (one plan key, two graphs?)",
                       id);
     return;
   }
-  v->off = t->cur->v[i].off;
-  v->goff = t->cur->v[i].goff;
+  v->off = t->pl.cur->v[i].off;
+  v->goff = t->pl.cur->v[i].goff;
 }
 
 int spx_tp_now(const spx_tape *t) {
   int n = t->nnodes;
-  switch (t->phase) {
+  switch (t->pl.phase) {
     case 0: return 2 * n;
     case 1: return 2 * n;
     case 2: return 2 * n + 2;
@@ -340,19 +340,19 @@ static spx_status fill(spx_tape *t, const tpevent *e, float value) {
 }
 
 spx_status spx_tp_advance(spx_tape *t, int time) {
-  tplan *p = t->cur;
+  tplan *p = t->pl.cur;
   spx_status st;
   if (!p) return SPX_OK;
-  for (; t->dcur < p->ndeaths && p->deaths[t->dcur].time < time; t->dcur++)
-    if (t->poison && (st = fill(t, &p->deaths[t->dcur], NAN))) return st;
-  for (; t->bcur < p->nbirths && p->births[t->bcur].time <= time; t->bcur++)
-    if ((st = fill(t, &p->births[t->bcur], 0.0f))) return st;
+  for (; t->pl.dcur < p->ndeaths && p->deaths[t->pl.dcur].time < time; t->pl.dcur++)
+    if (t->pl.poison && (st = fill(t, &p->deaths[t->pl.dcur], NAN))) return st;
+  for (; t->pl.bcur < p->nbirths && p->births[t->pl.bcur].time <= time; t->pl.bcur++)
+    if ((st = fill(t, &p->births[t->pl.bcur], 0.0f))) return st;
   return SPX_OK;
 }
 
 spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what) {
-  if (!t->cur || t->measuring || t->vals[id].space != SP_ACT || id - t->npersist >= t->cur->nv) return SPX_OK;
-  const tpval *e = &t->cur->v[id - t->npersist];
+  if (!t->pl.cur || t->measuring || t->vals[id].space != SP_ACT || id - t->npersist >= t->pl.cur->nv) return SPX_OK;
+  const tpval *e = &t->pl.cur->v[id - t->npersist];
   int now = spx_tp_now(t), a = grad ? e->g0 : e->d0, b = grad ? e->g1 : e->d1;
   if (grad && a == TP_INF)
     return spx_fail(t->ctx, SPX_E_STATE, "tape: %s: value %d has no gradient in this pass", what, id);
@@ -374,7 +374,7 @@ spx_status spx_tp_ws_reserve(spx_tape *t, const tplan *p) {
 }
 
 spx_op_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_op_workspace *ws) {
-  const tplan *p = t->cur;
+  const tplan *p = t->pl.cur;
   memset(ws, 0, sizeof *ws);
   if (!p || !p->wsneed || node < 0 || node >= p->nnodes) return NULL;
   size_t off = 0;
