@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "core/internal.h"
+#include "smplpix/safetensors.h"
 
 static int cmp_d(const void *a, const void *b) {
   double x = *(const double *)a, y = *(const double *)b;
@@ -151,4 +152,43 @@ void bench_cpu_model(char *buf, size_t cap) {
     fclose(f);
   }
   snprintf(buf, cap, "%s, %ld CPUs", model, sysconf(_SC_NPROCESSORS_ONLN));
+}
+
+uint64_t bench_rng(uint64_t *s) {
+  uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+float bench_unif(uint64_t *s) { return (float)((double)(bench_rng(s) >> 11) / 9007199254740992.0); }
+
+spx_status bench_write_vgg19(spx_ctx *ctx, const char *path, int wd) {
+  static const int idx[13] = {0, 2, 5, 7, 10, 12, 14, 16, 19, 21, 23, 25, 28};
+  static const int mult[13] = {1, 1, 2, 2, 4, 4, 4, 4, 8, 8, 8, 8, 8};
+  spx_st_entry es[26];
+  char names[26][32];
+  float *bufs[26] = {0};
+  uint64_t s = 7;
+  int cin = 3;
+  spx_status st = SPX_OK;
+  for (int i = 0; i < 13; i++) {
+    int co = mult[i] * wd;
+    size_t nw = (size_t)co * cin * 9;
+    bufs[2 * i] = malloc(nw * 4), bufs[2 * i + 1] = malloc((size_t)co * 4);
+    if (!bufs[2 * i] || !bufs[2 * i + 1]) {
+      st = SPX_E_NOMEM;
+      break;
+    }
+    float sc = 2.0f / (float)(cin * 9);
+    for (size_t k = 0; k < nw; k++) bufs[2 * i][k] = (bench_unif(&s) - 0.5f) * 2.0f * sc * 1.7f;
+    for (int k = 0; k < co; k++) bufs[2 * i + 1][k] = (bench_unif(&s) - 0.5f) * 0.1f;
+    snprintf(names[2 * i], sizeof names[0], "features.%d.weight", idx[i]);
+    snprintf(names[2 * i + 1], sizeof names[0], "features.%d.bias", idx[i]);
+    es[2 * i] = (spx_st_entry){names[2 * i], SPX_F32, 4, {co, cin, 3, 3}, bufs[2 * i]};
+    es[2 * i + 1] = (spx_st_entry){names[2 * i + 1], SPX_F32, 1, {co}, bufs[2 * i + 1]};
+    cin = co;
+  }
+  if (!st) st = spx_st_save(ctx, path, es, 26, NULL, NULL, 0);
+  for (int i = 0; i < 26; i++) free(bufs[i]);
+  return st;
 }

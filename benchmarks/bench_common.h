@@ -5,6 +5,7 @@
 #define SPX_BENCH_COMMON_H
 
 #include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 
 #include "smplpix/mesh.h"
@@ -60,5 +61,12 @@ void bench_checker_texture(float *tex, int w, int h);
 int bench_out_dir(void);
 /* "Intel(R) Xeon(R) ..., 2 CPUs" from /proc/cpuinfo and sysconf. */
 void bench_cpu_model(char *buf, size_t cap);
+
+/* splitmix64: the next value of the stream s, and a uniform float in [0, 1) from it. */
+uint64_t bench_rng(uint64_t *s);
+float bench_unif(uint64_t *s);
+/* A random VGG19 of base width wd (features.0 .. features.28 convs, as torchvision names them),
+ * written as safetensors to path. */
+spx_status bench_write_vgg19(spx_ctx *ctx, const char *path, int wd);
 
 #endif

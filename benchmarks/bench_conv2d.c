@@ -56,7 +56,7 @@ static int fail(spx_ctx *ctx, const char *what) {
 static double flops(const shape *s) { return 2.0 * s->cout * s->h * s->w * (double)s->cin * s->k * s->k; }
 
 /* mode 0 forward (with fused affine+relu), 1 backward-data, 2 backward-weights; returns min ms */
-static spx_conv2d_workspace ws;
+static spx_op_workspace ws;
 static double cpu_ms_sum; /* process CPU time of the best reps (all threads): less sensitive to other load */
 
 static double cpu_now(void) {
@@ -164,7 +164,7 @@ int main(int argc, char **argv) {
     printf("plain-C reference (double, 1 thread) [1,16->16,32x40] 3x3: %.1f ms, %.2f GFLOP/s\n", t * 1e3, gf / t);
     free(x), free(w), free(y);
   }
-  spx_conv2d_workspace_release(&ws);
+  spx_op_workspace_release(&ws);
   spx_ctx_destroy(ctx);
   return 0;
 }

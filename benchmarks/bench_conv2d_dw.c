@@ -28,7 +28,7 @@ static const layer layers[] = {
 };
 
 /* One weight gradient of layer l (batch n) with CONV_WINO_DW = minc; wall and CPU ms. */
-static int run_dw(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
+static int run_dw(spx_ctx *ctx, spx_op_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                   const spx_tensor *dy, const spx_tensor *dw, int minc, double *ms, double *cpu) {
   ctx->dev->tune.conv_wino_dw = minc; /* host-side only: no program depends on them */
   ctx->dev->tune.conv_wino_dw_minhw = 0;
@@ -68,7 +68,7 @@ int main(int argc, char **argv) {
          ctx->dev->tune.conv_vw, reps);
   printf("%-5s %10s %8s | %9s %9s | %9s %9s | %6s %6s\n", "layer", "channels", "HxW", "direct ms", "cpu ms",
          "wino ms", "cpu ms", "wall", "cpu");
-  spx_conv2d_workspace ws = {0};
+  spx_op_workspace ws = {0};
   double tot[4] = {0};
   int rc = 0;
   for (size_t i = 0; i < sizeof layers / sizeof layers[0] && !rc; i++) {
@@ -102,7 +102,7 @@ int main(int argc, char **argv) {
   else
     printf("total: direct %.1f ms (cpu %.1f), winograd %.1f ms (cpu %.1f): %.2f wall, %.2f cpu\n", tot[0], tot[1],
            tot[2], tot[3], tot[2] / tot[0], tot[3] / tot[1]);
-  spx_conv2d_workspace_release(&ws);
+  spx_op_workspace_release(&ws);
   spx_ctx_destroy(ctx);
   return rc;
 }

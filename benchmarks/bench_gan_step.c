@@ -17,52 +17,13 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_common.h"
 #include "smplpix/smplpix.h"
 
 static double now(void) {
   struct timespec t;
   clock_gettime(CLOCK_MONOTONIC, &t);
   return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-static uint64_t rng(uint64_t *s) {
-  uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-static float unif(uint64_t *s) { return (float)((double)(rng(s) >> 11) / 9007199254740992.0); }
-
-/* a random VGG19 (features.0 .. features.28 convs) of base width wd, as torchvision names it */
-static spx_status write_vgg(spx_ctx *ctx, const char *path, int wd) {
-  static const int idx[13] = {0, 2, 5, 7, 10, 12, 14, 16, 19, 21, 23, 25, 28};
-  static const int mult[13] = {1, 1, 2, 2, 4, 4, 4, 4, 8, 8, 8, 8, 8};
-  spx_st_entry es[26];
-  char names[26][32];
-  float *bufs[26] = {0};
-  uint64_t s = 7;
-  int cin = 3;
-  spx_status st = SPX_OK;
-  for (int i = 0; i < 13; i++) {
-    int co = mult[i] * wd;
-    size_t nw = (size_t)co * cin * 9;
-    bufs[2 * i] = malloc(nw * 4), bufs[2 * i + 1] = malloc((size_t)co * 4);
-    if (!bufs[2 * i] || !bufs[2 * i + 1]) {
-      st = SPX_E_NOMEM;
-      break;
-    }
-    float sc = 2.0f / (float)(cin * 9);
-    for (size_t k = 0; k < nw; k++) bufs[2 * i][k] = (unif(&s) - 0.5f) * 2.0f * sc * 1.7f;
-    for (int k = 0; k < co; k++) bufs[2 * i + 1][k] = (unif(&s) - 0.5f) * 0.1f;
-    snprintf(names[2 * i], sizeof names[0], "features.%d.weight", idx[i]);
-    snprintf(names[2 * i + 1], sizeof names[0], "features.%d.bias", idx[i]);
-    es[2 * i] = (spx_st_entry){names[2 * i], SPX_F32, 4, {co, cin, 3, 3}, bufs[2 * i]};
-    es[2 * i + 1] = (spx_st_entry){names[2 * i + 1], SPX_F32, 1, {co}, bufs[2 * i + 1]};
-    cin = co;
-  }
-  if (!st) st = spx_st_save(ctx, path, es, 26, NULL, NULL, 0);
-  for (int i = 0; i < 26; i++) free(bufs[i]);
-  return st;
 }
 
 int main(int argc, char **argv) {
@@ -89,15 +50,15 @@ int main(int argc, char **argv) {
     fprintf(stderr, "bench_gan_step: no device: %s\n", ctx ? spx_ctx_message(ctx) : "");
     goto done;
   }
-  if (write_vgg(ctx, vpath, 64) || spx_vgg_open(ctx, vpath, &v)) goto err;
+  if (bench_write_vgg19(ctx, vpath, 64) || spx_vgg_open(ctx, vpath, &v)) goto err;
   remove(vpath);
   if (spx_unet_create(ctx, width, 0, 1, &g) || spx_patchgan_new(ctx, dwidth, 3, 2, &d)) goto err;
   size_t hw = (size_t)h * w;
   in = malloc((size_t)n * 4 * hw * 4), tg = malloc((size_t)n * 3 * hw * 4);
   if (!in || !tg) goto done;
   uint64_t s = 11;
-  for (size_t k = 0; k < (size_t)n * 4 * hw; k++) in[k] = unif(&s);
-  for (size_t k = 0; k < (size_t)n * 3 * hw; k++) tg[k] = unif(&s);
+  for (size_t k = 0; k < (size_t)n * 4 * hw; k++) in[k] = bench_unif(&s);
+  for (size_t k = 0; k < (size_t)n * 3 * hw; k++) tg[k] = bench_unif(&s);
   double best = 1e30;
   spx_gan_losses l;
   for (int r = 0; r <= reps; r++) {

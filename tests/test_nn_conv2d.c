@@ -110,7 +110,7 @@ static double max_violation(const float *dev, const double *ref, const double *a
 
 /* Runs forward and backward on the device and compares with the reference. accumulate: the
  * gradients are pre-filled with ones. Returns copies of the device outputs for determinism checks. */
-static void device_case(spx_ctx *ctx, const dev_case *c, int accumulate, spx_conv2d_workspace *ws, float **outs) {
+static void device_case(spx_ctx *ctx, const dev_case *c, int accumulate, spx_op_workspace *ws, float **outs) {
   const spx_conv2d_shape *s = &c->s;
   size_t ho = out_h(s), wo = out_w(s);
   size_t nx = (size_t)s->n * s->cin * s->h * s->w, nw = (size_t)s->cout * s->cin * s->k * s->k, nb = s->cout;
@@ -210,9 +210,9 @@ static void test_device_vs_ref(void) {
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
   /* even cases: per-call scratch; odd cases: one shared grow-only workspace */
-  spx_conv2d_workspace ws = {0};
+  spx_op_workspace ws = {0};
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) device_case(ctx, &cases[i], 0, i % 2 ? &ws : NULL, NULL);
-  spx_conv2d_workspace_release(&ws);
+  spx_op_workspace_release(&ws);
   spx_ctx_destroy(ctx);
 }
 
@@ -220,10 +220,10 @@ static void test_device_accumulate(void) {
   spx_ctx *ctx;
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
-  spx_conv2d_workspace ws = {0};
+  spx_op_workspace ws = {0};
   device_case(ctx, &cases[0], 1, NULL, NULL);
   device_case(ctx, &cases[3], 1, &ws, NULL);
-  spx_conv2d_workspace_release(&ws);
+  spx_op_workspace_release(&ws);
   spx_ctx_destroy(ctx);
 }
 
@@ -237,11 +237,11 @@ static void test_device_deterministic(void) {
                      (size_t)s->cout * s->cin * s->k * s->k, (size_t)s->cout};
   float *a[4], *b[4];
   unsigned long long keep = rng;
-  spx_conv2d_workspace ws = {0};
+  spx_op_workspace ws = {0};
   device_case(ctx, c, 0, &ws, a);
   rng = keep; /* same inputs */
   device_case(ctx, c, 0, &ws, b);
-  spx_conv2d_workspace_release(&ws);
+  spx_op_workspace_release(&ws);
   for (int i = 0; i < 4; i++) {
     CHECK_MSG(memcmp(a[i], b[i], sizes[i] * sizeof(float)) == 0, "output %d differs between runs", i);
     free(a[i]), free(b[i]);

@@ -49,9 +49,9 @@ static void test_vs_reference(void) {
   spx_ctx *ctx;
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
-  spx_conv2d_workspace ws = {0};
+  spx_op_workspace ws = {0};
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) run_case(ctx, &cases[i], i % 2 ? &ws : NULL, NULL);
-  spx_conv2d_workspace_release(&ws);
+  spx_op_workspace_release(&ws);
   spx_ctx_destroy(ctx);
 }
 
@@ -64,11 +64,11 @@ static void test_deterministic(void) {
   const wcase *c = &cases[2];
   float *a[2], *b[2];
   unsigned long long keep = rng;
-  spx_conv2d_workspace ws = {0};
+  spx_op_workspace ws = {0};
   run_case(ctx, c, &ws, a);
   rng = keep;
   run_case(ctx, c, NULL, b);
-  spx_conv2d_workspace_release(&ws);
+  spx_op_workspace_release(&ws);
   size_t ny = (size_t)c->n * c->cout * c->h * c->w + 3 + 8, nx = (size_t)c->n * c->cin * c->h * c->w;
   CHECK_MSG(memcmp(a[0], b[0], ny * 4) == 0, "forward differs between runs");
   CHECK_MSG(memcmp(a[1], b[1], nx * 4) == 0, "backward data differs between runs");
@@ -89,9 +89,9 @@ static void same_bits_under(const wcase *c, const char *name, const char *v0, co
     CHECK(spx_ctx_create(&ctx) == SPX_OK);
     CHECK_OK(ctx, spx_device_open(ctx, NULL));
     rng = keep;
-    spx_conv2d_workspace ws = {0};
+    spx_op_workspace ws = {0};
     run_case(ctx, c, &ws, r[k]);
-    spx_conv2d_workspace_release(&ws);
+    spx_op_workspace_release(&ws);
     spx_ctx_destroy(ctx);
   }
   unsetenv(name);

@@ -80,7 +80,7 @@ static const dcase cases[] = {
 /* Runs case c's weight gradient on the Winograd path into dw prefilled with `pre` (accumulation);
  * checks it against pre + the reference within the derived bound, and the guards around dw.
  * out (if not NULL) receives the device dw. Returns the worst error / bound. */
-static double run_case(spx_ctx *ctx, const dcase *c, spx_conv2d_workspace *ws, float **out) {
+static double run_case(spx_ctx *ctx, const dcase *c, spx_op_workspace *ws, float **out) {
   size_t nx = (size_t)c->n * c->cin * c->h * c->w, ny = (size_t)c->n * c->cout * c->h * c->w;
   size_t nw = (size_t)c->cout * c->cin * 9;
   float *fx = malloc(nx * 4), *fdy = malloc(ny * 4), *fw = malloc(nw * 4), *pre = malloc(nw * 4), *got = malloc(nw * 4);
@@ -135,9 +135,9 @@ static void test_vs_reference(void) {
   spx_ctx *ctx = open_wino(NULL);
   CHECK(ctx != NULL);
   if (!ctx) return;
-  spx_conv2d_workspace ws = {0};
+  spx_op_workspace ws = {0};
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) run_case(ctx, &cases[i], i % 2 ? &ws : NULL, NULL);
-  spx_conv2d_workspace_release(&ws);
+  spx_op_workspace_release(&ws);
   spx_ctx_destroy(ctx);
 }
 
@@ -154,10 +154,10 @@ static void test_deterministic(void) {
     if (!ctx) continue;
     CHECK(k < 2 || spx_conv2d_winograd_dw_need(ctx, c->n, c->cin, c->cout, c->h, c->w, (size_t[3]){0}) == 1);
     CHECK(k == 2 || spx_conv2d_winograd_dw_need(ctx, c->n, c->cin, c->cout, c->h, c->w, (size_t[3]){0}) == c->n);
-    spx_conv2d_workspace ws = {0};
+    spx_op_workspace ws = {0};
     rng = keep;
     run_case(ctx, c, k == 1 ? NULL : &ws, &r[k]);
-    spx_conv2d_workspace_release(&ws);
+    spx_op_workspace_release(&ws);
     spx_ctx_destroy(ctx);
   }
   unsetenv("SPX_TUNE_CONV_WINO_CHUNK");

@@ -38,11 +38,11 @@ static void run_all(int lds, float *outs[][2]) {
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
   CHECK_OK(ctx, spx_device_open(ctx, NULL));
   CHECK(spx_conv2d_winograd_lds_applies(ctx) == lds);
-  spx_conv2d_workspace ws = {0};
+  spx_op_workspace ws = {0};
   unsigned long long keep = rng;
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) run_case(ctx, &cases[i], i % 2 ? &ws : NULL, outs[i]);
   rng = keep; /* the next run sees the same data */
-  spx_conv2d_workspace_release(&ws);
+  spx_op_workspace_release(&ws);
   spx_ctx_destroy(ctx);
 }
 

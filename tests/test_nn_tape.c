@@ -6,11 +6,13 @@
  *  - accumulation: two backward passes give twice the gradients; zero_grad clears them;
  *  - planning: a second pass of the same shape plans nothing, a new shape plans once;
  *  - inference records nothing (backward after an eval forward is refused);
- *  - the DEVICE backend matches the HOST backend (same init) on outputs, loss and gradients. */
+ *  - the DEVICE backend matches the HOST backend (same init) on outputs, loss and gradients;
+ *  - the op table (lib/nn/tape_ops.c) has a complete row for every op kind, names unique. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "nn/tape_internal.h"
 #include "nn/unet.h"
 #include "nn_testutil.h"
 #include "smplpix/smplpix.h"
@@ -214,7 +216,18 @@ static void test_device_matches_host(void) {
   spx_ctx_destroy(ctx);
 }
 
+static void test_op_table(void) {
+  for (int k = 0; k < NOPS; k++) {
+    const tp_op *op = spx_tp_op(k);
+    CHECK_MSG(op && op->name && op->back_host && op->back_dev, "op kind %d: incomplete table row", k);
+    for (int j = 0; op && op->name && j < k; j++)
+      CHECK_MSG(strcmp(op->name, spx_tp_op_name(j)) != 0, "op kinds %d and %d share the name %s", j, k, op->name);
+  }
+  CHECK(spx_tp_op(NOPS) == NULL && spx_tp_op(-1) == NULL && !strcmp(spx_tp_op_name(NOPS), "?"));
+}
+
 int main(void) {
+  SPX_RUN(test_op_table);
   SPX_RUN(test_fd_whole_unet);
   SPX_RUN(test_accumulate_and_plans);
   SPX_RUN(test_device_matches_host);

@@ -50,6 +50,18 @@ static spx_tape *bare_tape(spx_tape_backend be, spx_ctx **ctx) {
 /* x -> relu -> relu -> relu (1x1x3x5 = 15 floats each, offsets 16-aligned), eval. x dies at node 0
  * (time 1), a at 3, b at 5, c is the output. Largest-first / first-fit: x at 0, a at 16 (meets x),
  * b at 0 (x is dead), c at 16: 16 + 15 = 31 floats, against 60 without reuse. */
+typedef struct chain {
+  const float *x;
+  int in, out, loss;
+} chain;
+
+static spx_status eval_chain(spx_tape *t, void *user) {
+  chain *c = user;
+  c->in = spx_tape_input(t, 1, 1, 3, 5, c->x);
+  c->out = spx_tape_act(t, SPX_ACT_RELU, 0, spx_tape_act(t, SPX_ACT_RELU, 0, spx_tape_act(t, SPX_ACT_RELU, 0, c->in)));
+  return SPX_OK;
+}
+
 static void test_exact_eval(spx_tape_backend be) {
   spx_ctx *ctx = NULL;
   spx_tape *t = bare_tape(be, &ctx);
@@ -59,15 +71,9 @@ static void test_exact_eval(spx_tape_backend be) {
   }
   float x[15];
   for (int i = 0; i < 15; i++) x[i] = (float)i - 7.0f;
-  int again = 0, c = -1, in = -1;
-  spx_status st;
-  do {
-    if ((st = spx_tape_begin(t, 0, 1))) break;
-    in = spx_tape_input(t, 1, 1, 3, 5, x);
-    c = spx_tape_act(t, SPX_ACT_RELU, 0, spx_tape_act(t, SPX_ACT_RELU, 0, spx_tape_act(t, SPX_ACT_RELU, 0, in)));
-    st = spx_tape_end(t, &again);
-  } while (!st && again);
-  CHECK_OK(ctx, st);
+  chain ch = {x, -1, -1, -1};
+  CHECK_OK(ctx, spx_tape_pass(t, 0, 1, eval_chain, &ch));
+  const int c = ch.out, in = ch.in;
   size_t sum = 0, size = spx_tape_plan_bytes(t, &sum);
   CHECK_MSG(size == 31 * elem(be) && sum == 60 * elem(be), "eval chain: arena %zu, sum %zu bytes", size, sum);
   float y[15];
@@ -87,6 +93,15 @@ static void test_exact_eval(spx_tape_backend be) {
  * z.g 48, c 32, l.d 64, l.g 80 (below it: z.d, y.d, c, z.g, l.d) -> 81 floats; 7 x 15 + 2 = 107
  * without reuse. On the device the loss's reduction scratch (node 2's forward workspace, live at
  * 5 only) also lies in the arena (it still fits in 81 floats) and "without reuse" counts it. */
+static spx_status train_chain(spx_tape *t, void *user) {
+  chain *c = user;
+  c->in = spx_tape_input(t, 1, 1, 3, 5, c->x);
+  spx_status st = spx_tape_requires_grad(t, c->in);
+  c->out = spx_tape_act(t, SPX_ACT_RELU, 0, c->in);
+  c->loss = spx_tape_mse_const(t, spx_tape_act(t, SPX_ACT_RELU, 0, c->out), 0.5f);
+  return st;
+}
+
 static void test_exact_train(spx_tape_backend be) {
   spx_ctx *ctx = NULL;
   spx_tape *t = bare_tape(be, &ctx);
@@ -96,17 +111,9 @@ static void test_exact_train(spx_tape_backend be) {
   }
   float x[15], g[15];
   for (int i = 0; i < 15; i++) x[i] = 0.1f * (float)i - 0.6f;
-  int again = 0, xi = -1, l = -1, y = -1;
-  spx_status st;
-  do {
-    if ((st = spx_tape_begin(t, 1, 2))) break;
-    xi = spx_tape_input(t, 1, 1, 3, 5, x);
-    if ((st = spx_tape_requires_grad(t, xi))) break;
-    y = spx_tape_act(t, SPX_ACT_RELU, 0, xi);
-    l = spx_tape_mse_const(t, spx_tape_act(t, SPX_ACT_RELU, 0, y), 0.5f);
-    st = spx_tape_end(t, &again);
-  } while (!st && again);
-  CHECK_OK(ctx, st);
+  chain ch = {x, -1, -1, -1};
+  CHECK_OK(ctx, spx_tape_pass(t, 1, 2, train_chain, &ch));
+  const int xi = ch.in, y = ch.out, l = ch.loss;
   size_t sum = 0, size = spx_tape_plan_bytes(t, &sum);
   spx_ws_need red = {{0}};
   if (be == SPX_TAPE_DEVICE) spx_loss_forward_need(ctx, 15, &red);
@@ -215,12 +222,60 @@ static void test_unet_bit_exact(spx_tape_backend be) {
   free(a.out), free(a.grads), free(b.out), free(b.grads), free(a.out1), free(b.out1);
 }
 
+/* A build handing its own input to another tape: refused while its pass measures (no data yet),
+ * done on the planned run. */
+typedef struct handoff {
+  spx_tape *dst;
+  int did;
+  const float *x;
+  int runs, refused;
+} handoff;
+
+static spx_status handoff_build(spx_tape *t, void *user) {
+  handoff *h = user;
+  int in = spx_tape_input(t, 1, 1, 3, 5, h->x);
+  spx_status st = spx_tape_transfer(h->dst, h->did, 0, 0, t, in, 0, 0, 15, 0);
+  h->runs++;
+  if (st == SPX_E_STATE) h->refused++;
+  return h->runs == 1 ? SPX_OK : st; /* the measuring run goes on to be planned */
+}
+
+/* Inputs outside a pass and transfers out of a measuring pass are refused; a transfer into a
+ * measuring pass copies nothing (the two-tape graphs of test_nn_tape_multi use it). */
+static void test_pass_rules(spx_tape_backend be) {
+  spx_ctx *ctx = NULL;
+  spx_tape *t = bare_tape(be, &ctx), *t2 = NULL;
+  CHECK(t == NULL || spx_tape_create(ctx, be, &t2) == SPX_OK);
+  if (!t || !t2 || spx_tape_alloc_params(t2)) {
+    spx_tape_destroy(t), spx_tape_destroy(t2);
+    spx_ctx_destroy(ctx);
+    return;
+  }
+  float x[15], y[15];
+  for (int i = 0; i < 15; i++) x[i] = (float)i;
+  CHECK(spx_tape_input(t, 1, 1, 3, 5, x) < 0);
+  CHECK(strstr(spx_ctx_message(ctx), "outside spx_tape_pass") != NULL);
+  chain ch = {x, -1, -1, -1};
+  CHECK_OK(ctx, spx_tape_pass(t2, 0, 1, eval_chain, &ch)); /* t2's output: the destination */
+  chain c0 = {x, -1, -1, -1};
+  CHECK_OK(ctx, spx_tape_pass(t, 0, 1, eval_chain, &c0)); /* t's arena exists: a read would "work" */
+  handoff h = {t2, ch.out, x, 0, 0};
+  CHECK_OK(ctx, spx_tape_pass(t, 0, 3, handoff_build, &h));
+  CHECK_MSG(h.runs == 2 && h.refused == 1, "%d runs, %d refused", h.runs, h.refused);
+  CHECK_OK(ctx, spx_tape_read(t2, ch.out, y));
+  CHECK(memcmp(x, y, sizeof x) == 0);
+  spx_tape_destroy(t), spx_tape_destroy(t2);
+  spx_ctx_destroy(ctx);
+}
+
 static void test_host(void) {
+  test_pass_rules(SPX_TAPE_HOST);
   test_exact_eval(SPX_TAPE_HOST);
   test_exact_train(SPX_TAPE_HOST);
   test_unet_bit_exact(SPX_TAPE_HOST);
 }
 static void test_device(void) {
+  test_pass_rules(SPX_TAPE_DEVICE);
   test_exact_eval(SPX_TAPE_DEVICE);
   test_exact_train(SPX_TAPE_DEVICE);
   test_unet_bit_exact(SPX_TAPE_DEVICE);

@@ -1,6 +1,7 @@
-/* The multi-network tape ops (lib/nn/tape_multi.c, strided conv in lib/nn/tape.c) on a tiny
- * PatchGAN-like graph: 4x4 convolutions with stride 2 / 1 and padding 2, instance norm, LeakyReLU,
- * 3x3 average pooling, batch slices, MSE against constants, L1, weighted sums (axpby).
+/* The multi-network tape ops (lib/nn/tape_op_*.c: strided conv, instance norm, average pool, MSE,
+ * axpby; detach / slice aliases and transfers in lib/nn/tape.c) on a tiny PatchGAN-like graph:
+ * 4x4 convolutions with stride 2 / 1 and padding 2, instance norm, LeakyReLU, 3x3 average
+ * pooling, batch slices, MSE against constants, L1, weighted sums (axpby).
  *  - finite differences on the HOST backend (double references) for every parameter and the input;
  *  - detach: a detached branch adds nothing to the gradients (and the same branch undetached does);
  *  - two tapes chained by spx_tape_transfer (values forward, the input gradient back between
@@ -21,6 +22,9 @@ typedef struct net {
   spx_tape *t;
   int p[NP];
   int x, loss;
+  int detach_mode, pool; /* the graph forward_one builds */
+  spx_tape *src;         /* two tapes: the tape of a, handed in as the input */
+  int a;
 } net;
 
 static int declare(net *nt, spx_tape *t, int first, int last) {
@@ -48,7 +52,7 @@ static float g_x[N * C * H * W], g_tg[1 * 5 * 8 * 9];
 /* Part A: x -> a (the "generator" half). */
 static int part_a(net *nt, int x) {
   spx_tape *t = nt->t;
-  int a = spx_tape_conv_s(t, x, nt->p[P_W1], nt->p[P_B1], 2, 2);
+  int a = spx_tape_conv_strided(t, x, nt->p[P_W1], nt->p[P_B1], 2, 2);
   return spx_tape_act(t, SPX_ACT_LEAKY_RELU, 0.2f, a);
 }
 
@@ -56,9 +60,9 @@ static int part_a(net *nt, int x) {
  * term undetached. */
 static int part_b(net *nt, int a, int x_pool_src, int detach_mode) {
   spx_tape *t = nt->t;
-  int b = spx_tape_conv_s(t, a, nt->p[P_W2], nt->p[P_B2], 1, 2);
+  int b = spx_tape_conv_strided(t, a, nt->p[P_W2], nt->p[P_B2], 1, 2);
   b = spx_tape_act(t, SPX_ACT_LEAKY_RELU, 0.2f, spx_tape_instnorm(t, b, 1e-5f));
-  int c = spx_tape_conv_s(t, b, nt->p[P_W3], nt->p[P_B3], 1, 2);
+  int c = spx_tape_conv_strided(t, b, nt->p[P_W3], nt->p[P_B3], 1, 2);
   int fake = spx_tape_slice_batch(t, c, 0, 1), real = spx_tape_slice_batch(t, c, 1, 1);
   int l_gan = spx_tape_mse_const(t, fake, 1.0f);
   int l_d = spx_tape_axpby(t, 0.5f, spx_tape_mse_const(t, fake, 0.0f), 0.5f, spx_tape_mse_const(t, real, 1.0f));
@@ -67,7 +71,7 @@ static int part_b(net *nt, int a, int x_pool_src, int detach_mode) {
   int loss = spx_tape_axpby(t, 1.0f, l_gan, 0.1f, fm);
   loss = spx_tape_axpby(t, 1.0f, loss, 0.7f, l_d);
   if (x_pool_src >= 0) { /* the next scale: pooled input through the shared first conv */
-    int d = spx_tape_conv_s(t, spx_tape_avgpool3(t, x_pool_src), nt->p[P_W1], nt->p[P_B1], 2, 2);
+    int d = spx_tape_conv_strided(t, spx_tape_avgpool3(t, x_pool_src), nt->p[P_W1], nt->p[P_B1], 2, 2);
     loss = spx_tape_axpby(t, 1.0f, loss, 0.3f, spx_tape_mse_const(t, d, 0.2f));
   }
   if (detach_mode) {
@@ -77,17 +81,38 @@ static int part_b(net *nt, int a, int x_pool_src, int detach_mode) {
   return loss;
 }
 
-/* The whole graph on one tape. */
+/* The whole graph on one tape (pool: with the pooled branch). */
+static spx_status build_one(spx_tape *t, void *user) {
+  net *nt = user;
+  nt->x = spx_tape_input(t, N, C, H, W, g_x);
+  spx_tape_requires_grad(t, nt->x); /* in the build: it is part of the plan */
+  nt->loss = part_b(nt, part_a(nt, nt->x), nt->pool ? nt->x : -1, nt->detach_mode);
+  return SPX_OK;
+}
+
 static spx_status forward_one(net *nt, int detach_mode) {
-  int again = 0;
-  spx_status st;
-  do {
-    if ((st = spx_tape_begin(nt->t, 1, 7 + (uint64_t)detach_mode))) return st;
-    nt->x = spx_tape_input(nt->t, N, C, H, W, g_x);
-    spx_tape_requires_grad(nt->t, nt->x); /* every pass: it is part of the plan */
-    nt->loss = part_b(nt, part_a(nt, nt->x), nt->x, detach_mode);
-    st = spx_tape_end(nt->t, &again);
-  } while (!st && again);
+  nt->detach_mode = detach_mode, nt->pool = 1;
+  return spx_tape_pass(nt->t, 1, 7 + (uint64_t)detach_mode, build_one, nt);
+}
+
+/* Two tapes: A's part, x -> a */
+static spx_status build_a(spx_tape *t, void *user) {
+  net *nt = user;
+  nt->x = spx_tape_input(t, N, C, H, W, g_x);
+  spx_tape_requires_grad(t, nt->x);
+  nt->a = part_a(nt, nt->x);
+  return SPX_OK;
+}
+
+/* ... and B's, z (= A's a, handed over) -> loss */
+static spx_status build_b(spx_tape *t, void *user) {
+  net *nt = user;
+  int32_t sa[4];
+  spx_tape_shape(nt->src, nt->a, sa);
+  nt->x = spx_tape_input(t, sa[0], sa[1], sa[2], sa[3], NULL);
+  spx_tape_requires_grad(t, nt->x);
+  spx_status st = spx_tape_transfer(t, nt->x, 0, 0, nt->src, nt->a, 0, 0, spx_tape_numel(nt->src, nt->a), 0);
+  nt->loss = part_b(nt, nt->x, -1, 0);
   return st;
 }
 
@@ -233,27 +258,10 @@ static void run_backend(spx_ctx *ctx, spx_tape_backend be, double **ref_grads, d
   net na, nb;
   CHECK(declare(&na, ta, P_W1, P_B1) && declare(&nb, tb, P_W2, P_B3));
   init_params(&na, P_W1, P_B1), init_params(&nb, P_W2, P_B3);
-  int again = 0, a = -1, z = -1;
-  spx_status st;
-  do { /* A: x -> a */
-    if ((st = spx_tape_begin(ta, 1, 1))) break;
-    na.x = spx_tape_input(ta, N, C, H, W, g_x);
-    spx_tape_requires_grad(ta, na.x);
-    a = part_a(&na, na.x);
-    st = spx_tape_end(ta, &again);
-  } while (!st && again);
-  CHECK_OK(ctx, st);
-  int32_t sa[4];
-  spx_tape_shape(ta, a, sa);
-  do { /* B: z (= a) -> loss */
-    if ((st = spx_tape_begin(tb, 1, 1))) break;
-    z = spx_tape_input(tb, sa[0], sa[1], sa[2], sa[3], NULL);
-    spx_tape_requires_grad(tb, z);
-    if (!spx_tape_measuring(tb) && (st = spx_tape_transfer(tb, z, 0, 0, ta, a, 0, 0, spx_tape_numel(ta, a), 0))) break;
-    nb.loss = part_b(&nb, z, -1, 0);
-    st = spx_tape_end(tb, &again);
-  } while (!st && again);
-  CHECK_OK(ctx, st);
+  CHECK_OK(ctx, spx_tape_pass(ta, 1, 1, build_a, &na));
+  nb.src = ta, nb.a = na.a;
+  CHECK_OK(ctx, spx_tape_pass(tb, 1, 1, build_b, &nb));
+  const int a = na.a, z = nb.x;
   CHECK_OK(ctx, spx_tape_zero_grad(ta));
   CHECK_OK(ctx, spx_tape_zero_grad(tb));
   CHECK_OK(ctx, spx_tape_backward(tb, nb.loss));
@@ -261,14 +269,8 @@ static void run_backend(spx_ctx *ctx, spx_tape_backend be, double **ref_grads, d
   CHECK_OK(ctx, spx_tape_transfer(ta, a, 0, 1, tb, z, 0, 1, spx_tape_numel(ta, a), 1));
   CHECK_OK(ctx, spx_tape_backward_run(ta));
   /* the single-tape graph without the pooled branch, for comparison */
-  do {
-    if ((st = spx_tape_begin(t, 1, 10))) break; /* a graph of its own: a key of its own */
-    nt.x = spx_tape_input(t, N, C, H, W, g_x);
-    spx_tape_requires_grad(t, nt.x);
-    nt.loss = part_b(&nt, part_a(&nt, nt.x), -1, 0);
-    st = spx_tape_end(t, &again);
-  } while (!st && again);
-  CHECK_OK(ctx, st);
+  nt.detach_mode = 0, nt.pool = 0;
+  CHECK_OK(ctx, spx_tape_pass(t, 1, 10, build_one, &nt)); /* a graph of its own: a key of its own */
   CHECK_OK(ctx, spx_tape_zero_grad(t));
   CHECK_OK(ctx, spx_tape_backward(t, nt.loss));
   double e2 = 0;

@@ -1,5 +1,5 @@
 /* The fused up-block op out = concat(skip, pad(upsample2x(x))) (lib/nn/upsample.c spx_upcat_*,
- * lib/nn/tape_fused.c spx_tape_upcat):
+ * lib/nn/tape_op_layout.c spx_tape_upcat):
  *  - the reference: finite differences of its backward (both inputs), and equal to the chain of
  *    the three references;
  *  - the device op: forward and backward (accumulating onto pre-filled gradients) BIT-identical
@@ -147,6 +147,41 @@ static void test_device(void) {
   device_case((ucase){1, 16, 16, 38, 51, 77, 102}); /* a UNet width-16 level */
 }
 
+typedef struct upass {
+  int fused;
+  const ucase *k;
+  const float *s, *x, *tg;
+  int is, ix, y, l; /* ids the build leaves behind */
+} upass;
+
+static spx_status upcat_build(spx_tape *t, void *user) {
+  upass *p = user;
+  const ucase *k = p->k;
+  p->is = spx_tape_input(t, k->n, k->cs, k->oh, k->ow, p->s);
+  spx_tape_requires_grad(t, p->is);
+  p->ix = spx_tape_input(t, k->n, k->cx, k->h, k->w, p->x);
+  spx_tape_requires_grad(t, p->ix);
+  if (p->fused) {
+    p->y = spx_tape_upcat(t, p->is, p->ix);
+  } else {
+    int dy = k->oh - 2 * k->h, dx = k->ow - 2 * k->w;
+    int up = spx_tape_pad(t, spx_tape_upsample2(t, p->ix), dx / 2, dx - dx / 2, dy / 2, dy - dy / 2);
+    p->y = spx_tape_concat(t, p->is, up);
+  }
+  spx_tape_keep(t, p->y);
+  int target = spx_tape_input(t, k->n, k->cs + k->cx, k->oh, k->ow, p->tg);
+  p->l = spx_tape_l1(t, p->y, target);
+  return SPX_OK;
+}
+
+/* A build of the refusal: a skip smaller than the upsampled x */
+static spx_status upcat_small_skip(spx_tape *t, void *user) {
+  (void)user;
+  int a = spx_tape_input(t, 1, 2, 5, 5, NULL), b = spx_tape_input(t, 1, 2, 3, 3, NULL);
+  CHECK(spx_tape_upcat(t, a, b) < 0);
+  return SPX_OK;
+}
+
 /* One tape pass: out = upcat(skip, x) (fused) or the three ops, loss = L1(out, target); the values
  * and gradients of skip and x. */
 static void tape_run(spx_tape_backend be, int fused, const ucase *k, const float *s, const float *x, const float *tg,
@@ -157,31 +192,12 @@ static void tape_run(spx_tape_backend be, int fused, const ucase *k, const float
   int dummy = spx_tape_param(t, 1, 1, 1, 1);
   CHECK(dummy >= 0);
   CHECK_OK(ctx, spx_tape_alloc_params(t));
-  int again = 0, y = -1, is = -1, ix = -1;
-  do {
-    CHECK_OK(ctx, spx_tape_begin(t, 1, 42));
-    is = spx_tape_input(t, k->n, k->cs, k->oh, k->ow, s);
-    spx_tape_requires_grad(t, is);
-    ix = spx_tape_input(t, k->n, k->cx, k->h, k->w, x);
-    spx_tape_requires_grad(t, ix);
-    if (fused) {
-      y = spx_tape_upcat(t, is, ix);
-    } else {
-      int dy = k->oh - 2 * k->h, dx = k->ow - 2 * k->w;
-      int up = spx_tape_pad(t, spx_tape_upsample2(t, ix), dx / 2, dx - dx / 2, dy / 2, dy - dy / 2);
-      y = spx_tape_concat(t, is, up);
-    }
-    spx_tape_keep(t, y);
-    int target = spx_tape_input(t, k->n, k->cs + k->cx, k->oh, k->ow, tg);
-    int l = spx_tape_l1(t, y, target);
-    CHECK_OK(ctx, spx_tape_end(t, &again));
-    if (!again) {
-      CHECK_OK(ctx, spx_tape_backward(t, l));
-    }
-  } while (again);
-  CHECK_OK(ctx, spx_tape_read(t, y, out));
-  CHECK_OK(ctx, spx_tape_read_grad(t, is, gs));
-  CHECK_OK(ctx, spx_tape_read_grad(t, ix, gx));
+  upass p = {fused, k, s, x, tg, -1, -1, -1, -1};
+  CHECK_OK(ctx, spx_tape_pass(t, 1, 42, upcat_build, &p));
+  CHECK_OK(ctx, spx_tape_backward(t, p.l));
+  CHECK_OK(ctx, spx_tape_read(t, p.y, out));
+  CHECK_OK(ctx, spx_tape_read_grad(t, p.is, gs));
+  CHECK_OK(ctx, spx_tape_read_grad(t, p.ix, gx));
   spx_tape_destroy(t);
 }
 
@@ -225,11 +241,7 @@ static void test_tape(void) {
   if (t) {
     spx_tape_param(t, 1, 1, 1, 1);
     CHECK_OK(ctx, spx_tape_alloc_params(t));
-    CHECK_OK(ctx, spx_tape_begin(t, 0, 7));
-    int a = spx_tape_input(t, 1, 2, 5, 5, NULL), b = spx_tape_input(t, 1, 2, 3, 3, NULL);
-    CHECK(spx_tape_upcat(t, a, b) < 0);
-    int again = 0;
-    CHECK(spx_tape_end(t, &again) == SPX_E_ARG);
+    CHECK(spx_tape_pass(t, 0, 7, upcat_small_skip, NULL) == SPX_E_ARG);
     CHECK(strstr(spx_ctx_message(ctx), "upcat") != NULL);
     spx_tape_destroy(t);
   }

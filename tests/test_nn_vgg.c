@@ -15,6 +15,7 @@
 #include "nn_testutil.h"
 #include "smplpix/safetensors.h"
 #include "st_compare.h"
+#include "vgg_pass.h"
 
 #define DIR SPX_TEST_DATA "/vgg/"
 
@@ -60,17 +61,9 @@ static void run(spx_ctx *ctx, spx_vgg_kind kind, spx_tape_backend be) {
   if (!pred || !gt || !gl || !gg) goto done;
   float *x = malloc(2 * np * 4), *grad = malloc(2 * np * 4);
   memcpy(x, pred, np * 4), memcpy(x + np, gt, np * 4);
-  int again = 0, xi = -1, loss = -1;
-  spx_status st;
-  do {
-    if ((st = spx_tape_begin(t, 1, 1))) break;
-    xi = spx_tape_input(t, N, 3, H, W, x);
-    int gi = spx_tape_input(t, N, 3, H, W, x + np);
-    spx_tape_requires_grad(t, xi); /* every pass: it is part of the plan */
-    loss = spx_vgg_loss(v, xi, gi);
-    st = spx_tape_end(t, &again);
-  } while (!st && again);
-  CHECK_OK(ctx, st);
+  spx_t_vgg_pass p = {v, x, x + np, N, H, W, -1, -1};
+  CHECK_OK(ctx, spx_tape_pass(t, 1, 1, spx_t_vgg_build, &p));
+  const int xi = p.xi, loss = p.loss;
   CHECK_OK(ctx, spx_tape_backward(t, loss));
   float lv = 0;
   CHECK_OK(ctx, spx_tape_read(t, loss, &lv));

@@ -19,6 +19,7 @@
 #include "nn_testutil.h"
 #include "smplpix/metrics.h"
 #include "smplpix/safetensors.h"
+#include "vgg_pass.h"
 
 #define DIR SPX_TEST_DATA "/weights/"
 
@@ -104,17 +105,9 @@ static void vgg16_run(spx_ctx *ctx, const char *path, const spx_st_file *g, spx_
   float *x = malloc(2 * np * sizeof(float)), *grad = malloc(np * sizeof(float));
   for (size_t i = 0; i < np; i++) x[i] = (float)at(tp, i), x[np + i] = (float)at(tt, i);
   spx_tape *t = spx_vgg_tape(v);
-  int again = 0, xi = -1, loss = -1;
-  spx_status st;
-  do {
-    if ((st = spx_tape_begin(t, 1, 1))) break;
-    xi = spx_tape_input(t, n, 3, h, w, x);
-    int gi = spx_tape_input(t, n, 3, h, w, x + np);
-    spx_tape_requires_grad(t, xi);
-    loss = spx_vgg_loss(v, xi, gi);
-    st = spx_tape_end(t, &again);
-  } while (!st && again);
-  CHECK_OK(ctx, st);
+  spx_t_vgg_pass p = {v, x, x + np, n, h, w, -1, -1};
+  CHECK_OK(ctx, spx_tape_pass(t, 1, 1, spx_t_vgg_build, &p));
+  const int xi = p.xi, loss = p.loss;
   CHECK_OK(ctx, spx_tape_backward(t, loss));
   float lv = 0;
   CHECK_OK(ctx, spx_tape_read(t, loss, &lv));

@@ -80,7 +80,7 @@ typedef struct wcase {
 /* Runs case c (forward into y, then backward data accumulating into dx prefilled with ones) on
  * the Winograd path; checks both against the reference within the derived bound. outs (if not
  * NULL) receive the device y and dx. */
-static void run_case(spx_ctx *ctx, const wcase *c, spx_conv2d_workspace *ws, float **outs) {
+static void run_case(spx_ctx *ctx, const wcase *c, spx_op_workspace *ws, float **outs) {
   const size_t off = 3;
   size_t nx = (size_t)c->n * c->cin * c->h * c->w, ny = (size_t)c->n * c->cout * c->h * c->w;
   size_t nw = (size_t)c->cout * c->cin * 9, nb = (size_t)c->cout;

@@ -31,7 +31,7 @@ struct spx_lpips {
   cl_mem wmem;            /* all conv weights and biases */
   size_t woff[NLAYERS], boff[NLAYERS];
   spx_cl_buf act;         /* input, features and pooled maps of one call */
-  spx_conv2d_workspace ws;
+  spx_op_workspace ws;
 };
 
 spx_status spx_maxpool3s2_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *y) {
@@ -151,7 +151,7 @@ void spx_lpips_free(spx_lpips *lp) {
   for (int l = 0; l < NLAYERS; l++) free(lp->lin[l]);
   spx_cl_free(&lp->wmem);
   spx_cl_buf_release(&lp->act);
-  spx_conv2d_workspace_release(&lp->ws);
+  spx_op_workspace_release(&lp->ws);
   free(lp);
 }
 

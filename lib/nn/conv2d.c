@@ -1,7 +1,7 @@
 /* 2-D convolution on the device: launchers for kernels/conv2d*.cl (implicit GEMM with
  * register tiling; see the comment at the top of the kernel file for the data layout).
  * Scratch buffers (padded input, packed weights, partial sums) come from the caller's
- * spx_conv2d_workspace when given, else they are allocated per call and released after
+ * spx_op_workspace when given, else they are allocated per call and released after
  * enqueueing (OpenCL keeps them alive until the kernels that use them finish). */
 #include <limits.h>
 #include <string.h>
@@ -97,13 +97,13 @@ static int nopad_applies(const spx_ctx *ctx, int k, int s, int pad) {
 }
 
 /* Padded/dilated copy of src [nc][h][w] into a new scratch buffer (see spx_conv2d_pad). */
-static spx_status pad_copy(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, cl_mem src, size_t src_off, int nc,
+static spx_status pad_copy(spx_ctx *ctx, spx_op_workspace *ws, int slot, cl_mem src, size_t src_off, int nc,
                            int h, int w, int hp, int wp, int plane, int top, int left, int d, size_t total,
-                           spx_conv2d_scratch *out) {
+                           spx_op_scratch *out) {
   cl_kernel k;
   spx_status st = spx_cl_kernel(ctx, SPX_K_CONV2D_PAD, &k);
   if (st) return st;
-  if ((st = spx_conv2d_scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d padded scratch", out))) return st;
+  if ((st = spx_op_scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d padded scratch", out))) return st;
   cl_ulong so = src_off;
   cl_int e = SPX_ARG(k, 0, src) | SPX_ARG(k, 1, so) | SPX_ARG(k, 2, out->mem) | SPX_ARG(k, 3, h) | SPX_ARG(k, 4, w) |
              SPX_ARG(k, 5, hp) | SPX_ARG(k, 6, wp) | SPX_ARG(k, 7, plane) | SPX_ARG(k, 8, top) |
@@ -148,9 +148,9 @@ spx_status spx_conv2d_wprep_lookup(spx_ctx *ctx, spx_conv2d_wprep *wp, const int
 }
 
 /* Packed weight panel (see spx_conv2d_pack); with wp, kept there and reused while it matches. */
-static spx_status pack_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, const spx_tensor *w, int cout,
+static spx_status pack_weights(spx_ctx *ctx, spx_op_workspace *ws, int slot, const spx_tensor *w, int cout,
                                int cin, int k, int cols, int flip, int narrow, spx_conv2d_wprep *wp,
-                               spx_conv2d_scratch *out) {
+                               spx_op_scratch *out) {
   cl_kernel kr;
   spx_status st = spx_cl_kernel(ctx, narrow ? SPX_K_CONV2D_PACK_NARROW : SPX_K_CONV2D_PACK, &kr);
   if (st) return st;
@@ -164,7 +164,7 @@ static spx_status pack_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot,
     memset(out, 0, sizeof *out);
     if ((st = spx_conv2d_wprep_lookup(ctx, wp, what, 8, w, total * sizeof(float), &hit, &out->mem))) return st;
     if (hit) return SPX_OK;
-  } else if ((st = spx_conv2d_scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d packed weights", out))) {
+  } else if ((st = spx_op_scratch_get(ctx, ws, slot, total * sizeof(float), "conv2d packed weights", out))) {
     return st;
   }
   cl_ulong wo = w->off;
@@ -345,7 +345,7 @@ spx_status spx_conv2d_forward_prep(spx_ctx *ctx, const spx_tensor *x, const spx_
   direct_layout(ctx, &g, 0, &L);
   int wp = L.wp, plane = L.plane, coutp = L.cp;
   const fwd_tile tile = L.tile;
-  spx_conv2d_scratch xp = {0}, wpk = {0};
+  spx_op_scratch xp = {0}, wpk = {0};
   if (!L.nopad && (st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, L.hp, wp, plane, g.pad, g.pad,
                                  1, L.total[0], &xp)))
     goto done;
@@ -355,13 +355,13 @@ spx_status spx_conv2d_forward_prep(spx_ctx *ctx, const spx_tensor *x, const spx_
   st = run_fwd(ctx, tile, L.nopad, L.nopad ? x->mem : xp.mem, L.nopad ? x->off : 0, wpk.mem, g.n, g.cin, g.cout,
                coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale, p->scale ? p->shift : NULL, flags);
 done:
-  spx_conv2d_scratch_put(&xp);
-  spx_conv2d_scratch_put(&wpk);
+  spx_op_scratch_put(&xp);
+  spx_op_scratch_put(&wpk);
   return st;
 }
 
 /* dx += conv(dilate_s(dy) padded by k-1-pad, flipped and transposed w), stride 1. */
-static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *w,
+static spx_status backward_data(spx_ctx *ctx, spx_op_workspace *ws, const geom *g, const spx_tensor *w,
                                 const spx_tensor *dy, const spx_tensor *dx) {
   if (spx_conv2d_winograd_applies(ctx, g->k, g->s, g->pad, g->cout, g->cin, g->h * g->w, 0))
     return spx_conv2d_winograd(ctx, ws, dy, w, 1, NULL, NULL, NULL, 0, 1, dx, NULL);
@@ -369,7 +369,7 @@ static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const ge
   direct_layout(ctx, g, 1, &L);
   int wd = L.wp, plane = L.plane, top = g->k - 1 - g->pad, cinp = L.cp;
   const fwd_tile tile = L.tile;
-  spx_conv2d_scratch dyp = {0}, wpk = {0};
+  spx_op_scratch dyp = {0}, wpk = {0};
   spx_status st;
   if (!L.nopad && (st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, L.hp, wd, plane, top,
                                  top, g->s, L.total[0], &dyp)))
@@ -378,13 +378,13 @@ static spx_status backward_data(spx_ctx *ctx, spx_conv2d_workspace *ws, const ge
   st = run_fwd(ctx, tile, L.nopad, L.nopad ? dy->mem : dyp.mem, L.nopad ? dy->off : 0, wpk.mem, g->n, g->cout, g->cin,
                cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL, NULL, SPX_CONV_FL_ACCUM);
 done:
-  spx_conv2d_scratch_put(&dyp);
-  spx_conv2d_scratch_put(&wpk);
+  spx_op_scratch_put(&dyp);
+  spx_op_scratch_put(&wpk);
   return st;
 }
 
 /* dw += sum over (n, q) of dy x im2col(x): chunked partial sums, then a fixed-order reduction. */
-static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const geom *g, const spx_tensor *x,
+static spx_status backward_weights(spx_ctx *ctx, spx_op_workspace *ws, const geom *g, const spx_tensor *x,
                                    const spx_tensor *dy, const spx_tensor *dw) {
   if (spx_conv2d_winograd_dw_applies(ctx, g->k, g->s, g->pad, g->cin, g->cout, g->h, g->w))
     return spx_conv2d_winograd_dw(ctx, ws, x, dy, dw);
@@ -395,7 +395,7 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
   int kdim = g->cin * g->k * g->k;
   size_t xtotal = L.total[0], dtotal = L.total[1];
   size_t count = (size_t)g->cout * kdim;
-  spx_conv2d_scratch xs = {0}, dys = {0}, ps = {0};
+  spx_op_scratch xs = {0}, dys = {0}, ps = {0};
   spx_status st;
   if ((st = pad_copy(ctx, ws, 0, x->mem, x->off, g->n * g->cin, g->h, g->w, hp, wp, plane, g->pad, g->pad, 1, xtotal,
                      &xs)))
@@ -403,7 +403,7 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
   if ((st = pad_copy(ctx, ws, 1, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, g->ho, wp, qd, 0, 0, 1, dtotal,
                      &dys)))
     goto done;
-  if ((st = spx_conv2d_scratch_get(ctx, ws, 2, L.total[2] * sizeof(float), "conv2d weight-gradient partials", &ps)))
+  if ((st = spx_op_scratch_get(ctx, ws, 2, L.total[2] * sizeof(float), "conv2d weight-gradient partials", &ps)))
     goto done;
   cl_mem xp = xs.mem, dyq = dys.mem, part = ps.mem;
   {
@@ -433,9 +433,9 @@ static spx_status backward_weights(spx_ctx *ctx, spx_conv2d_workspace *ws, const
     st = spx_cl_run(ctx, kr, 1, &gl, &l, "spx_conv2d_dw_reduce");
   }
 done:
-  spx_conv2d_scratch_put(&xs);
-  spx_conv2d_scratch_put(&dys);
-  spx_conv2d_scratch_put(&ps);
+  spx_op_scratch_put(&xs);
+  spx_op_scratch_put(&dys);
+  spx_op_scratch_put(&ps);
   return st;
 }
 

@@ -32,7 +32,7 @@ typedef struct spx_conv2d_params {
   const spx_tensor *scale; /* [Cout] or NULL */
   const spx_tensor *shift; /* [Cout] or NULL (only used together with scale) */
   int relu;                /* nonzero: max(v, 0) after bias/scale/shift */
-  spx_conv2d_workspace *ws; /* NULL: scratch is allocated and released per call */
+  spx_op_workspace *ws; /* NULL: scratch is allocated and released per call */
 } spx_conv2d_params;
 
 /* Algorithm: Winograd F(4x4,3x3) (kernels/conv2d_winograd.cl, lib/nn/conv2d_winograd.c) for
@@ -114,7 +114,7 @@ int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, 
 /* y (=, or += with accumulate) = conv3x3/s1/p1 of x [n][cin][h][w] with w [Cout][Cin][3][3]
  * (flip = 0: cout = Cout, cin = Cin; flip = 1: the backward-data conv, weights flipped and
  * transposed, cin = Cout, cout = Cin). bias/scale/shift may be NULL. Shapes are pre-validated. */
-spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
+spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_op_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
                                int relu, int accumulate, const spx_tensor *y, spx_conv2d_wprep *wp);
 
@@ -130,7 +130,7 @@ int spx_conv2d_winograd_lds_applies(const spx_ctx *ctx);
 /* Its workspace need (slot 1: U) for cin -> cout channels. */
 void spx_conv2d_winograd_lds_need(const spx_ctx *ctx, int cin, int cout, spx_ws_need *need);
 /* The arguments and semantics of spx_conv2d_winograd. */
-spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
+spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_op_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                    int flip, const spx_tensor *bias, const spx_tensor *scale,
                                    const spx_tensor *shift, int relu, int accumulate, const spx_tensor *y);
 
@@ -154,7 +154,7 @@ int spx_conv2d_winograd_dw_applies(const spx_ctx *ctx, int k, int stride, int pa
 int spx_conv2d_winograd_dw_need(const spx_ctx *ctx, int n, int cin, int cout, int h, int w, size_t bytes[3]);
 /* dw [Cout][Cin][3][3] += the weight gradient of the 3x3/s1/p1 conv of x [n][cin][h][w] given
  * dy [n][Cout][h][w]. Shapes are pre-validated. */
-spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *dy,
+spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_op_workspace *ws, const spx_tensor *x, const spx_tensor *dy,
                                   const spx_tensor *dw);
 
 /* ---- local-memory tiled 3x3 stride-1 forward for GPU-class devices (lib/nn/conv2d_lds.c) ---- */

@@ -89,7 +89,7 @@ spx_status spx_conv2d_wino_input(spx_ctx *ctx, const spx_tensor *x, int s0, int 
   return spx_cl_run(ctx, kin, 3, gi, vw > 1 ? li : NULL, "spx_wino_in");
 }
 
-spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
+spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_op_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                int flip, const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift,
                                int relu, int accumulate, const spx_tensor *y, spx_conv2d_wprep *wp) {
   if (spx_conv2d_winograd_lds_applies(ctx)) /* GPU class: the fused local-memory variant */
@@ -105,7 +105,7 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
   if (vmax > (double)INT_MAX)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "conv2d winograd: %.0f transformed elements exceed the index range", vmax);
   const int Tp = (int)tp;
-  spx_conv2d_scratch XM = {0}, U = {0}, V = {0};
+  spx_op_scratch XM = {0}, U = {0}, V = {0};
   int have_u = 0; /* U already in wp (prepared weights kept between inference calls) */
   spx_status st;
   cl_kernel kw, kg, ko;
@@ -117,9 +117,9 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
     const int what[] = {2, Cout, Cin, coutp, tm, flip};
     if ((st = spx_conv2d_wprep_lookup(ctx, wp, what, 6, w, L.need.slot[1], &have_u, &U.mem))) goto done;
   }
-  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, L.need.slot[0], "winograd products", &XM)) ||
-      (!wp && (st = spx_conv2d_scratch_get(ctx, ws, 1, L.need.slot[1], "winograd weight transform", &U))) ||
-      (st = spx_conv2d_scratch_get(ctx, ws, 2, L.need.slot[2], "winograd input transform", &V)))
+  if ((st = spx_op_scratch_get(ctx, ws, 0, L.need.slot[0], "winograd products", &XM)) ||
+      (!wp && (st = spx_op_scratch_get(ctx, ws, 1, L.need.slot[1], "winograd weight transform", &U))) ||
+      (st = spx_op_scratch_get(ctx, ws, 2, L.need.slot[2], "winograd input transform", &V)))
     goto done;
   const size_t wg = (size_t)ctx->dev->tune.wg;
   if (!have_u) {
@@ -160,8 +160,8 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx
   }
 done:
   if (st && wp && !have_u) wp->key = 0; /* the preparation may not have run */
-  spx_conv2d_scratch_put(&XM);
-  spx_conv2d_scratch_put(&U);
-  spx_conv2d_scratch_put(&V);
+  spx_op_scratch_put(&XM);
+  spx_op_scratch_put(&U);
+  spx_op_scratch_put(&V);
   return st;
 }

@@ -31,7 +31,7 @@ int spx_conv2d_winograd_dw_need(const spx_ctx *ctx, int n, int cin, int cout, in
   return (int)nb;
 }
 
-spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *dy,
+spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_op_workspace *ws, const spx_tensor *x, const spx_tensor *dy,
                                   const spx_tensor *dw) {
   const int n = x->n, cin = x->c, h = x->h, wd = x->w, cout = dy->c, vw = ctx->dev->tune.conv_vw;
   int th, twp;
@@ -43,15 +43,15 @@ spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_conv2d_workspace *ws, const 
   if (big > (double)INT_MAX || 36.0 * cout * cin > (double)INT_MAX)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "conv2d winograd weight gradient: %.0f transformed elements exceed the index range",
                     big);
-  spx_conv2d_scratch XQ = {0}, P = {0}, V = {0};
+  spx_op_scratch XQ = {0}, P = {0}, V = {0};
   spx_status st;
   cl_kernel kq, kg, kw;
   if ((st = spx_cl_kernel(ctx, SPX_K_WINO_DW_GRAD, &kq)) || (st = spx_cl_kernel(ctx, SPX_K_WINO_DW_GEMM, &kg)) ||
       (st = spx_cl_kernel(ctx, SPX_K_WINO_DW_WEIGHTS, &kw)))
     return st;
-  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, bytes[0], "winograd dw output-gradient transform", &XQ)) ||
-      (st = spx_conv2d_scratch_get(ctx, ws, 1, bytes[1], "winograd dw gradient sums", &P)) ||
-      (st = spx_conv2d_scratch_get(ctx, ws, 2, bytes[2], "winograd dw input transform", &V)))
+  if ((st = spx_op_scratch_get(ctx, ws, 0, bytes[0], "winograd dw output-gradient transform", &XQ)) ||
+      (st = spx_op_scratch_get(ctx, ws, 1, bytes[1], "winograd dw gradient sums", &P)) ||
+      (st = spx_op_scratch_get(ctx, ws, 2, bytes[2], "winograd dw input transform", &V)))
     goto done;
   const int tm = ctx->dev->tune.conv_dw_tm, tn = ctx->dev->tune.conv_dw_tn, gg = ctx->dev->tune.conv_dw_g;
   for (int s0 = 0; s0 < n; s0 += nb) {
@@ -86,8 +86,8 @@ spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_conv2d_workspace *ws, const 
     st = spx_cl_run(ctx, kw, 1, &gl, NULL, "spx_wino_dw_weights");
   }
 done:
-  spx_conv2d_scratch_put(&XQ);
-  spx_conv2d_scratch_put(&P);
-  spx_conv2d_scratch_put(&V);
+  spx_op_scratch_put(&XQ);
+  spx_op_scratch_put(&P);
+  spx_op_scratch_put(&V);
   return st;
 }

@@ -29,7 +29,7 @@ void spx_conv2d_winograd_lds_need(const spx_ctx *ctx, int cin, int cout, spx_ws_
   need->slot[1] = (size_t)36 * cin * coutp * sizeof(float);
 }
 
-spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const spx_tensor *x, const spx_tensor *w,
+spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_op_workspace *ws, const spx_tensor *x, const spx_tensor *w,
                                    int flip, const spx_tensor *bias, const spx_tensor *scale,
                                    const spx_tensor *shift, int relu, int accumulate, const spx_tensor *y) {
   const struct spx_tunables *t = &ctx->dev->tune;
@@ -46,10 +46,10 @@ spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const
   spx_status st;
   if ((st = spx_cl_kernel(ctx, SPX_K_WINO_LDS_WEIGHTS, &kw)) || (st = spx_cl_kernel(ctx, SPX_K_WINO_LDS, &kc)))
     return st;
-  spx_conv2d_scratch U = {0};
+  spx_op_scratch U = {0};
   spx_ws_need need;
   spx_conv2d_winograd_lds_need(ctx, cin, cout, &need);
-  if ((st = spx_conv2d_scratch_get(ctx, ws, 1, need.slot[1], "winograd weight transform", &U))) return st;
+  if ((st = spx_op_scratch_get(ctx, ws, 1, need.slot[1], "winograd weight transform", &U))) return st;
   {
     cl_ulong wo = w->off;
     cl_int e = SPX_ARG(kw, 0, w->mem) | SPX_ARG(kw, 1, wo) | SPX_ARG(kw, 2, U.mem) | SPX_ARG(kw, 3, Cout) |
@@ -78,6 +78,6 @@ spx_status spx_conv2d_winograd_lds(spx_ctx *ctx, spx_conv2d_workspace *ws, const
       goto done;
   }
 done:
-  spx_conv2d_scratch_put(&U);
+  spx_op_scratch_put(&U);
   return st;
 }

@@ -14,74 +14,83 @@ static int wadd(spx_tape *t, int acc, float wt, int term) {
 }
 
 typedef struct dpass {
-  int x, gadv, dloss, gan, fm, dfake, dreal;
+  spx_patchgan *d;
+  spx_tape *gt; /* G's tape and output: the fake half's images */
+  int gy;
+  const float *xhost;
+  int n, h, w;
+  float lambda_fm;
+  int x, gadv, dloss, gan, fm, dfake, dreal; /* ids the build leaves behind */
 } dpass;
 
-static spx_status d_forward(spx_patchgan *d, spx_tape *gt, int gy, const float *xhost, int n, int h, int w,
-                            float lambda_fm, dpass *p) {
-  spx_tape *t = spx_patchgan_tape(d);
-  size_t hw = (size_t)h * (size_t)w;
-  uint64_t key = spx_hash64(&n, sizeof n, SPX_FNV_SEED);
-  key = spx_hash64(&h, sizeof h, key);
-  key = spx_hash64(&w, sizeof w, key);
-  int again = 0, num_d = spx_patchgan_num_d(d);
-  spx_status st;
+static spx_status d_build(spx_tape *t, void *user) {
+  dpass *p = user;
+  const int n = p->n, num_d = spx_patchgan_num_d(p->d);
+  size_t hw = (size_t)p->h * (size_t)p->w;
+  p->x = spx_tape_input(t, 2 * n, 7, p->h, p->w, p->xhost);
+  spx_status st = p->x >= 0 ? spx_tape_requires_grad(t, p->x) : SPX_OK;
+  for (int i = 0; i < n && !st && p->x >= 0; i++) /* the generated images into the fake half */
+    st = spx_tape_transfer(t, p->x, ((size_t)i * 7 + 4) * hw, 0, p->gt, p->gy, (size_t)i * 3 * hw, 0, 3 * hw, 0);
+  if (st) return st;
+  int feat[SPX_PG_MAX_D][SPX_PG_LAYERS];
+  spx_patchgan_forward(p->d, p->x, feat);
+  p->gan = p->fm = p->dfake = p->dreal = -1;
+  for (int k = 0; k < num_d; k++) {
+    int last = feat[k][SPX_PG_LAYERS - 1];
+    int fake = spx_tape_slice_batch(t, last, 0, n), real = spx_tape_slice_batch(t, last, n, n);
+    p->gan = wadd(t, p->gan, 1.0f, spx_tape_mse_const(t, fake, 1.0f));
+    p->dfake = wadd(t, p->dfake, 1.0f, spx_tape_mse_const(t, fake, 0.0f));
+    p->dreal = wadd(t, p->dreal, 1.0f, spx_tape_mse_const(t, real, 1.0f));
+    for (int j = 0; j < SPX_PG_LAYERS - 1; j++) { /* l1's target (the real half) gets no gradient */
+      int f = feat[k][j];
+      float wt = (1.0f / (float)num_d) * (4.0f / (3.0f + 1.0f));
+      p->fm = wadd(t, p->fm, wt, spx_tape_l1(t, spx_tape_slice_batch(t, f, 0, n), spx_tape_slice_batch(t, f, n, n)));
+    }
+  }
+  p->gadv = spx_tape_axpby(t, 1.0f, p->gan, p->lambda_fm, p->fm);
+  p->dloss = spx_tape_axpby(t, 0.5f, p->dfake, 0.5f, p->dreal);
+  int terms[6] = {p->gan, p->fm, p->gadv, p->dfake, p->dreal, p->dloss}; /* read after the backward */
+  for (int i = 0; i < 6; i++)
+    if (terms[i] >= 0) spx_tape_keep(t, terms[i]);
+  return SPX_OK;
+}
+
+static spx_status d_forward(dpass *p) {
+  spx_tape *t = spx_patchgan_tape(p->d);
+  uint64_t key = spx_hash64(&p->n, sizeof p->n, SPX_FNV_SEED);
+  key = spx_hash64(&p->h, sizeof p->h, key);
+  key = spx_hash64(&p->w, sizeof p->w, key);
   spx_tape_set_retain(t, 1); /* backward runs twice over this pass: G's adversarial loss, then D's */
-  do {
-    if ((st = spx_tape_begin(t, 1, key))) return st;
-    p->x = spx_tape_input(t, 2 * n, 7, h, w, xhost);
-    if (p->x >= 0 && (st = spx_tape_requires_grad(t, p->x))) return st;
-    if (p->x >= 0 && !spx_tape_measuring(t)) {
-      for (int i = 0; i < n && !st; i++) /* the generated images into the fake half */
-        st = spx_tape_transfer(t, p->x, ((size_t)i * 7 + 4) * hw, 0, gt, gy, (size_t)i * 3 * hw, 0, 3 * hw, 0);
-      if (st) return st;
-    }
-    int feat[SPX_PG_MAX_D][SPX_PG_LAYERS];
-    spx_patchgan_forward(d, p->x, feat);
-    p->gan = p->fm = p->dfake = p->dreal = -1;
-    for (int k = 0; k < num_d; k++) {
-      int last = feat[k][SPX_PG_LAYERS - 1];
-      int fake = spx_tape_slice_batch(t, last, 0, n), real = spx_tape_slice_batch(t, last, n, n);
-      p->gan = wadd(t, p->gan, 1.0f, spx_tape_mse_const(t, fake, 1.0f));
-      p->dfake = wadd(t, p->dfake, 1.0f, spx_tape_mse_const(t, fake, 0.0f));
-      p->dreal = wadd(t, p->dreal, 1.0f, spx_tape_mse_const(t, real, 1.0f));
-      for (int j = 0; j < SPX_PG_LAYERS - 1; j++) { /* l1's target (the real half) gets no gradient */
-        int f = feat[k][j];
-        float wt = (1.0f / (float)num_d) * (4.0f / (3.0f + 1.0f));
-        p->fm = wadd(t, p->fm, wt, spx_tape_l1(t, spx_tape_slice_batch(t, f, 0, n), spx_tape_slice_batch(t, f, n, n)));
-      }
-    }
-    p->gadv = spx_tape_axpby(t, 1.0f, p->gan, lambda_fm, p->fm);
-    p->dloss = spx_tape_axpby(t, 0.5f, p->dfake, 0.5f, p->dreal);
-    int terms[6] = {p->gan, p->fm, p->gadv, p->dfake, p->dreal, p->dloss}; /* read after the backward */
-    for (int i = 0; i < 6; i++)
-      if (terms[i] >= 0) spx_tape_keep(t, terms[i]);
-    st = spx_tape_end(t, &again);
-  } while (!st && again);
-  return st;
+  return spx_tape_pass(t, 1, key, d_build, p);
 }
 
 /* VGG pass: pred (handed over from G's output, gradient wanted) and gt (no gradient). */
-static spx_status vgg_forward(spx_vgg *v, spx_tape *gt, int gy, const float *target, int n, int h, int w, int *x,
-                              int *loss) {
-  spx_tape *t = spx_vgg_tape(v);
-  size_t chw = (size_t)3 * h * w;
-  uint64_t key = spx_hash64(&n, sizeof n, SPX_FNV_SEED ^ 0x7667ULL);
-  key = spx_hash64(&h, sizeof h, key);
-  key = spx_hash64(&w, sizeof w, key);
-  int again = 0;
-  spx_status st;
-  do {
-    if ((st = spx_tape_begin(t, 1, key))) return st;
-    *x = spx_tape_input(t, n, 3, h, w, NULL);
-    int tg = spx_tape_input(t, n, 3, h, w, target);
-    if (*x >= 0 && (st = spx_tape_requires_grad(t, *x))) return st;
-    if (*x >= 0 && !spx_tape_measuring(t) && (st = spx_tape_transfer(t, *x, 0, 0, gt, gy, 0, 0, (size_t)n * chw, 0)))
-      return st;
-    *loss = spx_vgg_loss(v, *x, tg);
-    st = spx_tape_end(t, &again);
-  } while (!st && again);
-  return st;
+typedef struct vpass {
+  spx_vgg *v;
+  spx_tape *gt;
+  int gy;
+  const float *target;
+  int n, h, w;
+  int x, loss; /* ids the build leaves behind */
+} vpass;
+
+static spx_status vgg_build(spx_tape *t, void *user) {
+  vpass *p = user;
+  p->x = spx_tape_input(t, p->n, 3, p->h, p->w, NULL);
+  int tg = spx_tape_input(t, p->n, 3, p->h, p->w, p->target);
+  spx_status st = p->x >= 0 ? spx_tape_requires_grad(t, p->x) : SPX_OK;
+  if (!st && p->x >= 0)
+    st = spx_tape_transfer(t, p->x, 0, 0, p->gt, p->gy, 0, 0, (size_t)p->n * 3 * p->h * p->w, 0);
+  if (st) return st;
+  p->loss = spx_vgg_loss(p->v, p->x, tg);
+  return SPX_OK;
+}
+
+static spx_status vgg_forward(vpass *p) {
+  uint64_t key = spx_hash64(&p->n, sizeof p->n, SPX_FNV_SEED ^ 0x7667ULL);
+  key = spx_hash64(&p->h, sizeof p->h, key);
+  key = spx_hash64(&p->w, sizeof p->w, key);
+  return spx_tape_pass(spx_vgg_tape(p->v), 1, key, vgg_build, p);
 }
 
 spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, spx_vgg *vgg, const float *in,
@@ -102,28 +111,27 @@ spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, spx_vgg *vgg
   }
   if (dt) spx_tape_copy_shard(dt, gt); /* data-parallel: D's and VGG's seeds take G's share of the batch */
   if (vt) spx_tape_copy_shard(vt, gt);
-  dpass p;
-  memset(&p, 0, sizeof p);
   float rec = 0, vl = 0;
-  int gy = -1, vx = -1, vloss = -1;
   if ((st = spx_unet_zero_grad(g)) || (st = spx_unet_forward_loss(g, in, target, n, h, w, NULL, &rec))) goto done;
-  gy = spx_unet_output_id(g);
-  if (d && (st = d_forward(d, gt, gy, xh, n, h, w, o->lambda_fm, &p))) goto done;
-  if (vgg && (st = vgg_forward(vgg, gt, gy, target, n, h, w, &vx, &vloss))) goto done;
+  int gy = spx_unet_output_id(g);
+  dpass p = {d, gt, gy, xh, n, h, w, o->lambda_fm, -1, -1, -1, -1, -1, -1, -1};
+  vpass vp = {vgg, gt, gy, target, n, h, w, -1, -1};
+  if (d && (st = d_forward(&p))) goto done;
+  if (vgg && (st = vgg_forward(&vp))) goto done;
   /* G: through D (its input gradient, fake half, image channels), through VGG, plus its own L1 */
-  if ((d && (st = spx_tape_backward(dt, p.gadv))) || (vgg && (st = spx_tape_backward(vt, vloss))) ||
+  if ((d && (st = spx_tape_backward(dt, p.gadv))) || (vgg && (st = spx_tape_backward(vt, vp.loss))) ||
       (st = spx_tape_backward_begin(gt)) || (!vgg && (st = spx_tape_seed(gt, spx_unet_loss_id(g), o->lambda_rec))))
     goto done;
   for (int i = 0; i < n && !st && d; i++)
     st = spx_tape_transfer(gt, gy, (size_t)i * 3 * hw, 1, dt, p.x, ((size_t)i * 7 + 4) * hw, 1, 3 * hw, 1);
-  if (!st && vgg) st = spx_tape_transfer(gt, gy, 0, 1, vt, vx, 0, 1, (size_t)n * 3 * hw, 1);
+  if (!st && vgg) st = spx_tape_transfer(gt, gy, 0, 1, vt, vp.x, 0, 1, (size_t)n * 3 * hw, 1);
   if (st || (st = spx_tape_backward_run(gt)) || (st = spx_unet_adam_step_ex(g, o->lr_g, o->beta1, o->beta2, o->eps)))
     goto done;
   /* D: its own loss, its own gradients only */
   if (d && ((st = spx_tape_zero_grad(dt)) || (st = spx_tape_backward(dt, p.dloss)) ||
             (st = spx_patchgan_adam(d, o->lr_d, o->beta1, o->beta2, o->eps))))
     goto done;
-  if (vgg && (st = spx_tape_read(vt, vloss, &vl))) goto done;
+  if (vgg && (st = spx_tape_read(vt, vp.loss, &vl))) goto done;
   if (terms) {
     float v[6] = {0};
     int ids[6] = {p.gan, p.fm, p.gadv, p.dfake, p.dreal, p.dloss};

@@ -20,10 +20,10 @@ void spx_loss_forward_need(const spx_ctx *ctx, size_t numel, spx_ws_need *need) 
 
 /* kind: 0 value, 1 L1, 2 MSE (the kernel's term). b may equal a for kind 0. */
 static spx_status reduce_run(spx_ctx *ctx, const char *op, int kind, const spx_tensor *a, const spx_tensor *b, float div,
-                             const spx_tensor *out, spx_conv2d_workspace *ws) {
+                             const spx_tensor *out, spx_op_workspace *ws) {
   spx_status st;
   cl_kernel k1, k2;
-  spx_conv2d_scratch ps = {0};
+  spx_op_scratch ps = {0};
   size_t wg = (size_t)ctx->dev->tune.red_wg;
   if (wg > ctx->dev->info.max_work_group)
     return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s: SPX_RED_WG=%zu exceeds the device's work-group limit %zu", op, wg,
@@ -36,7 +36,7 @@ static spx_status reduce_run(spx_ctx *ctx, const char *op, int kind, const spx_t
       (st = spx_cl_kernel(ctx, SPX_K_REDUCE_STAGE2, &k2)))
     return st;
   /* released right after enqueueing: OpenCL frees it once the queued kernels are done */
-  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, groups * sizeof(float), "reduction partial sums", &ps))) return st;
+  if ((st = spx_op_scratch_get(ctx, ws, 0, groups * sizeof(float), "reduction partial sums", &ps))) return st;
   cl_mem partial = ps.mem;
   cl_int ni = (cl_int)n, kd = kind, np = (cl_int)groups;
   cl_int e = spx_nn_arg(k1, 0, a) | spx_nn_arg(k1, 2, b) | SPX_ARG(k1, 4, ni) | SPX_ARG(k1, 5, kd) |
@@ -46,7 +46,7 @@ static spx_status reduce_run(spx_ctx *ctx, const char *op, int kind, const spx_t
     e = SPX_ARG(k2, 0, partial) | SPX_ARG(k2, 1, np) | spx_nn_arg(k2, 2, out) | SPX_ARG(k2, 4, div);
     if (!(st = spx_cl_check(ctx, e, "spx_reduce_stage2"))) st = spx_cl_run(ctx, k2, 1, &wg, &wg, "spx_reduce_stage2");
   }
-  spx_conv2d_scratch_put(&ps);
+  spx_op_scratch_put(&ps);
   return st;
 }
 
@@ -73,7 +73,7 @@ spx_status spx_loss_forward(spx_ctx *ctx, spx_loss_kind kind, spx_reduction r, c
 }
 
 spx_status spx_loss_forward_ws(spx_ctx *ctx, spx_loss_kind kind, spx_reduction r, const spx_tensor *pred,
-                               const spx_tensor *target, const spx_tensor *out, spx_conv2d_workspace *ws) {
+                               const spx_tensor *target, const spx_tensor *out, spx_op_workspace *ws) {
   spx_status st;
   if ((st = loss_check(ctx, "loss_forward", kind, r, pred, target)) || (st = spx_nn_check(ctx, out, "loss_forward", "out")))
     return st;

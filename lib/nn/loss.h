@@ -19,7 +19,7 @@ spx_status spx_loss_forward(spx_ctx *ctx, spx_loss_kind kind, spx_reduction r, c
 /* The same with the reduction's partial sums (slot 0) from ws (NULL: allocated per call); their
  * need for a pred of numel elements from spx_loss_forward_need. */
 spx_status spx_loss_forward_ws(spx_ctx *ctx, spx_loss_kind kind, spx_reduction r, const spx_tensor *pred,
-                               const spx_tensor *target, const spx_tensor *out, spx_conv2d_workspace *ws);
+                               const spx_tensor *target, const spx_tensor *out, spx_op_workspace *ws);
 void spx_loss_forward_need(const spx_ctx *ctx, size_t numel, spx_ws_need *need);
 spx_status spx_loss_backward(spx_ctx *ctx, spx_loss_kind kind, spx_reduction r, const spx_tensor *pred,
                              const spx_tensor *target, const spx_tensor *dout, const spx_tensor *dpred,

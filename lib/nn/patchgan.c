@@ -35,13 +35,7 @@ static int ch_out(int ndf, int j) {
 }
 static int ch_in(int in_ch, int ndf, int j) { return j == 0 ? in_ch : ch_out(ndf, j - 1); }
 
-static uint64_t mix(uint64_t *s) {
-  uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-static double unif(uint64_t *s) { return ((double)(mix(s) >> 11) + 0.5) / 9007199254740992.0; }
+static double unif(uint64_t *s) { return ((double)(spx_splitmix64(s) >> 11) + 0.5) / 9007199254740992.0; }
 
 spx_status spx_patchgan_create(spx_ctx *ctx, int in_ch, int ndf, int num_d, uint64_t seed, spx_tape_backend backend,
                                spx_patchgan **out) {
@@ -127,7 +121,7 @@ int spx_patchgan_forward(spx_patchgan *d, int x, int feat[SPX_PG_MAX_D][SPX_PG_L
     int h = in;
     for (int j = 0; j < SPX_PG_LAYERS; j++) {
       const pg_entry *w = &d->ents[2 * (scale * SPX_PG_LAYERS + j)];
-      h = spx_tape_conv_s(t, h, w[0].id, w[1].id, j < 3 ? 2 : 1, 2);
+      h = spx_tape_conv_strided(t, h, w[0].id, w[1].id, j < 3 ? 2 : 1, 2);
       if (j >= 1 && j <= 3) h = spx_tape_instnorm(t, h, SPX_IN_EPS);
       if (j < 4) h = spx_tape_act(t, SPX_ACT_LEAKY_RELU, 0.2f, h);
       feat[k][j] = h;

@@ -32,9 +32,9 @@ spx_status spx_patchgan_create(spx_ctx *ctx, int in_ch, int ndf, int num_d, uint
 spx_tape *spx_patchgan_tape(spx_patchgan *d);
 int spx_patchgan_in_channels(const spx_patchgan *d);
 
-/* Inside a pass of the discriminator's tape (spx_tape_begin/end): run every scale on the
- * activation x [B, in_ch, H, W]; feat[k][j] = output of layer j at resolution k (k = 0 full).
- * Returns 0, or -1 after a tape error (sticky, reported by spx_tape_end). */
+/* Inside a build of the discriminator's tape (spx_tape_pass): run every scale on the activation x
+ * [B, in_ch, H, W]; feat[k][j] = output of layer j at resolution k (k = 0 full). Returns 0, or -1
+ * after a tape error (sticky, reported by spx_tape_pass). */
 int spx_patchgan_forward(spx_patchgan *d, int x, int feat[SPX_PG_MAX_D][SPX_PG_LAYERS]);
 
 /* One Adam step (PyTorch semantics) over every discriminator parameter; the step count advances. */

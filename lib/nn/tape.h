@@ -5,18 +5,20 @@
  * state (batch-norm running statistics), and one arena for the activations and activation gradients
  * for the forward/backward of one input shape.
  *
- * Values are small integer ids. Parameters and state are declared once (spx_tape_param /
- * spx_tape_state, then spx_tape_alloc_params). A forward pass is bracketed by
- * spx_tape_begin/spx_tape_end; every op call (spx_tape_conv, ...) creates its output value in
- * the arena, runs the op and, in training mode, appends a node (kind, input/output ids, saved
- * ids, integer args) to the tape. In inference mode nothing is recorded.
+ * Values are small integer ids (SPX_TAPE_NONE: no value). Parameters and state are declared once
+ * (spx_tape_param / spx_tape_state, then spx_tape_alloc_params). A forward pass is one call,
+ * spx_tape_pass(t, train, plan_key, build, user): the network's build function creates its inputs
+ * and calls the ops (spx_tape_conv, ...); every op creates its output value in the arena, runs and,
+ * in training mode, appends a node (kind, input/output ids, saved ids, typed arguments) to the
+ * tape. In inference mode nothing is recorded.
  *
- * Memory is planned once per input shape: when begin() sees a plan key it has not planned, the
- * pass is a MEASURING pass: ops only record the graph and run nothing; end() then plans the
- * arena offsets by liveness (lib/nn/tape_plan.c), sizes the arena (grow-only) and asks the
- * caller to run the pass again
- *   do { spx_tape_begin(t, train, key); ...ops...; st = spx_tape_end(t, &again); } while (!st && again);
- * so the steady state creates no buffers at all.
+ * Build, plan, run: memory is planned once per plan key (the input shape and anything else that
+ * changes the graph). When spx_tape_pass sees a key it has not planned, it first runs the build
+ * as a MEASURING pass: the ops only record the graph and run nothing (inputs, device inputs and
+ * transfers into the tape are not copied); the recorded graph is planned by liveness
+ * (lib/nn/tape_plan.c), the arena sized (grow-only), and the build runs again on the plan. The
+ * build therefore runs once or twice per pass and must only call the tape (and compute the same
+ * graph each time); the steady state creates no buffers at all.
  *
  * spx_tape_backward(t, loss) walks the nodes in reverse; every op's backward ACCUMULATES into the
  * gradients of its inputs (activation gradients are zeroed when their storage is born; parameter gradients are only
@@ -27,7 +29,7 @@
  * whole graph and as a double-precision oracle.
  *
  * Errors are sticky: after the first failing op every later op is a no-op returning -1, and
- * end()/backward() return the recorded status. */
+ * spx_tape_pass / backward() return the recorded status. */
 #ifndef SPX_NN_TAPE_H
 #define SPX_NN_TAPE_H
 
@@ -72,20 +74,34 @@ size_t spx_tape_numel(const spx_tape *t, int id);
 spx_status spx_tape_read_moments(spx_tape *t, int id, float *m, float *v);
 spx_status spx_tape_write_moments(spx_tape *t, int id, const float *m, const float *v);
 
-/* ---- forward passes ---- */
-spx_status spx_tape_begin(spx_tape *t, int train, uint64_t plan_key);
-spx_status spx_tape_end(spx_tape *t, int *again);
-int spx_tape_measuring(const spx_tape *t);
+/* ---- forward passes (lib/nn/tape_pass.c) ---- */
+#define SPX_TAPE_NONE (-1) /* "no value" for optional value arguments (a bias, an axpby's y) */
+/* A network's forward: creates its inputs, calls the ops, marks values (keep, requires_grad) and
+ * returns SPX_OK, or the failure of a step of its own (op failures are sticky on the tape and
+ * reported by spx_tape_pass). */
+typedef spx_status (*spx_tape_build_fn)(spx_tape *t, void *user);
+/* One forward pass of build (train: record it for backward) under plan_key, planned first when
+ * the key is new (the measuring run above). Returns the first failure of the build or an op. */
+spx_status spx_tape_pass(spx_tape *t, int train, uint64_t plan_key, spx_tape_build_fn build, void *user);
 /* Number of measuring (planning) passes so far. */
 int spx_tape_plan_count(const spx_tape *t);
-/* A new activation value filled from host data (ignored while measuring). */
+/* A new activation value (inside a build), filled from host data (data NULL: left for a transfer
+ * or written later). */
 int spx_tape_input(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w, const float *data);
+/* The same, filled on the device from n*c*h*w floats of src at byte offset `offset` (device
+ * backend): no host round trip. */
+int spx_tape_input_device(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w, cl_mem src, size_t offset);
 
-/* Ops: each returns the output value id (-1 after an error). */
-/* k x k convolution, zero padding `pad`, stride 1. bias, scale, shift: value ids or -1.
- * scale/shift/relu are the inference epilogue (not differentiable: only allowed when not
- * training). */
-int spx_tape_conv(spx_tape *t, int x, int w, int bias, int pad, int scale, int shift, int relu);
+/* Ops (lib/nn/tape_op_*.c): each returns the output value id (-1 after an error). */
+/* ---- convolutions (tape_op_conv.c); bias: a value id or SPX_TAPE_NONE ---- */
+/* k x k convolution (k odd), stride 1, zero padding k / 2: the output has x's size. */
+int spx_tape_conv(spx_tape *t, int x, int w, int bias);
+/* k x k convolution with stride and zero padding (0 <= pad < k): PatchGAN's 4x4 convs. */
+int spx_tape_conv_strided(spx_tape *t, int x, int w, int bias, int stride, int pad);
+/* Inference only (not differentiable): relu(scale * conv(x, w) + shift) per output channel, k odd,
+ * stride 1, padding k / 2: a convolution with its batch norm folded in (scale, shift: values). */
+int spx_tape_conv_bn_relu(spx_tape *t, int x, int w, int scale, int shift);
+/* ---- normalisations (tape_op_norm.c) ---- */
 /* Batch norm over N,H,W in training mode (batch statistics; running_mean/var updated with
  * momentum, unbiased variance, like torch.nn.BatchNorm2d). gamma/beta params, rmean/rvar state. */
 int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int rvar, float momentum, float eps);
@@ -94,30 +110,32 @@ int spx_tape_batchnorm(spx_tape *t, int x, int gamma, int beta, int rmean, int r
  * way and no stored pre-activation (kernels/batchnorm.cl); two nodes under a synchronised batch
  * norm. */
 int spx_tape_batchnorm_relu(spx_tape *t, int x, int gamma, int beta, int rmean, int rvar, float momentum, float eps);
-int spx_tape_act(spx_tape *t, spx_act_kind kind, float slope, int x);
-int spx_tape_maxpool2(spx_tape *t, int x);
-int spx_tape_upsample2(spx_tape *t, int x); /* bilinear x2, align_corners = true */
-int spx_tape_pad(spx_tape *t, int x, int left, int right, int top, int bottom);
-int spx_tape_concat(spx_tape *t, int a, int b); /* channels: [a, b] */
-/* concat(skip, pad(upsample2(x))) in one op and pass (lib/nn/tape_fused.c), the pads splitting
- * the size difference like the UNet's up block (F.pad(x, [dx / 2, dx - dx / 2, dy / 2, dy - dy / 2]));
- * bit-identical to the three ops. skip must not be smaller than the upsampled x. */
-int spx_tape_upcat(spx_tape *t, int skip, int x);
-/* mean |pred - target| as a 1-element value; must be the root of backward. */
-int spx_tape_l1(spx_tape *t, int pred, int target);
-
-/* ---- ops of the multi-network recipe (lib/nn/tape_multi.c) ---- */
-/* k x k convolution with stride and zero padding (0 <= pad < k), trainable: PatchGAN's 4x4 convs. */
-int spx_tape_conv_s(spx_tape *t, int x, int w, int bias, int stride, int pad);
 /* InstanceNorm2d(affine=False): per-(n, c) plane mean and biased variance, eps. */
 int spx_tape_instnorm(spx_tape *t, int x, float eps);
+/* ---- elementwise (tape_op_pointwise.c) ---- */
+int spx_tape_act(spx_tape *t, spx_act_kind kind, float slope, int x);
+/* a * x + b * y elementwise (y = SPX_TAPE_NONE: a * x); x and y have the same number of
+ * elements. Weighted sums of scalar losses are chains of these. */
+int spx_tape_axpby(spx_tape *t, float a, int x, float b, int y);
+/* ---- resampling (tape_op_resample.c) ---- */
+int spx_tape_maxpool2(spx_tape *t, int x);
 /* AvgPool2d(3, stride=2, padding=1, count_include_pad=False). */
 int spx_tape_avgpool3(spx_tape *t, int x);
-/* mean (x - target)^2 over all elements as a 1-element value (least-squares GAN). */
+int spx_tape_upsample2(spx_tape *t, int x); /* bilinear x2, align_corners = true */
+/* ---- layout (tape_op_layout.c) ---- */
+int spx_tape_pad(spx_tape *t, int x, int left, int right, int top, int bottom);
+int spx_tape_concat(spx_tape *t, int a, int b); /* channels: [a, b] */
+/* concat(skip, pad(upsample2(x))) in one op and pass, the pads splitting the size difference like
+ * the UNet's up block (F.pad(x, [dx / 2, dx - dx / 2, dy / 2, dy - dy / 2])); bit-identical to the
+ * three ops. skip must not be smaller than the upsampled x. */
+int spx_tape_upcat(spx_tape *t, int skip, int x);
+/* ---- losses (tape_op_loss.c): 1-element values ---- */
+/* mean |pred - target|. */
+int spx_tape_l1(spx_tape *t, int pred, int target);
+/* mean (x - target)^2 over all elements (least-squares GAN). */
 int spx_tape_mse_const(spx_tape *t, int x, float target);
-/* a * x + b * y elementwise (y = -1: a * x); x and y have the same number of elements. Weighted
- * sums of scalar losses are chains of these. */
-int spx_tape_axpby(spx_tape *t, float a, int x, float b, int y);
+
+/* ---- values without ops (lib/nn/tape.c) ---- */
 /* The same data as x, but no gradient flows back through it (torch's .detach()). No copy. */
 int spx_tape_detach(spx_tape *t, int x);
 /* Samples [n0, n0 + count) of x as a value of its own (no copy); gradients given to the slice land
@@ -128,20 +146,20 @@ int spx_tape_slice_batch(spx_tape *t, int x, int n0, int count);
 spx_status spx_tape_requires_grad(spx_tape *t, int id);
 /* Keep an activation (and its gradient) alive to the end of the pass and its backward, for reads
  * or gradient transfers from outside after its last reader inside the tape has run. Call it in
- * every pass (measuring included), like requires_grad. Values nothing reads (the outputs) are
- * kept without it. */
+ * the build, like requires_grad. Values nothing reads (the outputs) are kept without it. */
 spx_status spx_tape_keep(spx_tape *t, int id);
 /* Copy (accumulate = 0) or add (accumulate = 1) `count` floats from the value or gradient
  * (src_grad) of src's value sid at float offset soff into the value or gradient (dst_grad) of
  * dst's value did at offset doff. Tapes of one context and backend; the device path stays on the
- * device. This is how networks hand tensors forward (G's image into D's input) and gradients
- * back (D's input gradient into G's output gradient, between backward_begin and backward_run). */
+ * device. This is how networks hand tensors forward (G's image into D's input, inside D's build:
+ * nothing is copied while dst's pass measures) and gradients back (D's input gradient into G's
+ * output gradient, between backward_begin and backward_run). */
 spx_status spx_tape_transfer(spx_tape *dst, int did, size_t doff, int dst_grad, spx_tape *src, int sid, size_t soff,
                              int src_grad, size_t count, int accumulate);
 
 /* ---- memory (lib/nn/tape_plan.c) ----
- * All activations and activation gradients of a pass live in ONE arena, at offsets the measuring
- * pass plans from the recorded graph: a value's storage is reused once nothing later in the
+ * All activations and activation gradients of a pass live in ONE arena, at offsets planned from
+ * the graph the measuring run recorded: a value's storage is reused once nothing later in the
  * forward or the backward reads it (see tape_plan.c for the rules). Reading a value or gradient
  * after its storage was given away fails with SPX_E_STATE (spx_tape_keep it). On the device the
  * arena also holds each op's scratch (conv workspace) at that op's step, sized by the op's need
@@ -163,7 +181,7 @@ void spx_tape_set_reuse(spx_tape *t, int on);
  * shows in the results. */
 void spx_tape_set_poison(spx_tape *t, int on);
 
-/* ---- backward and optimizer ---- */
+/* ---- backward and optimizer (lib/nn/tape_backward.c) ---- */
 /* backward(t, loss) = backward_begin (activation gradients of the pass zeroed) + seed(loss, 1) +
  * backward_run. Several roots and external gradients: begin, then seed scalars and/or transfer
  * gradients into any activation's gradient (accumulate = 1), then run. */

@@ -1,5 +1,5 @@
-/* Private to the tape's implementation files (lib/nn/tape.c, lib/nn/tape_multi.c): the value
- * table, node record and the tape struct, plus the helpers both files use. */
+/* Private to the tape's implementation files (lib/nn/tape*.c): the value table, the node record
+ * and its typed arguments, the op table's row, the tape struct, and the helpers they share. */
 #ifndef SPX_NN_TAPE_INTERNAL_H
 #define SPX_NN_TAPE_INTERNAL_H
 
@@ -65,32 +65,74 @@ typedef struct tplan {
 
 #define TP_MAXPLANS 8
 
-enum { OP_CONV, OP_BN, OP_ACT, OP_MAXPOOL, OP_UPSAMPLE, OP_PAD, OP_CONCAT, OP_L1,
-       /* lib/nn/tape_multi.c */
-       OP_INSTNORM, OP_AVGPOOL3, OP_MSE_CONST, OP_AXPBY,
-       /* lib/nn/tape_fused.c */
-       OP_UPCAT, NOPS };
+/* The op kinds of the tape. Each has one row in the op table (lib/nn/tape_ops.c) and its
+ * constructor, forward and backward in the file of its group:
+ *   tape_op_conv.c      conv
+ *   tape_op_norm.c      batch norm (+ ReLU), instance norm
+ *   tape_op_pointwise.c activation, a*x + b*y
+ *   tape_op_resample.c  max pool, 3x3 average pool, bilinear upsampling
+ *   tape_op_layout.c    pad, concat, upcat (concat(skip, pad(upsample(x))))
+ *   tape_op_loss.c      L1, MSE against a constant */
+enum { OP_CONV, OP_BN, OP_ACT, OP_MAXPOOL, OP_UPSAMPLE, OP_PAD, OP_CONCAT, OP_L1, OP_INSTNORM, OP_AVGPOOL3,
+       OP_MSE_CONST, OP_AXPBY, OP_UPCAT, NOPS };
+
+/* The arguments of a node, one member per op kind (the others have none). */
+typedef union tp_args {
+  struct { int stride, pad, inference; } conv; /* inference: the fused epilogue (workspace plan) */
+  struct { int relu; float momentum, eps; } bn;
+  struct { spx_act_kind kind; float slope; } act;
+  struct { int left, right, top, bottom; } pad;
+  struct { int top, left; } upcat;             /* where the upsampled x sits in the skip's plane */
+  struct { float eps; } instnorm;
+  struct { float target; } mse;
+  struct { float a, b; } axpby;
+} tp_args;
 
 typedef struct tnode {
   int kind;
-  int in[3];
+  int in[3]; /* input values, -1 padded */
   int out;
-  int saved[2];
-  int iarg[4];
-  float farg[2];
+  int saved[2]; /* values the forward saved for the backward (statistics), -1 padded */
+  tp_args arg;
 } tnode;
+
+/* One row of the op table: everything the tape does with a node of one kind after recording it. */
+typedef struct tp_op {
+  const char *name; /* profile and error lines */
+  /* the node's backward, ADDING into its inputs' gradients: host (double references) / device */
+  spx_status (*back_host)(spx_tape *t, const tnode *nd);
+  spx_status (*back_dev)(spx_tape *t, const tnode *nd);
+  /* the activations whose data the backward reads (up to 3, -1 padded), for the liveness plan;
+   * NULL: none (dy only) */
+  void (*back_reads)(const spx_tape *t, const tnode *nd, int r[3]);
+  /* the device scratch of its forward (need[0]) and backward (need[1]) launchers, for the
+   * workspace plan; NULL: none */
+  void (*ws_need)(const spx_tape *t, const tnode *nd, spx_ws_need need[2]);
+} tp_op;
+
+/* tape_ops.c: the row of kind (every kind has one; tests/test_nn_tape.c checks them all) */
+const tp_op *spx_tp_op(int kind);
+const char *spx_tp_op_name(int kind);
+extern const tp_op spx_tp_op_conv, spx_tp_op_bn, spx_tp_op_act, spx_tp_op_maxpool, spx_tp_op_upsample,
+    spx_tp_op_pad, spx_tp_op_concat, spx_tp_op_l1, spx_tp_op_instnorm, spx_tp_op_avgpool3, spx_tp_op_mse_const,
+    spx_tp_op_axpby, spx_tp_op_upcat;
+
+struct tp_prof; /* tape_prof.c */
+struct tp_dist; /* tape_dist.c */
 
 struct spx_tape {
   spx_ctx *ctx;
   spx_tape_backend backend;
+  /* values and the recorded graph */
   tvalue *vals;
   int nvals, capvals, npersist; /* values [0, npersist) are params/state */
   tnode *nodes;
   int nnodes, capnodes;
+  /* slabs of the parameters (+ gradients, Adam moments) and state: device, or host doubles */
   size_t nparam, nstate; /* floats */
   int allocated;
-  /* slabs: device */
   cl_mem param, grad, m, v, state;
+  double *hparam, *hgrad, *hm, *hv, *hstate, *hact;
   /* the activation arena: the activations and their gradients (and, TAPE_WS_ARENA 1, the ops'
    * scratch) at planned float offsets [0, act_cap). On the device it is nact buffers ("chunks")
    * of act_chunk floats each (the last one act_len[nact - 1]): offset o lies in chunk
@@ -100,42 +142,28 @@ struct spx_tape {
   size_t *act_len;
   int nact;
   size_t act_cap, act_chunk; /* floats */
-  cl_mem ws;                              /* op scratch when not inside act (TAPE_WS_ARENA 0) */
-  size_t ws_cap;                          /* bytes */
+  cl_mem ws;                 /* op scratch when not inside act (TAPE_WS_ARENA 0) */
+  size_t ws_cap;             /* bytes */
   /* inference convolutions' prepared weights (packed / Winograd-transformed), per weight value
    * id < npersist, kept between passes while the parameters do not change (CONV_WPREP); every
    * parameter write, Adam step and broadcast drops them all (spx_tp_wprep_drop) */
   spx_conv2d_wprep *wprep;
-  /* slabs: host */
-  double *hparam, *hgrad, *hm, *hv, *hstate, *hact;
-  /* current pass */
+  /* the current pass (lib/nn/tape_pass.c): measuring = its planning run, err sticky */
   int train, measuring, in_pass;
   spx_status err;
   /* liveness (lib/nn/tape_plan.c): the plan of this pass (NULL while measuring), where the pass
-   * is (0 forward, 1 ended, 2 backward begun, 3 backward done), event cursors, options */
-  tplan *cur;
-  int phase, backward_runs, dcur, bcur;
-  int retain, reuse, poison;
-  /* plans: one per measured key, oldest dropped first */
-  tplan plans[TP_MAXPLANS];
-  int nplans;
-  int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
-  /* data-parallel training (lib/nn/tape_dist.c): the ranks' comm (NULL: one process), batch
-   * norm synchronised over them, this step's shard (local of global samples; 0 of 0: none given),
-   * host staging for the comm (grow-only) */
-  const spx_comm *comm;
-  int sync_bn, shard_local, shard_global;
-  float *xfer;
-  size_t xfer_cap;
-  /* SPX_PROFILE_TAPE on the context: finish the queue around every device op and log the time
-   * per op kind and direction when the tape is destroyed */
-  int prof; /* 1: per op kind; 2 (SPX_PROFILE_TAPE_OPS): also per op instance (lib/nn/tape_prof.c) */
-  double prof_s[NOPS][2];
-  long prof_n[NOPS][2];
-  int prof_op;          /* forward ops run so far in this pass: the instance index */
-  char prof_note[64];   /* what the next profiled op adds to its line (conv: shape, algorithm) */
-  struct tp_prof_inst *prof_inst;
-  int prof_ninst, prof_cap;
+   * is (0 forward, 1 ended, 2 backward begun, 3 backward done), event cursors, options, and the
+   * plans, one per measured key (oldest dropped first) */
+  struct {
+    tplan *cur;
+    int phase, backward_runs, dcur, bcur;
+    int retain, reuse, poison;
+    tplan plans[TP_MAXPLANS];
+    int nplans;
+    int nmeasured; /* measuring passes so far (tests: steady state plans nothing) */
+  } pl;
+  struct tp_dist *dist; /* data-parallel training: comm, shard, host staging */
+  struct tp_prof *prof; /* device-time profile; NULL: off */
 };
 
 /* tape.c: the arena chunk holding arena float offset off, and off's offset inside it (device;
@@ -145,36 +173,32 @@ cl_mem spx_tp_act_mem(const spx_tape *t, size_t off, size_t *local);
 /* tape.c: release every prepared weight (the parameters change, or the tape goes) */
 void spx_tp_wprep_drop(spx_tape *t);
 
-/* tape_prof.c: the profile's per-instance records and the report at destroy */
-void spx_tp_prof_inst(spx_tape *t, int kind, double seconds);
+/* tape_prof.c: the profile (SPX_PROFILE_TAPE / _OPS on the context). create: NULL t->prof when
+ * off. begin/end bracket one op's device work (finishing the queue; begin returns 0 and end does
+ * nothing when off); conv_note: what the next op's per-instance line adds; pass: a new pass starts
+ * (the instance count restarts); report: log it (when on) and free it. */
+spx_status spx_tp_prof_create(spx_tape *t);
+double spx_tp_prof_begin(spx_tape *t);
+void spx_tp_prof_end(spx_tape *t, int kind, int backward, double t0);
 void spx_tp_prof_conv_note(spx_tape *t, int cin, int cout, int hw, int k, int stride, int pad, int inference);
-void spx_tp_prof_report(spx_tape *t); /* logs the profile (when on) and frees its records */
-const char *spx_tp_op_name(int kind);
+void spx_tp_prof_pass(spx_tape *t);
+void spx_tp_prof_destroy(spx_tape *t);
 
-static inline double prof_begin(spx_tape *t) {
-  spx_device_finish(t->ctx);
-  return spx_now();
-}
-static inline void prof_end(spx_tape *t, int kind, int dir, double t0) {
-  spx_device_finish(t->ctx);
-  double dt = spx_now() - t0;
-  t->prof_s[kind][dir] += dt;
-  t->prof_n[kind][dir]++;
-  if (t->prof > 1 && dir == 0) spx_tp_prof_inst(t, kind, dt);
-}
-
-/* tape.c */
+/* tape.c: values and nodes */
 int spx_tp_new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, int32_t w);
-void spx_tp_record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, int s1, const int *iarg,
-                   const float *farg);
+void spx_tp_record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, int s1, const tp_args *args);
 int spx_tp_bad_id(spx_tape *t, const char *op, int id);
 spx_status spx_tp_train_slabs(spx_tape *t); /* the gradient / Adam slabs, made on first need */
 static inline int spx_tp_valid(const spx_tape *t, int id) { return id >= 0 && id < t->nvals; }
+/* An op runs (past recording) when no error is pending and the pass is not a measuring one. */
 static inline int spx_tp_live(const spx_tape *t) { return !t->err && !t->measuring; }
 static inline int spx_tp_wants(const spx_tape *t, int id) { return id >= 0 && t->vals[id].needs_grad; }
 static inline size_t spx_tp_numel(const tvalue *v) {
   return (size_t)v->n * (size_t)v->c * (size_t)v->h * (size_t)v->w;
 }
+/* After a forward op's device work: st recorded as the pass's error (sticky) and -1 returned, or
+ * the op's profile closed (t0: spx_tp_prof_begin) and its output y returned. */
+int spx_tp_ran(spx_tape *t, int kind, double t0, spx_status st, int y);
 /* tape_plan.c: liveness plans */
 spx_status spx_tp_plan(spx_tape *t, tplan *p);       /* at the end of a measuring pass */
 void spx_tp_plan_free(tplan *p);
@@ -185,36 +209,21 @@ int spx_tp_now(const spx_tape *t);                   /* the current time between
 spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what);
 /* The planned workspace of node `node`'s forward (bwd = 0) or backward (1) in ws, returned; NULL
  * (scratch allocated per call) when the plan has none. */
-spx_conv2d_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_conv2d_workspace *ws);
+spx_op_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_op_workspace *ws);
 /* Grows the separate op-scratch buffer (TAPE_WS_ARENA 0) to plan p's largest op; grow-only. */
 spx_status spx_tp_ws_reserve(spx_tape *t, const tplan *p);
-/* Backward of node i reads the data of these activations (up to 3, -1 padded). */
-void spx_tp_back_reads(const spx_tape *t, const tnode *nd, int r[3]);
-/* ReLU / LeakyReLU (slope >= 0) backward from the output: the same mask as from the input. */
-static inline int spx_tp_act_uses_output(spx_act_kind k, float slope) {
-  return spx_act_saves_output(k) || k == SPX_ACT_RELU || (k == SPX_ACT_LEAKY_RELU && slope >= 0.0f);
-}
-/* tape_dist.c: the synchronised batch norm's view of the ranks for input value x */
+/* tape_pass.c: the arena for plan p (grow-only) */
+spx_status spx_tp_grow_arena(spx_tape *t, const tplan *p);
+/* tape_dist.c: the data-parallel state (create: zeroed; destroy frees its staging) and the
+ * synchronised batch norm's view of the ranks for input value x */
+spx_status spx_tp_dist_create(spx_tape *t);
+void spx_tp_dist_destroy(spx_tape *t);
 spx_status spx_tape_bn_sync(spx_tape *t, int x, spx_bn_sync *out);
-/* tape_multi.c: backward of the OP_INSTNORM.. kinds */
-spx_status spx_tp_back_multi(spx_tape *t, const tnode *nd);
-/* tape_fused.c: backward of OP_UPCAT */
-spx_status spx_tp_back_fused(spx_tape *t, const tnode *nd);
-
-/* Run a status-returning call, making the error sticky. */
-#define RUN(kind, call)                                                                                             \
-  do {                                                                                                              \
-    double run_t0_ = t->prof ? prof_begin(t) : 0;                                                                   \
-    spx_status run_st_ = (call);                                                                                    \
-    if (run_st_) {                                                                                                  \
-      t->err = run_st_;                                                                                             \
-      return -1;                                                                                                    \
-    }                                                                                                               \
-    if (t->prof) prof_end(t, (kind), 0, run_t0_);                                                                   \
-  } while (0)
 
 #define HOST (t->backend == SPX_TAPE_HOST)
 #define TV(id) spx_tape_tensor(t, (id))
 #define HV(id) spx_tape_host(t, (id))
+/* the gradient of id when it wants one, else NULL (host backward) */
+#define HG(id) (spx_tp_wants(t, (id)) ? spx_tape_host_grad(t, (id)) : NULL)
 
 #endif

@@ -8,8 +8,8 @@
  * node j runs at 4N - 2j + 1 (node N-1 first, at 2N + 3) and the backward ends at 4N + 2.
  *
  * A storage (a value and the detach / slice aliases of it) holds its data from its birth to its
- * last reader: forward ops reading it, and backward steps that read saved activations
- * (spx_tp_back_reads). Storage that nothing reads (the outputs of the pass), storage marked with
+ * last reader: forward ops reading it, and backward steps that read saved activations (the op
+ * table's back_reads). Storage that nothing reads (the outputs of the pass), storage marked with
  * spx_tape_keep and, under spx_tape_set_retain, everything backward reads lives to the end
  * (TP_INF). Its gradient lives from the first backward step that adds to it to the backward step
  * of its producer; gradients that can be seeded or handed in from outside (no producer inside the
@@ -19,20 +19,19 @@
  * Offsets: the storages (data and gradient separately) sorted by size, largest first (ties by
  * value id), each put at the lowest offset (16-float aligned) that overlaps no storage placed
  * before it whose interval meets its own and crosses no multiple of the plan's chunk (the device's
- * largest allocation: the arena is one buffer per chunk, lib/nn/tape.c grow_arena). All of it depends only on the recorded graph, so a pass
- * always gets the same layout and the results do not depend on reuse.
+ * largest allocation: the arena is one buffer per chunk, lib/nn/tape_pass.c spx_tp_grow_arena).
+ * All of it depends only on the recorded graph, so a pass always gets the same layout and the
+ * results do not depend on reuse.
  *
  * Op scratch (device backend; lib/nn/workspace.h): node k's forward and its backward step each
- * get one region of the arena holding the slots its launchers ask for (op_need: the launchers'
- * need functions), live at that one time and placed among the storages by the same first fit (its
+ * get one region of the arena holding the slots its launchers ask for (the op table's ws_need:
+ * the launchers' need functions), live at that one time and placed among the storages by the same first fit (its
  * start aligned to the device's sub-buffer alignment), so the pass allocates nothing. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "nn/loss.h"
 #include "nn/tape_internal.h"
-#include "nn/upsample.h"
 
 #define ALIGN 16
 
@@ -41,32 +40,11 @@ void spx_tp_plan_free(tplan *p) {
   memset(p, 0, sizeof *p);
 }
 
-void spx_tp_back_reads(const spx_tape *t, const tnode *nd, int r[3]) {
+/* The activations node nd's backward reads (up to 3, -1 padded): its op's back_reads. */
+static void back_reads(const spx_tape *t, const tnode *nd, int r[3]) {
   r[0] = r[1] = r[2] = -1;
-  int wx = spx_tp_wants(t, nd->in[0]);
-  switch (nd->kind) {
-    case OP_CONV: /* x for the weight gradient only; the data gradient needs w and dy */
-      if (spx_tp_wants(t, nd->in[1])) r[0] = nd->in[0];
-      break;
-    case OP_BN: /* saved[1]: the synchronised batch norm's rank sums (-1 without) */
-      r[0] = nd->in[0], r[1] = nd->saved[0], r[2] = nd->saved[1];
-      break;
-    case OP_ACT:
-      if (wx) r[0] = spx_tp_act_uses_output((spx_act_kind)nd->iarg[0], nd->farg[0]) ? nd->out : nd->in[0];
-      break;
-    case OP_MAXPOOL:
-      if (wx) r[0] = nd->in[0];
-      break;
-    case OP_L1:
-    case OP_MSE_CONST:
-      if (wx) r[0] = nd->in[0], r[1] = nd->in[1];
-      break;
-    case OP_INSTNORM:
-      if (wx) r[0] = nd->in[0], r[1] = nd->saved[0];
-      break;
-    default: /* upsample, pad, concat, avgpool3, axpby: dy only */
-      break;
-  }
+  const tp_op *op = spx_tp_op(nd->kind);
+  if (op->back_reads) op->back_reads(t, nd, r);
 }
 
 /* grad: 0 data, 1 gradient (id: the value), 2 / 3 the forward / backward workspace of node id;
@@ -127,38 +105,6 @@ static size_t arena_chunk(const spx_tape *t, size_t align) {
   return c ? c : align;
 }
 
-/* Scratch of one node's device launchers, need[0] forward, need[1] backward (zero: none). A new
- * launcher that takes a workspace adds its op's need here. */
-static void op_need(const spx_tape *t, const tnode *nd, spx_ws_need need[2]) {
-  const tvalue *x = &t->vals[nd->in[0]];
-  const int back = t->train && t->vals[nd->out].needs_grad, dx = back && spx_tp_wants(t, nd->in[0]);
-  switch (nd->kind) {
-    case OP_CONV: {
-      const tvalue *w = &t->vals[nd->in[1]];
-      spx_conv2d_shape sh = {x->n, x->c, x->h, x->w, w->n, w->h, nd->iarg[1], nd->iarg[0]};
-      int passes = (dx ? SPX_CONV_PASS_BWD_DATA : 0) |
-                   (back && spx_tp_wants(t, nd->in[1]) ? SPX_CONV_PASS_BWD_WEIGHTS : 0);
-      spx_conv2d_workspace_need(t->ctx, &sh, SPX_CONV_PASS_FWD, nd->iarg[2], &need[0]);
-      if (passes) spx_conv2d_workspace_need(t->ctx, &sh, passes, 0, &need[1]);
-      break;
-    }
-    case OP_UPSAMPLE:
-      if (dx) spx_upsample2x_backward_need(x->n, x->c, x->h, x->w, &need[1]);
-      break;
-    case OP_UPCAT: { /* in[1]: the upsampled input */
-      const tvalue *u = &t->vals[nd->in[1]];
-      if (back && spx_tp_wants(t, nd->in[1])) spx_upsample2x_backward_need(u->n, u->c, u->h, u->w, &need[1]);
-      break;
-    }
-    case OP_L1:
-    case OP_MSE_CONST:
-      spx_loss_forward_need(t->ctx, spx_tp_numel(x), &need[0]);
-      break;
-    default:
-      break;
-  }
-}
-
 /* The device's op scratch: node k's forward (at 2k + 1) and backward (at its backward step) each
  * get one region of the arena, sized by the op's need function (conv: spx_conv2d_workspace_need,
  * every slot's maximum over the calls of that step), live only at that step. Appends the items. */
@@ -171,7 +117,8 @@ static spx_status ws_items(spx_tape *t, tplan *p, item *it, int *ni) {
   if (!p->wsneed || !p->wsoff)
     return spx_fail(t->ctx, SPX_E_NOMEM, "tape: out of memory for the workspace plan of %d nodes", N);
   for (int k = 0; k < N; k++) {
-    op_need(t, &t->nodes[k], &p->wsneed[2 * k]);
+    const tp_op *op = spx_tp_op(t->nodes[k].kind);
+    if (op->ws_need) op->ws_need(t, &t->nodes[k], &p->wsneed[2 * k]);
     for (int b = 0; b < 2; b++) {
       size_t bytes = spx_ws_layout(&p->wsneed[2 * k + b], p->wsalign * sizeof(float), NULL);
       int time = b ? 4 * N - 2 * k + 1 : 2 * k + 1;
@@ -213,7 +160,7 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
   const int np = t->npersist, nv = t->nvals - np, N = t->nnodes;
   const int tbegin = 2 * N + 1, tseed = 2 * N + 2;
   p->nv = nv, p->nnodes = N;
-  p->train = t->train, p->retain = t->retain, p->reuse = t->reuse;
+  p->train = t->train, p->retain = t->pl.retain, p->reuse = t->pl.reuse;
   p->v = calloc((size_t)(nv ? nv : 1), sizeof *p->v);
   /* per root (index id - np): last data use, backward data use, gradient access span, flags */
   int *last = malloc(sizeof(int) * (size_t)(nv ? nv : 1) * 8);
@@ -232,7 +179,7 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
 #define ROOT(id) rt[(id) - np]
 #define ACT(id) ((id) >= np && t->vals[id].space == SP_ACT)
   for (int i = 0; i < nv; i++) rt[i] = t->vals[np + i].root - np, b0[i] = TP_INF;
-  if (t->backend == SPX_TAPE_DEVICE && !t->train && t->reuse) concat_in_place(t, rt);
+  if (t->backend == SPX_TAPE_DEVICE && !t->train && t->pl.reuse) concat_in_place(t, rt);
   for (int i = 0; i < nv; i++) b0[rt[i]] = imin(b0[rt[i]], t->vals[np + i].born);
   for (int i = 0; i < nv; i++) {
     const tvalue *v = &t->vals[np + i];
@@ -244,7 +191,7 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
       if (nd->in[j] >= 0 && ACT(nd->in[j])) last[ROOT(nd->in[j])] = imax(last[ROOT(nd->in[j])], 2 * k + 1);
     if (!t->train || !t->vals[nd->out].needs_grad) continue;
     int tb = 4 * N - 2 * k + 1, r[3];
-    spx_tp_back_reads(t, nd, r);
+    back_reads(t, nd, r);
     for (int j = 0; j < 3; j++)
       if (r[j] >= 0 && ACT(r[j])) last[ROOT(r[j])] = imax(last[ROOT(r[j])], tb), bused[ROOT(r[j])] = 1;
     int o = ROOT(nd->out);
@@ -262,14 +209,14 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
     if (rt[i] != i) continue;
     int sink = last[i] < 0, keep = (fl[i] & TV_KEEP) != 0;
     e->d0 = b0[i];
-    e->d1 = sink || keep || (t->retain && bused[i]) ? TP_INF : last[i];
+    e->d1 = sink || keep || (t->pl.retain && bused[i]) ? TP_INF : last[i];
     e->g0 = e->g1 = TP_INF;
     if (t->train && (fl[i] & 4)) {
       e->g0 = sink || keep || !written[i] ? tbegin : gmin[i];
       e->g1 = imax(gmax[i], e->g0 == tbegin ? tseed : e->g0);
       if (keep || (fl[i] & TV_REQGRAD)) e->g1 = TP_INF;
     }
-    if (!t->reuse) { /* everything lives to the end: no two storages share memory */
+    if (!t->pl.reuse) { /* everything lives to the end: no two storages share memory */
       e->d0 = 0, e->d1 = TP_INF;
       if (e->g0 != TP_INF) e->g0 = tbegin, e->g1 = TP_INF;
     }
@@ -349,32 +296,32 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
 }
 
 size_t spx_tape_plan_bytes(const spx_tape *t, size_t *without_reuse) {
-  const tplan *p = t->cur;
+  const tplan *p = t->pl.cur;
   size_t el = t->backend == SPX_TAPE_HOST ? sizeof(double) : sizeof(float);
   if (without_reuse) *without_reuse = p ? p->sum * el : 0;
   return p ? p->size * el : 0;
 }
 
-void spx_tape_set_retain(spx_tape *t, int on) { t->retain = on != 0; }
-void spx_tape_set_reuse(spx_tape *t, int on) { t->reuse = on != 0; }
-void spx_tape_set_poison(spx_tape *t, int on) { t->poison = on != 0; }
+void spx_tape_set_retain(spx_tape *t, int on) { t->pl.retain = on != 0; }
+void spx_tape_set_reuse(spx_tape *t, int on) { t->pl.reuse = on != 0; }
+void spx_tape_set_poison(spx_tape *t, int on) { t->pl.poison = on != 0; }
 
 void spx_tp_place(spx_tape *t, int id) {
   tvalue *v = &t->vals[id];
   int i = id - t->npersist;
-  if (!t->cur) return;
-  if (i >= t->cur->nv || t->cur->v[i].numel != spx_tp_numel(v)) {
+  if (!t->pl.cur) return;
+  if (i >= t->pl.cur->nv || t->pl.cur->v[i].numel != spx_tp_numel(v)) {
     t->err = spx_fail(t->ctx, SPX_E_STATE, "tape: value %d of the pass differs from its plan (one plan key, two graphs?)",
                       id);
     return;
   }
-  v->off = t->cur->v[i].off;
-  v->goff = t->cur->v[i].goff;
+  v->off = t->pl.cur->v[i].off;
+  v->goff = t->pl.cur->v[i].goff;
 }
 
 int spx_tp_now(const spx_tape *t) {
   int n = t->nnodes;
-  switch (t->phase) {
+  switch (t->pl.phase) {
     case 0: return 2 * n;
     case 1: return 2 * n;
     case 2: return 2 * n + 2;
@@ -393,19 +340,19 @@ static spx_status fill(spx_tape *t, const tpevent *e, float value) {
 }
 
 spx_status spx_tp_advance(spx_tape *t, int time) {
-  tplan *p = t->cur;
+  tplan *p = t->pl.cur;
   spx_status st;
   if (!p) return SPX_OK;
-  for (; t->dcur < p->ndeaths && p->deaths[t->dcur].time < time; t->dcur++)
-    if (t->poison && (st = fill(t, &p->deaths[t->dcur], NAN))) return st;
-  for (; t->bcur < p->nbirths && p->births[t->bcur].time <= time; t->bcur++)
-    if ((st = fill(t, &p->births[t->bcur], 0.0f))) return st;
+  for (; t->pl.dcur < p->ndeaths && p->deaths[t->pl.dcur].time < time; t->pl.dcur++)
+    if (t->pl.poison && (st = fill(t, &p->deaths[t->pl.dcur], NAN))) return st;
+  for (; t->pl.bcur < p->nbirths && p->births[t->pl.bcur].time <= time; t->pl.bcur++)
+    if ((st = fill(t, &p->births[t->pl.bcur], 0.0f))) return st;
   return SPX_OK;
 }
 
 spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what) {
-  if (!t->cur || t->measuring || t->vals[id].space != SP_ACT || id - t->npersist >= t->cur->nv) return SPX_OK;
-  const tpval *e = &t->cur->v[id - t->npersist];
+  if (!t->pl.cur || t->measuring || t->vals[id].space != SP_ACT || id - t->npersist >= t->pl.cur->nv) return SPX_OK;
+  const tpval *e = &t->pl.cur->v[id - t->npersist];
   int now = spx_tp_now(t), a = grad ? e->g0 : e->d0, b = grad ? e->g1 : e->d1;
   if (grad && a == TP_INF)
     return spx_fail(t->ctx, SPX_E_STATE, "tape: %s: value %d has no gradient in this pass", what, id);
@@ -426,8 +373,8 @@ spx_status spx_tp_ws_reserve(spx_tape *t, const tplan *p) {
   return st;
 }
 
-spx_conv2d_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_conv2d_workspace *ws) {
-  const tplan *p = t->cur;
+spx_op_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_op_workspace *ws) {
+  const tplan *p = t->pl.cur;
   memset(ws, 0, sizeof *ws);
   if (!p || !p->wsneed || node < 0 || node >= p->nnodes) return NULL;
   size_t off = 0;

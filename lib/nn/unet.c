@@ -15,7 +15,6 @@
 
 #include "cl/tensor.h"
 #include "nn/batchnorm.h"
-#include "smplpix/patchgan.h"
 #include "smplpix/safetensors.h"
 
 #define NDC 9 /* inc, down1..4, up1..4 */
@@ -46,7 +45,7 @@ struct spx_unet {
   int nents;
   int64_t step;
   int fold_dirty;
-  int loss_id, input_id, out_id, last_train;
+  int loss_id, out_id, last_train;
 };
 
 static const char *const dc_prefix[NDC] = {
@@ -71,11 +70,7 @@ static void add_entry(spx_unet *u, const char *prefix, const char *suffix, int k
 
 /* splitmix64 -> uniform in [lo, hi) */
 static double rnd(uint64_t *s, double lo, double hi) {
-  uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  z ^= z >> 31;
-  return lo + (hi - lo) * (double)(z >> 11) * (1.0 / 9007199254740992.0);
+  return lo + (hi - lo) * (double)(spx_splitmix64(s) >> 11) * (1.0 / 9007199254740992.0);
 }
 
 static spx_status init_weights(spx_unet *u, uint64_t seed) {
@@ -113,7 +108,7 @@ spx_status spx_unet_create_ex(spx_ctx *ctx, int width, int sigmoid, uint64_t see
   u->ctx = ctx;
   u->width = width;
   u->sigmoid = sigmoid != 0;
-  u->loss_id = u->input_id = u->out_id = -1;
+  u->loss_id = u->out_id = -1;
   spx_status st = spx_tape_create(ctx, backend, &u->tape);
   if (st) goto fail;
   u->ents = calloc(NDC * 12 + 2, sizeof(entry));
@@ -196,7 +191,6 @@ int64_t spx_unet_step(const spx_unet *u) { return u->step; }
 spx_tape *spx_unet_tape(spx_unet *u) { return u->tape; }
 size_t spx_unet_device_bytes(const spx_unet *u) { return u ? spx_tape_device_bytes(u->tape) : 0; }
 int spx_unet_loss_id(const spx_unet *u) { return u->loss_id; }
-int spx_unet_input_id(const spx_unet *u) { return u->input_id; }
 int spx_unet_output_id(const spx_unet *u) { return u->out_id; }
 spx_ctx *spx_unet_ctx(spx_unet *u) { return u->ctx; }
 
@@ -243,10 +237,10 @@ static int double_conv(spx_unet *u, int x, int i, int train) {
   dconv *d = &u->dc[i];
   for (int j = 0; j < 2; j++) {
     if (train) {
-      x = spx_tape_conv(t, x, d->w[j], -1, 1, -1, -1, 0);
+      x = spx_tape_conv(t, x, d->w[j], SPX_TAPE_NONE);
       x = spx_tape_batchnorm_relu(t, x, d->g[j], d->b[j], d->rm[j], d->rv[j], SPX_BN_MOMENTUM, SPX_BN_EPS);
     } else {
-      x = spx_tape_conv(t, x, d->w[j], -1, 1, d->fs[j], d->fh[j], 1);
+      x = spx_tape_conv_bn_relu(t, x, d->w[j], d->fs[j], d->fh[j]);
     }
   }
   return x;
@@ -258,9 +252,43 @@ static int up_block(spx_unet *u, int x, int skip, int i, int train) {
   return double_conv(u, spx_tape_upcat(u->tape, skip, x), i, train);
 }
 
+/* One forward's inputs, and the ids its build leaves behind. */
+typedef struct unet_pass {
+  spx_unet *u;
+  const float *input, *target; /* host data; input NULL: dev_in */
+  cl_mem dev_in;
+  size_t dev_off;
+  int n, h, w, train;
+  int y, loss;
+} unet_pass;
+
+static spx_status unet_build(spx_tape *t, void *user) {
+  unet_pass *p = user;
+  spx_unet *u = p->u;
+  const int train = p->train;
+  int in = p->dev_in ? spx_tape_input_device(t, p->n, SPX_UNET_IN_CHANNELS, p->h, p->w, p->dev_in, p->dev_off)
+                     : spx_tape_input(t, p->n, SPX_UNET_IN_CHANNELS, p->h, p->w, p->input);
+  int x1 = double_conv(u, in, 0, train);
+  int x2 = double_conv(u, spx_tape_maxpool2(t, x1), 1, train);
+  int x3 = double_conv(u, spx_tape_maxpool2(t, x2), 2, train);
+  int x4 = double_conv(u, spx_tape_maxpool2(t, x3), 3, train);
+  int x5 = double_conv(u, spx_tape_maxpool2(t, x4), 4, train);
+  int x = up_block(u, x5, x4, 5, train);
+  x = up_block(u, x, x3, 6, train);
+  x = up_block(u, x, x2, 7, train);
+  x = up_block(u, x, x1, 8, train);
+  int y = spx_tape_conv(t, x, u->outw, u->outb);
+  if (u->sigmoid) y = spx_tape_act(t, SPX_ACT_SIGMOID, 0.0f, y);
+  if (y >= 0) spx_tape_keep(t, y); /* read by the caller; the GAN step hands gradients into it */
+  p->y = y, p->loss = -1;
+  if (p->target)
+    p->loss = spx_tape_l1(t, y, spx_tape_input(t, p->n, SPX_UNET_OUT_CHANNELS, p->h, p->w, p->target));
+  return SPX_OK;
+}
+
 static spx_status run_forward(spx_unet *u, const float *input, cl_mem dev_in, size_t dev_off, const float *target,
                               int n, int h, int w, int train, float *output, float *loss) {
-  spx_status st, cst = SPX_OK;
+  spx_status st;
   if (!input && !dev_in) return spx_fail(u->ctx, SPX_E_ARG, "unet: input is NULL");
   if (n < 1 || h < 16 || w < 16 || n > 4096 || h > 16384 || w > 16384)
     return spx_fail(u->ctx, SPX_E_ARG, "unet: input %dx%dx%dx%d: need batch >= 1 and height, width in [16, 16384]", n,
@@ -279,50 +307,19 @@ static spx_status run_forward(spx_unet *u, const float *input, cl_mem dev_in, si
   int flags = (target ? 1 : 0) | (u->sigmoid ? 2 : 0);
   key = spx_hash64(&flags, sizeof flags, key);
   spx_tape *t = u->tape;
-  int again = 0, y = -1, in = -1, tg = -1, l = -1;
-  do {
-    if ((st = spx_tape_begin(t, train, key))) return st;
-    in = spx_tape_input(t, n, SPX_UNET_IN_CHANNELS, h, w, input);
-    if (dev_in && in >= 0 && !spx_tape_measuring(t)) { /* device-to-device copy into the arena */
-      spx_tensor iv = spx_tape_tensor(t, in);
-      size_t bytes = spx_tensor_numel(&iv) * sizeof(float);
-      cl_int e = clEnqueueCopyBuffer(u->ctx->dev->queue, dev_in, iv.mem, dev_off, iv.off * sizeof(float), bytes, 0, NULL,
-                                     NULL);
-      if (e != CL_SUCCESS && !cst)
-        cst = spx_fail(u->ctx, SPX_E_CL, "unet: copying the %zu-byte device input failed (OpenCL error %d)", bytes,
-                       (int)e);
-    }
-    int x1 = double_conv(u, in, 0, train);
-    int x2 = double_conv(u, spx_tape_maxpool2(t, x1), 1, train);
-    int x3 = double_conv(u, spx_tape_maxpool2(t, x2), 2, train);
-    int x4 = double_conv(u, spx_tape_maxpool2(t, x3), 3, train);
-    int x5 = double_conv(u, spx_tape_maxpool2(t, x4), 4, train);
-    int x = up_block(u, x5, x4, 5, train);
-    x = up_block(u, x, x3, 6, train);
-    x = up_block(u, x, x2, 7, train);
-    x = up_block(u, x, x1, 8, train);
-    y = spx_tape_conv(t, x, u->outw, u->outb, 0, -1, -1, 0);
-    if (u->sigmoid) y = spx_tape_act(t, SPX_ACT_SIGMOID, 0.0f, y);
-    if (y >= 0) spx_tape_keep(t, y); /* read by the caller; the GAN step hands gradients into it */
-    if (target) {
-      tg = spx_tape_input(t, n, SPX_UNET_OUT_CHANNELS, h, w, target);
-      l = spx_tape_l1(t, y, tg);
-    }
-    st = spx_tape_end(t, &again);
-  } while (!st && again);
-  u->loss_id = u->input_id = u->out_id = -1;
+  unet_pass p = {u, dev_in ? NULL : input, target, dev_in, dev_off, n, h, w, train, -1, -1};
+  st = spx_tape_pass(t, train, key, unet_build, &p);
+  u->loss_id = u->out_id = -1;
   if (st) return st;
-  if (cst) return cst;
-  u->input_id = in;
-  u->out_id = y;
-  u->loss_id = l;
+  u->out_id = p.y;
+  u->loss_id = p.loss;
   u->last_train = train;
   if (train) { /* running statistics moved */
     u->fold_dirty = 1;
     for (int i = 0; i < NDC; i++) u->dc[i].nbt[0]++, u->dc[i].nbt[1]++;
   }
-  if (output && (st = spx_tape_read(t, y, output))) return st;
-  if (loss && l >= 0 && (st = spx_tape_read(t, l, loss))) return st;
+  if (output && (st = spx_tape_read(t, p.y, output))) return st;
+  if (loss && p.loss >= 0 && (st = spx_tape_read(t, p.loss, loss))) return st;
   return SPX_OK;
 }
 

@@ -78,10 +78,10 @@ void spx_upsample2x_backward_need(int n, int c, int h, int w, spx_ws_need *need)
  * body of the plain and the fused (up-block) backward. Plain: one row-pass launch over all the
  * planes; strided: one per sample. Scratch: slot 0 of ws (NULL: allocated per call). */
 static spx_status up_backward(spx_ctx *ctx, const char *op, cl_mem dy, size_t dyo, size_t ns, size_t ps, size_t rs,
-                              int align_corners, const spx_tensor *dx, spx_conv2d_workspace *ws) {
+                              int align_corners, const spx_tensor *dx, spx_op_workspace *ws) {
   spx_status st;
   cl_kernel k1, k2, kw;
-  spx_conv2d_scratch sc = {0};
+  spx_op_scratch sc = {0};
   cl_mem t = NULL;
   size_t planes = (size_t)dx->n * (size_t)dx->c, rows = 2 * (size_t)dx->h;
   if (planes * rows * (size_t)dx->w == 0) return SPX_OK;
@@ -101,7 +101,7 @@ static spx_status up_backward(spx_ctx *ctx, const char *op, cl_mem dy, size_t dy
   size_t total = bwd_scratch(dx->n, dx->c, dx->h, dx->w);
   if (total > (size_t)INT_MAX || dyo + (size_t)dx->n * ns > (size_t)INT_MAX)
     return spx_fail(ctx, SPX_E_ARG, "%s: tensor too large", op);
-  if ((st = spx_conv2d_scratch_get(ctx, ws, 0, total * sizeof(float), "upsample backward scratch", &sc))) return st;
+  if ((st = spx_op_scratch_get(ctx, ws, 0, total * sizeof(float), "upsample backward scratch", &sc))) return st;
   t = sc.mem;
   cl_int al = align_corners ? 1 : 0, wxoi = (cl_int)wxo, wyoi = (cl_int)wyo, psi = (cl_int)ps, rsi = (cl_int)rs;
   float sh = scale_of(dx->h, align_corners), sw = scale_of(dx->w, align_corners);
@@ -126,7 +126,7 @@ static spx_status up_backward(spx_ctx *ctx, const char *op, cl_mem dy, size_t dy
       SPX_ARG(k2, 6, dx->w);
   if (!(st = spx_cl_check(ctx, e, n2))) st = spx_nn_run3d(ctx, k2, gx, (size_t)dx->h, planes, n2);
 done:
-  spx_conv2d_scratch_put(&sc);
+  spx_op_scratch_put(&sc);
   return st;
 }
 
@@ -135,7 +135,7 @@ spx_status spx_upsample2x_backward(spx_ctx *ctx, const spx_tensor *dy, int align
 }
 
 spx_status spx_upsample2x_backward_ws(spx_ctx *ctx, const spx_tensor *dy, int align_corners, const spx_tensor *dx,
-                                      spx_conv2d_workspace *ws) {
+                                      spx_op_workspace *ws) {
   const char *op = "upsample2x_backward";
   spx_status st;
   if (!dx) return SPX_OK;
@@ -205,7 +205,7 @@ spx_status spx_upcat_backward(spx_ctx *ctx, const spx_tensor *dout, int top, int
 }
 
 spx_status spx_upcat_backward_ws(spx_ctx *ctx, const spx_tensor *dout, int top, int left, int align_corners,
-                                 const spx_tensor *dskip, const spx_tensor *dx, spx_conv2d_workspace *ws) {
+                                 const spx_tensor *dskip, const spx_tensor *dx, spx_op_workspace *ws) {
   const char *op = "upcat_backward";
   spx_status st;
   if (!dout) return spx_fail(ctx, SPX_E_ARG, "%s: missing dout", op);

@@ -12,7 +12,7 @@ spx_status spx_upsample2x_backward(spx_ctx *ctx, const spx_tensor *dy, int align
 /* The same with its scratch (slot 0) from ws (NULL: allocated per call); its need for dx of
  * n x c x h x w from spx_upsample2x_backward_need. */
 spx_status spx_upsample2x_backward_ws(spx_ctx *ctx, const spx_tensor *dy, int align_corners, const spx_tensor *dx,
-                                      spx_conv2d_workspace *ws);
+                                      spx_op_workspace *ws);
 void spx_upsample2x_backward_need(int n, int c, int h, int w, spx_ws_need *need);
 
 /* The UNet up-block's input in one op: out = concat(skip, pad(upsample2x(x))) along channels,
@@ -26,7 +26,7 @@ spx_status spx_upcat_backward(spx_ctx *ctx, const spx_tensor *dout, int top, int
 /* The same with the upsampling backward's scratch from ws (its need: spx_upsample2x_backward_need
  * of dx's shape). */
 spx_status spx_upcat_backward_ws(spx_ctx *ctx, const spx_tensor *dout, int top, int left, int align_corners,
-                                 const spx_tensor *dskip, const spx_tensor *dx, spx_conv2d_workspace *ws);
+                                 const spx_tensor *dskip, const spx_tensor *dx, spx_op_workspace *ws);
 
 void spx_ref_upsample2x_forward(const double *x, int n, int c, int h, int w, int align_corners, double *y);
 void spx_ref_upsample2x_backward(const double *dy, int n, int c, int h, int w, int align_corners, double *dx);

@@ -139,9 +139,9 @@ spx_status spx_vgg16_open(spx_ctx *ctx, const char *path, spx_vgg **out) {
 static void features(spx_vgg *v, int x, int *feat) {
   spx_tape *t = v->tape;
   const vgg_arch *a = &arch[v->kind];
-  int h = v->kind == SPX_VGG19_EQ5 ? spx_tape_conv(t, x, v->nw, v->nb, 0, -1, -1, 0) : x;
+  int h = v->kind == SPX_VGG19_EQ5 ? spx_tape_conv(t, x, v->nw, v->nb) : x;
   for (int i = 0; i < a->nconv; i++) {
-    h = spx_tape_act(t, SPX_ACT_RELU, 0.0f, spx_tape_conv(t, h, v->w[i], v->b[i], 1, -1, -1, 0));
+    h = spx_tape_act(t, SPX_ACT_RELU, 0.0f, spx_tape_conv(t, h, v->w[i], v->b[i]));
     if (a->feat_after[i]) feat[a->feat_after[i] - 1] = h;
     if (a->pool_after[i]) h = spx_tape_maxpool2(t, h);
   }

@@ -1,8 +1,8 @@
-/* The device launchers' scratch slots (lib/nn/workspace.h: spx_conv2d_workspace): grow-only
+/* The device launchers' scratch slots (lib/nn/workspace.h: spx_op_workspace): grow-only
  * buffers, a planned region of the tape's arena (sub-buffers), or per-call buffers. */
 #include "nn/workspace.h"
 
-void spx_conv2d_workspace_release(spx_conv2d_workspace *ws) {
+void spx_op_workspace_release(spx_op_workspace *ws) {
   if (!ws) return;
   for (int i = 0; i < SPX_WS_SLOTS; i++) spx_cl_buf_release(&ws->buf[i]);
 }
@@ -12,7 +12,7 @@ void spx_ws_need_max(spx_ws_need *acc, const spx_ws_need *n) {
     if (n->slot[i] > acc->slot[i]) acc->slot[i] = n->slot[i];
 }
 
-size_t spx_ws_layout(const spx_ws_need *n, size_t align, spx_conv2d_workspace *ws) {
+size_t spx_ws_layout(const spx_ws_need *n, size_t align, spx_op_workspace *ws) {
   size_t end = 0;
   for (int i = 0; i < SPX_WS_SLOTS; i++) {
     size_t off = (end + align - 1) & ~(align - 1);
@@ -22,8 +22,8 @@ size_t spx_ws_layout(const spx_ws_need *n, size_t align, spx_conv2d_workspace *w
   return end;
 }
 
-spx_status spx_conv2d_scratch_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int slot, size_t bytes, const char *what,
-                                  spx_conv2d_scratch *out) {
+spx_status spx_op_scratch_get(spx_ctx *ctx, spx_op_workspace *ws, int slot, size_t bytes, const char *what,
+                                  spx_op_scratch *out) {
   out->mem = NULL;
   out->owned = 0;
   if (slot < 0 || slot >= SPX_WS_SLOTS)
@@ -47,7 +47,7 @@ spx_status spx_conv2d_scratch_get(spx_ctx *ctx, spx_conv2d_workspace *ws, int sl
   return spx_cl_alloc(ctx, bytes, what, &out->mem);
 }
 
-void spx_conv2d_scratch_put(spx_conv2d_scratch *s) {
+void spx_op_scratch_put(spx_op_scratch *s) {
   if (s->owned) spx_cl_free(&s->mem);
   s->mem = NULL;
 }

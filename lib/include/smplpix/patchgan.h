@@ -61,10 +61,6 @@ spx_status spx_unet_gan_step(spx_unet *g, spx_patchgan *d, spx_vgg *vgg, const f
 spx_status spx_unet_vgg_step(spx_unet *g, spx_vgg *vgg, const float *input, const float *target, int n, int h, int w,
                              double lr, spx_gan_losses *out);
 
-/* spx_unet_save with extra "__metadata__" string pairs (e.g. the training stage). */
-spx_status spx_unet_save_meta(spx_unet *u, const char *path, int with_optimizer, const char *const *keys,
-                              const char *const *values, int count);
-
 #ifdef __cplusplus
 }
 #endif

@@ -86,6 +86,9 @@ spx_status spx_unet_reset_optimizer(spx_unet *u);
  * ignores tensors it does not know, and restores the optimizer state when optimizer.step is
  * present; the sigmoid flag comes from the metadata key "smplpix.sigmoid" (default off). */
 spx_status spx_unet_save(spx_unet *u, const char *path, int with_optimizer);
+/* spx_unet_save with extra "__metadata__" string pairs (e.g. the training stage). */
+spx_status spx_unet_save_meta(spx_unet *u, const char *path, int with_optimizer, const char *const *keys,
+                              const char *const *values, int count);
 spx_status spx_unet_load(spx_ctx *ctx, const char *path, spx_unet **out);
 /* The shipping format: the state_dict (weights, batch-norm running statistics and
  * num_batches_tracked; no optimizer state) as float16 (I64 counters), the metadata of
