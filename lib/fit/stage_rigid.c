@@ -1,8 +1,8 @@
 /* Stage 1 of the registration (SPX_FIT_RIGID): the similarity model → scan. Candidate
  * orientations (six axis-aligned ups x 8 headings, plus the scan's principal axes) are screened
- * by a short robust ICP on a quarter of the points; the best three and the best one turned about
- * its up axis are refined and the best of those (two-way mean nearest-point distance over the
- * pairs that count) is kept. */
+ * by a short robust ICP on a quarter of the points; the best three (with a camera, also the best
+ * one turned about its up axis) are refined and the best of those (two-way mean nearest-point
+ * distance over the pairs that count) is kept. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -250,13 +250,15 @@ spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_
   int best = 0;
   for (int k = 1; k < 3 && k < nc; k++)
     if (cand[k].score < cand[best].score) best = k;
-  /* the best turned about the model's up axis, also refined: from one side a person's front and
-   * back are alike at this coarse level */
-  rigid_state *flip = &cand[nc];
-  *flip = cand[best];
-  for (int i = 0; i < 3; i++) flip->Rc[i * 3] = -cand[best].Rc[i * 3], flip->Rc[i * 3 + 2] = -cand[best].Rc[i * 3 + 2];
-  if ((st = rigid_icp(ctx, o, Y, Yn, nm, S, nsub, stree, eye, 5, 15, 1, flip))) goto cleanup;
-  if (flip->score < cand[best].score) best = nc;
+  /* one camera's view: the best turned about the model's up axis is refined too (seen from one
+   * side, a person's front and back are alike at this coarse level) */
+  if (eye) {
+    rigid_state *flip = &cand[nc];
+    *flip = cand[best];
+    for (int i = 0; i < 3; i++) flip->Rc[i * 3] = -cand[best].Rc[i * 3], flip->Rc[i * 3 + 2] = -cand[best].Rc[i * 3 + 2];
+    if ((st = rigid_icp(ctx, o, Y, Yn, nm, S, nsub, stree, eye, 5, 15, 1, flip))) goto cleanup;
+    if (flip->score < cand[best].score) best = nc;
+  }
   double Rw[9], R[9], Rcm[3];
   spx_body_rodrigues(cand[best].w, Rw, NULL);
   spx_rot3_mul(Rw, cand[best].Rc, R);
