@@ -1,6 +1,7 @@
-/* smplpix register: staged registration of the body model to a scan (lib/fit), with per-stage
- * progress and a final scan → surface distance report. */
+/* smplpix register: staged registration of the body model to a scan or to a depth image seen
+ * through a camera (lib/fit), with per-stage progress and a final scan → surface distance report. */
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -36,23 +37,99 @@ static int parse_stages(const char *s, int *mask) {
   return *mask ? 0 : -1;
 }
 
+/* One camera from a camera JSON file; returns an exit code. */
+static int load_one_camera(spx_ctx *ctx, const char *path, spx_camera *cam) {
+  spx_camera *cams = NULL;
+  int n = 0, rc = spx_cli_load_cameras("register", ctx, path, &cams, &n);
+  if (!rc && n != 1) rc = spx_cli_errorf("register", "%s: expected one camera, found %d", path, n);
+  if (!rc) *cam = cams[0];
+  free(cams);
+  return rc;
+}
+
+/* The depth (metres, 0 = no data) of a depth image file: a one-channel 16-bit PNG in millimetres,
+ * the Z channel of an EXR (smplpix's RGB-D background (1,1,1,1) is no data) or a one-channel NPY in
+ * metres. depth: width*height floats (caller frees). Returns an exit code. */
+static int load_depth(spx_ctx *ctx, const char *path, float **depth, int32_t *w, int32_t *h) {
+  spx_image img;
+  if (spx_image_read(ctx, path, &img)) return spx_cli_error("register", ctx);
+  char ext[16];
+  spx_path_ext(path, ext, sizeof ext);
+  int exr = !strcmp(ext, "exr"), png = !strcmp(ext, "png"), rc = SPX_EXIT_OK;
+  size_t n = (size_t)img.width * img.height, ones = 0, valid = 0;
+  if (!exr && img.channels != 1) {
+    rc = spx_cli_errorf("register", "%s: a depth image has one channel, this one has %d", path, img.channels);
+  } else if (!(*depth = malloc(n * sizeof(float)))) {
+    rc = spx_cli_errorf("register", "out of memory");
+  } else {
+    for (size_t p = 0; p < n; p++) {
+      const float *px = img.data + p * img.channels;
+      float d = exr ? px[3] : png ? roundf(px[0] * 65535.0f) * 0.001f : px[0];
+      if (exr && px[0] == 1 && px[1] == 1 && px[2] == 1 && px[3] == 1) d = 0;
+      (*depth)[p] = d;
+      valid += d != 0, ones += exr && d == 1;
+    }
+    if (exr && valid && ones == valid)
+      rc = spx_cli_errorf("register", "%s: every depth is exactly 1: the EXR has no Z (depth) channel", path);
+    *w = img.width, *h = img.height;
+  }
+  spx_image_free(&img);
+  return rc;
+}
+
+/* The scan of `smplpix register --depth`: the depth image's pixels back-projected through the
+ * camera (with the colours of rgb_path when given); eye: the camera's centre. Returns an exit code. */
+static int depth_scan(spx_ctx *ctx, const char *depth_path, const char *cam_path, const char *rgb_path,
+                      spx_mesh *scan, double eye[3]) {
+  spx_camera cam;
+  float *depth = NULL, *rgb = NULL;
+  int32_t w = 0, h = 0;
+  spx_image img = {0};
+  int rc = load_one_camera(ctx, cam_path, &cam);
+  if (!rc) rc = load_depth(ctx, depth_path, &depth, &w, &h);
+  if (!rc && rgb_path) {
+    if (spx_image_read(ctx, rgb_path, &img)) rc = spx_cli_error("register", ctx);
+    else if (img.width != w || img.height != h || img.channels < 3)
+      rc = spx_cli_errorf("register", "%s: the colour image is %dx%d with %d channels; the depth image is %dx%d (need "
+                          "the same size, 3 or 4 channels)", rgb_path, img.width, img.height, img.channels, w, h);
+    else if (!(rgb = malloc((size_t)w * h * 3 * sizeof(float))))
+      rc = spx_cli_errorf("register", "out of memory");
+    else
+      for (size_t p = 0; p < (size_t)w * h; p++) memcpy(rgb + p * 3, img.data + p * img.channels, 3 * sizeof(float));
+  }
+  if (!rc && spx_fit_depth_points(ctx, depth_path, &cam, depth, w, h, rgb, scan)) rc = spx_cli_error("register", ctx);
+  if (!rc) spx_fit_camera_eye(&cam, eye);
+  spx_image_free(&img);
+  free(depth), free(rgb);
+  return rc;
+}
+
 int spx_cmd_register(int argc, char **argv) {
   const char *scan_path = NULL, *model_path = DEFAULT_MODEL, *out_path = NULL, *params_path = NULL;
+  const char *depth_path = NULL, *camera_path = NULL, *rgb_path = NULL, *view_path = NULL;
   int stages = SPX_FIT_ALL, threads = 1, bad = 0;
   double units = 0;
   const spx_cli_optdef defs[] = {{"--scan", &scan_path, NULL}, {"--model", &model_path, NULL},
-                                  {"--out", &out_path, NULL}, {"--params", &params_path, NULL}, {NULL, NULL, NULL}};
+                                  {"--out", &out_path, NULL}, {"--params", &params_path, NULL},
+                                  {"--depth", &depth_path, NULL}, {"--camera", &camera_path, NULL},
+                                  {"--rgb", &rgb_path, NULL}, {"--view", &view_path, NULL}, {NULL, NULL, NULL}};
   for (int i = 1; i < argc; i++) {
     const char *v;
     if (!strcmp(argv[i], "--help")) {
-      printf("usage: smplpix register --scan S.ply|S.obj [--model M.npz] --out R.ply [--params P.json]\n"
+      printf("usage: smplpix register --scan S.ply|S.obj [--view C.json] [--model M.npz] --out R.ply [--params P.json]\n"
              "                        [--stages rigid,pose,free] [--threads N] [--units m|cm|mm]\n"
+             "       smplpix register --depth D.png|D.exr|D.npy --camera C.json [--rgb I.png] --out R.ply ...\n"
              "Registers the body model (default: %s) to a scan or point cloud in stages:\n"
              "rigid (scale, rotation, translation; any up axis), pose (pose + shape with priors),\n"
              "free (free vertices with a Laplacian regulariser). Units are detected from the bounding\n"
              "box unless --units is given. Writes the registered mesh (with colours transferred from a\n"
              "coloured scan) and, with --params, the parameters + unposed template for `smplpix repose`\n"
-             "and `smplpix reshape`. Reports mean / median / 95th-percentile scan-to-surface distance.\n",
+             "and `smplpix reshape`. Reports mean / median / 95th-percentile scan-to-surface distance.\n"
+             "--view C.json: the scan is what the depth camera of C.json saw (one side of the person);\n"
+             "the fit then takes no evidence from what that camera could not see.\n"
+             "--depth: a depth image (16-bit PNG in millimetres, EXR Z channel or NPY in metres; 0 = no\n"
+             "data) back-projected through the camera of --camera (of the same size) into a point cloud,\n"
+             "coloured by --rgb (an image registered to the depth), and registered seen from that camera.\n",
              DEFAULT_MODEL);
       return SPX_EXIT_OK;
     } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
@@ -72,7 +149,13 @@ int spx_cmd_register(int argc, char **argv) {
       return spx_cli_usage("register", bad ? "missing value for %s" : "unknown option %s", argv[i]);
     }
   }
-  if (!scan_path || !out_path) return spx_cli_usage("register", "--scan and --out are required");
+  if (!out_path || !scan_path == !depth_path)
+    return spx_cli_usage("register", "--out and one of --scan or --depth are required");
+  if (depth_path && !camera_path) return spx_cli_usage("register", "--depth needs --camera");
+  if (!depth_path && (camera_path || rgb_path)) return spx_cli_usage("register", "--camera and --rgb go with --depth");
+  if (depth_path && view_path)
+    return spx_cli_usage("register", "--view goes with --scan (a depth image is seen from its --camera)");
+  const char *input = scan_path ? scan_path : depth_path;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("register", "out of memory");
   int rc = SPX_EXIT_OK;
@@ -86,10 +169,21 @@ int spx_cmd_register(int argc, char **argv) {
   spx_tx_begin(&tx, "register", 0);
   if ((rc = spx_tx_check(&tx, out_path)) || (params_path && (rc = spx_tx_check(&tx, params_path))))
     goto done; /* before the fit */
-  if (spx_cli_failed(&rc, "register", ctx, spx_mesh_load(ctx, scan_path, &scan))) goto done;
-  if (scan.nv == 0) {
-    rc = spx_cli_errorf("register", "%s: the scan has no points", scan_path);
-    goto done;
+  double eye[3] = {0, 0, 0};
+  int have_view = depth_path || view_path;
+  if (depth_path) {
+    if ((rc = depth_scan(ctx, depth_path, camera_path, rgb_path, &scan, eye))) goto done;
+  } else {
+    if (spx_cli_failed(&rc, "register", ctx, spx_mesh_load(ctx, scan_path, &scan))) goto done;
+    if (scan.nv == 0) {
+      rc = spx_cli_errorf("register", "%s: the scan has no points", scan_path);
+      goto done;
+    }
+    if (view_path) {
+      spx_camera vc;
+      if ((rc = load_one_camera(ctx, view_path, &vc))) goto done;
+      spx_fit_camera_eye(&vc, eye);
+    }
   }
   if (spx_cli_failed(&rc, "register", ctx, spx_body_load(ctx, model_path, &model))) goto done;
   spx_fit_options o;
@@ -98,11 +192,14 @@ int spx_cmd_register(int argc, char **argv) {
   o.threads = threads;
   o.unit_scale = units;
   o.progress = print_progress;
+  o.view = have_view;
+  memcpy(o.view_eye, eye, sizeof eye);
   o.ceres_progress = getenv("SPX_FIT_CERES_PROGRESS") != NULL; /* debugging: Ceres's per-iteration output */
-  printf("scan %s: %d points%s; model %s: %d vertices, %d joints, %d shape directions\n", scan_path, scan.nv,
-         scan.col ? " with colours" : "", model_path, model.nv, model.nj, model.nbetas);
+  printf("%s %s: %d points%s%s; model %s: %d vertices, %d joints, %d shape directions\n",
+         depth_path ? "depth image" : "scan", input, scan.nv, scan.col ? " with colours" : "",
+         have_view ? ", seen from one camera" : "", model_path, model.nv, model.nj, model.nbetas);
   if (spx_fit_register(ctx, &model, &scan, &o, &r)) {
-    rc = spx_cli_errorf("register", "%s: %s", scan_path, spx_ctx_message(ctx));
+    rc = spx_cli_errorf("register", "%s: %s", input, spx_ctx_message(ctx));
     goto done;
   }
   /* final report in metres on the scan side */

@@ -13,7 +13,7 @@ void spx_fit_options_default(spx_fit_options *o) {
   *o = (spx_fit_options){.stages = SPX_FIT_ALL, .threads = 1, .nbetas = -1, .unit_scale = 0,
                          .max_points_rigid = 2000, .max_points_pose = 6000, .max_points_free = 20000,
                          .pose_steps = 20, .free_steps = 4, .inner_iterations = 4, .free_inner_iterations = 2,
-                         .w_shape = 2e-3, .w_pose = 1e-3, .w_limits = 0.1, .w_scale = 1.0, .w_pose_start = 0.1,
+                         .w_shape = 2e-4, .w_pose = 1e-4, .w_limits = 0.1, .w_scale = 1.0, .w_pose_start = 0.1,
                          .w_m2s = 1.0, .w_lap = 1.0, .w_couple_start = 0.3, .w_couple_end = 0.02,
                          .robust_m = 0.01, .seed = 0x5eed, .progress = NULL, .progress_user = NULL,
                          .ceres_progress = 0};
@@ -28,7 +28,8 @@ void spx_fit_result_free(spx_fit_result *r) {
 
 static void work_free(spx_fit_work *w) {
   free(w->Q), free(w->Qf), free(w->Vf), free(w->N), free(w->idx), free(w->d2), free(w->dist), free(w->idx_m);
-  free(w->area), free(w->lim), free(w->msub);
+  free(w->area), free(w->lim), free(w->msub), free(w->seen);
+  spx_fit_zgrid_free(&w->zg);
   free(w->d2_m), free(w->bp), free(w->fp), free(w->lp);
   spx_adj_free(&w->vf);
   spx_adj_free(&w->nb);
@@ -144,6 +145,35 @@ static spx_status pose_samples(spx_ctx *ctx, const spx_fit_options *o, const flo
   return SPX_OK;
 }
 
+/* Without a camera: a scan that covers less than 3/4 of the body (by area, within 3 cm of the
+ * rigidly placed template), on one side (the covered surface's mean normal is over 0.25 long),
+ * is taken as one camera's view from 3 m along that mean normal. Sets w->has_eye and w->eye. */
+static spx_status infer_view(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
+                             const double *V, const char **note) {
+  int32_t nv = m->nv;
+  spx_kdtree *qt = NULL;
+  spx_status st = spx_fit_kd_build(ctx, w->Q, w->nq, &qt);
+  for (int32_t i = 0; !st && i < nv * 3; i++) w->Vf[i] = (float)V[i];
+  if (!st) st = spx_fit_kd_query(ctx, qt, w->Vf, nv, 1, w->idx_m, w->d2_m, o->threads);
+  spx_kdtree_free(qt);
+  if (st) return st;
+  spx_vertex_normals_d(V, nv, m->faces, m->nf, w->N);
+  double cov = 0, mn[3] = {0, 0, 0}, c[3] = {0, 0, 0};
+  for (int32_t j = 0; j < nv; j++) {
+    for (int d = 0; d < 3; d++) c[d] += V[j * 3 + d] / nv;
+    if (w->d2_m[j] > 0.03 * 0.03) continue;
+    cov += w->area[j];
+    for (int d = 0; d < 3; d++) mn[d] += w->area[j] * w->N[j * 3 + d];
+  }
+  double len = cov > 0 ? sqrt(mn[0] * mn[0] + mn[1] * mn[1] + mn[2] * mn[2]) / cov : 0;
+  if (cov < 0.75 && len > 0.25) {
+    w->has_eye = 1;
+    for (int d = 0; d < 3; d++) w->eye[d] = c[d] + 3.0 * mn[d] / (len * cov);
+    *note = "the scan covers one side of the body: fitted as seen from that side";
+  }
+  return SPX_OK;
+}
+
 /* r->verts_scan (input units), the colours of a coloured scan and the unposed template. F: nv*3
  * scratch. */
 static spx_status outputs(spx_ctx *ctx, const spx_body_model *m, const spx_mesh *scan, const float *Sc, int threads,
@@ -198,6 +228,20 @@ spx_status spx_fit_register(spx_ctx *ctx, const spx_body_model *m, const spx_mes
 
   if (o.stages & (SPX_FIT_POSE | SPX_FIT_FREE)) {
     if ((st = pose_samples(ctx, &o, Sc, ns, nv, r, &w))) goto cleanup;
+    if (o.view) {
+      float e[3] = {(float)(o.view_eye[0] * r->unit_scale), (float)(o.view_eye[1] * r->unit_scale),
+                    (float)(o.view_eye[2] * r->unit_scale)}, em[3];
+      to_model(r, e, em);
+      w.has_eye = 1;
+      for (int d = 0; d < 3; d++) w.eye[d] = em[d];
+    }
+    const char *note = NULL;
+    if (!o.view && (st = infer_view(ctx, m, &o, &w, r->verts_pose, &note))) goto cleanup;
+    if (note) spx_fit_report(&o, "view", 0, 0, 0, 0, spx_now(), note);
+    if (w.has_eye && !(w.seen = spx_alloc_array(ctx, (size_t)nv, 1, "registration"))) {
+      st = SPX_E_NOMEM;
+      goto cleanup;
+    }
     if ((st = spx_fit_stage_pose(ctx, m, &o, &w, &b, r))) goto cleanup;
     r->stages_done |= SPX_FIT_POSE;
     memcpy(r->trans, b.trans, sizeof r->trans);

@@ -12,7 +12,9 @@ int32_t *spx_fit_subsample(spx_ctx *ctx, int32_t n, int32_t k, uint64_t seed, in
   if (!idx) return NULL;
   for (int32_t i = 0; i < n; i++) idx[i] = i;
   uint64_t s = seed ? seed : 1;
-  for (int32_t i = 0; i < k && k < n; i++) {
+  /* shuffled even when k == n: callers take prefixes of it, and scans from depth images come in
+   * raster order (a prefix would be the top rows) */
+  for (int32_t i = 0; i < k; i++) {
     int32_t j = i + (int32_t)(spx_fit_rng_next(&s) % (uint64_t)(n - i));
     int32_t t = idx[i];
     idx[i] = idx[j], idx[j] = t;

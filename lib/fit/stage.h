@@ -20,7 +20,8 @@
 /* xorshift64* step: the next 64-bit value of the stream s (s != 0). */
 uint64_t spx_fit_rng_next(uint64_t *s);
 /* Deterministic subsample of 0..n-1 down to at most k (k <= 0: all) by a partial Fisher-Yates
- * shuffle: the first *out_k entries of the returned permutation (n entries, caller frees). */
+ * shuffle: the first *out_k entries of the returned permutation (n entries, caller frees), in
+ * random order (also when all are taken), so that any prefix of them is a random subsample. */
 int32_t *spx_fit_subsample(spx_ctx *ctx, int32_t n, int32_t k, uint64_t seed, int32_t *out_k);
 
 /* ---------- residuals (Ceres cost callbacks, see fit/ceres_bridge.h) ---------- */
@@ -83,6 +84,23 @@ typedef struct spx_fit_lap {
 } spx_fit_lap;
 int spx_fit_lap_cost(void *user, const double *const *par, double *res, double **jac);
 
+/* ---------- what one camera saw (view.c) ---------- */
+
+/* The scan's nearest depth per pixel of a virtual camera at the eye (axis towards the scan's
+ * centroid), pixels sized so that about half of the grid's pixels hold a scan point. */
+typedef struct spx_fit_zgrid {
+  double eye[3], R[9];     /* camera centre; rows: camera axes (model frame) */
+  double a0, b0, px;       /* image-plane origin and pixel size (tangent units) */
+  int32_t W, H;
+  float *z;                /* W*H nearest camera depth, INFINITY where no scan point fell */
+} spx_fit_zgrid;
+spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q, int32_t nq, spx_fit_zgrid *g);
+void spx_fit_zgrid_free(spx_fit_zgrid *g);
+/* seen[j] = 1 when model vertex j (V, normals N) faces the eye and is not more than tol behind
+ * the scanned depth around its pixel (3x3): the camera would have seen it. */
+void spx_fit_visibility(const spx_fit_zgrid *g, const float *V, const double *N, int32_t nv, double tol,
+                        unsigned char *seen);
+
 /* ---------- the working set of the pose and free stages (owned by the driver) ---------- */
 
 typedef struct spx_fit_work {
@@ -106,7 +124,18 @@ typedef struct spx_fit_work {
   spx_fit_free_pair *fp;
   spx_fit_lap *lp;
   spx_adj vf, nb;
+  int has_eye;     /* the scan is one camera's view: eye is its centre in the model frame */
+  double eye[3];
+  spx_fit_zgrid zg; /* of the running stage's scan sample (has_eye) */
+  unsigned char *seen; /* nv: spx_fit_visibility at the current step (has_eye) */
 } spx_fit_work;
+
+/* Whether model vertex j (normal w->N) may be pulled to its nearest scan point of Q
+ * (w->idx_m[j]), whose own nearest model vertex is w->idx[w->idx_m[j]]: not when that scan point
+ * belongs to a surface facing another way (the far side of the body, seen through it), and with
+ * a view not when the camera would not have seen j (w->seen): what it could not see is no
+ * evidence. */
+int spx_fit_m2s_ok(const spx_fit_work *w, int32_t j);
 
 /* ---------- the shared tail (stage_common.c) ---------- */
 

@@ -41,6 +41,17 @@ int spx_fit_lap_cost(void *user, const double *const *par, double *res, double *
 }
 
 
+/* Support of vertex j by the scan: 1 within 2 cm of a scan point, falling to 0 at 5 cm; 0 with a
+ * view when the camera would not have seen j (w->seen). Unsupported vertices (holes, the side the camera did
+ * not see) keep the posed model's surface: their coupling weight is W_UNSUPPORTED instead of the
+ * annealed wc. Returns sqrt(weight / wc), the factor on the coupling residual. */
+#define W_UNSUPPORTED 1.0
+static double support_coupling(const spx_fit_work *w, int32_t j, double wc) {
+  double d = sqrt(w->d2_m[j]), s = !w->has_eye || w->seen[j] ? (0.05 - d) / 0.03 : 0.0;
+  s = s < 0 ? 0 : s > 1 ? 1 : s;
+  return sqrt((s * wc + (1 - s) * W_UNSUPPORTED) / wc);
+}
+
 /* One free step's problem over the vertices X (the parameters). */
 typedef struct free_stage {
   const spx_fit_options *o;
@@ -76,7 +87,7 @@ static spx_status free_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
   }
   for (int32_t j = 0; j < nv; j++) {
     double *blk = X + j * 3;
-    if (w->d2_m[j] <= thr * thr) {
+    if (w->d2_m[j] <= thr * thr && spx_fit_m2s_ok(w, j)) {
       spx_fit_free_pair *q = w->fp + np++;
       q->a = sqrt(o->w_m2s * w->area[j]);
       for (int d = 0; d < 3; d++) q->q[d] = w->Qf[w->idx_m[j] * 3 + d], q->n[d] = w->N[j * 3 + d];
@@ -86,7 +97,7 @@ static spx_status free_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
         return spx_fit_ceres_error(ctx, "free");
     }
     spx_fit_free_pair *c = w->fp + np++;
-    c->a = ac;
+    c->a = ac * support_coupling(w, j, wc);
     for (int d = 0; d < 3; d++) c->q[d] = fs->Vp[j * 3 + d];
     if (spx_ceres_add_residual(pb, spx_fit_free_point_cost, c, 3, 1, sizes, &blk, SPX_LOSS_NONE, 0))
       return spx_fit_ceres_error(ctx, "free");

@@ -160,7 +160,7 @@ static spx_status pose_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
   }
   for (int32_t jj = 0; jj < w->nms; jj++) {
     int32_t j = w->msub[jj];
-    if (w->d2_m[j] > thr * thr) continue;
+    if (w->d2_m[j] > thr * thr || !spx_fit_m2s_ok(w, j)) continue;
     spx_fit_body_pair *q = w->bp + np++;
     double a2 = sqrt(o->w_m2s * w->area[j] * w->msub_w);
     q->b = b, q->j = j, q->a = a2;

@@ -1,7 +1,8 @@
 /* Stage 1 of the registration (SPX_FIT_RIGID): the similarity model → scan. Candidate
  * orientations (six axis-aligned ups x 8 headings, plus the scan's principal axes) are screened
- * by a short robust ICP on a quarter of the points; the best three are refined and the best of
- * those (two-way mean nearest-point distance) is kept. */
+ * by a short robust ICP on a quarter of the points; the best three (with a camera, also the best
+ * one turned about its up axis) are refined and the best of those (two-way mean nearest-point
+ * distance over the pairs that count) is kept. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -50,6 +51,7 @@ typedef struct icp {
   const spx_fit_options *o;
   const double *Z; /* nm model points in the candidate frame */
   int32_t nm;
+  const unsigned char *ok_m; /* nm: the model → scan pair of point j is used */
   const float *S; /* ns scan points */
   int32_t ns;
   const int32_t *i_s2m, *i_m2s;
@@ -73,6 +75,7 @@ static spx_status icp_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user,
       return spx_fit_ceres_error(ctx, "rigid");
   }
   for (int32_t j = 0; j < c->nm; j++) {
+    if (!c->ok_m[j]) continue;
     spx_fit_rigid_pair *q = c->pairs + np++;
     q->z = c->Z + j * 3, q->a = a2;
     for (int d = 0; d < 3; d++) q->p[d] = c->S[c->i_m2s[j] * 3 + d];
@@ -84,10 +87,24 @@ static spx_status icp_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user,
   return SPX_OK;
 }
 
-/* ICP from a candidate orientation. Y: nm centred model points, S: ns scan points (with kd tree). */
-static spx_status rigid_icp(spx_ctx *ctx, const spx_fit_options *o, const double *Y, int32_t nm, const float *S,
-                            int32_t ns, const spx_kdtree *scan_tree, int rounds, int iters, int free_scale,
-                            rigid_state *st_io) {
+/* Which model → scan pairs count (ok_m): not those whose scan point's own nearest model point
+ * faces another way (the far side of the body), nor, with a camera (eye, scan frame), model points
+ * facing away from it. Xn: the model points' normals in the scan frame. */
+static void pair_filter(const float *X, const double *Xn, int32_t nm, const int32_t *i_s2m, const int32_t *i_m2s,
+                        const double *eye, unsigned char *ok_m) {
+  for (int32_t j = 0; j < nm; j++) {
+    const double *n = Xn + j * 3, *nk = Xn + i_s2m[i_m2s[j]] * 3;
+    ok_m[j] = n[0] * nk[0] + n[1] * nk[1] + n[2] * nk[2] >= 0.3;
+    if (eye && n[0] * (eye[0] - X[j * 3]) + n[1] * (eye[1] - X[j * 3 + 1]) + n[2] * (eye[2] - X[j * 3 + 2]) <= 0)
+      ok_m[j] = 0;
+  }
+}
+
+/* ICP from a candidate orientation. Y, Yn: nm centred model points and their normals, S: ns scan
+ * points (with kd tree); eye: the camera of a single-view scan (scan frame) or NULL. */
+static spx_status rigid_icp(spx_ctx *ctx, const spx_fit_options *o, const double *Y, const double *Yn, int32_t nm,
+                            const float *S, int32_t ns, const spx_kdtree *scan_tree, const double *eye, int rounds,
+                            int iters, int free_scale, rigid_state *st_io) {
   spx_status st = SPX_OK;
   double *Z = spx_alloc_array(ctx, (size_t)nm * 3, sizeof(double), "rigid");
   float *X = spx_alloc_array(ctx, (size_t)nm * 3, sizeof(float), "rigid");
@@ -96,14 +113,17 @@ static spx_status rigid_icp(spx_ctx *ctx, const spx_fit_options *o, const double
   float *d_s2m = spx_alloc_array(ctx, (size_t)ns, sizeof(float), "rigid");
   float *d_m2s = spx_alloc_array(ctx, (size_t)nm, sizeof(float), "rigid");
   spx_fit_rigid_pair *pairs = spx_alloc_array(ctx, (size_t)(ns + nm), sizeof(spx_fit_rigid_pair), "rigid");
+  double *Zn = spx_alloc_array(ctx, (size_t)nm * 3, sizeof(double), "rigid");
+  double *Xn = spx_alloc_array(ctx, (size_t)nm * 3, sizeof(double), "rigid");
+  unsigned char *ok_m = spx_alloc_array(ctx, (size_t)nm, 1, "rigid");
   spx_kdtree *mt = NULL;
-  if (!Z || !X || !i_s2m || !i_m2s || !d_s2m || !d_m2s || !pairs) {
+  if (!Z || !X || !i_s2m || !i_m2s || !d_s2m || !d_m2s || !pairs || !Zn || !Xn || !ok_m) {
     st = SPX_E_NOMEM;
     goto cleanup;
   }
-  icp c = {o, Z, nm, S, ns, i_s2m, i_m2s, pairs, st_io, rounds, free_scale};
+  icp c = {o, Z, nm, ok_m, S, ns, i_s2m, i_m2s, pairs, st_io, rounds, free_scale};
   spx_fit_solve_spec solve = {"rigid", icp_residuals, &c, NULL, NULL, NULL, iters, SPX_LS_DENSE_NORMAL_CHOLESKY};
-  for (int32_t j = 0; j < nm; j++) spx_rot3_apply(st_io->Rc, Y + j * 3, Z + j * 3);
+  for (int32_t j = 0; j < nm; j++) spx_rot3_apply(st_io->Rc, Y + j * 3, Z + j * 3), spx_rot3_apply(st_io->Rc, Yn + j * 3, Zn + j * 3);
   for (int r = 0; r <= rounds; r++) {
     double R[9];
     spx_body_rodrigues(st_io->w, R, NULL);
@@ -111,12 +131,19 @@ static spx_status rigid_icp(spx_ctx *ctx, const spx_fit_options *o, const double
       double x[3];
       spx_rot3_apply(R, Z + j * 3, x);
       for (int d = 0; d < 3; d++) X[j * 3 + d] = (float)(st_io->s[0] * x[d] + st_io->t[d]);
+      spx_rot3_apply(R, Zn + j * 3, Xn + j * 3);
     }
     if ((st = spx_fit_match(ctx, o->threads, X, nm, S, ns, scan_tree, &mt, i_s2m, d_s2m, i_m2s, d_m2s))) goto cleanup;
-    double m1 = 0, m2 = 0;
+    pair_filter(X, Xn, nm, i_s2m, i_m2s, eye, ok_m);
+    /* score: two-way mean distance over the pairs that count; with fewer than a quarter of the
+     * model's points paired, the missing ones count at the worst paired distance */
+    double m1 = 0, m2 = 0, worst = 0;
+    int32_t n2 = 0;
     for (int32_t i = 0; i < ns; i++) m1 += sqrt(d_s2m[i]);
-    for (int32_t j = 0; j < nm; j++) m2 += sqrt(d_m2s[j]);
-    st_io->score = m1 / ns + m2 / nm;
+    for (int32_t j = 0; j < nm; j++)
+      if (ok_m[j]) m2 += sqrt(d_m2s[j]), worst = fmax(worst, sqrt(d_m2s[j])), n2++;
+    if (n2 < nm / 4) m2 += (nm / 4 - n2) * worst, n2 = nm / 4;
+    st_io->score = m1 / ns + (n2 ? m2 / n2 : 0);
     if (r == rounds) break;
     spx_ceres_summary sum;
     if ((st = spx_fit_solve(ctx, o, &solve, r, &sum))) goto cleanup;
@@ -124,7 +151,7 @@ static spx_status rigid_icp(spx_ctx *ctx, const spx_fit_options *o, const double
   }
 cleanup:
   spx_kdtree_free(mt);
-  free(Z), free(X), free(i_s2m), free(i_m2s), free(d_s2m), free(d_m2s), free(pairs);
+  free(Z), free(X), free(i_s2m), free(i_m2s), free(d_s2m), free(d_m2s), free(pairs), free(Zn), free(Xn), free(ok_m);
   return st;
 }
 
@@ -137,7 +164,7 @@ spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_
   int32_t nsub = 0, *sidx = spx_fit_subsample(ctx, ns, o->max_points_rigid, o->seed, &nsub);
   int32_t nm = 0, *midx = spx_fit_subsample(ctx, m->nv, o->max_points_rigid, o->seed ^ 0x9e3779b97f4a7c15ULL, &nm);
   float *S = NULL;
-  double *Y = NULL;
+  double *Y = NULL, *Yn = NULL, *Vt = NULL, *Nt = NULL;
   spx_kdtree *stree = NULL;
   if (!sidx || !midx) {
     st = SPX_E_NOMEM;
@@ -145,7 +172,10 @@ spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_
   }
   S = spx_alloc_array(ctx, (size_t)nsub * 3, sizeof(float), "rigid");
   Y = spx_alloc_array(ctx, (size_t)nm * 3, sizeof(double), "rigid");
-  if (!S || !Y) {
+  Yn = spx_alloc_array(ctx, (size_t)nm * 3, sizeof(double), "rigid");
+  Vt = spx_alloc_array(ctx, (size_t)m->nv * 3, sizeof(double), "rigid");
+  Nt = spx_alloc_array(ctx, (size_t)m->nv * 3, sizeof(double), "rigid");
+  if (!S || !Y || !Yn || !Vt || !Nt) {
     st = SPX_E_NOMEM;
     goto cleanup;
   }
@@ -163,8 +193,15 @@ spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_
   double s0 = 1.0;
   for (int32_t i = 0; i < nsub; i++)
     for (int d = 0; d < 3; d++) S[i * 3 + d] = Sc[sidx[i] * 3 + d];
+  for (int32_t i = 0; i < m->nv * 3; i++) Vt[i] = m->v_template[i];
+  spx_vertex_normals_d(Vt, m->nv, m->faces, m->nf, Nt);
   for (int32_t j = 0; j < nm; j++)
-    for (int d = 0; d < 3; d++) Y[j * 3 + d] = m->v_template[midx[j] * 3 + d] - cm[d];
+    for (int d = 0; d < 3; d++) Y[j * 3 + d] = m->v_template[midx[j] * 3 + d] - cm[d], Yn[j * 3 + d] = Nt[midx[j] * 3 + d];
+  double eye_s[3], *eye = NULL;
+  if (o->view) {
+    for (int d = 0; d < 3; d++) eye_s[d] = o->view_eye[d] * r->unit_scale;
+    eye = eye_s;
+  }
   if ((st = spx_fit_kd_build(ctx, S, nsub, &stree))) goto cleanup;
 
   /* candidate orientations: 6 axis-aligned ups x 8 headings, plus principal axes */
@@ -197,7 +234,7 @@ spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_
     int32_t nq = nsub / 4 > 50 ? nsub / 4 : nsub, mq = nm / 4 > 50 ? nm / 4 : nm;
     spx_kdtree *qt = NULL;
     if ((st = spx_fit_kd_build(ctx, S, nq, &qt))) goto cleanup;
-    st = rigid_icp(ctx, o, Y, mq, S, nq, qt, 2, 6, 0, &cand[c]);
+    st = rigid_icp(ctx, o, Y, Yn, mq, S, nq, qt, eye, 2, 6, 0, &cand[c]);
     spx_kdtree_free(qt);
     if (st) goto cleanup;
   }
@@ -208,11 +245,20 @@ spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_
       if (cand[c].score < cand[best].score) best = c;
     rigid_state tmp = cand[k];
     cand[k] = cand[best], cand[best] = tmp;
-    if ((st = rigid_icp(ctx, o, Y, nm, S, nsub, stree, 5, 15, 1, &cand[k]))) goto cleanup;
+    if ((st = rigid_icp(ctx, o, Y, Yn, nm, S, nsub, stree, eye, 5, 15, 1, &cand[k]))) goto cleanup;
   }
   int best = 0;
   for (int k = 1; k < 3 && k < nc; k++)
     if (cand[k].score < cand[best].score) best = k;
+  /* one camera's view: the best turned about the model's up axis is refined too (seen from one
+   * side, a person's front and back are alike at this coarse level) */
+  if (eye) {
+    rigid_state *flip = &cand[nc];
+    *flip = cand[best];
+    for (int i = 0; i < 3; i++) flip->Rc[i * 3] = -cand[best].Rc[i * 3], flip->Rc[i * 3 + 2] = -cand[best].Rc[i * 3 + 2];
+    if ((st = rigid_icp(ctx, o, Y, Yn, nm, S, nsub, stree, eye, 5, 15, 1, flip))) goto cleanup;
+    if (flip->score < cand[best].score) best = nc;
+  }
   double Rw[9], R[9], Rcm[3];
   spx_body_rodrigues(cand[best].w, Rw, NULL);
   spx_rot3_mul(Rw, cand[best].Rc, R);
@@ -226,7 +272,7 @@ spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_
   spx_fit_report(o, "rigid", 1, 1, cand[best].score, cand[best].score * 0.5, t0, NULL);
 cleanup:
   spx_kdtree_free(stree);
-  free(sidx), free(midx), free(S), free(Y);
+  free(sidx), free(midx), free(S), free(Y), free(Yn), free(Vt), free(Nt);
   return st;
 }
 

@@ -12,6 +12,11 @@
  *   SPX_FIT_FREE   free vertices coupled to the posed model (coupling weight annealed), with a
  *                  uniform-Laplacian regulariser (Laplacian of x kept close to the model's), same
  *                  data terms.
+ * A scan seen from one camera (view = 1, view_eye its centre; or, without one, a scan that covers
+ * under 3/4 of the body on one side, detected after the rigid stage and reported as a note):
+ * model vertices that camera could not have seen (facing away, or hidden behind scanned surface)
+ * are not pulled towards the scan, and the free stage keeps the posed model's surface wherever no
+ * scan point is near.
  * Frames: "model frame" is the body model's space (metres); the scan is first multiplied by
  * unit_scale (1, 0.01 or 0.001), then x_scan_metres = sim_scale * sim_R * x_model + sim_t.
  * Nothing is printed unless ceres_progress is set in the options (debugging: Ceres's
@@ -21,6 +26,7 @@
 #define SMPLPIX_FIT_H
 
 #include "smplpix/body.h"
+#include "smplpix/camera.h"
 #include "smplpix/core.h"
 #include "smplpix/mesh.h"
 
@@ -56,6 +62,8 @@ typedef struct spx_fit_options {
   double w_lap, w_couple_start, w_couple_end; /* free stage */
   double robust_m;                /* robust loss scale (metres) */
   uint64_t seed;                  /* subsampling */
+  int view;                       /* 1: the scan is what one camera at view_eye saw (one side) */
+  double view_eye[3];             /* the camera's centre in scan coordinates (input units) */
   spx_fit_progress_fn progress;
   void *progress_user;
   int ceres_progress;             /* 1: Ceres prints per-iteration progress of every solve to
@@ -94,6 +102,17 @@ spx_status spx_fit_result_mesh(spx_ctx *ctx, const spx_fit_result *r, spx_mesh *
 /* The unit scale of a scan ext units across (lib/fit/sanity.c): given > 0 (--units) is checked, else
  * detected; a size that is not a person's (0.1-3 m) in metres, centimetres or millimetres is an
  * error (SPX_E_ARG) with the figure. *note: what was assumed (NULL when metres or given). */
+/* A depth image as a scan (lib/fit/depth.c): each pixel (i, j) of a width x height depth map
+ * (metres, row-major, 0 = no data) seen through cam (of the same size) is back-projected at its
+ * centre, x_c = d K^-1 (i + 0.5, j + 0.5, 1), into world coordinates x = R^T (x_c - t). rgb
+ * (height*width*3, or NULL) gives the points' colours. A size mismatch with the camera, a
+ * negative depth or no pixel with depth is SPX_E_ARG, a depth that is not finite SPX_E_NUMERIC;
+ * the messages start with name. out: a point cloud (spx_mesh_free). */
+spx_status spx_fit_depth_points(spx_ctx *ctx, const char *name, const spx_camera *cam, const float *depth,
+                                int32_t width, int32_t height, const float *rgb, spx_mesh *out);
+/* The camera's centre in world coordinates, -R^T t. */
+void spx_fit_camera_eye(const spx_camera *cam, double eye[3]);
+
 spx_status spx_fit_units(spx_ctx *ctx, double ext, double given, double *scale, const char **note);
 /* A finished registration fits its scan (both in metres): the body's extent within 0.5-2x the
  * scan's, and the median scan-to-surface distance at most 5% of the scan's extent; otherwise
