@@ -1,7 +1,9 @@
 /* One output transaction per command run: every file the run writes goes to a temporary beside
  * its target ("<target>.tmp.<pid>.<n>") and is renamed into place only when all of them are
  * complete; a failed run (or one killed before the commit) leaves every pre-existing file as it
- * was, and the next run writing the same target removes a dead run's temporaries.
+ * was, and the next run writing the same target removes a dead run's temporaries. A commit of
+ * several files first writes a journal ("<first target>.commit"): a run killed between the
+ * renames is finished by the next run that checks or stages a file in that folder.
  *
  *   spx_tx tx;
  *   spx_tx_begin(&tx, "cmd", 0);                   // 1: fsync files and folders (checkpoints, datasets)

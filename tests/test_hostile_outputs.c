@@ -165,10 +165,29 @@ static void test_kill9(void) {
   CHECK(count_temps("dk") == 0);
 }
 
+/* A write-protected output file (0444) is refused, as cp refuses it, for root too (issue 24). */
+static void test_write_protected(void) {
+  hostile_dir();
+  CHECK(make_scene(0));
+  write_text("ro.png", "precious");
+  sh("chmod 444 ro.png");
+  const char *names[] = {"ro.png", NULL};
+  snapshot s;
+  snap_take(&s, names);
+  CHECK(run("project --mesh quad.obj --camera cam.json --out x.exr --png ro.png") == 1);
+  CHECK(err_is("project", "ro.png: cannot write: the file is write-protected (mode 444)"));
+  CHECK(snap_same(&s));
+  CHECK(!exists("x.exr"));
+  CHECK(count_temps(".") == 0);
+  sh("chmod 644 ro.png");
+  CHECK(run("project --mesh quad.obj --camera cam.json --out x.exr --png ro.png") == 0);
+}
+
 int main(void) {
   SPX_RUN(test_project_raster);
   SPX_RUN(test_dataset);
   SPX_RUN(test_network_writers);
   SPX_RUN(test_kill9);
+  SPX_RUN(test_write_protected);
   return spx_test_summary();
 }

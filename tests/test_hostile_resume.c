@@ -107,7 +107,65 @@ static void test_refusals(void) {
   CHECK(run("train --data ds --out Nostate.safetensors --resume --steps 1") == 1 && err_is("train", "Nostate.safetensors: cannot open"));
 }
 
+/* Copy dir/src to dir/dst with metadata key set to value. */
+static int set_meta(const char *src, const char *dst, const char *key, const char *value) {
+  char ps[700], pd[700];
+  path_of(ps, sizeof ps, src);
+  path_of(pd, sizeof pd, dst);
+  spx_st_file f;
+  if (spx_st_load(ctx, ps, &f)) return 0;
+  spx_st_entry *e = calloc((size_t)f.count, sizeof *e);
+  const char **k = calloc((size_t)f.nmeta + 1, sizeof *k), **v = calloc((size_t)f.nmeta + 1, sizeof *v);
+  int ok = 0;
+  if (e && k && v) {
+    for (int i = 0; i < f.count; i++) {
+      const spx_st_tensor *t = &f.tensors[i];
+      e[i].name = t->name, e[i].dtype = t->dtype, e[i].ndim = t->ndim, e[i].data = t->data;
+      memcpy(e[i].shape, t->shape, sizeof t->shape);
+    }
+    for (int i = 0; i < f.nmeta; i++) k[i] = f.meta_keys[i], v[i] = strcmp(f.meta_keys[i], key) ? f.meta_values[i] : value;
+    ok = spx_st_save(ctx, pd, e, f.count, k, v, f.nmeta) == SPX_OK;
+  }
+  free(e), free(k), free(v);
+  spx_st_free(&f);
+  return ok;
+}
+
+/* Every recorded field is range-checked, the message naming the file and the field (issue 24:
+ * batch "0" crashed with a double free; an invalid loss was reported as a flag not given). */
+static void test_recorded_ranges(void) {
+  hostile_dir();
+  CHECK(make_scene(1));
+  CHECK(run("train --data ds --out B.safetensors --width 8 --steps 2 --seed 3 --batch 2") == 0);
+  static const struct {
+    const char *key, *value, *msg;
+  } cases[] = {
+      {"smplpix.train.batch", "0", "X.safetensors: recorded smplpix.train.batch = \"0\" is not an integer in [1, "},
+      {"smplpix.train.batch", "-3", "X.safetensors: recorded smplpix.train.batch"},
+      {"smplpix.train.pairs", "0", "X.safetensors: recorded smplpix.train.pairs"},
+      {"smplpix.train.steps_per_epoch", "0", "X.safetensors: recorded smplpix.train.steps_per_epoch"},
+      {"smplpix.train.shuffle", "7", "X.safetensors: recorded smplpix.train.shuffle"},
+      {"smplpix.train.seed", "4294967296", "X.safetensors: recorded smplpix.train.seed"},
+      {"smplpix.train.lr", "0", "X.safetensors: recorded smplpix.train.lr = \"0\" is not a number in (0, "},
+      {"smplpix.train.loss", "l2", "X.safetensors: recorded smplpix.train.loss = \"l2\" is not one of"},
+      {"smplpix.train.schedule", "fast", "X.safetensors: recorded smplpix.train.schedule"},
+      {"smplpix.train.stage", "3", "X.safetensors: recorded smplpix.train.stage"},
+      {"smplpix.train.disc_width", "0", "X.safetensors: recorded smplpix.train.disc_width"},
+      {"smplpix.train.batch", "4", "X.safetensors: invalid training state: smplpix.train.steps_per_epoch"},
+      {"smplpix.train.epoch", "9", "X.safetensors: invalid training state: smplpix.train.epoch"},
+  };
+  for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+    CHECK(set_meta("B.safetensors", "X.safetensors", cases[c].key, cases[c].value));
+    const char *names[] = {"X.safetensors", NULL};
+    snapshot s;
+    snap_take(&s, names);
+    int rc = run("train --data ds --out X.safetensors --steps 5 --resume");
+    CHECK_MSG(rc == 1 && err_is("train", cases[c].msg), "%s = %s: exit %d", cases[c].key, cases[c].value, rc);
+    CHECK(snap_same(&s));
+  }
+}
+
 int main(void) {
-  const spx_t_test tests[] = {SPX_TEST(test_bit_for_bit), SPX_TEST(test_refusals)};
-  return spx_t_main_ctx(&ctx, 0, tests, 2);
+  const spx_t_test tests[] = {SPX_TEST(test_bit_for_bit), SPX_TEST(test_refusals), SPX_TEST(test_recorded_ranges)};
+  return spx_t_main_ctx(&ctx, 0, tests, 3);
 }
