@@ -268,34 +268,19 @@ done:
 int spx_cmd_animate(int argc, char **argv) {
   opts o;
   memset(&o, 0, sizeof o);
-  int bad = 0;
-  const spx_cli_optdef defs[] = {{"--no-network", NULL, &o.no_net}, {"--no-mp4", NULL, &o.no_mp4},
-                                  {"--quiet", NULL, &o.quiet}, {"--registration", &o.reg, NULL},
-                                  {"--bvh", &o.bvh, NULL}, {"--amass", &o.amass, NULL}, {"--camera", &o.cam, NULL},
-                                  {"--out", &o.out, NULL}, {"--checkpoint", &o.ckpt, NULL},
-                                  {"--model", &o.model, NULL}, {"--device", &o.spec, NULL}, {NULL, NULL, NULL}};
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      animate_help();
-      return SPX_EXIT_OK;
-    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
-      continue;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--frames", &bad))) {
-      long s, e;
-      if (!spx_anim_parse_frames(v, &s, &e))
-        return spx_cli_usage("animate", "--frames: expected A:B (frames A..B-1), A: or :B, got '%s'", v);
-      o.frames = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--orbit", &bad))) {
-      if (!spx_cli_double(v, -360, 360, &o.orbit))
-        return spx_cli_usage("animate", "--orbit: expected degrees per frame in [-360, 360], got '%s'", v);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--fps", &bad))) {
-      if (!spx_cli_double(v, 0.01, 1000, &o.fps))
-        return spx_cli_usage("animate", "--fps: expected frames per second in [0.01, 1000], got '%s'", v);
-    } else {
-      return spx_cli_usage("animate", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-    }
-  }
+  spx_opt optv[] = {SPX_O("--no-network", SPX_OPT_FLAG, &o.no_net), SPX_O("--no-mp4", SPX_OPT_FLAG, &o.no_mp4),
+                    SPX_O("--quiet", SPX_OPT_FLAG, &o.quiet),       SPX_O("--registration", SPX_OPT_IN, &o.reg),
+                    SPX_O("--bvh", SPX_OPT_IN, &o.bvh),             SPX_O("--amass", SPX_OPT_IN, &o.amass),
+                    SPX_O("--camera", SPX_OPT_IN, &o.cam),          SPX_O("--out", SPX_OPT_OUT, &o.out),
+                    SPX_O("--checkpoint", SPX_OPT_IN, &o.ckpt),     SPX_O("--model", SPX_OPT_IN, &o.model),
+                    SPX_O("--device", SPX_OPT_STR, &o.spec),        SPX_O("--frames", SPX_OPT_STR, &o.frames),
+                    SPX_O_RANGE("--orbit", SPX_OPT_REAL, &o.orbit, -360, 360), SPX_O_RANGE("--fps", SPX_OPT_REAL, &o.fps, 0.01, 1000),
+                    SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "animate", NULL, animate_help, optv);
+  if (parsed >= 0) return parsed;
+  long fs, fe;
+  if (o.frames && !spx_anim_parse_frames(o.frames, &fs, &fe))
+    return spx_cli_usage("animate", "--frames: expected A:B (frames A..B-1), A: or :B, got '%s'", o.frames);
   if (!o.reg || !o.cam || !o.out || !o.bvh == !o.amass)
     return spx_cli_usage("animate", "--registration, --camera, --out and one of --bvh / --amass are required");
   if (o.no_net && o.ckpt) return spx_cli_usage("animate", "--no-network and --checkpoint exclude each other");

@@ -112,12 +112,12 @@ int spx_cmd_dataset(int argc, char **argv) {
   const char *split_s = "0.8,0.1,0.1", *fmt = "exr", *elev_s = "0", *size_s = "410x308", *aa_s = "1";
   const char *orbit_s = NULL, *seed_s = "0", *dist_s = NULL, *focal_s = NULL;
   int force = 0;
-  const spx_cli_optdef defs[] = {{"--split", &split_s, NULL},     {"--seed", &seed_s, NULL},
-                                  {"--input-format", &fmt, NULL},   {"--aa", &aa_s, NULL},
-                                  {"--orbit", &orbit_s, NULL},      {"--elevations", &elev_s, NULL},
-                                  {"--distance", &dist_s, NULL},    {"--size", &size_s, NULL},
-                                  {"--focal", &focal_s, NULL},      {"--force", NULL, &force},
-                                  {NULL, NULL, NULL}};
+  const spx_cli_optdef defs[] = {{"--split", &split_s, NULL, 0},     {"--seed", &seed_s, NULL, 0},
+                                  {"--input-format", &fmt, NULL, 0},   {"--aa", &aa_s, NULL, 0},
+                                  {"--orbit", &orbit_s, NULL, 0},      {"--elevations", &elev_s, NULL, 0},
+                                  {"--distance", &dist_s, NULL, 0},    {"--size", &size_s, NULL, 0},
+                                  {"--focal", &focal_s, NULL, 0},      {"--force", NULL, &force, 0},
+                                  {NULL, NULL, NULL, 0}};
   int rc = spx_cli_scene_args(argc, argv, "dataset", USAGE, "--cameras", &o, defs);
   if (rc >= 0) return rc;
   const char *mesh_path = o.mesh, *cam_path = o.cameras, *dir = o.out, *dev = o.device, *color = o.color;
@@ -139,13 +139,12 @@ int spx_cmd_dataset(int argc, char **argv) {
   if (ne < 1) return spx_cli_usage("dataset", "--elevations %s: expected up to 64 comma-separated degrees", elev_s);
   for (int k = 0; k < ne; k++)
     if (!(fabs(elev[k]) < 90)) return spx_cli_usage("dataset", "--elevations %s: each must lie in (-90, 90)", elev_s);
-  char *x = NULL;
   if (orbit_s && !spx_cli_long(orbit_s, 1, 100000, &norbit))
     return spx_cli_usage("dataset", "--orbit %s: expected a number of views in [1, 100000]", orbit_s);
-  errno = 0;
-  W = strtol(size_s, &x, 10);
-  if (errno || !x || *x != 'x' || !spx_cli_long(x + 1, 16, SPX_CAMERA_MAX_SIZE, &H) || W < 16 || W > SPX_CAMERA_MAX_SIZE)
+  int wi = 0, hi = 0;
+  if (!spx_cli_size(size_s, 16, SPX_CAMERA_MAX_SIZE, &wi, &hi))
     return spx_cli_usage("dataset", "--size %s: expected WxH, each in [16, %d]", size_s, SPX_CAMERA_MAX_SIZE);
+  W = wi, H = hi;
   if (dist_s && (parse_list(dist_s, &dist, 1) != 1 || !(dist > 0)))
     return spx_cli_usage("dataset", "--distance %s: expected a positive number", dist_s);
   focal = (double)(W > H ? W : H);

@@ -79,15 +79,6 @@ int spx_cli_open_device(const char *cmd, spx_ctx *ctx, const char *spec) {
   return SPX_EXIT_OK;
 }
 
-const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *bad) {
-  if (strcmp(argv[*i], name)) return NULL;
-  if (*i + 1 >= argc) {
-    *bad = 1;
-    return NULL;
-  }
-  return argv[++*i];
-}
-
 const char *spx_cli_data_path(const char *rel) {
   static char buf[4096];
   const char *env = getenv("SPX_DATA_DIR");
