@@ -32,7 +32,7 @@ static void train_help(void) {
          "--epochs E / --steps S: train until E epochs / S optimizer steps in total are done.\n"
          "--resume continues from W (weights, optimizer state, step count, data order) bit for bit, taking\n"
          "the seed, shuffle, batch, lr, loss, schedule, stage, lr2 and disc width recorded in W (flags\n"
-         "that contradict them: exit 2);\n"
+         "that contradict them: exit 2) and, unless --epochs / --steps give a new one, the run's length;\n"
          "--init starts from the weights of W0 with a fresh optimizer. After every epoch the loss on\n"
          "DIR/validation (when present: mean L1, and PSNR and SSIM of the output clamped to [0,1], as\n"
          "`smplpix eval` computes them) is printed,\n"
@@ -465,6 +465,7 @@ static int train_run(int argc, char **argv, train_dist *dist) {
     rc = spx_cli_usage("train", "--vgg is only used by --loss vgg or vgg+gan");
     goto done;
   }
+  int length_given = epochs >= 0 || steps >= 0; /* else --resume continues to the recorded target */
   if (lr < 0) lr = schedule ? 1e-4 : 1e-3;
   if (batch < 0) batch = schedule ? 10 : 1;
   if (schedule && epochs < 0 && steps < 0) epochs = 100;
@@ -510,6 +511,13 @@ static int train_run(int argc, char **argv, train_dist *dist) {
   /* resuming: the stage (and the schedule's stage-2 start) come from the record */
   rcp.comm = dist->on ? &dist->comm : NULL; /* rank 0 loads the discriminator, the others take it */
   if ((rc = train_recipe_start(ctx, &rcp, u, outp, from, resume ? &ts : NULL))) goto done;
+  if (resume) { /* the run's length: the recorded target unless --epochs / --steps give a new one */
+    int64_t stage1 = steps >= 0 ? steps : epochs * spe;
+    if (!length_given && ts.target >= 0) target = ts.target;
+    else if (rcp.schedule && rcp.stage == 2) target = rcp.stage1_steps + stage1; /* stage 2: as long as asked */
+    else if (rcp.schedule) rcp.stage1_steps = stage1, target = 2 * stage1;
+  }
+  ts.target = target;
   if (dist->on) {
     if ((rc = train_dist_agree(dist, rc, NULL))) {
       agreed = 1;

@@ -42,6 +42,7 @@ static const struct field {
     {"smplpix.train.stage1_steps", F_INT, offsetof(spx_train_state, stage1_steps), 0, 0, I64MAX, 0, NULL},
     {"smplpix.train.lr2", F_REAL, offsetof(spx_train_state, lr2), 0, 0, 1e6, 1, NULL},
     {"smplpix.train.disc_width", F_INT, offsetof(spx_train_state, disc_width), 0, 1, 512, 0, NULL},
+    {"smplpix.train.target", F_INT, offsetof(spx_train_state, target), 0, 0, I64MAX, 0, NULL},
 };
 enum { NFIELDS = (int)(sizeof FIELDS / sizeof FIELDS[0]) };
 
@@ -56,6 +57,7 @@ void spx_train_state_init(spx_train_state *s) {
   s->stage = 1;
   s->lr2 = 1e-5;
   s->disc_width = 64;
+  s->target = -1;
 }
 
 /* The state as metadata pairs: keys[k] / text[k] for every field of FIELDS. */
@@ -144,6 +146,7 @@ static int check_consistent(const char *path, const spx_train_state *s) {
   else if (s->steps_per_epoch != (s->pairs + s->batch - 1) / s->batch) what = "steps_per_epoch is not ceil(pairs / batch)";
   else if (s->epoch != s->step / s->steps_per_epoch) what = "epoch is not step / steps_per_epoch";
   else if (s->stage_base > s->step) what = "stage_base is after step";
+  else if (s->target >= 0 && s->target < s->step) what = "target is before step";
   else if (!s->schedule[0] && s->stage_base) what = "stage_base is not 0 in a single-stage run";
   if (!what) return SPX_EXIT_OK;
   return spx_cli_errorf("train", "%s: invalid training state: smplpix.train.%s", path, what);

@@ -165,7 +165,27 @@ static void test_recorded_ranges(void) {
   }
 }
 
+/* --resume alone continues to the recorded length of the interrupted run (issue 24): a run of 5
+ * steps stopped after 2 (its record says target 5) resumes to the same bytes as 5 straight. */
+static void test_resume_length(void) {
+  hostile_dir();
+  CHECK(make_scene(1));
+  CHECK(run("train --data ds --out A.safetensors --width 8 --steps 5 --seed 3 --batch 2") == 0);
+  CHECK(run("train --data ds --out B.safetensors --width 8 --steps 2 --seed 3 --batch 2") == 0);
+  CHECK(set_meta("B.safetensors", "C.safetensors", "smplpix.train.target", "5")); /* as if stopped at step 2 of 5 */
+  CHECK(run("train --data ds --out C.safetensors --resume") == 0);
+  CHECK(file_has("out.txt", "step 2 -> 5"));
+  CHECK_MSG(same_file("A.safetensors", "C.safetensors"), "--resume alone did not continue to the recorded length");
+  /* finished: --resume alone does nothing; a new --steps extends */
+  CHECK(run("train --data ds --out C.safetensors --resume") == 0 && file_has("out.txt", "step 5 -> 5"));
+  CHECK(run("train --data ds --out C.safetensors --resume --steps 6") == 0 && file_has("out.txt", "step 5 -> 6"));
+  /* --epochs 60 recorded as the target of a schedule-less run: 5 pairs, batch 2 -> 180 steps */
+  CHECK(run("train --data ds --out D.safetensors --width 8 --epochs 60 --steps 1 --seed 3") == 2);
+  CHECK(set_meta("B.safetensors", "E.safetensors", "smplpix.train.target", "1"));
+  CHECK(run("train --data ds --out E.safetensors --resume") == 1 && err_is("train", "E.safetensors: invalid training state: smplpix.train.target is before step"));
+}
+
 int main(void) {
-  const spx_t_test tests[] = {SPX_TEST(test_bit_for_bit), SPX_TEST(test_refusals), SPX_TEST(test_recorded_ranges)};
-  return spx_t_main_ctx(&ctx, 0, tests, 3);
+  const spx_t_test tests[] = {SPX_TEST(test_bit_for_bit), SPX_TEST(test_refusals), SPX_TEST(test_recorded_ranges), SPX_TEST(test_resume_length)};
+  return spx_t_main_ctx(&ctx, 0, tests, 4);
 }

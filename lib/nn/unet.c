@@ -518,8 +518,8 @@ spx_status spx_unet_save_half(spx_unet *u, const char *path, const char *const *
 static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, int half, const char *const *mkeys,
                             const char *const *mvalues, int count) {
   spx_status st = SPX_OK;
-  if (count < 0 || count > 16 || (count && (!mkeys || !mvalues)))
-    return spx_fail(u->ctx, SPX_E_ARG, "unet: %d extra metadata entries (at most 16)", count);
+  if (count < 0 || count > SPX_UNET_MAX_META || (count && (!mkeys || !mvalues)))
+    return spx_fail(u->ctx, SPX_E_ARG, "unet: %d extra metadata entries (at most %d)", count, SPX_UNET_MAX_META);
   int cap = u->nents * 3 + 1;
   spx_st_entry *es = calloc((size_t)cap, sizeof *es);
   float **bufs = calloc((size_t)cap, sizeof *bufs);
@@ -583,8 +583,8 @@ static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, i
   if (!st) {
     char wbuf[16];
     snprintf(wbuf, sizeof wbuf, "%d", u->width);
-    const char *keys[19] = {"format", "smplpix.sigmoid", "smplpix.width"};
-    const char *vals[19] = {"pt", u->sigmoid ? "1" : "0", wbuf};
+    const char *keys[3 + SPX_UNET_MAX_META] = {"format", "smplpix.sigmoid", "smplpix.width"};
+    const char *vals[3 + SPX_UNET_MAX_META] = {"pt", u->sigmoid ? "1" : "0", wbuf};
     for (int i = 0; i < count; i++) keys[3 + i] = mkeys[i], vals[3 + i] = mvalues[i];
     st = spx_st_save(u->ctx, path, es, ne, keys, vals, 3 + count);
   }
