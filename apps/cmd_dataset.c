@@ -32,9 +32,39 @@ static const char *USAGE =
     "--orbit N: N cameras looking at the mesh's bounding-box centre from azimuths 360*i/N degrees around\n"
     "the +y axis, view i at elevation E[i % count] degrees (default 0); --size WxH (default 410x308),\n"
     "--focal in pixels (default max(W,H)), --distance (default: the nearest distance at which every\n"
-    "view holds the whole mesh with a 5% margin). DIR must be empty or absent unless --force. The files\n"
+    "view holds the whole mesh with a 5% margin). DIR must be empty or absent unless --force, which\n"
+    "replaces the data set (images of an earlier run that this one did not write are removed). The files\n"
     "appear together when all are written and flushed to disk: on failure nothing this run wrote is left\n"
     "behind and files that were there before keep their contents.\n";
+
+/* --force replaces a data set: the images of DIR/<split>/{input,output} that this run did not
+ * write (an earlier run's views, in another split or format) are removed, so no view is in two
+ * splits. Other files are left alone. */
+static void remove_stale_views(const char *dir, const char *const *names, const int *which, int ncams,
+                               const char *fmt) {
+  for (int k = 0; k < 3; k++)
+    for (int io = 0; io < 2; io++) {
+      char sub[4200];
+      snprintf(sub, sizeof sub, "%s/%s/%s", dir, names[k], io ? "output" : "input");
+      DIR *d = opendir(sub);
+      if (!d) continue;
+      struct dirent *e;
+      while ((e = readdir(d))) {
+        char ext[16], want[32];
+        spx_path_ext(e->d_name, ext, sizeof ext);
+        if (strcmp(ext, "exr") && strcmp(ext, "npy") && strcmp(ext, "png")) continue;
+        int v = -1, used = 0;
+        if (sscanf(e->d_name, "view_%d.%n", &v, &used) == 1 && used && v >= 0 && v < ncams && which[v] == k) {
+          snprintf(want, sizeof want, "view_%04d.%s", v, io ? "png" : fmt);
+          if (!strcmp(e->d_name, want)) continue; /* written by this run */
+        }
+        char p[4500];
+        snprintf(p, sizeof p, "%s/%s", sub, e->d_name);
+        unlink(p);
+      }
+      closedir(d);
+    }
+}
 
 /* Comma-separated finite doubles; returns the count, or -1 when malformed / more than cap. */
 static int parse_list(const char *s, double *v, int cap) {
@@ -300,6 +330,7 @@ int spx_cmd_dataset(int argc, char **argv) {
     }
   }
   if ((rc = spx_tx_commit(&tx))) goto done;
+  if (force) remove_stale_views(dir, names, which, ncams, fmt);
   if (!quiet) {
     spx_device_info info;
     spx_device_get_info(ctx, &info);

@@ -517,7 +517,7 @@ static int train_run(int argc, char **argv, train_dist *dist) {
     else if (rcp.schedule && rcp.stage == 2) target = rcp.stage1_steps + stage1; /* stage 2: as long as asked */
     else if (rcp.schedule) rcp.stage1_steps = stage1, target = 2 * stage1;
   }
-  ts.target = target;
+  ts.target = target > train_recipe_step_count(&rcp, u) ? target : train_recipe_step_count(&rcp, u); /* never behind */
   if (dist->on) {
     if ((rc = train_dist_agree(dist, rc, NULL))) {
       agreed = 1;

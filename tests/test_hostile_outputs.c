@@ -85,6 +85,15 @@ static void test_dataset(void) {
   CHECK(run("dataset --mesh quad.obj --out nop/a/b --orbit 2 --size 32x24") == 1);
   CHECK(err_is("dataset", "nop/a/b: cannot create the folder"));
   CHECK(!exists("nop"));
+  /* issue 24: --force replaces the data set: after a re-split (and a new input format) every view is
+   * in one split only, once; a file that is no view is kept */
+  CHECK(run("dataset --mesh quad.obj --out re --orbit 10 --size 32x24 --seed 1 --quiet") == 0);
+  write_text("re/notes.txt", "mine");
+  CHECK(run("dataset --mesh quad.obj --out re --orbit 10 --size 32x24 --seed 2 --input-format npy --quiet --force") == 0);
+  CHECK(sh("test $(ls re/*/input | grep -c view_) = 10 && test $(ls re/*/output | grep -c view_) = 10") == 0);
+  CHECK(sh("test $(ls re/*/input/*.exr 2>/dev/null | wc -l) = 0") == 0);
+  CHECK(sh("test $(ls re/*/input re/*/output | grep view_ | sed 's/[.].*//' | sort | uniq -d | wc -l) = 10") == 0);
+  CHECK(exists("re/notes.txt"));
 }
 
 static void test_network_writers(void) {
