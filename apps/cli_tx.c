@@ -13,10 +13,35 @@
 #include "cli_tx.h"
 #include "smplpix/files.h"
 
-void spx_tx_begin(spx_tx *tx, const char *cmd, int durable) {
+/* The transactions of this process that are open (begun, not ended), for the Ctrl-C clean-up. */
+enum { MAX_ACTIVE = 8 };
+static spx_tx *volatile active[MAX_ACTIVE];
+
+static void reset(spx_tx *tx, const char *cmd, int durable) {
   memset(tx, 0, sizeof *tx);
   tx->cmd = cmd;
   tx->durable = durable;
+}
+
+void spx_tx_begin(spx_tx *tx, const char *cmd, int durable) {
+  reset(tx, cmd, durable);
+  for (int i = 0; i < MAX_ACTIVE; i++)
+    if (!active[i]) {
+      active[i] = tx;
+      break;
+    }
+}
+
+void spx_tx_interrupted(void) {
+  for (int k = 0; k < MAX_ACTIVE; k++) {
+    spx_tx *tx = active[k];
+    if (!tx) continue;
+    for (int i = 0; i < tx->n; i++) {
+      if (tx->f[i].temp) unlink(tx->f[i].temp);
+      if (tx->f[i].backup) unlink(tx->f[i].backup);
+    }
+    for (int i = tx->ndirs - 1; i >= 0 && !tx->committed; i--) rmdir(tx->dirs[i]);
+  }
 }
 
 /* Journal of a multi-file commit: "<first target>.commit", written (and fsync'ed when durable)
@@ -206,7 +231,20 @@ const char *spx_tx_stage(spx_tx *tx, const char *target) {
   return tmp;
 }
 
-int spx_tx_commit(spx_tx *tx) {
+static int commit(spx_tx *tx);
+
+int spx_tx_commit(spx_tx *tx) { /* Ctrl-C waits until every file is in place (or rolled back) */
+  sigset_t block, old;
+  sigemptyset(&block);
+  sigaddset(&block, SIGINT);
+  sigaddset(&block, SIGTERM);
+  int masked = sigprocmask(SIG_BLOCK, &block, &old) == 0;
+  int rc = commit(tx);
+  if (masked) sigprocmask(SIG_SETMASK, &old, NULL);
+  return rc;
+}
+
+static int commit(spx_tx *tx) {
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf(tx->cmd, "out of memory");
   int rc = SPX_EXIT_OK, done = 0;
@@ -298,7 +336,7 @@ void spx_tx_end(spx_tx *tx) {
   }
   free(tx->f);
   free(tx->dirs);
-  const char *cmd = tx->cmd;
-  int durable = tx->durable;
-  spx_tx_begin(tx, cmd, durable); /* reusable: train commits one transaction per save */
+  for (int i = 0; i < MAX_ACTIVE; i++)
+    if (active[i] == tx) active[i] = NULL;
+  reset(tx, tx->cmd, tx->durable);
 }

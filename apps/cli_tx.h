@@ -48,6 +48,10 @@ const char *spx_tx_stage(spx_tx *tx, const char *target);
 int spx_tx_commit(spx_tx *tx);
 /* Always call once: removes temporaries (and created folders) of a run that did not commit. */
 void spx_tx_end(spx_tx *tx);
+/* From a signal handler (apps/main.c, Ctrl-C): removes the temporaries, backups and created
+ * (still empty) folders of every open transaction, with unlink / rmdir only. A commit blocks
+ * SIGINT and SIGTERM while it renames, so it is never cut in half by them. */
+void spx_tx_interrupted(void);
 /* Number of staged files and the target of the i-th (for "wrote X" lines). */
 static inline int spx_tx_count(const spx_tx *tx) { return tx->n; }
 static inline const char *spx_tx_target(const spx_tx *tx, int i) { return tx->f[i].target; }

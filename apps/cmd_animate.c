@@ -3,6 +3,7 @@
  * with --no-network, the raw vertex projection; an MP4 when ffmpeg is on PATH. */
 #include <errno.h>
 #include <math.h>
+#include <dirent.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -41,6 +42,35 @@ static volatile sig_atomic_t interrupted;
 static void on_sigint(int sig) {
   (void)sig;
   interrupted = 1;
+}
+
+/* DIR/frames.tmp.<pid> folders of runs that no longer run (killed while encoding): their links
+ * and the folder are removed. */
+static void remove_dead_link_folders(const char *out) {
+  DIR *d = opendir(out);
+  if (!d) return;
+  struct dirent *e;
+  while ((e = readdir(d))) {
+    if (strncmp(e->d_name, "frames.tmp.", 11)) continue;
+    char *end;
+    errno = 0;
+    long pid = strtol(e->d_name + 11, &end, 10);
+    if (end == e->d_name + 11 || *end || errno || pid <= 0 || pid == (long)getpid()) continue;
+    if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue; /* alive (or not ours to judge) */
+    char sub[4300];
+    snprintf(sub, sizeof sub, "%s/%s", out, e->d_name);
+    DIR *sd = opendir(sub);
+    struct dirent *se;
+    while (sd && (se = readdir(sd))) {
+      if (strncmp(se->d_name, "frame_", 6)) continue; /* only the links this tool makes */
+      char lp[4600];
+      snprintf(lp, sizeof lp, "%s/%s", sub, se->d_name);
+      unlink(lp);
+    }
+    if (sd) closedir(sd);
+    rmdir(sub);
+  }
+  closedir(d);
 }
 
 typedef struct progress {
@@ -109,6 +139,7 @@ static int run(spx_ctx *ctx, const opts *o) {
   sa.sa_flags = SA_RESTART;
   interrupted = 0;
   int handler_set = sigaction(SIGINT, &sa, &old_int) == 0;
+  remove_dead_link_folders(o->out); /* a killed run's ffmpeg links */
   /* every input is read and checked before anything is written */
   if ((rc = spx_cli_load_registration(C, ctx, o->reg, o->model, &r, &m))) goto done;
   if ((rc = spx_anim_motion_open(C, ctx, o->bvh, o->amass, &m, &mo))) goto done;
@@ -227,7 +258,13 @@ static int run(spx_ctx *ctx, const opts *o) {
         goto done;
       }
     }
-    if (spx_anim_encode_mp4(ffmpeg, links, a, o->fps > 0 ? o->fps : mo.fps, vtmp, mp4, why, sizeof why)) {
+    int enc = spx_anim_encode_mp4(ffmpeg, links, a, o->fps > 0 ? o->fps : mo.fps, vtmp, mp4, why, sizeof why);
+    if (interrupted) { /* Ctrl-C reached ffmpeg too: not its failure */
+      spx_cli_errorf(C, "interrupted while encoding %s: removed the %d frames written", mp4, total);
+      rc = 130;
+      goto done;
+    }
+    if (enc) {
       rc = spx_cli_errorf(C, "%s", why);
       goto done;
     }

@@ -192,11 +192,34 @@ static void test_write_protected(void) {
   CHECK(run("project --mesh quad.obj --camera cam.json --out x.exr --png ro.png") == 0);
 }
 
+/* Ctrl-C in a command without a handler of its own (issue 24): exit 130, one line, and nothing a
+ * rerun trips over (dataset left folders that a rerun refused as "not empty"). */
+static void test_ctrl_c(void) {
+  hostile_dir();
+  CHECK(make_scene(0));
+  int got = 0;
+  for (int k = 0; k < 6 && !got; k++) {
+    sh("rm -rf big");
+    pid_t pid = spawn("dataset --mesh quad.obj --out big --orbit 3000 --size 64x48 --quiet");
+    sleep_ms(300 + 200 * k);
+    kill(pid, SIGINT);
+    int st = 0;
+    waitpid(pid, &st, 0);
+    if (WIFEXITED(st) && WEXITSTATUS(st) == 0) continue; /* finished first: try later... */
+    CHECK_MSG(WIFEXITED(st) && WEXITSTATUS(st) == 130, "dataset after Ctrl-C: status %d", st);
+    CHECK(!exists("big") && count_temps(".") == 0);
+    got = 1;
+  }
+  CHECK_MSG(got, "dataset was never interrupted");
+  CHECK(run("dataset --mesh quad.obj --out big --orbit 3 --size 32x24 --quiet") == 0);
+}
+
 int main(void) {
   SPX_RUN(test_project_raster);
   SPX_RUN(test_dataset);
   SPX_RUN(test_network_writers);
   SPX_RUN(test_kill9);
   SPX_RUN(test_write_protected);
+  SPX_RUN(test_ctrl_c);
   return spx_test_summary();
 }
