@@ -340,3 +340,44 @@ void spx_tx_end(spx_tx *tx) {
     if (active[i] == tx) active[i] = NULL;
   reset(tx, tx->cmd, tx->durable);
 }
+
+/* p starts ".tmp.<digits>.<digits>" (a writer's own temporary of a staged file): its length, else 0. */
+static size_t temp_suffix(const char *p) {
+  if (strncmp(p, ".tmp.", 5)) return 0;
+  const char *q = p + 5;
+  if (*q < '0' || *q > '9') return 0;
+  while (*q >= '0' && *q <= '9') q++;
+  if (*q != '.' || q[1] < '0' || q[1] > '9') return 0;
+  for (q++; *q >= '0' && *q <= '9'; q++) {
+  }
+  return (size_t)(q - p);
+}
+
+int spx_tx_error(spx_tx *tx, spx_ctx *ctx) {
+  const char *m = spx_ctx_message(ctx);
+  if (!m || !*m) m = "unknown error";
+  char buf[8192];
+  size_t o = 0;
+  while (*m && o + 1 < sizeof buf) {
+    int hit = 0;
+    for (int i = 0; i < tx->n && !hit; i++) {
+      const char *t = tx->f[i].temp;
+      size_t tl = t ? strlen(t) : 0;
+      if (!tl || strncmp(m, t, tl)) continue;
+      size_t gl = strlen(tx->f[i].target);
+      if (o + gl + 1 >= sizeof buf) break;
+      memcpy(buf + o, tx->f[i].target, gl);
+      o += gl, m += tl, hit = 1;
+      size_t extra = temp_suffix(m); /* and the writer's own temporary of it, with its extension */
+      if (extra) {
+        m += extra;
+        const char *dot = tl ? strrchr(t, '.') : NULL;
+        if (dot && !strncmp(m, dot, strlen(dot))) m += strlen(dot);
+      }
+    }
+    if (!hit) buf[o++] = *m++;
+  }
+  buf[o] = 0;
+  return spx_cli_errorf(tx->cmd, "%s", buf);
+}
+

@@ -52,6 +52,9 @@ void spx_tx_end(spx_tx *tx);
  * (still empty) folders of every open transaction, with unlink / rmdir only. A commit blocks
  * SIGINT and SIGTERM while it renames, so it is never cut in half by them. */
 void spx_tx_interrupted(void);
+/* Print ctx's message as cmd's one-line error with every staged temporary named by its target
+ * (errors name the user's path, never a temporary); returns SPX_EXIT_ERROR. */
+int spx_tx_error(spx_tx *tx, spx_ctx *ctx);
 /* Number of staged files and the target of the i-th (for "wrote X" lines). */
 static inline int spx_tx_count(const spx_tx *tx) { return tx->n; }
 static inline const char *spx_tx_target(const spx_tx *tx, int i) { return tx->f[i].target; }

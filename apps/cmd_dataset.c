@@ -278,7 +278,7 @@ int spx_cmd_dataset(int argc, char **argv) {
     snprintf(path, plen, "%s/cameras.json", dir);
     const char *tmp = spx_tx_stage(&tx, path);
     if (!tmp) rc = SPX_EXIT_ERROR;
-    else if (spx_camera_save(ctx, tmp, cams, ncams)) rc = spx_cli_error("dataset", ctx);
+    else if (spx_camera_save(ctx, tmp, cams, ncams)) rc = spx_tx_error(&tx, ctx);
   }
   free(path);
   if (rc) goto done;

@@ -95,7 +95,10 @@ static int export_run(int argc, char **argv, const char **user) {
     goto done;
   }
   spx_status st = half ? spx_unet_save_half(u, tmp, mk, mv, nm) : spx_unet_save_meta(u, tmp, 0, mk, mv, nm);
-  if (spx_cli_failed(&rc, "export", ctx, st)) goto done;
+  if (st) {
+    rc = spx_tx_error(&tx, ctx);
+    goto done;
+  }
   if ((rc = spx_tx_commit(&tx))) goto done;
   printf("wrote %s (width %d, %s, %s Adam steps recorded)\n", out, spx_unet_width(u), half ? "float16" : "float32",
          steps_used);

@@ -129,7 +129,7 @@ int spx_cmd_register(int argc, char **argv) {
   }
   if (spx_fit_result_mesh(ctx, &r, &reg) || spx_mesh_save(ctx, tmp_out, &reg, SPX_MESH_AUTO) ||
       (params_path && spx_fit_save_json(ctx, tmp_params, &r, model_path))) {
-    rc = spx_cli_error("register", ctx);
+    rc = spx_tx_error(&tx, ctx);
     goto done;
   }
   if ((rc = spx_tx_commit(&tx))) goto done; /* both files or neither */

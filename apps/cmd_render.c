@@ -96,7 +96,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
       if (!tmp) goto done;
       spx_app_batch b = {1, SPX_UNET_OUT_CHANNELS, H, W, 1, out + (size_t)k * SPX_UNET_OUT_CHANNELS * hw};
       if (spx_app_save(ctx, tmp, &b)) {
-        rc = spx_cli_error("render", ctx);
+        rc = spx_tx_error(&tx, ctx);
         goto done;
       }
     }
@@ -184,7 +184,7 @@ int spx_cmd_render(int argc, char **argv) {
   }
   const char *tmp = spx_tx_stage(&tx, outp);
   if (!tmp) rc = SPX_EXIT_ERROR;
-  else if (spx_app_save(ctx, tmp, &out)) rc = spx_cli_error("render", ctx);
+  else if (spx_app_save(ctx, tmp, &out)) rc = spx_tx_error(&tx, ctx);
   else rc = spx_tx_commit(&tx);
 done:
   spx_tx_end(&tx);

@@ -90,7 +90,7 @@ static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m,
   spx_tx_begin(&otx, cmd, 0);
   const char *tmp = spx_tx_stage(&otx, out_path);
   if (!tmp) rc = SPX_EXIT_ERROR;
-  else if (spx_mesh_save(ctx, tmp, save, SPX_MESH_AUTO)) rc = spx_cli_error(cmd, ctx);
+  else if (spx_mesh_save(ctx, tmp, save, SPX_MESH_AUTO)) rc = spx_tx_error(&otx, ctx);
   else rc = spx_tx_commit(&otx);
   spx_tx_end(&otx);
   if (rc) goto done;

@@ -184,14 +184,14 @@ int spx_train_checkpoint_save(spx_ctx *ctx, spx_unet *u, spx_patchgan *d, const 
     const char *dtmp = spx_tx_stage(&tx, disc_path);
     if (!dtmp) goto done;
     if (spx_patchgan_save(d, dtmp, 1)) {
-      rc = spx_cli_error("train", ctx);
+      rc = spx_tx_error(&tx, ctx);
       goto done;
     }
   }
   const char *tmp = spx_tx_stage(&tx, path);
   if (!tmp) goto done;
   if (spx_unet_save_meta(u, tmp, 1, keys, vals, NFIELDS)) {
-    rc = spx_cli_error("train", ctx);
+    rc = spx_tx_error(&tx, ctx);
     goto done;
   }
   rc = spx_tx_commit(&tx);

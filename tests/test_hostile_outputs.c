@@ -214,6 +214,23 @@ static void test_ctrl_c(void) {
   CHECK(run("dataset --mesh quad.obj --out big --orbit 3 --size 32x24 --quiet") == 0);
 }
 
+/* A failed write names the user's path, never the temporary it went to (issue 24): a file-size limit
+ * (ulimit -f, SIGXFSZ ignored) makes the write fail as a full disk would. */
+static void test_error_names_target(void) {
+  hostile_dir();
+  CHECK(make_scene(0));
+  write_text("big.json", "{\"width\": 512, \"height\": 512, \"K\": [[300,0,256],[0,300,256],[0,0,1]], "
+                         "\"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
+  CHECK(sh("trap '' XFSZ; ulimit -f 1; '%s' project --mesh quad.obj --camera big.json --out c.npy >out.txt 2>err.txt",
+           spx_t_tool()) == 1);
+  CHECK(err_is("project", "c.npy: "));
+  size_t n;
+  char *e = slurp("err.txt", &n);
+  CHECK_MSG(e && !strstr(e, ".tmp."), "the message names a temporary: %s", e ? e : "");
+  free(e);
+  CHECK(!exists("c.npy") && count_temps(".") == 0);
+}
+
 int main(void) {
   SPX_RUN(test_project_raster);
   SPX_RUN(test_dataset);
@@ -221,5 +238,6 @@ int main(void) {
   SPX_RUN(test_kill9);
   SPX_RUN(test_write_protected);
   SPX_RUN(test_ctrl_c);
+  SPX_RUN(test_error_names_target);
   return spx_test_summary();
 }
