@@ -225,6 +225,13 @@ int spx_cmd_demo(int argc, char **argv) {
   if (!ckpt && access(shipped, R_OK) == 0) ckpt = shipped;
   double t0 = spx_now();
   spx_ctx *ctx = NULL;
+  { /* the strip must fit a PNG: checked before any work */
+    long tw, th;
+    spx_demo_strip_size(ckpt ? 3 : 2, o.W, o.H, o.zoom, &tw, &th);
+    if (tw > 16384 || th > 16384)
+      return spx_cli_usage("demo", "--size %dx%d with --zoom %d makes a %ldx%ld strip, larger than the 16384 pixels a "
+                           "side a PNG may have", o.W, o.H, o.zoom, tw, th);
+  }
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("demo", "out of memory");
   spx_tx tx;
   spx_tx_begin(&tx, "demo", 0);

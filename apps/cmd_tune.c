@@ -7,6 +7,7 @@
 
 #include "cli.h"
 #include "cli_scene.h"
+#include "smplpix/files.h"
 #include "cli_model.h"
 #include "tune_search.h"
 
@@ -121,6 +122,18 @@ int spx_cmd_tune(int argc, char **argv) {
     free(cams);
   }
   if (!nw && (rc = model_width(ctx, ckpt, &widths[nw++]))) goto done;
+  { /* the tuning file can be written: checked before minutes of measuring */
+    const char *tp = spx_device_tuning_path(ctx);
+    if (!*tp) {
+      rc = spx_cli_errorf("tune", "no cache folder to keep the tuning file in (SPX_NO_CACHE is set, or neither "
+                          "$SPX_CACHE_DIR nor $HOME names one)");
+      goto done;
+    }
+    if (spx_file_check_writable(ctx, tp)) {
+      rc = spx_cli_error("tune", ctx);
+      goto done;
+    }
+  }
   spx_tune_plan plan = {.quick = quick, .h = h, .w = w, .nwidths = nw, .repeat = reps ? reps : quick ? 3 : 5,
                        .device = spec, .cpu_clock = cpu_clock};
   memcpy(plan.widths, widths, sizeof(int) * (size_t)nw);

@@ -156,7 +156,21 @@ static void test_exact_numbers(void) {
   CHECK(run("export --checkpoint W.safetensors --out W.safetensors") == 2 && err_is("export", "--out W.safetensors is also"));
 }
 
+/* Output types and writability are checked before the work (issue 24). */
+static void test_checks_before_work(void) {
+  hostile_dir();
+  CHECK(make_scene(0));
+  /* a strip larger than a PNG: refused at once, nothing made */
+  CHECK(run_t(10, "demo --zoom 8 --size 1024x768 --out dz") == 2 && err_has("larger than the 16384 pixels"));
+  CHECK(!exists("dz"));
+  /* tune with a cache that cannot hold the tuning file: refused before any measuring */
+  write_text("afile", "x");
+  CHECK(sh("SPX_CACHE_DIR=afile timeout -s KILL 20 '%s' tune --quick --size 32x32 --width 8 >out.txt 2>err.txt",
+           spx_t_tool()) == 1);
+  CHECK(err_is("tune", "afile/tuning-") && err_has("is not a folder"));
+}
+
 int main(void) {
-  const spx_t_test tests[] = {SPX_TEST(test_exact_numbers), SPX_TEST(test_every_command)};
-  return cli_test_main(tests, 2);
+  const spx_t_test tests[] = {SPX_TEST(test_exact_numbers), SPX_TEST(test_every_command), SPX_TEST(test_checks_before_work)};
+  return cli_test_main(tests, 3);
 }
