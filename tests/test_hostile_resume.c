@@ -185,7 +185,26 @@ static void test_resume_length(void) {
   CHECK(run("train --data ds --out E.safetensors --resume") == 1 && err_is("train", "E.safetensors: invalid training state: smplpix.train.target is before step"));
 }
 
+/* Checkpoint metadata agrees with the tensors or is an error (issue 24). */
+static void test_metadata_agrees(void) {
+  hostile_dir();
+  CHECK(make_scene(1));
+  CHECK(set_meta("w8.safetensors", "X.safetensors", "smplpix.width", "16"));
+  CHECK(run("train --data ds --out X.safetensors --resume --steps 2") == 1 &&
+        err_is("train", "X.safetensors: metadata smplpix.width = \"16\" disagrees with the tensors (width 8)"));
+  CHECK(run("render --checkpoint X.safetensors --input \"$(ls ds/train/input/*.exr | head -1)\" --out r.png") == 1 &&
+        err_has("disagrees with the tensors"));
+  CHECK(set_meta("w8.safetensors", "X.safetensors", "smplpix.sigmoid", "yes"));
+  CHECK(run("train --data ds --out X.safetensors --resume --steps 2") == 1 &&
+        err_is("train", "X.safetensors: metadata smplpix.sigmoid = \"yes\" is not 0 or 1"));
+  /* a discriminator of another width than the one recorded */
+  CHECK(run("train --data ds --out G.safetensors --width 8 --loss l1+gan --disc-width 8 --steps 1") == 0);
+  CHECK(set_meta("G.safetensors", "G.safetensors", "smplpix.train.disc_width", "16"));
+  CHECK(run("train --data ds --out G.safetensors --resume --steps 2") == 1 &&
+        err_is("train", "G.disc.safetensors has width 8, but the checkpoint records disc width 16"));
+}
+
 int main(void) {
-  const spx_t_test tests[] = {SPX_TEST(test_bit_for_bit), SPX_TEST(test_refusals), SPX_TEST(test_recorded_ranges), SPX_TEST(test_resume_length)};
-  return spx_t_main_ctx(&ctx, 0, tests, 4);
+  const spx_t_test tests[] = {SPX_TEST(test_bit_for_bit), SPX_TEST(test_refusals), SPX_TEST(test_recorded_ranges), SPX_TEST(test_resume_length), SPX_TEST(test_metadata_agrees)};
+  return spx_t_main_ctx(&ctx, 0, tests, 5);
 }

@@ -685,7 +685,21 @@ spx_status spx_unet_load(spx_ctx *ctx, const char *path, spx_unet **out) {
       goto done;
     }
   }
-  const char *sig = spx_st_meta(&f, "smplpix.sigmoid");
+  /* the metadata this library writes must agree with the tensors (or be absent: PyTorch files) */
+  const char *sig = spx_st_meta(&f, "smplpix.sigmoid"), *mw = spx_st_meta(&f, "smplpix.width");
+  if (sig && strcmp(sig, "0") && strcmp(sig, "1")) {
+    st = spx_fail(ctx, SPX_E_FORMAT, "%s: metadata smplpix.sigmoid = \"%.40s\" is not 0 or 1", path, sig);
+    goto done;
+  }
+  if (mw) {
+    char wbuf[24];
+    snprintf(wbuf, sizeof wbuf, "%lld", (long long)t0->shape[0]);
+    if (strcmp(mw, wbuf)) {
+      st = spx_fail(ctx, SPX_E_FORMAT, "%s: metadata smplpix.width = \"%.40s\" disagrees with the tensors (width %s)",
+                    path, mw, wbuf);
+      goto done;
+    }
+  }
   if ((st = spx_unet_create_ex(ctx, (int)t0->shape[0], sig && !strcmp(sig, "1"), 0, SPX_TAPE_DEVICE, &u))) goto done;
   size_t cmax = 0;
   for (int i = 0; i < u->nents; i++)
