@@ -8,12 +8,14 @@
   "{\"width\": 8192, \"height\": 8192, \"K\": [[3000,0,4096],[0,3000,4096],[0,0,1]], \"R\": [[1,0,0],[0,1,0],[0,0,1]], " \
   "\"t\": [0,0,3]}"
 
+#if !defined(__SANITIZE_ADDRESS__)
 static int limited(const char *args) {
   char cmd[2048];
   snprintf(cmd, sizeof cmd, "cd '%s' && ulimit -v 3000000 && SPX_DEVICE=cpu timeout -s KILL 300 '%s' %s >out.txt 2>err.txt",
            dir, spx_t_tool(), args);
   return spx_t_system(cmd);
 }
+#endif
 
 static void test_address_space_limit(void) {
 #if defined(__SANITIZE_ADDRESS__)
