@@ -95,9 +95,10 @@ spx_status spx_fit_result_mesh(spx_ctx *ctx, const spx_fit_result *r, spx_mesh *
  * detected; a size that is not a person's (0.1-3 m) in metres, centimetres or millimetres is an
  * error (SPX_E_ARG) with the figure. *note: what was assumed (NULL when metres or given). */
 spx_status spx_fit_units(spx_ctx *ctx, double ext, double given, double *scale, const char **note);
-/* A finished registration fits its scan (both in metres): the body's extent within 0.5-2x the
- * scan's, and the median scan-to-surface distance at most 5% of the scan's extent; otherwise
- * SPX_E_NUMERIC with the measured figures. */
+/* A finished registration fits its scan (both in metres): the scan can be a person (at least 50
+ * points, its smallest principal spread under 0.75 of its largest: a cube or a ball of points is
+ * not), the body's extent within 0.5-2x the scan's, and the median scan-to-surface distance at
+ * most 5% of the scan's extent; otherwise SPX_E_NUMERIC with the measured figures. */
 spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, const float *reg_m, int32_t nv,
                                 double median_m);
 
