@@ -173,7 +173,7 @@ def f32(a, name: str, shape_tail=None, ndims=None, image: bool = False) -> np.nd
     the one dtype rule of the library (spx_image_npy_values): float as is, uint8 as value/255 like
     an 8-bit PNG, other integer or bool dtypes refused."""
     kind = getattr(getattr(a, "dtype", None), "kind", None)
-    if image and kind in "biu" and kind is not None:
+    if image and kind is not None and kind in "biu":
         if a.dtype != np.uint8:
             raise TypeError(f"smplpix: {name}: {a.dtype} image: integer images must be uint8 (read as value/255, "
                             f"like PNG) or floating point")
