@@ -123,7 +123,11 @@ int spx_anim_encode_mp4(const char *ffmpeg, const char *dir, long first, double 
   int e = posix_spawn(&pid, ffmpeg, &fa, NULL, argv, environ), status = 0;
   posix_spawn_file_actions_destroy(&fa);
   if (e) return snprintf(why, cap, "cannot start %s: %s", ffmpeg, strerror(e)), 1;
-  if (waitpid(pid, &status, 0) < 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+  pid_t w;
+  while ((w = waitpid(pid, &status, 0)) < 0 && errno == EINTR) {
+  }
+  if (w < 0) return snprintf(why, cap, "%s: cannot wait for ffmpeg: %s", mp4, strerror(errno)), 1;
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
     snprintf(why, cap, "%s failed (%s %d) encoding %s", ffmpeg, WIFEXITED(status) ? "exit status" : "signal",
              WIFEXITED(status) ? WEXITSTATUS(status) : WIFSIGNALED(status) ? WTERMSIG(status) : -1, mp4);
     return 1;

@@ -24,9 +24,7 @@ int spx_cli_usage(const char *cmd, const char *fmt, ...);
 /* Open the device named by --device or $SPX_DEVICE; prints the error itself. */
 int spx_cli_open_device(const char *cmd, spx_ctx *ctx, const char *spec);
 
-/* Option parsing helpers: value of "--name V" at argv[*i] (advances *i), or NULL if argv[*i] is
- * not --name. Exits with a usage error via *bad when the value is missing. */
-const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *bad);
+/* Options: the typed table of apps/cli_opts.h. */
 
 /* Path of a file shipped in data/: under $SPX_DATA_DIR when set, else the installed copy
  * (<datadir>/smplpix), else the source tree the tool was built from. Returns a static buffer. */

@@ -64,7 +64,7 @@ int spx_cli_write_output(const char *cmd, spx_ctx *ctx, spx_tx *tx, char *path, 
   const char *tmp = spx_tx_stage(tx, path);
   free(path);
   if (!tmp) return SPX_EXIT_ERROR; /* printed */
-  if (spx_image_write(ctx, tmp, img)) return spx_cli_error(cmd, ctx);
+  if (spx_image_write(ctx, tmp, img)) return spx_tx_error(tx, ctx); /* names path, not tmp */
   return SPX_EXIT_OK;
 }
 

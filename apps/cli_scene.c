@@ -8,10 +8,12 @@
 #include <string.h>
 
 int spx_cli_long(const char *v, long lo, long hi, long *out) {
+  const char *p = v + (*v == '-');
   char *end = NULL;
+  if (*p < '0' || *p > '9') return 0;
   errno = 0;
   long x = strtol(v, &end, 10);
-  if (errno || end == v || *end || x < lo || x > hi) return 0;
+  if (errno || *end || x < lo || x > hi) return 0;
   *out = x;
   return 1;
 }
@@ -25,42 +27,31 @@ int spx_cli_double(const char *v, double lo, double hi, double *out) {
   return 1;
 }
 
-int spx_cli_take(int argc, char **argv, int *i, const spx_cli_optdef *defs, int *bad) {
-  for (const spx_cli_optdef *d = defs; d->name; d++) {
-    if (!d->value) {
-      if (strcmp(argv[*i], d->name)) continue;
-      *d->flag = 1;
-      return 1;
-    }
-    const char *v = spx_cli_opt(argc, argv, i, d->name, bad);
-    if (v) {
-      *d->value = v;
-      return 1;
-    }
-  }
-  return 0;
-}
-
 int spx_cli_args(int argc, char **argv, const char *cmd, const char *usage, const spx_cli_optdef *defs,
                  const spx_cli_optdef *more) {
-  int bad = 0;
-  for (int i = 1; i < argc; i++) {
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      fputs(usage, stdout);
-      return SPX_EXIT_OK;
+  int n = 0;
+  for (const spx_cli_optdef *d = defs; d->name; d++) n++;
+  for (const spx_cli_optdef *d = more; d && d->name; d++) n++;
+  spx_opt *opts = calloc((size_t)n + 1, sizeof *opts);
+  if (!opts) return spx_cli_errorf(cmd, "out of memory");
+  int k = 0;
+  for (int pass = 0; pass < 2; pass++)
+    for (const spx_cli_optdef *d = pass ? more : defs; d && d->name; d++, k++) {
+      opts[k].name = d->name;
+      opts[k].type = !d->value ? SPX_OPT_FLAG : d->io ? d->io : SPX_OPT_STR;
+      opts[k].dst = d->value ? (void *)d->value : (void *)d->flag;
     }
-    if (!spx_cli_take(argc, argv, &i, defs, &bad) && !(more && spx_cli_take(argc, argv, &i, more, &bad)))
-      return spx_cli_usage(cmd, bad ? "missing value for %s" : "unknown option %s", argv[i]);
-  }
-  return -1;
+  int rc = spx_cli_parse(argc, argv, cmd, usage, NULL, opts);
+  free(opts);
+  return rc;
 }
 
 int spx_cli_scene_args(int argc, char **argv, const char *cmd, const char *usage, const char *camera_opt,
                        spx_cli_scene_opts *o, const spx_cli_optdef *defs) {
-  const spx_cli_optdef shared[] = {{"--mesh", &o->mesh, NULL},     {camera_opt, &o->cameras, NULL},
-                                   {"--out", &o->out, NULL},       {"--color", &o->color, NULL},
-                                   {"--device", &o->device, NULL}, {"--quiet", NULL, &o->quiet},
-                                   {NULL, NULL, NULL}};
+  const spx_cli_optdef shared[] = {{"--mesh", &o->mesh, NULL, SPX_OPT_IN},  {camera_opt, &o->cameras, NULL, SPX_OPT_IN},
+                                   {"--out", &o->out, NULL, SPX_OPT_OUT},    {"--color", &o->color, NULL, 0},
+                                   {"--device", &o->device, NULL, 0},        {"--quiet", NULL, &o->quiet, 0},
+                                   {NULL, NULL, NULL, 0}};
   return spx_cli_args(argc, argv, cmd, usage, shared, defs);
 }
 

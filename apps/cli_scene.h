@@ -5,6 +5,7 @@
 #define SPX_APPS_CLI_SCENE_H
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "smplpix/camera.h"
 #include "smplpix/image.h"
 #include "smplpix/mesh.h"
@@ -21,21 +22,21 @@ static inline int spx_cli_failed(int *rc, const char *cmd, spx_ctx *ctx, spx_sta
   return 1;
 }
 
-/* v is a whole decimal integer (strtol) in [lo, hi]: *out = it, returns 1; else 0. */
+/* v is a whole decimal integer in [lo, hi] (digits, an optional '-'; nothing else): *out = it,
+ * returns 1; else 0. */
 int spx_cli_long(const char *v, long lo, long hi, long *out);
 /* v is a whole finite number (strtod) in [lo, hi]: *out = it, returns 1; else 0. */
 int spx_cli_double(const char *v, double lo, double hi, double *out);
 
-/* One option of a command's table: "--name V" stores V in *value; a flag (value NULL) sets *flag. */
+/* One option of a command's string table (turned into the typed table of cli_opts.h): "--name V"
+ * stores V in *value; a flag (value NULL) sets *flag; io is SPX_OPT_IN / SPX_OPT_OUT for a path
+ * the command reads / writes (0: neither). */
 typedef struct spx_cli_optdef {
   const char *name;
   const char **value;
   int *flag;
+  int io;
 } spx_cli_optdef;
-
-/* argv[*i] names an option of defs (ended by a {NULL} entry): stores it (advancing *i past its
- * value) and returns 1; else 0 (*bad set, like spx_cli_opt, when the value is missing). */
-int spx_cli_take(int argc, char **argv, int *i, const spx_cli_optdef *defs, int *bad);
 
 /* The options project, raster and dataset share. */
 typedef struct spx_cli_scene_opts {

@@ -1,5 +1,8 @@
-/* The per-run output transaction (see cli_tx.h): stage, check, commit with roll-back, clean up. */
+/* The per-run output transaction (see cli_tx.h): stage, check, commit with roll-back, clean up;
+ * the commit journal of a multi-file commit and the roll-forward of a dead run's journal. */
+#include <dirent.h>
 #include <errno.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -10,13 +13,150 @@
 #include "cli_tx.h"
 #include "smplpix/files.h"
 
-void spx_tx_begin(spx_tx *tx, const char *cmd, int durable) {
+/* The transactions of this process that are open (begun, not ended), for the Ctrl-C clean-up. */
+enum { MAX_ACTIVE = 8 };
+static spx_tx *volatile active[MAX_ACTIVE];
+
+static void reset(spx_tx *tx, const char *cmd, int durable) {
   memset(tx, 0, sizeof *tx);
   tx->cmd = cmd;
   tx->durable = durable;
 }
 
+void spx_tx_begin(spx_tx *tx, const char *cmd, int durable) {
+  reset(tx, cmd, durable);
+  for (int i = 0; i < MAX_ACTIVE; i++)
+    if (!active[i]) {
+      active[i] = tx;
+      break;
+    }
+}
+
+void spx_tx_interrupted(void) {
+  for (int k = 0; k < MAX_ACTIVE; k++) {
+    spx_tx *tx = active[k];
+    if (!tx) continue;
+    for (int i = 0; i < tx->n; i++) {
+      if (tx->f[i].temp) unlink(tx->f[i].temp);
+      if (tx->f[i].backup) unlink(tx->f[i].backup);
+    }
+    for (int i = tx->ndirs - 1; i >= 0 && !tx->committed; i--) rmdir(tx->dirs[i]);
+  }
+}
+
+/* Journal of a multi-file commit: "<first target>.commit", written (and fsync'ed when durable)
+ * before the first rename, removed after the last. Text: the header line "smplpix-commit 1 <pid>",
+ * then for every file a line "<temporary>" and a line "<target>" (absolute paths). A journal whose
+ * process no longer runs is finished by the next run that checks or stages a file in its folder:
+ * every temporary it names that still exists is renamed over its target. Without a journal no
+ * rename has happened, and the dead run's temporaries are removed (lib/core/files.c). */
+static const char JOURNAL_MAGIC[] = "smplpix-commit 1 ";
+
+static char *journal_name(const char *target) {
+  size_t n = strlen(target) + 8;
+  char *j = malloc(n);
+  if (j) snprintf(j, n, "%s.commit", target);
+  return j;
+}
+
+/* path made absolute against the current folder (malloc'd; NULL: out of memory or no cwd). */
+static char *absolute(const char *path) {
+  if (path[0] == '/') return strdup(path);
+  char cwd[4096];
+  if (!getcwd(cwd, sizeof cwd)) return NULL;
+  size_t n = strlen(cwd) + strlen(path) + 2;
+  char *a = malloc(n);
+  if (a) snprintf(a, n, "%s/%s", cwd, path);
+  return a;
+}
+
+/* Finish the journal at jpath when its process is gone. Returns 0, or -1 with errno's reason in
+ * *why when a rename failed (the journal is kept for the next try). */
+static int journal_finish(const char *jpath, const char **why) {
+  FILE *f = fopen(jpath, "rb");
+  if (!f) return 0;
+  char line[8192];
+  long pid = 0;
+  int rc = 0;
+  if (!fgets(line, sizeof line, f) || strncmp(line, JOURNAL_MAGIC, sizeof JOURNAL_MAGIC - 1)) {
+    fclose(f);
+    return 0; /* not one of ours: left alone */
+  }
+  pid = strtol(line + sizeof JOURNAL_MAGIC - 1, NULL, 10);
+  if (pid <= 0 || pid == (long)getpid() || kill((pid_t)pid, 0) == 0 || errno != ESRCH) {
+    fclose(f);
+    return 0; /* its commit is still running */
+  }
+  char temp[8192];
+  while (fgets(temp, sizeof temp, f) && fgets(line, sizeof line, f)) {
+    temp[strcspn(temp, "\n")] = 0;
+    line[strcspn(line, "\n")] = 0;
+    struct stat sb;
+    if (lstat(temp, &sb) == 0 && rename(temp, line) != 0) {
+      *why = strerror(errno);
+      rc = -1;
+    }
+  }
+  fclose(f);
+  if (!rc) unlink(jpath);
+  return rc;
+}
+
+/* Finish every dead run's journal in the folder of target (before its temporaries are judged stale). */
+static int recover(spx_tx *tx, const char *target) {
+  const char *slash = strrchr(target, '/');
+  char folder[4096];
+  if (slash) snprintf(folder, sizeof folder, "%.*s", slash == target ? 1 : (int)(slash - target), target);
+  else snprintf(folder, sizeof folder, ".");
+  DIR *d = opendir(folder);
+  if (!d) return SPX_EXIT_OK; /* spx_file_check_writable names the problem */
+  struct dirent *e;
+  int rc = SPX_EXIT_OK;
+  while ((e = readdir(d)) && !rc) {
+    size_t n = strlen(e->d_name);
+    if (n <= 7 || strcmp(e->d_name + n - 7, ".commit")) continue;
+    char j[8400];
+    const char *why = NULL;
+    if (snprintf(j, sizeof j, "%s/%s", folder, e->d_name) >= (int)sizeof j) continue;
+    if (journal_finish(j, &why))
+      rc = spx_cli_errorf(tx->cmd, "%s: cannot finish the interrupted commit recorded in %s: %s", target, j, why);
+  }
+  closedir(d);
+  return rc;
+}
+
+/* Write the journal of tx's files (the commit point). NULL: the error was printed. */
+static char *journal_write(spx_tx *tx, spx_ctx *ctx) {
+  char *jpath = journal_name(tx->f[0].target), *tmp = jpath ? spx_file_temp_name(jpath) : NULL;
+  if (!tmp) {
+    free(jpath);
+    spx_cli_errorf(tx->cmd, "out of memory");
+    return NULL;
+  }
+  FILE *f = fopen(tmp, "wb");
+  int ok = f != NULL;
+  if (f) fprintf(f, "%s%ld\n", JOURNAL_MAGIC, (long)getpid());
+  for (int i = 0; ok && i < tx->n; i++) {
+    char *t = absolute(tx->f[i].temp), *g = absolute(tx->f[i].target);
+    ok = t && g && !strchr(t, '\n') && !strchr(g, '\n') && fprintf(f, "%s\n%s\n", t, g) > 0;
+    free(t), free(g);
+  }
+  if (f) ok &= !ferror(f) & (fclose(f) == 0);
+  if (ok && tx->durable && spx_file_sync(ctx, tmp)) ok = 0;
+  if (ok && rename(tmp, jpath) != 0) ok = 0;
+  if (ok && tx->durable && spx_file_sync_dir_of(ctx, jpath)) ok = 0;
+  if (!ok) {
+    unlink(tmp);
+    spx_cli_errorf(tx->cmd, "%s: cannot write the commit journal %s", tx->f[0].target, jpath);
+    free(jpath);
+    jpath = NULL;
+  }
+  free(tmp);
+  return jpath;
+}
+
 static int check(spx_tx *tx, const char *target) {
+  if (target && recover(tx, target)) return SPX_EXIT_ERROR;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf(tx->cmd, "out of memory");
   int rc = spx_file_check_writable(ctx, target) ? spx_cli_error(tx->cmd, ctx) : SPX_EXIT_OK;
@@ -91,14 +231,31 @@ const char *spx_tx_stage(spx_tx *tx, const char *target) {
   return tmp;
 }
 
-int spx_tx_commit(spx_tx *tx) {
+static int commit(spx_tx *tx);
+
+int spx_tx_commit(spx_tx *tx) { /* Ctrl-C waits until every file is in place (or rolled back) */
+  sigset_t block, old;
+  sigemptyset(&block);
+  sigaddset(&block, SIGINT);
+  sigaddset(&block, SIGTERM);
+  int masked = sigprocmask(SIG_BLOCK, &block, &old) == 0;
+  int rc = commit(tx);
+  if (masked) sigprocmask(SIG_SETMASK, &old, NULL);
+  return rc;
+}
+
+static int commit(spx_tx *tx) {
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf(tx->cmd, "out of memory");
   int rc = SPX_EXIT_OK, done = 0;
   /* testing hook (tests/test_hostile_outputs.c): the rename of staged file k fails, as a full disk
    * or a vanished folder would make it, so the roll-back is exercised */
-  const char *hook = getenv("SPX_TEST_TX_FAIL_AT");
+  const char *hook = getenv("SPX_TEST_TX_FAIL_AT"), *kill_hook = getenv("SPX_TEST_TX_KILL_AT");
   int fail_at = hook && *hook ? atoi(hook) : -1;
+  /* testing hook (tests/test_hostile_commit.c): SIGKILL before the rename of staged file k, so a
+   * later run must finish the commit from its journal */
+  int kill_at = kill_hook && *kill_hook ? atoi(kill_hook) : -1;
+  char *journal = NULL;
   if (tx->durable && tx->n) { /* the new bytes are on disk before any name points at them */
     const char **temps = malloc(sizeof *temps * (size_t)tx->n);
     if (!temps) rc = spx_cli_errorf(tx->cmd, "out of memory");
@@ -106,8 +263,10 @@ int spx_tx_commit(spx_tx *tx) {
     if (temps && spx_file_sync_all(ctx, temps, tx->n, 0)) rc = spx_cli_error(tx->cmd, ctx);
     free(temps);
   }
+  if (!rc && tx->n > 1 && !(journal = journal_write(tx, ctx))) rc = SPX_EXIT_ERROR;
   for (; done < tx->n && !rc; done++) {
     spx_tx_file *f = &tx->f[done];
+    if (done == kill_at) raise(SIGKILL);
     struct stat sb;
     f->existed = lstat(f->target, &sb) == 0;
     if (f->existed && S_ISREG(sb.st_mode)) { /* keep the old file until all are in */
@@ -123,6 +282,11 @@ int spx_tx_commit(spx_tx *tx) {
     }
     free(f->temp);
     f->temp = NULL;
+  }
+  if (rc && journal) { /* the commit is abandoned before any old file comes back */
+    unlink(journal);
+    free(journal);
+    journal = NULL;
   }
   if (rc) { /* roll back: the targets already replaced get their old files again */
     for (int j = done - 1; j >= 0; j--) {
@@ -141,6 +305,11 @@ int spx_tx_commit(spx_tx *tx) {
     for (int i = 0; names && i < tx->ndirs; i++) names[tx->n + i] = tx->dirs[i];
     if (names && spx_file_sync_all(ctx, names, n, 1)) rc = spx_cli_error(tx->cmd, ctx);
     free(names);
+  }
+  if (journal) { /* every file is in place: the journal has done its work */
+    unlink(journal);
+    if (tx->durable) spx_file_sync_dir_of(ctx, journal);
+    free(journal);
   }
   for (int i = 0; i < tx->n; i++)
     if (tx->f[i].backup) {
@@ -167,7 +336,48 @@ void spx_tx_end(spx_tx *tx) {
   }
   free(tx->f);
   free(tx->dirs);
-  const char *cmd = tx->cmd;
-  int durable = tx->durable;
-  spx_tx_begin(tx, cmd, durable); /* reusable: train commits one transaction per save */
+  for (int i = 0; i < MAX_ACTIVE; i++)
+    if (active[i] == tx) active[i] = NULL;
+  reset(tx, tx->cmd, tx->durable);
 }
+
+/* p starts ".tmp.<digits>.<digits>" (a writer's own temporary of a staged file): its length, else 0. */
+static size_t temp_suffix(const char *p) {
+  if (strncmp(p, ".tmp.", 5)) return 0;
+  const char *q = p + 5;
+  if (*q < '0' || *q > '9') return 0;
+  while (*q >= '0' && *q <= '9') q++;
+  if (*q != '.' || q[1] < '0' || q[1] > '9') return 0;
+  for (q++; *q >= '0' && *q <= '9'; q++) {
+  }
+  return (size_t)(q - p);
+}
+
+int spx_tx_error(spx_tx *tx, spx_ctx *ctx) {
+  const char *m = spx_ctx_message(ctx);
+  if (!m || !*m) m = "unknown error";
+  char buf[8192];
+  size_t o = 0;
+  while (*m && o + 1 < sizeof buf) {
+    int hit = 0;
+    for (int i = 0; i < tx->n && !hit; i++) {
+      const char *t = tx->f[i].temp;
+      size_t tl = t ? strlen(t) : 0;
+      if (!tl || strncmp(m, t, tl)) continue;
+      size_t gl = strlen(tx->f[i].target);
+      if (o + gl + 1 >= sizeof buf) break;
+      memcpy(buf + o, tx->f[i].target, gl);
+      o += gl, m += tl, hit = 1;
+      size_t extra = temp_suffix(m); /* and the writer's own temporary of it, with its extension */
+      if (extra) {
+        m += extra;
+        const char *dot = tl ? strrchr(t, '.') : NULL;
+        if (dot && !strncmp(m, dot, strlen(dot))) m += strlen(dot);
+      }
+    }
+    if (!hit) buf[o++] = *m++;
+  }
+  buf[o] = 0;
+  return spx_cli_errorf(tx->cmd, "%s", buf);
+}
+

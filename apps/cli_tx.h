@@ -1,7 +1,9 @@
 /* One output transaction per command run: every file the run writes goes to a temporary beside
  * its target ("<target>.tmp.<pid>.<n>") and is renamed into place only when all of them are
  * complete; a failed run (or one killed before the commit) leaves every pre-existing file as it
- * was, and the next run writing the same target removes a dead run's temporaries.
+ * was, and the next run writing the same target removes a dead run's temporaries. A commit of
+ * several files first writes a journal ("<first target>.commit"): a run killed between the
+ * renames is finished by the next run that checks or stages a file in that folder.
  *
  *   spx_tx tx;
  *   spx_tx_begin(&tx, "cmd", 0);                   // 1: fsync files and folders (checkpoints, datasets)
@@ -46,6 +48,13 @@ const char *spx_tx_stage(spx_tx *tx, const char *target);
 int spx_tx_commit(spx_tx *tx);
 /* Always call once: removes temporaries (and created folders) of a run that did not commit. */
 void spx_tx_end(spx_tx *tx);
+/* From a signal handler (apps/main.c, Ctrl-C): removes the temporaries, backups and created
+ * (still empty) folders of every open transaction, with unlink / rmdir only. A commit blocks
+ * SIGINT and SIGTERM while it renames, so it is never cut in half by them. */
+void spx_tx_interrupted(void);
+/* Print ctx's message as cmd's one-line error with every staged temporary named by its target
+ * (errors name the user's path, never a temporary); returns SPX_EXIT_ERROR. */
+int spx_tx_error(spx_tx *tx, spx_ctx *ctx);
 /* Number of staged files and the target of the i-th (for "wrote X" lines). */
 static inline int spx_tx_count(const spx_tx *tx) { return tx->n; }
 static inline const char *spx_tx_target(const spx_tx *tx, int i) { return tx->f[i].target; }

@@ -3,6 +3,7 @@
  * with --no-network, the raw vertex projection; an MP4 when ffmpeg is on PATH. */
 #include <errno.h>
 #include <math.h>
+#include <dirent.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -41,6 +42,35 @@ static volatile sig_atomic_t interrupted;
 static void on_sigint(int sig) {
   (void)sig;
   interrupted = 1;
+}
+
+/* DIR/frames.tmp.<pid> folders of runs that no longer run (killed while encoding): their links
+ * and the folder are removed. */
+static void remove_dead_link_folders(const char *out) {
+  DIR *d = opendir(out);
+  if (!d) return;
+  struct dirent *e;
+  while ((e = readdir(d))) {
+    if (strncmp(e->d_name, "frames.tmp.", 11)) continue;
+    char *end;
+    errno = 0;
+    long pid = strtol(e->d_name + 11, &end, 10);
+    if (end == e->d_name + 11 || *end || errno || pid <= 0 || pid == (long)getpid()) continue;
+    if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue; /* alive (or not ours to judge) */
+    char sub[4300];
+    snprintf(sub, sizeof sub, "%s/%s", out, e->d_name);
+    DIR *sd = opendir(sub);
+    struct dirent *se;
+    while (sd && (se = readdir(sd))) {
+      if (strncmp(se->d_name, "frame_", 6)) continue; /* only the links this tool makes */
+      char lp[4600];
+      snprintf(lp, sizeof lp, "%s/%s", sub, se->d_name);
+      unlink(lp);
+    }
+    if (sd) closedir(sd);
+    rmdir(sub);
+  }
+  closedir(d);
 }
 
 typedef struct progress {
@@ -109,6 +139,7 @@ static int run(spx_ctx *ctx, const opts *o) {
   sa.sa_flags = SA_RESTART;
   interrupted = 0;
   int handler_set = sigaction(SIGINT, &sa, &old_int) == 0;
+  remove_dead_link_folders(o->out); /* a killed run's ffmpeg links */
   /* every input is read and checked before anything is written */
   if ((rc = spx_cli_load_registration(C, ctx, o->reg, o->model, &r, &m))) goto done;
   if ((rc = spx_anim_motion_open(C, ctx, o->bvh, o->amass, &m, &mo))) goto done;
@@ -227,7 +258,13 @@ static int run(spx_ctx *ctx, const opts *o) {
         goto done;
       }
     }
-    if (spx_anim_encode_mp4(ffmpeg, links, a, o->fps > 0 ? o->fps : mo.fps, vtmp, mp4, why, sizeof why)) {
+    int enc = spx_anim_encode_mp4(ffmpeg, links, a, o->fps > 0 ? o->fps : mo.fps, vtmp, mp4, why, sizeof why);
+    if (interrupted) { /* Ctrl-C reached ffmpeg too: not its failure */
+      spx_cli_errorf(C, "interrupted while encoding %s: removed the %d frames written", mp4, total);
+      rc = 130;
+      goto done;
+    }
+    if (enc) {
       rc = spx_cli_errorf(C, "%s", why);
       goto done;
     }
@@ -268,34 +305,19 @@ done:
 int spx_cmd_animate(int argc, char **argv) {
   opts o;
   memset(&o, 0, sizeof o);
-  int bad = 0;
-  const spx_cli_optdef defs[] = {{"--no-network", NULL, &o.no_net}, {"--no-mp4", NULL, &o.no_mp4},
-                                  {"--quiet", NULL, &o.quiet}, {"--registration", &o.reg, NULL},
-                                  {"--bvh", &o.bvh, NULL}, {"--amass", &o.amass, NULL}, {"--camera", &o.cam, NULL},
-                                  {"--out", &o.out, NULL}, {"--checkpoint", &o.ckpt, NULL},
-                                  {"--model", &o.model, NULL}, {"--device", &o.spec, NULL}, {NULL, NULL, NULL}};
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      animate_help();
-      return SPX_EXIT_OK;
-    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
-      continue;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--frames", &bad))) {
-      long s, e;
-      if (!spx_anim_parse_frames(v, &s, &e))
-        return spx_cli_usage("animate", "--frames: expected A:B (frames A..B-1), A: or :B, got '%s'", v);
-      o.frames = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--orbit", &bad))) {
-      if (!spx_cli_double(v, -360, 360, &o.orbit))
-        return spx_cli_usage("animate", "--orbit: expected degrees per frame in [-360, 360], got '%s'", v);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--fps", &bad))) {
-      if (!spx_cli_double(v, 0.01, 1000, &o.fps))
-        return spx_cli_usage("animate", "--fps: expected frames per second in [0.01, 1000], got '%s'", v);
-    } else {
-      return spx_cli_usage("animate", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-    }
-  }
+  spx_opt optv[] = {SPX_O("--no-network", SPX_OPT_FLAG, &o.no_net), SPX_O("--no-mp4", SPX_OPT_FLAG, &o.no_mp4),
+                    SPX_O("--quiet", SPX_OPT_FLAG, &o.quiet),       SPX_O("--registration", SPX_OPT_IN, &o.reg),
+                    SPX_O("--bvh", SPX_OPT_IN, &o.bvh),             SPX_O("--amass", SPX_OPT_IN, &o.amass),
+                    SPX_O("--camera", SPX_OPT_IN, &o.cam),          SPX_O("--out", SPX_OPT_OUT, &o.out),
+                    SPX_O("--checkpoint", SPX_OPT_IN, &o.ckpt),     SPX_O("--model", SPX_OPT_IN, &o.model),
+                    SPX_O("--device", SPX_OPT_STR, &o.spec),        SPX_O("--frames", SPX_OPT_STR, &o.frames),
+                    SPX_O_RANGE("--orbit", SPX_OPT_REAL, &o.orbit, -360, 360), SPX_O_RANGE("--fps", SPX_OPT_REAL, &o.fps, 0.01, 1000),
+                    SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "animate", NULL, animate_help, optv);
+  if (parsed >= 0) return parsed;
+  long fs, fe;
+  if (o.frames && !spx_anim_parse_frames(o.frames, &fs, &fe))
+    return spx_cli_usage("animate", "--frames: expected A:B (frames A..B-1), A: or :B, got '%s'", o.frames);
   if (!o.reg || !o.cam || !o.out || !o.bvh == !o.amass)
     return spx_cli_usage("animate", "--registration, --camera, --out and one of --bvh / --amass are required");
   if (o.no_net && o.ckpt) return spx_cli_usage("animate", "--no-network and --checkpoint exclude each other");

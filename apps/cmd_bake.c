@@ -10,28 +10,26 @@
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
 
+static void bake_help(void) {
+  printf("usage: smplpix bake --mesh R.ply|R.obj --scan S.ply|S.obj --out T.png|T.exr\n"
+         "                    [--size N] [--pad N] [--model M.npz]\n"
+         "Bakes the scan's vertex colours into an NxN texture (default 1024) on the texture\n"
+         "coordinates of the registered mesh R (registered to the scan, in its frame, e.g. from\n"
+         "`smplpix register`): every texel covered in UV space takes the colour of the scan vertex\n"
+         "nearest to its surface point; --pad rounds of dilation (default 8) fill the seams. When R\n"
+         "has no texture coordinates they come from the body model (default %s),\n"
+         "whose faces must match R's. Use with `smplpix raster --texture T.png` on a mesh with the\n"
+         "same texture coordinates (e.g. from `smplpix repose`).\n",
+         DEFAULT_MODEL);
+}
+
 int spx_cmd_bake(int argc, char **argv) {
   const char *mesh_path = NULL, *scan_path = NULL, *out = NULL, *model_path = NULL, *size_s = "1024", *pad_s = "8";
-  int bad = 0;
-  const spx_cli_optdef defs[] = {{"--mesh", &mesh_path, NULL}, {"--scan", &scan_path, NULL}, {"--out", &out, NULL},
-                                  {"--model", &model_path, NULL}, {"--size", &size_s, NULL}, {"--pad", &pad_s, NULL},
-                                  {NULL, NULL, NULL}};
-  for (int i = 1; i < argc; i++) {
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      printf("usage: smplpix bake --mesh R.ply|R.obj --scan S.ply|S.obj --out T.png|T.exr\n"
-             "                    [--size N] [--pad N] [--model M.npz]\n"
-             "Bakes the scan's vertex colours into an NxN texture (default 1024) on the texture\n"
-             "coordinates of the registered mesh R (registered to the scan, in its frame, e.g. from\n"
-             "`smplpix register`): every texel covered in UV space takes the colour of the scan vertex\n"
-             "nearest to its surface point; --pad rounds of dilation (default 8) fill the seams. When R\n"
-             "has no texture coordinates they come from the body model (default %s),\n"
-             "whose faces must match R's. Use with `smplpix raster --texture T.png` on a mesh with the\n"
-             "same texture coordinates (e.g. from `smplpix repose`).\n",
-             DEFAULT_MODEL);
-      return SPX_EXIT_OK;
-    } else if (!spx_cli_take(argc, argv, &i, defs, &bad))
-      return spx_cli_usage("bake", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-  }
+  spx_opt opts[] = {SPX_O("--mesh", SPX_OPT_IN, &mesh_path), SPX_O("--scan", SPX_OPT_IN, &scan_path),
+                    SPX_O("--out", SPX_OPT_OUT, &out),        SPX_O("--model", SPX_OPT_IN, &model_path),
+                    SPX_O("--size", SPX_OPT_STR, &size_s),    SPX_O("--pad", SPX_OPT_STR, &pad_s), SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "bake", NULL, bake_help, opts);
+  if (parsed >= 0) return parsed;
   if (!mesh_path || !scan_path || !out) return spx_cli_usage("bake", "--mesh, --scan and --out are required");
   long size, pad;
   if (!spx_cli_long(size_s, 1, 16384, &size)) return spx_cli_usage("bake", "--size %s: expected 1..16384", size_s);

@@ -32,9 +32,39 @@ static const char *USAGE =
     "--orbit N: N cameras looking at the mesh's bounding-box centre from azimuths 360*i/N degrees around\n"
     "the +y axis, view i at elevation E[i % count] degrees (default 0); --size WxH (default 410x308),\n"
     "--focal in pixels (default max(W,H)), --distance (default: the nearest distance at which every\n"
-    "view holds the whole mesh with a 5% margin). DIR must be empty or absent unless --force. The files\n"
+    "view holds the whole mesh with a 5% margin). DIR must be empty or absent unless --force, which\n"
+    "replaces the data set (images of an earlier run that this one did not write are removed). The files\n"
     "appear together when all are written and flushed to disk: on failure nothing this run wrote is left\n"
     "behind and files that were there before keep their contents.\n";
+
+/* --force replaces a data set: the images of DIR/<split>/{input,output} that this run did not
+ * write (an earlier run's views, in another split or format) are removed, so no view is in two
+ * splits. Other files are left alone. */
+static void remove_stale_views(const char *dir, const char *const *names, const int *which, int ncams,
+                               const char *fmt) {
+  for (int k = 0; k < 3; k++)
+    for (int io = 0; io < 2; io++) {
+      char sub[4200];
+      snprintf(sub, sizeof sub, "%s/%s/%s", dir, names[k], io ? "output" : "input");
+      DIR *d = opendir(sub);
+      if (!d) continue;
+      struct dirent *e;
+      while ((e = readdir(d))) {
+        char ext[16], want[32];
+        spx_path_ext(e->d_name, ext, sizeof ext);
+        if (strcmp(ext, "exr") && strcmp(ext, "npy") && strcmp(ext, "png")) continue;
+        int v = -1, used = 0;
+        if (sscanf(e->d_name, "view_%d.%n", &v, &used) == 1 && used && v >= 0 && v < ncams && which[v] == k) {
+          snprintf(want, sizeof want, "view_%04d.%s", v, io ? "png" : fmt);
+          if (!strcmp(e->d_name, want)) continue; /* written by this run */
+        }
+        char p[4500];
+        snprintf(p, sizeof p, "%s/%s", sub, e->d_name);
+        unlink(p);
+      }
+      closedir(d);
+    }
+}
 
 /* Comma-separated finite doubles; returns the count, or -1 when malformed / more than cap. */
 static int parse_list(const char *s, double *v, int cap) {
@@ -112,12 +142,12 @@ int spx_cmd_dataset(int argc, char **argv) {
   const char *split_s = "0.8,0.1,0.1", *fmt = "exr", *elev_s = "0", *size_s = "410x308", *aa_s = "1";
   const char *orbit_s = NULL, *seed_s = "0", *dist_s = NULL, *focal_s = NULL;
   int force = 0;
-  const spx_cli_optdef defs[] = {{"--split", &split_s, NULL},     {"--seed", &seed_s, NULL},
-                                  {"--input-format", &fmt, NULL},   {"--aa", &aa_s, NULL},
-                                  {"--orbit", &orbit_s, NULL},      {"--elevations", &elev_s, NULL},
-                                  {"--distance", &dist_s, NULL},    {"--size", &size_s, NULL},
-                                  {"--focal", &focal_s, NULL},      {"--force", NULL, &force},
-                                  {NULL, NULL, NULL}};
+  const spx_cli_optdef defs[] = {{"--split", &split_s, NULL, 0},     {"--seed", &seed_s, NULL, 0},
+                                  {"--input-format", &fmt, NULL, 0},   {"--aa", &aa_s, NULL, 0},
+                                  {"--orbit", &orbit_s, NULL, 0},      {"--elevations", &elev_s, NULL, 0},
+                                  {"--distance", &dist_s, NULL, 0},    {"--size", &size_s, NULL, 0},
+                                  {"--focal", &focal_s, NULL, 0},      {"--force", NULL, &force, 0},
+                                  {NULL, NULL, NULL, 0}};
   int rc = spx_cli_scene_args(argc, argv, "dataset", USAGE, "--cameras", &o, defs);
   if (rc >= 0) return rc;
   const char *mesh_path = o.mesh, *cam_path = o.cameras, *dir = o.out, *dev = o.device, *color = o.color;
@@ -139,13 +169,12 @@ int spx_cmd_dataset(int argc, char **argv) {
   if (ne < 1) return spx_cli_usage("dataset", "--elevations %s: expected up to 64 comma-separated degrees", elev_s);
   for (int k = 0; k < ne; k++)
     if (!(fabs(elev[k]) < 90)) return spx_cli_usage("dataset", "--elevations %s: each must lie in (-90, 90)", elev_s);
-  char *x = NULL;
   if (orbit_s && !spx_cli_long(orbit_s, 1, 100000, &norbit))
     return spx_cli_usage("dataset", "--orbit %s: expected a number of views in [1, 100000]", orbit_s);
-  errno = 0;
-  W = strtol(size_s, &x, 10);
-  if (errno || !x || *x != 'x' || !spx_cli_long(x + 1, 16, SPX_CAMERA_MAX_SIZE, &H) || W < 16 || W > SPX_CAMERA_MAX_SIZE)
+  int wi = 0, hi = 0;
+  if (!spx_cli_size(size_s, 16, SPX_CAMERA_MAX_SIZE, &wi, &hi))
     return spx_cli_usage("dataset", "--size %s: expected WxH, each in [16, %d]", size_s, SPX_CAMERA_MAX_SIZE);
+  W = wi, H = hi;
   if (dist_s && (parse_list(dist_s, &dist, 1) != 1 || !(dist > 0)))
     return spx_cli_usage("dataset", "--distance %s: expected a positive number", dist_s);
   focal = (double)(W > H ? W : H);
@@ -249,7 +278,7 @@ int spx_cmd_dataset(int argc, char **argv) {
     snprintf(path, plen, "%s/cameras.json", dir);
     const char *tmp = spx_tx_stage(&tx, path);
     if (!tmp) rc = SPX_EXIT_ERROR;
-    else if (spx_camera_save(ctx, tmp, cams, ncams)) rc = spx_cli_error("dataset", ctx);
+    else if (spx_camera_save(ctx, tmp, cams, ncams)) rc = spx_tx_error(&tx, ctx);
   }
   free(path);
   if (rc) goto done;
@@ -301,6 +330,7 @@ int spx_cmd_dataset(int argc, char **argv) {
     }
   }
   if ((rc = spx_tx_commit(&tx))) goto done;
+  if (force) remove_stale_views(dir, names, which, ncams, fmt);
   if (!quiet) {
     spx_device_info info;
     spx_device_get_info(ctx, &info);

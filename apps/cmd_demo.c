@@ -49,43 +49,24 @@ typedef struct demo_opts {
 } demo_opts;
 
 static int parse(int argc, char **argv, demo_opts *o) {
-  int bad = 0;
   o->out_dir = "out", o->frame = 600, o->seed = 3, o->W = 128, o->H = 96, o->zoom = 1;
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    char *end;
-    if (!strcmp(argv[i], "--quiet")) {
-      o->quiet = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      if (strlen(v) > 4000) return spx_cli_usage("demo", "--out: path too long (%zu characters)", strlen(v));
-      o->out_dir = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
-      o->ckpt = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
-      o->device = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--frame", &bad))) {
-      errno = 0;
-      o->frame = strtol(v, &end, 10);
-      if (errno || end == v || *end || o->frame < 0)
-        return spx_cli_usage("demo", "--frame: expected a frame index >= 0, got '%s'", v);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) {
-      errno = 0;
-      unsigned long long s = strtoull(v, &end, 10);
-      if (errno || end == v || *end || *v == '-') return spx_cli_usage("demo", "--seed: expected an integer >= 0, got '%s'", v);
-      o->seed = s;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--zoom", &bad))) {
-      if (strlen(v) != 1 || v[0] < '1' || v[0] > '8') return spx_cli_usage("demo", "--zoom: expected 1..8, got '%s'", v);
-      o->zoom = v[0] - '0';
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) {
-      int w = 0, h = 0, n = 0;
-      if (sscanf(v, "%dx%d%n", &w, &h, &n) != 2 || v[n] || w < 16 || h < 16 || w > 4096 || h > 4096)
-        return spx_cli_usage("demo", "--size: expected WxH with 16 <= W, H <= 4096, got '%s'", v);
-      o->W = w, o->H = h, o->size_given = 1;
-    } else {
-      return spx_cli_usage("demo", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-    }
-  }
-  return SPX_EXIT_OK;
+  long zoom = 1, seed = 3;
+  int wh[2] = {128, 96};
+  spx_opt opts[] = {SPX_O("--quiet", SPX_OPT_FLAG, &o->quiet),
+                    SPX_O("--out", SPX_OPT_OUT, &o->out_dir),
+                    SPX_O("--checkpoint", SPX_OPT_IN, &o->ckpt),
+                    SPX_O("--device", SPX_OPT_STR, &o->device),
+                    SPX_O_RANGE("--frame", SPX_OPT_INT, &o->frame, 0, 2147483647),
+                    SPX_O_RANGE("--seed", SPX_OPT_INT, &seed, 0, 2147483647),
+                    SPX_O_RANGE("--zoom", SPX_OPT_INT, &zoom, 1, 8),
+                    SPX_O_RANGE("--size", SPX_OPT_SIZE, wh, 16, 4096),
+                    SPX_O_END};
+  int rc = spx_cli_parse(argc, argv, "demo", NULL, demo_help, opts);
+  if (rc >= 0) return rc;
+  if (strlen(o->out_dir) > 4000) return spx_cli_usage("demo", "--out: path too long (%zu characters)", strlen(o->out_dir));
+  o->seed = (uint64_t)seed, o->zoom = (int)zoom, o->W = wh[0], o->H = wh[1];
+  o->size_given = spx_cli_given(opts, "--size");
+  return -1;
 }
 
 /* The posed, coloured body (subdivided when the network was trained on subdivided bodies), its
@@ -290,14 +271,9 @@ static int write_all(spx_ctx *ctx, spx_tx *tx, const char *dir, int zoom, const 
 }
 
 int spx_cmd_demo(int argc, char **argv) {
-  for (int i = 1; i < argc; i++)
-    if (!strcmp(argv[i], "--help")) {
-      demo_help();
-      return SPX_EXIT_OK;
-    }
   demo_opts o = {0};
   int rc = parse(argc, argv, &o);
-  if (rc) return rc;
+  if (rc >= 0) return rc;
   struct stat sb;
   if (stat(o.out_dir, &sb) == 0 && !S_ISDIR(sb.st_mode))
     return spx_cli_errorf("demo", "%s: exists and is not a directory (--out)", o.out_dir);
@@ -307,6 +283,13 @@ int spx_cmd_demo(int argc, char **argv) {
   if (!ckpt && access(shipped, R_OK) == 0) ckpt = shipped;
   double t0 = spx_now();
   spx_ctx *ctx = NULL;
+  { /* the strip must fit a PNG: checked before any work */
+    long tw, th;
+    spx_demo_strip_size(ckpt ? 3 : 2, o.W, o.H, o.zoom, &tw, &th);
+    if (tw > 16384 || th > 16384)
+      return spx_cli_usage("demo", "--size %dx%d with --zoom %d makes a %ldx%ld strip, larger than the 16384 pixels a "
+                           "side a PNG may have", o.W, o.H, o.zoom, tw, th);
+  }
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("demo", "out of memory");
   spx_tx tx;
   spx_tx_begin(&tx, "demo", 0);

@@ -9,24 +9,17 @@ static const char *kind_name(spx_device_kind k) {
   return k == SPX_DEVICE_GPU ? "gpu" : k == SPX_DEVICE_CPU ? "cpu" : "other";
 }
 
+static const char DEVICES_USAGE[] =
+    "usage: smplpix devices [--warmup] [--device cpu|gpu|P:D]\n"
+    "Lists OpenCL devices; --warmup builds every kernel on the chosen device (filling the\n"
+    "program-binary cache) and prints how long that took and how much came from the cache.\n";
+
 int spx_cmd_devices(int argc, char **argv) {
   const char *spec = NULL;
-  int warm = 0, bad = 0;
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help")) {
-      printf("usage: smplpix devices [--warmup] [--device cpu|gpu|P:D]\n"
-             "Lists OpenCL devices; --warmup builds every kernel on the chosen device (filling the\n"
-             "program-binary cache) and prints how long that took and how much came from the cache.\n");
-      return SPX_EXIT_OK;
-    } else if (!strcmp(argv[i], "--warmup")) {
-      warm = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
-      spec = v;
-    } else {
-      return spx_cli_usage("devices", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-    }
-  }
+  int warm = 0;
+  spx_opt opts[] = {SPX_O("--warmup", SPX_OPT_FLAG, &warm), SPX_O("--device", SPX_OPT_STR, &spec), SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "devices", DEVICES_USAGE, NULL, opts);
+  if (parsed >= 0) return parsed;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("devices", "out of memory");
   int rc = SPX_EXIT_OK;

@@ -321,30 +321,21 @@ static int write_json(spx_tx *tx, const char *path, const list *l, const spx_met
 
 int spx_cmd_eval(int argc, char **argv) {
   const char *pred = NULL, *target = NULL, *mask = NULL, *json = NULL, *lpw = NULL, *device = NULL;
-  int per_image = 0, bad = 0, no_lpips = 0;
+  int per_image = 0, no_lpips = 0;
   char cached[4096];
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      eval_help();
-      return SPX_EXIT_OK;
-    }
-    if ((v = spx_cli_opt(argc, argv, &i, "--pred", &bad))) pred = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--target", &bad))) target = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--mask", &bad))) mask = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--json", &bad))) json = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--lpips", &bad))) lpw = v;
-    else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) device = v;
-    else if (!strcmp(argv[i], "--per-image")) per_image = 1;
-    else if (!strcmp(argv[i], "--no-lpips")) no_lpips = 1;
-    else if (bad) return spx_cli_usage("eval", "%s needs a value", argv[i]);
-    else return spx_cli_usage("eval", "unknown option '%s'", argv[i]);
-    if (bad) return spx_cli_usage("eval", "%s needs a value", argv[i]);
-  }
+  spx_opt opts[] = {SPX_O("--pred", SPX_OPT_IN, &pred),     SPX_O("--target", SPX_OPT_IN, &target),
+                    SPX_O("--mask", SPX_OPT_IN, &mask),     SPX_O("--json", SPX_OPT_OUT, &json),
+                    SPX_O("--lpips", SPX_OPT_IN, &lpw),     SPX_O("--device", SPX_OPT_STR, &device),
+                    SPX_O("--per-image", SPX_OPT_FLAG, &per_image), SPX_O("--no-lpips", SPX_OPT_FLAG, &no_lpips),
+                    SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "eval", NULL, eval_help, opts);
+  if (parsed >= 0) return parsed;
   if (!pred || !target) return spx_cli_usage("eval", "--pred and --target are required");
   if (lpw && no_lpips) return spx_cli_usage("eval", "give --lpips W or --no-lpips, not both");
   int lp_opt = !lpw && !no_lpips && spx_weights_path(SPX_WEIGHTS_LPIPS_ALEX, cached, sizeof cached) == 1;
   if (lp_opt) lpw = cached;
+  if (spx_cli_only_with(opts, "eval", "--device", lpw != NULL, "LPIPS (--lpips, or the cached weights of make weights)"))
+    return SPX_EXIT_USAGE;
   spx_ctx *ctx = NULL;
   spx_lpips *lp = NULL;
   list l = {0};

@@ -26,32 +26,35 @@ static void export_help(void) {
          MAX_META);
 }
 
+static int export_run(int argc, char **argv, const char **user);
+
 int spx_cmd_export(int argc, char **argv) {
+  const char **user = calloc((size_t)argc + 1, sizeof *user); /* every --meta value */
+  if (!user) return spx_cli_errorf("export", "out of memory");
+  int rc = export_run(argc, argv, user);
+  free(user);
+  return rc;
+}
+
+static int export_run(int argc, char **argv, const char **user) {
   const char *in = NULL, *out = NULL, *mk[MAX_META + 6], *mv[MAX_META + 6];
   char kbuf[MAX_META][128];
-  int half = 0, bad = 0, nm = 0, nuser = 0;
-  const char *user[MAX_META];
-  const spx_cli_optdef defs[] = {{"--half", NULL, &half}, {"--checkpoint", &in, NULL}, {"--out", &out, NULL},
-                                  {NULL, NULL, NULL}};
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help")) {
-      export_help();
-      return SPX_EXIT_OK;
-    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
-      continue;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--meta", &bad))) {
-      const char *eq = strchr(v, '=');
-      if (!eq || eq == v || (size_t)(eq - v) >= sizeof kbuf[0])
-        return spx_cli_usage("export", "--meta: expected KEY=VALUE, got '%s'", v);
-      if (!strncmp(v, "format=", 7) || !strncmp(v, "smplpix.width=", 14) || !strncmp(v, "smplpix.sigmoid=", 16))
-        return spx_cli_usage("export", "--meta %s: that key comes from the network itself", v);
-      if (nuser == MAX_META) return spx_cli_usage("export", "--meta: at most %d pairs", MAX_META);
-      user[nuser++] = v;
-    } else {
-      return spx_cli_usage("export", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-    }
+  int half = 0, nm = 0, nuser = 0;
+  spx_opt opts[] = {SPX_O("--half", SPX_OPT_FLAG, &half), SPX_O("--checkpoint", SPX_OPT_IN, &in), SPX_O("--out", SPX_OPT_OUT, &out),
+                    SPX_O("--meta", SPX_OPT_LIST, user), SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "export", NULL, export_help, opts);
+  for (const char **m = user; parsed < 0 && *m; m++, nuser++) {
+    const char *v = *m, *eq = strchr(v, '=');
+    if (!eq || eq == v || (size_t)(eq - v) >= sizeof kbuf[0])
+      parsed = spx_cli_usage("export", "--meta: expected KEY=VALUE, got '%s'", v);
+    else if (!strncmp(v, "format=", 7) || !strncmp(v, "smplpix.width=", 14) || !strncmp(v, "smplpix.sigmoid=", 16))
+      parsed = spx_cli_usage("export", "--meta %s: that key comes from the network itself", v);
+    else if (nuser == MAX_META)
+      parsed = spx_cli_usage("export", "--meta: at most %d pairs", MAX_META);
+    for (const char **o = user; parsed < 0 && o < m; o++) /* a key given twice */
+      if (!strncmp(*o, v, (size_t)(eq - v) + 1)) parsed = spx_cli_usage("export", "--meta %.*s is given twice", (int)(eq - v), v);
   }
+  if (parsed >= 0) return parsed;
   if (!in || !out) return spx_cli_usage("export", "--checkpoint and --out are required");
   char ext[16];
   spx_path_ext(out, ext, sizeof ext);
@@ -92,7 +95,10 @@ int spx_cmd_export(int argc, char **argv) {
     goto done;
   }
   spx_status st = half ? spx_unet_save_half(u, tmp, mk, mv, nm) : spx_unet_save_meta(u, tmp, 0, mk, mv, nm);
-  if (spx_cli_failed(&rc, "export", ctx, st)) goto done;
+  if (st) {
+    rc = spx_tx_error(&tx, ctx);
+    goto done;
+  }
   if ((rc = spx_tx_commit(&tx))) goto done;
   printf("wrote %s (width %d, %s, %s Adam steps recorded)\n", out, spx_unet_width(u), half ? "float16" : "float32",
          steps_used);

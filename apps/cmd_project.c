@@ -24,7 +24,7 @@ static const char *USAGE =
 int spx_cmd_project(int argc, char **argv) {
   spx_cli_scene_opts o = {.color = "auto"};
   const char *png = NULL, *npy = NULL;
-  const spx_cli_optdef defs[] = {{"--png", &png, NULL}, {"--npy", &npy, NULL}, {NULL, NULL, NULL}};
+  const spx_cli_optdef defs[] = {{"--png", &png, NULL, SPX_OPT_OUT}, {"--npy", &npy, NULL, SPX_OPT_OUT}, {NULL, NULL, NULL, 0}};
   int rc = spx_cli_scene_args(argc, argv, "project", USAGE, "--camera", &o, defs);
   if (rc >= 0) return rc;
   if (!o.mesh || !o.cameras || !o.out) return spx_cli_usage("project", "--mesh, --camera and --out are required");

@@ -26,8 +26,8 @@ static const char *USAGE =
 int spx_cmd_raster(int argc, char **argv) {
   spx_cli_scene_opts o = {.color = "auto"};
   const char *tex_path = NULL, *aa_s = "1", *cull_s = "none";
-  const spx_cli_optdef defs[] = {{"--texture", &tex_path, NULL}, {"--aa", &aa_s, NULL}, {"--cull", &cull_s, NULL},
-                                  {NULL, NULL, NULL}};
+  const spx_cli_optdef defs[] = {{"--texture", &tex_path, NULL, SPX_OPT_IN}, {"--aa", &aa_s, NULL, 0}, {"--cull", &cull_s, NULL, 0},
+                                  {NULL, NULL, NULL, 0}};
   int rc = spx_cli_scene_args(argc, argv, "raster", USAGE, "--camera", &o, defs);
   if (rc >= 0) return rc;
   const char *out = o.out, *color = o.color;

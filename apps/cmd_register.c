@@ -104,51 +104,50 @@ static int depth_scan(spx_ctx *ctx, const char *depth_path, const char *cam_path
   return rc;
 }
 
+static void register_help(void) {
+  printf("usage: smplpix register --scan S.ply|S.obj [--view C.json] [--model M.npz] --out R.ply [--params P.json]\n"
+         "                        [--stages rigid,pose,free] [--threads N] [--units m|cm|mm]\n"
+         "       smplpix register --depth D.png|D.exr|D.npy --camera C.json [--rgb I.png] --out R.ply ...\n"
+         "Registers the body model (default: %s) to a scan or point cloud in stages:\n"
+         "rigid (scale, rotation, translation; any up axis), pose (pose + shape with priors),\n"
+         "free (free vertices with a Laplacian regulariser). Units are detected from the bounding\n"
+         "box unless --units is given. Writes the registered mesh (with colours transferred from a\n"
+         "coloured scan) and, with --params, the parameters + unposed template for `smplpix repose`\n"
+         "and `smplpix reshape`. Reports mean / median / 95th-percentile scan-to-surface distance.\n"
+         "--view C.json: the scan is what the depth camera of C.json saw (one side of the person);\n"
+         "the fit then takes no evidence from what that camera could not see.\n"
+         "--depth: a depth image (16-bit PNG in millimetres, EXR Z channel or NPY in metres; 0 = no\n"
+         "data) back-projected through the camera of --camera (of the same size) into a point cloud,\n"
+         "coloured by --rgb (an image registered to the depth), and registered seen from that camera.\n",
+         DEFAULT_MODEL);
+}
+
 int spx_cmd_register(int argc, char **argv) {
   const char *scan_path = NULL, *model_path = DEFAULT_MODEL, *out_path = NULL, *params_path = NULL;
   const char *depth_path = NULL, *camera_path = NULL, *rgb_path = NULL, *view_path = NULL;
-  int stages = SPX_FIT_ALL, threads = 1, bad = 0;
+  int stages = SPX_FIT_ALL, threads = 1;
   double units = 0;
-  const spx_cli_optdef defs[] = {{"--scan", &scan_path, NULL}, {"--model", &model_path, NULL},
-                                  {"--out", &out_path, NULL}, {"--params", &params_path, NULL},
-                                  {"--depth", &depth_path, NULL}, {"--camera", &camera_path, NULL},
-                                  {"--rgb", &rgb_path, NULL}, {"--view", &view_path, NULL}, {NULL, NULL, NULL}};
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help")) {
-      printf("usage: smplpix register --scan S.ply|S.obj [--view C.json] [--model M.npz] --out R.ply [--params P.json]\n"
-             "                        [--stages rigid,pose,free] [--threads N] [--units m|cm|mm]\n"
-             "       smplpix register --depth D.png|D.exr|D.npy --camera C.json [--rgb I.png] --out R.ply ...\n"
-             "Registers the body model (default: %s) to a scan or point cloud in stages:\n"
-             "rigid (scale, rotation, translation; any up axis), pose (pose + shape with priors),\n"
-             "free (free vertices with a Laplacian regulariser). Units are detected from the bounding\n"
-             "box unless --units is given. Writes the registered mesh (with colours transferred from a\n"
-             "coloured scan) and, with --params, the parameters + unposed template for `smplpix repose`\n"
-             "and `smplpix reshape`. Reports mean / median / 95th-percentile scan-to-surface distance.\n"
-             "--view C.json: the scan is what the depth camera of C.json saw (one side of the person);\n"
-             "the fit then takes no evidence from what that camera could not see.\n"
-             "--depth: a depth image (16-bit PNG in millimetres, EXR Z channel or NPY in metres; 0 = no\n"
-             "data) back-projected through the camera of --camera (of the same size) into a point cloud,\n"
-             "coloured by --rgb (an image registered to the depth), and registered seen from that camera.\n",
-             DEFAULT_MODEL);
-      return SPX_EXIT_OK;
-    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
-      continue;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--stages", &bad))) {
-      if (parse_stages(v, &stages)) return spx_cli_usage("register", "--stages: expected a list of rigid,pose,free, got '%s'", v);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--threads", &bad))) {
-      long n;
-      if (!spx_cli_long(v, 1, 256, &n)) return spx_cli_usage("register", "--threads: expected 1..256, got '%s'", v);
-      threads = (int)n;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--units", &bad))) {
-      if (!strcmp(v, "m")) units = 1;
-      else if (!strcmp(v, "cm")) units = 0.01;
-      else if (!strcmp(v, "mm")) units = 0.001;
-      else return spx_cli_usage("register", "--units: expected m, cm or mm, got '%s'", v);
-    } else {
-      return spx_cli_usage("register", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-    }
+  const char *stages_s = NULL, *units_s = NULL;
+  long nthreads = 1;
+  spx_opt opts[] = {SPX_O("--scan", SPX_OPT_IN, &scan_path),          SPX_O("--model", SPX_OPT_IN, &model_path),
+                    SPX_O("--out", SPX_OPT_OUT, &out_path),           SPX_O("--params", SPX_OPT_OUT, &params_path),
+                    SPX_O("--depth", SPX_OPT_IN, &depth_path),        SPX_O("--camera", SPX_OPT_IN, &camera_path),
+                    SPX_O("--rgb", SPX_OPT_IN, &rgb_path),            SPX_O("--view", SPX_OPT_IN, &view_path),
+                    SPX_O("--stages", SPX_OPT_STR, &stages_s),        SPX_O_RANGE("--threads", SPX_OPT_INT, &nthreads, 1, 256),
+                    SPX_O("--units", SPX_OPT_STR, &units_s),          SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "register", NULL, register_help, opts);
+  if (parsed >= 0) return parsed;
+  threads = (int)nthreads;
+  if (stages_s && parse_stages(stages_s, &stages))
+    return spx_cli_usage("register", "--stages: expected a list of rigid,pose,free, got '%s'", stages_s);
+  if (units_s) {
+    if (!strcmp(units_s, "m")) units = 1;
+    else if (!strcmp(units_s, "cm")) units = 0.01;
+    else if (!strcmp(units_s, "mm")) units = 0.001;
+    else return spx_cli_usage("register", "--units: expected m, cm or mm, got '%s'", units_s);
   }
+  if (out_path && params_path && !strcmp(out_path, params_path))
+    return spx_cli_usage("register", "--out and --params name one file");
   if (!out_path || !scan_path == !depth_path)
     return spx_cli_usage("register", "--out and one of --scan or --depth are required");
   if (depth_path && !camera_path) return spx_cli_usage("register", "--depth needs --camera");
@@ -227,7 +226,7 @@ int spx_cmd_register(int argc, char **argv) {
   }
   if (spx_fit_result_mesh(ctx, &r, &reg) || spx_mesh_save(ctx, tmp_out, &reg, SPX_MESH_AUTO) ||
       (params_path && spx_fit_save_json(ctx, tmp_params, &r, model_path))) {
-    rc = spx_cli_error("register", ctx);
+    rc = spx_tx_error(&tx, ctx);
     goto done;
   }
   if ((rc = spx_tx_commit(&tx))) goto done; /* both files or neither */

@@ -96,7 +96,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
       if (!tmp) goto done;
       spx_app_batch b = {1, SPX_UNET_OUT_CHANNELS, H, W, 1, out + (size_t)k * SPX_UNET_OUT_CHANNELS * hw};
       if (spx_app_save(ctx, tmp, &b)) {
-        rc = spx_cli_error("render", ctx);
+        rc = spx_tx_error(&tx, ctx);
         goto done;
       }
     }
@@ -122,30 +122,16 @@ done:
 int spx_cmd_render(int argc, char **argv) {
   const char *ckpt = NULL, *input = NULL, *outp = NULL, *spec = NULL, *sig = NULL, *mesh = NULL, *cam = NULL;
   const char *color = "auto";
-  int bad = 0, quiet = 0;
+  int quiet = 0;
   long batch = 4;
-  const spx_cli_optdef defs[] = {{"--quiet", NULL, &quiet}, {"--checkpoint", &ckpt, NULL}, {"--input", &input, NULL},
-                                  {"--mesh", &mesh, NULL}, {"--camera", &cam, NULL}, {"--color", &color, NULL},
-                                  {"--out", &outp, NULL}, {"--device", &spec, NULL}, {NULL, NULL, NULL}};
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      render_help();
-      return SPX_EXIT_OK;
-    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
-      continue;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--batch", &bad))) {
-      char *end = NULL;
-      batch = strtol(v, &end, 10);
-      if (!end || *end || batch < 1 || batch > 4096)
-        return spx_cli_usage("render", "--batch needs an integer in [1, 4096], not '%s'", v);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--sigmoid", &bad))) {
-      sig = v;
-      if (strcmp(v, "on") && strcmp(v, "off")) return spx_cli_usage("render", "--sigmoid takes on or off, not '%s'", v);
-    } else {
-      return spx_cli_usage("render", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-    }
-  }
+  spx_opt opts[] = {SPX_O("--quiet", SPX_OPT_FLAG, &quiet),   SPX_O("--checkpoint", SPX_OPT_IN, &ckpt),
+                    SPX_O("--input", SPX_OPT_IN, &input),     SPX_O("--mesh", SPX_OPT_IN, &mesh),
+                    SPX_O("--camera", SPX_OPT_IN, &cam),      SPX_O("--color", SPX_OPT_STR, &color),
+                    SPX_O("--out", SPX_OPT_OUT, &outp),       SPX_O("--device", SPX_OPT_STR, &spec),
+                    SPX_O_RANGE("--batch", SPX_OPT_INT, &batch, 1, 4096), SPX_O("--sigmoid", SPX_OPT_STR, &sig), SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "render", NULL, render_help, opts);
+  if (parsed >= 0) return parsed;
+  if (sig && strcmp(sig, "on") && strcmp(sig, "off")) return spx_cli_usage("render", "--sigmoid takes on or off, not '%s'", sig);
   int by_mesh = mesh || cam;
   if (!outp || (by_mesh ? !(mesh && cam) || input : !input))
     return spx_cli_usage("render", "--out and either --input or both --mesh and --camera are required");
@@ -198,7 +184,7 @@ int spx_cmd_render(int argc, char **argv) {
   }
   const char *tmp = spx_tx_stage(&tx, outp);
   if (!tmp) rc = SPX_EXIT_ERROR;
-  else if (spx_app_save(ctx, tmp, &out)) rc = spx_cli_error("render", ctx);
+  else if (spx_app_save(ctx, tmp, &out)) rc = spx_tx_error(&tx, ctx);
   else rc = spx_tx_commit(&tx);
 done:
   spx_tx_end(&tx);

@@ -90,7 +90,7 @@ static int pose_and_save(const char *cmd, spx_ctx *ctx, const spx_body_model *m,
   spx_tx_begin(&otx, cmd, 0);
   const char *tmp = spx_tx_stage(&otx, out_path);
   if (!tmp) rc = SPX_EXIT_ERROR;
-  else if (spx_mesh_save(ctx, tmp, save, SPX_MESH_AUTO)) rc = spx_cli_error(cmd, ctx);
+  else if (spx_mesh_save(ctx, tmp, save, SPX_MESH_AUTO)) rc = spx_tx_error(&otx, ctx);
   else rc = spx_tx_commit(&otx);
   spx_tx_end(&otx);
   if (rc) goto done;
@@ -102,41 +102,33 @@ done:
   return rc;
 }
 
+static void repose_help(void) {
+  printf("usage: smplpix repose --registration P.json (--bvh M.bvh [--frame N] | --pose Q.json [--view NAME])\n"
+         "                      --out V.ply|V.obj [--model M.npz] [--subdivide N]\n"
+         "Poses the registered person (its unposed template and shape) with frame N of a BVH clip,\n"
+         "retargeted by joint name, or with the model's own pose parameters from Q.json: its\n"
+         "top-level \"pose\" and \"trans\" (e.g. a registration JSON), or with --view the \"pose\"\n"
+         "object of that view of a `smplpix synth` manifest. Writes the mesh (with the registration's\n"
+         "colours and the model's texture coordinates) in metres, in the model frame; with --view in\n"
+         "the scan's frame (the registration's similarity applied, the translation taken relative to\n"
+         "the subject's \"scan_pose\"), where the synth cameras look. --subdivide N adds N Loop steps\n"
+         "(4^N times the faces; texture coordinates are then dropped).\n");
+}
+
 int spx_cmd_repose(int argc, char **argv) {
   const char *reg_path = NULL, *bvh_path = NULL, *out_path = NULL, *model_arg = NULL, *pose_path = NULL,
              *view = NULL;
   long frame = 0, subdivide = 0;
-  int bad = 0;
-  const spx_cli_optdef defs[] = {{"--registration", &reg_path, NULL}, {"--bvh", &bvh_path, NULL},
-                                  {"--pose", &pose_path, NULL}, {"--view", &view, NULL}, {"--out", &out_path, NULL},
-                                  {"--model", &model_arg, NULL}, {NULL, NULL, NULL}};
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help")) {
-      printf("usage: smplpix repose --registration P.json (--bvh M.bvh [--frame N] | --pose Q.json [--view NAME])\n"
-             "                      --out V.ply|V.obj [--model M.npz] [--subdivide N]\n"
-             "Poses the registered person (its unposed template and shape) with frame N of a BVH clip,\n"
-             "retargeted by joint name, or with the model's own pose parameters from Q.json: its\n"
-             "top-level \"pose\" and \"trans\" (e.g. a registration JSON), or with --view the \"pose\"\n"
-             "object of that view of a `smplpix synth` manifest. Writes the mesh (with the registration's\n"
-             "colours and the model's texture coordinates) in metres, in the model frame; with --view in\n"
-             "the scan's frame (the registration's similarity applied, the translation taken relative to\n"
-             "the subject's \"scan_pose\"), where the synth cameras look. --subdivide N adds N Loop steps\n"
-             "(4^N times the faces; texture coordinates are then dropped).\n");
-      return SPX_EXIT_OK;
-    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
-      continue;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--subdivide", &bad))) {
-      if (!spx_cli_long(v, 0, 3, &subdivide)) return spx_cli_usage("repose", "--subdivide: expected 0..3, got '%s'", v);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--frame", &bad))) {
-      char *end;
-      errno = 0;
-      frame = strtol(v, &end, 10);
-      if (errno || *end || frame < 0) return spx_cli_usage("repose", "--frame: expected a frame index >= 0, got '%s'", v);
-    } else {
-      return spx_cli_usage("repose", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-    }
-  }
+  spx_opt opts[] = {SPX_O("--registration", SPX_OPT_IN, &reg_path), SPX_O("--bvh", SPX_OPT_IN, &bvh_path),
+                    SPX_O("--pose", SPX_OPT_IN, &pose_path),        SPX_O("--view", SPX_OPT_STR, &view),
+                    SPX_O("--out", SPX_OPT_OUT, &out_path),         SPX_O("--model", SPX_OPT_IN, &model_arg),
+                    SPX_O_RANGE("--subdivide", SPX_OPT_INT, &subdivide, 0, 3), SPX_O_RANGE("--frame", SPX_OPT_INT, &frame, 0, 2147483647),
+                    SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "repose", NULL, repose_help, opts);
+  if (parsed >= 0) return parsed;
+  if (spx_cli_only_with(opts, "repose", "--frame", bvh_path != NULL, "--bvh") ||
+      spx_cli_only_with(opts, "repose", "--view", pose_path != NULL, "--pose"))
+    return SPX_EXIT_USAGE;
   if (!reg_path || !out_path || !bvh_path == !pose_path)
     return spx_cli_usage("repose", "--registration, --out and one of --bvh or --pose are required");
   if (view && !pose_path) return spx_cli_usage("repose", "--view needs --pose (a synth manifest)");
@@ -183,40 +175,50 @@ done:
   return rc;
 }
 
+static void reshape_help(void) {
+  printf("usage: smplpix reshape --registration P.json --shape I:V [--shape I:V ...] --out V.ply\n"
+         "                       [--model M.npz] [--rest]\n"
+         "Changes shape coefficient I of the registered person: V with a sign (+2.0, -1) is added to\n"
+         "the fitted value, V without a sign replaces it. The personal detail (the unposed template)\n"
+         "is kept; the registered pose is kept unless --rest. Writes the mesh in metres.\n");
+}
+
 int spx_cmd_reshape(int argc, char **argv) {
   const char *reg_path = NULL, *out_path = NULL, *model_arg = NULL;
   enum { MAXSH = 64 };
-  int sh_idx[MAXSH], nsh = 0, sh_rel[MAXSH], rest = 0, bad = 0;
+  int sh_idx[MAXSH], nsh = 0, sh_rel[MAXSH], rest = 0;
   double sh_val[MAXSH];
-  const spx_cli_optdef defs[] = {{"--registration", &reg_path, NULL}, {"--out", &out_path, NULL},
-                                  {"--model", &model_arg, NULL}, {"--rest", NULL, &rest}, {NULL, NULL, NULL}};
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help")) {
-      printf("usage: smplpix reshape --registration P.json --shape I:V [--shape I:V ...] --out V.ply\n"
-             "                       [--model M.npz] [--rest]\n"
-             "Changes shape coefficient I of the registered person: V with a sign (+2.0, -1) is added to\n"
-             "the fitted value, V without a sign replaces it. The personal detail (the unposed template)\n"
-             "is kept; the registered pose is kept unless --rest. Writes the mesh in metres.\n");
-      return SPX_EXIT_OK;
-    } else if (spx_cli_take(argc, argv, &i, defs, &bad)) {
-      continue;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--shape", &bad))) {
-      char *end;
-      errno = 0;
-      long idx = strtol(v, &end, 10);
-      if (errno || end == v || *end != ':' || idx < 0 || idx > 100000 || nsh >= MAXSH)
-        return spx_cli_usage("reshape", "--shape: expected I:V (e.g. 0:+2.0), got '%s'", v);
-      const char *val = end + 1;
-      double x = strtod(val, &end);
-      if (errno || end == val || *end || !isfinite(x))
-        return spx_cli_usage("reshape", "--shape: expected I:V (e.g. 0:+2.0), got '%s'", v);
-      sh_idx[nsh] = (int)idx, sh_val[nsh] = x, sh_rel[nsh] = (*val == '+' || *val == '-');
-      nsh++;
-    } else {
-      return spx_cli_usage("reshape", bad ? "missing value for %s" : "unknown option %s", argv[i]);
+  const char **shapes = calloc((size_t)argc + 1, sizeof *shapes); /* every --shape value */
+  if (!shapes) return spx_cli_errorf("reshape", "out of memory");
+  spx_opt opts[] = {SPX_O("--registration", SPX_OPT_IN, &reg_path), SPX_O("--out", SPX_OPT_OUT, &out_path),
+                    SPX_O("--model", SPX_OPT_IN, &model_arg),       SPX_O("--rest", SPX_OPT_FLAG, &rest),
+                    SPX_O("--shape", SPX_OPT_LIST, shapes),         SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "reshape", NULL, reshape_help, opts);
+  for (const char **sv = shapes; parsed < 0 && *sv; sv++) {
+    const char *v = *sv;
+    char *end;
+    errno = 0;
+    long idx = strtol(v, &end, 10);
+    if (errno || *v < '0' || *v > '9' || *end != ':' || idx < 0 || idx > 100000 || nsh >= MAXSH) {
+      parsed = spx_cli_usage("reshape", "--shape: expected I:V (e.g. 0:+2.0), got '%s'", v);
+      break;
     }
+    const char *val = end + 1;
+    double x = strtod(val, &end);
+    if (errno || end == val || *end || !isfinite(x)) {
+      parsed = spx_cli_usage("reshape", "--shape: expected I:V (e.g. 0:+2.0), got '%s'", v);
+      break;
+    }
+    sh_idx[nsh] = (int)idx, sh_val[nsh] = x, sh_rel[nsh] = (*val == '+' || *val == '-');
+    nsh++;
+    for (int k = 0; k + 1 < nsh; k++)
+      if (sh_idx[k] == sh_idx[nsh - 1]) {
+        parsed = spx_cli_usage("reshape", "--shape %d is given twice", sh_idx[k]);
+        break;
+      }
   }
+  free(shapes);
+  if (parsed >= 0) return parsed;
   if (!reg_path || !out_path || !nsh) return spx_cli_usage("reshape", "--registration, --shape and --out are required");
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("reshape", "out of memory");

@@ -32,11 +32,11 @@ int spx_cmd_synth(int argc, char **argv) {
   const char *out = NULL, *size_s = "410x308", *body_path = NULL, *bvh_path = NULL, *parts_path = NULL;
   const char *subj_s = NULL, *views_s = NULL, *seed_s = NULL, *tex_s = "2048", *dev = NULL;
   int force = 0, quiet = 0;
-  const spx_cli_optdef defs[] = {{"--force", NULL, &force}, {"--quiet", NULL, &quiet}, {"--subjects", &subj_s, NULL},
-                                  {"--views", &views_s, NULL}, {"--seed", &seed_s, NULL}, {"--out", &out, NULL},
-                                  {"--size", &size_s, NULL}, {"--body", &body_path, NULL}, {"--bvh", &bvh_path, NULL},
-                                  {"--parts", &parts_path, NULL}, {"--texture-size", &tex_s, NULL},
-                                  {"--device", &dev, NULL}, {NULL, NULL, NULL}};
+  const spx_cli_optdef defs[] = {{"--force", NULL, &force, 0}, {"--quiet", NULL, &quiet, 0}, {"--subjects", &subj_s, NULL, 0},
+                                  {"--views", &views_s, NULL, 0}, {"--seed", &seed_s, NULL, 0}, {"--out", &out, NULL, SPX_OPT_OUT},
+                                  {"--size", &size_s, NULL, 0}, {"--body", &body_path, NULL, SPX_OPT_IN}, {"--bvh", &bvh_path, NULL, SPX_OPT_IN},
+                                  {"--parts", &parts_path, NULL, SPX_OPT_IN}, {"--texture-size", &tex_s, NULL, 0},
+                                  {"--device", &dev, NULL, 0}, {NULL, NULL, NULL, 0}};
   int parsed = spx_cli_args(argc, argv, "synth", USAGE, defs, NULL);
   if (parsed >= 0) return parsed;
   if (!subj_s || !views_s || !seed_s || !out)
@@ -47,14 +47,12 @@ int spx_cmd_synth(int argc, char **argv) {
   o.subjects = (int)n;
   if (!spx_cli_long(views_s, 1, 999, &n)) return spx_cli_usage("synth", "--views %s: expected 1..999", views_s);
   o.views = (int)n;
-  char *end;
-  errno = 0;
-  unsigned long long sd = strtoull(seed_s, &end, 10);
-  if (errno || end == seed_s || *end || seed_s[0] == '-')
-    return spx_cli_usage("synth", "--seed %s: expected a non-negative integer", seed_s);
+  long sd;
+  if (!spx_cli_long(seed_s, 0, 2147483647, &sd))
+    return spx_cli_usage("synth", "--seed %s: expected an integer in [0, 2147483647]", seed_s);
   o.seed = (uint64_t)sd;
-  int w = 0, h = 0, used = 0;
-  if (sscanf(size_s, "%dx%d%n", &w, &h, &used) != 2 || size_s[used] || w < 16 || h < 16 || w > 4096 || h > 4096)
+  int w = 0, h = 0;
+  if (!spx_cli_size(size_s, 16, 4096, &w, &h))
     return spx_cli_usage("synth", "--size %s: expected WxH, each 16..4096", size_s);
   o.width = w;
   o.height = h;

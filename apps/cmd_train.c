@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "train_dist.h"
 #include "train_recipe.h"
 #include "train_state.h"
@@ -31,7 +32,7 @@ static void train_help(void) {
          "--epochs E / --steps S: train until E epochs / S optimizer steps in total are done.\n"
          "--resume continues from W (weights, optimizer state, step count, data order) bit for bit, taking\n"
          "the seed, shuffle, batch, lr, loss, schedule, stage, lr2 and disc width recorded in W (flags\n"
-         "that contradict them: exit 2);\n"
+         "that contradict them: exit 2) and, unless --epochs / --steps give a new one, the run's length;\n"
          "--init starts from the weights of W0 with a fresh optimizer. After every epoch the loss on\n"
          "DIR/validation (when present: mean L1, and PSNR and SSIM of the output clamped to [0,1], as\n"
          "`smplpix eval` computes them) is printed,\n"
@@ -247,16 +248,6 @@ static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss, double 
   return rc;
 }
 
-static int parse_int(const char *opt, const char *v, long lo, long hi, long *out) {
-  char *end = NULL;
-  errno = 0;
-  long x = strtol(v, &end, 10);
-  if (errno || !end || *end || x < lo || x > hi)
-    return spx_cli_usage("train", "%s needs an integer in [%ld, %ld], not '%s'", opt, lo, hi, v);
-  *out = x;
-  return SPX_EXIT_OK;
-}
-
 /* Ctrl-C: the first sets the flag (the loop saves and stops after the current step), the second
  * ends the process at once (saves are atomic, so the last checkpoint stays whole). */
 static volatile sig_atomic_t interrupted;
@@ -361,73 +352,36 @@ static int train_run(int argc, char **argv, train_dist *dist) {
   double lr = -1, lr2 = 1e-5;
   train_recipe rcp;
   memset(&rcp, 0, sizeof rcp);
-  int resume = 0, shuffle = 1, sigmoid = 0, bad = 0, local_bn = 0, agreed = 0, rc = 0;
-  int seed_given = 0, batch_given = 0, lr_given = 0, shuffle_given = 0, loss_given = 0, lr2_given = 0;
-  int disc_width_given = 0;
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      train_help();
-      return SPX_EXIT_OK;
-    } else if (!strcmp(argv[i], "--resume")) {
-      resume = 1;
-    } else if (!strcmp(argv[i], "--no-shuffle")) {
-      shuffle = 0;
-      shuffle_given = 1;
-    } else if (!strcmp(argv[i], "--sigmoid")) {
-      sigmoid = 1;
-    } else if (!strcmp(argv[i], "--local-bn")) {
-      local_bn = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--data", &bad))) {
-      data = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--out", &bad))) {
-      outp = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--init", &bad))) {
-      init = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
-      spec = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--loss", &bad))) {
-      loss_name = v;
-      loss_given = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--vgg", &bad))) {
-      vgg_path = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--schedule", &bad))) {
-      schedule = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--disc-width", &bad))) {
-      if ((rc = parse_int("--disc-width", v, 1, 512, &disc_width))) return rc;
-      disc_width_given = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--lr2", &bad))) {
-      char *end = NULL;
-      lr2 = strtod(v, &end);
-      if (!end || *end || !(lr2 > 0) || !isfinite(lr2)) return spx_cli_usage("train", "--lr2 needs a positive number, not '%s'", v);
-      lr2_given = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--width", &bad))) {
-      if ((rc = parse_int("--width", v, 8, 64, &width))) return rc;
-      if (width != 8 && width != 16 && width != 32 && width != 64)
-        return spx_cli_usage("train", "--width must be 8, 16, 32 or 64, not %ld", width);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--batch", &bad))) {
-      if ((rc = parse_int("--batch", v, 1, 1000000000, &batch))) return rc;
-      batch_given = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--epochs", &bad))) {
-      if ((rc = parse_int("--epochs", v, 0, 100000000, &epochs))) return rc;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--steps", &bad))) {
-      if ((rc = parse_int("--steps", v, 0, 2000000000, &steps))) return rc;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--seed", &bad))) {
-      if ((rc = parse_int("--seed", v, 0, 2147483647, &seed))) return rc;
-      seed_given = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--save-every", &bad))) {
-      if ((rc = parse_int("--save-every", v, 1, 2000000000, &save_every))) return rc;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--log-every", &bad))) {
-      if ((rc = parse_int("--log-every", v, 1, 2000000000, &log_every))) return rc;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--lr", &bad))) {
-      char *end = NULL;
-      lr = strtod(v, &end);
-      if (!end || *end || !(lr > 0) || !isfinite(lr)) return spx_cli_usage("train", "--lr needs a positive number, not '%s'", v);
-      lr_given = 1;
-    } else {
-      return spx_cli_usage("train", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-    }
-  }
+  int resume = 0, no_shuffle = 0, sigmoid = 0, local_bn = 0, agreed = 0, rc = 0;
+  spx_opt opts[] = {SPX_O("--resume", SPX_OPT_FLAG, &resume),
+                    SPX_O("--no-shuffle", SPX_OPT_FLAG, &no_shuffle),
+                    SPX_O("--sigmoid", SPX_OPT_FLAG, &sigmoid),
+                    SPX_O("--local-bn", SPX_OPT_FLAG, &local_bn),
+                    SPX_O("--data", SPX_OPT_IN, &data),
+                    SPX_O("--out", SPX_OPT_OUT, &outp),
+                    SPX_O("--init", SPX_OPT_IN, &init),
+                    SPX_O("--device", SPX_OPT_STR, &spec),
+                    SPX_O("--loss", SPX_OPT_STR, &loss_name),
+                    SPX_O("--vgg", SPX_OPT_IN, &vgg_path),
+                    SPX_O("--schedule", SPX_OPT_STR, &schedule),
+                    SPX_O_RANGE("--disc-width", SPX_OPT_INT, &disc_width, 1, 512),
+                    SPX_O_RANGE("--lr2", SPX_OPT_REAL, &lr2, 1e-300, 1e6),
+                    SPX_O_RANGE("--width", SPX_OPT_INT, &width, 8, 64),
+                    SPX_O_RANGE("--batch", SPX_OPT_INT, &batch, 1, 1000000000),
+                    SPX_O_RANGE("--epochs", SPX_OPT_INT, &epochs, 0, 100000000),
+                    SPX_O_RANGE("--steps", SPX_OPT_INT, &steps, 0, 2000000000),
+                    SPX_O_RANGE("--seed", SPX_OPT_INT, &seed, 0, 2147483647),
+                    SPX_O_RANGE("--save-every", SPX_OPT_INT, &save_every, 1, 2000000000),
+                    SPX_O_RANGE("--log-every", SPX_OPT_INT, &log_every, 1, 2000000000),
+                    SPX_O_RANGE("--lr", SPX_OPT_REAL, &lr, 1e-300, 1e6),
+                    SPX_O_END};
+  if ((rc = spx_cli_parse(argc, argv, "train", NULL, train_help, opts)) >= 0) return rc;
+  rc = 0;
+  int shuffle = !no_shuffle, seed_given = spx_cli_given(opts, "--seed"), batch_given = spx_cli_given(opts, "--batch");
+  int lr_given = spx_cli_given(opts, "--lr"), shuffle_given = no_shuffle, loss_given = loss_name != NULL;
+  int lr2_given = spx_cli_given(opts, "--lr2"), disc_width_given = spx_cli_given(opts, "--disc-width");
+  if (width && width != 8 && width != 16 && width != 32 && width != 64)
+    return spx_cli_usage("train", "--width must be 8, 16, 32 or 64, not %ld", width);
   if (!data || !outp) return spx_cli_usage("train", "--data and --out are required");
   if (schedule && strcmp(schedule, "paper")) return spx_cli_usage("train", "--schedule must be 'paper', not '%s'", schedule);
   int use_gan = 0, use_vgg = 0;
@@ -492,6 +446,14 @@ static int train_run(int argc, char **argv, train_dist *dist) {
     schedule = ts.schedule[0] ? "paper" : NULL, loss_name = ts.schedule[0] ? NULL : ts.loss;
     lr2 = ts.lr2, disc_width = (long)ts.disc_width;
   }
+  /* options that do nothing in the run's mode (after --resume took it from the checkpoint) */
+  if (spx_cli_only_with(opts, "train", "--lr2", schedule != NULL, "--schedule paper") ||
+      spx_cli_only_with(opts, "train", "--disc-width",
+                        schedule || (loss_name && strstr(loss_name, "gan")) || (resume && strstr(ts.loss, "gan")),
+                        "a GAN loss (--loss l1+gan / vgg+gan or --schedule paper)")) {
+    rc = SPX_EXIT_USAGE;
+    goto done;
+  }
   /* the recipe, from the flags or (--resume) the checkpoint's record */
   if (loss_name && (rc = train_loss_parse(loss_name, &use_gan, &use_vgg))) goto done;
   char cached_vgg[4096];
@@ -523,6 +485,7 @@ static int train_run(int argc, char **argv, train_dist *dist) {
     rc = spx_cli_usage("train", "--vgg is only used by --loss vgg, vgg+gan, vgg16 or vgg16+gan");
     goto done;
   }
+  int length_given = epochs >= 0 || steps >= 0; /* else --resume continues to the recorded target */
   if (lr < 0) lr = schedule ? 1e-4 : 1e-3;
   if (batch < 0) batch = schedule ? 10 : 1;
   if (schedule && epochs < 0 && steps < 0) epochs = 100;
@@ -568,6 +531,13 @@ static int train_run(int argc, char **argv, train_dist *dist) {
   /* resuming: the stage (and the schedule's stage-2 start) come from the record */
   rcp.comm = dist->on ? &dist->comm : NULL; /* rank 0 loads the discriminator, the others take it */
   if ((rc = train_recipe_start(ctx, &rcp, u, outp, from, resume ? &ts : NULL))) goto done;
+  if (resume) { /* the run's length: the recorded target unless --epochs / --steps give a new one */
+    int64_t stage1 = steps >= 0 ? steps : epochs * spe;
+    if (!length_given && ts.target >= 0) target = ts.target;
+    else if (rcp.schedule && rcp.stage == 2) target = rcp.stage1_steps + stage1; /* stage 2: as long as asked */
+    else if (rcp.schedule) rcp.stage1_steps = stage1, target = 2 * stage1;
+  }
+  ts.target = target > train_recipe_step_count(&rcp, u) ? target : train_recipe_step_count(&rcp, u); /* never behind */
   if (dist->on) {
     if ((rc = train_dist_agree(dist, rc, NULL))) {
       agreed = 1;

@@ -6,6 +6,8 @@
 #include <string.h>
 
 #include "cli.h"
+#include "cli_scene.h"
+#include "smplpix/files.h"
 #include "cli_model.h"
 #include "tune_search.h"
 
@@ -29,11 +31,6 @@ static int show(spx_ctx *ctx) {
     printf("%-20s %10d %10d  %s\n", t.name, t.value, t.default_value, t.source);
   }
   return SPX_EXIT_OK;
-}
-
-static int parse_size(const char *v, int *h, int *w) {
-  char tail;
-  return sscanf(v, "%dx%d%c", h, w, &tail) == 2 && *h >= 16 && *w >= 16 && *h <= 8192 && *w <= 8192;
 }
 
 /* The base widths to tune for: --width values, else the shipped network's (or --checkpoint's). */
@@ -74,43 +71,35 @@ static const char usage[] =
 
 int spx_cmd_tune(int argc, char **argv) {
   const char *spec = NULL, *camera = NULL, *ckpt = NULL;
-  int cpu_clock = 0, quick = 0, do_show = 0, bad = 0, nw = 0, widths[MAX_WIDTHS], h = 0, w = 0, reps = 0;
-  for (int i = 1; i < argc; i++) {
-    const char *v;
-    if (!strcmp(argv[i], "--help")) {
-      fputs(usage, stdout);
-      return SPX_EXIT_OK;
-    } else if (!strcmp(argv[i], "--quick")) {
-      quick = 1;
-    } else if (!strcmp(argv[i], "--show")) {
-      do_show = 1;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--device", &bad))) {
-      spec = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--clock", &bad))) {
-      if (strcmp(v, "wall") && strcmp(v, "cpu")) return spx_cli_usage("tune", "--clock %s: expected wall or cpu", v);
-      cpu_clock = !strcmp(v, "cpu");
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--camera", &bad))) {
-      camera = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--checkpoint", &bad))) {
-      ckpt = v;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--size", &bad))) {
-      if (!parse_size(v, &h, &w)) return spx_cli_usage("tune", "--size %s: expected HxW, each 16..8192", v);
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--repeat", &bad))) {
-      char *end;
-      long r = strtol(v, &end, 10);
-      if (*end || r < 1 || r > 100) return spx_cli_usage("tune", "--repeat %s: expected an integer in [1, 100]", v);
-      reps = (int)r;
-    } else if ((v = spx_cli_opt(argc, argv, &i, "--width", &bad))) {
-      char *end;
-      long x = strtol(v, &end, 10);
-      if (*end || (x != 8 && x != 16 && x != 32 && x != 64))
-        return spx_cli_usage("tune", "--width %s: expected 8, 16, 32 or 64", v);
-      if (nw == MAX_WIDTHS) return spx_cli_usage("tune", "at most %d --width options", MAX_WIDTHS);
-      widths[nw++] = (int)x;
-    } else {
-      return spx_cli_usage("tune", bad ? "missing value for %s" : "unknown option %s", argv[i]);
-    }
+  int cpu_clock = 0, quick = 0, do_show = 0, nw = 0, widths[MAX_WIDTHS], h = 0, w = 0, reps = 0, hw[2] = {0, 0};
+  const char *clock_s = NULL;
+  const char **wlist = calloc((size_t)argc + 1, sizeof *wlist); /* every --width value */
+  long rep = 0;
+  if (!wlist) return spx_cli_errorf("tune", "out of memory");
+  spx_opt opts[] = {SPX_O("--quick", SPX_OPT_FLAG, &quick),      SPX_O("--show", SPX_OPT_FLAG, &do_show),
+                    SPX_O("--device", SPX_OPT_STR, &spec),       SPX_O("--clock", SPX_OPT_STR, &clock_s),
+                    SPX_O("--camera", SPX_OPT_IN, &camera),      SPX_O("--checkpoint", SPX_OPT_IN, &ckpt),
+                    SPX_O_RANGE("--size", SPX_OPT_SIZE, hw, 16, 8192), SPX_O_RANGE("--repeat", SPX_OPT_INT, &rep, 1, 100),
+                    SPX_O("--width", SPX_OPT_LIST, wlist),       SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "tune", usage, NULL, opts);
+  for (const char **v = wlist; parsed < 0 && *v; v++) {
+    long x;
+    if (!spx_cli_long(*v, 8, 64, &x) || (x != 8 && x != 16 && x != 32 && x != 64))
+      parsed = spx_cli_usage("tune", "--width %s: expected 8, 16, 32 or 64", *v);
+    else if (nw == MAX_WIDTHS)
+      parsed = spx_cli_usage("tune", "at most %d --width options", MAX_WIDTHS);
+    for (int k = 0; parsed < 0 && k < nw; k++)
+      if (widths[k] == x) parsed = spx_cli_usage("tune", "--width %ld is given twice", x);
+    if (parsed < 0) widths[nw++] = (int)x;
   }
+  free(wlist);
+  if (parsed >= 0) return parsed;
+  if (clock_s && strcmp(clock_s, "wall") && strcmp(clock_s, "cpu"))
+    return spx_cli_usage("tune", "--clock %s: expected wall or cpu", clock_s);
+  cpu_clock = clock_s && !strcmp(clock_s, "cpu");
+  h = hw[0], w = hw[1], reps = (int)rep;
+  if (do_show && (quick || nw || camera || ckpt || h || reps || clock_s))
+    return spx_cli_usage("tune", "--show prints the tunables in effect; it takes only --device");
   if (camera && h) return spx_cli_usage("tune", "--camera and --size exclude each other");
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("tune", "out of memory");
@@ -133,6 +122,18 @@ int spx_cmd_tune(int argc, char **argv) {
     free(cams);
   }
   if (!nw && (rc = model_width(ctx, ckpt, &widths[nw++]))) goto done;
+  { /* the tuning file can be written: checked before minutes of measuring */
+    const char *tp = spx_device_tuning_path(ctx);
+    if (!*tp) {
+      rc = spx_cli_errorf("tune", "no cache folder to keep the tuning file in (SPX_NO_CACHE is set, or neither "
+                          "$SPX_CACHE_DIR nor $HOME names one)");
+      goto done;
+    }
+    if (spx_file_check_writable(ctx, tp)) {
+      rc = spx_cli_error("tune", ctx);
+      goto done;
+    }
+  }
   spx_tune_plan plan = {.quick = quick, .h = h, .w = w, .nwidths = nw, .repeat = reps ? reps : quick ? 3 : 5,
                        .device = spec, .cpu_clock = cpu_clock};
   memcpy(plan.widths, widths, sizeof(int) * (size_t)nw);

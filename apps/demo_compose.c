@@ -7,6 +7,12 @@
 
 #define GAP 2
 
+void spx_demo_strip_size(int n, int w, int h, int zoom, long *tw, long *th) {
+  long W = (long)w * (zoom < 1 ? 1 : zoom), H = (long)h * (zoom < 1 ? 1 : zoom);
+  long scale = H / 96 > 1 ? H / 96 : 1;
+  *tw = n * W + (n - 1) * GAP, *th = H + 7 * scale + 6;
+}
+
 spx_status spx_demo_compose(spx_ctx *ctx, const spx_image *const *imgs, const char *const *labels, int n, int zoom,
                             spx_image *out) {
   memset(out, 0, sizeof *out);

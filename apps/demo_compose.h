@@ -11,4 +11,7 @@
 spx_status spx_demo_compose(spx_ctx *ctx, const spx_image *const *imgs, const char *const *labels, int n, int zoom,
                             spx_image *out);
 
+/* The size spx_demo_compose gives n images of w x h at zoom (checked before the work). */
+void spx_demo_strip_size(int n, int w, int h, int zoom, long *tw, long *th);
+
 #endif

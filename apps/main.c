@@ -1,4 +1,5 @@
 /* smplpix: one tool, many subcommands. */
+#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
@@ -79,15 +80,6 @@ int spx_cli_open_device(const char *cmd, spx_ctx *ctx, const char *spec) {
   return SPX_EXIT_OK;
 }
 
-const char *spx_cli_opt(int argc, char **argv, int *i, const char *name, int *bad) {
-  if (strcmp(argv[*i], name)) return NULL;
-  if (*i + 1 >= argc) {
-    *bad = 1;
-    return NULL;
-  }
-  return argv[++*i];
-}
-
 const char *spx_cli_data_path(const char *rel) {
   static char buf[4096];
   const char *env = getenv("SPX_DATA_DIR");
@@ -114,6 +106,23 @@ const char *spx_cli_data_path(const char *rel) {
   return buf;
 }
 
+/* Ctrl-C (or SIGTERM) in a command without a handler of its own: the open transactions' temporaries
+ * and created folders go (spx_tx_interrupted), one line says so, exit 128 + signal (130 for Ctrl-C). */
+static const char *running_cmd = "";
+
+static void put_err(const char *s) {
+  ssize_t r = write(STDERR_FILENO, s, strlen(s));
+  (void)r;
+}
+
+static void on_interrupt(int sig) {
+  spx_tx_interrupted();
+  put_err("\nsmplpix ");
+  put_err(running_cmd);
+  put_err(": interrupted: nothing of this run was written\n");
+  _exit(128 + sig);
+}
+
 static void usage(FILE *fp) {
   fprintf(fp, "usage: smplpix <command> [options]   (smplpix <command> --help for details)\n\ncommands:\n");
   for (size_t i = 0; i < NCOMMANDS; i++) fprintf(fp, "  %-10s %s\n", commands[i].name, commands[i].summary);
@@ -134,7 +143,16 @@ int main(int argc, char **argv) {
     return SPX_EXIT_OK;
   }
   for (size_t i = 0; i < NCOMMANDS; i++)
-    if (!strcmp(argv[1], commands[i].name)) return commands[i].run(argc - 1, argv + 1);
+    if (!strcmp(argv[1], commands[i].name)) {
+      running_cmd = commands[i].name;
+      struct sigaction sa;
+      memset(&sa, 0, sizeof sa);
+      sa.sa_handler = on_interrupt;
+      sigemptyset(&sa.sa_mask);
+      sigaction(SIGINT, &sa, NULL);
+      sigaction(SIGTERM, &sa, NULL);
+      return commands[i].run(argc - 1, argv + 1);
+    }
   fprintf(stderr, "smplpix: unknown command '%s'\n", argv[1]);
   usage(stderr);
   return SPX_EXIT_USAGE;

@@ -1,10 +1,13 @@
 /* `smplpix synth`: load and check every input, then generate into "<DIR>.tmp.<pid>.0" and rename
- * it to DIR at the end. With --force a previous synth output is first renamed aside to
- * "<DIR>.tmp.<pid>.1" and removed only once the new folder is in place (put back if that rename
- * fails). Both names follow the temporaries' rule of lib/core/files.c: a later run removes those of
+ * it to DIR at the end, deciding there (commit_folder) what DIR is now. With --force a previous
+ * synth output (provably one: provably_synth) is first renamed aside to "<DIR>.tmp.<pid>.1" and
+ * removed only once the new folder is in place (put back if that rename fails). Both names follow the temporaries' rule of lib/core/files.c: a later run removes those of
  * processes that no longer run (and puts back an aside output whose DIR is missing). */
+#define _GNU_SOURCE /* syscall(2) for renameat2 */
+#include <cjson/cJSON.h>
 #include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <signal.h>
 #include <inttypes.h>
 #include <math.h>
@@ -12,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include "cli_scene.h"
@@ -76,10 +80,73 @@ static void clean_stale_dirs(const char *out) {
   closedir(d);
 }
 
-/* 1 = missing, 2 = empty folder, 3 = synth output (has synth.json), 0 = something else. */
+/* name is a subject folder name as synth writes it: "s" and three or more digits. */
+static int subject_name(const char *n) {
+  if (n[0] != 's' || strlen(n) < 4) return 0;
+  for (const char *p = n + 1; *p; p++)
+    if (*p < '0' || *p > '9') return 0;
+  return 1;
+}
+
+/* dir/synth.json is a synth manifest (version 1, seed, size, subjects) and every entry of dir is
+ * it or a subject folder it lists holding only what synth writes there: provably this tool's
+ * output. */
+static int provably_synth(const char *dir) {
+  char p[4200];
+  snprintf(p, sizeof p, "%s/synth.json", dir);
+  FILE *f = fopen(p, "rb");
+  if (!f) return 0;
+  struct stat sb;
+  char *text = NULL;
+  if (fstat(fileno(f), &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size > 0 && sb.st_size < (1 << 28) &&
+      (text = malloc((size_t)sb.st_size + 1)) && fread(text, 1, (size_t)sb.st_size, f) == (size_t)sb.st_size)
+    text[sb.st_size] = 0;
+  else {
+    free(text);
+    text = NULL;
+  }
+  fclose(f);
+  cJSON *doc = text ? cJSON_Parse(text) : NULL;
+  free(text);
+  const cJSON *subs = cJSON_GetObjectItemCaseSensitive(doc, "subjects");
+  const cJSON *ver = cJSON_GetObjectItemCaseSensitive(doc, "version");
+  int ok = cJSON_IsObject(doc) && cJSON_IsNumber(ver) && ver->valuedouble == 1 &&
+           cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(doc, "seed")) &&
+           cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(doc, "width")) &&
+           cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(doc, "height")) && cJSON_IsArray(subs);
+  const cJSON *it;
+  cJSON_ArrayForEach(it, subs) {
+    const cJSON *nm = cJSON_GetObjectItemCaseSensitive(it, "name");
+    if (!ok || !cJSON_IsString(nm) || !subject_name(nm->valuestring)) ok = 0;
+  }
+  DIR *d = ok ? opendir(dir) : NULL;
+  struct dirent *e;
+  while (d && ok && (e = readdir(d))) {
+    const char *n = e->d_name;
+    if (!strcmp(n, ".") || !strcmp(n, "..") || !strcmp(n, "synth.json")) continue;
+    int listed = 0;
+    cJSON_ArrayForEach(it, subs) listed |= !strcmp(cJSON_GetObjectItemCaseSensitive(it, "name")->valuestring, n);
+    snprintf(p, sizeof p, "%s/%s", dir, n);
+    DIR *sd = listed && !lstat(p, &sb) && S_ISDIR(sb.st_mode) ? opendir(p) : NULL;
+    ok = sd != NULL;
+    struct dirent *se;
+    while (sd && ok && (se = readdir(sd))) {
+      static const char *const mine[] = {".", "..", "scan.ply", "texture.png", "cameras", "images", "masks"};
+      int known = 0;
+      for (size_t k = 0; k < sizeof mine / sizeof mine[0]; k++) known |= !strcmp(se->d_name, mine[k]);
+      ok = known;
+    }
+    if (sd) closedir(sd);
+  }
+  if (d) closedir(d);
+  cJSON_Delete(doc);
+  return ok;
+}
+
+/* 1 = missing, 2 = empty folder, 3 = provably a synth output, 0 = something else. */
 static int out_state(const char *dir) {
   struct stat sb;
-  if (stat(dir, &sb)) return errno == ENOENT ? 1 : 0;
+  if (lstat(dir, &sb)) return errno == ENOENT ? 1 : 0;
   if (!S_ISDIR(sb.st_mode)) return 0;
   DIR *d = opendir(dir);
   if (!d) return 0;
@@ -89,9 +156,59 @@ static int out_state(const char *dir) {
     if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..")) empty = 0;
   closedir(d);
   if (empty) return 2;
-  char p[4200];
-  snprintf(p, sizeof p, "%s/synth.json", dir);
-  return access(p, F_OK) == 0 ? 3 : 0;
+  return provably_synth(dir) ? 3 : 0;
+}
+
+/* rename from -> to unless to exists (renameat2 RENAME_NOREPLACE; where the file system lacks it, a
+ * check just before rename(2)). */
+static int rename_noreplace(const char *from, const char *to) {
+#ifdef SYS_renameat2
+  if (syscall(SYS_renameat2, AT_FDCWD, from, AT_FDCWD, to, 1u /* RENAME_NOREPLACE */) == 0) return 0;
+  if (errno != ENOSYS && errno != EINVAL) return -1;
+#endif
+  struct stat sb;
+  if (lstat(to, &sb) == 0) {
+    errno = EEXIST;
+    return -1;
+  }
+  return rename(from, to);
+}
+
+/* The finished temporary folder becomes out, decided now, at the rename: out is missing (it must
+ * still be), an empty folder (rename(2) replaces only an empty one) or, with --force, provably a
+ * synth output (moved aside to "<out>.tmp.<pid>.1" first and checked there, so what is replaced is
+ * what was checked; removed once the new folder is in place). Prints the error; returns an exit code. */
+static int commit_folder(const synth_opts *o, const char *tmp) {
+  char aside[4200] = "";
+  int state = out_state(o->out);
+  if (state == 0 || (state == 3 && !o->force))
+    return spx_cli_errorf("synth", "%s: appeared while this run worked (another run or a user); not replacing it",
+                          o->out);
+  if (state == 3) {
+    snprintf(aside, sizeof aside, "%s.tmp.%ld.1", o->out, (long)getpid());
+    if (rename(o->out, aside))
+      return spx_cli_errorf("synth", "%s: cannot move the previous output aside: %s", o->out, strerror(errno));
+    if (!provably_synth(aside)) { /* replaced between the check and the move: put back, refuse */
+      if (rename_noreplace(aside, o->out))
+        fprintf(stderr, "smplpix synth: %s: what was there is kept as %s\n", o->out, aside);
+      return spx_cli_errorf("synth", "%s: changed while this run worked and is not a synth output; not replacing it",
+                            o->out);
+    }
+  }
+  int r = state == 2 ? rename(tmp, o->out) : rename_noreplace(tmp, o->out);
+  if (r) {
+    int e = errno;
+    if (aside[0] && rename_noreplace(aside, o->out)) /* the previous output back where it was */
+      fprintf(stderr, "smplpix synth: %s: the previous output is kept as %s\n", o->out, aside);
+    if (e == EEXIST || e == ENOTEMPTY || e == ENOTDIR || e == EISDIR)
+      return spx_cli_errorf("synth", "%s: appeared while this run worked (another run or a user); not replacing it",
+                            o->out);
+    return spx_cli_errorf("synth", "%s: cannot rename the new output into place: %s", o->out, strerror(e));
+  }
+  if (aside[0] && remove_tree(aside))
+    fprintf(stderr, "smplpix synth: %s: could not remove the previous output %s (%s)\n", o->out, aside,
+            strerror(errno));
+  return SPX_EXIT_OK;
 }
 
 typedef struct view_rec {
@@ -345,8 +462,8 @@ int synth_run(const synth_opts *o) {
   clean_stale_dirs(o->out);
   int state = out_state(o->out);
   if (state == 0) {
-    rc = spx_cli_errorf("synth", "%s: exists and is not an empty folder or a previous synth output; not replacing it",
-                        o->out);
+    rc = spx_cli_errorf("synth", "%s: exists and is not an empty folder or provably a previous synth output (a "
+                        "synth.json manifest listing every subject folder in it); not replacing it", o->out);
     goto done;
   }
   if (state == 3 && !o->force) {
@@ -399,26 +516,18 @@ int synth_run(const synth_opts *o) {
   { /* the files and their folder entries are on disk before the rename makes them the output */
     if (spx_cli_failed(&rc, "synth", s.ctx, spx_file_sync(s.ctx, mp) || spx_file_sync(s.ctx, s.tmp))) goto done;
   }
-  char aside[4200] = "";
-  if (out_state(o->out) != 1) { /* the previous output (or an empty folder) steps aside, kept until the end */
-    snprintf(aside, sizeof aside, "%s.tmp.%ld.1", o->out, (long)getpid());
-    if (rename(o->out, aside)) {
-      rc = spx_cli_errorf("synth", "%s: cannot move the previous output aside: %s", o->out, strerror(errno));
-      goto done;
-    }
+  { /* testing hook (tests/test_cli_synth.c): a shell command run just before the rename, as a user or
+       a second run acting while this one works */
+    const char *env = getenv("SPX_TEST_BEFORE_RENAME");
+    char *hook = env && *env ? strdup(env) : NULL;
+    unsetenv("SPX_TEST_BEFORE_RENAME"); /* not for the runs the hook starts */
+    if (hook && system(hook) == -1) fprintf(stderr, "smplpix synth: SPX_TEST_BEFORE_RENAME did not run\n");
+    free(hook);
   }
-  if (rename(s.tmp, o->out)) {
-    rc = spx_cli_errorf("synth", "%s: cannot rename %s into place: %s", o->out, s.tmp, strerror(errno));
-    if (aside[0] && rename(aside, o->out)) /* the previous output back where it was */
-      fprintf(stderr, "smplpix synth: %s: the previous output is kept as %s\n", o->out, aside);
-    goto done;
-  }
+  if ((rc = commit_folder(o, s.tmp))) goto done;
   free(s.tmp);
   s.tmp = NULL;
   spx_file_sync_dir_of(s.ctx, o->out); /* best effort: the new entry is durable */
-  if (aside[0] && remove_tree(aside))
-    fprintf(stderr, "smplpix synth: %s: could not remove the previous output %s (%s)\n", o->out, aside,
-            strerror(errno));
   double el = spx_now() - s.t0;
   printf("wrote %d subjects x %d views (%dx%d, textures %d^2) to %s in %.1f s: %.2f s per subject (scan, texture), "
          "%.3f s per view\n",

@@ -34,7 +34,11 @@ static int need_disc(spx_ctx *ctx, train_recipe *r, int load) {
   spx_status st = load ? spx_patchgan_open(ctx, r->disc_path, &r->d)
                        : spx_patchgan_new(ctx, r->disc_width, r->num_d, r->seed ^ 0xd15cULL, &r->d);
   if (!st && r->comm) st = spx_patchgan_set_comm(r->d, r->comm);
-  return st ? spx_cli_error("train", ctx) : 0;
+  if (st) return spx_cli_error("train", ctx);
+  if (load && spx_patchgan_ndf(r->d) != r->disc_width) /* the record and the tensors must agree */
+    return spx_cli_errorf("train", "%s has width %d, but the checkpoint records disc width %d", r->disc_path,
+                          spx_patchgan_ndf(r->d), r->disc_width);
+  return 0;
 }
 
 int train_recipe_start(spx_ctx *ctx, train_recipe *r, spx_unet *u, const char *outp, const char *from,

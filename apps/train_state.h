@@ -32,6 +32,8 @@ typedef struct spx_train_state {
   int64_t stage1_steps;    /* --schedule paper: the global step stage 2 begins at */
   double lr2;              /* --schedule paper: stage 2's learning rate */
   int64_t disc_width;      /* --disc-width of the discriminator (W.disc.safetensors) */
+  int64_t target;          /* global step the run trains to (--epochs / --steps; both stages of --schedule
+                              paper): --resume alone continues to it; -1 when not recorded */
 } spx_train_state;
 
 /* Defaults for every field (what a file without a key reads as). */

@@ -50,7 +50,7 @@ spx_status spx_app_load(spx_ctx *ctx, const char *path, int channels, spx_app_ba
     spx_array a;
     if ((st = spx_npy_load(ctx, path, &a))) return st;
     float *f = NULL;
-    if ((st = spx_array_to_f32(ctx, &a, &f))) {
+    if ((st = spx_image_npy_values(ctx, path, &a, &f))) {
       spx_array_free(&a);
       return st;
     }

@@ -10,6 +10,8 @@
  *  - Ctrl-C during a run: exit 130 and the frames written so far are removed with the folder;
  *  - bad input: one line, exit 1, no output folder: SMPL-X layout, a missing key, frames out of
  *    range, a camera array, no network without --checkpoint / --no-network; usage errors exit 2. */
+#include <unistd.h>
+#include <sys/wait.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -159,6 +161,26 @@ static void test_bvh(void) {
   CHECK(exists("raw/frame_000000.png") && !exists("raw/frame_000001.png") && !exists("raw/animation.mp4"));
   CHECK(file_has("out.txt", "ffmpeg is not on PATH") && file_has("out.txt", "frames/s"));
   CHECK(file_has("out.txt", "frame 1/1"));
+  { /* issue 24: a killed run's ffmpeg link folder goes with the next run (a live process's stays) */
+    pid_t gone = fork();
+    if (gone == 0) _exit(0);
+    waitpid(gone, NULL, 0);
+    char dead[64], live[64];
+    snprintf(dead, sizeof dead, "raw/frames.tmp.%ld", (long)gone);
+    snprintf(live, sizeof live, "raw/frames.tmp.%ld", (long)getpid());
+    make_dir(dead);
+    make_dir(live);
+    char f[96];
+    snprintf(f, sizeof f, "%s/frame_000000.png", dead);
+    write_text(f, "link");
+    CHECK(tool_env(path_without_ffmpeg(), "animate --registration reg.json --bvh " CLIP
+                                        " --frames 0:1 --camera cam.json --out raw --no-network") == 0);
+    CHECK_MSG(!exists(dead), "%s was not removed", dead);
+    CHECK(exists(live));
+    char lp[700];
+    path_of(lp, sizeof lp, live);
+    rmdir(lp);
+  }
   double d = frame_diff("raw/frame_000000.png", pos, "cam.json", NULL, &drawn);
   CHECK_MSG(d <= 0.5 / 255 + 1e-6, "raw frame differs from the library by %g", d);
   CHECK_MSG(drawn > 100, "only %ld pixels of the body drawn", drawn);

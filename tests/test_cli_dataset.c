@@ -155,14 +155,14 @@ static void test_layout(void) {
   CHECK(tool("dataset --mesh box.obj --cameras cams.json --out ds3 --split 1,0,0") == 0);
   check_layout("ds3", ".exr", n);
   CHECK(n[0] == 2 && n[1] == 0 && n[2] == 0);
-  /* a non-empty directory is refused (nothing written), --force writes into it */
+  /* a non-empty directory is refused (nothing written), --force replaces the data set in it */
   CHECK(tool("dataset --mesh box.obj --cameras cams.json --out ds3 --split 0,1,0") == 1);
   CHECK(err_one_line_with("ds3"));
   check_layout("ds3", ".exr", n);
   CHECK(n[0] == 2 && n[1] == 0);
   CHECK(tool("dataset --mesh box.obj --cameras cams.json --out ds3 --split 0,1,0 --force") == 0);
   check_layout("ds3", ".exr", n);
-  CHECK(n[0] == 2 && n[1] == 2);
+  CHECK(n[0] == 0 && n[1] == 2);
   rm_rf("ds");
   rm_rf("ds2");
   rm_rf("ds3");

@@ -330,8 +330,8 @@ static void test_errors(void) {
   spx_image_free(&z);
   /* usage */
   fails("eval --pred r32.npy --json bad.json", 2, "--pred and --target are required");
-  fails("eval --pred r32.npy --target r32.npy --bogus", 2, "unknown option '--bogus'");
-  fails("eval --pred r32.npy --target", 2, "--target needs a value");
+  fails("eval --pred r32.npy --target r32.npy --bogus", 2, "unknown option --bogus");
+  fails("eval --pred r32.npy --target", 2, "missing value for --target");
   /* an existing JSON is left as it was when the run fails */
   write_text("keep.json", "old");
   CHECK(tool("eval --pred r32.npy --target o53.npy --json keep.json") == 1);

@@ -174,14 +174,56 @@ static void test_bad_input(void) {
   CHECK(no_leftovers());
 }
 
+/* Run synth with the hook SPX_TEST_BEFORE_RENAME = hook (a shell command run in dir just before
+ * the final rename). Returns the exit code. */
+static int synth_with_hook(const char *args, const char *hook) {
+  char cmd[3000];
+  snprintf(cmd, sizeof cmd, "cd '%s' && SPX_TEST_BEFORE_RENAME='%s' '%s' synth %s >out.txt 2>err.txt", dir, hook,
+           spx_t_tool(), args);
+  return spx_t_system(cmd);
+}
+
+/* Issue 24: the output folder is decided at the rename, and replaced only when it is provably
+ * synth's own output. */
+static void test_decide_at_rename(void) {
+  char cmd[1200];
+  snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf r f g j", dir);
+  spx_t_system(cmd);
+  /* a folder a user makes while the run works is kept, and the run fails */
+  CHECK(synth_with_hook(SMALL " --seed 1 --out r", "mkdir r && echo mine > r/notes.txt") == 1 &&
+        err_one_line_with("r: appeared while this run worked"));
+  CHECK(file_has("r/notes.txt", "mine") && !exists("r/synth.json"));
+  /* two runs on one folder: the one that renames first wins, the other reports it */
+  snprintf(cmd, sizeof cmd, "'%s' synth " SMALL " --seed 2 --out f >/dev/null 2>&1", spx_t_tool());
+  CHECK(synth_with_hook(SMALL " --seed 1 --out f", cmd) == 1 && err_one_line_with("f: "));
+  CHECK(file_has("f/synth.json", "\"seed\": 2"));
+  /* --force: a synth output replaced by something else while the run works is not replaced */
+  CHECK(tool("synth " SMALL " --seed 1 --out g") == 0);
+  CHECK(synth_with_hook(SMALL " --seed 2 --out g --force", "rm -rf g && mkdir g && echo mine > g/notes.txt") == 1 &&
+        err_one_line_with("g: "));
+  CHECK(file_has("g/notes.txt", "mine"));
+  /* --force replaces only provable synth outputs: a synth.json that is not a manifest, or a
+   * manifest beside files synth does not write, is refused */
+  make_dir("j");
+  write_text("j/synth.json", "not json at all");
+  CHECK(tool("synth " SMALL " --seed 1 --out j --force") == 1 && err_one_line_with("j: exists and is not"));
+  CHECK(file_has("j/synth.json", "not json at all"));
+  CHECK(tool("synth " SMALL " --seed 1 --out h") == 0);
+  write_text("h/s000/mine.txt", "mine");
+  CHECK(tool("synth " SMALL " --seed 2 --out h --force") == 1 && err_one_line_with("h: exists and is not"));
+  CHECK(file_has("h/s000/mine.txt", "mine"));
+  CHECK(no_leftovers());
+}
+
 int main(void) {
   snprintf(dir, sizeof dir, "%s", spx_t_tmpdir());
   char cmd[1200];
-  snprintf(cmd, sizeof cmd, "mkdir -p '%s' && cd '%s' && rm -rf a b c x keep", dir, dir);
+  snprintf(cmd, sizeof cmd, "mkdir -p '%s' && cd '%s' && rm -rf a b c x keep r f g h j", dir, dir);
   if (spx_t_system(cmd)) return 1;
   SPX_RUN(test_files_and_manifest);
   SPX_RUN(test_deterministic);
   SPX_RUN(test_scan_on_mask);
   SPX_RUN(test_bad_input);
+  SPX_RUN(test_decide_at_rename);
   return spx_test_summary();
 }

@@ -74,39 +74,40 @@ static int same(const char *a, const char *b) {
   return spx_t_same_safetensors(ctx, pa, pb);
 }
 
-#define COMMON "--data d --width 8 --batch 2 --no-shuffle --disc-width 4 --log-every 1"
+#define COMMON "--data d --width 8 --batch 2 --no-shuffle --log-every 1"
+#define DW " --disc-width 4" /* the discriminator of the GAN runs (refused where there is none) */
 
 static void test_offline_recipe(void) {
   CHECK(tool("train " COMMON " --out a.safetensors --epochs 1 --loss l1") == 0);
   CHECK(meta_is("a.safetensors", "smplpix.train.loss", "l1") && meta_is("a.safetensors", "smplpix.train.stage", "1"));
   CHECK(!exists("a.disc.safetensors"));
-  CHECK(tool("train " COMMON " --out b.safetensors --init a.safetensors --epochs 2 --loss l1+gan") == 0);
+  CHECK(tool("train " COMMON DW " --out b.safetensors --init a.safetensors --epochs 2 --loss l1+gan") == 0);
   CHECK(exists("b.disc.safetensors"));
   CHECK(meta_is("b.safetensors", "smplpix.train.loss", "l1+gan") && meta_is("b.safetensors", "smplpix.train.stage", "2"));
   CHECK_MSG(file_has("err.txt", "GAN") && file_has("err.txt", "FM") && file_has("err.txt", "D "),
             "progress lines without the loss terms");
   CHECK_MSG(file_has("out.txt", "epoch 2 step 4: train loss") && file_has("out.txt", "(L1 "), "no epoch line with terms");
   /* the same 4 steps in two runs */
-  CHECK(tool("train " COMMON " --out c.safetensors --init a.safetensors --epochs 1 --loss l1+gan") == 0);
-  CHECK(tool("train " COMMON " --out c.safetensors --resume --epochs 2 --loss l1+gan") == 0);
+  CHECK(tool("train " COMMON DW " --out c.safetensors --init a.safetensors --epochs 1 --loss l1+gan") == 0);
+  CHECK(tool("train " COMMON DW " --out c.safetensors --resume --epochs 2 --loss l1+gan") == 0);
   CHECK_MSG(same("b.safetensors", "c.safetensors"), "resumed generator differs");
   CHECK_MSG(same("b.disc.safetensors", "c.disc.safetensors"), "resumed discriminator differs");
   /* errors */
   /* a flag contradicting the checkpoint's record is a usage error (exit 2, as every recorded setting) */
-  CHECK(tool("train " COMMON " --out a.safetensors --resume --epochs 2 --loss l1+gan") == 2);
+  CHECK(tool("train " COMMON DW " --out a.safetensors --resume --epochs 2 --loss l1+gan") == 2);
   CHECK(err_one_line_with("was trained with --loss l1, not l1+gan"));
   /* ... and so is --schedule on a single-stage run, or --loss on a scheduled one */
-  CHECK(tool("train " COMMON " --out a.safetensors --resume --epochs 2 --schedule paper") == 2);
+  CHECK(tool("train " COMMON DW " --out a.safetensors --resume --epochs 2 --schedule paper") == 2);
   CHECK(err_one_line_with("--schedule contradicts"));
   char cmd[2048];
-  CHECK(tool("train " COMMON " --out e.safetensors --init a.safetensors --epochs 1 --loss l1+gan") == 0);
+  CHECK(tool("train " COMMON DW " --out e.safetensors --init a.safetensors --epochs 1 --loss l1+gan") == 0);
   snprintf(cmd, sizeof cmd, "cd '%s' && cp b.disc.safetensors e.disc.safetensors", dir);
   CHECK(spx_t_system(cmd) == 0);
-  CHECK(tool("train " COMMON " --out e.safetensors --resume --epochs 2 --loss l1+gan") == 1);
+  CHECK(tool("train " COMMON DW " --out e.safetensors --resume --epochs 2 --loss l1+gan") == 1);
   CHECK(err_one_line_with("not from the same run"));
   snprintf(cmd, sizeof cmd, "cd '%s' && rm e.disc.safetensors", dir);
   CHECK(spx_t_system(cmd) == 0);
-  CHECK(tool("train " COMMON " --out e.safetensors --resume --epochs 2 --loss l1+gan") == 1);
+  CHECK(tool("train " COMMON DW " --out e.safetensors --resume --epochs 2 --loss l1+gan") == 1);
   CHECK(err_one_line_with("e.disc.safetensors"));
   CHECK(tool("train " COMMON " --out f.safetensors --loss vgg") == 1);
   CHECK(err_one_line_with("--vgg"));
@@ -120,7 +121,7 @@ static void test_vgg(void) {
   CHECK(tool("train " COMMON " --out v.safetensors --epochs 1 --loss vgg --vgg '" SPX_TEST_DATA
              "/vgg/vgg_w4.safetensors'") == 0);
   CHECK(file_has("out.txt", "(VGG ") && meta_is("v.safetensors", "smplpix.train.loss", "vgg"));
-  CHECK(tool("train " COMMON " --out v2.safetensors --init v.safetensors --epochs 1 --loss vgg+gan --vgg '" SPX_TEST_DATA
+  CHECK(tool("train " COMMON DW " --out v2.safetensors --init v.safetensors --epochs 1 --loss vgg+gan --vgg '" SPX_TEST_DATA
              "/vgg/vgg_w4.safetensors'") == 0);
   CHECK(file_has("out.txt", "(VGG ") && file_has("out.txt", "GAN ") && exists("v2.disc.safetensors"));
   CHECK(tool("train " COMMON " --out v3.safetensors --epochs 1 --loss vgg --vgg '" SPX_TEST_DATA
@@ -130,7 +131,7 @@ static void test_vgg(void) {
 }
 
 static void test_schedule(void) {
-  CHECK(tool("train " COMMON " --out s.safetensors --schedule paper --epochs 1 --lr 1e-3 --lr2 1e-4") == 0);
+  CHECK(tool("train " COMMON DW " --out s.safetensors --schedule paper --epochs 1 --lr 1e-3 --lr2 1e-4") == 0);
   CHECK(file_has("out.txt", "stage 1 of --schedule paper") && file_has("out.txt", "step 2: stage 2 (--loss l1+gan"));
   CHECK(meta_is("s.safetensors", "smplpix.train.stage", "2") && meta_is("s.safetensors", "smplpix.train.stage_base", "2"));
   CHECK(meta_is("s.safetensors", "smplpix.train.loss", "l1+gan") && exists("s.disc.safetensors"));
@@ -142,14 +143,14 @@ static void test_schedule(void) {
   if (u) CHECK(spx_unet_step(u) == 2);
   spx_unet_destroy(u);
   /* resuming a finished schedule does nothing and keeps both files */
-  CHECK(tool("train " COMMON " --out s.safetensors --schedule paper --epochs 1 --resume") == 0);
+  CHECK(tool("train " COMMON DW " --out s.safetensors --schedule paper --epochs 1 --resume") == 0);
   CHECK(file_has("out.txt", "step 4 -> 4"));
   /* the schedule, lr2 and stage come from the record: --resume alone continues it */
-  CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume") == 0);
+  CHECK(tool("train " COMMON DW " --out s.safetensors --epochs 1 --resume") == 0);
   CHECK(file_has("out.txt", "step 4 -> 4") && file_has("out.txt", "stage 2 of --schedule paper"));
-  CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume --loss l1+gan") == 2);
+  CHECK(tool("train " COMMON DW " --out s.safetensors --epochs 1 --resume --loss l1+gan") == 2);
   CHECK(err_one_line_with("--loss contradicts the --schedule paper"));
-  CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume --lr2 1e-3") == 2);
+  CHECK(tool("train " COMMON DW " --out s.safetensors --epochs 1 --resume --lr2 1e-3") == 2);
   CHECK(err_one_line_with("--lr2 contradicts"));
   CHECK(tool("train " COMMON " --out s.safetensors --epochs 1 --resume --disc-width 8") == 2);
   CHECK(err_one_line_with("--disc-width contradicts"));
@@ -224,7 +225,7 @@ static void test_vgg16(void) {
 }
 
 static void test_schedule_resume(void) {
-  CHECK(tool("train " COMMON " --out full.safetensors --schedule paper --epochs 2 --lr 1e-3 --lr2 1e-4") == 0);
+  CHECK(tool("train " COMMON DW " --out full.safetensors --schedule paper --epochs 2 --lr 1e-3 --lr2 1e-4") == 0);
   const char *trig[2] = {"step 2/8", "step 5/8"}, *name[2] = {"i1", "i2"};
   for (int k = 0; k < 2; k++) {
     char data[800], out[800], o2[64];
@@ -237,7 +238,7 @@ static void test_schedule_resume(void) {
     CHECK_MSG(run_interrupted(argv, trig[k]) == 130, "interrupt after '%s'", trig[k]);
     CHECK(meta_is(o2, "smplpix.train.stage", k ? "2" : "1"));
     char args[1024], d2[64];
-    snprintf(args, sizeof args, "train " COMMON " --out %s --schedule paper --epochs 2 --lr 1e-3 --lr2 1e-4 --resume", o2);
+    snprintf(args, sizeof args, "train " COMMON DW " --out %s --schedule paper --epochs 2 --lr 1e-3 --lr2 1e-4 --resume", o2);
     CHECK(tool(args) == 0);
     snprintf(d2, sizeof d2, "%s.disc.safetensors", name[k]);
     CHECK_MSG(same("full.safetensors", o2), "generator after an interrupt at '%s' + resume differs", trig[k]);

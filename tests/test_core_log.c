@@ -94,6 +94,16 @@ static void test_fail(void) {
   CHECK(spx_fail(ctx, SPX_E_IO, "outer: %s", spx_ctx_message(ctx)) == SPX_E_IO); /* may quote itself */
   CHECK(!strcmp(spx_ctx_message(ctx), "outer: f.png: line one"));
   CHECK(spx_fail(NULL, SPX_E_ARG, "nothing recorded") == SPX_E_ARG);
+  /* a long path is shortened in the middle; the reason at the end stays (issue 24) */
+  char longp[3001];
+  memset(longp, 'd', 3000);
+  longp[0] = 'S', longp[2999] = 'E', longp[3000] = 0;
+  CHECK(spx_fail(ctx, SPX_E_IO, "%s: cannot write: No such file or directory", longp) == SPX_E_IO);
+  const char *m = spx_ctx_message(ctx);
+  size_t ml = strlen(m);
+  CHECK(m[0] == 'S' && strstr(m, "...") != NULL && ml < 1024);
+  const char *end = "dE: cannot write: No such file or directory";
+  CHECK(ml > strlen(end) && !strcmp(m + ml - strlen(end), end));
   double t0 = spx_now(), t1 = spx_now();
   CHECK(t0 > 0 && t1 >= t0);
   spx_ctx_destroy(ctx);

@@ -107,7 +107,104 @@ static void test_refusals(void) {
   CHECK(run("train --data ds --out Nostate.safetensors --resume --steps 1") == 1 && err_is("train", "Nostate.safetensors: cannot open"));
 }
 
+/* Copy dir/src to dir/dst with metadata key set to value. */
+static int set_meta(const char *src, const char *dst, const char *key, const char *value) {
+  char ps[700], pd[700];
+  path_of(ps, sizeof ps, src);
+  path_of(pd, sizeof pd, dst);
+  spx_st_file f;
+  if (spx_st_load(ctx, ps, &f)) return 0;
+  spx_st_entry *e = calloc((size_t)f.count, sizeof *e);
+  const char **k = calloc((size_t)f.nmeta + 1, sizeof *k), **v = calloc((size_t)f.nmeta + 1, sizeof *v);
+  int ok = 0;
+  if (e && k && v) {
+    for (int i = 0; i < f.count; i++) {
+      const spx_st_tensor *t = &f.tensors[i];
+      e[i].name = t->name, e[i].dtype = t->dtype, e[i].ndim = t->ndim, e[i].data = t->data;
+      memcpy(e[i].shape, t->shape, sizeof t->shape);
+    }
+    for (int i = 0; i < f.nmeta; i++) k[i] = f.meta_keys[i], v[i] = strcmp(f.meta_keys[i], key) ? f.meta_values[i] : value;
+    ok = spx_st_save(ctx, pd, e, f.count, k, v, f.nmeta) == SPX_OK;
+  }
+  free(e), free(k), free(v);
+  spx_st_free(&f);
+  return ok;
+}
+
+/* Every recorded field is range-checked, the message naming the file and the field (issue 24:
+ * batch "0" crashed with a double free; an invalid loss was reported as a flag not given). */
+static void test_recorded_ranges(void) {
+  hostile_dir();
+  CHECK(make_scene(1));
+  CHECK(run("train --data ds --out B.safetensors --width 8 --steps 2 --seed 3 --batch 2") == 0);
+  static const struct {
+    const char *key, *value, *msg;
+  } cases[] = {
+      {"smplpix.train.batch", "0", "X.safetensors: recorded smplpix.train.batch = \"0\" is not an integer in [1, "},
+      {"smplpix.train.batch", "-3", "X.safetensors: recorded smplpix.train.batch"},
+      {"smplpix.train.pairs", "0", "X.safetensors: recorded smplpix.train.pairs"},
+      {"smplpix.train.steps_per_epoch", "0", "X.safetensors: recorded smplpix.train.steps_per_epoch"},
+      {"smplpix.train.shuffle", "7", "X.safetensors: recorded smplpix.train.shuffle"},
+      {"smplpix.train.seed", "4294967296", "X.safetensors: recorded smplpix.train.seed"},
+      {"smplpix.train.lr", "0", "X.safetensors: recorded smplpix.train.lr = \"0\" is not a number in (0, "},
+      {"smplpix.train.loss", "l2", "X.safetensors: recorded smplpix.train.loss = \"l2\" is not one of"},
+      {"smplpix.train.schedule", "fast", "X.safetensors: recorded smplpix.train.schedule"},
+      {"smplpix.train.stage", "3", "X.safetensors: recorded smplpix.train.stage"},
+      {"smplpix.train.disc_width", "0", "X.safetensors: recorded smplpix.train.disc_width"},
+      {"smplpix.train.batch", "4", "X.safetensors: invalid training state: smplpix.train.steps_per_epoch"},
+      {"smplpix.train.epoch", "9", "X.safetensors: invalid training state: smplpix.train.epoch"},
+  };
+  for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+    CHECK(set_meta("B.safetensors", "X.safetensors", cases[c].key, cases[c].value));
+    const char *names[] = {"X.safetensors", NULL};
+    snapshot s;
+    snap_take(&s, names);
+    int rc = run("train --data ds --out X.safetensors --steps 5 --resume");
+    CHECK_MSG(rc == 1 && err_is("train", cases[c].msg), "%s = %s: exit %d", cases[c].key, cases[c].value, rc);
+    CHECK(snap_same(&s));
+  }
+}
+
+/* --resume alone continues to the recorded length of the interrupted run (issue 24): a run of 5
+ * steps stopped after 2 (its record says target 5) resumes to the same bytes as 5 straight. */
+static void test_resume_length(void) {
+  hostile_dir();
+  CHECK(make_scene(1));
+  CHECK(run("train --data ds --out A.safetensors --width 8 --steps 5 --seed 3 --batch 2") == 0);
+  CHECK(run("train --data ds --out B.safetensors --width 8 --steps 2 --seed 3 --batch 2") == 0);
+  CHECK(set_meta("B.safetensors", "C.safetensors", "smplpix.train.target", "5")); /* as if stopped at step 2 of 5 */
+  CHECK(run("train --data ds --out C.safetensors --resume") == 0);
+  CHECK(file_has("out.txt", "step 2 -> 5"));
+  CHECK_MSG(same_file("A.safetensors", "C.safetensors"), "--resume alone did not continue to the recorded length");
+  /* finished: --resume alone does nothing; a new --steps extends */
+  CHECK(run("train --data ds --out C.safetensors --resume") == 0 && file_has("out.txt", "step 5 -> 5"));
+  CHECK(run("train --data ds --out C.safetensors --resume --steps 6") == 0 && file_has("out.txt", "step 5 -> 6"));
+  /* --epochs 60 recorded as the target of a schedule-less run: 5 pairs, batch 2 -> 180 steps */
+  CHECK(run("train --data ds --out D.safetensors --width 8 --epochs 60 --steps 1 --seed 3") == 2);
+  CHECK(set_meta("B.safetensors", "E.safetensors", "smplpix.train.target", "1"));
+  CHECK(run("train --data ds --out E.safetensors --resume") == 1 && err_is("train", "E.safetensors: invalid training state: smplpix.train.target is before step"));
+}
+
+/* Checkpoint metadata agrees with the tensors or is an error (issue 24). */
+static void test_metadata_agrees(void) {
+  hostile_dir();
+  CHECK(make_scene(1));
+  CHECK(set_meta("w8.safetensors", "X.safetensors", "smplpix.width", "16"));
+  CHECK(run("train --data ds --out X.safetensors --resume --steps 2") == 1 &&
+        err_is("train", "X.safetensors: metadata smplpix.width = \"16\" disagrees with the tensors (width 8)"));
+  CHECK(run("render --checkpoint X.safetensors --input \"$(ls ds/train/input/*.exr | head -1)\" --out r.png") == 1 &&
+        err_has("disagrees with the tensors"));
+  CHECK(set_meta("w8.safetensors", "X.safetensors", "smplpix.sigmoid", "yes"));
+  CHECK(run("train --data ds --out X.safetensors --resume --steps 2") == 1 &&
+        err_is("train", "X.safetensors: metadata smplpix.sigmoid = \"yes\" is not 0 or 1"));
+  /* a discriminator of another width than the one recorded */
+  CHECK(run("train --data ds --out G.safetensors --width 8 --loss l1+gan --disc-width 8 --steps 1") == 0);
+  CHECK(set_meta("G.safetensors", "G.safetensors", "smplpix.train.disc_width", "16"));
+  CHECK(run("train --data ds --out G.safetensors --resume --steps 2") == 1 &&
+        err_is("train", "G.disc.safetensors has width 8, but the checkpoint records disc width 16"));
+}
+
 int main(void) {
-  const spx_t_test tests[] = {SPX_TEST(test_bit_for_bit), SPX_TEST(test_refusals)};
-  return spx_t_main_ctx(&ctx, 0, tests, 2);
+  const spx_t_test tests[] = {SPX_TEST(test_bit_for_bit), SPX_TEST(test_refusals), SPX_TEST(test_recorded_ranges), SPX_TEST(test_resume_length), SPX_TEST(test_metadata_agrees)};
+  return spx_t_main_ctx(&ctx, 0, tests, 5);
 }

@@ -1,5 +1,7 @@
+#include <math.h>
 /* Images by extension (spx_image_read / spx_image_write / spx_image_ext_ok, lib/io/image_file.c). */
 #include "smplpix/files.h"
+#include "smplpix/npy.h"
 #include "smplpix/smplpix.h"
 #include "test.h"
 
@@ -54,8 +56,32 @@ static void test_roundtrip(void) {
   spx_ctx_destroy(ctx);
 }
 
+/* One rule for .npy images (issue 24): uint8 reads as value/255 like an 8-bit PNG, float as it is,
+ * any other integer dtype is refused naming the file; the same for spx_image_read and a PNG. */
+static void test_npy_integer_rule(void) {
+  spx_ctx *ctx = NULL;
+  CHECK_OK(ctx, spx_ctx_create(&ctx));
+  char path[600];
+  uint8_t px[12] = {0, 51, 255, 255, 128, 0, 7, 8, 9, 10, 11, 12};
+  spx_array a = {SPX_U8, 3, {2, 2, 3}, px, sizeof px};
+  spx_t_path(path, sizeof path, "u8.npy");
+  CHECK_OK(ctx, spx_npy_save(ctx, path, &a));
+  spx_image back;
+  CHECK_OK(ctx, spx_image_read(ctx, path, &back));
+  CHECK(back.channels == 3 && back.data && fabsf(back.data[1] - 0.2f) < 1e-6f && back.data[2] == 1.0f);
+  spx_image_free(&back);
+  int32_t wide[4] = {0, 255, 255, 0};
+  spx_array b = {SPX_I32, 2, {2, 2}, wide, sizeof wide};
+  spx_t_path(path, sizeof path, "i32.npy");
+  CHECK_OK(ctx, spx_npy_save(ctx, path, &b));
+  CHECK(spx_image_read(ctx, path, &back) == SPX_E_FORMAT && back.data == NULL);
+  CHECK(strstr(spx_ctx_message(ctx), "i32.npy: i32 image: integer images must be uint8") != NULL);
+  spx_ctx_destroy(ctx);
+}
+
 int main(void) {
   SPX_RUN(test_ext);
   SPX_RUN(test_roundtrip);
+  SPX_RUN(test_npy_integer_rule);
   return spx_test_summary();
 }

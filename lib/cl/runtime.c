@@ -1,4 +1,6 @@
 /* Checked buffers, copies and launches; OpenCL error names. */
+#include <sys/mman.h>
+#include <sys/resource.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -41,6 +43,23 @@ static void fmt_bytes(char *buf, size_t cap, double b) {
   else snprintf(buf, cap, "%.0f bytes", b);
 }
 
+/* bytes (+1/16 for the runtime's own bookkeeping) can be mapped now under the process's
+ * address-space limit, beside the `live` bytes of earlier buffers (which the runtime may not have
+ * backed yet; counted whole, so under a limit this errs on the safe side): a mapping of that size
+ * is made and dropped. Without a limit: yes. */
+static int host_room(size_t bytes, size_t live) {
+  struct rlimit rl;
+  if (getrlimit(RLIMIT_AS, &rl) != 0 || rl.rlim_cur == RLIM_INFINITY) return 1;
+  size_t probe = bytes + live;
+  if (probe < bytes) return 0;
+  probe += probe >> 4;
+  if (probe < bytes) return 0;
+  void *p = mmap(NULL, probe, PROT_NONE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+  if (p == MAP_FAILED) return 0;
+  munmap(p, probe);
+  return 1;
+}
+
 spx_status spx_cl_alloc(spx_ctx *ctx, size_t bytes, const char *what, cl_mem *out) {
   *out = NULL;
   spx_status st = spx_cl_require(ctx, what);
@@ -52,6 +71,14 @@ spx_status spx_cl_alloc(spx_ctx *ctx, size_t bytes, const char *what, cl_mem *ou
     fmt_bytes(lim, sizeof lim, (double)ctx->dev->info.max_alloc);
     return spx_fail(ctx, SPX_E_DEVMEM, "%s: needs a %s device buffer, more than the device's largest allocation (%s)",
                     what, sz, lim);
+  }
+  /* a CPU device's buffers are this process's memory, allocated by the OpenCL runtime when first
+   * used (PoCL then asserts when that fails): under an address-space limit (ulimit -v) the room
+   * is probed now, so a buffer that cannot fit is an error naming it */
+  if (ctx->dev->info.kind == SPX_DEVICE_CPU &&
+      !host_room(bytes, ctx->dev->devmem ? atomic_load(&ctx->dev->devmem->live) : 0)) {
+    return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory: a %s buffer does not fit in the address space this "
+                    "process may still use (ulimit -v)", what, sz);
   }
   cl_int err;
   *out = clCreateBuffer(ctx->dev->context, CL_MEM_READ_WRITE, bytes, NULL, &err);

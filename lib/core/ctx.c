@@ -100,12 +100,21 @@ spx_status spx_fail(spx_ctx *ctx, spx_status st, const char *fmt, ...) {
   if (ctx) {
     /* format into a scratch buffer first: callers may pass the current message as an argument
      * ("prefix: %s", spx_ctx_message(ctx)), which must not overlap the destination */
-    char buf[sizeof ctx->msg];
+    char buf[16384];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(buf, sizeof buf, fmt, ap);
+    int n = vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
-    memcpy(ctx->msg, buf, sizeof buf);
+    size_t len = n < 0 ? 0 : (size_t)n < sizeof buf ? (size_t)n : sizeof buf - 1, cap = sizeof ctx->msg;
+    if (len < cap) {
+      memcpy(ctx->msg, buf, len + 1);
+    } else { /* too long (long paths): shortened in the middle, so the reason at the end stays */
+      size_t head = cap / 3, tail = cap - head - 4;
+      memcpy(ctx->msg, buf, head);
+      memcpy(ctx->msg + head, "...", 3);
+      memcpy(ctx->msg + head + 3, buf + len - tail, tail);
+      ctx->msg[cap - 1] = 0;
+    }
     /* one line: fold any newline (e.g. from a compiler log excerpt) into spaces */
     for (char *p = ctx->msg; *p; p++)
       if (*p == '\n' || *p == '\r') *p = ' ';

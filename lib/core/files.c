@@ -138,6 +138,10 @@ spx_status spx_file_check_writable(spx_ctx *ctx, const char *target) {
     return spx_fail(ctx, SPX_E_IO, "%s: cannot write: folder %s: %s", target, dir, strerror(errno));
   if (stat(target, &sb) == 0 && !S_ISREG(sb.st_mode))
     return spx_fail(ctx, SPX_E_IO, "%s: cannot write: it is %s", target, kind_of(sb.st_mode));
+  /* a write-protected file is not replaced (as cp refuses it), for root too: the mode bits decide */
+  if (stat(target, &sb) == 0 && (!(sb.st_mode & (S_IWUSR | S_IWGRP | S_IWOTH)) || access(target, W_OK) != 0))
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot write: the file is write-protected (mode %03o)", target,
+                    (unsigned)(sb.st_mode & 0777));
   return SPX_OK;
 }
 

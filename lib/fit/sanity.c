@@ -31,6 +31,9 @@ spx_status spx_fit_units(spx_ctx *ctx, double ext, double given, double *scale, 
   return SPX_OK;
 }
 
+#define SCAN_MIN_POINTS 50        /* fewer points cannot show a person's shape */
+#define SCAN_MAX_ROUNDNESS 0.75   /* smallest / largest principal spread: a person ~0.2-0.5, a cube 1 */
+
 static double extent(const float *p, int32_t n) {
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (int32_t i = 0; i < n; i++)
@@ -38,8 +41,46 @@ static double extent(const float *p, int32_t n) {
   return n ? fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2])) : 0;
 }
 
+/* Spread of the points along their principal axes: sqrt of the covariance's smallest and largest
+ * eigenvalues (Jacobi rotations on the 3x3 matrix). */
+static void spread(const float *p, int32_t n, double *smallest, double *largest) {
+  double m[3] = {0, 0, 0}, c[3][3] = {{0}};
+  for (int32_t i = 0; i < n; i++)
+    for (int d = 0; d < 3; d++) m[d] += p[i * 3 + d] / (double)n;
+  for (int32_t i = 0; i < n; i++)
+    for (int a = 0; a < 3; a++)
+      for (int b = 0; b < 3; b++) c[a][b] += (p[i * 3 + a] - m[a]) * (p[i * 3 + b] - m[b]) / (double)n;
+  for (int sweep = 0; sweep < 32; sweep++)
+    for (int a = 0; a < 2; a++)
+      for (int b = a + 1; b < 3; b++) {
+        if (fabs(c[a][b]) < 1e-300) continue;
+        double th = 0.5 * atan2(2 * c[a][b], c[b][b] - c[a][a]), cs = cos(th), sn = sin(th);
+        for (int k = 0; k < 3; k++) { /* columns a, b */
+          double x = c[k][a], y = c[k][b];
+          c[k][a] = cs * x - sn * y, c[k][b] = sn * x + cs * y;
+        }
+        for (int k = 0; k < 3; k++) { /* rows a, b */
+          double x = c[a][k], y = c[b][k];
+          c[a][k] = cs * x - sn * y, c[b][k] = sn * x + cs * y;
+        }
+      }
+  double lo = fmin(c[0][0], fmin(c[1][1], c[2][2])), hi = fmax(c[0][0], fmax(c[1][1], c[2][2]));
+  *smallest = sqrt(fmax(lo, 0)), *largest = sqrt(fmax(hi, 0));
+}
+
 spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, const float *reg_m, int32_t nv,
                                 double median_m) {
+  /* a person's scan is many points and flat across one axis compared with its height (standing,
+   * T- or A-pose, one view or all round); a few points, or a blob as thick as it is tall, is not
+   * one, and a body fitted to it would be an invention */
+  if (ns < SCAN_MIN_POINTS)
+    return spx_fail(ctx, SPX_E_NUMERIC, "registration failed: the scan has %d points, too few to be a person "
+                    "(at least %d)", (int)ns, SCAN_MIN_POINTS);
+  double thin, tall;
+  spread(scan_m, ns, &thin, &tall);
+  if (!(thin < SCAN_MAX_ROUNDNESS * tall))
+    return spx_fail(ctx, SPX_E_NUMERIC, "registration failed: the scan is as thick as it is tall (principal spreads "
+                    "%.3g and %.3g m): not a person", thin, tall);
   double es = extent(scan_m, ns), er = extent(reg_m, nv);
   if (!(er > 0.5 * es && er < 2 * es))
     return spx_fail(ctx, SPX_E_NUMERIC, "registration failed: the fitted body is %.4g m across, the scan %.4g m "

@@ -24,7 +24,21 @@ spx_status spx_image_write(spx_ctx *ctx, const char *path, const spx_image *img)
   return spx_fail(ctx, SPX_E_ARG, "%s: unknown image type (expected .exr, .png or .npy)", path);
 }
 
-/* .npy: HxW or HxWxC (C in 1..64), any numeric dtype, as float HWC. */
+spx_status spx_image_npy_values(spx_ctx *ctx, const char *path, const struct spx_array *a, float **out) {
+  *out = NULL;
+  if (a->dtype == SPX_F16 || a->dtype == SPX_F32 || a->dtype == SPX_F64) return spx_array_to_f32(ctx, a, out);
+  if (a->dtype != SPX_U8)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: %s image: integer images must be uint8 (read as value/255, like PNG) or "
+                    "floating point", path, spx_dtype_name(a->dtype));
+  spx_status st = spx_array_to_f32(ctx, a, out);
+  if (st) return st;
+  size_t n = 1;
+  for (int d = 0; d < a->ndim; d++) n *= (size_t)a->shape[d];
+  for (size_t i = 0; i < n; i++) (*out)[i] /= 255.0f;
+  return SPX_OK;
+}
+
+/* .npy: HxW or HxWxC (C in 1..64), as float HWC by spx_image_npy_values. */
 static spx_status read_npy(spx_ctx *ctx, const char *path, spx_image *img) {
   spx_array a;
   spx_status st = spx_npy_load(ctx, path, &a);
@@ -37,7 +51,7 @@ static spx_status read_npy(spx_ctx *ctx, const char *path, spx_image *img) {
     st = spx_fail(ctx, SPX_E_FORMAT, "%s: unsupported image shape %lldx%lld%s", path, (long long)a.shape[0],
                   (long long)a.shape[1], a.ndim == 3 ? "xC (C in 1..64)" : "");
   else
-    st = spx_array_to_f32(ctx, &a, &f);
+    st = spx_image_npy_values(ctx, path, &a, &f);
   if (!st) {
     img->height = (int32_t)a.shape[0], img->width = (int32_t)a.shape[1];
     img->channels = a.ndim == 3 ? (int32_t)a.shape[2] : 1;

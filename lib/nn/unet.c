@@ -515,8 +515,8 @@ spx_status spx_unet_save_half(spx_unet *u, const char *path, const char *const *
 static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, int half, const char *const *mkeys,
                             const char *const *mvalues, int count) {
   spx_status st = SPX_OK;
-  if (count < 0 || count > 16 || (count && (!mkeys || !mvalues)))
-    return spx_fail(u->ctx, SPX_E_ARG, "unet: %d extra metadata entries (at most 16)", count);
+  if (count < 0 || count > SPX_UNET_MAX_META || (count && (!mkeys || !mvalues)))
+    return spx_fail(u->ctx, SPX_E_ARG, "unet: %d extra metadata entries (at most %d)", count, SPX_UNET_MAX_META);
   int cap = u->nents * 3 + 1;
   spx_st_entry *es = calloc((size_t)cap, sizeof *es);
   float **bufs = calloc((size_t)cap, sizeof *bufs);
@@ -580,8 +580,8 @@ static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, i
   if (!st) {
     char wbuf[16];
     snprintf(wbuf, sizeof wbuf, "%d", u->width);
-    const char *keys[19] = {"format", "smplpix.sigmoid", "smplpix.width"};
-    const char *vals[19] = {"pt", u->sigmoid ? "1" : "0", wbuf};
+    const char *keys[3 + SPX_UNET_MAX_META] = {"format", "smplpix.sigmoid", "smplpix.width"};
+    const char *vals[3 + SPX_UNET_MAX_META] = {"pt", u->sigmoid ? "1" : "0", wbuf};
     for (int i = 0; i < count; i++) keys[3 + i] = mkeys[i], vals[3 + i] = mvalues[i];
     st = spx_st_save(u->ctx, path, es, ne, keys, vals, 3 + count);
   }
@@ -682,7 +682,21 @@ spx_status spx_unet_load(spx_ctx *ctx, const char *path, spx_unet **out) {
       goto done;
     }
   }
-  const char *sig = spx_st_meta(&f, "smplpix.sigmoid");
+  /* the metadata this library writes must agree with the tensors (or be absent: PyTorch files) */
+  const char *sig = spx_st_meta(&f, "smplpix.sigmoid"), *mw = spx_st_meta(&f, "smplpix.width");
+  if (sig && strcmp(sig, "0") && strcmp(sig, "1")) {
+    st = spx_fail(ctx, SPX_E_FORMAT, "%s: metadata smplpix.sigmoid = \"%.40s\" is not 0 or 1", path, sig);
+    goto done;
+  }
+  if (mw) {
+    char wbuf[24];
+    snprintf(wbuf, sizeof wbuf, "%lld", (long long)t0->shape[0]);
+    if (strcmp(mw, wbuf)) {
+      st = spx_fail(ctx, SPX_E_FORMAT, "%s: metadata smplpix.width = \"%.40s\" disagrees with the tensors (width %s)",
+                    path, mw, wbuf);
+      goto done;
+    }
+  }
   if ((st = spx_unet_create_ex(ctx, (int)t0->shape[0], sig && !strcmp(sig, "1"), 0, SPX_TAPE_DEVICE, &u))) goto done;
   size_t cmax = 0;
   for (int i = 0; i < u->nents; i++)

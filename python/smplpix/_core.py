@@ -25,7 +25,13 @@ class SmplpixError(RuntimeError):
 
 
 def _path(p: PathLike) -> bytes:
-    return os.fsencode(os.fspath(p))
+    """p as the bytes the C library gets; a path with an embedded NUL would be cut short there (and
+    name another file), so it is an error, as it cannot reach the CLI either."""
+    b = os.fsencode(os.fspath(p))
+    if b"\0" in b:
+        head = os.fsdecode(b.split(b"\0", 1)[0])
+        raise SmplpixError(-1, f"{head}...: the path holds a NUL byte")
+    return b
 
 
 class Context:
@@ -161,13 +167,25 @@ def version() -> str:
 
 
 # ---- numpy helpers ---------------------------------------------------------------------------
-def f32(a, name: str, shape_tail=None, ndims=None) -> np.ndarray:
-    """a as a C-contiguous float32 array (no copy when it already is one), shape checked."""
+def f32(a, name: str, shape_tail=None, ndims=None, image: bool = False) -> np.ndarray:
+    """a as a C-contiguous float32 array (no copy when it already is one), shape checked. image:
+    the CLI's rules for images: every value finite (NaN / Inf is an error naming the element), and
+    the one dtype rule of the library (spx_image_npy_values): float as is, uint8 as value/255 like
+    an 8-bit PNG, other integer or bool dtypes refused."""
+    kind = getattr(getattr(a, "dtype", None), "kind", None)
+    if image and kind is not None and kind in "biu":
+        if a.dtype != np.uint8:
+            raise TypeError(f"smplpix: {name}: {a.dtype} image: integer images must be uint8 (read as value/255, "
+                            f"like PNG) or floating point")
+        a = np.asarray(a, dtype=np.float32) / np.float32(255)
     try:
         arr = np.ascontiguousarray(a, dtype=np.float32)
     except (TypeError, ValueError) as e:
         raise TypeError(f"smplpix: {name}: expected an array of numbers ({e})") from None
     _check_shape(arr, name, shape_tail, ndims)
+    if image and arr.size and not np.isfinite(arr).all():
+        bad = int(np.flatnonzero(~np.isfinite(arr.reshape(-1)))[0])
+        raise SmplpixError(-9, f"smplpix: {name}: NaN or Inf at element {bad}")
     return arr
 
 

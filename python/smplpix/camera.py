@@ -26,6 +26,10 @@ class Camera:
     t: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self):
+        for name in ("width", "height"):  # whole numbers that reach C unchanged (never wrapped to int32);
+            v = getattr(self, name)          # the library's validation judges the size itself
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not -2**31 <= int(v) < 2**31:
+                raise ValueError(f"smplpix: camera: {name} needs a whole number (int32), not {v!r}")
         self.width, self.height = int(self.width), int(self.height)
         self.K = np.array(self.K, dtype=np.float64).reshape(3, 3)
         self.R = np.array(self.R, dtype=np.float64).reshape(3, 3)

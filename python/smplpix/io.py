@@ -28,7 +28,7 @@ def _read_image(fn, path: PathLike) -> np.ndarray:
 
 
 def _write_image(fn, path: PathLike, image, channels) -> None:
-    a = f32(image, "image", None, (2, 3))
+    a = f32(image, "image", None, (2, 3), image=True)
     if a.ndim == 2:
         a = a.reshape(*a.shape, 1)
     if a.shape[2] not in channels:

@@ -154,7 +154,7 @@ def raster(ctx: Context, vertices: ArrayLike, faces: ArrayLike, colors: Optional
             raise ValueError("smplpix: texture needs all of uv, face_uv and texture")
         uv_a = f32(uv, "uv", (2,), (2,))
         fuv = i32(face_uv, "face_uv", (3,), (2,))
-        tex = f32(texture, "texture", None, (3,))
+        tex = f32(texture, "texture", None, (3,), image=True)
         if tex.shape[2] not in (3, 4):
             raise ValueError(f"smplpix: texture: expected 3 or 4 channels, got shape {tex.shape}")
         if fuv.shape != f.shape or (fuv.size and (fuv.min() < 0 or fuv.max() >= uv_a.shape[0])):

@@ -82,7 +82,7 @@ class UNet:
         """Inference forward (spx_unet_forward, train = 0: batch norm folded, running statistics).
         rgbd: (N, 4, H, W) float32 NCHW -> (N, 3, H, W); or one (H, W, 4) HWC image (what
         project() and read_exr() return) -> (H, W, 3). H, W >= 16."""
-        x = f32(rgbd, "rgbd", None, (3, 4))
+        x = f32(rgbd, "rgbd", None, (3, 4), image=True)
         hwc = x.ndim == 3
         if hwc:
             if x.shape[2] != 4:

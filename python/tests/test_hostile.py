@@ -59,3 +59,28 @@ def test_corrupted_files_never_crash(tmp_path):
     assert r.returncode == 0, f"exit {r.returncode}: {r.stderr[-2000:]}"
     ok, bad = int(r.stdout.split()[1]), int(r.stdout.split()[3])
     assert ok + bad == len(paths) and bad >= 7 * len(sources)  # every truncation is an error
+
+
+def test_binding_as_strict_as_the_cli(tmp_path):
+    """Issue 24: sizes, paths, NaN and dtypes follow the CLI's rules, as exceptions."""
+    import pytest
+    img = np.zeros((4, 5, 3), np.float32)
+    # an embedded NUL would cut the path short in C and name another file
+    with pytest.raises(smplpix.SmplpixError, match="holds a NUL byte"):
+        smplpix.write_png(str(tmp_path / "a.png") + "\0.txt", img)
+    assert not (tmp_path / "a.png").exists()
+    # NaN in an image is an error naming the element, as the CLI refuses it
+    bad = img.copy()
+    bad[1, 2, 0] = np.nan
+    with pytest.raises(smplpix.SmplpixError, match="NaN or Inf at element 21"):
+        smplpix.write_exr(tmp_path / "n.exr", bad)
+    # integer images: uint8 is value/255 like PNG, other integer dtypes are refused
+    smplpix.write_exr(tmp_path / "u.exr", np.full((4, 5, 3), 255, np.uint8))
+    assert np.all(smplpix.read_exr(tmp_path / "u.exr")[..., :3] == 1.0)
+    with pytest.raises(TypeError, match="integer images must be uint8"):
+        smplpix.write_exr(tmp_path / "i.exr", np.full((4, 5, 3), 255, np.int32))
+    # sizes: whole numbers in range, never wrapped
+    with pytest.raises(ValueError, match="width needs a whole number \\(int32\\)"):
+        smplpix.Camera(2**32 + 128, 96, np.eye(3))
+    with pytest.raises(ValueError, match="height needs a whole number"):
+        smplpix.Camera(128, 96.5, np.eye(3))

@@ -34,7 +34,8 @@ int spx_file_clean_stale(const char *target);
 
 /* Can target be written (created or replaced) by rename from its folder? Refuses a missing or
  * non-folder parent, a parent without write permission, and a target that exists but is not a
- * regular file (a folder, a FIFO). Checked before long work starts. */
+ * regular file (a folder, a FIFO) or that is write-protected (no write permission bit, as cp
+ * refuses it; for root too). Checked before long work starts. */
 spx_status spx_file_check_writable(spx_ctx *ctx, const char *target);
 
 /* fsync the file at path, and the folder that holds path (its name entries). */

@@ -114,9 +114,10 @@ spx_status spx_fit_depth_points(spx_ctx *ctx, const char *name, const spx_camera
 void spx_fit_camera_eye(const spx_camera *cam, double eye[3]);
 
 spx_status spx_fit_units(spx_ctx *ctx, double ext, double given, double *scale, const char **note);
-/* A finished registration fits its scan (both in metres): the body's extent within 0.5-2x the
- * scan's, and the median scan-to-surface distance at most 5% of the scan's extent; otherwise
- * SPX_E_NUMERIC with the measured figures. */
+/* A finished registration fits its scan (both in metres): the scan can be a person (at least 50
+ * points, its smallest principal spread under 0.75 of its largest: a cube or a ball of points is
+ * not), the body's extent within 0.5-2x the scan's, and the median scan-to-surface distance at
+ * most 5% of the scan's extent; otherwise SPX_E_NUMERIC with the measured figures. */
 spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, const float *reg_m, int32_t nv,
                                 double median_m);
 

@@ -38,11 +38,16 @@ spx_status spx_png_read(spx_ctx *ctx, const char *path, spx_image *out);
 /* By extension (any case; lib/io/image_file.c). spx_image_ext_ok: the path ends in .exr, .png
  * or .npy. Write: .exr as spx_exr_write; .png the first three channels (spx_png_write_rgb: an
  * RGB-D image loses its depth) or a 1-channel gray image; .npy an HxWxC float32 array. Read:
- * .exr / .png as spx_exr_read / spx_png_read; .npy an HxW or HxWxC array (C <= 64, any numeric
- * dtype) as float. Another extension is SPX_E_ARG naming the file. */
+ * .exr / .png as spx_exr_read / spx_png_read; .npy an HxW or HxWxC array (C <= 64) by the one
+ * rule of spx_image_npy_values. Another extension is SPX_E_ARG naming the file. */
 int spx_image_ext_ok(const char *path);
 spx_status spx_image_write(spx_ctx *ctx, const char *path, const spx_image *img);
 spx_status spx_image_read(spx_ctx *ctx, const char *path, spx_image *out);
+/* The pixel values of an image array read from a .npy (any shape), by one rule for every reader:
+ * float16/32/64 as they are; uint8 scaled by 1/255 like an 8-bit PNG; any other integer or bool
+ * dtype refused (SPX_E_FORMAT naming path: its scale is unknown). *out: malloc'd floats. */
+struct spx_array;
+spx_status spx_image_npy_values(spx_ctx *ctx, const char *path, const struct spx_array *a, float **out);
 
 #ifdef __cplusplus
 }

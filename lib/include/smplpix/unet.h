@@ -85,6 +85,8 @@ spx_status spx_unet_reset_optimizer(spx_unet *u);
  * over path. load reads the base width from inc.double_conv.0.weight, accepts F32 or F16 weights,
  * ignores tensors it does not know, and restores the optimizer state when optimizer.step is
  * present; the sigmoid flag comes from the metadata key "smplpix.sigmoid" (default off). */
+/* Most extra metadata pairs spx_unet_save_meta / spx_unet_save_half take. */
+#define SPX_UNET_MAX_META 32
 spx_status spx_unet_save(spx_unet *u, const char *path, int with_optimizer);
 /* spx_unet_save with extra "__metadata__" string pairs (e.g. the training stage). */
 spx_status spx_unet_save_meta(spx_unet *u, const char *path, int with_optimizer, const char *const *keys,
@@ -92,7 +94,7 @@ spx_status spx_unet_save_meta(spx_unet *u, const char *path, int with_optimizer,
 spx_status spx_unet_load(spx_ctx *ctx, const char *path, spx_unet **out);
 /* The shipping format: the state_dict (weights, batch-norm running statistics and
  * num_batches_tracked; no optimizer state) as float16 (I64 counters), the metadata of
- * spx_unet_save plus `count` extra string pairs (at most 16). PyTorch loads it into the milesial
+ * spx_unet_save plus `count` extra string pairs (at most SPX_UNET_MAX_META). PyTorch loads it into the milesial
  * UNet with load_state_dict(strict=True) after .float(); spx_unet_load reads it back. Fails
  * (SPX_E_NUMERIC, naming the tensor) when a value does not fit in float16 (|v| > 65504). */
 spx_status spx_unet_save_half(spx_unet *u, const char *path, const char *const *keys, const char *const *values,

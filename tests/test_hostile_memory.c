@@ -1,0 +1,40 @@
+/* Out of memory under an address-space limit (ulimit -v, usual on shared machines), issue 24: an
+ * 8192x8192 `project` and a 4096x4096 `demo` on a CPU device stop with one line naming the
+ * buffer, exit 1, and write nothing (PoCL asserted in its first use of the buffer before). Not
+ * under AddressSanitizer, whose shadow memory needs more address space than any such limit. */
+#include "hostile.h"
+
+#define BIG_CAM                                                                                                      \
+  "{\"width\": 8192, \"height\": 8192, \"K\": [[3000,0,4096],[0,3000,4096],[0,0,1]], \"R\": [[1,0,0],[0,1,0],[0,0,1]], " \
+  "\"t\": [0,0,3]}"
+
+#if !defined(__SANITIZE_ADDRESS__)
+static int limited(const char *args) {
+  char cmd[2048];
+  snprintf(cmd, sizeof cmd, "cd '%s' && ulimit -v 3000000 && SPX_DEVICE=cpu timeout -s KILL 300 '%s' %s >out.txt 2>err.txt",
+           dir, spx_t_tool(), args);
+  return spx_t_system(cmd);
+}
+#endif
+
+static void test_address_space_limit(void) {
+#if defined(__SANITIZE_ADDRESS__)
+  printf("  (skipped under AddressSanitizer)\n");
+#else
+  hostile_dir();
+  CHECK(make_scene(0));
+  write_text("big.json", BIG_CAM);
+  CHECK(limited("project --mesh quad.obj --camera big.json --out b.exr") == 1);
+  CHECK(err_has("out of memory") && err_has("buffer"));
+  CHECK(err_is("project", ""));
+  CHECK(!exists("b.exr") && count_temps(".") == 0);
+  CHECK(limited("demo --size 4096x4096 --out d --quiet") == 1);
+  CHECK(err_has("out of memory"));
+  CHECK(err_is("demo", ""));
+#endif
+}
+
+int main(void) {
+  const spx_t_test tests[] = {SPX_TEST(test_address_space_limit)};
+  return cli_test_main(tests, 1);
+}

@@ -1,0 +1,176 @@
+/* The one typed option table (issue 24), as a property over every command: each option given
+ * twice is a usage error; each integer (or size) option at 2^32 + its value is a usage error, not
+ * a wrapped number; each output path set to one of the command's inputs is refused (exit 2 or 1)
+ * and no input changes. The base command lines are valid (checked for the cheap commands). */
+#include "hostile.h"
+
+typedef struct cmdline {
+  const char *base;     /* a valid command line (files from make_scene) */
+  const char *ints;     /* space-separated integer / WxH options of base */
+  const char *outs;     /* space-separated output options of base */
+  const char *ins;      /* space-separated input options of base */
+  int check_base;       /* run base and expect 0 (cheap commands) */
+} cmdline;
+
+static const cmdline LINES[] = {
+    {"project --mesh quad.obj --camera cam.json --out p.exr --png p.png --npy p.npy --color auto --quiet", "",
+     "--out --png --npy", "--mesh --camera", 1},
+    {"raster --mesh quad.obj --camera cam.json --out r.png --aa 2 --cull back --quiet", "--aa", "--out",
+     "--mesh --camera", 1},
+    {"dataset --mesh quad.obj --out dsx --orbit 3 --size 32x24 --seed 1 --aa 1 --quiet --force", "--orbit --size --seed --aa",
+     "--out", "--mesh", 1},
+    {"render --checkpoint w8.safetensors --mesh quad.obj --camera cam.json --out rr.png --batch 2 --quiet", "--batch",
+     "--out", "--checkpoint --mesh --camera", 1},
+    {"train --data ds --out t.safetensors --width 8 --steps 1 --seed 1 --batch 1 --log-every 5 --save-every 9",
+     "--width --steps --seed --batch --log-every --save-every", "--out", "--data", 1},
+    {"export --checkpoint w8.safetensors --out e.safetensors --meta a=b", "", "--out", "--checkpoint", 1},
+    {"eval --pred p.png --target p.png --json ev.json --per-image", "", "--json", "--pred --target", 1},
+    {"demo --out dm --frame 3 --seed 2 --zoom 2 --size 32x24 --quiet --checkpoint w8.safetensors",
+     "--frame --seed --zoom --size", "--out", "--checkpoint", 0},
+    {"synth --subjects 1 --views 1 --seed 1 --size 32x24 --texture-size 256 --out sy --quiet --parts p.png",
+     "--subjects --views --seed --size --texture-size", "--out", "--parts", 0},
+    {"tune --quick --repeat 2 --size 32x32 --checkpoint w8.safetensors", "--repeat --size", "", "--checkpoint", 0},
+    {"devices --warmup --device cpu", "", "", "", 0},
+    {"register --scan quad.obj --out reg.ply --params reg.json --threads 2 --units m", "--threads", "--out --params",
+     "--scan", 0},
+    {"repose --registration reg.json --bvh m.bvh --frame 2 --subdivide 1 --out v.ply", "--frame --subdivide", "--out",
+     "--registration --bvh", 0},
+    {"reshape --registration reg.json --shape 0:+1 --out v.ply --rest", "", "--out", "--registration", 0},
+    {"animate --registration reg.json --bvh m.bvh --camera cam.json --out an.mp4 --fps 10 --no-network", "", "--out",
+     "--registration --bvh --camera", 0},
+    {"bake --mesh quad.obj --scan quad.obj --out t.png --size 64 --pad 2", "--size --pad", "--out", "--mesh --scan", 0},
+};
+enum { NLINES = (int)(sizeof LINES / sizeof LINES[0]) };
+
+/* Tokens of s (space-separated) into tok (pointers into buf). */
+static int split(const char *s, char *buf, size_t cap, char **tok, int max) {
+  snprintf(buf, cap, "%s", s);
+  int n = 0;
+  for (char *t = strtok(buf, " "); t && n < max; t = strtok(NULL, " ")) tok[n++] = t;
+  return n;
+}
+
+static int listed(const char *list, const char *name) {
+  char buf[512], *tok[32];
+  int n = split(list, buf, sizeof buf, tok, 32);
+  for (int i = 0; i < n; i++)
+    if (!strcmp(tok[i], name)) return 1;
+  return 0;
+}
+
+/* value of option name in tok (NULL: a flag or absent). */
+static const char *value_of(char **tok, int n, const char *name) {
+  for (int i = 0; i + 1 < n; i++)
+    if (!strcmp(tok[i], name) && strncmp(tok[i + 1], "--", 2)) return tok[i + 1];
+  return NULL;
+}
+
+/* The command line tok with option `name`'s value replaced by v. */
+static void with_value(char **tok, int n, const char *name, const char *v, char *out, size_t cap) {
+  out[0] = 0;
+  for (int i = 0; i < n; i++) {
+    const char *t = tok[i];
+    if (i > 0 && !strcmp(tok[i - 1], name) && strncmp(t, "--", 2)) t = v;
+    strncat(out, t, cap - strlen(out) - 2);
+    strncat(out, " ", cap - strlen(out) - 1);
+  }
+}
+
+static const char *INPUTS[] = {"quad.obj", "cam.json", "w8.safetensors", "p.png", "reg.json", "m.bvh", NULL};
+
+static void test_every_command(void) {
+  hostile_dir();
+  CHECK(make_scene(1));
+  sh("cp '%s/mocap/01_01.bvh' m.bvh && cp '%s/body/body_parts_segmentation.png' p.png", SPX_REPO_DATA, SPX_REPO_DATA);
+  write_text("reg.json", "{}");
+  for (int l = 0; l < NLINES; l++) {
+    const cmdline *c = &LINES[l];
+    char buf[1024], *tok[64], line[2048];
+    int n = split(c->base, buf, sizeof buf, tok, 64);
+    const char *cmd = tok[0];
+    if (c->check_base) CHECK_MSG(run("%s", c->base) == 0, "base line failed: %s", c->base);
+    snapshot s;
+    snap_take(&s, INPUTS);
+    for (int i = 1; i < n; i++) {
+      if (strncmp(tok[i], "--", 2)) continue;
+      const char *v = value_of(tok, n, tok[i]);
+      /* given twice */
+      snprintf(line, sizeof line, "%s %s %s", c->base, tok[i], v ? v : "");
+      int rc = run("%s", line);
+      CHECK_MSG(rc == 2 && err_has("is given twice"), "%s: exit %d", line, rc);
+      /* an integer option at 2^32 + its value */
+      if (listed(c->ints, tok[i]) && v) {
+        char big[64];
+        long a = atol(v);
+        const char *x = strchr(v, 'x');
+        if (x) snprintf(big, sizeof big, "%lldx%s", 4294967296LL + a, x + 1);
+        else snprintf(big, sizeof big, "%lld", 4294967296LL + a);
+        with_value(tok, n, tok[i], big, line, sizeof line);
+        rc = run("%s", line);
+        CHECK_MSG(rc == 2, "%s: exit %d", line, rc);
+      }
+      /* an output equal to an input */
+      if (listed(c->outs, tok[i])) {
+        char ib[512], *ins[16];
+        int ni = split(c->ins, ib, sizeof ib, ins, 16);
+        for (int k = 0; k < ni; k++) {
+          const char *iv = value_of(tok, n, ins[k]);
+          if (!iv) continue;
+          with_value(tok, n, tok[i], iv, line, sizeof line);
+          rc = run("%s", line);
+          CHECK_MSG(rc == 2 || rc == 1, "%s: exit %d", line, rc);
+        }
+      }
+    }
+    CHECK_MSG(snap_same(&s), "an input changed under: %s", c->base);
+    (void)cmd;
+  }
+}
+
+/* The exact integers and sizes of the issue. */
+static void test_exact_numbers(void) {
+  hostile_dir();
+  CHECK(make_scene(0));
+  CHECK(run("demo --size 4294967424x96 --out d") == 2 && err_has("--size"));
+  CHECK(run("demo --size '32x 24' --out d") == 2);
+  CHECK(run("demo --size ' 32x24' --out d") == 2);
+  CHECK(run("dataset --mesh quad.obj --out d --size '+32x24'") == 2);
+  CHECK(run("synth --subjects 1 --views 1 --seed 1 --out d --size 4294967424x96") == 2);
+  CHECK(run("render --checkpoint x --input y --out z.png --batch ' 2'") == 2);
+  CHECK(!exists("d"));
+  /* an option that does nothing in this mode */
+  CHECK(run("train --data ds --out w.safetensors --lr2 1e-4") == 2 && err_is("train", "--lr2 does nothing without --schedule paper"));
+  CHECK(run("train --data ds --out w.safetensors --disc-width 8") == 2 && err_is("train", "--disc-width does nothing"));
+  CHECK(run("eval --pred a.png --target b.png --device cpu") == 2 && err_is("eval", "--device does nothing without --lpips"));
+  /* outputs over inputs: the issue's two */
+  write_text("p.npy", "keep");
+  const char *keep[] = {"p.npy", NULL};
+  snapshot s;
+  snap_take(&s, keep);
+  CHECK(run("eval --pred p.npy --target p.npy --json p.npy") == 2 && err_is("eval", "--json p.npy is also an input"));
+  CHECK(snap_same(&s));
+  sh("ln p.npy hard.npy");
+  snap_take(&s, keep);
+  CHECK(run("eval --pred p.npy --target p.npy --json hard.npy") == 2 && err_is("eval", "--json hard.npy is also an input"));
+  CHECK(snap_same(&s));
+  CHECK(run("export --checkpoint W.safetensors --out W.safetensors") == 2 && err_is("export", "--out W.safetensors is also"));
+}
+
+/* Output types and writability are checked before the work (issue 24). */
+static void test_checks_before_work(void) {
+  hostile_dir();
+  CHECK(make_scene(0));
+  /* a strip larger than a PNG: refused at once, nothing made */
+  CHECK(run_t(10, "demo --zoom 8 --size 1024x768 --out dz") == 2 && err_has("larger than the 16384 pixels"));
+  CHECK(!exists("dz"));
+  /* tune with a cache that cannot hold the tuning file: refused before any measuring */
+  write_text("afile", "x");
+  CHECK(sh("SPX_CACHE_DIR=afile timeout -s KILL 20 '%s' tune --quick --size 32x32 --width 8 >out.txt 2>err.txt",
+           spx_t_tool()) == 1);
+  CHECK(err_is("tune", "afile/tuning-") && err_has("is not a folder"));
+}
+
+int main(void) {
+  const spx_t_test tests[] = {SPX_TEST(test_exact_numbers), SPX_TEST(test_every_command), SPX_TEST(test_checks_before_work)};
+  return cli_test_main(tests, 3);
+}
