@@ -134,7 +134,8 @@ class spx_fit_options(Structure):
                 ("w_limits", c_double), ("w_scale", c_double), ("w_pose_start", c_double), ("w_m2s", c_double),
                 ("w_lap", c_double), ("w_couple_start", c_double), ("w_couple_end", c_double),
                 ("robust_m", c_double), ("seed", c_uint64), ("progress", spx_fit_progress_fn),
-                ("progress_user", c_void_p), ("ceres_progress", c_int)]
+                ("progress_user", c_void_p), ("ceres_progress", c_int), ("view", c_int),
+                ("view_eye", c_double * 3)]
 
 
 class spx_fit_result(Structure):

@@ -62,12 +62,12 @@ typedef struct spx_fit_options {
   double w_lap, w_couple_start, w_couple_end; /* free stage */
   double robust_m;                /* robust loss scale (metres) */
   uint64_t seed;                  /* subsampling */
-  int view;                       /* 1: the scan is what one camera at view_eye saw (one side) */
-  double view_eye[3];             /* the camera's centre in scan coordinates (input units) */
   spx_fit_progress_fn progress;
   void *progress_user;
   int ceres_progress;             /* 1: Ceres prints per-iteration progress of every solve to
                                      stdout (debugging; default 0: the library prints nothing) */
+  int view;                       /* 1: the scan is what one camera at view_eye saw (one side) */
+  double view_eye[3];             /* the camera's centre in scan coordinates (input units) */
 } spx_fit_options;
 
 void spx_fit_options_default(spx_fit_options *o);
