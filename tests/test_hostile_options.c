@@ -141,7 +141,8 @@ static void test_exact_numbers(void) {
   /* an option that does nothing in this mode */
   CHECK(run("train --data ds --out w.safetensors --lr2 1e-4") == 2 && err_is("train", "--lr2 does nothing without --schedule paper"));
   CHECK(run("train --data ds --out w.safetensors --disc-width 8") == 2 && err_is("train", "--disc-width does nothing"));
-  CHECK(run("eval --pred a.png --target b.png --device cpu") == 2 && err_is("eval", "--device does nothing without --lpips"));
+  CHECK(run("eval --pred a.png --target b.png --no-lpips --device cpu") == 2 &&
+        err_is("eval", "--device does nothing without LPIPS"));
   /* outputs over inputs: the two */
   write_text("p.npy", "keep");
   const char *keep[] = {"p.npy", NULL};
