@@ -85,3 +85,7 @@ spx_test_variant(test_nn_unet_gpu_wino test_nn_unet
   "SPX_TUNE_CLASS=gpu;SPX_TUNE_CONV_WINO_TRAIN=1;SPX_TUNE_CONV_WINO_MINC=1")
 spx_test_variant(test_model_golden_gpu_paths test_model_golden "SPX_TUNE_CLASS=gpu")
 set_tests_properties(test_model_golden_gpu_paths PROPERTIES SKIP_RETURN_CODE 77)
+
+# The rasterizer with the exact integer division of kernels/exact.h (what devices without
+# correctly rounded fp32 division take): face ids still equal the reference's.
+spx_test_variant(test_render_raster_intdiv test_render_raster "SPX_FORCE_DIV_FALLBACK=1")
