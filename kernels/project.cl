@@ -90,6 +90,7 @@ __kernel void spx_project_keys(__global const float *pos, __global const float *
     float d;
     ulong key = (ulong)npix << 32; /* dropped: sorts after every pixel */
     float cam[SPX_CAM_FLOATS];
+#pragma unroll
     for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[c * SPX_CAM_FLOATS + j];
     if (spx_project_point(cam, x[0], x[1], x[2], W, H, &pix, &d))
     {
@@ -225,6 +226,7 @@ spx_project_pix(__global const float *pos, __global const float *cams, int N, in
   uint img = get_group_id(1), v0 = get_group_id(0) * (SPX_PROJ_PIX_ROUNDS * SPX_WG);
   uint v1 = min(v0 + SPX_PROJ_PIX_ROUNDS * SPX_WG, (uint)N);
   float cam[SPX_CAM_FLOATS];
+#pragma unroll
   for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
   spx_project_span(cam, pos + (ulong)(img / (uint)C) * N * 3, img, N, v0, v1, W, H, pixs, dbits);
 }
@@ -325,6 +327,7 @@ spx_project_one(__global const float *pos, __global const float *col, int has_co
   uint nimg = N > 0 ? npts / (uint)N : 0u;
   for (uint img = 0; img < nimg; img++) {
     float cam[SPX_CAM_FLOATS];
+#pragma unroll
     for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
     spx_project_span(cam, pos + (ulong)(img / (uint)C) * N * 3, img, N, 0, (uint)N, W, H, pixs, dbits);
   }

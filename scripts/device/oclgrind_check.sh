@@ -1,8 +1,9 @@
 #!/bin/sh
 # The GPU-class paths of the kernel tests (SPX_TUNE_CLASS=gpu: local-memory convolution and
-# Winograd, the radix-sort projection, the per-pixel rasterizer, the work-group reductions) under
+# Winograd, the radix-sort projection, the per-pixel rasterizer, the work-group reductions of the
+# norms and losses; SPX_OCLGRIND_TESTS names others) under
 # Oclgrind, the OpenCL simulator that checks every memory access and barrier: data races
-# (--data-races), reads and writes out of bounds, barrier divergence, API misuse; with NVIDIA's
+# (--data-races), reads and writes out of bounds, barrier divergence; with NVIDIA's
 # limits (48 KiB of local memory, work-groups of at most 1024). Each test runs with --quick (only
 # the first and last work-group of every launch execute, which keeps the run to minutes): the
 # tests' own comparisons then fail and are not looked at; what counts is Oclgrind's error log,
@@ -13,9 +14,9 @@ set -u
 cd "$(dirname "$0")/../.."
 BUILD=${1:-build}
 command -v oclgrind >/dev/null || { echo "oclgrind_check: oclgrind not found (apt-get install oclgrind)" >&2; exit 1; }
+# the tests of the kernels that share local memory across a work-group (where races live)
 TESTS=${SPX_OCLGRIND_TESTS:-test_nn_conv2d_lds test_nn_conv2d_winograd_lds test_render_sort test_render_project
-test_render_raster test_nn_batchnorm test_nn_instnorm test_nn_loss test_nn_pool test_nn_upsample test_nn_tensor_ops
-test_nn_optim test_body_lbs}
+test_render_raster test_nn_batchnorm test_nn_instnorm test_nn_loss}
 LIMIT=${SPX_OCLGRIND_TIMEOUT:-900}
 out=$BUILD/oclgrind
 rm -rf "$out"
@@ -26,7 +27,7 @@ for t in $TESTS; do
   mkdir -p "$out/tmp/$t"
   t0=$(date +%s)
   SPX_TUNE_CLASS=gpu SPX_CACHE_DIR="$out/cache" SPX_TEST_TMP="$out/tmp/$t" SPX_TOOL="$BUILD/smplpix_tool" \
-    timeout -k 10 "$LIMIT" oclgrind --quick --data-races --check-api --log "$out/$t.log" --local-mem-size 49152 \
+    timeout -k 10 "$LIMIT" oclgrind --quick --data-races --max-errors 20 --log "$out/$t.log" --local-mem-size 49152 \
     --max-wgsize 1024 --num-threads 1 "$BUILD/tests/$t" >"$out/$t.out" 2>&1
   rc=$?
   dt=$(($(date +%s) - t0))
