@@ -3,7 +3,8 @@ BUILD    ?= build
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build weights demo docs-demo model-card train-demo test asan fuzz bench bench-unet bench-memory bench-latency install clean bench-python table1
+.PHONY: all deps build weights demo docs-demo model-card train-demo test asan fuzz bench bench-unet bench-memory bench-latency install clean bench-python table1 \
+  clang-check oclgrind device-kit device-kit-test
 
 all: build
 
@@ -106,7 +107,7 @@ install: build
 	cmake --install $(BUILD) --prefix $(PREFIX)
 
 clean:
-	rm -rf $(BUILD) build-asan build-fuzz out
+	rm -rf $(BUILD) build-asan build-fuzz build-kit .device-kit out
 
 # The paper's Table 1 on synthetic scanned people (scripts/table1.sh): synth -> register -> bake ->
 # repose/project -> rasterizers and SMPLpix (train, render) -> eval -> benchmarks/TABLE1.md and
@@ -114,3 +115,21 @@ clean:
 # writing to out/table1-quick instead of benchmarks/).
 table1: build
 	TABLE1_BUILD=$(CURDIR)/$(BUILD) bash scripts/table1.sh
+
+# Every kernel program compiled offline by clang for NVIDIA (nvptx64-nvidia-nvcl) and AMD (amdgcn)
+# as OpenCL C 1.2 without fp64/fp16, with the GPU column's build options: errors, helpers left
+# without a body, local memory over 48 KiB fail (scripts/device/clang_check.sh; ~2 min).
+clang-check: build
+	sh scripts/device/clang_check.sh $(BUILD)
+
+# The GPU-class paths of the kernel tests under Oclgrind (races, out-of-bounds accesses, barrier
+# divergence; scripts/device/oclgrind_check.sh): its error log must stay empty. A few minutes.
+oclgrind: build
+	sh scripts/device/oclgrind_check.sh $(BUILD)
+
+# The GPU machine kit (docs/gpu.md): build-kit/ (Release, no MPI) gathered into .device-kit/ with
+# the shared libraries it needs; then its test in a clean debootstrap'd root on PoCL (root, ~10 min).
+device-kit: deps
+	sh scripts/device/pack.sh
+device-kit-test: device-kit
+	sh scripts/device/test_clean_root.sh

@@ -25,7 +25,7 @@
   } while (0)
 
 /* fold 8 compensated lanes into a compensated scalar (s, c) */
-inline void spx_fold8(float8 s8, float8 c8, float *s, float *c) {
+static inline void spx_fold8(float8 s8, float8 c8, float *s, float *c) {
   float l[8];
   vstore8(s8 - c8, 0, l);
   for (int j = 0; j < 8; j++) SPX_KAHAN_ADD(*s, *c, l[j]);
@@ -42,7 +42,7 @@ inline void spx_fold8(float8 s8, float8 c8, float *s, float *c) {
  *   mode 2: sum dy and sum dy * (x - mean)  (second result in *r2; with relu, dy masked by
  *           SPX_BN_DY with the forward's scale ra and shift rb)
  * Returns the item's compensated partial (to be summed over the group). */
-inline float spx_bn_partial(__global const float *x, int xo, __global const float *dy, int go, int n, int c, int hw,
+static inline float spx_bn_partial(__global const float *x, int xo, __global const float *dy, int go, int n, int c, int hw,
                             int ch, float mean, int mode, float ra, float rb, int relu, float *r2) {
   float s = 0.0f, comp = 0.0f, s2 = 0.0f, comp2 = 0.0f;
 #if SPX_BN_WG == 1
@@ -106,7 +106,7 @@ inline float spx_bn_partial(__global const float *x, int xo, __global const floa
 /* The normalisation of channel ch from its batch mean and biased variance over cnt values (the
  * tail of spx_bn_train_fwd and spx_bn_sync_fwd): y, save = [mean, invstd], and when update the
  * running statistics (unbiased variance var * cnt / (cnt - 1), like PyTorch). */
-inline void spx_bn_normalize(__global const float *x, int xo, __global const float *wt, int wo,
+static inline void spx_bn_normalize(__global const float *x, int xo, __global const float *wt, int wo,
                              __global const float *bs, int bo, __global float *rm, int rmo, __global float *rv,
                              int rvo, __global float *save, int so, __global float *y, int yo, int n, int c, int hw,
                              int ch, float mean, float var, float cnt, float momentum, float eps, int update,
@@ -138,7 +138,7 @@ inline void spx_bn_normalize(__global const float *x, int xo, __global const flo
 
 /* dx += (dy - sdy / cnt - (x - mean) * sdyx * invstd^2 / cnt) * invstd * weight for channel ch
  * (the tail of spx_bn_train_bwd and spx_bn_sync_bwd). */
-inline void spx_bn_dx(__global const float *x, int xo, __global const float *wt, int wo, __global const float *dy,
+static inline void spx_bn_dx(__global const float *x, int xo, __global const float *wt, int wo, __global const float *dy,
                       int go, __global float *dx, int dxo, int n, int c, int hw, int ch, float mean, float invstd,
                       float sdy, float sdyx, float cnt, float rb, int relu) {
   int lid = get_local_id(0);

@@ -59,11 +59,13 @@ static inline __attribute__((always_inline)) void conv_dw(const __global float *
       }
     }
   }
-  for (int g = 0; g < ntiles; g++)
+  /* constant trip counts and guards (no break), so the loops unroll and accs stays in registers */
+#pragma unroll
+  for (int g = 0; g < CONV_DW_G; g++)
 #pragma unroll
     for (int m = 0; m < CONV_DW_TM; m++) {
       int co = co0 + m;
-      if (co >= Cout) break;
+      if (g >= ntiles || co >= Cout) continue;
 #pragma unroll
       for (int j = 0; j < CONV_DW_TN; j++) {
         int kk = (kt0 + g) * CONV_DW_TN + j;

@@ -150,10 +150,12 @@ static inline __attribute__((always_inline)) void conv_fwd_store(vf acc[CONV_TM]
   for (int j = 0; j < CONV_TN; j++) {
     int qs = q0 + j * (CONV_LWS * CONV_VW);
     int oy = qs / Wp, ox = qs - oy * Wp;
-    if (oy >= Ho) break;
+    if (oy >= Ho) continue; /* guards, not breaks: both loops unroll and acc stays in registers */
     if (ox + CONV_VW <= Wo) { /* whole vector is one run of valid outputs */
       int o = oy * Wo + ox;
-      for (int m = 0; m < mmax; m++) {
+#pragma unroll
+      for (int m = 0; m < CONV_TM; m++) {
+        if (m >= mmax) continue;
         vf v = acc[m][j];
         __global float *yo = yn + (size_t)(co0 + m) * hw + o;
         if (flags & FL_ACCUM) v = VLOAD(yo) + v;
@@ -163,7 +165,9 @@ static inline __attribute__((always_inline)) void conv_fwd_store(vf acc[CONV_TM]
         VSTORE(v, yo);
       }
     } else {
-      for (int m = 0; m < mmax; m++) {
+#pragma unroll
+      for (int m = 0; m < CONV_TM; m++) {
+        if (m >= mmax) continue;
         float t[CONV_VW];
         VSTORE(acc[m][j], t);
         __global float *yc = yn + (size_t)(co0 + m) * hw;

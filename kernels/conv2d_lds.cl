@@ -78,16 +78,18 @@ __kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_f
   const int ox = ox0 + lx, hw = Ho * Wo, co0 = cot * CONV_TM, mmax = min(CONV_TM, Cout - co0);
   if (ox >= Wo) return;
   __global float *yn = y + y_off + (size_t)n * Cout * hw;
+  /* guards instead of breaks, so both loops unroll fully and acc stays in registers (an early
+   * exit leaves a loop rolled and acc indexed at run time, which GPU compilers put on the stack) */
 #pragma unroll
   for (int m = 0; m < CONV_TM; m++) {
-    if (m >= mmax) break;
+    if (m >= mmax) continue;
     const int co = co0 + m;
     const float b = (flags & FL_BIAS) ? bias[b_off + co] : 0.0f, sc = (flags & FL_SCALE) ? scale[sc_off + co] : 1.0f;
     const float sh = (flags & FL_SHIFT) ? shift[sh_off + co] : 0.0f;
 #pragma unroll
     for (int j = 0; j < CONV_TN; j++) {
       int oy = oy0 + ly + j * LDS_WY;
-      if (oy >= Ho) break;
+      if (oy >= Ho) continue;
       __global float *yo = yn + (size_t)co * hw + oy * Wo + ox;
       float v = acc[m][j];
       if (flags & FL_ACCUM) v = *yo + v;

@@ -50,7 +50,7 @@
 #endif
 #define WINO_IN_COLS (4 * CONV_VW + 4)
 
-/* Elements x .. x+15 of an image row (NULL: a row outside the image), zero outside [0, W), for
+/* Elements x .. x+15 of an image row (a null pointer: a row outside the image), zero outside [0, W), for
  * the rows spx_wino_in does not load whole (outside the image, or touching its plane's first or
  * last element). */
 static inline __attribute__((always_inline)) float16 wino_row16(const __global float *row, int x, int W) {
@@ -64,7 +64,7 @@ static inline __attribute__((always_inline)) float16 wino_row16(const __global f
   for (int l = 0; l < 16; l++) t[l] = x + l >= 0 && x + l < W ? row[x + l] : 0.0f;
   return vload16(0, t);
 }
-/* Element x of an image row (NULL: outside the image), zero outside [0, W). */
+/* Element x of an image row (a null pointer: outside the image), zero outside [0, W). */
 static inline __attribute__((always_inline)) float wino_row1(const __global float *row, int x, int W) {
   return row && x >= 0 && x < W ? row[x] : 0.0f;
 }
@@ -121,7 +121,7 @@ __kernel void spx_wino_in(const __global float *x, ulong x_off, __global float *
 #endif
     for (int i = 0; i < 6; i++) {
       const int yy = y0 + i;
-      const __global float *row = yy >= 0 && yy < H ? xc + (size_t)yy * W : NULL;
+      const __global float *row = yy >= 0 && yy < H ? xc + (size_t)yy * W : (const __global float *)0;
 #if CONV_VW == 16
       /* a row inside the image whose pieces all lie inside the plane: whole-vector loads, the
        * lanes outside the row (the neighbouring rows' elements) zeroed by a select */

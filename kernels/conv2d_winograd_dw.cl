@@ -116,15 +116,17 @@ __kernel void spx_wino_dw_gemm(const __global float *Q, const __global float *V,
       }
     }
     /* one sum per sample, added in sample order */
-    for (int g = 0; g < ng; g++)
+    /* constant trip counts and guards (no break), so the loops unroll and sums stays in registers */
+#pragma unroll
+    for (int g = 0; g < CONV_DW_G; g++)
 #pragma unroll
       for (int m = 0; m < CONV_DW_TM; m++) {
         const int co = co0 + m;
-        if (co >= Cout) break;
+        if (g >= ng || co >= Cout) continue;
 #pragma unroll
         for (int j = 0; j < CONV_DW_TN; j++) {
           const int ci = (ct0 + g) * CONV_DW_TN + j;
-          if (ci >= Cin) break;
+          if (ci >= Cin) continue;
           __global float *pp = P + ((size_t)co * Cin + ci) * 36 + e;
           *pp = (accum || n > 0 ? *pp : 0.0f) + VSUM(sums[g][m][j]);
         }

@@ -107,12 +107,18 @@ __kernel __attribute__((reqd_work_group_size(WL_L, 1, 1))) void spx_wino_lds(
     for (int i = lid; i < nc * WL_BN; i += WL_L) { /* V = B^T d B, as spx_wino_in */
       int c = i / WL_BN, t = i - c * WL_BN;
       const __local float *p = xs + c * (6 * WL_XW) + 4 * t;
+      /* fully unrolled, so d and r live in registers (rolled, GPU compilers put them on the stack) */
       float d[36], r[36];
+#pragma unroll
       for (int a = 0; a < 6; a++)
+#pragma unroll
         for (int b = 0; b < 6; b++) d[a * 6 + b] = p[a * WL_XW + b];
+#pragma unroll
       for (int j = 0; j < 6; j++) WINO_BT(float, (r + j), (d + j), 6);
+#pragma unroll
       for (int a = 0; a < 6; a++) WINO_BT(float, (d + 6 * a), (r + 6 * a), 1);
       __local float *v = vs + c * (36 * WL_BN) + t;
+#pragma unroll
       for (int ee = 0; ee < 36; ee++) v[ee * WL_BN] = d[ee];
     }
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -140,17 +146,21 @@ __kernel __attribute__((reqd_work_group_size(WL_L, 1, 1))) void spx_wino_lds(
     const int cl = i / WL_BN, t = i - cl * WL_BN, co = cb * WL_BM + cl, ox0 = 4 * (tx0 + t);
     if (co >= Cout || ox0 >= W) continue;
     float mm[36], r[24];
+#pragma unroll
     for (int ee = 0; ee < 36; ee++) mm[ee] = ms[(ee * WL_BM + cl) * WL_BN + t];
     WINO_AT_COLS(float, r, mm);
     float bv, sc, sh;
     wino_epi_consts(flags, bias, b_off, scale, sc_off, shift, sh_off, co, &bv, &sc, &sh);
     __global float *yc = y + y_off + ((size_t)n * Cout + co) * hw;
+#pragma unroll
     for (int a = 0; a < 4; a++) {
       const int oy = 4 * ty + a;
-      if (oy >= H) break;
+      if (oy >= H) continue;
       WINO_AT(float, o0, o1, o2, o3, (r + 6 * a), 1);
       const float o[4] = {o0, o1, o2, o3};
-      for (int b = 0; b < 4 && ox0 + b < W; b++) wino_epi1(o[b], yc + (size_t)oy * W + ox0 + b, flags, bv, sc, sh);
+#pragma unroll
+      for (int b = 0; b < 4; b++)
+        if (ox0 + b < W) wino_epi1(o[b], yc + (size_t)oy * W + ox0 + b, flags, bv, sc, sh);
     }
   }
 }

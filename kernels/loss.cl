@@ -17,7 +17,7 @@
 #define SPX_TERM_L1 1
 #define SPX_TERM_MSE 2
 
-inline float spx_red_tree(__local float *buf, float v) {
+static inline float spx_red_tree(__local float *buf, float v) {
   int lid = get_local_id(0);
   buf[lid] = v;
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -28,12 +28,12 @@ inline float spx_red_tree(__local float *buf, float v) {
   return buf[0];
 }
 
-inline float spx_red_term(float v, float t, int kind) {
+static inline float spx_red_term(float v, float t, int kind) {
   if (kind == SPX_TERM_L1) return fabs(v - t);
   if (kind == SPX_TERM_MSE) return (v - t) * (v - t);
   return v;
 }
-inline float8 spx_red_term8(float8 v, float8 t, int kind) {
+static inline float8 spx_red_term8(float8 v, float8 t, int kind) {
   if (kind == SPX_TERM_L1) return fabs(v - t);
   if (kind == SPX_TERM_MSE) return (v - t) * (v - t);
   return v;

@@ -15,7 +15,7 @@
   } while (0)
 
 /* Sum of v over the group, pairwise tree; every work-item gets the result. */
-inline float spx_bn_group_sum(__local float *buf, float v) {
+static inline float spx_bn_group_sum(__local float *buf, float v) {
   int lid = get_local_id(0);
   barrier(CLK_LOCAL_MEM_FENCE);
   buf[lid] = v;

@@ -5,7 +5,7 @@
  * elements: no atomics, deterministic. */
 
 /* 0..3: position of the argmax in the 2x2 window whose top-left is p. */
-inline int spx_pool_argmax(__global const float *p, int w) {
+static inline int spx_pool_argmax(__global const float *p, int w) {
   float v[4] = {p[0], p[1], p[w], p[w + 1]};
   float m = -INFINITY;
   int a = 0;
@@ -19,7 +19,7 @@ inline int spx_pool_argmax(__global const float *p, int w) {
 
 /* The value of spx_pool_argmax's element of the window whose top-left is q, branch-free (the
  * same comparisons in the same order: the first maximum, NaN wins). */
-inline float spx_pool_max(__global const float *q, int w) {
+static inline float spx_pool_max(__global const float *q, int w) {
   float m = q[0], v = q[1];
   m = (v > m || isnan(v)) ? v : m;
   v = q[w];
@@ -120,7 +120,7 @@ __kernel void spx_maxpool_bwd_rows(__global const float *x, int xo, __global con
 /* Average pool 3x3, stride 2, padding 1, count_include_pad = False (nn.AvgPool2d(3, 2, 1,
  * count_include_pad=False)): output (oy, ox) averages rows 2oy-1..2oy+1 and columns 2ox-1..2ox+1
  * clipped to the image. */
-inline int spx_avg_count(int o, int n) { return min(2 * o + 1, n - 1) - max(2 * o - 1, 0) + 1; }
+static inline int spx_avg_count(int o, int n) { return min(2 * o + 1, n - 1) - max(2 * o - 1, 0) + 1; }
 
 /* range (ow, oh, planes) */
 __kernel void spx_avgpool3_fwd(__global const float *x, int xo, __global float *y, int yo, int h, int w) {

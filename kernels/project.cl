@@ -11,16 +11,10 @@
  * float on the host. Arithmetic (FP_CONTRACT off, same order in the reference):
  *   p_r = ((R[r][0]*x + R[r][1]*y) + R[r][2]*z) + t[r]
  *   q_r = (K[r][0]*p_0 + K[r][1]*p_1) + K[r][2]*p_2        (u' = q_0, v' = q_1, d = q_2)
- *   u = u'/d, v = v'/d correctly rounded (SPX_CR_DIV, see lib/cl/tuning.c; otherwise in double,
- *   which rounds to the same float). */
+ *   u = u'/d, v = v'/d correctly rounded
+ * with every product rounded before its add (SPX_RN) and the divisions of SPX_DIV (kernels/exact.h). */
+#include "exact.h"
 #include "radix_sort.h"
-
-#if !SPX_CR_DIV || defined(SPX_FORCE_DIV_FALLBACK)
-#pragma OPENCL EXTENSION cl_khr_fp64 : enable
-#define SPX_DIV(a, b) ((float)((double)(a) / (double)(b)))
-#else
-#define SPX_DIV(a, b) ((a) / (b))
-#endif
 
 #define SPX_CAM_FLOATS 21
 #ifndef SPX_PROJ_FILL_PX
@@ -29,15 +23,18 @@
 
 /* Pixel (row*W + col) and depth of one point, or 0 when it is dropped. Always inlined: PoCL
  * otherwise calls it, and a call keeps the work-item loop of spx_project_one from vectorizing. */
-__attribute__((always_inline)) inline int spx_project_point(const float *cam, float x, float y, float z, int W, int H,
+static __attribute__((always_inline)) inline int spx_project_point(const float *cam, float x, float y, float z, int W, int H,
                                                             uint *pix, float *depth) {
   const float *K = cam, *R = cam + 9, *t = cam + 18;
-  float p0 = ((R[0] * x + R[1] * y) + R[2] * z) + t[0];
-  float p1 = ((R[3] * x + R[4] * y) + R[5] * z) + t[1];
-  float p2 = ((R[6] * x + R[7] * y) + R[8] * z) + t[2];
-  float uq = (K[0] * p0 + K[1] * p1) + K[2] * p2;
-  float vq = (K[3] * p0 + K[4] * p1) + K[5] * p2;
-  float d = (K[6] * p0 + K[7] * p1) + K[8] * p2;
+  uint z0 = (uint)W >> 31; /* 0 (W > 0), opaque to the compiler: see SPX_RN */
+#define M(a, b) SPX_RN((a) * (b), z0)
+  float p0 = ((M(R[0], x) + M(R[1], y)) + M(R[2], z)) + t[0];
+  float p1 = ((M(R[3], x) + M(R[4], y)) + M(R[5], z)) + t[1];
+  float p2 = ((M(R[6], x) + M(R[7], y)) + M(R[8], z)) + t[2];
+  float uq = (M(K[0], p0) + M(K[1], p1)) + M(K[2], p2);
+  float vq = (M(K[3], p0) + M(K[4], p1)) + M(K[5], p2);
+  float d = (M(K[6], p0) + M(K[7], p1)) + M(K[8], p2);
+#undef M
   if (!(d > 0.0f) || !isfinite(d) || !isfinite(uq) || !isfinite(vq)) return 0;
   float u = SPX_DIV(uq, d), v = SPX_DIV(vq, d);
   if (!(u >= 0.0f && u < (float)W && v >= 0.0f && v < (float)H)) return 0;
@@ -47,7 +44,7 @@ __attribute__((always_inline)) inline int spx_project_point(const float *cam, fl
 }
 
 /* Write one pixel of image img in the HWC (layout 0) or NCHW (layout 1) layout. */
-inline void spx_put_pixel(__global float *out, int layout, ulong img, uint pix, uint hw, float r, float g, float b,
+static inline void spx_put_pixel(__global float *out, int layout, ulong img, uint pix, uint hw, float r, float g, float b,
                           float d) {
   if (layout == 0) {
     ulong o = (img * hw + pix) * 4;
@@ -65,7 +62,7 @@ inline void spx_put_pixel(__global float *out, int layout, ulong img, uint pix, 
 }
 
 /* Write point v of image img (its color, or white without colors) with depth d at pixel pix. */
-inline void spx_put_point(__global float *out, int layout, ulong img, uint pix, uint hw, __global const float *col,
+static inline void spx_put_point(__global float *out, int layout, ulong img, uint pix, uint hw, __global const float *col,
                           int has_col, int N, int C, uint v, float d) {
   float r = 1.0f, g = 1.0f, b = 1.0f;
   if (has_col) {
@@ -93,6 +90,7 @@ __kernel void spx_project_keys(__global const float *pos, __global const float *
     float d;
     ulong key = (ulong)npix << 32; /* dropped: sorts after every pixel */
     float cam[SPX_CAM_FLOATS];
+#pragma unroll
     for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[c * SPX_CAM_FLOATS + j];
     if (spx_project_point(cam, x[0], x[1], x[2], W, H, &pix, &d))
     {
@@ -118,7 +116,7 @@ __kernel void spx_project_keys(__global const float *pos, __global const float *
  * index because the sort is stable and points enter in vertex order). When the depth bits took
  * part in the sort (SPX_PROJ_SORT_DEPTH) the head itself is that point; when only the pixel bits
  * were sorted the short walk over the run finds it: both give the same result. */
-inline void spx_project_head(__global const ulong *keys, __global const uint *vals, uint j, uint n,
+static inline void spx_project_head(__global const ulong *keys, __global const uint *vals, uint j, uint n,
                              __global const float *col, int has_col, int N, int C, uint hw, uint npix,
                              __global float *out, int layout, __global int *winners, int want_winners) {
   ulong key = keys[j];
@@ -195,7 +193,7 @@ __kernel void spx_project_bucket_min(__global const ulong *keys, __global const 
 
 /* Point i's pixel over all images (img*hw + row*W + col, ~0 when dropped) and depth bits (d > 0,
  * so they order like the depth): what the z-buffer walks of paths 4 and 5 compare. */
-__attribute__((always_inline)) inline void spx_project_pix1(const float *cam, __global const float *x, uint q0, int W,
+static __attribute__((always_inline)) inline void spx_project_pix1(const float *cam, __global const float *x, uint q0, int W,
                                                             int H, __global uint *pixs, __global uint *dbits, uint i) {
   uint pix = 0;
   float d = 0.0f;
@@ -207,7 +205,7 @@ __attribute__((always_inline)) inline void spx_project_pix1(const float *cam, __
 /* Points [v_begin, v_end) of image img (camera cam, vertices x of its set) through
  * spx_project_pix1, by the whole work-group of SPX_WG items: in rounds with a barrier per round,
  * so PoCL's work-item loop is the innermost one and vectorizes. */
-__attribute__((always_inline)) inline void spx_project_span(const float *cam, __global const float *x, uint img, int N,
+static __attribute__((always_inline)) inline void spx_project_span(const float *cam, __global const float *x, uint img, int N,
                                                             uint v_begin, uint v_end, int W, int H,
                                                             __global uint *pixs, __global uint *dbits) {
   for (uint v0 = v_begin; v0 < v_end; v0 += SPX_WG) {
@@ -228,6 +226,7 @@ spx_project_pix(__global const float *pos, __global const float *cams, int N, in
   uint img = get_group_id(1), v0 = get_group_id(0) * (SPX_PROJ_PIX_ROUNDS * SPX_WG);
   uint v1 = min(v0 + SPX_PROJ_PIX_ROUNDS * SPX_WG, (uint)N);
   float cam[SPX_CAM_FLOATS];
+#pragma unroll
   for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
   spx_project_span(cam, pos + (ulong)(img / (uint)C) * N * 3, img, N, v0, v1, W, H, pixs, dbits);
 }
@@ -328,6 +327,7 @@ spx_project_one(__global const float *pos, __global const float *col, int has_co
   uint nimg = N > 0 ? npts / (uint)N : 0u;
   for (uint img = 0; img < nimg; img++) {
     float cam[SPX_CAM_FLOATS];
+#pragma unroll
     for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[(img % (uint)C) * SPX_CAM_FLOATS + j];
     spx_project_span(cam, pos + (ulong)(img / (uint)C) * N * 3, img, N, 0, (uint)N, W, H, pixs, dbits);
   }

@@ -19,13 +19,13 @@
 #define SPX_SORT_BLOCK ((uint)(SPX_SORT_WG * SPX_SORT_ITEMS))
 
 /* Digit of k at `shift`; the last pass masks off bits at and above key_bits (they are ignored). */
-inline uint spx_digit_mask(uint shift, uint key_bits) {
+static inline uint spx_digit_mask(uint shift, uint key_bits) {
   return key_bits - shift >= SPX_SORT_BITS ? SPX_RADIX - 1u : (1u << (key_bits - shift)) - 1u;
 }
 #define spx_digit(k, shift) ((uint)((k) >> (shift)) & dmask)
 
 /* Exclusive prefix sum of x over the work-group; *total gets the sum of all x. */
-inline uint spx_wg_scan_excl(__local uint *tmp, uint x, uint *total) {
+static inline uint spx_wg_scan_excl(__local uint *tmp, uint x, uint *total) {
   uint lid = get_local_id(0);
   tmp[lid] = x;
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -49,7 +49,7 @@ inline uint spx_wg_scan_excl(__local uint *tmp, uint x, uint *total) {
  * dbase[d] holds on entry the output position of the block's first key of digit d and is
  * advanced by the block's count of d on return (so consecutive blocks chain).
  * Local memory: cnt[SPX_RADIX * SPX_SORT_WG], tmp[SPX_SORT_WG], dbase/adj[SPX_RADIX]. */
-inline void spx_rank_scatter(__global const ulong *ks, __global const uint *vs, uint n, uint base, uint shift, uint dmask,
+static inline void spx_rank_scatter(__global const ulong *ks, __global const uint *vs, uint n, uint base, uint shift, uint dmask,
                              __global ulong *kd, __global uint *vd, __local uint *cnt, __local uint *tmp,
                              __local uint *dbase, __local uint *adj) {
   uint lid = get_local_id(0);
@@ -93,7 +93,7 @@ inline void spx_rank_scatter(__global const ulong *ks, __global const uint *vs, 
 
 /* Per-digit totals of the keys this work-group sees (each work-item counts its own keys into
  * column lid of cnt; no atomics), summed into tot[d]. Call after the counts are in cnt. */
-inline void spx_sum_counts(__local uint *cnt, __local uint *tot) {
+static inline void spx_sum_counts(__local uint *cnt, __local uint *tot) {
   for (uint d = get_local_id(0); d < SPX_RADIX; d += SPX_SORT_WG) {
     uint s = 0;
     for (uint w = 0; w < SPX_SORT_WG; w++) s += cnt[d * SPX_SORT_WG + w];
@@ -103,7 +103,7 @@ inline void spx_sum_counts(__local uint *cnt, __local uint *tot) {
 
 /* The whole stable LSD sort of n pairs by key bits [lo_bit, key_bits) inside ONE work-group,
  * ping-ponging between (ka, va) and (kb, vb); the result is left in (ka, va). */
-inline void spx_sort_wg(__global ulong *ka, __global uint *va, __global ulong *kb, __global uint *vb, uint n,
+static inline void spx_sort_wg(__global ulong *ka, __global uint *va, __global ulong *kb, __global uint *vb, uint n,
                         uint lo_bit, uint key_bits, __local uint *cnt, __local uint *tmp, __local uint *dbase,
                         __local uint *adj) {
   uint lid = get_local_id(0);

@@ -14,20 +14,9 @@
  *   spx_raster_shade   covered pixels only: perspective-correct colour/texture, depth
  *   spx_raster_down    2x2 box filter for aa = 2
  * Coverage is exact integer arithmetic on vertices snapped to 1/256 pixel. The divisions that
- * decide snapped positions are correctly rounded (through double when the device has
- * cl_khr_fp64; otherwise the device's float division, exact on PoCL, not guaranteed elsewhere),
- * so they are the same bits as the reference's float division. */
-/* Correctly rounded division: the device's '/' when the build asked for it (SPX_CR_DIV=1 with
- * -cl-fp32-correctly-rounded-divide-sqrt, see lib/cl/tuning.c), else through double (the
- * binary64 quotient rounded to binary32 is the correctly rounded one), else plain '/'. */
-#if defined(SPX_CR_DIV) && SPX_CR_DIV && !defined(SPX_FORCE_DIV_FALLBACK)
-#define SPX_DIV(a, b) ((a) / (b))
-#elif defined(cl_khr_fp64)
-#pragma OPENCL EXTENSION cl_khr_fp64 : enable
-#define SPX_DIV(a, b) ((float)((double)(a) / (double)(b)))
-#else
-#define SPX_DIV(a, b) ((a) / (b))
-#endif
+ * decide snapped positions are correctly rounded and the products before them rounded before
+ * their adds (SPX_DIV, SPX_RN: kernels/exact.h), so they are the same bits as the reference's. */
+#include "exact.h"
 
 #ifndef SPX_RASTER_TILE
 #define SPX_RASTER_TILE 8
@@ -42,37 +31,41 @@
  * (K scaled by aa in its first two rows). Arithmetic as the projection (kernels/project.cl):
  *   p_r = ((R[r][0]*x + R[r][1]*y) + R[r][2]*z) + t[r],  q_r = (K[r][0]*p0 + K[r][1]*p1) + K[r][2]*p2 */
 
-inline float plane_dist(int j, float3 h, float8 ck) {
+/* z: the opaque zero of SPX_RN (the sign bit of the image width ck.s6) */
+static inline float plane_dist(int j, float3 h, float8 ck, uint z) {
   switch (j) {
   case 0: return h.z - ck.s5;
-  case 1: return h.x + GUARD * h.z;
-  case 2: return (ck.s6 + GUARD) * h.z - h.x;
-  case 3: return h.y + GUARD * h.z;
-  default: return (ck.s7 + GUARD) * h.z - h.y;
+  case 1: return h.x + SPX_RN(GUARD * h.z, z);
+  case 2: return SPX_RN((ck.s6 + GUARD) * h.z, z) - h.x;
+  case 3: return h.y + SPX_RN(GUARD * h.z, z);
+  default: return SPX_RN((ck.s7 + GUARD) * h.z, z) - h.y;
   }
 }
 
-inline int snap(float u) {
+static inline int snap(float u) {
   float s = u * 256.0f;
   s = fmin(fmax(s, -SNAP_MAX), SNAP_MAX);
   return (int)rint(s);
 }
 
-inline int floor_div256(int a) { return a >= 0 ? a / 256 : -((-a + 255) / 256); }
+static inline int floor_div256(int a) { return a >= 0 ? a / 256 : -((-a + 255) / 256); }
 
 __kernel void spx_raster_vert(__global const float *pos, int nv, float16 cm, float8 ck, __global float4 *vh,
                               __global int4 *vs) {
   int i = SPX_GID0;
   if (i >= nv) return;
   float x = pos[3 * i], y = pos[3 * i + 1], z = pos[3 * i + 2];
-  float p0 = ((cm.s0 * x + cm.s1 * y) + cm.s2 * z) + cm.s9;
-  float p1 = ((cm.s3 * x + cm.s4 * y) + cm.s5 * z) + cm.sa;
-  float p2 = ((cm.s6 * x + cm.s7 * y) + cm.s8 * z) + cm.sb;
-  float3 h = (float3)((cm.sc * p0 + cm.sd * p1) + cm.se * p2, (cm.sf * p0 + ck.s0 * p1) + ck.s1 * p2,
-                      (ck.s2 * p0 + ck.s3 * p1) + ck.s4 * p2);
+  uint z0 = as_uint(ck.s6) >> 31;
+#define M(a, b) SPX_RN((a) * (b), z0)
+  float p0 = ((M(cm.s0, x) + M(cm.s1, y)) + M(cm.s2, z)) + cm.s9;
+  float p1 = ((M(cm.s3, x) + M(cm.s4, y)) + M(cm.s5, z)) + cm.sa;
+  float p2 = ((M(cm.s6, x) + M(cm.s7, y)) + M(cm.s8, z)) + cm.sb;
+  float3 h = (float3)((M(cm.sc, p0) + M(cm.sd, p1)) + M(cm.se, p2), (M(cm.sf, p0) + M(ck.s0, p1)) + M(ck.s1, p2),
+                      (M(ck.s2, p0) + M(ck.s3, p1)) + M(ck.s4, p2));
+#undef M
   int oc = 0;
   for (int j = 0; j < 5; j++)
-    if (plane_dist(j, h, ck) < 0.0f) oc |= 1 << j;
+    if (plane_dist(j, h, ck, z0) < 0.0f) oc |= 1 << j;
   int4 s = (int4)(0, 0, oc, 0);
   float id = 0.0f;
   if (!oc) {
@@ -96,7 +89,7 @@ __kernel void spx_raster_vert(__global const float *pos, int nv, float16 cm, flo
 
 /* Per-tile counting with run aggregation: consecutive hits of one tile (the common case for
  * neighbouring small faces) cost one atomic. run = {tile, count}; flush with tile = -1. */
-inline void count_tile(__global int *tile_count, int *run, int t) {
+static inline void count_tile(__global int *tile_count, int *run, int t) {
   if (t == run[0]) {
     run[1]++;
     return;
@@ -106,7 +99,7 @@ inline void count_tile(__global int *tile_count, int *run, int t) {
   run[1] = t >= 0 ? 1 : 0;
 }
 
-inline void emit(int slot, int cap, int face, int cull, int W, int H, int tiles_x, int X0, int Y0, int X1, int Y1,
+static inline void emit(int slot, int cap, int face, int cull, int W, int H, int tiles_x, int X0, int Y0, int X1, int Y1,
                  int X2, int Y2, float i0, float i1, float i2, int clipped, float8 bary, __global int8 *rab,
                  __global long4 *rc, __global float4 *rz, __global int4 *rbb, __global float8 *rbary,
                  __global int *tile_count, __global int *counters, int *run) {
@@ -147,13 +140,14 @@ inline void emit(int slot, int cap, int face, int cull, int W, int H, int tiles_
 
 /* counters[0]: extra records claimed by clipped faces (counters[1], the total bin entries, is
  * written by spx_raster_scan). */
-inline void setup_face(int f, __global const int *faces, int nf, __global const float4 *vh,
+static inline void setup_face(int f, __global const int *faces, int nf, __global const float4 *vh,
                        __global const int4 *vs, float8 ck, int W, int H, int tiles_x, int cull, int cap,
                        __global int8 *rab, __global long4 *rc, __global float4 *rz, __global int4 *rbb,
                        __global float8 *rbary, __global int *tile_count, __global int *counters, int *run) {
   int ia = faces[3 * f], ib = faces[3 * f + 1], ic = faces[3 * f + 2];
   int4 sa = vs[ia], sb = vs[ib], sc = vs[ic];
   rbb[f] = (int4)(1, 1, 0, 0); /* empty unless emit() writes slot f */
+  uint z0 = as_uint(ck.s6) >> 31; /* SPX_RN's zero */
   int ocu = sa.z | sb.z | sc.z, oci = sa.z & sb.z & sc.z;
   if (oci) return;
   float8 id8 = (float8)(0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f);
@@ -174,15 +168,17 @@ inline void setup_face(int f, __global const int *faces, int nf, __global const 
     int m = 0, nx = cur ^ 1;
     for (int k = 0; k < n; k++) {
       int p = k == 0 ? n - 1 : k - 1;
-      float dp = plane_dist(j, ph[cur][p], ck), dc = plane_dist(j, ph[cur][k], ck);
+      float dp = plane_dist(j, ph[cur][p], ck, z0), dc = plane_dist(j, ph[cur][k], ck, z0);
       int inp = dp >= 0.0f, inc = dc >= 0.0f;
       if (inc != inp) {
         int ii = inc ? k : p, io = inc ? p : k;
         float di = inc ? dc : dp, dout = inc ? dp : dc;
         float t = SPX_DIV(di, di - dout);
         float3 hi = ph[cur][ii], ho = ph[cur][io], bi = pb[cur][ii], bo = pb[cur][io];
-        ph[nx][m] = (float3)(hi.x + t * (ho.x - hi.x), hi.y + t * (ho.y - hi.y), hi.z + t * (ho.z - hi.z));
-        pb[nx][m] = (float3)(bi.x + t * (bo.x - bi.x), bi.y + t * (bo.y - bi.y), bi.z + t * (bo.z - bi.z));
+#define L(a, b) ((a) + SPX_RN(t * ((b) - (a)), z0))
+        ph[nx][m] = (float3)(L(hi.x, ho.x), L(hi.y, ho.y), L(hi.z, ho.z));
+        pb[nx][m] = (float3)(L(bi.x, bo.x), L(bi.y, bo.y), L(bi.z, bo.z));
+#undef L
         m++;
       }
       if (inc) {
@@ -273,7 +269,7 @@ spx_raster_scan(__global const int *cnt, int n, __global int *start, __global in
 
 /* One work-item per `chunk` consecutive records; a run of consecutive single-tile
  * records of the same tile claims its bin slots with one atomic. */
-inline void flush_bins(__global int *cursor, __global int *bins, int t, int first, int n) {
+static inline void flush_bins(__global int *cursor, __global int *bins, int t, int first, int n) {
   if (!n) return;
   int base = atomic_add(&cursor[t], n);
   for (int k = 0; k < n; k++) bins[base + k] = first + k;
@@ -304,12 +300,12 @@ __kernel void spx_raster_bin(__global const int4 *rbb, int nrec, int tiles_x, __
   flush_bins(cursor, bins, rt, rfirst, rn);
 }
 
-inline int imod(int a, int n) {
+static inline int imod(int a, int n) {
   int r = a % n;
   return r < 0 ? r + n : r;
 }
 
-inline float3 sample_tex(__global const float *tex, int tw, int th, int tc, int wrap, float u, float v) {
+static inline float3 sample_tex(__global const float *tex, int tw, int th, int tc, int wrap, float u, float v) {
   if (wrap == 0) {
     u = u - floor(u);
     v = v - floor(v);
@@ -338,7 +334,7 @@ inline float3 sample_tex(__global const float *tex, int tw, int th, int tc, int 
 /* Shade pixel (x, y) with its winning record bid (or background when bid < 0) and write it.
  * mode: 0 = HWC, 1 = NCHW (at out + out_off), 2 = the supersampled float4 image for
  * spx_raster_down. win (when has_win): the face per pixel, -1 for background. */
-inline void shade_write(int x, int y, int bid, __global const int8 *rab, __global const long4 *rc,
+static inline void shade_write(int x, int y, int bid, __global const int8 *rab, __global const long4 *rc,
                         __global const float4 *rz, __global const float8 *rbary, int W, int H,
                         __global const int *faces, __global const float *col, int has_col, __global const float *uv,
                         __global const int *face_uv, __global const float *tex, int tw, int th, int tc, int wrap,
@@ -399,7 +395,7 @@ inline void shade_write(int x, int y, int bid, __global const int8 *rab, __globa
 }
 
 /* Write the background (1,1,1,1) at pixel p (and face -1). */
-inline void write_bg(size_t p, int W, int H, __global float *out, long out_off, int mode, __global int *win,
+static inline void write_bg(size_t p, int W, int H, __global float *out, long out_off, int mode, __global int *win,
                      long win_off, int has_win) {
   if (mode == 1) {
     size_t hw = (size_t)W * H;

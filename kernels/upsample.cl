@@ -8,7 +8,7 @@
  * pixel sums the weighted dy of the output pixels that read it (rows 2i-1 .. 2i+3 cover every
  * reader for both modes, see lib/nn/upsample.c), so no atomics and deterministic results. */
 
-inline void spx_up_src(int d, int in, float scale, int align, int *i0, int *i1, float *l0, float *l1) {
+static inline void spx_up_src(int d, int in, float scale, int align, int *i0, int *i1, float *l0, float *l1) {
   float s = align ? scale * (float)d : scale * ((float)d + 0.5f) - 0.5f;
   if (s < 0.0f) s = 0.0f;
   int a = (int)s;
@@ -23,7 +23,7 @@ inline void spx_up_src(int d, int in, float scale, int align, int *i0, int *i1, 
 
 /* Output (oy, ox) of the x2 upsampling of the h x w plane q: the one expression both forward
  * kernels use, so the fused spx_upcat_fwd is bit-identical to upsample -> pad -> concat. */
-inline float spx_up_at(__global const float *q, int h, int w, int oy, int ox, float sh, float sw, int align) {
+static inline float spx_up_at(__global const float *q, int h, int w, int oy, int ox, float sh, float sw, int align) {
   int h0, h1, w0, w1;
   float lh0, lh1, lw0, lw1;
   spx_up_src(oy, h, sh, align, &h0, &h1, &lh0, &lh1);
@@ -108,7 +108,7 @@ __kernel void spx_upcat_border(__global float *out, int oo, int oh, int ow, int 
 }
 
 /* weight with which output coordinate d reads input coordinate i */
-inline float spx_up_weight(int d, int i, int in, float scale, int align) {
+static inline float spx_up_weight(int d, int i, int in, float scale, int align) {
   int i0, i1;
   float l0, l1;
   spx_up_src(d, in, scale, align, &i0, &i1, &l0, &l1);
@@ -117,7 +117,7 @@ inline float spx_up_weight(int d, int i, int in, float scale, int align) {
 
 /* The (at most 5) output coordinates 2i-1 .. 2i+3 that can read input coordinate i, with their
  * weights (0 for those that do not read it or lie outside): first one in *d0, weights in wt. */
-inline void spx_up_readers(int i, int in, int out, float scale, int align, int *d0, float *wt) {
+static inline void spx_up_readers(int i, int in, int out, float scale, int align, int *d0, float *wt) {
   int a = 2 * i - 1;
   *d0 = a;
 #pragma unroll
@@ -149,7 +149,7 @@ __kernel void spx_upsample2x_weights(__global float *tab, int to, int in, float 
  * samples in one launch; the fused up block reads its slice of the concatenated gradient in
  * place, one launch per sample). */
 /* t's element of input column ix in dy row g (the work of one work-item of the pass). */
-inline float spx_up_bwd_row1(__global const float *g, __global const float *tab, int wxo, int w, int ix) {
+static inline float spx_up_bwd_row1(__global const float *g, __global const float *tab, int wxo, int w, int ix) {
   float row = 0.0f;
 #pragma unroll
   for (int b = 0; b < 5; b++) {
@@ -159,7 +159,7 @@ inline float spx_up_bwd_row1(__global const float *g, __global const float *tab,
   return row;
 }
 /* dx's increment at (iy, ix) of plane p from the row-pass result t. */
-inline float spx_up_bwd_col1(__global const float *t, __global const float *tab, int wyo, int h, int w, int p, int iy,
+static inline float spx_up_bwd_col1(__global const float *t, __global const float *tab, int wyo, int h, int w, int p, int iy,
                              int ix) {
   int oh = 2 * h;
   __global const float *q = t + p * oh * w + ix;

@@ -6,6 +6,13 @@
 #include "smplpix/smplpix.h"
 #include "test.h"
 
+/* the number of embedded kernel programs */
+static int spx_device_program_count_for_test(void) {
+  int n = 0;
+  while (spx_cl_program_name(n)) n++;
+  return n;
+}
+
 static void test_open_default(void) {
   spx_ctx *ctx;
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
@@ -109,11 +116,66 @@ static void test_cache_cold_warm(void) {
   spx_ctx_destroy(ctx);
 }
 
+/* A program that fails to build: the error names file:line, is remembered (a second lookup
+ * repeats it without compiling), its whole log lands in SPX_CL_DUMP_DIR, and warmup still builds
+ * the other programs. Then a launch above a kernel's CL_KERNEL_WORK_GROUP_SIZE is refused. */
+static void test_failed_build_and_wg_limit(void) {
+  char kdir[512], ddir[512], cmd[4096];
+  spx_t_path(kdir, sizeof kdir, "kernels-broken");
+  spx_t_path(ddir, sizeof ddir, "dump");
+  snprintf(cmd, sizeof cmd,
+           "rm -rf '%s' '%s' && mkdir -p '%s' '%s' && cp '%s'/../kernels/* '%s'/ && "
+           "printf '\n__kernel void spx_broken(__global int *p) {\n  p[0] = ;\n}\n' >> '%s'/activations.cl",
+           kdir, ddir, kdir, ddir, SPX_REPO_DATA, kdir, kdir);
+  CHECK(spx_t_system(cmd) == 0);
+  setenv("SPX_KERNEL_DIR", kdir, 1);
+  setenv("SPX_CL_DUMP_DIR", ddir, 1);
+  char cache[512]; /* test_cache_cold_warm's: the unchanged programs load from it */
+  spx_t_path(cache, sizeof cache, "cache");
+  setenv("SPX_CACHE_DIR", cache, 1);
+  spx_ctx *ctx;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
+  if (ctx->dev) {
+    CHECK(spx_cl_program_build(ctx, "activations.cl") == SPX_E_CL);
+    char first[1024];
+    snprintf(first, sizeof first, "%s", spx_ctx_message(ctx));
+    CHECK_MSG(strstr(first, "activations.cl:") && strstr(first, "error"), "%s", first);
+    spx_cache_stats a, b;
+    CHECK_OK(ctx, spx_device_cache_stats(ctx, &a));
+    CHECK(spx_cl_program_build(ctx, "activations.cl") == SPX_E_CL);
+    CHECK_OK(ctx, spx_device_cache_stats(ctx, &b));
+    CHECK_MSG(!strcmp(spx_ctx_message(ctx), first), "%s", spx_ctx_message(ctx));
+    CHECK(a.build_seconds == b.build_seconds && a.compiled == b.compiled); /* not compiled again */
+    char log[600];
+    snprintf(log, sizeof log, "%s/activations.cl.log", ddir);
+    CHECK(spx_t_file_exists(log));
+    CHECK(spx_device_warmup(ctx) == SPX_E_CL);
+    CHECK_OK(ctx, spx_device_cache_stats(ctx, &b));
+    CHECK(b.compiled + b.loaded == a.compiled + a.loaded + spx_device_program_count_for_test() - 1);
+  }
+  spx_ctx_destroy(ctx);
+  unsetenv("SPX_KERNEL_DIR");
+  unsetenv("SPX_CL_DUMP_DIR");
+
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
+  cl_kernel k = NULL;
+  CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_COPY, &k));
+  size_t limit = spx_cl_kernel_wg_limit(ctx, k);
+  CHECK(limit >= 1);
+  size_t local = limit * 2, global = local;
+  CHECK(spx_cl_run(ctx, k, 1, &global, &local, "spx_copy") == SPX_E_UNSUPPORTED);
+  CHECK_MSG(strstr(spx_ctx_message(ctx), "CL_KERNEL_WORK_GROUP_SIZE") != NULL, "%s", spx_ctx_message(ctx));
+  spx_ctx_destroy(ctx);
+}
+
 int main(void) {
   SPX_RUN(test_open_default);
   SPX_RUN(test_bad_specs);
   SPX_RUN(test_unknown_kernel);
   SPX_RUN(test_huge_alloc_reports_size);
   SPX_RUN(test_cache_cold_warm);
+  SPX_RUN(test_failed_build_and_wg_limit);
   return spx_test_summary();
 }

@@ -15,7 +15,8 @@
 
 struct spx_cl_program {
   char name[64];
-  cl_program prog;
+  cl_program prog; /* NULL: the build failed; error says why, and lookups repeat it without rebuilding */
+  char *error;
   uint64_t uses; /* bit i: built with -D of tunable row i */
 };
 
@@ -42,11 +43,12 @@ struct spx_cl_device {
   char tune_note[5120];                      /* why a tuning file was ignored ("" when not) */
   char tune_file[4096];                      /* the tuning file read (or looked for) */
   int cr_div;       /* the device divides fp32 correctly rounded (set with the tunables) */
-  int div_fallback; /* SPX_FORCE_DIV_FALLBACK: kernels divide in double although cr_div exists */
+  int div_fallback; /* SPX_FORCE_DIV_FALLBACK: kernels divide in integers (kernels/exact.h) although cr_div exists */
   int tune_cpu; /* 1: kernels are built and launched with the CPU column of lib/cl/tuning.c */
   struct spx_cl_program programs[SPX_MAX_PROGRAMS];
   int nprograms;
   cl_kernel kernels[SPX_K_COUNT]; /* by spx_kernel_id; NULL until its program is built */
+  size_t kernel_wg[SPX_K_COUNT];  /* CL_KERNEL_WORK_GROUP_SIZE of each created kernel (0: unknown) */
   spx_cache_stats cache;
   spx_devmem *devmem; /* created by the first counted buffer */
 };
@@ -68,6 +70,11 @@ spx_status spx_cl_check(spx_ctx *ctx, cl_int err, const char *what);
 spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out);
 /* The kernel's function name ("spx_conv2d_pad"), for messages; "?" for an invalid id. */
 const char *spx_cl_kernel_name(spx_kernel_id id);
+
+/* The largest work-group the kernel k may be launched with on this device
+ * (CL_KERNEL_WORK_GROUP_SIZE, which can be below the device's limit, e.g. for kernels that use
+ * many registers); 0 when unknown. */
+size_t spx_cl_kernel_wg_limit(spx_ctx *ctx, cl_kernel k);
 
 /* The i-th embedded kernel program's file name ("conv2d.cl"), NULL past the last; and building
  * one program now (or loading it from the cache), as its first kernel lookup would

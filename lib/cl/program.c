@@ -221,6 +221,40 @@ static void cache_store(spx_ctx *ctx, cl_program prog, const char *path, struct 
   free(bin);
 }
 
+/* SPX_CL_DUMP_DIR: where each program's full source (<name>), build options (<name>.opts) and,
+ * when its build fails, the compiler's whole log (<name>.log) are written (for offline compilers
+ * such as scripts/device/clang_check.sh, and for the device kit's logs); unset: nothing is written. */
+static void dump_file(const char *name, const char *suffix, const char *text, size_t len) {
+  const char *dir = getenv("SPX_CL_DUMP_DIR");
+  if (!dir || !*dir) return;
+  char path[4400];
+  snprintf(path, sizeof path, "%s/%s%s", dir, name, suffix);
+  FILE *f = fopen(path, "wb");
+  if (!f) return;
+  fwrite(text, 1, len, f);
+  fclose(f);
+}
+
+/* The first line of a build log that reports an error, whole (compilers start it with
+ * "file:line:col:"), or the log's start when no line says "error". */
+static void first_error(const char *log, char *out, size_t cap) {
+  const char *e = log;
+  for (const char *line = log; *line;) {
+    const char *eol = strchr(line, '\n');
+    size_t ll = eol ? (size_t)(eol - line) : strlen(line);
+    const char *hit = strstr(line, "error");
+    if (hit && hit < line + ll) {
+      e = line;
+      break;
+    }
+    if (!eol) break;
+    line = eol + 1;
+  }
+  while (*e == ' ' || *e == '\t') e++;
+  size_t n = strcspn(e, "\n");
+  snprintf(out, cap, "%.*s", (int)(n < cap ? n : cap - 1), e);
+}
+
 static spx_status build_from_source(spx_ctx *ctx, const char *name, const char *src, size_t len, const char *opts,
                                     cl_program *out) {
   cl_int err;
@@ -235,9 +269,8 @@ static spx_status build_from_source(spx_ctx *ctx, const char *name, const char *
       char *full = malloc(loglen + 1);
       if (full && clGetProgramBuildInfo(prog, ctx->dev->device, CL_PROGRAM_BUILD_LOG, loglen, full, NULL) == CL_SUCCESS) {
         full[loglen] = 0;
-        /* the first error line is the useful one */
-        const char *e = strstr(full, "error");
-        snprintf(log, sizeof log, "%s", e ? e : full);
+        first_error(full, log, sizeof log);
+        dump_file(name, ".log", full, strlen(full));
       }
       free(full);
     }
@@ -251,6 +284,7 @@ static spx_status build_from_source(spx_ctx *ctx, const char *name, const char *
 static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
   for (int i = 0; i < ctx->dev->nprograms; i++)
     if (!strcmp(ctx->dev->programs[i].name, name)) {
+      if (!ctx->dev->programs[i].prog) return spx_fail(ctx, SPX_E_CL, "%s", ctx->dev->programs[i].error);
       *out = ctx->dev->programs[i].prog;
       return SPX_OK;
     }
@@ -284,23 +318,32 @@ static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
   int use_cache = !cache_disabled() && spx_cl_cache_dir(dir, sizeof dir);
   char opts[4096];
   uint64_t uses = spx_cl_program_options(ctx, src, opts, sizeof opts);
+  dump_file(name, "", src, len);
+  dump_file(name, ".opts", opts, strlen(opts));
   struct cache_key key = make_key(ctx, src, len, opts);
   if (use_cache) {
     cache_path(path, sizeof path, dir, name, key);
     prog = cache_load(ctx, path, key, opts);
     if (prog) ctx->dev->cache.loaded++;
   }
+  char *error = NULL;
   if (!prog) {
     st = build_from_source(ctx, name, src, len, opts, &prog);
-    if (st) goto done;
-    ctx->dev->cache.compiled++;
-    if (use_cache) cache_store(ctx, prog, path, key);
+    if (st) {
+      /* remembered, so that later lookups report it without compiling again */
+      error = strdup(spx_ctx_message(ctx));
+      if (!error) goto done;
+    } else {
+      ctx->dev->cache.compiled++;
+      if (use_cache) cache_store(ctx, prog, path, key);
+    }
   }
   ctx->dev->cache.build_seconds += spx_now() - t0;
-  snprintf(ctx->dev->programs[ctx->dev->nprograms].name, sizeof ctx->dev->programs[0].name, "%s", name);
-  ctx->dev->programs[ctx->dev->nprograms].prog = prog;
-  ctx->dev->programs[ctx->dev->nprograms].uses = uses;
-  ctx->dev->nprograms++;
+  struct spx_cl_program *p = &ctx->dev->programs[ctx->dev->nprograms++];
+  snprintf(p->name, sizeof p->name, "%s", name);
+  p->prog = prog;
+  p->error = error;
+  p->uses = uses;
   *out = prog;
 done:
   free(prelude);
@@ -332,8 +375,20 @@ static spx_status program_kernels(spx_ctx *ctx, const char *program) {
     cl_int err;
     cl_kernel k = clCreateKernel(prog, kernel_rows[i].name, &err);
     ctx->dev->kernels[i] = err == CL_SUCCESS ? k : NULL;
+    size_t wg = 0;
+    if (err == CL_SUCCESS &&
+        clGetKernelWorkGroupInfo(k, ctx->dev->device, CL_KERNEL_WORK_GROUP_SIZE, sizeof wg, &wg, NULL) != CL_SUCCESS)
+      wg = 0;
+    ctx->dev->kernel_wg[i] = wg;
   }
   return SPX_OK;
+}
+
+size_t spx_cl_kernel_wg_limit(spx_ctx *ctx, cl_kernel k) {
+  if (!ctx || !ctx->dev || !k) return 0;
+  for (int i = 0; i < SPX_K_COUNT; i++)
+    if (ctx->dev->kernels[i] == k) return ctx->dev->kernel_wg[i];
+  return 0;
 }
 
 spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out) {
@@ -353,6 +408,9 @@ spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out) {
     cl_kernel k = clCreateKernel(prog, r->name, &err);
     if (err != CL_SUCCESS) return spx_fail(ctx, SPX_E_CL, "kernels/%s: no kernel %s (%s)", r->program, r->name, spx_cl_error_name(err));
     ctx->dev->kernels[id] = k;
+    size_t wg = 0;
+    if (clGetKernelWorkGroupInfo(k, ctx->dev->device, CL_KERNEL_WORK_GROUP_SIZE, sizeof wg, &wg, NULL) != CL_SUCCESS) wg = 0;
+    ctx->dev->kernel_wg[id] = wg;
   }
   *out = ctx->dev->kernels[id];
   return SPX_OK;
@@ -368,7 +426,8 @@ void spx_cl_programs_release(spx_ctx *ctx, uint64_t uses) {
         clReleaseKernel(ctx->dev->kernels[i]);
         ctx->dev->kernels[i] = NULL;
       }
-    clReleaseProgram(p->prog);
+    if (p->prog) clReleaseProgram(p->prog);
+    free(p->error);
     *p = ctx->dev->programs[--ctx->dev->nprograms]; /* order does not matter */
   }
 }
@@ -389,13 +448,26 @@ spx_status spx_cl_program_build(spx_ctx *ctx, const char *program) {
   return program_kernels(ctx, program);
 }
 
+/* Every program is built, also after a failure (each failed build's log goes to
+ * SPX_CL_DUMP_DIR when set); the first failure is reported with the number of failed programs. */
 spx_status spx_device_warmup(spx_ctx *ctx) {
   spx_status st = spx_cl_require(ctx, "spx_device_warmup");
   if (st) return st;
+  spx_status first = SPX_OK;
+  char msg[1024] = "";
+  int failed = 0, total = 0;
   for (const struct spx_embedded_kernel *k = spx_embedded_kernels; k->name; k++) {
     size_t n = strlen(k->name);
     if (n < 3 || strcmp(k->name + n - 3, ".cl")) continue;
-    if ((st = program_kernels(ctx, k->name))) return st;
+    total++;
+    if ((st = program_kernels(ctx, k->name))) {
+      if (!failed++) {
+        first = st;
+        snprintf(msg, sizeof msg, "%s", spx_ctx_message(ctx));
+      }
+    }
   }
+  if (failed > 1) return spx_fail(ctx, first, "%d of %d kernel programs failed to build; the first: %s", failed, total, msg);
+  if (failed) return spx_fail(ctx, first, "%s", msg);
   return SPX_OK;
 }

@@ -28,13 +28,24 @@ const char *spx_cl_error_name(cl_int e) {
   }
 }
 
+/* CL_OUT_OF_RESOURCES is not out of memory: drivers return it for a launch the device cannot
+ * hold (registers or local memory of the work-group) and after a kernel faults, so it is a
+ * device error (SPX_E_CL) here, except after a buffer transfer (check_mem below), where drivers
+ * that allocate on first use report a failed allocation with it. */
 spx_status spx_cl_check(spx_ctx *ctx, cl_int err, const char *what) {
   if (err == CL_SUCCESS) return SPX_OK;
-  spx_status st = (err == CL_MEM_OBJECT_ALLOCATION_FAILURE || err == CL_OUT_OF_RESOURCES ||
-                   err == CL_INVALID_BUFFER_SIZE)
-                      ? SPX_E_DEVMEM
-                      : SPX_E_CL;
+  spx_status st = (err == CL_MEM_OBJECT_ALLOCATION_FAILURE || err == CL_INVALID_BUFFER_SIZE) ? SPX_E_DEVMEM : SPX_E_CL;
+  if (err == CL_OUT_OF_RESOURCES)
+    return spx_fail(ctx, st, "%s: %s (%d): the device lacked a resource for it (registers or local memory of the "
+                    "work-group, or a kernel faulted)", what, spx_cl_error_name(err), (int)err);
   return spx_fail(ctx, st, "%s: %s (%d)", what, spx_cl_error_name(err), (int)err);
+}
+
+static spx_status check_mem(spx_ctx *ctx, cl_int err, const char *what) {
+  if (err == CL_OUT_OF_RESOURCES)
+    return spx_fail(ctx, SPX_E_DEVMEM, "%s: %s (%d): the device could not back the buffer", what,
+                    spx_cl_error_name(err), (int)err);
+  return spx_cl_check(ctx, err, what);
 }
 
 static void fmt_bytes(char *buf, size_t cap, double b) {
@@ -110,19 +121,19 @@ void spx_cl_buf_release(spx_cl_buf *b) {
 
 spx_status spx_cl_write(spx_ctx *ctx, cl_mem m, size_t offset, size_t bytes, const void *src) {
   if (bytes == 0) return SPX_OK;
-  return spx_cl_check(ctx, clEnqueueWriteBuffer(ctx->dev->queue, m, CL_TRUE, offset, bytes, src, 0, NULL, NULL),
+  return check_mem(ctx, clEnqueueWriteBuffer(ctx->dev->queue, m, CL_TRUE, offset, bytes, src, 0, NULL, NULL),
                       "clEnqueueWriteBuffer");
 }
 
 spx_status spx_cl_read(spx_ctx *ctx, cl_mem m, size_t offset, size_t bytes, void *dst) {
   if (bytes == 0) return SPX_OK;
-  return spx_cl_check(ctx, clEnqueueReadBuffer(ctx->dev->queue, m, CL_TRUE, offset, bytes, dst, 0, NULL, NULL),
+  return check_mem(ctx, clEnqueueReadBuffer(ctx->dev->queue, m, CL_TRUE, offset, bytes, dst, 0, NULL, NULL),
                       "clEnqueueReadBuffer");
 }
 
 spx_status spx_cl_fill_f32(spx_ctx *ctx, cl_mem m, size_t offset_elems, size_t count, float value) {
   if (count == 0) return SPX_OK;
-  return spx_cl_check(ctx,
+  return check_mem(ctx,
                       clEnqueueFillBuffer(ctx->dev->queue, m, &value, sizeof value, offset_elems * sizeof(float),
                                           count * sizeof(float), 0, NULL, NULL),
                       "clEnqueueFillBuffer");
@@ -130,11 +141,29 @@ spx_status spx_cl_fill_f32(spx_ctx *ctx, cl_mem m, size_t offset_elems, size_t c
 
 spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *global, const size_t *local,
                       const char *what) {
-  size_t g[3];
+  size_t g[3], group = 1;
   for (cl_uint i = 0; i < dims; i++) {
     g[i] = global[i];
     if (local && local[i]) g[i] = (g[i] + local[i] - 1) / local[i] * local[i];
+    if (local) group *= local[i] ? local[i] : 1;
     if (g[i] == 0) return SPX_OK; /* nothing to do */
   }
-  return spx_cl_check(ctx, clEnqueueNDRangeKernel(ctx->dev->queue, k, dims, NULL, g, local, 0, NULL, NULL), what);
+  size_t limit = spx_cl_kernel_wg_limit(ctx, k);
+  if (local && limit && group > limit)
+    return spx_fail(ctx, SPX_E_UNSUPPORTED,
+                    "%s: a work-group of %zu work-items is more than this kernel allows on %s (%zu, "
+                    "CL_KERNEL_WORK_GROUP_SIZE); set a smaller work-group tunable (SPX_TUNE_*, `smplpix tune`)",
+                    what, group, ctx->dev->info.name, limit);
+  cl_int err = clEnqueueNDRangeKernel(ctx->dev->queue, k, dims, NULL, g, local, 0, NULL, NULL);
+  if (err == CL_OUT_OF_RESOURCES || err == CL_INVALID_WORK_GROUP_SIZE) {
+    cl_ulong lmem = 0, pmem = 0;
+    clGetKernelWorkGroupInfo(k, ctx->dev->device, CL_KERNEL_LOCAL_MEM_SIZE, sizeof lmem, &lmem, NULL);
+    clGetKernelWorkGroupInfo(k, ctx->dev->device, CL_KERNEL_PRIVATE_MEM_SIZE, sizeof pmem, &pmem, NULL);
+    return spx_fail(ctx, SPX_E_CL,
+                    "%s: %s (%d) launching a work-group of %zu (kernel limit %zu; %llu bytes of local memory per work-group, "
+                    "%llu of private memory per work-item)",
+                    what, spx_cl_error_name(err), (int)err, local ? group : 0, limit, (unsigned long long)lmem,
+                    (unsigned long long)pmem);
+  }
+  return spx_cl_check(ctx, err, what);
 }

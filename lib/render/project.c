@@ -54,16 +54,9 @@ static spx_status upload_cams(spx_ctx *ctx, spx_projector *p, int32_t ncams, con
   return SPX_OK;
 }
 
-static spx_status check_device(spx_ctx *ctx, const char *fn) {
-  spx_status st = spx_cl_require(ctx, fn);
-  if (st) return st;
-  if (!ctx->dev->cr_div && !ctx->dev->info.fp64)
-    return spx_fail(ctx, SPX_E_UNSUPPORTED,
-                    "%s: the device has neither correctly rounded fp32 division nor fp64, so the projection cannot "
-                    "be bit-exact",
-                    fn);
-  return SPX_OK;
-}
+/* Any device: without correctly rounded division the kernels divide exactly in integers
+ * (kernels/exact.h), so the projection is bit-exact everywhere. */
+static spx_status check_device(spx_ctx *ctx, const char *fn) { return spx_cl_require(ctx, fn); }
 
 /* At least `bytes` of z-buffer *b, empty (all ones): filled once, afterwards the kernels empty
  * what they used. *clear (the leading bytes known empty) stays 0 until the caller has enqueued its

@@ -1,0 +1,244 @@
+#!/bin/bash
+# The GPU machine kit's run (docs/gpu.md): from the repository root, with the kit of
+# scripts/device/pack.sh (SPX_KIT, default .device-kit/) carried along. Writes to $OUT (default
+# out/device/) at most 8 files: summary.txt (steps, times, results table), logs.tgz (every log,
+# the programs' sources, options and failed build logs, the tuning file, the benchmarks' CSV/JSON),
+# bench.txt (the benchmarks' ROW lines) and ctest.txt.
+#   SPX_DEVICE=gpu (default): find the NVIDIA OpenCL driver under the driver's folders, register it
+#                 in a private ICD folder (OCL_ICD_VENDORS), and run everything on it
+#   SPX_DEVICE=cpu: the same steps on PoCL (the local smoke test; scripts/device/test_clean_root.sh)
+# Steps, each bounded by its own time limit and logged whatever the previous one did:
+#   env, icd, devices, warmup (every program built, failed builds' logs kept), ctest (the suite on
+#   the device), tune (smplpix tune --quick), latency (bench_latency), unet (bench_unet and the
+#   PyTorch peer on the same GPU: eval and train, width 64, batch 1 and 10, float32 and TF32),
+#   project (bench_project: up to 10^6 points), raster (bench_raster), then the summary.
+# The whole run stays under SPX_RUN_BUDGET seconds (default 450): a step that would start with
+# less than its limit left is skipped and says so.
+# env: SPX_KIT, OUT, SPX_RUN_BUDGET, SPX_CTEST_REGEX (-R for ctest; default all), SPX_CTEST_JOBS,
+#      PYTHON (default: python3 on PATH), SPX_RUN_SKIP (space-separated step names to skip),
+#      SPX_RUN_QUICK=1 (small benchmark sizes and no tuning, for the CPU smoke test),
+#      SPX_RUN_LIMIT_SCALE (multiplies every step's limit; default 1)
+set -u
+ROOT=$(pwd)
+[ -f "$ROOT/scripts/device/run.sh" ] || { echo "run.sh: run it from the repository root" >&2; exit 2; }
+KIT=${SPX_KIT:-$ROOT/.device-kit}
+case $KIT in /*) ;; *) KIT="$ROOT/$KIT" ;; esac
+OUT=${OUT:-$ROOT/out/device}
+case $OUT in /*) ;; *) OUT="$ROOT/$OUT" ;; esac
+DEV=${SPX_DEVICE:-gpu}
+BUDGET=${SPX_RUN_BUDGET:-450}
+PY=${PYTHON:-python3}
+START=$(date +%s)
+W=$(mktemp -d /tmp/spx-device.XXXXXX)
+LOG=$W/logs
+mkdir -p "$OUT" "$LOG" "$W/vendors" "$W/cache"
+SUM=$OUT/summary.txt
+: >"$SUM"
+say() { echo "$*" | tee -a "$SUM"; }
+
+# step NAME LIMIT CMD...: run CMD (stdout+stderr to logs/NAME.log) under `timeout LIMIT`
+step() {
+  local name=$1 limit=$2 t0 rc left
+  shift 2
+  case " ${SPX_RUN_SKIP:-} " in *" $name "*) say "step $name: skipped (SPX_RUN_SKIP)"; return 0 ;; esac
+  left=$((BUDGET - ($(date +%s) - START)))
+  if [ "$left" -lt 10 ]; then
+    say "step $name: skipped (${left}s of the ${BUDGET}s budget left)"
+    return 0
+  fi
+  limit=$((limit * ${SPX_RUN_LIMIT_SCALE:-1}))
+  [ "$limit" -le "$left" ] || limit=$left
+  t0=$(date +%s)
+  # through bash, so that CMD may be one of the exported functions below
+  timeout -k 5 "$limit" bash -c '"$@"' _ "$@" >"$LOG/$name.log" 2>&1
+  rc=$?
+  if [ $rc = 124 ] || [ $rc = 137 ]; then
+    say "step $name: TIMEOUT after ${limit}s (log: $name.log)"
+  else
+    say "step $name: rc=$rc in $(($(date +%s) - t0))s (log: $name.log)"
+  fi
+  return 0
+}
+
+[ -x "$KIT/build/smplpix" ] || { say "run.sh: no kit at $KIT (scripts/device/pack.sh)"; exit 1; }
+# the executables read tests/data and data/ under the source root they were built in
+src=$(sed -n 's/^source_root //p' "$KIT/manifest")
+if [ -n "$src" ] && [ "$src" != "$ROOT" ] && [ ! -e "$src" ]; then
+  mkdir -p "$(dirname "$src")" && ln -s "$ROOT" "$src" || say "run.sh: cannot link $src to $ROOT: tests will not find their data"
+fi
+kit_src=$(sed -n 's/^kit //p' "$KIT/manifest")
+if [ -n "$kit_src" ] && [ "$kit_src" != "$KIT" ] && [ ! -e "$kit_src" ]; then
+  mkdir -p "$(dirname "$kit_src")" && ln -s "$KIT" "$kit_src"
+fi
+export LD_LIBRARY_PATH="$KIT/lib:$KIT/build${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+# the kit's C++ runtime needs the glibc it was built against (manifest: "needs"); on an older
+# glibc, take the machine's own libstdc++ / libgcc_s instead (the CUDA image has them)
+if ! "$KIT/build/smplpix" --version >/dev/null 2>"$W/exec.err" && grep -q 'GLIBC_' "$W/exec.err"; then
+  mkdir -p "$W/kitlib"
+  for f in "$KIT"/lib/*; do
+    case $(basename "$f") in libstdc++.so.* | libgcc_s.so.*) ;; *) ln -s "$f" "$W/kitlib/" ;; esac
+  done
+  export LD_LIBRARY_PATH="$W/kitlib:$KIT/build${LD_LIBRARY_PATH#"$KIT/lib:$KIT/build"}"
+  say "run.sh: $(head -n 1 "$W/exec.err"); using the machine's libstdc++ and libgcc_s"
+fi
+export SPX_CACHE_DIR=$W/cache SPX_DEVICE=$DEV
+SPX=$KIT/build/smplpix
+B=$KIT/build/benchmarks
+export KIT LOG SPX B PY ROOT DEV W
+
+# --- env
+env_info() {
+  echo "date: $(date -u '+%Y-%m-%d %H:%M:%S UTC')"
+  echo "host: $(uname -srm), $(nproc) cores"
+  sed 's/^/kit: /' "$KIT/manifest"
+  echo "glibc here: $(ldd --version 2>&1 | head -n 1)"
+  command -v nvidia-smi >/dev/null && nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm,clocks.sm --format=csv
+  echo "python: $(command -v "$PY") $("$PY" -c 'import sys; print(sys.version.split()[0])' 2>&1)"
+  echo "ldd smplpix:"
+  ldd "$SPX"
+}
+export -f env_info
+step env 20 env_info
+
+# --- icd: the vendor library, registered in a private folder for the kit's ocl-icd loader
+find_icd() {
+  local pats dirs f
+  if [ "$DEV" = cpu ]; then
+    pats="libpocl.so.2 libpocl.so"
+    dirs="/usr/lib/x86_64-linux-gnu /usr/lib64 /usr/lib /usr/local/lib"
+  else
+    pats="libnvidia-opencl.so.1 libnvidia-opencl.so"
+    dirs="/usr/local/nvidia/lib64 /usr/local/nvidia/lib /usr/lib/x86_64-linux-gnu /usr/lib64 /usr/lib /usr/local/cuda/lib64 /usr/local/cuda/compat"
+  fi
+  for p in $pats; do
+    for d in $dirs; do
+      [ -e "$d/$p" ] && { echo "$d/$p"; return 0; }
+    done
+  done
+  # anywhere under the driver's mount, then the library folders
+  for d in /usr/local/nvidia /usr/lib /usr/lib64 /opt; do
+    [ -d "$d" ] || continue
+    f=$(find "$d" -maxdepth 5 -name "${pats%% *}*" 2>/dev/null | head -n 1)
+    [ -n "$f" ] && { echo "$f"; return 0; }
+  done
+  return 1
+}
+icd_lib=$(find_icd || true)
+if [ -n "$icd_lib" ]; then
+  echo "$icd_lib" >"$W/vendors/spx.icd"
+  export OCL_ICD_VENDORS=$W/vendors
+  # the driver's other libraries (libcuda.so.1, ...) beside it
+  export LD_LIBRARY_PATH="$LD_LIBRARY_PATH:$(dirname "$icd_lib")"
+  say "icd: $icd_lib"
+else
+  say "icd: no OpenCL library for SPX_DEVICE=$DEV found; existing ICD files:"
+  ls -l /etc/OpenCL/vendors 2>&1 | tee -a "$SUM"
+  find /usr/local/nvidia -maxdepth 3 2>/dev/null | head -n 60 >"$LOG/nvidia-tree.log"
+fi
+icd_check() {
+  echo "OCL_ICD_VENDORS=${OCL_ICD_VENDORS:-}"
+  cat "$W/vendors/spx.icd" 2>/dev/null
+  [ -n "$icd_lib" ] && ldd "$icd_lib"
+  ls -l /etc/OpenCL/vendors 2>&1
+  ls /usr/local/nvidia /usr/local/nvidia/lib64 2>&1 | head -n 80
+}
+export icd_lib
+export -f icd_check
+step icd 20 icd_check
+
+# --- devices and every kernel program
+step devices 60 "$SPX" devices
+cat "$LOG/devices.log" >>"$SUM"
+mkdir -p "$LOG/programs"
+step warmup 180 env SPX_CL_DUMP_DIR="$LOG/programs" "$SPX" devices --warmup --device "$DEV"
+tail -n 3 "$LOG/warmup.log" >>"$SUM"
+ls "$LOG/programs"/*.log >/dev/null 2>&1 && say "failed program builds: $(cd "$LOG/programs" && ls *.log | tr '\n' ' ')"
+
+# --- the test suite on the device (its own program cache, warmed by the step above per test)
+run_ctest() {
+  local args="-j ${SPX_CTEST_JOBS:-8} --timeout 150 --output-on-failure"
+  args="$args -E ^(install_consumer|python_bindings|python_pip_install|table1_quick|test_cli_train_mpi)$"
+  cd "$KIT/build" && ctest $args ${SPX_CTEST_REGEX:+-R "$SPX_CTEST_REGEX"}
+}
+export -f run_ctest
+step ctest 200 run_ctest
+grep -E '^[0-9]+% tests passed|tests failed|\(Failed\)|\(Timeout\)|\*\*\*' "$LOG/ctest.log" | head -n 40 >>"$SUM"
+cp "$LOG/ctest.log" "$OUT/ctest.txt" 2>/dev/null
+
+# --- tuning (writes the tuning file into SPX_CACHE_DIR; the benchmarks below use it)
+QUICK=${SPX_RUN_QUICK:-0}
+if [ "$QUICK" = 1 ]; then
+  UW=16 USIZE=64x96 UREPS=1 UBATCH="1 2" LFRAMES=3 LWIDTHS=16 PRUNS=3 RFRAMES=3
+  export SPX_BENCH_NO_GL=1
+  say "step tune: skipped (SPX_RUN_QUICK=1)"
+else
+  UW=64 USIZE=308x410 UREPS=5 UBATCH="1 10" LFRAMES=21 LWIDTHS=64,32,16 PRUNS=20 RFRAMES=21
+  step tune 90 "$SPX" tune --quick --width 64 --device "$DEV"
+fi
+export UW USIZE UREPS UBATCH
+tail -n 5 "$LOG/tune.log" >>"$SUM"
+
+# --- benchmarks (bench_latency and bench_unet write out/bench/ under the working directory)
+mkdir -p "$W/run/out" && cd "$W/run" || exit 1
+step latency 60 "$B/bench_latency" --frames "$LFRAMES" --warmup 3 --widths "$LWIDTHS"
+have_torch=0
+if "$PY" -c 'import torch, sys; sys.exit(0 if torch.cuda.is_available() else 3)' >"$LOG/torch.log" 2>&1; then
+  have_torch=1
+elif [ "$DEV" = gpu ]; then
+  say "torch peer skipped: $PY cannot import torch or sees no CUDA device ($(tail -n 1 "$LOG/torch.log"))"
+fi
+unet_rows() {
+  for b in $UBATCH; do
+    "$B/bench_unet" --width "$UW" --size "$USIZE" --reps "$UREPS" --eval-batch "$b" --batch "$b"
+  done
+}
+export -f unet_rows
+step unet 90 unet_rows
+torch_rows() {
+  for tf in off on; do
+    for b in $UBATCH; do
+      "$PY" "$ROOT/benchmarks/peer_unet_torch.py" --device cuda --tf32 "$tf" --width "$UW" --size "$USIZE" \
+        --reps "$UREPS" --eval-batch "$b" --batch "$b"
+    done
+  done
+}
+export -f torch_rows
+if [ $have_torch = 1 ]; then step unet_torch 60 torch_rows; fi
+step project 45 "$B/bench_project" "$PRUNS"
+step raster 30 "$B/bench_raster" "$RFRAMES"
+cd "$ROOT" || exit 1
+cp -r "$W/run/out/bench" "$LOG/bench" 2>/dev/null
+grep -h '^ROW' "$LOG"/unet.log "$LOG"/unet_torch.log 2>/dev/null >"$OUT/bench.txt"
+
+# --- summary: the UNet rows side by side, GFLOP/s against the float32 peak
+summary() {
+  local cu mhz peak
+  cu=$(sed -n 's/.*| \([0-9]*\) CU |.*/\1/p' "$LOG/devices.log" | head -n 1)
+  mhz=$(nvidia-smi --query-gpu=clocks.max.sm --format=csv,noheader,nounits 2>/dev/null | head -n 1 | tr -d ' ')
+  peak=0
+  # NVIDIA Hopper / Ampere: 128 float32 lanes per multiprocessor, 2 flops per fma
+  [ -n "$cu" ] && [ -n "$mhz" ] && peak=$((cu * 128 * 2 * mhz / 1000))
+  echo "float32 peak: ${peak} GFLOP/s (${cu:-?} CU x 128 lanes x 2 x ${mhz:-?} MHz; 0 = unknown)"
+  awk -v peak="$peak" '
+    /^ROW/ { delete f; for (i = 2; i <= NF; i++) { split($i, kv, "="); f[kv[1]] = kv[2] }
+             k = f["mode"] " b" f["batch"] " w" f["width"]; keys[k] = 1
+             ms[k, f["impl"]] = f["ms"]; gf[k, f["impl"]] = f["gflops"]; impls[f["impl"]] = 1 }
+    END { printf "%-18s %10s %10s %10s %8s %8s %9s %7s\n", "row", "ours ms", "cuda ms", "tf32 ms", "ours/cuda", "ours/tf32", "ours GF/s", "%peak"
+          for (k in keys) {
+            o = ms[k, "smplpix"]; c = ms[k, "torch_cuda"]; t = ms[k, "torch_cuda_tf32"]
+            printf "%-18s %10s %10s %10s %8s %8s %9s %7s\n", k, o == "" ? "-" : o, c == "" ? "-" : c, t == "" ? "-" : t,
+              (o != "" && c != "") ? sprintf("%.2f", o / c) : "-", (o != "" && t != "") ? sprintf("%.2f", o / t) : "-",
+              gf[k, "smplpix"] == "" ? "-" : gf[k, "smplpix"], (peak > 0 && gf[k, "smplpix"] != "") ? sprintf("%.1f", 100 * gf[k, "smplpix"] / peak) : "-" } }' "$OUT/bench.txt"
+  echo "latency (bench_latency):"
+  grep -E '^ *(project|raster|llvmpipe|project\+unet)' "$LOG/latency.log" | head -n 20
+  echo "projection (bench_project):"
+  tail -n 8 "$LOG/project.log"
+  echo "raster (bench_raster):"
+  tail -n 6 "$LOG/raster.log"
+}
+summary >>"$SUM" 2>&1
+say "total: $(($(date +%s) - START))s of ${BUDGET}s"
+cp "$W/cache"/tuning-*.txt "$LOG/" 2>/dev/null
+tar -czf "$OUT/logs.tgz" -C "$W" logs
+rm -rf "$W"
+cat "$SUM"
