@@ -64,18 +64,27 @@ static int load_npy(spx_ctx *ctx, const char *name, spx_image *img) {
   return ok;
 }
 
+/* The golden's random AlexNet written to `wname` and loaded, and the expected-values file
+ * tests/data/metrics/<table> opened; NULLs (checked) on failure. */
+static spx_lpips *golden_open(spx_ctx *ctx, const char *wname, const char *table, FILE **f) {
+  char w[700], p[1024];
+  spx_t_path(w, sizeof w, wname);
+  CHECK(spx_t_lpips_weights(ctx, w, NULL, NULL));
+  spx_lpips *lp = NULL;
+  CHECK_OK(ctx, spx_lpips_load(ctx, w, &lp));
+  snprintf(p, sizeof p, "%s/metrics/%s", SPX_TEST_DATA, table);
+  *f = fopen(p, "r");
+  CHECK(*f && lp);
+  return lp;
+}
+
 static void test_golden(void) {
   spx_ctx *ctx = spx_nt_open();
   CHECK(ctx != NULL);
   if (!ctx) return;
-  char w[700], line[256], p[1024];
-  spx_t_path(w, sizeof w, "lpips_golden.safetensors");
-  CHECK(spx_t_lpips_weights(ctx, w, NULL, NULL));
-  spx_lpips *lp = NULL;
-  CHECK_OK(ctx, spx_lpips_load(ctx, w, &lp));
-  snprintf(p, sizeof p, "%s/metrics/lpips_expected.txt", SPX_TEST_DATA);
-  FILE *f = fopen(p, "r");
-  CHECK(f && lp);
+  char line[256];
+  FILE *f = NULL;
+  spx_lpips *lp = golden_open(ctx, "lpips_golden.safetensors", "lpips_expected.txt", &f);
   int cases = 0;
   while (f && lp && fgets(line, sizeof line, f)) {
     char name[64], pn[96], tn[96];
@@ -113,14 +122,9 @@ static void test_masked_golden(void) {
   spx_ctx *ctx = spx_nt_open();
   CHECK(ctx != NULL);
   if (!ctx) return;
-  char w[700], line[256], p[1024];
-  spx_t_path(w, sizeof w, "lpips_golden_m.safetensors");
-  CHECK(spx_t_lpips_weights(ctx, w, NULL, NULL));
-  spx_lpips *lp = NULL;
-  CHECK_OK(ctx, spx_lpips_load(ctx, w, &lp));
-  snprintf(p, sizeof p, "%s/metrics/lpips_masked_expected.txt", SPX_TEST_DATA);
-  FILE *f = fopen(p, "r");
-  CHECK(f && lp);
+  char line[256];
+  FILE *f = NULL;
+  spx_lpips *lp = golden_open(ctx, "lpips_golden_m.safetensors", "lpips_masked_expected.txt", &f);
   int cases = 0;
   while (f && lp && fgets(line, sizeof line, f)) {
     char name[64], pn[96], tn[96];

@@ -64,6 +64,18 @@ def model(spatial=False):
     return m
 
 
+def both_precisions(m, p, t):
+    """The model's output on the pair (HxWx3 arrays in [0,1]) in float64, then in float32."""
+    out = []
+    for dt in (torch.float64, torch.float32):
+        mm = m.to(dt)
+        a = torch.from_numpy(p).permute(2, 0, 1)[None].to(dt)
+        b = torch.from_numpy(t).permute(2, 0, 1)[None].to(dt)
+        with torch.no_grad():
+            out.append(mm(a, b, normalize=True))
+    return out
+
+
 def masked(out, names=("lp_random", "lp_odd", "lp_same")):
     m = model(spatial=True)
     lines = []
@@ -73,13 +85,7 @@ def masked(out, names=("lp_random", "lp_odd", "lp_same")):
         h, w = p.shape[:2]
         fg = np.zeros((h, w), bool)
         fg[h // 5:(4 * h) // 5, w // 4:(3 * w) // 4] = True
-        vals = []
-        for dt in (torch.float64, torch.float32):
-            mm = m.to(dt)
-            a = torch.from_numpy(p).permute(2, 0, 1)[None].to(dt)
-            b = torch.from_numpy(t).permute(2, 0, 1)[None].to(dt)
-            with torch.no_grad():
-                vals.append(float(mm(a, b, normalize=True)[0, 0].numpy()[fg].mean()))
+        vals = [float(v[0, 0].numpy()[fg].mean()) for v in both_precisions(m, p, t)]
         lines.append("%s %.17g %.17g" % (name, vals[0], vals[1]))
     with open(os.path.join(out, "lpips_masked_expected.txt"), "w") as f:
         f.write("# name masked_lpips_float64 masked_lpips_float32: mean over the rectangle x in [W/4, 3W/4), y in "
@@ -104,13 +110,7 @@ def main(out):
     for name, p, t in pairs:
         np.save(os.path.join(out, name + "_pred.npy"), p)
         np.save(os.path.join(out, name + "_target.npy"), t)
-        vals = []
-        for dt in (torch.float64, torch.float32):
-            mm = m.to(dt)
-            a = torch.from_numpy(p).permute(2, 0, 1)[None].to(dt)
-            b = torch.from_numpy(t).permute(2, 0, 1)[None].to(dt)
-            with torch.no_grad():
-                vals.append(float(mm(a, b, normalize=True).flatten()[0]))
+        vals = [float(v.flatten()[0]) for v in both_precisions(m, p, t)]
         lines.append("%s %.17g %.17g" % (name, vals[0], vals[1]))
     with open(os.path.join(out, "lpips_expected.txt"), "w") as f:
         f.write("# name lpips_float64 lpips_float32 (lpips %s, torch %s; made by tools/make_lpips_golden.py)\n"
