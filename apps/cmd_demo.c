@@ -110,6 +110,7 @@ static int build_scene(spx_ctx *ctx, const demo_opts *o, int subdivide, demo_sce
   spx_bvh b = {0};
   spx_bvh_map map = {0};
   double *v = NULL;
+  spx_mesh base = {0}; /* the posed base body (before any goto: done frees it) */
   int rc = SPX_EXIT_ERROR, nv = s->m.nv;
   if (spx_png_read(ctx, parts_path, &parts) || spx_bvh_load(ctx, bvh_path, &b) ||
       spx_bvh_map_create(ctx, &b, &s->m, NULL, NULL, &map)) {
@@ -122,7 +123,6 @@ static int build_scene(spx_ctx *ctx, const demo_opts *o, int subdivide, demo_sce
   }
   s->pose = malloc((size_t)s->m.nj * 3 * sizeof(double));
   v = malloc((size_t)nv * 3 * sizeof(double));
-  spx_mesh base = {0};
   base.nv = nv, base.nf = s->m.nf, base.faces = s->m.faces;
   base.pos = malloc((size_t)nv * 3 * sizeof(float));
   base.col = malloc((size_t)nv * 3 * sizeof(float));
