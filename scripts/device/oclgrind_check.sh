@@ -18,8 +18,10 @@ set -u
 cd "$(dirname "$0")/../.."
 BUILD=${1:-build}
 command -v oclgrind >/dev/null || { echo "oclgrind_check: oclgrind not found (apt-get install oclgrind)" >&2; exit 1; }
-# the tests of the kernels that share local memory across a work-group (where races live)
-TESTS=${SPX_OCLGRIND_TESTS:-test_nn_conv2d_lds test_nn_conv2d_winograd_lds test_render_sort test_render_project
+# the tests of the kernels that share local memory across a work-group (where races live);
+# test_render_project is left out of the default list (over 10 minutes under Oclgrind even with
+# --quick: SPX_OCLGRIND_TESTS=test_render_project runs it); its radix sort is test_render_sort's
+TESTS=${SPX_OCLGRIND_TESTS:-test_nn_conv2d_lds test_nn_conv2d_winograd_lds test_render_sort
 test_render_raster test_nn_batchnorm test_nn_instnorm test_nn_loss}
 LIMIT=${SPX_OCLGRIND_TIMEOUT:-900}
 quick=--quick
