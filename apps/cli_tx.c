@@ -32,6 +32,19 @@ void spx_tx_begin(spx_tx *tx, const char *cmd, int durable) {
     }
 }
 
+/* Remove this process's temporaries (".tmp.<pid>." in the name: the writers' own, below the
+ * run's staged ones) from a folder the run created, so that the folder can go too. */
+static void remove_own_temps(const char *dir) {
+  char tag[32];
+  snprintf(tag, sizeof tag, ".tmp.%ld.", (long)getpid());
+  DIR *d = opendir(dir);
+  if (!d) return;
+  struct dirent *e;
+  while ((e = readdir(d)))
+    if (strstr(e->d_name, tag)) unlinkat(dirfd(d), e->d_name, 0);
+  closedir(d);
+}
+
 void spx_tx_interrupted(void) {
   for (int k = 0; k < MAX_ACTIVE; k++) {
     spx_tx *tx = active[k];
@@ -40,7 +53,10 @@ void spx_tx_interrupted(void) {
       if (tx->f[i].temp) unlink(tx->f[i].temp);
       if (tx->f[i].backup) unlink(tx->f[i].backup);
     }
-    for (int i = tx->ndirs - 1; i >= 0 && !tx->committed; i--) rmdir(tx->dirs[i]);
+    for (int i = tx->ndirs - 1; i >= 0 && !tx->committed; i--) {
+      remove_own_temps(tx->dirs[i]);
+      rmdir(tx->dirs[i]);
+    }
   }
 }
 
@@ -166,7 +182,20 @@ static int check(spx_tx *tx, const char *target) {
 
 int spx_tx_check(spx_tx *tx, const char *target) { return check(tx, target); }
 
-int spx_tx_mkdir(spx_tx *tx, const char *path) {
+static int tx_mkdir(spx_tx *tx, const char *path);
+
+int spx_tx_mkdir(spx_tx *tx, const char *path) { /* Ctrl-C comes after the folder is on the list */
+  sigset_t block, old;
+  sigemptyset(&block);
+  sigaddset(&block, SIGINT);
+  sigaddset(&block, SIGTERM);
+  int masked = sigprocmask(SIG_BLOCK, &block, &old) == 0;
+  int rc = tx_mkdir(tx, path);
+  if (masked) sigprocmask(SIG_SETMASK, &old, NULL);
+  return rc;
+}
+
+static int tx_mkdir(spx_tx *tx, const char *path) {
   if (mkdir(path, 0777) != 0) {
     int e = errno;
     struct stat sb;
