@@ -78,22 +78,31 @@ static spx_lpips *golden_open(spx_ctx *ctx, const char *wname, const char *table
   return lp;
 }
 
+/* The next case of a golden table ("name float64 float32" lines, '#' comments): its values and
+ * its image pair tests/data/metrics/<name>_{pred,target}.npy. 0 at the end of the table. */
+static int next_case(spx_ctx *ctx, FILE *f, char name[64], double *want, double *want32, spx_image *a, spx_image *b) {
+  char line[256], pn[96], tn[96];
+  while (fgets(line, sizeof line, f)) {
+    if (line[0] == '#' || sscanf(line, "%63s %lf %lf", name, want, want32) != 3) continue;
+    snprintf(pn, sizeof pn, "%s_pred", name);
+    snprintf(tn, sizeof tn, "%s_target", name);
+    CHECK(load_npy(ctx, pn, a) && load_npy(ctx, tn, b));
+    return 1;
+  }
+  return 0;
+}
+
 static void test_golden(void) {
   spx_ctx *ctx = spx_nt_open();
   CHECK(ctx != NULL);
   if (!ctx) return;
-  char line[256];
   FILE *f = NULL;
   spx_lpips *lp = golden_open(ctx, "lpips_golden.safetensors", "lpips_expected.txt", &f);
   int cases = 0;
-  while (f && lp && fgets(line, sizeof line, f)) {
-    char name[64], pn[96], tn[96];
-    double want, want32;
-    if (line[0] == '#' || sscanf(line, "%63s %lf %lf", name, &want, &want32) != 3) continue;
-    snprintf(pn, sizeof pn, "%s_pred", name);
-    snprintf(tn, sizeof tn, "%s_target", name);
-    spx_image a = {0}, b = {0};
-    CHECK(load_npy(ctx, pn, &a) && load_npy(ctx, tn, &b));
+  char name[64];
+  double want, want32;
+  spx_image a = {0}, b = {0};
+  while (f && lp && next_case(ctx, f, name, &want, &want32, &a, &b)) {
     double got = -1, again = -2;
     CHECK_OK(ctx, spx_lpips_distance(lp, &a, &b, &got));
     CHECK_OK(ctx, spx_lpips_distance(lp, &a, &b, &again));
@@ -122,18 +131,14 @@ static void test_masked_golden(void) {
   spx_ctx *ctx = spx_nt_open();
   CHECK(ctx != NULL);
   if (!ctx) return;
-  char line[256];
   FILE *f = NULL;
   spx_lpips *lp = golden_open(ctx, "lpips_golden_m.safetensors", "lpips_masked_expected.txt", &f);
   int cases = 0;
-  while (f && lp && fgets(line, sizeof line, f)) {
-    char name[64], pn[96], tn[96];
-    double want, want32;
-    if (line[0] == '#' || sscanf(line, "%63s %lf %lf", name, &want, &want32) != 3) continue;
-    snprintf(pn, sizeof pn, "%s_pred", name);
-    snprintf(tn, sizeof tn, "%s_target", name);
-    spx_image a = {0}, b = {0}, m = {0};
-    CHECK(load_npy(ctx, pn, &a) && load_npy(ctx, tn, &b));
+  char name[64];
+  double want, want32;
+  spx_image a = {0}, b = {0};
+  while (f && lp && next_case(ctx, f, name, &want, &want32, &a, &b)) {
+    spx_image m = {0};
     CHECK_OK(ctx, spx_image_alloc(ctx, a.width, a.height, 1, &m));
     for (int y = 0; y < a.height; y++)
       for (int x = 0; x < a.width; x++)
