@@ -352,7 +352,7 @@ static inline void shade_write(int x, int y, int bid, __global const int8 *rab, 
     float w2 = (float)((long)ab.s4 * px + (long)ab.s5 * py + c.z + ((ab.s7 >> 2) & 1)) * z4.z;
     float sum = (w0 + w1) + w2;
     float z = sum * z4.w;
-    float inv = 1.0f / sum;
+    float inv = SPX_DIV(1.0f, sum);
     float3 B;
     if (ab.s7 & 8) {
       float8 b = rbary[bid];
@@ -379,7 +379,7 @@ static inline void shade_write(int x, int y, int bid, __global const int8 *rab, 
       float3 t = sample_tex(tex, tw, th, tc, wrap, tu, tv);
       o.x *= t.x, o.y *= t.y, o.z *= t.z;
     }
-    o.w = 1.0f / z;
+    o.w = SPX_DIV(1.0f, z);
   }
   size_t p = (size_t)y * W + x;
   if (mode == 1) {

@@ -80,9 +80,15 @@ static void note(int kind, const char *what, double e) { note_tol(kind, what, e,
  * float32 and float64 do), the 3rd step jumps to ~1e-4 in a few layers for both. Our float32 sums
  * are measured ~2x less accurate than oneDNN's blocked ones before that jump, and the jump
  * multiplies any difference, so the factor is 10; a real error (wrong moment, bias correction,
- * running-stat update) is orders of magnitude larger. */
+ * running-stat update) is orders of magnitude larger.
+ * The weights after 3 steps also get a floor of ADAM3_FLOOR: the 3rd step's jump moves with the
+ * summation order itself, not only with the precision. Our own legitimate orders (the GPU column's
+ * batch-norm tree, SPX_TUNE_BN_WG=4 on the CPU column) land a tensor whose PyTorch spread is
+ * ~2e-6 at 2.2e-4 (ratio 100 instead of ~6), while a wrong Adam moves weights by O(lr) = 1e-3 per
+ * step, 3e-3..3e-2 of these tensors' scale (a missing bias correction: 2.7 lr at step 1). */
+#define ADAM3_FLOOR 1e-3
 static double g_spread_ratio; /* max err / spread seen */
-static double spread_tol(const char *name, double err) {
+static double spread_tol(int kind, const char *name, double err) {
   char k[256];
   snprintf(k, sizeof k, "golden.spread.%s", name);
   float *sp = spx_t_st_floats(&G, k, NULL);
@@ -90,7 +96,7 @@ static double spread_tol(const char *name, double err) {
   free(sp);
   CHECK_MSG(spread > 0, "no %s", k);
   if (spread > 0 && err / spread > g_spread_ratio) g_spread_ratio = err / spread;
-  return fmax(g_tol, g_spread_factor * spread);
+  return fmax(fmax(g_tol, g_spread_factor * spread), kind == 4 ? ADAM3_FLOOR : 0.0);
 }
 
 /* Compare a tensor of ours with a golden record that is complete (<= SAMPLE elements) or a strided
@@ -109,7 +115,7 @@ static void compare_sampled(int kind, const char *prefix, const char *sumprefix,
   for (size_t i = 0; i < m; i++) s[i] = ours[i * stride];
   if (cnt == m) {
     double e = rel_err(s, g, m);
-    note_tol(kind, key, e, kind >= 4 ? spread_tol(name, e) : g_tol);
+    note_tol(kind, key, e, kind >= 4 ? spread_tol(kind, name, e) : g_tol);
   }
   free(s);
   if (n > SAMPLE) {
@@ -126,7 +132,7 @@ static void compare_sampled(int kind, const char *prefix, const char *sumprefix,
       /* both sums relative to sum |g| (the dot product can cancel) */
       double e = fmax(fabs(dot - sums[0]), fabs(l1 - sums[1])) / fmax((double)sums[1], 1e-30);
       if (!(e <= g_worst[7])) g_worst[7] = e;
-      double tol = kind >= 4 ? spread_tol(name, e) : g_tol;
+      double tol = kind >= 4 ? spread_tol(kind, name, e) : g_tol;
       CHECK_MSG(e <= tol, "%s: checksum error %.3g > %.3g", key, e, tol);
     }
     free(sums);
@@ -218,7 +224,7 @@ static void test_golden(void) {
   }
   CHECK_OK(ctx, spx_unet_forward(u, in, GN, GH, GW, 0, out));
   double ee = rel_err(out, geval, nout);
-  note_tol(6, "eval output", ee, spread_tol("eval_output", ee));
+  note_tol(6, "eval output", ee, spread_tol(6, "eval_output", ee));
 
   /* checkpoint round trip, then the PyTorch --check files */
   char ck[512], io[512], cmd[2048];

@@ -2,6 +2,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "cl/cl_internal.h"
@@ -42,9 +43,18 @@ static spx_status for_each_device(spx_ctx *ctx, visit_fn visit, void *u) {
   cl_platform_id plats[SPX_MAX_PLATFORMS];
   cl_uint np = 0;
   cl_int err = clGetPlatformIDs(SPX_MAX_PLATFORMS, plats, &np);
-  if (err == -1001 /* CL_PLATFORM_NOT_FOUND_KHR */ || (err == CL_SUCCESS && np == 0))
+  if (err == -1001 /* CL_PLATFORM_NOT_FOUND_KHR */ || (err == CL_SUCCESS && np == 0)) {
+    /* a vendor library that fails to load is skipped by the ICD loader without a word; GPU
+     * drivers (NVIDIA's reserves tens of GiB of address space) fail that way under ulimit -v */
+    struct rlimit as;
+    if (getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY)
+      return spx_fail(ctx, SPX_E_NODEV,
+                      "no OpenCL platform found under an address-space limit (ulimit -v %llu KiB): a driver's "
+                      "library may have failed to load for want of address space",
+                      (unsigned long long)(as.rlim_cur / 1024));
     return spx_fail(ctx, SPX_E_NODEV,
                     "no OpenCL platform found (is an ICD such as pocl-opencl-icd installed? see /etc/OpenCL/vendors)");
+  }
   if (err != CL_SUCCESS) return spx_cl_check(ctx, err, "clGetPlatformIDs");
   if (np > SPX_MAX_PLATFORMS) np = SPX_MAX_PLATFORMS;
   for (cl_uint pi = 0; pi < np; pi++) {
