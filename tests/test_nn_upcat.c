@@ -201,12 +201,16 @@ static void tape_run(spx_tape_backend be, int fused, const ucase *k, const float
   spx_tape_destroy(t);
 }
 
-/* the per-instance profile (SPX_PROFILE_TAPE_OPS) logs one line per forward op of the pass */
-static int prof_lines, prof_upcat;
+/* the per-instance profile (SPX_PROFILE_TAPE_OPS) logs one line per forward op of the pass under
+ * its forward header, and one per node's backward under the backward header */
+static int prof_lines[2], prof_upcat[2], prof_section = -1;
 static void prof_log(void *user, const char *line) {
   (void)user;
-  if (line[0] == ' ' && strstr(line, " #")) prof_lines++;
-  if (strstr(line, " upcat ") && strstr(line, " 2x5 ") && strstr(line, " 13x11 ")) prof_upcat++;
+  if (strstr(line, "per forward op")) prof_section = 0;
+  else if (strstr(line, "per backward op")) prof_section = 1;
+  if (prof_section < 0 || line[0] != ' ' || !strstr(line, " #")) return;
+  prof_lines[prof_section]++;
+  if (strstr(line, " upcat ") && strstr(line, " 2x5 ") && strstr(line, " 13x11 ")) prof_upcat[prof_section]++;
 }
 
 static void test_tape(void) {
@@ -222,7 +226,9 @@ static void test_tape(void) {
   tape_run(SPX_TAPE_DEVICE, 1, &k, s, x, tg, o[0], gs[0], gx[0]);
   spx_ctx_set_profile(ctx, 0);
   spx_ctx_set_log(ctx, NULL, NULL);
-  CHECK_MSG(prof_lines == 2 && prof_upcat == 1, "profile: %d instance lines, %d upcat", prof_lines, prof_upcat);
+  CHECK_MSG(prof_lines[0] == 2 && prof_upcat[0] == 1 && prof_lines[1] >= 1 && prof_upcat[1] == 1,
+            "profile: %d forward instance lines (%d upcat), %d backward (%d upcat)", prof_lines[0], prof_upcat[0],
+            prof_lines[1], prof_upcat[1]);
   tape_run(SPX_TAPE_DEVICE, 0, &k, s, x, tg, o[1], gs[1], gx[1]);
   tape_run(SPX_TAPE_HOST, 1, &k, s, x, tg, o[2], gs[2], gx[2]);
   CHECK(memcmp(o[0], o[1], 4 * no) == 0);

@@ -59,7 +59,7 @@ spx_status spx_tape_backward_run(spx_tape *t) {
     const tp_op *op = spx_tp_op(nd->kind);
     double t0 = spx_tp_prof_begin(t);
     if ((st = HOST ? op->back_host(t, nd) : op->back_dev(t, nd))) return st;
-    spx_tp_prof_end(t, nd->kind, 1, t0);
+    spx_tp_prof_back_end(t, i, t0);
   }
   t->pl.phase = 3;
   t->pl.backward_runs++;

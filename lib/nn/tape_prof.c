@@ -2,9 +2,11 @@
  * its state (t->prof, NULL when off).
  *
  * Level 1 sums the time of every op kind and direction (spx_tp_prof_end). Level 2 also
- * keeps one record per forward op instance: the n-th op a pass runs is instance n, so the passes
- * of one graph add up per layer (a pass whose n-th op has another kind or shape restarts that
- * record). At destroy both are logged through the context's log callback, never printed. */
+ * keeps one record per op instance: the n-th op a forward pass runs is forward instance n, the
+ * backward of node n is backward instance n, so the passes of one graph add up per layer (a pass
+ * whose n-th op has another kind or shape restarts that record). A record's first run is kept
+ * apart from the mean of the later ones: it builds programs and plans. At destroy both levels are
+ * logged through the context's log callback, never printed. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,8 +17,13 @@ struct tp_prof_inst {
   int kind;
   int32_t shape[4]; /* of the op's output */
   char note[64];
-  double s;
-  long n;
+  double first, s; /* the first run's seconds; the sum of the later runs' */
+  long n;          /* runs, the first included */
+};
+
+struct tp_prof_list {
+  struct tp_prof_inst *r;
+  int n, cap;
 };
 
 struct tp_prof {
@@ -25,8 +32,7 @@ struct tp_prof {
   long n[NOPS][2];
   int op;        /* forward ops run so far in this pass: the instance index */
   char note[64]; /* what the next profiled op adds to its line (conv: shape, algorithm) */
-  struct tp_prof_inst *inst;
-  int ninst, cap;
+  struct tp_prof_list fwd, bwd;
 };
 
 spx_status spx_tp_prof_create(spx_tape *t) {
@@ -46,7 +52,7 @@ double spx_tp_prof_begin(spx_tape *t) {
   return spx_now();
 }
 
-static void prof_inst(spx_tape *t, int kind, double seconds);
+static void prof_inst(struct tp_prof_list *l, int i, int kind, const tvalue *y, const char *note, double seconds);
 
 void spx_tp_prof_end(spx_tape *t, int kind, int backward, double t0) {
   struct tp_prof *p = t->prof;
@@ -55,7 +61,20 @@ void spx_tp_prof_end(spx_tape *t, int kind, int backward, double t0) {
   double dt = spx_now() - t0;
   p->s[kind][backward] += dt;
   p->n[kind][backward]++;
-  if (p->level > 1 && !backward) prof_inst(t, kind, dt);
+  if (p->level > 1 && !backward) { /* every op creates its output right before it runs */
+    prof_inst(&p->fwd, p->op++, kind, &t->vals[t->nvals - 1], p->note, dt);
+    p->note[0] = '\0';
+  }
+}
+
+void spx_tp_prof_back_end(spx_tape *t, int node, double t0) {
+  struct tp_prof *p = t->prof;
+  if (!p) return;
+  const tnode *nd = &t->nodes[node];
+  spx_tp_prof_end(t, nd->kind, 1, t0);
+  if (p->level < 2) return;
+  const char *note = node < p->fwd.n && p->fwd.r[node].kind == nd->kind ? p->fwd.r[node].note : "";
+  prof_inst(&p->bwd, node, nd->kind, &t->vals[nd->out], note, spx_now() - t0);
 }
 
 void spx_tp_prof_pass(spx_tape *t) {
@@ -70,26 +89,45 @@ void spx_tp_prof_conv_note(spx_tape *t, int cin, int cout, int hw, int k, int st
   snprintf(t->prof->note, sizeof t->prof->note, "%dx%d s%d %d->%d %s", k, k, stride, cin, cout, alg);
 }
 
-static void prof_inst(spx_tape *t, int kind, double seconds) {
-  struct tp_prof *pr = t->prof;
-  int i = pr->op++;
-  if (i >= pr->cap) { /* a failed growth only drops this record */
-    int cap = pr->cap ? 2 * pr->cap : 64;
-    struct tp_prof_inst *p = realloc(pr->inst, (size_t)cap * sizeof *p);
+static void prof_inst(struct tp_prof_list *l, int i, int kind, const tvalue *y, const char *note, double seconds) {
+  if (i >= l->cap) { /* a failed growth only drops this record */
+    int cap = l->cap ? 2 * l->cap : 64;
+    while (cap <= i) cap *= 2;
+    struct tp_prof_inst *p = realloc(l->r, (size_t)cap * sizeof *p);
     if (!p) return;
-    pr->inst = p, pr->cap = cap;
+    l->r = p, l->cap = cap;
   }
-  const tvalue *y = &t->vals[t->nvals - 1]; /* every op creates its output right before it runs */
   int32_t shape[4] = {y->n, y->c, y->h, y->w};
-  while (pr->ninst <= i) memset(&pr->inst[pr->ninst++], 0, sizeof *pr->inst);
-  struct tp_prof_inst *r = &pr->inst[i];
-  if (r->n == 0 || r->kind != kind || memcmp(r->shape, shape, sizeof shape) || strcmp(r->note, pr->note)) {
-    r->kind = kind, r->s = 0.0, r->n = 0;
+  while (l->n <= i) memset(&l->r[l->n++], 0, sizeof *l->r);
+  struct tp_prof_inst *r = &l->r[i];
+  if (r->n == 0 || r->kind != kind || memcmp(r->shape, shape, sizeof shape) || strcmp(r->note, note)) {
+    r->kind = kind, r->s = 0.0, r->n = 0, r->first = seconds;
     memcpy(r->shape, shape, sizeof shape);
-    memcpy(r->note, pr->note, sizeof r->note);
+    snprintf(r->note, sizeof r->note, "%s", note);
+  } else {
+    r->s += seconds;
   }
-  r->s += seconds, r->n++;
-  pr->note[0] = '\0';
+  r->n++;
+}
+
+/* a record's steady time: the mean of the runs after the first (the first alone if it is all) */
+static double inst_ms(const struct tp_prof_inst *r) { return 1e3 * (r->n > 1 ? r->s / (double)(r->n - 1) : r->first); }
+
+static void log_list(spx_tape *t, const struct tp_prof_list *l, const char *what) {
+  double sum = 0.0, first = 0.0;
+  for (int i = 0; i < l->n; i++)
+    if (l->r[i].n) sum += inst_ms(&l->r[i]), first += 1e3 * l->r[i].first;
+  if (sum <= 0.0) return;
+  spx_log(t->ctx, "tape profile per %s op (mean of the runs after the first; %.3f ms per pass, the first %.3f ms):", what,
+          sum, first);
+  for (int i = 0; i < l->n; i++) {
+    const struct tp_prof_inst *r = &l->r[i];
+    if (!r->n) continue;
+    double ms = inst_ms(r);
+    spx_log(t->ctx, "  #%-3d %-10s %4dx%-4dx%4dx%-5d %8.3f ms %5.1f%%  %ld runs (first %.3f ms)  %s", i,
+            spx_tp_op_name(r->kind), r->shape[0], r->shape[1], r->shape[2], r->shape[3], ms, 100.0 * ms / sum, r->n,
+            1e3 * r->first, r->note);
+  }
 }
 
 void spx_tp_prof_destroy(spx_tape *t) {
@@ -101,20 +139,12 @@ void spx_tp_prof_destroy(spx_tape *t) {
       if (p->n[k][d])
         spx_log(t->ctx, "  %-10s %-8s %8.3f s  %6ld calls", spx_tp_op_name(k), d ? "backward" : "forward", p->s[k][d],
                 p->n[k][d]);
-  if (p->level > 1 && p->ninst) {
-    double sum = 0.0;
-    for (int i = 0; i < p->ninst; i++) sum += p->inst[i].n ? p->inst[i].s / p->inst[i].n : 0.0;
-    spx_log(t->ctx, "tape profile per forward op (mean over the passes that ran it; %.3f ms per pass):", 1e3 * sum);
-    for (int i = 0; i < p->ninst; i++) {
-      const struct tp_prof_inst *r = &p->inst[i];
-      if (!r->n) continue;
-      double ms = 1e3 * r->s / r->n;
-      spx_log(t->ctx, "  #%-3d %-10s %4dx%-4dx%4dx%-5d %8.3f ms %5.1f%%  %ld runs  %s", i, spx_tp_op_name(r->kind),
-              r->shape[0], r->shape[1], r->shape[2], r->shape[3], ms, sum > 0 ? 100.0 * ms / (1e3 * sum) : 0.0, r->n,
-              r->note);
-    }
+  if (p->level > 1) {
+    log_list(t, &p->fwd, "forward");
+    log_list(t, &p->bwd, "backward");
   }
-  free(p->inst);
+  free(p->fwd.r);
+  free(p->bwd.r);
   free(p);
   t->prof = NULL;
 }

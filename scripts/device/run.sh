@@ -11,10 +11,12 @@
 #   env, icd, devices, warmup (every program built, failed builds' logs kept), ctest (the suite on
 #   the device), tune (smplpix tune --quick), latency (bench_latency), unet (bench_unet and the
 #   PyTorch peer on the same GPU: eval and train, width 64, batch 1 and 10, float32 and TF32),
-#   project (bench_project: up to 10^6 points), raster (bench_raster), then the summary.
+#   profile (bench_unet's per-layer device times, SPX_TAPE_PROFILE=2), project (bench_project: up
+#   to 10^6 points), raster (bench_raster), then the summary.
 # The whole run stays under SPX_RUN_BUDGET seconds (default 450): a step that would start with
 # less than its limit left is skipped and says so.
 # env: SPX_KIT, OUT, SPX_RUN_BUDGET, SPX_CTEST_REGEX (-R for ctest; default all), SPX_CTEST_JOBS,
+#      SPX_CTEST_TIMEOUT (per test, default 150), SPX_RUN_SWEEP (settings to time, see sweep_rows),
 #      PYTHON (default: python3 on PATH), SPX_RUN_SKIP (space-separated step names to skip),
 #      SPX_RUN_QUICK=1 (small benchmark sizes and no tuning, for the CPU smoke test),
 #      SPX_RUN_LIMIT_SCALE (multiplies every step's limit; default 1)
@@ -156,7 +158,7 @@ ls "$LOG/programs"/*.log >/dev/null 2>&1 && say "failed program builds: $(cd "$L
 
 # --- the test suite on the device (its own program cache, warmed by the step above per test)
 run_ctest() {
-  local args="-j ${SPX_CTEST_JOBS:-8} --timeout 150 --output-on-failure"
+  local args="-j ${SPX_CTEST_JOBS:-8} --timeout ${SPX_CTEST_TIMEOUT:-150} --output-on-failure"
   args="$args -E ^(install_consumer|python_bindings|python_pip_install|table1_quick|test_cli_train_mpi)$"
   cd "$KIT/build" && ctest $args ${SPX_CTEST_REGEX:+-R "$SPX_CTEST_REGEX"}
 }
@@ -204,6 +206,35 @@ torch_rows() {
 }
 export -f torch_rows
 if [ $have_torch = 1 ]; then step unet_torch 60 torch_rows; fi
+# the tape's per-layer device times (SPX_TAPE_PROFILE=2: each op finished before the next, so
+# their sum against the unprofiled pass shows the launch overhead): width 64 eval and training
+# step, width 64 eval at batch 10, width 16 eval, batch 1
+profile_rows() {
+  SPX_TAPE_PROFILE=2 "$B/bench_unet" --width "$UW" --size "$USIZE" --reps 2 --eval-batch 1 --batch 1
+  SPX_TAPE_PROFILE=2 "$B/bench_unet" --width "$UW" --size "$USIZE" --reps 1 --eval-batch "${UBATCH##* }" --no-train
+  SPX_TAPE_PROFILE=2 "$B/bench_unet" --width 16 --size "$USIZE" --reps 2 --eval-batch 1 --no-train
+}
+export -f profile_rows
+step profile 60 profile_rows
+# SPX_RUN_SWEEP: tunable settings to time against the defaults, ';'-separated, each a
+# space-separated list of SPX_TUNE_NAME=value (e.g. "SPX_TUNE_CONV_LDS=0;SPX_TUNE_CONV_LWS=128"):
+# bench_unet eval and training step, width 64, batch 1, per setting (empty: the step is skipped)
+sweep_rows() {
+  local cfg
+  echo "$SPX_RUN_SWEEP" | tr ';' '\n' | while read -r cfg; do
+    [ -n "$cfg" ] || continue
+    [ "$cfg" = defaults ] && set -- || set -- $cfg
+    env "$@" "$B/bench_unet" --width "$UW" --size "$USIZE" --reps 3 --eval-batch 1 --batch 1 2>&1 |
+      sed -n "s|^ROW |SWEEP cfg=${cfg// /,} |p"
+  done
+}
+export -f sweep_rows
+if [ -n "${SPX_RUN_SWEEP:-}" ]; then
+  export SPX_RUN_SWEEP="defaults;$SPX_RUN_SWEEP"
+  step sweep "${SPX_SWEEP_LIMIT:-150}" sweep_rows
+  grep '^SWEEP' "$LOG/sweep.log" | awk '{ c = $2; for (i = 3; i <= NF; i++) { split($i, kv, "="); f[kv[1]] = kv[2] }
+    print "sweep", c, f["mode"], f["ms"] " ms" }' >>"$SUM"
+fi
 step project 45 "$B/bench_project" "$PRUNS"
 step raster 30 "$B/bench_raster" "$RFRAMES"
 cd "$ROOT" || exit 1

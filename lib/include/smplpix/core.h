@@ -73,8 +73,9 @@ void spx_ctx_set_log(spx_ctx *ctx, spx_log_fn fn, void *user);
 #define SPX_PROFILE_TAPE 1u
 #define SPX_PROFILE_RASTER 2u
 #define SPX_DEBUG_TAPE_POISON 4u
-/* TAPE_OPS: TAPE, plus one line per op instance of a pass (kind, output shape, for convolutions
- * the shape and algorithm; mean device time over the passes that ran it) when the tape is destroyed. */
+/* TAPE_OPS: TAPE, plus one line per op instance of a pass, forward and backward (kind, output
+ * shape, for convolutions the shape and algorithm; mean device time over the passes after the
+ * first, and the first's) when the tape is destroyed. */
 #define SPX_PROFILE_TAPE_OPS 8u
 void spx_ctx_set_profile(spx_ctx *ctx, unsigned flags);
 unsigned spx_ctx_profile(const spx_ctx *ctx);
