@@ -24,12 +24,14 @@ build: deps $(BUILD)/CMakeCache.txt
 demo: build
 	./$(BUILD)/smplpix demo --out out
 
-# The README's picture (needs the shipped network): docs/demo.png, panels enlarged 2x.
+# The README's pictures (need the shipped network): docs/demo.png, panels enlarged 2x, and
+# docs/motion.png, the network's output for 8 frames of the shipped motion, 1/3 s apart.
 docs-demo: build
 	@test -f data/models/default.safetensors || { echo "docs-demo: data/models/default.safetensors is absent (see data/models/README.md)" >&2; exit 1; }
 	@mkdir -p out
-	./$(BUILD)/smplpix demo --out out/docs-demo --zoom 2
+	./$(BUILD)/smplpix demo --out out/docs-demo --zoom 2 --motion 8 --motion-step 40
 	cp out/docs-demo/demo.png docs/demo.png
+	cp out/docs-demo/demo_motion.png docs/motion.png
 
 # The model card data/models/README.md from the shipped network's metadata and benchmarks/TABLE1.md.
 model-card:

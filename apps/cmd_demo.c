@@ -23,7 +23,7 @@
 
 static void demo_help(void) {
   printf("usage: smplpix demo [--out DIR] [--checkpoint W.safetensors] [--frame N] [--seed S] [--size WxH]\n"
-         "                    [--zoom Z] [--device cpu|gpu|P:D] [--quiet]\n"
+         "                    [--zoom Z] [--motion K [--motion-step T]] [--device cpu|gpu|P:D] [--quiet]\n"
          "Renders the shipped body (data/body/default_body.npz) with the appearance of synthetic subject S\n"
          "(smplpix synth's texture sampled at the body's UVs; its shape too), reposed to frame N (default 600)\n"
          "of the shipped motion (data/mocap/01_01.bvh), seen from the front at WxH (default: the size the\n"
@@ -37,13 +37,16 @@ static void demo_help(void) {
          "  demo_raster.png   the classic baseline: the same coloured mesh rasterized (per-vertex colours)\n"
          "  demo.png          photo | input | SMPLpix | per-vertex raster side by side, labelled, each panel\n"
          "                    enlarged Z times (nearest pixel; --zoom 1..8, default 1)\n"
+         "  demo_motion.png   with --motion K (2..16): the network's output (the input without one) for K\n"
+         "                    frames of the motion, N, N+T, ... (--motion-step T, default 30 = 1/4 s), side by\n"
+         "                    side, each framed like the first image\n"
          "The network is --checkpoint, else the shipped data/models/default.safetensors. Without either,\n"
          "a note says so and demo.png is photo | input | per-vertex raster (no demo_smplpix.png).\n");
 }
 
 typedef struct demo_opts {
   const char *out_dir, *ckpt, *device;
-  long frame;
+  long frame, motion, motion_step; /* motion: frames of demo_motion.png (0: none) */
   uint64_t seed;
   int W, H, zoom, quiet, size_given;
 } demo_opts;
@@ -60,9 +63,13 @@ static int parse(int argc, char **argv, demo_opts *o) {
                     SPX_O_RANGE("--seed", SPX_OPT_INT, &seed, 0, 2147483647),
                     SPX_O_RANGE("--zoom", SPX_OPT_INT, &zoom, 1, 8),
                     SPX_O_RANGE("--size", SPX_OPT_SIZE, wh, 16, 4096),
+                    SPX_O_RANGE("--motion", SPX_OPT_INT, &o->motion, 2, 16),
+                    SPX_O_RANGE("--motion-step", SPX_OPT_INT, &o->motion_step, 1, 100000),
                     SPX_O_END};
+  o->motion_step = 30;
   int rc = spx_cli_parse(argc, argv, "demo", NULL, demo_help, opts);
   if (rc >= 0) return rc;
+  if (spx_cli_only_with(opts, "demo", "--motion-step", o->motion > 0, "--motion K")) return SPX_EXIT_USAGE;
   if (strlen(o->out_dir) > 4000) return spx_cli_usage("demo", "--out: path too long (%zu characters)", strlen(o->out_dir));
   o->seed = (uint64_t)seed, o->zoom = (int)zoom, o->W = wh[0], o->H = wh[1];
   o->size_given = spx_cli_given(opts, "--size");
@@ -181,8 +188,8 @@ static void free_scene(demo_scene *s) {
  * (smplpix synth draws the side per subject from the same range). */
 static const spx_synth_light demo_light = {{0.4, 1.0, 0.8}, 0.45, 0.7};
 
-/* photo (RGB HWC), input (projection, RGB-D HWC), raster (RGB + coverage HWC), net (RGB HWC, or
- * NULL). */
+/* photo (RGB HWC), input (projection, RGB-D HWC), raster (RGB + coverage HWC), net (RGB HWC; only
+ * with a network u). photo and raster may be NULL (not drawn). */
 static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image *photo, spx_image *input,
                       spx_image *raster, spx_image *net) {
   int W = s->cam.width, H = s->cam.height, rc = SPX_EXIT_ERROR;
@@ -192,8 +199,8 @@ static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image 
   float *nchw = NULL, *out = NULL;
   uint8_t *mask = malloc(hw);
   if (!mask) return spx_cli_errorf("demo", "out of memory");
-  if (spx_image_alloc(ctx, W, H, 3, photo) || spx_image_alloc(ctx, W, H, 4, input) ||
-      spx_image_alloc(ctx, W, H, 4, raster) ||
+  if ((photo && spx_image_alloc(ctx, W, H, 3, photo)) || spx_image_alloc(ctx, W, H, 4, input) ||
+      (raster && spx_image_alloc(ctx, W, H, 4, raster)) ||
       (u && spx_image_alloc(ctx, W, H, 3, net)) || spx_projector_create(ctx, &proj) ||
       spx_rasterizer_create(ctx, &rast)) {
     rc = spx_cli_error("demo", ctx);
@@ -205,10 +212,10 @@ static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image 
   ra.nverts = b->nv, ra.pos = b->pos, ra.col = b->col, ra.nfaces = b->nf, ra.faces = b->faces;
   ra.ncams = 1, ra.cams = &s->cam, ra.aa = 2, ra.cull = SPX_CULL_NONE, ra.layout = SPX_LAYOUT_HWC;
   if (spx_cli_failed(&rc, "demo", ctx,
-                     spx_synth_photo(ctx, rast, &s->m, &s->sub, s->pose, s->trans, &s->cam, &demo_light, 0,
-                                     photo->data, mask, NULL) ||
+                     (photo && spx_synth_photo(ctx, rast, &s->m, &s->sub, s->pose, s->trans, &s->cam, &demo_light, 0,
+                                               photo->data, mask, NULL)) ||
                          spx_project(ctx, proj, &pa, input->data, NULL) ||
-                         spx_raster(ctx, rast, &ra, raster->data, NULL)))
+                         (raster && spx_raster(ctx, rast, &ra, raster->data, NULL))))
     goto done;
   if (u) {
     nchw = malloc(hw * 4 * sizeof(float));
@@ -231,9 +238,36 @@ done:
   return rc;
 }
 
-enum { NOUT = 5 };
+/* demo_motion.png: the network's output (the input without a network) for o->motion frames of the
+ * clip, o->frame, o->frame + o->motion_step, ..., side by side, each scene framed as build_scene
+ * frames the first image's. */
+static int render_motion(spx_ctx *ctx, const demo_opts *o, int subdivide, spx_unet *u, spx_image *strip) {
+  enum { MAXF = 16 };
+  spx_image shown[MAXF] = {{0}}, input[MAXF] = {{0}};
+  const spx_image *panels[MAXF];
+  char text[MAXF][24];
+  const char *labels[MAXF];
+  int n = (int)o->motion, rc = SPX_EXIT_OK;
+  for (int k = 0; k < n && !rc; k++) {
+    demo_opts fo = *o;
+    fo.frame = o->frame + (long)k * o->motion_step;
+    demo_scene sk;
+    memset(&sk, 0, sizeof sk);
+    rc = build_scene(ctx, &fo, subdivide, &sk);
+    if (!rc) rc = render_all(ctx, &sk, u, NULL, &input[k], NULL, &shown[k]);
+    free_scene(&sk);
+    panels[k] = u ? &shown[k] : &input[k];
+    snprintf(text[k], sizeof text[k], "F%ld", fo.frame);
+    labels[k] = text[k];
+  }
+  if (!rc && spx_demo_compose(ctx, panels, labels, n, o->zoom, strip)) rc = spx_cli_error("demo", ctx);
+  for (int k = 0; k < n; k++) spx_image_free(&shown[k]), spx_image_free(&input[k]);
+  return rc;
+}
+
+enum { NOUT = 6, OUT_NET = 3, OUT_MOTION = 5 };
 static const char *const out_names[NOUT] = {"demo_photo.png", "demo_input.png", "demo_raster.png", "demo_smplpix.png",
-                                            "demo.png"};
+                                            "demo.png", "demo_motion.png"};
 
 static char *out_path(const char *dir, int k) {
   size_t cap = strlen(dir) + strlen(out_names[k]) + 2;
@@ -245,7 +279,7 @@ static char *out_path(const char *dir, int k) {
 /* Write the images as one set on the run's output transaction (apps/cli_tx.h): all appear
  * together at the commit, or none (a failed run leaves the old set). */
 static int write_all(spx_ctx *ctx, spx_tx *tx, const char *dir, int zoom, const spx_image *photo,
-                     const spx_image *input, const spx_image *raster, const spx_image *net) {
+                     const spx_image *input, const spx_image *raster, const spx_image *net, const spx_image *motion) {
   const spx_image *panels[4];
   const char *labels[4];
   int n = 0;
@@ -254,14 +288,16 @@ static int write_all(spx_ctx *ctx, spx_tx *tx, const char *dir, int zoom, const 
   if (net) panels[n] = net, labels[n++] = "SMPLPIX";
   panels[n] = raster, labels[n++] = "RASTER";
   spx_image strip = {0};
-  const spx_image *imgs[NOUT] = {photo, input, raster, net, &strip};
+  const spx_image *imgs[NOUT] = {photo, input, raster, net, &strip, motion};
   int rc = SPX_EXIT_OK;
   if (spx_demo_compose(ctx, panels, labels, n, zoom, &strip)) rc = spx_cli_error("demo", ctx);
   for (int k = 0; k < NOUT && !rc; k++)
     if (imgs[k]) rc = spx_cli_write_output("demo", ctx, tx, out_path(dir, k), imgs[k]);
   if (!rc) rc = spx_tx_commit(tx);
-  if (!rc && !net) { /* no network: an earlier run's output must not pass for this one's */
-    char *p = out_path(dir, 3);
+  /* an earlier run's output this run did not make must not pass for this one's */
+  for (int k = OUT_NET; k < NOUT && !rc; k++) {
+    if (imgs[k]) continue;
+    char *p = out_path(dir, k);
     if (!p) rc = spx_cli_errorf("demo", "out of memory");
     else if (unlink(p) && errno != ENOENT) rc = spx_cli_errorf("demo", "%s: cannot remove: %s", p, strerror(errno));
     free(p);
@@ -285,7 +321,7 @@ int spx_cmd_demo(int argc, char **argv) {
   spx_ctx *ctx = NULL;
   { /* the strip must fit a PNG: checked before any work */
     long tw, th;
-    spx_demo_strip_size(ckpt ? 3 : 2, o.W, o.H, o.zoom, &tw, &th);
+    spx_demo_strip_size(o.motion > (ckpt ? 4 : 3) ? (int)o.motion : ckpt ? 4 : 3, o.W, o.H, o.zoom, &tw, &th);
     if (tw > 16384 || th > 16384)
       return spx_cli_usage("demo", "--size %dx%d with --zoom %d makes a %ldx%ld strip, larger than the 16384 pixels a "
                            "side a PNG may have", o.W, o.H, o.zoom, tw, th);
@@ -296,7 +332,7 @@ int spx_cmd_demo(int argc, char **argv) {
   demo_scene s;
   memset(&s, 0, sizeof s);
   spx_unet *u = NULL;
-  spx_image photo = {0}, input = {0}, raster = {0}, net = {0};
+  spx_image photo = {0}, input = {0}, raster = {0}, net = {0}, motion = {0};
   int subdivide = 0;
   /* the folder (removed again by a failed run that made it) and the targets, before the work */
   if ((rc = spx_tx_mkdir(&tx, o.out_dir))) goto done;
@@ -311,7 +347,9 @@ int spx_cmd_demo(int argc, char **argv) {
   if ((rc = network_setup(ctx, ckpt, &o, &subdivide))) goto done;
   if ((rc = build_scene(ctx, &o, subdivide, &s))) goto done;
   if ((rc = render_all(ctx, &s, u, &photo, &input, &raster, &net))) goto done;
-  if ((rc = write_all(ctx, &tx, o.out_dir, o.zoom, &photo, &input, &raster, u ? &net : NULL))) goto done;
+  if (o.motion && (rc = render_motion(ctx, &o, subdivide, u, &motion))) goto done;
+  if ((rc = write_all(ctx, &tx, o.out_dir, o.zoom, &photo, &input, &raster, u ? &net : NULL, o.motion ? &motion : NULL)))
+    goto done;
   if (!o.quiet) {
     if (!u)
       printf("note: no network is shipped yet (%s is absent) and no --checkpoint was given:\n"
@@ -320,12 +358,13 @@ int spx_cmd_demo(int argc, char **argv) {
              shipped, o.out_dir);
     printf("subject seed %llu (%d betas), %s frame %ld, %dx%d, %d vertices, network %s\n", (unsigned long long)o.seed,
            s.sub.nbetas, "01_01.bvh", o.frame, o.W, o.H, s.body.nv, u ? ckpt : "none");
-    printf("wrote %s/demo.png (%s), demo_photo.png, demo_input.png, %sdemo_raster.png in %.2f s\n", o.out_dir,
+    printf("wrote %s/demo.png (%s), demo_photo.png, demo_input.png, %sdemo_raster.png%s in %.2f s\n", o.out_dir,
            u ? "photo | input | SMPLpix | per-vertex raster" : "photo | input | per-vertex raster",
-           u ? "demo_smplpix.png, " : "", spx_now() - t0);
+           u ? "demo_smplpix.png, " : "", o.motion ? ", demo_motion.png" : "", spx_now() - t0);
   }
 done:
   spx_image_free(&photo), spx_image_free(&input), spx_image_free(&raster), spx_image_free(&net);
+  spx_image_free(&motion);
   spx_unet_destroy(u);
   free_scene(&s);
   spx_tx_end(&tx);

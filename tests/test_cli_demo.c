@@ -8,6 +8,8 @@
  *    deterministic, and --checkpoint names one explicitly;
  *  - a network whose metadata says it was trained at 48x36 on 53k-vertex inputs: the demo renders
  *    at that size (unless --size) with the body after one Loop step (53,514 vertices);
+ *  - --motion K: demo_motion.png, K panels of the network's output, the first the --frame's;
+ *    without --motion an earlier strip is removed;
  *  - bad input: one line, exit 1 (2 for usage), nothing written; an output that cannot be written
  *    (a folder named demo.png) fails before any file of the set appears, no temporaries left. */
 #include <dirent.h>
@@ -107,6 +109,30 @@ static void test_with_network(void) {
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o5 --size 40x32 --frame 10 --seed 5 --zoom 2") == 0);
   CHECK(png_size("o5/demo.png", &w, &h) && w == 4 * 2 * W + 6 && h > 2 * H);
   CHECK(same_file("o2/demo_smplpix.png", "o5/demo_smplpix.png"));
+  /* --motion K: the network's output for K frames, side by side; its first panel is frame 10's */
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o6 --size 40x32 --frame 10 --seed 5 --motion 3 --motion-step 50") == 0);
+  CHECK(file_has("out.txt", "demo_motion.png"));
+  CHECK(png_size("o6/demo_motion.png", &w, &h) && w == 3 * W + 4 && h > H);
+  CHECK(same_file("o2/demo_smplpix.png", "o6/demo_smplpix.png"));
+  spx_image m = {0}, one = {0};
+  char pm[700], po[700];
+  path_of(pm, sizeof pm, "o6/demo_motion.png"), path_of(po, sizeof po, "o2/demo_smplpix.png");
+  if (!spx_png_read(ctx, pm, &m) && !spx_png_read(ctx, po, &one)) {
+    int top = m.height - H, diff_first = 0, diff_second = 0; /* the panels sit under the label band */
+    for (int y = 0; y < H; y++)
+      for (int x = 0; x < W; x++)
+        for (int c = 0; c < 3; c++) {
+          float a = one.data[((size_t)y * W + x) * one.channels + c];
+          diff_first += m.data[((size_t)(top + y) * m.width + x) * m.channels + c] != a;
+          diff_second += m.data[((size_t)(top + y) * m.width + W + 2 + x) * m.channels + c] != a;
+        }
+    CHECK_MSG(diff_first == 0 && diff_second > 0, "motion panels: first differs in %d values, second in %d",
+              diff_first, diff_second);
+  }
+  spx_image_free(&m), spx_image_free(&one);
+  /* a run without --motion removes the earlier run's strip (it is not this run's) */
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o6 --size 40x32 --frame 10 --seed 5 --quiet") == 0);
+  CHECK(!exists("o6/demo_motion.png"));
 }
 
 /* the image size and vertex count come from the network's metadata */
@@ -155,6 +181,11 @@ static void test_bad_input(void) {
   CHECK(tool("demo --size 8x8") == 2 && tool("demo --frame -1") == 2 && tool("demo --seed x") == 2);
   CHECK(tool("demo --zoom 9") == 2 && tool("demo --zoom 0") == 2);
   CHECK(tool("demo --bogus") == 2 && err_one_line_with("--bogus"));
+  CHECK(tool("demo --motion 1") == 2 && tool("demo --motion 17") == 2);
+  CHECK(tool("demo --motion-step 5") == 2 && err_one_line_with("--motion-step"));
+  /* the last frame of the motion past the clip: one line, nothing written */
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out b5 --size 40x32 --frame 2700 --motion 3 --motion-step 30") == 1);
+  CHECK(err_one_line_with("--frame 2760") && !exists("b5"));
   CHECK(!exists("out"));
 }
 
