@@ -310,8 +310,6 @@ static void progress_show(progress *pg, int64_t step, int64_t epoch, double loss
   fflush(stderr);
 }
 
-static int train_run(int argc, char **argv, train_dist *dist);
-
 /* Save u (+ the discriminator) with the training state after `step` (durable, atomic). */
 static int save_checkpoint(spx_ctx *ctx, train_recipe *r, spx_unet *u, const char *outp, spx_train_state *ts,
                            int64_t step, int64_t spe) {
@@ -338,355 +336,407 @@ static int net_open(spx_ctx *ctx, const char *from, int init, long width, int si
   return SPX_EXIT_OK;
 }
 
-int spx_cmd_train(int argc, char **argv) {
-  train_dist dist;
-  int rc = train_dist_start(&dist, argc, argv);
-  if (!rc) rc = train_run(argc, argv, &dist);
-  return train_dist_end(&dist, rc);
+/* The command line as given (before --resume adopts the checkpoint's record). */
+typedef struct train_args {
+  const char *data, *outp, *init, *spec, *loss_name, *vgg_path, *schedule;
+  long width, batch, epochs, steps, seed, save_every, log_every, disc_width;
+  double lr, lr2;
+  int resume, no_shuffle, sigmoid, local_bn;
+  spx_opt opts[24];
+} train_args;
+
+/* One run: the settings reconciled with the checkpoint, the data, the network and the buffers
+ * (train_run frees them). */
+typedef struct train_job {
+  spx_ctx *ctx;
+  spx_unet *u;
+  train_recipe rcp;
+  spx_train_state ts;
+  split tr, val;
+  int *perm;
+  float *in, *tg;
+  int shuffle, length_given, agreed, rank0;
+  long batch, held;   /* the global batch (at most the pairs); images this rank holds at once */
+  int64_t spe, target; /* steps per epoch; the step the run ends at */
+  char cached_vgg[4096];
+  struct sigaction old_int, old_term;
+  int handler_set, term_set;
+} train_job;
+
+/* Parse the flags and refuse combinations that need no checkpoint to judge. Returns -1 to go on,
+ * else the exit code. */
+static int train_parse(int argc, char **argv, train_args *a) {
+  a->width = 0, a->batch = -1, a->epochs = -1, a->steps = -1, a->seed = 0, a->save_every = 0, a->log_every = 10;
+  a->disc_width = 64, a->lr = -1, a->lr2 = 1e-5;
+  const spx_opt opts[] = {SPX_O("--resume", SPX_OPT_FLAG, &a->resume),
+                          SPX_O("--no-shuffle", SPX_OPT_FLAG, &a->no_shuffle),
+                          SPX_O("--sigmoid", SPX_OPT_FLAG, &a->sigmoid),
+                          SPX_O("--local-bn", SPX_OPT_FLAG, &a->local_bn),
+                          SPX_O("--data", SPX_OPT_IN, &a->data),
+                          SPX_O("--out", SPX_OPT_OUT, &a->outp),
+                          SPX_O("--init", SPX_OPT_IN, &a->init),
+                          SPX_O("--device", SPX_OPT_STR, &a->spec),
+                          SPX_O("--loss", SPX_OPT_STR, &a->loss_name),
+                          SPX_O("--vgg", SPX_OPT_IN, &a->vgg_path),
+                          SPX_O("--schedule", SPX_OPT_STR, &a->schedule),
+                          SPX_O_RANGE("--disc-width", SPX_OPT_INT, &a->disc_width, 1, 512),
+                          SPX_O_RANGE("--lr2", SPX_OPT_REAL, &a->lr2, 1e-300, 1e6),
+                          SPX_O_RANGE("--width", SPX_OPT_INT, &a->width, 8, 64),
+                          SPX_O_RANGE("--batch", SPX_OPT_INT, &a->batch, 1, 1000000000),
+                          SPX_O_RANGE("--epochs", SPX_OPT_INT, &a->epochs, 0, 100000000),
+                          SPX_O_RANGE("--steps", SPX_OPT_INT, &a->steps, 0, 2000000000),
+                          SPX_O_RANGE("--seed", SPX_OPT_INT, &a->seed, 0, 2147483647),
+                          SPX_O_RANGE("--save-every", SPX_OPT_INT, &a->save_every, 1, 2000000000),
+                          SPX_O_RANGE("--log-every", SPX_OPT_INT, &a->log_every, 1, 2000000000),
+                          SPX_O_RANGE("--lr", SPX_OPT_REAL, &a->lr, 1e-300, 1e6),
+                          SPX_O_END};
+  _Static_assert(sizeof opts <= sizeof a->opts, "train_args.opts holds the option table");
+  memcpy(a->opts, opts, sizeof opts);
+  int rc, use_gan, use_vgg;
+  if ((rc = spx_cli_parse(argc, argv, "train", NULL, train_help, a->opts)) >= 0) return rc;
+  if (a->width && a->width != 8 && a->width != 16 && a->width != 32 && a->width != 64)
+    return spx_cli_usage("train", "--width must be 8, 16, 32 or 64, not %ld", a->width);
+  if (!a->data || !a->outp) return spx_cli_usage("train", "--data and --out are required");
+  if (a->schedule && strcmp(a->schedule, "paper"))
+    return spx_cli_usage("train", "--schedule must be 'paper', not '%s'", a->schedule);
+  if (a->schedule && a->loss_name) return spx_cli_usage("train", "--schedule paper chooses the losses; drop --loss");
+  if (a->loss_name && (rc = train_loss_parse(a->loss_name, &use_gan, &use_vgg))) return rc;
+  if (a->epochs >= 0 && a->steps >= 0) return spx_cli_usage("train", "give --epochs or --steps, not both");
+  if (a->resume && a->init) return spx_cli_usage("train", "--resume continues --out; it cannot be combined with --init");
+  return -1;
 }
 
-static int train_run(int argc, char **argv, train_dist *dist) {
-  const char *data = NULL, *outp = NULL, *init = NULL, *spec = NULL, *loss_name = NULL, *vgg_path = NULL;
-  const char *schedule = NULL;
-  long width = 0, batch = -1, epochs = -1, steps = -1, seed = 0, save_every = 0, log_every = 10, disc_width = 64;
-  double lr = -1, lr2 = 1e-5;
-  train_recipe rcp;
-  memset(&rcp, 0, sizeof rcp);
-  int resume = 0, no_shuffle = 0, sigmoid = 0, local_bn = 0, agreed = 0, rc = 0;
-  spx_opt opts[] = {SPX_O("--resume", SPX_OPT_FLAG, &resume),
-                    SPX_O("--no-shuffle", SPX_OPT_FLAG, &no_shuffle),
-                    SPX_O("--sigmoid", SPX_OPT_FLAG, &sigmoid),
-                    SPX_O("--local-bn", SPX_OPT_FLAG, &local_bn),
-                    SPX_O("--data", SPX_OPT_IN, &data),
-                    SPX_O("--out", SPX_OPT_OUT, &outp),
-                    SPX_O("--init", SPX_OPT_IN, &init),
-                    SPX_O("--device", SPX_OPT_STR, &spec),
-                    SPX_O("--loss", SPX_OPT_STR, &loss_name),
-                    SPX_O("--vgg", SPX_OPT_IN, &vgg_path),
-                    SPX_O("--schedule", SPX_OPT_STR, &schedule),
-                    SPX_O_RANGE("--disc-width", SPX_OPT_INT, &disc_width, 1, 512),
-                    SPX_O_RANGE("--lr2", SPX_OPT_REAL, &lr2, 1e-300, 1e6),
-                    SPX_O_RANGE("--width", SPX_OPT_INT, &width, 8, 64),
-                    SPX_O_RANGE("--batch", SPX_OPT_INT, &batch, 1, 1000000000),
-                    SPX_O_RANGE("--epochs", SPX_OPT_INT, &epochs, 0, 100000000),
-                    SPX_O_RANGE("--steps", SPX_OPT_INT, &steps, 0, 2000000000),
-                    SPX_O_RANGE("--seed", SPX_OPT_INT, &seed, 0, 2147483647),
-                    SPX_O_RANGE("--save-every", SPX_OPT_INT, &save_every, 1, 2000000000),
-                    SPX_O_RANGE("--log-every", SPX_OPT_INT, &log_every, 1, 2000000000),
-                    SPX_O_RANGE("--lr", SPX_OPT_REAL, &lr, 1e-300, 1e6),
-                    SPX_O_END};
-  if ((rc = spx_cli_parse(argc, argv, "train", NULL, train_help, opts)) >= 0) return rc;
-  rc = 0;
-  int shuffle = !no_shuffle, seed_given = spx_cli_given(opts, "--seed"), batch_given = spx_cli_given(opts, "--batch");
-  int lr_given = spx_cli_given(opts, "--lr"), shuffle_given = no_shuffle, loss_given = loss_name != NULL;
-  int lr2_given = spx_cli_given(opts, "--lr2"), disc_width_given = spx_cli_given(opts, "--disc-width");
-  if (width && width != 8 && width != 16 && width != 32 && width != 64)
-    return spx_cli_usage("train", "--width must be 8, 16, 32 or 64, not %ld", width);
-  if (!data || !outp) return spx_cli_usage("train", "--data and --out are required");
-  if (schedule && strcmp(schedule, "paper")) return spx_cli_usage("train", "--schedule must be 'paper', not '%s'", schedule);
-  int use_gan = 0, use_vgg = 0;
-  if (schedule && loss_name) return spx_cli_usage("train", "--schedule paper chooses the losses; drop --loss");
-  if (loss_name && (rc = train_loss_parse(loss_name, &use_gan, &use_vgg))) return rc;
-  if (epochs >= 0 && steps >= 0) return spx_cli_usage("train", "give --epochs or --steps, not both");
-  if (resume && init) return spx_cli_usage("train", "--resume continues --out; it cannot be combined with --init");
+/* --resume: the checkpoint's record must agree with the flags given; the run then takes its
+ * settings from the record. */
+static int adopt_record(train_job *j, train_args *a) {
+  spx_train_state *ts = &j->ts;
+  int has_state = 0, has_opt = 0;
+  int rc = spx_train_state_read(j->ctx, a->outp, ts, &has_state, &has_opt);
+  if (rc) return rc;
+  if (!has_opt)
+    return spx_cli_errorf("train", "%s: holds weights only (no optimizer state), so it cannot be resumed; start from "
+                          "it with --init", a->outp);
+  if (!has_state)
+    return spx_cli_errorf("train", "%s: records no training state (seed, data order, batch), so it cannot be resumed "
+                          "bit for bit; start from it with --init", a->outp);
+  const spx_opt *o = a->opts;
+  const char *clash = NULL;
+  char rec[160];
+  if (spx_cli_given(o, "--seed") && a->seed != ts->seed)
+    clash = "--seed", snprintf(rec, sizeof rec, "seed %lld", (long long)ts->seed);
+  else if (spx_cli_given(o, "--batch") && a->batch != ts->batch && !(a->batch > ts->batch && ts->batch == ts->pairs))
+    clash = "--batch", snprintf(rec, sizeof rec, "batch %lld", (long long)ts->batch);
+  else if (a->no_shuffle && ts->shuffle) clash = "--no-shuffle", snprintf(rec, sizeof rec, "shuffled data order");
+  else if (spx_cli_given(o, "--lr") && a->lr != ts->lr) clash = "--lr", snprintf(rec, sizeof rec, "lr %.17g", ts->lr);
+  else if (a->loss_name && ts->schedule[0])
+    clash = "--loss", snprintf(rec, sizeof rec, "--schedule %s (stage %lld, loss %s)", ts->schedule,
+                               (long long)ts->stage, ts->loss);
+  else if (a->loss_name && strcmp(a->loss_name, ts->loss))
+    clash = "--loss", snprintf(rec, sizeof rec, "loss (it was trained with --loss %s, not %s)", ts->loss, a->loss_name);
+  else if (a->schedule && strcmp(a->schedule, ts->schedule))
+    clash = "--schedule", snprintf(rec, sizeof rec, "single-stage run (loss %s)", ts->loss);
+  else if (spx_cli_given(o, "--lr2") && ts->schedule[0] && a->lr2 != ts->lr2)
+    clash = "--lr2", snprintf(rec, sizeof rec, "lr2 %.17g", ts->lr2);
+  else if (spx_cli_given(o, "--disc-width") && a->disc_width != ts->disc_width)
+    clash = "--disc-width", snprintf(rec, sizeof rec, "disc width %lld", (long long)ts->disc_width);
+  if (clash)
+    return spx_cli_usage("train", "%s contradicts the %s recorded in %s (--resume takes it from the checkpoint)", clash,
+                         rec, a->outp);
+  a->seed = (long)ts->seed, a->batch = (long)ts->batch, j->shuffle = (int)ts->shuffle, a->lr = ts->lr;
+  a->schedule = ts->schedule[0] ? "paper" : NULL, a->loss_name = ts->schedule[0] ? NULL : ts->loss;
+  a->lr2 = ts->lr2, a->disc_width = (long)ts->disc_width;
+  return SPX_EXIT_OK;
+}
 
-  spx_ctx *ctx = NULL;
-  if (spx_ctx_create(&ctx)) return spx_cli_errorf("train", "out of memory");
-  spx_unet *u = NULL;
-  split tr = {0}, val = {0};
-  int *perm = NULL;
-  float *in = NULL, *tg = NULL;
-  struct sigaction old_int, old_term;
-  int handler_set = 0, term_set = 0;
-  progress pg = {0};
-  pg.tty = isatty(STDERR_FILENO);
-  spx_train_state ts;
-  spx_train_state_init(&ts);
+/* The recipe (losses, perceptual weights, learning rates, defaults) from the flags, or with
+ * --resume from the checkpoint's record. */
+static int train_reconcile(train_job *j, train_args *a, const train_dist *dist) {
+  int rc, use_gan = 0, use_vgg = 0, stage_gan;
+  int resume = a->resume;
+  j->shuffle = !a->no_shuffle;
   { /* --out must be writable before any training (a failed save would throw the steps away) */
     spx_tx chk;
     spx_tx_begin(&chk, "train", 0);
-    if (dist->comm.rank == 0 && (rc = spx_tx_check(&chk, outp))) goto done; /* only rank 0 writes */
+    if (dist->comm.rank == 0 && (rc = spx_tx_check(&chk, a->outp))) return rc; /* only rank 0 writes */
   }
-  if (resume) { /* the run's settings come from the checkpoint; flags may only repeat them */
-    int has_state = 0, has_opt = 0;
-    if ((rc = spx_train_state_read(ctx, outp, &ts, &has_state, &has_opt))) goto done;
-    if (!has_opt) {
-      rc = spx_cli_errorf("train", "%s: holds weights only (no optimizer state), so it cannot be resumed; start from it "
-                          "with --init", outp);
-      goto done;
-    }
-    if (!has_state) {
-      rc = spx_cli_errorf("train", "%s: records no training state (seed, data order, batch), so it cannot be resumed "
-                          "bit for bit; start from it with --init", outp);
-      goto done;
-    }
-    const char *clash = NULL;
-    char rec[160];
-    if (seed_given && seed != ts.seed) clash = "--seed", snprintf(rec, sizeof rec, "seed %lld", (long long)ts.seed);
-    else if (batch_given && batch != ts.batch && !(batch > ts.batch && ts.batch == ts.pairs))
-      clash = "--batch", snprintf(rec, sizeof rec, "batch %lld", (long long)ts.batch);
-    else if (shuffle_given && ts.shuffle) clash = "--no-shuffle", snprintf(rec, sizeof rec, "shuffled data order");
-    else if (lr_given && lr != ts.lr) clash = "--lr", snprintf(rec, sizeof rec, "lr %.17g", ts.lr);
-    else if (loss_given && ts.schedule[0])
-      clash = "--loss", snprintf(rec, sizeof rec, "--schedule %s (stage %lld, loss %s)", ts.schedule,
-                                 (long long)ts.stage, ts.loss);
-    else if (loss_given && strcmp(loss_name, ts.loss))
-      clash = "--loss", snprintf(rec, sizeof rec, "loss (it was trained with --loss %s, not %s)", ts.loss, loss_name);
-    else if (schedule && strcmp(schedule, ts.schedule))
-      clash = "--schedule", snprintf(rec, sizeof rec, "single-stage run (loss %s)", ts.loss);
-    else if (lr2_given && ts.schedule[0] && lr2 != ts.lr2) clash = "--lr2", snprintf(rec, sizeof rec, "lr2 %.17g", ts.lr2);
-    else if (disc_width_given && disc_width != ts.disc_width)
-      clash = "--disc-width", snprintf(rec, sizeof rec, "disc width %lld", (long long)ts.disc_width);
-    if (clash) {
-      rc = spx_cli_usage("train", "%s contradicts the %s recorded in %s (--resume takes it from the checkpoint)", clash,
-                         rec, outp);
-      goto done;
-    }
-    seed = (long)ts.seed, batch = (long)ts.batch, shuffle = (int)ts.shuffle, lr = ts.lr;
-    schedule = ts.schedule[0] ? "paper" : NULL, loss_name = ts.schedule[0] ? NULL : ts.loss;
-    lr2 = ts.lr2, disc_width = (long)ts.disc_width;
-  }
+  if (resume && (rc = adopt_record(j, a))) return rc;
   /* options that do nothing in the run's mode (after --resume took it from the checkpoint) */
-  if (spx_cli_only_with(opts, "train", "--lr2", schedule != NULL, "--schedule paper") ||
-      spx_cli_only_with(opts, "train", "--disc-width",
-                        schedule || (loss_name && strstr(loss_name, "gan")) || (resume && strstr(ts.loss, "gan")),
-                        "a GAN loss (--loss l1+gan / vgg+gan or --schedule paper)")) {
-    rc = SPX_EXIT_USAGE;
-    goto done;
-  }
-  /* the recipe, from the flags or (--resume) the checkpoint's record */
-  if (loss_name && (rc = train_loss_parse(loss_name, &use_gan, &use_vgg))) goto done;
-  char cached_vgg[4096];
-  int have16 = spx_weights_path(SPX_WEIGHTS_VGG16, cached_vgg, sizeof cached_vgg);
-  if (schedule && !resume) {
-    use_vgg = vgg_path ? TRAIN_VGG19 : have16 == 1 ? TRAIN_VGG16 : 0;
+  if (spx_cli_only_with(a->opts, "train", "--lr2", a->schedule != NULL, "--schedule paper") ||
+      spx_cli_only_with(a->opts, "train", "--disc-width",
+                        a->schedule || (a->loss_name && strstr(a->loss_name, "gan")) ||
+                            (resume && strstr(j->ts.loss, "gan")),
+                        "a GAN loss (--loss l1+gan / vgg+gan or --schedule paper)"))
+    return SPX_EXIT_USAGE;
+  if (a->loss_name && (rc = train_loss_parse(a->loss_name, &use_gan, &use_vgg))) return rc;
+  int have16 = spx_weights_path(SPX_WEIGHTS_VGG16, j->cached_vgg, sizeof j->cached_vgg);
+  if (a->schedule && !resume) {
+    use_vgg = a->vgg_path ? TRAIN_VGG19 : have16 == 1 ? TRAIN_VGG16 : 0;
     if (!use_vgg && (!dist->on || dist->comm.rank == 0))
       fprintf(stderr, "smplpix train: --schedule paper: no VGG16 at %s (make weights) and no --vgg: stage 1 is l1, "
-              "stage 2 l1+gan\n", have16 < 0 ? "${SPX_CACHE_DIR:-~/.cache/smplpix}/weights" : cached_vgg);
+              "stage 2 l1+gan\n", have16 < 0 ? "${SPX_CACHE_DIR:-~/.cache/smplpix}/weights" : j->cached_vgg);
   }
-  int stage_gan;
-  if (resume && ts.schedule[0] && (rc = train_loss_parse(ts.loss, &stage_gan, &use_vgg))) goto done;
-  if (use_vgg == TRAIN_VGG16 && !vgg_path) {
-    if (have16 != 1) {
-      rc = spx_cli_errorf("train", "--loss %s needs the VGG16 weights: %s is absent (`make weights` writes it; or "
-                          "--vgg VGG16.safetensors)", loss_name ? loss_name : ts.loss,
-                          have16 < 0 ? "${SPX_CACHE_DIR:-~/.cache/smplpix}/weights/vgg16.safetensors" : cached_vgg);
-      goto done;
-    }
-    vgg_path = cached_vgg;
+  if (resume && j->ts.schedule[0] && (rc = train_loss_parse(j->ts.loss, &stage_gan, &use_vgg))) return rc;
+  const char *loss_shown = a->loss_name ? a->loss_name : j->ts.loss;
+  if (use_vgg == TRAIN_VGG16 && !a->vgg_path) {
+    if (have16 != 1)
+      return spx_cli_errorf("train", "--loss %s needs the VGG16 weights: %s is absent (`make weights` writes it; or "
+                            "--vgg VGG16.safetensors)", loss_shown,
+                            have16 < 0 ? "${SPX_CACHE_DIR:-~/.cache/smplpix}/weights/vgg16.safetensors" : j->cached_vgg);
+    a->vgg_path = j->cached_vgg;
   }
-  if (use_vgg && !vgg_path) {
-    rc = spx_cli_errorf("train", "--loss %s needs the VGG19 weights: --vgg VGG19.safetensors (torchvision's "
-                        "features.N.weight/bias; tools/vgg19_pth_to_safetensors.py converts a .pth)",
-                        loss_name ? loss_name : ts.loss);
-    goto done;
-  }
-  if (vgg_path && !use_vgg) {
-    rc = spx_cli_usage("train", "--vgg is only used by --loss vgg, vgg+gan, vgg16 or vgg16+gan");
-    goto done;
-  }
-  int length_given = epochs >= 0 || steps >= 0; /* else --resume continues to the recorded target */
-  if (lr < 0) lr = schedule ? 1e-4 : 1e-3;
-  if (batch < 0) batch = schedule ? 10 : 1;
-  if (schedule && epochs < 0 && steps < 0) epochs = 100;
-  if (epochs < 0 && steps < 0) epochs = 1;
-  rcp.schedule = schedule != NULL;
-  rcp.gan[1] = schedule ? 0 : use_gan;
-  rcp.gan[2] = schedule ? 1 : use_gan;
-  rcp.vgg = use_vgg;
-  rcp.vgg_path = vgg_path;
-  rcp.lr1 = lr, rcp.lr2 = schedule ? lr2 : lr;
-  rcp.disc_width = (int)disc_width, rcp.num_d = 3, rcp.seed = (uint64_t)seed;
-  if ((rc = list_split(data, "train", 1, &tr)) || (rc = list_split(data, "validation", 0, &val))) goto done;
-  if ((rc = probe_size(ctx, &tr)) || (val.n && (rc = probe_size(ctx, &val)))) goto done;
-  if (dist->on && (batch > tr.n ? tr.n : batch) % dist->comm.size) {
-    rc = spx_cli_usage("train", "--batch %ld%s does not divide over %d ranks (--batch is the global batch)",
-                       batch > tr.n ? (long)tr.n : batch, resume ? " (recorded in the checkpoint)" : "", dist->comm.size);
-    goto done;
-  }
+  if (use_vgg && !a->vgg_path)
+    return spx_cli_errorf("train", "--loss %s needs the VGG19 weights: --vgg VGG19.safetensors (torchvision's "
+                          "features.N.weight/bias; tools/vgg19_pth_to_safetensors.py converts a .pth)", loss_shown);
+  if (a->vgg_path && !use_vgg) return spx_cli_usage("train", "--vgg is only used by --loss vgg, vgg+gan, vgg16 or vgg16+gan");
+  j->length_given = a->epochs >= 0 || a->steps >= 0; /* else --resume continues to the recorded target */
+  if (a->lr < 0) a->lr = a->schedule ? 1e-4 : 1e-3;
+  if (a->batch < 0) a->batch = a->schedule ? 10 : 1;
+  if (a->schedule && a->epochs < 0 && a->steps < 0) a->epochs = 100;
+  if (a->epochs < 0 && a->steps < 0) a->epochs = 1;
+  train_recipe *r = &j->rcp;
+  r->schedule = a->schedule != NULL;
+  r->gan[1] = a->schedule ? 0 : use_gan;
+  r->gan[2] = a->schedule ? 1 : use_gan;
+  r->vgg = use_vgg;
+  r->vgg_path = a->vgg_path;
+  r->lr1 = a->lr, r->lr2 = a->schedule ? a->lr2 : a->lr;
+  r->disc_width = (int)a->disc_width, r->num_d = 3, r->seed = (uint64_t)a->seed;
+  return SPX_EXIT_OK;
+}
+
+/* The data, the device, the network (new, --init or --resume, agreed over the ranks), the run's
+ * length, the batch buffers; prints the run's header and the starting validation. */
+static int train_prepare(train_job *j, const train_args *a, train_dist *dist) {
+  spx_ctx *ctx = j->ctx;
+  train_recipe *r = &j->rcp;
+  spx_train_state *ts = &j->ts;
+  long batch = a->batch;
+  int rc, resume = a->resume;
+  if ((rc = list_split(a->data, "train", 1, &j->tr)) || (rc = list_split(a->data, "validation", 0, &j->val))) return rc;
+  if ((rc = probe_size(ctx, &j->tr)) || (j->val.n && (rc = probe_size(ctx, &j->val)))) return rc;
+  const split *tr = &j->tr;
+  if (dist->on && (batch > tr->n ? tr->n : batch) % dist->comm.size)
+    return spx_cli_usage("train", "--batch %ld%s does not divide over %d ranks (--batch is the global batch)",
+                         batch > tr->n ? (long)tr->n : batch, resume ? " (recorded in the checkpoint)" : "",
+                         dist->comm.size);
   char devbuf[32];
-  if ((rc = spx_cli_open_device("train", ctx, train_dist_device(dist, spec, devbuf, sizeof devbuf)))) goto done;
-  const char *from = resume ? outp : init;
-  if (!dist->on || dist->comm.rank == 0) rc = net_open(ctx, from, init != NULL, width, sigmoid, seed, &u);
+  if ((rc = spx_cli_open_device("train", ctx, train_dist_device(dist, a->spec, devbuf, sizeof devbuf)))) return rc;
+  const char *from = resume ? a->outp : a->init;
+  if (!dist->on || dist->comm.rank == 0) rc = net_open(ctx, from, a->init != NULL, a->width, a->sigmoid, a->seed, &j->u);
   if (dist->on) { /* the others take rank 0's width, then its whole state */
-    if ((rc = train_dist_agree(dist, rc, NULL)) || (rc = train_dist_adopt(dist, ctx, &u, !local_bn))) {
-      agreed = 1;
-      goto done;
+    if ((rc = train_dist_agree(dist, rc, NULL)) || (rc = train_dist_adopt(dist, ctx, &j->u, !a->local_bn))) {
+      j->agreed = 1;
+      return rc;
     }
   }
-  if (rc) goto done;
-  if (resume && (ts.pairs != tr.n || ts.step != ts.stage_base + spx_unet_step(u))) {
-    rc = ts.pairs != tr.n ? spx_cli_errorf("train", "%s/train has %d pairs, but %s was trained on %lld: the data order "
-                                           "cannot continue", data, tr.n, outp, (long long)ts.pairs)
-                          : spx_cli_errorf("train", "%s: recorded step %lld does not match its optimizer step %lld "
-                                           "(+ %lld before stage %lld)", outp, (long long)ts.step,
-                                           (long long)spx_unet_step(u), (long long)ts.stage_base, (long long)ts.stage);
-    goto done;
-  }
-  if (batch > tr.n) batch = tr.n; /* one batch holds the whole set */
-  int64_t spe = (tr.n + batch - 1) / batch; /* steps per epoch (the last batch may be short) */
-  int64_t target = steps >= 0 ? steps : epochs * spe;
-  ts.seed = seed, ts.shuffle = shuffle, ts.batch = batch, ts.pairs = tr.n, ts.steps_per_epoch = spe;
-  if (rcp.schedule) rcp.stage1_steps = target, target *= 2; /* the same length for both stages */
+  if (rc) return rc;
+  spx_unet *u = j->u;
+  if (resume && (ts->pairs != tr->n || ts->step != ts->stage_base + spx_unet_step(u)))
+    return ts->pairs != tr->n ? spx_cli_errorf("train", "%s/train has %d pairs, but %s was trained on %lld: the data "
+                                               "order cannot continue", a->data, tr->n, a->outp, (long long)ts->pairs)
+                              : spx_cli_errorf("train", "%s: recorded step %lld does not match its optimizer step %lld "
+                                               "(+ %lld before stage %lld)", a->outp, (long long)ts->step,
+                                               (long long)spx_unet_step(u), (long long)ts->stage_base,
+                                               (long long)ts->stage);
+  if (batch > tr->n) batch = tr->n; /* one batch holds the whole set */
+  int64_t spe = (tr->n + batch - 1) / batch; /* steps per epoch (the last batch may be short) */
+  int64_t target = a->steps >= 0 ? a->steps : a->epochs * spe;
+  ts->seed = a->seed, ts->shuffle = j->shuffle, ts->batch = batch, ts->pairs = tr->n, ts->steps_per_epoch = spe;
+  if (r->schedule) r->stage1_steps = target, target *= 2; /* the same length for both stages */
   /* resuming: the stage (and the schedule's stage-2 start) come from the record */
-  rcp.comm = dist->on ? &dist->comm : NULL; /* rank 0 loads the discriminator, the others take it */
-  if ((rc = train_recipe_start(ctx, &rcp, u, outp, from, resume ? &ts : NULL))) goto done;
+  r->comm = dist->on ? &dist->comm : NULL; /* rank 0 loads the discriminator, the others take it */
+  if ((rc = train_recipe_start(ctx, r, u, a->outp, from, resume ? ts : NULL))) return rc;
   if (resume) { /* the run's length: the recorded target unless --epochs / --steps give a new one */
-    int64_t stage1 = steps >= 0 ? steps : epochs * spe;
-    if (!length_given && ts.target >= 0) target = ts.target;
-    else if (rcp.schedule && rcp.stage == 2) target = rcp.stage1_steps + stage1; /* stage 2: as long as asked */
-    else if (rcp.schedule) rcp.stage1_steps = stage1, target = 2 * stage1;
+    int64_t stage1 = a->steps >= 0 ? a->steps : a->epochs * spe;
+    if (!j->length_given && ts->target >= 0) target = ts->target;
+    else if (r->schedule && r->stage == 2) target = r->stage1_steps + stage1; /* stage 2: as long as asked */
+    else if (r->schedule) r->stage1_steps = stage1, target = 2 * stage1;
   }
-  ts.target = target > train_recipe_step_count(&rcp, u) ? target : train_recipe_step_count(&rcp, u); /* never behind */
+  int64_t now = train_recipe_step_count(r, u);
+  ts->target = target > now ? target : now; /* never behind */
   if (dist->on) {
     if ((rc = train_dist_agree(dist, rc, NULL))) {
-      agreed = 1;
-      goto done;
+      j->agreed = 1;
+      return rc;
     }
-    if (rcp.d && spx_patchgan_broadcast(rcp.d)) train_dist_fatal(dist, spx_cli_error("train", ctx));
+    if (r->d && spx_patchgan_broadcast(r->d)) train_dist_fatal(dist, spx_cli_error("train", ctx));
   }
-#define GSTEP() train_recipe_step_count(&rcp, u)
-  size_t hw = (size_t)tr.h * (size_t)tr.w;
-  perm = malloc(sizeof(int) * (size_t)tr.n);
-  long held = batch / dist->comm.size; /* images this rank holds at once (its shard) */
-  in = malloc((size_t)held * SPX_UNET_IN_CHANNELS * hw * sizeof(float));
-  tg = malloc((size_t)held * SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
-  if (!perm || !in || !tg) {
-    rc = spx_cli_errorf("train", "out of memory for a batch of %ld %dx%d images (try a smaller --batch)", held, tr.w,
-                        tr.h);
-    goto done;
-  }
+  j->spe = spe, j->target = target, j->batch = batch;
+  size_t hw = (size_t)tr->h * (size_t)tr->w;
+  j->perm = malloc(sizeof(int) * (size_t)tr->n);
+  j->held = batch / dist->comm.size;
+  j->in = malloc((size_t)j->held * SPX_UNET_IN_CHANNELS * hw * sizeof(float));
+  j->tg = malloc((size_t)j->held * SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
+  if (!j->perm || !j->in || !j->tg)
+    return spx_cli_errorf("train", "out of memory for a batch of %ld %dx%d images (try a smaller --batch)", j->held,
+                          tr->w, tr->h);
   printf("train: %d pairs (%dx%d), %d validation, width %d, batch %ld, lr %g, %lld steps/epoch, step %lld -> %lld, "
          "loss %s%s\n",
-         tr.n, tr.w, tr.h, val.n, spx_unet_width(u), batch, rcp.schedule && rcp.stage == 2 ? rcp.lr2 : lr, (long long)spe,
-         (long long)GSTEP(), (long long)target, train_loss_name(&rcp),
-         rcp.schedule ? (rcp.stage == 1 ? " (stage 1 of --schedule paper)" : " (stage 2 of --schedule paper)") : "");
+         tr->n, tr->w, tr->h, j->val.n, spx_unet_width(u), batch, r->schedule && r->stage == 2 ? r->lr2 : a->lr,
+         (long long)spe, (long long)now, (long long)target, train_loss_name(r),
+         r->schedule ? (r->stage == 1 ? " (stage 1 of --schedule paper)" : " (stage 2 of --schedule paper)") : "");
   fflush(stdout);
-  int rank0 = !dist->on || dist->comm.rank == 0; /* validates, saves and speaks */
+  j->rank0 = !dist->on || dist->comm.rank == 0; /* validates, saves and speaks */
   if (dist->on) {
     spx_device_info di;
     char dev[300] = "?";
     if (!spx_device_get_info(ctx, &di)) snprintf(dev, sizeof dev, "%s", di.name);
     printf("train: %d ranks, %ld images per rank and step, %s batch norm; rank 0 on %s\n", dist->comm.size,
-           batch / dist->comm.size, local_bn ? "per-rank (--local-bn)" : "synchronised", dev);
+           batch / dist->comm.size, a->local_bn ? "per-rank (--local-bn)" : "synchronised", dev);
     fflush(stdout);
   }
-  if (val.n && GSTEP() < target && rank0) { /* the starting point, to compare the epochs against */
+  if (j->val.n && now < target && j->rank0) { /* the starting point, to compare the epochs against */
     double vl = 0, vp = 0, vs = 0;
-    if ((rc = validate(ctx, u, &val, &vl, &vp, &vs))) goto done;
-    printf("step %lld: validation L1 %.6f, PSNR %.2f dB, SSIM %.4f\n", (long long)GSTEP(), vl, vp, vs);
+    if ((rc = validate(ctx, u, &j->val, &vl, &vp, &vs))) return rc;
+    printf("step %lld: validation L1 %.6f, PSNR %.2f dB, SSIM %.4f\n", (long long)now, vl, vp, vs);
     fflush(stdout);
   }
-  {
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_sigint;
-    sigemptyset(&sa.sa_mask);
-    sa.sa_flags = SA_RESTART;
-    interrupted = 0;
-    handler_set = sigaction(SIGINT, &sa, &old_int) == 0;
-    /* mpirun turns Ctrl-C into SIGTERM for every rank */
-    term_set = dist->on && sigaction(SIGTERM, &sa, &old_term) == 0;
-  }
+  return SPX_EXIT_OK;
+}
+
+/* SIGINT (and under mpirun SIGTERM, what it turns Ctrl-C into) set `interrupted`; the old handlers
+ * are put back by train_run. */
+static void catch_signals(train_job *j, const train_dist *dist) {
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_sigint;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = SA_RESTART;
+  interrupted = 0;
+  j->handler_set = sigaction(SIGINT, &sa, &j->old_int) == 0;
+  j->term_set = dist->on && sigaction(SIGTERM, &sa, &j->old_term) == 0;
+}
+
+/* The steps up to j->target: batches in each epoch's order, the recipe's step, progress, the
+ * epoch's validation line, checkpoints, Ctrl-C; then the final save. */
+static int train_loop(train_job *j, const train_args *a, train_dist *dist) {
+  spx_ctx *ctx = j->ctx;
+  spx_unet *u = j->u;
+  train_recipe *r = &j->rcp;
+  const split *tr = &j->tr;
+  const char *outp = a->outp;
+  const long batch = j->batch;
+  const int64_t spe = j->spe, target = j->target;
+  progress pg = {0};
+  pg.tty = isatty(STDERR_FILENO);
+  catch_signals(j, dist);
   double t0 = spx_now(), ep_loss = 0;
-  int ep_count = 0, pend = 0; /* pend: a failure of rank 0 (validation, save) told at the next agreement */
+  int rc = 0, ep_count = 0, pend = 0; /* pend: a failure of rank 0 (validation, save) told at the next agreement */
   int64_t cur_epoch = -1;
   pg.t0 = t0;
-  pg.start_step = GSTEP();
+  pg.start_step = train_recipe_step_count(r, u);
   pg.total = target;
-  while (GSTEP() < target) {
-    int64_t step = GSTEP(), epoch = step / spe, pos = step % spe;
+  while (train_recipe_step_count(r, u) < target) {
+    int64_t step = train_recipe_step_count(r, u), epoch = step / spe, pos = step % spe;
     if (epoch != cur_epoch) {
-      epoch_order(perm, tr.n, (uint64_t)seed, epoch, shuffle);
+      epoch_order(j->perm, tr->n, (uint64_t)a->seed, epoch, j->shuffle);
       cur_epoch = epoch;
     }
-    int first = (int)(pos * batch), count = (int)(tr.n - first < batch ? tr.n - first : batch), off = 0, mine = count;
+    int first = (int)(pos * batch), count = (int)(tr->n - first < batch ? tr->n - first : batch), off = 0, mine = count;
     if (dist->on) train_dist_shard(dist, count, &off, &mine); /* mine = 0: a stand-in sample, counted for nothing */
     float loss = 0;
-    rc = load_batch(ctx, &tr, perm + first + (mine ? off : 0), mine ? mine : 1, in, tg);
+    rc = load_batch(ctx, &j->tr, j->perm + first + (mine ? off : 0), mine ? mine : 1, j->in, j->tg);
     if (dist->on) { /* every rank has its shard (and nobody was interrupted) before a step starts */
       int stop = interrupted;
       if ((rc = train_dist_agree(dist, rc ? rc : pend, &stop))) {
-        agreed = 1;
-        goto done;
+        j->agreed = 1;
+        return rc;
       }
       if (stop) { /* SIGINT / SIGTERM on some rank: every rank stops here, rank 0 saves */
         progress_clear(&pg);
-        if (rank0 && !(rc = save_checkpoint(ctx, &rcp, u, outp, &ts, step, spe)))
+        if (j->rank0 && !(rc = save_checkpoint(ctx, r, u, outp, &j->ts, step, spe)))
           fprintf(stderr, "smplpix train: interrupted after step %lld of %lld: saved %s (continue with --resume)\n",
                   (long long)step, (long long)target, outp);
-        rc = rc ? rc : 130;
-        goto done;
+        return rc ? rc : 130;
       }
-      rcp.share = (double)mine / (double)count;
+      r->share = (double)mine / (double)count;
       if (spx_unet_set_shard(u, mine, count)) train_dist_fatal(dist, spx_cli_error("train", ctx));
     } else if (rc) {
-      goto done;
+      return rc;
     }
     progress_clear(&pg); /* a stage switch prints a line */
-    if ((rc = train_recipe_step(ctx, &rcp, u, in, tg, mine ? mine : 1, tr.h, tr.w, &loss))) {
+    if ((rc = train_recipe_step(ctx, r, u, j->in, j->tg, mine ? mine : 1, tr->h, tr->w, &loss))) {
       if (dist->on) train_dist_fatal(dist, rc); /* the other ranks wait inside the step */
-      goto done;
+      return rc;
     }
     if (!isfinite(loss)) { /* the global loss: every rank stops here */
       progress_clear(&pg);
-      rc = spx_cli_errorf("train", "the loss became %g at step %lld (learning rate too high?)", loss, (long long)step);
-      goto done;
+      return spx_cli_errorf("train", "the loss became %g at step %lld (learning rate too high?)", loss, (long long)step);
     }
     ep_loss += loss;
     ep_count++;
     pg.images += count;
-    int64_t now_step = GSTEP();
+    int64_t now_step = train_recipe_step_count(r, u);
     int end_epoch = pos == spe - 1, last = now_step == target;
-    if (pg.tty || now_step % log_every == 0 || end_epoch || last)
-      progress_show(&pg, now_step, epoch, ep_loss / ep_count, &rcp, end_epoch || last);
+    if (pg.tty || now_step % a->log_every == 0 || end_epoch || last)
+      progress_show(&pg, now_step, epoch, ep_loss / ep_count, r, end_epoch || last);
     if (end_epoch || last) {
       double vl = 0, vp = 0, vs = 0;
-      if (val.n && rank0 && (rc = validate(ctx, u, &val, &vl, &vp, &vs))) {
-        if (!dist->on) goto done;
+      if (j->val.n && j->rank0 && (rc = validate(ctx, u, &j->val, &vl, &vp, &vs))) {
+        if (!dist->on) return rc;
         pend = rc;
       }
       progress_clear(&pg);
       char terms[160];
-      train_recipe_terms(&rcp, terms, sizeof terms);
+      train_recipe_terms(r, terms, sizeof terms);
       printf("epoch %lld step %lld: train %s %.6f%s", (long long)epoch + 1, (long long)now_step,
-             rcp.gan[rcp.stage] || rcp.vgg ? "loss" : "L1", ep_loss / ep_count, terms);
-      if (val.n) printf(", validation L1 %.6f, PSNR %.2f dB, SSIM %.4f", vl, vp, vs);
+             r->gan[r->stage] || r->vgg ? "loss" : "L1", ep_loss / ep_count, terms);
+      if (j->val.n) printf(", validation L1 %.6f, PSNR %.2f dB, SSIM %.4f", vl, vp, vs);
       printf(", %.1f s\n", spx_now() - t0);
       fflush(stdout);
       ep_loss = 0;
       ep_count = 0;
-      train_recipe_epoch_reset(&rcp);
+      train_recipe_epoch_reset(r);
     }
-    int save = save_every ? now_step % save_every == 0 : end_epoch, sig = dist->on ? 0 : interrupted;
-    if ((save || sig) && !last && rank0 && !pend && (rc = save_checkpoint(ctx, &rcp, u, outp, &ts, now_step, spe))) {
+    int save = a->save_every ? now_step % a->save_every == 0 : end_epoch, sig = dist->on ? 0 : interrupted;
+    if ((save || sig) && !last && j->rank0 && !pend && (rc = save_checkpoint(ctx, r, u, outp, &j->ts, now_step, spe))) {
       progress_clear(&pg);
-      if (!dist->on) goto done;
+      if (!dist->on) return rc;
       pend = rc;
     }
     if (sig && !last) {
       progress_clear(&pg);
       fprintf(stderr, "smplpix train: interrupted after step %lld of %lld: saved %s (continue with --resume)\n",
               (long long)now_step, (long long)target, outp);
-      rc = 130;
-      goto done;
+      return 130;
     }
   }
   progress_clear(&pg);
-  if ((rc = pend)) goto done;
+  if ((rc = pend)) return rc;
   /* also when nothing was left to do */
-  if (rank0 && (rc = save_checkpoint(ctx, &rcp, u, outp, &ts, GSTEP(), spe))) goto done;
-  printf("wrote %s (step %lld)%s%s\n", outp, (long long)GSTEP(), train_recipe_disc(&rcp) ? " and " : "",
-         train_recipe_disc(&rcp) ? rcp.disc_path : "");
-done:
-  if (dist->on && !agreed) rc = train_dist_agree(dist, rc, NULL); /* the others learn why, or that all went well */
-  if (handler_set) sigaction(SIGINT, &old_int, NULL);
-  if (term_set) sigaction(SIGTERM, &old_term, NULL);
-  free(perm), free(in), free(tg);
-  split_free(&tr);
-  split_free(&val);
-  train_recipe_free(&rcp);
-  spx_unet_destroy(u);
-  spx_ctx_destroy(ctx);
+  int64_t done = train_recipe_step_count(r, u);
+  if (j->rank0 && (rc = save_checkpoint(ctx, r, u, outp, &j->ts, done, spe))) return rc;
+  printf("wrote %s (step %lld)%s%s\n", outp, (long long)done, train_recipe_disc(r) ? " and " : "",
+         train_recipe_disc(r) ? r->disc_path : "");
+  return SPX_EXIT_OK;
+}
+
+/* parse -> reconcile with the checkpoint -> prepare -> loop; every rank learns how it ended */
+static int train_run(int argc, char **argv, train_dist *dist) {
+  train_args a;
+  memset(&a, 0, sizeof a);
+  int rc = train_parse(argc, argv, &a);
+  if (rc >= 0) return rc;
+  train_job j;
+  memset(&j, 0, sizeof j);
+  spx_train_state_init(&j.ts);
+  if (spx_ctx_create(&j.ctx)) return spx_cli_errorf("train", "out of memory");
+  if (!(rc = train_reconcile(&j, &a, dist)) && !(rc = train_prepare(&j, &a, dist))) rc = train_loop(&j, &a, dist);
+  if (dist->on && !j.agreed) rc = train_dist_agree(dist, rc, NULL); /* the others learn why, or that all went well */
+  if (j.handler_set) sigaction(SIGINT, &j.old_int, NULL);
+  if (j.term_set) sigaction(SIGTERM, &j.old_term, NULL);
+  free(j.perm), free(j.in), free(j.tg);
+  split_free(&j.tr);
+  split_free(&j.val);
+  train_recipe_free(&j.rcp);
+  spx_unet_destroy(j.u);
+  spx_ctx_destroy(j.ctx);
   return rc;
+}
+
+int spx_cmd_train(int argc, char **argv) {
+  train_dist dist;
+  int rc = train_dist_start(&dist, argc, argv);
+  if (!rc) rc = train_run(argc, argv, &dist);
+  return train_dist_end(&dist, rc);
 }

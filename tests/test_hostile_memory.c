@@ -1,5 +1,5 @@
 /* Out of memory under an address-space limit (ulimit -v, usual on shared machines), issue 24: an
- * 8192x8192 `project` and a 4096x4096 `demo` on a CPU device stop with one line naming the
+ * 8192x8192 `project` and a 4000x4000 `demo` on a CPU device stop with one line naming the
  * buffer, exit 1, and write nothing (PoCL asserted in its first use of the buffer before). Not
  * under AddressSanitizer, whose shadow memory needs more address space than any such limit. */
 #include "hostile.h"
@@ -35,7 +35,7 @@ static void test_address_space_limit(void) {
   CHECK(err_has("out of memory") && err_has("buffer"));
   CHECK(err_is("project", ""));
   CHECK(!exists("b.exr") && count_temps(".") == 0);
-  CHECK(limited("demo --size 4096x4096 --out d --quiet") == 1);
+  CHECK(limited("demo --size 4000x4000 --out d --quiet") == 1);
   CHECK(err_has("out of memory"));
   CHECK(err_is("demo", ""));
 #endif
