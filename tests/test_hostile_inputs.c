@@ -93,6 +93,11 @@ static void test_colours_and_json(void) {
   CHECK(run("project --mesh quad.obj --camera trail.json --out d.exr") == 1 &&
         err_is("project", "trail.json: unexpected text after the JSON value"));
   CHECK(run("project --mesh quad.obj --camera space.json --out d.exr") == 0);
+  /* ... and no object names a key twice (which would count is said nowhere) */
+  write_text("dup.json", "{\"width\": 64, \"height\": 48, \"width\": 32, \"K\": [[60,0,32],[0,60,24],[0,0,1]], "
+                         "\"R\": [[1,0,0],[0,1,0],[0,0,1]], \"t\": [0,0,3]}");
+  CHECK(run("project --mesh quad.obj --camera dup.json --out d.exr") == 1 &&
+        err_is("project", "dup.json: key \"width\" appears twice in one object"));
   /* the registration JSON seeds of the fuzzer: the valid one loads, each broken one is refused */
   static const char *const bad[] = {"trailing_garbage", "negative_scale", "fractional_nv", "short_pose", "overflow"};
   char p[700];

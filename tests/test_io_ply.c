@@ -229,6 +229,15 @@ static void test_bad(void) {
       {"ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar float x\nend_header\n", "must not be a list", NULL,
        SPX_E_FORMAT},
       {"ply\nformat ascii 1.0\nelement blob 5\nend_header\n", "no properties", NULL, SPX_E_FORMAT},
+      /* every byte belongs to a declared element; the only version is 1.0 */
+      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
+       "0 0 0\n1 0 0\n",
+       ":9:", "data after the last element", SPX_E_FORMAT},
+      {"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty uchar x\nproperty uchar y\nproperty uchar z\n"
+       "end_header\nabcde",
+       "2 bytes after the last element", NULL, SPX_E_FORMAT},
+      {"ply\nformat ascii 2.0\nelement vertex 0\nend_header\n", "version '2.0'", NULL, SPX_E_UNSUPPORTED},
+      {"ply\nformat ascii\nelement vertex 0\nend_header\n", ":2:", "format TYPE 1.0", SPX_E_FORMAT},
       {"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
        "element face 1\nproperty list uchar int vertex_indices\nproperty list uchar float texcoord\nend_header\n"
        "0 0 0\n1 0 0\n0 1 0\n3 0 1 2 4 0 0 1 0\n",

@@ -61,6 +61,8 @@ spx_status spx_rename_over(spx_ctx *ctx, const char *tmp, const char *path);
  * space is an error naming the byte. *out: a cJSON tree for cJSON_Delete. */
 struct cJSON;
 spx_status spx_json_parse_doc(spx_ctx *ctx, const char *name, const char *text, size_t len, struct cJSON **out);
+/* The first key that some object under node (node, its siblings and everything below) names twice; NULL: none. */
+const char *spx_json_duplicate_key(const struct cJSON *node);
 
 /* Text formats (OBJ, PLY ascii, BVH) take decimal numbers: strtod would also read a hexadecimal
  * float ("0x1p3"), which no writer of these formats produces. 1 when p (after an optional sign)

@@ -48,9 +48,11 @@ spx_status spx_pose_load_json(spx_ctx *ctx, const char *path, const char *view, 
   size_t size = 0;
   spx_status st = spx_read_file(ctx, path, SPX_POSE_JSON_MAX, &data, &size);
   if (st) return st;
-  cJSON *root = cJSON_ParseWithLength((const char *)data, size);
+  cJSON *root = NULL;
+  st = spx_json_parse_doc(ctx, path, (const char *)data, size, &root);
   free(data);
-  if (!root || !cJSON_IsObject(root)) {
+  if (st) return st;
+  if (!cJSON_IsObject(root)) {
     cJSON_Delete(root);
     return spx_fail(ctx, SPX_E_FORMAT, "%s: not a JSON object", path);
   }

@@ -70,8 +70,9 @@ static spx_status obj_index(obj_state *s, char **pp, int64_t have, int64_t total
   long long v = strtoll(p, &end, 10);
   if (end == p) return spx_fail(s->ctx, SPX_E_FORMAT, "%s:%ld: expected a %s index, found '%.20s'", s->name, s->line, what, p);
   if (errno == ERANGE || v == 0 || v > total || (v < 0 && -v > have)) {
-    return spx_fail(s->ctx, SPX_E_FORMAT, "%s:%ld: %s index %.20s out of range (%lld defined)", s->name, s->line, what,
-                    p, (long long)(v < 0 ? have : total));
+    int len = (int)strcspn(p, " \t\r\n/");
+    return spx_fail(s->ctx, SPX_E_FORMAT, "%s:%ld: %s index %.*s out of range (%lld defined)", s->name, s->line, what,
+                    len < 24 ? len : 24, p, (long long)(v < 0 ? have : total));
   }
   *out = (int32_t)(v > 0 ? v - 1 : have + v);
   *pp = end;

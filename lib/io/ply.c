@@ -207,7 +207,9 @@ static spx_status ply_header(spx_ctx *ctx, const char *name, const unsigned char
     if (strcmp(tok[0], "comment") == 0 || strcmp(tok[0], "obj_info") == 0) continue;
     if (strcmp(tok[0], "end_header") == 0) break;
     if (strcmp(tok[0], "format") == 0) {
-      if (nt < 2) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: format line without a format", name, line);
+      if (nt != 3) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: expected 'format TYPE 1.0'", name, line);
+      if (strcmp(tok[2], "1.0"))
+        return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s:%ld: PLY version '%.20s' (only 1.0 exists)", name, line, tok[2]);
       if (strcmp(tok[1], "ascii") == 0) *binary = 0;
       else if (strcmp(tok[1], "binary_little_endian") == 0) *binary = 1;
       else if (strcmp(tok[1], "binary_big_endian") == 0)
@@ -471,6 +473,19 @@ spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, 
         goto done;
       }
     }
+  }
+  /* every byte belongs to a declared element: data after the last one (a wrong count, or two files
+   * joined) is refused, in ascii only white space may follow */
+  if (r.binary && r.p != r.end) {
+    char msg[96];
+    snprintf(msg, sizeof msg, "%zu bytes after the last element's rows", (size_t)(r.end - r.p));
+    st = where_fail(&r, SPX_E_FORMAT, msg);
+    goto done;
+  }
+  while (!r.binary && r.p < r.end && ws(*r.p)) r.line += *r.p++ == '\n';
+  if (!r.binary && r.p < r.end) {
+    st = where_fail(&r, SPX_E_FORMAT, "data after the last element's rows (more rows than the header declares)");
+    goto done;
   }
   m.nf = (int32_t)(faces.n / 3);
   if (m.nf) {
