@@ -40,7 +40,7 @@ command -v jq >/dev/null || die "jq: not found (apt-get install jq)"
 
 if [ "${TABLE1_QUICK:-0}" = 1 ]; then
   mode=quick SUBJECTS=2 NTRAIN=1 VIEWS=3 VTRAIN=2 SIZE=64x48 WIDTH=8 STEPS=20 VGGSTEPS=6 GANSTEPS=10 BATCH=2
-  POINTS=8000 TEX=256 SYNTEX=256 SEEDS=${TABLE1_SEEDS:-7} DISCW=8 SAVE=10
+  POINTS=8000 TEX=256 SYNTEX=256 SEEDS=${TABLE1_SEEDS:-7} DISCW=8 SAVE=10 GANLR=2e-5
   out=${TABLE1_OUT:-$root/out/table1-quick}
   report=${TABLE1_REPORT:-$out}
 else
@@ -48,6 +48,7 @@ else
   mode=full SUBJECTS=${TABLE1_SUBJECTS:-72} NTRAIN=${TABLE1_NTRAIN:-64} VIEWS=${TABLE1_VIEWS:-6} VTRAIN=${TABLE1_VTRAIN:-4}
   SIZE=${TABLE1_SIZE:-256x192} WIDTH=${TABLE1_WIDTH:-16} STEPS=${TABLE1_STEPS:-2000} VGGSTEPS=${TABLE1_VGGSTEPS:-200}
   GANSTEPS=${TABLE1_GANSTEPS:-300} BATCH=${TABLE1_BATCH:-4} POINTS=50000 TEX=1024 SYNTEX=2048 SEEDS=${TABLE1_SEEDS:-1}
+  GANLR=${TABLE1_GANLR:-2e-5}
   DISCW=${TABLE1_DISCW:-32} SAVE=100
   out=${TABLE1_OUT:-$root/out/table1}
   report=${TABLE1_REPORT:-$root/benchmarks}
@@ -62,6 +63,7 @@ for s in $SEEDS; do case $s in *[!0-9]*) die "TABLE1_SEEDS=$SEEDS: expected whol
 [ "$VTRAIN" -ge 1 ] && [ "$VTRAIN" -lt "$VIEWS" ] || die "TABLE1_VTRAIN=$VTRAIN: need 1..VIEWS-1 training views"
 [ "$STEPS" -ge 1 ] || die "TABLE1_STEPS=$STEPS: need at least 1 step of stage 1"
 case $SIZE in [1-9]*x[1-9]*) ;; *) die "TABLE1_SIZE=$SIZE: expected WxH" ;; esac
+case $GANLR in '' | *[!0-9.e-]* | *e | e*) die "TABLE1_GANLR=$GANLR: expected a learning rate such as 2e-5" ;; esac
 
 # The perceptual stage needs VGG16 (make weights); LPIPS needs AlexNet's (the eval default).
 weights=${SPX_CACHE_DIR:-${HOME:-/nonexistent}/.cache/smplpix}/weights
@@ -77,7 +79,7 @@ ganloss=l1+gan
 # (its log.txt) of other settings is replaced when it holds no finished unit or TABLE1_FRESH=1 is
 # set, refused otherwise; anything else is refused.
 config="mode=$mode subjects=$SUBJECTS ntrain=$NTRAIN views=$VIEWS vtrain=$VTRAIN size=$SIZE width=$WIDTH steps=$STEPS \
-vggsteps=$VGGSTEPS/$vggstage gansteps=$GANSTEPS/$ganloss batch=$BATCH seeds=$SEEDS discw=$DISCW synth=${TABLE1_SYNTH:-}"
+vggsteps=$VGGSTEPS/$vggstage gansteps=$GANSTEPS/$ganloss ganlr=$GANLR batch=$BATCH seeds=$SEEDS discw=$DISCW synth=${TABLE1_SYNTH:-}"
 if [ -e "$out" ] && { [ ! -d "$out" ] || { [ -n "$(ls -A "$out")" ] && [ ! -f "$out/log.txt" ]; }; }; then
   die "$out: exists and is not a table1 work directory (no log.txt); choose another TABLE1_OUT"
 fi
@@ -294,7 +296,7 @@ for n in 13k 53k; do
     if [ $gan = 1 ]; then
       vggarg=()
       [ $ganloss = vgg16+gan ] && vggarg=(--vgg "$vgg16")
-      train_stage "$k.stage3" "$ganloss" "$GANSTEPS" 2e-4 "$prev" $n "$seed" --disc-width "$DISCW" "${vggarg[@]}"
+      train_stage "$k.stage3" "$ganloss" "$GANSTEPS" "$GANLR" "$prev" $n "$seed" --disc-width "$DISCW" "${vggarg[@]}"
       render_score "$k.stage3" $n
     fi
   done
@@ -424,7 +426,7 @@ nseeds=$(echo $SEEDS | wc -w)
   else
     echo "  stage 2 (VGG16 perceptual) not run: no VGG16 weights (\`make weights\`);"
   fi
-  [ $gan = 1 ] && echo "  stage 3 \`--loss $ganloss\` $GANSTEPS steps at lr 2e-4 from the previous stage, PatchGAN width $DISCW;"
+  [ $gan = 1 ] && echo "  stage 3 \`--loss $ganloss\` $GANSTEPS steps at lr $GANLR (a tenth of stage 2's, as the paper's stage 2 is of its stage 1) from the previous stage, PatchGAN width $DISCW;"
   echo "  seeds $SEEDS (the data's seed: $SEED). Validation during training: view $VTRAIN of each training subject."
   echo "- Time per stage (s): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$([ $k = inputs ] && echo 'inputs+rasterizers' || echo $k)" "$(cat "$out/done/time.$k" 2>/dev/null || echo 0)"; done)this sitting $(printf '%.0f' "$total")."
   echo "- Machine: $(uname -srm), $(nproc) CPU cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')), load average at the end $(cut -d' ' -f1-3 /proc/loadavg), OpenCL device: $($tool devices 2>/dev/null | head -n 1 | sed 's/^ *//')."
