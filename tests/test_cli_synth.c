@@ -179,7 +179,7 @@ static void test_bad_input(void) {
 static int synth_with_hook(const char *args, const char *hook) {
   char cmd[3000];
   snprintf(cmd, sizeof cmd, "cd '%s' && SPX_TEST_BEFORE_RENAME='%s' '%s' synth %s >out.txt 2>err.txt", dir, hook,
-           spx_t_tool(), args);
+           spx_t_hooked_tool(), args);
   return spx_t_system(cmd);
 }
 

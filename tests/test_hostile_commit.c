@@ -25,7 +25,7 @@ static void killed_at(int k) {
   CHECK(run("train " GAN " --out B.safetensors --steps 1") == 0);
   char cmd[200];
   snprintf(cmd, sizeof cmd, "SPX_TEST_TX_KILL_AT=%d '%s' train --data ds --out B.safetensors --resume --steps 2", k,
-           spx_t_tool());
+           spx_t_hooked_tool());
   CHECK_MSG(sh("%s >out.txt 2>err.txt", cmd) == 137, "the run was not killed at rename %d", k);
   CHECK_MSG(journals(), "no journal after a kill at rename %d", k);
   CHECK(run("train --data ds --out B.safetensors --resume --steps 3") == 0);
@@ -53,7 +53,7 @@ static void test_failed_commit_leaves_no_journal(void) {
   snapshot s;
   snap_take(&s, names);
   CHECK(sh("SPX_TEST_TX_FAIL_AT=1 '%s' train --data ds --out B.safetensors --resume --steps 2 >out.txt 2>err.txt",
-           spx_t_tool()) == 1);
+           spx_t_hooked_tool()) == 1);
   CHECK(snap_same(&s));
   CHECK(!journals());
   CHECK(run("train --data ds --out B.safetensors --resume --steps 2") == 0);
