@@ -333,12 +333,7 @@ static int one_subject(run_state *s, int i) {
     goto done;
   /* the scan in its scan pose (rest), with colours, and the texture */
   if (spx_cli_failed(&rc, "synth", s->ctx, spx_synth_pose(s->ctx, &s->body, &sub, NULL, NULL, posed))) goto done;
-  spx_mesh scan = {0};
-  scan.nv = sub.nv;
-  scan.nf = sub.nf;
-  scan.pos = posed;
-  scan.col = sub.col;
-  scan.faces = sub.faces;
+  spx_mesh scan = {.nv = sub.nv, .nf = sub.nf, .pos = posed, .col = sub.col, .faces = sub.faces};
   snprintf(p, sizeof p, "%s/%s/scan.ply", s->tmp, name);
   if (spx_cli_failed(&rc, "synth", s->ctx, spx_mesh_save(s->ctx, p, &scan, SPX_MESH_PLY_BINARY))) goto done;
   spx_image tex = {sub.tex_size, sub.tex_size, 3, sub.tex};

@@ -28,15 +28,6 @@ static char *slurp(const char *name, size_t *n) {
   return b;
 }
 
-static int same_file(const char *a, const char *b) {
-  size_t na = 0, nb = 0;
-  char *x = slurp(a, &na), *y = slurp(b, &nb);
-  int same = x && y && na == nb && !memcmp(x, y, na);
-  free(x);
-  free(y);
-  return same;
-}
-
 /* No "*.tmp.*" folder or file left in the scratch folder. */
 static int no_leftovers(void) {
   DIR *d = opendir(dir);

@@ -5,14 +5,6 @@
  * no temporary or journal is left. Killed before the journal, the old pair stays (and resumes). */
 #include "hostile.h"
 
-static int same_file(const char *a, const char *b) {
-  size_t na, nb;
-  char *x = slurp(a, &na), *y = slurp(b, &nb);
-  int same = x && y && na == nb && !memcmp(x, y, na);
-  free(x), free(y);
-  return same;
-}
-
 static int journals(void) {
   return sh("ls *.commit >/dev/null 2>&1") == 0;
 }
