@@ -81,13 +81,13 @@ static const struct spx_tunable spx_tunables[] = {
     {ROW("SPX_PROJ_ONE_MAX", proj_one_max, 131072, 0, 0, 1 << 28, 0)},
     /* conv2d forward (kernels/conv2d.cl): pixels per vector of the register tile */
     {ROW("CONV_VW", conv_vw, 16, 1, 1, 16, T_POW2 | T_FULL), .full = VALUES(1, 2, 4, 8, 16)},
-    /* conv2d forward register tile: out-channels x vectors per work-item */
+    /* conv2d forward register tile: out-channels per work-item */
     {ROW("CONV_TM", conv_tm, 8, 8, 1, 32, 0), .with = "CONV_TN",
      .full = VALUES(2, 4, 2, 5, 2, 6, 2, 7, 2, 8, 4, 2, 4, 3, 4, 4, 4, 5, 4, 6, 4, 7, 4, 8, 6, 2, 6, 3, 6, 4, 6, 5,
                     6, 6, 6, 7, 6, 8, 8, 1, 8, 2, 8, 3, 8, 4, 8, 5, 8, 6, 10, 1, 10, 2, 10, 3, 10, 4, 12, 1, 12, 2,
                     12, 3, 12, 4, 14, 1, 14, 2, 14, 3, 16, 1, 16, 2, 16, 3), /* TM even, 8 <= TM*TN <= 48 */
      .quick = VALUES(8, 3, 8, 2, 6, 4, 4, 6, 8, 4)},
-    /* (searched with CONV_TM) */
+    /* conv2d forward register tile: vectors of CONV_VW pixels per work-item (searched with CONV_TM) */
     {ROW("CONV_TN", conv_tn, 3, 4, 1, 32, 0)},
     /* conv2d forward: work-items per group (interleaved pixels) */
     {ROW("CONV_LWS", conv_lws, 1, 64, 1, 1024, T_WG | T_FULL), .full = VALUES(1, 16, 32, 64, 128, 256)},
@@ -97,10 +97,10 @@ static const struct spx_tunable spx_tunables[] = {
     {ROW("CONV_CB", conv_cb, 16, 1048576, 1, 1 << 30, 0)},
     /* stride-1 3x3 / 1x1 convs with at most this many out-channels take the narrow tile (conv2d_narrow.cl; 0: none) */
     {ROW("CONV_NARROW_MAXC", conv_narrow_maxc, 32, 0, 0, 1 << 20, T_FULL), .full = VALUES(0, 16, 32, 64)},
-    /* narrow tile: out-channels x vectors per work-item */
+    /* narrow tile: out-channels per work-item */
     {ROW("CONV_NARROW_TM", conv_narrow_tm, 4, 8, 1, 32, 0), .with = "CONV_NARROW_TN",
      .full = VALUES(4, 6, 8, 3, 4, 5, 2, 12, 8, 2)},
-    /* (searched with CONV_NARROW_TM) */
+    /* narrow tile: pixel vectors per work-item (searched with CONV_NARROW_TM) */
     {ROW("CONV_NARROW_TN", conv_narrow_tn, 5, 4, 1, 32, 0)},
     /* 1: stride-1 'same' register-tile forwards read the unpadded input (kernels/conv2d_nopad.h), 0: a padded copy */
     {ROW("CONV_NOPAD", conv_nopad, 1, 0, 0, 1, 0), .full = ONOFF},
@@ -115,10 +115,10 @@ static const struct spx_tunable spx_tunables[] = {
     {ROW("CONV_LDS_CB", conv_lds_cb, 8, 8, 1, 256, 0)},
     /* conv2d: inputs up to this many KiB (and smaller than the weights) run pixel-tile-fastest */
     {ROW("CONV_XCACHE", conv_xcache, 2048, 2048, 0, 1 << 20, T_FULL), .full = VALUES(0, 512, 1024, 2048, 4096, 8192)},
-    /* conv2d backward weights (kernels/conv2d_bwd.cl): out-channels x weight columns per work-item */
+    /* conv2d backward weights (kernels/conv2d_bwd.cl): out-channels per work-item */
     {ROW("CONV_DW_TM", conv_dw_tm, 6, 4, 1, 32, T_FULL), .with = "CONV_DW_TN",
      .full = VALUES(6, 4, 4, 4, 8, 4, 4, 8, 6, 2, 8, 2, 2, 8, 4, 6)},
-    /* (searched with CONV_DW_TM) */
+    /* conv2d backward weights: weight columns per work-item (searched with CONV_DW_TM) */
     {ROW("CONV_DW_TN", conv_dw_tn, 4, 4, 1, 32, 0)},
     /* conv2d backward weights: q-chunk of the split reduction */
     {ROW("CONV_DW_QC", conv_dw_qc, 2048, 1024, 1, 1 << 30, T_FULL), .full = VALUES(1024, 2048, 4096, 8192)},
@@ -143,15 +143,15 @@ static const struct spx_tunable spx_tunables[] = {
     {ROW("CONV_WINO_PACK", conv_wino_pack, 1, 0, 0, 1, 0), .full = ONOFF},
     /* 1: Winograd runs the fused local-memory variant (kernels/conv2d_winograd_lds.cl) where it fits */
     {ROW("CONV_WINO_LDS", conv_wino_lds, 0, 1, 0, 1, 0), .full = ONOFF},
-    /* Winograd local-memory variant: out-channels x tiles per work-item */
+    /* Winograd local-memory variant: out-channels per work-item */
     {ROW("CONV_WLDS_TM", conv_wlds_tm, 4, 4, 1, 16, T_FULL), .with = "CONV_WLDS_TN",
      .full = VALUES(1, 1, 2, 2, 2, 4, 4, 2, 4, 4, 4, 8, 8, 4, 8, 8)},
-    /* (searched with CONV_WLDS_TM) */
+    /* Winograd local-memory variant: tiles per work-item (searched with CONV_WLDS_TM) */
     {ROW("CONV_WLDS_TN", conv_wlds_tn, 4, 4, 1, 16, 0)},
-    /* Winograd local-memory variant: work-items per transform position, out-channels x tiles (36*WM*WN <= 432) */
+    /* Winograd local-memory variant: work-items along the out-channels per transform position */
     {ROW("CONV_WLDS_WM", conv_wlds_wm, 2, 2, 1, 28, T_FULL), .with = "CONV_WLDS_WN",
      .full = VALUES(1, 1, 1, 2, 2, 1, 2, 2, 1, 4, 4, 1, 2, 3, 3, 2, 2, 4, 4, 2, 3, 4, 4, 3)},
-    /* (searched with CONV_WLDS_WM) */
+    /* ... and along the tiles (searched with CONV_WLDS_WM; a group is 36 * WM * WN work-items) */
     {ROW("CONV_WLDS_WN", conv_wlds_wn, 2, 2, 1, 28, 0)},
     /* Winograd local-memory variant: input channels per local-memory block */
     {ROW("CONV_WLDS_KB", conv_wlds_kb, 8, 8, 1, 64, T_FULL), .full = VALUES(2, 4, 8, 12, 16)},
@@ -328,7 +328,10 @@ int spx_device_tunable_candidates(const char *name, int quick, const int **value
   int i = name ? spx_cl_tunable_find(name, strlen(name)) : -1;
   if (i < 0) return -1;
   const struct spx_tunable *t = &spx_tunables[i];
-  const struct spx_tune_values *v = !quick ? &t->full : (t->flags & T_FULL) ? NULL : t->quick.n ? &t->quick : &t->full;
+  const struct spx_tune_values *v = !quick                ? &t->full
+                                    : (t->flags & T_FULL) ? NULL
+                                    : t->quick.n          ? &t->quick
+                                                          : &t->full;
   if (values) *values = v ? v->v : NULL;
   if (with) *with = t->with;
   return v ? v->n / (t->with ? 2 : 1) : 0;
