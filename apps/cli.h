@@ -29,8 +29,8 @@ int spx_cli_open_device(const char *cmd, spx_ctx *ctx, const char *spec);
 /* Path of a file shipped in data/: under $SPX_DATA_DIR when set, else the installed copy
  * (<datadir>/smplpix), else the source tree the tool was built from. Returns a static buffer. */
 const char *spx_cli_data_path(const char *rel);
-/* A 64-bit mixing function (splitmix64 finaliser) for seeded shuffles: the data order of
- * `train` and the split of `dataset` depend only on the seed. */
+/* A 64-bit mixing function for seeded shuffles (the value splitmix64 gives for the state z):
+ * the data order of `train` and the split of `dataset` depend only on the seed. */
 uint64_t spx_cli_mix64(uint64_t z);
 
 /* apps/cli_common.c: pieces shared by project, raster and dataset. */

@@ -106,9 +106,4 @@ void spx_cli_print_coverage(int c, const spx_image *img, const char *what) {
   printf("\n");
 }
 
-uint64_t spx_cli_mix64(uint64_t z) {
-  z += 0x9e3779b97f4a7c15ULL;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
+uint64_t spx_cli_mix64(uint64_t z) { return spx_splitmix64(&z); }

@@ -12,6 +12,7 @@
 #include "cli.h"
 #include "cli_tx.h"
 #include "smplpix/files.h"
+#include "test_hooks.h"
 
 /* The transactions of this process that are open (begun, not ended), for the Ctrl-C clean-up. */
 enum { MAX_ACTIVE = 8 };
@@ -277,13 +278,10 @@ static int commit(spx_tx *tx) {
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf(tx->cmd, "out of memory");
   int rc = SPX_EXIT_OK, done = 0;
-  /* testing hook (tests/test_hostile_outputs.c): the rename of staged file k fails, as a full disk
-   * or a vanished folder would make it, so the roll-back is exercised */
-  const char *hook = getenv("SPX_TEST_TX_FAIL_AT"), *kill_hook = getenv("SPX_TEST_TX_KILL_AT");
-  int fail_at = hook && *hook ? atoi(hook) : -1;
-  /* testing hook (tests/test_hostile_commit.c): SIGKILL before the rename of staged file k, so a
-   * later run must finish the commit from its journal */
-  int kill_at = kill_hook && *kill_hook ? atoi(kill_hook) : -1;
+  /* test hooks (apps/test_hooks.h; -1 in the shipped tool): the rename of staged file k fails, as a
+   * full disk or a vanished folder would make it, so the roll-back is exercised; SIGKILL before the
+   * rename of staged file k, so a later run must finish the commit from its journal */
+  int fail_at = spx_test_hook_int("SPX_TEST_TX_FAIL_AT"), kill_at = spx_test_hook_int("SPX_TEST_TX_KILL_AT");
   char *journal = NULL;
   if (tx->durable && tx->n) { /* the new bytes are on disk before any name points at them */
     const char **temps = malloc(sizeof *temps * (size_t)tx->n);

@@ -302,18 +302,9 @@ int spx_cmd_dataset(int argc, char **argv) {
   for (int c0 = 0; c0 < ncams; c0 += chunk) {
     int nc = ncams - c0 < chunk ? ncams - c0 : chunk;
     spx_project_args pa = {1, mesh.nv, mesh.pos, col, nc, cams + c0, SPX_LAYOUT_HWC};
-    spx_raster_args ra = {0};
-    ra.nverts = mesh.nv;
-    ra.pos = mesh.pos;
-    ra.col = col;
-    ra.nfaces = mesh.nf;
-    ra.faces = mesh.faces;
-    ra.ncams = nc;
-    ra.cams = cams + c0;
-    ra.aa = aa_s[0] - '0';
-    ra.cull = SPX_CULL_NONE;
-    ra.layout = SPX_LAYOUT_HWC;
-    ra.static_id = 1;
+    spx_raster_args ra = {.nverts = mesh.nv, .pos = mesh.pos, .col = col, .nfaces = mesh.nf, .faces = mesh.faces,
+                          .ncams = nc, .cams = cams + c0, .aa = aa_s[0] - '0', .cull = SPX_CULL_NONE,
+                          .layout = SPX_LAYOUT_HWC, .static_id = 1};
     if (spx_cli_failed(&rc, "dataset", ctx,
                        spx_project(ctx, proj, &pa, proj_img, NULL) || spx_raster(ctx, rast, &ra, rast_img, NULL)))
       goto done;

@@ -23,6 +23,7 @@
 #include "smplpix/files.h"
 #include "smplpix/synth.h"
 #include "synth_out.h"
+#include "test_hooks.h"
 
 #define PI 3.14159265358979323846
 
@@ -332,12 +333,7 @@ static int one_subject(run_state *s, int i) {
     goto done;
   /* the scan in its scan pose (rest), with colours, and the texture */
   if (spx_cli_failed(&rc, "synth", s->ctx, spx_synth_pose(s->ctx, &s->body, &sub, NULL, NULL, posed))) goto done;
-  spx_mesh scan = {0};
-  scan.nv = sub.nv;
-  scan.nf = sub.nf;
-  scan.pos = posed;
-  scan.col = sub.col;
-  scan.faces = sub.faces;
+  spx_mesh scan = {.nv = sub.nv, .nf = sub.nf, .pos = posed, .col = sub.col, .faces = sub.faces};
   snprintf(p, sizeof p, "%s/%s/scan.ply", s->tmp, name);
   if (spx_cli_failed(&rc, "synth", s->ctx, spx_mesh_save(s->ctx, p, &scan, SPX_MESH_PLY_BINARY))) goto done;
   spx_image tex = {sub.tex_size, sub.tex_size, 3, sub.tex};
@@ -516,14 +512,9 @@ int synth_run(const synth_opts *o) {
   { /* the files and their folder entries are on disk before the rename makes them the output */
     if (spx_cli_failed(&rc, "synth", s.ctx, spx_file_sync(s.ctx, mp) || spx_file_sync(s.ctx, s.tmp))) goto done;
   }
-  { /* testing hook (tests/test_cli_synth.c): a shell command run just before the rename, as a user or
-       a second run acting while this one works */
-    const char *env = getenv("SPX_TEST_BEFORE_RENAME");
-    char *hook = env && *env ? strdup(env) : NULL;
-    unsetenv("SPX_TEST_BEFORE_RENAME"); /* not for the runs the hook starts */
-    if (hook && system(hook) == -1) fprintf(stderr, "smplpix synth: SPX_TEST_BEFORE_RENAME did not run\n");
-    free(hook);
-  }
+  /* test hook (apps/test_hooks.h): a shell command run just before the rename, as a user or a
+     second run acting while this one works */
+  spx_test_hook_run("SPX_TEST_BEFORE_RENAME", "synth");
   if ((rc = commit_folder(o, s.tmp))) goto done;
   free(s.tmp);
   s.tmp = NULL;

@@ -21,7 +21,6 @@
 #define TUNE_TOL 1e-3
 #define TUNE_MARGIN 0.98
 #define MAXG 2  /* tunables per group */
-#define MAXC 64 /* candidates per group */
 #define MAXW 8
 #define MAXS 48 /* tunables saved */
 
@@ -29,7 +28,7 @@ typedef struct group {
   const char *names[MAXG];
   int n;              /* tunables in the group */
   int full_only;      /* not in --quick */
-  const int *vals;    /* ncand tuples of n values */
+  const int *vals;    /* ncand tuples of n values (the tunable's row in lib/cl/tuning.c) */
   int ncand;
 } group;
 
@@ -45,38 +44,23 @@ static const char *group_needs(const group *g) {
   return strncmp(g->names[0], "CONV_WLDS_", 10) ? NULL : "CONV_WINO_LDS";
 }
 
-static const int q_minc[] = {0, 16, 32, 64};
-static const int q_small_hw[] = {0, 4096, 16384, 65536}; /* pixels: 64x64, 128x128, 256x256 */
-static const int f_minc[] = {0, 8, 16, 32, 64, 128};
-static const int q_tile[] = {8, 3, 8, 2, 6, 4, 4, 6, 8, 4};
-static int f_tile[2 * MAXC];
-static const int f_vw[] = {1, 2, 4, 8, 16};
-static const int f_ct[] = {1, 2, 4, 8};
-static const int q_narrow[] = {4, 6, 8, 3, 4, 5, 2, 12, 8, 2}; /* CONV_NARROW_TM, CONV_NARROW_TN */
-static const int f_narrow_maxc[] = {0, 16, 32, 64};
-static const int f_lws[] = {1, 16, 32, 64, 128, 256};
-static const int f_xcache[] = {0, 512, 1024, 2048, 4096, 8192};
-/* the local-memory tiled conv (GPU class; needs CONV_VW = 1, refused otherwise) and its tile */
-static const int q_lds[] = {0, 1};
-static const int f_lds_tile[] = {8, 4, 8, 8, 16, 4, 16, 8, 16, 16, 32, 8};
-/* Winograd with local-memory tiles (GPU class; refused or falling back to the CPU variant where a
- * group does not fit the device): on/off, the register tile TM x TN, the work-items per transform
- * position WM x WN (groups of 36*WM*WN <= 432 work-items), the channel block KB. After them the
- * Winograd threshold is searched once more, with the variant and tiles chosen (the first pass
- * ran with the defaults), so the per-shape choice direct / Winograd sees the faster variant. */
-static const int q_wlds[] = {0, 1};
-static const int f_wlds_tile[] = {1, 1, 2, 2, 2, 4, 4, 2, 4, 4, 4, 8, 8, 4, 8, 8};
-static const int f_wlds_wg[] = {1, 1, 1, 2, 2, 1, 2, 2, 1, 4, 4, 1, 2, 3, 3, 2, 2, 4, 4, 2, 3, 4, 4, 3};
-static const int f_wlds_kb[] = {2, 4, 8, 12, 16};
-/* training side: Winograd in training, the Winograd weight gradient's thresholds (channels, pixels)
- * and the weight-gradient register tiles / blocks (direct kernel and Winograd GEMM share them) */
-static const int q_onoff[] = {0, 1};
-static const int q_wdw[] = {0, 64};
-static const int f_wdw[] = {0, 32, 64, 128, 256};
-static const int f_wdw_hw[] = {0, 512, 1024, 2048, 4096, 8192};
-static const int f_dw_tile[] = {6, 4, 4, 4, 8, 4, 4, 8, 6, 2, 8, 2, 2, 8, 4, 6};
-static const int f_dw_block[] = {8, 256, 4, 256, 16, 256, 8, 128, 8, 512, 4, 1024, 1, 1024};
-static const int f_dw_qc[] = {1024, 2048, 4096, 8192};
+/* The order of the search (the candidates of each tunable are its row's in lib/cl/tuning.c,
+ * spx_device_tunable_candidates; a row searched with a partner is one group of two). The
+ * eval-forward groups: the Winograd threshold first, then the direct conv's tiles and layout
+ * switches, the local-memory conv (GPU class; needs CONV_VW = 1, refused otherwise), the Winograd
+ * local-memory variant and its tiles (GPU class; refused or falling back to the CPU variant where
+ * a group does not fit the device), and the threshold once more with the variant and tiles chosen
+ * (the first pass ran with the defaults), so the per-shape choice direct / Winograd sees the
+ * faster variant. Then the groups scored on a training step: Winograd in training, the Winograd
+ * weight gradient's thresholds (channels, pixels), the weight-gradient register tiles / blocks
+ * (direct kernel and Winograd GEMM share them). */
+static const char *const eval_order[] = {"CONV_WINO_MINC", "CONV_TM", "CONV_NARROW_TM", "CONV_NARROW_MAXC",
+                                         "CONV_NOPAD", "CONV_WINO_PACK", "CONV_WINO_SMALL_HW", "CONV_VW",
+                                         "CONV_CT", "CONV_LWS", "CONV_XCACHE", "CONV_LDS", "CONV_LDS_TX",
+                                         "CONV_WINO_LDS", "CONV_WLDS_TM", "CONV_WLDS_WM", "CONV_WLDS_KB",
+                                         "CONV_WINO_MINC"};
+static const char *const train_order[] = {"CONV_WINO_TRAIN", "CONV_WINO_DW", "CONV_WINO_DW_MINHW", "CONV_DW_TM",
+                                          "CONV_DW_G", "CONV_DW_QC"};
 
 /* Two contexts on the device: A runs the incumbent, B the candidate, so every comparison times
  * the two alternately in the same seconds (a loaded machine slows both alike) without
@@ -312,53 +296,31 @@ static spx_status stage(run *r, const group *g, int train, int *cur) {
   return SPX_OK;
 }
 
-static int build_groups(const spx_tune_plan *p, group *gs) {
-  int nt = 0;
-  for (int tm = 2; tm <= 16; tm += 2)
-    for (int tn = 1; tn <= 8; tn++)
-      if (tm * tn >= 8 && tm * tn <= 48 && nt < MAXC) f_tile[2 * nt] = tm, f_tile[2 * nt + 1] = tn, nt++;
-  int n = 0;
-  gs[n++] = (group){{"CONV_WINO_MINC", NULL}, 1, 0, p->quick ? q_minc : f_minc,
-                    p->quick ? (int)(sizeof q_minc / sizeof(int)) : (int)(sizeof f_minc / sizeof(int))};
-  gs[n++] = (group){{"CONV_TM", "CONV_TN"}, 2, 0, p->quick ? q_tile : f_tile,
-                    p->quick ? (int)(sizeof q_tile / sizeof(int) / 2) : nt};
-  gs[n++] = (group){{"CONV_NARROW_TM", "CONV_NARROW_TN"}, 2, 0, q_narrow, (int)(sizeof q_narrow / sizeof(int) / 2)};
-  gs[n++] = (group){{"CONV_NARROW_MAXC", NULL}, 1, 1, f_narrow_maxc, (int)(sizeof f_narrow_maxc / sizeof(int))};
-  gs[n++] = (group){{"CONV_NOPAD", NULL}, 1, 0, q_onoff, 2};
-  gs[n++] = (group){{"CONV_WINO_PACK", NULL}, 1, 0, q_onoff, 2};
-  gs[n++] = (group){{"CONV_WINO_SMALL_HW", NULL}, 1, 0, q_small_hw, (int)(sizeof q_small_hw / sizeof(int))};
-  gs[n++] = (group){{"CONV_VW", NULL}, 1, 1, f_vw, (int)(sizeof f_vw / sizeof(int))};
-  gs[n++] = (group){{"CONV_CT", NULL}, 1, 1, f_ct, (int)(sizeof f_ct / sizeof(int))};
-  gs[n++] = (group){{"CONV_LWS", NULL}, 1, 1, f_lws, (int)(sizeof f_lws / sizeof(int))};
-  gs[n++] = (group){{"CONV_XCACHE", NULL}, 1, 1, f_xcache, (int)(sizeof f_xcache / sizeof(int))};
-  gs[n++] = (group){{"CONV_LDS", NULL}, 1, 0, q_lds, (int)(sizeof q_lds / sizeof(int))};
-  gs[n++] = (group){{"CONV_LDS_TX", "CONV_LDS_CB"}, 2, 1, f_lds_tile, (int)(sizeof f_lds_tile / sizeof(int) / 2)};
-  gs[n++] = (group){{"CONV_WINO_LDS", NULL}, 1, 0, q_wlds, (int)(sizeof q_wlds / sizeof(int))};
-  gs[n++] = (group){{"CONV_WLDS_TM", "CONV_WLDS_TN"}, 2, 1, f_wlds_tile, (int)(sizeof f_wlds_tile / sizeof(int) / 2)};
-  gs[n++] = (group){{"CONV_WLDS_WM", "CONV_WLDS_WN"}, 2, 1, f_wlds_wg, (int)(sizeof f_wlds_wg / sizeof(int) / 2)};
-  gs[n++] = (group){{"CONV_WLDS_KB", NULL}, 1, 1, f_wlds_kb, (int)(sizeof f_wlds_kb / sizeof(int))};
-  gs[n++] = gs[0]; /* the threshold again, with the variant chosen (see q_wlds) */
-  return n;
-}
-
-/* The groups scored on a training step (after the eval-forward ones). */
-static int build_train_groups(const spx_tune_plan *p, group *gs) {
-  int n = 0;
-  gs[n++] = (group){{"CONV_WINO_TRAIN", NULL}, 1, 1, q_onoff, 2};
-  gs[n++] = (group){{"CONV_WINO_DW", NULL}, 1, 0, p->quick ? q_wdw : f_wdw,
-                    p->quick ? (int)(sizeof q_wdw / sizeof(int)) : (int)(sizeof f_wdw / sizeof(int))};
-  gs[n++] = (group){{"CONV_WINO_DW_MINHW", NULL}, 1, 1, f_wdw_hw, (int)(sizeof f_wdw_hw / sizeof(int))};
-  gs[n++] = (group){{"CONV_DW_TM", "CONV_DW_TN"}, 2, 1, f_dw_tile, (int)(sizeof f_dw_tile / sizeof(int) / 2)};
-  gs[n++] = (group){{"CONV_DW_G", "CONV_DW_QB"}, 2, 1, f_dw_block, (int)(sizeof f_dw_block / sizeof(int) / 2)};
-  gs[n++] = (group){{"CONV_DW_QC", NULL}, 1, 1, f_dw_qc, (int)(sizeof f_dw_qc / sizeof(int))};
-  return n;
+/* The groups of names[0..n) in order into gs (a name without candidates is left out). */
+static int build_groups(const spx_tune_plan *p, const char *const *names, int n, group *gs) {
+  int ng = 0;
+  for (int i = 0; i < n; i++) {
+    group *g = &gs[ng];
+    const char *with;
+    int nfull = spx_device_tunable_candidates(names[i], 0, &g->vals, &with);
+    if (nfull <= 0) continue;
+    g->names[0] = names[i];
+    g->names[1] = with;
+    g->n = with ? 2 : 1;
+    g->ncand = p->quick ? spx_device_tunable_candidates(names[i], 1, &g->vals, &with) : nfull;
+    g->full_only = g->ncand == 0;
+    ng++;
+  }
+  return ng;
 }
 
 int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   run r = {.ctx = {ctx, NULL}, .p = p, .out = out, .nout = (size_t)3 * p->h * p->w};
   group gs[40];
-  const int ng_eval = build_groups(p, gs); /* groups from ng_eval on are scored on a training step */
-  int ng = ng_eval + build_train_groups(p, gs + ng_eval), rc = SPX_EXIT_ERROR, nsave = 0;
+  /* groups from ng_eval on are scored on a training step */
+  const int ng_eval = build_groups(p, eval_order, (int)(sizeof eval_order / sizeof *eval_order), gs);
+  int ng = ng_eval + build_groups(p, train_order, (int)(sizeof train_order / sizeof *train_order), gs + ng_eval);
+  int rc = SPX_EXIT_ERROR, nsave = 0;
   char names[MAXS][32];
   int vals[MAXS], defs[MAXS];
   spx_status st = SPX_OK;

@@ -154,13 +154,7 @@ void bench_cpu_model(char *buf, size_t cap) {
   snprintf(buf, cap, "%s, %ld CPUs", model, sysconf(_SC_NPROCESSORS_ONLN));
 }
 
-uint64_t bench_rng(uint64_t *s) {
-  uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-float bench_unif(uint64_t *s) { return (float)((double)(bench_rng(s) >> 11) / 9007199254740992.0); }
+float bench_unif(uint64_t *s) { return (float)((double)(spx_splitmix64(s) >> 11) / 9007199254740992.0); }
 
 spx_status bench_write_vgg19(spx_ctx *ctx, const char *path, int wd) {
   static const int idx[13] = {0, 2, 5, 7, 10, 12, 14, 16, 19, 21, 23, 25, 28};

@@ -62,8 +62,7 @@ int bench_out_dir(void);
 /* "Intel(R) Xeon(R) ..., 2 CPUs" from /proc/cpuinfo and sysconf. */
 void bench_cpu_model(char *buf, size_t cap);
 
-/* splitmix64: the next value of the stream s, and a uniform float in [0, 1) from it. */
-uint64_t bench_rng(uint64_t *s);
+/* A uniform float in [0, 1) from the next value of the splitmix64 stream s (spx_splitmix64). */
 float bench_unif(uint64_t *s);
 /* A random VGG19 of base width wd (features.0 .. features.28 convs, as torchvision names them),
  * written as safetensors to path. */

@@ -52,7 +52,10 @@ static void sample_surface(const spx_mesh *m, float *pos, int n) {
     }                                                                                                         \
   } while (0)
 
-static const char *path_names[] = {"?", "fused", "radix", "count", "zbuf", "one"};
+static const char *const path_names[SPX_PROJ_NPATHS] = {
+    [SPX_PROJ_PATH_AUTO] = "?", [SPX_PROJ_PATH_FUSED] = "fused", [SPX_PROJ_PATH_RADIX] = "radix",
+    [SPX_PROJ_PATH_ZBUF] = "zbuf", [SPX_PROJ_PATH_ONE] = "one"};
+static const char *path_name(spx_proj_path p) { return p > SPX_PROJ_PATH_AUTO && p < SPX_PROJ_NPATHS ? path_names[p] : "?"; }
 
 /* Median wall time (ms) of `runs` repetitions of STMT; STMT sets ok = 0 on failure. */
 #define STAGE(label, STMT)                                                                                    \
@@ -82,12 +85,14 @@ static int stages(spx_ctx *ctx, spx_projector *p, const spx_project_args *a, flo
   STAGE("non-blocking write of the positions", ok = clEnqueueWriteBuffer(q, p->pos.mem, CL_FALSE, 0, vb, a->pos, 0,
                                                                          NULL, NULL) == CL_SUCCESS);
   spx_project_dev_args d = {1, a->nverts, p->pos.mem, p->col.mem, 1, a->cams, a->layout};
-  STAGE("kernels of the default path", ok = !spx_project_device(ctx, p, &d, p->img.mem, NULL, 0));
-  printf("  (default path: %s)\n", path_names[p->last_path < 1 || p->last_path > 5 ? 0 : p->last_path]);
-  STAGE("kernels of the parts + merge path (4)", ok = !spx_project_device(ctx, p, &d, p->img.mem, NULL, 4));
+  STAGE("kernels of the default path", ok = !spx_project_device(ctx, p, &d, p->img.mem, NULL, SPX_PROJ_PATH_AUTO));
+  printf("  (default path: %s)\n", path_name(p->last_path));
+  STAGE("kernels of the parts + merge path (zbuf)",
+        ok = !spx_project_device(ctx, p, &d, p->img.mem, NULL, SPX_PROJ_PATH_ZBUF));
   cl_mem other = NULL;
   if (spx_cl_alloc(ctx, ib, "bench image", &other)) return 1;
-  STAGE("one launch (5) into another image: full clear", ok = !spx_project_device(ctx, p, &d, other, NULL, 5));
+  STAGE("one launch (one) into another image: full clear",
+        ok = !spx_project_device(ctx, p, &d, other, NULL, SPX_PROJ_PATH_ONE));
   spx_cl_free(&other);
   STAGE("blocking read of the image", ok = !spx_cl_read(ctx, p->img.mem, 0, ib, out));
   float one = 1.0f;
@@ -190,7 +195,7 @@ int main(int argc, char **argv) {
     spx_project_dev_args d = {1, n, p->pos.mem, p->col.mem, 1, &cam, SPX_LAYOUT_HWC};
     for (int r = 0; r < runs; r++) {
       double t0 = spx_now();
-      CHECKED(spx_project_device(ctx, p, &d, p->img.mem, NULL, 0));
+      CHECKED(spx_project_device(ctx, p, &d, p->img.mem, NULL, SPX_PROJ_PATH_AUTO));
       CHECKED(spx_device_finish(ctx));
       t[r] = spx_now() - t0;
     }
@@ -198,7 +203,7 @@ int main(int argc, char **argv) {
     int hits = 0;
     for (size_t i = 0; i < hw; i++) hits += ref[i * 4 + 3] != 1.0f;
     printf("%-9d %12.3f %12.3f %7.2fx %14.3f %7s %7d\n", n, dev * 1e3, cpu * 1e3, dev / cpu, kern * 1e3,
-           path_names[p->last_path < 1 || p->last_path > 5 ? 0 : p->last_path], hits);
+           path_name(p->last_path), hits);
     fflush(stdout);
     free(pos);
     free(col);

@@ -78,8 +78,7 @@ static inline void spx_put_point(__global float *out, int layout, ulong img, uin
  * needs more work-items. */
 __kernel void spx_project_keys(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
                                uint npts, __global ulong *keys, __global uint *vals, uint npix,
-                               __global float *out, int layout, __global int *winners, int want_winners,
-                               __global uint *counts, int want_counts) {
+                               __global float *out, int layout, __global int *winners, int want_winners) {
   uint i = get_global_id(0);
   uint hw = (uint)W * (uint)H;
   if (i < npts) {
@@ -92,11 +91,7 @@ __kernel void spx_project_keys(__global const float *pos, __global const float *
     float cam[SPX_CAM_FLOATS];
 #pragma unroll
     for (int j = 0; j < SPX_CAM_FLOATS; j++) cam[j] = cams[c * SPX_CAM_FLOATS + j];
-    if (spx_project_point(cam, x[0], x[1], x[2], W, H, &pix, &d))
-    {
-      key = ((ulong)img * hw + pix) << 32 | as_uint(d);
-      if (want_counts) atomic_inc(&counts[img * hw + pix]); /* counting-sort path: bucket sizes */
-    }
+    if (spx_project_point(cam, x[0], x[1], x[2], W, H, &pix, &d)) key = ((ulong)img * hw + pix) << 32 | as_uint(d);
     keys[i] = key;
     vals[i] = v;
   }
@@ -156,43 +151,8 @@ spx_project_sort_scatter(__global ulong *keys, __global uint *vals, __global ulo
     spx_project_head(keys, vals, j, n, col, has_col, N, C, (uint)W * (uint)H, npix, out, layout, winners, want_winners);
 }
 
-/* Counting-sort path (large inputs): offs holds the exclusive scan of the per-pixel counts.
- * Each point claims a slot of its pixel's bucket (order inside a bucket is arbitrary); after
- * this launch offs[q] is the end of bucket q, i.e. the start of bucket q+1. */
-__kernel void spx_project_bucket(__global const ulong *keys, uint npts, uint npix, __global uint *offs,
-                                 __global uint *bucket) {
-  uint i = get_global_id(0);
-  if (i >= npts) return;
-  uint pg = (uint)(keys[i] >> 32);
-  if (pg < npix) bucket[atomic_inc(&offs[pg])] = i;
-}
-
-/* One work-item per pixel walks its bucket and keeps the nearest point, ties to the smallest
- * point index (= smallest vertex index within an image): independent of the bucket order, so
- * the result is deterministic and equal to the stable depth sort's first-of-run. */
-__kernel void spx_project_bucket_min(__global const ulong *keys, __global const uint *offs,
-                                     __global const uint *bucket, __global const float *col, int has_col, int N,
-                                     int C, int W, int H, uint npix, __global float *out, int layout,
-                                     __global int *winners, int want_winners) {
-  uint q = get_global_id(0);
-  if (q >= npix) return;
-  uint start = q ? offs[q - 1] : 0u, end = offs[q];
-  if (start == end) return;
-  uint best = bucket[start], bd = (uint)keys[best];
-  for (uint m = start + 1; m < end; m++) {
-    uint i = bucket[m], di = (uint)keys[i];
-    if (di < bd || (di == bd && i < best)) {
-      bd = di;
-      best = i;
-    }
-  }
-  uint hw = (uint)W * (uint)H, v = best % (uint)N, img = q / hw;
-  spx_put_point(out, layout, img, q % hw, hw, col, has_col, N, C, v, as_float(bd));
-  if (want_winners) winners[q] = (int)v;
-}
-
 /* Point i's pixel over all images (img*hw + row*W + col, ~0 when dropped) and depth bits (d > 0,
- * so they order like the depth): what the z-buffer walks of paths 4 and 5 compare. */
+ * so they order like the depth): what the walks of the z-buffer and one-launch paths compare. */
 static __attribute__((always_inline)) inline void spx_project_pix1(const float *cam, __global const float *x, uint q0, int W,
                                                             int H, __global uint *pixs, __global uint *dbits, uint i) {
   uint pix = 0;
@@ -218,7 +178,7 @@ static __attribute__((always_inline)) inline void spx_project_span(const float *
 
 #define SPX_PROJ_PIX_ROUNDS 16 /* rounds of SPX_WG points per work-group of spx_project_pix */
 
-/* Z-buffer path (path 4), step 1: every point's pixel and depth bits, work-group (g, img) taking
+/* Z-buffer path, step 1: every point's pixel and depth bits, work-group (g, img) taking
  * SPX_PROJ_PIX_ROUNDS * SPX_WG points of image img (one camera load per work-group). */
 __kernel __attribute__((reqd_work_group_size(SPX_WG, 1, 1))) void
 spx_project_pix(__global const float *pos, __global const float *cams, int N, int C, int W, int H,
@@ -278,7 +238,7 @@ __kernel void spx_project_zmerge(__global ulong *zb, uint parts, __global const 
   }
 }
 
-/* One-launch path (path 5, small inputs on CPU-class devices): clear, project, resolve and write
+/* One-launch path (small inputs on CPU-class devices): clear, project, resolve and write
  * in one work-group of SPX_WG work-items.
  *  1. Background: with clear & 1 every pixel of out (and, with want_winners and clear & 2, of
  *     winners) is reset; otherwise only the ntouched[0] pixels listed in touched — the pixels the

@@ -18,6 +18,22 @@ static inline int cli_test_main(const spx_t_test *tests, int n) {
   return spx_t_run_all(tests, n);
 }
 
+/* dir/a and dir/b both exist and hold the same bytes. */
+static inline int same_file(const char *a, const char *b) {
+  char pa[700], pb[700];
+  path_of(pa, sizeof pa, a), path_of(pb, sizeof pb, b);
+  FILE *fa = fopen(pa, "rb"), *fb = fopen(pb, "rb");
+  int same = fa && fb;
+  while (same) {
+    int ca = fgetc(fa), cb = fgetc(fb);
+    if (ca != cb) same = 0;
+    if (ca == EOF) break;
+  }
+  if (fa) fclose(fa);
+  if (fb) fclose(fb);
+  return same;
+}
+
 /* Write `text` to dir/name. */
 static inline void write_text(const char *name, const char *text) {
   char p[700];

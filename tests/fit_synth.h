@@ -144,4 +144,18 @@ static inline void synth_body(const spx_body_model *m, uint64_t seed, double amp
   for (int d = 0; d < 3; d++) trans[d] = 0.4 * (synth_uni(&s) - 0.5);
 }
 
+/* The vertices of synth_body(m, seed, amp) after the reference forward (m->nv*3 doubles into V). */
+static inline spx_status synth_posed(spx_ctx *ctx, const spx_body_model *m, uint64_t seed, double amp, double *V) {
+  double *pose = calloc((size_t)m->nj * 3, sizeof(double)), *betas = calloc((size_t)m->nbetas, sizeof(double));
+  double trans[3];
+  spx_status st = pose && betas ? SPX_OK : spx_fail(ctx, SPX_E_NOMEM, "synth_posed: out of memory");
+  if (!st) {
+    synth_body(m, seed, amp, pose, betas, trans);
+    spx_body_params p = {m->nbetas, betas, pose, trans, NULL};
+    st = spx_body_forward_ref(ctx, m, &p, V, NULL);
+  }
+  free(pose), free(betas);
+  return st;
+}
+
 #endif

@@ -130,6 +130,14 @@ static inline const char *spx_t_tool(void) {
   return t && *t ? t : "smplpix";
 }
 
+/* The same tool built with the fault-injection hooks of apps/test_hooks.h ($SPX_TOOL_HOOKS, set by
+ * ctest): for the commands that set SPX_TEST_TX_FAIL_AT, SPX_TEST_TX_KILL_AT or
+ * SPX_TEST_BEFORE_RENAME (the shipped smplpix ignores them). */
+static inline const char *spx_t_hooked_tool(void) {
+  const char *t = getenv("SPX_TOOL_HOOKS");
+  return t && *t ? t : "smplpix-test-hooks";
+}
+
 /* Run a shell command; returns its exit status (or -1). */
 static inline int spx_t_system(const char *cmd) {
   int r = system(cmd);

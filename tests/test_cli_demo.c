@@ -32,21 +32,6 @@ static int png_size(const char *name, int *w, int *h) {
   return 1;
 }
 
-static int same_file(const char *a, const char *b) {
-  char pa[700], pb[700];
-  path_of(pa, sizeof pa, a), path_of(pb, sizeof pb, b);
-  FILE *fa = fopen(pa, "rb"), *fb = fopen(pb, "rb");
-  int same = fa && fb;
-  while (same) {
-    int ca = fgetc(fa), cb = fgetc(fb);
-    if (ca != cb) same = 0;
-    if (ca == EOF) break;
-  }
-  if (fa) fclose(fa);
-  if (fb) fclose(fb);
-  return same;
-}
-
 /* number of entries in dir/name (-1 when it cannot be read) */
 static int entries(const char *name) {
   char p[700];

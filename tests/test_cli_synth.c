@@ -28,15 +28,6 @@ static char *slurp(const char *name, size_t *n) {
   return b;
 }
 
-static int same_file(const char *a, const char *b) {
-  size_t na = 0, nb = 0;
-  char *x = slurp(a, &na), *y = slurp(b, &nb);
-  int same = x && y && na == nb && !memcmp(x, y, na);
-  free(x);
-  free(y);
-  return same;
-}
-
 /* No "*.tmp.*" folder or file left in the scratch folder. */
 static int no_leftovers(void) {
   DIR *d = opendir(dir);
@@ -179,7 +170,7 @@ static void test_bad_input(void) {
 static int synth_with_hook(const char *args, const char *hook) {
   char cmd[3000];
   snprintf(cmd, sizeof cmd, "cd '%s' && SPX_TEST_BEFORE_RENAME='%s' '%s' synth %s >out.txt 2>err.txt", dir, hook,
-           spx_t_tool(), args);
+           spx_t_hooked_tool(), args);
   return spx_t_system(cmd);
 }
 

@@ -172,12 +172,42 @@ static void test_usage(void) {
   CHECK(sh("'%s' tune --help | grep -q 'smplpix tune --show'", spx_t_tool()) == 0);
 }
 
+/* The candidates of `smplpix tune` beside their rows: in range, pairs named, --quick's subset. */
+static void test_candidates(void) {
+  spx_ctx *ctx = open_ctx();
+  const int *v;
+  const char *with;
+  spx_tunable_info t, tw;
+  CHECK(spx_device_tunable_candidates("CONV_TM", 0, &v, &with) == 39 && with && !strcmp(with, "CONV_TN"));
+  CHECK(v[0] == 2 && v[1] == 4 && v[76] == 16 && v[77] == 3);
+  CHECK(spx_device_tunable_candidates("CONV_TM", 1, &v, &with) == 5 && v[0] == 8 && v[1] == 3);
+  CHECK(spx_device_tunable_candidates("CONV_WINO_TRAIN", 0, &v, &with) == 2 && !with && v[0] == 0 && v[1] == 1);
+  CHECK(spx_device_tunable_candidates("CONV_WINO_TRAIN", 1, &v, &with) == 0); /* full search only */
+  CHECK(spx_device_tunable_candidates("CONV_NOPAD", 1, &v, &with) == 2);      /* --quick: the full list */
+  CHECK(spx_device_tunable_candidates("WG", 0, &v, &with) == 0);              /* not searched */
+  CHECK(spx_device_tunable_candidates("NO_SUCH", 0, &v, &with) == -1);
+  int searched = 0;
+  for (int i = 0; i < spx_device_tunable_count(); i++) {
+    CHECK_OK(ctx, spx_device_tunable(ctx, i, &t));
+    int n = spx_device_tunable_candidates(t.name, 0, &v, &with);
+    searched += n > 0;
+    CHECK_MSG(!with || get(ctx, with, &tw), "%s: partner %s", t.name, with);
+    for (int c = 0; c < n; c++) {
+      CHECK_MSG(v[c * (with ? 2 : 1)] >= t.lo && v[c * (with ? 2 : 1)] <= t.hi, "%s: candidate %d", t.name, c);
+      if (with) CHECK_MSG(v[c * 2 + 1] >= tw.lo && v[c * 2 + 1] <= tw.hi, "%s: candidate %d", with, c);
+    }
+  }
+  CHECK(searched == 23);
+  spx_ctx_destroy(ctx);
+}
+
 int main(void) {
   spx_t_path(cache, sizeof cache, "cache");
   if (sh("rm -rf '%s' && mkdir -p '%s'", cache, cache)) return 1;
   setenv("SPX_CACHE_DIR", cache, 1);
   SPX_RUN(test_usage);
   SPX_RUN(test_defaults_and_fields);
+  SPX_RUN(test_candidates);
   SPX_RUN(test_cache_key);
   SPX_RUN(test_tune_training_groups);
   SPX_RUN(test_tune_then_open);

@@ -46,14 +46,9 @@ static int count_lines(const char *s) {
 
 static void synth_default_scan(uint64_t seed, int32_t npts, int colors, spx_mesh *scan, double *V, double R[9],
                                double t[3]) {
-  double *pose = calloc((size_t)model.nj * 3, sizeof(double)), *betas = calloc((size_t)model.nbetas, sizeof(double));
-  double trans[3];
-  synth_body(&model, seed, 0.2, pose, betas, trans);
-  spx_body_params p = {model.nbetas, betas, pose, trans, NULL};
-  CHECK_OK(ctx, spx_body_forward_ref(ctx, &model, &p, V, NULL));
+  CHECK_OK(ctx, synth_posed(ctx, &model, seed, 0.2, V));
   synth_opts so = {npts, 0.001, 0.0, 1, 1.0, colors};
   CHECK(synth_scan(V, model.nv, model.faces, model.nf, &so, seed, scan, R, t) == 0);
-  free(pose), free(betas);
 }
 
 static void test_api_bad_inputs(void) {

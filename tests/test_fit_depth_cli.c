@@ -76,11 +76,7 @@ static void test_depth_cli(void) {
   enum { W = 200, H = 150 };
   char err[8192], args[8192], cam[512], cam2[512], dnpy[512], dpng[512], rgb[512], bad[512], out[512], scanp[512];
   double *V = malloc((size_t)model.nv * 3 * sizeof(double));
-  double *pose = calloc((size_t)model.nj * 3, sizeof(double)), *betas = calloc((size_t)model.nbetas, sizeof(double));
-  double trans[3];
-  synth_body(&model, 44, 0.25, pose, betas, trans);
-  spx_body_params p = {model.nbetas, betas, pose, trans, NULL};
-  CHECK_OK(ctx, spx_body_forward_ref(ctx, &model, &p, V, NULL));
+  CHECK_OK(ctx, synth_posed(ctx, &model, 44, 0.25, V));
   spx_camera c[2];
   double dir[3] = {-0.2, 0.1, 1};
   CHECK(view_camera(ctx, V, model.nv, dir, 2.4, W, H, 0.82 * W, &c[0]) == 0);
@@ -163,7 +159,7 @@ static void test_depth_cli(void) {
   CHECK_MSG(e < 0.005, "%.2f mm", e * 1e3);
   spx_mesh_free(&scan);
   spx_image_free(&im);
-  free(V), free(pose), free(betas), free(depth), free(tmp);
+  free(V), free(depth), free(tmp);
 }
 
 int main(void) {

@@ -23,6 +23,14 @@ static void on_progress(void *user, const spx_fit_progress *p) {
   if (!p->note) CHECK(isfinite(p->energy) && p->energy >= 0 && isfinite(p->mean_dist));
 }
 
+/* spx_fit_register of scan with o, the progress it reports counted in *nt. */
+static spx_status register_noted(const spx_mesh *scan, spx_fit_options *o, notes *nt, spx_fit_result *r) {
+  memset(nt, 0, sizeof *nt);
+  o->progress = on_progress;
+  o->progress_user = nt;
+  return spx_fit_register(ctx, &model, scan, o, r);
+}
+
 /* mean distance between the registration (scan space) and the true vertices (scan space) */
 static double vertex_error(const spx_fit_result *r, const double *V, const double R[9], const double t[3], double units,
                            int use_pose_stage) {
@@ -66,11 +74,9 @@ static void test_synthetic_seeds(void) {
     o.threads = 2;
     o.max_points_free = 12000;
     o.free_steps = 3;
-    notes nt = {{0}, 0, 0, 0};
-    o.progress = on_progress;
-    o.progress_user = &nt;
+    notes nt;
     spx_fit_result r;
-    CHECK_OK(ctx, spx_fit_register(ctx, &model, &scan, &o, &r));
+    CHECK_OK(ctx, register_noted(&scan, &o, &nt, &r));
     CHECK(nt.rigid == 1 && nt.pose == o.pose_steps && nt.free_ == o.free_steps);
     CHECK(nt.last[0] == 0); /* metres: no unit note */
     CHECK(r.unit_scale == 1.0);
@@ -91,12 +97,8 @@ static void test_synthetic_seeds(void) {
 }
 
 static void test_millimetres(void) {
-  double *V = malloc((size_t)model.nv * 3 * sizeof(double));
-  double *pose = calloc((size_t)model.nj * 3, sizeof(double)), *betas = calloc((size_t)model.nbetas, sizeof(double));
-  double trans[3], R[9], t[3];
-  synth_body(&model, 11, 0.2, pose, betas, trans);
-  spx_body_params p = {model.nbetas, betas, pose, trans, NULL};
-  CHECK_OK(ctx, spx_body_forward_ref(ctx, &model, &p, V, NULL));
+  double *V = malloc((size_t)model.nv * 3 * sizeof(double)), R[9], t[3];
+  CHECK_OK(ctx, synth_posed(ctx, &model, 11, 0.2, V));
   synth_opts so = {8000, 0.002, 0.0, 1, 1000.0, 0};
   spx_mesh scan;
   CHECK(synth_scan(V, model.nv, model.faces, model.nf, &so, 11, &scan, R, t) == 0);
@@ -104,11 +106,9 @@ static void test_millimetres(void) {
   spx_fit_options_default(&o);
   o.stages = SPX_FIT_RIGID | SPX_FIT_POSE;
   o.pose_steps = 12;
-  notes nt = {{0}, 0, 0, 0};
-  o.progress = on_progress;
-  o.progress_user = &nt;
+  notes nt;
   spx_fit_result r;
-  CHECK_OK(ctx, spx_fit_register(ctx, &model, &scan, &o, &r));
+  CHECK_OK(ctx, register_noted(&scan, &o, &nt, &r));
   CHECK_MSG(!strcmp(nt.last, "scan looks like millimetres, scaling by 0.001"), "note: '%s'", nt.last);
   CHECK(r.unit_scale == 0.001);
   CHECK(nt.free_ == 0 && r.stages_done == (SPX_FIT_RIGID | SPX_FIT_POSE));
@@ -120,12 +120,11 @@ static void test_millimetres(void) {
   spx_fit_result_free(&r);
   /* the same scan with the units given: no note, same scale */
   o.unit_scale = 0.001;
-  nt.last[0] = 0;
-  CHECK_OK(ctx, spx_fit_register(ctx, &model, &scan, &o, &r));
+  CHECK_OK(ctx, register_noted(&scan, &o, &nt, &r));
   CHECK(nt.last[0] == 0 && r.unit_scale == 0.001);
   spx_fit_result_free(&r);
   spx_mesh_free(&scan);
-  free(V), free(pose), free(betas);
+  free(V);
 }
 
 int main(void) {

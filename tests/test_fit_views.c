@@ -143,11 +143,7 @@ static void test_single_views(void) {
 /* a 320x240 depth image of a posed body, in whole millimetres, back-projected and registered */
 static void test_depth_image(void) {
   double *V = malloc((size_t)model.nv * 3 * sizeof(double));
-  double *pose = calloc((size_t)model.nj * 3, sizeof(double)), *betas = calloc((size_t)model.nbetas, sizeof(double));
-  double trans[3];
-  synth_body(&model, 43, 0.3, pose, betas, trans);
-  spx_body_params p = {model.nbetas, betas, pose, trans, NULL};
-  CHECK_OK(ctx, spx_body_forward_ref(ctx, &model, &p, V, NULL));
+  CHECK_OK(ctx, synth_posed(ctx, &model, 43, 0.3, V));
   spx_camera cam;
   double dir[3] = {0.2, 0.15, 1};
   CHECK(view_camera(ctx, V, model.nv, dir, 2.4, 320, 240, 262.5, &cam) == 0);
@@ -160,7 +156,7 @@ static void test_depth_image(void) {
   fprintf(stderr, "  320x240 depth image (%d points): %.2f mm from the complete surface\n", scan.nv, e * 1e3);
   CHECK_MSG(e < 0.0025, "%.2f mm", e * 1e3);
   spx_mesh_free(&scan);
-  free(V), free(pose), free(betas), free(depth);
+  free(V), free(depth);
 }
 
 int main(void) {

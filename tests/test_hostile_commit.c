@@ -5,14 +5,6 @@
  * no temporary or journal is left. Killed before the journal, the old pair stays (and resumes). */
 #include "hostile.h"
 
-static int same_file(const char *a, const char *b) {
-  size_t na, nb;
-  char *x = slurp(a, &na), *y = slurp(b, &nb);
-  int same = x && y && na == nb && !memcmp(x, y, na);
-  free(x), free(y);
-  return same;
-}
-
 static int journals(void) {
   return sh("ls *.commit >/dev/null 2>&1") == 0;
 }
@@ -25,7 +17,7 @@ static void killed_at(int k) {
   CHECK(run("train " GAN " --out B.safetensors --steps 1") == 0);
   char cmd[200];
   snprintf(cmd, sizeof cmd, "SPX_TEST_TX_KILL_AT=%d '%s' train --data ds --out B.safetensors --resume --steps 2", k,
-           spx_t_tool());
+           spx_t_hooked_tool());
   CHECK_MSG(sh("%s >out.txt 2>err.txt", cmd) == 137, "the run was not killed at rename %d", k);
   CHECK_MSG(journals(), "no journal after a kill at rename %d", k);
   CHECK(run("train --data ds --out B.safetensors --resume --steps 3") == 0);
@@ -53,7 +45,7 @@ static void test_failed_commit_leaves_no_journal(void) {
   snapshot s;
   snap_take(&s, names);
   CHECK(sh("SPX_TEST_TX_FAIL_AT=1 '%s' train --data ds --out B.safetensors --resume --steps 2 >out.txt 2>err.txt",
-           spx_t_tool()) == 1);
+           spx_t_hooked_tool()) == 1);
   CHECK(snap_same(&s));
   CHECK(!journals());
   CHECK(run("train --data ds --out B.safetensors --resume --steps 2") == 0);

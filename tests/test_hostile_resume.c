@@ -9,17 +9,11 @@
 
 static spx_ctx *ctx;
 
-static int same_file(const char *a, const char *b) {
-  size_t na, nb;
-  char *x = slurp(a, &na), *y = slurp(b, &nb);
-  int same = x && y && na == nb && !memcmp(x, y, na);
-  free(x), free(y);
-  return same;
-}
-
 /* Copy dir/src to dir/dst keeping only tensors whose name does (keep_opt) or does not start with
- * "optimizer.", and metadata keys not starting with drop_meta (NULL: keep all). */
-static int rewrite(const char *src, const char *dst, int keep_opt, const char *drop_meta) {
+ * "optimizer.", metadata keys not starting with drop_meta (NULL: keep all), and key (when not
+ * NULL) set to value. */
+static int rewrite_as(const char *src, const char *dst, int keep_opt, const char *drop_meta, const char *key,
+                      const char *value) {
   char ps[700], pd[700];
   path_of(ps, sizeof ps, src);
   path_of(pd, sizeof pd, dst);
@@ -36,13 +30,25 @@ static int rewrite(const char *src, const char *dst, int keep_opt, const char *d
       memcpy(e[ne].shape, t->shape, sizeof t->shape);
       ne++;
     }
-    for (int i = 0; i < f.nmeta; i++)
-      if (!drop_meta || strncmp(f.meta_keys[i], drop_meta, strlen(drop_meta))) k[nm] = f.meta_keys[i], v[nm++] = f.meta_values[i];
+    for (int i = 0; i < f.nmeta; i++) {
+      if (drop_meta && !strncmp(f.meta_keys[i], drop_meta, strlen(drop_meta))) continue;
+      k[nm] = f.meta_keys[i];
+      v[nm++] = key && !strcmp(f.meta_keys[i], key) ? value : f.meta_values[i];
+    }
     ok = spx_st_save(ctx, pd, e, ne, k, v, nm) == SPX_OK;
   }
   free(e), free(k), free(v);
   spx_st_free(&f);
   return ok;
+}
+
+static int rewrite(const char *src, const char *dst, int keep_opt, const char *drop_meta) {
+  return rewrite_as(src, dst, keep_opt, drop_meta, NULL, NULL);
+}
+
+/* Copy dir/src to dir/dst with metadata key set to value. */
+static int set_meta(const char *src, const char *dst, const char *key, const char *value) {
+  return rewrite_as(src, dst, 1, NULL, key, value);
 }
 
 static void test_bit_for_bit(void) {
@@ -105,30 +111,6 @@ static void test_refusals(void) {
         err_is("train", "Old.safetensors: records no training state"));
   /* no checkpoint at all: --resume names the missing file */
   CHECK(run("train --data ds --out Nostate.safetensors --resume --steps 1") == 1 && err_is("train", "Nostate.safetensors: cannot open"));
-}
-
-/* Copy dir/src to dir/dst with metadata key set to value. */
-static int set_meta(const char *src, const char *dst, const char *key, const char *value) {
-  char ps[700], pd[700];
-  path_of(ps, sizeof ps, src);
-  path_of(pd, sizeof pd, dst);
-  spx_st_file f;
-  if (spx_st_load(ctx, ps, &f)) return 0;
-  spx_st_entry *e = calloc((size_t)f.count, sizeof *e);
-  const char **k = calloc((size_t)f.nmeta + 1, sizeof *k), **v = calloc((size_t)f.nmeta + 1, sizeof *v);
-  int ok = 0;
-  if (e && k && v) {
-    for (int i = 0; i < f.count; i++) {
-      const spx_st_tensor *t = &f.tensors[i];
-      e[i].name = t->name, e[i].dtype = t->dtype, e[i].ndim = t->ndim, e[i].data = t->data;
-      memcpy(e[i].shape, t->shape, sizeof t->shape);
-    }
-    for (int i = 0; i < f.nmeta; i++) k[i] = f.meta_keys[i], v[i] = strcmp(f.meta_keys[i], key) ? f.meta_values[i] : value;
-    ok = spx_st_save(ctx, pd, e, f.count, k, v, f.nmeta) == SPX_OK;
-  }
-  free(e), free(k), free(v);
-  spx_st_free(&f);
-  return ok;
 }
 
 /* Every recorded field is range-checked, the message naming the file and the field (issue 24:

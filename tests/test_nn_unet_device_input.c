@@ -86,7 +86,7 @@ static void test_projection_chain(void) {
   CHECK_OK(ctx, spx_cl_write(ctx, dpos, 0, sizeof pos, pos));
   CHECK_OK(ctx, spx_cl_write(ctx, dcol, 0, sizeof col, col));
   spx_project_dev_args da = {1, NV, dpos, dcol, 1, &cam, SPX_LAYOUT_NCHW};
-  CHECK_OK(ctx, spx_project_device(ctx, p, &da, dimg, NULL, 0));
+  CHECK_OK(ctx, spx_project_device(ctx, p, &da, dimg, NULL, SPX_PROJ_PATH_AUTO));
   CHECK_OK(ctx, spx_unet_forward_device(u, dimg, 0, 1, H, W, yd));
   CHECK(memcmp(yd, yh, nout * sizeof(float)) == 0);
 done:

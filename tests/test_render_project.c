@@ -1,6 +1,6 @@
 /* Projection with collision resolution (kernels/project.cl) against the plain-C z-buffer
- * reference, bit for bit: random clouds on every device path (fused sort, radix sort, counting
- * sort, z-buffer parts, one launch), forced collisions, equal depths, pixel borders, points behind
+ * reference, bit for bit: random clouds on every device path (fused sort, radix sort, z-buffer
+ * parts, one launch), forced collisions, equal depths, pixel borders, points behind
  * the camera / outside / non-finite, batching, layouts, determinism, winners, the one-launch
  * path's image kept between calls; backward against its reference and finite differences;
  * argument errors. */
@@ -48,9 +48,9 @@ static void make_cloud(float *pos, float *col, int n, double spread, unsigned lo
   }
 }
 
-/* The device path chosen by force (0 auto, 1 fused, 2 radix, 3 counting, 4 z-buffer parts, 5 one
- * launch into a foreign, fully cleared image) on uploaded buffers. */
-static void run_dev(const spx_project_args *a, int force, float *out, int32_t *win) {
+/* The device path `force` (SPX_PROJ_PATH_AUTO, or one path; SPX_PROJ_PATH_ONE into a foreign,
+ * fully cleared image) on uploaded buffers. */
+static void run_dev(const spx_project_args *a, spx_proj_path force, float *out, int32_t *win) {
   size_t npix = (size_t)a->batch * a->ncams * a->cams[0].width * a->cams[0].height;
   size_t vb = (size_t)a->batch * a->nverts * 3 * sizeof(float) + 4;
   cl_mem pos = NULL, col = NULL, img = NULL, w = NULL;
@@ -77,11 +77,11 @@ static void check_vs_ref(const spx_project_args *a, const char *what, float **re
   float *ro = malloc(npix * 16), *o = malloc(npix * 16);
   int32_t *rw = malloc(npix * 4), *w = malloc(npix * 4);
   CHECK_OK(ctx, spx_project_ref(ctx, a, ro, rw));
-  for (int force = 0; force <= 5; force++) {
+  for (int force = SPX_PROJ_PATH_AUTO; force < SPX_PROJ_NPATHS; force++) {
     memset(o, 0, npix * 16);
     memset(w, 0, npix * 4);
-    if (force == 0) CHECK_OK(ctx, spx_project(ctx, proj, a, o, w));
-    else run_dev(a, force, o, w);
+    if (force == SPX_PROJ_PATH_AUTO) CHECK_OK(ctx, spx_project(ctx, proj, a, o, w));
+    else run_dev(a, (spx_proj_path)force, o, w);
     CHECK_MSG(memcmp(o, ro, npix * 16) == 0, "%s: image differs from the reference (path %d)", what, force);
     CHECK_MSG(memcmp(w, rw, npix * 4) == 0, "%s: winners differ from the reference (path %d)", what, force);
   }
@@ -399,7 +399,7 @@ static void test_large_and_fallback_division(void) {
   free(col);
 }
 
-/* Path 5 keeps the projector's image between calls and clears only what its last call wrote:
+/* The one-launch path keeps the projector's image between calls and clears only what its last call wrote:
  * a long sequence of spx_project calls on one projector — moving point sets, winners asked for or
  * not, layouts, sizes and batches changing, the multi-launch path, a backward (which writes the
  * winners buffer) and a device-tensor call in between — each equal to the reference. */
@@ -412,7 +412,7 @@ static void test_one_launch_sequence(void) {
   float *o = malloc(npmax * 16), *ro = malloc(npmax * 16), *G = calloc(npmax * 4, sizeof(float));
   float *gc = calloc((size_t)nmax * 3, sizeof(float));
   int32_t *w = malloc(npmax * 4), *rw = malloc(npmax * 4);
-  int saw5 = 0, saw4 = 0;
+  int saw_one = 0, saw_zbuf = 0;
   for (int step = 0; step < 24; step++) {
     /* six phases of four calls with one geometry each; within a phase winners are asked for in
      * calls 0, 1 and 3 (so both the kept and the stale winners buffer are exercised) */
@@ -425,8 +425,8 @@ static void test_one_launch_sequence(void) {
     memset(o, 0, np * 16);
     memset(w, 0, np * 4);
     CHECK_OK(ctx, spx_project(ctx, proj, &a, o, want_w ? w : NULL));
-    saw5 += proj->last_path == 5;
-    saw4 += proj->last_path == 4;
+    saw_one += proj->last_path == SPX_PROJ_PATH_ONE;
+    saw_zbuf += proj->last_path == SPX_PROJ_PATH_ZBUF;
     CHECK_OK(ctx, spx_project_ref(ctx, &a, ro, rw));
     CHECK_MSG(memcmp(o, ro, np * 16) == 0, "step %d (n=%d, B=%d, C=%d): image differs", step, n, B, C);
     CHECK_MSG(!want_w || memcmp(w, rw, np * 4) == 0, "step %d: winners differ", step);
@@ -440,8 +440,8 @@ static void test_one_launch_sequence(void) {
       spx_device_tensor_free(t);
     }
   }
-  if (ctx->dev->tune.proj_zbuf && ctx->dev->tune.proj_one_max >= 2200) CHECK(saw5 >= 20);
-  if (ctx->dev->tune.proj_zbuf && ctx->dev->tune.proj_one_max < nmax) CHECK(saw4 >= 1);
+  if (ctx->dev->tune.proj_zbuf && ctx->dev->tune.proj_one_max >= 2200) CHECK(saw_one >= 20);
+  if (ctx->dev->tune.proj_zbuf && ctx->dev->tune.proj_one_max < nmax) CHECK(saw_zbuf >= 1);
   free(pos);
   free(col);
   free(o);

@@ -106,12 +106,9 @@ static void vgg16_run(spx_ctx *ctx, const char *path, const spx_st_file *g, spx_
   for (size_t i = 0; i < np; i++) x[i] = (float)at(tp, i), x[np + i] = (float)at(tt, i);
   spx_tape *t = spx_vgg_tape(v);
   spx_t_vgg_pass p = {v, x, x + np, n, h, w, -1, -1};
-  CHECK_OK(ctx, spx_tape_pass(t, 1, 1, spx_t_vgg_build, &p));
-  const int xi = p.xi, loss = p.loss;
-  CHECK_OK(ctx, spx_tape_backward(t, loss));
   float lv = 0;
-  CHECK_OK(ctx, spx_tape_read(t, loss, &lv));
-  CHECK_OK(ctx, spx_tape_read_grad(t, xi, grad));
+  CHECK_OK(ctx, spx_t_vgg_loss_grad(t, &p, &lv, grad));
+  const int xi = p.xi, loss = p.loss;
   double l_ours = be == SPX_TAPE_HOST ? spx_tape_host(t, loss)[0] : lv, num = 0, den = 1e-30;
   for (size_t i = 0; i < np; i++) {
     double r = at(tg, i), o = be == SPX_TAPE_HOST ? spx_tape_host_grad(t, xi)[i] : grad[i];

@@ -22,4 +22,14 @@ static inline spx_status spx_t_vgg_build(spx_tape *t, void *user) {
   return SPX_OK;
 }
 
+/* The pass of p on t and its backward: the loss into *loss, pred's gradient (n*3*h*w floats) into
+ * grad; p->xi and p->loss name them on t afterwards. */
+static inline spx_status spx_t_vgg_loss_grad(spx_tape *t, spx_t_vgg_pass *p, float *loss, float *grad) {
+  spx_status st = spx_tape_pass(t, 1, 1, spx_t_vgg_build, p);
+  if (!st) st = spx_tape_backward(t, p->loss);
+  if (!st) st = spx_tape_read(t, p->loss, loss);
+  if (!st) st = spx_tape_read_grad(t, p->xi, grad);
+  return st;
+}
+
 #endif

@@ -68,8 +68,6 @@
   X(AVGPOOL3_BWD, "pool.cl", "spx_avgpool3_bwd")                       \
   X(PROJECT_KEYS, "project.cl", "spx_project_keys")                    \
   X(PROJECT_SCATTER, "project.cl", "spx_project_scatter")              \
-  X(PROJECT_BUCKET, "project.cl", "spx_project_bucket")                \
-  X(PROJECT_BUCKET_MIN, "project.cl", "spx_project_bucket_min")        \
   X(PROJECT_SORT_SCATTER, "project.cl", "spx_project_sort_scatter")    \
   X(PROJECT_VPIX, "project.cl", "spx_project_vpix")                    \
   X(PROJECT_GRAD, "project.cl", "spx_project_grad")                    \

@@ -19,7 +19,6 @@ struct spx_tunables {
   int sort_single_max;
   int proj_fast_max;      /* projection */
   int proj_sort_depth;
-  int proj_count_min;
   int proj_zbuf;
   int proj_zb_chunk;
   int proj_zb_parts;

@@ -5,8 +5,12 @@
  * the combinations against the device's limits; spx_cl_program_options gives each program
  * -D<NAME>=<value> for the tunables its source mentions (so a change rebuilds only those).
  * Launch paths read the typed fields; nothing here runs per launch.
- * To add a tunable: a field in struct spx_tunables and a row here at the same place (with CPU
- * and GPU values measured), then read ctx->dev->tune.<field> on the host and <NAME> in the kernel. */
+ * A row says what the tunable is, its CPU and GPU values, its legal range and the values
+ * `smplpix tune` times (apps/tune_search.c decides the order of the search); how the values were
+ * measured is in benchmarks/RESULTS.md ("Tunable measurements").
+ * To add a tunable: a field in struct spx_tunables and a row here at the same place (CPU and GPU
+ * values measured, the measurement in RESULTS.md), then read ctx->dev->tune.<field> on the host
+ * and <NAME> in the kernel. */
 #include <errno.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -15,8 +19,16 @@
 
 #include "cl/cl_internal.h"
 
-/* Rules beyond [lo, hi]: a power of two; a work-group size (at most the device's limit). */
-enum { T_POW2 = 1, T_WG = 2 };
+/* Rules beyond [lo, hi]: a power of two; a work-group size (at most the device's limit).
+ * T_FULL: `smplpix tune` times the row's candidates in its full search only (not with --quick). */
+enum { T_POW2 = 1, T_WG = 2, T_FULL = 4 };
+
+/* Candidate values of `smplpix tune`, in the order it times them: n ints, tuples of the row's
+ * value followed by its partner's (`with`) when the two are searched together. */
+struct spx_tune_values {
+  const int *v;
+  int n;
+};
 
 struct spx_tunable {
   const char *name; /* -D name; the override is SPX_TUNE_<name without a leading SPX_> */
@@ -24,185 +36,151 @@ struct spx_tunable {
   int cpu, gpu;     /* other device kinds use the GPU value */
   int lo, hi;       /* legal range, checked (with flags and the device's limits) when a device opens */
   int flags;
+  const char *with;             /* searched together with this tunable (NULL: alone) */
+  struct spx_tune_values full;  /* the candidates (none: `smplpix tune` leaves the row alone) */
+  struct spx_tune_values quick; /* --quick's candidates where they differ from full's */
 };
 
-#define F(field) offsetof(struct spx_tunables, field)
+#define ROW(nm, field, c, g, l, h, fl) \
+  .name = nm, .off = offsetof(struct spx_tunables, field), .cpu = c, .gpu = g, .lo = l, .hi = h, .flags = fl
+#define VALUES(...) {(const int[]){__VA_ARGS__}, (int)(sizeof((const int[]){__VA_ARGS__}) / sizeof(int))}
+#define ONOFF VALUES(0, 1)
 
 static const struct spx_tunable spx_tunables[] = {
-    /* generic 1-D work-group size for elementwise kernels */
-    {"SPX_WG", F(wg), 64, 256, 1, 1024, T_POW2|T_WG},
+    /* generic 1-D work-group size of the elementwise kernels */
+    {ROW("SPX_WG", wg, 64, 256, 1, 1024, T_POW2 | T_WG)},
     /* mesh rasterizer (kernels/raster.cl): screen tile side in pixels */
-    {"SPX_RASTER_TILE", F(raster_tile), 16, 16, 2, 64, 0},
-    /* mesh rasterizer tile kernel: 1 = one work-item walks a whole tile (CPU), 0 = one per pixel (GPU) */
-    {"SPX_RASTER_SERIAL", F(raster_serial), 1, 0, 0, 1, 0},
-    /* mesh rasterizer setup/binning: consecutive faces per work-item (CPU: aggregate tile counts) */
-    {"SPX_RASTER_CHUNK", F(raster_chunk), 64, 1, 1, 65536, 0},
-    /* mesh rasterizer shading: work-items of the grid-stride loop over covered pixels */
-    {"SPX_RASTER_SHADE_ITEMS", F(raster_shade_items), 65536, 65536, 1, 1 << 24, 0},
-    /* radix sort (kernels/radix_sort.cl): digit bits per pass, work-group size, keys per
-     * work-item; local memory of the scatter = 4 * 2^BITS * WG bytes */
-    {"SPX_SORT_BITS", F(sort_bits), 9, 4, 1, 16, 0},
-    {"SPX_SORT_WG", F(sort_wg), 1, 256, 1, 1024, T_POW2|T_WG},
-    {"SPX_SORT_ITEMS", F(sort_items), 4096, 4, 1, 65536, 0},
-    /* up to this many keys, the whole sort runs in one work-group launch (no scan passes) */
-    {"SPX_SORT_SINGLE_MAX", F(sort_single_max), 32768, 8192, 1, 1 << 28, 0},
-    /* projection (kernels/project.cl): up to this many projected points (B*C*N) the fused path
-     * runs (project+background fill, then one single-work-group sort+unique+scatter launch) */
-    {"SPX_PROJ_FAST_MAX", F(proj_fast_max), 32768, 8192, 0, 1 << 28, 0},
-    /* 1: sort projection keys by pixel and depth (the paper's depth sort); 0: by pixel only, the
-     * nearest point of each (short) pixel run found by its head — same output, fewer passes */
-    {"SPX_PROJ_SORT_DEPTH", F(proj_sort_depth), 1, 1, 0, 1, 0},
-    /* from this many points on (0: never), the projection uses a counting sort by pixel (one
-     * pass, atomics for bucket slots) + a per-pixel nearest-point pass instead of the radix sort;
-     * on 2-core PoCL it measured no better than the radix sort at 10^6 points (both ~40-90 ms,
-     * noisy), so it is off; unmeasured on GPUs */
-    {"SPX_PROJ_COUNT_MIN", F(proj_count_min), 0, 0, 0, 1 << 30, 0},
-    /* 1: the projection runs the z-buffer path (kernels/project.cl spx_project_zbuf: one
-     * work-item per part walks its points like the plain-C loop, then a merge pass): on 2-core
-     * PoCL 1.1-1.2x faster than the fused sort at 6,890 points and 3-4x at 10^6 (benchmarks/
-     * RESULTS.md); 0: the sort paths (GPU: a serial loop per part wastes the device) */
-    {"SPX_PROJ_ZBUF", F(proj_zbuf), 1, 0, 0, 1, 0},
+    {ROW("SPX_RASTER_TILE", raster_tile, 16, 16, 2, 64, 0)},
+    /* rasterizer tile kernel: 1 = one work-item walks a whole tile, 0 = one work-item per pixel */
+    {ROW("SPX_RASTER_SERIAL", raster_serial, 1, 0, 0, 1, 0)},
+    /* rasterizer setup/binning: consecutive faces per work-item (their tile counts aggregated) */
+    {ROW("SPX_RASTER_CHUNK", raster_chunk, 64, 1, 1, 65536, 0)},
+    /* rasterizer shading: work-items of the grid-stride loop over covered pixels */
+    {ROW("SPX_RASTER_SHADE_ITEMS", raster_shade_items, 65536, 65536, 1, 1 << 24, 0)},
+    /* radix sort (kernels/radix_sort.cl): digit bits per pass (scatter local memory 4 * 2^BITS * WG bytes) */
+    {ROW("SPX_SORT_BITS", sort_bits, 9, 4, 1, 16, 0)},
+    /* radix sort: work-group size */
+    {ROW("SPX_SORT_WG", sort_wg, 1, 256, 1, 1024, T_POW2 | T_WG)},
+    /* radix sort: keys per work-item */
+    {ROW("SPX_SORT_ITEMS", sort_items, 4096, 4, 1, 65536, 0)},
+    /* radix sort: up to this many keys the whole sort is one work-group launch (no scan passes) */
+    {ROW("SPX_SORT_SINGLE_MAX", sort_single_max, 32768, 8192, 1, 1 << 28, 0)},
+    /* projection (kernels/project.cl) sort paths: up to this many points (B*C*N) the fused one-launch sort */
+    {ROW("SPX_PROJ_FAST_MAX", proj_fast_max, 32768, 8192, 0, 1 << 28, 0)},
+    /* projection sort paths: 1 = keys sorted by pixel and depth, 0 = by pixel only (run heads find the nearest) */
+    {ROW("SPX_PROJ_SORT_DEPTH", proj_sort_depth, 1, 1, 0, 1, 0)},
+    /* projection: 1 = the z-buffer paths (CPU-class devices), 0 = the sort paths */
+    {ROW("SPX_PROJ_ZBUF", proj_zbuf, 1, 0, 0, 1, 0)},
     /* z-buffer path: points per part (parts = min(SPX_PROJ_ZB_PARTS, points / this), at least 1) */
-    {"SPX_PROJ_ZB_CHUNK", F(proj_zb_chunk), 16384, 16384, 1, 1 << 30, 0},
-    /* z-buffer path: most parts (0: the device's compute units); each holds a z-buffer of 8 bytes per pixel */
-    {"SPX_PROJ_ZB_PARTS", F(proj_zb_parts), 0, 0, 0, 256, 0},
+    {ROW("SPX_PROJ_ZB_CHUNK", proj_zb_chunk, 16384, 16384, 1, 1 << 30, 0)},
+    /* z-buffer path: most parts (0: the device's compute units), each a z-buffer of 8 bytes per pixel */
+    {ROW("SPX_PROJ_ZB_PARTS", proj_zb_parts, 0, 0, 0, 256, 0)},
     /* background pixels written per work-item of spx_project_keys and spx_project_zmerge */
-    {"SPX_PROJ_FILL_PX", F(proj_fill_px), 64, 1, 1, 65536, 0},
-    /* z-buffer path: up to this many projected points, spx_project runs them in one launch of one
-     * work-group into its own image, clearing only the pixels its previous call wrote
-     * (spx_project_one, path 5); more points take the parts + merge launches (0: never). On 2-core
-     * PoCL (load ~7) path 5 was 2-3x faster at 6,890-27,554 points and 1.3-3x at 110,210 */
-    {"SPX_PROJ_ONE_MAX", F(proj_one_max), 131072, 0, 0, 1 << 28, 0},
-    /* conv2d (kernels/conv2d.cl): forward register tile = CONV_TM out-channels x CONV_TN vectors
-     * of CONV_VW pixels per work-item, CONV_LWS work-items per group (interleaved pixels) */
-    {"CONV_VW", F(conv_vw), 16, 1, 1, 16, T_POW2},
-    {"CONV_TM", F(conv_tm), 8, 8, 1, 32, 0},
-    {"CONV_TN", F(conv_tn), 3, 4, 1, 32, 0},
-    {"CONV_LWS", F(conv_lws), 1, 64, 1, 1024, T_WG},
-    /* conv2d forward: channel tiles per work-item, walked per block of CONV_CB input channels */
-    {"CONV_CT", F(conv_ct), 4, 1, 1, 64, 0},
-    {"CONV_CB", F(conv_cb), 16, 1048576, 1, 1 << 30, 0},
-    /* conv2d stride-1 3x3 / 1x1 forwards (and backward data) with at most CONV_NARROW_MAXC output
-     * channels use the tile CONV_NARROW_TM x CONV_NARROW_TN (kernels/conv2d_narrow.cl; same bits);
-     * 0 = never. CPU: on a Zen 4-class host 4 x 6 took ~25-30% less CPU time than 8 x 3 on the
-     * full-resolution 16/32 channel layers of the width-16 UNet; on the Zen 5 host of session 7
-     * 4 x 5 is ~4% faster than 4 x 6 over the whole width-16 eval pass (six alternating pairs, and
-     * the tuner's own A/B: 1.07x), training neutral; 64-channel layers stay on the main tile.
-     * GPU: unmeasured, off */
-    {"CONV_NARROW_MAXC", F(conv_narrow_maxc), 32, 0, 0, 1 << 20, 0},
-    {"CONV_NARROW_TM", F(conv_narrow_tm), 4, 8, 1, 32, 0},
-    {"CONV_NARROW_TN", F(conv_narrow_tn), 5, 4, 1, 32, 0},
-    /* conv2d: 1 = the stride-1 3x3 pad-1 / 1x1 pad-0 forwards (and backward data) of the register
-     * tiles read the unpadded input (kernels/conv2d_nopad.h) instead of a zero-padded copy of it
-     * (same bits). CPU: the copies were ~15% of a width-16 UNet eval pass. GPU: off (its 3x3 runs
-     * the local-memory kernel, which keeps the padded copy) */
-    {"CONV_NOPAD", F(conv_nopad), 1, 0, 0, 1, 0},
-    /* network tape: 1 = an inference convolution keeps its packed / Winograd-transformed weights
-     * from one pass to the next until a parameter changes (more device memory: a Winograd layer's
-     * U is 4x its weights; width-64 eval skips ~9% of its work) */
-    {"CONV_WPREP", F(conv_wprep), 1, 1, 0, 1, 0},
-    /* conv2d: 1 = 3x3 stride-1 forwards (and backward data) run the local-memory tiled kernel
-     * (kernels/conv2d_lds.cl; needs CONV_VW = 1): tiles of CONV_LDS_TX columns x
-     * (CONV_LWS/CONV_LDS_TX)*CONV_TN rows, CONV_LDS_CB input channels per local-memory block.
-     * GPU values unmeasured (no GPU at hand; tested on PoCL with SPX_TUNE_CLASS=gpu) */
-    {"CONV_LDS", F(conv_lds), 0, 1, 0, 1, 0},
-    {"CONV_LDS_TX", F(conv_lds_tx), 16, 16, 1, 1024, 0},
-    {"CONV_LDS_CB", F(conv_lds_cb), 8, 8, 1, 256, 0},
+    {ROW("SPX_PROJ_FILL_PX", proj_fill_px, 64, 1, 1, 65536, 0)},
+    /* z-buffer paths: up to this many points the one-launch path into the projector's own image (0: never) */
+    {ROW("SPX_PROJ_ONE_MAX", proj_one_max, 131072, 0, 0, 1 << 28, 0)},
+    /* conv2d forward (kernels/conv2d.cl): pixels per vector of the register tile */
+    {ROW("CONV_VW", conv_vw, 16, 1, 1, 16, T_POW2 | T_FULL), .full = VALUES(1, 2, 4, 8, 16)},
+    /* conv2d forward register tile: out-channels per work-item */
+    {ROW("CONV_TM", conv_tm, 8, 8, 1, 32, 0), .with = "CONV_TN",
+     .full = VALUES(2, 4, 2, 5, 2, 6, 2, 7, 2, 8, 4, 2, 4, 3, 4, 4, 4, 5, 4, 6, 4, 7, 4, 8, 6, 2, 6, 3, 6, 4, 6, 5,
+                    6, 6, 6, 7, 6, 8, 8, 1, 8, 2, 8, 3, 8, 4, 8, 5, 8, 6, 10, 1, 10, 2, 10, 3, 10, 4, 12, 1, 12, 2,
+                    12, 3, 12, 4, 14, 1, 14, 2, 14, 3, 16, 1, 16, 2, 16, 3), /* TM even, 8 <= TM*TN <= 48 */
+     .quick = VALUES(8, 3, 8, 2, 6, 4, 4, 6, 8, 4)},
+    /* conv2d forward register tile: vectors of CONV_VW pixels per work-item (searched with CONV_TM) */
+    {ROW("CONV_TN", conv_tn, 3, 4, 1, 32, 0)},
+    /* conv2d forward: work-items per group (interleaved pixels) */
+    {ROW("CONV_LWS", conv_lws, 1, 64, 1, 1024, T_WG | T_FULL), .full = VALUES(1, 16, 32, 64, 128, 256)},
+    /* conv2d forward: channel tiles per work-item */
+    {ROW("CONV_CT", conv_ct, 4, 1, 1, 64, T_FULL), .full = VALUES(1, 2, 4, 8)},
+    /* conv2d forward: input channels per block of the channel-tile walk */
+    {ROW("CONV_CB", conv_cb, 16, 1048576, 1, 1 << 30, 0)},
+    /* stride-1 3x3 / 1x1 convs with at most this many out-channels take the narrow tile (conv2d_narrow.cl; 0: none) */
+    {ROW("CONV_NARROW_MAXC", conv_narrow_maxc, 32, 0, 0, 1 << 20, T_FULL), .full = VALUES(0, 16, 32, 64)},
+    /* narrow tile: out-channels per work-item */
+    {ROW("CONV_NARROW_TM", conv_narrow_tm, 4, 8, 1, 32, 0), .with = "CONV_NARROW_TN",
+     .full = VALUES(4, 6, 8, 3, 4, 5, 2, 12, 8, 2)},
+    /* narrow tile: pixel vectors per work-item (searched with CONV_NARROW_TM) */
+    {ROW("CONV_NARROW_TN", conv_narrow_tn, 5, 4, 1, 32, 0)},
+    /* 1: stride-1 'same' register-tile forwards read the unpadded input (kernels/conv2d_nopad.h), 0: a padded copy */
+    {ROW("CONV_NOPAD", conv_nopad, 1, 0, 0, 1, 0), .full = ONOFF},
+    /* 1: inference convolutions keep their prepared (packed / Winograd) weights until a parameter changes */
+    {ROW("CONV_WPREP", conv_wprep, 1, 1, 0, 1, 0)},
+    /* 1: 3x3 stride-1 forwards run the local-memory tiled kernel (kernels/conv2d_lds.cl; needs CONV_VW = 1) */
+    {ROW("CONV_LDS", conv_lds, 0, 1, 0, 1, 0), .full = ONOFF},
+    /* local-memory conv: tile columns (rows: CONV_LWS / this * CONV_TN) */
+    {ROW("CONV_LDS_TX", conv_lds_tx, 16, 16, 1, 1024, T_FULL), .with = "CONV_LDS_CB",
+     .full = VALUES(8, 4, 8, 8, 16, 4, 16, 8, 16, 16, 32, 8)},
+    /* local-memory conv: input channels per local-memory block (searched with CONV_LDS_TX) */
+    {ROW("CONV_LDS_CB", conv_lds_cb, 8, 8, 1, 256, 0)},
     /* conv2d: inputs up to this many KiB (and smaller than the weights) run pixel-tile-fastest */
-    {"CONV_XCACHE", F(conv_xcache), 2048, 2048, 0, 1 << 20, 0},
-    /* conv2d backward weights: tile of out-channels x weight columns; q-chunk of the split reduction */
-    {"CONV_DW_TM", F(conv_dw_tm), 6, 4, 1, 32, 0},
-    {"CONV_DW_TN", F(conv_dw_tn), 4, 4, 1, 32, 0},
-    {"CONV_DW_QC", F(conv_dw_qc), 2048, 1024, 1, 1 << 30, 0},
-    /* conv2d backward weights: column tiles per work-item, walked per block of CONV_DW_QB q */
-    {"CONV_DW_G", F(conv_dw_g), 8, 1, 1, 64, 0},
-    {"CONV_DW_QB", F(conv_dw_qb), 256, 1024, 1, 1 << 30, 0},
-    {"CONV_DW_LWS", F(conv_dw_lws), 1, 64, 1, 1024, T_WG}, /* work-group size along the column tiles (CPU: 1, keeps private arrays small) */
-    /* conv2d: 3x3 / stride 1 / pad 1 layers with at least this many input and output channels
-     * run Winograd F(4x4,3x3) (kernels/conv2d_winograd.cl) in inference forwards; 0 = never.
-     * CPU: measured on the UNet eval forward at 4x308x410 (CPU seconds, 2-core PoCL): width 64
-     * ~1.55x less with any of 16/32/64, width 16 best with 64 (16 costs ~5% more than direct);
-     * GPU: unmeasured */
-    {"CONV_WINO_MINC", F(conv_wino_minc), 64, 32, 0, 1 << 20, 0},
-    /* inference forwards on images of at most this many pixels take Winograd from half
-     * CONV_WINO_MINC channels (lib/nn/conv2d_winograd.c); 0 = never. CPU (session 8, Zen 5,
-     * bench_conv2d --w16, CPU ms): the width-16 UNet's 77x102 layers 32->64 1.56 -> 1.06 and
-     * 64->32 1.67 -> 1.36 (their transforms' scratch stays in cache), but at 154x205 32->32
-     * 2.9 -> 3.3 and 64->32 5.6 -> 7.3: the threshold sits between 7,854 and 31,570 pixels.
-     * GPU: unmeasured, off */
-    {"CONV_WINO_SMALL_HW", F(conv_wino_small_hw), 16384, 0, 0, 1 << 30, 0},
-    /* 1: training forwards and backward data take Winograd too (lib/nn/conv2d.h). CPU: the
-     * width-64 UNet training step at 1x4x308x410 takes ~15% less CPU time (2-core PoCL, load
-     * ~14; benchmarks/RESULTS.md); goldens widen their tolerance by SPX_WINO_RMS_GAIN with it.
-     * GPU: unmeasured, off */
-    {"CONV_WINO_TRAIN", F(conv_wino_train), 1, 0, 0, 1, 0},
-    /* Winograd scratch (padded input / products + transformed input) per pass over the batch, in
-     * units of 2^20 floats (4 MiB); a pass takes as many samples as fit, at least one (0: always
-     * one). Bounds the transforms of a batch-4 training step (lib/nn/conv2d_winograd.c) */
-    {"CONV_WINO_CHUNK", F(conv_wino_chunk), 32, 32, 0, 1 << 16, 0},
-    /* Winograd (kernels/conv2d_winograd.cl): 1 = number the tiles of a layer whose tile rows
-     * would be padded by more than 10% to a multiple of CONV_VW (77x102: 26 -> 32 tiles, 38x51: 13 ->
-     * 16, 19x25: 7 -> 16) row after row without padding, so the GEMMs do no work on padding tiles;
-     * the transforms load a work-item's row segments separately. Same bits (each tile's arithmetic
-     * is unchanged). 0: row-padded always. GPU: its Winograd is the local-memory variant */
-    {"CONV_WINO_PACK", F(conv_wino_pack), 1, 0, 0, 1, 0},
-    /* 1: the Winograd layers run the fused local-memory variant (kernels/conv2d_winograd_lds.cl:
-     * input transform, GEMM and output transform in one kernel, bit-identical to the CPU
-     * variant). A work-group of 36 x CONV_WLDS_WM x CONV_WLDS_WN work-items owns CONV_WLDS_WM *
-     * CONV_WLDS_TM output channels x CONV_WLDS_WN * CONV_WLDS_TN tiles, each work-item a register
-     * tile of CONV_WLDS_TM x CONV_WLDS_TN of one transform position; CONV_WLDS_KB input channels
-     * per local-memory block (4 * KB * (6 * (4 BN + 2) + 36 (BM + BN)) bytes). Falls back to the CPU
-     * variant where the group or its local memory does not fit the device. GPU values
-     * unmeasured (no GPU at hand; tested on PoCL with SPX_TUNE_CLASS=gpu); `smplpix tune` times them */
-    {"CONV_WINO_LDS", F(conv_wino_lds), 0, 1, 0, 1, 0},
-    {"CONV_WLDS_TM", F(conv_wlds_tm), 4, 4, 1, 16, 0},
-    {"CONV_WLDS_TN", F(conv_wlds_tn), 4, 4, 1, 16, 0},
-    {"CONV_WLDS_WM", F(conv_wlds_wm), 2, 2, 1, 28, 0},
-    {"CONV_WLDS_WN", F(conv_wlds_wn), 2, 2, 1, 28, 0},
-    {"CONV_WLDS_KB", F(conv_wlds_kb), 8, 8, 1, 64, 0},
-    /* training weight gradients of 3x3 / stride 1 / pad 1 layers with at least this many input
-     * and output channels (and CONV_WINO_TRAIN on) run Winograd F(4x4,3x3)
-     * (kernels/conv2d_winograd_dw.cl); 0 = never (direct, kernels/conv2d_bwd.cl). CPU: see
-     * benchmarks/RESULTS.md "Training step with Winograd (issue 16)"; GPU: unmeasured, off */
-    {"CONV_WINO_DW", F(conv_wino_dw), 64, 0, 0, 1 << 20, 0},
-    /* ... and images of at least this many pixels (H*W): small deep layers (19x25 at 512
-     * channels) hold few tiles per 36-entry gradient of every weight pair and lose to direct */
-    {"CONV_WINO_DW_MINHW", F(conv_wino_dw_minhw), 1024, 1024, 0, 1 << 30, 0},
-    /* 1: the ops' scratch (conv workspace, upsample/loss scratch) is planned inside the tape's
-     * activation arena and handed out as sub-buffers of it, sharing memory with values dead at
-     * that step (CPU: the batch-4 training peak drops to the planned bytes). 0: one separate
-     * buffer sized by the plan's largest op scratch. GPU class 0: OpenCL leaves a kernel that
-     * reads a buffer and writes a sub-buffer of the same buffer undefined (CL 1.2 5.2.1), even
-     * disjoint; PoCL's CPU device is host memory and handles it */
-    {"TAPE_WS_ARENA", F(tape_ws_arena), 1, 0, 0, 1, 0},
-    /* the tape's activation arena is one buffer per chunk of at most the device's largest
-     * allocation (CL_DEVICE_MAX_MEM_ALLOC_SIZE; a width-64 batch-4 training step needs more
-     * than PoCL's 2 GiB); >0: chunks of at most this many MiB (tests split small arenas; a
-     * driver that fails large allocations below its stated maximum) */
-    {"TAPE_CHUNK_MB", F(tape_chunk_mb), 0, 0, 0, 1 << 20, 0},
-    /* conv2d bias gradient: work-group of the per-channel tree reduction (power of two) */
-    {"CONV_RED_WG", F(conv_red_wg), 16, 256, 1, 1024, T_POW2|T_WG},
-    /* 2-D work-group (x = columns, y = rows) of the (x, y, plane) kernels: pad, concat, pool,
-     * upsample, batch-norm eval (lib/nn/nn_internal.h spx_nn_run3d) */
-    {"SPX_WG2_X", F(wg2_x), 64, 32, 1, 1024, T_POW2|T_WG},
-    {"SPX_WG2_Y", F(wg2_y), 1, 8, 1, 1024, T_POW2|T_WG},
-    /* the x2 upsampling and 2x2 max-pool forwards (kernels/upsample.cl, kernels/pool.cl): 1 = 16
-     * output columns of a row per work-item from vector loads of the source rows (the upsampling
-     * computes its indices and weights once for a block of planes); same bits as 0 = one
-     * work-item per output (GPU). CPU: the full-resolution upsampling of the width-16 UNet took
-     * ~6x less time, the max-pool ~3x (benchmarks/RESULTS.md) */
-    {"SPX_ROW_VEC", F(row_vec), 1, 0, 0, 1, 0},
-    /* 1: concat / up-block channel placement as one clEnqueueCopyBuffer per sample (CPU: PoCL's
-     * memcpy); 0: the element-wise kernel spx_channel_place (GPU: unmeasured, kept) */
-    {"SPX_PLACE_COPY", F(place_copy), 1, 0, 0, 1, 0},
-    /* batch norm: one work-group per channel (power of two). 1 = one work-item walks the
-     * channel contiguously with 8-lane vector accumulators (CPU); >1 = strided + tree (GPU) */
-    {"SPX_BN_WG", F(bn_wg), 1, 256, 1, 1024, T_POW2|T_WG},
-    /* generic reductions (kernels/loss.cl): work-group size (power of two; 1 = contiguous
-     * chunk per group, vectorised, for CPUs) and the number of groups of the first stage
-     * (fixed, so results do not depend on the launch) */
-    {"SPX_RED_WG", F(red_wg), 1, 256, 1, 1024, T_POW2|T_WG},
-    {"SPX_RED_GROUPS", F(red_groups), 32, 256, 1, 65536, 0},
+    {ROW("CONV_XCACHE", conv_xcache, 2048, 2048, 0, 1 << 20, T_FULL), .full = VALUES(0, 512, 1024, 2048, 4096, 8192)},
+    /* conv2d backward weights (kernels/conv2d_bwd.cl): out-channels per work-item */
+    {ROW("CONV_DW_TM", conv_dw_tm, 6, 4, 1, 32, T_FULL), .with = "CONV_DW_TN",
+     .full = VALUES(6, 4, 4, 4, 8, 4, 4, 8, 6, 2, 8, 2, 2, 8, 4, 6)},
+    /* conv2d backward weights: weight columns per work-item (searched with CONV_DW_TM) */
+    {ROW("CONV_DW_TN", conv_dw_tn, 4, 4, 1, 32, 0)},
+    /* conv2d backward weights: q-chunk of the split reduction */
+    {ROW("CONV_DW_QC", conv_dw_qc, 2048, 1024, 1, 1 << 30, T_FULL), .full = VALUES(1024, 2048, 4096, 8192)},
+    /* conv2d backward weights: column tiles per work-item */
+    {ROW("CONV_DW_G", conv_dw_g, 8, 1, 1, 64, T_FULL), .with = "CONV_DW_QB",
+     .full = VALUES(8, 256, 4, 256, 16, 256, 8, 128, 8, 512, 4, 1024, 1, 1024)},
+    /* conv2d backward weights: q per block of the column-tile walk (searched with CONV_DW_G) */
+    {ROW("CONV_DW_QB", conv_dw_qb, 256, 1024, 1, 1 << 30, 0)},
+    /* conv2d backward weights: work-group size along the column tiles */
+    {ROW("CONV_DW_LWS", conv_dw_lws, 1, 64, 1, 1024, T_WG)},
+    /* 3x3 stride-1 pad-1 inference forwards with at least this many in- and out-channels run Winograd (0: never) */
+    {ROW("CONV_WINO_MINC", conv_wino_minc, 64, 32, 0, 1 << 20, 0), .full = VALUES(0, 8, 16, 32, 64, 128),
+     .quick = VALUES(0, 16, 32, 64)},
+    /* inference on images of at most this many pixels takes Winograd from half CONV_WINO_MINC (0: never) */
+    {ROW("CONV_WINO_SMALL_HW", conv_wino_small_hw, 16384, 0, 0, 1 << 30, 0),
+     .full = VALUES(0, 4096, 16384, 65536)}, /* pixels: 64x64, 128x128, 256x256 */
+    /* 1: training forwards and backward data take Winograd too */
+    {ROW("CONV_WINO_TRAIN", conv_wino_train, 1, 0, 0, 1, T_FULL), .full = ONOFF},
+    /* Winograd scratch per pass over the batch, in 2^20 floats (0: one sample per pass) */
+    {ROW("CONV_WINO_CHUNK", conv_wino_chunk, 32, 32, 0, 1 << 16, 0)},
+    /* 1: Winograd tiles numbered across tile rows without padding rows to CONV_VW, 0: row-padded */
+    {ROW("CONV_WINO_PACK", conv_wino_pack, 1, 0, 0, 1, 0), .full = ONOFF},
+    /* 1: Winograd runs the fused local-memory variant (kernels/conv2d_winograd_lds.cl) where it fits */
+    {ROW("CONV_WINO_LDS", conv_wino_lds, 0, 1, 0, 1, 0), .full = ONOFF},
+    /* Winograd local-memory variant: out-channels per work-item */
+    {ROW("CONV_WLDS_TM", conv_wlds_tm, 4, 4, 1, 16, T_FULL), .with = "CONV_WLDS_TN",
+     .full = VALUES(1, 1, 2, 2, 2, 4, 4, 2, 4, 4, 4, 8, 8, 4, 8, 8)},
+    /* Winograd local-memory variant: tiles per work-item (searched with CONV_WLDS_TM) */
+    {ROW("CONV_WLDS_TN", conv_wlds_tn, 4, 4, 1, 16, 0)},
+    /* Winograd local-memory variant: work-items along the out-channels per transform position */
+    {ROW("CONV_WLDS_WM", conv_wlds_wm, 2, 2, 1, 28, T_FULL), .with = "CONV_WLDS_WN",
+     .full = VALUES(1, 1, 1, 2, 2, 1, 2, 2, 1, 4, 4, 1, 2, 3, 3, 2, 2, 4, 4, 2, 3, 4, 4, 3)},
+    /* ... and along the tiles (searched with CONV_WLDS_WM; a group is 36 * WM * WN work-items) */
+    {ROW("CONV_WLDS_WN", conv_wlds_wn, 2, 2, 1, 28, 0)},
+    /* Winograd local-memory variant: input channels per local-memory block */
+    {ROW("CONV_WLDS_KB", conv_wlds_kb, 8, 8, 1, 64, T_FULL), .full = VALUES(2, 4, 8, 12, 16)},
+    /* training weight gradients of 3x3 layers with this many channels take Winograd with CONV_WINO_TRAIN (0: never) */
+    {ROW("CONV_WINO_DW", conv_wino_dw, 64, 0, 0, 1 << 20, 0), .full = VALUES(0, 32, 64, 128, 256),
+     .quick = VALUES(0, 64)},
+    /* ... and at least this many pixels (H*W) */
+    {ROW("CONV_WINO_DW_MINHW", conv_wino_dw_minhw, 1024, 1024, 0, 1 << 30, T_FULL),
+     .full = VALUES(0, 512, 1024, 2048, 4096, 8192)},
+    /* 1: op scratch as sub-buffers of the tape's activation arena, 0: one separate scratch buffer */
+    {ROW("TAPE_WS_ARENA", tape_ws_arena, 1, 0, 0, 1, 0)},
+    /* the tape arena's largest buffer in MiB (0: the device's largest allocation) */
+    {ROW("TAPE_CHUNK_MB", tape_chunk_mb, 0, 0, 0, 1 << 20, 0)},
+    /* conv2d bias gradient: work-group of the per-channel tree reduction */
+    {ROW("CONV_RED_WG", conv_red_wg, 16, 256, 1, 1024, T_POW2 | T_WG)},
+    /* columns of the 2-D work-group of the (x, y, plane) kernels (lib/nn/nn_internal.h spx_nn_run3d) */
+    {ROW("SPX_WG2_X", wg2_x, 64, 32, 1, 1024, T_POW2 | T_WG)},
+    /* rows of that work-group */
+    {ROW("SPX_WG2_Y", wg2_y, 1, 8, 1, 1024, T_POW2 | T_WG)},
+    /* x2 upsampling and 2x2 max-pool forwards: 1 = 16 output columns per work-item, 0 = one output each */
+    {ROW("SPX_ROW_VEC", row_vec, 1, 0, 0, 1, 0)},
+    /* channel placement (concat, up block): 1 = one clEnqueueCopyBuffer per sample, 0 = the kernel */
+    {ROW("SPX_PLACE_COPY", place_copy, 1, 0, 0, 1, 0)},
+    /* batch norm: work-group per channel (1: one work-item walks it with vector accumulators) */
+    {ROW("SPX_BN_WG", bn_wg, 1, 256, 1, 1024, T_POW2 | T_WG)},
+    /* generic reductions (kernels/loss.cl): work-group size (1: a contiguous chunk per group) */
+    {ROW("SPX_RED_WG", red_wg, 1, 256, 1, 1024, T_POW2 | T_WG)},
+    /* generic reductions: groups of the first stage (fixed, so results do not depend on the launch) */
+    {ROW("SPX_RED_GROUPS", red_groups, 32, 256, 1, 65536, 0)},
 };
 
 #define NTUNABLES ((int)(sizeof spx_tunables / sizeof spx_tunables[0]))
@@ -345,6 +323,19 @@ spx_status spx_cl_tunables_resolve(spx_ctx *ctx) {
 }
 
 int spx_device_tunable_count(void) { return NTUNABLES; }
+
+int spx_device_tunable_candidates(const char *name, int quick, const int **values, const char **with) {
+  int i = name ? spx_cl_tunable_find(name, strlen(name)) : -1;
+  if (i < 0) return -1;
+  const struct spx_tunable *t = &spx_tunables[i];
+  const struct spx_tune_values *v = !quick                ? &t->full
+                                    : (t->flags & T_FULL) ? NULL
+                                    : t->quick.n          ? &t->quick
+                                                          : &t->full;
+  if (values) *values = v ? v->v : NULL;
+  if (with) *with = t->with;
+  return v ? v->n / (t->with ? 2 : 1) : 0;
+}
 
 static const char *source_name(int s) {
   return s == SPX_TSRC_FILE ? "tuned" : s == SPX_TSRC_ENV ? "env" : s == SPX_TSRC_SET ? "set" : "default";

@@ -89,8 +89,6 @@ spx_status spx_ivec_push(spx_ctx *ctx, const char *name, spx_ivec *a, const int3
 /* 64-bit FNV-1a, chainable (pass the previous hash as seed; start with SPX_FNV_SEED). */
 #define SPX_FNV_SEED 0xcbf29ce484222325ULL
 uint64_t spx_hash64(const void *data, size_t n, uint64_t seed);
-/* splitmix64: the next value of the stream whose state is *s (weight initialisations). */
-uint64_t spx_splitmix64(uint64_t *s);
 
 /* IEEE 754 binary16 <-> binary32 (lib/core/half.c). spx_half_to_float is exact for every input
  * (subnormals kept, Inf, NaN with its payload's top bits). spx_float_to_half rounds to nearest

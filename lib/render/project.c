@@ -1,5 +1,5 @@
 /* Host side of the projection (kernels/project.cl): argument checks, grow-only scratch, the
- * fused small-input path and the general sort path, backward. Reference: project_ref.c. */
+ * paths of spx_proj_path (two sort paths, two z-buffer paths), backward. Reference: project_ref.c. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -18,7 +18,7 @@ void spx_projector_destroy(spx_projector *p) {
   if (!p) return;
   spx_sorter_release(&p->sorter);
   spx_cl_buf *bufs[] = {&p->pos, &p->col, &p->cams, &p->keys, &p->vals, &p->img, &p->win,
-                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->offs, &p->zb, &p->zb1, &p->touched,
+                        &p->gimg, &p->gcol, &p->gpos, &p->vpix, &p->zb, &p->zb1, &p->touched,
                         &p->ntouched, &p->dummy};
   for (size_t i = 0; i < sizeof bufs / sizeof bufs[0]; i++) spx_cl_buf_release(bufs[i]);
   free(p);
@@ -73,7 +73,7 @@ static spx_status ensure_empty(spx_ctx *ctx, spx_cl_buf *b, size_t *clear, size_
   return SPX_OK;
 }
 
-/* The scalar and buffer arguments paths 4 and 5 pass to their kernels. */
+/* The scalar and buffer arguments the z-buffer paths pass to their kernels. */
 typedef struct launch_args {
   cl_int N, C, W, H, layout, want_win, has_col;
   cl_mem pos, col;
@@ -86,7 +86,7 @@ static launch_args launch_args_of(const spx_projector *p, const spx_project_dev_
   return l;
 }
 
-/* Path 5: one launch of one work-group (kernels/project.cl spx_project_one). Into the projector's
+/* SPX_PROJ_PATH_ONE: one launch of one work-group (kernels/project.cl spx_project_one). Into the projector's
  * own img / win it clears only the pixels its previous call wrote when the state allows (same
  * geometry and layout, nothing else wrote there since); anything else is cleared in full. */
 static spx_status project_one(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out, cl_mem win,
@@ -125,8 +125,8 @@ static spx_status project_one(spx_ctx *ctx, spx_projector *p, const spx_project_
   return SPX_OK;
 }
 
-/* Path 4: every point's pixel and depth in parallel (spx_project_pix), then parts = min(SPX_PROJ_ZB_PARTS or the
- * compute units, points / SPX_PROJ_ZB_CHUNK) z-buffers, each filled by one work-item walking its
+/* SPX_PROJ_PATH_ZBUF: every point's pixel and depth in parallel (spx_project_pix), then parts =
+ * min(SPX_PROJ_ZB_PARTS or the compute units, points / SPX_PROJ_ZB_CHUNK) z-buffers, each filled by one work-item walking its
  * share of the points in order (the plain-C loop's comparisons), then one merge pass
  * over the pixels that also writes the background and empties the z-buffer entries it used (so
  * no fill pass per call). The output does not depend on the number of parts. */
@@ -169,7 +169,7 @@ static spx_status project_zbuf(spx_ctx *ctx, spx_projector *p, const spx_project
 }
 
 spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out,
-                              cl_mem winners, int force_path) {
+                              cl_mem winners, spx_proj_path path) {
   spx_status st = check_device(ctx, "spx_project");
   if (st) return st;
   if (!p || !a || !out) return spx_fail(ctx, SPX_E_ARG, "spx_project: NULL arguments");
@@ -185,44 +185,25 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
   if ((st = spx_cl_buf_ensure(ctx, &p->keys, ((size_t)npts + 1) * sizeof(cl_ulong), "projection keys"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &p->vals, ((size_t)npts + 1) * sizeof(cl_uint), "projection values"))) return st;
 
-  /* path: 1 fused single-work-group sort, 2 radix sort + unique, 3 counting sort by pixel,
-   * 4 z-buffer per part + merge (CPU-class devices) */
-  int path = force_path;
-  if (!path)
-    path = ctx->dev->tune.proj_zbuf && npts <= (cl_uint)ctx->dev->tune.proj_one_max && out == p->img.mem &&
-                   (!winners || winners == p->win.mem)
-               ? 5
-           : ctx->dev->tune.proj_zbuf                      ? 4
-           : npts <= (cl_uint)ctx->dev->tune.proj_fast_max ? 1
-           : ctx->dev->tune.proj_count_min > 0 && npts >= (cl_uint)ctx->dev->tune.proj_count_min
-               ? 3
-               : 2;
-  if (path == 5) {
-    p->last_path = 5;
-    return project_one(ctx, p, a, out, win, npts, npix);
+  if (path == SPX_PROJ_PATH_AUTO) {
+    const struct spx_tunables *tn = &ctx->dev->tune;
+    int own = out == p->img.mem && (!winners || winners == p->win.mem);
+    path = tn->proj_zbuf && npts <= (cl_uint)tn->proj_one_max && own ? SPX_PROJ_PATH_ONE
+           : tn->proj_zbuf                                           ? SPX_PROJ_PATH_ZBUF
+           : npts <= (cl_uint)tn->proj_fast_max                      ? SPX_PROJ_PATH_FUSED
+                                                                     : SPX_PROJ_PATH_RADIX;
   }
+  p->last_path = path;
+  if (path == SPX_PROJ_PATH_ONE) return project_one(ctx, p, a, out, win, npts, npix);
   if (out == p->img.mem) p->one_img_ok = 0; /* another path writes all of it */
   if (winners == p->win.mem) p->one_win_ok = 0;
-  if (path == 4) {
-    p->last_path = 4;
-    return project_zbuf(ctx, p, a, out, win, npts, npix);
-  }
-  cl_int want_counts = path == 3 && npts > 0;
-  if (want_counts) {
-    cl_uint zero = 0;
-    if ((st = spx_cl_buf_ensure(ctx, &p->offs, (size_t)npix * sizeof(cl_uint), "projection pixel counts"))) return st;
-    cl_int fe = clEnqueueFillBuffer(ctx->dev->queue, p->offs.mem, &zero, sizeof zero, 0, (size_t)npix * sizeof(cl_uint), 0,
-                                    NULL, NULL);
-    if ((st = spx_cl_check(ctx, fe, "spx_project counts fill"))) return st;
-  }
-  cl_mem counts = want_counts ? p->offs.mem : p->dummy.mem;
+  if (path == SPX_PROJ_PATH_ZBUF) return project_zbuf(ctx, p, a, out, win, npts, npix);
   cl_kernel kk;
   if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_KEYS, &kk))) return st;
   cl_int e = SPX_ARG(kk, 0, pos) | SPX_ARG(kk, 1, p->cams.mem) | SPX_ARG(kk, 2, N) | SPX_ARG(kk, 3, C) |
              SPX_ARG(kk, 4, W) | SPX_ARG(kk, 5, H) | SPX_ARG(kk, 6, npts) | SPX_ARG(kk, 7, p->keys.mem) |
              SPX_ARG(kk, 8, p->vals.mem) | SPX_ARG(kk, 9, npix) | SPX_ARG(kk, 10, out) | SPX_ARG(kk, 11, layout) |
-             SPX_ARG(kk, 12, win) | SPX_ARG(kk, 13, want_win) | SPX_ARG(kk, 14, counts) |
-             SPX_ARG(kk, 15, want_counts);
+             SPX_ARG(kk, 12, win) | SPX_ARG(kk, 13, want_win);
   if ((st = spx_cl_check(ctx, e, "spx_project_keys args"))) return st;
   size_t fill_px = (size_t)ctx->dev->tune.proj_fill_px, nfill = (npix + fill_px - 1) / fill_px;
   size_t g = npts > nfill ? npts : nfill, l = (size_t)ctx->dev->tune.wg;
@@ -231,26 +212,7 @@ spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_
 
   /* sort by pixel only (bits [32, key_bits)) unless SPX_PROJ_SORT_DEPTH: see spx_project_head */
   cl_uint key_bits = 32u + (cl_uint)bits_for(npix), lo_bit = ctx->dev->tune.proj_sort_depth ? 0u : 32u;
-  p->last_path = path;
-  if (path == 3) {
-    if ((st = spx_scan_exclusive(ctx, &p->sorter, p->offs.mem, npix))) return st;
-    cl_kernel kb, km;
-    if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_BUCKET, &kb))) return st;
-    if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_BUCKET_MIN, &km))) return st;
-    e = SPX_ARG(kb, 0, p->keys.mem) | SPX_ARG(kb, 1, npts) | SPX_ARG(kb, 2, npix) | SPX_ARG(kb, 3, p->offs.mem) |
-        SPX_ARG(kb, 4, p->vals.mem);
-    if ((st = spx_cl_check(ctx, e, "spx_project_bucket args"))) return st;
-    g = npts;
-    if ((st = spx_cl_run(ctx, kb, 1, &g, &l, "spx_project_bucket"))) return st;
-    e = SPX_ARG(km, 0, p->keys.mem) | SPX_ARG(km, 1, p->offs.mem) | SPX_ARG(km, 2, p->vals.mem) |
-        SPX_ARG(km, 3, col) | SPX_ARG(km, 4, has_col) | SPX_ARG(km, 5, N) | SPX_ARG(km, 6, C) | SPX_ARG(km, 7, W) |
-        SPX_ARG(km, 8, H) | SPX_ARG(km, 9, npix) | SPX_ARG(km, 10, out) | SPX_ARG(km, 11, layout) |
-        SPX_ARG(km, 12, win) | SPX_ARG(km, 13, want_win);
-    if ((st = spx_cl_check(ctx, e, "spx_project_bucket_min args"))) return st;
-    g = npix;
-    return spx_cl_run(ctx, km, 1, &g, &l, "spx_project_bucket_min");
-  }
-  if (path == 1) {
+  if (path == SPX_PROJ_PATH_FUSED) {
     cl_kernel k;
     if ((st = spx_cl_kernel(ctx, SPX_K_PROJECT_SORT_SCATTER, &k))) return st;
     if ((st = spx_cl_buf_ensure(ctx, &p->sorter.keys2, (size_t)npts * sizeof(cl_ulong), "radix sort keys"))) return st;
@@ -330,7 +292,7 @@ spx_status spx_project(spx_ctx *ctx, spx_projector *p, const spx_project_args *a
   spx_project_dev_args d;
   cl_command_queue q = ctx->dev->queue;
   if (!(st = upload_sets(ctx, p, a, &d, CL_FALSE)))
-    st = spx_project_device(ctx, p, &d, p->img.mem, winners ? p->win.mem : NULL, 0);
+    st = spx_project_device(ctx, p, &d, p->img.mem, winners ? p->win.mem : NULL, SPX_PROJ_PATH_AUTO);
   if (!st)
     st = spx_cl_check(ctx, clEnqueueReadBuffer(q, p->img.mem, winners ? CL_FALSE : CL_TRUE, 0, npix * 4 * sizeof(float),
                                                out, 0, NULL, NULL),
@@ -361,7 +323,7 @@ spx_status spx_project_to_tensor(spx_ctx *ctx, spx_projector *p, const spx_proje
   if ((st = spx_device_tensor_reshape(ctx, out, n, 4, a->cams[0].height, a->cams[0].width))) return st;
   spx_project_dev_args d;
   if ((st = upload_sets(ctx, p, a, &d, CL_TRUE))) return st;
-  return spx_project_device(ctx, p, &d, out->mem, NULL, 0);
+  return spx_project_device(ctx, p, &d, out->mem, NULL, SPX_PROJ_PATH_AUTO);
 }
 
 spx_status spx_project_backward_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem winners,
@@ -432,7 +394,7 @@ spx_status spx_project_backward(spx_ctx *ctx, spx_projector *p, const spx_projec
   if (st) return st;
   if ((st = spx_cl_buf_ensure(ctx, &p->win, npix * sizeof(int32_t), "projection winners"))) return st;
   if ((st = spx_cl_buf_ensure(ctx, &p->gimg, npix * 4 * sizeof(float), "projection image gradient"))) return st;
-  p->one_win_ok = 0; /* the caller's winners replace what path 5 left there */
+  p->one_win_ok = 0; /* the caller's winners replace what the one-launch path left there */
   if ((st = spx_cl_write(ctx, p->win.mem, 0, npix * sizeof(int32_t), winners))) return st;
   if ((st = spx_cl_write(ctx, p->gimg.mem, 0, npix * 4 * sizeof(float), grad_img))) return st;
   if (grad_col) {

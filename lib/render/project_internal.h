@@ -10,17 +10,26 @@
 
 #define SPX_CAM_FLOATS 21 /* K (3x3 row-major), R (3x3 row-major), t — as in kernels/project.cl */
 
+/* The projection's algorithms; every one gives the reference's bits. */
+typedef enum spx_proj_path {
+  SPX_PROJ_PATH_AUTO = 0, /* chosen by the tunables SPX_PROJ_ZBUF, SPX_PROJ_ONE_MAX, SPX_PROJ_FAST_MAX */
+  SPX_PROJ_PATH_FUSED,    /* one single-work-group launch: sort + unique + scatter (small inputs) */
+  SPX_PROJ_PATH_RADIX,    /* radix sort, then unique + scatter */
+  SPX_PROJ_PATH_ZBUF,     /* z-buffer per part + merge (CPU-class devices) */
+  SPX_PROJ_PATH_ONE,      /* one launch of one work-group: clear, project, resolve (small inputs, CPU) */
+  SPX_PROJ_NPATHS
+} spx_proj_path;
+
 struct spx_projector {
   spx_sorter sorter;
   spx_cl_buf pos, col, cams, keys, vals, img, win; /* grow-only scratch */
-  spx_cl_buf gimg, gcol, gpos, vpix, offs, zb;
-  spx_cl_buf zb1, touched, ntouched; /* path 5: its z-buffer, the pixels (and their images) its last call
-                                        wrote into img (and win), their count */
+  spx_cl_buf gimg, gcol, gpos, vpix, zb;
+  spx_cl_buf zb1, touched, ntouched; /* one-launch path: its z-buffer, the pixels (and their images) its
+                                        last call wrote into img (and win), their count */
   spx_cl_buf dummy;
-  int last_path; /* path of the last forward (1 fused, 2 radix sort, 3 counting sort, 4 z-buffer, 5 one
-                   launch; for tests/benchmarks) */
+  spx_proj_path last_path; /* path of the last forward (for tests/benchmarks) */
   size_t zb_clear, zb1_clear; /* leading bytes of zb / zb1 known to be empty (all ones); 0 after a failed call */
-  /* Path 5 state: img (win) holds the background except at the pixels listed in touched, for
+  /* One-launch path state: img (win) holds the background except at the pixels listed in touched, for
    * images of one_hw pixels, one_npix pixels in all, layout one_layout; 0 when unknown (another
    * path or a copy wrote there, the buffer was reallocated, a call failed). */
   int one_img_ok, one_win_ok, one_layout;
@@ -39,14 +48,11 @@ typedef struct spx_project_dev_args {
 } spx_project_dev_args;
 
 /* Forward into device buffers: out B*C*4*H*W floats (layout as asked; the network wants
- * SPX_LAYOUT_NCHW), winners B*C*H*W ints or NULL. Only enqueues work. force_path: 0 auto
- * (tunables SPX_PROJ_ZBUF, SPX_PROJ_ONE_MAX, SPX_PROJ_FAST_MAX, SPX_PROJ_COUNT_MIN), 1 fused
- * single-work-group sort + unique, 2 radix sort + unique, 3 counting sort by pixel + per-pixel
- * nearest, 4 z-buffer per part + merge, 5 one launch (clear, project, resolve; auto only into the
- * projector's own img / win, whose background it keeps between calls: see struct spx_projector)
- * (tests compare all). */
+ * SPX_LAYOUT_NCHW), winners B*C*H*W ints or NULL. Only enqueues work. path: SPX_PROJ_PATH_AUTO, or
+ * the one to run (tests compare all); auto takes SPX_PROJ_PATH_ONE only into the projector's own
+ * img / win, whose background it keeps between calls (see struct spx_projector). */
 spx_status spx_project_device(spx_ctx *ctx, spx_projector *p, const spx_project_dev_args *a, cl_mem out,
-                              cl_mem winners, int force_path);
+                              cl_mem winners, spx_proj_path path);
 
 /* Backward on device buffers: adds into gcol / gpos (B*N*3 floats each, either may be NULL).
  * winners must come from spx_project_device (unique per image). */

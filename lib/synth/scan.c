@@ -13,12 +13,7 @@ typedef struct syn_priv {
   spx_loop_plan p1, p2; /* body → 1 step → 2 steps (positions) */
 } syn_priv;
 
-uint64_t spx_synth_rng_next(spx_synth_rng *r) {
-  uint64_t z = (r->s += 0x9E3779B97F4A7C15ULL);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-  return z ^ (z >> 31);
-}
+uint64_t spx_synth_rng_next(spx_synth_rng *r) { return spx_splitmix64(&r->s); }
 double spx_synth_rng_uniform(spx_synth_rng *r, double lo, double hi) {
   return lo + (hi - lo) * ((double)(spx_synth_rng_next(r) >> 11) * 0x1.0p-53);
 }

@@ -2,7 +2,7 @@
 # The GPU machine kit (docs/gpu.md): build smplpix here (Release, no MPI, build-kit/), then gather
 # into one git-ignored folder (default .device-kit/) what scripts/device/run.sh needs on a
 # machine that has glibc but none of our Debian packages:
-#   DIR/build/   smplpix, libsmplpix, smplpix_tool, the test and benchmark executables and the
+#   DIR/build/   smplpix, smplpix-test-hooks, libsmplpix, the test and benchmark executables and the
 #                CTestTestfile.cmake files (their build-tree paths rewritten to DIR/build), stripped
 #   DIR/lib/     every shared library they load that is not glibc's own (OpenEXR, Ceres and its
 #                BLAS/LAPACK, cJSON, libpng, zlib, the ocl-icd loader libOpenCL.so.1, libstdc++, ...)
@@ -31,6 +31,7 @@ mkdir -p "$DIR/build/tests" "$DIR/build/benchmarks" "$DIR/lib"
 cp -P "$KB"/libsmplpix.so* "$DIR/build/"
 cp "$KB/smplpix" "$DIR/build/"
 [ -x "$KB/smplpix_tool" ] && cp "$KB/smplpix_tool" "$DIR/build/"
+cp "$KB/smplpix-test-hooks" "$DIR/build/"
 for f in "$KB"/tests/test_*; do [ -f "$f" ] && [ -x "$f" ] && cp "$f" "$DIR/build/tests/"; done
 for f in "$KB"/benchmarks/bench_*; do [ -f "$f" ] && [ -x "$f" ] && cp "$f" "$DIR/build/benchmarks/"; done
 # ctest's files, with the build-tree paths pointing into the kit

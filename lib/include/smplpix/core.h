@@ -58,6 +58,10 @@ spx_status spx_fail(spx_ctx *ctx, spx_status st, const char *fmt, ...);
 /* Monotonic wall clock in seconds (CLOCK_MONOTONIC), for timing. */
 double spx_now(void);
 
+/* splitmix64: advances the stream state *s and returns its next 64-bit value (the library's
+ * weight initialisations, the synthetic generator, the tool's seeded shuffles). */
+uint64_t spx_splitmix64(uint64_t *s);
+
 /* The library never prints. Diagnostics that are not errors (the profiles below) go, one line
  * at a time without a newline, to a callback the caller installs; with none they are dropped.
  * fn = NULL removes it. */

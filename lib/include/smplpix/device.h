@@ -67,6 +67,11 @@ typedef struct spx_tunable_info {
   const char *source; /* "default", "tuned" (the tuning file), "env" or "set" (spx_device_set_tunable) */
 } spx_tunable_info;
 int spx_device_tunable_count(void);
+/* The values `smplpix tune` times for the tunable called name, in its order (quick: those of the
+ * --quick search): returns how many candidates, each at *values as one int, or two when *with
+ * names a tunable searched together with this one (this one's value first; else *with = NULL).
+ * 0: not searched (with quick: not in the --quick search); -1: no such tunable. Needs no device. */
+int spx_device_tunable_candidates(const char *name, int quick, const int **values, const char **with);
 /* The i-th tunable (0 <= i < spx_device_tunable_count()) of the open device. */
 spx_status spx_device_tunable(spx_ctx *ctx, int i, spx_tunable_info *out);
 /* Set one tunable (checked like an override); the kernels built so far are dropped and rebuild
