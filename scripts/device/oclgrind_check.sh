@@ -34,7 +34,7 @@ for t in $TESTS; do
   [ -x "$BUILD/tests/$t" ] || { echo "oclgrind_check: $BUILD/tests/$t not built" >&2; fails=$((fails + 1)); continue; }
   mkdir -p "$out/tmp/$t"
   t0=$(date +%s)
-  SPX_TUNE_CLASS=gpu SPX_CACHE_DIR="$out/cache" SPX_TEST_TMP="$out/tmp/$t" SPX_TOOL="$BUILD/smplpix_tool" \
+  SPX_TUNE_CLASS=gpu SPX_CACHE_DIR="$out/cache" SPX_TEST_TMP="$out/tmp/$t" SPX_TOOL="$BUILD/smplpix" \
     timeout -k 10 "$LIMIT" oclgrind $quick --data-races --max-errors 100 --log "$out/$t.log" --local-mem-size 49152 \
     --max-wgsize 1024 --num-threads 1 "$BUILD/tests/$t" >"$out/$t.out" 2>&1
   rc=$?

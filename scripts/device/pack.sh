@@ -30,7 +30,6 @@ rm -rf "$DIR"
 mkdir -p "$DIR/build/tests" "$DIR/build/benchmarks" "$DIR/lib"
 cp -P "$KB"/libsmplpix.so* "$DIR/build/"
 cp "$KB/smplpix" "$DIR/build/"
-[ -x "$KB/smplpix_tool" ] && cp "$KB/smplpix_tool" "$DIR/build/"
 cp "$KB/smplpix-test-hooks" "$DIR/build/"
 for f in "$KB"/tests/test_*; do [ -f "$f" ] && [ -x "$f" ] && cp "$f" "$DIR/build/tests/"; done
 for f in "$KB"/benchmarks/bench_*; do [ -f "$f" ] && [ -x "$f" ] && cp "$f" "$DIR/build/benchmarks/"; done
