@@ -39,10 +39,10 @@ imsize=$(meta smplpix.image_size)
 
 # from TABLE1.md: the title, the table, the goal lines and the setup bullets
 title=$(grep -m1 '^# ' "$table" | sed 's/^# //')
-rows=$(grep '^|' "$table" || true)
+rows=$(sed '/^## /,$d' "$table" | grep '^|' || true) # the main table, before the first section
 [ -n "$rows" ] || die "$table: no table rows (| ... |)"
 goal=$(grep '^Goal' "$table" || true)
-setup=$(sed -n '/^## Setup/,$p' "$table" | tail -n +2 | sed '/^$/d')
+setup=$(sed -n '/^## Setup/,$p' "$table" | tail -n +2 | sed '/^## /,$d' | sed '/^$/d')
 [ -n "$setup" ] || die "$table: no '## Setup' section"
 [ -n "$imsize" ] || imsize=$(printf '%s\n' "$setup" | grep -o -- '--size [0-9]*x[0-9]*' | head -n 1 | cut -d' ' -f2)
 

@@ -25,7 +25,8 @@
 # TABLE1_REPORT (where TABLE1.md and table1.png go; default benchmarks/, quick: the work dir),
 # TABLE1_LPIPS (LPIPS weights for smplpix eval; default: its cached ones), TABLE1_SYNTH (use this
 # existing synth output instead of running smplpix synth; its sizes must match the mode's),
-# TABLE1_FRESH=1 (start over), sizes: see below. Bad input: one line, exit 1.
+# TABLE1_FRESH=1 (start over), TABLE1_GANLR (the GAN stage's learning rate, default 2e-5), sizes: see
+# below. Bad input: one line, exit 1.
 set -eu
 set -o pipefail
 
