@@ -179,7 +179,7 @@ void spx_tp_wprep_drop(spx_tape *t);
  * (the instance count restarts); report: log it (when on) and free it. */
 spx_status spx_tp_prof_create(spx_tape *t);
 double spx_tp_prof_begin(spx_tape *t);
-void spx_tp_prof_end(spx_tape *t, int kind, int backward, double t0);
+double spx_tp_prof_end(spx_tape *t, int kind, int backward, double t0); /* the op's seconds (0: off) */
 void spx_tp_prof_back_end(spx_tape *t, int node, double t0); /* the backward of node `node` */
 void spx_tp_prof_conv_note(spx_tape *t, int cin, int cout, int hw, int k, int stride, int pad, int inference);
 void spx_tp_prof_pass(spx_tape *t);

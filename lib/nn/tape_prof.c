@@ -54,9 +54,9 @@ double spx_tp_prof_begin(spx_tape *t) {
 
 static void prof_inst(struct tp_prof_list *l, int i, int kind, const tvalue *y, const char *note, double seconds);
 
-void spx_tp_prof_end(spx_tape *t, int kind, int backward, double t0) {
+double spx_tp_prof_end(spx_tape *t, int kind, int backward, double t0) {
   struct tp_prof *p = t->prof;
-  if (!p) return;
+  if (!p) return 0.0;
   spx_device_finish(t->ctx);
   double dt = spx_now() - t0;
   p->s[kind][backward] += dt;
@@ -65,16 +65,17 @@ void spx_tp_prof_end(spx_tape *t, int kind, int backward, double t0) {
     prof_inst(&p->fwd, p->op++, kind, &t->vals[t->nvals - 1], p->note, dt);
     p->note[0] = '\0';
   }
+  return dt;
 }
 
 void spx_tp_prof_back_end(spx_tape *t, int node, double t0) {
   struct tp_prof *p = t->prof;
   if (!p) return;
   const tnode *nd = &t->nodes[node];
-  spx_tp_prof_end(t, nd->kind, 1, t0);
+  double dt = spx_tp_prof_end(t, nd->kind, 1, t0);
   if (p->level < 2) return;
   const char *note = node < p->fwd.n && p->fwd.r[node].kind == nd->kind ? p->fwd.r[node].note : "";
-  prof_inst(&p->bwd, node, nd->kind, &t->vals[nd->out], note, spx_now() - t0);
+  prof_inst(&p->bwd, node, nd->kind, &t->vals[nd->out], note, dt);
 }
 
 void spx_tp_prof_pass(spx_tape *t) {
