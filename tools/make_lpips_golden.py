@@ -17,8 +17,6 @@ import numpy as np
 import torch
 import lpips
 
-M64 = (1 << 64) - 1
-
 
 def splitmix_uniform(seed, n):
     """u[i] in [0,1): splitmix64(seed * 2^32 + i) >> 11, times 2^-53 (tests/test_metrics_lpips.c: uniform())."""

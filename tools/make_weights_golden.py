@@ -33,25 +33,14 @@ sys.dont_write_bytecode = True
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "..", "tests", "data", "vgg"))
 import lpips  # noqa: E402
+from make_lpips_golden import splitmix_uniform  # noqa: E402  (tools/; tests/lpips_weights.h draws the same)
 import torchvision  # noqa: E402
 import lpips_to_safetensors  # noqa: E402
 import make_vgg16_golden  # noqa: E402
 import spx_safetensors  # noqa: E402
 
-M64 = (1 << 64) - 1
 SIZES = [(31, 31), (32, 40), (40, 33), (48, 48), (37, 53), (64, 48)]  # (height, width)
 ALPHAS = [1.0 / 16, 1.0 / 4, 1.0 / 2, 1.0]
-
-
-def splitmix_uniform(seed, n):
-    """u[i] in [0,1): splitmix64(seed * 2^32 + i) >> 11, times 2^-53 (tests/lpips_weights.h)."""
-    z = np.arange(n, dtype=np.uint64) + np.uint64(seed << 32)
-    with np.errstate(over="ignore"):
-        z = z + np.uint64(0x9E3779B97F4A7C15)
-        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        z = z ^ (z >> np.uint64(31))
-    return (z >> np.uint64(11)).astype(np.float64) * 2.0 ** -53
 
 
 def pair_images(j):
