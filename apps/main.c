@@ -66,13 +66,15 @@ static int env_on(const char *name) {
 }
 
 int spx_cli_open_device(const char *cmd, spx_ctx *ctx, const char *spec) {
-  /* SPX_TAPE_PROFILE=1 (=2: per op instance too) / SPX_RASTER_PROFILE=1: the library's profiles, printed to stderr;
+  /* SPX_TAPE_PROFILE=1 (=2: per op instance too) / SPX_RASTER_PROFILE=1 / SPX_KERNEL_PROFILE=1: the library's
+   * profiles, printed to stderr;
    * SPX_TAPE_POISON=1: NaN into freed tape storage (debug) */
   spx_ctx_set_log(ctx, log_stderr, NULL);
   const char *tp = getenv("SPX_TAPE_PROFILE");
   spx_ctx_set_profile(ctx, (env_on("SPX_TAPE_PROFILE") ? SPX_PROFILE_TAPE : 0u) |
                                (tp && !strcmp(tp, "2") ? SPX_PROFILE_TAPE_OPS : 0u) |
                                (env_on("SPX_RASTER_PROFILE") ? SPX_PROFILE_RASTER : 0u) |
+                               (env_on("SPX_KERNEL_PROFILE") ? SPX_PROFILE_KERNELS : 0u) |
                                (env_on("SPX_TAPE_POISON") ? SPX_DEBUG_TAPE_POISON : 0u));
   if (spx_device_open(ctx, spec) != SPX_OK) return spx_cli_error(cmd, ctx);
   const char *note = spx_device_tuning_note(ctx); /* a tuning file that was ignored */

@@ -96,11 +96,15 @@ int main(int argc, char **argv) {
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return 1;
   /* SPX_TAPE_PROFILE=1: the tape's per-op-kind device times, printed to stderr when the network is
-   * freed; =2: also one line per op instance (layer) */
-  const char *prof = getenv("SPX_TAPE_PROFILE");
-  if (prof && *prof && strcmp(prof, "0")) {
+   * freed; =2: also one line per op instance (layer). SPX_KERNEL_PROFILE=1: every command's device
+   * time per kernel name, printed when the device closes. */
+  const char *prof = getenv("SPX_TAPE_PROFILE"), *kprof = getenv("SPX_KERNEL_PROFILE");
+  unsigned pf = 0;
+  if (prof && *prof && strcmp(prof, "0")) pf |= SPX_PROFILE_TAPE | (!strcmp(prof, "2") ? SPX_PROFILE_TAPE_OPS : 0u);
+  if (kprof && *kprof && strcmp(kprof, "0")) pf |= SPX_PROFILE_KERNELS;
+  if (pf) {
     spx_ctx_set_log(ctx, log_stderr, NULL);
-    spx_ctx_set_profile(ctx, SPX_PROFILE_TAPE | (!strcmp(prof, "2") ? SPX_PROFILE_TAPE_OPS : 0u));
+    spx_ctx_set_profile(ctx, pf);
   }
   spx_unet *u = NULL;
   int rc = 1;

@@ -56,6 +56,45 @@ static void test_log_callback(void) {
   spx_ctx_destroy(ctx);
 }
 
+typedef struct all_lines {
+  int n, header, rows;
+  char text[8192];
+} all_lines;
+
+static void collect_all(void *user, const char *line) {
+  all_lines *l = user;
+  l->n++;
+  if (strstr(line, "kernel profile (device time per command")) l->header++;
+  if (strstr(line, " calls  mean ")) l->rows++;
+  size_t used = strlen(l->text);
+  snprintf(l->text + used, sizeof l->text - used, "%s\n", line);
+}
+
+/* SPX_PROFILE_KERNELS: the device's time of each command, one row per kernel name, logged when
+ * the device closes; off, the same work logs nothing. */
+static void test_kernel_profile(void) {
+  for (int on = 0; on < 2; on++) {
+    spx_ctx *ctx;
+    CHECK(spx_ctx_create(&ctx) == SPX_OK);
+    all_lines l = {0};
+    spx_ctx_set_log(ctx, collect_all, &l);
+    spx_ctx_set_profile(ctx, on ? SPX_PROFILE_KERNELS : 0u);
+    CHECK_OK(ctx, spx_device_open(ctx, NULL));
+    CHECK_OK(ctx, raster_once(ctx));
+    CHECK_OK(ctx, raster_once(ctx));
+    CHECK(l.n == 0); /* nothing before the device closes */
+    spx_ctx_destroy(ctx);
+    if (!on) {
+      CHECK_MSG(l.n == 0, "profile off, yet %d lines:\n%s", l.n, l.text);
+      continue;
+    }
+    CHECK_MSG(l.header == 1 && l.rows >= 3 && l.n == l.rows + 1, "%d lines, %d rows:\n%s", l.n, l.rows, l.text);
+    /* the rasterizer's vertex kernel ran once per raster_once: two calls on its row */
+    const char *v = strstr(l.text, "spx_raster_vert ");
+    CHECK_MSG(v && strstr(v, " 2 calls") && strstr(v, " 2 calls") < strchr(v, '\n'), "%s", l.text);
+  }
+}
+
 static void test_never_prints(void) {
   char path[1024];
   spx_t_path(path, sizeof path, "stderr.txt");
@@ -68,7 +107,7 @@ static void test_never_prints(void) {
   spx_ctx *ctx;
   spx_status st = spx_ctx_create(&ctx);
   if (!st) {
-    spx_ctx_set_profile(ctx, SPX_PROFILE_RASTER | SPX_PROFILE_TAPE); /* on, but no callback */
+    spx_ctx_set_profile(ctx, SPX_PROFILE_RASTER | SPX_PROFILE_TAPE | SPX_PROFILE_KERNELS); /* on, but no callback */
     st = spx_device_open(ctx, NULL);
     if (!st) st = raster_once(ctx);
     spx_ctx_destroy(ctx);
@@ -112,6 +151,7 @@ static void test_fail(void) {
 int main(void) {
   SPX_RUN(test_fail);
   SPX_RUN(test_log_callback);
+  SPX_RUN(test_kernel_profile);
   SPX_RUN(test_never_prints);
   return spx_test_summary();
 }

@@ -51,10 +51,22 @@ struct spx_cl_device {
   size_t kernel_wg[SPX_K_COUNT];  /* CL_KERNEL_WORK_GROUP_SIZE of each created kernel (0: unknown) */
   spx_cache_stats cache;
   spx_devmem *devmem; /* created by the first counted buffer */
+  struct spx_cl_kprof *kprof; /* SPX_PROFILE_KERNELS: per-command device times (lib/cl/kprof.c); else NULL */
 };
 
 /* Release all device objects and free ctx->dev (spx_ctx_destroy calls it through ctx->dev_close). */
 void spx_cl_close(spx_ctx *ctx);
+
+/* The per-command device-time profile (lib/cl/kprof.c), on when the context has
+ * SPX_PROFILE_KERNELS as the device opens (the queue then has CL_QUEUE_PROFILING_ENABLE).
+ * A command is timed by passing spx_cl_kprof_ev(ctx, &ev) as its event and calling
+ * spx_cl_kprof_add(ctx, name, ev) after the enqueue (ev stays NULL when the profile is off or the
+ * enqueue failed: add does nothing then). close logs the table; free releases it. */
+spx_status spx_cl_kprof_create(spx_ctx *ctx, struct spx_cl_device *dev);
+cl_event *spx_cl_kprof_ev(spx_ctx *ctx, cl_event *ev);
+void spx_cl_kprof_add(spx_ctx *ctx, const char *name, cl_event ev);
+void spx_cl_kprof_report(spx_ctx *ctx);
+void spx_cl_kprof_free(struct spx_cl_device *dev);
 
 /* Fail with SPX_E_STATE unless a device is open. */
 spx_status spx_cl_require(spx_ctx *ctx, const char *what);
@@ -128,6 +140,8 @@ void spx_cl_buf_release(spx_cl_buf *b);
 spx_status spx_cl_write(spx_ctx *ctx, cl_mem m, size_t offset, size_t bytes, const void *src);
 spx_status spx_cl_read(spx_ctx *ctx, cl_mem m, size_t offset, size_t bytes, void *dst);
 spx_status spx_cl_fill_f32(spx_ctx *ctx, cl_mem m, size_t offset_elems, size_t count, float value);
+/* Enqueue a device-side copy of `bytes` (> 0) from src at byte so to dst at byte dof; errors are "what: CL_...". */
+spx_status spx_cl_copy(spx_ctx *ctx, cl_mem src, cl_mem dst, size_t so, size_t dof, size_t bytes, const char *what);
 
 /* Enqueue an ND-range; global sizes are rounded up to a multiple of local when local != NULL. */
 spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *global, const size_t *local,

@@ -191,7 +191,14 @@ spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
     free(dev);
     return spx_cl_check(ctx, err, "clCreateContext");
   }
-  dev->queue = clCreateCommandQueue(dev->context, s.d, 0, &err);
+  cl_command_queue_properties qp = (spx_ctx_profile(ctx) & SPX_PROFILE_KERNELS) ? CL_QUEUE_PROFILING_ENABLE : 0;
+  dev->queue = clCreateCommandQueue(dev->context, s.d, qp, &err);
+  if (err == CL_SUCCESS && (st = spx_cl_kprof_create(ctx, dev))) {
+    clReleaseCommandQueue(dev->queue);
+    clReleaseContext(dev->context);
+    free(dev);
+    return st;
+  }
   if (err != CL_SUCCESS) {
     clReleaseContext(dev->context);
     free(dev);
@@ -240,6 +247,8 @@ spx_status spx_device_cache_stats(spx_ctx *ctx, spx_cache_stats *out) {
 
 void spx_cl_close(spx_ctx *ctx) {
   if (!ctx || !ctx->dev) return;
+  spx_cl_kprof_report(ctx);
+  spx_cl_kprof_free(ctx->dev);
   spx_cl_programs_release(ctx, ~0ull);
   if (ctx->dev->queue) clReleaseCommandQueue(ctx->dev->queue);
   if (ctx->dev->context) clReleaseContext(ctx->dev->context);

@@ -121,22 +121,34 @@ void spx_cl_buf_release(spx_cl_buf *b) {
 
 spx_status spx_cl_write(spx_ctx *ctx, cl_mem m, size_t offset, size_t bytes, const void *src) {
   if (bytes == 0) return SPX_OK;
-  return check_mem(ctx, clEnqueueWriteBuffer(ctx->dev->queue, m, CL_TRUE, offset, bytes, src, 0, NULL, NULL),
-                      "clEnqueueWriteBuffer");
+  cl_event ev;
+  cl_int e = clEnqueueWriteBuffer(ctx->dev->queue, m, CL_TRUE, offset, bytes, src, 0, NULL, spx_cl_kprof_ev(ctx, &ev));
+  spx_cl_kprof_add(ctx, "(write buffer)", ev);
+  return check_mem(ctx, e, "clEnqueueWriteBuffer");
 }
 
 spx_status spx_cl_read(spx_ctx *ctx, cl_mem m, size_t offset, size_t bytes, void *dst) {
   if (bytes == 0) return SPX_OK;
-  return check_mem(ctx, clEnqueueReadBuffer(ctx->dev->queue, m, CL_TRUE, offset, bytes, dst, 0, NULL, NULL),
-                      "clEnqueueReadBuffer");
+  cl_event ev;
+  cl_int e = clEnqueueReadBuffer(ctx->dev->queue, m, CL_TRUE, offset, bytes, dst, 0, NULL, spx_cl_kprof_ev(ctx, &ev));
+  spx_cl_kprof_add(ctx, "(read buffer)", ev);
+  return check_mem(ctx, e, "clEnqueueReadBuffer");
 }
 
 spx_status spx_cl_fill_f32(spx_ctx *ctx, cl_mem m, size_t offset_elems, size_t count, float value) {
   if (count == 0) return SPX_OK;
-  return check_mem(ctx,
-                      clEnqueueFillBuffer(ctx->dev->queue, m, &value, sizeof value, offset_elems * sizeof(float),
-                                          count * sizeof(float), 0, NULL, NULL),
-                      "clEnqueueFillBuffer");
+  cl_event ev;
+  cl_int e = clEnqueueFillBuffer(ctx->dev->queue, m, &value, sizeof value, offset_elems * sizeof(float),
+                                 count * sizeof(float), 0, NULL, spx_cl_kprof_ev(ctx, &ev));
+  spx_cl_kprof_add(ctx, "(fill buffer)", ev);
+  return check_mem(ctx, e, "clEnqueueFillBuffer");
+}
+
+spx_status spx_cl_copy(spx_ctx *ctx, cl_mem src, cl_mem dst, size_t so, size_t dof, size_t bytes, const char *what) {
+  cl_event ev;
+  cl_int e = clEnqueueCopyBuffer(ctx->dev->queue, src, dst, so, dof, bytes, 0, NULL, spx_cl_kprof_ev(ctx, &ev));
+  spx_cl_kprof_add(ctx, what, ev);
+  return spx_cl_check(ctx, e, what);
 }
 
 spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *global, const size_t *local,
@@ -154,7 +166,9 @@ spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *glo
                     "%s: a work-group of %zu work-items is more than this kernel allows on %s (%zu, "
                     "CL_KERNEL_WORK_GROUP_SIZE); set a smaller work-group tunable (SPX_TUNE_*, `smplpix tune`)",
                     what, group, ctx->dev->info.name, limit);
-  cl_int err = clEnqueueNDRangeKernel(ctx->dev->queue, k, dims, NULL, g, local, 0, NULL, NULL);
+  cl_event ev;
+  cl_int err = clEnqueueNDRangeKernel(ctx->dev->queue, k, dims, NULL, g, local, 0, NULL, spx_cl_kprof_ev(ctx, &ev));
+  spx_cl_kprof_add(ctx, what, ev);
   if (err == CL_OUT_OF_RESOURCES || err == CL_INVALID_WORK_GROUP_SIZE) {
     cl_ulong lmem = 0, pmem = 0;
     clGetKernelWorkGroupInfo(k, ctx->dev->device, CL_KERNEL_LOCAL_MEM_SIZE, sizeof lmem, &lmem, NULL);

@@ -167,9 +167,7 @@ int spx_tape_input_device(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t 
   if (!input_value(t, n, c, h, w, &id)) return id;
   spx_tensor v = spx_tape_tensor(t, id);
   size_t bytes = spx_tensor_numel(&v) * sizeof(float);
-  cl_int e = clEnqueueCopyBuffer(t->ctx->dev->queue, src, v.mem, offset, v.off * sizeof(float), bytes, 0, NULL, NULL);
-  if (e != CL_SUCCESS)
-    t->err =
-        spx_fail(t->ctx, SPX_E_CL, "tape: copying the %zu-byte device input failed (OpenCL error %d)", bytes, (int)e);
+  if (bytes)
+    t->err = spx_cl_copy(t->ctx, src, v.mem, offset, v.off * sizeof(float), bytes, "tape: copy of the device input");
   return id;
 }

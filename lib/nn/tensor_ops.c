@@ -133,8 +133,8 @@ spx_status spx_channel_place(spx_ctx *ctx, const spx_tensor *src, const spx_tens
   for (int k = 0; k < src->n && bytes; k++) { /* (a zero-byte copy is an OpenCL error) */
     size_t so = (src->off + (size_t)k * src->c * hw) * sizeof(float);
     size_t dof = (dst->off + ((size_t)k * dst->c + (size_t)c0) * hw) * sizeof(float);
-    cl_int e = clEnqueueCopyBuffer(ctx->dev->queue, src->mem, dst->mem, so, dof, bytes, 0, NULL, NULL);
-    if (e != CL_SUCCESS) return spx_cl_check(ctx, e, "channel_place copy");
+    spx_status st = spx_cl_copy(ctx, src->mem, dst->mem, so, dof, bytes, "channel_place copy");
+    if (st) return st;
   }
   return SPX_OK;
 }

@@ -92,10 +92,9 @@ spx_status spx_radix_sort(spx_ctx *ctx, spx_sorter *s, cl_mem keys, cl_mem vals,
     b_v = t;
   }
   if (pass & 1) {
-    e = clEnqueueCopyBuffer(ctx->dev->queue, a_k, keys, 0, 0, n * sizeof(cl_ulong), 0, NULL, NULL);
-    if ((st = spx_cl_check(ctx, e, "radix sort copy keys"))) return st;
-    e = clEnqueueCopyBuffer(ctx->dev->queue, a_v, vals, 0, 0, n * sizeof(cl_uint), 0, NULL, NULL);
-    if ((st = spx_cl_check(ctx, e, "radix sort copy values"))) return st;
+    if ((st = spx_cl_copy(ctx, a_k, keys, 0, 0, n * sizeof(cl_ulong), "radix sort copy keys")) ||
+        (st = spx_cl_copy(ctx, a_v, vals, 0, 0, n * sizeof(cl_uint), "radix sort copy values")))
+      return st;
   }
   return SPX_OK;
 }

@@ -207,12 +207,14 @@ torch_rows() {
 export -f torch_rows
 if [ $have_torch = 1 ]; then step unet_torch 60 torch_rows; fi
 # the tape's per-layer device times (SPX_TAPE_PROFILE=2: each op finished before the next, so
-# their sum against the unprofiled pass shows the launch overhead): width 64 eval and training
-# step, width 64 eval at batch 10, width 16 eval, batch 1
+# their sum against the unprofiled pass shows the launch overhead) and each OpenCL command's own
+# device time per kernel name (SPX_KERNEL_PROFILE=1): width 64 eval and training step, width 64
+# eval at batch 10, width 16 eval, batch 1
 profile_rows() {
-  SPX_TAPE_PROFILE=2 "$B/bench_unet" --width "$UW" --size "$USIZE" --reps 2 --eval-batch 1 --batch 1
-  SPX_TAPE_PROFILE=2 "$B/bench_unet" --width "$UW" --size "$USIZE" --reps 1 --eval-batch "${UBATCH##* }" --no-train
-  SPX_TAPE_PROFILE=2 "$B/bench_unet" --width 16 --size "$USIZE" --reps 2 --eval-batch 1 --no-train
+  export SPX_TAPE_PROFILE=2 SPX_KERNEL_PROFILE=1
+  "$B/bench_unet" --width "$UW" --size "$USIZE" --reps 2 --eval-batch 1 --batch 1
+  "$B/bench_unet" --width "$UW" --size "$USIZE" --reps 1 --eval-batch "${UBATCH##* }" --no-train
+  "$B/bench_unet" --width 16 --size "$USIZE" --reps 2 --eval-batch 1 --no-train
 }
 export -f profile_rows
 step profile 60 profile_rows

@@ -81,6 +81,10 @@ void spx_ctx_set_log(spx_ctx *ctx, spx_log_fn fn, void *user);
  * shape, for convolutions the shape and algorithm; mean device time over the passes after the
  * first, and the first's) when the tape is destroyed. */
 #define SPX_PROFILE_TAPE_OPS 8u
+/* KERNELS (read when a device opens): the device's own time of every kernel launch, buffer fill,
+ * copy, read and write (OpenCL event profiling; each command waited for), summed per kernel or
+ * command name and logged when the device closes, largest first. Serialises the queue. */
+#define SPX_PROFILE_KERNELS 16u
 void spx_ctx_set_profile(spx_ctx *ctx, unsigned flags);
 unsigned spx_ctx_profile(const spx_ctx *ctx);
 
