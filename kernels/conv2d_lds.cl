@@ -12,7 +12,14 @@
  * copies the (LDS_TY+2) x (LDS_TX+2) input halo and the block's 9*CONV_TM weights into local
  * memory once; every input value is then read from local memory by up to 9 outputs and every
  * weight by all CONV_LWS work-items (the direct GPU kernel reads both from global memory /
- * caches). Sums run over (ci, ky, kx) in order with fma: fixed order, bit-identical reruns. */
+ * caches). Sums run over (ci, ky, kx) in order with fma: fixed order, bit-identical reruns.
+ *
+ * CONV_LDS = 2 runs spx_conv2d_fwd_k3s1_lds2 instead, whose register tile reuses what it reads
+ * from local memory: a work-item owns CONV_TM output channels x CONV_TN adjacent columns of one
+ * row, loads the CONV_TN + 2 inputs of a (channel, ky) row once for its 3 taps kx, and its TM
+ * weights of a tap as float4s; a work-group of CONV_LWS is CONV_LDS_CG channel groups x pixel
+ * work-items, so one staged halo serves CONV_LDS_CG * CONV_TM output channels. Per output the
+ * same (ci, ky, kx) fma chain, so both kernels give the same bits as the direct one. */
 #include "conv2d_common.h"
 
 #ifndef CONV_LDS_TX
@@ -91,6 +98,113 @@ __kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_f
       int oy = oy0 + ly + j * LDS_WY;
       if (oy >= Ho) continue;
       __global float *yo = yn + (size_t)co * hw + oy * Wo + ox;
+      float v = acc[m][j];
+      if (flags & FL_ACCUM) v = *yo + v;
+      if (flags & FL_BIAS) v = v + b;
+      if (flags & FL_SCALE) v = v * sc + sh;
+      if (flags & FL_RELU) v = fmax(v, 0.0f);
+      *yo = v;
+    }
+  }
+}
+#endif
+
+#ifndef CONV_LDS_CG
+#define CONV_LDS_CG 1
+#endif
+#define L2_PT (CONV_LWS / CONV_LDS_CG)  /* pixel work-items of a group */
+#define L2_PX (CONV_LDS_TX / CONV_TN)   /* pixel work-items per tile row */
+#define L2_TY (L2_PT / L2_PX)           /* output rows of a tile */
+#define L2_HX (CONV_LDS_TX + 2)
+#define L2_HY (L2_TY + 2)
+#define L2_CM (CONV_LDS_CG * CONV_TM)   /* output channels of a group */
+
+#if CONV_LWS % CONV_LDS_CG == 0 && CONV_LDS_TX % CONV_TN == 0 && L2_PT % L2_PX == 0
+/* TM weights of one tap from local memory: float4 loads when TM is a multiple of 4 (the tap's
+ * panel starts at a multiple of TM floats, so they are aligned). */
+static inline __attribute__((always_inline)) void l2_weights(const __local float *wr, float wv[CONV_TM]) {
+#if CONV_TM % 4 == 0
+#pragma unroll
+  for (int m = 0; m < CONV_TM; m += 4) {
+    float4 v = vload4(0, wr + m);
+    wv[m] = v.s0, wv[m + 1] = v.s1, wv[m + 2] = v.s2, wv[m + 3] = v.s3;
+  }
+#else
+#pragma unroll
+  for (int m = 0; m < CONV_TM; m++) wv[m] = wr[m];
+#endif
+}
+
+/* Global: dim0 = ceil(CoutP / L2_CM) * ceil(Wo / CONV_LDS_TX) * ceil(Ho / L2_TY) groups of
+ * CONV_LWS (channel group fastest), dim1 = N. Work-item lid: channel group lid / L2_PT, pixel
+ * work-item p = lid % L2_PT at row p / L2_PX, columns (p % L2_PX) * CONV_TN + [0, CONV_TN). */
+__kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_fwd_k3s1_lds2(CONV_FWD_ARGS) {
+  __local float xs[CONV_LDS_CB * L2_HY * L2_HX];
+  __local float ws[CONV_LDS_CB * 9 * L2_CM];
+  const int ncot = CoutP / CONV_TM, ncg = (ncot + CONV_LDS_CG - 1) / CONV_LDS_CG;
+  const int ntx = (Wo + CONV_LDS_TX - 1) / CONV_LDS_TX, grp = (int)get_group_id(0);
+  const int cg = grp % ncg, tile = grp / ncg, ox0 = (tile % ntx) * CONV_LDS_TX, oy0 = (tile / ntx) * L2_TY;
+  const int lid = (int)get_local_id(0), g = lid / L2_PT, p = lid - g * L2_PT;
+  const int py = p / L2_PX, px = (p - py * L2_PX) * CONV_TN, n = (int)get_global_id(1);
+  const int cot0 = cg * CONV_LDS_CG, ntiles = min(CONV_LDS_CG, ncot - cot0); /* channel tiles of this group */
+  const __global float *xn = xp + (size_t)n * Cin * plane;
+  (void)pix_major;
+  (void)k;
+  float acc[CONV_TM][CONV_TN];
+#pragma unroll
+  for (int m = 0; m < CONV_TM; m++)
+#pragma unroll
+    for (int j = 0; j < CONV_TN; j++) acc[m][j] = 0.0f;
+
+  for (int cb = ci0; cb < ci1; cb += CONV_LDS_CB) {
+    const int nc = min(CONV_LDS_CB, ci1 - cb);
+    barrier(CLK_LOCAL_MEM_FENCE); /* the previous block is consumed */
+    /* the halo of nc channels, consecutive work-items on consecutive columns */
+    for (int e = lid; e < nc * L2_HY * L2_HX; e += CONV_LWS) {
+      int c = e / (L2_HY * L2_HX), rr = e - c * (L2_HY * L2_HX), hy = rr / L2_HX, hx = rr - hy * L2_HX;
+      int gy = oy0 + hy, gx = ox0 + hx;
+      xs[e] = gx < Wp && gy * Wp + gx < plane ? xn[(size_t)(cb + c) * plane + gy * Wp + gx] : 0.0f;
+    }
+    /* weights: ws[(c*9 + tap) * L2_CM + t*TM + m] from tile cot0 + t's panel wpk[cot][ci*9 + tap][m] */
+    for (int e = lid; e < nc * 9 * L2_CM; e += CONV_LWS) {
+      int ct = e / L2_CM, tm = e - ct * L2_CM, t = tm / CONV_TM;
+      ws[e] = t < ntiles ? wpk[((size_t)(cot0 + t) * Cin * 9 + (size_t)cb * 9 + ct) * CONV_TM + (tm - t * CONV_TM)]
+                         : 0.0f;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int c = 0; c < nc; c++)
+#pragma unroll
+      for (int ky = 0; ky < 3; ky++) {
+        const __local float *xr = xs + (c * L2_HY + py + ky) * L2_HX + px;
+        float xv[CONV_TN + 2];
+#pragma unroll
+        for (int j = 0; j < CONV_TN + 2; j++) xv[j] = xr[j];
+#pragma unroll
+        for (int kx = 0; kx < 3; kx++) {
+          float wv[CONV_TM];
+          l2_weights(ws + (c * 9 + ky * 3 + kx) * L2_CM + g * CONV_TM, wv);
+#pragma unroll
+          for (int m = 0; m < CONV_TM; m++)
+#pragma unroll
+            for (int j = 0; j < CONV_TN; j++) acc[m][j] = fma(wv[m], xv[j + kx], acc[m][j]);
+        }
+      }
+  }
+
+  /* epilogue as conv2d_common.h's conv_fwd_store: accumulate / bias / affine / ReLU */
+  const int oy = oy0 + py, hw = Ho * Wo, co0 = (cot0 + g) * CONV_TM, mmax = min(CONV_TM, Cout - co0);
+  if (oy >= Ho || g >= ntiles) return;
+  __global float *yr = y + y_off + (size_t)n * Cout * hw + oy * Wo + ox0 + px;
+#pragma unroll
+  for (int m = 0; m < CONV_TM; m++) {
+    if (m >= mmax) continue;
+    const int co = co0 + m;
+    const float b = (flags & FL_BIAS) ? bias[b_off + co] : 0.0f, sc = (flags & FL_SCALE) ? scale[sc_off + co] : 1.0f;
+    const float sh = (flags & FL_SHIFT) ? shift[sh_off + co] : 0.0f;
+#pragma unroll
+    for (int j = 0; j < CONV_TN; j++) {
+      if (ox0 + px + j >= Wo) continue;
+      __global float *yo = yr + (size_t)co * hw + j;
       float v = acc[m][j];
       if (flags & FL_ACCUM) v = *yo + v;
       if (flags & FL_BIAS) v = v + b;

@@ -197,7 +197,7 @@ static void test_candidates(void) {
       if (with) CHECK_MSG(v[c * 2 + 1] >= tw.lo && v[c * 2 + 1] <= tw.hi, "%s: candidate %d", with, c);
     }
   }
-  CHECK(searched == 23);
+  CHECK(searched == 24);
   spx_ctx_destroy(ctx);
 }
 

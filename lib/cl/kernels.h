@@ -24,6 +24,7 @@
   X(CONV2D_FWD_K3S1, "conv2d.cl", "spx_conv2d_fwd_k3s1")               \
   X(CONV2D_FWD_K1S1, "conv2d.cl", "spx_conv2d_fwd_k1s1")               \
   X(CONV2D_FWD_K3S1_LDS, "conv2d_lds.cl", "spx_conv2d_fwd_k3s1_lds")   \
+  X(CONV2D_FWD_K3S1_LDS2, "conv2d_lds.cl", "spx_conv2d_fwd_k3s1_lds2") \
   X(CONV2D_PAD, "conv2d.cl", "spx_conv2d_pad")                         \
   X(CONV2D_PACK, "conv2d.cl", "spx_conv2d_pack")                       \
   X(CONV2D_FWD_K3S1_NARROW, "conv2d_narrow.cl", "spx_conv2d_fwd_k3s1_narrow") \

@@ -38,6 +38,7 @@ struct spx_tunables {
   int conv_lds;           /* local-memory 3x3 forward (GPU) */
   int conv_lds_tx;
   int conv_lds_cb;
+  int conv_lds_cg;
   int conv_xcache;
   int conv_dw_tm;         /* conv2d backward weights */
   int conv_dw_tn;

@@ -106,13 +106,15 @@ static const struct spx_tunable spx_tunables[] = {
     {ROW("CONV_NOPAD", conv_nopad, 1, 0, 0, 1, 0), .full = ONOFF},
     /* 1: inference convolutions keep their prepared (packed / Winograd) weights until a parameter changes */
     {ROW("CONV_WPREP", conv_wprep, 1, 1, 0, 1, 0)},
-    /* 1: 3x3 stride-1 forwards run the local-memory tiled kernel (kernels/conv2d_lds.cl; needs CONV_VW = 1) */
-    {ROW("CONV_LDS", conv_lds, 0, 1, 0, 1, 0), .full = ONOFF},
+    /* 3x3 stride-1 forwards from local-memory tiles (kernels/conv2d_lds.cl; needs CONV_VW = 1): 1, 2 (register row tiles), 0: off */
+    {ROW("CONV_LDS", conv_lds, 0, 1, 0, 2, 0), .full = VALUES(0, 1, 2)},
     /* local-memory conv: tile columns (rows: CONV_LWS / this * CONV_TN) */
     {ROW("CONV_LDS_TX", conv_lds_tx, 16, 16, 1, 1024, T_FULL), .with = "CONV_LDS_CB",
      .full = VALUES(8, 4, 8, 8, 16, 4, 16, 8, 16, 16, 32, 8)},
     /* local-memory conv: input channels per local-memory block (searched with CONV_LDS_TX) */
     {ROW("CONV_LDS_CB", conv_lds_cb, 8, 8, 1, 256, 0)},
+    /* local-memory conv, CONV_LDS = 2: channel groups of CONV_TM outputs per work-group */
+    {ROW("CONV_LDS_CG", conv_lds_cg, 2, 2, 1, 64, T_FULL), .full = VALUES(1, 2, 4)},
     /* conv2d: inputs up to this many KiB (and smaller than the weights) run pixel-tile-fastest */
     {ROW("CONV_XCACHE", conv_xcache, 2048, 2048, 0, 1 << 20, T_FULL), .full = VALUES(0, 512, 1024, 2048, 4096, 8192)},
     /* conv2d backward weights (kernels/conv2d_bwd.cl): out-channels per work-item */

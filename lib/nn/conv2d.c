@@ -272,7 +272,7 @@ static spx_status run_fwd(spx_ctx *ctx, fwd_tile tile, int nopad, cl_mem xp, siz
   const int lds = spx_conv2d_lds_applies(ctx, k, s); /* GPU: local-memory tiles (conv2d_lds.cl) */
   spx_kernel_id kid = nopad ? (k == 3 ? (tile.narrow ? SPX_K_CONV2D_FWD_K3S1_NARROW_NP : SPX_K_CONV2D_FWD_K3S1_NP)
                                       : (tile.narrow ? SPX_K_CONV2D_FWD_K1S1_NARROW_NP : SPX_K_CONV2D_FWD_K1S1_NP))
-                      : lds ? SPX_K_CONV2D_FWD_K3S1_LDS : s == 2 ? SPX_K_CONV2D_FWD_S2 : s > 2 ? SPX_K_CONV2D_FWD_SN
+                      : lds ? spx_conv2d_lds_kernel(ctx) : s == 2 ? SPX_K_CONV2D_FWD_S2 : s > 2 ? SPX_K_CONV2D_FWD_SN
                       : k == 3 ? (tile.narrow ? SPX_K_CONV2D_FWD_K3S1_NARROW : SPX_K_CONV2D_FWD_K3S1)
                       : k == 1 ? (tile.narrow ? SPX_K_CONV2D_FWD_K1S1_NARROW : SPX_K_CONV2D_FWD_K1S1)
                                : SPX_K_CONV2D_FWD_S1;

@@ -158,9 +158,11 @@ spx_status spx_conv2d_winograd_dw(spx_ctx *ctx, spx_op_workspace *ws, const spx_
                                   const spx_tensor *dw);
 
 /* ---- local-memory tiled 3x3 stride-1 forward for GPU-class devices (lib/nn/conv2d_lds.c) ---- */
-/* Nonzero when the forward kernel of a k x k / stride conv is spx_conv2d_fwd_k3s1_lds (tunable
- * CONV_LDS, CONV_VW = 1, CONV_LWS a multiple of CONV_LDS_TX, its tiles fit the local memory). */
+/* Nonzero when the forward kernel of a k x k / stride conv is one of kernels/conv2d_lds.cl's
+ * (tunable CONV_LDS 1 or 2, CONV_VW = 1, the tunables make a tile, it fits the local memory);
+ * spx_conv2d_lds_kernel says which. */
 int spx_conv2d_lds_applies(const spx_ctx *ctx, int k, int stride);
+spx_kernel_id spx_conv2d_lds_kernel(const spx_ctx *ctx);
 /* Work-groups of that kernel for one image (dim 0 = this times CONV_LWS). */
 size_t spx_conv2d_lds_groups(const spx_ctx *ctx, int coutp, int ho, int wo);
 
