@@ -40,7 +40,7 @@ static void range_text(char *buf, size_t cap, const spx_opt *o) {
   else snprintf(buf, cap, "a whole number in [%.0f, %.0f]", o->lo, o->hi);
 }
 
-static int store(spx_opt *o, const char *v, int *count) {
+static int store(spx_opt *o, const char *v) {
   long long x;
   double d;
   char *end = NULL;
@@ -58,10 +58,13 @@ static int store(spx_opt *o, const char *v, int *count) {
     return 1;
   case SPX_OPT_SIZE:
     return spx_cli_size(v, (long)o->lo, (long)o->hi, (int *)o->dst, (int *)o->dst + 1);
-  case SPX_OPT_LIST:
-    ((const char **)o->dst)[(*count)++] = v;
-    ((const char **)o->dst)[*count] = NULL;
+  case SPX_OPT_LIST: { /* appended to this option's own list (each list option has one) */
+    const char **list = o->dst;
+    while (*list) list++;
+    list[0] = v;
+    list[1] = NULL;
     return 1;
+  }
   default:
     *(const char **)o->dst = v;
     return 1;
@@ -84,7 +87,6 @@ int spx_cli_not_input(const char *cmd, const char *what, const char *out, const 
 }
 
 int spx_cli_parse(int argc, char **argv, const char *cmd, const char *usage, void (*help)(void), spx_opt *opts) {
-  int nlist = 0;
   for (spx_opt *o = opts; o->name; o++) o->given = 0;
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
@@ -103,7 +105,7 @@ int spx_cli_parse(int argc, char **argv, const char *cmd, const char *usage, voi
     }
     if (i + 1 >= argc) return spx_cli_usage(cmd, "missing value for %s", o->name);
     const char *v = argv[++i];
-    if (!store(o, v, &nlist)) {
+    if (!store(o, v)) {
       char want[96];
       range_text(want, sizeof want, o);
       return spx_cli_usage(cmd, "%s needs %s, not '%s'", o->name, want, v);

@@ -25,7 +25,7 @@ enum {
   SPX_OPT_INT,  /* dst: long*, whole number in [lo, hi] */
   SPX_OPT_REAL, /* dst: double*, finite number in [lo, hi] */
   SPX_OPT_SIZE, /* dst: int[2] = {W, H}, "WxH", each in [lo, hi] */
-  SPX_OPT_LIST  /* dst: const char** of argc entries, NULL-ended: every value of a repeatable option */
+  SPX_OPT_LIST  /* dst: const char** of argc entries, zeroed, then NULL-ended: every value of a repeatable option */
 };
 
 typedef struct spx_opt {

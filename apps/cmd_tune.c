@@ -1,6 +1,7 @@
-/* smplpix tune: time candidate tunable values on the UNet's eval forward at the render shape and
- * store the winners in the device's tuning file (read whenever that device opens); --show prints
- * the tunables in effect and where each value came from. The search is apps/tune_search.c. */
+/* smplpix tune: time candidate tunable values on the UNet's eval forward (and a training step) at
+ * the render shape and the batches given, and store the winners in the device's tuning file (read
+ * whenever that device opens); --show prints the tunables in effect and where each value came
+ * from. The search is apps/tune_search.c. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -12,6 +13,7 @@
 #include "tune_search.h"
 
 #define MAX_WIDTHS 8
+#define MAX_BATCH 64
 
 static int show(spx_ctx *ctx) {
   spx_device_info info;
@@ -25,6 +27,12 @@ static int show(spx_ctx *ctx) {
   if (!*path) printf("tuning file: none (no cache directory)\n");
   else if (*note) printf("tuning file: %s (ignored: %s)\n", path, note);
   else printf("tuning file: %s (%s)\n", path, tuned ? "used" : "absent or empty");
+  for (const char *c = spx_device_tuning_comment(ctx); *c;) { /* e.g. the batches it was tuned at */
+    const char *eol = strchr(c, '\n');
+    int len = eol ? (int)(eol - c) : (int)strlen(c);
+    printf("tuning file comment: %.*s\n", len, c);
+    c += len + (eol != NULL);
+  }
   printf("%-20s %10s %10s  %s\n", "tunable", "value", "default", "source");
   for (int i = 0; i < n; i++) {
     if (spx_device_tunable(ctx, i, &t)) return spx_cli_error("tune", ctx);
@@ -45,42 +53,55 @@ static int model_width(spx_ctx *ctx, const char *ckpt, int *width) {
 }
 
 static const char usage[] =
-    "usage: smplpix tune [--quick] [--width W]... [--camera C.json | --size HxW] [--checkpoint W.safetensors]\n"
-    "                    [--repeat N] [--clock wall|cpu] [--device cpu|gpu|P:D]\n"
+    "usage: smplpix tune [--quick] [--width W]... [--batch N]... [--camera C.json | --size HxW]\n"
+    "                    [--checkpoint W.safetensors] [--repeat N] [--clock wall|cpu] [--device cpu|gpu|P:D]\n"
     "       smplpix tune --show [--device cpu|gpu|P:D]\n"
     "Times candidate values of the convolution tunables (Winograd threshold CONV_WINO_MINC, register\n"
     "tiles CONV_TM x CONV_TN, vector width CONV_VW, channel tiles CONV_CT, work-group CONV_LWS, input\n"
     "cache CONV_XCACHE, local-memory conv CONV_LDS and its tile CONV_LDS_TX x CONV_LDS_CB, local-memory\n"
     "Winograd CONV_WINO_LDS and its tiles CONV_WLDS_TM x CONV_WLDS_TN, CONV_WLDS_WM x CONV_WLDS_WN,\n"
-    "CONV_WLDS_KB, then CONV_WINO_MINC once more) on the UNet's eval forward (batch 1) at the camera's image size (default\n"
-    "data/cameras/default.json) for each base width (--width, repeatable; default: the width of the\n"
-    "shipped network or --checkpoint), on the chosen device. One tunable (group) at a time, the others\n"
-    "at their best so far; a candidate whose output differs from the defaults' by more than 1e-3 of\n"
-    "its largest value is rejected. Then the training side on a training step (batch 1; skipped, with\n"
-    "the reason, where the image is too small to train): Winograd in training CONV_WINO_TRAIN, the\n"
-    "Winograd weight gradient's thresholds CONV_WINO_DW (channels) and CONV_WINO_DW_MINHW (pixels), the\n"
-    "weight-gradient tiles CONV_DW_TM x CONV_DW_TN, CONV_DW_G x CONV_DW_QB and CONV_DW_QC, the gradients\n"
-    "checked like the outputs. Prints candidate, ms per width and the choice, and writes the\n"
-    "winners to the device's tuning file beside the program cache (atomically; keyed by device,\n"
-    "driver and smplpix version), which every later device open applies; SPX_TUNE_<NAME> variables\n"
-    "still win (and those tunables are not tuned). --quick: a few candidates (of the training side only\n"
-    "CONV_WINO_DW on or off: 1 + 2 x repeat training steps per width); --repeat: timed runs per candidate (min taken);\n"
-    "--clock cpu: time by this process's CPU time (a CPU device shared with other work; it does not\n"
-    "see lost parallelism), default wall.\n"
-    "--show prints every tunable in effect, its default and its source (default, tuned, env).\n";
+    "CONV_WLDS_KB, then CONV_WINO_MINC once more) on the UNet's eval forward at the camera's image size\n"
+    "(default data/cameras/default.json) for each base width (--width, repeatable; default: the width\n"
+    "of the shipped network or --checkpoint) and each batch (--batch, 1 to 64, repeatable; default 1:\n"
+    "give the batches you render or train at, e.g. --batch 1 --batch 10, since the fastest choice\n"
+    "depends on the batch), on the chosen device. One tunable (group) at a time, the others at their\n"
+    "best so far, scored by the mean over every (width, batch) of its time / the best so far; a\n"
+    "candidate whose output differs from the defaults' by more than 1e-3 of its largest value, at any\n"
+    "(width, batch), is rejected. Then the training side on a training step at the same batches\n"
+    "(skipped, with the reason, where the image is too small to train at one of them): Winograd in\n"
+    "training CONV_WINO_TRAIN, the Winograd weight gradient's thresholds CONV_WINO_DW (channels) and\n"
+    "CONV_WINO_DW_MINHW (pixels), the weight-gradient tiles CONV_DW_TM x CONV_DW_TN, CONV_DW_G x\n"
+    "CONV_DW_QB and CONV_DW_QC, the gradients checked like the outputs. Prints candidate, ms per\n"
+    "(width, batch) and the choice, then the defaults against the winners per (width, batch), and\n"
+    "writes the winners to the device's tuning file beside the program cache (atomically; keyed by\n"
+    "device, driver and smplpix version; a comment line records the batches, widths and image size),\n"
+    "which every later device open applies; SPX_TUNE_<NAME> variables still win (and those tunables\n"
+    "are not tuned). --quick: a few candidates (of the training side only CONV_WINO_DW on or off:\n"
+    "1 + 2 x repeat training steps per width and batch); --repeat: timed runs per candidate (min\n"
+    "taken); --clock cpu: time by this process's CPU time (a CPU device shared with other work; it\n"
+    "does not see lost parallelism), default wall.\n"
+    "--show prints every tunable in effect, its default and its source (default, tuned, env), and\n"
+    "the tuning file's comment (what it was tuned at).\n";
 
 int spx_cmd_tune(int argc, char **argv) {
   const char *spec = NULL, *camera = NULL, *ckpt = NULL;
-  int cpu_clock = 0, quick = 0, do_show = 0, nw = 0, widths[MAX_WIDTHS], h = 0, w = 0, reps = 0, hw[2] = {0, 0};
+  int cpu_clock = 0, quick = 0, do_show = 0, nw = 0, widths[MAX_WIDTHS], nb = 0, batches[SPX_TUNE_MAXB], h = 0, w = 0,
+      reps = 0, hw[2] = {0, 0};
   const char *clock_s = NULL;
   const char **wlist = calloc((size_t)argc + 1, sizeof *wlist); /* every --width value */
+  const char **blist = calloc((size_t)argc + 1, sizeof *blist); /* every --batch value */
   long rep = 0;
-  if (!wlist) return spx_cli_errorf("tune", "out of memory");
+  if (!wlist || !blist) {
+    free(wlist);
+    free(blist);
+    return spx_cli_errorf("tune", "out of memory");
+  }
   spx_opt opts[] = {SPX_O("--quick", SPX_OPT_FLAG, &quick),      SPX_O("--show", SPX_OPT_FLAG, &do_show),
                     SPX_O("--device", SPX_OPT_STR, &spec),       SPX_O("--clock", SPX_OPT_STR, &clock_s),
                     SPX_O("--camera", SPX_OPT_IN, &camera),      SPX_O("--checkpoint", SPX_OPT_IN, &ckpt),
                     SPX_O_RANGE("--size", SPX_OPT_SIZE, hw, 16, 8192), SPX_O_RANGE("--repeat", SPX_OPT_INT, &rep, 1, 100),
-                    SPX_O("--width", SPX_OPT_LIST, wlist),       SPX_O_END};
+                    SPX_O("--width", SPX_OPT_LIST, wlist),       SPX_O("--batch", SPX_OPT_LIST, blist),
+                    SPX_O_END};
   int parsed = spx_cli_parse(argc, argv, "tune", usage, NULL, opts);
   for (const char **v = wlist; parsed < 0 && *v; v++) {
     long x;
@@ -92,13 +113,24 @@ int spx_cmd_tune(int argc, char **argv) {
       if (widths[k] == x) parsed = spx_cli_usage("tune", "--width %ld is given twice", x);
     if (parsed < 0) widths[nw++] = (int)x;
   }
+  for (const char **v = blist; parsed < 0 && *v; v++) {
+    long x;
+    if (!spx_cli_long(*v, 1, MAX_BATCH, &x))
+      parsed = spx_cli_usage("tune", "--batch %s: expected an integer from 1 to %d", *v, MAX_BATCH);
+    else if (nb == SPX_TUNE_MAXB)
+      parsed = spx_cli_usage("tune", "at most %d --batch options", SPX_TUNE_MAXB);
+    for (int k = 0; parsed < 0 && k < nb; k++)
+      if (batches[k] == x) parsed = spx_cli_usage("tune", "--batch %ld is given twice", x);
+    if (parsed < 0) batches[nb++] = (int)x;
+  }
   free(wlist);
+  free(blist);
   if (parsed >= 0) return parsed;
   if (clock_s && strcmp(clock_s, "wall") && strcmp(clock_s, "cpu"))
     return spx_cli_usage("tune", "--clock %s: expected wall or cpu", clock_s);
   cpu_clock = clock_s && !strcmp(clock_s, "cpu");
   h = hw[0], w = hw[1], reps = (int)rep;
-  if (do_show && (quick || nw || camera || ckpt || h || reps || clock_s))
+  if (do_show && (quick || nw || nb || camera || ckpt || h || reps || clock_s))
     return spx_cli_usage("tune", "--show prints the tunables in effect; it takes only --device");
   if (camera && h) return spx_cli_usage("tune", "--camera and --size exclude each other");
   spx_ctx *ctx = NULL;
@@ -134,9 +166,11 @@ int spx_cmd_tune(int argc, char **argv) {
       goto done;
     }
   }
-  spx_tune_plan plan = {.quick = quick, .h = h, .w = w, .nwidths = nw, .repeat = reps ? reps : quick ? 3 : 5,
-                       .device = spec, .cpu_clock = cpu_clock};
+  if (!nb) batches[nb++] = 1;
+  spx_tune_plan plan = {.quick = quick, .h = h, .w = w, .nwidths = nw, .nbatches = nb,
+                        .repeat = reps ? reps : quick ? 3 : 5, .device = spec, .cpu_clock = cpu_clock};
   memcpy(plan.widths, widths, sizeof(int) * (size_t)nw);
+  memcpy(plan.batches, batches, sizeof(int) * (size_t)nb);
   rc = spx_tune_search(ctx, &plan, stdout);
 done:
   spx_ctx_destroy(ctx);

@@ -1,10 +1,11 @@
 /* The search of `smplpix tune`: coordinate descent over groups of tunables, scored on the UNet's
  * eval forward, or for the training-side groups (Winograd in training, the weight gradient's
- * algorithm and tiles) on a training step (zero_grad + forward + L1 + backward, batch 1, the
- * gradients compared with the defaults' like the outputs below). A stage takes one group; every candidate runs on a second context of the same
- * device and is timed against the incumbent (the best values so far) alternately, forward for
- * forward, so both see the same load; its score is the mean over the widths of its minimum time
- * / the incumbent's. A candidate replaces the incumbent only when it scores below 0.98 (timing
+ * algorithm and tiles) on a training step (zero_grad + forward + L1 + backward, the gradients
+ * compared with the defaults' like the outputs below), each at every (width, batch) pair of the
+ * plan. A stage takes one group; every candidate runs on a second context of the same device and
+ * is timed against the incumbent (the best values so far) alternately, forward for forward, so
+ * both see the same load; its score is the mean over the pairs of its minimum time / the
+ * incumbent's. A candidate replaces the incumbent only when it scores below 0.98 (timing
  * noise on a loaded machine is of that order) and its output agrees with the defaults' within
  * TUNE_TOL of the largest value: the candidates change summation orders (tiles, channel blocks)
  * or the algorithm (Winograd F(4x4,3x3), whose tests bound its error at ~1e-5 relative per
@@ -22,6 +23,7 @@
 #define TUNE_MARGIN 0.98
 #define MAXG 2  /* tunables per group */
 #define MAXW 8
+#define MAXP (MAXW * SPX_TUNE_MAXB) /* (width, batch) pairs */
 #define MAXS 48 /* tunables saved */
 
 typedef struct group {
@@ -69,19 +71,24 @@ typedef struct run {
   spx_ctx *ctx[2];
   const spx_tune_plan *p;
   FILE *out;
-  spx_unet *u[2][MAXW];
-  float *input, *buf, *ref[MAXW];
-  double refmax[MAXW];
-  size_t nout;
+  int np;              /* (width, batch) pairs: pair q is width widths[q / nbatches], batch batches[q % nbatches] */
+  int last;            /* the pair of the last forward (named in an error); -1 before the first */
+  spx_unet *u[2][MAXW]; /* by width; every batch runs on the same network */
+  float *input, *buf, *ref[MAXP]; /* input / buf: the largest batch; ref: the defaults' outputs by pair */
+  double refmax[MAXP];
+  size_t nout; /* output floats per image */
   int have_ref; /* ref[] holds the defaults' outputs */
   /* training groups: networks of their own (a training forward updates the batch-norm running
    * statistics, which the eval forward of u[] must not see), the target, the defaults' gradients */
   spx_unet *t[2][MAXW];
-  float *target, *gbuf, *gref[MAXW];
-  double grefmax[MAXW];
+  float *target, *gbuf, *gref[MAXP];
+  double grefmax[MAXP];
   size_t ngrad[MAXW];
   int have_gref;
 } run;
+
+static int pair_width(const run *r, int q) { return r->p->widths[q / r->p->nbatches]; }
+static int pair_batch(const run *r, int q) { return r->p->batches[q % r->p->nbatches]; }
 
 /* Seconds on the plan's clock: wall, or this process's CPU time (--clock cpu: on a CPU device
  * shared with other work it counts our threads only; it does not see lost parallelism). */
@@ -91,19 +98,21 @@ static double now(const run *r) {
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* One forward of width k on context c (train: a training step instead); *ms its time. */
-static spx_status forward(run *r, int c, int k, int train, double *ms) {
+/* One forward of pair q on context c (train: a training step instead); *ms its time. */
+static spx_status forward(run *r, int c, int q, int train, double *ms) {
+  int k = q / r->p->nbatches, n = pair_batch(r, q);
   double t0 = now(r);
   spx_status st;
+  r->last = q;
   if (train) {
     float loss;
     spx_unet *u = r->t[c][k];
     if (!(st = spx_unet_zero_grad(u)) &&
-        !(st = spx_unet_forward_loss(u, r->input, r->target, 1, r->p->h, r->p->w, NULL, &loss)) &&
+        !(st = spx_unet_forward_loss(u, r->input, r->target, n, r->p->h, r->p->w, NULL, &loss)) &&
         !(st = spx_unet_backward(u)))
       st = spx_device_finish(r->ctx[c]); /* the backward is only enqueued: its time is this step's */
   } else {
-    st = spx_unet_forward(r->u[c][k], r->input, 1, r->p->h, r->p->w, 0, r->buf);
+    st = spx_unet_forward(r->u[c][k], r->input, n, r->p->h, r->p->w, 0, r->buf);
   }
   *ms = 1e3 * (now(r) - t0);
   return st;
@@ -134,65 +143,67 @@ static spx_status read_grads(run *r, int c, int k) {
   return SPX_OK;
 }
 
-/* An untimed training step of every width on context c; the worst relative difference of its
+/* An untimed training step of every pair on context c; the worst relative difference of its
  * gradients to the defaults' in *diff (the first call stores them). */
 static spx_status warm_train(run *r, int c, double *diff) {
   double ms;
   *diff = 0;
-  for (int k = 0; k < r->p->nwidths; k++) {
-    spx_status st = forward(r, c, k, 1, &ms);
+  for (int q = 0; q < r->np; q++) {
+    int k = q / r->p->nbatches;
+    spx_status st = forward(r, c, q, 1, &ms);
     if (st || (st = read_grads(r, c, k))) return st;
     size_t n = r->ngrad[k];
     if (!r->have_gref) {
-      memcpy(r->gref[k], r->gbuf, n * sizeof(float));
-      r->grefmax[k] = 0;
-      for (size_t i = 0; i < n; i++) r->grefmax[k] = fmax(r->grefmax[k], fabs(r->gbuf[i]));
+      memcpy(r->gref[q], r->gbuf, n * sizeof(float));
+      r->grefmax[q] = 0;
+      for (size_t i = 0; i < n; i++) r->grefmax[q] = fmax(r->grefmax[q], fabs(r->gbuf[i]));
     }
     double d = 0;
-    for (size_t i = 0; i < n; i++) d = fmax(d, fabs((double)r->gbuf[i] - r->gref[k][i]));
-    d /= r->grefmax[k] > 0 ? r->grefmax[k] : 1;
+    for (size_t i = 0; i < n; i++) d = fmax(d, fabs((double)r->gbuf[i] - r->gref[q][i]));
+    d /= r->grefmax[q] > 0 ? r->grefmax[q] : 1;
     if (!(d <= *diff)) *diff = d;
   }
   r->have_gref = 1;
   return SPX_OK;
 }
 
-/* An untimed forward of every width on context c (it builds what a change dropped); the
- * worst relative difference to the defaults' outputs in *diff (the first call stores them). */
+/* An untimed forward of every pair on context c (it builds what a change dropped); the worst
+ * relative difference to the defaults' outputs in *diff (the first call stores them). */
 static spx_status warm(run *r, int c, double *diff) {
   double ms;
   *diff = 0;
-  for (int k = 0; k < r->p->nwidths; k++) {
-    spx_status st = forward(r, c, k, 0, &ms);
+  for (int q = 0; q < r->np; q++) {
+    size_t n = r->nout * (size_t)pair_batch(r, q);
+    spx_status st = forward(r, c, q, 0, &ms);
     if (st) return st;
     if (!r->have_ref) {
-      memcpy(r->ref[k], r->buf, r->nout * sizeof(float));
-      r->refmax[k] = 0;
-      for (size_t i = 0; i < r->nout; i++) r->refmax[k] = fmax(r->refmax[k], fabs(r->buf[i]));
+      memcpy(r->ref[q], r->buf, n * sizeof(float));
+      r->refmax[q] = 0;
+      for (size_t i = 0; i < n; i++) r->refmax[q] = fmax(r->refmax[q], fabs(r->buf[i]));
     }
     double d = 0;
-    for (size_t i = 0; i < r->nout; i++) d = fmax(d, fabs((double)r->buf[i] - r->ref[k][i]));
-    d /= r->refmax[k] > 0 ? r->refmax[k] : 1;
+    for (size_t i = 0; i < n; i++) d = fmax(d, fabs((double)r->buf[i] - r->ref[q][i]));
+    d /= r->refmax[q] > 0 ? r->refmax[q] : 1;
     if (!(d <= *diff)) *diff = d; /* NaN sticks */
   }
   r->have_ref = 1;
   return SPX_OK;
 }
 
-/* A and B alternately, `reps` times per width: the minimum ms of each; the score is the mean
- * over the widths of B's / A's. */
+/* A and B alternately, `reps` times per pair: the minimum ms of each; the score is the mean
+ * over the pairs of B's / A's. */
 static spx_status duel(run *r, int train, int reps, double *ms_a, double *ms_b, double *score) {
   *score = 0;
-  for (int k = 0; k < r->p->nwidths; k++) {
-    ms_a[k] = ms_b[k] = INFINITY;
+  for (int q = 0; q < r->np; q++) {
+    ms_a[q] = ms_b[q] = INFINITY;
     for (int rep = 0; rep < reps; rep++) {
       double a, b;
-      spx_status st = forward(r, 0, k, train, &a);
-      if (st || (st = forward(r, 1, k, train, &b))) return st;
-      ms_a[k] = fmin(ms_a[k], a);
-      ms_b[k] = fmin(ms_b[k], b);
+      spx_status st = forward(r, 0, q, train, &a);
+      if (st || (st = forward(r, 1, q, train, &b))) return st;
+      ms_a[q] = fmin(ms_a[q], a);
+      ms_b[q] = fmin(ms_b[q], b);
     }
-    *score += ms_b[k] / ms_a[k] / r->p->nwidths;
+    *score += ms_b[q] / ms_a[q] / r->np;
   }
   return SPX_OK;
 }
@@ -216,8 +227,8 @@ static void row(const run *r, const group *g, const int *vals, const double *ms,
   size_t n = 0;
   for (int j = 0; j < g->n; j++) n += (size_t)snprintf(c + n, sizeof c - n, "%s%s=%d", j ? " " : "", g->names[j], vals[j]);
   fprintf(r->out, "  %-28s", c);
-  for (int k = 0; k < r->p->nwidths; k++)
-    if (ms) fprintf(r->out, " %9.1f", ms[k]);
+  for (int q = 0; q < r->np; q++)
+    if (ms) fprintf(r->out, " %9.1f", ms[q]);
     else fprintf(r->out, " %9s", "-");
   fprintf(r->out, "  %s\n", note);
   fflush(r->out);
@@ -236,12 +247,12 @@ static int tunable(spx_ctx *ctx, const char *name, spx_tunable_info *out) {
  * that is not slower than the incumbent's by more than the margin (CONV_LDS on a CPU: 3% off the
  * eval forward, 2.4x the training step). */
 static spx_status stage(run *r, const group *g, int train, int *cur) {
-  int nw = r->p->nwidths, guard = !train && r->have_gref;
-  double ms_a[MAXW], ms_b[MAXW], inc_ms[MAXW], best_ms[MAXW], diff, sc, best = TUNE_MARGIN;
+  int np = r->np, guard = !train && r->have_gref;
+  double ms_a[MAXP], ms_b[MAXP], inc_ms[MAXP], best_ms[MAXP], diff, sc, best = TUNE_MARGIN;
   int win[MAXG];
   char note[1200], why[1100];
   memcpy(win, cur, sizeof win);
-  for (int k = 0; k < nw; k++) inc_ms[k] = INFINITY;
+  for (int k = 0; k < np; k++) inc_ms[k] = INFINITY;
   spx_status st = SPX_OK;
   for (int c = 0; c < g->ncand; c++) {
     const int *v = g->vals + c * g->n;
@@ -259,9 +270,9 @@ static spx_status stage(run *r, const group *g, int train, int *cur) {
       continue;
     }
     if ((st = duel(r, train, r->p->repeat, ms_a, ms_b, &sc))) return st;
-    for (int k = 0; k < nw; k++) inc_ms[k] = fmin(inc_ms[k], ms_a[k]);
+    for (int k = 0; k < np; k++) inc_ms[k] = fmin(inc_ms[k], ms_a[k]);
     if (sc < best && guard) { /* an eval winner must not slow the training step (see above) */
-      double ta[MAXW], tb[MAXW], tsc;
+      double ta[MAXP], tb[MAXP], tsc;
       if ((st = warm_train(r, 1, &diff))) return st;
       if (!(diff <= TUNE_TOL)) {
         snprintf(note, sizeof note, "%.3f of the incumbent's time; rejected: gradient differs by %.2g", sc, diff);
@@ -279,7 +290,7 @@ static spx_status stage(run *r, const group *g, int train, int *cur) {
     snprintf(note, sizeof note, "%.3f of the incumbent's time%s", sc, sc < best ? ", best so far" : "");
     if (sc < best) {
       best = sc;
-      memcpy(best_ms, ms_b, sizeof(double) * (size_t)nw);
+      memcpy(best_ms, ms_b, sizeof(double) * (size_t)np);
       memcpy(win, v, sizeof(int) * (size_t)g->n);
     }
     row(r, g, v, ms_b, note);
@@ -315,7 +326,8 @@ static int build_groups(const spx_tune_plan *p, const char *const *names, int n,
 }
 
 int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
-  run r = {.ctx = {ctx, NULL}, .p = p, .out = out, .nout = (size_t)3 * p->h * p->w};
+  run r = {.ctx = {ctx, NULL}, .p = p, .out = out, .np = p->nwidths * p->nbatches, .last = -1,
+           .nout = (size_t)3 * p->h * p->w};
   group gs[40];
   /* groups from ng_eval on are scored on a training step */
   const int ng_eval = build_groups(p, eval_order, (int)(sizeof eval_order / sizeof *eval_order), gs);
@@ -326,19 +338,22 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   spx_status st = SPX_OK;
   spx_ctx *failed = ctx;
   double t_start = spx_now();
-  r.input = malloc((size_t)4 * p->h * p->w * sizeof(float));
-  r.buf = malloc(r.nout * sizeof(float));
+  size_t maxb = 1; /* the largest batch: input, output and target hold that many images */
+  for (int b = 0; b < p->nbatches; b++) maxb = p->batches[b] > (int)maxb ? (size_t)p->batches[b] : maxb;
+  size_t nin = (size_t)4 * p->h * p->w * maxb;
+  r.input = malloc(nin * sizeof(float));
+  r.buf = malloc(r.nout * maxb * sizeof(float));
   int fit = r.input && r.buf, train = 0;
-  for (int k = 0; k < p->nwidths; k++) fit = fit && (r.ref[k] = malloc(r.nout * sizeof(float)));
+  for (int q = 0; q < r.np; q++) fit = fit && (r.ref[q] = malloc(r.nout * (size_t)pair_batch(&r, q) * sizeof(float)));
   for (int g = ng_eval; g < ng; g++) train |= !(gs[g].full_only && p->quick);
-  if (train) fit = fit && (r.target = malloc(r.nout * sizeof(float)));
+  if (train) fit = fit && (r.target = malloc(r.nout * maxb * sizeof(float)));
   if (!fit) {
-    rc = spx_cli_errorf("tune", "out of memory");
+    rc = spx_cli_errorf("tune", "out of memory (host buffers for batch %zu at %dx%d)", maxb, p->h, p->w);
     goto done;
   }
   uint64_t s = 0x9e3779b97f4a7c15ULL;
-  for (size_t i = 0; i < (size_t)4 * p->h * p->w; i++) r.input[i] = (float)((spx_cli_mix64(s++) >> 40) * 0x1p-24);
-  for (size_t i = 0; train && i < r.nout; i++) r.target[i] = (float)((spx_cli_mix64(s++) >> 40) * 0x1p-24);
+  for (size_t i = 0; i < nin; i++) r.input[i] = (float)((spx_cli_mix64(s++) >> 40) * 0x1p-24);
+  for (size_t i = 0; train && i < r.nout * maxb; i++) r.target[i] = (float)((spx_cli_mix64(s++) >> 40) * 0x1p-24);
   if (spx_ctx_create(&r.ctx[1])) {
     rc = spx_cli_errorf("tune", "out of memory");
     goto done;
@@ -361,31 +376,47 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   for (int k = 0; train && k < p->nwidths; k++) { /* gradient buffers: every parameter */
     const char *name;
     for (int i = 0; i < spx_unet_tensor_count(r.t[0][k]); i++) r.ngrad[k] += param_numel(r.t[0][k], i, &name);
-    if (!(r.gref[k] = malloc(r.ngrad[k] * sizeof(float)))) fit = 0;
     if (r.ngrad[k] > most) most = r.ngrad[k];
   }
+  for (int q = 0; train && q < r.np; q++)
+    if (!(r.gref[q] = malloc(r.ngrad[q / p->nbatches] * sizeof(float)))) fit = 0;
   if (train && (!fit || !(r.gbuf = malloc(most * sizeof(float))))) {
     rc = spx_cli_errorf("tune", "out of memory");
     goto done;
   }
   spx_device_info info;
   spx_device_get_info(ctx, &info);
-  fprintf(out, "tuning %s (%s) on the UNet eval forward%s, batch 1, 4x%dx%d, widths", info.name, info.driver,
-          train ? " (training groups: a training step)" : "", p->h, p->w);
-  for (int k = 0; k < p->nwidths; k++) fprintf(out, " %d", p->widths[k]);
-  fprintf(out, "; %s search; each candidate timed against the incumbent alternately, min of %d runs (%s ms)\n",
-          p->quick ? "quick" : "full", p->repeat, p->cpu_clock ? "CPU" : "wall");
+  char shape[160]; /* what is timed, for the header and the tuning file's comment */
+  size_t sl = (size_t)snprintf(shape, sizeof shape, "batch%s", p->nbatches > 1 ? "es" : "");
+  for (int b = 0; b < p->nbatches; b++) sl += (size_t)snprintf(shape + sl, sizeof shape - sl, " %d", p->batches[b]);
+  sl += (size_t)snprintf(shape + sl, sizeof shape - sl, ", width%s", p->nwidths > 1 ? "s" : "");
+  for (int k = 0; k < p->nwidths; k++) sl += (size_t)snprintf(shape + sl, sizeof shape - sl, " %d", p->widths[k]);
+  snprintf(shape + sl, sizeof shape - sl, ", size %dx%d", p->h, p->w);
+  fprintf(out, "tuning %s (%s) on the UNet eval forward%s at %s; %s search; each candidate timed against the "
+          "incumbent alternately at every (width, batch), min of %d runs (%s ms)\n", info.name, info.driver,
+          train ? " (training groups: a training step)" : "", shape, p->quick ? "quick" : "full", p->repeat,
+          p->cpu_clock ? "CPU" : "wall");
   double diff;
   failed = ctx;
   if ((st = warm(&r, 0, &diff))) goto fail;
   if (train && warm_train(&r, 0, &diff)) { /* e.g. an image too small to train at batch 1 */
-    fprintf(out, "  training groups skipped: %s\n", spx_ctx_message(ctx));
+    fprintf(out, "  training groups skipped: %s (width %d, batch %d)\n", spx_ctx_message(ctx), pair_width(&r, r.last),
+            pair_batch(&r, r.last));
     train = 0;
+    for (int k = 0; k < p->nwidths; k++) { /* their device memory is not needed any more */
+      spx_unet_destroy(r.t[0][k]);
+      spx_unet_destroy(r.t[1][k]);
+      r.t[0][k] = r.t[1][k] = NULL;
+    }
   }
   failed = r.ctx[1];
   if ((st = warm(&r, 1, &diff)) || (train && (st = warm_train(&r, 1, &diff)))) goto fail;
   fprintf(out, "  %-28s", "candidate");
-  for (int k = 0; k < p->nwidths; k++) fprintf(out, "  w%-2d ms  ", p->widths[k]);
+  for (int q = 0; q < r.np; q++) {
+    char col[32];
+    snprintf(col, sizeof col, "w%db%d ms", pair_width(&r, q), pair_batch(&r, q));
+    fprintf(out, " %9s", col);
+  }
   fprintf(out, "  chosen\n");
   for (int g = 0; g < ng; g++) {
     if ((gs[g].full_only && p->quick) || (g >= ng_eval && !train)) continue;
@@ -430,22 +461,24 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   for (int i = 0; i < nsave; i++)
     if ((st = spx_device_set_tunable(ctx, names[i], defs[i]))) goto fail;
   if ((st = warm(&r, 0, &diff)) || (train && (st = warm_train(&r, 0, &diff)))) goto fail;
-  double ms_def[MAXW], ms_tuned[MAXW], tr_def[MAXW], tr_tuned[MAXW], sc;
+  double ms_def[MAXP], ms_tuned[MAXP], tr_def[MAXP], tr_tuned[MAXP], sc;
   if ((st = duel(&r, 0, 2 * p->repeat, ms_def, ms_tuned, &sc)) ||
       (train && (st = duel(&r, 1, p->repeat, tr_def, tr_tuned, &sc))))
     goto fail_either;
   const char *np[MAXS];
   for (int i = 0; i < nsave; i++) np[i] = names[i];
-  if ((st = spx_device_tuning_save(ctx, np, vals, nsave))) goto fail;
+  char comment[200];
+  snprintf(comment, sizeof comment, "tuned at %s, %s search", shape, p->quick ? "quick" : "full");
+  if ((st = spx_device_tuning_save_comment(ctx, comment, np, vals, nsave))) goto fail;
   fprintf(out, "chosen:");
   for (int i = 0; i < nsave; i++) fprintf(out, " %s=%d%s", names[i], vals[i], vals[i] == defs[i] ? " (default)" : "");
   fprintf(out, "\n");
-  for (int k = 0; k < p->nwidths; k++) {
-    fprintf(out, "width %d: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n", p->widths[k], ms_def[k], ms_tuned[k],
-            ms_def[k] / ms_tuned[k]);
+  for (int q = 0; q < r.np; q++) {
+    fprintf(out, "width %d, batch %d: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n", pair_width(&r, q),
+            pair_batch(&r, q), ms_def[q], ms_tuned[q], ms_def[q] / ms_tuned[q]);
     if (train)
-      fprintf(out, "width %d training step: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n", p->widths[k],
-              tr_def[k], tr_tuned[k], tr_def[k] / tr_tuned[k]);
+      fprintf(out, "width %d, batch %d training step: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n",
+              pair_width(&r, q), pair_batch(&r, q), tr_def[q], tr_tuned[q], tr_def[q] / tr_tuned[q]);
   }
   fprintf(out, "wrote %s (%.1f s)\n", spx_device_tuning_path(ctx), spx_now() - t_start);
   rc = SPX_EXIT_OK;
@@ -453,15 +486,21 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
 fail_either:
   failed = spx_ctx_last_status(r.ctx[1]) == st ? r.ctx[1] : ctx;
 fail:
-  rc = spx_cli_error("tune", failed);
+  if ((st == SPX_E_DEVMEM || st == SPX_E_NOMEM) && r.last >= 0) /* which shape ran out, and what needs less */
+    rc = spx_cli_errorf("tune", "width %d, batch %d at %dx%d: %s (try a smaller --batch or --size)",
+                        pair_width(&r, r.last), pair_batch(&r, r.last), p->h, p->w, spx_ctx_message(failed));
+  else
+    rc = spx_cli_error("tune", failed);
 done:
   for (int k = 0; k < p->nwidths; k++) {
     spx_unet_destroy(r.u[0][k]);
     spx_unet_destroy(r.u[1][k]);
     spx_unet_destroy(r.t[0][k]);
     spx_unet_destroy(r.t[1][k]);
-    free(r.ref[k]);
-    free(r.gref[k]);
+  }
+  for (int q = 0; q < r.np; q++) {
+    free(r.ref[q]);
+    free(r.gref[q]);
   }
   spx_ctx_destroy(r.ctx[1]);
   free(r.input);

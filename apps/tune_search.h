@@ -6,12 +6,17 @@
 
 #include "smplpix/smplpix.h"
 
+#define SPX_TUNE_MAXB 8 /* batches in one search */
+
 typedef struct spx_tune_plan {
   int quick;      /* a few candidates per tunable instead of the full lists */
   int h, w;       /* image size of the UNet input */
-  int nwidths;    /* base widths to time (the score sums time / default time over them) */
+  int nwidths;    /* base widths to time */
   int widths[8];
-  int repeat;     /* timed forwards per candidate and width; the minimum counts */
+  int nbatches;   /* batches to time; every (width, batch) pair is timed and the score is the mean
+                   * over the pairs of time / the incumbent's */
+  int batches[SPX_TUNE_MAXB];
+  int repeat;     /* timed runs per candidate and pair; the minimum counts */
   const char *device; /* the spec ctx was opened with (a second context opens the same device) */
   int cpu_clock;      /* time by this process's CPU time instead of wall time */
 } spx_tune_plan;

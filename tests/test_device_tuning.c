@@ -96,11 +96,44 @@ static void test_tune_training_groups(void) {
   char out[700];
   spx_t_path(out, sizeof out, "tune_train.txt");
   CHECK(sh("'%s' tune --quick --size 32x48 --width 8 --repeat 1 >'%s' 2>&1", spx_t_tool(), out) == 0);
-  CHECK(sh("grep -q '^  CONV_WINO_DW=0 ' '%s' && grep -q '^width 8 training step: ' '%s'", out, out) == 0);
+  CHECK(sh("grep -q '^  CONV_WINO_DW=0 ' '%s' && grep -q '^width 8, batch 1 training step: ' '%s'", out, out) == 0);
   CHECK(sh("grep -q '^chosen: .* CONV_WINO_DW=' '%s'", out) == 0);
   CHECK(sh("'%s' tune --quick --size 16x24 --width 8 --repeat 1 >'%s' 2>&1", spx_t_tool(), out) == 0);
   CHECK(sh("grep -q '^  training groups skipped: .*bottleneck' '%s'", out) == 0);
   CHECK(sh("grep -q 'CONV_WINO_DW' '%s'", out) != 0);
+}
+
+/* --batch: every candidate timed at the batch given, eval and training side (16x24 trains at batch 2,
+ * not at batch 1), the result lines per (width, batch), the batches in the tuning file's comment
+ * and in --show. Runs before test_tune_then_open, which rewrites the tuning file. */
+static void test_tune_batch(void) {
+  char out[700];
+  spx_t_path(out, sizeof out, "tune_batch.txt");
+  CHECK(sh("'%s' tune --quick --size 16x24 --width 8 --batch 2 --repeat 1 >'%s' 2>&1", spx_t_tool(), out) == 0);
+  CHECK(sh("head -n 1 '%s' | grep -q '^tuning .* at batch 2, width 8, size 16x24; quick search;'", out) == 0);
+  CHECK(sh("grep -q '^  candidate  *w8b2 ms  chosen$' '%s'", out) == 0);
+  CHECK(sh("grep -q '^width 8, batch 2: .* ms with the defaults, .* ms tuned' '%s'", out) == 0);
+  CHECK(sh("grep -q '^width 8, batch 2 training step: ' '%s' && grep -q '^  CONV_WINO_DW=' '%s'", out, out) == 0);
+  CHECK(sh("grep -q 'skipped\\|batch 1' '%s'", out) != 0);
+  CHECK(sh("grep -qx '# tuned at batch 2, width 8, size 16x24, quick search' '%s'/tuning-*.txt", cache) == 0);
+  CHECK(sh("'%s' tune --show | grep -qx 'tuning file comment: tuned at batch 2, width 8, size 16x24, quick search'",
+           spx_t_tool()) == 0);
+  spx_ctx *ctx = open_ctx();
+  CHECK(!strcmp(spx_device_tuning_comment(ctx), "tuned at batch 2, width 8, size 16x24, quick search"));
+  char file[4200];
+  snprintf(file, sizeof file, "%s", spx_device_tuning_path(ctx));
+  spx_ctx_destroy(ctx);
+  /* every `#` line, in order, without its `# `; none from a file that is ignored */
+  CHECK(sh("cp '%s' '%s.b' && sed '$a #second' '%s.b' >'%s'", file, file, file, file) == 0);
+  ctx = open_ctx();
+  CHECK(!strcmp(spx_device_tuning_comment(ctx), "tuned at batch 2, width 8, size 16x24, quick search\nsecond"));
+  spx_ctx_destroy(ctx);
+  CHECK(sh("'%s' tune --show | grep -c '^tuning file comment: ' | grep -qx 2", spx_t_tool()) == 0);
+  CHECK(sh("sed 's/^driver .*/driver 0.0/' '%s.b' >'%s'", file, file) == 0);
+  ctx = open_ctx();
+  CHECK(*spx_device_tuning_note(ctx) && !strcmp(spx_device_tuning_comment(ctx), ""));
+  spx_ctx_destroy(ctx);
+  CHECK(sh("mv '%s.b' '%s'", file, file) == 0);
 }
 
 static void test_tune_then_open(void) {
@@ -170,6 +203,18 @@ static void test_usage(void) {
   CHECK(sh("'%s' tune --clock sundial >/dev/null 2>&1", spx_t_tool()) == 2);
   CHECK(sh("'%s' tune --size 16x16 --camera c.json >/dev/null 2>&1", spx_t_tool()) == 2);
   CHECK(sh("'%s' tune --help | grep -q 'smplpix tune --show'", spx_t_tool()) == 0);
+  /* --batch: 1 to 64, one line on stderr naming the value, exit 2, nothing on stdout */
+  static const char *const bad_batch[] = {"0", "x", "65", "2 --batch 2"};
+  for (size_t i = 0; i < sizeof bad_batch / sizeof *bad_batch; i++) {
+    char err[700];
+    spx_t_path(err, sizeof err, "tune_usage.err");
+    CHECK_MSG(sh("'%s' tune --width 8 --batch %s >'%s.out' 2>'%s'", spx_t_tool(), bad_batch[i], err, err) == 2,
+              "--batch %s", bad_batch[i]);
+    CHECK_MSG(sh("test $(wc -l <'%s') -eq 1 && grep -q '^smplpix tune: --batch ' '%s' && test ! -s '%s.out'", err, err,
+                 err) == 0,
+              "--batch %s: stderr", bad_batch[i]);
+  }
+  CHECK(sh("'%s' tune --show --batch 2 >/dev/null 2>&1", spx_t_tool()) == 2);
 }
 
 /* The candidates of `smplpix tune` beside their rows: in range, pairs named, --quick's subset. */
@@ -210,6 +255,7 @@ int main(void) {
   SPX_RUN(test_candidates);
   SPX_RUN(test_cache_key);
   SPX_RUN(test_tune_training_groups);
+  SPX_RUN(test_tune_batch);
   SPX_RUN(test_tune_then_open);
   return spx_test_summary();
 }

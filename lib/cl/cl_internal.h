@@ -42,6 +42,7 @@ struct spx_cl_device {
   unsigned char tune_src[SPX_NTUNABLES];     /* spx_tune_source of each field */
   char tune_note[5120];                      /* why a tuning file was ignored ("" when not) */
   char tune_file[4096];                      /* the tuning file read (or looked for) */
+  char tune_comment[1024];                   /* its `# ` lines when it was used, joined by newlines */
   int cr_div;       /* the device divides fp32 correctly rounded (set with the tunables) */
   int div_fallback; /* SPX_FORCE_DIV_FALLBACK: kernels divide in integers (kernels/exact.h) although cr_div exists */
   int tune_cpu; /* 1: kernels are built and launched with the CPU column of lib/cl/tuning.c */

@@ -10,7 +10,9 @@
  *   version <device OpenCL version>
  *   smplpix <major.minor.patch>
  *   class cpu|gpu
+ *   # tuned at batch 1 10, width 64, image 308x410, quick search
  *   CONV_TM 8
+ * A line starting with `#` is a comment (what the tuner measured on; spx_device_tuning_comment).
  * A file that cannot be read, does not parse, holds an illegal value or belongs to another
  * device is ignored as a whole (the defaults apply) and the reason kept for
  * spx_device_tuning_note; opening the device never fails because of it. */
@@ -42,13 +44,20 @@ static void header(const spx_ctx *ctx, char *out, size_t cap) {
 
 /* Parse the lines after the header into t / src; 0 on success, else -1 and the reason in why. */
 static int parse_body(const spx_ctx *ctx, const char *p, const char *end, int line, struct spx_tunables *t,
-                      unsigned char *src, char *why, size_t cap) {
+                      unsigned char *src, char *comment, size_t ccap, char *why, size_t cap) {
   unsigned char seen[SPX_NTUNABLES] = {0};
+  size_t cl = 0;
+  comment[0] = 0;
   for (; p < end; line++) {
     const char *eol = memchr(p, '\n', (size_t)(end - p));
     if (!eol) eol = end;
     size_t len = (size_t)(eol - p);
     const char *sp = memchr(p, ' ', len);
+    if (len && *p == '#' && cl + 1 < ccap) { /* a comment: kept without its `# `, as much as fits */
+      size_t skip = len > 1 && p[1] == ' ' ? 2 : 1;
+      snprintf(comment + cl, ccap - cl, "%s%.*s", cl ? "\n" : "", (int)(len - skip), p + skip);
+      cl += strlen(comment + cl);
+    }
     if (len && *p != '#') {
       int i = sp ? spx_cl_tunable_find(p, (size_t)(sp - p)) : -1;
       char val[32], r[128];
@@ -77,6 +86,7 @@ static int parse_body(const spx_ctx *ctx, const char *p, const char *end, int li
 void spx_cl_tunefile_apply(spx_ctx *ctx) {
   ctx->dev->tune_note[0] = 0;
   ctx->dev->tune_file[0] = 0;
+  ctx->dev->tune_comment[0] = 0;
   char dir[3900], head[2048];
   if (!spx_cl_cache_dir(dir, sizeof dir)) return;
   header(ctx, head, sizeof head);
@@ -95,10 +105,11 @@ void spx_cl_tunefile_apply(spx_ctx *ctx) {
   struct spx_tunables t = ctx->dev->tune;
   unsigned char src[SPX_NTUNABLES];
   memcpy(src, ctx->dev->tune_src, sizeof src);
-  char why[1100];
+  char why[1100], comment[sizeof ctx->dev->tune_comment];
   if (n < hl || memcmp(data, head, hl)) {
     snprintf(why, sizeof why, "its header does not match this device, driver and smplpix version");
-  } else if (!parse_body(ctx, (const char *)data + hl, (const char *)data + n, 8, &t, src, why, sizeof why)) {
+  } else if (!parse_body(ctx, (const char *)data + hl, (const char *)data + n, 8, &t, src, comment,
+                                sizeof comment, why, sizeof why)) {
     /* the combinations; spx_cl_tunables_check reports through the context message, which must
      * not change when the device opens fine */
     char keep[sizeof ctx->msg];
@@ -107,6 +118,7 @@ void spx_cl_tunefile_apply(spx_ctx *ctx) {
     if (spx_cl_tunables_check(ctx, &t) == SPX_OK) {
       ctx->dev->tune = t;
       memcpy(ctx->dev->tune_src, src, sizeof src);
+      memcpy(ctx->dev->tune_comment, comment, sizeof comment);
       why[0] = 0;
     } else {
       snprintf(why, sizeof why, "%s", ctx->msg);
@@ -120,8 +132,14 @@ void spx_cl_tunefile_apply(spx_ctx *ctx) {
 
 const char *spx_device_tuning_path(const spx_ctx *ctx) { return ctx && ctx->dev ? ctx->dev->tune_file : ""; }
 const char *spx_device_tuning_note(const spx_ctx *ctx) { return ctx && ctx->dev ? ctx->dev->tune_note : ""; }
+const char *spx_device_tuning_comment(const spx_ctx *ctx) { return ctx && ctx->dev ? ctx->dev->tune_comment : ""; }
 
 spx_status spx_device_tuning_save(spx_ctx *ctx, const char *const *names, const int *values, int n) {
+  return spx_device_tuning_save_comment(ctx, NULL, names, values, n);
+}
+
+spx_status spx_device_tuning_save_comment(spx_ctx *ctx, const char *comment, const char *const *names,
+                                          const int *values, int n) {
   spx_status st = spx_cl_require(ctx, "spx_device_tuning_save");
   if (st) return st;
   if (!ctx->dev->tune_file[0])
@@ -140,6 +158,11 @@ spx_status spx_device_tuning_save(spx_ctx *ctx, const char *const *names, const 
   spx_atomic_file af;
   if ((st = spx_atomic_open(ctx, ctx->dev->tune_file, &af))) return st;
   fputs(head, af.fp);
+  if (comment && *comment) {
+    char line[sizeof ctx->dev->tune_comment];
+    clean(line, sizeof line, comment);
+    fprintf(af.fp, "# %s\n", line);
+  }
   for (int k = 0; k < n; k++) fprintf(af.fp, "%s %d\n", names[k], values[k]);
   return spx_atomic_commit(ctx, &af);
 }

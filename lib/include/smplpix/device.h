@@ -81,9 +81,16 @@ spx_status spx_device_set_tunable(spx_ctx *ctx, const char *name, int value);
  * why it was ignored when the device opened ("" when it was used or absent). */
 const char *spx_device_tuning_path(const spx_ctx *ctx);
 const char *spx_device_tuning_note(const spx_ctx *ctx);
+/* The comment of the tuning file in use (its `# ` lines, e.g. what `smplpix tune` measured on,
+ * joined by newlines); "" when it has none or none was used. */
+const char *spx_device_tuning_comment(const spx_ctx *ctx);
 /* Write the tuning file of the open device atomically: the n tunables names[i] = values[i]
  * (each checked like an override). The next device open applies them. */
 spx_status spx_device_tuning_save(spx_ctx *ctx, const char *const *names, const int *values, int n);
+/* The same with a one-line comment (newlines become spaces; NULL or "": none), kept in the file
+ * as a `# ` line and returned by spx_device_tuning_comment after the next open. */
+spx_status spx_device_tuning_save_comment(spx_ctx *ctx, const char *comment, const char *const *names,
+                                          const int *values, int n);
 
 /* A float32 NCHW tensor in device memory: what the projection writes and the network reads, so a
  * frame goes projection -> UNet without crossing the host (spx_project_to_tensor in
