@@ -37,12 +37,13 @@ typedef struct group {
 /* NULL, or a tunable that must be on (nonzero) for group g to matter: the Winograd variant and its
  * tile packing are not timed while Winograd is off (CONV_WINO_MINC = 0), nor its local-memory
  * tiles while it is off, nor the narrow conv tile while no layer takes it (CONV_NARROW_MAXC = 0,
- * e.g. the GPU class). */
+ * e.g. the GPU class), nor the local-memory conv's channel groups while it is off. */
 static const char *group_needs(const group *g) {
   if (!strcmp(g->names[0], "CONV_WINO_LDS") || !strcmp(g->names[0], "CONV_WINO_PACK") ||
       !strcmp(g->names[0], "CONV_WINO_SMALL_HW"))
     return "CONV_WINO_MINC";
   if (!strcmp(g->names[0], "CONV_NARROW_TM")) return "CONV_NARROW_MAXC";
+  if (!strcmp(g->names[0], "CONV_LDS_CG")) return "CONV_LDS"; /* (it matters only at CONV_LDS = 2) */
   return strncmp(g->names[0], "CONV_WLDS_", 10) ? NULL : "CONV_WINO_LDS";
 }
 
@@ -59,8 +60,8 @@ static const char *group_needs(const group *g) {
 static const char *const eval_order[] = {"CONV_WINO_MINC", "CONV_TM", "CONV_NARROW_TM", "CONV_NARROW_MAXC",
                                          "CONV_NOPAD", "CONV_WINO_PACK", "CONV_WINO_SMALL_HW", "CONV_VW",
                                          "CONV_CT", "CONV_LWS", "CONV_XCACHE", "CONV_LDS", "CONV_LDS_TX",
-                                         "CONV_WINO_LDS", "CONV_WLDS_TM", "CONV_WLDS_WM", "CONV_WLDS_KB",
-                                         "CONV_WINO_MINC"};
+                                         "CONV_LDS_CG", "CONV_WINO_LDS", "CONV_WLDS_TM", "CONV_WLDS_WM",
+                                         "CONV_WLDS_KB", "CONV_WINO_MINC"};
 static const char *const train_order[] = {"CONV_WINO_TRAIN", "CONV_WINO_DW", "CONV_WINO_DW_MINHW", "CONV_DW_TM",
                                           "CONV_DW_G", "CONV_DW_QC"};
 

@@ -56,6 +56,9 @@ static void test_defaults_and_fields(void) {
   CHECK(strstr(spx_ctx_message(ctx), "CONV_TM=0: expected an integer in [1, 32]") != NULL);
   CHECK(spx_device_set_tunable(ctx, "WG", 48) == SPX_E_ARG);
   CHECK(spx_device_set_tunable(ctx, "NO_SUCH", 1) == SPX_E_ARG);
+  const int vw = ctx->dev->tune.conv_vw; /* a power of two the kernels have no tile for */
+  CHECK(spx_device_set_tunable(ctx, "CONV_VW", 2) == SPX_E_ARG && ctx->dev->tune.conv_vw == vw);
+  CHECK(strstr(spx_ctx_message(ctx), "CONV_VW = 2: the convolution kernels take 1, 4, 8 or 16") != NULL);
   CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_TM", 4));
   CHECK(ctx->dev->tune.conv_tm == 4 && get(ctx, "CONV_TM", &t) && !strcmp(t.source, "set"));
   spx_ctx_destroy(ctx);

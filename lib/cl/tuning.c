@@ -80,7 +80,7 @@ static const struct spx_tunable spx_tunables[] = {
     /* z-buffer paths: up to this many points the one-launch path into the projector's own image (0: never) */
     {ROW("SPX_PROJ_ONE_MAX", proj_one_max, 131072, 0, 0, 1 << 28, 0)},
     /* conv2d forward (kernels/conv2d.cl): pixels per vector of the register tile */
-    {ROW("CONV_VW", conv_vw, 16, 1, 1, 16, T_POW2 | T_FULL), .full = VALUES(1, 2, 4, 8, 16)},
+    {ROW("CONV_VW", conv_vw, 16, 1, 1, 16, T_POW2 | T_FULL), .full = VALUES(1, 4, 8, 16)},
     /* conv2d forward register tile: out-channels per work-item */
     {ROW("CONV_TM", conv_tm, 8, 8, 1, 32, 0), .with = "CONV_TN",
      .full = VALUES(2, 4, 2, 5, 2, 6, 2, 7, 2, 8, 4, 2, 4, 3, 4, 4, 4, 5, 4, 6, 4, 7, 4, 8, 6, 2, 6, 3, 6, 4, 6, 5,
@@ -267,6 +267,8 @@ spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t) {
   if ((size_t)(wx * wy) > wg)
     return spx_fail(ctx, SPX_E_ARG, "tunables SPX_WG2_X x SPX_WG2_Y = %ld x %ld: more than the device's work-group "
                     "limit %zu", wx, wy, wg);
+  if (t->conv_vw == 2) /* (kernels/conv2d_common.h has float, float4, float8 and float16 tiles) */
+    return spx_fail(ctx, SPX_E_ARG, "tunable CONV_VW = 2: the convolution kernels take 1, 4, 8 or 16");
   long tile = t->raster_tile;
   if (!t->raster_serial && (size_t)(tile * tile) > wg)
     return spx_fail(ctx, SPX_E_ARG, "tunable SPX_RASTER_TILE = %ld: %ld work-items per tile, more than the device's "
