@@ -34,6 +34,37 @@
 #define LDS_HX (LDS_TX + 2)             /* halo width */
 #define LDS_HY (LDS_TY + 2)
 
+/* Stage the input halo of nc channels from channel cb: hy x hx values from (oy0, ox0) of each
+ * padded plane into xs (zeros past the plane), consecutive work-items on consecutive columns. */
+static inline __attribute__((always_inline)) void lds_stage_halo(__local float *xs, const __global float *xn, int cb,
+                                                                 int nc, int hy, int hx, int oy0, int ox0, int Wp,
+                                                                 int plane, int lid) {
+  for (int e = lid; e < nc * hy * hx; e += CONV_LWS) {
+    int c = e / (hy * hx), r = e - c * (hy * hx), y = r / hx, x = r - y * hx;
+    int gy = oy0 + y, gx = ox0 + x;
+    xs[e] = gx < Wp && gy * Wp + gx < plane ? xn[(size_t)(cb + c) * plane + gy * Wp + gx] : 0.0f;
+  }
+}
+
+/* The epilogue of conv2d_common.h's conv_fwd_store for output channel co: e = {bias, scale, shift}
+ * as the flags ask (0, 1, 0 when not); lds_store applies accumulate / bias / affine / ReLU to one
+ * output and stores it at yo. */
+static inline __attribute__((always_inline)) void lds_epilogue_of(int co, int flags, const __global float *bias,
+                                                                  const __global float *scale,
+                                                                  const __global float *shift, float e[3]) {
+  e[0] = (flags & FL_BIAS) ? bias[co] : 0.0f;
+  e[1] = (flags & FL_SCALE) ? scale[co] : 1.0f;
+  e[2] = (flags & FL_SHIFT) ? shift[co] : 0.0f;
+}
+
+static inline __attribute__((always_inline)) void lds_store(float v, __global float *yo, int flags, const float e[3]) {
+  if (flags & FL_ACCUM) v = *yo + v;
+  if (flags & FL_BIAS) v = v + e[0];
+  if (flags & FL_SCALE) v = v * e[1] + e[2];
+  if (flags & FL_RELU) v = fmax(v, 0.0f);
+  *yo = v;
+}
+
 #if CONV_LWS % CONV_LDS_TX == 0
 /* Global: dim0 = CoutP/CONV_TM * ceil(Wo/LDS_TX) * ceil(Ho/LDS_TY) groups of CONV_LWS (channel
  * tile fastest), dim1 = N. Input channels [ci0, ci1) only (the host's channel-block passes). */
@@ -47,20 +78,12 @@ __kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_f
   const __global float *wt = wpk + (size_t)cot * Cin * 9 * CONV_TM;
   (void)pix_major;
   (void)k;
-  float acc[CONV_TM][CONV_TN];
-#pragma unroll
-  for (int m = 0; m < CONV_TM; m++)
-#pragma unroll
-    for (int j = 0; j < CONV_TN; j++) acc[m][j] = 0.0f;
+  float acc[CONV_TM][CONV_TN] = {{0.0f}};
 
   for (int cb = ci0; cb < ci1; cb += CONV_LDS_CB) {
     const int nc = min(CONV_LDS_CB, ci1 - cb);
     barrier(CLK_LOCAL_MEM_FENCE); /* the previous block is consumed */
-    for (int e = lid; e < nc * LDS_HY * LDS_HX; e += CONV_LWS) {
-      int c = e / (LDS_HY * LDS_HX), r = e - c * (LDS_HY * LDS_HX), hy = r / LDS_HX, hx = r - hy * LDS_HX;
-      int gy = oy0 + hy, gx = ox0 + hx;
-      xs[e] = gx < Wp && gy * Wp + gx < plane ? xn[(size_t)(cb + c) * plane + gy * Wp + gx] : 0.0f;
-    }
+    lds_stage_halo(xs, xn, cb, nc, LDS_HY, LDS_HX, oy0, ox0, Wp, plane, lid);
     for (int e = lid; e < nc * 9 * CONV_TM; e += CONV_LWS) ws[e] = wt[(size_t)cb * 9 * CONV_TM + e];
     barrier(CLK_LOCAL_MEM_FENCE);
     for (int c = 0; c < nc; c++)
@@ -91,19 +114,13 @@ __kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_f
   for (int m = 0; m < CONV_TM; m++) {
     if (m >= mmax) continue;
     const int co = co0 + m;
-    const float b = (flags & FL_BIAS) ? bias[b_off + co] : 0.0f, sc = (flags & FL_SCALE) ? scale[sc_off + co] : 1.0f;
-    const float sh = (flags & FL_SHIFT) ? shift[sh_off + co] : 0.0f;
+    float e[3];
+    lds_epilogue_of(co, flags, bias + b_off, scale + sc_off, shift + sh_off, e);
 #pragma unroll
     for (int j = 0; j < CONV_TN; j++) {
       int oy = oy0 + ly + j * LDS_WY;
       if (oy >= Ho) continue;
-      __global float *yo = yn + (size_t)co * hw + oy * Wo + ox;
-      float v = acc[m][j];
-      if (flags & FL_ACCUM) v = *yo + v;
-      if (flags & FL_BIAS) v = v + b;
-      if (flags & FL_SCALE) v = v * sc + sh;
-      if (flags & FL_RELU) v = fmax(v, 0.0f);
-      *yo = v;
+      lds_store(acc[m][j], yn + (size_t)co * hw + oy * Wo + ox, flags, e);
     }
   }
 }
@@ -141,6 +158,7 @@ static inline __attribute__((always_inline)) void l2_weights(const __local float
 __kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_fwd_k3s1_lds2(CONV_FWD_ARGS) {
   __local float xs[CONV_LDS_CB * L2_HY * L2_HX];
   __local float ws[CONV_LDS_CB * 9 * L2_CM];
+  float acc[CONV_TM][CONV_TN] = {{0.0f}}; /* channels x adjacent columns */
   const int ncot = CoutP / CONV_TM, ncg = (ncot + CONV_LDS_CG - 1) / CONV_LDS_CG;
   const int ntx = (Wo + CONV_LDS_TX - 1) / CONV_LDS_TX, grp = (int)get_group_id(0);
   const int cg = grp % ncg, tile = grp / ncg, ox0 = (tile % ntx) * CONV_LDS_TX, oy0 = (tile / ntx) * L2_TY;
@@ -150,21 +168,10 @@ __kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_f
   const __global float *xn = xp + (size_t)n * Cin * plane;
   (void)pix_major;
   (void)k;
-  float acc[CONV_TM][CONV_TN];
-#pragma unroll
-  for (int m = 0; m < CONV_TM; m++)
-#pragma unroll
-    for (int j = 0; j < CONV_TN; j++) acc[m][j] = 0.0f;
-
   for (int cb = ci0; cb < ci1; cb += CONV_LDS_CB) {
     const int nc = min(CONV_LDS_CB, ci1 - cb);
     barrier(CLK_LOCAL_MEM_FENCE); /* the previous block is consumed */
-    /* the halo of nc channels, consecutive work-items on consecutive columns */
-    for (int e = lid; e < nc * L2_HY * L2_HX; e += CONV_LWS) {
-      int c = e / (L2_HY * L2_HX), rr = e - c * (L2_HY * L2_HX), hy = rr / L2_HX, hx = rr - hy * L2_HX;
-      int gy = oy0 + hy, gx = ox0 + hx;
-      xs[e] = gx < Wp && gy * Wp + gx < plane ? xn[(size_t)(cb + c) * plane + gy * Wp + gx] : 0.0f;
-    }
+    lds_stage_halo(xs, xn, cb, nc, L2_HY, L2_HX, oy0, ox0, Wp, plane, lid);
     /* weights: ws[(c*9 + tap) * L2_CM + t*TM + m] from tile cot0 + t's panel wpk[cot][ci*9 + tap][m] */
     for (int e = lid; e < nc * 9 * L2_CM; e += CONV_LWS) {
       int ct = e / L2_CM, tm = e - ct * L2_CM, t = tm / CONV_TM;
@@ -199,18 +206,12 @@ __kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_f
   for (int m = 0; m < CONV_TM; m++) {
     if (m >= mmax) continue;
     const int co = co0 + m;
-    const float b = (flags & FL_BIAS) ? bias[b_off + co] : 0.0f, sc = (flags & FL_SCALE) ? scale[sc_off + co] : 1.0f;
-    const float sh = (flags & FL_SHIFT) ? shift[sh_off + co] : 0.0f;
+    float e[3];
+    lds_epilogue_of(co, flags, bias + b_off, scale + sc_off, shift + sh_off, e);
 #pragma unroll
     for (int j = 0; j < CONV_TN; j++) {
       if (ox0 + px + j >= Wo) continue;
-      __global float *yo = yr + (size_t)co * hw + j;
-      float v = acc[m][j];
-      if (flags & FL_ACCUM) v = *yo + v;
-      if (flags & FL_BIAS) v = v + b;
-      if (flags & FL_SCALE) v = v * sc + sh;
-      if (flags & FL_RELU) v = fmax(v, 0.0f);
-      *yo = v;
+      lds_store(acc[m][j], yr + (size_t)co * hw + j, flags, e);
     }
   }
 }
