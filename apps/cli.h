@@ -16,6 +16,12 @@ typedef struct spx_command {
   int (*run)(int argc, char **argv); /* argv[0] is the subcommand name */
 } spx_command;
 
+/* The command's exit code is decided (its outputs committed or abandoned, its transactions
+ * ended): a Ctrl-C / SIGTERM from now on (e.g. mpirun ending a rank while MPI finalises, because
+ * another rank has already exited with the same error) exits with rc at once, without the
+ * "interrupted: nothing of this run was written" message, which would no longer be true. */
+void spx_cli_decided(int rc);
+
 /* Print "smplpix <cmd>: <message>" on one line to stderr and return SPX_EXIT_ERROR. */
 int spx_cli_error(const char *cmd, spx_ctx *ctx);
 int spx_cli_errorf(const char *cmd, const char *fmt, ...);

@@ -61,6 +61,15 @@ void spx_tx_interrupted(void) {
   }
 }
 
+int spx_tx_after_command(const char *cmd) {
+  int n = 0;
+  for (int k = 0; k < MAX_ACTIVE; k++)
+    if (active[k]) active[k] = NULL, n++;
+  if (!n || !spx_test_hooks_strict()) return 0;
+  fprintf(stderr, "smplpix %s: internal error: %d output transaction(s) left open\n", cmd, n);
+  return 70;
+}
+
 /* Journal of a multi-file commit: "<first target>.commit", written (and fsync'ed when durable)
  * before the first rename, removed after the last. Text: the header line "smplpix-commit 1 <pid>",
  * then for every file a line "<temporary>" and a line "<target>" (absolute paths). A journal whose

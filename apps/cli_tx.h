@@ -52,6 +52,11 @@ void spx_tx_end(spx_tx *tx);
  * (still empty) folders of every open transaction, with unlink / rmdir only. A commit blocks
  * SIGINT and SIGTERM while it renames, so it is never cut in half by them. */
 void spx_tx_interrupted(void);
+/* main, when command cmd has returned: drops the transactions still registered as open (begun,
+ * not ended), whose memory is gone, so that a later Ctrl-C / SIGTERM (e.g. from mpirun while MPI
+ * finalises) cannot reach them. Returns 0; in the test build's tool, when one was open, prints an
+ * internal error naming cmd and returns 70 (EX_SOFTWARE) for main to exit with. */
+int spx_tx_after_command(const char *cmd);
 /* Print ctx's message as cmd's one-line error with every staged temporary named by its target
  * (errors name the user's path, never a temporary); returns SPX_EXIT_ERROR. */
 int spx_tx_error(spx_tx *tx, spx_ctx *ctx);

@@ -45,8 +45,8 @@ int spx_cmd_bake(int argc, char **argv) {
   memset(&m, 0, sizeof m);
   int rc = SPX_EXIT_ERROR;
   spx_tx tx;
-  spx_tx_begin(&tx, "bake", 0);
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("bake", "out of memory");
+  spx_tx_begin(&tx, "bake", 0);
   if ((rc = spx_tx_check(&tx, out))) goto done; /* before any work */
   rc = SPX_EXIT_ERROR;
   if (spx_cli_failed(&rc, "bake", ctx,

@@ -191,8 +191,8 @@ int spx_cmd_dataset(int argc, char **argv) {
   spx_projector *proj = NULL;
   spx_rasterizer *rast = NULL;
   spx_tx tx; /* durable: files and folders are fsync'ed before the run reports success */
-  spx_tx_begin(&tx, "dataset", 1);
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("dataset", "out of memory");
+  spx_tx_begin(&tx, "dataset", 1);
 
   /* every input and the destination are checked before the device or any output */
   struct stat sb;

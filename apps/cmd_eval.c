@@ -341,8 +341,8 @@ int spx_cmd_eval(int argc, char **argv) {
   list l = {0};
   int rc;
   spx_tx tx;
-  spx_tx_begin(&tx, "eval", 0);
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("eval", "out of memory");
+  spx_tx_begin(&tx, "eval", 0);
   if (json && (rc = spx_tx_check(&tx, json))) goto done; /* before any work */
   if ((rc = pair_up(pred, target, mask, &l))) goto done;
   if (lpw) {

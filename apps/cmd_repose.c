@@ -166,6 +166,7 @@ int spx_cmd_repose(int argc, char **argv) {
   }
   rc = pose_and_save("repose", ctx, &m, &r, r.betas, pose, trans, view ? scan_trans : NULL, (int)subdivide, out_path);
 done:
+  spx_tx_end(&tx);
   free(pose);
   spx_bvh_map_free(&map);
   spx_bvh_free(&b);
@@ -247,6 +248,7 @@ int spx_cmd_reshape(int argc, char **argv) {
   for (int k = 0; k < nsh; k++) betas[sh_idx[k]] = sh_rel[k] ? betas[sh_idx[k]] + sh_val[k] : sh_val[k];
   rc = pose_and_save("reshape", ctx, &m, &r, betas, pose, rest ? NULL : r.trans, NULL, 0, out_path);
 done:
+  spx_tx_end(&tx);
   free(betas), free(pose);
   spx_body_free(&m);
   spx_fit_result_free(&r);

@@ -457,7 +457,9 @@ static int train_reconcile(train_job *j, train_args *a, const train_dist *dist) 
   { /* --out must be writable before any training (a failed save would throw the steps away) */
     spx_tx chk;
     spx_tx_begin(&chk, "train", 0);
-    if (dist->comm.rank == 0 && (rc = spx_tx_check(&chk, a->outp))) return rc; /* only rank 0 writes */
+    rc = dist->comm.rank == 0 ? spx_tx_check(&chk, a->outp) : SPX_EXIT_OK; /* only rank 0 writes */
+    spx_tx_end(&chk);
+    if (rc) return rc;
   }
   if (resume && (rc = adopt_record(j, a))) return rc;
   /* options that do nothing in the run's mode (after --resume took it from the checkpoint) */

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "cli_tx.h"
 #include "cmd_fit.h"
 
 static const spx_command commands[] = {
@@ -117,7 +118,15 @@ static void put_err(const char *s) {
   (void)r;
 }
 
+static volatile sig_atomic_t decided, decided_rc;
+
+void spx_cli_decided(int rc) {
+  decided_rc = rc;
+  decided = 1;
+}
+
 static void on_interrupt(int sig) {
+  if (decided) _exit(decided_rc);
   spx_tx_interrupted();
   put_err("\nsmplpix ");
   put_err(running_cmd);
@@ -153,7 +162,10 @@ int main(int argc, char **argv) {
       sigemptyset(&sa.sa_mask);
       sigaction(SIGINT, &sa, NULL);
       sigaction(SIGTERM, &sa, NULL);
-      return commands[i].run(argc - 1, argv + 1);
+      int rc = commands[i].run(argc - 1, argv + 1), bad = spx_tx_after_command(running_cmd);
+      if (bad) rc = bad;
+      spx_cli_decided(rc);
+      return rc;
     }
   fprintf(stderr, "smplpix: unknown command '%s'\n", argv[1]);
   usage(stderr);

@@ -36,4 +36,14 @@ static inline void spx_test_hook_run(const char *name, const char *cmd) {
 #endif
 }
 
+/* 1 in the test build's tool: internal invariants a run broke (a transaction left open, see
+ * spx_tx_after_command) end it with an error instead of being repaired quietly; 0 when shipped. */
+static inline int spx_test_hooks_strict(void) {
+#ifdef SPX_TEST_HOOKS
+  return 1;
+#else
+  return 0;
+#endif
+}
+
 #endif

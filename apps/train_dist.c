@@ -115,7 +115,10 @@ void train_dist_fatal(train_dist *d, int rc) {
 
 int train_dist_end(train_dist *d, int rc) {
 #ifdef SPX_HAVE_MPI
-  if (d->mpi) spx_mpi_stop();
+  if (d->mpi) {
+    spx_cli_decided(rc); /* mpirun may end this rank while it finalises: another one failed */
+    spx_mpi_stop();
+  }
 #endif
   if (d->capture) {
     fflush(stderr);
