@@ -11,7 +11,8 @@
 #   env, icd, devices, warmup (every program built, failed builds' logs kept), ctest (the suite on
 #   the device), tune (smplpix tune --quick, its choice reported, not applied), latency (bench_latency), unet (bench_unet and the
 #   PyTorch peer on the same GPU: eval and train, width 64, batch 1 and 10, float32 and TF32),
-#   profile (bench_unet's per-layer device times, SPX_TAPE_PROFILE=2), project (bench_project: up
+#   profile (bench_unet's per-layer device times, SPX_TAPE_PROFILE=2, and per-kernel ones,
+#   SPX_KERNEL_PROFILE=1), conv (bench_conv2d: the layer shapes alone, CONV_LDS 1 and 2), project (bench_project: up
 #   to 10^6 points), raster (bench_raster), then the summary.
 # The whole run stays under SPX_RUN_BUDGET seconds (default 450): a step that would start with
 # less than its limit left is skipped and says so.
@@ -221,6 +222,15 @@ profile_rows() {
 }
 export -f profile_rows
 step profile 60 profile_rows
+# the convolution shapes alone (bench_conv2d: forward, backward data, backward weights of UNet-64
+# layers at 308x410, the 1x1 64->3 among them), each command's device time beside them
+# (SPX_KERNEL_PROFILE=1), with the local-memory 3x3 kernel of the defaults, then CONV_LDS=2
+conv_rows() {
+  SPX_KERNEL_PROFILE=1 "$B/bench_conv2d" 3
+  SPX_KERNEL_PROFILE=1 SPX_TUNE_CONV_LDS=2 "$B/bench_conv2d" 3
+}
+export -f conv_rows
+if [ "$QUICK" = 1 ]; then say "step conv: skipped (SPX_RUN_QUICK=1)"; else step conv 60 conv_rows; fi
 # SPX_RUN_SWEEP: tunable settings to time against the defaults, ';'-separated, each a
 # space-separated list of SPX_TUNE_NAME=value (e.g. "SPX_TUNE_CONV_LDS=0;SPX_TUNE_CONV_LWS=128"):
 # bench_unet eval and training step, width 64, batch 1, per setting (empty: the step is skipped)
