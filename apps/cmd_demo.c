@@ -76,13 +76,18 @@ static int parse(int argc, char **argv, demo_opts *o) {
   return -1;
 }
 
-/* The posed, coloured body (subdivided when the network was trained on subdivided bodies), its
- * pose and the camera looking at it from the front. */
+/* What the demo draws: the body model, the subject (shape and appearance) and the motion, loaded
+ * once (load_scene); and the body posed at one frame of the motion, coloured (subdivided when the
+ * network was trained on subdivided bodies), with the camera looking at it from the front
+ * (pose_scene, once per frame drawn). */
 typedef struct demo_scene {
   spx_body_model m;
   spx_synth_subject sub;
-  spx_mesh body; /* posed positions, colours and faces: the input's and the raster's vertices */
+  spx_bvh bvh;
+  spx_bvh_map map;
+  float *col;    /* the subject's colours at the body's vertices */
   double *pose, trans[3];
+  spx_mesh body; /* posed positions, colours and faces: the input's and the raster's vertices */
   spx_camera cam;
 } demo_scene;
 
@@ -107,44 +112,65 @@ static int network_setup(spx_ctx *ctx, const char *ckpt, demo_opts *o, int *subd
   return rc;
 }
 
-static int build_scene(spx_ctx *ctx, const demo_opts *o, int subdivide, demo_scene *s) {
+static int load_scene(spx_ctx *ctx, const demo_opts *o, demo_scene *s) {
   const char *body_path = spx_cli_data_path("body/default_body.npz");
   if (spx_body_load(ctx, body_path, &s->m)) return spx_cli_error("demo", ctx);
   char parts_path[4096], bvh_path[4096];
   snprintf(parts_path, sizeof parts_path, "%s", spx_cli_data_path("body/body_parts_segmentation.png"));
   snprintf(bvh_path, sizeof bvh_path, "%s", spx_cli_data_path("mocap/01_01.bvh"));
   spx_image parts = {0};
-  spx_bvh b = {0};
-  spx_bvh_map map = {0};
-  double *v = NULL;
-  spx_mesh base = {0}; /* the posed base body (before any goto: done frees it) */
-  int rc = SPX_EXIT_ERROR, nv = s->m.nv;
-  if (spx_png_read(ctx, parts_path, &parts) || spx_bvh_load(ctx, bvh_path, &b) ||
-      spx_bvh_map_create(ctx, &b, &s->m, NULL, NULL, &map)) {
+  int rc = SPX_EXIT_ERROR;
+  if (spx_png_read(ctx, parts_path, &parts) || spx_bvh_load(ctx, bvh_path, &s->bvh) ||
+      spx_bvh_map_create(ctx, &s->bvh, &s->m, NULL, NULL, &s->map)) {
     rc = spx_cli_error("demo", ctx);
     goto done;
   }
-  if (o->frame >= b.nframes) {
-    rc = spx_cli_errorf("demo", "%s: --frame %ld out of range (the clip has %d frames)", bvh_path, o->frame, b.nframes);
+  long last = o->frame + (o->motion > 1 ? (o->motion - 1) * o->motion_step : 0);
+  if (last >= s->bvh.nframes) {
+    rc = o->motion > 1 && o->frame < s->bvh.nframes
+             ? spx_cli_errorf("demo", "%s: the motion's last frame %ld (--frame %ld + %ld x --motion-step %ld) is out of "
+                              "range (the clip has %d frames)", bvh_path, last, o->frame, o->motion - 1, o->motion_step,
+                              s->bvh.nframes)
+             : spx_cli_errorf("demo", "%s: --frame %ld out of range (the clip has %d frames)", bvh_path, o->frame,
+                              s->bvh.nframes);
     goto done;
   }
   s->pose = malloc((size_t)s->m.nj * 3 * sizeof(double));
-  v = malloc((size_t)nv * 3 * sizeof(double));
-  base.nv = nv, base.nf = s->m.nf, base.faces = s->m.faces;
-  base.pos = malloc((size_t)nv * 3 * sizeof(float));
-  base.col = malloc((size_t)nv * 3 * sizeof(float));
-  if (!s->pose || !v || !base.pos || !base.col) {
+  s->col = malloc((size_t)s->m.nv * 3 * sizeof(float));
+  if (!s->pose || !s->col) {
     rc = spx_cli_errorf("demo", "out of memory");
     goto done;
   }
-  if (spx_bvh_map_pose(ctx, &map, &b, &s->m, (int32_t)o->frame, s->pose, s->trans) ||
-      spx_synth_subject_create(ctx, &s->m, &parts, o->seed, SPX_SYNTH_TEX_MIN, &s->sub) ||
-      spx_synth_body_colors(ctx, &s->m, &s->sub, base.col)) {
+  if (spx_synth_subject_create(ctx, &s->m, &parts, o->seed, SPX_SYNTH_TEX_MIN, &s->sub) ||
+      spx_synth_body_colors(ctx, &s->m, &s->sub, s->col)) {
     rc = spx_cli_errorf("demo", "%s: %s", body_path, spx_ctx_message(ctx));
     goto done;
   }
+  rc = SPX_EXIT_OK;
+done:
+  spx_image_free(&parts);
+  return rc;
+}
+
+/* s posed at frame `frame` of the motion: s->pose, s->trans, s->body, s->cam (replacing those of an
+ * earlier frame). */
+static int pose_scene(spx_ctx *ctx, const demo_opts *o, long frame, int subdivide, demo_scene *s) {
+  int rc = SPX_EXIT_ERROR, nv = s->m.nv;
+  double *v = malloc((size_t)nv * 3 * sizeof(double));
+  spx_mesh base = {0}; /* the posed base body (before any goto: done frees it) */
+  base.nv = nv, base.nf = s->m.nf, base.faces = s->m.faces;
+  base.pos = malloc((size_t)nv * 3 * sizeof(float));
+  base.col = malloc((size_t)nv * 3 * sizeof(float));
+  spx_mesh_free(&s->body);
+  if (!v || !base.pos || !base.col) {
+    rc = spx_cli_errorf("demo", "out of memory");
+    goto done;
+  }
+  memcpy(base.col, s->col, (size_t)nv * 3 * sizeof(float));
   spx_body_params p = {s->sub.nbetas, s->sub.betas, s->pose, s->trans, NULL};
-  if (spx_cli_failed(&rc, "demo", ctx, spx_body_forward_ref(ctx, &s->m, &p, v, NULL))) goto done;
+  if (spx_cli_failed(&rc, "demo", ctx, spx_bvh_map_pose(ctx, &s->map, &s->bvh, &s->m, (int32_t)frame, s->pose, s->trans)) ||
+      spx_cli_failed(&rc, "demo", ctx, spx_body_forward_ref(ctx, &s->m, &p, v, NULL)))
+    goto done;
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (int32_t k = 0; k < nv * 3; k++) {
     base.pos[k] = (float)v[k];
@@ -171,15 +197,14 @@ static int build_scene(spx_ctx *ctx, const demo_opts *o, int subdivide, demo_sce
 done:
   free(base.pos), free(base.col);
   free(v);
-  spx_bvh_map_free(&map);
-  spx_bvh_free(&b);
-  spx_image_free(&parts);
   return rc;
 }
 
 static void free_scene(demo_scene *s) {
   spx_mesh_free(&s->body);
-  free(s->pose);
+  free(s->pose), free(s->col);
+  spx_bvh_map_free(&s->map);
+  spx_bvh_free(&s->bvh);
   spx_synth_subject_free(&s->sub);
   spx_body_free(&s->m);
 }
@@ -239,9 +264,10 @@ done:
 }
 
 /* demo_motion.png: the network's output (the input without a network) for o->motion frames of the
- * clip, o->frame, o->frame + o->motion_step, ..., side by side, each scene framed as build_scene
- * frames the first image's. */
-static int render_motion(spx_ctx *ctx, const demo_opts *o, int subdivide, spx_unet *u, spx_image *strip) {
+ * clip, o->frame, o->frame + o->motion_step, ..., side by side, each frame posed and framed as the
+ * first image (s is left posed at the last frame). */
+static int render_motion(spx_ctx *ctx, const demo_opts *o, int subdivide, spx_unet *u, demo_scene *s,
+                         spx_image *strip) {
   enum { MAXF = 16 };
   spx_image shown[MAXF] = {{0}}, input[MAXF] = {{0}};
   const spx_image *panels[MAXF];
@@ -249,15 +275,11 @@ static int render_motion(spx_ctx *ctx, const demo_opts *o, int subdivide, spx_un
   const char *labels[MAXF];
   int n = (int)o->motion, rc = SPX_EXIT_OK;
   for (int k = 0; k < n && !rc; k++) {
-    demo_opts fo = *o;
-    fo.frame = o->frame + (long)k * o->motion_step;
-    demo_scene sk;
-    memset(&sk, 0, sizeof sk);
-    rc = build_scene(ctx, &fo, subdivide, &sk);
-    if (!rc) rc = render_all(ctx, &sk, u, NULL, &input[k], NULL, &shown[k]);
-    free_scene(&sk);
+    long frame = o->frame + (long)k * o->motion_step;
+    rc = pose_scene(ctx, o, frame, subdivide, s);
+    if (!rc) rc = render_all(ctx, s, u, NULL, &input[k], NULL, &shown[k]);
     panels[k] = u ? &shown[k] : &input[k];
-    snprintf(text[k], sizeof text[k], "F%ld", fo.frame);
+    snprintf(text[k], sizeof text[k], "F%ld", frame);
     labels[k] = text[k];
   }
   if (!rc && spx_demo_compose(ctx, panels, labels, n, o->zoom, strip)) rc = spx_cli_error("demo", ctx);
@@ -345,9 +367,10 @@ int spx_cmd_demo(int argc, char **argv) {
   if ((rc = spx_cli_open_device("demo", ctx, o.device))) goto done;
   if (spx_cli_failed(&rc, "demo", ctx, ckpt && spx_unet_load(ctx, ckpt, &u))) goto done;
   if ((rc = network_setup(ctx, ckpt, &o, &subdivide))) goto done;
-  if ((rc = build_scene(ctx, &o, subdivide, &s))) goto done;
+  if ((rc = load_scene(ctx, &o, &s)) || (rc = pose_scene(ctx, &o, o.frame, subdivide, &s))) goto done;
   if ((rc = render_all(ctx, &s, u, &photo, &input, &raster, &net))) goto done;
-  if (o.motion && (rc = render_motion(ctx, &o, subdivide, u, &motion))) goto done;
+  int nv = s.body.nv; /* (the motion strip poses s again) */
+  if (o.motion && (rc = render_motion(ctx, &o, subdivide, u, &s, &motion))) goto done;
   if ((rc = write_all(ctx, &tx, o.out_dir, o.zoom, &photo, &input, &raster, u ? &net : NULL, o.motion ? &motion : NULL)))
     goto done;
   if (!o.quiet) {
@@ -357,7 +380,7 @@ int spx_cmd_demo(int argc, char **argv) {
              "data/models/README.md)\n",
              shipped, o.out_dir);
     printf("subject seed %llu (%d betas), %s frame %ld, %dx%d, %d vertices, network %s\n", (unsigned long long)o.seed,
-           s.sub.nbetas, "01_01.bvh", o.frame, o.W, o.H, s.body.nv, u ? ckpt : "none");
+           s.sub.nbetas, "01_01.bvh", o.frame, o.W, o.H, nv, u ? ckpt : "none");
     printf("wrote %s/demo.png (%s), demo_photo.png, demo_input.png, %sdemo_raster.png%s in %.2f s\n", o.out_dir,
            u ? "photo | input | SMPLpix | per-vertex raster" : "photo | input | per-vertex raster",
            u ? "demo_smplpix.png, " : "", o.motion ? ", demo_motion.png" : "", spx_now() - t0);

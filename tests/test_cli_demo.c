@@ -170,7 +170,7 @@ static void test_bad_input(void) {
   CHECK(tool("demo --motion-step 5") == 2 && err_one_line_with("--motion-step"));
   /* the last frame of the motion past the clip: one line, nothing written */
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out b5 --size 40x32 --frame 2700 --motion 3 --motion-step 30") == 1);
-  CHECK(err_one_line_with("--frame 2760") && !exists("b5"));
+  CHECK(err_one_line_with("the motion's last frame 2760") && !exists("b5"));
   CHECK(!exists("out"));
 }
 
