@@ -92,81 +92,88 @@ static int next_case(spx_ctx *ctx, FILE *f, char name[64], double *want, double 
   return 0;
 }
 
-static void test_golden(void) {
+/* Every case of a golden file pair through check (the weights opened, the case's images a and b
+ * freed after it), then after (may be NULL) with the weights; three cases expected. */
+typedef void (*golden_check)(spx_ctx *ctx, spx_lpips *lp, const char *name, double want, double want32,
+                             const spx_image *a, const spx_image *b);
+static void golden_cases(const char *weights, const char *expected, golden_check check,
+                         void (*after)(spx_ctx *, spx_lpips *)) {
   spx_ctx *ctx = spx_nt_open();
   CHECK(ctx != NULL);
   if (!ctx) return;
   FILE *f = NULL;
-  spx_lpips *lp = golden_open(ctx, "lpips_golden.safetensors", "lpips_expected.txt", &f);
+  spx_lpips *lp = golden_open(ctx, weights, expected, &f);
   int cases = 0;
   char name[64];
   double want, want32;
   spx_image a = {0}, b = {0};
   while (f && lp && next_case(ctx, f, name, &want, &want32, &a, &b)) {
-    double got = -1, again = -2;
-    CHECK_OK(ctx, spx_lpips_distance(lp, &a, &b, &got));
-    CHECK_OK(ctx, spx_lpips_distance(lp, &a, &b, &again));
-    fprintf(stderr, "  %-10s LPIPS %.10g (lpips float64 %.10g, float32 %.10g): rel %.2g\n", name, got, want, want32,
-            want ? fabs(got - want) / want : fabs(got));
-    CHECK_NEAR(got, want, 1e-9, 1e-5);
-    CHECK(got == again); /* deterministic */
+    check(ctx, lp, name, want, want32, &a, &b);
     spx_image_free(&a), spx_image_free(&b);
     cases++;
   }
   if (f) fclose(f);
   CHECK(cases == 3);
-  /* too small for AlexNet */
-  spx_image s = {0};
-  CHECK_OK(ctx, spx_image_alloc(ctx, 30, 40, 3, &s));
-  double v;
-  if (lp) CHECK(spx_lpips_distance(lp, &s, &s, &v) == SPX_E_ARG && strstr(spx_ctx_message(ctx), "31x31"));
-  spx_image_free(&s);
+  if (lp && after) after(ctx, lp);
   spx_lpips_free(lp);
   spx_ctx_destroy(ctx);
 }
 
+static void check_plain(spx_ctx *ctx, spx_lpips *lp, const char *name, double want, double want32,
+                        const spx_image *a, const spx_image *b) {
+  double got = -1, again = -2;
+  CHECK_OK(ctx, spx_lpips_distance(lp, a, b, &got));
+  CHECK_OK(ctx, spx_lpips_distance(lp, a, b, &again));
+  fprintf(stderr, "  %-10s LPIPS %.10g (lpips float64 %.10g, float32 %.10g): rel %.2g\n", name, got, want, want32,
+          want ? fabs(got - want) / want : fabs(got));
+  CHECK_NEAR(got, want, 1e-9, 1e-5);
+  CHECK(got == again); /* deterministic */
+}
+
+/* too small for AlexNet */
+static void check_too_small(spx_ctx *ctx, spx_lpips *lp) {
+  spx_image s = {0};
+  CHECK_OK(ctx, spx_image_alloc(ctx, 30, 40, 3, &s));
+  double v;
+  CHECK(spx_lpips_distance(lp, &s, &s, &v) == SPX_E_ARG && strstr(spx_ctx_message(ctx), "31x31"));
+  spx_image_free(&s);
+}
+
+static void test_golden(void) {
+  golden_cases("lpips_golden.safetensors", "lpips_expected.txt", check_plain, check_too_small);
+}
+
 /* The masked LPIPS against the lpips package's spatial map (tools/make_lpips_golden.py --masked):
  * the mean over the rectangle x in [W/4, 3W/4), y in [H/5, 4H/5). */
+static void check_masked(spx_ctx *ctx, spx_lpips *lp, const char *name, double want, double want32,
+                         const spx_image *a, const spx_image *b) {
+  spx_image m = {0};
+  CHECK_OK(ctx, spx_image_alloc(ctx, a->width, a->height, 1, &m));
+  for (int y = 0; y < a->height; y++)
+    for (int x = 0; x < a->width; x++)
+      m.data[(size_t)y * a->width + x] =
+          x >= a->width / 4 && x < 3 * a->width / 4 && y >= a->height / 5 && y < 4 * a->height / 5;
+  double full = -1, got = -1, plain = -2, none = 0;
+  CHECK_OK(ctx, spx_lpips_distance_masked(lp, a, b, &m, &full, &got));
+  CHECK_OK(ctx, spx_lpips_distance(lp, a, b, &plain));
+  CHECK(full == plain); /* the mask changes nothing of the full-image value */
+  CHECK_OK(ctx, spx_lpips_distance_masked(lp, a, b, NULL, &full, &none));
+  CHECK(isnan(none));
+  fprintf(stderr, "  %-10s masked LPIPS %.10g (lpips float64 %.10g, float32 %.10g): rel %.2g\n", name, got, want,
+          want32, want ? fabs(got - want) / want : fabs(got));
+  CHECK_NEAR(got, want, 1e-9, 1e-5);
+  /* a mask of another size, a mask without foreground: errors naming the problem */
+  spx_image small = {0};
+  CHECK_OK(ctx, spx_image_alloc(ctx, a->width - 1, a->height, 1, &small));
+  CHECK(spx_lpips_distance_masked(lp, a, b, &small, &full, &got) == SPX_E_ARG && strstr(spx_ctx_message(ctx), "mask"));
+  memset(m.data, 0, sizeof(float) * (size_t)a->width * a->height);
+  CHECK(spx_lpips_distance_masked(lp, a, b, &m, &full, &got) == SPX_E_ARG &&
+        strstr(spx_ctx_message(ctx), "no foreground"));
+  spx_image_free(&m), spx_image_free(&small);
+}
+
 static void test_masked_golden(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
-  if (!ctx) return;
-  FILE *f = NULL;
-  spx_lpips *lp = golden_open(ctx, "lpips_golden_m.safetensors", "lpips_masked_expected.txt", &f);
-  int cases = 0;
-  char name[64];
-  double want, want32;
-  spx_image a = {0}, b = {0};
-  while (f && lp && next_case(ctx, f, name, &want, &want32, &a, &b)) {
-    spx_image m = {0};
-    CHECK_OK(ctx, spx_image_alloc(ctx, a.width, a.height, 1, &m));
-    for (int y = 0; y < a.height; y++)
-      for (int x = 0; x < a.width; x++)
-        m.data[(size_t)y * a.width + x] = x >= a.width / 4 && x < 3 * a.width / 4 && y >= a.height / 5 && y < 4 * a.height / 5;
-    double full = -1, got = -1, plain = -2, none = 0;
-    CHECK_OK(ctx, spx_lpips_distance_masked(lp, &a, &b, &m, &full, &got));
-    CHECK_OK(ctx, spx_lpips_distance(lp, &a, &b, &plain));
-    CHECK(full == plain); /* the mask changes nothing of the full-image value */
-    CHECK_OK(ctx, spx_lpips_distance_masked(lp, &a, &b, NULL, &full, &none));
-    CHECK(isnan(none));
-    fprintf(stderr, "  %-10s masked LPIPS %.10g (lpips float64 %.10g, float32 %.10g): rel %.2g\n", name, got, want,
-            want32, want ? fabs(got - want) / want : fabs(got));
-    CHECK_NEAR(got, want, 1e-9, 1e-5);
-    /* a mask of another size, a mask without foreground: errors naming the problem */
-    spx_image small = {0};
-    CHECK_OK(ctx, spx_image_alloc(ctx, a.width - 1, a.height, 1, &small));
-    CHECK(spx_lpips_distance_masked(lp, &a, &b, &small, &full, &got) == SPX_E_ARG &&
-          strstr(spx_ctx_message(ctx), "mask"));
-    memset(m.data, 0, sizeof(float) * (size_t)a.width * a.height);
-    CHECK(spx_lpips_distance_masked(lp, &a, &b, &m, &full, &got) == SPX_E_ARG &&
-          strstr(spx_ctx_message(ctx), "no foreground"));
-    spx_image_free(&a), spx_image_free(&b), spx_image_free(&m), spx_image_free(&small);
-    cases++;
-  }
-  if (f) fclose(f);
-  CHECK(cases == 3);
-  spx_lpips_free(lp);
-  spx_ctx_destroy(ctx);
+  golden_cases("lpips_golden_m.safetensors", "lpips_masked_expected.txt", check_masked, NULL);
 }
 
 static void bad_file(spx_ctx *ctx, const char *skip, const char *bad, const char *needle) {
