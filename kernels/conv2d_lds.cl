@@ -46,23 +46,35 @@ static inline __attribute__((always_inline)) void lds_stage_halo(__local float *
   }
 }
 
-/* The epilogue of conv2d_common.h's conv_fwd_store for output channel co: e = {bias, scale, shift}
- * as the flags ask (0, 1, 0 when not); lds_store applies accumulate / bias / affine / ReLU to one
- * output and stores it at yo. */
-static inline __attribute__((always_inline)) void lds_epilogue_of(int co, int flags, const __global float *bias,
-                                                                  const __global float *scale,
-                                                                  const __global float *shift, float e[3]) {
-  e[0] = (flags & FL_BIAS) ? bias[co] : 0.0f;
-  e[1] = (flags & FL_SCALE) ? scale[co] : 1.0f;
-  e[2] = (flags & FL_SHIFT) ? shift[co] : 0.0f;
-}
-
-static inline __attribute__((always_inline)) void lds_store(float v, __global float *yo, int flags, const float e[3]) {
-  if (flags & FL_ACCUM) v = *yo + v;
-  if (flags & FL_BIAS) v = v + e[0];
-  if (flags & FL_SCALE) v = v * e[1] + e[2];
-  if (flags & FL_RELU) v = fmax(v, 0.0f);
-  *yo = v;
+/* The epilogue of a work-item's tile, as conv2d_common.h's conv_fwd_store: accumulate / bias /
+ * affine / ReLU, acc[m][j] stored at y0[(co0 + m) * hw + j * step] for the channels below Cout and
+ * the first nj outputs (those inside the image; the rest of the tile lies past its edge). Guards
+ * instead of breaks, so both loops unroll fully and acc stays in registers (an early exit leaves a
+ * loop rolled and acc indexed at run time, which GPU compilers put on the stack). */
+static inline __attribute__((always_inline)) void lds_store_tile(float acc[CONV_TM][CONV_TN], __global float *y0,
+                                                                 int hw, int step, int nj, int co0, int Cout,
+                                                                 int flags, const __global float *bias,
+                                                                 const __global float *scale,
+                                                                 const __global float *shift) {
+  const int mmax = min(CONV_TM, Cout - co0);
+#pragma unroll
+  for (int m = 0; m < CONV_TM; m++) {
+    if (m >= mmax) continue;
+    const int co = co0 + m;
+    const float b = (flags & FL_BIAS) ? bias[co] : 0.0f, sc = (flags & FL_SCALE) ? scale[co] : 1.0f;
+    const float sh = (flags & FL_SHIFT) ? shift[co] : 0.0f;
+#pragma unroll
+    for (int j = 0; j < CONV_TN; j++) {
+      if (j >= nj) continue;
+      __global float *yo = y0 + (size_t)co * hw + j * step;
+      float v = acc[m][j];
+      if (flags & FL_ACCUM) v = *yo + v;
+      if (flags & FL_BIAS) v = v + b;
+      if (flags & FL_SCALE) v = v * sc + sh;
+      if (flags & FL_RELU) v = fmax(v, 0.0f);
+      *yo = v;
+    }
+  }
 }
 
 #if CONV_LWS % CONV_LDS_TX == 0
@@ -104,25 +116,11 @@ __kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_f
         }
   }
 
-  /* epilogue as conv2d_common.h's conv_fwd_store: accumulate / bias / affine / ReLU */
-  const int ox = ox0 + lx, hw = Ho * Wo, co0 = cot * CONV_TM, mmax = min(CONV_TM, Cout - co0);
-  if (ox >= Wo) return;
-  __global float *yn = y + y_off + (size_t)n * Cout * hw;
-  /* guards instead of breaks, so both loops unroll fully and acc stays in registers (an early
-   * exit leaves a loop rolled and acc indexed at run time, which GPU compilers put on the stack) */
-#pragma unroll
-  for (int m = 0; m < CONV_TM; m++) {
-    if (m >= mmax) continue;
-    const int co = co0 + m;
-    float e[3];
-    lds_epilogue_of(co, flags, bias + b_off, scale + sc_off, shift + sh_off, e);
-#pragma unroll
-    for (int j = 0; j < CONV_TN; j++) {
-      int oy = oy0 + ly + j * LDS_WY;
-      if (oy >= Ho) continue;
-      lds_store(acc[m][j], yn + (size_t)co * hw + oy * Wo + ox, flags, e);
-    }
-  }
+  const int ox = ox0 + lx, hw = Ho * Wo, oy = oy0 + ly;
+  if (ox >= Wo || oy >= Ho) return;
+  /* rows oy + j * LDS_WY, those below Ho */
+  lds_store_tile(acc, y + y_off + (size_t)n * Cout * hw + oy * Wo + ox, hw, LDS_WY * Wo,
+                 (Ho - 1 - oy) / LDS_WY + 1, cot * CONV_TM, Cout, flags, bias + b_off, scale + sc_off, shift + sh_off);
 }
 #endif
 
@@ -198,21 +196,10 @@ __kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_f
       }
   }
 
-  /* epilogue as conv2d_common.h's conv_fwd_store: accumulate / bias / affine / ReLU */
-  const int oy = oy0 + py, hw = Ho * Wo, co0 = (cot0 + g) * CONV_TM, mmax = min(CONV_TM, Cout - co0);
-  if (oy >= Ho || g >= ntiles) return;
-  __global float *yr = y + y_off + (size_t)n * Cout * hw + oy * Wo + ox0 + px;
-#pragma unroll
-  for (int m = 0; m < CONV_TM; m++) {
-    if (m >= mmax) continue;
-    const int co = co0 + m;
-    float e[3];
-    lds_epilogue_of(co, flags, bias + b_off, scale + sc_off, shift + sh_off, e);
-#pragma unroll
-    for (int j = 0; j < CONV_TN; j++) {
-      if (ox0 + px + j >= Wo) continue;
-      lds_store(acc[m][j], yr + (size_t)co * hw + j, flags, e);
-    }
-  }
+  const int oy = oy0 + py, hw = Ho * Wo, ox = ox0 + px;
+  if (oy >= Ho || ox >= Wo || g >= ntiles) return;
+  /* columns ox + j, those below Wo */
+  lds_store_tile(acc, y + y_off + (size_t)n * Cout * hw + oy * Wo + ox, hw, 1, Wo - ox, (cot0 + g) * CONV_TM, Cout,
+                 flags, bias + b_off, scale + sc_off, shift + sh_off);
 }
 #endif
