@@ -144,6 +144,19 @@ static spx_status read_grads(run *r, int c, int k) {
   return SPX_OK;
 }
 
+/* The largest |got - ref| of n values relative to the largest |ref| (*refmax); with store, got
+ * becomes the reference first (the defaults' run). */
+static double ref_diff(const float *got, size_t n, int store, float *ref, double *refmax) {
+  if (store) {
+    memcpy(ref, got, n * sizeof(float));
+    *refmax = 0;
+    for (size_t i = 0; i < n; i++) *refmax = fmax(*refmax, fabs(got[i]));
+  }
+  double d = 0;
+  for (size_t i = 0; i < n; i++) d = fmax(d, fabs((double)got[i] - ref[i]));
+  return d / (*refmax > 0 ? *refmax : 1);
+}
+
 /* An untimed training step of every pair on context c; the worst relative difference of its
  * gradients to the defaults' in *diff (the first call stores them). */
 static spx_status warm_train(run *r, int c, double *diff) {
@@ -153,15 +166,7 @@ static spx_status warm_train(run *r, int c, double *diff) {
     int k = q / r->p->nbatches;
     spx_status st = forward(r, c, q, 1, &ms);
     if (st || (st = read_grads(r, c, k))) return st;
-    size_t n = r->ngrad[k];
-    if (!r->have_gref) {
-      memcpy(r->gref[q], r->gbuf, n * sizeof(float));
-      r->grefmax[q] = 0;
-      for (size_t i = 0; i < n; i++) r->grefmax[q] = fmax(r->grefmax[q], fabs(r->gbuf[i]));
-    }
-    double d = 0;
-    for (size_t i = 0; i < n; i++) d = fmax(d, fabs((double)r->gbuf[i] - r->gref[q][i]));
-    d /= r->grefmax[q] > 0 ? r->grefmax[q] : 1;
+    double d = ref_diff(r->gbuf, r->ngrad[k], !r->have_gref, r->gref[q], &r->grefmax[q]);
     if (!(d <= *diff)) *diff = d;
   }
   r->have_gref = 1;
@@ -177,15 +182,8 @@ static spx_status warm(run *r, int c, double *diff) {
     size_t n = r->nout * (size_t)pair_batch(r, q);
     spx_status st = forward(r, c, q, 0, &ms);
     if (st) return st;
-    if (!r->have_ref) {
-      memcpy(r->ref[q], r->buf, n * sizeof(float));
-      r->refmax[q] = 0;
-      for (size_t i = 0; i < n; i++) r->refmax[q] = fmax(r->refmax[q], fabs(r->buf[i]));
-    }
-    double d = 0;
-    for (size_t i = 0; i < n; i++) d = fmax(d, fabs((double)r->buf[i] - r->ref[q][i]));
-    d /= r->refmax[q] > 0 ? r->refmax[q] : 1;
-    if (!(d <= *diff)) *diff = d; /* NaN sticks */
+    double d = ref_diff(r->buf, n, !r->have_ref, r->ref[q], &r->refmax[q]);
+    if (!(d <= *diff)) *diff = d;
   }
   r->have_ref = 1;
   return SPX_OK;
