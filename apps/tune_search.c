@@ -145,7 +145,8 @@ static spx_status read_grads(run *r, int c, int k) {
 }
 
 /* The largest |got - ref| of n values relative to the largest |ref| (*refmax); with store, got
- * becomes the reference first (the defaults' run). */
+ * becomes the reference first (the defaults' run). A NaN or infinity in got gives NaN (fmax alone
+ * would skip a NaN, and a candidate that makes one would pass the check). */
 static double ref_diff(const float *got, size_t n, int store, float *ref, double *refmax) {
   if (store) {
     memcpy(ref, got, n * sizeof(float));
@@ -153,8 +154,16 @@ static double ref_diff(const float *got, size_t n, int store, float *ref, double
     for (size_t i = 0; i < n; i++) *refmax = fmax(*refmax, fabs(got[i]));
   }
   double d = 0;
-  for (size_t i = 0; i < n; i++) d = fmax(d, fabs((double)got[i] - ref[i]));
+  for (size_t i = 0; i < n; i++) {
+    if (!isfinite(got[i])) return NAN;
+    d = fmax(d, fabs((double)got[i] - ref[i]));
+  }
   return d / (*refmax > 0 ? *refmax : 1);
+}
+
+/* *worst = the larger of *worst and d, a NaN in either kept (the caller rejects it). */
+static void worst_of(double *worst, double d) {
+  if (!isnan(*worst) && !(d <= *worst)) *worst = d;
 }
 
 /* An untimed training step of every pair on context c; the worst relative difference of its
@@ -167,7 +176,7 @@ static spx_status warm_train(run *r, int c, double *diff) {
     spx_status st = forward(r, c, q, 1, &ms);
     if (st || (st = read_grads(r, c, k))) return st;
     double d = ref_diff(r->gbuf, r->ngrad[k], !r->have_gref, r->gref[q], &r->grefmax[q]);
-    if (!(d <= *diff)) *diff = d;
+    worst_of(diff, d);
   }
   r->have_gref = 1;
   return SPX_OK;
@@ -183,7 +192,7 @@ static spx_status warm(run *r, int c, double *diff) {
     spx_status st = forward(r, c, q, 0, &ms);
     if (st) return st;
     double d = ref_diff(r->buf, n, !r->have_ref, r->ref[q], &r->refmax[q]);
-    if (!(d <= *diff)) *diff = d;
+    worst_of(diff, d);
   }
   r->have_ref = 1;
   return SPX_OK;
