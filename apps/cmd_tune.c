@@ -52,6 +52,23 @@ static int model_width(spx_ctx *ctx, const char *ckpt, int *width) {
   return SPX_EXIT_OK;
 }
 
+/* The values of a repeatable option (list, NULL-ended) into out[*n]: each a whole number in
+ * [lo, hi] (pow2: a power of two), at most max of them, none twice; -1 when all are, else the
+ * usage error's exit code (its line names opt, and `want` says what is accepted). */
+static int int_list(const char **list, const char *opt, long lo, long hi, int pow2, const char *want, int *out,
+                    int max, int *n) {
+  for (const char **v = list; *v; v++) {
+    long x;
+    if (!spx_cli_long(*v, lo, hi, &x) || (pow2 && (x & (x - 1))))
+      return spx_cli_usage("tune", "%s %s: expected %s", opt, *v, want);
+    if (*n == max) return spx_cli_usage("tune", "at most %d %s options", max, opt);
+    for (int k = 0; k < *n; k++)
+      if (out[k] == x) return spx_cli_usage("tune", "%s %ld is given twice", opt, x);
+    out[(*n)++] = (int)x;
+  }
+  return -1;
+}
+
 static const char usage[] =
     "usage: smplpix tune [--quick] [--width W]... [--batch N]... [--camera C.json | --size HxW]\n"
     "                    [--checkpoint W.safetensors] [--repeat N] [--clock wall|cpu] [--device cpu|gpu|P:D]\n"
@@ -103,25 +120,11 @@ int spx_cmd_tune(int argc, char **argv) {
                     SPX_O("--width", SPX_OPT_LIST, wlist),       SPX_O("--batch", SPX_OPT_LIST, blist),
                     SPX_O_END};
   int parsed = spx_cli_parse(argc, argv, "tune", usage, NULL, opts);
-  for (const char **v = wlist; parsed < 0 && *v; v++) {
-    long x;
-    if (!spx_cli_long(*v, 8, 64, &x) || (x != 8 && x != 16 && x != 32 && x != 64))
-      parsed = spx_cli_usage("tune", "--width %s: expected 8, 16, 32 or 64", *v);
-    else if (nw == MAX_WIDTHS)
-      parsed = spx_cli_usage("tune", "at most %d --width options", MAX_WIDTHS);
-    for (int k = 0; parsed < 0 && k < nw; k++)
-      if (widths[k] == x) parsed = spx_cli_usage("tune", "--width %ld is given twice", x);
-    if (parsed < 0) widths[nw++] = (int)x;
-  }
-  for (const char **v = blist; parsed < 0 && *v; v++) {
-    long x;
-    if (!spx_cli_long(*v, 1, MAX_BATCH, &x))
-      parsed = spx_cli_usage("tune", "--batch %s: expected an integer from 1 to %d", *v, MAX_BATCH);
-    else if (nb == SPX_TUNE_MAXB)
-      parsed = spx_cli_usage("tune", "at most %d --batch options", SPX_TUNE_MAXB);
-    for (int k = 0; parsed < 0 && k < nb; k++)
-      if (batches[k] == x) parsed = spx_cli_usage("tune", "--batch %ld is given twice", x);
-    if (parsed < 0) batches[nb++] = (int)x;
+  if (parsed < 0) parsed = int_list(wlist, "--width", 8, 64, 1, "8, 16, 32 or 64", widths, MAX_WIDTHS, &nw);
+  if (parsed < 0) {
+    char want[48];
+    snprintf(want, sizeof want, "an integer from 1 to %d", MAX_BATCH);
+    parsed = int_list(blist, "--batch", 1, MAX_BATCH, 0, want, batches, SPX_TUNE_MAXB, &nb);
   }
   free(wlist);
   free(blist);
