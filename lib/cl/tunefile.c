@@ -10,7 +10,7 @@
  *   version <device OpenCL version>
  *   smplpix <major.minor.patch>
  *   class cpu|gpu
- *   # tuned at batch 1 10, width 64, image 308x410, quick search
+ *   # tuned at batches 1 10, width 64, size 308x410, quick search
  *   CONV_TM 8
  * A line starting with `#` is a comment (what the tuner measured on; spx_device_tuning_comment).
  * A file that cannot be read, does not parse, holds an illegal value or belongs to another
