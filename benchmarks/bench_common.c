@@ -186,3 +186,23 @@ spx_status bench_write_vgg19(spx_ctx *ctx, const char *path, int wd) {
   for (int i = 0; i < 26; i++) free(bufs[i]);
   return st;
 }
+
+static void log_stderr(void *user, const char *line) {
+  (void)user;
+  fprintf(stderr, "%s\n", line);
+}
+
+static int env_on(const char *name) {
+  const char *v = getenv(name);
+  return v && *v && strcmp(v, "0");
+}
+
+void bench_profiles_from_env(spx_ctx *ctx) {
+  const char *tp = getenv("SPX_TAPE_PROFILE");
+  unsigned pf = (env_on("SPX_TAPE_PROFILE") ? SPX_PROFILE_TAPE : 0u) |
+                (tp && !strcmp(tp, "2") ? SPX_PROFILE_TAPE_OPS : 0u) |
+                (env_on("SPX_KERNEL_PROFILE") ? SPX_PROFILE_KERNELS : 0u);
+  if (!pf) return;
+  spx_ctx_set_log(ctx, log_stderr, NULL);
+  spx_ctx_set_profile(ctx, pf);
+}

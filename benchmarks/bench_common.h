@@ -19,6 +19,12 @@
     return 1;                                                                                                       \
   } while (0)
 
+/* The library's profiles from the environment, as the smplpix tool reads them (before the device
+ * opens): SPX_TAPE_PROFILE=1 (per op kind) or 2 (also per layer), SPX_KERNEL_PROFILE=1 (each
+ * command's device time per kernel name); any of them also installs a stderr log on ctx, where
+ * the profiles are printed when the network is freed / the device closes. */
+void bench_profiles_from_env(spx_ctx *ctx);
+
 /* Summary of per-frame times, in milliseconds. */
 typedef struct bench_stats {
   double med, min, max;

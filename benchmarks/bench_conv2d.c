@@ -6,14 +6,15 @@
  *   bench_conv2d --unet [reps]   also time every conv of a UNet-64 eval forward (sum)
  *   bench_conv2d --w16 [reps]    also time every conv of a UNet-16 eval forward, wall and process
  *                                CPU per layer (SPX_BENCH_UNET filters)
- * SPX_KERNEL_PROFILE=1: every kernel's own device time, summed per kernel name, on stderr at the
- * end (the shapes' pad copies, weight packs and GEMMs apart). */
+ * SPX_KERNEL_PROFILE=1 (bench_profiles_from_env): every kernel's own device time, summed per
+ * kernel name, on stderr at the end (the shapes' pad copies, weight packs and GEMMs apart). */
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
 #include "cl/cl_internal.h"
 #include "nn/conv2d.h"
+#include "bench_common.h"
 #include "smplpix/smplpix.h"
 
 typedef struct shape {
@@ -49,11 +50,6 @@ static const shape unet16[] = {
     {"u3b", 32, 16, 154, 205, 3, 1},    {"u4a", 32, 16, 308, 410, 3, 1},    {"u4b", 16, 16, 308, 410, 3, 1},
     {"outc", 16, 3, 308, 410, 1, 0},
 };
-
-static void log_stderr(void *user, const char *line) {
-  (void)user;
-  fprintf(stderr, "%s\n", line);
-}
 
 static int fail(spx_ctx *ctx, const char *what) {
   fprintf(stderr, "bench_conv2d: %s: %s\n", what, spx_ctx_message(ctx));
@@ -114,11 +110,7 @@ int main(int argc, char **argv) {
   }
   spx_ctx *ctx;
   if (spx_ctx_create(&ctx)) return 1;
-  const char *kp = getenv("SPX_KERNEL_PROFILE");
-  if (kp && *kp && strcmp(kp, "0")) {
-    spx_ctx_set_log(ctx, log_stderr, NULL);
-    spx_ctx_set_profile(ctx, SPX_PROFILE_KERNELS);
-  }
+  bench_profiles_from_env(ctx); /* SPX_KERNEL_PROFILE=1 */
   if (spx_device_open(ctx, NULL)) return fail(ctx, "device");
   spx_device_info info;
   spx_device_get_info(ctx, &info);

@@ -28,12 +28,8 @@
 #include <sys/resource.h>
 #include <time.h>
 
+#include "bench_common.h"
 #include "smplpix/smplpix.h"
-
-static void log_stderr(void *user, const char *line) {
-  (void)user;
-  fprintf(stderr, "%s\n", line);
-}
 
 static double now(void) {
   struct timespec t;
@@ -95,17 +91,7 @@ int main(int argc, char **argv) {
   int nmax = batch > ebatch ? batch : ebatch;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return 1;
-  /* SPX_TAPE_PROFILE=1: the tape's per-op-kind device times, printed to stderr when the network is
-   * freed; =2: also one line per op instance (layer). SPX_KERNEL_PROFILE=1: every command's device
-   * time per kernel name, printed when the device closes. */
-  const char *prof = getenv("SPX_TAPE_PROFILE"), *kprof = getenv("SPX_KERNEL_PROFILE");
-  unsigned pf = 0;
-  if (prof && *prof && strcmp(prof, "0")) pf |= SPX_PROFILE_TAPE | (!strcmp(prof, "2") ? SPX_PROFILE_TAPE_OPS : 0u);
-  if (kprof && *kprof && strcmp(kprof, "0")) pf |= SPX_PROFILE_KERNELS;
-  if (pf) {
-    spx_ctx_set_log(ctx, log_stderr, NULL);
-    spx_ctx_set_profile(ctx, pf);
-  }
+  bench_profiles_from_env(ctx); /* SPX_TAPE_PROFILE=1|2, SPX_KERNEL_PROFILE=1 */
   spx_unet *u = NULL;
   int rc = 1;
   size_t nin = (size_t)nmax * 4 * h * w, nout = (size_t)nmax * 3 * h * w;
