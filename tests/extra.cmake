@@ -8,7 +8,7 @@ endif()
 # chosen for GPUs), so those paths are exercised on PoCL in CI, which has no GPU.
 foreach(src ${SPX_TEST_SOURCES})
   get_filename_component(name ${src} NAME_WE)
-  if(name MATCHES "^test_(nn_|render_|body_lbs)")
+  if(name MATCHES "^test_(nn_|render_|body_lbs)" AND NOT name STREQUAL "test_nn_conv2d_gemm") # (it sets the GPU class itself)
     spx_test_variant(${name}_gpu_paths ${name} "SPX_TUNE_CLASS=gpu")
   endif()
 endforeach()
