@@ -132,7 +132,7 @@ static const struct spx_tunable spx_tunables[] = {
     /* conv2d backward weights: work-group size along the column tiles */
     {ROW("CONV_DW_LWS", conv_dw_lws, 1, 64, 1, 1024, T_WG)},
     /* 3x3 stride-1 pad-1 inference forwards with at least this many in- and out-channels run Winograd (0: never) */
-    {ROW("CONV_WINO_MINC", conv_wino_minc, 64, 32, 0, 1 << 20, 0), .full = VALUES(0, 8, 16, 32, 64, 128),
+    {ROW("CONV_WINO_MINC", conv_wino_minc, 64, 0, 0, 1 << 20, 0), .full = VALUES(0, 8, 16, 32, 64, 128),
      .quick = VALUES(0, 16, 32, 64)},
     /* inference on images of at most this many pixels takes Winograd from half CONV_WINO_MINC (0: never) */
     {ROW("CONV_WINO_SMALL_HW", conv_wino_small_hw, 16384, 0, 0, 1 << 30, 0),
