@@ -23,6 +23,7 @@
  * s+1 in registers (loaded from global memory along the pixels: coalesced) and stores it into the
  * other buffer after; one barrier per slice. Every sum runs in a fixed order with fma. */
 #include "conv2d_common.h"
+#include "winograd_tf.h"
 
 #ifndef CONV_GEMM_BM
 #define CONV_GEMM_BM 64
@@ -153,21 +154,24 @@ static inline __attribute__((always_inline)) void g_fwd_store(__local float4 *as
 /* Forward or data gradient. xp: [N][Cin][plane] from x_off (rows of Wp; zero-padded by
  * spx_gemm_pad, or the input itself for a 1x1 pad-0 layer), Cin a multiple of KS; wg:
  * spx_gemm_pack's A ([k*k*Cin][Mp], Mp a multiple of BM); y [N][M][Ho][Wo] from y_off. Reduction split: work-group (., ., s) sums slices
- * [s*spl, (s+1)*spl) of the k*k*ceil(Cin/KS) and writes to y + s*split_stride (the host passes the
- * partials' buffer and flags 0 when it splits). Global: dim0 = Mp/BM * ceil(Ho*Wp/BN) groups of
- * BM/TM*BN/TN (row tile fastest: consecutive groups share the input pixels), dim1 = N, dim2 = splits. */
+ * [s*spl, (s+1)*spl) of the k*k*Cin/KS and writes to y + s*split_stride (the host passes the
+ * partials' buffer and flags 0 when it splits). GEMM n of dim1 takes xp, wg and y from n*x_bs,
+ * n*w_bs and n*y_bs floats on (a convolution: the images, x_bs = Cin*plane, w_bs = 0, y_bs =
+ * M*Ho*Wo; Winograd: its 36 GEMMs, kernels/conv2d_winograd.cl). Global: dim0 = Mp/BM *
+ * ceil(Ho*Wp/BN) groups of BM/TM*BN/TN (row tile fastest: consecutive groups share the input
+ * pixels), dim1 = N, dim2 = splits. */
 __kernel __attribute__((reqd_work_group_size(GWG, 1, 1))) void spx_gemm_conv(
     const __global float *xp, ulong x_off, const __global float *wg, __global float *y, ulong y_off,
     ulong split_stride, const __global float *bias, ulong b_off, const __global float *scale, ulong sc_off,
     const __global float *shift, ulong sh_off, int Cin, int M, int Mp, int k, int Wp, int plane, int Ho, int Wo,
-    int flags, int spl) {
+    int flags, int spl, ulong x_bs, ulong w_bs, ulong y_bs) {
   __local float4 as[2 * GSA / 4], bs[2 * GSB / 4];
   const int lid = (int)get_local_id(0), n = (int)get_group_id(1), s = (int)get_group_id(2);
   const int nmt = Mp / GBM, grp = (int)get_group_id(0), m0 = (grp % nmt) * GBM, q0 = (grp / nmt) * GBN;
   const int nspt = (Cin + GKS - 1) / GKS, sl0 = s * spl, sl1 = min(k * k * nspt, sl0 + spl);
   const int nq = Ho * Wp - q0, Mp4 = Mp / 4; /* pixels left from q0 */
-  const __global float *xq = xp + x_off + (size_t)n * Cin * plane + q0;
-  const __global float4 *wb = (const __global float4 *)wg + m0 / 4;
+  const __global float *xq = xp + x_off + n * x_bs + q0;
+  const __global float4 *wb = (const __global float4 *)(wg + n * w_bs) + m0 / 4;
   int tm, tn;
   g_place(lid, &tm, &tn);
   float acc[GTM][GTN];
@@ -197,7 +201,7 @@ __kernel __attribute__((reqd_work_group_size(GWG, 1, 1))) void spx_gemm_conv(
   /* epilogue: columns back to (oy, ox), padding columns dropped; guards, not breaks, so the
    * loops unroll and acc stays in registers */
   const int hw = Ho * Wo;
-  __global float *yn = y + y_off + (size_t)s * split_stride + (size_t)n * M * hw;
+  __global float *yn = y + y_off + (size_t)s * split_stride + n * y_bs;
   int o[GTN];
 #pragma unroll
   for (int j = 0; j < GTN; j++) {
@@ -342,4 +346,20 @@ __kernel void spx_gemm_pad(const __global float *src, ulong src_off, __global fl
   int sy = yy - top, sx = xx - left, ok = c < C && sy >= 0 && sx >= 0 && sy % d == 0 && sx % d == 0;
   sy /= d, sx /= d;
   dst[(size_t)nc * plane + r] = ok && sy < H && sx < W ? src[src_off + (((size_t)n * C + c) * H + sy) * W + sx] : 0.0f;
+}
+
+/* Winograd's transformed weights as the A of its 36 GEMMs (lib/nn/conv2d_winograd.c on the
+ * engine): U[e][r][Mp] = (G g G^T)[e] of column m and reduction index r, flip as winograd_tf.h's
+ * wino_filter_of (zero past the real columns). Global: R * Mp, m fastest (R = Cin, or Cout when
+ * flipped). */
+__kernel void spx_gemm_wino_pack(const __global float *w, ulong w_off, __global float *U, int Cout, int Cin, int Mp,
+                                 int flip) {
+  const int i = SPX_GID0, red = flip ? Cout : Cin;
+  if (i >= red * Mp) return;
+  const int r = i / Mp, m = i - r * Mp;
+  float g[9], u[36];
+  wino_filter_of(w + w_off, Cin, flip ? Cin : Cout, m, r, flip, g);
+  wino_filter(g, u);
+#pragma unroll
+  for (int e = 0; e < 36; e++) U[((size_t)e * red + r) * Mp + m] = u[e];
 }

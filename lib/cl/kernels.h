@@ -47,6 +47,7 @@
   X(GEMM_REDUCE, "conv2d_gemm.cl", "spx_gemm_reduce")                  \
   X(GEMM_PACK, "conv2d_gemm.cl", "spx_gemm_pack")                      \
   X(GEMM_PAD, "conv2d_gemm.cl", "spx_gemm_pad")                        \
+  X(GEMM_WINO_PACK, "conv2d_gemm.cl", "spx_gemm_wino_pack")            \
   X(CONV2D_THIN, "conv2d_thin.cl", "spx_conv2d_thin")                  \
   X(WINO_IN, "conv2d_winograd.cl", "spx_wino_in")                      \
   X(WINO_WEIGHTS, "conv2d_winograd.cl", "spx_wino_weights")            \

@@ -173,12 +173,14 @@ static spx_status run_conv(spx_ctx *ctx, const spx_conv_job *j) {
     cl_ulong xo = L.direct ? src->off : 0, yo = L.splits > 1 ? 0 : j->out->off, stride = count;
     cl_ulong bo = j->bias ? j->bias->off : 0, sco = j->scale ? j->scale->off : 0;
     cl_ulong sho = j->scale && j->shift ? j->shift->off : 0;
+    cl_ulong xbs = (cl_ulong)L.rp * L.plane, wbs = 0, ybs = (cl_ulong)L.m * L.rows * L.cols;
     cl_int e = SPX_ARG(kr, 0, xm) | SPX_ARG(kr, 1, xo) | SPX_ARG(kr, 2, wg.mem) | SPX_ARG(kr, 3, ym) |
                SPX_ARG(kr, 4, yo) | SPX_ARG(kr, 5, stride) | SPX_ARG(kr, 6, bm) | SPX_ARG(kr, 7, bo) |
                SPX_ARG(kr, 8, scm) | SPX_ARG(kr, 9, sco) | SPX_ARG(kr, 10, shm) | SPX_ARG(kr, 11, sho) |
                SPX_ARG(kr, 12, L.rp) | SPX_ARG(kr, 13, L.m) | SPX_ARG(kr, 14, L.mp) | SPX_ARG(kr, 15, s->k) |
                SPX_ARG(kr, 16, L.wp) | SPX_ARG(kr, 17, L.plane) | SPX_ARG(kr, 18, L.rows) | SPX_ARG(kr, 19, L.cols) |
-               SPX_ARG(kr, 20, kflags) | SPX_ARG(kr, 21, L.spl);
+               SPX_ARG(kr, 20, kflags) | SPX_ARG(kr, 21, L.spl) | SPX_ARG(kr, 22, xbs) | SPX_ARG(kr, 23, wbs) |
+               SPX_ARG(kr, 24, ybs);
     if ((st = spx_cl_check(ctx, e, "spx_gemm_conv args"))) goto done;
     const size_t wgs = group_size(ctx), bn = (size_t)ctx->dev->tune.conv_gemm_bn;
     size_t gl[3] = {(size_t)(L.mp / ctx->dev->tune.conv_gemm_bm) * (rup((size_t)L.rows * L.wp, bn) / bn) * wgs,
@@ -192,6 +194,27 @@ done:
   if (!j->prep) spx_op_scratch_put(&wg);
   spx_op_scratch_put(&part);
   return st;
+}
+
+spx_status spx_conv2d_gemm_batched(spx_ctx *ctx, cl_mem a, cl_mem b, size_t b_off, cl_mem c, size_t c_off, int k, int m,
+                                   int mp, int n, int b_ld, int batch, size_t a_bs, size_t b_bs, size_t c_bs) {
+  cl_kernel kr;
+  spx_status st = spx_cl_kernel(ctx, SPX_K_GEMM_CONV, &kr);
+  if (st) return st;
+  const struct spx_tunables *t = &ctx->dev->tune;
+  const int one = 1, zero = 0, spl = k / t->conv_gemm_ks;
+  cl_ulong bo = b_off, co = c_off, z = 0, abs_ = a_bs, bbs = b_bs, cbs = c_bs;
+  cl_int e = SPX_ARG(kr, 0, b) | SPX_ARG(kr, 1, bo) | SPX_ARG(kr, 2, a) | SPX_ARG(kr, 3, c) | SPX_ARG(kr, 4, co) |
+             SPX_ARG(kr, 5, z) | SPX_ARG(kr, 6, a) | SPX_ARG(kr, 7, z) | SPX_ARG(kr, 8, a) | SPX_ARG(kr, 9, z) |
+             SPX_ARG(kr, 10, a) | SPX_ARG(kr, 11, z) | SPX_ARG(kr, 12, k) | SPX_ARG(kr, 13, m) | SPX_ARG(kr, 14, mp) |
+             SPX_ARG(kr, 15, one) | SPX_ARG(kr, 16, n) | SPX_ARG(kr, 17, b_ld) | SPX_ARG(kr, 18, one) |
+             SPX_ARG(kr, 19, n) | SPX_ARG(kr, 20, zero) | SPX_ARG(kr, 21, spl) | SPX_ARG(kr, 22, bbs) |
+             SPX_ARG(kr, 23, abs_) | SPX_ARG(kr, 24, cbs);
+  if ((st = spx_cl_check(ctx, e, "spx_gemm_conv (batched) args"))) return st;
+  const size_t wgs = group_size(ctx), bn = (size_t)t->conv_gemm_bn;
+  size_t gl[3] = {(size_t)(mp / t->conv_gemm_bm) * (rup((size_t)n, bn) / bn) * wgs, (size_t)batch, 1};
+  size_t lo[3] = {wgs, 1, 1};
+  return spx_cl_run(ctx, kr, 3, gl, lo, "spx_gemm_conv (batched)");
 }
 
 /* dw += the weight gradient: chunked partials, then their sum in chunk order. */

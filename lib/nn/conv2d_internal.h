@@ -45,6 +45,13 @@ spx_status spx_conv2d_pad_copy(spx_ctx *ctx, spx_op_workspace *ws, int slot, cl_
                                int w, int hp, int wp, int plane, int top, int left, int d, size_t total,
                                spx_op_scratch *out);
 
+/* The engine's strided-batched GEMM (spx_gemm_conv as a plain GEMM): for g < batch,
+ * C[g][r][q] = sum_i A[g][i][r] B[g][i][q] (r < m, q < n), with A[g] = a + g*a_bs ([k][mp], mp a
+ * multiple of CONV_GEMM_BM, zero past m), B[g] = b + b_off + g*b_bs (rows b_ld apart), C[g] = c +
+ * c_off + g*c_bs (rows n apart); k a multiple of CONV_GEMM_KS. (Offsets and strides in floats.) */
+spx_status spx_conv2d_gemm_batched(spx_ctx *ctx, cl_mem a, cl_mem b, size_t b_off, cl_mem c, size_t c_off, int k, int m,
+                                   int mp, int n, int b_ld, int batch, size_t a_bs, size_t b_bs, size_t c_bs);
+
 /* The epilogue flags of a forward job (bias, scale, shift, ReLU). */
 static inline int spx_conv_job_flags(const spx_conv_job *j) {
   return (j->bias ? SPX_CONV_FL_BIAS : 0) | (j->scale ? SPX_CONV_FL_SCALE : 0) |
