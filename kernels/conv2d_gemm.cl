@@ -65,6 +65,15 @@ static inline __attribute__((always_inline)) void g_place(int lid, int *tm, int 
   *tn = wn * 8 + lane % 8;
 }
 
+/* The work-item's place (g_place) and its register tile zeroed. */
+static inline __attribute__((always_inline)) void g_start(int lid, int *tm, int *tn, float acc[GTM][GTN]) {
+  g_place(lid, tm, tn);
+#pragma unroll
+  for (int i = 0; i < GTM; i++)
+#pragma unroll
+    for (int j = 0; j < GTN; j++) acc[i][j] = 0.0f;
+}
+
 /* acc += the slice (as, bs) of local memory: per step, TM values of A and TN of B as float4s. */
 static inline __attribute__((always_inline)) void g_mma(const __local float4 *as, const __local float4 *bs, int tm,
                                                         int tn, float acc[GTM][GTN]) {
@@ -173,12 +182,8 @@ __kernel __attribute__((reqd_work_group_size(GWG, 1, 1))) void spx_gemm_conv(
   const __global float *xq = xp + x_off + n * x_bs + q0;
   const __global float4 *wb = (const __global float4 *)(wg + n * w_bs) + m0 / 4;
   int tm, tn;
-  g_place(lid, &tm, &tn);
   float acc[GTM][GTN];
-#pragma unroll
-  for (int i = 0; i < GTM; i++)
-#pragma unroll
-    for (int j = 0; j < GTN; j++) acc[i][j] = 0.0f;
+  g_start(lid, &tm, &tn, acc);
   float4 ra[GFA];
   float rb[GFB];
   gslice g = g_slice_at(sl0, nspt, Cin, k, Wp);
@@ -257,12 +262,8 @@ __kernel __attribute__((reqd_work_group_size(GWG, 1, 1))) void spx_gemm_dw(
     boff[i] = ci * plane + (t / k) * Wp + t % k;
   }
   int tm, tn;
-  g_place(lid, &tm, &tn);
   float acc[GTM][GTN];
-#pragma unroll
-  for (int i = 0; i < GTM; i++)
-#pragma unroll
-    for (int j = 0; j < GTN; j++) acc[i][j] = 0.0f;
+  g_start(lid, &tm, &tn, acc);
   float ra[GDA], rb[GDB];
   const int nsl = N * nq;
   for (int sl = -1; sl < nsl; sl++) {
@@ -357,9 +358,8 @@ __kernel void spx_gemm_wino_pack(const __global float *w, ulong w_off, __global 
   const int i = SPX_GID0, red = flip ? Cout : Cin;
   if (i >= red * Mp) return;
   const int r = i / Mp, m = i - r * Mp;
-  float g[9], u[36];
-  wino_filter_of(w + w_off, Cin, flip ? Cin : Cout, m, r, flip, g);
-  wino_filter(g, u);
+  float u[36];
+  wino_u_of(w + w_off, Cin, flip ? Cin : Cout, m, r, flip, u);
 #pragma unroll
   for (int e = 0; e < 36; e++) U[((size_t)e * red + r) * Mp + m] = u[e];
 }

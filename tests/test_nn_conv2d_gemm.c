@@ -107,7 +107,8 @@ static double worst(const float *dev, const double *ref, const double *aref, siz
   return wv;
 }
 
-static void check_case(const gcase *c, const char *label) {
+/* rerun: run again and compare the bits */
+static void check_case(const gcase *c, const char *label, int rerun) {
   const spx_conv2d_shape *s = &c->s;
   const int ho = spx_conv2d_out_size(s->h, s->k, s->stride, s->pad), wo = spx_conv2d_out_size(s->w, s->k, s->stride, s->pad);
   size_t nx = (size_t)s->n * s->cin * s->h * s->w, ny = (size_t)s->n * s->cout * ho * wo;
@@ -132,38 +133,43 @@ static void check_case(const gcase *c, const char *label) {
   printf("%s: n=%d cin=%d %dx%d cout=%d k=%d s=%d%s: worst error / bound y %.3f dx %.3f dw %.3f\n", label, s->n, s->cin,
          s->h, s->w, s->cout, s->k, s->stride, c->affine ? " affine relu" : "", vy, vdx, vdw);
   CHECK(vy <= 1 && vdx <= 1 && vdw <= 1);
-  gres r2 = run(c, x, w, b, sc, dy); /* fixed summation orders: the same bits */
-  CHECK(!memcmp(r.y, r2.y, ny * 4) && !memcmp(r.dx, r2.dx, nx * 4) && !memcmp(r.dw, r2.dw, nw * 4));
-  free(r.y), free(r.dx), free(r.dw), free(r2.y), free(r2.dx), free(r2.dw);
+  if (rerun) { /* fixed summation orders: the same bits */
+    gres r2 = run(c, x, w, b, sc, dy);
+    CHECK(!memcmp(r.y, r2.y, ny * 4) && !memcmp(r.dx, r2.dx, nx * 4) && !memcmp(r.dw, r2.dw, nw * 4));
+    free(r2.y), free(r2.dx), free(r2.dw);
+  }
+  free(r.y), free(r.dx), free(r.dw);
   free(x), free(w), free(b), free(sc), free(dy), free(ax), free(aw), free(ady), free(ab), free(asc);
   free(y), free(ay), free(dx), free(adx), free(dw), free(adw);
 }
 
-/* every case under one setting of the tunables (NAME=value pairs, the rest the GPU column's) */
-static void variant(const char *label, const char *const *set) {
+/* the cases of bit mask `which` under one setting of the tunables (NAME=value pairs, the rest the
+ * GPU column's); the other settings run a few cases each, so the test stays short under Oclgrind */
+static void variant(const char *label, const char *const *set, unsigned which, int rerun) {
   for (int i = 0; set[i]; i += 2) setenv(set[i], set[i + 1], 1);
-  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) check_case(&cases[i], label);
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++)
+    if (which >> i & 1) check_case(&cases[i], label, rerun);
   for (int i = 0; set[i]; i += 2) unsetenv(set[i]);
 }
 
 static void test_gemm_defaults(void) {
   const char *const set[] = {NULL};
-  variant("defaults", set);
+  variant("defaults", set, ~0u, 1);
 }
 
 /* every forward's reduction split (into as many parts as it has quarters of 4 slices) */
 static void test_gemm_split(void) {
   const char *const set[] = {"SPX_TUNE_CONV_GEMM_SPLIT", "1048576", NULL};
-  variant("split", set);
+  variant("split", set, 1u << 1 | 1u << 2 | 1u << 5 | 1u << 8, 0);
 }
 
 /* other tiles: 64 x 64 of 4 x 4 with slices of 16, 128 x 128 of 8 x 8; weight-gradient chunks of 24 pixels */
 static void test_gemm_tiles(void) {
   const char *const a[] = {"SPX_TUNE_CONV_GEMM_BN", "64", "SPX_TUNE_CONV_GEMM_TM", "4", "SPX_TUNE_CONV_GEMM_TN", "4",
                            "SPX_TUNE_CONV_GEMM_KS", "16", "SPX_TUNE_CONV_DW_QC", "24", NULL};
-  variant("64x64 4x4 ks16", a);
+  variant("64x64 4x4 ks16", a, 1u << 0 | 1u << 1 | 1u << 4 | 1u << 8, 0);
   const char *const b[] = {"SPX_TUNE_CONV_GEMM_BM", "128", "SPX_TUNE_CONV_GEMM_SPLIT", "3", NULL};
-  variant("128x128 8x8", b);
+  variant("128x128 8x8", b, 1u << 1 | 1u << 2 | 1u << 9, 0);
 }
 
 int main(void) {

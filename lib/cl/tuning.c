@@ -164,7 +164,7 @@ static const struct spx_tunable spx_tunables[] = {
     {ROW("CONV_WINO_DW_MINHW", conv_wino_dw_minhw, 1024, 1024, 0, 1 << 30, T_FULL),
      .full = VALUES(0, 512, 1024, 2048, 4096, 8192)},
     /* 1: stride-1 convolutions (forward, data and weight gradients) run on the GEMM engine (kernels/conv2d_gemm.cl) */
-    {ROW("CONV_GEMM", conv_gemm, 0, 1, 0, 1, 0), .full = ONOFF},
+    {ROW("CONV_GEMM", conv_gemm, 0, 1, 0, 1, T_FULL), .full = ONOFF},
     /* GEMM engine: rows of a work-group's tile (output channels; weight gradient: output channels) */
     {ROW("CONV_GEMM_BM", conv_gemm_bm, 64, 64, 16, 256, T_POW2 | T_FULL), .with = "CONV_GEMM_BN",
      .full = VALUES(64, 128, 64, 64, 128, 128, 64, 256, 128, 64)},
@@ -180,7 +180,7 @@ static const struct spx_tunable spx_tunables[] = {
     /* GEMM engine: a forward's reduction is split until its launch has this many work-groups (0: never) */
     {ROW("CONV_GEMM_SPLIT", conv_gemm_split, 0, 264, 0, 1 << 20, T_FULL), .full = VALUES(0, 132, 264, 528)},
     /* 1x1 stride-1 forwards with at most this many out-channels take the bandwidth kernel (conv2d_thin.cl; 0: none) */
-    {ROW("CONV_THIN_MAXC", conv_thin_maxc, 0, 8, 0, 8, 0), .full = VALUES(0, 8)},
+    {ROW("CONV_THIN_MAXC", conv_thin_maxc, 0, 8, 0, 8, T_FULL), .full = VALUES(0, 8)},
     /* 1: op scratch as sub-buffers of the tape's activation arena, 0: one separate scratch buffer */
     {ROW("TAPE_WS_ARENA", tape_ws_arena, 1, 0, 0, 1, 0)},
     /* the tape arena's largest buffer in MiB (0: the device's largest allocation) */
