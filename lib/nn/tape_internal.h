@@ -108,7 +108,13 @@ typedef struct tp_op {
   /* the device scratch of its forward (need[0]) and backward (need[1]) launchers, for the
    * workspace plan; NULL: none */
   void (*ws_need)(const spx_tape *t, const tnode *nd, spx_ws_need need[2]);
+  unsigned flags; /* TP_* below */
 } tp_op;
+
+/* tp_op.flags. TP_IN0_IN_OUT: the output's first channels are input 0 unchanged and the device
+ * forward leaves out that copy when input 0 already sits there (the same address), so the plan may
+ * place input 0's storage at the start of the output's (lib/nn/tape_plan.c, concat_in_place). */
+enum { TP_IN0_IN_OUT = 1u };
 
 /* tape_ops.c: the row of kind (every kind has one; tests/test_nn_tape.c checks them all) */
 const tp_op *spx_tp_op(int kind);
