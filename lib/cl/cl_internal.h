@@ -17,7 +17,7 @@ struct spx_cl_program {
   char name[64];
   cl_program prog; /* NULL: the build failed; error says why, and lookups repeat it without rebuilding */
   char *error;
-  uint64_t uses; /* bit i: built with -D of tunable row i */
+  spx_tunable_set uses; /* the tunable rows it was built with (-D) */
 };
 
 /* Live / peak bytes of the device buffers of a context (lib/cl/devmem.c). Reference-counted: the
@@ -100,7 +100,7 @@ spx_status spx_cl_program_build(spx_ctx *ctx, const char *program);
 spx_status spx_cl_tunables_resolve(spx_ctx *ctx);
 /* Build options of the program with (prelude + expanded) source src: -cl-std, the device class,
  * -D<NAME>=<value> of every tunable src mentions, the division mode. Part of the cache key. */
-uint64_t spx_cl_program_options(const spx_ctx *ctx, const char *src, char *out, size_t cap);
+void spx_cl_program_options(const spx_ctx *ctx, const char *src, char *out, size_t cap, spx_tunable_set *uses);
 /* Tunable rows (lib/cl/tuning.c), i in [0, SPX_NTUNABLES): the field of row i in t; its name as
  * users write it (CONV_TM for SPX_TUNE_CONV_TM); the row of a name of `len` bytes (-1: none). */
 int *spx_cl_tunable_field(struct spx_tunables *t, int i);
@@ -116,9 +116,9 @@ spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t);
  * and the reason kept in ctx->dev->tune_note. Never fails. */
 void spx_cl_tunefile_apply(spx_ctx *ctx);
 
-/* Release the built programs that use any tunable of the mask `uses` (~0: all) and their kernels
+/* Release the built programs that use any tunable of `uses` (NULL: all programs) and their kernels
  * (the device stays open); their next launch rebuilds them. */
-void spx_cl_programs_release(spx_ctx *ctx, uint64_t uses);
+void spx_cl_programs_release(spx_ctx *ctx, const spx_tunable_set *uses);
 /* The program-binary cache directory (created when missing); 0 when there is none. */
 int spx_cl_cache_dir(char *out, size_t cap);
 
