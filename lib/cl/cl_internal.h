@@ -44,7 +44,6 @@ struct spx_cl_device {
   char tune_file[4096];                      /* the tuning file read (or looked for) */
   char tune_comment[1024];                   /* its `# ` lines when it was used, joined by newlines */
   int cr_div;       /* the device divides fp32 correctly rounded (set with the tunables) */
-  int div_fallback; /* SPX_FORCE_DIV_FALLBACK: kernels divide in integers (kernels/exact.h) although cr_div exists */
   int tune_cpu; /* 1: kernels are built and launched with the CPU column of lib/cl/tuning.c */
   struct spx_cl_program programs[SPX_MAX_PROGRAMS];
   int nprograms;

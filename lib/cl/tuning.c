@@ -289,12 +289,7 @@ static void division_mode(spx_ctx *ctx) {
   cl_device_fp_config fp = 0;
   ctx->dev->cr_div = clGetDeviceInfo(ctx->dev->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS &&
                 (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT);
-  ctx->dev->div_fallback = 0;
-  if (getenv("SPX_FORCE_DIV_FALLBACK")) {
-    /* testing hook: the integer division of kernels/exact.h on a device that divides correctly */
-    ctx->dev->cr_div = 0;
-    ctx->dev->div_fallback = 1;
-  }
+  if (spx_ctx_profile(ctx) & SPX_DEBUG_DIV_FALLBACK) ctx->dev->cr_div = 0; /* a switch for tests */
 }
 
 void spx_cl_program_options(const spx_ctx *ctx, const char *src, char *o, size_t cap, spx_tunable_set *uses) {
@@ -306,9 +301,7 @@ void spx_cl_program_options(const spx_ctx *ctx, const char *src, char *o, size_t
       spx_tunable_set_add(uses, i);
     }
   if (n < cap)
-    n += (size_t)snprintf(o + n, cap - n,
-                          ctx->dev->cr_div ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
-  if (n < cap && ctx->dev->div_fallback) snprintf(o + n, cap - n, " -DSPX_FORCE_DIV_FALLBACK=1");
+    snprintf(o + n, cap - n, ctx->dev->cr_div ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
 }
 
 spx_status spx_cl_tunables_resolve(spx_ctx *ctx) {
