@@ -147,8 +147,15 @@ spx_status spx_cl_copy(spx_ctx *ctx, cl_mem src, cl_mem dst, size_t so, size_t d
 spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *global, const size_t *local,
                       const char *what);
 
-/* Set kernel argument i from an lvalue; OR the results and check once with spx_cl_check. */
-#define SPX_ARG(k, i, v) clSetKernelArg((k), (cl_uint)(i), sizeof(v), &(v))
-#define SPX_ARG_LOCAL(k, i, bytes) clSetKernelArg((k), (cl_uint)(i), (bytes), NULL)
+/* Set kernel argument i: CL_SUCCESS, or CL_INVALID_KERNEL_ARGS whatever the driver returned, so
+ * that a launcher ORs the results of all its arguments into one code and checks it once with
+ * spx_cl_check ("<kernel>: CL_INVALID_KERNEL_ARGS"): the OR of such values is that code exactly
+ * when one failed, where an OR of the drivers' codes would name an unrelated error. SPX_ARG takes
+ * an lvalue (its size and address), SPX_ARG_LOCAL a local-memory size. */
+static inline cl_int spx_cl_arg(cl_kernel k, cl_uint i, size_t size, const void *value) {
+  return clSetKernelArg(k, i, size, value) == CL_SUCCESS ? CL_SUCCESS : CL_INVALID_KERNEL_ARGS;
+}
+#define SPX_ARG(k, i, v) spx_cl_arg((k), (cl_uint)(i), sizeof(v), &(v))
+#define SPX_ARG_LOCAL(k, i, bytes) spx_cl_arg((k), (cl_uint)(i), (bytes), NULL)
 
 #endif
