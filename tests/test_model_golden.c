@@ -1,4 +1,4 @@
-/* The shipped network against PyTorch (issue 10): `smplpix render` without --checkpoint (so the
+/* The shipped network against PyTorch: `smplpix render` without --checkpoint (so the
  * shipped data/models/default.safetensors, found through SPX_DATA_DIR = the repository's data/)
  * on tests/data/models/input_64x48.npy gives the output that PyTorch computes with the same file
  * loaded into the milesial UNet by load_state_dict(strict=True) (tests/data/models/
