@@ -100,5 +100,6 @@ if(NOT SPX_SANITIZE)
     ENVIRONMENT "SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
 endif()
 # The rasterizer with the exact integer division of kernels/exact.h (what devices without
-# correctly rounded fp32 division take): face ids still equal the reference's.
+# correctly rounded fp32 division take; tests/test.h turns SPX_FORCE_DIV_FALLBACK into the context
+# switch SPX_DEBUG_DIV_FALLBACK): face ids still equal the reference's.
 spx_test_variant(test_render_raster_intdiv test_render_raster "SPX_FORCE_DIV_FALLBACK=1")

@@ -17,7 +17,7 @@ struct spx_cl_program {
   char name[64];
   cl_program prog; /* NULL: the build failed; error says why, and lookups repeat it without rebuilding */
   char *error;
-  uint64_t uses; /* bit i: built with -D of tunable row i */
+  spx_tunable_set uses; /* the tunable rows it was built with (-D) */
 };
 
 /* Live / peak bytes of the device buffers of a context (lib/cl/devmem.c). Reference-counted: the
@@ -44,7 +44,6 @@ struct spx_cl_device {
   char tune_file[4096];                      /* the tuning file read (or looked for) */
   char tune_comment[1024];                   /* its `# ` lines when it was used, joined by newlines */
   int cr_div;       /* the device divides fp32 correctly rounded (set with the tunables) */
-  int div_fallback; /* SPX_FORCE_DIV_FALLBACK: kernels divide in integers (kernels/exact.h) although cr_div exists */
   int tune_cpu; /* 1: kernels are built and launched with the CPU column of lib/cl/tuning.c */
   struct spx_cl_program programs[SPX_MAX_PROGRAMS];
   int nprograms;
@@ -100,7 +99,7 @@ spx_status spx_cl_program_build(spx_ctx *ctx, const char *program);
 spx_status spx_cl_tunables_resolve(spx_ctx *ctx);
 /* Build options of the program with (prelude + expanded) source src: -cl-std, the device class,
  * -D<NAME>=<value> of every tunable src mentions, the division mode. Part of the cache key. */
-uint64_t spx_cl_program_options(const spx_ctx *ctx, const char *src, char *out, size_t cap);
+void spx_cl_program_options(const spx_ctx *ctx, const char *src, char *out, size_t cap, spx_tunable_set *uses);
 /* Tunable rows (lib/cl/tuning.c), i in [0, SPX_NTUNABLES): the field of row i in t; its name as
  * users write it (CONV_TM for SPX_TUNE_CONV_TM); the row of a name of `len` bytes (-1: none). */
 int *spx_cl_tunable_field(struct spx_tunables *t, int i);
@@ -116,9 +115,9 @@ spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t);
  * and the reason kept in ctx->dev->tune_note. Never fails. */
 void spx_cl_tunefile_apply(spx_ctx *ctx);
 
-/* Release the built programs that use any tunable of the mask `uses` (~0: all) and their kernels
+/* Release the built programs that use any tunable of `uses` (NULL: all programs) and their kernels
  * (the device stays open); their next launch rebuilds them. */
-void spx_cl_programs_release(spx_ctx *ctx, uint64_t uses);
+void spx_cl_programs_release(spx_ctx *ctx, const spx_tunable_set *uses);
 /* The program-binary cache directory (created when missing); 0 when there is none. */
 int spx_cl_cache_dir(char *out, size_t cap);
 
@@ -148,8 +147,15 @@ spx_status spx_cl_copy(spx_ctx *ctx, cl_mem src, cl_mem dst, size_t so, size_t d
 spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *global, const size_t *local,
                       const char *what);
 
-/* Set kernel argument i from an lvalue; OR the results and check once with spx_cl_check. */
-#define SPX_ARG(k, i, v) clSetKernelArg((k), (cl_uint)(i), sizeof(v), &(v))
-#define SPX_ARG_LOCAL(k, i, bytes) clSetKernelArg((k), (cl_uint)(i), (bytes), NULL)
+/* Set kernel argument i: CL_SUCCESS, or CL_INVALID_KERNEL_ARGS whatever the driver returned, so
+ * that a launcher ORs the results of all its arguments into one code and checks it once with
+ * spx_cl_check ("<kernel>: CL_INVALID_KERNEL_ARGS"): the OR of such values is that code exactly
+ * when one failed, where an OR of the drivers' codes would name an unrelated error. SPX_ARG takes
+ * an lvalue (its size and address), SPX_ARG_LOCAL a local-memory size. */
+static inline cl_int spx_cl_arg(cl_kernel k, cl_uint i, size_t size, const void *value) {
+  return clSetKernelArg(k, i, size, value) == CL_SUCCESS ? CL_SUCCESS : CL_INVALID_KERNEL_ARGS;
+}
+#define SPX_ARG(k, i, v) spx_cl_arg((k), (cl_uint)(i), sizeof(v), &(v))
+#define SPX_ARG_LOCAL(k, i, bytes) spx_cl_arg((k), (cl_uint)(i), (bytes), NULL)
 
 #endif

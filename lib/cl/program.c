@@ -317,7 +317,8 @@ static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
   char dir[4096], path[4400];
   int use_cache = !cache_disabled() && spx_cl_cache_dir(dir, sizeof dir);
   char opts[4096];
-  uint64_t uses = spx_cl_program_options(ctx, src, opts, sizeof opts);
+  spx_tunable_set uses;
+  spx_cl_program_options(ctx, src, opts, sizeof opts, &uses);
   dump_file(name, "", src, len);
   dump_file(name, ".opts", opts, strlen(opts));
   struct cache_key key = make_key(ctx, src, len, opts);
@@ -416,11 +417,11 @@ spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out) {
   return SPX_OK;
 }
 
-void spx_cl_programs_release(spx_ctx *ctx, uint64_t uses) {
+void spx_cl_programs_release(spx_ctx *ctx, const spx_tunable_set *uses) {
   if (ctx->dev->queue) clFinish(ctx->dev->queue);
   for (int j = ctx->dev->nprograms - 1; j >= 0; j--) {
     struct spx_cl_program *p = &ctx->dev->programs[j];
-    if (!(p->uses & uses) && uses != ~0ull) continue;
+    if (uses && !spx_tunable_set_meets(&p->uses, uses)) continue;
     for (int i = 0; i < SPX_K_COUNT; i++)
       if (ctx->dev->kernels[i] && !strcmp(kernel_rows[i].program, p->name)) {
         clReleaseKernel(ctx->dev->kernels[i]);
