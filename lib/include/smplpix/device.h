@@ -50,7 +50,7 @@ spx_status spx_device_warmup(spx_ctx *ctx);
  * on a GPU, a few seconds on a CPU): the float32 FMA peak (128 independent fma lanes per
  * work-item, 4096 work-items per compute unit; 2 flops per fma) and the streaming bandwidth of a
  * triad a = b + s c over float4 arrays of up to 256 MiB each (12 bytes per float). Each is the
- * best of three launches of at least 20 ms. The last measurement is kept on the device:
+ * best of twenty timings of at least 2 ms. The last measurement is kept on the device:
  * spx_device_peak_known returns 1 and copies it (out may be NULL), 0 before any. */
 typedef struct spx_device_peak {
   double fma_gflops;  /* 10^9 flops per second */
