@@ -30,13 +30,8 @@ skip() {
   exit 3
 }
 
-if [ -n "${SPX_CACHE_DIR:-}" ]; then
-  cache=$SPX_CACHE_DIR
-elif [ -n "${HOME:-}" ]; then
-  cache=$HOME/.cache/smplpix
-else
-  die "neither SPX_CACHE_DIR nor HOME is set: no cache directory"
-fi
+. "$(cd "$(dirname "$0")/../.." && pwd)/scripts/pypi_cache.sh"
+cache=$(spx_cache_root) || die "neither SPX_CACHE_DIR nor HOME is set: no cache directory"
 dest=$cache/nvidia-tools
 sha() { sha256sum "$1" | cut -d' ' -f1; }
 
@@ -64,12 +59,7 @@ if [ -n "${SPX_NVIDIA_WHEELS:-}" ]; then
   wheels=$SPX_NVIDIA_WHEELS
   for w in $NVCC_WHEEL $DIS_WHEEL; do [ -f "$wheels/$w" ] || die "$wheels/$w: no such file (SPX_NVIDIA_WHEELS)"; done
 else
-  pip=$py
-  if ! "$pip" -m pip --version >/dev/null 2>&1; then # python3-venv bundles pip
-    "$py" -m venv "$tmp/venv" >/dev/null 2>&1 && "$tmp/venv/bin/python" -m pip --version >/dev/null 2>&1 ||
-      skip "no pip for $py, nor a venv with one (apt-get install python3-pip or python3-venv)"
-    pip=$tmp/venv/bin/python
-  fi
+  pip=$(spx_pip "$py" "$tmp") || skip "no python3 with pip, nor a venv with one (apt-get install python3-pip or python3-venv)"
   {
     echo "nvidia-cuda-nvcc==13.2.78 --hash=sha256:$NVCC_SHA256"
     echo "nvidia-cuda-nvdisasm==13.2.78 --hash=sha256:$DIS_SHA256"
