@@ -124,9 +124,9 @@ table1: build
 clang-check: build
 	sh scripts/device/clang_check.sh $(BUILD)
 
-# The static GPU check (scripts/device/gpu_static.sh; in CI, ~1 min on 2 cores after a 48 MB
+# The static GPU check (scripts/device/gpu_static.sh; in CI, ~1 min on 2 cores after a 45 MB
 # download into the cache): every program as the GPU class builds it, through clang-15 + libclc-15
-# to PTX, then NVIDIA's ptxas -arch=sm_90 -v and nvdisasm (PyPI nvidia-cuda-nvcc /
+# to PTX, then NVIDIA's ptxas -arch=sm_90 -v and nvdisasm (PyPI nvidia-cuda-nvcc-cu12 12.9.86,
 # nvidia-cuda-nvdisasm 13.2.78, pinned by sha256; a failed download skips with one line). Per hot
 # kernel of scripts/device/gpu_kernels.txt: registers against its budget, spills, stack, local
 # memory, sm_90 occupancy, the inner loop's FFMA share; fails on a breach (docs/gpu.md).

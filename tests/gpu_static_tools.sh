@@ -5,9 +5,11 @@
 #   2. the kit's path end to end on PTX made here (CPU PoCL returns no PTX): peak.cl and
 #      conv2d_lds.cl as the GPU class builds them (SPX_CL_DUMP_DIR), through clang-15 + libclc-15
 #      (scripts/device/gpu_common.sh) to PTX, packed like the kit's $OUT/first.tgz with a
-#      -cl-nv-verbose-style log (ptxas -v's own output, the format NVIDIA's driver writes), then
+#      -cl-nv-verbose-style log (ptxas -v's own output, the format NVIDIA's driver writes) and the
+#      peak program's PTX marked ISA 9.9 (newer than any pinned ptxas), then
 #      scripts/device/analyse_ptx.sh on it: the FMA peak kernel's inner loop must be >= 95% FFMA
-#      with no stack, the 3x3 kernel's row must carry the driver's register count.
+#      with no stack, the 3x3 kernel's row must carry the driver's register count, the PTX version
+#      must have been lowered and noted.
 # Part 2 needs clang-15, libclc-15 and NVIDIA's ptxas + nvdisasm already installed (make gpu-static
 # puts them in ~/.cache/smplpix/nvidia-tools; or set PTXAS and NVDISASM): this test never
 # downloads them; without them it says so and part 1 decides. Exit 77 without python3.
@@ -31,6 +33,8 @@ for p in peak conv2d_lds; do
   spx_nvptx_libclc "$T/dump" "$p" "$T/first/programs" || { cat "$T/first/programs/$p.clang.log" >&2; exit 1; }
 done
 "$PTXAS" -arch=sm_90 -v -o "$T/lds.cubin" "$T/first/programs/conv2d_lds.ptx" >"$T/first/nvverbose/conv2d_lds.log" 2>&1
+# a driver newer than the pinned ptxas writes a newer PTX ISA version: assembled with it lowered
+sed 's/^\.version .*/.version 9.9/' "$T/first/programs/peak.ptx" >"$T/peak.ptx" && mv "$T/peak.ptx" "$T/first/programs/peak.ptx"
 tar -czf "$T/first.tgz" -C "$T" first
 sh scripts/device/analyse_ptx.sh "$T/first.tgz" >"$T/report.txt" 2>&1 || { cat "$T/report.txt" >&2; exit 1; }
 cat "$T/report.txt"
@@ -41,6 +45,8 @@ share=$(echo "$peak" | sed -n 's/.*FFMA \([0-9]*\)%.*/\1/p')
 echo "$peak" | grep -q ' 0/0 .* 0 ' || { echo "gpu_static_tools: FAIL: spx_peak_fma spills or has a stack frame" >&2; fail=1; }
 grep -q '^spx_conv2d_fwd_k3s1_lds .*(driver [0-9]*)' "$T/report.txt" ||
   { echo "gpu_static_tools: FAIL: the driver log's registers are not beside spx_conv2d_fwd_k3s1_lds" >&2; fail=1; }
+grep -q '^note: peak: .version 9.9 lowered to ' "$T/report.txt" ||
+  { echo "gpu_static_tools: FAIL: a PTX version newer than ptxas's was not lowered (or not noted)" >&2; fail=1; }
 # a partial set of programs is not a complete one: --check calls the other rules' kernels missing
 if sh scripts/device/analyse_ptx.sh --check "$T/first.tgz" >"$T/check.txt" 2>&1; then
   echo "gpu_static_tools: FAIL: --check on two programs passed; it must call the rules' other kernels missing" >&2

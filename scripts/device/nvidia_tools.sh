@@ -1,11 +1,11 @@
 #!/bin/sh
 # NVIDIA's assembler and disassembler for the offline PTX checks (make gpu-static, analyse_ptx.sh),
 # pinned, into ${SPX_CACHE_DIR:-~/.cache/smplpix}/nvidia-tools/ as `make weights` installs its
-# networks: ptxas from the PyPI wheel nvidia-cuda-nvcc 13.2.78 and nvdisasm from
-# nvidia-cuda-nvdisasm 13.2.78 (CUDA 13.2; nvdisasm is published only as a CUDA 13 wheel, and the
-# GPU machine's driver 580 is CUDA 13, whose OpenCL PTX a CUDA 12 ptxas may refuse), each wheel
-# fetched with `pip download --no-deps --require-hashes` and its sha256 checked again here, the one
-# binary taken out of it, the pair checked to run. A run with both binaries matching SHA256SUMS and
+# networks: ptxas from the PyPI wheel nvidia-cuda-nvcc-cu12 12.9.86 (CUDA 12.9, PTX ISA up to 8.8)
+# and nvdisasm from nvidia-cuda-nvdisasm 13.2.78 (the disassembler is published only as a CUDA 13
+# wheel; it reads CUDA 12 cubins), each wheel fetched with `pip download --no-deps
+# --require-hashes` and its sha256 checked again here, the one binary taken out of it, the pair
+# checked to run. A run with both binaries matching SHA256SUMS and
 # VERSION does nothing. SPX_NVIDIA_WHEELS=DIR uses the two wheel files in DIR instead of
 # downloading (checked the same way). PYTHON picks the interpreter.
 # Prints the folder holding ptxas and nvdisasm on stdout. Exit status:
@@ -15,11 +15,11 @@
 #   1 an error: a wheel whose sha256 differs from the pin, a wheel without the binary, a binary that
 #     does not run, an unwritable cache; one line on stderr, the cache as it was
 set -eu
-NVCC_WHEEL=nvidia_cuda_nvcc-13.2.78-py3-none-manylinux2014_x86_64.manylinux_2_17_x86_64.whl
-NVCC_SHA256=c3bd144dd9b6b25e062589acb7bbd43d93d3120c72fad71da808f9817aba1239
+NVCC_WHEEL=nvidia_cuda_nvcc_cu12-12.9.86-py3-none-manylinux2010_x86_64.manylinux_2_12_x86_64.whl
+NVCC_SHA256=5d6a0d32fdc7ea39917c20065614ae93add6f577d840233237ff08e9a38f58f0
 DIS_WHEEL=nvidia_cuda_nvdisasm-13.2.78-py3-none-manylinux2014_x86_64.manylinux_2_17_x86_64.whl
 DIS_SHA256=b4ebcd3c5046bf8039ac52675b9dbefd843600969649ecaab0a42b0713a61dae
-VERSION="nvidia-cuda-nvcc==13.2.78 nvidia-cuda-nvdisasm==13.2.78"
+VERSION="nvidia-cuda-nvcc-cu12==12.9.86 nvidia-cuda-nvdisasm==13.2.78"
 
 die() {
   echo "nvidia-tools: $*" >&2
@@ -61,7 +61,7 @@ if [ -n "${SPX_NVIDIA_WHEELS:-}" ]; then
 else
   pip=$(spx_pip "$py" "$tmp") || skip "no python3 with pip, nor a venv with one (apt-get install python3-pip or python3-venv)"
   {
-    echo "nvidia-cuda-nvcc==13.2.78 --hash=sha256:$NVCC_SHA256"
+    echo "nvidia-cuda-nvcc-cu12==12.9.86 --hash=sha256:$NVCC_SHA256"
     echo "nvidia-cuda-nvdisasm==13.2.78 --hash=sha256:$DIS_SHA256"
   } >"$tmp/req.txt"
   if ! "$pip" -m pip download --no-deps --only-binary :all: --require-hashes -r "$tmp/req.txt" -d "$tmp/dl" \
@@ -79,7 +79,7 @@ fi
   die "$wheels/$DIS_WHEEL: sha256 $(sha "$wheels/$DIS_WHEEL"), expected $DIS_SHA256"
 
 mkdir "$tmp/out"
-"$py" - "$wheels/$NVCC_WHEEL" nvidia/cu13/bin/ptxas "$wheels/$DIS_WHEEL" nvidia/cu13/bin/nvdisasm "$tmp/out" <<'EOF' ||
+"$py" - "$wheels/$NVCC_WHEEL" nvidia/cuda_nvcc/bin/ptxas "$wheels/$DIS_WHEEL" nvidia/cu13/bin/nvdisasm "$tmp/out" <<'EOF' ||
 import os, sys, zipfile
 a = sys.argv[1:]
 for wheel, member in ((a[0], a[1]), (a[2], a[3])):
