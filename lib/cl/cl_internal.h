@@ -98,8 +98,8 @@ const char *spx_cl_kernel_name(spx_kernel_id id);
  * many registers); 0 when unknown. */
 size_t spx_cl_kernel_wg_limit(spx_ctx *ctx, cl_kernel k);
 
-/* 1 when a program binary is PTX text (what NVIDIA's CL_PROGRAM_BINARIES holds): no NUL byte in
- * its first 64 KiB, and lines starting ".version " and ".target " there. SPX_CL_DUMP_DIR writes
+/* 1 when a program binary is PTX text (what NVIDIA's CL_PROGRAM_BINARIES holds): trailing NULs
+ * aside, no NUL byte in its first 64 KiB, and lines starting ".version " and ".target " there. SPX_CL_DUMP_DIR writes
  * such binaries as <stem>.ptx (lib/cl/program.c). */
 int spx_cl_binary_is_ptx(const unsigned char *bin, size_t len);
 

@@ -239,7 +239,8 @@ static void dump_file(const char *name, const char *suffix, const char *text, si
 }
 
 int spx_cl_binary_is_ptx(const unsigned char *bin, size_t len) {
-  size_t n = len < 65536 ? len : 65536; /* PTX states .version and .target in its first lines */
+  while (len > 0 && bin[len - 1] == 0) len--; /* NVIDIA's binary is the PTX string with its NUL */
+  size_t n = len < 65536 ? len : 65536;       /* PTX states .version and .target in its first lines */
   if (n == 0 || memchr(bin, 0, n)) return 0;
   int version = 0, target = 0;
   for (size_t i = 0; i < n; i++) {
@@ -263,6 +264,7 @@ static void dump_binary(const char *name, cl_program prog) {
     size_t sl = strlen(name);
     if (sl > 3 && !strcmp(name + sl - 3, ".cl")) sl -= 3;
     snprintf(stem, sizeof stem, "%.*s", (int)sl, name);
+    while (blen > 0 && bin[blen - 1] == 0) blen--;
     dump_file(stem, ".ptx", (const char *)bin, blen);
   }
   free(bin);

@@ -7,8 +7,9 @@
 # kit copied to /repo (another path than the one the kit was built in, as on that machine):
 #   1. every kit executable's libraries resolve to the kit or to glibc (ldd, LD_LIBRARY_PATH = kit)
 #   2. scripts/device/run.sh with SPX_DEVICE=cpu and SPX_RUN_QUICK=1 (small benchmark sizes) runs
-#      every step (limits x5: PoCL on 2 cores is slow); the first step's sub-steps (the roofline,
-#      the program dump, the mma probe, the profiles, ours and CLBlast's layer shapes), ctest
+#      every step (limits x10: PoCL compiles every program cold on 2 shared cores); the first
+#      step's sub-steps (the roofline, the program dump, the mma probe, the profiles, ours and
+#      CLBlast's layer shapes), ctest
 #      (SPX_CTEST_REGEX, default the device, sort, raster, LBS and upsampling tests, both columns)
 #      and the benchmarks must end with rc=0; $OUT must hold summary.txt, first.tgz (with every
 #      program's source), logs.tgz, bench.txt, ctest.txt; the summary the first step's sections
@@ -79,7 +80,7 @@ fi
 
 echo "test_clean_root: 2. scripts/device/run.sh on PoCL (ctest -R '$REGEX')"
 rm -rf "$ROOT/out/clean-root"
-chroot "$CR" sh -c "cd /repo && SPX_DEVICE=cpu SPX_RUN_QUICK=1 SPX_CTEST_JOBS=2 SPX_RUN_BUDGET=${SPX_RUN_BUDGET:-1800} SPX_RUN_LIMIT_SCALE=5 \
+chroot "$CR" sh -c "cd /repo && SPX_DEVICE=cpu SPX_RUN_QUICK=1 SPX_CTEST_JOBS=2 SPX_RUN_BUDGET=${SPX_RUN_BUDGET:-3600} SPX_RUN_LIMIT_SCALE=${SPX_RUN_LIMIT_SCALE:-10} \
   SPX_CTEST_REGEX='$REGEX' OUT=/repo/out/device bash scripts/device/run.sh" >"$CR.run.log" 2>&1 || true
 mkdir -p "$ROOT/out/clean-root"
 cp -r "$CR/repo/out/device/." "$ROOT/out/clean-root/" 2>/dev/null || true
