@@ -31,6 +31,7 @@ class Occupancy(unittest.TestCase):
         self.assertEqual(pr.occupancy(73, 12672, 64)[0] < pr.occupancy(72, 12672, 64)[0], True)
 
 
+# ptxas -v's output; the k_b lines as NVIDIA's driver words them in a -cl-nv-verbose build log
 PTXAS_LOG = """ptxas info    : 0 bytes gmem
 ptxas info    : Function properties for helper_fn
     16 bytes stack frame, 4 bytes spill stores, 4 bytes spill loads
@@ -40,7 +41,7 @@ ptxas info    : Function properties for k_a
 ptxas info    : Used 40 registers, used 1 barriers, 4096 bytes smem, 380 bytes cmem[0]
 ptxas info    : Compiling entry function 'k_b' for 'sm_90'
 ptxas info    : Function properties for k_b
-    96 bytes stack frame, 8 bytes spill stores, 12 bytes spill loads
+ptxas         .     96 bytes stack frame, 8 bytes spill stores, 12 bytes spill loads
 ptxas info    : Used 255 registers, used 0 barriers, 96 bytes cumulative stack size
 """
 

@@ -77,14 +77,15 @@ run_first() {
 # NVIDIA's own figures for the hot kernels (scripts/device/gpu_kernels.txt) from the -cl-nv-verbose logs
 nv_verbose_table() {
   cat "$FIRST"/nvverbose/*.log 2>/dev/null | awk -v hot="$(awk '$1 == "kernel" { printf "%s ", $2 }' "$ROOT/scripts/device/gpu_kernels.txt")" '
+    function num(re, t) { if (!match($0, re)) return "?"; t = substr($0, RSTART, RLENGTH); sub(/ .*/, "", t); return t }
     BEGIN { n = split(hot, h, " "); for (i = 1; i <= n; i++) want[h[i]] = 1 }
     /Compiling entry function/ { k = $0; sub(/.*function \047/, "", k); sub(/\047.*/, "", k) }
     /Function properties for/ { f = $NF }
-    /bytes stack frame/ { st[f] = $1; sp[f] = $5 "/" $9 }
+    /bytes stack frame/ { st[f] = num("[0-9]+ bytes stack frame"); sp[f] = num("[0-9]+ bytes spill stores") "/" num("[0-9]+ bytes spill loads") }
     /Used [0-9]+ registers/ && k in want {
-      s = $0; sub(/.*Used /, "", s); split(s, a, " "); m = "0"
-      if (match($0, /[0-9]+ bytes smem/)) m = substr($0, RSTART, RLENGTH - 11)
-      printf "  %-30s %4d registers, spills %s, stack %s, local %s B\n", k, a[1], sp[k] == "" ? "?" : sp[k], st[k] == "" ? "?" : st[k], m
+      m = num("[0-9]+ bytes smem")
+      printf "  %-30s %4s registers, spills %s, stack %s, local %s B\n", k, num("[0-9]+ registers"), sp[k] == "" ? "?" : sp[k],
+        st[k] == "" ? "?" : st[k], m == "?" ? 0 : m
       k = "" }'
 }
 
