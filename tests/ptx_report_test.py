@@ -31,7 +31,7 @@ class Occupancy(unittest.TestCase):
         self.assertEqual(pr.occupancy(73, 12672, 64)[0] < pr.occupancy(72, 12672, 64)[0], True)
 
 
-# ptxas -v's output; the k_b lines as NVIDIA's driver words them in a -cl-nv-verbose build log
+# ptxas -v's output; k_b's stack line with the 'ptxas  .' prefix that some builds of ptxas print
 PTXAS_LOG = """ptxas info    : 0 bytes gmem
 ptxas info    : Function properties for helper_fn
     16 bytes stack frame, 4 bytes spill stores, 4 bytes spill loads
