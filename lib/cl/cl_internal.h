@@ -52,6 +52,8 @@ struct spx_cl_device {
   spx_cache_stats cache;
   spx_devmem *devmem; /* created by the first counted buffer */
   struct spx_cl_kprof *kprof; /* SPX_PROFILE_KERNELS: per-command device times (lib/cl/kprof.c); else NULL */
+  spx_device_peak peak; /* the last spx_device_measure_peak (lib/cl/peak.c), when peak_known */
+  int peak_known;
 };
 
 /* Release all device objects and free ctx->dev (spx_ctx_destroy calls it through ctx->dev_close). */
@@ -67,6 +69,13 @@ cl_event *spx_cl_kprof_ev(spx_ctx *ctx, cl_event *ev);
 void spx_cl_kprof_add(spx_ctx *ctx, const char *name, cl_event ev);
 void spx_cl_kprof_report(spx_ctx *ctx);
 void spx_cl_kprof_free(struct spx_cl_device *dev);
+
+/* The roofline kernels of kernels/peak.cl (lib/cl/peak.c): spx_peak_fma writes to out[i], i < n,
+ * the sum of its 16 chains after 4 * quads rounds of x = fma(x, b, c), which spx_ref_peak_fma
+ * computes on the host (the same bits); spx_peak_triad sets a = b + s * c over n4 float4s. */
+spx_status spx_cl_peak_fma(spx_ctx *ctx, cl_mem out, int n, int quads, float b, float c);
+spx_status spx_cl_peak_triad(spx_ctx *ctx, cl_mem a, cl_mem b, cl_mem c, int n4, float s);
+float spx_ref_peak_fma(int i, int quads, float b, float c);
 
 /* Fail with SPX_E_STATE unless a device is open. */
 spx_status spx_cl_require(spx_ctx *ctx, const char *what);
@@ -87,6 +96,11 @@ const char *spx_cl_kernel_name(spx_kernel_id id);
  * (CL_KERNEL_WORK_GROUP_SIZE, which can be below the device's limit, e.g. for kernels that use
  * many registers); 0 when unknown. */
 size_t spx_cl_kernel_wg_limit(spx_ctx *ctx, cl_kernel k);
+
+/* 1 when a program binary is PTX text (what NVIDIA's CL_PROGRAM_BINARIES holds): trailing NULs
+ * aside, no NUL byte in its first 64 KiB, and lines starting ".version " and ".target " there. SPX_CL_DUMP_DIR writes
+ * such binaries as <stem>.ptx (lib/cl/program.c). */
+int spx_cl_binary_is_ptx(const unsigned char *bin, size_t len);
 
 /* The i-th embedded kernel program's file name ("conv2d.cl"), NULL past the last; and building
  * one program now (or loading it from the cache), as its first kernel lookup would
