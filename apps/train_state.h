@@ -34,15 +34,15 @@ typedef struct spx_train_state {
   int64_t disc_width;      /* --disc-width of the discriminator (W.disc.safetensors) */
   int64_t target;          /* global step the run trains to (--epochs / --steps; both stages of --schedule
                               paper): --resume alone continues to it; -1 when not recorded */
+  int image_w, image_h;    /* the training images' size, saved as the metadata smplpix.image_size
+                              ("WxH", the key of shipped networks; not a smplpix.train field); 0: none */
 } spx_train_state;
 
 /* Defaults for every field (what a file without a key reads as). */
 void spx_train_state_init(spx_train_state *s);
-/* Copy the checkpoint at src to dst (dst written atomically), adding s to its metadata.
- * Both functions print the one-line error themselves and return SPX_EXIT_OK or the exit code. */
-int spx_train_state_attach(spx_ctx *ctx, const char *src, const char *dst, const spx_train_state *s);
 /* Read the state of checkpoint path. *has_state: it holds a training state; *has_optimizer: it
- * holds the Adam state (optimizer.step). A malformed field is an error naming it. */
+ * holds the Adam state (optimizer.step). A malformed field is an error naming it. Prints the
+ * one-line error itself and returns SPX_EXIT_OK or the exit code. */
 int spx_train_state_read(spx_ctx *ctx, const char *path, spx_train_state *s, int *has_state, int *has_optimizer);
 /* Save u (weights + Adam state) with the state s to path, and when d is not NULL the discriminator
  * (+ its Adam state) to disc_path, in one durable transaction of their own (fsync of the files and

@@ -62,7 +62,7 @@ def test_corrupted_files_never_crash(tmp_path):
 
 
 def test_binding_as_strict_as_the_cli(tmp_path):
-    """Issue 24: sizes, paths, NaN and dtypes follow the CLI's rules, as exceptions."""
+    """The binding is as strict as the CLI: sizes, paths, NaN and dtypes follow its rules, as exceptions."""
     import pytest
     img = np.zeros((4, 5, 3), np.float32)
     # an embedded NUL would cut the path short in C and name another file

@@ -8,9 +8,10 @@ usage: scripts/device/gemm_model.py [--build DIR] [--batch N] [--sass FILE --ptx
    (SPX_CL_DUMP_DIR), compiled by clang-15 for nvptx64-nvidia-nvcl with libclc's built-ins linked
    (libclc-15), assembled by NVIDIA's ptxas -arch=sm_90 -v and disassembled by nvdisasm.
    (Tools: $CLANG, $LIBCLC, $PTXAS, $NVDISASM; defaults clang-15, /usr/lib/clc/nvptx64--nvidiacl.bc,
-   ptxas and nvdisasm on PATH or in /usr/local/cuda/bin.)
+   and the pinned ptxas / nvdisasm of scripts/device/nvidia_tools.sh.)
 2. Per kernel: registers, spills, stack, shared memory, work-groups per SM (occupancy); fails (exit 1)
-   on a spill or stack frame in a GEMM-engine kernel or registers over scripts/device/gemm_budgets.tsv.
+   on a spill or stack frame in a GEMM-engine kernel or registers over its budget (the `kernel`
+   rows of scripts/device/gpu_kernels.txt, which make gpu-static checks for every program).
 3. The inner loop (the backward branch enclosing the most FFMAs) of spx_gemm_conv and spx_gemm_dw:
    its FFMA share of the issued instructions.
 4. Per UNet-64 layer at 308x410 (bench_conv2d's shapes): the forward, data-gradient and
@@ -69,14 +70,19 @@ FULL_RES = ("inc1", "inc2", "u4a", "u4b", "outc")
 ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
 
 
-def tool(env, names, dirs=("/usr/local/cuda/bin",)):
+def tool(env, name):
+    """$env, else the pinned NVIDIA tool of scripts/device/nvidia_tools.sh, else `name` on PATH."""
     if os.environ.get(env):
         return os.environ[env]
-    for n in names:
-        p = shutil.which(n) or next((os.path.join(d, n) for d in dirs if os.path.exists(os.path.join(d, n))), None)
-        if p:
-            return p
-    sys.exit(f"gemm_model: {names[0]} not found (set ${env})")
+    if name in ("ptxas", "nvdisasm"):
+        r = subprocess.run(["sh", os.path.join(ROOT, "scripts", "device", "nvidia_tools.sh")], capture_output=True,
+                           text=True)
+        if r.returncode == 0 and os.path.exists(os.path.join(r.stdout.strip(), name)):
+            return os.path.join(r.stdout.strip(), name)
+    p = shutil.which(name)
+    if not p:
+        sys.exit(f"gemm_model: {name} not found (set ${env})")
+    return p
 
 
 def compile_gemm(build, tmp):
@@ -88,8 +94,8 @@ def compile_gemm(build, tmp):
                        capture_output=True, text=True)
     if r.returncode:
         sys.exit("gemm_model: smplpix devices --warmup failed:\n" + r.stdout + r.stderr)
-    clang, libclc = tool("CLANG", ["clang-15"]), os.environ.get("LIBCLC", "/usr/lib/clc/nvptx64--nvidiacl.bc")
-    ptxas, nvdisasm = tool("PTXAS", ["ptxas"]), tool("NVDISASM", ["nvdisasm"])
+    clang, libclc = tool("CLANG", "clang-15"), os.environ.get("LIBCLC", "/usr/lib/clc/nvptx64--nvidiacl.bc")
+    ptxas, nvdisasm = tool("PTXAS", "ptxas"), tool("NVDISASM", "nvdisasm")
     logs, sass, opts = "", "", ""
     for prog in ("conv2d_gemm.cl", "conv2d_thin.cl"):
         o = open(os.path.join(src, prog + ".opts")).read().split()
@@ -222,11 +228,12 @@ def model_layer(L, t, k_conv, k_dw, batch):
 
 
 def read_budgets():
+    """kernel name -> (max registers, work-group) from the `kernel` rows of gpu_kernels.txt"""
     b = {}
-    for line in open(os.path.join(ROOT, "scripts", "device", "gemm_budgets.tsv")):
-        if line.strip() and not line.startswith("#"):
-            f = line.split("\t")
-            b[f[0]] = (int(f[2]), int(f[3]))
+    for line in open(os.path.join(ROOT, "scripts", "device", "gpu_kernels.txt")):
+        f = line.split()
+        if len(f) == 4 and f[0] == "kernel":
+            b[f[1]] = (int(f[3]), int(f[2]))
     return b
 
 
