@@ -52,16 +52,13 @@ static float *down(spx_ctx *ctx, cl_mem m, size_t n) {
   return f;
 }
 
-/* The passes of case c on a device opened now (the tunables of the environment). */
-static gres run(const gcase *c, const double *x, const double *w, const double *b, const double *sc,
+/* The passes of case c on ctx (opened with the tunables of the variant). */
+static gres run(spx_ctx *ctx, const gcase *c, const double *x, const double *w, const double *b, const double *sc,
                 const double *dy) {
   const spx_conv2d_shape *s = &c->s;
   const int ho = spx_conv2d_out_size(s->h, s->k, s->stride, s->pad), wo = spx_conv2d_out_size(s->w, s->k, s->stride, s->pad);
   size_t nx = (size_t)s->n * s->cin * s->h * s->w, ny = (size_t)s->n * s->cout * ho * wo;
   size_t nw = (size_t)s->cout * s->cin * s->k * s->k, nb = (size_t)s->cout;
-  spx_ctx *ctx;
-  CHECK(spx_ctx_create(&ctx) == SPX_OK);
-  CHECK_OK(ctx, spx_device_open(ctx, NULL));
   const int fwd = spx_conv2d_choose(ctx, s, SPX_CONV_PASS_FWD, c->affine);
   CHECK_MSG(fwd == (c->thin ? SPX_CONV_ALGO_THIN : s->stride == 1 ? SPX_CONV_ALGO_GEMM : SPX_CONV_ALGO_DIRECT),
             "forward algorithm %s", spx_conv2d_algo_name(fwd));
@@ -91,7 +88,6 @@ static gres run(const gcase *c, const double *x, const double *w, const double *
   CHECK(head[0] == -7.0f && head[1] == -7.0f && head[2] == -7.0f); /* nothing written before y */
   spx_cl_free(&mx), spx_cl_free(&mw), spx_cl_free(&mb), spx_cl_free(&msc), spx_cl_free(&mdy);
   spx_cl_free(&my), spx_cl_free(&mdx), spx_cl_free(&mdw);
-  spx_ctx_destroy(ctx);
   return r;
 }
 
@@ -108,7 +104,7 @@ static double worst(const float *dev, const double *ref, const double *aref, siz
 }
 
 /* rerun: run again and compare the bits */
-static void check_case(const gcase *c, const char *label, int rerun) {
+static void check_case(spx_ctx *ctx, const gcase *c, const char *label, int rerun) {
   const spx_conv2d_shape *s = &c->s;
   const int ho = spx_conv2d_out_size(s->h, s->k, s->stride, s->pad), wo = spx_conv2d_out_size(s->w, s->k, s->stride, s->pad);
   size_t nx = (size_t)s->n * s->cin * s->h * s->w, ny = (size_t)s->n * s->cout * ho * wo;
@@ -126,7 +122,7 @@ static void check_case(const gcase *c, const char *label, int rerun) {
   spx_ref_conv2d_forward(s, ax, aw, c->affine ? NULL : ab, c->affine ? asc : NULL, c->affine ? ab : NULL, 0, ay);
   spx_ref_conv2d_backward(s, x, w, dy, dx, dw, NULL);
   spx_ref_conv2d_backward(s, ax, aw, ady, adx, adw, NULL);
-  gres r = run(c, x, w, b, sc, dy);
+  gres r = run(ctx, c, x, w, b, sc, dy);
   const double kk = (double)s->k * s->k;
   double vy = worst(r.y, y, ay, ny, 0, kk * s->cin), vdx = worst(r.dx, dx, adx, nx, 1, kk * s->cout);
   double vdw = worst(r.dw, dw, adw, nw, 1, (double)s->n * ho * wo);
@@ -134,7 +130,7 @@ static void check_case(const gcase *c, const char *label, int rerun) {
          s->h, s->w, s->cout, s->k, s->stride, c->affine ? " affine relu" : "", vy, vdx, vdw);
   CHECK(vy <= 1 && vdx <= 1 && vdw <= 1);
   if (rerun) { /* fixed summation orders: the same bits */
-    gres r2 = run(c, x, w, b, sc, dy);
+    gres r2 = run(ctx, c, x, w, b, sc, dy);
     CHECK(!memcmp(r.y, r2.y, ny * 4) && !memcmp(r.dx, r2.dx, nx * 4) && !memcmp(r.dw, r2.dw, nw * 4));
     free(r2.y), free(r2.dx), free(r2.dw);
   }
@@ -147,8 +143,12 @@ static void check_case(const gcase *c, const char *label, int rerun) {
  * GPU column's); the other settings run a few cases each, so the test stays short under Oclgrind */
 static void variant(const char *label, const char *const *set, unsigned which, int rerun) {
   for (int i = 0; set[i]; i += 2) setenv(set[i], set[i + 1], 1);
+  spx_ctx *ctx;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL)); /* (tunables are resolved when the device opens) */
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++)
-    if (which >> i & 1) check_case(&cases[i], label, rerun);
+    if (which >> i & 1) check_case(ctx, &cases[i], label, rerun);
+  spx_ctx_destroy(ctx);
   for (int i = 0; set[i]; i += 2) unsetenv(set[i]);
 }
 
