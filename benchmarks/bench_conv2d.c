@@ -69,7 +69,7 @@ static int time_op(spx_ctx *ctx, const shape *s, int mode, int reps, double *ms,
     goto done;
   spx_tensor x = spx_tensor_view(mx, 0, 1, s->cin, s->h, s->w), y = spx_tensor_view(my, 0, 1, s->cout, s->h, s->w);
   spx_tensor w = spx_tensor_view(mw, 0, s->cout, s->cin, s->k, s->k), v = spx_tensor_view(mv, 0, s->cout, 1, 1, 1);
-  spx_conv2d_params p = {s->k, 1, s->pad, &v, &v, 1, &ws};
+  spx_conv2d_params p = {s->k, 1, s->pad, &v, &v, 1, &ws, {0, 0, 0}};
   double best = 1e30, best_cpu = 0;
   for (int r = 0; r < reps + 1; r++) { /* first run warms up (kernel build, page faults) */
     double t0 = spx_now(), c0 = cpu_now();

@@ -8,7 +8,7 @@ endif()
 # chosen for GPUs), so those paths are exercised on PoCL in CI, which has no GPU.
 foreach(src ${SPX_TEST_SOURCES})
   get_filename_component(name ${src} NAME_WE)
-  if(name MATCHES "^test_(nn_|render_|body_lbs)")
+  if(name MATCHES "^test_(nn_|render_|body_lbs)" AND NOT name STREQUAL "test_nn_conv2d_gemm") # (it sets the GPU class itself)
     spx_test_variant(${name}_gpu_paths ${name} "SPX_TUNE_CLASS=gpu")
   endif()
 endforeach()
@@ -78,10 +78,12 @@ add_test(NAME layering COMMAND ${CMAKE_COMMAND} -DSPX_SOURCE_DIR=${CMAKE_SOURCE_
 # The UNet's PyTorch golden with the GPU column and every 3x3 stride-1 convolution, training ones
 # included, on Winograd (the GPU column's local-memory variant, kernels/conv2d_winograd_lds.cl):
 # test_nn_unet widens its tolerance by SPX_WINO_RMS_GAIN when Winograd runs in training (see
-# there). And the shipped network's golden with the GPU column (its eval forward on that variant).
+# there). And the shipped network's golden with the GPU column.
 spx_test_variant(test_nn_unet_gpu_wino test_nn_unet
   "SPX_TUNE_CLASS=gpu;SPX_TUNE_CONV_WINO_TRAIN=1;SPX_TUNE_CONV_WINO_MINC=1")
 spx_test_variant(test_model_golden_gpu_paths test_model_golden "SPX_TUNE_CLASS=gpu")
+# Winograd's 36 GEMMs on the GPU class's GEMM engine (its split variant, CONV_WINO_LDS=0).
+spx_test_variant(test_nn_conv2d_winograd_gemm test_nn_conv2d_winograd "SPX_TUNE_CLASS=gpu;SPX_TUNE_CONV_WINO_LDS=0")
 set_tests_properties(test_model_golden_gpu_paths PROPERTIES SKIP_RETURN_CODE 77)
 
 # The pretrained networks of `make weights` against the lpips package and PyTorch

@@ -61,6 +61,14 @@ struct spx_tunables {
   int conv_wlds_kb;
   int conv_wino_dw;       /* Winograd weight gradient */
   int conv_wino_dw_minhw;
+  int conv_gemm;          /* the GEMM engine for stride-1 convolutions (GPU; kernels/conv2d_gemm.cl) */
+  int conv_gemm_bm;
+  int conv_gemm_bn;
+  int conv_gemm_tm;
+  int conv_gemm_tn;
+  int conv_gemm_ks;
+  int conv_gemm_split;
+  int conv_thin_maxc;     /* 1x1 forwards with few output channels (kernels/conv2d_thin.cl) */
   int tape_ws_arena;      /* op scratch inside the tape's activation arena */
   int tape_chunk_mb;      /* the tape arena's largest buffer (0: the device's largest allocation) */
   int conv_red_wg;        /* conv2d bias gradient */

@@ -85,7 +85,9 @@ enum { OP_CONV, OP_BN, OP_ACT, OP_MAXPOOL, OP_UPSAMPLE, OP_PAD, OP_CONCAT, OP_L1
 
 /* The arguments of a node, one member per op kind (the others have none). */
 typedef union tp_args {
-  struct { int stride, pad, inference; } conv; /* inference: the fused epilogue (workspace plan) */
+  /* inference: the fused epilogue (workspace plan); algo: the algorithm of the forward, data and
+   * weight gradient (spx_conv2d_choose when recorded; 0 on the host backend) */
+  struct { int stride, pad, inference; signed char algo[3]; } conv;
   struct { int relu; float momentum, eps; } bn;
   struct { spx_act_kind kind; float slope; } act;
   struct { int left, right, top, bottom; } pad;
