@@ -125,3 +125,8 @@ if(SPX_PYTHON3 AND TARGET smplpix_app)
            COMMAND_EXPAND_LISTS)
   set_tests_properties(file_circles PROPERTIES SKIP_RETURN_CODE 77)
 endif()
+# Short functions (tests/function_length.py): none over 120 lines in lib/, apps/ and benchmarks/,
+# the files other work is splitting listed there. Skipped without python3.
+if(SPX_PYTHON3)
+  add_test(NAME function_length COMMAND ${SPX_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/function_length.py ${CMAKE_SOURCE_DIR})
+endif()
