@@ -25,6 +25,11 @@ void spx_cli_decided(int rc);
  * (spx_tx_interrupted), prints one line saying what of the run is on disk, and exits 128 + sig
  * (or the decided code). A command with a handler of its own calls it for a second interrupt. */
 void spx_cli_interrupt(int sig);
+/* In a signal handler: when it runs on a thread other than the command's (the OpenCL runtime's,
+ * Ceres's), hands sig on to the command's thread and returns 1 (return at once); else 0. Every
+ * handler of the tool starts with it, so that blocking the signals on the command's thread (a
+ * commit) holds for the whole process. */
+int spx_cli_signal_elsewhere(int sig);
 
 /* Print "smplpix <cmd>: <message>" on one line to stderr and return SPX_EXIT_ERROR. */
 int spx_cli_error(const char *cmd, spx_ctx *ctx);

@@ -40,7 +40,7 @@ static void animate_help(void) {
 /* Ctrl-C: the loop stops after the current frame and removes what it wrote (exit 130). */
 static volatile sig_atomic_t interrupted;
 static void on_sigint(int sig) {
-  (void)sig;
+  if (spx_cli_signal_elsewhere(sig)) return;
   interrupted = 1;
 }
 

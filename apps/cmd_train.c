@@ -265,6 +265,7 @@ static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss, double 
 static volatile sig_atomic_t interrupted;
 
 static void on_sigint(int sig) {
+  if (spx_cli_signal_elsewhere(sig)) return;
   if (interrupted) spx_cli_interrupt(sig);
   interrupted = sig;
   static const char msg[] =

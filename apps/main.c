@@ -1,4 +1,5 @@
 /* smplpix: one tool, many subcommands. */
+#include <pthread.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -126,7 +127,19 @@ void spx_cli_decided(int rc) {
   decided = 1;
 }
 
+/* The thread that runs the command. A signal sent to the process may be delivered to any thread
+ * that does not block it (the OpenCL runtime's workers, Ceres's): there it is handed on to this
+ * one, whose mask decides when it is taken (a commit blocks it until every file is in place). */
+static pthread_t main_thread;
+
+int spx_cli_signal_elsewhere(int sig) {
+  if (pthread_equal(pthread_self(), main_thread)) return 0;
+  pthread_kill(main_thread, sig);
+  return 1;
+}
+
 void spx_cli_interrupt(int sig) {
+  if (spx_cli_signal_elsewhere(sig)) return;
   if (decided) _exit(decided_rc);
   spx_tx_interrupted();
   const char *last;
@@ -165,6 +178,7 @@ int main(int argc, char **argv) {
   for (size_t i = 0; i < NCOMMANDS; i++)
     if (!strcmp(argv[1], commands[i].name)) {
       running_cmd = commands[i].name;
+      main_thread = pthread_self();
       struct sigaction sa;
       memset(&sa, 0, sizeof sa);
       sa.sa_handler = spx_cli_interrupt;
