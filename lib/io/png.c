@@ -77,6 +77,15 @@ static int png_read_inner(png_read_state *s) {
     s->height = h;
     return 0;
   }
+  /* the file's own rows (a filter byte each) compressed by deflate, which packs at most ~1032:1:
+   * a header that claims more pixels than the file's bytes can hold is refused before allocating */
+  double raw = ((double)png_get_rowbytes(s->png, s->info) + 1) * (double)h;
+  if (raw / 1032.0 > (double)s->src.size + 1024) {
+    s->toolarge = "file";
+    s->width = w;
+    s->height = h;
+    return 0;
+  }
   int has_trns = png_get_valid(s->png, s->info, PNG_INFO_tRNS) != 0;
   if (ctype == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(s->png);
   if (ctype == PNG_COLOR_TYPE_GRAY && depth < 8) png_set_expand_gray_1_2_4_to_8(s->png);
@@ -128,7 +137,10 @@ spx_status spx_png_read_mem(spx_ctx *ctx, const char *name, const void *data, si
     goto done;
   }
   if (!png_read_inner(&s)) {
-    if (s.toolarge)
+    if (s.toolarge && !strcmp(s.toolarge, "file"))
+      st = spx_fail(ctx, SPX_E_FORMAT, "%s: %ux%u pixels cannot be in a file of %zu bytes (truncated or corrupt)", name,
+                    (unsigned)s.width, (unsigned)s.height, size);
+    else if (s.toolarge)
       st = spx_fail(ctx, SPX_E_FORMAT, "%s: %ux%u pixels is more than the %lld allowed", name, (unsigned)s.width,
                     (unsigned)s.height, (long long)max_pixels);
     else if (s.oom)
