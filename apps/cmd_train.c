@@ -529,6 +529,13 @@ static int train_prepare(train_job *j, const train_args *a, train_dist *dist) {
   long batch = a->batch;
   int rc, resume = a->resume;
   if ((rc = list_split(a->data, "train", 1, &j->tr)) || (rc = list_split(a->data, "validation", 0, &j->val))) return rc;
+  if (!dist->on) { /* --out is none of the data's files (recorded as inputs by list_split; ranks: at the save) */
+    spx_tx chk;
+    spx_tx_begin(&chk, "train", 0);
+    rc = spx_tx_check(&chk, a->outp);
+    spx_tx_end(&chk);
+    if (rc) return rc;
+  }
   if ((rc = probe_size(ctx, &j->tr)) || (j->val.n && (rc = probe_size(ctx, &j->val)))) return rc;
   const split *tr = &j->tr;
   if (dist->on && (batch > tr->n ? tr->n : batch) % dist->comm.size)
