@@ -46,18 +46,6 @@ static unsigned long inode_of(const char *name) {
   return lstat(p, &sb) == 0 ? (unsigned long)sb.st_ino : 0;
 }
 
-/* Start the tool with args (stdout, stderr to out.txt, err.txt); its pid. */
-static pid_t start(const char *args) {
-  char cmd[2048];
-  snprintf(cmd, sizeof cmd, "cd '%s' && exec '%s' %s >out.txt 2>err.txt", dir, spx_t_tool(), args);
-  pid_t pid = fork();
-  if (pid == 0) {
-    execl("/bin/sh", "sh", "-c", cmd, (char *)NULL);
-    _exit(127);
-  }
-  return pid;
-}
-
 /* The last non-empty line of err.txt into line. */
 static void last_line(char *line, size_t cap) {
   size_t n = 0;
@@ -72,21 +60,16 @@ static void last_line(char *line, size_t cap) {
 }
 
 static int write_registration(const char *name) {
-  spx_body_model body;
-  memset(&body, 0, sizeof body);
-  if (spx_body_load(ctx, SPX_REPO_DATA "/body/default_body.npz", &body)) return 0;
   char p[700];
   path_of(p, sizeof p, name);
-  int ok = spx_t_save_rest_registration(ctx, &body, NULL, SPX_REPO_DATA "/body/default_body.npz", p) == SPX_OK;
-  spx_body_free(&body);
-  return ok;
+  return spx_t_default_rest_registration(ctx, p) == SPX_OK;
 }
 
 /* One interrupted run of c at ms; checks the property. */
 static void interrupt_once(const interrupted_cmd *c, long ms, int sig) {
   unsigned long before[4];
   for (int i = 0; i < 4 && c->outs[i]; i++) before[i] = inode_of(c->outs[i]);
-  pid_t pid = start(c->args);
+  pid_t pid = spawn_to(c->args, "out.txt", "err.txt");
   sleep_ms(ms);
   kill(pid, sig);
   int st = 0;
@@ -121,7 +104,8 @@ static void interrupt_once(const interrupted_cmd *c, long ms, int sig) {
 static int saved_after_step(int sig) {
   unsigned long before = inode_of("T.safetensors");
   sh("rm -f err.txt"); /* the last run's lines are not this one's */
-  pid_t pid = start("train --data ds --out T.safetensors --steps 100000 --log-every 1 --resume");
+  pid_t pid = spawn_to("train --data ds --out T.safetensors --steps 100000 --log-every 1 --resume", "out.txt",
+                       "err.txt");
   int seen = 0;
   for (int t = 0; t < 3000 && !seen; t++) { /* up to 60 s */
     size_t n = 0;

@@ -67,14 +67,9 @@ static int refused(int rc, const char *cmd, const char *want) {
 }
 
 static int write_registration(const char *name) {
-  spx_body_model body;
-  memset(&body, 0, sizeof body);
-  if (spx_body_load(ctx, SPX_REPO_DATA "/body/default_body.npz", &body)) return 0;
   char p[700];
   path_of(p, sizeof p, name);
-  int ok = spx_t_save_rest_registration(ctx, &body, NULL, SPX_REPO_DATA "/body/default_body.npz", p) == SPX_OK;
-  spx_body_free(&body);
-  return ok;
+  return spx_t_default_rest_registration(ctx, p) == SPX_OK;
 }
 
 static void scene(void) {
