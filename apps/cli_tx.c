@@ -322,7 +322,7 @@ static char *journal_write(spx_tx *tx, spx_ctx *ctx) {
   }
   if (f) ok &= !ferror(f) & (fclose(f) == 0);
   if (ok && tx->durable && spx_file_sync(ctx, tmp)) ok = 0;
-  if (ok && rename(tmp, jpath) != 0) ok = 0;
+  if (ok && (spx_file_check_writable(ctx, jpath) || rename(tmp, jpath) != 0)) ok = 0; /* never over a FIFO */
   if (ok && tx->durable && spx_file_sync_dir_of(ctx, jpath)) ok = 0;
   if (!ok) {
     unlink(tmp);
