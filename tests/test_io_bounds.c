@@ -189,9 +189,9 @@ static const forged FORGED[] = {
     {"claim.bvh", forge_bvh, r_bvh},
 };
 
-#if !defined(__SANITIZE_ADDRESS__)
-/* Run read(path) in a child limited to `extra` bytes of address space beyond what it uses now;
- * returns the status (or 99 when the child died), and the message in msg. */
+/* Run read(path) in a child limited to `extra` bytes of address space beyond what it uses now (not
+ * under AddressSanitizer, whose shadow memory needs more); returns 0 (read), 1 (refused), 2
+ * (SPX_E_NOMEM) or 99 when the child died, and the message in msg. */
 static int limited_read(spx_status (*reader)(const char *), const char *path, size_t extra, char *msg, size_t cap) {
   int fd[2];
   if (pipe(fd) != 0) return 99;
@@ -202,8 +202,12 @@ static int limited_read(spx_status (*reader)(const char *), const char *path, si
     FILE *f = fopen("/proc/self/statm", "r");
     if (f && fscanf(f, "%zu", &vm) == 1) vm *= (size_t)sysconf(_SC_PAGESIZE);
     if (f) fclose(f);
+#if !defined(__SANITIZE_ADDRESS__)
     struct rlimit rl = {vm + extra, vm + extra};
     if (!vm || setrlimit(RLIMIT_AS, &rl) != 0) _exit(98);
+#else
+    (void)extra;
+#endif
     spx_status st = reader(path);
     const char *m = spx_ctx_message(ctx);
     if (write(fd[1], m, strlen(m)) < 0) _exit(97);
@@ -217,12 +221,8 @@ static int limited_read(spx_status (*reader)(const char *), const char *path, si
   waitpid(pid, &status, 0);
   return WIFEXITED(status) ? WEXITSTATUS(status) : 99;
 }
-#endif
 
 static void test_forged_claims_refused_before_allocating(void) {
-#if defined(__SANITIZE_ADDRESS__)
-  printf("  (skipped under AddressSanitizer)\n");
-#else
   for (size_t i = 0; i < sizeof FORGED / sizeof FORGED[0]; i++) {
     const forged *f = &FORGED[i];
     char p[800], msg[1024];
@@ -232,7 +232,6 @@ static void test_forged_claims_refused_before_allocating(void) {
     /* 1: refused by the format's own check; 2 (SPX_E_NOMEM) would mean it tried to allocate the claim */
     CHECK_MSG(rc == 1 && strstr(msg, f->name), "%s: child exit %d, \"%s\"", f->name, rc, msg);
   }
-#endif
 }
 
 /* A real image too large for the memory left: one error naming the file (not "image: ..."). */
