@@ -18,8 +18,8 @@ static void export_help(void) {
          "names: weights, batch-norm running statistics, num_batches_tracked) as float32, or as\n"
          "float16 with --half (the shipping format of data/models/default.safetensors: PyTorch loads\n"
          "it with load_state_dict(strict=True) after .float(); smplpix render reads it directly).\n"
-         "Metadata: format, smplpix.width, smplpix.sigmoid; smplpix.loss and smplpix.stage when W has\n"
-         "them; smplpix.steps (W's Adam step count: of its last run, a stage started with --init counts\n"
+         "Metadata: format, smplpix.width, smplpix.sigmoid; smplpix.loss, smplpix.stage and\n"
+         "smplpix.image_size (the size it was trained at) when W has them; smplpix.steps (W's Adam step count: of its last run, a stage started with --init counts\n"
          "from 0); smplpix.dtype (F16 or F32); and each --meta pair\n"
          "(at most %d; e.g. --meta smplpix.image_size=128x96; UTF-8; format, smplpix.width, sigmoid, dtype,\n"
          "steps and smplpix.train.* are the file's own). A value that does not fit in float16\n"
@@ -31,7 +31,7 @@ static int export_run(int argc, char **argv, const char **user);
 
 /* The keys export writes from the tensors and the optimizer (and the training state, which an
  * export has not): a --meta pair never overrides what the file records of its tensors
- * (smplpix.loss and smplpix.stage, carried over when W has them, describe its training and may). */
+ * (smplpix.loss, stage and image_size, carried over when W has them, describe its training and may). */
 static int own_key(const char *k, size_t n) {
   static const char *const own[] = {"format", "smplpix.width", "smplpix.sigmoid", "smplpix.dtype", "smplpix.steps"};
   for (size_t i = 0; i < sizeof own / sizeof own[0]; i++)
@@ -89,8 +89,8 @@ static int export_run(int argc, char **argv, const char **user) {
   char steps[32];
   if ((rc = spx_tx_check(&tx, out)) || (rc = spx_cli_open_device("export", ctx, NULL))) goto done;
   if (spx_cli_failed(&rc, "export", ctx, spx_unet_load(ctx, in, &u) || spx_st_load(ctx, in, &f))) goto done;
-  const char *carry[] = {"smplpix.loss", "smplpix.stage"};
-  for (int k = 0; k < 2; k++) {
+  const char *carry[] = {"smplpix.loss", "smplpix.stage", "smplpix.image_size"};
+  for (int k = 0; k < 3; k++) {
     const char *val = spx_st_meta(&f, carry[k]);
     if (val) mk[nm] = carry[k], mv[nm++] = val;
   }
@@ -103,7 +103,7 @@ static int export_run(int argc, char **argv, const char **user) {
   for (int k = 0; k < nuser; k++) {
     const char *eq = strchr(user[k], '=');
     snprintf(kbuf[k], sizeof kbuf[k], "%.*s", (int)(eq - user[k]), user[k]);
-    int j = 0; /* a carried smplpix.loss / smplpix.stage is replaced, any other key added */
+    int j = 0; /* a carried key (loss, stage, image_size) is replaced, any other added */
     while (j < nm && strcmp(mk[j], kbuf[k])) j++;
     mk[j] = kbuf[k], mv[j] = eq + 1;
     if (j == nm) nm++;

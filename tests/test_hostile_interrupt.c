@@ -3,8 +3,8 @@
  * by SIGINT and SIGTERM in turn. Whatever the moment:
  *  - it exits 0 (it finished first) or 128 + the signal, its last line saying "interrupted";
  *  - what that line says is true: "nothing of this run was written" leaves every output as it was
- *    (the same file, by inode, or still absent); "what this run wrote before is kept (last X)" and
- *    train's "saved X" name a file this run replaced;
+ *    (the same file, by inode and status-change time, or still absent); "what this run wrote
+ *    before is kept (last X)" and train's "saved X" name a file this run replaced;
  *  - no temporary is left anywhere (the writers' own, a transaction's, synth's folder, animate's
  *    links), and train's checkpoint still loads.
  * A command added to the table inherits every check. The seed is printed; SPX_TEST_SEED replays. */
@@ -15,7 +15,7 @@ static spx_ctx *ctx;
 
 typedef struct interrupted_cmd {
   const char *args;
-  const char *outs[4]; /* files whose inode says whether the run replaced them */
+  const char *outs[4]; /* files whose identity (file_id) says whether the run replaced them */
   double fixed_s;      /* > 0: interrupt within [0, fixed_s] (a run that does not end by itself) */
 } interrupted_cmd;
 
@@ -25,11 +25,11 @@ static const interrupted_cmd CMDS[] = {
     {"project --mesh quad.obj --camera cams.json --out P.exr --png P.png --quiet", {"P_000.exr", "P_003.png"}, 0},
     {"raster --mesh quad.obj --camera cams.json --out R.png --quiet", {"R_000.png", "R_003.png"}, 0},
     {"dataset --mesh quad.obj --out D --orbit 200 --size 64x48 --quiet --force", {"D/cameras.json"}, 0},
-    {"render --checkpoint w8.safetensors --mesh quad.obj --camera cams.json --out N.png --quiet", {"N_000.png", "N_003.png"}, 0},
+    {"render --checkpoint w8.safetensors --mesh quad.obj --camera cams.json --out N.png --quiet --any-size", {"N_000.png", "N_003.png"}, 0},
     {"train --data ds --out T.safetensors --steps 100000 --save-every 2 --resume", {"T.safetensors"}, 4.0},
     {"export --checkpoint w8.safetensors --out E.safetensors --half", {"E.safetensors"}, 0},
     {"eval --pred ev --target ev --json EV.json --no-lpips", {"EV.json"}, 0},
-    {"demo --out DM --size 64x48 --quiet --checkpoint w8.safetensors", {"DM/demo.png", "DM/demo_smplpix.png"}, 0},
+    {"demo --out DM --size 32x24 --quiet --checkpoint w8.safetensors", {"DM/demo.png", "DM/demo_smplpix.png"}, 0},
     {"synth --subjects 2 --views 2 --seed 1 --size 64x48 --texture-size 512 --out SY --quiet --force", {"SY"}, 0},
     {"repose --registration reg.json --bvh m.bvh --frame 2 --subdivide 2 --out V.ply", {"V.ply"}, 0},
     {"reshape --registration reg2.json --shape 0:+1 --out VS.ply", {"VS.ply"}, 0},
@@ -38,12 +38,15 @@ static const interrupted_cmd CMDS[] = {
 };
 enum { NCMDS = (int)(sizeof CMDS / sizeof CMDS[0]), ROUNDS = 4 };
 
-/* inode of dir/name (0: absent) */
-static unsigned long inode_of(const char *name) {
+/* Which file dir/name is (0: absent): its inode and its status-change time, so that a new file
+ * that reuses a freed inode number (a save every epoch alternates two) still counts as new. */
+static unsigned long long file_id(const char *name) {
   char p[1100];
   struct stat sb;
   path_of(p, sizeof p, name);
-  return lstat(p, &sb) == 0 ? (unsigned long)sb.st_ino : 0;
+  if (lstat(p, &sb) != 0) return 0;
+  return ((unsigned long long)sb.st_ino * 0x9E3779B97F4A7C15ULL) ^
+         ((unsigned long long)sb.st_ctim.tv_sec * 1000000000ULL + (unsigned long long)sb.st_ctim.tv_nsec) ^ 1ULL;
 }
 
 /* The last non-empty line of err.txt into line. */
@@ -67,8 +70,8 @@ static int write_registration(const char *name) {
 
 /* One interrupted run of c at ms; checks the property. */
 static void interrupt_once(const interrupted_cmd *c, long ms, int sig) {
-  unsigned long before[4];
-  for (int i = 0; i < 4 && c->outs[i]; i++) before[i] = inode_of(c->outs[i]);
+  unsigned long long before[4];
+  for (int i = 0; i < 4 && c->outs[i]; i++) before[i] = file_id(c->outs[i]);
   pid_t pid = spawn_to(c->args, "out.txt", "err.txt");
   sleep_ms(ms);
   kill(pid, sig);
@@ -84,7 +87,7 @@ static void interrupt_once(const interrupted_cmd *c, long ms, int sig) {
     CHECK_MSG(strstr(line, "interrupted"), "%s after %ld ms: last line \"%s\"", name, ms, line);
   int nothing = early || strstr(line, "nothing of this run was written") != NULL;
   for (int i = 0; i < 4 && c->outs[i]; i++) {
-    unsigned long now = inode_of(c->outs[i]);
+    unsigned long long now = file_id(c->outs[i]);
     if (nothing) CHECK_MSG(now == before[i], "%s after %ld ms said nothing was written, but %s changed", name, ms, c->outs[i]);
     if (code == 0) CHECK_MSG(now && now != before[i], "%s after %ld ms: finished, but %s is old", name, ms, c->outs[i]);
   }
@@ -94,7 +97,7 @@ static void interrupt_once(const interrupted_cmd *c, long ms, int sig) {
     snprintf(x, sizeof x, "%s", kept + 6);
     char *end = strchr(x, ')');
     if (end) *end = 0;
-    CHECK_MSG(inode_of(x) != 0, "%s after %ld ms: the message names %s, which is not there", name, ms, x);
+    CHECK_MSG(file_id(x) != 0, "%s after %ld ms: the message names %s, which is not there", name, ms, x);
   }
   CHECK_MSG(count_temps(".") == 0, "%s after %ld ms (%s): a temporary is left", name, ms, line);
 }
@@ -102,7 +105,7 @@ static void interrupt_once(const interrupted_cmd *c, long ms, int sig) {
 /* train, interrupted once its loop runs (a progress line is out): it finishes the step, saves the
  * checkpoint (a new file) and says so, and exits 128 + sig, SIGTERM as SIGINT. */
 static int saved_after_step(int sig) {
-  unsigned long before = inode_of("T.safetensors");
+  unsigned long long before = file_id("T.safetensors");
   sh("rm -f err.txt"); /* the last run's lines are not this one's */
   pid_t pid = spawn_to("train --data ds --out T.safetensors --steps 100000 --log-every 1 --resume", "out.txt",
                        "err.txt");
@@ -120,8 +123,10 @@ static int saved_after_step(int sig) {
   char line[1024];
   last_line(line, sizeof line);
   int ok = seen && WIFEXITED(st) && WEXITSTATUS(st) == 128 + sig && strstr(line, "saved T.safetensors") &&
-           inode_of("T.safetensors") != before && count_temps(".") == 0;
-  if (!ok) fprintf(stderr, "  status %d, last line: %s\n", st, line);
+           file_id("T.safetensors") != before && count_temps(".") == 0;
+  if (!ok)
+    fprintf(stderr, "  progress seen %d, status %d, checkpoint %s, %d temporaries, last line: %s\n", seen, st,
+            file_id("T.safetensors") != before ? "new" : "old", count_temps("."), line);
   return ok;
 }
 
