@@ -332,7 +332,7 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
   for (size_t i = 0, n = (size_t)out->width * (size_t)out->height * (size_t)out->channels; i < n; i++)
     if (!isfinite(out->data[i])) {
       size_t px = i / (size_t)out->channels;
-      st = spx_fail(ctx, SPX_E_NUMERIC, "%s: %s in channel %d at pixel (%zu, %zu)", name,
+      st = spx_fail(ctx, SPX_E_NUMERIC, "%s: %s in channel %d at pixel (%zu, %zu) (image values must be finite)", name,
                     isnan(out->data[i]) ? "NaN" : "Inf", (int)(i % (size_t)out->channels), px % (size_t)out->width,
                     px / (size_t)out->width);
       goto done;

@@ -58,7 +58,7 @@ static spx_status read_npy(spx_ctx *ctx, const char *path, spx_image *img) {
   for (size_t i = 0, n = st ? 0 : (size_t)a.shape[0] * (size_t)a.shape[1] * (size_t)C; i < n; i++)
     if (!isfinite(f[i])) { /* as in every image input: refused, never used (a NaN mask is no mask) */
       size_t px = i / (size_t)C;
-      st = spx_fail(ctx, SPX_E_NUMERIC, "%s: %s in channel %d at pixel (%zu, %zu)", path, isnan(f[i]) ? "NaN" : "Inf",
+      st = spx_fail(ctx, SPX_E_NUMERIC, "%s: %s in channel %d at pixel (%zu, %zu) (image values must be finite)", path, isnan(f[i]) ? "NaN" : "Inf",
                     (int)(i % (size_t)C), px % (size_t)a.shape[1], px / (size_t)a.shape[1]);
       free(f);
       f = NULL;
