@@ -103,5 +103,16 @@ if(NOT SPX_SANITIZE)
     ENVIRONMENT "SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
 endif()
 # The rasterizer with the exact integer division of kernels/exact.h (what devices without
-# correctly rounded fp32 division take): face ids still equal the reference's.
+# correctly rounded fp32 division take; tests/test.h turns SPX_FORCE_DIV_FALLBACK into the context
+# switch SPX_DEBUG_DIV_FALLBACK): face ids still equal the reference's.
 spx_test_variant(test_render_raster_intdiv test_render_raster "SPX_FORCE_DIV_FALLBACK=1")
+
+# The offline PTX tools of the GPU kit and of make gpu-static (tests/gpu_static_tools.sh):
+# ptx_report.py's unit tests, then analyse_ptx.sh on PTX that clang + libclc made here, packed as
+# the kit's first.tgz (that part only where NVIDIA's tools are already in ~/.cache/smplpix).
+if(NOT SPX_SANITIZE)
+  add_test(NAME gpu_static_tools COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/gpu_static_tools.sh ${CMAKE_SOURCE_DIR}
+           ${CMAKE_BINARY_DIR} ${SPX_TEST_TMP}/gpu_static_tools)
+  set_tests_properties(gpu_static_tools PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 600
+    ENVIRONMENT "SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
+endif()

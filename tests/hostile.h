@@ -1,4 +1,4 @@
-/* Helpers of the hostile-input suite (tests/test_hostile_*.c, issue 12): each test runs the tool
+/* Helpers of the hostile-input suite (tests/test_hostile_*.c): each test runs the tool
  * in its scratch folder `dir` (cli_test.h) under `timeout`, so a hang is a failure (exit 124), and
  * checks the exit code, the first words of the one-line message and the files on disk before and
  * after. */

@@ -38,7 +38,7 @@ static const cmdline LINES[] = {
     {"synth --subjects 1 --views 1 --seed 1 --size 32x24 --texture-size 256 --out sy --quiet --parts p.png",
      "--subjects --views --seed --size --texture-size", "--out", "--parts", 0, NULL},
     {"tune --quick --repeat 2 --size 32x32 --checkpoint w8.safetensors", "--repeat --size", "", "--checkpoint", 0, NULL},
-    {"devices --warmup --device cpu", "", "", "", 0, NULL},
+    {"devices --warmup --peak --device cpu", "", "", "", 0, NULL},
     {"register --scan quad.obj --out reg.ply --params reg.json --threads 2 --units m", "--threads", "--out --params",
      "--scan", 0, NULL},
     {"repose --registration reg.json --bvh m.bvh --frame 2 --subdivide 1 --out v.ply", "--frame --subdivide", "--out",

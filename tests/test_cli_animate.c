@@ -162,7 +162,7 @@ static void test_bvh(void) {
   CHECK(exists("raw/frame_000000.png") && !exists("raw/frame_000001.png") && !exists("raw/animation.mp4"));
   CHECK(file_has("out.txt", "ffmpeg is not on PATH") && file_has("out.txt", "frames/s"));
   CHECK(file_has("out.txt", "frame 1/1"));
-  { /* issue 24: a killed run's ffmpeg link folder goes with the next run (a live process's stays) */
+  { /* a killed run's ffmpeg link folder goes with the next run (a live process's stays) */
     pid_t gone = fork();
     if (gone == 0) _exit(0);
     waitpid(gone, NULL, 0);

@@ -1,9 +1,9 @@
-/* Hostile inputs and outputs (issue 12) for the commands that came after the transaction:
- * `eval`, `animate`, `synth`, `bake`. For each: a FIFO as an input is a one-line error at once (never a
- * hang), a pre-existing output keeps its bytes when the run fails, an output that cannot be
- * written is refused before the work, and no temporary is left behind. synth's folder-level
- * commit: a run killed at any moment leaves the previous output whole, and the next run removes
- * the dead run's "<DIR>.tmp.<pid>.N" folders (putting back an output moved aside). */
+/* Hostile inputs and outputs of `eval`, `animate`, `synth` and `bake`. For each: a FIFO as an
+ * input is a one-line error at once (never a hang), a pre-existing output keeps its bytes when the
+ * run fails, an output that cannot be written is refused before the work, and no temporary is
+ * left behind. synth's folder-level commit: a run killed at any moment leaves the previous output
+ * whole, and the next run removes the dead run's "<DIR>.tmp.<pid>.N" folders (putting back an
+ * output moved aside). */
 #include <unistd.h>
 
 #include "hostile.h"

@@ -1,4 +1,4 @@
-/* Hostile inputs, issue 12 items 6-9: the same strict rules on every path (NaN/Inf, channel
+/* Hostile inputs: the same strict rules on every path (NaN/Inf, channel
  * counts, colour ranges, JSON that ends where the value ends), tunables checked against their
  * ranges, one clean line for a bad SPX_KERNEL_DIR or dataset folder, and a registration that
  * refuses scans it cannot explain and fits it cannot stand behind. */
@@ -177,7 +177,7 @@ static void test_registration(void) {
   CHECK(spx_fit_check_result(ctx, scan, 60, good, 2, 0.2) == SPX_E_NUMERIC);
   CHECK(strstr(spx_ctx_message(ctx), "median scan-to-body distance 200.0 mm") != NULL);
   CHECK(spx_fit_check_result(ctx, scan, 60, good, 2, 0.004) == SPX_OK);
-  /* issue 24: not a person: 10 random points in a cube, and 2000 (as thick as tall) */
+  /* a scan that is not a person is refused: 10 random points in a cube, and 2000 (as thick as tall) */
   float cube[2000 * 3];
   uint64_t r = 7;
   for (int i = 0; i < 2000 * 3; i++) {

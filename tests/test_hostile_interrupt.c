@@ -1,4 +1,4 @@
-/* Interrupts as a property of every command (issue 35): each command of the table below runs to
+/* Interrupts as a property of every command: each command of the table below runs to
  * completion once (its length d), then is interrupted at seeded random moments in [0, 1.2 d],
  * by SIGINT and SIGTERM in turn. Whatever the moment:
  *  - it exits 0 (it finished first) or 128 + the signal, its last line saying "interrupted";

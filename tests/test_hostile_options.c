@@ -1,4 +1,4 @@
-/* The one typed option table (issue 24), as a property over every command: each option given
+/* The one typed option table, as a property over every command: each option given
  * twice is a usage error; each integer (or size) option at 2^32 + its value is a usage error, not
  * a wrapped number; each output path set to one of the command's inputs is refused (exit 2 or 1)
  * and no input changes. The base command lines are valid (checked for the cheap commands). */
@@ -86,7 +86,7 @@ static void test_exact_numbers(void) {
   CHECK(run("export --checkpoint W.safetensors --out W.safetensors") == 2 && err_is("export", "--out W.safetensors is also"));
 }
 
-/* Output types and writability are checked before the work (issue 24). */
+/* Output types and writability are checked before the work. */
 static void test_checks_before_work(void) {
   hostile_dir();
   CHECK(make_scene(0));

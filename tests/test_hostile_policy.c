@@ -1,4 +1,4 @@
-/* The output policy as a property of every command (issue 35): each output option of each
+/* The output policy as a property of every command: each output option of each
  * command of tests/hostile_cmds.h is pointed at a device node, a FIFO, a write-protected file
  * and a path holding a newline, and each folder output is given one of the run's inputs as a
  * file it would write (demo --checkpoint d/demo_smplpix.png --out d); every case is refused

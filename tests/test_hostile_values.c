@@ -1,14 +1,14 @@
-/* Inputs that parse but hold wrong values, and the project's own files after editing (issue 35):
- * each is refused in one line naming the file and what is wrong, exit 1 (2 for a wrong flag), and
- * nothing is written; where the tool writes JSON, it is valid UTF-8 whatever the names hold.
- *  - eval: a mask holding NaN (was all foreground); file names that are not UTF-8 (the JSON was not);
- *  - an OBJ with colours on some vertices only (the others were white);
- *  - a data set with two targets (view_0001.png and .npy) or two inputs for one view (one was used),
- *    and train --out naming one of its data files;
- *  - float colours in 0..255 as the network's input or target (trained and rendered garbage);
+/* Inputs that parse but hold wrong values, and the project's own files after editing: each is
+ * refused in one line naming the file and what is wrong, exit 1 (2 for a wrong flag), and nothing
+ * is written; where the tool writes JSON, it is valid UTF-8 whatever the names hold.
+ *  - eval: a mask holding NaN (it would count as all foreground); file names that are not UTF-8;
+ *  - an OBJ with colours on some vertices only (white for the others would be a guess);
+ *  - a data set with two targets (view_0001.png and .npy) or two inputs for one view, and train
+ *    --out naming one of its data files;
+ *  - float colours in 0..255 as the network's input or target;
  *  - export --meta that overrides the recorded dtype (F32 over F16 tensors) or is not UTF-8;
- *  - a registration JSON with "version" 2 (read as 1), a similarity.R that is no rotation (repose
- *    wrote an 11 m mesh on one line), colours outside 0..1. */
+ *  - a registration JSON with "version" 2, a similarity.R that is no rotation (repose would pose
+ *    a body stretched along one line), colours outside 0..1. */
 #include <math.h>
 
 #include "hostile.h"

@@ -1,4 +1,4 @@
-/* Every reader bounds what it allocates by the file it reads (issue 35), as a property over the
+/* Every reader bounds what it allocates by the file it reads, as a property over the
  * formats: a small file whose header claims a huge size (16000x16000 pixels, 2e9 rows or frames,
  * a 4 GB tensor or member) is refused naming the file, by a size check, before the claimed memory
  * is allocated: each runs in a child under an address-space limit a little above what the test

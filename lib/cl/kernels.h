@@ -60,6 +60,8 @@
   X(LOSS_BWD, "loss.cl", "spx_loss_bwd")                               \
   X(METRICS_MAXPOOL3S2, "metrics.cl", "spx_metrics_maxpool3s2")        \
   X(ADAM_STEP, "optim.cl", "spx_adam_step")                            \
+  X(PEAK_FMA, "peak.cl", "spx_peak_fma")                              \
+  X(PEAK_TRIAD, "peak.cl", "spx_peak_triad")                          \
   X(SGD_STEP, "optim.cl", "spx_sgd_step")                              \
   X(MAXPOOL_FWD, "pool.cl", "spx_maxpool_fwd")                         \
   X(MAXPOOL_FWD_ROWS, "pool.cl", "spx_maxpool_fwd_rows")               \

@@ -188,7 +188,6 @@ static const struct spx_tunable spx_tunables[] = {
 #define NTUNABLES ((int)(sizeof spx_tunables / sizeof spx_tunables[0]))
 _Static_assert(sizeof spx_tunables / sizeof spx_tunables[0] == SPX_NTUNABLES,
                "one row of lib/cl/tuning.c per field of struct spx_tunables");
-_Static_assert(SPX_NTUNABLES <= 64, "spx_cl_program.uses is a 64-bit mask of tunables");
 
 int *spx_cl_tunable_field(struct spx_tunables *t, int i) { return (int *)((char *)t + spx_tunables[i].off); }
 #define field spx_cl_tunable_field
@@ -290,27 +289,19 @@ static void division_mode(spx_ctx *ctx) {
   cl_device_fp_config fp = 0;
   ctx->dev->cr_div = clGetDeviceInfo(ctx->dev->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS &&
                 (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT);
-  ctx->dev->div_fallback = 0;
-  if (getenv("SPX_FORCE_DIV_FALLBACK")) {
-    /* testing hook: the integer division of kernels/exact.h on a device that divides correctly */
-    ctx->dev->cr_div = 0;
-    ctx->dev->div_fallback = 1;
-  }
+  if (spx_ctx_profile(ctx) & SPX_DEBUG_DIV_FALLBACK) ctx->dev->cr_div = 0; /* a switch for tests */
 }
 
-uint64_t spx_cl_program_options(const spx_ctx *ctx, const char *src, char *o, size_t cap) {
-  uint64_t uses = 0;
+void spx_cl_program_options(const spx_ctx *ctx, const char *src, char *o, size_t cap, spx_tunable_set *uses) {
+  memset(uses, 0, sizeof *uses);
   size_t n = (size_t)snprintf(o, cap, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1", ctx->dev->tune_cpu ? "CPU" : "GPU");
   for (int i = 0; i < NTUNABLES && n < cap; i++)
     if (strstr(src, spx_tunables[i].name)) {
       n += (size_t)snprintf(o + n, cap - n, " -D%s=%d", spx_tunables[i].name, field_value(&ctx->dev->tune, i));
-      uses |= 1ull << i;
+      spx_tunable_set_add(uses, i);
     }
   if (n < cap)
-    n += (size_t)snprintf(o + n, cap - n,
-                          ctx->dev->cr_div ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
-  if (n < cap && ctx->dev->div_fallback) snprintf(o + n, cap - n, " -DSPX_FORCE_DIV_FALLBACK=1");
-  return uses;
+    snprintf(o + n, cap - n, ctx->dev->cr_div ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
 }
 
 spx_status spx_cl_tunables_resolve(spx_ctx *ctx) {
@@ -370,7 +361,9 @@ spx_status spx_device_set_tunable(spx_ctx *ctx, const char *name, int value) {
     return spx_fail(ctx, SPX_E_ARG, "tunable %s=%s: %s", short_name(i), val, why);
   if ((st = spx_cl_tunables_check(ctx, &t))) return st;
   if (field_value(&ctx->dev->tune, i) != value) {
-    spx_cl_programs_release(ctx, 1ull << i); /* those built with the old -D value */
+    spx_tunable_set one = {{0}};
+    spx_tunable_set_add(&one, i);
+    spx_cl_programs_release(ctx, &one); /* those built with the old -D value */
     ctx->dev->tune = t;
   }
   ctx->dev->tune_src[i] = SPX_TSRC_SET;

@@ -1,7 +1,16 @@
 """Loading libsmplpix and declaring the C API (ctypes; mirrors lib/include/smplpix/*.h).
 
 Only the public headers are used. Every struct here has the layout of its C declaration; keep
-them in step when a header changes (tests/test_python runs every binding)."""
+them in step when a header changes: a field added to a struct (spx_fit_options, spx_raster_args,
+spx_body_model, spx_fit_result, spx_camera, spx_device_info, ...) goes here in the same place, or
+the binding reads garbage (python/tests compares every binding with the CLI and catches most shifts).
+
+The rules of the package: shapes and dtypes are checked in Python (ValueError / TypeError) before
+any call; every status goes through Context.check, which raises SmplpixError with the context's
+message; an object owning a library handle frees it with weakref.finalize holding its Context
+among the finalizer's arguments, so a context never goes before its UNets and body models; a
+Python exception in a progress callback never unwinds through C: it is kept and raised again
+after the call."""
 from __future__ import annotations
 
 import ctypes

@@ -62,7 +62,7 @@ def test_corrupted_files_never_crash(tmp_path):
 
 
 def test_binding_as_strict_as_the_cli(tmp_path):
-    """Issue 24: sizes, paths, NaN and dtypes follow the CLI's rules, as exceptions."""
+    """The binding is as strict as the CLI: sizes, paths, NaN and dtypes follow its rules, as exceptions."""
     import pytest
     img = np.zeros((4, 5, 3), np.float32)
     # an embedded NUL would cut the path short in C and name another file
@@ -87,9 +87,9 @@ def test_binding_as_strict_as_the_cli(tmp_path):
 
 
 def test_writers_follow_the_output_policy(tmp_path):
-    """One output policy for the tool, the C API and this package (issue 35): no writer replaces a
-    device node, a FIFO, a folder or a write-protected file; each raises, naming the path, and the
-    target stays as it was (as root, write_png("/dev/full") had replaced the device node)."""
+    """One output policy for the tool, the C API and this package: no writer replaces a
+    device node (as root, write_png("/dev/full") must not), a FIFO, a folder or a write-protected
+    file; each raises, naming the path, and the target stays as it was."""
     import pytest
     import stat
     img = np.zeros((4, 5, 3), np.float32)

@@ -91,6 +91,10 @@ void spx_ctx_set_log(spx_ctx *ctx, spx_log_fn fn, void *user);
  * copy, read and write (OpenCL event profiling; each command waited for), summed per kernel or
  * command name and logged when the device closes, largest first. Serialises the queue. */
 #define SPX_PROFILE_KERNELS 16u
+/* DIV_FALLBACK (read when a device opens; for tests): kernels divide with the exact integer
+ * division of kernels/exact.h, as on a device without a correctly rounded fp32 division, although
+ * this device has one. The same bits, only slower. */
+#define SPX_DEBUG_DIV_FALLBACK 32u
 void spx_ctx_set_profile(spx_ctx *ctx, unsigned flags);
 unsigned spx_ctx_profile(const spx_ctx *ctx);
 
