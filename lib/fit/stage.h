@@ -94,10 +94,12 @@ typedef struct spx_fit_zgrid {
   int32_t W, H;
   float *z;                /* W*H nearest camera depth, INFINITY where no scan point fell */
 } spx_fit_zgrid;
-spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q, int32_t nq, spx_fit_zgrid *g);
+/* Of the points of Q that camera `cam` saw (qv[i] == cam; qv NULL: all of them). */
+spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q, int32_t nq, const int32_t *qv,
+                               int32_t cam, spx_fit_zgrid *g);
 void spx_fit_zgrid_free(spx_fit_zgrid *g);
-/* seen[j] = 1 when model vertex j (V, normals N) faces the eye and is not more than tol behind
- * the scanned depth around its pixel (3x3): the camera would have seen it. */
+/* seen[j] |= 1 when model vertex j (V, normals N) faces the grid's eye and is not more than tol
+ * behind the scanned depth around its pixel (3x3): that camera would have seen it. */
 void spx_fit_visibility(const spx_fit_zgrid *g, const float *V, const double *N, int32_t nv, double tol,
                         unsigned char *seen);
 
@@ -108,6 +110,7 @@ typedef struct spx_fit_work {
   int32_t nq;
   float *Qf;  /* scan subsample in model frame (free stage) */
   int32_t nqf;
+  int32_t *Qv, *Qfv; /* the camera of each point of Q, Qf (several cameras; else NULL) */
   float *Vf;  /* current model vertices, float */
   double *N;  /* normals */
   int32_t *idx; /* per scan point: nearest model vertex */
@@ -124,11 +127,18 @@ typedef struct spx_fit_work {
   spx_fit_free_pair *fp;
   spx_fit_lap *lp;
   spx_adj vf, nb;
-  int has_eye;     /* the scan is one camera's view: eye is its centre in the model frame */
-  double eye[3];
-  spx_fit_zgrid zg; /* of the running stage's scan sample (has_eye) */
-  unsigned char *seen; /* nv: spx_fit_visibility at the current step (has_eye) */
+  int32_t neye;     /* cameras that saw the scan (0: not known): their centres, model frame */
+  double *eyes;     /* neye*3 */
+  spx_fit_zgrid *zg; /* neye: of the running stage's scan sample, one per camera */
+  unsigned char *seen; /* nv: seen by some camera at the current step (neye > 0) */
 } spx_fit_work;
+
+/* The cameras of a scan (spx_fit_options' view / nviews), checked: eyes in scan metres. */
+typedef struct spx_fit_views {
+  int32_t n;          /* 0: none known */
+  double *eyes;       /* n*3, scan coordinates in metres (after the unit scale) */
+  const int32_t *of;  /* scan->nv: each point's camera, NULL: all camera 0 */
+} spx_fit_views;
 
 /* Whether model vertex j (normal w->N) may be pulled to its nearest scan point of Q
  * (w->idx_m[j]), whose own nearest model vertex is w->idx[w->idx_m[j]]: not when that scan point
@@ -179,6 +189,7 @@ typedef struct spx_fit_stage {
   int32_t steps;    /* >= 1 */
   const float *Q;   /* scan sample, model frame */
   int32_t nq;
+  const int32_t *Qv; /* the camera of each point of Q, or NULL */
   double *V;        /* nv*3 model vertices, model frame */
   spx_status (*vertices)(spx_ctx *ctx, void *user); /* V from the parameters; NULL: V are the parameters */
   spx_fit_solve_spec solve; /* solve.user is also the user of `vertices` */
@@ -188,9 +199,9 @@ spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fi
 
 /* ---------- the stages ---------- */
 
-/* Similarity model → scan into r->sim_*; Sc: the scan in metres (ns points). */
+/* Similarity model → scan into r->sim_*; Sc: the scan in metres (ns points); vw: its cameras. */
 spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, const float *Sc,
-                               int32_t ns, spx_fit_result *r);
+                               int32_t ns, const spx_fit_views *vw, spx_fit_result *r);
 /* Pose + shape: b's parameters, r->verts_pose (model frame, with the body scale). */
 spx_status spx_fit_stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
                               spx_fit_body *b, spx_fit_result *r);

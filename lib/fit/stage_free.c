@@ -47,7 +47,7 @@ int spx_fit_lap_cost(void *user, const double *const *par, double *res, double *
  * annealed wc. Returns sqrt(weight / wc), the factor on the coupling residual. */
 #define W_UNSUPPORTED 1.0
 static double support_coupling(const spx_fit_work *w, int32_t j, double wc) {
-  double d = sqrt(w->d2_m[j]), s = !w->has_eye || w->seen[j] ? (0.05 - d) / 0.03 : 0.0;
+  double d = sqrt(w->d2_m[j]), s = !w->neye || w->seen[j] ? (0.05 - d) / 0.03 : 0.0;
   s = s < 0 ? 0 : s > 1 ? 1 : s;
   return sqrt((s * wc + (1 - s) * W_UNSUPPORTED) / wc);
 }
@@ -140,7 +140,7 @@ spx_status spx_fit_stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_f
     }
   }
   free_stage fs = {o, w, nv, o->free_steps > 0 ? o->free_steps : 1, X, Vp, sizes, blocks};
-  spx_fit_stage s = {"free", 2, fs.steps, w->Qf, w->nqf, X, NULL,
+  spx_fit_stage s = {"free", 2, fs.steps, w->Qf, w->nqf, w->Qfv, X, NULL,
                      {"free", free_residuals, &fs, NULL, NULL, NULL,
                       o->free_inner_iterations > 0 ? o->free_inner_iterations : o->inner_iterations,
                       SPX_LS_SPARSE_NORMAL_CHOLESKY}};

@@ -189,7 +189,7 @@ spx_status spx_fit_stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_f
   pose_stage ps = {m, o, w, b, r, o->pose_steps > 0 ? o->pose_steps : 1,
                    {.n = K3 - 3, .offset = 3}, {.n = K3 - 3, .w = o->w_limits, .offset = 3, .lims = w->lim + 3},
                    {.n = nb, .w = o->w_shape}, {.n = 1, .w = o->w_scale, .target = r->sim_scale}};
-  spx_fit_stage s = {"pose", 1, ps.steps, w->Q, w->nq, r->verts_pose, pose_vertices,
+  spx_fit_stage s = {"pose", 1, ps.steps, w->Q, w->nq, w->Qv, r->verts_pose, pose_vertices,
                      {"pose", pose_residuals, &ps, spx_fit_body_prepare, b, &b->st, o->inner_iterations,
                       SPX_LS_DENSE_NORMAL_CHOLESKY}};
   return spx_fit_run_stage(ctx, m, o, w, &s, r);
