@@ -20,7 +20,8 @@
  * --full: the whole outside table (6 bodies x 3 seeds); the default is 3 bodies x 1 seed.
  * usage: bench_register_views [--set outside|inside] [--full] [--bodies LIST] [--seeds N] [--threads N]
  *          [--cases LIST] [--no-view] [--scene room|none] [--verbose]... [--pose-steps N] [--inner N]
- *          [--free-steps N] [--w-pose W] [--w-shape W] */
+ *          [--free-steps N] [--points-pose N] [--points-free N] [--w-pose W] [--w-shape W] [--aids BITS]
+ * --aids: spx_fit_options.aids (SPX_FIT_AID_* bits; default: the library's), to measure each aid. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -39,8 +40,9 @@ static const double case_az[NCASE] = {0, 0, 0, 90, 180, 0, 0, 45, 0}; /* degrees
 #define NDEPTH4 4
 
 typedef struct cfg {
-  int outside, threads, use_view, room, verbose, pose_steps, inner, free_steps;
+  int outside, threads, use_view, room, verbose, pose_steps, inner, free_steps, points_pose, points_free;
   double w_pose, w_shape;
+  int aids; /* -1: the library's default */
 } cfg;
 
 static void progress(void *user, const spx_fit_progress *p) {
@@ -182,6 +184,28 @@ static void split_error(spx_ctx *ctx, const rs_body *b, const spx_fit_result *r,
   spx_mesh_free(&truth);
 }
 
+/* SPX_BENCH_DUMP=DIR (debugging): the true body, the registration and the cameras of every run as
+ * DIR/<body>_<case>_<seed>_{truth,reg}.obj and _cams.json. */
+static void dump(spx_ctx *ctx, const rs_body *b, const char *cname, int s, const spx_fit_result *r,
+                 const spx_camera *cams, int ncam) {
+  const char *dir = getenv("SPX_BENCH_DUMP");
+  if (!dir) return;
+  char path[1024];
+  spx_mesh t = {0}, reg;
+  t.nv = b->nv, t.nf = b->nf, t.faces = b->F;
+  t.pos = malloc((size_t)b->nv * 3 * sizeof(float));
+  for (int32_t i = 0; t.pos && i < b->nv * 3; i++) t.pos[i] = (float)b->V[i];
+  snprintf(path, sizeof path, "%s/%s_%s_%d_truth.obj", dir, b->name, cname, s);
+  if (t.pos) spx_mesh_save(ctx, path, &t, SPX_MESH_OBJ);
+  free(t.pos);
+  snprintf(path, sizeof path, "%s/%s_%s_%d_reg.obj", dir, b->name, cname, s);
+  if (!spx_fit_result_mesh(ctx, r, &reg)) spx_mesh_save(ctx, path, &reg, SPX_MESH_OBJ), spx_mesh_free(&reg);
+  snprintf(path, sizeof path, "%s/%s_%s_%d_reg.json", dir, b->name, cname, s);
+  spx_fit_save_json(ctx, path, r, NULL);
+  snprintf(path, sizeof path, "%s/%s_%s_%d_cams.json", dir, b->name, cname, s);
+  if (ncam) spx_camera_save(ctx, path, cams, ncam);
+}
+
 /* One registration of case c; 0, or -1 when the scan could not be made, 1 when the fit failed. */
 static int run_case(spx_ctx *ctx, const spx_body_model *m, const rs_body *b, int c, int s, const cfg *g,
                     run_out *ro) {
@@ -201,8 +225,11 @@ static int run_case(spx_ctx *ctx, const spx_body_model *m, const rs_body *b, int
   if (g->pose_steps) o.pose_steps = g->pose_steps;
   if (g->inner) o.inner_iterations = g->inner;
   if (g->free_steps) o.free_steps = g->free_steps;
+  if (g->points_pose) o.max_points_pose = g->points_pose;
+  if (g->points_free) o.max_points_free = g->points_free;
   if (g->w_pose > 0) o.w_pose = g->w_pose;
   if (g->w_shape > 0) o.w_shape = g->w_shape;
+  if (g->aids >= 0) o.aids = (unsigned)g->aids;
   o.progress = progress;
   o.progress_user = (void *)&g->verbose;
   if (neyes && g->use_view) o.nviews = neyes, o.view_eyes = eyes, o.point_view = views;
@@ -212,6 +239,7 @@ static int run_case(spx_ctx *ctx, const spx_body_model *m, const rs_body *b, int
   ro->secs = spx_now() - t0, ro->cpu = bench_cpu_now() - c0, ro->points = scan.nv;
   if (!rc) ro->err = view_complete_error(ctx, b->V, b->nv, b->F, b->nf, r.verts_scan, r.nv, r.faces, r.nf);
   if (!rc && neyes && g->verbose) split_error(ctx, b, &r, cams, neyes, ro);
+  if (!rc) dump(ctx, b, case_names[c], s, &r, cams, neyes);
   if (!rc) spx_fit_result_free(&r);
   spx_mesh_free(&scan);
   free(views);
@@ -235,7 +263,7 @@ static int parse_list(const char *s, int *list) {
 static int usage(void) {
   fprintf(stderr, "usage: bench_register_views [--set outside|inside] [--full] [--bodies LIST] [--seeds N] [--threads N]\n"
                   "         [--cases LIST] [--no-view] [--scene room|none] [--verbose]... [--pose-steps N] [--inner N]\n"
-                  "         [--free-steps N] [--w-pose W] [--w-shape W]\n");
+                  "         [--free-steps N] [--points-pose N] [--points-free N] [--w-pose W] [--w-shape W] [--aids BITS]\n");
   return 2;
 }
 
@@ -277,7 +305,7 @@ static void summary(const double err[NCASE][MAXB][MAXS], const int ok[NCASE][MAX
 }
 
 int main(int argc, char **argv) {
-  cfg g = {1, 2, 1, -1, 0, 0, 0, 0, 0, 0};
+  cfg g = {.outside = 1, .threads = 2, .use_view = 1, .room = -1, .aids = -1};
   int full = 0, seeds = 0, bodies[MAXB], nb = 0;
   const char *cases = NULL;
   for (int i = 1; i < argc; i++) {
@@ -295,8 +323,11 @@ int main(int argc, char **argv) {
     else if (!strcmp(a, "--pose-steps")) g.pose_steps = atoi(v), i++;
     else if (!strcmp(a, "--inner")) g.inner = atoi(v), i++;
     else if (!strcmp(a, "--free-steps")) g.free_steps = atoi(v), i++;
+    else if (!strcmp(a, "--points-pose")) g.points_pose = atoi(v), i++;
+    else if (!strcmp(a, "--points-free")) g.points_free = atoi(v), i++;
     else if (!strcmp(a, "--w-pose")) g.w_pose = atof(v), i++;
     else if (!strcmp(a, "--w-shape")) g.w_shape = atof(v), i++;
+    else if (!strcmp(a, "--aids")) g.aids = (int)strtol(v, NULL, 0), i++;
     else return usage();
   }
   if (g.room < 0) g.room = g.outside;

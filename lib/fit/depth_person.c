@@ -8,7 +8,9 @@
  *      within 1.5 cm + 0.5% of the depth), each taken as background only when it holds at least 5%
  *      of the pixels left and spreads over more than 1 m both ways (standard deviation over
  *      0.29 m along both of its in-plane principal axes: no part of a person does); the pixels on
- *      it (within the inlier distance) or beyond it, seen from the camera, are dropped;
+ *      it or beyond it, seen from the camera, are dropped, "on" being within three times the
+ *      plane's own noise + 2 mm per metre of depth (at least 8 mm, at most the inlier distance):
+ *      the feet standing on the floor lose little more than the sensor's noise;
  *   3. the person: the connected parts of what is left (4-neighbours within tau(d)); the one with
  *      the most pixels in the middle of the image (the central half across, the central 3/4 down)
  *      is the person, and other parts are kept with it when they lie inside its bounding box
@@ -89,7 +91,29 @@ static int plane3(const float *a, const float *b, const float *c, double n[3], d
   return 1;
 }
 
+/* RANSAC's inlier distance at depth z: loose, for finding a plane at any sensor's noise. */
 static double thr_at(double z) { return 0.015 + 0.005 * z; }
+
+static int cmp_d(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+/* The cut of a found plane: three times its own noise (1.4826 x the median absolute residual of
+ * the sample's inliers) + 2 mm per metre of depth, at least 8 mm: tight on a clean sensor, so that
+ * little of the feet goes with the floor, wider on a noisy one, at most thr_at. */
+static double plane_noise(const frame *f, const int32_t *idx, int32_t m, const double n[3], double off, double *res) {
+  int32_t k = 0;
+  for (int32_t i = 0; i < m; i++) {
+    const float *x = f->X + (size_t)idx[i] * 3;
+    double r = fabs(n[0] * x[0] + n[1] * x[1] + n[2] * x[2] - off);
+    if (r <= thr_at(x[2])) res[k++] = r;
+  }
+  if (!k) return 0;
+  qsort(res, (size_t)k, sizeof *res, cmp_d);
+  return 1.4826 * res[k / 2];
+}
+static double cut_at(double sigma, double z) { return fmin(thr_at(z), fmax(0.008, 3 * sigma) + 0.002 * z); }
 
 /* Least-squares plane through the points of idx within thr of (n, off): refits n, off; returns
  * the standard deviations along the plane's two in-plane principal axes (spread[0] <= spread[1]). */
@@ -117,7 +141,7 @@ static void refit(const frame *f, const int32_t *idx, int32_t m, double n[3], do
   spread[0] = sqrt(fmax(ev[1], 0)), spread[1] = sqrt(fmax(ev[0], 0));
 }
 
-/* Step 2: one background plane; returns the pixels dropped (0: none found). */
+/* Step 2: one background plane; returns the pixels dropped (0: none found, -1: out of memory). */
 static int64_t drop_plane(frame *f, uint64_t *rng, int32_t *idx) {
   int32_t m = 0;
   size_t npx = (size_t)f->W * f->H;
@@ -153,6 +177,10 @@ static int64_t drop_plane(frame *f, uint64_t *rng, int32_t *idx) {
   refit(f, idx, m, best_n, &best_off, spread);
   refit(f, idx, m, best_n, &best_off, spread);
   if (!(spread[0] > PLANE_MIN_SPREAD)) return 0;
+  double *res = malloc((size_t)m * sizeof(double));
+  if (!res) return -1;
+  double sigma = plane_noise(f, idx, m, best_n, best_off, res);
+  free(res);
   /* the camera (origin) on the positive side; drop what is on the plane or beyond it */
   if (best_off > 0) {
     for (int d = 0; d < 3; d++) best_n[d] = -best_n[d];
@@ -162,7 +190,7 @@ static int64_t drop_plane(frame *f, uint64_t *rng, int32_t *idx) {
   for (size_t p = 0; p < npx; p++) {
     if (!(f->d[p] > 0)) continue;
     const float *x = f->X + p * 3;
-    if (best_n[0] * x[0] + best_n[1] * x[1] + best_n[2] * x[2] - best_off < thr_at(x[2])) f->d[p] = 0, dropped++;
+    if (best_n[0] * x[0] + best_n[1] * x[1] + best_n[2] * x[2] - best_off < cut_at(sigma, x[2])) f->d[p] = 0, dropped++;
   }
   return dropped;
 }
@@ -290,6 +318,10 @@ spx_status spx_fit_depth_person(spx_ctx *ctx, const char *name, const spx_camera
   uint64_t rng = 0x5eedf100ULL;
   for (int k = 0; k < PLANE_MAX; k++) {
     int64_t n = drop_plane(&f, &rng, stack);
+    if (n < 0) {
+      st = spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", name);
+      goto done;
+    }
     if (!n) break;
     rep->nplanes++, rep->planes += n;
   }

@@ -16,7 +16,7 @@ void spx_fit_options_default(spx_fit_options *o) {
                          .w_shape = 2e-4, .w_pose = 1e-4, .w_limits = 0.1, .w_scale = 1.0, .w_pose_start = 0.1,
                          .w_m2s = 1.0, .w_lap = 1.0, .w_couple_start = 0.3, .w_couple_end = 0.02,
                          .robust_m = 0.01, .seed = 0x5eed, .progress = NULL, .progress_user = NULL,
-                         .ceres_progress = 0};
+                         .ceres_progress = 0, .aids = SPX_FIT_AID_CONTINUE};
 }
 
 void spx_fit_result_free(spx_fit_result *r) {
@@ -29,8 +29,10 @@ void spx_fit_result_free(spx_fit_result *r) {
 static void work_free(spx_fit_work *w) {
   free(w->Q), free(w->Qf), free(w->Qv), free(w->Qfv), free(w->Vf), free(w->N), free(w->idx), free(w->d2);
   free(w->dist), free(w->idx_m), free(w->area), free(w->lim), free(w->msub), free(w->seen), free(w->eyes);
+  free(w->fs_j), free(w->fs_q), free(w->fs_n);
   for (int32_t k = 0; w->zg && k < w->neye; k++) spx_fit_zgrid_free(&w->zg[k]);
-  free(w->zg);
+  for (int32_t k = 0; w->sil && k < w->neye; k++) spx_fit_zgrid_free(&w->sil[k]);
+  free(w->zg), free(w->sil);
   free(w->d2_m), free(w->bp), free(w->fp), free(w->lp);
   spx_adj_free(&w->vf);
   spx_adj_free(&w->nb);
@@ -154,8 +156,9 @@ static spx_status pose_samples(spx_ctx *ctx, const spx_fit_options *o, const flo
   w->idx = spx_alloc_array(ctx, (size_t)nbig, sizeof(int32_t), "registration");
   w->d2 = spx_alloc_array(ctx, (size_t)nbig, sizeof(float), "registration");
   w->dist = spx_alloc_array(ctx, (size_t)nbig, sizeof(float), "registration");
-  w->bp = spx_alloc_array(ctx, (size_t)(nbig + nv), sizeof(spx_fit_body_pair), "registration");
-  w->fp = spx_alloc_array(ctx, (size_t)(nbig + 2 * (size_t)nv), sizeof(spx_fit_free_pair), "registration");
+  /* pairs: scan → model, model → scan, free space (and in the free stage the coupling) */
+  w->bp = spx_alloc_array(ctx, (size_t)nbig + 2 * (size_t)nv, sizeof(spx_fit_body_pair), "registration");
+  w->fp = spx_alloc_array(ctx, (size_t)nbig + 3 * (size_t)nv, sizeof(spx_fit_free_pair), "registration");
   if (!w->Q || !w->Qf || !w->idx || !w->d2 || !w->dist || !w->bp || !w->fp) {
     free(sidx);
     return SPX_E_NOMEM;
@@ -172,8 +175,11 @@ static spx_status pose_samples(spx_ctx *ctx, const spx_fit_options *o, const flo
   if (vw->of && (!w->Qv || !w->Qfv)) return SPX_E_NOMEM;
   if (vw->n) {
     w->eyes = spx_alloc_array(ctx, (size_t)vw->n, 3 * sizeof(double), "registration");
-    if (!w->eyes) return SPX_E_NOMEM;
-    w->neye = vw->n;
+    w->fs_j = spx_alloc_array(ctx, (size_t)nv, sizeof(int32_t), "registration");
+    w->fs_q = spx_alloc_array(ctx, (size_t)nv, 3 * sizeof(double), "registration");
+    w->fs_n = spx_alloc_array(ctx, (size_t)nv, 3 * sizeof(double), "registration");
+    if (!w->eyes || !w->fs_j || !w->fs_q || !w->fs_n) return SPX_E_NOMEM;
+    w->neye = vw->n, w->cams_given = 1;
     for (int32_t k = 0; k < vw->n; k++) {
       float e[3] = {(float)vw->eyes[k * 3], (float)vw->eyes[k * 3 + 1], (float)vw->eyes[k * 3 + 2]}, em[3];
       to_model(r, e, em);
@@ -217,6 +223,18 @@ static spx_status infer_view(spx_ctx *ctx, const spx_body_model *m, const spx_fi
     *note = "the scan covers one side of the body: fitted as seen from that side";
   }
   return SPX_OK;
+}
+
+/* The cameras' silhouettes (freespace.c) from the free stage's scan sample. */
+static spx_status silhouettes(spx_ctx *ctx, spx_fit_work *w) {
+  if (!(w->sil = calloc((size_t)w->neye, sizeof *w->sil)))
+    return spx_fail(ctx, SPX_E_NOMEM, "registration: out of memory");
+  spx_status st = SPX_OK;
+  for (int32_t k = 0; !st && k < w->neye; k++) {
+    st = spx_fit_zgrid_build(ctx, w->eyes + k * 3, w->Qf, w->nqf, w->Qfv, k, &w->sil[k]);
+    if (!st) st = spx_fit_zgrid_silhouette(ctx, &w->sil[k]);
+  }
+  return st;
 }
 
 /* r->verts_scan (input units), the colours of a coloured scan and the unposed template. F: nv*3
@@ -283,6 +301,7 @@ spx_status spx_fit_register(spx_ctx *ctx, const spx_body_model *m, const spx_mes
       st = spx_fail(ctx, SPX_E_NOMEM, "registration: out of memory");
       goto cleanup;
     }
+    if (w.cams_given && (o.aids & SPX_FIT_AID_FREESPACE) && (st = silhouettes(ctx, &w))) goto cleanup;
     if ((st = spx_fit_stage_pose(ctx, m, &o, &w, &b, r))) goto cleanup;
     r->stages_done |= SPX_FIT_POSE;
     memcpy(r->trans, b.trans, sizeof r->trans);

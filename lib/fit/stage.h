@@ -8,6 +8,8 @@
  *   lib/fit/stage_common.c the tail every stage shares: two-way nearest neighbours, one Ceres
  *                          solve from a stage's residual setup, measure + report of a step
  *   lib/fit/sample.c       the deterministic RNG and subsampling
+ *   lib/fit/extend.c       a per-vertex field continued over a mesh (the free stage's offsets)
+ *   lib/fit/freespace.c    the cameras' silhouettes: no body where a camera saw past it
  * 3x3 math is lib/body/rot3.h. The residual callbacks and their user data are declared here so
  * that tests/test_fit_bridge.c can check every analytic Jacobian against central differences. */
 #ifndef SPX_FIT_STAGE_H
@@ -93,6 +95,7 @@ typedef struct spx_fit_zgrid {
   double a0, b0, px;       /* image-plane origin and pixel size (tangent units) */
   int32_t W, H;
   float *z;                /* W*H nearest camera depth, INFINITY where no scan point fell */
+  int32_t *near;           /* W*H nearest silhouette pixel (spx_fit_zgrid_silhouette), or NULL */
 } spx_fit_zgrid;
 /* Of the points of Q that camera `cam` saw (qv[i] == cam; qv NULL: all of them). */
 spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q, int32_t nq, const int32_t *qv,
@@ -102,6 +105,22 @@ void spx_fit_zgrid_free(spx_fit_zgrid *g);
  * behind the scanned depth around its pixel (3x3): that camera would have seen it. */
 void spx_fit_visibility(const spx_fit_zgrid *g, const float *V, const double *N, int32_t nv, double tol,
                         unsigned char *seen);
+
+/* ---------- free space (freespace.c) ---------- */
+
+/* g->near: for each grid pixel, the nearest pixel of the camera's silhouette (the pixels holding
+ * scan points, closed over the gaps between samples), -1 when there is none. */
+spx_status spx_fit_zgrid_silhouette(spx_ctx *ctx, spx_fit_zgrid *g);
+/* 1 when model point x projects outside g's silhouette; q: x moved, at its depth, onto the ray of
+ * the nearest silhouette pixel. */
+int spx_fit_outside_silhouette(const spx_fit_zgrid *g, const double x[3], double q[3]);
+
+/* ---------- continuing a field over a mesh (extend.c) ---------- */
+
+/* f's entries where known[i] == 0 replaced by the screened-harmonic extension of the known ones
+ * over the vertex graph nb (eps > 0: decay; at most maxit conjugate-gradient steps). */
+spx_status spx_fit_harmonic_fill(spx_ctx *ctx, const spx_adj *nb, const unsigned char *known, double eps, int maxit,
+                                 double *f);
 
 /* ---------- the working set of the pose and free stages (owned by the driver) ---------- */
 
@@ -128,10 +147,23 @@ typedef struct spx_fit_work {
   spx_fit_lap *lp;
   spx_adj vf, nb;
   int32_t neye;     /* cameras that saw the scan (0: not known): their centres, model frame */
+  int cams_given;   /* the cameras came with the scan (not inferred from its shape) */
   double *eyes;     /* neye*3 */
   spx_fit_zgrid *zg; /* neye: of the running stage's scan sample, one per camera */
+  spx_fit_zgrid *sil; /* neye: the silhouettes (of the free stage's sample; cams_given), or NULL */
   unsigned char *seen; /* nv: seen by some camera at the current step (neye > 0) */
+  int32_t nfs;      /* free-space pairs of the current step: vertex fs_j[k] pulled to fs_q (direction fs_n) */
+  int32_t *fs_j;    /* nv */
+  double *fs_q, *fs_n; /* nv*3 */
 } spx_fit_work;
+
+/* Weight of the free-space pairs relative to the model → scan term (both area-weighted). */
+#define W_FREE_SPACE 1.0
+
+/* The free-space pairs of model vertices V (model frame, nv) against the cameras' silhouettes
+ * (w->sil; none without): idx, q, n receive vertex, target and unit direction. Returns their count. */
+int32_t spx_fit_free_space_pairs(const spx_fit_work *w, const float *V, int32_t nv, int32_t *idx, double *q,
+                                 double *n);
 
 /* The cameras of a scan (spx_fit_options' view / nviews), checked: eyes in scan metres. */
 typedef struct spx_fit_views {

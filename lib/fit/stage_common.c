@@ -83,6 +83,7 @@ spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fi
       break;
     if (w->neye) memset(w->seen, 0, (size_t)nv);
     for (int32_t k = 0; k < w->neye; k++) spx_fit_visibility(&w->zg[k], w->Vf, w->N, nv, VIEW_TOL, w->seen);
+    w->nfs = 2 * step >= s->steps ? spx_fit_free_space_pairs(w, w->Vf, nv, w->fs_j, w->fs_q, w->fs_n) : 0;
     spx_ceres_summary sum;
     if ((st = spx_fit_solve(ctx, o, &s->solve, step, &sum))) break;
     /* progress: mean scan → surface distance at the new parameters */

@@ -169,6 +169,17 @@ static spx_status pose_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
     if (spx_ceres_add_residual(pb, spx_fit_body_plane_cost, q, 1, nblk, sizes, blocks, SPX_LOSS_CAUCHY, a2 * 2 * robust))
       return spx_fit_ceres_error(ctx, "pose");
   }
+  /* free space: vertices outside a camera's silhouette, towards it (area-weighted like the
+   * model → scan term over the whole model) */
+  for (int32_t k = 0; k < w->nfs; k++) {
+    int32_t j = w->fs_j[k];
+    spx_fit_body_pair *q = w->bp + np++;
+    double a = sqrt(W_FREE_SPACE * w->area[j]);
+    q->b = b, q->j = j, q->a = a;
+    for (int d = 0; d < 3; d++) q->q[d] = w->fs_q[k * 3 + d], q->n[d] = w->fs_n[k * 3 + d];
+    if (spx_ceres_add_residual(pb, spx_fit_body_plane_cost, q, 1, nblk, sizes, blocks, SPX_LOSS_HUBER, a * robust))
+      return spx_fit_ceres_error(ctx, "pose");
+  }
   /* priors: the pose prior is annealed from 10x down to 1x */
   ps->pr_pose.w = o->w_pose_start * pow(o->w_pose / o->w_pose_start, frac);
   int one = 1;

@@ -25,7 +25,7 @@ static int64_t pixel_of(const spx_fit_zgrid *g, const double c[3]) {
 
 spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q, int32_t nq, const int32_t *qv,
                                int32_t cam, spx_fit_zgrid *g) {
-  free(g->z);
+  free(g->z), free(g->near);
   memset(g, 0, sizeof *g);
   memcpy(g->eye, eye, sizeof g->eye);
   /* optical axis: from the eye to the centroid of its points; x, y any orthonormal completion */
@@ -80,7 +80,7 @@ spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q
 }
 
 void spx_fit_zgrid_free(spx_fit_zgrid *g) {
-  free(g->z);
+  free(g->z), free(g->near);
   memset(g, 0, sizeof *g);
 }
 

@@ -135,7 +135,7 @@ class spx_fit_options(Structure):
                 ("w_lap", c_double), ("w_couple_start", c_double), ("w_couple_end", c_double),
                 ("robust_m", c_double), ("seed", c_uint64), ("progress", spx_fit_progress_fn),
                 ("progress_user", c_void_p), ("ceres_progress", c_int), ("view", c_int),
-                ("view_eye", c_double * 3), ("nviews", c_int32), ("view_eyes", POINTER(c_double)),
+                ("view_eye", c_double * 3), ("aids", c_uint), ("nviews", c_int32), ("view_eyes", POINTER(c_double)),
                 ("point_view", POINTER(c_int32))]
 
 
