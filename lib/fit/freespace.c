@@ -84,11 +84,11 @@ int spx_fit_outside_silhouette(const spx_fit_zgrid *g, const double x[3], double
 int32_t spx_fit_free_space_pairs(const spx_fit_work *w, const float *V, int32_t nv, int32_t *idx, double *q,
                                  double *n) {
   int32_t np = 0;
-  for (int32_t j = 0; w->sil && j < nv; j++) {
+  for (int32_t j = 0; w->free_space && j < nv; j++) {
     if (w->seen[j]) continue; /* what a camera saw meets the data terms instead */
     double x[3] = {V[j * 3], V[j * 3 + 1], V[j * 3 + 2]}, t[3], best = 0;
     for (int32_t k = 0; k < w->neye; k++) {
-      if (!spx_fit_outside_silhouette(&w->sil[k], x, t)) continue;
+      if (!spx_fit_outside_silhouette(&w->zg[k], x, t)) continue;
       double dv[3] = {t[0] - x[0], t[1] - x[1], t[2] - x[2]}, l = sqrt(dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]);
       if (!(l > best)) continue; /* the camera it is farthest outside of */
       best = l, idx[np] = j;

@@ -27,12 +27,11 @@ void spx_fit_result_free(spx_fit_result *r) {
 }
 
 static void work_free(spx_fit_work *w) {
-  free(w->Q), free(w->Qf), free(w->Qv), free(w->Qfv), free(w->Vf), free(w->N), free(w->idx), free(w->d2);
+  free(w->Q), free(w->Qf), free(w->Qfv), free(w->Vf), free(w->N), free(w->idx), free(w->d2);
   free(w->dist), free(w->idx_m), free(w->area), free(w->lim), free(w->msub), free(w->seen), free(w->eyes);
   free(w->fs_j), free(w->fs_q), free(w->fs_n);
   for (int32_t k = 0; w->zg && k < w->neye; k++) spx_fit_zgrid_free(&w->zg[k]);
-  for (int32_t k = 0; w->sil && k < w->neye; k++) spx_fit_zgrid_free(&w->sil[k]);
-  free(w->zg), free(w->sil);
+  free(w->zg);
   free(w->d2_m), free(w->bp), free(w->fp), free(w->lp);
   spx_adj_free(&w->vf);
   spx_adj_free(&w->nb);
@@ -166,13 +165,11 @@ static spx_status pose_samples(spx_ctx *ctx, const spx_fit_options *o, const flo
   for (int32_t i = 0; i < w->nq; i++) to_model(r, Sc + (size_t)sidx[i] * 3, w->Q + i * 3);
   for (int32_t i = 0; i < w->nqf; i++) to_model(r, Sc + (size_t)sidx[i] * 3, w->Qf + i * 3);
   if (vw->of) {
-    w->Qv = spx_alloc_array(ctx, (size_t)w->nq, sizeof(int32_t), "registration");
     w->Qfv = spx_alloc_array(ctx, (size_t)w->nqf, sizeof(int32_t), "registration");
-    for (int32_t i = 0; w->Qv && i < w->nq; i++) w->Qv[i] = vw->of[sidx[i]];
     for (int32_t i = 0; w->Qfv && i < w->nqf; i++) w->Qfv[i] = vw->of[sidx[i]];
   }
   free(sidx);
-  if (vw->of && (!w->Qv || !w->Qfv)) return SPX_E_NOMEM;
+  if (vw->of && !w->Qfv) return SPX_E_NOMEM;
   if (vw->n) {
     w->eyes = spx_alloc_array(ctx, (size_t)vw->n, 3 * sizeof(double), "registration");
     w->fs_j = spx_alloc_array(ctx, (size_t)nv, sizeof(int32_t), "registration");
@@ -225,15 +222,18 @@ static spx_status infer_view(spx_ctx *ctx, const spx_body_model *m, const spx_fi
   return SPX_OK;
 }
 
-/* The cameras' silhouettes (freespace.c) from the free stage's scan sample. */
-static spx_status silhouettes(spx_ctx *ctx, spx_fit_work *w) {
-  if (!(w->sil = calloc((size_t)w->neye, sizeof *w->sil)))
+/* What each camera saw (view.c): its depth grid of the free stage's scan sample (the larger one,
+ * so that each camera of several keeps enough points for a fine grid), used by both stages; with
+ * free space (freespace.c) also its silhouette. */
+static spx_status camera_grids(spx_ctx *ctx, const spx_fit_options *o, spx_fit_work *w) {
+  if (!(w->zg = calloc((size_t)w->neye, sizeof *w->zg)))
     return spx_fail(ctx, SPX_E_NOMEM, "registration: out of memory");
   spx_status st = SPX_OK;
   for (int32_t k = 0; !st && k < w->neye; k++) {
-    st = spx_fit_zgrid_build(ctx, w->eyes + k * 3, w->Qf, w->nqf, w->Qfv, k, &w->sil[k]);
-    if (!st) st = spx_fit_zgrid_silhouette(ctx, &w->sil[k]);
+    st = spx_fit_zgrid_build(ctx, w->eyes + k * 3, w->Qf, w->nqf, w->Qfv, k, &w->zg[k]);
+    if (!st && w->cams_given && (o->aids & SPX_FIT_AID_FREESPACE)) st = spx_fit_zgrid_silhouette(ctx, &w->zg[k]);
   }
+  w->free_space = !st && w->cams_given && (o->aids & SPX_FIT_AID_FREESPACE);
   return st;
 }
 
@@ -296,12 +296,11 @@ spx_status spx_fit_register(spx_ctx *ctx, const spx_body_model *m, const spx_mes
     const char *note = NULL;
     if (!vw.n && (st = infer_view(ctx, m, &o, &w, r->verts_pose, &note))) goto cleanup;
     if (note) spx_fit_report(&o, "view", 0, 0, 0, 0, spx_now(), note);
-    if (w.neye && (!(w.seen = spx_alloc_array(ctx, (size_t)nv, 1, "registration")) ||
-                   !(w.zg = calloc((size_t)w.neye, sizeof *w.zg)))) {
-      st = spx_fail(ctx, SPX_E_NOMEM, "registration: out of memory");
+    if (w.neye && !(w.seen = spx_alloc_array(ctx, (size_t)nv, 1, "registration"))) {
+      st = SPX_E_NOMEM;
       goto cleanup;
     }
-    if (w.cams_given && (o.aids & SPX_FIT_AID_FREESPACE) && (st = silhouettes(ctx, &w))) goto cleanup;
+    if (w.neye && (st = camera_grids(ctx, &o, &w))) goto cleanup;
     if ((st = spx_fit_stage_pose(ctx, m, &o, &w, &b, r))) goto cleanup;
     r->stages_done |= SPX_FIT_POSE;
     memcpy(r->trans, b.trans, sizeof r->trans);

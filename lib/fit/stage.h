@@ -129,7 +129,7 @@ typedef struct spx_fit_work {
   int32_t nq;
   float *Qf;  /* scan subsample in model frame (free stage) */
   int32_t nqf;
-  int32_t *Qv, *Qfv; /* the camera of each point of Q, Qf (several cameras; else NULL) */
+  int32_t *Qfv; /* the camera of each point of Qf (several cameras; else NULL) */
   float *Vf;  /* current model vertices, float */
   double *N;  /* normals */
   int32_t *idx; /* per scan point: nearest model vertex */
@@ -149,8 +149,8 @@ typedef struct spx_fit_work {
   int32_t neye;     /* cameras that saw the scan (0: not known): their centres, model frame */
   int cams_given;   /* the cameras came with the scan (not inferred from its shape) */
   double *eyes;     /* neye*3 */
-  spx_fit_zgrid *zg; /* neye: of the running stage's scan sample, one per camera */
-  spx_fit_zgrid *sil; /* neye: the silhouettes (of the free stage's sample; cams_given), or NULL */
+  spx_fit_zgrid *zg; /* neye: one per camera, of the free stage's scan sample */
+  int free_space;   /* the grids have silhouettes (SPX_FIT_AID_FREESPACE with cameras given) */
   unsigned char *seen; /* nv: seen by some camera at the current step (neye > 0) */
   int32_t nfs;      /* free-space pairs of the current step: vertex fs_j[k] pulled to fs_q (direction fs_n) */
   int32_t *fs_j;    /* nv */
@@ -161,7 +161,8 @@ typedef struct spx_fit_work {
 #define W_FREE_SPACE 1.0
 
 /* The free-space pairs of model vertices V (model frame, nv) against the cameras' silhouettes
- * (w->sil; none without): idx, q, n receive vertex, target and unit direction. Returns their count. */
+ * (none without w->free_space): idx, q, n receive vertex, target and unit direction. Returns their
+ * count. */
 int32_t spx_fit_free_space_pairs(const spx_fit_work *w, const float *V, int32_t nv, int32_t *idx, double *q,
                                  double *n);
 
@@ -221,7 +222,6 @@ typedef struct spx_fit_stage {
   int32_t steps;    /* >= 1 */
   const float *Q;   /* scan sample, model frame */
   int32_t nq;
-  const int32_t *Qv; /* the camera of each point of Q, or NULL */
   double *V;        /* nv*3 model vertices, model frame */
   spx_status (*vertices)(spx_ctx *ctx, void *user); /* V from the parameters; NULL: V are the parameters */
   spx_fit_solve_spec solve; /* solve.user is also the user of `vertices` */

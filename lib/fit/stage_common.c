@@ -73,8 +73,6 @@ spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fi
   int32_t nv = m->nv;
   spx_kdtree *qt = NULL, *mt = NULL;
   spx_status st = spx_fit_kd_build(ctx, s->Q, s->nq, &qt);
-  for (int32_t k = 0; !st && k < w->neye; k++)
-    st = spx_fit_zgrid_build(ctx, w->eyes + k * 3, s->Q, s->nq, s->Qv, k, &w->zg[k]);
   for (int32_t step = 0; !st && step < s->steps; step++) {
     if (s->vertices && (st = s->vertices(ctx, s->solve.user))) break;
     to_float(s->V, nv * 3, w->Vf);
@@ -99,6 +97,5 @@ spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fi
   if (!st) r->stage_seconds[s->slot] = spx_now() - t0;
   spx_kdtree_free(qt);
   spx_kdtree_free(mt);
-  for (int32_t k = 0; k < w->neye; k++) spx_fit_zgrid_free(&w->zg[k]);
   return st;
 }

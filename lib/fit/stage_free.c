@@ -186,7 +186,7 @@ spx_status spx_fit_stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_f
   }
   free_stage fs = {o, w, nv, o->free_steps > 0 ? o->free_steps : 1, X, Vp, Np, Np + 3 * (size_t)nv,
                    Np + 6 * (size_t)nv, known, sizes, blocks};
-  spx_fit_stage s = {"free", 2, fs.steps, w->Qf, w->nqf, w->Qfv, X, NULL,
+  spx_fit_stage s = {"free", 2, fs.steps, w->Qf, w->nqf, X, NULL,
                      {"free", free_residuals, &fs, NULL, NULL, NULL,
                       o->free_inner_iterations > 0 ? o->free_inner_iterations : o->inner_iterations,
                       SPX_LS_SPARSE_NORMAL_CHOLESKY}};

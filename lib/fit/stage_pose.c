@@ -96,22 +96,32 @@ int spx_fit_scale_prior_cost(void *user, const double *const *par, double *res, 
 }
 
 
-/* Soft joint limits (radians per axis-angle component): trunk, neck, head, clavicle and hip
- * helper joints bend little; limbs, hands and feet up to 1.6. Names of the cmu_mb rig and SMPL. */
+/* Soft joint limits (radians per axis-angle component): trunk, clavicle and hip helper joints bend
+ * little (0.7), limbs, hands and feet up to 1.6; the joints of the neck and head share one budget
+ * of NECK_CHAIN (a head turned ~70 degrees), however many the rig has (SMPL two, the default body's
+ * cmu_mb rig three): with 0.7 each, a head seen from the front could twist round by 70 degrees and
+ * more at no cost, matching a nearly round head about as well. Names of the cmu_mb rig and SMPL. */
+#define NECK_CHAIN 1.2
+static int named(const char *n, const char *part) {
+  size_t L = strlen(part);
+  for (const char *c = n; n && *c; c++)
+    if (!strncasecmp(c, part, L)) return 1;
+  return 0;
+}
 static void joint_limits(const spx_body_model *m, double *lim) {
-  static const char *stiff[] = {"spine", "back", "neck", "head", "collar", "hipjoint", "pelvis", "jaw"};
+  static const char *stiff[] = {"spine", "back", "collar", "hipjoint", "pelvis", "jaw"};
+  int32_t nneck = 0;
+  for (int32_t k = 0; m->joint_names && k < m->nj; k++)
+    nneck += named(m->joint_names[k], "neck") || named(m->joint_names[k], "head");
   for (int32_t k = 0; k < m->nj; k++) {
     double l = 1.6;
     const char *n = m->joint_names ? m->joint_names[k] : NULL;
-    for (size_t q = 0; n && q < sizeof stiff / sizeof stiff[0]; q++) {
-      size_t L = strlen(stiff[q]);
-      for (const char *c = n; *c; c++)
-        if (!strncasecmp(c, stiff[q], L)) l = 0.7;
-    }
+    for (size_t q = 0; n && q < sizeof stiff / sizeof stiff[0]; q++)
+      if (named(n, stiff[q])) l = 0.7;
+    if (n && (named(n, "neck") || named(n, "head"))) l = NECK_CHAIN / nneck;
     for (int d = 0; d < 3; d++) lim[k * 3 + d] = l;
   }
 }
-
 
 /* One pose step's problem: the data pairs matched by the stage loop, then the priors. */
 typedef struct pose_stage {
@@ -200,7 +210,7 @@ spx_status spx_fit_stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_f
   pose_stage ps = {m, o, w, b, r, o->pose_steps > 0 ? o->pose_steps : 1,
                    {.n = K3 - 3, .offset = 3}, {.n = K3 - 3, .w = o->w_limits, .offset = 3, .lims = w->lim + 3},
                    {.n = nb, .w = o->w_shape}, {.n = 1, .w = o->w_scale, .target = r->sim_scale}};
-  spx_fit_stage s = {"pose", 1, ps.steps, w->Q, w->nq, w->Qv, r->verts_pose, pose_vertices,
+  spx_fit_stage s = {"pose", 1, ps.steps, w->Q, w->nq, r->verts_pose, pose_vertices,
                      {"pose", pose_residuals, &ps, spx_fit_body_prepare, b, &b->st, o->inner_iterations,
                       SPX_LS_DENSE_NORMAL_CHOLESKY}};
   return spx_fit_run_stage(ctx, m, o, w, &s, r);

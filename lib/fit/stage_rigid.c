@@ -4,6 +4,7 @@
  * one turned about its up axis) are refined and the best of those (two-way mean nearest-point
  * distance over the pairs that count) is kept. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -256,6 +257,10 @@ spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_
     *flip = cand[best];
     for (int i = 0; i < 3; i++) flip->Rc[i * 3] = -cand[best].Rc[i * 3], flip->Rc[i * 3 + 2] = -cand[best].Rc[i * 3 + 2];
     if ((st = rigid_icp(ctx, o, Y, Yn, nm, S, nsub, stree, vw, 5, 15, 1, flip))) goto cleanup;
+    char note[128];
+    snprintf(note, sizeof note, "seen from one camera: the best orientation scores %.2f mm, turned about its up "
+             "axis %.2f mm", cand[best].score * 1e3, flip->score * 1e3);
+    spx_fit_report(o, "rigid", 0, 0, 0, 0, t0, note);
     if (flip->score < cand[best].score) best = nc;
   }
   double Rw[9], R[9], Rcm[3];
