@@ -115,8 +115,9 @@ static int load_scan(spx_ctx *ctx, const reg_args *a, spx_register_depth *d, spx
   return SPX_EXIT_OK;
 }
 
-/* The registration checked against its scan, with the report; exit 1 with the figures, no output. */
-static int check_fit(spx_ctx *ctx, const spx_mesh *scan, const spx_fit_result *r) {
+/* The registration checked against its scan (input: its file), with the report; exit 1 with the
+ * figures, no output. */
+static int check_fit(spx_ctx *ctx, const char *input, const spx_mesh *scan, const spx_fit_result *r) {
   float *pts = malloc((size_t)scan->nv * 3 * sizeof(float)), *rv = malloc((size_t)r->nv * 3 * sizeof(float));
   float *dist = malloc((size_t)scan->nv * sizeof(float));
   double mean = 0, med = 0, p95 = 0;
@@ -127,7 +128,7 @@ static int check_fit(spx_ctx *ctx, const spx_mesh *scan, const spx_fit_result *r
   spx_status st = rc ? SPX_OK : spx_fit_surface_distance(ctx, pts, scan->nv, rv, r->nv, r->faces, r->nf, dist, &mean,
                                                          &med, &p95);
   if (!rc && !st) st = spx_fit_check_result(ctx, pts, scan->nv, rv, r->nv, dist);
-  if (!rc && st) rc = spx_cli_error("register", ctx);
+  if (!rc && st) rc = spx_cli_errorf("register", "%s: %s", input, spx_ctx_message(ctx));
   if (!rc) {
     printf("time: rigid %.1f s, pose %.1f s, free %.1f s\n", r->stage_seconds[0], r->stage_seconds[1],
            r->stage_seconds[2]);
@@ -172,7 +173,7 @@ static int run(const reg_args *a) {
     rc = spx_cli_errorf("register", "%s: %s", input, spx_ctx_message(ctx));
     goto done;
   }
-  if ((rc = check_fit(ctx, &d.scan, &r))) goto done;
+  if ((rc = check_fit(ctx, input, &d.scan, &r))) goto done;
   const char *tmp_out = spx_tx_stage(&tx, a->out_path), *tmp_params = NULL;
   if (!tmp_out || (a->params_path && !(tmp_params = spx_tx_stage(&tx, a->params_path)))) {
     rc = SPX_EXIT_ERROR;
