@@ -127,7 +127,7 @@ static int check_fit(spx_ctx *ctx, const char *input, const spx_mesh *scan, cons
   for (int32_t i = 0; !rc && i < r->nv * 3; i++) rv[i] = (float)(r->verts_scan[i] * r->unit_scale);
   spx_status st = rc ? SPX_OK : spx_fit_surface_distance(ctx, pts, scan->nv, rv, r->nv, r->faces, r->nf, dist, &mean,
                                                          &med, &p95);
-  if (!rc && !st) st = spx_fit_check_result(ctx, pts, scan->nv, rv, r->nv, dist);
+  if (!rc && !st) st = spx_fit_check_result(ctx, pts, scan->nv, rv, r->nv, dist, r->stages_done);
   if (!rc && st) rc = spx_cli_errorf("register", "%s: %s", input, spx_ctx_message(ctx));
   if (!rc) {
     printf("time: rigid %.1f s, pose %.1f s, free %.1f s\n", r->stage_seconds[0], r->stage_seconds[1],

@@ -79,7 +79,7 @@ static int cmp_f(const void *a, const void *b) {
 }
 
 spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, const float *reg_m, int32_t nv,
-                                const float *dist) {
+                                const float *dist, int stages) {
   /* a person's scan is many points and flat across one axis compared with its height (standing,
    * T- or A-pose, one view or all round); a few points, or a blob as thick as it is tall, is not
    * one, and a body fitted to it would be an invention */
@@ -106,9 +106,10 @@ spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, c
   if (!(median_m <= 0.05 * es))
     return spx_fail(ctx, SPX_E_NUMERIC, "registration failed: median scan-to-body distance %.1f mm is more than 5%% "
                     "of the scan's %.3g m extent", median_m * 1e3, es);
-  /* the body explains the scan: where a fit leaves much of it far away, that part is something else
-   * (a floor, a wall, another object) which no body reaches, and the fit was pulled towards it */
-  if (far > MAX_FAR_SHARE * ns)
+  /* the body explains the scan: where a fit that posed the body leaves much of it far away, that
+   * part is something else (a floor, a wall, another object) which no body reaches, and the fit was
+   * pulled towards it (a rigid-only fit keeps the model's pose: its distances say nothing of that) */
+  if ((stages & SPX_FIT_POSE) && far > MAX_FAR_SHARE * ns)
     return spx_fail(ctx, SPX_E_NUMERIC, "registration failed: %.0f%% of the scan's points are more than %.0f cm from "
                     "the fitted body (at most %.0f%% may be): much of the input is not one person (a floor, walls, "
                     "other objects?)", 100.0 * far / ns, FAR_M * 100, MAX_FAR_SHARE * 100);

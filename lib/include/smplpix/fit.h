@@ -145,14 +145,14 @@ spx_status spx_fit_depth_person(spx_ctx *ctx, const char *name, const spx_camera
 
 spx_status spx_fit_units(spx_ctx *ctx, double ext, double given, double *scale, const char **note);
 /* A finished registration fits its scan (both in metres; dist: each scan point's distance to the
- * fitted surface, as spx_fit_surface_distance gives them): the scan can be a person (at least 50
- * points, its smallest principal spread under 0.75 of its largest: a cube or a ball of points is
- * not), the body's extent within 0.5-2x the scan's, the median scan-to-surface distance at most 5%
- * of the scan's extent, and at most 20% of the scan's points more than 5 cm from the body (else
- * much of the input is not the body: a floor, walls, other objects); otherwise SPX_E_NUMERIC with
- * the measured figures. */
+ * fitted surface, as spx_fit_surface_distance gives them; stages: spx_fit_result.stages_done): the
+ * scan can be a person (at least 50 points, its smallest principal spread under 0.75 of its
+ * largest: a cube or a ball of points is not), the body's extent within 0.5-2x the scan's, the
+ * median scan-to-surface distance at most 5% of the scan's extent, and, when the pose stage ran,
+ * at most 20% of the scan's points more than 5 cm from the body (else much of the input is not the
+ * body: a floor, walls, other objects); otherwise SPX_E_NUMERIC with the measured figures. */
 spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, const float *reg_m, int32_t nv,
-                                const float *dist);
+                                const float *dist, int stages);
 
 /* Distances from each of n points to a triangle mesh's surface (exact point-to-triangle over the
  * triangles around the k nearest vertices). Any output may be NULL; dist: n values. */
