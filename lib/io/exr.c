@@ -66,12 +66,13 @@ static int64_t exr_mem_size(exr_const_context_t c, void *ud) {
   return (int64_t)((const exr_mem_src *)ud)->size;
 }
 
-static int exr_channel_slot(const char *name) {
+/* Slot of a channel: R, G, B, Z -> 0-3; with y_is_z (a depth file without Z), Y -> 3. */
+static int exr_channel_slot(const char *name, int y_is_z) {
   if (!name) return -1;
   if (strcmp(name, "R") == 0) return 0;
   if (strcmp(name, "G") == 0) return 1;
   if (strcmp(name, "B") == 0) return 2;
-  if (strcmp(name, "Z") == 0) return 3;
+  if (strcmp(name, "Z") == 0 || (y_is_z && strcmp(name, "Y") == 0)) return 3;
   return -1;
 }
 
@@ -82,6 +83,7 @@ typedef struct {
   int64_t max_pixels;     /* caller's pixel cap, also bounds per-chunk memory */
   int64_t dw_w, dw_h;     /* data window size */
   int has_z;
+  int y_is_z;             /* depth read: the file's Y channel is its depth */
   exr_attr_box2i_t disp;  /* display window */
   float *buf;             /* one decoded chunk, `stride` floats per pixel */
   size_t bufcap;
@@ -110,7 +112,7 @@ static spx_status exr_decode_chunk(spx_ctx *ctx, exr_read_job *job, exr_context_
   job->first = 0;
   int extra = 0;
   for (int c = 0; c < dec->channel_count; c++) {
-    int slot = exr_channel_slot(dec->channels[c].channel_name);
+    int slot = exr_channel_slot(dec->channels[c].channel_name, job->y_is_z);
     if (slot < 0 || (slot == 3 && !job->has_z)) extra++;
   }
   size_t stride = 4 + (size_t)extra, pixels = (size_t)ci->width * (size_t)ci->height;
@@ -129,7 +131,7 @@ static spx_status exr_decode_chunk(spx_ctx *ctx, exr_read_job *job, exr_context_
   int next_extra = 4;
   for (int c = 0; c < dec->channel_count; c++) {
     exr_coding_channel_info_t *ch = &dec->channels[c];
-    int slot = exr_channel_slot(ch->channel_name);
+    int slot = exr_channel_slot(ch->channel_name, job->y_is_z);
     if (slot < 0 || (slot == 3 && !job->has_z)) slot = next_extra++;
     if (ch->width != ci->width || ch->height != ci->height)
       return spx_fail(ctx, SPX_E_FORMAT, "%s: channel %s has an unexpected size in chunk at y=%lld", name,
@@ -218,8 +220,9 @@ static void exr_fill_background(spx_image *out, const exr_attr_box2i_t *disp, co
   }
 }
 
-spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
-                            spx_image *out) {
+/* depth: the depth read (spx_exr_read_depth_mem), else the RGB(-Z) read. */
+static spx_status exr_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
+                               int depth, spx_image *out) {
   if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_exr_read: out is NULL");
   memset(out, 0, sizeof *out);
   if (!name) name = "<memory>";
@@ -273,13 +276,21 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
   char have[128];
   size_t hl = 0;
   have[0] = 0;
+  if (depth) { /* a depth file without Z: its Y channel (one-channel float images, e.g. OpenCV's) */
+    int z = 0, y = 0;
+    for (int c = 0; c < chl->num_channels; c++) {
+      const char *cn = chl->entries[c].name.str ? chl->entries[c].name.str : "";
+      z |= !strcmp(cn, "Z"), y |= !strcmp(cn, "Y");
+    }
+    job.y_is_z = !z && y;
+  }
   for (int c = 0; c < chl->num_channels; c++) {
     const exr_attr_chlist_entry_t *en = &chl->entries[c];
     const char *cn = en->name.str ? en->name.str : "";
     if (hl < sizeof have - 1)
       hl += (size_t)snprintf(have + hl, sizeof have - hl, "%s%.16s", c ? "," : "", cn);
     if (hl > sizeof have - 1) hl = sizeof have - 1;
-    int slot = exr_channel_slot(cn);
+    int slot = exr_channel_slot(cn, job.y_is_z);
     if (slot < 0) continue;
     if (en->x_sampling != 1 || en->y_sampling != 1) {
       st = spx_fail(ctx, SPX_E_FORMAT, "%s: channel %s is subsampled, which is not supported", name, cn);
@@ -291,8 +302,9 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
     }
     found[slot] = 1;
   }
-  if (!found[0] || !found[1] || !found[2]) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: needs channels R, G, B (file has: %s)", name, have[0] ? have : "none");
+  if (depth ? !found[3] : !found[0] || !found[1] || !found[2]) {
+    st = spx_fail(ctx, SPX_E_FORMAT, "%s: needs %s (file has: %s)", name,
+                  depth ? "a Z (depth) channel, or a Y channel" : "channels R, G, B", have[0] ? have : "none");
     goto done;
   }
   exr_attr_box2i_t disp, dw;
@@ -328,9 +340,10 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
   exr_fill_background(out, &disp, &dw);
   dec_used = 1;
   if ((st = exr_chunks(ctx, &job, e, &dec, storage, &dw, out))) goto done;
-  /* the same rule as every other image input: NaN and Inf are refused, never rendered */
+  /* the same rule as every other image input: NaN and Inf are refused, never rendered (but in a
+   * depth file's Z, where they are a sensor's "no data") */
   for (size_t i = 0, n = (size_t)out->width * (size_t)out->height * (size_t)out->channels; i < n; i++)
-    if (!isfinite(out->data[i])) {
+    if (!isfinite(out->data[i]) && !(depth && i % 4 == 3)) {
       size_t px = i / (size_t)out->channels;
       st = spx_fail(ctx, SPX_E_NUMERIC, "%s: %s in channel %d at pixel (%zu, %zu) (image values must be finite)", name,
                     isnan(out->data[i]) ? "NaN" : "Inf", (int)(i % (size_t)out->channels), px % (size_t)out->width,
@@ -346,6 +359,16 @@ done:
   free(job.buf);
   if (st != SPX_OK) spx_image_free(out);
   return st;
+}
+
+spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
+                            spx_image *out) {
+  return exr_read_mem(ctx, name, data, size, max_pixels, 0, out);
+}
+
+spx_status spx_exr_read_depth_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
+                                  spx_image *out) {
+  return exr_read_mem(ctx, name, data, size, max_pixels, 1, out);
 }
 
 spx_status spx_exr_read(spx_ctx *ctx, const char *path, spx_image *out) {
@@ -423,7 +446,7 @@ spx_status spx_exr_write(spx_ctx *ctx, const char *path, const spx_image *img) {
     enc_used = 1;
     for (int c = 0; c < enc.channel_count; c++) {
       exr_coding_channel_info_t *ch = &enc.channels[c];
-      int slot = exr_channel_slot(ch->channel_name);
+      int slot = exr_channel_slot(ch->channel_name, 0);
       if (slot < 0 || slot >= C) {
         st = spx_fail(ctx, SPX_E_IO, "%s: unexpected channel in encoder", path);
         goto done;
