@@ -486,7 +486,12 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   for (int i = 0; i < nsave; i++) np[i] = names[i];
   char comment[200];
   snprintf(comment, sizeof comment, "tuned at %s, %s search", shape, p->quick ? "quick" : "full");
-  if ((st = spx_device_tuning_save_comment(ctx, comment, np, vals, nsave))) goto fail;
+  sigset_t old_mask; /* the file is in place, and the interrupt message says so, or neither */
+  spx_tx_block_signals(&old_mask);
+  st = spx_device_tuning_save_comment(ctx, comment, np, vals, nsave);
+  if (!st) spx_tx_note_written(spx_device_tuning_path(ctx), 1);
+  spx_tx_unblock_signals(&old_mask);
+  if (st) goto fail;
   fprintf(out, "chosen:");
   for (int i = 0; i < nsave; i++) fprintf(out, " %s=%d%s", names[i], vals[i], vals[i] == defs[i] ? " (default)" : "");
   fprintf(out, "\n");

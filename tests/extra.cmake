@@ -74,6 +74,9 @@ target_link_libraries(test_nn_batchnorm_sync PRIVATE Threads::Threads)
 # The layer rule of lib/ (stated in tests/layering.cmake): every #include of lib/ and of the
 # public headers goes to the includer's own module or a lower level; fails naming the back-edge.
 add_test(NAME layering COMMAND ${CMAKE_COMMAND} -DSPX_SOURCE_DIR=${CMAKE_SOURCE_DIR} -P ${CMAKE_CURRENT_SOURCE_DIR}/layering.cmake)
+# The writers' rule (stated in tests/writers.cmake): every file lib/ writes by path goes through
+# spx_atomic_open and so through the output policy; fails naming any other writing call.
+add_test(NAME writers COMMAND ${CMAKE_COMMAND} -DSPX_SOURCE_DIR=${CMAKE_SOURCE_DIR} -P ${CMAKE_CURRENT_SOURCE_DIR}/writers.cmake)
 
 # The UNet's PyTorch golden with the GPU column and every 3x3 stride-1 convolution, training ones
 # included, on Winograd (the GPU column's local-memory variant, kernels/conv2d_winograd_lds.cl):

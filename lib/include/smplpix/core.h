@@ -62,6 +62,12 @@ double spx_now(void);
  * weight initialisations, the synthetic generator, the tool's seeded shuffles). */
 uint64_t spx_splitmix64(uint64_t *s);
 
+/* Length in bytes (1-4) of the UTF-8 character string s starts with, or 0 when it does not start
+ * with a valid one (a stray continuation byte, an overlong form, a surrogate, a code point above
+ * U+10FFFF, a sequence cut short, or the string's end). JSON this library and the tool write is
+ * valid UTF-8 by it. */
+size_t spx_utf8_char(const char *s);
+
 /* The library never prints. Diagnostics that are not errors (the profiles below) go, one line
  * at a time without a newline, to a callback the caller installs; with none they are dropped.
  * fn = NULL removes it. */
