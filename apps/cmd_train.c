@@ -96,6 +96,9 @@ static void split_free(split *sp) {
   memset(sp, 0, sizeof *sp);
 }
 
+/* Length of path up to its extension's dot. */
+static size_t stem_end(const char *path) { return (size_t)(strrchr(path, '.') - path); }
+
 /* List DIR/<name>/input and pair each with DIR/<name>/output/<stem>.{png,exr,npy}. Returns an
  * exit code; a missing split directory is an empty split unless `required`. */
 static int list_split(const char *dir, const char *name, int required, split *sp) {
@@ -150,6 +153,10 @@ static int list_split(const char *dir, const char *name, int required, split *sp
   closedir(d);
   if (!rc && required && sp->n == 0) rc = spx_cli_errorf("train", "%s: no .exr, .npy or .png inputs", idir);
   if (!rc && sp->n) qsort(sp->s, (size_t)sp->n, sizeof(sample), cmp_sample);
+  for (int i = 0; !rc && i + 1 < sp->n; i++) /* one input per name: NAME.exr beside NAME.png would be two samples */
+    for (int j = i + 1; !rc && j < sp->n && !strncmp(sp->s[i].in, sp->s[j].in, stem_end(sp->s[i].in)); j++)
+      if (stem_end(sp->s[j].in) == stem_end(sp->s[i].in))
+        rc = spx_cli_errorf("train", "%s and %s: two inputs with one name; keep one", sp->s[i].in, sp->s[j].in);
 done:
   free(idir);
   free(odir);

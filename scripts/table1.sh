@@ -250,15 +250,16 @@ while IFS=$'\t' read -r si vi vname cam img mask src; do
   quiet $tool repose --registration "$d/reg.json" --pose "$man" --view "$vname" --out "$d/$vname.13k.obj"
   quiet $tool repose --registration "$d/reg.json" --pose "$man" --view "$vname" --subdivide 1 --out "$d/$vname.53k.ply"
   for n in 13k 53k; do
-    ext=obj && [ $n = 53k ] && ext=ply
+    # one input per view (the RGB-D EXR); the grid's PNG of a test input goes beside the methods
+    ext=obj png=() && [ $n = 53k ] && ext=ply
+    [ $split = test ] && [ $n = 13k ] && png=(--png "$out/methods/input13k/$vname.png")
     quiet $tool project --mesh "$d/$vname.$n.$ext" --camera "$out/synth/$cam" --out "$out/data$n/$split/input/$vname.exr" \
-      --png "$out/data$n/$split/input/$vname.png" --color mesh --quiet
+      "${png[@]}" --color mesh --quiet
     cp "$out/synth/$img" "$out/data$n/$split/output/$vname.png"
   done
   if [ $split = test ]; then
     cp "$out/synth/$img" "$out/methods/gt/$vname.png"
     cp "$out/synth/$mask" "$out/methods/mask/$vname.png"
-    cp "$out/data13k/test/input/$vname.png" "$out/methods/input13k/$vname.png"
     quiet $tool raster --mesh "$d/$vname.13k.obj" --camera "$out/synth/$cam" --out "$out/methods/pervertex13k/$vname.png" --color mesh --aa 2 --quiet
     quiet $tool raster --mesh "$d/$vname.53k.ply" --camera "$out/synth/$cam" --out "$out/methods/pervertex53k/$vname.png" --color mesh --aa 2 --quiet
     quiet $tool raster --mesh "$d/$vname.13k.obj" --camera "$out/synth/$cam" --texture "$d/texture.png" \
