@@ -497,7 +497,7 @@ static void test_errors(void) {
   path_in(out, sizeof out, "twice.safetensors");
   snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --width 8 --steps 1", data, out);
   CHECK(run_err(args, log) == 1);
-  CHECK(log_has(log, "twice/train/input/a.npy and ") && log_has(log, "twice/train/input/a.png: two inputs with one name") &&
+  CHECK(log_has(log, "twice/train/input/a.npy and ") && log_has(log, "twice/train/input/a.png are two inputs of one view") &&
         one_line(log));
   CHECK(!spx_t_file_exists(out));
 
