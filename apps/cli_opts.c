@@ -8,6 +8,7 @@
 
 #include "cli.h"
 #include "cli_opts.h"
+#include "test_hooks.h"
 
 /* v is a whole decimal number: an optional '-' then digits only, fitting a long long. */
 static int whole(const char *v, long long *out) {
@@ -97,6 +98,11 @@ int spx_cli_parse(int argc, char **argv, const char *cmd, const char *usage, voi
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       if (help) help();
       else fputs(usage, stdout);
+      if (spx_test_hook_int("SPX_TEST_LIST_OPTIONS") > 0) { /* the table, for tests/cli_options_docs.py */
+        fputs("table options:", stdout);
+        for (const spx_opt *t = opts; t->name; t++) printf(" %s", t->name);
+        fputc('\n', stdout);
+      }
       return SPX_EXIT_OK;
     }
     spx_opt *o = opts;
