@@ -139,3 +139,9 @@ endif()
 if(SPX_PYTHON3)
   add_test(NAME function_length COMMAND ${SPX_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/function_length.py ${CMAKE_SOURCE_DIR})
 endif()
+# The documentation is a map (tests/docs_map.py): ARCHITECTURE.md at most 300 lines, its bullets at
+# most 8; every relative link and anchor of README.md and docs/ resolves; no history by issue or
+# session number outside benchmarks/RESULTS.md. Skipped without python3.
+if(SPX_PYTHON3)
+  add_test(NAME docs_map COMMAND ${SPX_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/docs_map.py ${CMAKE_SOURCE_DIR})
+endif()

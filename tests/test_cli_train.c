@@ -482,25 +482,6 @@ static void test_errors(void) {
         one_line(log));
   CHECK(!spx_t_file_exists(out));
 
-  /* two inputs with one name (NAME.npy beside NAME.png) would be two samples: refused, both named */
-  path_in(data, sizeof data, "twice");
-  mkdirs(data);
-  make_pair(data, "a", H, W, &s);
-  make_pair(data, "b", H, W, &s);
-  snprintf(args, sizeof args, "%s/train/input/a.png", data);
-  {
-    float px[H * W * 3];
-    for (int i = 0; i < H * W * 3; i++) px[i] = 0.5f;
-    spx_image im = {W, H, 3, px};
-    CHECK_OK(ctx, spx_png_write(ctx, args, &im));
-  }
-  path_in(out, sizeof out, "twice.safetensors");
-  snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --width 8 --steps 1", data, out);
-  CHECK(run_err(args, log) == 1);
-  CHECK(log_has(log, "twice/train/input/a.npy and ") && log_has(log, "twice/train/input/a.png are two inputs of one view") &&
-        one_line(log));
-  CHECK(!spx_t_file_exists(out));
-
   /* an empty data set: the directory is named */
   path_in(data, sizeof data, "empty");
   mkdirs(data);
