@@ -21,7 +21,10 @@ typedef struct spx_command {
  * another rank has already exited with the same error) exits with rc at once, without the
  * "interrupted: nothing of this run was written" message, which would no longer be true. */
 void spx_cli_decided(int rc);
-/* The tool's SIGINT / SIGTERM handler (apps/main.c): removes what the run staged
+/* Before a command runs (apps/main.c): spx_cli_interrupt handles SIGINT and SIGTERM on this thread,
+ * the command's, for the command cmd (apps/cli_signal.c). */
+void spx_cli_signals_install(const char *cmd);
+/* The tool's SIGINT / SIGTERM handler: removes what the run staged
  * (spx_tx_interrupted), prints one line saying what of the run is on disk, and exits 128 + sig
  * (or the decided code). A command with a handler of its own calls it for a second interrupt. */
 void spx_cli_interrupt(int sig);
@@ -31,12 +34,12 @@ void spx_cli_interrupt(int sig);
  * commit) holds for the whole process. */
 int spx_cli_signal_elsewhere(int sig);
 
-/* Print "smplpix <cmd>: <message>" on one line to stderr and return SPX_EXIT_ERROR. */
+/* apps/cli_error.c: print "smplpix <cmd>: error: <message>" on one line to stderr and return SPX_EXIT_ERROR. */
 int spx_cli_error(const char *cmd, spx_ctx *ctx);
 int spx_cli_errorf(const char *cmd, const char *fmt, ...);
 /* Usage error: one line + hint, returns SPX_EXIT_USAGE. */
 int spx_cli_usage(const char *cmd, const char *fmt, ...);
-/* Open the device named by --device or $SPX_DEVICE; prints the error itself. */
+/* apps/cli_env.c: open the device named by --device or $SPX_DEVICE; prints the error itself. */
 int spx_cli_open_device(const char *cmd, spx_ctx *ctx, const char *spec);
 
 /* Options: the typed table of apps/cli_opts.h. */

@@ -8,6 +8,7 @@
 
 #include "cli.h"
 #include "cli_opts.h"
+#include "test_hooks.h"
 
 /* v is a whole decimal number: an optional '-' then digits only, fitting a long long. */
 static int whole(const char *v, long long *out) {
@@ -21,34 +22,39 @@ static int whole(const char *v, long long *out) {
   return 1;
 }
 
+int spx_cli_int(const char *v, long lo, long hi, long *out) {
+  long long x;
+  if (!whole(v, &x) || x < lo || x > hi) return 0;
+  *out = (long)x;
+  return 1;
+}
+
 int spx_cli_size(const char *v, long lo, long hi, int *w, int *h) {
   const char *x = strchr(v, 'x');
   if (!x || x == v || (size_t)(x - v) > 20) return 0;
   char a[24];
   memcpy(a, v, (size_t)(x - v));
   a[x - v] = 0;
-  long long W, H;
-  if (!whole(a, &W) || !whole(x + 1, &H) || W < lo || W > hi || H < lo || H > hi) return 0;
+  long W, H;
+  if (!spx_cli_int(a, lo, hi, &W) || !spx_cli_int(x + 1, lo, hi, &H)) return 0;
   *w = (int)W, *h = (int)H;
   return 1;
 }
 
 /* "[lo, hi]" for a message. */
 static void range_text(char *buf, size_t cap, const spx_opt *o) {
-  if (o->type == SPX_OPT_REAL) snprintf(buf, cap, "a number in [%g, %g]", o->lo, o->hi);
+  if (o->type == SPX_OPT_REAL && o->lo > 0 && o->lo <= 1e-300) snprintf(buf, cap, "a number > 0 and <= %g", o->hi);
+  else if (o->type == SPX_OPT_REAL) snprintf(buf, cap, "a number in [%g, %g]", o->lo, o->hi);
   else if (o->type == SPX_OPT_SIZE) snprintf(buf, cap, "WxH, each a whole number in [%.0f, %.0f]", o->lo, o->hi);
   else snprintf(buf, cap, "a whole number in [%.0f, %.0f]", o->lo, o->hi);
 }
 
 static int store(spx_opt *o, const char *v) {
-  long long x;
   double d;
   char *end = NULL;
   switch (o->type) {
   case SPX_OPT_INT:
-    if (!whole(v, &x) || (double)x < o->lo || (double)x > o->hi) return 0;
-    *(long *)o->dst = (long)x;
-    return 1;
+    return spx_cli_int(v, (long)o->lo, (long)o->hi, (long *)o->dst);
   case SPX_OPT_REAL:
     errno = 0;
     d = strtod(v, &end);
@@ -92,6 +98,11 @@ int spx_cli_parse(int argc, char **argv, const char *cmd, const char *usage, voi
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       if (help) help();
       else fputs(usage, stdout);
+      if (spx_test_hook_int("SPX_TEST_LIST_OPTIONS") > 0) { /* the table, for tests/cli_options_docs.py */
+        fputs("table options:", stdout);
+        for (const spx_opt *t = opts; t->name; t++) printf(" %s", t->name);
+        fputc('\n', stdout);
+      }
       return SPX_EXIT_OK;
     }
     spx_opt *o = opts;

@@ -23,7 +23,7 @@ enum {
   SPX_OPT_IN,   /* dst: const char**, a file or folder the command reads */
   SPX_OPT_OUT,  /* dst: const char**, a file or folder the command writes */
   SPX_OPT_INT,  /* dst: long*, whole number in [lo, hi] */
-  SPX_OPT_REAL, /* dst: double*, finite number in [lo, hi] */
+  SPX_OPT_REAL, /* dst: double*, finite number in [lo, hi]; lo = 1e-300: any number > 0 */
   SPX_OPT_SIZE, /* dst: int[2] = {W, H}, "WxH", each in [lo, hi] */
   SPX_OPT_LIST  /* dst: const char** of argc entries, zeroed, then NULL-ended: every value of a repeatable option */
 };
@@ -53,6 +53,9 @@ int spx_cli_only_with(const spx_opt *opts, const char *cmd, const char *name, in
  * ins[0..nins) (NULL entries skipped); what names out's option. Returns SPX_EXIT_OK or SPX_EXIT_USAGE. */
 int spx_cli_not_input(const char *cmd, const char *what, const char *out, const char *const *ins, int nins);
 
+/* v is a whole decimal number in [lo, hi] (what SPX_OPT_INT accepts): *out = it, returns 1; else 0.
+ * For the values of a repeatable option (SPX_OPT_LIST). */
+int spx_cli_int(const char *v, long lo, long hi, long *out);
 /* v is "WxH": two whole decimal numbers in [lo, hi] joined by 'x' and nothing else. */
 int spx_cli_size(const char *v, long lo, long hi, int *w, int *h);
 

@@ -1,59 +1,9 @@
-/* Shared steps of the subcommands (options; project / raster / dataset runs): see cli_scene.h. */
+/* Shared steps of the subcommands (project / raster / dataset runs): see cli_scene.h. */
 #include "cli_scene.h"
 
-#include <errno.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-int spx_cli_long(const char *v, long lo, long hi, long *out) {
-  const char *p = v + (*v == '-');
-  char *end = NULL;
-  if (*p < '0' || *p > '9') return 0;
-  errno = 0;
-  long x = strtol(v, &end, 10);
-  if (errno || *end || x < lo || x > hi) return 0;
-  *out = x;
-  return 1;
-}
-
-int spx_cli_double(const char *v, double lo, double hi, double *out) {
-  char *end = NULL;
-  errno = 0;
-  double x = strtod(v, &end);
-  if (errno || end == v || *end || !isfinite(x) || x < lo || x > hi) return 0;
-  *out = x;
-  return 1;
-}
-
-int spx_cli_args(int argc, char **argv, const char *cmd, const char *usage, const spx_cli_optdef *defs,
-                 const spx_cli_optdef *more) {
-  int n = 0;
-  for (const spx_cli_optdef *d = defs; d->name; d++) n++;
-  for (const spx_cli_optdef *d = more; d && d->name; d++) n++;
-  spx_opt *opts = calloc((size_t)n + 1, sizeof *opts);
-  if (!opts) return spx_cli_errorf(cmd, "out of memory");
-  int k = 0;
-  for (int pass = 0; pass < 2; pass++)
-    for (const spx_cli_optdef *d = pass ? more : defs; d && d->name; d++, k++) {
-      opts[k].name = d->name;
-      opts[k].type = !d->value ? SPX_OPT_FLAG : d->io ? d->io : SPX_OPT_STR;
-      opts[k].dst = d->value ? (void *)d->value : (void *)d->flag;
-    }
-  int rc = spx_cli_parse(argc, argv, cmd, usage, NULL, opts);
-  free(opts);
-  return rc;
-}
-
-int spx_cli_scene_args(int argc, char **argv, const char *cmd, const char *usage, const char *camera_opt,
-                       spx_cli_scene_opts *o, const spx_cli_optdef *defs) {
-  const spx_cli_optdef shared[] = {{"--mesh", &o->mesh, NULL, SPX_OPT_IN},  {camera_opt, &o->cameras, NULL, SPX_OPT_IN},
-                                   {"--out", &o->out, NULL, SPX_OPT_OUT},    {"--color", &o->color, NULL, 0},
-                                   {"--device", &o->device, NULL, 0},        {"--quiet", NULL, &o->quiet, 0},
-                                   {NULL, NULL, NULL, 0}};
-  return spx_cli_args(argc, argv, cmd, usage, shared, defs);
-}
 
 int spx_cli_scene_begin(spx_cli_scene *s, const char *cmd, const char *mesh_path, const char *cam_path,
                         const char *const *outs, int nouts) {

@@ -1,5 +1,5 @@
-/* Pieces the subcommands share beyond cli.h: table-driven options, the one-line error step every
- * command repeats, and the run of the commands that draw a mesh through cameras
+/* Pieces the subcommands share beyond cli.h: the table rows of the shared options, the one-line
+ * error step every command repeats, and the run of the commands that draw a mesh through cameras
  * (apps/cmd_project.c, cmd_raster.c, cmd_dataset.c). */
 #ifndef SPX_APPS_CLI_SCENE_H
 #define SPX_APPS_CLI_SCENE_H
@@ -22,37 +22,19 @@ static inline int spx_cli_failed(int *rc, const char *cmd, spx_ctx *ctx, spx_sta
   return 1;
 }
 
-/* v is a whole decimal integer in [lo, hi] (digits, an optional '-'; nothing else): *out = it,
- * returns 1; else 0. */
-int spx_cli_long(const char *v, long lo, long hi, long *out);
-/* v is a whole finite number (strtod) in [lo, hi]: *out = it, returns 1; else 0. */
-int spx_cli_double(const char *v, double lo, double hi, double *out);
-
-/* One option of a command's string table (turned into the typed table of cli_opts.h): "--name V"
- * stores V in *value; a flag (value NULL) sets *flag; io is SPX_OPT_IN / SPX_OPT_OUT for a path
- * the command reads / writes (0: neither). */
-typedef struct spx_cli_optdef {
-  const char *name;
-  const char **value;
-  int *flag;
-  int io;
-} spx_cli_optdef;
-
-/* The options project, raster and dataset share. */
+/* The options project, raster and dataset share, stored by the rows SPX_CLI_SCENE_ROWS puts in
+ * a command's table (apps/cli_opts.h). */
 typedef struct spx_cli_scene_opts {
   const char *mesh, *cameras, *out, *color, *device;
   int quiet;
 } spx_cli_scene_opts;
 
-/* A whole command line of plain options: --help / -h prints usage; every other argument must be
- * an option of defs or of more (NULL: none). Returns -1 when the command goes on, else the exit
- * code to return (SPX_EXIT_OK after the help; a usage error printed). */
-int spx_cli_args(int argc, char **argv, const char *cmd, const char *usage, const spx_cli_optdef *defs,
-                 const spx_cli_optdef *more);
-/* spx_cli_args with the shared options --mesh, `camera_opt` (--camera or --cameras), --out,
- * --color, --device and --quiet stored in o, and the command's own options defs. */
-int spx_cli_scene_args(int argc, char **argv, const char *cmd, const char *usage, const char *camera_opt,
-                       spx_cli_scene_opts *o, const spx_cli_optdef *defs);
+/* The shared rows of a table: --mesh, camera_opt (--camera or --cameras), --out, --color,
+ * --device and --quiet, stored in o (a spx_cli_scene_opts). */
+#define SPX_CLI_SCENE_ROWS(o, camera_opt)                                                                  \
+  SPX_O("--mesh", SPX_OPT_IN, &(o).mesh), SPX_O(camera_opt, SPX_OPT_IN, &(o).cameras),                    \
+      SPX_O("--out", SPX_OPT_OUT, &(o).out), SPX_O("--color", SPX_OPT_STR, &(o).color),                  \
+      SPX_O("--device", SPX_OPT_STR, &(o).device), SPX_O("--quiet", SPX_OPT_FLAG, &(o).quiet)
 
 /* One run drawing a mesh through an array of cameras into W x H RGB-D images (HWC, 4 floats a
  * pixel), its outputs staged in a transaction. Zero it, then spx_cli_scene_begin; always

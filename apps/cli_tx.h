@@ -53,7 +53,7 @@ const char *spx_tx_stage(spx_tx *tx, const char *target);
 int spx_tx_commit(spx_tx *tx);
 /* Always call once: removes temporaries (and created folders) of a run that did not commit. */
 void spx_tx_end(spx_tx *tx);
-/* From a signal handler (apps/main.c, Ctrl-C): removes the temporaries, backups, folders of
+/* From a signal handler (apps/cli_signal.c, Ctrl-C): removes the temporaries, backups, folders of
  * temporaries and created (still empty) folders of every open transaction, and the library
  * writers' temporaries in progress (spx_file_abort_writes), with system calls only. A commit blocks
  * SIGINT and SIGTERM while it renames, so it is never cut in half by them. */

@@ -113,194 +113,219 @@ static void to_rgb(const float *src, int nchw, int W, int H, spx_image *img) {
     for (int c = 0; c < 3; c++) img->data[p * 3 + (size_t)c] = nchw ? src[(size_t)c * hw + p] : src[p * 4 + (size_t)c];
 }
 
-static int run(spx_ctx *ctx, const opts *o) {
-  const char *C = "animate";
+/* One run: its inputs, the frame range a..b-1, the device objects, the buffers and the staged files. */
+typedef struct anim_run {
+  spx_ctx *ctx;
   spx_fit_result r;
   spx_body_model m;
   spx_anim_motion mo;
-  memset(&r, 0, sizeof r), memset(&m, 0, sizeof m), memset(&mo, 0, sizeof mo);
-  spx_camera *cams = NULL;
-  int ncams = 0, rc;
-  long a = 0, b = -1;
-  spx_unet *u = NULL;
-  spx_projector *proj = NULL;
-  spx_device_tensor *tin = NULL;
+  spx_camera *cams;
+  int W, H;
+  long a, b;
+  const char *ckpt;
+  spx_unet *u;
+  spx_projector *proj;
+  spx_device_tensor *tin;
+  spx_image img;
+  double *pose, *work;
+  float *pos, *owned_col, *buf;
+  char *links; /* DIR/frames.tmp.<pid>: the staged frames under their names, for ffmpeg */
   spx_tx tx;
-  spx_tx_begin(&tx, C, 0);
-  char *links = NULL; /* DIR/frames.tmp.<pid>: the staged frames under their names, for ffmpeg */
-  spx_image img = {0};
-  double *pose = NULL, *work = NULL;
-  float *pos = NULL, *owned_col = NULL, *buf = NULL;
-  const char *ckpt = NULL;
+} anim_run;
+
+static const char *const C = "animate";
+
+/* Every input, read and checked before anything is written: the registration, the motion and its
+ * frame range, the one camera, the network. */
+static int load_inputs(anim_run *s, const opts *o) {
+  spx_ctx *ctx = s->ctx;
+  int ncams = 0, rc;
+  if ((rc = spx_cli_load_registration(C, ctx, o->reg, o->model, &s->r, &s->m))) return rc;
+  if ((rc = spx_anim_motion_open(C, ctx, o->bvh, o->amass, &s->m, &s->mo))) return rc;
+  if (o->frames) spx_anim_parse_frames(o->frames, &s->a, &s->b); /* checked in the caller */
+  if (s->b < 0) s->b = s->mo.nframes;
+  if (s->a >= s->b || s->b > s->mo.nframes)
+    return spx_cli_errorf(C, "%s: --frames %ld:%ld is out of range (the clip has %d frames: 0:%d)", s->mo.path, s->a,
+                          s->b, s->mo.nframes, s->mo.nframes);
+  if ((rc = spx_cli_load_cameras(C, ctx, o->cam, &s->cams, &ncams))) return rc;
+  s->W = s->cams[0].width, s->H = s->cams[0].height;
+  if (ncams != 1) return spx_cli_errorf(C, "%s: holds %d cameras; animate renders through one", o->cam, ncams);
+  if (!o->no_net && (s->H < 16 || s->W < 16))
+    return spx_cli_errorf(C, "%s: %dx%d is too small (the UNet needs at least 16x16)", o->cam, s->W, s->H);
+  if (!o->no_net && !(s->ckpt = spx_cli_checkpoint(C, o->ckpt, "--no-network (the raw projection)"))) return SPX_EXIT_ERROR;
+  return SPX_EXIT_OK;
+}
+
+/* DIR (made, and removed again by a failed run that made it) and a check that every file the run
+ * writes is writable and no input, before any work. */
+static int check_outputs(anim_run *s, const opts *o) {
+  struct stat sb;
+  int rc;
+  if (stat(o->out, &sb) == 0 && !S_ISDIR(sb.st_mode)) return spx_cli_errorf(C, "%s: exists and is not a directory", o->out);
+  if ((rc = spx_tx_mkdir(&s->tx, o->out))) return rc;
+  for (long f = s->a; f <= s->b; f++) {
+    char name[4200];
+    if (f < s->b) snprintf(name, sizeof name, "%s/frame_%06ld.png", o->out, f);
+    else if (!o->no_mp4) snprintf(name, sizeof name, "%s/animation.mp4", o->out);
+    else break;
+    if ((rc = spx_tx_check(&s->tx, name))) return rc;
+  }
+  return SPX_EXIT_OK;
+}
+
+/* The device, the network, the projector and the buffers of one frame. */
+static int prepare(anim_run *s, const opts *o) {
+  spx_ctx *ctx = s->ctx;
+  int rc;
+  if ((rc = spx_cli_open_device(C, ctx, o->spec))) return rc;
+  rc = SPX_EXIT_ERROR;
+  if (spx_cli_failed(&rc, C, ctx, s->ckpt && spx_unet_load(ctx, s->ckpt, &s->u))) return rc;
+  size_t nv3 = (size_t)s->m.nv * 3, hw = (size_t)s->W * (size_t)s->H;
+  s->pose = malloc((size_t)s->m.nj * 3 * sizeof(double));
+  s->work = malloc(nv3 * sizeof(double));
+  s->pos = malloc(nv3 * sizeof(float));
+  s->buf = malloc(hw * 4 * sizeof(float));
+  if (!s->r.colors) s->owned_col = malloc(nv3 * sizeof(float));
+  if (!s->pose || !s->work || !s->pos || !s->buf || (!s->r.colors && !s->owned_col) ||
+      spx_image_alloc(ctx, s->W, s->H, 3, &s->img))
+    return spx_cli_errorf(C, "out of memory");
+  if (spx_cli_failed(&rc, C, ctx,
+                     spx_projector_create(ctx, &s->proj) ||
+                         (s->u && spx_device_tensor_create(ctx, 1, SPX_UNET_IN_CHANNELS, s->H, s->W, &s->tin))))
+    return rc;
+  return SPX_EXIT_OK;
+}
+
+/* Frame f: posed, coloured, projected (through the network unless --no-network) and staged as
+ * DIR/frame_NNNNNN.png; centre is the body's centre in the first frame (set there). */
+static int render_frame(anim_run *s, const opts *o, long f, double centre[3]) {
+  spx_ctx *ctx = s->ctx;
+  const spx_body_model *m = &s->m;
+  double trans[3];
+  int rc;
+  if (spx_anim_motion_pose(ctx, &s->mo, m, (int32_t)f, s->pose, trans))
+    return spx_cli_errorf(C, "%s: frame %ld: %s", s->mo.path, f, spx_ctx_message(ctx));
+  if ((rc = spx_cli_pose_registration(C, ctx, m, &s->r, s->r.betas, s->pose, trans, s->work, s->pos))) return rc;
+  if (!s->r.colors) {
+    spx_mesh view = {m->nv, m->nf, s->pos, NULL, NULL, m->faces, 0, NULL, NULL};
+    spx_cli_normal_colors(&view, s->owned_col);
+  }
+  if (f == s->a)
+    for (size_t i = 0; i < (size_t)m->nv * 3; i++) centre[i % 3] += s->pos[i] / m->nv;
+  spx_camera cam = s->cams[0];
+  if (o->orbit != 0) spx_anim_orbit(&s->cams[0], centre, o->orbit * (double)(f - s->a), &cam);
+  spx_project_args pa = {1, m->nv, s->pos, s->r.colors ? s->r.colors : s->owned_col, 1, &cam,
+                         s->u ? SPX_LAYOUT_NCHW : SPX_LAYOUT_HWC};
+  spx_status st = s->u ? spx_project_to_tensor(ctx, s->proj, &pa, s->tin) : spx_project(ctx, s->proj, &pa, s->buf, NULL);
+  if (!st && s->u) st = spx_unet_forward_tensor(s->u, s->tin, s->buf);
+  if (st) return spx_cli_errorf(C, "frame %ld: %s", f, spx_ctx_message(ctx));
+  to_rgb(s->buf, s->u != NULL, s->W, s->H, &s->img);
+  char *path = malloc(strlen(o->out) + 32);
+  if (path) snprintf(path, strlen(o->out) + 32, "%s/frame_%06ld.png", o->out, f);
+  return spx_cli_write_output(C, ctx, &s->tx, path, &s->img);
+}
+
+/* Every frame, with the progress; Ctrl-C stops after the current frame (exit 130). */
+static int render_frames(anim_run *s, const opts *o) {
+  int total = (int)(s->b - s->a), rc;
+  double centre[3] = {0, 0, 0};
+  progress pg = {isatty(STDERR_FILENO), 0, spx_now(), 0};
+  for (long f = s->a; f < s->b; f++) {
+    if (interrupted) {
+      if (pg.tty && pg.shown) fputc('\n', stderr);
+      spx_cli_errorf(C, "interrupted at frame %ld: removed the %d frames written", f, spx_tx_count(&s->tx));
+      return 130;
+    }
+    if ((rc = render_frame(s, o, f, centre))) return rc;
+    progress_show(&pg, (int)(f - s->a + 1), total, o->quiet);
+  }
+  return SPX_EXIT_OK;
+}
+
+/* DIR/animation.mp4 staged, encoded by ffmpeg from the staged frames through hard links named as
+ * the frames will be (in DIR/frames.tmp.<pid>, a temporary folder of the run). */
+static int encode_mp4(anim_run *s, const opts *o, const char *ffmpeg, const char *mp4) {
+  char why[4400];
+  int total = (int)(s->b - s->a), rc;
+  const char *vtmp = spx_tx_stage(&s->tx, mp4);
+  size_t ln = strlen(o->out) + 64;
+  if (!vtmp) return SPX_EXIT_ERROR;
+  if (!(s->links = malloc(ln))) return spx_cli_errorf(C, "out of memory");
+  snprintf(s->links, ln, "%s/frames.tmp.%ld", o->out, (long)getpid());
+  if ((rc = spx_tx_temp_dir(&s->tx, s->links))) { /* an interrupt removes it too */
+    free(s->links), s->links = NULL;
+    return rc;
+  }
+  for (int i = 0; i < total; i++) {
+    char lp[4300];
+    snprintf(lp, sizeof lp, "%s/frame_%06ld.png", s->links, s->a + i);
+    if (link(s->tx.f[i].temp, lp) != 0 && symlink(s->tx.f[i].temp, lp) != 0)
+      return spx_cli_errorf(C, "%s: cannot link a staged frame: %s", lp, strerror(errno));
+  }
+  int enc = spx_anim_encode_mp4(ffmpeg, s->links, s->a, o->fps > 0 ? o->fps : s->mo.fps, vtmp, mp4, why, sizeof why);
+  if (interrupted) { /* Ctrl-C reached ffmpeg too: not its failure */
+    spx_cli_errorf(C, "interrupted while encoding %s: removed the %d frames written", mp4, total);
+    return 130;
+  }
+  return enc ? spx_cli_errorf(C, "%s", why) : SPX_EXIT_OK;
+}
+
+static void anim_run_end(anim_run *s) {
+  if (s->links) { /* the link folder goes in every case (before spx_tx_end removes a folder it made) */
+    for (long f = s->a; f < s->b; f++) {
+      char lp[4300];
+      snprintf(lp, sizeof lp, "%s/frame_%06ld.png", s->links, f);
+      unlink(lp);
+    }
+    rmdir(s->links);
+    free(s->links);
+  }
+  spx_tx_end(&s->tx);
+  spx_image_free(&s->img);
+  free(s->pose), free(s->work), free(s->pos), free(s->buf), free(s->owned_col), free(s->cams);
+  spx_device_tensor_free(s->tin);
+  spx_projector_destroy(s->proj);
+  spx_unet_destroy(s->u);
+  spx_anim_motion_close(&s->mo);
+  spx_body_free(&s->m);
+  spx_fit_result_free(&s->r);
+}
+
+static int run(spx_ctx *ctx, const opts *o) {
+  anim_run s;
+  memset(&s, 0, sizeof s);
+  s.ctx = ctx, s.b = -1;
+  spx_tx_begin(&s.tx, C, 0);
   struct sigaction sa, old_int;
   memset(&sa, 0, sizeof sa);
   sa.sa_handler = on_sigint;
   sigemptyset(&sa.sa_mask);
   sa.sa_flags = SA_RESTART;
   interrupted = 0;
-  int handler_set = sigaction(SIGINT, &sa, &old_int) == 0;
+  int handler_set = sigaction(SIGINT, &sa, &old_int) == 0, rc;
   remove_dead_link_folders(o->out); /* a killed run's ffmpeg links */
-  /* every input is read and checked before anything is written */
-  if ((rc = spx_cli_load_registration(C, ctx, o->reg, o->model, &r, &m))) goto done;
-  if ((rc = spx_anim_motion_open(C, ctx, o->bvh, o->amass, &m, &mo))) goto done;
-  if (o->frames) spx_anim_parse_frames(o->frames, &a, &b); /* checked in the caller */
-  if (b < 0) b = mo.nframes;
-  rc = SPX_EXIT_ERROR;
-  if (a >= b || b > mo.nframes) {
-    rc = spx_cli_errorf(C, "%s: --frames %ld:%ld is out of range (the clip has %d frames: 0:%d)", mo.path, a, b,
-                        mo.nframes, mo.nframes);
-    goto done;
-  }
-  if ((rc = spx_cli_load_cameras(C, ctx, o->cam, &cams, &ncams))) goto done;
-  rc = SPX_EXIT_ERROR;
-  const int W = cams[0].width, H = cams[0].height;
-  if (ncams != 1) {
-    rc = spx_cli_errorf(C, "%s: holds %d cameras; animate renders through one", o->cam, ncams);
-    goto done;
-  }
-  if (!o->no_net && (H < 16 || W < 16)) {
-    rc = spx_cli_errorf(C, "%s: %dx%d is too small (the UNet needs at least 16x16)", o->cam, W, H);
-    goto done;
-  }
-  if (!o->no_net && !(ckpt = spx_cli_checkpoint(C, o->ckpt, "--no-network (the raw projection)"))) goto done;
-  struct stat sb;
-  if (stat(o->out, &sb) == 0 && !S_ISDIR(sb.st_mode)) {
-    rc = spx_cli_errorf(C, "%s: exists and is not a directory", o->out);
-    goto done;
-  }
-  if ((rc = spx_tx_mkdir(&tx, o->out))) goto done; /* removed again by a failed run that made it */
-  for (long f = a; f <= b; f++) { /* every file it will write: writable and no input, before any work */
-    char name[4200];
-    if (f < b) snprintf(name, sizeof name, "%s/frame_%06ld.png", o->out, f);
-    else if (!o->no_mp4) snprintf(name, sizeof name, "%s/animation.mp4", o->out);
-    else break;
-    if ((rc = spx_tx_check(&tx, name))) goto done;
-  }
-  rc = SPX_EXIT_ERROR;
-  if ((rc = spx_cli_open_device(C, ctx, o->spec))) goto done;
-  rc = SPX_EXIT_ERROR;
-  if (spx_cli_failed(&rc, C, ctx, ckpt && spx_unet_load(ctx, ckpt, &u))) goto done;
-  size_t nv3 = (size_t)m.nv * 3, hw = (size_t)W * (size_t)H;
-  pose = malloc((size_t)m.nj * 3 * sizeof(double));
-  work = malloc(nv3 * sizeof(double));
-  pos = malloc(nv3 * sizeof(float));
-  buf = malloc(hw * 4 * sizeof(float));
-  if (!r.colors) owned_col = malloc(nv3 * sizeof(float));
-  if (!pose || !work || !pos || !buf || (!r.colors && !owned_col) || spx_image_alloc(ctx, W, H, 3, &img)) {
-    rc = spx_cli_errorf(C, "out of memory");
-    goto done;
-  }
-  if (spx_cli_failed(&rc, C, ctx,
-                     spx_projector_create(ctx, &proj) || (u && spx_device_tensor_create(ctx, 1, SPX_UNET_IN_CHANNELS, H, W, &tin))))
-    goto done;
-  int total = (int)(b - a);
-  double centre[3] = {0, 0, 0}, t_start = spx_now();
-  progress pg = {isatty(STDERR_FILENO), 0, t_start, 0};
-  for (long f = a; f < b; f++) {
-    double trans[3];
-    if (interrupted) {
-      if (pg.tty && pg.shown) fputc('\n', stderr);
-      spx_cli_errorf(C, "interrupted at frame %ld: removed the %d frames written", f, spx_tx_count(&tx));
-      rc = 130;
-      goto done;
-    }
-    if (spx_anim_motion_pose(ctx, &mo, &m, (int32_t)f, pose, trans)) {
-      rc = spx_cli_errorf(C, "%s: frame %ld: %s", mo.path, f, spx_ctx_message(ctx));
-      goto done;
-    }
-    if ((rc = spx_cli_pose_registration(C, ctx, &m, &r, r.betas, pose, trans, work, pos))) goto done;
-    rc = SPX_EXIT_ERROR;
-    if (!r.colors) {
-      spx_mesh view = {m.nv, m.nf, pos, NULL, NULL, m.faces, 0, NULL, NULL};
-      spx_cli_normal_colors(&view, owned_col);
-    }
-    if (f == a) {
-      for (size_t i = 0; i < nv3; i++) centre[i % 3] += pos[i] / m.nv;
-    }
-    spx_camera cam = cams[0];
-    if (o->orbit != 0) spx_anim_orbit(&cams[0], centre, o->orbit * (double)(f - a), &cam);
-    spx_project_args pa = {1, m.nv, pos, r.colors ? r.colors : owned_col, 1, &cam,
-                           u ? SPX_LAYOUT_NCHW : SPX_LAYOUT_HWC};
-    spx_status st = u ? spx_project_to_tensor(ctx, proj, &pa, tin) : spx_project(ctx, proj, &pa, buf, NULL);
-    if (!st && u) st = spx_unet_forward_tensor(u, tin, buf);
-    if (st) {
-      rc = spx_cli_errorf(C, "frame %ld: %s", f, spx_ctx_message(ctx));
-      goto done;
-    }
-    to_rgb(buf, u != NULL, W, H, &img);
-    char *path = malloc(strlen(o->out) + 32);
-    if (path) snprintf(path, strlen(o->out) + 32, "%s/frame_%06ld.png", o->out, f);
-    if ((rc = spx_cli_write_output(C, ctx, &tx, path, &img))) goto done;
-    progress_show(&pg, (int)(f - a + 1), total, o->quiet);
-  }
-  double el = spx_now() - t_start;
-  rc = SPX_EXIT_ERROR;
   char mp4[4200] = "";
-  const char *ffmpeg = o->no_mp4 ? NULL : spx_anim_find_ffmpeg();
-  if (ffmpeg) { /* ffmpeg reads the staged frames through hard links named as the frames will be */
-    char why[4400];
-    snprintf(mp4, sizeof mp4, "%s/animation.mp4", o->out);
-    const char *vtmp = spx_tx_stage(&tx, mp4);
-    size_t ln = strlen(o->out) + 64;
-    if (!vtmp || !(links = malloc(ln))) {
-      if (vtmp) spx_cli_errorf(C, "out of memory");
-      goto done;
-    }
-    snprintf(links, ln, "%s/frames.tmp.%ld", o->out, (long)getpid());
-    if ((rc = spx_tx_temp_dir(&tx, links))) { /* an interrupt removes it too */
-      free(links), links = NULL;
-      goto done;
-    }
-    rc = SPX_EXIT_ERROR;
-    for (int i = 0; i < total; i++) {
-      char lp[4300];
-      snprintf(lp, sizeof lp, "%s/frame_%06ld.png", links, a + i);
-      if (link(tx.f[i].temp, lp) != 0 && symlink(tx.f[i].temp, lp) != 0) {
-        rc = spx_cli_errorf(C, "%s: cannot link a staged frame: %s", lp, strerror(errno));
-        goto done;
-      }
-    }
-    int enc = spx_anim_encode_mp4(ffmpeg, links, a, o->fps > 0 ? o->fps : mo.fps, vtmp, mp4, why, sizeof why);
-    if (interrupted) { /* Ctrl-C reached ffmpeg too: not its failure */
-      spx_cli_errorf(C, "interrupted while encoding %s: removed the %d frames written", mp4, total);
-      rc = 130;
-      goto done;
-    }
-    if (enc) {
-      rc = spx_cli_errorf(C, "%s", why);
-      goto done;
-    }
-  }
-  if ((rc = spx_tx_commit(&tx))) goto done;
-  rc = SPX_EXIT_ERROR;
+  const char *ffmpeg = NULL;
+  double t_start = 0, el = 0;
+  if ((rc = load_inputs(&s, o)) || (rc = check_outputs(&s, o)) || (rc = prepare(&s, o))) goto done;
+  t_start = spx_now();
+  if ((rc = render_frames(&s, o))) goto done;
+  el = spx_now() - t_start;
+  ffmpeg = o->no_mp4 ? NULL : spx_anim_find_ffmpeg();
+  if (ffmpeg) snprintf(mp4, sizeof mp4, "%s/animation.mp4", o->out);
+  if ((ffmpeg && (rc = encode_mp4(&s, o, ffmpeg, mp4))) || (rc = spx_tx_commit(&s.tx))) goto done;
   if (!o->quiet) {
-    printf("animated %d frames (%ld..%ld of %s) at %dx%d %s in %.2f s: %.2f frames/s\n", total, a, b - 1, mo.path, W,
-           H, u ? "through the network" : "as the raw projection (--no-network)", el, el > 0 ? total / el : 0.0);
-    printf("wrote %s/frame_%06ld.png .. frame_%06ld.png\n", o->out, a, b - 1);
-    if (ffmpeg) printf("wrote %s (%.3g frames/s)\n", mp4, o->fps > 0 ? o->fps : mo.fps);
+    int total = (int)(s.b - s.a);
+    printf("animated %d frames (%ld..%ld of %s) at %dx%d %s in %.2f s: %.2f frames/s\n", total, s.a, s.b - 1,
+           s.mo.path, s.W, s.H, s.u ? "through the network" : "as the raw projection (--no-network)", el,
+           el > 0 ? total / el : 0.0);
+    printf("wrote %s/frame_%06ld.png .. frame_%06ld.png\n", o->out, s.a, s.b - 1);
+    if (ffmpeg) printf("wrote %s (%.3g frames/s)\n", mp4, o->fps > 0 ? o->fps : s.mo.fps);
     else if (!o->no_mp4) printf("ffmpeg is not on PATH: no MP4 written (install ffmpeg to get %s/animation.mp4)\n", o->out);
   }
-  rc = SPX_EXIT_OK;
 done:
   if (handler_set) sigaction(SIGINT, &old_int, NULL);
-  if (links) { /* the link folder goes in every case (before spx_tx_end removes a folder it made) */
-    for (long f = a; f < b; f++) {
-      char lp[4300];
-      snprintf(lp, sizeof lp, "%s/frame_%06ld.png", links, f);
-      unlink(lp);
-    }
-    rmdir(links);
-    free(links);
-  }
-  spx_tx_end(&tx);
-  spx_image_free(&img);
-  free(pose), free(work), free(pos), free(buf), free(owned_col), free(cams);
-  spx_device_tensor_free(tin);
-  spx_projector_destroy(proj);
-  spx_unet_destroy(u);
-  spx_anim_motion_close(&mo);
-  spx_body_free(&m);
-  spx_fit_result_free(&r);
+  anim_run_end(&s);
   return rc;
 }
 

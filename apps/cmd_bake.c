@@ -1,6 +1,5 @@
 /* smplpix bake: transfer a coloured scan's colours onto the registered body's UV texture
  * (spx_bake_texture), for the textured-rasterization baseline (`smplpix raster --texture`). */
-#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,16 +23,18 @@ static void bake_help(void) {
 }
 
 int spx_cmd_bake(int argc, char **argv) {
-  const char *mesh_path = NULL, *scan_path = NULL, *out = NULL, *model_path = NULL, *size_s = "1024", *pad_s = "8";
-  spx_opt opts[] = {SPX_O("--mesh", SPX_OPT_IN, &mesh_path), SPX_O("--scan", SPX_OPT_IN, &scan_path),
-                    SPX_O("--out", SPX_OPT_OUT, &out),        SPX_O("--model", SPX_OPT_IN, &model_path),
-                    SPX_O("--size", SPX_OPT_STR, &size_s),    SPX_O("--pad", SPX_OPT_STR, &pad_s), SPX_O_END};
+  const char *mesh_path = NULL, *scan_path = NULL, *out = NULL, *model_path = NULL;
+  long size = 1024, pad = 8;
+  spx_opt opts[] = {SPX_O("--mesh", SPX_OPT_IN, &mesh_path),
+                    SPX_O("--scan", SPX_OPT_IN, &scan_path),
+                    SPX_O("--out", SPX_OPT_OUT, &out),
+                    SPX_O("--model", SPX_OPT_IN, &model_path),
+                    SPX_O_RANGE("--size", SPX_OPT_INT, &size, 1, 16384),
+                    SPX_O_RANGE("--pad", SPX_OPT_INT, &pad, 0, 4096),
+                    SPX_O_END};
   int parsed = spx_cli_parse(argc, argv, "bake", NULL, bake_help, opts);
   if (parsed >= 0) return parsed;
   if (!mesh_path || !scan_path || !out) return spx_cli_usage("bake", "--mesh, --scan and --out are required");
-  long size, pad;
-  if (!spx_cli_long(size_s, 1, 16384, &size)) return spx_cli_usage("bake", "--size %s: expected 1..16384", size_s);
-  if (!spx_cli_long(pad_s, 0, 4096, &pad)) return spx_cli_usage("bake", "--pad %s: expected 0..4096", pad_s);
   char ext[16];
   spx_path_ext(out, ext, sizeof ext);
   if (strcmp(ext, "png") && strcmp(ext, "exr")) return spx_cli_usage("bake", "--out %s: expected a .png or .exr file", out);

@@ -144,91 +144,91 @@ static int orbit_cameras(spx_ctx *ctx, const spx_mesh *m, long n, const double *
   return SPX_EXIT_OK;
 }
 
-int spx_cmd_dataset(int argc, char **argv) {
-  spx_cli_scene_opts o = {.color = "auto"};
-  const char *split_s = "0.8,0.1,0.1", *fmt = "exr", *elev_s = "0", *size_s = "308x410", *aa_s = "1";
-  const char *orbit_s = NULL, *seed_s = "0", *dist_s = NULL, *focal_s = NULL;
-  int force = 0;
-  const spx_cli_optdef defs[] = {{"--split", &split_s, NULL, 0},     {"--seed", &seed_s, NULL, 0},
-                                  {"--input-format", &fmt, NULL, 0},   {"--aa", &aa_s, NULL, 0},
-                                  {"--orbit", &orbit_s, NULL, 0},      {"--elevations", &elev_s, NULL, 0},
-                                  {"--distance", &dist_s, NULL, 0},    {"--size", &size_s, NULL, 0},
-                                  {"--focal", &focal_s, NULL, 0},      {"--force", NULL, &force, 0},
-                                  {NULL, NULL, NULL, 0}};
-  int rc = spx_cli_scene_args(argc, argv, "dataset", USAGE, "--cameras", &o, defs);
+/* The command line, read and checked. */
+typedef struct dataset_opts {
+  spx_cli_scene_opts io;
+  const char *fmt;
+  long seed, norbit, aa;
+  int size[2], force, ne;
+  double split[3], elev[64], dist, focal; /* dist, focal 0: unset (focal unset: framed by spx_camera_frame) */
+} dataset_opts;
+
+static int parse_options(int argc, char **argv, dataset_opts *o) {
+  const char *split_s = "0.8,0.1,0.1", *elev_s = "0";
+  spx_opt opts[] = {SPX_CLI_SCENE_ROWS(o->io, "--cameras"),
+                    SPX_O("--split", SPX_OPT_STR, &split_s),
+                    SPX_O_RANGE("--seed", SPX_OPT_INT, &o->seed, 0, 2147483647),
+                    SPX_O("--input-format", SPX_OPT_STR, &o->fmt),
+                    SPX_O_RANGE("--aa", SPX_OPT_INT, &o->aa, 1, 2),
+                    SPX_O_RANGE("--orbit", SPX_OPT_INT, &o->norbit, 1, 100000),
+                    SPX_O("--elevations", SPX_OPT_STR, &elev_s),
+                    SPX_O_RANGE("--distance", SPX_OPT_REAL, &o->dist, 1e-300, 1e30),
+                    SPX_O_RANGE("--size", SPX_OPT_SIZE, o->size, 16, SPX_CAMERA_MAX_SIZE),
+                    SPX_O_RANGE("--focal", SPX_OPT_REAL, &o->focal, 1e-300, 1e30),
+                    SPX_O("--force", SPX_OPT_FLAG, &o->force),
+                    SPX_O_END};
+  int rc = spx_cli_parse(argc, argv, "dataset", USAGE, NULL, opts);
   if (rc >= 0) return rc;
-  const char *mesh_path = o.mesh, *cam_path = o.cameras, *dir = o.out, *dev = o.device, *color = o.color;
-  int quiet = o.quiet;
-  if (!mesh_path || !dir) return spx_cli_usage("dataset", "--mesh and --out are required");
-  if (!cam_path == !orbit_s) return spx_cli_usage("dataset", "give --cameras C.json or --orbit N (one of them)");
-  double split[3], elev[64], dist = 0, focal = 0;
-  long seed = 0, norbit = 0, W = 0, H = 0;
-  if (parse_list(split_s, split, 3) != 3 || split[0] < 0 || split[1] < 0 || split[2] < 0 ||
-      fabs(split[0] + split[1] + split[2] - 1) > 1e-6)
+  if (!o->io.mesh || !o->io.out) return spx_cli_usage("dataset", "--mesh and --out are required");
+  if (!o->io.cameras == !spx_cli_given(opts, "--orbit"))
+    return spx_cli_usage("dataset", "give --cameras C.json or --orbit N (one of them)");
+  const double *f = o->split;
+  if (parse_list(split_s, o->split, 3) != 3 || f[0] < 0 || f[1] < 0 || f[2] < 0 || fabs(f[0] + f[1] + f[2] - 1) > 1e-6)
     return spx_cli_usage("dataset", "--split %s: expected three fractions >= 0 that sum to 1", split_s);
-  if (!spx_cli_long(seed_s, 0, 2147483647, &seed)) return spx_cli_usage("dataset", "--seed %s: expected an integer >= 0", seed_s);
-  if (strcmp(fmt, "exr") && strcmp(fmt, "npy"))
-    return spx_cli_usage("dataset", "--input-format %s: expected exr or npy", fmt);
-  if (!spx_cli_color_ok(color))
-    return spx_cli_usage("dataset", "--color %s: expected auto, mesh, normal or white", color);
-  if (strcmp(aa_s, "1") && strcmp(aa_s, "2")) return spx_cli_usage("dataset", "--aa %s: expected 1 or 2", aa_s);
-  int ne = parse_list(elev_s, elev, 64);
-  if (ne < 1) return spx_cli_usage("dataset", "--elevations %s: expected up to 64 comma-separated degrees", elev_s);
-  for (int k = 0; k < ne; k++)
-    if (!(fabs(elev[k]) < 90)) return spx_cli_usage("dataset", "--elevations %s: each must lie in (-90, 90)", elev_s);
-  if (orbit_s && !spx_cli_long(orbit_s, 1, 100000, &norbit))
-    return spx_cli_usage("dataset", "--orbit %s: expected a number of views in [1, 100000]", orbit_s);
-  int wi = 0, hi = 0;
-  if (!spx_cli_size(size_s, 16, SPX_CAMERA_MAX_SIZE, &wi, &hi))
-    return spx_cli_usage("dataset", "--size %s: expected WxH, each in [16, %d]", size_s, SPX_CAMERA_MAX_SIZE);
-  W = wi, H = hi;
-  if (dist_s && (parse_list(dist_s, &dist, 1) != 1 || !(dist > 0)))
-    return spx_cli_usage("dataset", "--distance %s: expected a positive number", dist_s);
-  focal = 0; /* framed (spx_camera_frame) unless --focal fixes it */
-  if (focal_s && (parse_list(focal_s, &focal, 1) != 1 || !(focal > 0)))
-    return spx_cli_usage("dataset", "--focal %s: expected a positive number of pixels", focal_s);
+  if (strcmp(o->fmt, "exr") && strcmp(o->fmt, "npy"))
+    return spx_cli_usage("dataset", "--input-format %s: expected exr or npy", o->fmt);
+  if (!spx_cli_color_ok(o->io.color))
+    return spx_cli_usage("dataset", "--color %s: expected auto, mesh, normal or white", o->io.color);
+  o->ne = parse_list(elev_s, o->elev, 64);
+  if (o->ne < 1) return spx_cli_usage("dataset", "--elevations %s: expected up to 64 comma-separated degrees", elev_s);
+  for (int k = 0; k < o->ne; k++)
+    if (!(fabs(o->elev[k]) < 90)) return spx_cli_usage("dataset", "--elevations %s: each must lie in (-90, 90)", elev_s);
+  return -1;
+}
 
-  spx_ctx *ctx = NULL;
-  spx_mesh mesh = {0};
-  spx_camera *cams = NULL;
-  int ncams = 0;
-  rc = SPX_EXIT_ERROR;
-  float *colors = NULL, *proj_img = NULL, *rast_img = NULL;
-  int *which = NULL;
-  spx_projector *proj = NULL;
-  spx_rasterizer *rast = NULL;
+/* One run: its inputs, the split of its views, the device objects and the staged outputs. */
+typedef struct dataset_run {
+  spx_ctx *ctx;
+  spx_mesh mesh;
+  spx_camera *cams;
+  int ncams;
+  float *colors; /* owned vertex colours (normals), or NULL */
+  const float *col;
+  const char *used;
+  int *which, count[3]; /* the split of each view; views per split */
+  spx_projector *proj;
+  spx_rasterizer *rast;
+  float *proj_img, *rast_img;
   spx_tx tx; /* durable: files and folders are fsync'ed before the run reports success */
-  if (spx_ctx_create(&ctx)) return spx_cli_errorf("dataset", "out of memory");
-  spx_tx_begin(&tx, "dataset", 1);
+} dataset_run;
 
-  /* every input and the destination are checked before the device or any output */
+static const char *const split_names[3] = {"train", "validation", "test"};
+
+/* Every input and the destination, checked before the device or any output: DIR, the mesh, the
+ * cameras (a file or the orbit) and the colours. */
+static int load_inputs(dataset_run *r, const dataset_opts *o) {
+  const char *dir = o->io.out, *mesh_path = o->io.mesh;
   struct stat sb;
-  if (stat(dir, &sb) == 0 && !S_ISDIR(sb.st_mode)) {
-    rc = spx_cli_errorf("dataset", "%s: exists and is not a directory", dir);
-    goto done;
-  }
-  if (!force && dir_nonempty(dir)) {
-    rc = spx_cli_errorf("dataset", "%s: not empty (use --force to write into it)", dir);
-    goto done;
-  }
-  if (spx_cli_failed(&rc, "dataset", ctx, spx_mesh_load(ctx, mesh_path, &mesh))) goto done;
-  if (mesh.nf == 0) {
-    rc = spx_cli_errorf("dataset", "%s: no triangles (the targets are rasterized triangles)", mesh_path);
-    goto done;
-  }
-  if (cam_path) {
-    if ((rc = spx_cli_load_cameras("dataset", ctx, cam_path, &cams, &ncams))) goto done;
+  int rc = SPX_EXIT_ERROR;
+  if (stat(dir, &sb) == 0 && !S_ISDIR(sb.st_mode)) return spx_cli_errorf("dataset", "%s: exists and is not a directory", dir);
+  if (!o->force && dir_nonempty(dir)) return spx_cli_errorf("dataset", "%s: not empty (use --force to write into it)", dir);
+  if (spx_cli_failed(&rc, "dataset", r->ctx, spx_mesh_load(r->ctx, mesh_path, &r->mesh))) return rc;
+  if (r->mesh.nf == 0)
+    return spx_cli_errorf("dataset", "%s: no triangles (the targets are rasterized triangles)", mesh_path);
+  if (o->io.cameras) {
+    if ((rc = spx_cli_load_cameras("dataset", r->ctx, o->io.cameras, &r->cams, &r->ncams))) return rc;
   } else {
-    if ((rc = orbit_cameras(ctx, &mesh, norbit, elev, ne, (int)W, (int)H, focal, dist, &cams))) goto done;
-    ncams = (int)norbit;
+    if ((rc = orbit_cameras(r->ctx, &r->mesh, o->norbit, o->elev, o->ne, o->size[0], o->size[1], o->focal, o->dist,
+                            &r->cams)))
+      return rc;
+    r->ncams = (int)o->norbit;
   }
-  const float *col = NULL;
-  const char *used = NULL;
-  if ((rc = spx_cli_mesh_colors("dataset", mesh_path, &mesh, color, &colors, &col, &used))) goto done;
-  rc = SPX_EXIT_ERROR;
+  return spx_cli_mesh_colors("dataset", mesh_path, &r->mesh, o->io.color, &r->colors, &r->col, &r->used);
+}
 
-  /* split sizes by largest remainder, then a seeded shuffle decides which view goes where */
-  int count[3], given = 0;
+/* Split sizes by largest remainder, then a seeded shuffle decides which view goes where. */
+static int assign_splits(dataset_run *r, const double *split, long seed) {
+  int ncams = r->ncams, given = 0, *count = r->count;
   double rem[3];
   for (int k = 0; k < 3; k++) {
     count[k] = (int)floor(split[k] * ncams);
@@ -241,12 +241,11 @@ int spx_cmd_dataset(int argc, char **argv) {
       if (rem[k] > rem[best]) best = k;
     count[best]++, rem[best] = -1, given++;
   }
-  which = malloc(sizeof(int) * (size_t)ncams);
+  r->which = malloc(sizeof(int) * (size_t)ncams);
   int *perm = malloc(sizeof(int) * (size_t)ncams);
-  if (!which || !perm) {
+  if (!r->which || !perm) {
     free(perm);
-    rc = spx_cli_errorf("dataset", "out of memory");
-    goto done;
+    return spx_cli_errorf("dataset", "out of memory");
   }
   for (int i = 0; i < ncams; i++) perm[i] = i;
   uint64_t s = spx_cli_mix64((uint64_t)seed);
@@ -255,99 +254,121 @@ int spx_cmd_dataset(int argc, char **argv) {
     int j = (int)(s % (uint64_t)(i + 1)), t = perm[i];
     perm[i] = perm[j], perm[j] = t;
   }
-  for (int i = 0; i < ncams; i++) which[perm[i]] = i < count[0] ? 0 : i < count[0] + count[1] ? 1 : 2;
+  for (int i = 0; i < ncams; i++) r->which[perm[i]] = i < count[0] ? 0 : i < count[0] + count[1] ? 1 : 2;
   free(perm);
+  return SPX_EXIT_OK;
+}
 
-  /* the folders (removed again, when still empty, if the run fails) and a check that every file
-   * can be written, before the device and the long work */
-  static const char *const names[3] = {"train", "validation", "test"};
+/* "DIR/<split>/<input|output>/view_NNNN.<ext>" of view v (malloc'd; NULL when out of memory). */
+static char *view_path(const char *dir, const dataset_run *r, int v, int io, const char *fmt) {
+  size_t len = strlen(dir) + 64;
+  char *p = malloc(len);
+  if (p) snprintf(p, len, "%s/%s/%s/view_%04d.%s", dir, split_names[r->which[v]], io ? "output" : "input", v, io ? "png" : fmt);
+  return p;
+}
+
+/* The folders (removed again, when still empty, if the run fails), a check that every file can be
+ * written, and DIR/cameras.json staged: before the device and the long work. */
+static int stage_layout(dataset_run *r, const char *dir, const char *fmt) {
   size_t plen = strlen(dir) + 64;
   char *path = malloc(plen);
-  if (!path) {
-    rc = spx_cli_errorf("dataset", "out of memory");
-    goto done;
-  }
-  rc = spx_tx_mkdir(&tx, dir);
+  if (!path) return spx_cli_errorf("dataset", "out of memory");
+  int rc = spx_tx_mkdir(&r->tx, dir);
   for (int k = 0; k < 3 && !rc; k++) {
-    snprintf(path, plen, "%s/%s", dir, names[k]);
-    rc = spx_tx_mkdir(&tx, path);
+    snprintf(path, plen, "%s/%s", dir, split_names[k]);
+    rc = spx_tx_mkdir(&r->tx, path);
     for (int io = 0; io < 2 && !rc; io++) {
-      snprintf(path, plen, "%s/%s/%s", dir, names[k], io ? "output" : "input");
-      rc = spx_tx_mkdir(&tx, path);
+      snprintf(path, plen, "%s/%s/%s", dir, split_names[k], io ? "output" : "input");
+      rc = spx_tx_mkdir(&r->tx, path);
     }
   }
-  for (int v = 0; v < ncams && !rc; v++)
+  for (int v = 0; v < r->ncams && !rc; v++)
     for (int io = 0; io < 2 && !rc; io++) {
-      snprintf(path, plen, "%s/%s/%s/view_%04d.%s", dir, names[which[v]], io ? "output" : "input", v, io ? "png" : fmt);
-      rc = spx_tx_check(&tx, path);
+      char *p = view_path(dir, r, v, io, fmt);
+      rc = p ? spx_tx_check(&r->tx, p) : spx_cli_errorf("dataset", "out of memory");
+      free(p);
     }
   if (!rc) {
     snprintf(path, plen, "%s/cameras.json", dir);
-    const char *tmp = spx_tx_stage(&tx, path);
+    const char *tmp = spx_tx_stage(&r->tx, path);
     if (!tmp) rc = SPX_EXIT_ERROR;
-    else if (spx_camera_save(ctx, tmp, cams, ncams)) rc = spx_tx_error(&tx, ctx);
+    else if (spx_camera_save(r->ctx, tmp, r->cams, r->ncams)) rc = spx_tx_error(&r->tx, r->ctx);
   }
   free(path);
-  if (rc) goto done;
+  return rc;
+}
 
-  int Wc = cams[0].width, Hc = cams[0].height;
-  const int chunk = 16; /* cameras per device call: bounded memory for any number of views */
+/* Projects and rasterizes every view, CHUNK cameras per device call (bounded memory for any number
+ * of views), and stages each image; *t0 = the time the device was ready. */
+enum { CHUNK = 16 };
+static int render_views(dataset_run *r, const dataset_opts *o, double *t0) {
+  spx_ctx *ctx = r->ctx;
+  const spx_mesh *m = &r->mesh;
+  int Wc = r->cams[0].width, Hc = r->cams[0].height, rc = SPX_EXIT_ERROR;
   size_t per = (size_t)Wc * Hc * 4;
-  proj_img = malloc(sizeof(float) * per * chunk);
-  rast_img = malloc(sizeof(float) * per * chunk);
-  if (!proj_img || !rast_img) {
-    rc = spx_cli_errorf("dataset", "cannot allocate %d images of %dx%d", 2 * chunk, Wc, Hc);
-    goto done;
-  }
-  if ((rc = spx_cli_open_device("dataset", ctx, dev))) goto done;
+  r->proj_img = malloc(sizeof(float) * per * CHUNK);
+  r->rast_img = malloc(sizeof(float) * per * CHUNK);
+  if (!r->proj_img || !r->rast_img)
+    return spx_cli_errorf("dataset", "cannot allocate %d images of %dx%d", 2 * CHUNK, Wc, Hc);
+  if ((rc = spx_cli_open_device("dataset", ctx, o->io.device))) return rc;
   rc = SPX_EXIT_ERROR;
-  if (spx_cli_failed(&rc, "dataset", ctx,
-                     spx_projector_create(ctx, &proj) || spx_rasterizer_create(ctx, &rast)))
-    goto done;
-
-  double t0 = spx_now();
-  for (int c0 = 0; c0 < ncams; c0 += chunk) {
-    int nc = ncams - c0 < chunk ? ncams - c0 : chunk;
-    spx_project_args pa = {1, mesh.nv, mesh.pos, col, nc, cams + c0, SPX_LAYOUT_HWC};
-    spx_raster_args ra = {.nverts = mesh.nv, .pos = mesh.pos, .col = col, .nfaces = mesh.nf, .faces = mesh.faces,
-                          .ncams = nc, .cams = cams + c0, .aa = aa_s[0] - '0', .cull = SPX_CULL_NONE,
+  if (spx_cli_failed(&rc, "dataset", ctx, spx_projector_create(ctx, &r->proj) || spx_rasterizer_create(ctx, &r->rast)))
+    return rc;
+  *t0 = spx_now();
+  for (int c0 = 0; c0 < r->ncams; c0 += CHUNK) {
+    int nc = r->ncams - c0 < CHUNK ? r->ncams - c0 : CHUNK;
+    spx_project_args pa = {1, m->nv, m->pos, r->col, nc, r->cams + c0, SPX_LAYOUT_HWC};
+    spx_raster_args ra = {.nverts = m->nv, .pos = m->pos, .col = r->col, .nfaces = m->nf, .faces = m->faces,
+                          .ncams = nc, .cams = r->cams + c0, .aa = (int)o->aa, .cull = SPX_CULL_NONE,
                           .layout = SPX_LAYOUT_HWC, .static_id = 1};
     if (spx_cli_failed(&rc, "dataset", ctx,
-                       spx_project(ctx, proj, &pa, proj_img, NULL) || spx_raster(ctx, rast, &ra, rast_img, NULL)))
-      goto done;
-    for (int c = 0; c < nc; c++) {
-      int v = c0 + c;
+                       spx_project(ctx, r->proj, &pa, r->proj_img, NULL) || spx_raster(ctx, r->rast, &ra, r->rast_img, NULL)))
+      return rc;
+    for (int c = 0; c < nc; c++)
       for (int io = 0; io < 2; io++) {
-        size_t len = strlen(dir) + 64;
-        char *p = malloc(len); /* NULL: spx_cli_write_output reports it */
-        if (p)
-          snprintf(p, len, "%s/%s/%s/view_%04d.%s", dir, names[which[v]], io ? "output" : "input", v, io ? "png" : fmt);
-        spx_image img = {Wc, Hc, 4, (io ? rast_img : proj_img) + per * (size_t)c};
-        if ((rc = spx_cli_write_output("dataset", ctx, &tx, p, &img))) goto done;
+        spx_image img = {Wc, Hc, 4, (io ? r->rast_img : r->proj_img) + per * (size_t)c};
+        /* a NULL path (out of memory): spx_cli_write_output reports it */
+        if ((rc = spx_cli_write_output("dataset", ctx, &r->tx, view_path(o->io.out, r, c0 + c, io, o->fmt), &img)))
+          return rc;
       }
-    }
   }
-  if ((rc = spx_tx_commit(&tx))) goto done;
-  if (force) remove_stale_views(dir, names, which, ncams, fmt);
-  if (!quiet) {
+  return SPX_EXIT_OK;
+}
+
+static void dataset_run_end(dataset_run *r) {
+  spx_tx_end(&r->tx);
+  spx_projector_destroy(r->proj);
+  spx_rasterizer_destroy(r->rast);
+  free(r->proj_img);
+  free(r->rast_img);
+  free(r->which);
+  free(r->colors);
+  free(r->cams);
+  spx_mesh_free(&r->mesh);
+  spx_ctx_destroy(r->ctx);
+}
+
+int spx_cmd_dataset(int argc, char **argv) {
+  dataset_opts o = {.io = {.color = "auto"}, .fmt = "exr", .aa = 1, .size = {308, 410}};
+  int rc = parse_options(argc, argv, &o);
+  if (rc >= 0) return rc;
+  dataset_run r = {0};
+  if (spx_ctx_create(&r.ctx)) return spx_cli_errorf("dataset", "out of memory");
+  spx_tx_begin(&r.tx, "dataset", 1);
+  double t0 = 0;
+  if ((rc = load_inputs(&r, &o)) || (rc = assign_splits(&r, o.split, o.seed)) || (rc = stage_layout(&r, o.io.out, o.fmt)))
+    goto done;
+  if ((rc = render_views(&r, &o, &t0)) || (rc = spx_tx_commit(&r.tx))) goto done;
+  if (o.force) remove_stale_views(o.io.out, split_names, r.which, r.ncams, o.fmt);
+  if (!o.io.quiet) {
     spx_device_info info;
-    spx_device_get_info(ctx, &info);
+    spx_device_get_info(r.ctx, &info);
     printf("dataset %s: %d views %dx%d (%s%s), train %d, validation %d, test %d; inputs .%s, outputs .png; "
            "%.2f s on %s\n",
-           dir, ncams, Wc, Hc, used, cam_path ? "" : ", orbit", count[0], count[1], count[2], fmt,
-           spx_now() - t0, info.name);
+           o.io.out, r.ncams, r.cams[0].width, r.cams[0].height, r.used, o.io.cameras ? "" : ", orbit", r.count[0],
+           r.count[1], r.count[2], o.fmt, spx_now() - t0, info.name);
   }
-  rc = SPX_EXIT_OK;
 done:
-  spx_tx_end(&tx);
-  spx_projector_destroy(proj);
-  spx_rasterizer_destroy(rast);
-  free(proj_img);
-  free(rast_img);
-  free(which);
-  free(colors);
-  free(cams);
-  spx_mesh_free(&mesh);
-  spx_ctx_destroy(ctx);
+  dataset_run_end(&r);
   return rc;
 }

@@ -24,8 +24,9 @@ static const char *USAGE =
 int spx_cmd_project(int argc, char **argv) {
   spx_cli_scene_opts o = {.color = "auto"};
   const char *png = NULL, *npy = NULL;
-  const spx_cli_optdef defs[] = {{"--png", &png, NULL, SPX_OPT_OUT}, {"--npy", &npy, NULL, SPX_OPT_OUT}, {NULL, NULL, NULL, 0}};
-  int rc = spx_cli_scene_args(argc, argv, "project", USAGE, "--camera", &o, defs);
+  spx_opt opts[] = {SPX_CLI_SCENE_ROWS(o, "--camera"), SPX_O("--png", SPX_OPT_OUT, &png), SPX_O("--npy", SPX_OPT_OUT, &npy),
+                    SPX_O_END};
+  int rc = spx_cli_parse(argc, argv, "project", USAGE, NULL, opts);
   if (rc >= 0) return rc;
   if (!o.mesh || !o.cameras || !o.out) return spx_cli_usage("project", "--mesh, --camera and --out are required");
   const char *outs[3] = {o.out, png, npy};

@@ -25,17 +25,17 @@ static const char *USAGE =
 
 int spx_cmd_raster(int argc, char **argv) {
   spx_cli_scene_opts o = {.color = "auto"};
-  const char *tex_path = NULL, *aa_s = "1", *cull_s = "none";
-  const spx_cli_optdef defs[] = {{"--texture", &tex_path, NULL, SPX_OPT_IN}, {"--aa", &aa_s, NULL, 0}, {"--cull", &cull_s, NULL, 0},
-                                  {NULL, NULL, NULL, 0}};
-  int rc = spx_cli_scene_args(argc, argv, "raster", USAGE, "--camera", &o, defs);
+  const char *tex_path = NULL, *cull_s = "none";
+  long aa = 1;
+  spx_opt opts[] = {SPX_CLI_SCENE_ROWS(o, "--camera"), SPX_O("--texture", SPX_OPT_IN, &tex_path),
+                    SPX_O_RANGE("--aa", SPX_OPT_INT, &aa, 1, 2), SPX_O("--cull", SPX_OPT_STR, &cull_s), SPX_O_END};
+  int rc = spx_cli_parse(argc, argv, "raster", USAGE, NULL, opts);
   if (rc >= 0) return rc;
   const char *out = o.out, *color = o.color;
   if (!o.mesh || !o.cameras || !out) return spx_cli_usage("raster", "--mesh, --camera and --out are required");
   if (!spx_image_ext_ok(out)) return spx_cli_usage("raster", "%s: output must end in .exr, .png or .npy", out);
   if (!spx_cli_color_ok(color))
     return spx_cli_usage("raster", "--color %s: expected auto, mesh, normal or white", color);
-  if (strcmp(aa_s, "1") && strcmp(aa_s, "2")) return spx_cli_usage("raster", "--aa %s: expected 1 or 2", aa_s);
   spx_cull cull = SPX_CULL_NONE;
   if (!strcmp(cull_s, "back")) cull = SPX_CULL_BACK;
   else if (!strcmp(cull_s, "front")) cull = SPX_CULL_FRONT;
@@ -97,7 +97,7 @@ int spx_cmd_raster(int argc, char **argv) {
   }
   a.ncams = s.ncams;
   a.cams = s.cams;
-  a.aa = aa_s[0] - '0';
+  a.aa = (int)aa;
   a.cull = cull;
   a.layout = SPX_LAYOUT_HWC;
   double t0 = spx_now();

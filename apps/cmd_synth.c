@@ -2,12 +2,12 @@
  * whole folder (layout: README "Synthetic subjects"); everything is written into a temporary
  * sibling folder first and renamed into place at the end, so a failure leaves nothing behind and
  * an existing folder is replaced only with --force (and only when it is empty or a synth output). */
-#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli_scene.h"
+#include "cli.h"
+#include "cli_opts.h"
 #include "smplpix/synth.h"
 #include "synth_out.h"
 
@@ -29,36 +29,28 @@ static const char *USAGE =
     "  --quiet          no progress\n";
 
 int spx_cmd_synth(int argc, char **argv) {
-  const char *out = NULL, *size_s = "308x410", *body_path = NULL, *bvh_path = NULL, *parts_path = NULL;
-  const char *subj_s = NULL, *views_s = NULL, *seed_s = NULL, *tex_s = "2048", *dev = NULL;
-  int force = 0, quiet = 0;
-  const spx_cli_optdef defs[] = {{"--force", NULL, &force, 0}, {"--quiet", NULL, &quiet, 0}, {"--subjects", &subj_s, NULL, 0},
-                                  {"--views", &views_s, NULL, 0}, {"--seed", &seed_s, NULL, 0}, {"--out", &out, NULL, SPX_OPT_OUT},
-                                  {"--size", &size_s, NULL, 0}, {"--body", &body_path, NULL, SPX_OPT_IN}, {"--bvh", &bvh_path, NULL, SPX_OPT_IN},
-                                  {"--parts", &parts_path, NULL, SPX_OPT_IN}, {"--texture-size", &tex_s, NULL, 0},
-                                  {"--device", &dev, NULL, 0}, {NULL, NULL, NULL, 0}};
-  int parsed = spx_cli_args(argc, argv, "synth", USAGE, defs, NULL);
+  const char *out = NULL, *body_path = NULL, *bvh_path = NULL, *parts_path = NULL, *dev = NULL;
+  long subjects = 0, views = 0, seed = 0, tex_size = 2048;
+  int force = 0, quiet = 0, size[2] = {308, 410};
+  spx_opt opts[] = {SPX_O("--force", SPX_OPT_FLAG, &force),
+                    SPX_O("--quiet", SPX_OPT_FLAG, &quiet),
+                    SPX_O_RANGE("--subjects", SPX_OPT_INT, &subjects, 1, 9999),
+                    SPX_O_RANGE("--views", SPX_OPT_INT, &views, 1, 999),
+                    SPX_O_RANGE("--seed", SPX_OPT_INT, &seed, 0, 2147483647),
+                    SPX_O("--out", SPX_OPT_OUT, &out),
+                    SPX_O_RANGE("--size", SPX_OPT_SIZE, size, 16, 4096),
+                    SPX_O("--body", SPX_OPT_IN, &body_path),
+                    SPX_O("--bvh", SPX_OPT_IN, &bvh_path),
+                    SPX_O("--parts", SPX_OPT_IN, &parts_path),
+                    SPX_O_RANGE("--texture-size", SPX_OPT_INT, &tex_size, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX),
+                    SPX_O("--device", SPX_OPT_STR, &dev),
+                    SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "synth", USAGE, NULL, opts);
   if (parsed >= 0) return parsed;
-  if (!subj_s || !views_s || !seed_s || !out)
+  if (!spx_cli_given(opts, "--subjects") || !spx_cli_given(opts, "--views") || !spx_cli_given(opts, "--seed") || !out)
     return spx_cli_usage("synth", "--subjects, --views, --seed and --out are required");
-  synth_opts o = {0};
-  long n;
-  if (!spx_cli_long(subj_s, 1, 9999, &n)) return spx_cli_usage("synth", "--subjects %s: expected 1..9999", subj_s);
-  o.subjects = (int)n;
-  if (!spx_cli_long(views_s, 1, 999, &n)) return spx_cli_usage("synth", "--views %s: expected 1..999", views_s);
-  o.views = (int)n;
-  long sd;
-  if (!spx_cli_long(seed_s, 0, 2147483647, &sd))
-    return spx_cli_usage("synth", "--seed %s: expected an integer in [0, 2147483647]", seed_s);
-  o.seed = (uint64_t)sd;
-  int w = 0, h = 0;
-  if (!spx_cli_size(size_s, 16, 4096, &w, &h))
-    return spx_cli_usage("synth", "--size %s: expected WxH, each 16..4096", size_s);
-  o.width = w;
-  o.height = h;
-  if (!spx_cli_long(tex_s, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX, &n))
-    return spx_cli_usage("synth", "--texture-size %s: expected %d..%d", tex_s, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX);
-  o.tex_size = (int32_t)n;
+  synth_opts o = {.subjects = (int)subjects, .views = (int)views, .seed = (uint64_t)seed, .width = size[0],
+                  .height = size[1], .tex_size = (int32_t)tex_size};
   /* DIR without trailing slashes (the temporary folder is its sibling); not ".", ".." or "/" */
   char *outc = strdup(out);
   if (!outc) return spx_cli_errorf("synth", "out of memory");

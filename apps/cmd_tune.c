@@ -59,7 +59,7 @@ static int int_list(const char **list, const char *opt, long lo, long hi, int po
                     int max, int *n) {
   for (const char **v = list; *v; v++) {
     long x;
-    if (!spx_cli_long(*v, lo, hi, &x) || (pow2 && (x & (x - 1))))
+    if (!spx_cli_int(*v, lo, hi, &x) || (pow2 && (x & (x - 1))))
       return spx_cli_usage("tune", "%s %s: expected %s", opt, *v, want);
     if (*n == max) return spx_cli_usage("tune", "at most %d %s options", max, opt);
     for (int k = 0; k < *n; k++)

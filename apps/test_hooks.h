@@ -1,6 +1,6 @@
-/* Fault-injection hooks of the tests (tests/test_hostile_outputs.c, test_hostile_commit.c,
- * test_cli_synth.c): environment variables that make a commit fail or die at a chosen step, or
- * run a command just before a rename. Only the test build's tool, smplpix-test-hooks (CMake
+/* Hooks of the tests (tests/test_hostile_outputs.c, test_hostile_commit.c, test_cli_synth.c,
+ * cli_options_docs.py): environment variables that make a commit fail or die at a chosen step, run
+ * a command just before a rename, or print a command's option table after its --help. Only the test build's tool, smplpix-test-hooks (CMake
  * target smplpix_test_hooks, compiled with SPX_TEST_HOOKS=1), reads them; in the shipped smplpix
  * these functions are constants and the hooks do not exist. */
 #ifndef SPX_APPS_TEST_HOOKS_H

@@ -94,6 +94,7 @@ typedef struct run {
   double grefmax[MAXP];
   size_t ngrad[MAXW];
   int have_gref;
+  spx_ctx *failed; /* the context whose message names a failed step */
 } run;
 
 static int pair_width(const run *r, int q) { return r->p->widths[q / r->p->nbatches]; }
@@ -341,193 +342,264 @@ static int build_groups(const spx_tune_plan *p, const char *const *names, int n,
   return ng;
 }
 
+/* The tunables the search settled on, in the order first searched. */
+typedef struct chosen {
+  char names[MAXS][32];
+  int vals[MAXS], defs[MAXS], n;
+} chosen;
+
+/* The largest batch of the plan: input, output and target hold that many images. */
+static size_t max_batch(const spx_tune_plan *p) {
+  size_t maxb = 1;
+  for (int b = 0; b < p->nbatches; b++) maxb = p->batches[b] > (int)maxb ? (size_t)p->batches[b] : maxb;
+  return maxb;
+}
+
+/* Host buffers (random input and target, the defaults' outputs) and the second context. Returns
+ * an exit code (error printed). */
+static int alloc_host(run *r, int train) {
+  const spx_tune_plan *p = r->p;
+  size_t maxb = max_batch(p), nin = (size_t)4 * p->h * p->w * maxb;
+  r->input = malloc(nin * sizeof(float));
+  r->buf = malloc(r->nout * maxb * sizeof(float));
+  int fit = r->input && r->buf;
+  for (int q = 0; q < r->np; q++) fit = fit && (r->ref[q] = malloc(r->nout * (size_t)pair_batch(r, q) * sizeof(float)));
+  if (train) fit = fit && (r->target = malloc(r->nout * maxb * sizeof(float)));
+  if (!fit) return spx_cli_errorf("tune", "out of memory (host buffers for batch %zu at %dx%d)", maxb, p->h, p->w);
+  uint64_t s = 0x9e3779b97f4a7c15ULL;
+  for (size_t i = 0; i < nin; i++) r->input[i] = (float)((spx_cli_mix64(s++) >> 40) * 0x1p-24);
+  for (size_t i = 0; train && i < r->nout * maxb; i++) r->target[i] = (float)((spx_cli_mix64(s++) >> 40) * 0x1p-24);
+  if (spx_ctx_create(&r->ctx[1])) return spx_cli_errorf("tune", "out of memory");
+  return SPX_EXIT_OK;
+}
+
+/* Both contexts on the device at the built-in defaults (a previous tuning file is replaced), with
+ * a network per width (and one for the training step). */
+static spx_status open_networks(run *r, int train) {
+  spx_status st = SPX_OK;
+  for (int c = 0; c < 2; c++) {
+    r->failed = r->ctx[c];
+    if (c && (st = spx_device_open(r->ctx[1], r->p->device))) return st;
+    for (int i = 0; i < spx_device_tunable_count(); i++) {
+      spx_tunable_info t;
+      if ((st = spx_device_tunable(r->ctx[c], i, &t))) return st;
+      if (!strcmp(t.source, "tuned") && (st = spx_device_set_tunable(r->ctx[c], t.name, t.default_value))) return st;
+    }
+    for (int k = 0; k < r->p->nwidths; k++)
+      if ((st = spx_unet_create(r->ctx[c], r->p->widths[k], 1, 7, &r->u[c][k])) ||
+          (train && (st = spx_unet_create(r->ctx[c], r->p->widths[k], 1, 7, &r->t[c][k]))))
+        return st;
+  }
+  return SPX_OK;
+}
+
+/* Gradient buffers of the training step: every parameter. Returns an exit code (error printed). */
+static int alloc_grads(run *r, int train) {
+  size_t most = 0;
+  int fit = 1;
+  for (int k = 0; train && k < r->p->nwidths; k++) {
+    const char *name;
+    for (int i = 0; i < spx_unet_tensor_count(r->t[0][k]); i++) r->ngrad[k] += param_numel(r->t[0][k], i, &name);
+    if (r->ngrad[k] > most) most = r->ngrad[k];
+  }
+  for (int q = 0; train && q < r->np; q++)
+    if (!(r->gref[q] = malloc(r->ngrad[q / r->p->nbatches] * sizeof(float)))) fit = 0;
+  if (train && (!fit || !(r->gbuf = malloc(most * sizeof(float))))) return spx_cli_errorf("tune", "out of memory");
+  return SPX_EXIT_OK;
+}
+
+/* What is timed, into shape (for the header and the tuning file's comment), and the header. */
+static void header(const run *r, int train, char *shape, size_t cap) {
+  const spx_tune_plan *p = r->p;
+  spx_device_info info;
+  spx_device_get_info(r->ctx[0], &info);
+  size_t sl = (size_t)snprintf(shape, cap, "batch%s", p->nbatches > 1 ? "es" : "");
+  for (int b = 0; b < p->nbatches; b++) sl += (size_t)snprintf(shape + sl, cap - sl, " %d", p->batches[b]);
+  sl += (size_t)snprintf(shape + sl, cap - sl, ", width%s", p->nwidths > 1 ? "s" : "");
+  for (int k = 0; k < p->nwidths; k++) sl += (size_t)snprintf(shape + sl, cap - sl, " %d", p->widths[k]);
+  snprintf(shape + sl, cap - sl, ", size %dx%d", p->h, p->w);
+  fprintf(r->out, "tuning %s (%s) on the UNet eval forward%s at %s; %s search; each candidate timed against the "
+          "incumbent alternately at every (width, batch), min of %d runs (%s ms)\n", info.name, info.driver,
+          train ? " (training groups: a training step)" : "", shape, p->quick ? "quick" : "full", p->repeat,
+          p->cpu_clock ? "CPU" : "wall");
+}
+
+/* The defaults' outputs (and gradients) on both contexts; where the image is too small to train
+ * at some batch, the training groups are dropped (*train = 0) and said so. Then the table's head. */
+static spx_status warm_all(run *r, int *train) {
+  spx_ctx *ctx = r->ctx[0];
+  double diff;
+  spx_status st;
+  r->failed = ctx;
+  if ((st = warm(r, 0, &diff))) return st;
+  if (*train && warm_train(r, 0, &diff)) {
+    fprintf(r->out, "  training groups skipped: %s (width %d, batch %d)\n", spx_ctx_message(ctx),
+            pair_width(r, r->last), pair_batch(r, r->last));
+    *train = 0;
+    for (int k = 0; k < r->p->nwidths; k++) { /* their device memory is not needed any more */
+      spx_unet_destroy(r->t[0][k]);
+      spx_unet_destroy(r->t[1][k]);
+      r->t[0][k] = r->t[1][k] = NULL;
+    }
+  }
+  r->failed = r->ctx[1];
+  if ((st = warm(r, 1, &diff)) || (*train && (st = warm_train(r, 1, &diff)))) return st;
+  fprintf(r->out, "  %-28s", "candidate");
+  for (int q = 0; q < r->np; q++) {
+    char col[32];
+    snprintf(col, sizeof col, "w%db%d ms", pair_width(r, q), pair_batch(r, q));
+    fprintf(r->out, " %9s", col);
+  }
+  fprintf(r->out, "  chosen\n");
+  return SPX_OK;
+}
+
+/* A step that ran on both contexts failed with st: the context that holds its message. */
+static spx_status failed_either(run *r, spx_status st) {
+  r->failed = spx_ctx_last_status(r->ctx[1]) == st ? r->ctx[1] : r->ctx[0];
+  return st;
+}
+
+/* Group g is not searched (said why), or its tunables' values in effect go to cur: 1 when skipped. */
+static int group_skipped(run *r, const group *g, int *cur) {
+  spx_ctx *ctx = r->ctx[0];
+  spx_tunable_info on;
+  int need_off = 0, skip = 0;
+  const char *needs = group_needs(g, &need_off);
+  if (r->p->quick && !strcmp(g->names[0], "CONV_WINO_LDS") && tunable(ctx, "CONV_WINO_LDS", &on) &&
+      !on.default_value) { /* the GPU variant on a CPU: 10-40x slower on 2-core PoCL, not worth --quick's time */
+    fprintf(r->out, "  CONV_WINO_LDS: off by default on this device class, tried in the full search only\n");
+    return 1;
+  }
+  if (needs && tunable(ctx, needs, &on) && (need_off ? on.value != 0 : on.value == 0)) {
+    fprintf(r->out, "  %s%s%s: not tuned (%s is %d)\n", g->names[0], g->n > 1 ? " " : "", g->n > 1 ? g->names[1] : "",
+            needs, on.value);
+    return 1;
+  }
+  for (int j = 0; j < g->n; j++) {
+    spx_tunable_info t;
+    if (!tunable(ctx, g->names[j], &t)) skip = 1;
+    else if (!strcmp(t.source, "env")) {
+      fprintf(r->out, "  %s: set by SPX_TUNE_%s, not tuned\n", t.name, t.name);
+      skip = 1;
+    } else {
+      cur[j] = t.value;
+    }
+  }
+  return skip;
+}
+
+/* Every group in order, a stage each (the groups from ng_eval on on a training step); the winners
+ * into ch. */
+static spx_status search(run *r, const group *gs, int ng, int ng_eval, int train, chosen *ch) {
+  spx_status st;
+  for (int g = 0; g < ng; g++) {
+    if ((gs[g].full_only && r->p->quick) || (g >= ng_eval && !train)) continue;
+    int cur[MAXG] = {0};
+    if (group_skipped(r, &gs[g], cur)) continue;
+    if ((st = stage(r, &gs[g], g >= ng_eval, cur))) return failed_either(r, st);
+    for (int j = 0; j < gs[g].n && ch->n < MAXS; j++) {
+      spx_tunable_info t;
+      tunable(r->ctx[0], gs[g].names[j], &t);
+      int at = 0; /* a group searched twice keeps its first place, with the last value */
+      while (at < ch->n && strcmp(ch->names[at], gs[g].names[j])) at++;
+      snprintf(ch->names[at], sizeof ch->names[at], "%s", gs[g].names[j]);
+      ch->defs[at] = t.default_value;
+      ch->vals[at] = cur[j];
+      if (at == ch->n) ch->n++;
+    }
+  }
+  return SPX_OK;
+}
+
+/* The defaults (A) against the winners (B), alternately; the winners saved to the tuning file
+ * (signals blocked: the file is in place, and the interrupt message says so, or neither); the
+ * comparison printed. */
+static spx_status compare_and_save(run *r, int train, const chosen *ch, const char *shape, double t_start) {
+  spx_ctx *ctx = r->ctx[0];
+  const spx_tune_plan *p = r->p;
+  FILE *out = r->out;
+  double diff, ms_def[MAXP], ms_tuned[MAXP], tr_def[MAXP], tr_tuned[MAXP], sc;
+  spx_status st;
+  r->failed = ctx;
+  for (int i = 0; i < ch->n; i++)
+    if ((st = spx_device_set_tunable(ctx, ch->names[i], ch->defs[i]))) return st;
+  if ((st = warm(r, 0, &diff)) || (train && (st = warm_train(r, 0, &diff)))) return st;
+  if ((st = duel(r, 0, 2 * p->repeat, ms_def, ms_tuned, &sc)) ||
+      (train && (st = duel(r, 1, p->repeat, tr_def, tr_tuned, &sc))))
+    return failed_either(r, st);
+  const char *np[MAXS];
+  for (int i = 0; i < ch->n; i++) np[i] = ch->names[i];
+  char comment[200];
+  snprintf(comment, sizeof comment, "tuned at %s, %s search", shape, p->quick ? "quick" : "full");
+  sigset_t old_mask;
+  spx_tx_block_signals(&old_mask);
+  st = spx_device_tuning_save_comment(ctx, comment, np, ch->vals, ch->n);
+  if (!st) spx_tx_note_written(spx_device_tuning_path(ctx), 1);
+  spx_tx_unblock_signals(&old_mask);
+  if (st) return st;
+  fprintf(out, "chosen:");
+  for (int i = 0; i < ch->n; i++)
+    fprintf(out, " %s=%d%s", ch->names[i], ch->vals[i], ch->vals[i] == ch->defs[i] ? " (default)" : "");
+  fprintf(out, "\n");
+  for (int q = 0; q < r->np; q++) {
+    fprintf(out, "width %d, batch %d: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n", pair_width(r, q),
+            pair_batch(r, q), ms_def[q], ms_tuned[q], ms_def[q] / ms_tuned[q]);
+    if (train)
+      fprintf(out, "width %d, batch %d training step: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n",
+              pair_width(r, q), pair_batch(r, q), tr_def[q], tr_tuned[q], tr_def[q] / tr_tuned[q]);
+  }
+  fprintf(out, "wrote %s (%.1f s)\n", spx_device_tuning_path(ctx), spx_now() - t_start);
+  return SPX_OK;
+}
+
+static void run_free(run *r) {
+  for (int k = 0; k < r->p->nwidths; k++) {
+    spx_unet_destroy(r->u[0][k]);
+    spx_unet_destroy(r->u[1][k]);
+    spx_unet_destroy(r->t[0][k]);
+    spx_unet_destroy(r->t[1][k]);
+  }
+  for (int q = 0; q < r->np; q++) {
+    free(r->ref[q]);
+    free(r->gref[q]);
+  }
+  spx_ctx_destroy(r->ctx[1]);
+  free(r->input);
+  free(r->buf);
+  free(r->target);
+  free(r->gbuf);
+}
+
 int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   run r = {.ctx = {ctx, NULL}, .p = p, .out = out, .np = p->nwidths * p->nbatches, .last = -1,
-           .nout = (size_t)3 * p->h * p->w};
+           .nout = (size_t)3 * p->h * p->w, .failed = ctx};
   group gs[40];
   /* groups from ng_eval on are scored on a training step */
   const int ng_eval = build_groups(p, eval_order, (int)(sizeof eval_order / sizeof *eval_order), gs);
   int ng = ng_eval + build_groups(p, train_order, (int)(sizeof train_order / sizeof *train_order), gs + ng_eval);
-  int rc = SPX_EXIT_ERROR, nsave = 0;
-  char names[MAXS][32];
-  int vals[MAXS], defs[MAXS];
-  spx_status st = SPX_OK;
-  spx_ctx *failed = ctx;
-  double t_start = spx_now();
-  size_t maxb = 1; /* the largest batch: input, output and target hold that many images */
-  for (int b = 0; b < p->nbatches; b++) maxb = p->batches[b] > (int)maxb ? (size_t)p->batches[b] : maxb;
-  size_t nin = (size_t)4 * p->h * p->w * maxb;
-  r.input = malloc(nin * sizeof(float));
-  r.buf = malloc(r.nout * maxb * sizeof(float));
-  int fit = r.input && r.buf, train = 0;
-  for (int q = 0; q < r.np; q++) fit = fit && (r.ref[q] = malloc(r.nout * (size_t)pair_batch(&r, q) * sizeof(float)));
+  int train = 0, rc;
   for (int g = ng_eval; g < ng; g++) train |= !(gs[g].full_only && p->quick);
-  if (train) fit = fit && (r.target = malloc(r.nout * maxb * sizeof(float)));
-  if (!fit) {
-    rc = spx_cli_errorf("tune", "out of memory (host buffers for batch %zu at %dx%d)", maxb, p->h, p->w);
-    goto done;
-  }
-  uint64_t s = 0x9e3779b97f4a7c15ULL;
-  for (size_t i = 0; i < nin; i++) r.input[i] = (float)((spx_cli_mix64(s++) >> 40) * 0x1p-24);
-  for (size_t i = 0; train && i < r.nout * maxb; i++) r.target[i] = (float)((spx_cli_mix64(s++) >> 40) * 0x1p-24);
-  if (spx_ctx_create(&r.ctx[1])) {
-    rc = spx_cli_errorf("tune", "out of memory");
-    goto done;
-  }
-  for (int c = 0; c < 2; c++) {
-    failed = r.ctx[c];
-    if (c && (st = spx_device_open(r.ctx[1], p->device))) goto fail;
-    /* start from the built-in defaults (a previous tuning file is replaced) */
-    for (int i = 0; i < spx_device_tunable_count(); i++) {
-      spx_tunable_info t;
-      if ((st = spx_device_tunable(r.ctx[c], i, &t))) goto fail;
-      if (!strcmp(t.source, "tuned") && (st = spx_device_set_tunable(r.ctx[c], t.name, t.default_value))) goto fail;
-    }
-    for (int k = 0; k < p->nwidths; k++)
-      if ((st = spx_unet_create(r.ctx[c], p->widths[k], 1, 7, &r.u[c][k])) ||
-          (train && (st = spx_unet_create(r.ctx[c], p->widths[k], 1, 7, &r.t[c][k]))))
-        goto fail;
-  }
-  size_t most = 0;
-  for (int k = 0; train && k < p->nwidths; k++) { /* gradient buffers: every parameter */
-    const char *name;
-    for (int i = 0; i < spx_unet_tensor_count(r.t[0][k]); i++) r.ngrad[k] += param_numel(r.t[0][k], i, &name);
-    if (r.ngrad[k] > most) most = r.ngrad[k];
-  }
-  for (int q = 0; train && q < r.np; q++)
-    if (!(r.gref[q] = malloc(r.ngrad[q / p->nbatches] * sizeof(float)))) fit = 0;
-  if (train && (!fit || !(r.gbuf = malloc(most * sizeof(float))))) {
-    rc = spx_cli_errorf("tune", "out of memory");
-    goto done;
-  }
-  spx_device_info info;
-  spx_device_get_info(ctx, &info);
-  char shape[160]; /* what is timed, for the header and the tuning file's comment */
-  size_t sl = (size_t)snprintf(shape, sizeof shape, "batch%s", p->nbatches > 1 ? "es" : "");
-  for (int b = 0; b < p->nbatches; b++) sl += (size_t)snprintf(shape + sl, sizeof shape - sl, " %d", p->batches[b]);
-  sl += (size_t)snprintf(shape + sl, sizeof shape - sl, ", width%s", p->nwidths > 1 ? "s" : "");
-  for (int k = 0; k < p->nwidths; k++) sl += (size_t)snprintf(shape + sl, sizeof shape - sl, " %d", p->widths[k]);
-  snprintf(shape + sl, sizeof shape - sl, ", size %dx%d", p->h, p->w);
-  fprintf(out, "tuning %s (%s) on the UNet eval forward%s at %s; %s search; each candidate timed against the "
-          "incumbent alternately at every (width, batch), min of %d runs (%s ms)\n", info.name, info.driver,
-          train ? " (training groups: a training step)" : "", shape, p->quick ? "quick" : "full", p->repeat,
-          p->cpu_clock ? "CPU" : "wall");
-  double diff;
-  failed = ctx;
-  if ((st = warm(&r, 0, &diff))) goto fail;
-  if (train && warm_train(&r, 0, &diff)) { /* e.g. an image too small to train at batch 1 */
-    fprintf(out, "  training groups skipped: %s (width %d, batch %d)\n", spx_ctx_message(ctx), pair_width(&r, r.last),
-            pair_batch(&r, r.last));
-    train = 0;
-    for (int k = 0; k < p->nwidths; k++) { /* their device memory is not needed any more */
-      spx_unet_destroy(r.t[0][k]);
-      spx_unet_destroy(r.t[1][k]);
-      r.t[0][k] = r.t[1][k] = NULL;
-    }
-  }
-  failed = r.ctx[1];
-  if ((st = warm(&r, 1, &diff)) || (train && (st = warm_train(&r, 1, &diff)))) goto fail;
-  fprintf(out, "  %-28s", "candidate");
-  for (int q = 0; q < r.np; q++) {
-    char col[32];
-    snprintf(col, sizeof col, "w%db%d ms", pair_width(&r, q), pair_batch(&r, q));
-    fprintf(out, " %9s", col);
-  }
-  fprintf(out, "  chosen\n");
-  for (int g = 0; g < ng; g++) {
-    if ((gs[g].full_only && p->quick) || (g >= ng_eval && !train)) continue;
-    int cur[MAXG] = {0}, skip = 0;
-    spx_tunable_info on;
-    int need_off = 0;
-    const char *needs = group_needs(&gs[g], &need_off);
-    if (p->quick && !strcmp(gs[g].names[0], "CONV_WINO_LDS") && tunable(ctx, "CONV_WINO_LDS", &on) &&
-        !on.default_value) { /* the GPU variant on a CPU: 10-40x slower on 2-core PoCL, not worth --quick's time */
-      fprintf(out, "  CONV_WINO_LDS: off by default on this device class, tried in the full search only\n");
-      continue;
-    }
-    if (needs && tunable(ctx, needs, &on) && (need_off ? on.value != 0 : on.value == 0)) {
-      fprintf(out, "  %s%s%s: not tuned (%s is %d)\n", gs[g].names[0], gs[g].n > 1 ? " " : "",
-              gs[g].n > 1 ? gs[g].names[1] : "", needs, on.value);
-      continue;
-    }
-    for (int j = 0; j < gs[g].n; j++) {
-      spx_tunable_info t;
-      if (!tunable(ctx, gs[g].names[j], &t)) skip = 1;
-      else if (!strcmp(t.source, "env")) {
-        fprintf(out, "  %s: set by SPX_TUNE_%s, not tuned\n", t.name, t.name);
-        skip = 1;
-      } else {
-        cur[j] = t.value;
-      }
-    }
-    if (skip) continue;
-    if ((st = stage(&r, &gs[g], g >= ng_eval, cur))) goto fail_either;
-    for (int j = 0; j < gs[g].n && nsave < MAXS; j++) {
-      spx_tunable_info t;
-      tunable(ctx, gs[g].names[j], &t);
-      int at = 0; /* a group searched twice keeps its first place, with the last value */
-      while (at < nsave && strcmp(names[at], gs[g].names[j])) at++;
-      snprintf(names[at], sizeof names[at], "%s", gs[g].names[j]);
-      defs[at] = t.default_value;
-      vals[at] = cur[j];
-      if (at == nsave) nsave++;
-    }
-  }
-  /* the defaults (A) against the winners (B), alternately */
-  failed = ctx;
-  for (int i = 0; i < nsave; i++)
-    if ((st = spx_device_set_tunable(ctx, names[i], defs[i]))) goto fail;
-  if ((st = warm(&r, 0, &diff)) || (train && (st = warm_train(&r, 0, &diff)))) goto fail;
-  double ms_def[MAXP], ms_tuned[MAXP], tr_def[MAXP], tr_tuned[MAXP], sc;
-  if ((st = duel(&r, 0, 2 * p->repeat, ms_def, ms_tuned, &sc)) ||
-      (train && (st = duel(&r, 1, p->repeat, tr_def, tr_tuned, &sc))))
-    goto fail_either;
-  const char *np[MAXS];
-  for (int i = 0; i < nsave; i++) np[i] = names[i];
-  char comment[200];
-  snprintf(comment, sizeof comment, "tuned at %s, %s search", shape, p->quick ? "quick" : "full");
-  sigset_t old_mask; /* the file is in place, and the interrupt message says so, or neither */
-  spx_tx_block_signals(&old_mask);
-  st = spx_device_tuning_save_comment(ctx, comment, np, vals, nsave);
-  if (!st) spx_tx_note_written(spx_device_tuning_path(ctx), 1);
-  spx_tx_unblock_signals(&old_mask);
-  if (st) goto fail;
-  fprintf(out, "chosen:");
-  for (int i = 0; i < nsave; i++) fprintf(out, " %s=%d%s", names[i], vals[i], vals[i] == defs[i] ? " (default)" : "");
-  fprintf(out, "\n");
-  for (int q = 0; q < r.np; q++) {
-    fprintf(out, "width %d, batch %d: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n", pair_width(&r, q),
-            pair_batch(&r, q), ms_def[q], ms_tuned[q], ms_def[q] / ms_tuned[q]);
-    if (train)
-      fprintf(out, "width %d, batch %d training step: %.1f ms with the defaults, %.1f ms tuned (%.2fx)\n",
-              pair_width(&r, q), pair_batch(&r, q), tr_def[q], tr_tuned[q], tr_def[q] / tr_tuned[q]);
-  }
-  fprintf(out, "wrote %s (%.1f s)\n", spx_device_tuning_path(ctx), spx_now() - t_start);
+  chosen ch = {.n = 0};
+  char shape[160];
+  double t_start = spx_now();
+  spx_status st;
+  if ((rc = alloc_host(&r, train))) goto done;
+  if ((st = open_networks(&r, train))) goto fail;
+  if ((rc = alloc_grads(&r, train))) goto done;
+  header(&r, train, shape, sizeof shape);
+  if ((st = warm_all(&r, &train)) || (st = search(&r, gs, ng, ng_eval, train, &ch)) ||
+      (st = compare_and_save(&r, train, &ch, shape, t_start)))
+    goto fail;
   rc = SPX_EXIT_OK;
   goto done;
-fail_either:
-  failed = spx_ctx_last_status(r.ctx[1]) == st ? r.ctx[1] : ctx;
 fail:
   if ((st == SPX_E_DEVMEM || st == SPX_E_NOMEM) && r.last >= 0) /* which shape ran out, and what needs less */
     rc = spx_cli_errorf("tune", "width %d, batch %d at %dx%d: %s (try a smaller --batch or --size)",
-                        pair_width(&r, r.last), pair_batch(&r, r.last), p->h, p->w, spx_ctx_message(failed));
+                        pair_width(&r, r.last), pair_batch(&r, r.last), p->h, p->w, spx_ctx_message(r.failed));
   else
-    rc = spx_cli_error("tune", failed);
+    rc = spx_cli_error("tune", r.failed);
 done:
-  for (int k = 0; k < p->nwidths; k++) {
-    spx_unet_destroy(r.u[0][k]);
-    spx_unet_destroy(r.u[1][k]);
-    spx_unet_destroy(r.t[0][k]);
-    spx_unet_destroy(r.t[1][k]);
-  }
-  for (int q = 0; q < r.np; q++) {
-    free(r.ref[q]);
-    free(r.gref[q]);
-  }
-  spx_ctx_destroy(r.ctx[1]);
-  free(r.input);
-  free(r.buf);
-  free(r.target);
-  free(r.gbuf);
+  run_free(&r);
   return rc;
 }

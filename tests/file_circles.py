@@ -25,9 +25,6 @@ KNOWN = [
     (["lib/io/mesh.c", "lib/io/obj.c", "lib/io/ply.c"],
      "mesh.c reads and writes through obj.c / ply.c, which call back spx_mesh_free / spx_mesh_validate; "
      "to be cut with the parsers' split (other work edits these files now)"),
-    (["apps/*"],
-     "main.c's error printers are called by every command and main.c calls every command, cli_tx.c and "
-     "main.c import each other; to be cut with the option tables (other work edits the apps now)"),
     (["lib/nn/tape.c", "lib/nn/tape_*.c"],
      "the tape's files share one object: the ops record onto tape.c, tape.c runs the planner and the "
      "profile, which read the op table that names the ops; cut by splitting tape.c's value store from "
