@@ -1,6 +1,7 @@
-/* smplpix animate: a registered person driven by a motion clip (BVH, or AMASS .npz), one PNG per
- * frame, through the network (projection straight into it on the device, as `render --mesh`) or,
- * with --no-network, the raw vertex projection; an MP4 when ffmpeg is on PATH. */
+/* smplpix animate: a registered person or an avatar driven by a motion clip (BVH, or AMASS .npz),
+ * one PNG per frame, through the network (projection straight into it on the device, as `render
+ * --mesh`) or, with --no-network, the raw vertex projection, or with --raster the per-vertex
+ * raster; an MP4 when ffmpeg is on PATH. */
 #include <errno.h>
 #include <math.h>
 #include <dirent.h>
@@ -18,18 +19,21 @@
 
 static void animate_help(void) {
   printf(
-      "usage: smplpix animate --registration P.json (--bvh M.bvh | --amass M.npz) --camera C.json --out DIR\n"
-      "                       [--frames A:B] [--checkpoint W.safetensors | --no-network] [--orbit DEG]\n"
+      "usage: smplpix animate (--registration P.json | --avatar A.safetensors) (--bvh M.bvh | --amass M.npz)\n"
+      "                       --camera C.json --out DIR [--frames A:B]\n"
+      "                       [--checkpoint W.safetensors | --no-network | --raster] [--orbit DEG]\n"
       "                       [--fps N] [--no-mp4] [--model M.npz] [--device cpu|gpu|P:D] [--quiet]\n"
-      "Poses the registered person (smplpix register --params) with frames A..B-1 of the motion (default:\n"
-      "all; A: or :B leave an end open), retargeted by joint name: a BVH clip as `smplpix repose` does,\n"
-      "or an AMASS .npz (poses, trans, mocap_framerate; SMPL's 24 or SMPL-H's 52 joints, hands dropped).\n"
+      "Poses the registered person (smplpix register --params), or the avatar of `smplpix avatar` (its body,\n"
+      "vertices, colours and network), with frames A..B-1 of the motion (default: all; A: or :B leave an end\n"
+      "open), retargeted by joint name: a BVH clip as `smplpix repose` does, or an AMASS .npz (poses, trans,\n"
+      "mocap_framerate; SMPL's 24 or SMPL-H's 52 joints, hands dropped).\n"
       "Each frame is projected through the one camera of C.json straight into the network on the device\n"
-      "and written as DIR/frame_NNNNNN.png (NNNNNN = the motion frame). The network is W, else the shipped\n"
-      "data/models/default.safetensors; --no-network writes the raw projection (the network's input) instead.\n"
+      "and written as DIR/frame_NNNNNN.png (NNNNNN = the motion frame). The network is the avatar's, else W,\n"
+      "else the shipped data/models/default.safetensors; --no-network writes the raw projection (the network's\n"
+      "input) instead, --raster the per-vertex raster of the same vertices (their mesh, 2x2 supersampled).\n"
       "--orbit DEG turns the camera DEG degrees per frame about the vertical axis through the body's centre\n"
       "in the first frame. With ffmpeg on PATH, DIR/animation.mp4 is made at --fps (default: the clip's\n"
-      "frame rate); --no-mp4 skips it. Colours: the registration's, else the surface normals.\n"
+      "frame rate); --no-mp4 skips it. Colours: the avatar's or the registration's, else the surface normals.\n"
       "Progress: a bar on stderr when it is a terminal, else a line per tenth of the frames on stdout;\n"
       "frames per second are reported at the end. Frames and video are written to temporaries and renamed\n"
       "into place together at the end: on failure nothing new is left (a folder it made is removed) and\n"
@@ -101,36 +105,118 @@ static void progress_show(progress *pg, int done, int total, int quiet) {
 }
 
 typedef struct opts {
-  const char *reg, *bvh, *amass, *cam, *out, *ckpt, *model, *spec, *frames;
-  int no_net, no_mp4, quiet;
+  const char *reg, *avatar, *bvh, *amass, *cam, *out, *ckpt, *model, *spec, *frames;
+  int no_net, raster, no_mp4, quiet;
   double orbit, fps;
 } opts;
 
-/* network output [3,H,W] or the projection (HWC, 4 channels) -> an RGB image */
-static void to_rgb(const float *src, int nchw, int W, int H, spx_image *img) {
-  size_t hw = (size_t)W * (size_t)H;
-  for (size_t p = 0; p < hw; p++)
-    for (int c = 0; c < 3; c++) img->data[p * 3 + (size_t)c] = nchw ? src[(size_t)c * hw + p] : src[p * 4 + (size_t)c];
+static const char *const C = "animate";
+
+/* ffmpeg reads the staged frames a..a+total-1 through hard links named as the frames will be, in
+ * DIR/frames.tmp.<pid> (*links, removed by the caller), and writes the staged DIR/animation.mp4. */
+static int encode_video(const opts *o, spx_tx *tx, const char *ffmpeg, long a, int total, double fps, char **links,
+                        char *mp4, size_t cap) {
+  char why[4400];
+  snprintf(mp4, cap, "%s/animation.mp4", o->out);
+  const char *vtmp = spx_tx_stage(tx, mp4);
+  size_t ln = strlen(o->out) + 64;
+  if (!vtmp || !(*links = malloc(ln))) return vtmp ? spx_cli_errorf(C, "out of memory") : SPX_EXIT_ERROR;
+  snprintf(*links, ln, "%s/frames.tmp.%ld", o->out, (long)getpid());
+  if (mkdir(*links, 0700) != 0) {
+    int rc = spx_cli_errorf(C, "%s: cannot create the folder: %s", *links, strerror(errno));
+    free(*links), *links = NULL;
+    return rc;
+  }
+  for (int i = 0; i < total; i++) {
+    char lp[4300];
+    snprintf(lp, sizeof lp, "%s/frame_%06ld.png", *links, a + i);
+    if (link(tx->f[i].temp, lp) != 0 && symlink(tx->f[i].temp, lp) != 0)
+      return spx_cli_errorf(C, "%s: cannot link a staged frame: %s", lp, strerror(errno));
+  }
+  int enc = spx_anim_encode_mp4(ffmpeg, *links, a, fps, vtmp, mp4, why, sizeof why);
+  if (interrupted) { /* Ctrl-C reached ffmpeg too: not its failure */
+    spx_cli_errorf(C, "interrupted while encoding %s: removed the %d frames written", mp4, total);
+    return 130;
+  }
+  return enc ? spx_cli_errorf(C, "%s", why) : SPX_EXIT_OK;
+}
+
+/* Frames a..b-1 of the motion drawn through cam0 into DIR (staged in tx). */
+static int draw_frames(spx_ctx *ctx, const opts *o, spx_anim_person *pe, const spx_anim_motion *mo,
+                       const spx_camera *cam0, spx_anim_drawer *d, long a, long b, spx_tx *tx) {
+  spx_image img = {0};
+  double *pose = malloc((size_t)pe->body->nj * 3 * sizeof(double)), centre[3] = {0, 0, 0};
+  float *pos = malloc((size_t)pe->nv * 3 * sizeof(float));
+  int rc = SPX_EXIT_OK, total = (int)(b - a);
+  if (!pose || !pos || spx_image_alloc(ctx, d->W, d->H, 3, &img)) rc = spx_cli_errorf(C, "out of memory");
+  progress pg = {isatty(STDERR_FILENO), 0, spx_now(), 0};
+  for (long f = a; f < b && !rc; f++) {
+    double trans[3];
+    if (interrupted) {
+      if (pg.tty && pg.shown) fputc('\n', stderr);
+      spx_cli_errorf(C, "interrupted at frame %ld: removed the %d frames written", f, spx_tx_count(tx));
+      rc = 130;
+      break;
+    }
+    if (spx_anim_motion_pose(ctx, mo, pe->body, (int32_t)f, pose, trans)) {
+      rc = spx_cli_errorf(C, "%s: frame %ld: %s", mo->path, f, spx_ctx_message(ctx));
+      break;
+    }
+    if ((rc = spx_anim_person_pose(C, ctx, pe, pose, trans, pos))) break;
+    if (f == a)
+      for (size_t i = 0; i < (size_t)pe->nv * 3; i++) centre[i % 3] += pos[i] / pe->nv;
+    spx_camera cam = *cam0;
+    if (o->orbit != 0) spx_anim_orbit(cam0, centre, o->orbit * (double)(f - a), &cam);
+    if (spx_anim_draw(ctx, d, pe, pos, &cam, &img)) {
+      rc = spx_cli_errorf(C, "frame %ld: %s", f, spx_ctx_message(ctx));
+      break;
+    }
+    char *path = malloc(strlen(o->out) + 32);
+    if (path) snprintf(path, strlen(o->out) + 32, "%s/frame_%06ld.png", o->out, f);
+    if ((rc = spx_cli_write_output(C, ctx, tx, path, &img))) break;
+    progress_show(&pg, (int)(f - a + 1), total, o->quiet);
+  }
+  spx_image_free(&img);
+  free(pose), free(pos);
+  return rc;
+}
+
+/* The inputs, checked before anything is written: the person (an avatar's network loads onto the
+ * device), the motion, the frames, the camera, the network. */
+static int open_inputs(spx_ctx *ctx, const opts *o, int mode, spx_anim_person *pe, spx_anim_motion *mo, long *a,
+                       long *b, spx_camera **cams, const char **ckpt) {
+  int rc, ncams = 0;
+  if (o->avatar && (rc = spx_cli_open_device(C, ctx, o->spec))) return rc;
+  if ((rc = spx_anim_person_open(C, ctx, o->reg, o->avatar, o->model, pe))) return rc;
+  if ((rc = spx_anim_motion_open(C, ctx, o->bvh, o->amass, pe->body, mo))) return rc;
+  if (o->frames) spx_anim_parse_frames(o->frames, a, b); /* checked in the caller */
+  if (*b < 0) *b = mo->nframes;
+  if (*a >= *b || *b > mo->nframes)
+    return spx_cli_errorf(C, "%s: --frames %ld:%ld is out of range (the clip has %d frames: 0:%d)", mo->path, *a, *b,
+                          mo->nframes, mo->nframes);
+  if ((rc = spx_cli_load_cameras(C, ctx, o->cam, cams, &ncams))) return rc;
+  const int W = (*cams)[0].width, H = (*cams)[0].height;
+  if (ncams != 1) return spx_cli_errorf(C, "%s: holds %d cameras; animate renders through one", o->cam, ncams);
+  if (mode == SPX_ANIM_NETWORK && (H < 16 || W < 16))
+    return spx_cli_errorf(C, "%s: %dx%d is too small (the UNet needs at least 16x16)", o->cam, W, H);
+  if (mode == SPX_ANIM_NETWORK && !o->avatar &&
+      !(*ckpt = spx_cli_checkpoint(C, o->ckpt, "--no-network (the raw projection)")))
+    return SPX_EXIT_ERROR;
+  return SPX_EXIT_OK;
 }
 
 static int run(spx_ctx *ctx, const opts *o) {
-  const char *C = "animate";
-  spx_fit_result r;
-  spx_body_model m;
+  spx_anim_person pe;
   spx_anim_motion mo;
-  memset(&r, 0, sizeof r), memset(&m, 0, sizeof m), memset(&mo, 0, sizeof mo);
+  spx_anim_drawer d;
+  memset(&pe, 0, sizeof pe), memset(&mo, 0, sizeof mo), memset(&d, 0, sizeof d);
   spx_camera *cams = NULL;
-  int ncams = 0, rc;
+  int rc, mode = o->raster ? SPX_ANIM_RASTER : o->no_net ? SPX_ANIM_PROJECTION : SPX_ANIM_NETWORK;
   long a = 0, b = -1;
   spx_unet *u = NULL;
-  spx_projector *proj = NULL;
-  spx_device_tensor *tin = NULL;
   spx_tx tx;
   spx_tx_begin(&tx, C, 0);
   char *links = NULL; /* DIR/frames.tmp.<pid>: the staged frames under their names, for ffmpeg */
-  spx_image img = {0};
-  double *pose = NULL, *work = NULL;
-  float *pos = NULL, *owned_col = NULL, *buf = NULL;
   const char *ckpt = NULL;
   struct sigaction sa, old_int;
   memset(&sa, 0, sizeof sa);
@@ -140,29 +226,8 @@ static int run(spx_ctx *ctx, const opts *o) {
   interrupted = 0;
   int handler_set = sigaction(SIGINT, &sa, &old_int) == 0;
   remove_dead_link_folders(o->out); /* a killed run's ffmpeg links */
-  /* every input is read and checked before anything is written */
-  if ((rc = spx_cli_load_registration(C, ctx, o->reg, o->model, &r, &m))) goto done;
-  if ((rc = spx_anim_motion_open(C, ctx, o->bvh, o->amass, &m, &mo))) goto done;
-  if (o->frames) spx_anim_parse_frames(o->frames, &a, &b); /* checked in the caller */
-  if (b < 0) b = mo.nframes;
-  rc = SPX_EXIT_ERROR;
-  if (a >= b || b > mo.nframes) {
-    rc = spx_cli_errorf(C, "%s: --frames %ld:%ld is out of range (the clip has %d frames: 0:%d)", mo.path, a, b,
-                        mo.nframes, mo.nframes);
-    goto done;
-  }
-  if ((rc = spx_cli_load_cameras(C, ctx, o->cam, &cams, &ncams))) goto done;
-  rc = SPX_EXIT_ERROR;
+  if ((rc = open_inputs(ctx, o, mode, &pe, &mo, &a, &b, &cams, &ckpt))) goto done;
   const int W = cams[0].width, H = cams[0].height;
-  if (ncams != 1) {
-    rc = spx_cli_errorf(C, "%s: holds %d cameras; animate renders through one", o->cam, ncams);
-    goto done;
-  }
-  if (!o->no_net && (H < 16 || W < 16)) {
-    rc = spx_cli_errorf(C, "%s: %dx%d is too small (the UNet needs at least 16x16)", o->cam, W, H);
-    goto done;
-  }
-  if (!o->no_net && !(ckpt = spx_cli_checkpoint(C, o->ckpt, "--no-network (the raw projection)"))) goto done;
   struct stat sb;
   if (stat(o->out, &sb) == 0 && !S_ISDIR(sb.st_mode)) {
     rc = spx_cli_errorf(C, "%s: exists and is not a directory", o->out);
@@ -174,108 +239,26 @@ static int run(spx_ctx *ctx, const opts *o) {
     snprintf(first, sizeof first, "%s/frame_%06ld.png", o->out, a);
     if ((rc = spx_tx_check(&tx, first))) goto done; /* writable, before any work */
   }
-  rc = SPX_EXIT_ERROR;
-  if ((rc = spx_cli_open_device(C, ctx, o->spec))) goto done;
+  if (!o->avatar && (rc = spx_cli_open_device(C, ctx, o->spec))) goto done;
   rc = SPX_EXIT_ERROR;
   if (spx_cli_failed(&rc, C, ctx, ckpt && spx_unet_load(ctx, ckpt, &u))) goto done;
-  size_t nv3 = (size_t)m.nv * 3, hw = (size_t)W * (size_t)H;
-  pose = malloc((size_t)m.nj * 3 * sizeof(double));
-  work = malloc(nv3 * sizeof(double));
-  pos = malloc(nv3 * sizeof(float));
-  buf = malloc(hw * 4 * sizeof(float));
-  if (!r.colors) owned_col = malloc(nv3 * sizeof(float));
-  if (!pose || !work || !pos || !buf || (!r.colors && !owned_col) || spx_image_alloc(ctx, W, H, 3, &img)) {
-    rc = spx_cli_errorf(C, "out of memory");
-    goto done;
-  }
-  if (spx_cli_failed(&rc, C, ctx,
-                     spx_projector_create(ctx, &proj) || (u && spx_device_tensor_create(ctx, 1, SPX_UNET_IN_CHANNELS, H, W, &tin))))
+  if (spx_cli_failed(&rc, C, ctx, spx_anim_drawer_init(ctx, &d, mode, pe.av ? spx_avatar_unet(pe.av) : u, W, H)))
     goto done;
   int total = (int)(b - a);
-  double centre[3] = {0, 0, 0}, t_start = spx_now();
-  progress pg = {isatty(STDERR_FILENO), 0, t_start, 0};
-  for (long f = a; f < b; f++) {
-    double trans[3];
-    if (interrupted) {
-      if (pg.tty && pg.shown) fputc('\n', stderr);
-      spx_cli_errorf(C, "interrupted at frame %ld: removed the %d frames written", f, spx_tx_count(&tx));
-      rc = 130;
-      goto done;
-    }
-    if (spx_anim_motion_pose(ctx, &mo, &m, (int32_t)f, pose, trans)) {
-      rc = spx_cli_errorf(C, "%s: frame %ld: %s", mo.path, f, spx_ctx_message(ctx));
-      goto done;
-    }
-    if ((rc = spx_cli_pose_registration(C, ctx, &m, &r, r.betas, pose, trans, work, pos))) goto done;
-    rc = SPX_EXIT_ERROR;
-    if (!r.colors) {
-      spx_mesh view = {m.nv, m.nf, pos, NULL, NULL, m.faces, 0, NULL, NULL};
-      spx_cli_normal_colors(&view, owned_col);
-    }
-    if (f == a) {
-      for (size_t i = 0; i < nv3; i++) centre[i % 3] += pos[i] / m.nv;
-    }
-    spx_camera cam = cams[0];
-    if (o->orbit != 0) spx_anim_orbit(&cams[0], centre, o->orbit * (double)(f - a), &cam);
-    spx_project_args pa = {1, m.nv, pos, r.colors ? r.colors : owned_col, 1, &cam,
-                           u ? SPX_LAYOUT_NCHW : SPX_LAYOUT_HWC};
-    spx_status st = u ? spx_project_to_tensor(ctx, proj, &pa, tin) : spx_project(ctx, proj, &pa, buf, NULL);
-    if (!st && u) st = spx_unet_forward_tensor(u, tin, buf);
-    if (st) {
-      rc = spx_cli_errorf(C, "frame %ld: %s", f, spx_ctx_message(ctx));
-      goto done;
-    }
-    to_rgb(buf, u != NULL, W, H, &img);
-    char *path = malloc(strlen(o->out) + 32);
-    if (path) snprintf(path, strlen(o->out) + 32, "%s/frame_%06ld.png", o->out, f);
-    if ((rc = spx_cli_write_output(C, ctx, &tx, path, &img))) goto done;
-    progress_show(&pg, (int)(f - a + 1), total, o->quiet);
-  }
-  double el = spx_now() - t_start;
-  rc = SPX_EXIT_ERROR;
+  double t_start = spx_now();
+  if ((rc = draw_frames(ctx, o, &pe, &mo, &cams[0], &d, a, b, &tx))) goto done;
+  double el = spx_now() - t_start, fps = o->fps > 0 ? o->fps : mo.fps;
   char mp4[4200] = "";
   const char *ffmpeg = o->no_mp4 ? NULL : spx_anim_find_ffmpeg();
-  if (ffmpeg) { /* ffmpeg reads the staged frames through hard links named as the frames will be */
-    char why[4400];
-    snprintf(mp4, sizeof mp4, "%s/animation.mp4", o->out);
-    const char *vtmp = spx_tx_stage(&tx, mp4);
-    size_t ln = strlen(o->out) + 64;
-    if (!vtmp || !(links = malloc(ln))) {
-      if (vtmp) spx_cli_errorf(C, "out of memory");
-      goto done;
-    }
-    snprintf(links, ln, "%s/frames.tmp.%ld", o->out, (long)getpid());
-    if (mkdir(links, 0700) != 0) {
-      rc = spx_cli_errorf(C, "%s: cannot create the folder: %s", links, strerror(errno));
-      free(links), links = NULL;
-      goto done;
-    }
-    for (int i = 0; i < total; i++) {
-      char lp[4300];
-      snprintf(lp, sizeof lp, "%s/frame_%06ld.png", links, a + i);
-      if (link(tx.f[i].temp, lp) != 0 && symlink(tx.f[i].temp, lp) != 0) {
-        rc = spx_cli_errorf(C, "%s: cannot link a staged frame: %s", lp, strerror(errno));
-        goto done;
-      }
-    }
-    int enc = spx_anim_encode_mp4(ffmpeg, links, a, o->fps > 0 ? o->fps : mo.fps, vtmp, mp4, why, sizeof why);
-    if (interrupted) { /* Ctrl-C reached ffmpeg too: not its failure */
-      spx_cli_errorf(C, "interrupted while encoding %s: removed the %d frames written", mp4, total);
-      rc = 130;
-      goto done;
-    }
-    if (enc) {
-      rc = spx_cli_errorf(C, "%s", why);
-      goto done;
-    }
-  }
+  if (ffmpeg && (rc = encode_video(o, &tx, ffmpeg, a, total, fps, &links, mp4, sizeof mp4))) goto done;
   if ((rc = spx_tx_commit(&tx))) goto done;
-  rc = SPX_EXIT_ERROR;
   if (!o->quiet) {
+    static const char *const how[3] = {"through the network", "as the raw projection (--no-network)",
+                                       "as the per-vertex raster (--raster)"};
     printf("animated %d frames (%ld..%ld of %s) at %dx%d %s in %.2f s: %.2f frames/s\n", total, a, b - 1, mo.path, W,
-           H, u ? "through the network" : "as the raw projection (--no-network)", el, el > 0 ? total / el : 0.0);
+           H, how[mode], el, el > 0 ? total / el : 0.0);
     printf("wrote %s/frame_%06ld.png .. frame_%06ld.png\n", o->out, a, b - 1);
-    if (ffmpeg) printf("wrote %s (%.3g frames/s)\n", mp4, o->fps > 0 ? o->fps : mo.fps);
+    if (ffmpeg) printf("wrote %s (%.3g frames/s)\n", mp4, fps);
     else if (!o->no_mp4) printf("ffmpeg is not on PATH: no MP4 written (install ffmpeg to get %s/animation.mp4)\n", o->out);
   }
   rc = SPX_EXIT_OK;
@@ -291,14 +274,11 @@ done:
     free(links);
   }
   spx_tx_end(&tx);
-  spx_image_free(&img);
-  free(pose), free(work), free(pos), free(buf), free(owned_col), free(cams);
-  spx_device_tensor_free(tin);
-  spx_projector_destroy(proj);
+  free(cams);
+  spx_anim_drawer_free(&d);
   spx_unet_destroy(u);
   spx_anim_motion_close(&mo);
-  spx_body_free(&m);
-  spx_fit_result_free(&r);
+  spx_anim_person_close(&pe);
   return rc;
 }
 
@@ -307,6 +287,7 @@ int spx_cmd_animate(int argc, char **argv) {
   memset(&o, 0, sizeof o);
   spx_opt optv[] = {SPX_O("--no-network", SPX_OPT_FLAG, &o.no_net), SPX_O("--no-mp4", SPX_OPT_FLAG, &o.no_mp4),
                     SPX_O("--quiet", SPX_OPT_FLAG, &o.quiet),       SPX_O("--registration", SPX_OPT_IN, &o.reg),
+                    SPX_O("--avatar", SPX_OPT_IN, &o.avatar),       SPX_O("--raster", SPX_OPT_FLAG, &o.raster),
                     SPX_O("--bvh", SPX_OPT_IN, &o.bvh),             SPX_O("--amass", SPX_OPT_IN, &o.amass),
                     SPX_O("--camera", SPX_OPT_IN, &o.cam),          SPX_O("--out", SPX_OPT_OUT, &o.out),
                     SPX_O("--checkpoint", SPX_OPT_IN, &o.ckpt),     SPX_O("--model", SPX_OPT_IN, &o.model),
@@ -318,9 +299,13 @@ int spx_cmd_animate(int argc, char **argv) {
   long fs, fe;
   if (o.frames && !spx_anim_parse_frames(o.frames, &fs, &fe))
     return spx_cli_usage("animate", "--frames: expected A:B (frames A..B-1), A: or :B, got '%s'", o.frames);
-  if (!o.reg || !o.cam || !o.out || !o.bvh == !o.amass)
-    return spx_cli_usage("animate", "--registration, --camera, --out and one of --bvh / --amass are required");
+  if (!o.reg == !o.avatar || !o.cam || !o.out || !o.bvh == !o.amass)
+    return spx_cli_usage("animate", "one of --registration / --avatar, --camera, --out and one of --bvh / --amass are "
+                         "required");
   if (o.no_net && o.ckpt) return spx_cli_usage("animate", "--no-network and --checkpoint exclude each other");
+  if (o.raster && (o.no_net || o.ckpt))
+    return spx_cli_usage("animate", "--raster draws without a network: it excludes --no-network and --checkpoint");
+  if (o.avatar && o.ckpt) return spx_cli_usage("animate", "--checkpoint: an avatar brings its own network");
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("animate", "out of memory");
   int rc = run(ctx, &o);

@@ -12,7 +12,7 @@
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
 
-static void print_progress(void *user, const spx_fit_progress *p) {
+void spx_cli_fit_progress(void *user, const spx_fit_progress *p) {
   (void)user;
   if (p->note) {
     printf("%s\n", p->note);
@@ -104,6 +104,23 @@ static int depth_scan(spx_ctx *ctx, const char *depth_path, const char *cam_path
   return rc;
 }
 
+int spx_cli_check_fit(const char *cmd, spx_ctx *ctx, const spx_mesh *scan, double unit_scale, const float *reg,
+                      int32_t nv, const int32_t *faces, int32_t nf, double dist[3]) {
+  float *pts = malloc((size_t)scan->nv * 3 * sizeof(float)), *rv = malloc((size_t)nv * 3 * sizeof(float));
+  int rc = SPX_EXIT_OK;
+  if (!pts || !rv) {
+    rc = spx_cli_errorf(cmd, "out of memory");
+  } else {
+    for (int32_t i = 0; i < scan->nv * 3; i++) pts[i] = (float)(scan->pos[i] * unit_scale);
+    for (int32_t i = 0; i < nv * 3; i++) rv[i] = (float)(reg[i] * unit_scale);
+    spx_status st = spx_fit_surface_distance(ctx, pts, scan->nv, rv, nv, faces, nf, NULL, &dist[0], &dist[1], &dist[2]);
+    if (!st) st = spx_fit_check_result(ctx, pts, scan->nv, rv, nv, dist[1]); /* exit 1 with the figures */
+    if (st) rc = spx_cli_error(cmd, ctx);
+  }
+  free(pts), free(rv);
+  return rc;
+}
+
 static void register_help(void) {
   printf("usage: smplpix register --scan S.ply|S.obj [--view C.json] [--model M.npz] --out R.ply [--params P.json]\n"
          "                        [--stages rigid,pose,free] [--threads N] [--units m|cm|mm]\n"
@@ -163,7 +180,6 @@ int spx_cmd_register(int argc, char **argv) {
   memset(&model, 0, sizeof model);
   spx_fit_result r;
   memset(&r, 0, sizeof r);
-  float *pts = NULL;
   spx_tx tx;
   spx_tx_begin(&tx, "register", 0);
   if ((rc = spx_tx_check(&tx, out_path)) || (params_path && (rc = spx_tx_check(&tx, params_path))))
@@ -190,7 +206,7 @@ int spx_cmd_register(int argc, char **argv) {
   o.stages = stages;
   o.threads = threads;
   o.unit_scale = units;
-  o.progress = print_progress;
+  o.progress = spx_cli_fit_progress;
   o.view = have_view;
   memcpy(o.view_eye, eye, sizeof eye);
   o.ceres_progress = getenv("SPX_FIT_CERES_PROGRESS") != NULL; /* debugging: Ceres's per-iteration output */
@@ -201,21 +217,9 @@ int spx_cmd_register(int argc, char **argv) {
     rc = spx_cli_errorf("register", "%s: %s", input, spx_ctx_message(ctx));
     goto done;
   }
-  /* final report in metres on the scan side */
-  pts = malloc((size_t)scan.nv * 3 * sizeof(float));
-  float *rv = malloc((size_t)r.nv * 3 * sizeof(float));
-  double mean = 0, med = 0, p95 = 0;
-  if (!pts || !rv) {
-    free(rv);
-    rc = spx_cli_errorf("register", "out of memory");
-    goto done;
-  }
-  for (int32_t i = 0; i < scan.nv * 3; i++) pts[i] = (float)(scan.pos[i] * r.unit_scale);
-  for (int32_t i = 0; i < r.nv * 3; i++) rv[i] = (float)(r.verts_scan[i] * r.unit_scale);
-  spx_status st = spx_fit_surface_distance(ctx, pts, scan.nv, rv, r.nv, r.faces, r.nf, NULL, &mean, &med, &p95);
-  if (!st) st = spx_fit_check_result(ctx, pts, scan.nv, rv, r.nv, med); /* exit 1 with the figures, no output */
-  free(rv);
-  if (spx_cli_failed(&rc, "register", ctx, st)) goto done;
+  double dist[3];
+  if ((rc = spx_cli_check_fit("register", ctx, &scan, r.unit_scale, r.verts_scan, r.nv, r.faces, r.nf, dist))) goto done;
+  double mean = dist[0], med = dist[1], p95 = dist[2];
   printf("time: rigid %.1f s, pose %.1f s, free %.1f s\n", r.stage_seconds[0], r.stage_seconds[1], r.stage_seconds[2]);
   printf("scan -> surface distance: mean %.2f mm, median %.2f mm, 95th percentile %.2f mm\n", mean * 1e3, med * 1e3,
          p95 * 1e3);
@@ -233,7 +237,6 @@ int spx_cmd_register(int argc, char **argv) {
   printf("wrote %s%s%s\n", out_path, params_path ? " and " : "", params_path ? params_path : "");
 done:
   spx_tx_end(&tx);
-  free(pts);
   spx_fit_result_free(&r);
   spx_mesh_free(&reg);
   spx_mesh_free(&scan);
