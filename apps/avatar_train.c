@@ -186,10 +186,11 @@ int av_train(const char *cmd, spx_ctx *ctx, const av_train_cfg *cfg, const av_se
   if (!rc && (spx_vgg16_open(ctx, cfg->vgg16, &r.vgg) || spx_lpips_load(ctx, cfg->lpips, &r.lp)))
     rc = spx_cli_error(cmd, ctx);
   if (!rc && !cfg->quiet)
-    printf("training: %d views (%dx%d), width %d, batch %zu: %lld steps L1 (lr %g), then %lld VGG16 (lr %g)%s\n",
+    printf("training: %d views (%dx%d), width %d, batch %zu: %lld steps L1 (lr %g), then %lld VGG16 (lr %g)\n",
            train->n, train->W, train->H, cfg->width, b, (long long)cfg->steps1, cfg->lr1, (long long)cfg->steps2,
-           cfg->lr2, r.step ? ", continuing" : "");
+           cfg->lr2);
   if (!rc && r.step && !cfg->quiet) printf("continuing at step %lld of %lld\n", (long long)r.step, (long long)r.total);
+  fflush(stdout);
   if (!rc) rc = loop(&r, train, val);
   *cpu = r.cpu_prev + av_cpu_now() - r.cpu0;
   spx_vgg_destroy(r.vgg);

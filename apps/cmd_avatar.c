@@ -187,15 +187,13 @@ static int load_body(avatar_job *j) {
   spx_loop_plan_free(&p[0]), spx_loop_plan_free(&p[1]);
   if (rc) return rc;
   j->subdivide = -1;
-  for (int l = 0; l < 3; l++) {
-    char name[32];
-    snprintf(name, sizeof name, "%dk", (int)lround(counts[l] / 1000.0));
-    if (!strcmp(name, want)) j->subdivide = l;
-  }
+  long n = atol(want);
+  for (int l = 0; l < 3; l++) /* 13,380 is "13k", 6,890 "7k" (or "6k"), 53,514 "53k" */
+    if (j->subdivide < 0 && (n == counts[l] / 1000 || n == lround(counts[l] / 1000.0))) j->subdivide = l;
   if (j->subdivide < 0)
-    return spx_cli_errorf(C, "--vertices %s: the body %s has %d vertices (%dk), %d after one Loop step (%dk) and %d after "
-                          "two (%dk)", want, j->model_path, counts[0], (int)lround(counts[0] / 1000.0), counts[1],
-                          (int)lround(counts[1] / 1000.0), counts[2], (int)lround(counts[2] / 1000.0));
+    return spx_cli_errorf(C, "--vertices %s: the body %s has %d vertices, %d after one Loop step and %d after two "
+                          "(--vertices %dk, %dk or %dk)", want, j->model_path, counts[0], counts[1], counts[2],
+                          counts[0] / 1000, counts[1] / 1000, counts[2] / 1000);
   return SPX_EXIT_OK;
 }
 
@@ -371,6 +369,7 @@ static int registration(avatar_job *j) {
     fo.threads = 2;
     fo.progress = j->o->quiet ? NULL : spx_cli_fit_progress;
     if (!j->o->quiet) printf("registering %s (%d points) to %s\n", j->o->scan, j->scan.nv, j->model_path);
+    fflush(stdout);
     double c0 = av_cpu_now();
     if (spx_fit_register(j->ctx, &j->m, &j->scan, &fo, &j->r))
       return spx_cli_errorf(C, "%s: %s", j->o->scan, spx_ctx_message(j->ctx));
@@ -392,10 +391,11 @@ static int registration(avatar_job *j) {
       const double *R = r->sim_R + a * 3, *x = v + (size_t)i * 3, k = r->sim_scale * r->body_scale;
       vs[i * 3 + a] = (float)((k * (R[0] * x[0] + R[1] * x[1] + R[2] * x[2]) + r->sim_t[a]) / r->unit_scale);
     }
-  if (!rc) rc = spx_cli_check_fit(C, j->ctx, &j->scan, r->unit_scale, vs, j->m.nv, j->m.faces, j->m.nf, dist);
+  if (!rc) rc = spx_cli_check_fit(C, j->ctx, j->o->scan, &j->scan, r->unit_scale, vs, j->m.nv, j->m.faces, j->m.nf, dist);
   free(v), free(vs);
   if (rc || access(j->regp, F_OK) == 0) return rc;
   if (!j->o->quiet) printf("registration: scan -> surface distance mean %.2f mm, median %.2f mm\n", dist[0] * 1e3, dist[1] * 1e3);
+  fflush(stdout);
   char cpu[64];
   snprintf(cpu, sizeof cpu, "%.17g\n", j->cpu_register);
   spx_tx tx;
@@ -451,7 +451,7 @@ static int finish(avatar_job *j, const av_train_cfg *tc, double train_cpu) {
   int rc = av_score(C, j->ctx, j->a, &j->held, j->lpips, o->out, &tx, &sa, &sr);
   snprintf(path, sizeof path, "%s/avatar.safetensors", o->out);
   snprintf(steps, sizeof steps, "%ld+%ld", tc->steps1, tc->steps2);
-  snprintf(src, sizeof src, "smplpix-avatar/%dk", (int)lround(info.vertices / 1000.0));
+  snprintf(src, sizeof src, "smplpix-avatar/%s", o->vertices ? o->vertices : "13k");
   const char *keys[] = {"smplpix.avatar.steps", "smplpix.avatar.loss", "smplpix.source"};
   const char *vals[] = {steps, "l1,vgg16", src};
   const char *tmp = rc ? NULL : spx_tx_stage(&tx, path);
@@ -502,6 +502,7 @@ static int run(avatar_job *j) {
   if (!o->quiet)
     printf("data: %d training, %d validation, %d held-out views of %dx%d in %.1f s\n", j->train.n, j->val.n, j->held.n,
            o->size[0], o->size[1], spx_now() - t);
+  fflush(stdout);
   if (stopped(j)) return 130;
   long s1 = o->steps / 4;
   av_train_cfg tc = {(int)o->width, 4, s1, o->steps - s1, 2e-3, 2e-4, 100, o->steps >= 10 ? o->steps / 10 : 1,

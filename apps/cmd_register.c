@@ -104,8 +104,8 @@ static int depth_scan(spx_ctx *ctx, const char *depth_path, const char *cam_path
   return rc;
 }
 
-int spx_cli_check_fit(const char *cmd, spx_ctx *ctx, const spx_mesh *scan, double unit_scale, const float *reg,
-                      int32_t nv, const int32_t *faces, int32_t nf, double dist[3]) {
+int spx_cli_check_fit(const char *cmd, spx_ctx *ctx, const char *scan_path, const spx_mesh *scan, double unit_scale,
+                      const float *reg, int32_t nv, const int32_t *faces, int32_t nf, double dist[3]) {
   float *pts = malloc((size_t)scan->nv * 3 * sizeof(float)), *rv = malloc((size_t)nv * 3 * sizeof(float));
   int rc = SPX_EXIT_OK;
   if (!pts || !rv) {
@@ -115,7 +115,7 @@ int spx_cli_check_fit(const char *cmd, spx_ctx *ctx, const spx_mesh *scan, doubl
     for (int32_t i = 0; i < nv * 3; i++) rv[i] = (float)(reg[i] * unit_scale);
     spx_status st = spx_fit_surface_distance(ctx, pts, scan->nv, rv, nv, faces, nf, NULL, &dist[0], &dist[1], &dist[2]);
     if (!st) st = spx_fit_check_result(ctx, pts, scan->nv, rv, nv, dist[1]); /* exit 1 with the figures */
-    if (st) rc = spx_cli_error(cmd, ctx);
+    if (st) rc = spx_cli_errorf(cmd, "%s: %s", scan_path, spx_ctx_message(ctx));
   }
   free(pts), free(rv);
   return rc;
@@ -218,7 +218,7 @@ int spx_cmd_register(int argc, char **argv) {
     goto done;
   }
   double dist[3];
-  if ((rc = spx_cli_check_fit("register", ctx, &scan, r.unit_scale, r.verts_scan, r.nv, r.faces, r.nf, dist))) goto done;
+  if ((rc = spx_cli_check_fit("register", ctx, input, &scan, r.unit_scale, r.verts_scan, r.nv, r.faces, r.nf, dist))) goto done;
   double mean = dist[0], med = dist[1], p95 = dist[2];
   printf("time: rigid %.1f s, pose %.1f s, free %.1f s\n", r.stage_seconds[0], r.stage_seconds[1], r.stage_seconds[2]);
   printf("scan -> surface distance: mean %.2f mm, median %.2f mm, 95th percentile %.2f mm\n", mean * 1e3, med * 1e3,
