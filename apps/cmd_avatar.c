@@ -48,8 +48,8 @@ static void avatar_help(void) {
       "supersampled): N training views (default 48), 4 validation views and --heldout held-out views\n"
       "(default 8; poses from the end of the clip and cameras never used in training). The inputs are the\n"
       "projection of the posed registration at --vertices (default 13k; the body's count, or after one or two\n"
-      "Loop steps), coloured from the scan. Trains a UNet of --width (default 16) at --size (default 192x256)\n"
-      "for K steps (default 3000; the first quarter with the L1 loss, the rest with the VGG16 perceptual loss\n"
+      "Loop steps), coloured from the scan. Trains a UNet of --width (default 16) at --size (default 192x256),\n"
+      "2 views a step, for K steps (default 3000; the first quarter with the L1 loss, the rest with the VGG16 loss\n"
       "of `make weights`), printing the validation PSNR and LPIPS, and writes A/avatar.safetensors (network,\n"
       "registration, vertex colours, metadata), A/report.md, A/report.json and A/report.png (held-out PSNR,\n"
       "LPIPS and detail of the avatar and of the per-vertex raster of the same vertices).\n"
@@ -505,7 +505,7 @@ static int run(avatar_job *j) {
   fflush(stdout);
   if (stopped(j)) return 130;
   long s1 = o->steps / 4;
-  av_train_cfg tc = {(int)o->width, 4, s1, o->steps - s1, 2e-3, 2e-4, 100, o->steps >= 10 ? o->steps / 10 : 1,
+  av_train_cfg tc = {(int)o->width, 2, s1, o->steps - s1, 2e-3, 2e-4, 100, o->steps >= 10 ? o->steps / 10 : 1,
                      (uint64_t)o->seed, j->ckpt, j->vgg16, j->lpips, o->quiet, &interrupted};
   spx_unet *u = NULL;
   double train_cpu = 0, c0 = av_cpu_now();
