@@ -32,7 +32,18 @@ typedef struct av_run {
   double loss_sum;
   int loss_count;
   double t0;
+  double val_psnr, val_lpips; /* the last validation (NAN before the first) */
+  int tty, bar_shown;         /* the in-place progress bar on a terminal */
+  double bar_t, start_t;
+  int64_t start_step;
 } av_run;
+
+static void bar_clear(av_run *r) {
+  if (!r->bar_shown) return;
+  fputs("\r\033[K", stderr);
+  fflush(stderr);
+  r->bar_shown = 0;
+}
 
 static int stage_of(const av_run *r, int64_t step) { return step < r->cfg->steps1 ? 1 : 2; }
 
@@ -115,7 +126,8 @@ static int one_step(av_run *r, const av_set *tr) {
     memcpy(r->in + (size_t)k * ni, tr->in + (size_t)r->perm[first + k] * ni, ni * sizeof(float));
     memcpy(r->tg + (size_t)k * no, tr->tg + (size_t)r->perm[first + k] * no, no * sizeof(float));
   }
-  if (r->step == c->steps1 && spx_unet_reset_optimizer(r->u)) return spx_cli_error(r->cmd, r->ctx); /* stage 2 */
+  if (r->step == c->steps1 && spx_unet_reset_optimizer(r->u)) /* stage 2 */
+    return bar_clear(r), spx_cli_error(r->cmd, r->ctx);
   float loss = 0;
   spx_status st;
   if (stage_of(r, r->step) == 1) {
@@ -127,18 +139,38 @@ static int one_step(av_run *r, const av_set *tr) {
     st = spx_unet_vgg_step(r->u, r->vgg, r->in, r->tg, n, tr->H, tr->W, c->lr2, &gl);
     loss = gl.vgg;
   }
-  if (st) return spx_cli_error(r->cmd, r->ctx);
+  if (st) return bar_clear(r), spx_cli_error(r->cmd, r->ctx);
   if (!isfinite(loss))
-    return spx_cli_errorf(r->cmd, "the training loss became %g at step %lld", loss, (long long)r->step);
+    return bar_clear(r), spx_cli_errorf(r->cmd, "the training loss became %g at step %lld", loss, (long long)r->step);
   r->loss_sum += loss, r->loss_count++;
   r->step++;
   return SPX_EXIT_OK;
 }
 
+/* On a terminal: [####......] step, stage, loss, the last validation scores, time per step, ETA
+ * (redrawn at most 10 times a second). */
+static void bar_show(av_run *r) {
+  double t = spx_now();
+  if (!r->tty || r->cfg->quiet || (r->bar_shown && t - r->bar_t < 0.1 && r->step < r->total)) return;
+  double per = r->step > r->start_step ? (t - r->start_t) / (double)(r->step - r->start_step) : 0;
+  char bar[21], val[64] = "";
+  int fill = (int)(20 * r->step / (r->total ? r->total : 1));
+  for (int k = 0; k < 20; k++) bar[k] = k < fill ? '#' : '.';
+  bar[20] = 0;
+  if (isfinite(r->val_psnr)) snprintf(val, sizeof val, "  validation %.2f dB, LPIPS %.4f", r->val_psnr, r->val_lpips);
+  fprintf(stderr, "\r\033[K[%s] step %lld/%lld (%s) loss %.5f%s  %.2f s/step  ETA %.0f s", bar, (long long)r->step,
+          (long long)r->total, stage_of(r, r->step > 0 ? r->step - 1 : 0) == 1 ? "L1" : "VGG16",
+          r->loss_count ? r->loss_sum / r->loss_count : 0.0, val, per, per * (double)(r->total - r->step));
+  fflush(stderr);
+  r->bar_shown = 1, r->bar_t = t;
+}
+
 /* The progress line of the steps since the last one, with the validation scores. */
 static int report(av_run *r, const av_set *val) {
   double ps = 0, lp = 0;
+  bar_clear(r);
   int rc = val->n ? validate(r, val, &ps, &lp) : SPX_EXIT_OK;
+  r->val_psnr = ps, r->val_lpips = lp;
   if (rc || r->cfg->quiet) return rc;
   double el = spx_now() - r->t0, per = r->loss_count ? el / r->loss_count : 0;
   printf("step %lld/%lld (%s): loss %.5f, validation PSNR %.2f dB, LPIPS %.4f, %.2f s/step, ETA %.0f s\n",
@@ -152,15 +184,17 @@ static int report(av_run *r, const av_set *val) {
 static int loop(av_run *r, const av_set *tr, const av_set *val) {
   const av_train_cfg *c = r->cfg;
   int stop = spx_test_hook_int("SPX_TEST_AVATAR_STOP_STEP"), sig = spx_test_hook_int("SPX_TEST_AVATAR_STOP_SIGNAL");
-  r->t0 = spx_now();
+  r->t0 = r->start_t = spx_now(), r->start_step = r->step;
   while (r->step < r->total) {
     int rc = one_step(r, tr);
     if (rc) return rc;
+    bar_show(r);
     if (r->step == stop) raise(sig > 0 ? sig : SIGKILL); /* the tests' kill at a step */
     int end_stage = r->step == c->steps1 || r->step == r->total;
     if ((r->step % c->val_every == 0 || end_stage) && (rc = report(r, val))) return rc;
-    if ((r->step % c->save_every == 0 || end_stage || *c->interrupted) && (rc = save(r))) return rc;
+    if ((r->step % c->save_every == 0 || end_stage || *c->interrupted) && (bar_clear(r), rc = save(r))) return rc;
     if (*c->interrupted && r->step < r->total) {
+      bar_clear(r);
       fprintf(stderr, "smplpix %s: interrupted after training step %lld of %lld: saved %s (continue with --resume)\n",
               r->cmd, (long long)r->step, (long long)r->total, c->ckpt);
       return 130;
@@ -174,6 +208,7 @@ int av_train(const char *cmd, spx_ctx *ctx, const av_train_cfg *cfg, const av_se
   av_run r;
   memset(&r, 0, sizeof r);
   r.cmd = cmd, r.ctx = ctx, r.cfg = cfg, r.total = cfg->steps1 + cfg->steps2, r.cpu0 = av_cpu_now();
+  r.val_psnr = r.val_lpips = NAN, r.tty = isatty(STDERR_FILENO);
   size_t hw = (size_t)train->W * train->H, b = (size_t)(cfg->batch < train->n ? cfg->batch : train->n);
   r.in = malloc(b * SPX_UNET_IN_CHANNELS * hw * sizeof(float));
   r.tg = malloc(b * SPX_UNET_OUT_CHANNELS * hw * sizeof(float));
@@ -192,6 +227,7 @@ int av_train(const char *cmd, spx_ctx *ctx, const av_train_cfg *cfg, const av_se
   if (!rc && r.step && !cfg->quiet) printf("continuing at step %lld of %lld\n", (long long)r.step, (long long)r.total);
   fflush(stdout);
   if (!rc) rc = loop(&r, train, val);
+  bar_clear(&r);
   *cpu = r.cpu_prev + av_cpu_now() - r.cpu0;
   spx_vgg_destroy(r.vgg);
   spx_lpips_free(r.lp);
