@@ -44,14 +44,14 @@ model-card:
 	sh scripts/model_card.sh data/models/default.safetensors benchmarks/TABLE1.md data/models/README.md
 
 # Train a small SMPLpix network: 48 orbit views of the shipped body (projections -> raster renders,
-# 128x96), a width-16 UNet for TRAIN_DEMO_STEPS Adam steps (validation L1/PSNR printed at the start
+# 96x128), a width-16 UNet for TRAIN_DEMO_STEPS Adam steps (validation L1/PSNR printed at the start
 # and after every epoch), then render one validation view to out/train-demo/render.png.
 TRAIN_DEMO_STEPS ?= 400
 TD = out/train-demo
 train-demo: build
 	@rm -rf $(TD) && mkdir -p $(TD)
 	./$(BUILD)/smplpix dataset --mesh data/body/human_woman.obj --out $(TD)/data --orbit 48 \
-	    --elevations -10,15,35 --size 128x96 --aa 2 --seed 1
+	    --elevations -10,15,35 --size 96x128 --aa 2 --seed 1
 	./$(BUILD)/smplpix train --data $(TD)/data --out $(TD)/unet16.safetensors --width 16 --batch 4 \
 	    --lr 3e-3 --steps $(TRAIN_DEMO_STEPS) --seed 1
 	@v=$$(ls $(TD)/data/validation/input | head -n 1) && v=$${v%.*} && \

@@ -30,9 +30,12 @@ static const char *USAGE =
     "order, and DIR/cameras.json holds the cameras. Views go to the splits in a random order drawn from\n"
     "--seed (default 0), in the proportions of --split (train,validation,test; they must sum to 1).\n"
     "--orbit N: N cameras looking at the mesh's bounding-box centre from azimuths 360*i/N degrees around\n"
-    "the +y axis, view i at elevation E[i % count] degrees (default 0); --size WxH (default 410x308),\n"
-    "--focal in pixels (default max(W,H)), --distance (default: the nearest distance at which every\n"
-    "view holds the whole mesh with a 5% margin). DIR must be empty or absent unless --force, which\n"
+    "the +y axis, view i at elevation E[i % count] degrees (default 0), --size WxH (default 308x410,\n"
+    "portrait), framed as a scanner photo: the mesh's projected bounding box fills 90% of the image\n"
+    "height (or width, when wider), centred (docs/synth.md), seen from --distance (default: twice the\n"
+    "mesh's largest side). --focal F (pixels) fixes the focal length instead, the principal point at\n"
+    "the centre and the distance, unless given, the nearest at which every view holds the whole mesh\n"
+    "with a 5% margin. DIR must be empty or absent unless --force, which\n"
     "replaces the data set (images of an earlier run that this one did not write are removed). The files\n"
     "appear together when all are written and flushed to disk: on failure nothing this run wrote is left\n"
     "behind and files that were there before keep their contents.\n";
@@ -93,7 +96,10 @@ static int dir_nonempty(const char *dir) {
   return any;
 }
 
-/* Cameras on an orbit around the mesh (see USAGE). */
+/* Cameras on an orbit around the mesh (see USAGE): framed as a scanner photo (spx_camera_frame:
+ * the mesh's projected box fills SPX_FRAME_FILL of the height, or of the width, centred), or with
+ * a fixed focal length at the image centre (--focal: at --distance, or the nearest distance at
+ * which every vertex lands inside 95% of every view). */
 static int orbit_cameras(spx_ctx *ctx, const spx_mesh *m, long n, const double *elev, int ne, int W, int H,
                          double focal, double distance, spx_camera **out) {
   spx_camera *cams = calloc((size_t)n, sizeof *cams);
@@ -104,7 +110,7 @@ static int orbit_cameras(spx_ctx *ctx, const spx_mesh *m, long n, const double *
   for (int k = 0; k < 3; k++) c[k] = 0.5 * (lo[k] + hi[k]);
   const double up[3] = {0, 1, 0}, pi = 3.14159265358979323846;
   double dir[3];
-  if (!(distance > 0)) { /* nearest distance at which every vertex lands inside 95% of every view */
+  if (focal > 0 && !(distance > 0)) { /* the nearest distance at which every view holds the mesh */
     distance = 0;
     for (long i = 0; i < n; i++) {
       double az = 2 * pi * (double)i / (double)n, el = elev[i % ne] * pi / 180;
@@ -118,8 +124,7 @@ static int orbit_cameras(spx_ctx *ctx, const spx_mesh *m, long n, const double *
       for (int32_t v = 0; v < m->nv; v++) {
         double p[3] = {m->pos[3 * v] - c[0], m->pos[3 * v + 1] - c[1], m->pos[3 * v + 2] - c[2]}, q[3];
         for (int r = 0; r < 3; r++) q[r] = cam.R[r][0] * p[0] + cam.R[r][1] * p[1] + cam.R[r][2] * p[2];
-        double need = fmax(fabs(q[0]) * focal / (0.475 * W), fabs(q[1]) * focal / (0.475 * H)) - q[2];
-        distance = fmax(distance, need);
+        distance = fmax(distance, fmax(fabs(q[0]) * focal / (0.475 * W), fabs(q[1]) * focal / (0.475 * H)) - q[2]);
       }
     }
     if (!(distance > 0)) distance = 1;
@@ -128,7 +133,9 @@ static int orbit_cameras(spx_ctx *ctx, const spx_mesh *m, long n, const double *
     double az = 2 * pi * (double)i / (double)n, el = elev[i % ne] * pi / 180;
     dir[0] = cos(el) * sin(az), dir[1] = sin(el), dir[2] = cos(el) * cos(az);
     double eye[3] = {c[0] + distance * dir[0], c[1] + distance * dir[1], c[2] + distance * dir[2]};
-    if (spx_camera_look_at(ctx, W, H, focal, eye, c, up, &cams[i])) {
+    spx_status st = focal > 0 ? spx_camera_look_at(ctx, W, H, focal, eye, c, up, &cams[i])
+                              : spx_camera_frame(ctx, m->nv, m->pos, W, H, az, el, distance, SPX_FRAME_FILL, &cams[i]);
+    if (st) {
       free(cams);
       return spx_cli_errorf("dataset", "--orbit: camera %ld: %s", i, spx_ctx_message(ctx));
     }
@@ -139,7 +146,7 @@ static int orbit_cameras(spx_ctx *ctx, const spx_mesh *m, long n, const double *
 
 int spx_cmd_dataset(int argc, char **argv) {
   spx_cli_scene_opts o = {.color = "auto"};
-  const char *split_s = "0.8,0.1,0.1", *fmt = "exr", *elev_s = "0", *size_s = "410x308", *aa_s = "1";
+  const char *split_s = "0.8,0.1,0.1", *fmt = "exr", *elev_s = "0", *size_s = "308x410", *aa_s = "1";
   const char *orbit_s = NULL, *seed_s = "0", *dist_s = NULL, *focal_s = NULL;
   int force = 0;
   const spx_cli_optdef defs[] = {{"--split", &split_s, NULL, 0},     {"--seed", &seed_s, NULL, 0},
@@ -177,7 +184,7 @@ int spx_cmd_dataset(int argc, char **argv) {
   W = wi, H = hi;
   if (dist_s && (parse_list(dist_s, &dist, 1) != 1 || !(dist > 0)))
     return spx_cli_usage("dataset", "--distance %s: expected a positive number", dist_s);
-  focal = (double)(W > H ? W : H);
+  focal = 0; /* framed (spx_camera_frame) unless --focal fixes it */
   if (focal_s && (parse_list(focal_s, &focal, 1) != 1 || !(focal > 0)))
     return spx_cli_usage("dataset", "--focal %s: expected a positive number of pixels", focal_s);
 

@@ -26,9 +26,10 @@ static void demo_help(void) {
          "                    [--zoom Z] [--motion K [--motion-step T]] [--device cpu|gpu|P:D] [--quiet]\n"
          "Renders the shipped body (data/body/default_body.npz) with the appearance of synthetic subject S\n"
          "(smplpix synth's texture sampled at the body's UVs; its shape too), reposed to frame N (default 600)\n"
-         "of the shipped motion (data/mocap/01_01.bvh), seen from the front at WxH (default: the size the\n"
-         "network was trained at, its metadata smplpix.image_size, else 128x96), with as many vertices as\n"
-         "the network was trained on (smplpix.source ending in 53k: one Loop step, 53,514; else 13,380).\n"
+         "of the shipped motion (data/mocap/01_01.bvh), seen from the front and framed as smplpix synth\n"
+         "frames its photos, at WxH: the size the network was trained at (its metadata smplpix.image_size;\n"
+         "--size must agree with it), else --size, else 96x128; with as many vertices as the network was\n"
+         "trained on (smplpix.source ending in 53k: one Loop step, 53,514; else 13,380).\n"
          "Writes to DIR (default out; made if missing, its parent must exist), all files at once or none:\n"
          "  demo_photo.png    the ground truth: the subject's textured scan in that pose, lit, as smplpix\n"
          "                    synth draws the photos the network learns from\n"
@@ -52,9 +53,9 @@ typedef struct demo_opts {
 } demo_opts;
 
 static int parse(int argc, char **argv, demo_opts *o) {
-  o->out_dir = "out", o->frame = 600, o->seed = 3, o->W = 128, o->H = 96, o->zoom = 1;
+  o->out_dir = "out", o->frame = 600, o->seed = 3, o->W = 96, o->H = 128, o->zoom = 1;
   long zoom = 1, seed = 3;
-  int wh[2] = {128, 96};
+  int wh[2] = {96, 128};
   spx_opt opts[] = {SPX_O("--quiet", SPX_OPT_FLAG, &o->quiet),
                     SPX_O("--out", SPX_OPT_OUT, &o->out_dir),
                     SPX_O("--checkpoint", SPX_OPT_IN, &o->ckpt),
@@ -91,25 +92,26 @@ typedef struct demo_scene {
   spx_camera cam;
 } demo_scene;
 
-/* What the network was trained at, from its metadata: the image size (when --size is not given)
+/* What the network was trained at, from its metadata: the image size (--size must agree with it)
  * and the vertex count (smplpix.source ending in "53k": one Loop step). */
 static int network_setup(spx_ctx *ctx, const char *ckpt, demo_opts *o, int *subdivide) {
   *subdivide = 0;
   if (!ckpt) return SPX_EXIT_OK;
+  int w = 0, h = 0, r = spx_cli_net_size("demo", ctx, ckpt, &w, &h);
+  if (r < 0) return SPX_EXIT_ERROR;
+  if (r && o->size_given && (w != o->W || h != o->H)) {
+    char what[48];
+    snprintf(what, sizeof what, "--size %dx%d", o->W, o->H);
+    return spx_cli_net_size_check("demo", ctx, ckpt, o->W, o->H, what);
+  }
+  if (r) o->W = w, o->H = h;
   spx_st_file f;
   if (spx_st_load(ctx, ckpt, &f)) return spx_cli_error("demo", ctx);
-  const char *size = spx_st_meta(&f, "smplpix.image_size"), *src = spx_st_meta(&f, "smplpix.source");
-  int w = 0, h = 0, n = 0, rc = SPX_EXIT_OK;
-  if (!o->size_given && size) {
-    if (sscanf(size, "%dx%d%n", &w, &h, &n) != 2 || size[n] || w < 16 || h < 16 || w > 4096 || h > 4096)
-      rc = spx_cli_errorf("demo", "%s: metadata smplpix.image_size '%s' is not WxH (16..4096)", ckpt, size);
-    else
-      o->W = w, o->H = h;
-  }
+  const char *src = spx_st_meta(&f, "smplpix.source");
   size_t len = src ? strlen(src) : 0;
   *subdivide = len >= 3 && !strcmp(src + len - 3, "53k");
   spx_st_free(&f);
-  return rc;
+  return SPX_EXIT_OK;
 }
 
 static int load_scene(spx_ctx *ctx, const demo_opts *o, demo_scene *s) {
@@ -157,6 +159,7 @@ done:
 static int pose_scene(spx_ctx *ctx, const demo_opts *o, long frame, int subdivide, demo_scene *s) {
   int rc = SPX_EXIT_ERROR, nv = s->m.nv;
   double *v = malloc((size_t)nv * 3 * sizeof(double));
+  float *scan = NULL; /* the posed scan, which the camera frames */
   spx_mesh base = {0}; /* the posed base body (before any goto: done frees it) */
   base.nv = nv, base.nf = s->m.nf, base.faces = s->m.faces;
   base.pos = malloc((size_t)nv * 3 * sizeof(float));
@@ -171,17 +174,16 @@ static int pose_scene(spx_ctx *ctx, const demo_opts *o, long frame, int subdivid
   if (spx_cli_failed(&rc, "demo", ctx, spx_bvh_map_pose(ctx, &s->map, &s->bvh, &s->m, (int32_t)frame, s->pose, s->trans)) ||
       spx_cli_failed(&rc, "demo", ctx, spx_body_forward_ref(ctx, &s->m, &p, v, NULL)))
     goto done;
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (int32_t k = 0; k < nv * 3; k++) {
-    base.pos[k] = (float)v[k];
-    lo[k % 3] = fmin(lo[k % 3], v[k]), hi[k % 3] = fmax(hi[k % 3], v[k]);
+  for (int32_t k = 0; k < nv * 3; k++) base.pos[k] = (float)v[k];
+  /* framed as smplpix synth frames the photos the network learnt from (docs/synth.md): the posed
+     scan's projected box fills SPX_FRAME_FILL of the height, seen from the front, 10 degrees up */
+  if (!(scan = malloc((size_t)s->sub.nv * 3 * sizeof(float)))) {
+    rc = spx_cli_errorf("demo", "out of memory");
+    goto done;
   }
-  /* framed like the synth photos the network learnt from: focal 1.4 H, the body filling 80% */
-  double target[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
-  double ext_v = hi[1] - lo[1], ext_h = fmax(hi[0] - lo[0], hi[2] - lo[2]), focal = 1.4 * o->H;
-  double dist = focal * fmax(ext_v / (0.8 * o->H), ext_h / (0.8 * o->W)) + 0.25 * ext_h;
-  if (spx_cli_failed(&rc, "demo", ctx,
-                     spx_synth_camera(ctx, o->W, o->H, 0.0, 10 * PI / 180, dist, focal, target, &s->cam)))
+  if (spx_cli_failed(&rc, "demo", ctx, spx_synth_pose(ctx, &s->m, &s->sub, s->pose, s->trans, scan)) ||
+      spx_cli_failed(&rc, "demo", ctx,
+                     spx_camera_frame(ctx, s->sub.nv, scan, o->W, o->H, 0.0, 10 * PI / 180, 0, SPX_FRAME_FILL, &s->cam)))
     goto done;
   if (subdivide) {
     if (spx_cli_failed(&rc, "demo", ctx, spx_mesh_subdivide(ctx, &base, 1, &s->body))) goto done;
@@ -196,7 +198,7 @@ static int pose_scene(spx_ctx *ctx, const demo_opts *o, long frame, int subdivid
   rc = SPX_EXIT_OK;
 done:
   free(base.pos), free(base.col);
-  free(v);
+  free(v), free(scan);
   return rc;
 }
 

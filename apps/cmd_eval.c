@@ -1,6 +1,6 @@
-/* smplpix eval: PSNR, SSIM and LPIPS (the cached weights of `make weights`, or --lpips W) of
- * predicted images against targets, for two files or two folders matched by name
- * (smplpix/metrics.h does the arithmetic). */
+/* smplpix eval: PSNR, SSIM, LPIPS (the cached weights of `make weights`, or --lpips W) and detail
+ * (the mean absolute image gradient, prediction / target) of predicted images against targets,
+ * for two files or two folders matched by name (smplpix/metrics.h does the arithmetic). */
 #include <dirent.h>
 #include <errno.h>
 #include <math.h>
@@ -30,10 +30,13 @@ static void eval_help(void) {
          "weights/lpips_alex.safetensors when that file exists (smaller images: n/a); --lpips W uses W\n"
          "instead (tools/lpips_to_safetensors.py converts the lpips package's; smaller images: an error);\n"
          "--no-lpips leaves LPIPS out.\n"
+         "Detail: the mean absolute image gradient of the prediction over that of the target (1 = as\n"
+         "much edge and print detail, below 1 = blurred), inside the mask, or without --mask inside the\n"
+         "target's non-background (not white) pixels; also over the full image (smplpix/metrics.h).\n"
          "--per-image: one line per image before the mean. --json F: {\"count\", \"psnr\", \"ssim\",\n"
-         "\"lpips\", \"images\": [{\"name\", \"psnr\", \"ssim\", \"lpips\"}]} (+ \"psnr_masked\",\n"
-         "\"ssim_masked\", \"lpips_masked\" with --mask), null where a value is infinite, undefined or not\n"
-         "asked for.\n"
+         "\"detail_full\", \"detail\", \"lpips\", \"images\": [{\"name\", \"psnr\", ..., \"lpips\"}]}\n"
+         "(+ \"psnr_masked\", \"ssim_masked\", \"lpips_masked\" with --mask), null where a value is\n"
+         "infinite, undefined or not asked for.\n"
          "A size mismatch, an unreadable file or a name present on one side only: one line, exit 1,\n"
          "no JSON written.\n");
 }
@@ -41,6 +44,7 @@ static void eval_help(void) {
 typedef struct item {
   char *name, *pred, *target, *mask;
   spx_metrics m;
+  spx_detail d;
   double lpips[2]; /* whole image, inside the mask (NAN without one) */
 } item;
 
@@ -241,6 +245,10 @@ static int measure(spx_ctx *ctx, spx_lpips *lp, int lp_opt, item *it) {
     rc = spx_cli_errorf("eval", "%s: the mask has no foreground pixels", it->mask);
     goto done;
   }
+  if (spx_image_detail(ctx, &p, &t, it->mask ? &m : NULL, &it->d)) {
+    rc = spx_cli_errorf("eval", "%s: %s", it->pred, spx_ctx_message(ctx));
+    goto done;
+  }
   it->lpips[0] = it->lpips[1] = NAN;
   if (lp && lp_opt && (p.width < SPX_LPIPS_MIN_SIZE || p.height < SPX_LPIPS_MIN_SIZE)) goto done; /* n/a */
   if (lp && spx_lpips_distance_masked(lp, &p, &t, it->mask ? &m : NULL, &it->lpips[0], &it->lpips[1]))
@@ -258,14 +266,16 @@ static const char *num(char *buf, size_t cap, const char *fmt, double v) {
   return buf;
 }
 
-static void print_line(const char *lead, const spx_metrics *m, const double *lpips, int has_lpips, int has_mask) {
+static void print_line(const char *lead, const spx_metrics *m, const spx_detail *d, const double *lpips, int has_lpips,
+                       int has_mask) {
   char a[32], b[32], c[32];
   printf("%s: PSNR %s dB, SSIM %s", lead, num(a, sizeof a, "%.3f", m->psnr), num(b, sizeof b, "%.4f", m->ssim));
   if (has_lpips) printf(", LPIPS %s", num(c, sizeof c, "%.4f", lpips[0]));
   if (has_mask)
     printf("; masked: PSNR %s dB, SSIM %s", num(a, sizeof a, "%.3f", m->psnr_fg), num(b, sizeof b, "%.4f", m->ssim_fg));
   if (has_mask && has_lpips) printf(", LPIPS %s", num(c, sizeof c, "%.4f", lpips[1]));
-  printf("\n");
+  printf("; detail %s (%s), %s (full image)\n", num(a, sizeof a, "%.3f", d->ratio), has_mask ? "mask" : "non-background",
+         num(b, sizeof b, "%.3f", d->ratio_full));
 }
 
 static void json_num(FILE *f, const char *key, double v, int last) {
@@ -283,7 +293,7 @@ static void json_str(FILE *f, const char *s) {
   fputc('"', f);
 }
 
-static void json_metrics(FILE *f, const spx_metrics *m, const double *lpips, int has_mask) {
+static void json_metrics(FILE *f, const spx_metrics *m, const spx_detail *d, const double *lpips, int has_mask) {
   json_num(f, "psnr", m->psnr, 0);
   json_num(f, "ssim", m->ssim, 0);
   if (has_mask) {
@@ -291,25 +301,27 @@ static void json_metrics(FILE *f, const spx_metrics *m, const double *lpips, int
     json_num(f, "ssim_masked", m->ssim_fg, 0);
     json_num(f, "lpips_masked", lpips[1], 0);
   }
+  json_num(f, "detail_full", d->ratio_full, 0);
+  json_num(f, "detail", d->ratio, 0);
   json_num(f, "lpips", lpips[0], 1);
 }
 
 /* Write the report to path in the run's transaction (apps/cli_tx.h): F appears whole, when the
  * run succeeds, or not at all; an F that was there before a failed run stays as it was. */
-static int write_json(spx_tx *tx, const char *path, const list *l, const spx_metrics *mean, const double *mean_lpips,
-                      int has_mask) {
+static int write_json(spx_tx *tx, const char *path, const list *l, const spx_metrics *mean, const spx_detail *mean_d,
+                      const double *mean_lpips, int has_mask) {
   const char *tmp = spx_tx_stage(tx, path);
   if (!tmp) return SPX_EXIT_ERROR; /* printed */
   FILE *f = fopen(tmp, "wb");
   if (!f) return spx_cli_errorf("eval", "%s: cannot write (%s)", path, strerror(errno));
   fprintf(f, "{\"count\": %d, ", l->n);
-  json_metrics(f, mean, mean_lpips, has_mask);
+  json_metrics(f, mean, mean_d, mean_lpips, has_mask);
   fprintf(f, ",\n \"images\": [");
   for (int i = 0; i < l->n; i++) {
     fprintf(f, "%s\n  {\"name\": ", i ? "," : "");
     json_str(f, l->it[i].name);
     fprintf(f, ", ");
-    json_metrics(f, &l->it[i].m, l->it[i].lpips, has_mask);
+    json_metrics(f, &l->it[i].m, &l->it[i].d, l->it[i].lpips, has_mask);
     fprintf(f, "}");
   }
   fprintf(f, "\n ]}\n");
@@ -355,21 +367,24 @@ int spx_cmd_eval(int argc, char **argv) {
     }
   }
   spx_metrics mean = {0};
+  spx_detail mean_d = {0};
   double mean_lp[2] = {0, 0};
   for (int i = 0; i < l.n; i++) {
     item *it = &l.it[i];
     if ((rc = measure(ctx, lp, lp_opt, it))) goto done;
-    if (per_image) print_line(it->name, &it->m, it->lpips, lp != NULL, mask != NULL);
+    if (per_image) print_line(it->name, &it->m, &it->d, it->lpips, lp != NULL, mask != NULL);
     mean.psnr += it->m.psnr, mean.ssim += it->m.ssim, mean.psnr_fg += it->m.psnr_fg, mean.ssim_fg += it->m.ssim_fg;
+    mean_d.ratio += it->d.ratio, mean_d.ratio_full += it->d.ratio_full;
     mean_lp[0] += it->lpips[0], mean_lp[1] += it->lpips[1];
   }
   mean.psnr /= l.n, mean.ssim /= l.n, mean.psnr_fg /= l.n, mean.ssim_fg /= l.n;
+  mean_d.ratio /= l.n, mean_d.ratio_full /= l.n;
   mean_lp[0] = lp ? mean_lp[0] / l.n : NAN;
   mean_lp[1] = lp && mask ? mean_lp[1] / l.n : NAN;
-  if (json && (rc = write_json(&tx, json, &l, &mean, mean_lp, mask != NULL))) goto done;
+  if (json && (rc = write_json(&tx, json, &l, &mean, &mean_d, mean_lp, mask != NULL))) goto done;
   char lead[64];
   snprintf(lead, sizeof lead, "mean over %d images", l.n); /* the fixed form of the design, also for 1 */
-  print_line(lead, &mean, mean_lp, lp != NULL, mask != NULL);
+  print_line(lead, &mean, &mean_d, mean_lp, lp != NULL, mask != NULL);
 done:
   spx_tx_end(&tx);
   spx_lpips_free(lp);

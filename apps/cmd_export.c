@@ -18,8 +18,8 @@ static void export_help(void) {
          "names: weights, batch-norm running statistics, num_batches_tracked) as float32, or as\n"
          "float16 with --half (the shipping format of data/models/default.safetensors: PyTorch loads\n"
          "it with load_state_dict(strict=True) after .float(); smplpix render reads it directly).\n"
-         "Metadata: format, smplpix.width, smplpix.sigmoid; smplpix.loss and smplpix.stage when W has\n"
-         "them; smplpix.steps (W's Adam step count: of its last run, a stage started with --init counts\n"
+         "Metadata: format, smplpix.width, smplpix.sigmoid; smplpix.loss, smplpix.stage and\n"
+         "smplpix.image_size (the size it was trained at) when W has them; smplpix.steps (W's Adam step count: of its last run, a stage started with --init counts\n"
          "from 0); smplpix.dtype (F16 or F32); and each --meta pair\n"
          "(at most %d; e.g. --meta smplpix.image_size=128x96). A value that does not fit in float16\n"
          "is an error naming the tensor.\n",
@@ -70,8 +70,8 @@ static int export_run(int argc, char **argv, const char **user) {
   char steps[32];
   if ((rc = spx_tx_check(&tx, out)) || (rc = spx_cli_open_device("export", ctx, NULL))) goto done;
   if (spx_cli_failed(&rc, "export", ctx, spx_unet_load(ctx, in, &u) || spx_st_load(ctx, in, &f))) goto done;
-  const char *carry[] = {"smplpix.loss", "smplpix.stage"};
-  for (int k = 0; k < 2; k++) {
+  const char *carry[] = {"smplpix.loss", "smplpix.stage", "smplpix.image_size"};
+  for (int k = 0; k < 3; k++) {
     const char *val = spx_st_meta(&f, carry[k]);
     if (val) mk[nm] = carry[k], mv[nm++] = val;
   }

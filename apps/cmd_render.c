@@ -22,7 +22,7 @@ static void render_help(void) {
          "                      [--color auto|mesh|normal|white] [--batch B]\n"
          "       smplpix render --avatar A.safetensors --camera C.json --out I.png|I.exr|I.npy\n"
          "                      [--pose Q.json | --bvh M.bvh [--frame N] | --amass M.npz [--frame N]] [--model M.npz]\n"
-         "       common options: [--sigmoid on|off] [--device cpu|gpu|P:D] [--quiet]\n"
+         "       common options: [--sigmoid on|off] [--any-size] [--device cpu|gpu|P:D] [--quiet]\n"
          "Runs the UNet of checkpoint W (milesial state_dict names; base width read from the file;\n"
          "default: the shipped network data/models/default.safetensors, when present) on\n"
          "the RGB-D image P (EXR channels R,G,B,Z; a PNG or a 3-channel image gets depth 1; .npy is\n"
@@ -37,7 +37,10 @@ static void render_help(void) {
          "--avatar: the avatar of `smplpix avatar` in its registered pose, the pose of Q.json (its top-level\n"
          "\"pose\" and \"trans\", the body model's parameters) or frame N (default 0) of a motion, through its own\n"
          "network, for every camera of C.json.\n"
-         "PNG output is clamped to [0, 1]; height and width must be at least 16.\n");
+         "PNG output is clamped to [0, 1]; height and width must be at least 16.\n"
+         "A network whose metadata records the image size it was trained at (smplpix.image_size: smplpix\n"
+         "train writes it, export keeps it, an avatar records it) refuses inputs of another size, which it\n"
+         "would draw worse than it can; --any-size runs it anyway.\n");
 }
 
 /* Device memory errors get a hint on what to change. */
@@ -49,8 +52,8 @@ static int net_error(spx_ctx *ctx, spx_status st, int n, int h, int w) {
 }
 
 /* --mesh/--camera: project, run the network chunk by chunk, write one output per camera. */
-static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const char *cam_path, const char *color,
-                       const char *outp, int batch, int quiet) {
+static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *ckpt, int any_size, const char *mesh_path,
+                       const char *cam_path, const char *color, const char *outp, int batch, int quiet) {
   spx_mesh mesh = {0};
   spx_camera *cams = NULL;
   int ncams = 0, rc = SPX_EXIT_ERROR;
@@ -67,6 +70,7 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *mesh_path, const c
     rc = spx_cli_errorf("render", "%s: %dx%d is too small (the UNet needs at least 16x16)", cam_path, W, H);
     goto done;
   }
+  if (!any_size && (rc = spx_cli_net_size_check("render", ctx, ckpt, W, H, cam_path))) goto done;
   const float *col = NULL;
   const char *used = NULL;
   if ((rc = spx_cli_mesh_colors("render", mesh_path, &mesh, color, &colors, &col, &used))) goto done;
@@ -147,10 +151,11 @@ static int render_avatar_cmd(const spx_opt *opts, spx_render_avatar_args *av, co
 int spx_cmd_render(int argc, char **argv) {
   const char *ckpt = NULL, *input = NULL, *outp = NULL, *spec = NULL, *sig = NULL, *mesh = NULL, *cam = NULL;
   const char *color = "auto";
-  int quiet = 0;
+  int quiet = 0, any_size = 0;
   long batch = 4;
   spx_render_avatar_args av = {0};
   spx_opt opts[] = {SPX_O("--quiet", SPX_OPT_FLAG, &quiet),   SPX_O("--checkpoint", SPX_OPT_IN, &ckpt),
+                    SPX_O("--any-size", SPX_OPT_FLAG, &any_size),
                     SPX_O("--input", SPX_OPT_IN, &input),     SPX_O("--mesh", SPX_OPT_IN, &mesh),
                     SPX_O("--camera", SPX_OPT_IN, &cam),      SPX_O("--color", SPX_OPT_STR, &color),
                     SPX_O("--out", SPX_OPT_OUT, &outp),       SPX_O("--device", SPX_OPT_STR, &spec),
@@ -162,8 +167,9 @@ int spx_cmd_render(int argc, char **argv) {
   int parsed = spx_cli_parse(argc, argv, "render", NULL, render_help, opts);
   if (parsed >= 0) return parsed;
   if (av.avatar || av.pose_path || av.bvh || av.amass || av.model || spx_cli_given(opts, "--frame"))
-    return render_avatar_cmd(opts, &av, cam, outp, spec, quiet, ckpt || input || mesh || sig || spx_cli_given(opts, "--color") ||
-                                                                   spx_cli_given(opts, "--batch"));
+    return av.any_size = any_size,
+           render_avatar_cmd(opts, &av, cam, outp, spec, quiet,
+                             ckpt || input || mesh || sig || spx_cli_given(opts, "--color") || spx_cli_given(opts, "--batch"));
   if (sig && strcmp(sig, "on") && strcmp(sig, "off")) return spx_cli_usage("render", "--sigmoid takes on or off, not '%s'", sig);
   int by_mesh = mesh || cam;
   if (!outp || (by_mesh ? !(mesh && cam) || input : !input))
@@ -190,12 +196,13 @@ int spx_cmd_render(int argc, char **argv) {
       rc = spx_cli_errorf("render", "%s: %dx%d is too small (the UNet needs at least 16x16)", input, in.w, in.h);
       goto done;
     }
+    if (!any_size && (rc = spx_cli_net_size_check("render", ctx, ckpt, in.w, in.h, input))) goto done;
   }
   if ((rc = spx_cli_open_device("render", ctx, spec))) goto done;
   if (spx_cli_failed(&rc, "render", ctx, spx_unet_load(ctx, ckpt, &u))) goto done;
   if (sig) spx_unet_set_sigmoid(u, !strcmp(sig, "on"));
   if (by_mesh) {
-    rc = render_mesh(ctx, u, mesh, cam, color, outp, (int)batch, quiet);
+    rc = render_mesh(ctx, u, ckpt, any_size, mesh, cam, color, outp, (int)batch, quiet);
     goto done;
   }
   out = in;

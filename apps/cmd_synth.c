@@ -20,7 +20,7 @@ static const char *USAGE =
     "  BVH clip; cameras all round, elevation -10..35 degrees, distance and focal jittered;\n"
     "  Lambert + ambient light fixed in the world; 2x anti-aliased). Writes DIR/synth.json,\n"
     "  DIR/sNNN/{scan.ply,texture.png,cameras/vNNN.json,images/vNNN.png,masks/vNNN.png}.\n"
-    "  --size WxH       photo size (default 410x308)\n"
+    "  --size WxH       photo size (default 308x410, portrait: a standing person)\n"
     "  --body M.npz     body model with UVs (default data/body/default_body.npz)\n"
     "  --bvh M.bvh      motion for the poses (default data/mocap/01_01.bvh)\n"
     "  --parts P.png    part map in the body's UV layout (default data/body/body_parts_segmentation.png)\n"
@@ -29,7 +29,7 @@ static const char *USAGE =
     "  --quiet          no progress\n";
 
 int spx_cmd_synth(int argc, char **argv) {
-  const char *out = NULL, *size_s = "410x308", *body_path = NULL, *bvh_path = NULL, *parts_path = NULL;
+  const char *out = NULL, *size_s = "308x410", *body_path = NULL, *bvh_path = NULL, *parts_path = NULL;
   const char *subj_s = NULL, *views_s = NULL, *seed_s = NULL, *tex_s = "2048", *dev = NULL;
   int force = 0, quiet = 0;
   const spx_cli_optdef defs[] = {{"--force", NULL, &force, 0}, {"--quiet", NULL, &quiet, 0}, {"--subjects", &subj_s, NULL, 0},

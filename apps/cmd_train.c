@@ -17,6 +17,7 @@
 #include "cli_opts.h"
 #include "train_dist.h"
 #include "train_recipe.h"
+#include "cli_model.h"
 #include "train_state.h"
 #include "unet_io.h"
 
@@ -510,7 +511,12 @@ static int train_prepare(train_job *j, const train_args *a, train_dist *dist) {
   char devbuf[32];
   if ((rc = spx_cli_open_device("train", ctx, train_dist_device(dist, a->spec, devbuf, sizeof devbuf)))) return rc;
   const char *from = resume ? a->outp : a->init;
-  if (!dist->on || dist->comm.rank == 0) rc = net_open(ctx, from, a->init != NULL, a->width, a->sigmoid, a->seed, &j->u);
+  if (!dist->on || dist->comm.rank == 0) {
+    char what[4200]; /* a network trained at another size than the data is refused */
+    snprintf(what, sizeof what, "%s/train", a->data);
+    rc = from ? spx_cli_net_size_check("train", ctx, from, tr->w, tr->h, what) : SPX_EXIT_OK;
+    if (!rc) rc = net_open(ctx, from, a->init != NULL, a->width, a->sigmoid, a->seed, &j->u);
+  }
   if (dist->on) { /* the others take rank 0's width, then its whole state */
     if ((rc = train_dist_agree(dist, rc, NULL)) || (rc = train_dist_adopt(dist, ctx, &j->u, !a->local_bn))) {
       j->agreed = 1;
@@ -518,6 +524,7 @@ static int train_prepare(train_job *j, const train_args *a, train_dist *dist) {
     }
   }
   if (rc) return rc;
+  ts->image_w = tr->w, ts->image_h = tr->h;
   spx_unet *u = j->u;
   if (resume && (ts->pairs != tr->n || ts->step != ts->stage_base + spx_unet_step(u)))
     return ts->pairs != tr->n ? spx_cli_errorf("train", "%s/train has %d pairs, but %s was trained on %lld: the data "

@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "animate.h"
+#include "cli_model.h"
 #include "cli_scene.h"
 #include "render_avatar.h"
 
@@ -41,6 +42,8 @@ int spx_render_avatar(spx_ctx *ctx, const spx_render_avatar_args *a) {
   spx_tx_begin(&tx, "render", 0);
   if ((rc = spx_cli_load_cameras("render", ctx, a->camera, &cams, &ncams))) goto done;
   if ((rc = spx_cli_check_outputs(&tx, &a->out, 1, ncams))) goto done; /* before any work */
+  for (int c = 0; c < ncams && !a->any_size; c++)
+    if ((rc = spx_cli_net_size_check("render", ctx, a->avatar, cams[c].width, cams[c].height, a->camera))) goto done;
   if ((rc = spx_cli_open_device("render", ctx, a->device))) goto done;
   if ((rc = spx_anim_person_open("render", ctx, NULL, a->avatar, a->model, &pe))) goto done;
   if (!(pose = calloc((size_t)pe.body->nj * 3, sizeof(double)))) {

@@ -8,7 +8,7 @@ typedef struct spx_render_avatar_args {
   const char *avatar, *model, *camera, *out, *device;
   const char *pose_path, *bvh, *amass; /* at most one; none: the registered pose */
   long frame;
-  int quiet;
+  int quiet, any_size; /* any_size: cameras of another size than the avatar was trained at too */
 } spx_render_avatar_args;
 
 /* Render the avatar through every camera of a->camera into a->out (indexed for several). Prints

@@ -216,6 +216,8 @@ typedef struct view_rec {
   char source[32];
   double *pose; /* nj*3 */
   double trans[3];
+  double fill, box[4]; /* the framing: the fill drawn, the posed scan's projected box (pixels) */
+  double K[3];         /* the camera's focal length and principal point (cx, cy) */
 } view_rec;
 
 typedef struct run_state {
@@ -358,21 +360,21 @@ static int one_subject(run_state *s, int i) {
         lo[c] = fmin(lo[c], posed[k * 3 + c]);
         hi[c] = fmax(hi[c], posed[k * 3 + c]);
       }
-    double target[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
-    double ext_v = hi[1] - lo[1], ext_h = fmax(hi[0] - lo[0], hi[2] - lo[2]);
+    double extent = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
     double az = az0 + 2 * PI * (v + spx_synth_rng_uniform(&rng, -0.3, 0.3)) / o->views;
     double el = spx_synth_rng_uniform(&rng, -10, 35) * PI / 180;
-    double focal = H * spx_synth_rng_uniform(&rng, 1.1, 1.7);
-    double fill = spx_synth_rng_uniform(&rng, 0.72, 0.9);
-    /* far enough that the body's height fills `fill` of the image (and its width fits) */
-    double dist = focal * fmax(ext_v / (fill * H), ext_h / (fill * W)) + 0.25 * ext_h;
+    double dist = extent * SPX_FRAME_DISTANCE * spx_synth_rng_uniform(&rng, 0.8, 1.3);
+    vr[v].fill = spx_synth_rng_uniform(&rng, SPX_FRAME_FILL_MIN, SPX_FRAME_FILL_MAX);
+    /* framed as a scanner photo (docs/synth.md): the posed scan's projected box fills `fill` */
     spx_camera cam;
-    if (spx_synth_camera(s->ctx, W, H, az, el, dist, focal, target, &cam) ||
+    if (spx_camera_frame(s->ctx, sub.nv, posed, W, H, az, el, dist, vr[v].fill, &cam) ||
+        spx_camera_bbox(s->ctx, &cam, sub.nv, posed, vr[v].box) ||
         spx_synth_photo(s->ctx, s->rast, &s->body, &sub, vr[v].pose, vr[v].trans, &cam, &light, (uint32_t)i + 1, rgb,
                         mask, NULL)) {
       rc = spx_cli_error("synth", s->ctx);
       goto done;
     }
+    vr[v].K[0] = cam.K[0][0], vr[v].K[1] = cam.K[0][2], vr[v].K[2] = cam.K[1][2];
     snprintf(p, sizeof p, "%s/%s/cameras/v%03d.json", s->tmp, name, v);
     if (spx_cli_failed(&rc, "synth", s->ctx, spx_camera_save(s->ctx, p, &cam, 1))) goto done;
     spx_image im = {W, H, 3, rgb};
@@ -407,6 +409,9 @@ static int one_subject(run_state *s, int i) {
     put_doubles(f, vr[v].pose, nj * 3);
     fputs(", \"trans\": ", f);
     put_doubles(f, vr[v].trans, 3);
+    fprintf(f, "}, \"framing\": {\"fill\": %.9g, \"box\": ", vr[v].fill);
+    put_doubles(f, vr[v].box, 4);
+    fprintf(f, ", \"focal\": %.17g, \"center\": [%.17g, %.17g]", vr[v].K[0], vr[v].K[1], vr[v].K[2]);
     fprintf(f, "}, \"image\": \"%s/images/v%03d.png\", \"mask\": \"%s/masks/v%03d.png\"}", name, v, name, v);
   }
   fputs("]}", f);
@@ -493,7 +498,8 @@ int synth_run(const synth_opts *o) {
   json_str(s.manifest, o->body_path);
   fputs(", \"bvh\": ", s.manifest);
   json_str(s.manifest, o->bvh_path);
-  fprintf(s.manifest, ", \"texture_size\": %d,\n  \"subjects\": [", (int)o->tex_size);
+  fprintf(s.manifest, ", \"texture_size\": %d,\n  \"framing\": {\"rule\": \"box\", \"fill\": [%g, %g]},\n  \"subjects\": [",
+          (int)o->tex_size, SPX_FRAME_FILL_MIN, SPX_FRAME_FILL_MAX);
   s.tty = isatty(STDERR_FILENO);
   s.t0 = spx_now();
   s.total = (long)o->subjects * (o->views + 1);

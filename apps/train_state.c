@@ -176,10 +176,15 @@ int spx_train_checkpoint_save(spx_ctx *ctx, spx_unet *u, spx_patchgan *d, const 
   spx_tx tx; /* durable: both files are on disk (files and folder entries) before the renames */
   spx_tx_begin(&tx, "train", 1);
   int rc = SPX_EXIT_ERROR;
-  const char *keys[NFIELDS], *vals[NFIELDS];
-  char text[NFIELDS][80];
+  const char *keys[NFIELDS + 1], *vals[NFIELDS + 1];
+  char text[NFIELDS][80], size[32];
   state_text(s, keys, text);
   for (int k = 0; k < NFIELDS; k++) vals[k] = text[k];
+  int nk = NFIELDS;
+  if (s->image_w > 0 && s->image_h > 0) {
+    snprintf(size, sizeof size, "%dx%d", s->image_w, s->image_h);
+    keys[nk] = "smplpix.image_size", vals[nk++] = size;
+  }
   if (d) { /* a commit killed between the renames is finished by the next run from its journal (cli_tx.c) */
     const char *dtmp = spx_tx_stage(&tx, disc_path);
     if (!dtmp) goto done;
@@ -190,7 +195,7 @@ int spx_train_checkpoint_save(spx_ctx *ctx, spx_unet *u, spx_patchgan *d, const 
   }
   const char *tmp = spx_tx_stage(&tx, path);
   if (!tmp) goto done;
-  if (spx_unet_save_meta(u, tmp, 1, keys, vals, NFIELDS)) {
+  if (spx_unet_save_meta(u, tmp, 1, keys, vals, nk)) {
     rc = spx_tx_error(&tx, ctx);
     goto done;
   }

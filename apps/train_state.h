@@ -34,6 +34,8 @@ typedef struct spx_train_state {
   int64_t disc_width;      /* --disc-width of the discriminator (W.disc.safetensors) */
   int64_t target;          /* global step the run trains to (--epochs / --steps; both stages of --schedule
                               paper): --resume alone continues to it; -1 when not recorded */
+  int image_w, image_h;    /* the training images' size, saved as the metadata smplpix.image_size
+                              ("WxH", the key of shipped networks; not a smplpix.train field); 0: none */
 } spx_train_state;
 
 /* Defaults for every field (what a file without a key reads as). */

@@ -25,7 +25,7 @@
 # TABLE1_REPORT (where TABLE1.md and table1.png go; default benchmarks/, quick: the work dir),
 # TABLE1_LPIPS (LPIPS weights for smplpix eval; default: its cached ones), TABLE1_SYNTH (use this
 # existing synth output instead of running smplpix synth; its sizes must match the mode's),
-# TABLE1_FRESH=1 (start over), TABLE1_GANLR (the GAN stage's learning rate, default 2e-5), sizes: see
+# TABLE1_CHECK=1 (check the synth output and its framing, then stop), TABLE1_FRESH=1 (start over), TABLE1_GANLR (the GAN stage's learning rate, default 2e-5), sizes: see
 # below. Bad input: one line, exit 1.
 set -eu
 set -o pipefail
@@ -40,14 +40,14 @@ helper=$build/benchmarks/table1_tool
 command -v jq >/dev/null || die "jq: not found (apt-get install jq)"
 
 if [ "${TABLE1_QUICK:-0}" = 1 ]; then
-  mode=quick SUBJECTS=2 NTRAIN=1 VIEWS=3 VTRAIN=2 SIZE=64x48 WIDTH=8 STEPS=20 VGGSTEPS=6 GANSTEPS=10 BATCH=2
+  mode=quick SUBJECTS=2 NTRAIN=1 VIEWS=3 VTRAIN=2 SIZE=48x64 WIDTH=8 STEPS=20 VGGSTEPS=6 GANSTEPS=10 BATCH=2
   POINTS=8000 TEX=256 SYNTEX=256 SEEDS=${TABLE1_SEEDS:-7} DISCW=8 SAVE=10 GANLR=2e-5
   out=${TABLE1_OUT:-$root/out/table1-quick}
   report=${TABLE1_REPORT:-$out}
 else
   # sized for about 150 minutes on 2 quiet CPU cores (docs/table1.md; times per stage: benchmarks/RESULTS.md)
   mode=full SUBJECTS=${TABLE1_SUBJECTS:-72} NTRAIN=${TABLE1_NTRAIN:-64} VIEWS=${TABLE1_VIEWS:-6} VTRAIN=${TABLE1_VTRAIN:-4}
-  SIZE=${TABLE1_SIZE:-256x192} WIDTH=${TABLE1_WIDTH:-16} STEPS=${TABLE1_STEPS:-2000} VGGSTEPS=${TABLE1_VGGSTEPS:-200}
+  SIZE=${TABLE1_SIZE:-192x256} WIDTH=${TABLE1_WIDTH:-16} STEPS=${TABLE1_STEPS:-2000} VGGSTEPS=${TABLE1_VGGSTEPS:-200}
   GANSTEPS=${TABLE1_GANSTEPS:-300} BATCH=${TABLE1_BATCH:-4} POINTS=50000 TEX=1024 SYNTEX=2048 SEEDS=${TABLE1_SEEDS:-1}
   GANLR=${TABLE1_GANLR:-2e-5}
   DISCW=${TABLE1_DISCW:-32} SAVE=100
@@ -120,6 +120,52 @@ secs() { calc "$2 - $1"; }
 say() { printf 'table1 [%s] %s\n' "$(date -u +%H:%M:%S)" "$*"; }
 [ $resumed = 1 ] && say "continuing $out (done: $(ls "$out/done" | grep -vc '^time\.' || true) units)"
 
+# check_framing: the manifest's size is the mode's, every view's camera has that size, and the
+# framing the manifest records (smplpix synth: "framing" {"rule", "fill": [lo, hi]}, per view
+# "framing" {"fill", "box": [u0, v0, u1, v1], "focal", "center": [cx, cy]}, the posed scan's
+# projected box in pixels and the camera's intrinsics) holds for it: the camera's focal length and
+# principal point are the ones recorded, the box inside the image, centred, its height (or width)
+# `fill` of the image's, fill in the rule's range. A manifest without the "framing" rule is an older synth output: read as it is.
+check_framing() {
+  local w h
+  w=$(jq '.width // empty' "$man") h=$(jq '.height // empty' "$man")
+  [ "${w}x${h}" = "$SIZE" ] || die "$manname: photos of ${w:-?}x${h:-?}, but this run's size is $SIZE (TABLE1_SIZE)"
+  # each camera: the manifest's size, and (framed) the focal length and principal point recorded
+  jq -r '.subjects[].views[] | [.name, .camera, (.framing | tojson)] | @tsv' "$man" | while IFS=$'\t' read -r vname cam fr; do
+    jq -e --argjson w "$w" --argjson h "$h" --argjson f "$fr" '.width == $w and .height == $h and
+      ($f == null or ((($f.focal | numbers) - .K[0][0] | fabs) <= 1e-6 * $f.focal and
+        ($f.center | length) == 2 and ($f.center[0] - .K[0][2] | fabs) <= 1e-6 * $w and
+        ($f.center[1] - .K[1][2] | fabs) <= 1e-6 * $h))' "$out/synth/$cam" >/dev/null 2>&1 ||
+      die "$manname: view $vname: its camera $cam ($(jq -c '[.width, .height, .K]' "$out/synth/$cam" 2>/dev/null || echo unreadable)) does not match the manifest (${w}x${h}, framing $fr)"
+  done || exit 1
+  framing=$(jq -r 'if .framing == null then "none" else "\(.framing.rule) \(.framing.fill[0]) \(.framing.fill[1])" end' "$man")
+  if [ "$framing" = none ]; then
+    framing_note="none recorded (an older synth output: landscape, the subject at a distance)"
+    say "framing: $manname records none (an older synth output); read as it is"
+    return 0
+  fi
+  set -- $framing
+  framing_note="the posed scan's projected bounding box fills $2..$3 of the photo's height (or width), centred (\`smplpix synth\`, docs/synth.md)"
+  local bad
+  bad=$(jq -r --argjson w "$w" --argjson h "$h" '
+    (.framing.fill // []) as $r |
+    if ($r | length) != 2 or ([$r[] | numbers] | length) != 2 then "the framing rule has no fill range [lo, hi]"
+    else first(.subjects[].views[] |
+      .framing as $f | .name as $n |
+      if ($f | type) != "object" or ($f.fill | type) != "number" or ($f.box | type) != "array" or
+         ([$f.box[]? | numbers] | length) != 4 then "view \($n): no framing (fill and box)"
+      else ($f.box) as $b | (($b[2] - $b[0]) / $w) as $fw | (($b[3] - $b[1]) / $h) as $fh |
+        if $b[0] < -0.5 or $b[1] < -0.5 or $b[2] > $w + 0.5 or $b[3] > $h + 0.5 then "view \($n): its box \($b) leaves the \($w)x\($h) image"
+        elif ((($b[0] + $b[2]) / 2 - $w / 2) | fabs) > 1 or ((($b[1] + $b[3]) / 2 - $h / 2) | fabs) > 1 then "view \($n): its box \($b) is not centred"
+        elif ((([$fw, $fh] | max) - $f.fill) | fabs) > 0.005 then "view \($n): its box fills \([$fw, $fh] | max) of the image, not its fill \($f.fill)"
+        elif $f.fill < $r[0] - 1e-9 or $f.fill > $r[1] + 1e-9 then "view \($n): fill \($f.fill) outside the range \($r) of the rule"
+        else empty end
+      end) // empty
+    end' "$man" 2>/dev/null) || die "$manname: the framing cannot be read"
+  [ -z "$bad" ] || die "$manname: framing inconsistent with the cameras: $bad"
+  say "framing: rule $1, fill $2..$3; every view checked against its camera"
+}
+
 # ---- synth ------------------------------------------------------------------------------------
 say "$mode: $SUBJECTS subjects ($NTRAIN train) x $VIEWS views ($VTRAIN train), ${SIZE}, width $WIDTH, seeds $SEEDS"
 if ! is_done synth; then
@@ -155,7 +201,9 @@ while IFS=$'\t' read -r si vi vname cam img mask src; do
   [ "$vi" -lt "$VIEWS" ] || die "$manname: subject $si has more than $VIEWS views"
 done <"$out/views.tsv"
 [ "$(wc -l <"$out/views.tsv")" = $((SUBJECTS * VIEWS)) ] || die "$manname: expected $VIEWS views per subject"
+check_framing
 done_mark synth
+if [ "${TABLE1_CHECK:-0}" = 1 ]; then say "checked $manname (TABLE1_CHECK=1: nothing else is run)"; exit 0; fi
 
 # ---- register + bake --------------------------------------------------------------------------
 say "register: $SUBJECTS scans ($POINTS-point clouds), bake ${TEX}x${TEX} textures"
@@ -370,13 +418,15 @@ nseeds=$(echo $SEEDS | wc -w)
   echo "method renders the same $ntest test views of $((SUBJECTS - NTRAIN)) unseen subjects, in poses and from cameras"
   echo "never seen in training. Scores from \`smplpix eval\` (mean over the test views), full image and inside"
   echo "the subject's mask$([ $nseeds -gt 1 ] && echo "; SMPLpix rows: mean over $nseeds training seeds ($SEEDS), (min..max) over the seeds")."
+  echo "Detail: the mean absolute image gradient of the rendering over the photo's (1 = as much edge and print"
+  echo "detail as the photo, below 1 = blurred; \`smplpix eval\`), over the whole image and inside the mask."
   echo "Time per frame: one renderer's frame in one process after warm-up (\`table1_tool time\`: upload the"
   echo "posed vertices, render, read the image back; SMPLpix = projection + network), on one test view."
   echo
-  echo "| method | vertices | PSNR full | SSIM full | LPIPS full | PSNR mask | SSIM mask | LPIPS mask | time/frame (ms) |"
-  echo "|---|---|---|---|---|---|---|---|---|"
+  echo "| method | vertices | PSNR full | SSIM full | LPIPS full | detail full | PSNR mask | SSIM mask | LPIPS mask | detail mask | time/frame (ms) |"
+  echo "|---|---|---|---|---|---|---|---|---|---|---|"
   row() { # row LABEL VERTS KEY TIME
-    echo "| $1 | $2 | $(stat "$3" psnr) | $(stat "$3" ssim) | $(stat "$3" lpips) | $(stat "$3" psnr_masked) | $(stat "$3" ssim_masked) | $(stat "$3" lpips_masked) | $4 |"
+    echo "| $1 | $2 | $(stat "$3" psnr) | $(stat "$3" ssim) | $(stat "$3" lpips) | $(stat "$3" detail_full) | $(stat "$3" psnr_masked) | $(stat "$3" ssim_masked) | $(stat "$3" lpips_masked) | $(stat "$3" detail) | $4 |"
   }
   v13="13,380" v53="53,514 (1 Loop step; paper: 27k)"
   row "per-vertex colours, rasterized (paper: NMR per-verts)" "$v13" pervertex13k "${ms[pervertex13k]:-—}"
@@ -392,10 +442,12 @@ nseeds=$(echo $SEEDS | wc -w)
   if [ $have_eval = 1 ]; then
     for n in 13k 53k; do
       awk -v n="$n" -v pv="$(mean pervertex$n psnr)" -v sp="$(mean $n.stage$last psnr)" -v lpv="$(mean pervertex$n lpips)" \
-        -v lsp="$(mean $n.stage$last lpips)" -v ltx="$(mean textured13k lpips)" 'BEGIN {
+        -v lsp="$(mean $n.stage$last lpips)" -v ltx="$(mean textured13k lpips)" -v dsp="$(mean $n.stage$last detail)" \
+        -v dpv="$(mean pervertex$n detail)" 'BEGIN {
         if (pv == "—" || sp == "—") { printf "Goal, %s: not evaluated (a PSNR is missing).\n", n; exit }
         d = sp - pv
         printf "Goal, %s vertices, final stage: SMPLpix - per-vertex = %+.2f dB PSNR (goal >= +2.0: %s)", n, d, (d >= 2 ? "met" : "not met")
+        if (dsp != "—") printf "; detail in the mask %.2f of the photo'"'"'s (goal >= 0.9: %s; per-vertex raster %s)", dsp, (dsp >= 0.9 ? "met" : "not met"), dpv
         if (lpv == "—" || lsp == "—" || ltx == "—") { printf "; LPIPS not measured (make weights).\n"; exit }
         r = lsp / lpv
         printf "; LPIPS SMPLpix / per-vertex = %.2f (goal <= 0.75: %s), SMPLpix %s the textured raster (%.3f; goal: below).\n", r, (r <= 0.75 ? "met" : "not met"), (lsp < ltx ? "below" : "not below"), ltx }'
@@ -409,7 +461,7 @@ nseeds=$(echo $SEEDS | wc -w)
   echo "- Data: \`smplpix synth --subjects $SUBJECTS --views $VIEWS --seed $SEED --size $SIZE --texture-size $SYNTEX\`; subjects 0..$((NTRAIN - 1)) train"
   echo "  (views 0..$((VTRAIN - 1)); view $VTRAIN of each is the validation set), subjects $NTRAIN..$((SUBJECTS - 1)) test (views $VTRAIN..$((VIEWS - 1)))."
   echo "  BVH frames of the training views: $train_frames (plus rest poses); of the test views: $test_frames;"
-  echo "  test pose sources also used in training: $overlap."
+  echo "  test pose sources also used in training: $overlap. Framing: $framing_note."
   echo "- Registration: a $POINTS-point coloured cloud sampled from each scan (\`table1_tool sample\`), \`smplpix register\`"
   echo "  (rigid, pose, free); the registered vertices and colours are reposed to each view's pose"
   echo "  (\`smplpix repose --pose synth.json --view NAME\`), at 13,380 vertices and after one Loop step (53,514;"

@@ -82,7 +82,7 @@ out=$tmp/run report=$tmp/report
 TABLE1_QUICK=1 TABLE1_BUILD=$build TABLE1_OUT=$out TABLE1_REPORT=$report bash "$script" >"$tmp/run.txt" || fail "TABLE1_QUICK=1 scripts/table1.sh"
 md=$report/TABLE1.md
 if [ -f "$md" ]; then
-  grep -q '^| method .*PSNR.*LPIPS.*LPIPS mask' "$md" || fail "$md: no header with PSNR, LPIPS and masked LPIPS"
+  grep -q '^| method .*PSNR.*LPIPS.*detail full.*LPIPS mask | detail mask' "$md" || fail "$md: no header with PSNR, LPIPS, detail and their masked values"
   nsp=$(grep -c '^| SMPLpix' "$md")
   [ "$nsp" -ge 2 ] && [ $((nsp % 2)) -eq 0 ] || fail "$md: $nsp SMPLpix rows, want the same stages at both vertex counts"
   [ "$(grep -c '^| per-vertex' "$md")" -eq 2 ] || fail "$md: not 2 per-vertex rows"
@@ -92,9 +92,9 @@ if [ -f "$md" ]; then
       fail "$md: a PSNR cell is not a number"
   fi
   # every renderer's in-process time per frame is a number (SMPLpix: on its final stage's row)
-  grep '^| per-vertex\|^| full' "$md" | awk -F'|' '$10 !~ /^ *[0-9.]+ *$/ {bad = 1} END {exit bad}' ||
+  grep '^| per-vertex\|^| full' "$md" | awk -F'|' '$12 !~ /^ *[0-9.]+ *$/ {bad = 1} END {exit bad}' ||
     fail "$md: a rasterizer's time per frame is not a number"
-  [ "$(grep '^| SMPLpix' "$md" | awk -F'|' '$10 ~ /^ *[0-9.]+ *$/' | wc -l)" -eq 2 ] ||
+  [ "$(grep '^| SMPLpix' "$md" | awk -F'|' '$12 ~ /^ *[0-9.]+ *$/' | wc -l)" -eq 2 ] ||
     fail "$md: not one timed SMPLpix row per vertex count"
   grep -q '^Goal, 13k vertices' "$md" && grep -q '^Goal, 53k vertices' "$md" || fail "$md: no goal line per vertex count"
 else
@@ -109,7 +109,7 @@ TABLE1_QUICK=1 TABLE1_BUILD=$build TABLE1_OUT=$out TABLE1_REPORT=$report bash "$
 grep -q 'continuing' "$tmp/rerun.txt" || fail "a second run did not continue the first"
 ls -l --time-style=+%s.%N "$out"/unet*.s*.stage*.safetensors >"$tmp/ckpt2.txt" 2>/dev/null
 grep -v 'unet[0-9]*k.safetensors' "$tmp/ckpt1.txt" | cmp -s - "$tmp/ckpt2.txt" || fail "a continued run trained again"
-[ "$(grep '^|' "$tmp/first.md" | cut -d'|' -f1-9)" = "$(grep '^|' "$md" | cut -d'|' -f1-9)" ] ||
+[ "$(grep '^|' "$tmp/first.md" | cut -d'|' -f1-11)" = "$(grep '^|' "$md" | cut -d'|' -f1-11)" ] ||
   fail "a continued run changed the scores"
 # another configuration in the same work dir is refused (TABLE1_FRESH=1 would replace it)
 expect_error "holds a run with other settings" env TABLE1_QUICK=1 TABLE1_SEEDS="7 8" TABLE1_BUILD=$build TABLE1_OUT=$out \
@@ -120,6 +120,35 @@ n=$(ls "$out/methods/gt" 2>/dev/null | wc -l)
 for m in pervertex13k pervertex53k textured13k smplpix13k smplpix53k input13k; do
   [ "$(ls "$out/methods/$m" 2>/dev/null | wc -l)" -eq "$n" ] || fail "$m: not $n images"
 done
+# the framing the synth manifest records is checked against the cameras (TABLE1_CHECK=1 stops after
+# the checks): a camera changed, a view without its framing, a box that does not fill its fill, a
+# camera of another size; a manifest without any framing (an older synth output) is read as it is
+man=$out/synth/synth.json
+if jq -e '.framing' "$man" >/dev/null 2>&1; then
+  framed() { # framed NAME JQ-EDIT [CAMERA-JQ-EDIT]: a copy of the synth output with the manifest (and v001's camera) edited
+    rm -rf "$tmp/$1" && cp -r "$out/synth" "$tmp/$1" && jq "$2" "$man" >"$tmp/$1/synth.json" || fail "framed $1"
+    cam=$tmp/$1/$(jq -r '.subjects[0].views[1].camera' "$man")
+    [ -z "${3:-}" ] || { jq "$3" "$cam" >"$cam.new" && mv "$cam.new" "$cam"; } || fail "framed $1: camera"
+  }
+  chk() { env TABLE1_QUICK=1 TABLE1_CHECK=1 TABLE1_BUILD=$build TABLE1_OUT=$tmp/run-frame TABLE1_REPORT=$tmp/report-frame \
+    TABLE1_SYNTH=$tmp/$1 bash "$script"; }
+  framed fr-cam . '.K[0][0] *= 1.1'
+  expect_error "$tmp/fr-cam/synth.json: view s000_v001: its camera s000/cameras/v001.json" chk fr-cam
+  framed fr-size . '.width = 64'
+  expect_error "does not match the manifest" chk fr-size
+  framed fr-missing 'del(.subjects[0].views[1].framing)'
+  expect_error "view s000_v001: no framing" chk fr-missing
+  framed fr-fill '.subjects[0].views[1].framing.fill -= 0.05'
+  expect_error "view s000_v001: its box fills" chk fr-fill
+  framed fr-off '.subjects[0].views[1].framing.box[0] += 4 | .subjects[0].views[1].framing.box[2] += 4'
+  expect_error "is not centred" chk fr-off
+  framed fr-legacy 'del(.framing) | del(.subjects[].views[].framing)'
+  chk fr-legacy >"$tmp/legacy.txt" 2>&1 || fail "an older synth output (no framing) is refused: $(tail -n 1 "$tmp/legacy.txt")"
+  grep -q 'records none' "$tmp/legacy.txt" || fail "an older synth output: no note that it records no framing"
+  [ -e "$tmp/report-frame/TABLE1.md" ] && fail "a framing check wrote a report"
+else
+  fail "$man: no framing recorded"
+fi
 # repose --pose/--view with the run's registration: bad pose files are refused, naming the file
 reg=$(ls "$out"/subjects/*/reg.json 2>/dev/null | head -n 1)
 if [ -n "$reg" ]; then

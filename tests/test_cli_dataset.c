@@ -1,4 +1,5 @@
-/* `smplpix dataset` end to end: the training layout (splits, matching names, counts), orbit and
+/* `smplpix dataset` end to end: the training layout (splits, matching names, counts), orbit (framed:
+ * the mesh's projected box fills 90% of the image) and
  * file cameras, the non-empty-directory guard, bad arguments (exit 2) and inputs (exit 1, one line
  * naming the file, nothing left behind); then a tiny training run on a generated set whose
  * validation loss must fall, and a render of one validation view. */
@@ -95,6 +96,19 @@ static void test_layout(void) {
   int nc = 0;
   CHECK_OK(ctx, spx_camera_load(ctx, p, &cams, &nc));
   CHECK(nc == 10 && cams && cams[0].width == 64 && cams[0].height == 48);
+  /* framed (docs/synth.md): every view's projected box of the mesh fills 90% of the height or of
+   * the width (the other fits), centred */
+  spx_mesh box = {0};
+  path_of(p, sizeof p, "box.obj");
+  CHECK_OK(ctx, spx_mesh_load(ctx, p, &box));
+  for (int k = 0; k < nc && cams && box.pos; k++) {
+    double b[4];
+    CHECK_OK(ctx, spx_camera_bbox(ctx, &cams[k], box.nv, box.pos, b));
+    double fw = (b[2] - b[0]) / 64, fh = (b[3] - b[1]) / 48;
+    CHECK_MSG(fabs(fmax(fw, fh) - SPX_FRAME_FILL) < 1e-6 && fabs(b[0] + b[2] - 64) < 1e-6 && fabs(b[1] + b[3] - 48) < 1e-6,
+              "view %d: box %.3f %.3f %.3f %.3f", k, b[0], b[1], b[2], b[3]);
+  }
+  spx_mesh_free(&box);
   free(cams);
   char name[128];
   int v = 0;

@@ -7,7 +7,8 @@
  *    network's output (it differs from the photo, the input and the raster), the run is
  *    deterministic, and --checkpoint names one explicitly;
  *  - a network whose metadata says it was trained at 48x36 on 53k-vertex inputs: the demo renders
- *    at that size (unless --size) with the body after one Loop step (53,514 vertices);
+ *    at that size with the body after one Loop step (53,514 vertices); a --size of another size is
+ *    refused (one line naming the network and both sizes);
  *  - --motion K: demo_motion.png, K panels of the network's output, the first the --frame's;
  *    without --motion an earlier strip is removed;
  *  - bad input: one line, exit 1 (2 for usage), nothing written; an output that cannot be written
@@ -138,9 +139,12 @@ static void test_network_metadata(void) {
   CHECK(file_has("out.txt", "48x36, 53514 vertices"));
   CHECK(png_size("m1/demo_smplpix.png", &w, &h) && w == 48 && h == 36);
   CHECK(png_size("m1/demo_photo.png", &w, &h) && w == 48 && h == 36);
-  /* --size wins over the metadata; the vertex count still follows the network */
-  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out m2 --checkpoint n53k.safetensors --size 40x32") == 0);
-  CHECK(file_has("out.txt", "40x32, 53514 vertices"));
+  /* --size must agree with the size the network was trained at: another one is refused, nothing written */
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out m2 --checkpoint n53k.safetensors --size 40x32") == 1);
+  CHECK(err_one_line_with("n53k.safetensors: the network was trained at 48x36") && err_one_line_with("--size 40x32") &&
+        !exists("m2"));
+  CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out m2 --checkpoint n53k.safetensors --size 48x36") == 0);
+  CHECK(file_has("out.txt", "48x36, 53514 vertices"));
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out m3 --checkpoint nbad.safetensors") == 1);
   CHECK(err_one_line_with("nbad.safetensors") && err_one_line_with("48by36") && !exists("m3"));
 }

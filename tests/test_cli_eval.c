@@ -82,7 +82,7 @@ static void test_files(void) {
   put("odd_pred", "p.npy");
   put("odd_target", "t.npy");
   CHECK(tool("eval --pred p.npy --target t.npy --json r.json") == 0);
-  CHECK(out_has("mean over 1 images: PSNR 20.498 dB, SSIM 0.9452\n")); /* expected.txt: 20.4975, 0.94523 */
+  CHECK(out_has("mean over 1 images: PSNR 20.498 dB, SSIM 0.9452; detail ")); /* expected.txt: 20.4975, 0.94523 */
   cJSON *j = json("r.json");
   CHECK(j != NULL);
   CHECK(num(j, "count") == 1 && is_null(j, "lpips"));
@@ -91,12 +91,26 @@ static void test_files(void) {
   const cJSON *im = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(j, "images"), 0);
   CHECK(im && !strcmp(cJSON_GetObjectItemCaseSensitive(im, "name")->valuestring, "p"));
   CHECK_NEAR(num(im, "ssim"), 0.94523415120003795, 1e-9, 0);
+  { /* detail without a mask: over the target's non-background pixels, as the library computes it */
+    spx_image op = load_src("odd_pred"), ot = load_src("odd_target");
+    spx_detail d;
+    CHECK_OK(ctx, spx_image_detail(ctx, &op, &ot, NULL, &d));
+    CHECK(isfinite(d.ratio) && d.pixels > 0);
+    CHECK_NEAR(num(j, "detail"), d.ratio, 1e-9, 0);
+    CHECK_NEAR(num(im, "detail"), d.ratio, 1e-9, 0);
+    CHECK_NEAR(num(j, "detail_full"), d.ratio_full, 1e-9, 0);
+    char line[96];
+    snprintf(line, sizeof line, "; detail %.3f (non-background), %.3f (full image)\n", d.ratio, d.ratio_full);
+    CHECK(out_has(line));
+    spx_image_free(&op), spx_image_free(&ot);
+  }
   cJSON_Delete(j);
   /* identical images: inf on the line, null in the JSON */
   put("identical_pred", "ip.npy");
   put("identical_target", "it.npy");
   CHECK(tool("eval --pred ip.npy --target it.npy --json r2.json --per-image") == 0);
-  CHECK(out_has("ip: PSNR inf dB, SSIM 1.0000\nmean over 1 images: PSNR inf dB, SSIM 1.0000\n"));
+  CHECK(out_has("ip: PSNR inf dB, SSIM 1.0000; detail 1.000 (non-background), 1.000 (full image)\n"
+                "mean over 1 images: PSNR inf dB, SSIM 1.0000; detail 1.000"));
   j = json("r2.json");
   CHECK(j && is_null(j, "psnr") && num(j, "ssim") == 1);
   cJSON_Delete(j);
@@ -105,7 +119,7 @@ static void test_files(void) {
   put("masked_target", "mt.npy");
   put("masked_mask", "mm.npy");
   CHECK(tool("eval --pred mp.npy --target mt.npy --mask mm.npy --json r3.json") == 0);
-  CHECK(out_has("mean over 1 images: PSNR 27.498 dB, SSIM 0.8088; masked: PSNR 22.074 dB, SSIM 0.6483\n"));
+  CHECK(out_has("mean over 1 images: PSNR 27.498 dB, SSIM 0.8088; masked: PSNR 22.074 dB, SSIM 0.6483; detail "));
   j = json("r3.json");
   CHECK_NEAR(num(j, "psnr_masked"), 22.074080173902484, 1e-8, 0);
   CHECK_NEAR(num(j, "ssim_masked"), 0.64834196113444498, 1e-9, 0);
@@ -114,7 +128,7 @@ static void test_files(void) {
   put("constant_pred", "cp.npy");
   put("constant_target", "ct.npy");
   CHECK(tool("eval --pred cp.npy --target ct.npy") == 0);
-  CHECK(out_has("mean over 1 images: PSNR 7.959 dB, SSIM 0.7242\n"));
+  CHECK(out_has("mean over 1 images: PSNR 7.959 dB, SSIM 0.7242; detail "));
   /* a mask whose foreground is only at the border: masked SSIM undefined, n/a and null */
   spx_image bm = {0};
   CHECK_OK(ctx, spx_image_alloc(ctx, 19, 16, 1, &bm));
@@ -125,7 +139,7 @@ static void test_files(void) {
   CHECK_OK(ctx, spx_npy_save_f32(ctx, p, bm.data, 2, shape));
   spx_image_free(&bm);
   CHECK(tool("eval --pred cp.npy --target ct.npy --mask corner.npy --json rc.json") == 0);
-  CHECK(out_has("; masked: PSNR 7.959 dB, SSIM n/a\n"));
+  CHECK(out_has("; masked: PSNR 7.959 dB, SSIM n/a; detail "));
   j = json("rc.json");
   CHECK(j && is_null(j, "ssim_masked") && fabs(num(j, "psnr_masked") - 7.9588) < 1e-4);
   cJSON_Delete(j);
@@ -161,7 +175,7 @@ static void test_folders(void) {
   CHECK_OK(ctx, spx_image_metrics(ctx, &mp, &mt, &mm, &rb));
   CHECK(tool("eval --pred P --target T --mask M --per-image --json f.json") == 0);
   char line[256];
-  snprintf(line, sizeof line, "a: PSNR %.3f dB, SSIM %.4f; masked: PSNR %.3f dB, SSIM %.4f\nb: ", ra.psnr, ra.ssim,
+  snprintf(line, sizeof line, "a: PSNR %.3f dB, SSIM %.4f; masked: PSNR %.3f dB, SSIM %.4f; detail ", ra.psnr, ra.ssim,
            ra.psnr_fg, ra.ssim_fg);
   CHECK(out_has(line));
   snprintf(line, sizeof line, "mean over 2 images: PSNR %.3f dB, SSIM %.4f;", (ra.psnr + rb.psnr) / 2,
@@ -177,6 +191,17 @@ static void test_folders(void) {
   CHECK(b && !strcmp(cJSON_GetObjectItemCaseSensitive(b, "name")->valuestring, "b"));
   CHECK_NEAR(num(b, "psnr_masked"), 22.074080173902484, 1e-8, 0);
   CHECK(b && is_null(b, "lpips"));
+  /* detail inside the masks, per image and the mean */
+  spx_detail da, db;
+  CHECK_OK(ctx, spx_image_detail(ctx, &opq, &ot, &full, &da));
+  CHECK_OK(ctx, spx_image_detail(ctx, &mp, &mt, &mm, &db));
+  CHECK(da.ratio != db.ratio);
+  CHECK_NEAR(num(cJSON_GetArrayItem(ims, 0), "detail"), da.ratio, 1e-9, 0);
+  CHECK_NEAR(num(b, "detail"), db.ratio, 1e-9, 0);
+  CHECK_NEAR(num(j, "detail"), (da.ratio + db.ratio) / 2, 1e-9, 0);
+  CHECK_NEAR(num(j, "detail_full"), (da.ratio_full + db.ratio_full) / 2, 1e-9, 0);
+  snprintf(line, sizeof line, "; detail %.3f (mask), %.3f (full image)\nmean over 2 images:", db.ratio, db.ratio_full);
+  CHECK(out_has(line));
   cJSON_Delete(j);
   spx_image_free(&op), spx_image_free(&ot), spx_image_free(&mp), spx_image_free(&mt), spx_image_free(&mm);
   spx_image_free(&opq), spx_image_free(&full);
@@ -189,7 +214,7 @@ static void test_lpips(void) {
   put("lp_random_pred", "lpp.npy");
   put("lp_random_target", "lpt.npy");
   CHECK(tool("eval --pred lpp.npy --target lpt.npy --lpips lp.safetensors --json l.json") == 0);
-  CHECK(out_has(", LPIPS 0.1852\n"));
+  CHECK(out_has(", LPIPS 0.1852; detail "));
   cJSON *j = json("l.json");
   CHECK_NEAR(num(j, "lpips"), 0.18518037343347837, 0, 1e-5); /* tests/data/metrics/lpips_expected.txt */
   CHECK(j && !cJSON_GetObjectItem(j, "lpips_masked")); /* no mask, no masked value */
@@ -206,7 +231,7 @@ static void test_lpips(void) {
   CHECK_OK(ctx, spx_npy_save_f32(ctx, mp, rect.data, 2, rshape));
   spx_image_free(&rect);
   CHECK(tool("eval --pred lpp.npy --target lpt.npy --mask lprect.npy --lpips lp.safetensors --json lm.json") == 0);
-  CHECK(out_has(", LPIPS 0.1852; masked: PSNR ") && out_has(", LPIPS 0.1842\n"));
+  CHECK(out_has(", LPIPS 0.1852; masked: PSNR ") && out_has(", LPIPS 0.1842; detail "));
   j = json("lm.json");
   CHECK_NEAR(num(j, "lpips"), 0.18518037343347837, 0, 1e-5);
   CHECK_NEAR(num(j, "lpips_masked"), 0.18420818097205149, 0, 1e-5);
@@ -243,7 +268,7 @@ static void test_cached_lpips(void) {
   CHECK(out_lacks("LPIPS"));
   CHECK(spx_t_lpips_weights(ctx, w, NULL, NULL));
   CHECK(tool("eval --pred lpp.npy --target lpt.npy --json c.json") == 0);
-  CHECK(out_has(", LPIPS 0.1852\n"));
+  CHECK(out_has(", LPIPS 0.1852; detail "));
   cJSON *j = json("c.json");
   CHECK_NEAR(num(j, "lpips"), 0.18518037343347837, 0, 1e-5);
   cJSON_Delete(j);

@@ -1,7 +1,10 @@
 /* smplpix synth end to end: the files and manifest of the data contract, the same seed gives the
- * same bytes, the scan in its scan pose projects onto the rest view's mask, and bad input gets
- * one line, exit 1 (2 for usage) and leaves nothing behind. */
+ * same bytes, the scan in its scan pose projects onto the rest view's mask and is framed as the
+ * manifest records (its projected box fills the view's fill, centred, with the camera recorded),
+ * and bad input gets one line, exit 1 (2 for usage) and leaves nothing behind. */
 #include <dirent.h>
+
+#include <cjson/cJSON.h>
 
 #include "cli_test.h"
 #include "smplpix/smplpix.h"
@@ -129,6 +132,40 @@ static void test_scan_on_mask(void) {
       in += hit;
     }
     CHECK_MSG(in >= scan.nv * 0.995, "%d of %d scan vertices on the mask", in, scan.nv);
+    /* the framing: the scan's projected box, computed here, is the one recorded, filling its fill */
+    double box[4] = {INFINITY, INFINITY, -INFINITY, -INFINITY};
+    for (int32_t i = 0; i < scan.nv; i++) {
+      double q[3];
+      for (int r = 0; r < 3; r++)
+        q[r] = cam->R[r][0] * scan.pos[i * 3] + cam->R[r][1] * scan.pos[i * 3 + 1] + cam->R[r][2] * scan.pos[i * 3 + 2] +
+               cam->t[r];
+      double u = cam->K[0][0] * q[0] / q[2] + cam->K[0][2], v = cam->K[1][1] * q[1] / q[2] + cam->K[1][2];
+      box[0] = fmin(box[0], u), box[1] = fmin(box[1], v), box[2] = fmax(box[2], u), box[3] = fmax(box[3], v);
+    }
+    size_t n = 0;
+    char *m = slurp("a/synth.json", &n);
+    cJSON *doc = m ? cJSON_Parse(m) : NULL;
+    free(m);
+    const cJSON *rule = cJSON_GetObjectItemCaseSensitive(doc, "framing");
+    const cJSON *v0 = cJSON_GetArrayItem(
+        cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(doc, "subjects"), 0), "views"),
+        0);
+    const cJSON *fr = cJSON_GetObjectItemCaseSensitive(v0, "framing");
+    const cJSON *fill = cJSON_GetObjectItemCaseSensitive(fr, "fill"), *rb = cJSON_GetObjectItemCaseSensitive(fr, "box");
+    const cJSON *focal = cJSON_GetObjectItemCaseSensitive(fr, "focal"), *ctr = cJSON_GetObjectItemCaseSensitive(fr, "center");
+    CHECK(cJSON_IsObject(rule) && cJSON_IsNumber(fill) && cJSON_GetArraySize(rb) == 4 && cJSON_IsNumber(focal) &&
+          cJSON_GetArraySize(ctr) == 2);
+    if (cJSON_IsNumber(fill) && cJSON_GetArraySize(rb) == 4 && cJSON_IsNumber(focal) && cJSON_GetArraySize(ctr) == 2) {
+      double f = fill->valuedouble;
+      CHECK(f >= SPX_FRAME_FILL_MIN && f <= SPX_FRAME_FILL_MAX);
+      for (int k = 0; k < 4; k++) CHECK_NEAR(cJSON_GetArrayItem(rb, k)->valuedouble, box[k], 1e-3, 0);
+      CHECK_NEAR(fmax((box[2] - box[0]) / W, (box[3] - box[1]) / H), f, 1e-6, 0);
+      CHECK_NEAR(0.5 * (box[0] + box[2]), 0.5 * W, 1e-3, 0);
+      CHECK_NEAR(0.5 * (box[1] + box[3]), 0.5 * H, 1e-3, 0);
+      CHECK_NEAR(focal->valuedouble, cam->K[0][0], 1e-9, 1e-12);
+      CHECK_NEAR(cJSON_GetArrayItem(ctr, 0)->valuedouble, cam->K[0][2], 1e-9, 1e-12);
+    }
+    cJSON_Delete(doc);
   }
   spx_mesh_free(&scan);
   free(cam);

@@ -449,6 +449,39 @@ static void test_errors(void) {
   CHECK(log_has(log, "input/b.npy is 40x32") && log_has(log, "input/a.npy is 40x36") && one_line(log));
   CHECK(!spx_t_file_exists(out));
 
+  /* a network trained at another size than its input: train records the size (smplpix.image_size);
+   * render refuses another size (one line naming the file and both sizes; --any-size runs it),
+   * and so does train --init on data of another size */
+  path_in(ck, sizeof ck, "sized.safetensors");
+  path_in(data, sizeof data, "d");
+  snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --width 8 --steps 1", data, ck);
+  CHECK(run_err(args, log) == 0);
+  memset(&f, 0, sizeof f);
+  CHECK_OK(ctx, spx_st_load(ctx, ck, &f));
+  const char *rec = spx_st_meta(&f, "smplpix.image_size");
+  CHECK_MSG(rec && !strcmp(rec, "40x36"), "smplpix.image_size: %s", rec ? rec : "(none)");
+  spx_st_free(&f);
+  path_in(data, sizeof data, "other");
+  mkdirs(data);
+  make_pair(data, "a", H - 4, W, &s);
+  path_in(in, sizeof in, "other/train/input/a.npy");
+  path_in(out, sizeof out, "other.npy");
+  remove(out);
+  snprintf(args, sizeof args, "render --checkpoint \"%s\" --input \"%s\" --out \"%s\"", ck, in, out);
+  CHECK(run(args, log) == 1);
+  CHECK(log_has(log, "sized.safetensors: the network was trained at 40x36") && log_has(log, "a.npy is 40x32") &&
+        log_has(log, "--any-size") && one_line(log));
+  CHECK(!spx_t_file_exists(out));
+  snprintf(args, sizeof args, "render --checkpoint \"%s\" --input \"%s\" --out \"%s\" --any-size", ck, in, out);
+  CHECK(run(args, log) == 0 && spx_t_file_exists(out));
+  path_in(out, sizeof out, "other.safetensors");
+  remove(out);
+  snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --init \"%s\" --steps 1", data, out, ck);
+  CHECK(run_err(args, log) == 1);
+  CHECK(log_has(log, "sized.safetensors: the network was trained at 40x36") && log_has(log, "other/train is 40x32") &&
+        one_line(log));
+  CHECK(!spx_t_file_exists(out));
+
   /* an empty data set: the directory is named */
   path_in(data, sizeof data, "empty");
   mkdirs(data);

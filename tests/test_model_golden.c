@@ -1,6 +1,7 @@
 /* The shipped network against PyTorch (issue 10): `smplpix render` without --checkpoint (so the
  * shipped data/models/default.safetensors, found through SPX_DATA_DIR = the repository's data/)
- * on tests/data/models/input_64x48.npy gives the output that PyTorch computes with the same file
+ * on tests/data/models/input_64x48.npy (--any-size: a small input, whatever size the network was
+ * trained at) gives the output that PyTorch computes with the same file
  * loaded into the milesial UNet by load_state_dict(strict=True) (tests/data/models/
  * make_model_golden.py wrote default_golden.npy and default_golden.json).
  *
@@ -79,7 +80,7 @@ int main(void) {
     if (same) {
       char cmd[1200];
       snprintf(cmd, sizeof cmd,
-               "cd '%s' && SPX_DATA_DIR='%s' '%s' render --input '%s/models/input_64x48.npy' --out out.npy --quiet "
+               "cd '%s' && SPX_DATA_DIR='%s' '%s' render --input '%s/models/input_64x48.npy' --out out.npy --any-size --quiet "
                ">out.txt 2>err.txt",
                dir, SPX_REPO_DATA, spx_t_tool(), SPX_TEST_DATA);
       CHECK_MSG(spx_t_system(cmd) == 0, "smplpix render with the shipped network failed (see %s/err.txt)", dir);

@@ -37,6 +37,28 @@ spx_status spx_camera_save(spx_ctx *ctx, const char *path, const spx_camera *cam
 spx_status spx_camera_look_at(spx_ctx *ctx, int32_t width, int32_t height, double focal_px, const double eye[3],
                               const double target[3], const double up[3], spx_camera *out);
 
+/* Framing a subject as a scanner photo does (docs/synth.md, "Framing"; lib/render/frame.c): a
+ * camera at `dist` from the centre of the points' 3-D bounding box, looking at it from azimuth az
+ * (radians; 0 = the camera on +Z of the centre) and elevation el (radians, |el| < pi/2; positive
+ * = above), Y up, whose focal length (square pixels) and principal point make the points'
+ * projected bounding box fill `fill` (0 < fill <= 1) of the image height, or of its width when
+ * the box is wider than the image allows, centred in the image: a margin of (1 - fill) / 2 of
+ * the image on either side of the limiting dimension, so hands and feet stay in. dist <= 0: the
+ * default, SPX_FRAME_DISTANCE times the box's largest side (about 3.5 m for a standing adult).
+ * SPX_FRAME_FILL is the fill `smplpix demo` and `dataset --orbit` use; `synth` draws
+ * it per view from [SPX_FRAME_FILL_MIN, SPX_FRAME_FILL_MAX]. A portrait image (e.g. 192x256)
+ * suits a standing person: the box then fills the height. Errors: no points, a point not
+ * finite, points without extent, a point at or behind the camera (dist too small). */
+#define SPX_FRAME_FILL 0.9
+#define SPX_FRAME_FILL_MIN 0.84
+#define SPX_FRAME_FILL_MAX 0.94
+#define SPX_FRAME_DISTANCE 2.0
+spx_status spx_camera_frame(spx_ctx *ctx, int64_t n, const float *pts, int32_t width, int32_t height, double az,
+                            double el, double dist, double fill, spx_camera *out);
+/* The bounding box [u0, v0, u1, v1] (pixels, continuous: u = u'/d as in the projection) of the
+ * n points (xyz floats) seen through cam; a point at or behind the camera is an error. */
+spx_status spx_camera_bbox(spx_ctx *ctx, const spx_camera *cam, int64_t n, const float *pts, double box[4]);
+
 #ifdef __cplusplus
 }
 #endif

@@ -43,6 +43,35 @@ typedef struct spx_metrics {
 spx_status spx_image_metrics(spx_ctx *ctx, const spx_image *pred, const spx_image *target, const spx_image *mask,
                              spx_metrics *out);
 
+/* Detail: how much edge and print detail survives, as the mean absolute image gradient.
+ * The gradient of an interior pixel (x, y) in channel c is
+ *   (|I(x+1,y) - I(x,y)| + |I(x,y) - I(x-1,y)|) / 2 + (|I(x,y+1) - I(x,y)| + |I(x,y) - I(x,y-1)|) / 2
+ * (both one-sided differences, so a one-pixel stripe counts in full); the mean absolute gradient
+ * of an image over a region is the mean of that over the region's pixels that are not on the
+ * image's border and over the three RGB channels.
+ * spx_image_gradient_mean: that mean (*out NAN when no pixel counts); region NULL = the whole
+ *   image, else an image of the same size whose first channel nonzero marks the region; *count
+ *   (may be NULL) receives the number of pixels counted.
+ * spx_image_foreground: a one-channel mask (1 = foreground) of the pixels that are not the white
+ *   background, i.e. with any of R, G, B below 1.
+ * spx_image_detail: the prediction's detail relative to the target's: ratio = mean gradient of
+ *   pred / mean gradient of target, both over the mask's foreground or, with mask NULL, over the
+ *   target's non-background pixels (spx_image_foreground of target); ratio_full the same over the
+ *   whole image. 1 = as much detail as the target, < 1 = blurred, > 1 = sharper or noisier. NAN
+ *   where the target is flat over the region (or the region is empty). This is the "detail" of
+ *   `smplpix eval` and of `smplpix avatar`'s report. */
+typedef struct spx_detail {
+  double ratio;        /* pred / target over the region */
+  double pred, target; /* the mean absolute gradient of each over the region */
+  double ratio_full;   /* pred / target over the whole image */
+  int64_t pixels;      /* pixels of the region counted */
+} spx_detail;
+spx_status spx_image_gradient_mean(spx_ctx *ctx, const spx_image *img, const spx_image *region, double *out,
+                                   int64_t *count);
+spx_status spx_image_foreground(spx_ctx *ctx, const spx_image *img, spx_image *mask);
+spx_status spx_image_detail(spx_ctx *ctx, const spx_image *pred, const spx_image *target, const spx_image *mask,
+                            spx_detail *out);
+
 /* LPIPS (Zhang et al. 2018, version 0.1, net='alex'), with the `lpips` package's definition:
  *   x in [0,1] -> 2x - 1 -> (x - shift) / scale (its scaling layer) -> AlexNet `features`
  *   (conv11 s4 p2 64, ReLU | maxpool3 s2, conv5 p2 192, ReLU | maxpool3 s2, conv3 p1 384, ReLU |
