@@ -31,20 +31,6 @@ static int set_alloc(const char *cmd, av_set *s, const char *name, int n, int nj
   return SPX_EXIT_OK;
 }
 
-/* A camera at azimuth az, elevation el (radians) with focal length f (pixels) looking at the
- * centre of the points' bounding box, far enough that the box's height fills `fill` of the image
- * and its width fits. */
-static int frame_camera(spx_ctx *ctx, int W, int H, double az, double el, double f, double fill, const float *pts,
-                        int32_t n, spx_camera *cam) {
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (int32_t k = 0; k < n; k++)
-    for (int c = 0; c < 3; c++) lo[c] = fmin(lo[c], pts[k * 3 + c]), hi[c] = fmax(hi[c], pts[k * 3 + c]);
-  double target[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
-  double ext_v = hi[1] - lo[1], ext_h = fmax(hi[0] - lo[0], hi[2] - lo[2]);
-  double dist = f * fmax(ext_v / (fill * H), ext_h / (fill * W)) + 0.5 * ext_h;
-  return spx_synth_camera(ctx, W, H, az, el, dist, f, target, cam) != SPX_OK;
-}
-
 /* Frames [a, b) of the clip spread over n views (jittered within their share when rng). */
 static int32_t pick_frame(spx_synth_rng *rng, int i, int n, int32_t a, int32_t b) {
   double u = rng ? spx_synth_rng_uniform(rng, 0, 1) : 0.5;
@@ -52,16 +38,25 @@ static int32_t pick_frame(spx_synth_rng *rng, int i, int n, int32_t a, int32_t b
   return f < a ? a : f >= b ? b - 1 : f;
 }
 
-/* One view's pose and camera; posed: scratch of the scan's size. */
+/* One view's pose and its camera at azimuth az, elevation el, framed on the posed scan as synth
+ * frames its photos (spx_camera_frame: the projected box fills `fill` of the image height, from
+ * `dist_scale` x SPX_FRAME_DISTANCE x the box's largest side); posed: scratch of the scan's size. */
 static int make_view(const char *cmd, spx_ctx *ctx, spx_avatar *a, const av_subject *sub, const spx_anim_motion *mo,
-                     int32_t frame, double az, double el, double focal, const av_plan *p, av_view *v, float *posed) {
+                     int32_t frame, double az, double el, double dist_scale, double fill, const av_plan *p, av_view *v,
+                     float *posed) {
   const spx_body_model *m = spx_avatar_body(a);
   v->frame = frame;
   if (spx_anim_motion_pose(ctx, mo, m, frame, v->pose, v->trans))
     return spx_cli_errorf(cmd, "%s: frame %d: %s", mo->path, frame, spx_ctx_message(ctx));
-  if (spx_avatar_pose_scan(ctx, m, spx_avatar_registration(a), &sub->bind, v->pose, v->trans, posed) ||
-      frame_camera(ctx, p->W, p->H, az, el, focal, 0.85, posed, sub->bind.nv, &v->cam))
+  if (spx_avatar_pose_scan(ctx, m, spx_avatar_registration(a), &sub->bind, v->pose, v->trans, posed))
     return spx_cli_error(cmd, ctx);
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int32_t k = 0; k < sub->bind.nv; k++)
+    for (int c = 0; c < 3; c++) lo[c] = fmin(lo[c], posed[k * 3 + c]), hi[c] = fmax(hi[c], posed[k * 3 + c]);
+  double extent = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+  if (spx_camera_frame(ctx, sub->bind.nv, posed, p->W, p->H, az, el, extent * SPX_FRAME_DISTANCE * dist_scale, fill,
+                       &v->cam))
+    return spx_cli_errorf(cmd, "%s view of frame %d: %s", "framing the", frame, spx_ctx_message(ctx));
   return SPX_EXIT_OK;
 }
 
@@ -109,8 +104,8 @@ static int make_split(const char *cmd, spx_ctx *ctx, spx_avatar *a, const av_sub
     int32_t frame = pick_frame(rng, i, s->n, f0, f1);
     double az = az0 + 2 * PI * (i + shift + spx_synth_rng_uniform(rng, -0.25, 0.25)) / s->n;
     double el = spx_synth_rng_uniform(rng, -10, 35) * PI / 180;
-    double focal = p->H * spx_synth_rng_uniform(rng, 1.2, 1.8);
-    int rc = make_view(cmd, ctx, a, sub, mo, frame, az, el, focal, p, &s->v[i], w->posed);
+    double dist = spx_synth_rng_uniform(rng, 0.8, 1.3), fill = spx_synth_rng_uniform(rng, SPX_FRAME_FILL_MIN, SPX_FRAME_FILL_MAX);
+    int rc = make_view(cmd, ctx, a, sub, mo, frame, az, el, dist, fill, p, &s->v[i], w->posed);
     if (!rc) rc = render_view(cmd, ctx, w->rast, w->proj, a, sub, s, i, w->posed, w->verts, w->rgb);
     if (rc) return rc;
   }

@@ -3,7 +3,7 @@
  * on the view's input, clamped to [0,1]), and the per-vertex raster of the same vertices (the
  * posed input mesh with the avatar's colours, unlit, 2x2 supersampled: the baseline of
  * TABLE1.md). PSNR is the whole image's, LPIPS AlexNet's, detail the mean absolute image gradient
- * inside the subject's mask, prediction / target. */
+ * inside the subject's mask, prediction / target (spx_image_detail, as `smplpix eval` reports it). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,26 +13,6 @@
 
 #include "avatar_app.h"
 #include "demo_compose.h"
-
-/* Mean absolute image gradient (forward differences along x and y, the three channels) over the
- * pixels inside the mask whose neighbours are inside too. */
-static double mean_gradient(const float *rgb, const uint8_t *mask, int W, int H) {
-  double s = 0;
-  long n = 0;
-  for (int y = 0; y + 1 < H; y++)
-    for (int x = 0; x + 1 < W; x++) {
-      size_t p = (size_t)y * W + x;
-      if (!mask[p] || !mask[p + 1] || !mask[p + W]) continue;
-      for (int c = 0; c < 3; c++)
-        s += fabs(rgb[(p + 1) * 3 + c] - rgb[p * 3 + c]) + fabs(rgb[(p + W) * 3 + c] - rgb[p * 3 + c]);
-      n++;
-    }
-  return n ? s / (6.0 * n) : NAN;
-}
-
-static double detail_ratio(const float *pred, const float *target, const uint8_t *mask, int W, int H) {
-  return mean_gradient(pred, mask, W, H) / mean_gradient(target, mask, W, H);
-}
 
 /* The three images of one held-out view, HWC RGB. */
 typedef struct av_triple {
@@ -64,13 +44,17 @@ static int render_triple(const char *cmd, spx_ctx *ctx, spx_avatar *a, spx_raste
   return SPX_EXIT_OK;
 }
 
+/* PSNR, LPIPS and detail (spx_image_detail inside the subject's mask) of pred against target,
+ * added to sum. mask: W*H floats, 1 = the subject. */
 static int score_one(const char *cmd, spx_ctx *ctx, spx_lpips *lp, const float *pred, const float *target,
-                     const uint8_t *mask, int W, int H, av_scores *sum) {
-  spx_image a = {W, H, 3, (float *)pred}, b = {W, H, 3, (float *)target};
+                     const float *mask, int W, int H, av_scores *sum) {
+  spx_image a = {W, H, 3, (float *)pred}, b = {W, H, 3, (float *)target}, m1 = {W, H, 1, (float *)mask};
   spx_metrics m;
+  spx_detail d;
   double l = 0;
-  if (spx_image_metrics(ctx, &a, &b, NULL, &m) || spx_lpips_distance(lp, &a, &b, &l)) return spx_cli_error(cmd, ctx);
-  sum->psnr += m.psnr, sum->lpips += l, sum->detail += detail_ratio(pred, target, mask, W, H);
+  if (spx_image_metrics(ctx, &a, &b, NULL, &m) || spx_lpips_distance(lp, &a, &b, &l) || spx_image_detail(ctx, &a, &b, &m1, &d))
+    return spx_cli_error(cmd, ctx);
+  sum->psnr += m.psnr, sum->lpips += l, sum->detail += d.ratio;
   return SPX_EXIT_OK;
 }
 
@@ -108,16 +92,16 @@ int av_score(const char *cmd, spx_ctx *ctx, spx_avatar *a, const av_set *held, c
   spx_avatar_get_info(a, &info);
   memset(avatar, 0, sizeof *avatar), memset(raster, 0, sizeof *raster);
   av_triple t[5]; /* the picture's rows, and a slot for the views past them */
-  float *pix = calloc(hw * 3 * 3 * 5, sizeof(float)), *buf = malloc(hw * 7 * sizeof(float));
+  float *pix = calloc(hw * 3 * 3 * 5, sizeof(float)), *buf = malloc(hw * 7 * sizeof(float)), *mask = malloc(hw * sizeof(float));
   float *verts = malloc((size_t)info.vertices * 3 * sizeof(float));
   spx_lpips *lp = NULL;
   spx_rasterizer *rast = NULL;
-  if (!pix || !buf || !verts) rc = spx_cli_errorf(cmd, "out of memory");
+  if (!pix || !buf || !verts || !mask) rc = spx_cli_errorf(cmd, "out of memory");
   else if (spx_lpips_load(ctx, lpips_path, &lp) || spx_rasterizer_create(ctx, &rast)) rc = spx_cli_error(cmd, ctx);
   for (int k = 0; k < 5 && pix; k++) t[k] = (av_triple){pix + hw * 9 * k, pix + hw * (9 * k + 3), pix + hw * (9 * k + 6)};
   for (int i = 0; i < held->n && !rc; i++) {
     av_triple *ti = &t[i < rows ? i : 4];
-    const uint8_t *mask = held->mask + (size_t)i * hw;
+    for (size_t q = 0; q < hw; q++) mask[q] = held->mask[(size_t)i * hw + q] ? 1.0f : 0.0f;
     if (!(rc = render_triple(cmd, ctx, a, rast, held, i, verts, buf, ti)) &&
         !(rc = score_one(cmd, ctx, lp, ti->avatar, ti->target, mask, W, H, avatar)))
       rc = score_one(cmd, ctx, lp, ti->raster, ti->target, mask, W, H, raster);
@@ -127,7 +111,7 @@ int av_score(const char *cmd, spx_ctx *ctx, spx_avatar *a, const av_set *held, c
   if (!rc && rows) rc = stage_picture(cmd, ctx, out, tx, t, rows, W, H);
   spx_lpips_free(lp);
   spx_rasterizer_destroy(rast);
-  free(pix), free(buf), free(verts);
+  free(pix), free(buf), free(verts), free(mask);
   return rc;
 }
 

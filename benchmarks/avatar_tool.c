@@ -1,8 +1,8 @@
 /* avatar_tool: the README's avatar picture (scripts/avatar_demo.sh, `make docs-avatar`).
  *   avatar_tool frames --avatar A.safetensors --bvh M.bvh --first F --step T --count K --size WxH --out DIR
  *       frames F, F+T, ... (K of them) of the motion, retargeted onto the avatar's body; each drawn
- *       through a camera framed on that frame's posed vertices (from the front, a little to the
- *       side and above) twice: the avatar (its network) as DIR/avatar_NN.png and the per-vertex
+ *       through a camera framed on that frame's posed vertices (spx_camera_frame, SPX_FRAME_FILL;
+ *       from the front, a little to the side and above) twice: the avatar (its network) as DIR/avatar_NN.png and the per-vertex
  *       raster of the same vertices (their mesh with the avatar's colours, 2x2 supersampled) as
  *       DIR/raster_NN.png (NN = 00..K-1).
  * Bad input: one line naming the file, exit 1 (2 for usage). */
@@ -17,18 +17,6 @@
 static int fail(const char *what, const char *msg) {
   fprintf(stderr, "avatar_tool: error: %s%s%s\n", what, *msg ? ": " : "", msg);
   return 1;
-}
-
-/* A camera at azimuth az, elevation el (radians) looking at the centre of the points' bounding
- * box, the box's height filling 85% of the image. */
-static spx_status frame_on(spx_ctx *ctx, int W, int H, const float *pts, int32_t n, spx_camera *cam) {
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (int32_t k = 0; k < n; k++)
-    for (int c = 0; c < 3; c++) lo[c] = fmin(lo[c], pts[k * 3 + c]), hi[c] = fmax(hi[c], pts[k * 3 + c]);
-  double target[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])}, f = 1.5 * H;
-  double ext_v = hi[1] - lo[1], ext_h = fmax(hi[0] - lo[0], hi[2] - lo[2]);
-  double dist = f * fmax(ext_v / (0.85 * H), ext_h / (0.85 * W)) + 0.5 * ext_h;
-  return spx_synth_camera(ctx, W, H, 0.35, 8 * 3.14159265358979 / 180, dist, f, target, cam);
 }
 
 typedef struct frames_args {
@@ -80,7 +68,8 @@ static int frames(spx_ctx *ctx, const frames_args *a) {
   for (int k = 0; k < a->count; k++) {
     spx_camera cam;
     if (spx_bvh_map_pose(ctx, &map, &b, m, (int32_t)(a->first + k * a->step), pose, trans) ||
-        spx_avatar_pose(av, pose, trans, v) || frame_on(ctx, a->W, a->H, v, info.vertices, &cam) ||
+        spx_avatar_pose(av, pose, trans, v) ||
+        spx_camera_frame(ctx, info.vertices, v, a->W, a->H, 0.35, 8 * 3.14159265358979 / 180, 0, SPX_FRAME_FILL, &cam) ||
         spx_avatar_render(av, pose, trans, &cam, rgb, NULL)) {
       fail(a->avatar, spx_ctx_message(ctx));
       goto done;
