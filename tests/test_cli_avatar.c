@@ -8,6 +8,7 @@
  *    next run without --resume is refused, --resume finishes with the same tensors, metadata (the
  *    CPU time aside), report.png and scores as the uninterrupted run;
  *  - animate --avatar: a frame equals `render --avatar` of the same motion frame; --raster draws;
+ *  - an OBJ scan with texture coordinates and a texture;
  *  - a run that registers the scan itself;
  *  - bad input: one line naming the file and the problem, exit 1 (2 for usage), OUT not left
  *    behind: a scan that is not a person, too few points, a point cloud, no colours and no texture,
@@ -49,7 +50,7 @@ static int run_hooked(const char *env, const char *args) {
 static void test_setup(void) {
   char cmd[3000], w[800];
   path_of(cache, sizeof cache, "cache");
-  snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf A B C R X an ras synth", dir); /* an earlier run's */
+  snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf A B C R T X an ras synth", dir); /* an earlier run's */
   CHECK(spx_t_system(cmd) == 0);
   snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s/weights' && cp '" SPX_TEST_DATA "/vgg/vgg16_w4.safetensors' "
            "'%s/weights/vgg16.safetensors'", cache, cache, cache);
@@ -203,6 +204,16 @@ static void test_animate(void) {
   CHECK(run("render --frame 3 --camera cam.json --out x.png") == 2);
 }
 
+/* An OBJ scan with texture coordinates and its texture: the registered body itself (`smplpix
+ * repose` writes the model's UVs) with the synthetic subject's texture (painted in those UVs). */
+static void test_textured(void) {
+  CHECK(run("repose --registration reg.json --pose reg.json --out body.obj") == 0);
+  CHECK(run("avatar --scan body.obj --texture synth/s000/texture.png --registration reg.json --out T " SMALL) == 0);
+  CHECK(report_ok("T/report.json", 4, 2) && !exists("T/work"));
+  CHECK(run("avatar --scan body.obj --registration reg.json --out X " SMALL) == 1 &&
+        err_one_line_with("body.obj: has no vertex colours and no --texture was given") && !exists("X"));
+}
+
 /* The whole pipeline with the registration made here (Ceres), at 53k vertices. */
 static void test_register(void) {
   CHECK(run("avatar --scan synth/s000/scan.ply --out R --vertices 53k --views 2 --heldout 1 --size 32x48 --steps 2 --quiet") == 0);
@@ -329,6 +340,7 @@ int main(void) {
   SPX_RUN(test_resume);
   SPX_RUN(test_animate);
   SPX_RUN(test_bad_input);
+  SPX_RUN(test_textured);
   SPX_RUN(test_register);
   spx_ctx_destroy(ctx);
   return spx_test_summary();

@@ -83,12 +83,18 @@ def test_avatar_info_pose_render(ctx, made):
         pose[0] = [0, 1.0, 0]
         v1 = a.pose_vertices(pose, [0, 0, 0])
         assert not np.allclose(v0, v1)
-        cam = smplpix.Camera.look_at(40, 56, 60.0, eye=[0.2, 0.9, 3.0], target=[0, 0.9, 0])
+        cam = smplpix.Camera.look_at(32, 48, 55.0, eye=[0.2, 0.9, 3.0], target=[0, 0.9, 0])  # the size it was trained at
         smplpix.Camera.save(d / "cam.json", cam)
         rgb, inp = a.render(cam, with_input=True)
-        assert rgb.shape == (56, 40, 3) and inp.shape == (56, 40, 4) and np.count_nonzero(inp[..., 3] != 1) > 50
+        assert rgb.shape == (48, 32, 3) and inp.shape == (48, 32, 4) and np.count_nonzero(inp[..., 3] != 1) > 50
         run("render", "--avatar", "A/avatar.safetensors", "--camera", "cam.json", "--out", "r.npy", "--quiet")
         np.testing.assert_array_equal(rgb, np.load(d / "r.npy"))
+        big = smplpix.Camera.look_at(40, 56, 60.0, eye=[0.2, 0.9, 3.0], target=[0, 0.9, 0])
+        smplpix.Camera.save(d / "big.json", big)
+        r = run("render", "--avatar", "A/avatar.safetensors", "--camera", "big.json", "--out", "b.npy", check=False)
+        assert r.returncode == 1 and "trained at 32x48" in r.stderr
+        run("render", "--avatar", "A/avatar.safetensors", "--camera", "big.json", "--out", "b.npy", "--any-size")
+        np.testing.assert_array_equal(a.render(big), np.load(d / "b.npy"))
         with pytest.raises(ValueError):
             a.pose_vertices(np.zeros(5))
 
