@@ -83,7 +83,8 @@ class Avatar:
     def registration(self) -> dict:
         """The registered pose: betas (S,), pose (joints, 3), trans (3,), body_scale."""
         r = L.spx_avatar_registration(self.ptr).contents
-        return {"betas": carray(r.betas, r.nbetas, np.float64), "pose": carray(r.pose, r.nj * 3, np.float64).reshape(-1, 3),
+        betas = carray(r.betas, r.nbetas, np.float64) if r.nbetas else np.zeros(0)
+        return {"betas": betas, "pose": carray(r.pose, r.nj * 3, np.float64).reshape(-1, 3),
                 "trans": np.array(r.trans[:]), "body_scale": r.body_scale}
 
     def _pose_args(self, pose, trans):
