@@ -45,7 +45,7 @@ static void avatar_help(void) {
       "binds every scan vertex to its closest point on the registered body (its skinning weights), poses the\n"
       "scan with frames of the motion (--poses, default data/mocap/01_01.bvh; AMASS .npz too) and photographs\n"
       "it from cameras all round framed on the person (lit as `smplpix synth` lights its photos, 2x2\n"
-      "supersampled): N training views (default 48), 4 validation views and --heldout held-out views\n"
+      "supersampled): N training views (default 48), 4 validation views (2 under 16) and --heldout held-out views\n"
       "(default 8; poses from the end of the clip and cameras never used in training). The inputs are the\n"
       "projection of the posed registration at --vertices (default 13k; the body's count, or after one or two\n"
       "Loop steps), coloured from the scan. Trains a UNet of --width (default 16) at --size (default 192x256),\n"

@@ -147,10 +147,10 @@ static void test_bind_roundtrip(void) {
   double err = 0;
   for (int i = 0; i < nv * 3; i++) err = fmax(err, fabs(out[i] - v[i]));
   CHECK_MSG(err < 2e-5, "max error %g m", err);
+  spx_scan_binding_free(&b);
   spx_fit_result bad = r;
   bad.nv = nv + 1; /* not of this model */
   CHECK(spx_avatar_bind_scan(ctx, &small, &bad, nv, scan, &b) == SPX_E_ARG && strstr(spx_ctx_message(ctx), "not of this body model"));
-  spx_scan_binding_free(&b);
   spx_fit_result_free(&r);
   free(v), free(scan), free(out);
 }
