@@ -22,7 +22,7 @@ static void animate_help(void) {
       "usage: smplpix animate (--registration P.json | --avatar A.safetensors) (--bvh M.bvh | --amass M.npz)\n"
       "                       --camera C.json --out DIR [--frames A:B]\n"
       "                       [--checkpoint W.safetensors | --no-network | --raster] [--orbit DEG]\n"
-      "                       [--fps N] [--no-mp4] [--any-size] [--model M.npz] [--device cpu|gpu|P:D] [--quiet]\n"
+      "                       [--fps N] [--no-mp4] [--model M.npz] [--device cpu|gpu|P:D] [--quiet]\n"
       "Poses the registered person (smplpix register --params), or the avatar of `smplpix avatar` (its body,\n"
       "vertices, colours and network), with frames A..B-1 of the motion (default: all; A: or :B leave an end\n"
       "open), retargeted by joint name: a BVH clip as `smplpix repose` does, or an AMASS .npz (poses, trans,\n"
@@ -31,8 +31,8 @@ static void animate_help(void) {
       "and written as DIR/frame_NNNNNN.png (NNNNNN = the motion frame). The network is the avatar's, else W,\n"
       "else the shipped data/models/default.safetensors; --no-network writes the raw projection (the network's\n"
       "input) instead, --raster the per-vertex raster of the same vertices (their mesh, 2x2 supersampled).\n"
-      "An avatar refuses a camera of another size than it was trained at (its smplpix.image_size), which it\n"
-      "would draw worse than it can; --any-size runs it anyway.\n"
+      "An avatar through a camera of another size than it was trained at (its smplpix.image_size) draws\n"
+      "worse than it can: a warning says so (render --avatar refuses it without --any-size).\n"
       "--orbit DEG turns the camera DEG degrees per frame about the vertical axis through the body's centre\n"
       "in the first frame. With ffmpeg on PATH, DIR/animation.mp4 is made at --fps (default: the clip's\n"
       "frame rate); --no-mp4 skips it. Colours: the avatar's or the registration's, else the surface normals.\n"
@@ -108,7 +108,7 @@ static void progress_show(progress *pg, int done, int total, int quiet) {
 
 typedef struct opts {
   const char *reg, *avatar, *bvh, *amass, *cam, *out, *ckpt, *model, *spec, *frames;
-  int no_net, raster, no_mp4, quiet, any_size;
+  int no_net, raster, no_mp4, quiet;
   double orbit, fps;
 } opts;
 
@@ -201,9 +201,11 @@ static int open_inputs(spx_ctx *ctx, const opts *o, int mode, spx_anim_person *p
   if (ncams != 1) return spx_cli_errorf(C, "%s: holds %d cameras; animate renders through one", o->cam, ncams);
   if (mode == SPX_ANIM_NETWORK && (H < 16 || W < 16))
     return spx_cli_errorf(C, "%s: %dx%d is too small (the UNet needs at least 16x16)", o->cam, W, H);
-  if (mode == SPX_ANIM_NETWORK && o->avatar && !o->any_size &&
-      (rc = spx_cli_net_size_check(C, ctx, o->avatar, W, H, o->cam)))
-    return rc;
+  int tw = 0, th = 0, sized = mode == SPX_ANIM_NETWORK && o->avatar ? spx_cli_net_size(C, ctx, o->avatar, &tw, &th) : 0;
+  if (sized < 0) return SPX_EXIT_ERROR; /* printed */
+  if (sized && (tw != W || th != H))
+    fprintf(stderr, "smplpix %s: warning: %s was trained at %dx%d, %s is %dx%d: it draws worse at another size and "
+            "framing\n", C, o->avatar, tw, th, o->cam, W, H);
   if (mode == SPX_ANIM_NETWORK && !o->avatar &&
       !(*ckpt = spx_cli_checkpoint(C, o->ckpt, "--no-network (the raw projection)")))
     return SPX_EXIT_ERROR;
@@ -293,7 +295,6 @@ int spx_cmd_animate(int argc, char **argv) {
   spx_opt optv[] = {SPX_O("--no-network", SPX_OPT_FLAG, &o.no_net), SPX_O("--no-mp4", SPX_OPT_FLAG, &o.no_mp4),
                     SPX_O("--quiet", SPX_OPT_FLAG, &o.quiet),       SPX_O("--registration", SPX_OPT_IN, &o.reg),
                     SPX_O("--avatar", SPX_OPT_IN, &o.avatar),       SPX_O("--raster", SPX_OPT_FLAG, &o.raster),
-                    SPX_O("--any-size", SPX_OPT_FLAG, &o.any_size),
                     SPX_O("--bvh", SPX_OPT_IN, &o.bvh),             SPX_O("--amass", SPX_OPT_IN, &o.amass),
                     SPX_O("--camera", SPX_OPT_IN, &o.cam),          SPX_O("--out", SPX_OPT_OUT, &o.out),
                     SPX_O("--checkpoint", SPX_OPT_IN, &o.ckpt),     SPX_O("--model", SPX_OPT_IN, &o.model),
@@ -312,8 +313,6 @@ int spx_cmd_animate(int argc, char **argv) {
   if (o.raster && (o.no_net || o.ckpt))
     return spx_cli_usage("animate", "--raster draws without a network: it excludes --no-network and --checkpoint");
   if (o.avatar && o.ckpt) return spx_cli_usage("animate", "--checkpoint: an avatar brings its own network");
-  if (spx_cli_only_with(optv, "animate", "--any-size", o.avatar && !o.no_net && !o.raster, "--avatar through its network"))
-    return SPX_EXIT_USAGE;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("animate", "out of memory");
   int rc = run(ctx, &o);

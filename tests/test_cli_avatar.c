@@ -7,7 +7,8 @@
  *  - killed at a training step (SIGKILL, the hooked tool) or interrupted (SIGINT: exit 130): the
  *    next run without --resume is refused, --resume finishes with the same tensors, metadata (the
  *    CPU time aside), report.png and scores as the uninterrupted run;
- *  - animate --avatar: a frame equals `render --avatar` of the same motion frame; --raster draws;
+ *  - animate --avatar: a frame equals `render --avatar` of the same motion frame; --raster draws; a
+ *    camera of another size than the avatar's: animate warns, render refuses (--any-size runs it);
  *  - an OBJ scan with texture coordinates and a texture;
  *  - a run that registers the scan itself;
  *  - bad input: one line naming the file and the problem, exit 1 (2 for usage), OUT not left
@@ -50,7 +51,7 @@ static int run_hooked(const char *env, const char *args) {
 static void test_setup(void) {
   char cmd[3000], w[800];
   path_of(cache, sizeof cache, "cache");
-  snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf A B C R T X an ras synth", dir); /* an earlier run's */
+  snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf A B C R T X an ras big synth", dir); /* an earlier run's */
   CHECK(spx_t_system(cmd) == 0);
   snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s/weights' && cp '" SPX_TEST_DATA "/vgg/vgg16_w4.safetensors' "
            "'%s/weights/vgg16.safetensors'", cache, cache, cache);
@@ -199,6 +200,11 @@ static void test_animate(void) {
   CHECK(run("animate --avatar A/avatar.safetensors --bvh " CLIP " --frames 10:11 --camera cam.json --out ras --no-mp4 "
             "--raster") == 0 && file_has("out.txt", "per-vertex raster") && exists("ras/frame_000010.png"));
   CHECK(!same_file("an/frame_000010.png", "ras/frame_000010.png"));
+  write_camera("big.json", 40, 56); /* another size than the avatar's: animate warns, render refuses */
+  CHECK(run("animate --avatar A/avatar.safetensors --bvh " CLIP " --frames 10:11 --camera big.json --out big --no-mp4") == 0);
+  CHECK(file_has("err.txt", "warning: A/avatar.safetensors was trained at 32x48, big.json is 40x56") && exists("big/frame_000010.png"));
+  CHECK(run("render --avatar A/avatar.safetensors --camera big.json --out b.png") == 1 && err_one_line_with("trained at 32x48"));
+  CHECK(run("render --avatar A/avatar.safetensors --camera big.json --out b.png --any-size") == 0 && exists("b.png"));
   CHECK(run("animate --avatar A/avatar.safetensors --checkpoint x --bvh " CLIP " --camera cam.json --out x") == 2);
   CHECK(run("render --avatar A/avatar.safetensors --mesh m.ply --camera cam.json --out x.png") == 2);
   CHECK(run("render --frame 3 --camera cam.json --out x.png") == 2);
