@@ -1,5 +1,6 @@
 /* End to end: `smplpix avatar` (apps/cmd_avatar.c), `animate --avatar`, `render --avatar`, on a
- * synthetic scan of `smplpix synth`, at tiny sizes and steps (a pipeline check, not the scores;
+ * synthetic person of `smplpix synth` (its scan, and, lighter, the registered body coloured by its
+ * texture), at tiny sizes and steps (a pipeline check, not the scores;
  * the real runs are measurements: benchmarks/RESULTS.md). The perceptual networks are small
  * stand-ins in a cache folder of the test's own (a width-4 VGG16, the LPIPS golden's random AlexNet).
  *  - a run with --registration: the avatar file (the network, the vertices, the size), report.md,
@@ -51,7 +52,7 @@ static int run_hooked(const char *env, const char *args) {
 static void test_setup(void) {
   char cmd[3000], w[800];
   path_of(cache, sizeof cache, "cache");
-  snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf A B C R T X an ras big synth", dir); /* an earlier run's */
+  snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf A B C R T U X an ras big synth", dir); /* an earlier run's */
   CHECK(spx_t_system(cmd) == 0);
   snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s/weights' && cp '" SPX_TEST_DATA "/vgg/vgg16_w4.safetensors' "
            "'%s/weights/vgg16.safetensors'", cache, cache, cache);
@@ -87,6 +88,23 @@ static void test_setup(void) {
   spx_body_free(&m);
   cJSON_Delete(j);
   free(text);
+  /* a lighter scan: the registered body itself (repose writes the model's UVs) coloured by the
+   * subject's texture, 13,380 vertices against the synthetic scan's 214,050 */
+  CHECK(run("repose --registration reg.json --pose reg.json --out body.obj") == 0);
+  spx_mesh obj = {0};
+  spx_image tex = {0};
+  char p[700];
+  path_of(p, sizeof p, "body.obj");
+  CHECK_OK(ctx, spx_mesh_load(ctx, p, &obj));
+  path_of(p, sizeof p, "synth/s000/texture.png");
+  CHECK_OK(ctx, spx_image_read(ctx, p, &tex));
+  spx_mesh ply = {obj.nv, obj.nf, obj.pos, malloc(sizeof(float) * 3 * (size_t)obj.nv), NULL, obj.faces, 0, NULL, NULL};
+  CHECK_OK(ctx, spx_avatar_scan_colors(ctx, &obj, &tex, obj.nv, obj.pos, ply.col));
+  path_of(p, sizeof p, "body.ply");
+  CHECK_OK(ctx, spx_mesh_save(ctx, p, &ply, SPX_MESH_PLY_BINARY));
+  free(ply.col);
+  spx_image_free(&tex);
+  spx_mesh_free(&obj);
 }
 
 /* dir/name parsed as JSON (NULL when it is not). */
@@ -162,23 +180,24 @@ static int same_avatar(const char *a, const char *b) {
 }
 
 /* Killed at training step 3 (after stage 1's checkpoint at step 1): --resume ends where an
- * uninterrupted run ends; so does a run interrupted (SIGINT) at step 4. */
+ * uninterrupted run (U) ends; so does a run interrupted (SIGINT) at step 4. */
 static void test_resume(void) {
-  const char *args = "avatar --scan synth/s000/scan.ply --registration reg.json --out B " SMALL;
+  CHECK(run("avatar --scan body.ply --registration reg.json --out U " SMALL " --quiet") == 0);
+  const char *args = "avatar --scan body.ply --registration reg.json --out B " SMALL;
   CHECK(run_hooked("SPX_TEST_AVATAR_STOP_STEP=3", args) == 137);
   CHECK(exists("B/work/net.safetensors") && exists("B/work/run.txt") && !exists("B/avatar.safetensors"));
   CHECK(run(args) == 1 && err_one_line_with("holds an unfinished avatar run; continue it with --resume"));
-  CHECK(run("avatar --scan synth/s000/scan.ply --registration reg.json --out B --views 4 --heldout 2 --size 32x48 "
+  CHECK(run("avatar --scan body.ply --registration reg.json --out B --views 4 --heldout 2 --size 32x48 "
             "--steps 7 --resume") == 1 && err_one_line_with("other settings"));
   char resume[600];
   snprintf(resume, sizeof resume, "%s --resume", args);
   CHECK(run(resume) == 0 && file_has("out.txt", "continuing at step 1 of 6"));
-  CHECK(same_avatar("A", "B") && !exists("B/work"));
-  const char *args_c = "avatar --scan synth/s000/scan.ply --registration reg.json --out C " SMALL;
+  CHECK(same_avatar("U", "B") && !exists("B/work"));
+  const char *args_c = "avatar --scan body.ply --registration reg.json --out C " SMALL;
   CHECK(run_hooked("SPX_TEST_AVATAR_STOP_STEP=4 SPX_TEST_AVATAR_STOP_SIGNAL=2", args_c) == 130);
   CHECK(file_has("err.txt", "interrupted after training step 4 of 6") && file_has("err.txt", "--resume"));
   snprintf(resume, sizeof resume, "%s --resume", args_c);
-  CHECK(run(resume) == 0 && file_has("out.txt", "continuing at step 4 of 6") && same_avatar("A", "C"));
+  CHECK(run(resume) == 0 && file_has("out.txt", "continuing at step 4 of 6") && same_avatar("U", "C"));
 }
 
 /* A camera CW x CH looking at the body from the front, 3 m away. */
@@ -213,7 +232,6 @@ static void test_animate(void) {
 /* An OBJ scan with texture coordinates and its texture: the registered body itself (`smplpix
  * repose` writes the model's UVs) with the synthetic subject's texture (painted in those UVs). */
 static void test_textured(void) {
-  CHECK(run("repose --registration reg.json --pose reg.json --out body.obj") == 0);
   CHECK(run("avatar --scan body.obj --texture synth/s000/texture.png --registration reg.json --out T " SMALL) == 0);
   CHECK(report_ok("T/report.json", 4, 2) && !exists("T/work"));
   CHECK(run("avatar --scan body.obj --registration reg.json --out X " SMALL) == 1 &&
@@ -222,7 +240,7 @@ static void test_textured(void) {
 
 /* The whole pipeline with the registration made here (Ceres), at 53k vertices. */
 static void test_register(void) {
-  CHECK(run("avatar --scan synth/s000/scan.ply --out R --vertices 53k --views 2 --heldout 1 --size 32x48 --steps 2 --quiet") == 0);
+  CHECK(run("avatar --scan body.ply --out R --vertices 53k --views 2 --heldout 1 --size 32x48 --steps 2 --quiet") == 0);
   CHECK(report_ok("R/report.json", 2, 1) && !exists("R/work"));
   char p[700];
   path_of(p, sizeof p, "R/avatar.safetensors");
@@ -303,14 +321,14 @@ static void test_bad_input(void) {
   snprintf(a, sizeof a, "--scan grey.ply %s", reg), bad(a, 1, "grey.ply: has no vertex colours and no --texture");
   snprintf(a, sizeof a, "--scan tiled.obj --texture tex.png %s", reg), bad(a, 1, "tiled.obj: 1600 of its 3200 texture coordinates lie outside [0, 1]");
   snprintf(a, sizeof a, "--scan nouv.obj --texture tex.png %s", reg), bad(a, 1, "nouv.obj: has no texture coordinates");
-  snprintf(a, sizeof a, "--scan synth/s000/scan.ply --poses few.bvh %s", reg), bad(a, 1, "few.bvh: its skeleton drives only 1 of the 31 joints");
-  snprintf(a, sizeof a, "--scan synth/s000/scan.ply --vertices 7k %s", reg), bad(a, 1, "--vertices 7k: the body");
-  bad("--scan synth/s000/scan.ply --registration reg.json --out A " SMALL, 1, "A: holds an avatar already");
+  snprintf(a, sizeof a, "--scan body.ply --poses few.bvh %s", reg), bad(a, 1, "few.bvh: its skeleton drives only 1 of the 31 joints");
+  snprintf(a, sizeof a, "--scan body.ply --vertices 7k %s", reg), bad(a, 1, "--vertices 7k: the body");
+  bad("--scan body.ply --registration reg.json --out A " SMALL, 1, "A: holds an avatar already");
   make_dir("X"), write_text("X/note.txt", "mine");
-  CHECK(run("avatar --scan synth/s000/scan.ply --registration reg.json --out X " SMALL) == 1 && err_one_line_with("X: exists and is not empty"));
+  CHECK(run("avatar --scan body.ply --registration reg.json --out X " SMALL) == 1 && err_one_line_with("X: exists and is not empty"));
   CHECK(file_has("X/note.txt", "mine"));
   path_of(p, sizeof p, "X/note.txt"), unlink(p);
-  CHECK(run("avatar --scan synth/s000/scan.ply --registration reg.json --out X --resume " SMALL) == 1 &&
+  CHECK(run("avatar --scan body.ply --registration reg.json --out X --resume " SMALL) == 1 &&
         err_one_line_with("X: --resume: no unfinished avatar run there") && exists("X"));
   path_of(p, sizeof p, "X"), rmdir(p);
   /* found after X was made: a registration of the small model, posed on the default body */
@@ -326,13 +344,13 @@ static void test_bad_input(void) {
   r.pose = calloc((size_t)small.nj * 3, sizeof(double)), r.template_unposed = calloc((size_t)small.nv * 3, sizeof(double));
   CHECK_OK(ctx, spx_fit_save_json(ctx, sreg, &r, NULL));
   spx_fit_result_free(&r), spx_body_free(&small);
-  bad("--scan synth/s000/scan.ply --registration small_reg.json --out X " SMALL, 1,
+  bad("--scan body.ply --registration small_reg.json --out X " SMALL, 1,
       "small_reg.json: the registration (50 vertices, 5 joints) is not of the body");
   /* no weights */
   char keep[700];
   snprintf(keep, sizeof keep, "%s", cache);
   path_of(cache, sizeof cache, "nocache");
-  bad("--scan synth/s000/scan.ply --registration reg.json --out X " SMALL, 1, "make weights");
+  bad("--scan body.ply --registration reg.json --out X " SMALL, 1, "make weights");
   snprintf(cache, sizeof cache, "%s", keep);
   bad("--out X", 2, ""), bad("--scan s.ply --out X --vertices 13", 2, ""), bad("--scan s.ply --out X --width 12", 2, "");
   bad("--scan s.ply --out X --size 16x16", 2, "");
