@@ -4,7 +4,7 @@ JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
 .PHONY: all deps build weights demo docs-demo docs-avatar model-card train-demo test asan fuzz bench bench-unet bench-memory bench-latency install clean bench-python table1 \
-  clang-check oclgrind device-kit device-kit-test
+  clang-check gpu-static oclgrind device-kit device-kit-test
 
 all: build
 
@@ -129,6 +129,15 @@ table1: build
 # without a body, local memory over 48 KiB fail (scripts/device/clang_check.sh; ~2 min).
 clang-check: build
 	sh scripts/device/clang_check.sh $(BUILD)
+
+# The static GPU check (scripts/device/gpu_static.sh; in CI, ~1 min on 2 cores after a 45 MB
+# download into the cache): every program as the GPU class builds it, through clang-15 + libclc-15
+# to PTX, then NVIDIA's ptxas -arch=sm_90 -v and nvdisasm (PyPI nvidia-cuda-nvcc-cu12 12.9.86,
+# nvidia-cuda-nvdisasm 13.2.78, pinned by sha256; a failed download skips with one line). Per hot
+# kernel of scripts/device/gpu_kernels.txt: registers against its budget, spills, stack, local
+# memory, sm_90 occupancy, the inner loop's FFMA share; fails on a breach (docs/gpu.md).
+gpu-static: build
+	sh scripts/device/gpu_static.sh $(BUILD)
 
 # The GPU-class paths of the kernel tests under Oclgrind (races, out-of-bounds accesses, barrier
 # divergence; scripts/device/oclgrind_check.sh): its error log must stay empty. A few minutes.

@@ -21,6 +21,15 @@ typedef struct spx_command {
  * another rank has already exited with the same error) exits with rc at once, without the
  * "interrupted: nothing of this run was written" message, which would no longer be true. */
 void spx_cli_decided(int rc);
+/* The tool's SIGINT / SIGTERM handler (apps/main.c): removes what the run staged
+ * (spx_tx_interrupted), prints one line saying what of the run is on disk, and exits 128 + sig
+ * (or the decided code). A command with a handler of its own calls it for a second interrupt. */
+void spx_cli_interrupt(int sig);
+/* In a signal handler: when it runs on a thread other than the command's (the OpenCL runtime's,
+ * Ceres's), hands sig on to the command's thread and returns 1 (return at once); else 0. Every
+ * handler of the tool starts with it, so that blocking the signals on the command's thread (a
+ * commit) holds for the whole process. */
+int spx_cli_signal_elsewhere(int sig);
 
 /* Print "smplpix <cmd>: <message>" on one line to stderr and return SPX_EXIT_ERROR. */
 int spx_cli_error(const char *cmd, spx_ctx *ctx);
@@ -41,6 +50,9 @@ uint64_t spx_cli_mix64(uint64_t z);
 /* The data order of an epoch (train, avatar): perm = 0..n-1, shuffled (unless !shuffle) by a
  * function of (seed, epoch) only, so a resumed run continues exactly. */
 void spx_cli_epoch_order(int *perm, int n, uint64_t seed, int64_t epoch, int shuffle);
+/* s as a JSON string, quoted, to f: valid UTF-8 whatever s holds (control characters escaped, a
+ * byte that is not part of a UTF-8 character written as the Latin-1 character it would be). */
+void spx_cli_json_string(FILE *f, const char *s);
 
 /* apps/cli_common.c: pieces shared by project, raster and dataset. */
 /* Area-weighted vertex normals as [0,1] colors (nv*3; gray where undefined). */

@@ -120,3 +120,15 @@ void spx_cli_epoch_order(int *perm, int n, uint64_t seed, int64_t epoch, int shu
     perm[j] = t;
   }
 }
+
+void spx_cli_json_string(FILE *f, const char *s) {
+  fputc('"', f);
+  for (const char *p = s; *p;) {
+    unsigned char c = (unsigned char)*p;
+    size_t k = spx_utf8_char(p);
+    if (c == '"' || c == '\\') fprintf(f, "\\%c", c), p++;
+    else if (c < 0x20 || c == 0x7f || !k) fprintf(f, "\\u%04x", c), p++; /* !k: not UTF-8, read as Latin-1 */
+    else fwrite(p, 1, k, f), p += k;
+  }
+  fputc('"', f);
+}

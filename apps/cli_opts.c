@@ -111,6 +111,15 @@ int spx_cli_parse(int argc, char **argv, const char *cmd, const char *usage, voi
       return spx_cli_usage(cmd, "%s needs %s, not '%s'", o->name, want, v);
     }
   }
+  /* the run's inputs, for every output it checks or stages (apps/cli_tx.h); no output path
+   * holds a control character */
+  for (spx_opt *o = opts; o->name; o++) {
+    if (o->type == SPX_OPT_IN && o->given && spx_tx_input(o->name, *(const char **)o->dst)) return SPX_EXIT_ERROR;
+    if (o->type == SPX_OPT_OUT && o->given) {
+      int rc = spx_tx_check_name(cmd, o->name, *(const char **)o->dst);
+      if (rc) return rc;
+    }
+  }
   /* no output names an input */
   for (spx_opt *o = opts; o->name; o++) {
     if (o->type != SPX_OPT_OUT || !o->given) continue;

@@ -1,12 +1,16 @@
 /* The per-run output transaction (see cli_tx.h): stage, check, commit with roll-back, clean up;
  * the commit journal of a multi-file commit and the roll-forward of a dead run's journal. */
+#define _GNU_SOURCE /* syscall(2) for getdents64, realpath */
 #include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include "cli.h"
@@ -17,6 +21,21 @@
 /* The transactions of this process that are open (begun, not ended), for the Ctrl-C clean-up. */
 enum { MAX_ACTIVE = 8 };
 static spx_tx *volatile active[MAX_ACTIVE];
+
+/* What the run has committed so far (for the interrupt message): how many files, and the first
+ * target of the last commit. Written with SIGINT / SIGTERM blocked, read by their handler. */
+static volatile sig_atomic_t written_count;
+static char written_last[1024];
+
+/* The run's inputs (spx_tx_input): the option that named each, its path (a copy), and the file. */
+static struct run_input {
+  const char *what;
+  char *path;
+  dev_t dev;
+  ino_t ino;
+  int known; /* dev / ino are set (the input existed when recorded) */
+} *inputs;
+static int ninputs, capinputs;
 
 static void reset(spx_tx *tx, const char *cmd, int durable) {
   memset(tx, 0, sizeof *tx);
@@ -33,20 +52,38 @@ void spx_tx_begin(spx_tx *tx, const char *cmd, int durable) {
     }
 }
 
-/* Remove this process's temporaries (".tmp.<pid>." in the name: the writers' own, below the
- * run's staged ones) from a folder the run created, so that the folder can go too. */
-static void remove_own_temps(const char *dir) {
-  char tag[32];
-  snprintf(tag, sizeof tag, ".tmp.%ld.", (long)getpid());
-  DIR *d = opendir(dir);
-  if (!d) return;
-  struct dirent *e;
-  while ((e = readdir(d)))
-    if (strstr(e->d_name, tag)) unlinkat(dirfd(d), e->d_name, 0);
-  closedir(d);
+#if defined(SYS_getdents64)
+/* Remove `name` (relative to folder dfd) and, when it is a folder, everything in it, with system
+ * calls only: safe in a signal handler (no malloc, no stdio). depth bounds the recursion. */
+static void remove_tree_at(int dfd, const char *name, int depth) {
+  if (unlinkat(dfd, name, 0) == 0 || errno == ENOENT || depth <= 0) return;
+  int fd = openat(dfd, name, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+  if (fd < 0) return;
+  for (int pass = 0; pass < 3 && unlinkat(dfd, name, AT_REMOVEDIR) != 0; pass++) {
+    char buf[2048];
+    long n;
+    lseek(fd, 0, SEEK_SET);
+    while ((n = syscall(SYS_getdents64, fd, buf, sizeof buf)) > 0)
+      for (long off = 0; off < n;) {
+        /* struct linux_dirent64: inode (8), offset (8), record length (2), type (1), name */
+        unsigned short reclen;
+        memcpy(&reclen, buf + off + 16, sizeof reclen);
+        const char *entry = buf + off + 19;
+        off += reclen;
+        if (strcmp(entry, ".") && strcmp(entry, "..")) remove_tree_at(fd, entry, depth - 1);
+      }
+  }
+  close(fd);
 }
+#else
+static void remove_tree_at(int dfd, const char *name, int depth) { /* no portable signal-safe listing */
+  (void)depth;
+  if (unlinkat(dfd, name, 0) != 0) unlinkat(dfd, name, AT_REMOVEDIR);
+}
+#endif
 
 void spx_tx_interrupted(void) {
+  spx_file_abort_writes(); /* the library writers' own temporaries */
   for (int k = 0; k < MAX_ACTIVE; k++) {
     spx_tx *tx = active[k];
     if (!tx) continue;
@@ -54,11 +91,122 @@ void spx_tx_interrupted(void) {
       if (tx->f[i].temp) unlink(tx->f[i].temp);
       if (tx->f[i].backup) unlink(tx->f[i].backup);
     }
-    for (int i = tx->ndirs - 1; i >= 0 && !tx->committed; i--) {
-      remove_own_temps(tx->dirs[i]);
-      rmdir(tx->dirs[i]);
-    }
+    for (int i = 0; i < tx->ntemps; i++)
+      if (tx->temps[i]) remove_tree_at(AT_FDCWD, tx->temps[i], 16);
+    for (int i = tx->ndirs - 1; i >= 0 && !tx->committed; i--) rmdir(tx->dirs[i]);
   }
+}
+
+int spx_tx_written(const char **last) {
+  *last = written_last;
+  return (int)written_count;
+}
+
+void spx_tx_note_written(const char *target, int count) {
+  snprintf(written_last, sizeof written_last, "%s", target);
+  written_count += count;
+}
+
+void spx_tx_block_signals(sigset_t *old) {
+  sigset_t block;
+  sigemptyset(&block);
+  sigaddset(&block, SIGINT);
+  sigaddset(&block, SIGTERM);
+  if (sigprocmask(SIG_BLOCK, &block, old) != 0) sigemptyset(old), sigprocmask(SIG_BLOCK, NULL, old);
+}
+
+void spx_tx_unblock_signals(const sigset_t *old) { sigprocmask(SIG_SETMASK, old, NULL); }
+
+int spx_tx_temp_dir(spx_tx *tx, const char *path) {
+  if (tx->ntemps == (int)(sizeof tx->temps / sizeof tx->temps[0]))
+    return spx_cli_errorf(tx->cmd, "%s: too many temporary folders in one run", path);
+  char *copy = strdup(path);
+  if (!copy) return spx_cli_errorf(tx->cmd, "out of memory");
+  sigset_t old;
+  spx_tx_block_signals(&old); /* Ctrl-C comes after the folder is on the list */
+  int rc = SPX_EXIT_OK;
+  if (mkdir(path, 0777) != 0) {
+    rc = spx_cli_errorf(tx->cmd, "%s: cannot create the temporary folder: %s", path, strerror(errno));
+    free(copy);
+  } else {
+    tx->temps[tx->ntemps++] = copy;
+  }
+  spx_tx_unblock_signals(&old);
+  return rc;
+}
+
+/* ---------------- the run's inputs ---------------- */
+
+int spx_tx_input(const char *what, const char *path) {
+  if (!path) return SPX_EXIT_OK;
+  if (ninputs == capinputs) {
+    int cap = capinputs ? 2 * capinputs : 16;
+    struct run_input *n = realloc(inputs, sizeof *n * (size_t)cap);
+    if (!n) return spx_cli_errorf("smplpix", "out of memory");
+    inputs = n, capinputs = cap;
+  }
+  struct run_input *in = &inputs[ninputs];
+  struct stat sb;
+  if (!(in->path = strdup(path))) return spx_cli_errorf("smplpix", "out of memory");
+  in->what = what;
+  in->known = stat(path, &sb) == 0;
+  if (in->known) in->dev = sb.st_dev, in->ino = sb.st_ino;
+  ninputs++;
+  return SPX_EXIT_OK;
+}
+
+void spx_tx_inputs_clear(void) {
+  for (int i = 0; i < ninputs; i++) free(inputs[i].path);
+  free(inputs);
+  inputs = NULL, ninputs = capinputs = 0;
+}
+
+/* The recorded input that target is (the same path, or the same existing file), or NULL. */
+static const struct run_input *input_named(const char *target) {
+  struct stat sb;
+  int have = stat(target, &sb) == 0;
+  for (int i = 0; i < ninputs; i++)
+    if (!strcmp(inputs[i].path, target) || (have && inputs[i].known && inputs[i].dev == sb.st_dev &&
+                                            inputs[i].ino == sb.st_ino))
+      return &inputs[i];
+  return NULL;
+}
+
+/* path with control characters written as \n, \t, \xHH (one line for a message), into buf. */
+static const char *printable(const char *path, char *buf, size_t cap) {
+  size_t o = 0;
+  for (const unsigned char *p = (const unsigned char *)path; *p && o + 5 < cap; p++) {
+    if (*p == '\n') o += (size_t)snprintf(buf + o, cap - o, "\\n");
+    else if (*p == '\t') o += (size_t)snprintf(buf + o, cap - o, "\\t");
+    else if (*p < 0x20 || *p == 0x7f) o += (size_t)snprintf(buf + o, cap - o, "\\x%02x", *p);
+    else buf[o++] = (char)*p;
+  }
+  buf[o] = 0;
+  return buf;
+}
+
+int spx_tx_check_name(const char *cmd, const char *what, const char *path) {
+  for (const unsigned char *p = (const unsigned char *)path; *p; p++)
+    if (*p < 0x20 || *p == 0x7f) {
+      char shown[4200];
+      return spx_cli_usage(cmd, "%s%s\"%s\": an output path may not hold a control character (a newline, a tab)",
+                           what ? what : "", what ? " " : "", printable(path, shown, sizeof shown));
+    }
+  return SPX_EXIT_OK;
+}
+
+int spx_tx_check_dir(spx_tx *tx, const char *dir) {
+  char real_dir[PATH_MAX];
+  if (!realpath(dir, real_dir)) return SPX_EXIT_OK; /* not there yet: nothing in it to lose */
+  size_t n = strlen(real_dir);
+  for (int i = 0; i < ninputs; i++) {
+    char real_in[PATH_MAX];
+    if (!realpath(inputs[i].path, real_in)) continue;
+    if (!strncmp(real_in, real_dir, n) && (real_in[n] == '/' || (n == 1 && real_dir[0] == '/')))
+      return spx_cli_usage(tx->cmd, "%s %s is inside %s, which this run replaces; no command writes over its own input",
+                           inputs[i].what, inputs[i].path, dir);
+  }
+  return SPX_EXIT_OK;
 }
 
 int spx_tx_after_command(const char *cmd) {
@@ -134,6 +282,7 @@ static int recover(spx_tx *tx, const char *target) {
   char folder[4096];
   if (slash) snprintf(folder, sizeof folder, "%.*s", slash == target ? 1 : (int)(slash - target), target);
   else snprintf(folder, sizeof folder, ".");
+  if (tx->recovered && !strcmp(tx->recovered, folder)) return SPX_EXIT_OK; /* this run looked already */
   DIR *d = opendir(folder);
   if (!d) return SPX_EXIT_OK; /* spx_file_check_writable names the problem */
   struct dirent *e;
@@ -148,6 +297,10 @@ static int recover(spx_tx *tx, const char *target) {
       rc = spx_cli_errorf(tx->cmd, "%s: cannot finish the interrupted commit recorded in %s: %s", target, j, why);
   }
   closedir(d);
+  if (!rc) {
+    free(tx->recovered);
+    tx->recovered = strdup(folder); /* NULL (out of memory): the next check looks again */
+  }
   return rc;
 }
 
@@ -169,7 +322,7 @@ static char *journal_write(spx_tx *tx, spx_ctx *ctx) {
   }
   if (f) ok &= !ferror(f) & (fclose(f) == 0);
   if (ok && tx->durable && spx_file_sync(ctx, tmp)) ok = 0;
-  if (ok && rename(tmp, jpath) != 0) ok = 0;
+  if (ok && (spx_file_check_writable(ctx, jpath) || rename(tmp, jpath) != 0)) ok = 0; /* never over a FIFO */
   if (ok && tx->durable && spx_file_sync_dir_of(ctx, jpath)) ok = 0;
   if (!ok) {
     unlink(tmp);
@@ -182,10 +335,16 @@ static char *journal_write(spx_tx *tx, spx_ctx *ctx) {
 }
 
 static int check(spx_tx *tx, const char *target) {
+  int rc = target ? spx_tx_check_name(tx->cmd, NULL, target) : SPX_EXIT_OK;
+  if (rc) return rc;
+  const struct run_input *in = target ? input_named(target) : NULL;
+  if (in)
+    return spx_cli_usage(tx->cmd, "%s is also an input of this run (%s %s); no command writes over its own input",
+                         target, in->what, in->path);
   if (target && recover(tx, target)) return SPX_EXIT_ERROR;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf(tx->cmd, "out of memory");
-  int rc = spx_file_check_writable(ctx, target) ? spx_cli_error(tx->cmd, ctx) : SPX_EXIT_OK;
+  rc = spx_file_check_writable(ctx, target) ? spx_cli_error(tx->cmd, ctx) : SPX_EXIT_OK;
   spx_ctx_destroy(ctx);
   return rc;
 }
@@ -195,13 +354,12 @@ int spx_tx_check(spx_tx *tx, const char *target) { return check(tx, target); }
 static int tx_mkdir(spx_tx *tx, const char *path);
 
 int spx_tx_mkdir(spx_tx *tx, const char *path) { /* Ctrl-C comes after the folder is on the list */
-  sigset_t block, old;
-  sigemptyset(&block);
-  sigaddset(&block, SIGINT);
-  sigaddset(&block, SIGTERM);
-  int masked = sigprocmask(SIG_BLOCK, &block, &old) == 0;
-  int rc = tx_mkdir(tx, path);
-  if (masked) sigprocmask(SIG_SETMASK, &old, NULL);
+  int rc = spx_tx_check_name(tx->cmd, NULL, path);
+  if (rc) return rc;
+  sigset_t old;
+  spx_tx_block_signals(&old);
+  rc = tx_mkdir(tx, path);
+  spx_tx_unblock_signals(&old);
   return rc;
 }
 
@@ -273,13 +431,11 @@ const char *spx_tx_stage(spx_tx *tx, const char *target) {
 static int commit(spx_tx *tx);
 
 int spx_tx_commit(spx_tx *tx) { /* Ctrl-C waits until every file is in place (or rolled back) */
-  sigset_t block, old;
-  sigemptyset(&block);
-  sigaddset(&block, SIGINT);
-  sigaddset(&block, SIGTERM);
-  int masked = sigprocmask(SIG_BLOCK, &block, &old) == 0;
+  sigset_t old;
+  spx_tx_block_signals(&old);
   int rc = commit(tx);
-  if (masked) sigprocmask(SIG_SETMASK, &old, NULL);
+  if (!rc && tx->n) spx_tx_note_written(tx->f[0].target, tx->n);
+  spx_tx_unblock_signals(&old);
   return rc;
 }
 
@@ -366,12 +522,17 @@ void spx_tx_end(spx_tx *tx) {
     free(tx->f[i].backup);
     free(tx->f[i].target);
   }
+  for (int i = 0; i < tx->ntemps; i++) { /* gone already when the run renamed it into place */
+    remove_tree_at(AT_FDCWD, tx->temps[i], 16);
+    free(tx->temps[i]);
+  }
   for (int i = tx->ndirs - 1; i >= 0; i--) {
     if (!tx->committed) rmdir(tx->dirs[i]); /* only when empty: never removes what others wrote */
     free(tx->dirs[i]);
   }
   free(tx->f);
   free(tx->dirs);
+  free(tx->recovered);
   for (int i = 0; i < MAX_ACTIVE; i++)
     if (active[i] == tx) active[i] = NULL;
   reset(tx, tx->cmd, tx->durable);

@@ -18,6 +18,8 @@
 #ifndef SPX_APPS_CLI_TX_H
 #define SPX_APPS_CLI_TX_H
 
+#include <signal.h>
+
 typedef struct spx_tx_file {
   char *target, *temp, *backup; /* backup: a hard link to the replaced file while committing */
   int existed;                  /* target existed when the commit began */
@@ -30,6 +32,9 @@ typedef struct spx_tx {
   int n, cap;
   char **dirs; /* folders this run created: removed again (when empty) if it fails */
   int ndirs, capdirs;
+  char *temps[4]; /* folders of temporaries (spx_tx_temp_dir): removed with their contents */
+  int ntemps;
+  char *recovered; /* the folder whose dead journals this run has finished already */
   int committed;
 } spx_tx;
 
@@ -48,8 +53,9 @@ const char *spx_tx_stage(spx_tx *tx, const char *target);
 int spx_tx_commit(spx_tx *tx);
 /* Always call once: removes temporaries (and created folders) of a run that did not commit. */
 void spx_tx_end(spx_tx *tx);
-/* From a signal handler (apps/main.c, Ctrl-C): removes the temporaries, backups and created
- * (still empty) folders of every open transaction, with unlink / rmdir only. A commit blocks
+/* From a signal handler (apps/main.c, Ctrl-C): removes the temporaries, backups, folders of
+ * temporaries and created (still empty) folders of every open transaction, and the library
+ * writers' temporaries in progress (spx_file_abort_writes), with system calls only. A commit blocks
  * SIGINT and SIGTERM while it renames, so it is never cut in half by them. */
 void spx_tx_interrupted(void);
 /* main, when command cmd has returned: drops the transactions still registered as open (begun,
@@ -57,6 +63,35 @@ void spx_tx_interrupted(void);
  * finalises) cannot reach them. Returns 0; in the test build's tool, when one was open, prints an
  * internal error naming cmd and returns 70 (EX_SOFTWARE) for main to exit with. */
 int spx_tx_after_command(const char *cmd);
+/* A folder of temporaries for this run (created here; the run may fill it and rename it into
+ * place): removed with everything in it by spx_tx_end and by an interrupt, unless it has been
+ * renamed away. Prints the error; returns an exit code. */
+int spx_tx_temp_dir(spx_tx *tx, const char *path);
+
+/* The run's inputs. spx_cli_parse records every input option given (what: the option's name);
+ * a command records the files it finds itself (a data set's images). spx_tx_check, spx_tx_stage
+ * and spx_tx_mkdir refuse a target that is one of them (the same path or the same file), exit 2:
+ * no command writes over its own input. */
+int spx_tx_input(const char *what, const char *path); /* exit code (out of memory, printed) */
+/* Forget the recorded inputs (main, when the command has returned). */
+void spx_tx_inputs_clear(void);
+/* Usage error (printed; exit code returned) when a recorded input lies inside folder dir, which
+ * the run replaces as a whole (synth --force). */
+int spx_tx_check_dir(spx_tx *tx, const char *dir);
+/* Usage error when an output path holds a control character (a newline would split every message
+ * and the commit journal's lines): one line naming the path with the character escaped. what: the
+ * option, or NULL. Checked by spx_tx_check / stage / mkdir, and by spx_cli_parse for each output. */
+int spx_tx_check_name(const char *cmd, const char *what, const char *path);
+
+/* What the run has committed (for the interrupt message): the number of files, and in *last the
+ * first target of the last commit. spx_tx_commit records its own; a command that puts its output
+ * in place otherwise (synth's folder, tune's file) notes it with signals blocked. */
+int spx_tx_written(const char **last);
+void spx_tx_note_written(const char *target, int count);
+/* Block SIGINT and SIGTERM (the old mask in *old) around a step an interrupt must not cut. */
+void spx_tx_block_signals(sigset_t *old);
+void spx_tx_unblock_signals(const sigset_t *old);
+
 /* Print ctx's message as cmd's one-line error with every staged temporary named by its target
  * (errors name the user's path, never a temporary); returns SPX_EXIT_ERROR. */
 int spx_tx_error(spx_tx *tx, spx_ctx *ctx);

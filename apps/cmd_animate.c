@@ -46,7 +46,7 @@ static void animate_help(void) {
 /* Ctrl-C: the loop stops after the current frame and removes what it wrote (exit 130). */
 static volatile sig_atomic_t interrupted;
 static void on_sigint(int sig) {
-  (void)sig;
+  if (spx_cli_signal_elsewhere(sig)) return;
   interrupted = 1;
 }
 
@@ -124,8 +124,8 @@ static int encode_video(const opts *o, spx_tx *tx, const char *ffmpeg, long a, i
   size_t ln = strlen(o->out) + 64;
   if (!vtmp || !(*links = malloc(ln))) return vtmp ? spx_cli_errorf(C, "out of memory") : SPX_EXIT_ERROR;
   snprintf(*links, ln, "%s/frames.tmp.%ld", o->out, (long)getpid());
-  if (mkdir(*links, 0700) != 0) {
-    int rc = spx_cli_errorf(C, "%s: cannot create the folder: %s", *links, strerror(errno));
+  int rc = spx_tx_temp_dir(tx, *links); /* an interrupt removes it too */
+  if (rc) {
     free(*links), *links = NULL;
     return rc;
   }
@@ -241,10 +241,12 @@ static int run(spx_ctx *ctx, const opts *o) {
     goto done;
   }
   if ((rc = spx_tx_mkdir(&tx, o->out))) goto done; /* removed again by a failed run that made it */
-  {
-    char first[4200];
-    snprintf(first, sizeof first, "%s/frame_%06ld.png", o->out, a);
-    if ((rc = spx_tx_check(&tx, first))) goto done; /* writable, before any work */
+  for (long f = a; f <= b; f++) { /* every file it will write: writable and no input, before any work */
+    char name[4200];
+    if (f < b) snprintf(name, sizeof name, "%s/frame_%06ld.png", o->out, f);
+    else if (!o->no_mp4) snprintf(name, sizeof name, "%s/animation.mp4", o->out);
+    else break;
+    if ((rc = spx_tx_check(&tx, name))) goto done;
   }
   if (!o->avatar && (rc = spx_cli_open_device(C, ctx, o->spec))) goto done;
   rc = SPX_EXIT_ERROR;

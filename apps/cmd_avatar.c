@@ -391,7 +391,10 @@ static int registration(avatar_job *j) {
       const double *R = r->sim_R + a * 3, *x = v + (size_t)i * 3, k = r->sim_scale * r->body_scale;
       vs[i * 3 + a] = (float)((k * (R[0] * x[0] + R[1] * x[1] + R[2] * x[2]) + r->sim_t[a]) / r->unit_scale);
     }
-  if (!rc) rc = spx_cli_check_fit(C, j->ctx, j->o->scan, &j->scan, r->unit_scale, vs, j->m.nv, j->m.faces, j->m.nf, dist);
+  /* the body of an avatar is a posed fit (a registration read from its JSON records no stages) */
+  if (!rc)
+    rc = spx_cli_check_fit(C, j->ctx, j->o->scan, &j->scan, r->unit_scale, vs, j->m.nv, j->m.faces, j->m.nf,
+                           r->stages_done | SPX_FIT_POSE, dist);
   free(v), free(vs);
   if (rc || access(j->regp, F_OK) == 0) return rc;
   if (!j->o->quiet) printf("registration: scan -> surface distance mean %.2f mm, median %.2f mm\n", dist[0] * 1e3, dist[1] * 1e3);

@@ -1,5 +1,7 @@
 /* smplpix devices: list OpenCL devices; with --warmup, build all kernels for the chosen device
- * and report cold vs warm start-up (program cache). */
+ * and report cold vs warm start-up (program cache); with --peak, measure each device's float32
+ * FMA peak and streaming bandwidth (spx_device_measure_peak), the roofline the benchmarks and
+ * profiles report shares of. */
 #include <stdio.h>
 #include <string.h>
 
@@ -10,14 +12,34 @@ static const char *kind_name(spx_device_kind k) {
 }
 
 static const char DEVICES_USAGE[] =
-    "usage: smplpix devices [--warmup] [--device cpu|gpu|P:D]\n"
+    "usage: smplpix devices [--warmup] [--peak] [--device cpu|gpu|P:D]\n"
     "Lists OpenCL devices; --warmup builds every kernel on the chosen device (filling the\n"
-    "program-binary cache) and prints how long that took and how much came from the cache.\n";
+    "program-binary cache) and prints how long that took and how much came from the cache;\n"
+    "--peak measures the float32 FMA peak and the memory bandwidth (a streaming triad) of every\n"
+    "listed device, or of the --device one, with short kernels (seconds on a CPU).\n";
+
+/* --peak on the device `spec` (its own context: a failure leaves the other devices' lines) */
+static int peak_line(const char *spec) {
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("devices", "out of memory");
+  int rc = spx_cli_open_device("devices", ctx, spec);
+  spx_device_info info;
+  spx_device_peak p;
+  if (!rc && !spx_cli_failed(&rc, "devices", ctx, spx_device_get_info(ctx, &info)) &&
+      !spx_cli_failed(&rc, "devices", ctx, spx_device_measure_peak(ctx, &p)))
+    printf("peak %d:%d %s: %.1f GFLOP/s fp32 FMA, %.1f GB/s triad (ridge %.1f flop/byte; measured in %.2f s)\n",
+           info.platform_index, info.device_index, info.name, p.fma_gflops, p.triad_gbs,
+           p.fma_gflops / p.triad_gbs, p.seconds);
+  fflush(stdout);
+  spx_ctx_destroy(ctx);
+  return rc;
+}
 
 int spx_cmd_devices(int argc, char **argv) {
   const char *spec = NULL;
-  int warm = 0;
-  spx_opt opts[] = {SPX_O("--warmup", SPX_OPT_FLAG, &warm), SPX_O("--device", SPX_OPT_STR, &spec), SPX_O_END};
+  int warm = 0, peak = 0;
+  spx_opt opts[] = {SPX_O("--warmup", SPX_OPT_FLAG, &warm), SPX_O("--peak", SPX_OPT_FLAG, &peak),
+                    SPX_O("--device", SPX_OPT_STR, &spec), SPX_O_END};
   int parsed = spx_cli_parse(argc, argv, "devices", DEVICES_USAGE, NULL, opts);
   if (parsed >= 0) return parsed;
   spx_ctx *ctx = NULL;
@@ -39,6 +61,17 @@ int spx_cmd_devices(int argc, char **argv) {
     spx_device_cache_stats(ctx, &cs);
     printf("warmup on %d:%d %s: %d programs compiled, %d loaded from cache, %d cached, %.3f s\n",
            info.platform_index, info.device_index, info.name, cs.compiled, cs.loaded, cs.stored, cs.build_seconds);
+  }
+  fflush(stdout);
+  if (peak && spec) {
+    rc = peak_line(spec);
+  } else if (peak) {
+    for (int i = 0; i < n && i < 32; i++) {
+      char one[32];
+      snprintf(one, sizeof one, "%d:%d", infos[i].platform_index, infos[i].device_index);
+      int r = peak_line(one);
+      if (r) rc = r; /* the other devices are still measured */
+    }
   }
 done:
   spx_ctx_destroy(ctx);

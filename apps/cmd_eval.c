@@ -283,16 +283,6 @@ static void json_num(FILE *f, const char *key, double v, int last) {
   else fprintf(f, "\"%s\": null%s", key, last ? "" : ", ");
 }
 
-static void json_str(FILE *f, const char *s) {
-  fputc('"', f);
-  for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
-    if (*p == '"' || *p == '\\') fprintf(f, "\\%c", *p);
-    else if (*p < 0x20) fprintf(f, "\\u%04x", *p);
-    else fputc(*p, f);
-  }
-  fputc('"', f);
-}
-
 static void json_metrics(FILE *f, const spx_metrics *m, const spx_detail *d, const double *lpips, int has_mask) {
   json_num(f, "psnr", m->psnr, 0);
   json_num(f, "ssim", m->ssim, 0);
@@ -319,7 +309,7 @@ static int write_json(spx_tx *tx, const char *path, const list *l, const spx_met
   fprintf(f, ",\n \"images\": [");
   for (int i = 0; i < l->n; i++) {
     fprintf(f, "%s\n  {\"name\": ", i ? "," : "");
-    json_str(f, l->it[i].name);
+    spx_cli_json_string(f, l->it[i].name);
     fprintf(f, ", ");
     json_metrics(f, &l->it[i].m, &l->it[i].d, l->it[i].lpips, has_mask);
     fprintf(f, "}");

@@ -21,12 +21,29 @@ static void export_help(void) {
          "Metadata: format, smplpix.width, smplpix.sigmoid; smplpix.loss, smplpix.stage and\n"
          "smplpix.image_size (the size it was trained at) when W has them; smplpix.steps (W's Adam step count: of its last run, a stage started with --init counts\n"
          "from 0); smplpix.dtype (F16 or F32); and each --meta pair\n"
-         "(at most %d; e.g. --meta smplpix.image_size=128x96). A value that does not fit in float16\n"
+         "(at most %d; e.g. --meta smplpix.image_size=128x96; UTF-8; format, smplpix.width, sigmoid, dtype,\n"
+         "steps and smplpix.train.* are the file's own). A value that does not fit in float16\n"
          "is an error naming the tensor.\n",
          MAX_META);
 }
 
 static int export_run(int argc, char **argv, const char **user);
+
+/* The keys export writes from the tensors and the optimizer (and the training state, which an
+ * export has not): a --meta pair never overrides what the file records of its tensors
+ * (smplpix.loss, stage and image_size, carried over when W has them, describe its training and may). */
+static int own_key(const char *k, size_t n) {
+  static const char *const own[] = {"format", "smplpix.width", "smplpix.sigmoid", "smplpix.dtype", "smplpix.steps"};
+  for (size_t i = 0; i < sizeof own / sizeof own[0]; i++)
+    if (strlen(own[i]) == n && !strncmp(k, own[i], n)) return 1;
+  return n >= 14 && !strncmp(k, "smplpix.train.", 14);
+}
+
+static int utf8(const char *s) {
+  size_t k;
+  while (*s && (k = spx_utf8_char(s))) s += k;
+  return !*s;
+}
 
 int spx_cmd_export(int argc, char **argv) {
   const char **user = calloc((size_t)argc + 1, sizeof *user); /* every --meta value */
@@ -47,8 +64,10 @@ static int export_run(int argc, char **argv, const char **user) {
     const char *v = *m, *eq = strchr(v, '=');
     if (!eq || eq == v || (size_t)(eq - v) >= sizeof kbuf[0])
       parsed = spx_cli_usage("export", "--meta: expected KEY=VALUE, got '%s'", v);
-    else if (!strncmp(v, "format=", 7) || !strncmp(v, "smplpix.width=", 14) || !strncmp(v, "smplpix.sigmoid=", 16))
-      parsed = spx_cli_usage("export", "--meta %s: that key comes from the network itself", v);
+    else if (own_key(v, (size_t)(eq - v)))
+      parsed = spx_cli_usage("export", "--meta %.*s: export records that key from the checkpoint itself", (int)(eq - v), v);
+    else if (!utf8(v))
+      parsed = spx_cli_usage("export", "--meta: '%s' is not valid UTF-8, which a safetensors header must be", v);
     else if (nuser == MAX_META)
       parsed = spx_cli_usage("export", "--meta: at most %d pairs", MAX_META);
     for (const char **o = user; parsed < 0 && o < m; o++) /* a key given twice */
@@ -84,7 +103,7 @@ static int export_run(int argc, char **argv, const char **user) {
   for (int k = 0; k < nuser; k++) {
     const char *eq = strchr(user[k], '=');
     snprintf(kbuf[k], sizeof kbuf[k], "%.*s", (int)(eq - user[k]), user[k]);
-    int j = 0;
+    int j = 0; /* a carried key (loss, stage, image_size) is replaced, any other added */
     while (j < nm && strcmp(mk[j], kbuf[k])) j++;
     mk[j] = kbuf[k], mv[j] = eq + 1;
     if (j == nm) nm++;

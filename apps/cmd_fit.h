@@ -30,9 +30,9 @@ int spx_cli_pose_registration(const char *cmd, spx_ctx *ctx, const spx_body_mode
 void spx_cli_fit_progress(void *user, const spx_fit_progress *p);
 /* The scan-to-surface distance of a registration (reg: nv
  * vertices in scan coordinates, faces) in metres, dist = mean, median, 95th percentile, and the
- * check that the fit is a person's (spx_fit_check_result: a scan that is not a person, a fit that
- * failed). Prints the one-line error itself; returns an exit code. */
+ * check that the fit is a person's (spx_fit_check_result with the fit's stages_done: a scan that
+ * is not a person, a fit that failed). Prints the one-line error itself; returns an exit code. */
 int spx_cli_check_fit(const char *cmd, spx_ctx *ctx, const char *scan_path, const spx_mesh *scan, double unit_scale,
-                      const float *reg, int32_t nv, const int32_t *faces, int32_t nf, double dist[3]);
+                      const float *reg, int32_t nv, const int32_t *faces, int32_t nf, int stages, double dist[3]);
 
 #endif

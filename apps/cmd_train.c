@@ -42,8 +42,8 @@ static void train_help(void) {
          "with --save-every N, and at the end. --batch larger than the number of pairs uses them all.\n"
          "Progress goes to stderr: a bar updated in place on a terminal, else a line every --log-every\n"
          "steps (default 10): step, loss (mean over the epoch so far), images/s, ETA.\n"
-         "Ctrl-C: the current step finishes, W is saved (exit status 130; continue with --resume); a\n"
-         "second Ctrl-C stops at once, leaving the last saved W as it was.\n"
+         "Ctrl-C or SIGTERM: the current step finishes, W is saved (exit status 130 / 143; continue with\n"
+         "--resume); a second one stops at once, leaving the last saved W as it was.\n"
          "Losses (the paper, §3.3): l1 = mean L1; l1+gan adds pix2pixHD's multi-scale PatchGAN (3 scales,\n"
          "conditional on the RGB-D input, LSGAN) and 0.1 x feature matching, the discriminator (width\n"
          "--disc-width, default 64) trained beside the generator with the same lr and kept with its Adam\n"
@@ -127,14 +127,19 @@ static int list_split(const char *dir, const char *name, int required, split *sp
     s->out = NULL;
     size_t stem = (size_t)(dot - e->d_name);
     static const char *const exts[] = {".png", ".exr", ".npy"};
-    for (int k = 0; k < 3 && s->in && !s->out; k++) {
+    for (int k = 0; k < 3 && s->in && !rc; k++) { /* exactly one target: two would be a guess */
       char *cand = malloc(strlen(odir) + stem + 5);
       if (!cand) break;
       snprintf(cand, strlen(odir) + stem + 5, "%s%.*s%s", odir, (int)stem, e->d_name, exts[k]);
-      if (file_exists(cand)) s->out = cand;
-      else free(cand);
+      if (!file_exists(cand)) free(cand);
+      else if (!s->out) s->out = cand;
+      else {
+        rc = spx_cli_errorf("train", "%s: both %s and %s are its target; keep one", s->in, s->out, cand);
+        free(cand);
+      }
     }
     sp->n++;
+    if (rc) break;
     if (!s->in) {
       rc = spx_cli_errorf("train", "out of memory listing %s", idir);
       break;
@@ -143,10 +148,16 @@ static int list_split(const char *dir, const char *name, int required, split *sp
       rc = spx_cli_errorf("train", "%s: no target %s%.*s.{png,exr,npy}", s->in, odir, (int)stem, e->d_name);
       break;
     }
+    if ((rc = spx_tx_input("--data", s->in)) || (rc = spx_tx_input("--data", s->out))) break; /* never an output */
   }
   closedir(d);
   if (!rc && required && sp->n == 0) rc = spx_cli_errorf("train", "%s: no .exr, .npy or .png inputs", idir);
   if (!rc && sp->n) qsort(sp->s, (size_t)sp->n, sizeof(sample), cmp_sample);
+  for (int i = 1; !rc && i < sp->n; i++) { /* view_0001.exr and view_0001.npy: two inputs of one view */
+    const char *a = sp->s[i - 1].in, *b = sp->s[i].in, *da = strrchr(a, '.'), *db = strrchr(b, '.');
+    if (da - a == db - b && !strncmp(a, b, (size_t)(da - a)))
+      rc = spx_cli_errorf("train", "%s and %s are two inputs of one view; keep one", a, b);
+  }
 done:
   free(idir);
   free(odir);
@@ -235,15 +246,17 @@ static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss, double 
   return rc;
 }
 
-/* Ctrl-C: the first sets the flag (the loop saves and stops after the current step), the second
- * ends the process at once (saves are atomic, so the last checkpoint stays whole). */
+/* Ctrl-C or SIGTERM: the first sets the flag (the loop saves and stops after the current step),
+ * the second ends the process at once through the tool's handler (a save in progress is removed;
+ * saves are atomic, so the last checkpoint stays whole, and the message says which is kept). */
 static volatile sig_atomic_t interrupted;
 
 static void on_sigint(int sig) {
-  (void)sig;
-  if (interrupted) _exit(130);
-  interrupted = 1;
-  static const char msg[] = "\nsmplpix train: interrupted: finishing the current step and saving (Ctrl-C again to stop at once)\n";
+  if (spx_cli_signal_elsewhere(sig)) return;
+  if (interrupted) spx_cli_interrupt(sig);
+  interrupted = sig;
+  static const char msg[] =
+      "\nsmplpix train: interrupted: finishing the current step and saving (interrupt again to stop at once)\n";
   ssize_t r = write(STDERR_FILENO, msg, sizeof msg - 1);
   (void)r;
 }
@@ -488,6 +501,7 @@ static int train_reconcile(train_job *j, train_args *a, const train_dist *dist) 
   r->gan[2] = a->schedule ? 1 : use_gan;
   r->vgg = use_vgg;
   r->vgg_path = a->vgg_path;
+  r->vgg_cached = a->vgg_path == j->cached_vgg;
   r->lr1 = a->lr, r->lr2 = a->schedule ? a->lr2 : a->lr;
   r->disc_width = (int)a->disc_width, r->num_d = 3, r->seed = (uint64_t)a->seed;
   return SPX_EXIT_OK;
@@ -502,6 +516,13 @@ static int train_prepare(train_job *j, const train_args *a, train_dist *dist) {
   long batch = a->batch;
   int rc, resume = a->resume;
   if ((rc = list_split(a->data, "train", 1, &j->tr)) || (rc = list_split(a->data, "validation", 0, &j->val))) return rc;
+  if (!dist->on) { /* --out is none of the data's files (recorded as inputs by list_split; ranks: at the save) */
+    spx_tx chk;
+    spx_tx_begin(&chk, "train", 0);
+    rc = spx_tx_check(&chk, a->outp);
+    spx_tx_end(&chk);
+    if (rc) return rc;
+  }
   if ((rc = probe_size(ctx, &j->tr)) || (j->val.n && (rc = probe_size(ctx, &j->val)))) return rc;
   const split *tr = &j->tr;
   if (dist->on && (batch > tr->n ? tr->n : batch) % dist->comm.size)
@@ -589,8 +610,8 @@ static int train_prepare(train_job *j, const train_args *a, train_dist *dist) {
   return SPX_EXIT_OK;
 }
 
-/* SIGINT (and under mpirun SIGTERM, what it turns Ctrl-C into) set `interrupted`; the old handlers
- * are put back by train_run. */
+/* SIGINT and SIGTERM (what mpirun turns Ctrl-C into, what a job scheduler sends) set
+ * `interrupted`; the old handlers are put back by train_run. */
 static void catch_signals(train_job *j, const train_dist *dist) {
   struct sigaction sa;
   memset(&sa, 0, sizeof sa);
@@ -599,7 +620,7 @@ static void catch_signals(train_job *j, const train_dist *dist) {
   sa.sa_flags = SA_RESTART;
   interrupted = 0;
   j->handler_set = sigaction(SIGINT, &sa, &j->old_int) == 0;
-  j->term_set = dist->on && sigaction(SIGTERM, &sa, &j->old_term) == 0;
+  j->term_set = sigaction(SIGTERM, &sa, &j->old_term) == 0;
 }
 
 /* The steps up to j->target: batches in each epoch's order, the recipe's step, progress, the
@@ -693,7 +714,7 @@ static int train_loop(train_job *j, const train_args *a, train_dist *dist) {
       progress_clear(&pg);
       fprintf(stderr, "smplpix train: interrupted after step %lld of %lld: saved %s (continue with --resume)\n",
               (long long)now_step, (long long)target, outp);
-      return 130;
+      return 128 + sig; /* 130 for Ctrl-C, 143 for SIGTERM */
     }
   }
   progress_clear(&pg);

@@ -1,4 +1,5 @@
 /* smplpix: one tool, many subcommands. */
+#include <pthread.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -111,7 +112,8 @@ const char *spx_cli_data_path(const char *rel) {
 }
 
 /* Ctrl-C (or SIGTERM) in a command without a handler of its own: the open transactions' temporaries
- * and created folders go (spx_tx_interrupted), one line says so, exit 128 + signal (130 for Ctrl-C). */
+ * and created folders go (spx_tx_interrupted), one line says what is on disk, exit 128 + signal
+ * (130 for Ctrl-C). */
 static const char *running_cmd = "";
 
 static void put_err(const char *s) {
@@ -126,12 +128,32 @@ void spx_cli_decided(int rc) {
   decided = 1;
 }
 
-static void on_interrupt(int sig) {
+/* The thread that runs the command. A signal sent to the process may be delivered to any thread
+ * that does not block it (the OpenCL runtime's workers, Ceres's): there it is handed on to this
+ * one, whose mask decides when it is taken (a commit blocks it until every file is in place). */
+static pthread_t main_thread;
+
+int spx_cli_signal_elsewhere(int sig) {
+  if (pthread_equal(pthread_self(), main_thread)) return 0;
+  pthread_kill(main_thread, sig);
+  return 1;
+}
+
+void spx_cli_interrupt(int sig) {
+  if (spx_cli_signal_elsewhere(sig)) return;
   if (decided) _exit(decided_rc);
   spx_tx_interrupted();
+  const char *last;
+  int n = spx_tx_written(&last);
   put_err("\nsmplpix ");
   put_err(running_cmd);
-  put_err(": interrupted: nothing of this run was written\n");
+  if (!n) {
+    put_err(": interrupted: nothing of this run was written\n");
+  } else { /* e.g. train's --save-every checkpoints, or an interrupt just after the commit */
+    put_err(": interrupted: what this run wrote before is kept (last ");
+    put_err(last);
+    put_err("); nothing else of it was written\n");
+  }
   _exit(128 + sig);
 }
 
@@ -157,13 +179,15 @@ int main(int argc, char **argv) {
   for (size_t i = 0; i < NCOMMANDS; i++)
     if (!strcmp(argv[1], commands[i].name)) {
       running_cmd = commands[i].name;
+      main_thread = pthread_self();
       struct sigaction sa;
       memset(&sa, 0, sizeof sa);
-      sa.sa_handler = on_interrupt;
+      sa.sa_handler = spx_cli_interrupt;
       sigemptyset(&sa.sa_mask);
       sigaction(SIGINT, &sa, NULL);
       sigaction(SIGTERM, &sa, NULL);
       int rc = commands[i].run(argc - 1, argv + 1), bad = spx_tx_after_command(running_cmd);
+      spx_tx_inputs_clear();
       if (bad) rc = bad;
       spx_cli_decided(rc);
       return rc;

@@ -425,22 +425,14 @@ done:
   return rc;
 }
 
-static void json_str(FILE *f, const char *v) {
-  fputc('"', f);
-  for (; *v; v++) {
-    if (*v == '"' || *v == '\\') fprintf(f, "\\%c", *v);
-    else if ((unsigned char)*v < 0x20) fprintf(f, "\\u%04x", (unsigned char)*v);
-    else fputc(*v, f);
-  }
-  fputc('"', f);
-}
-
 int synth_run(const synth_opts *o) {
   run_state s;
   memset(&s, 0, sizeof s);
   s.o = o;
   int rc = 0, have_map = 0, have_bvh = 0, have_body = 0;
+  spx_tx tx;
   if (spx_ctx_create(&s.ctx)) return spx_cli_errorf("synth", "out of memory");
+  spx_tx_begin(&tx, "synth", 0);
   /* inputs first: nothing is written before they all check out */
   if (spx_cli_failed(&rc, "synth", s.ctx, spx_body_load(s.ctx, o->body_path, &s.body))) goto done;
   have_body = 1;
@@ -471,6 +463,7 @@ int synth_run(const synth_opts *o) {
     rc = spx_cli_errorf("synth", "%s: holds a synth output already (use --force to replace it)", o->out);
     goto done;
   }
+  if ((rc = spx_tx_check_dir(&tx, o->out))) goto done; /* --force replaces DIR with all in it */
   if ((rc = spx_cli_open_device("synth", s.ctx, o->device))) goto done;
   if (spx_cli_failed(&rc, "synth", s.ctx, spx_rasterizer_create(s.ctx, &s.rast))) goto done;
   size_t n = strlen(o->out) + 32;
@@ -480,8 +473,7 @@ int synth_run(const synth_opts *o) {
     goto done;
   }
   snprintf(s.tmp, n, "%s.tmp.%ld.0", o->out, (long)getpid());
-  if (mkdir(s.tmp, 0777)) {
-    rc = spx_cli_errorf("synth", "%s: cannot create the temporary folder %s: %s", o->out, s.tmp, strerror(errno));
+  if ((rc = spx_tx_temp_dir(&tx, s.tmp))) { /* removed by spx_tx_end, and by an interrupt */
     free(s.tmp);
     s.tmp = NULL;
     goto done;
@@ -495,9 +487,9 @@ int synth_run(const synth_opts *o) {
   }
   fprintf(s.manifest, "{\"version\": 1, \"seed\": %" PRIu64 ", \"width\": %d, \"height\": %d, \"body\": ", o->seed,
           o->width, o->height);
-  json_str(s.manifest, o->body_path);
+  spx_cli_json_string(s.manifest, o->body_path);
   fputs(", \"bvh\": ", s.manifest);
-  json_str(s.manifest, o->bvh_path);
+  spx_cli_json_string(s.manifest, o->bvh_path);
   fprintf(s.manifest, ", \"texture_size\": %d,\n  \"framing\": {\"rule\": \"box\", \"fill\": [%g, %g]},\n  \"subjects\": [",
           (int)o->tex_size, SPX_FRAME_FILL_MIN, SPX_FRAME_FILL_MAX);
   s.tty = isatty(STDERR_FILENO);
@@ -521,9 +513,12 @@ int synth_run(const synth_opts *o) {
   /* test hook (apps/test_hooks.h): a shell command run just before the rename, as a user or a
      second run acting while this one works */
   spx_test_hook_run("SPX_TEST_BEFORE_RENAME", "synth");
-  if ((rc = commit_folder(o, s.tmp))) goto done;
-  free(s.tmp);
-  s.tmp = NULL;
+  sigset_t old_mask; /* an interrupt waits until the output is in place (or the old one is back) */
+  spx_tx_block_signals(&old_mask);
+  rc = commit_folder(o, s.tmp);
+  if (!rc) spx_tx_note_written(o->out, 1);
+  spx_tx_unblock_signals(&old_mask);
+  if (rc) goto done;
   spx_file_sync_dir_of(s.ctx, o->out); /* best effort: the new entry is durable */
   double el = spx_now() - s.t0;
   printf("wrote %d subjects x %d views (%dx%d, textures %d^2) to %s in %.1f s: %.2f s per subject (scan, texture), "
@@ -532,10 +527,8 @@ int synth_run(const synth_opts *o) {
          s.t_views / ((double)o->subjects * o->views));
 done:
   if (s.manifest) fclose(s.manifest);
-  if (s.tmp) {
-    remove_tree(s.tmp);
-    free(s.tmp);
-  }
+  spx_tx_end(&tx); /* the temporary folder, unless it is the output now */
+  free(s.tmp);
   spx_rasterizer_destroy(s.rast);
   if (have_map) spx_bvh_map_free(&s.map);
   if (have_bvh) spx_bvh_free(&s.bvh);

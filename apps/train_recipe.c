@@ -46,6 +46,13 @@ int train_recipe_start(spx_ctx *ctx, train_recipe *r, spx_unet *u, const char *o
   r->stage = r->schedule ? 1 : (r->gan[2] ? 2 : 1);
   r->base = 0;
   if (!(r->disc_path = disc_path_of(outp))) return spx_cli_errorf("train", "out of memory");
+  if ((r->gan[1] || r->gan[2]) && (!r->comm || r->comm->rank == 0)) { /* W.disc: writable, no input */
+    spx_tx chk;
+    spx_tx_begin(&chk, "train", 0);
+    int rc = spx_tx_check(&chk, r->disc_path);
+    spx_tx_end(&chk);
+    if (rc) return rc;
+  }
   int resume = rec != NULL;
   if (rec) { /* the stage record of the checkpoint (spx_train_state_read checked its ranges) */
     if (!r->schedule && strcmp(train_loss_name(r), rec->loss)) /* cmd_train takes the loss from rec */
@@ -57,6 +64,10 @@ int train_recipe_start(spx_ctx *ctx, train_recipe *r, spx_unet *u, const char *o
   if (r->vgg && (r->vgg == TRAIN_VGG16 ? spx_vgg16_open(ctx, r->vgg_path, &r->net_vgg)
                                        : spx_vgg_open(ctx, r->vgg_path, &r->net_vgg)))
     return spx_cli_error("train", ctx);
+  if (r->vgg_cached && spx_vgg_width(r->net_vgg) != 64) /* the loader takes narrow test networks */
+    return spx_cli_errorf("train", "%s: a VGG16 of width %d (features.0.weight [%d, 3, 3, 3]), but the cached weights "
+                          "must be torchvision's, width 64 (`make weights` fetches them; --vgg takes another file)",
+                          r->vgg_path, spx_vgg_width(r->net_vgg), spx_vgg_width(r->net_vgg));
   int load = resume && r->gan[r->stage] && (!r->comm || r->comm->rank == 0); /* else rank 0's comes later */
   int rc = need_disc(ctx, r, load);
   if (rc) return rc;

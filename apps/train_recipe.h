@@ -27,6 +27,7 @@ typedef struct train_recipe {
   int vgg;                   /* the reconstruction term: 0 the mean L1, else the perceptual loss of
                                 TRAIN_VGG19 (eq. 5) or TRAIN_VGG16 (the official code's) */
   const char *vgg_path;      /* --vgg, or the cached VGG16 */
+  int vgg_cached;            /* vgg_path is the cached VGG16 of `make weights`: torchvision's, width 64 */
   int64_t stage1_steps;      /* schedule: steps of stage 1 (stage 2 starts there) */
   double lr1, lr2;
   int disc_width, num_d;

@@ -71,39 +71,6 @@ static void state_text(const spx_train_state *s, const char **keys, char (*text)
   }
 }
 
-int spx_train_state_attach(spx_ctx *ctx, const char *src, const char *dst, const spx_train_state *s) {
-  spx_st_file f;
-  memset(&f, 0, sizeof f);
-  if (spx_st_load(ctx, src, &f)) return spx_cli_error("train", ctx);
-  int rc = SPX_EXIT_OK;
-  int nk = 0;
-  size_t cap = (size_t)f.nmeta + NFIELDS;
-  const char **keys = malloc(sizeof *keys * cap), **vals = malloc(sizeof *vals * cap);
-  char(*text)[80] = malloc(sizeof *text * NFIELDS);
-  spx_st_entry *e = malloc(sizeof *e * (size_t)(f.count ? f.count : 1));
-  if (!keys || !vals || !text || !e) {
-    rc = spx_cli_errorf("train", "out of memory");
-    goto done;
-  }
-  for (int i = 0; i < f.nmeta; i++) { /* keep the file's own keys, except ours (rewritten below) */
-    if (!strncmp(f.meta_keys[i], "smplpix.train.", 14)) continue;
-    keys[nk] = f.meta_keys[i], vals[nk++] = f.meta_values[i];
-  }
-  state_text(s, keys + nk, text);
-  for (int k = 0; k < NFIELDS; k++) vals[nk++] = text[k];
-  for (int i = 0; i < f.count; i++) {
-    const spx_st_tensor *t = &f.tensors[i];
-    memset(&e[i], 0, sizeof e[i]);
-    e[i].name = t->name, e[i].dtype = t->dtype, e[i].ndim = t->ndim, e[i].data = t->data;
-    memcpy(e[i].shape, t->shape, sizeof t->shape);
-  }
-  if (spx_st_save(ctx, dst, e, f.count, keys, vals, nk)) rc = spx_cli_error("train", ctx);
-done:
-  free(keys), free(vals), free(text), free(e);
-  spx_st_free(&f);
-  return rc;
-}
-
 /* name is one of the "|"-separated texts. */
 static int text_in(const char *name, const char *texts) {
   size_t n = strlen(name);

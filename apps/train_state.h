@@ -40,11 +40,9 @@ typedef struct spx_train_state {
 
 /* Defaults for every field (what a file without a key reads as). */
 void spx_train_state_init(spx_train_state *s);
-/* Copy the checkpoint at src to dst (dst written atomically), adding s to its metadata.
- * Both functions print the one-line error themselves and return SPX_EXIT_OK or the exit code. */
-int spx_train_state_attach(spx_ctx *ctx, const char *src, const char *dst, const spx_train_state *s);
 /* Read the state of checkpoint path. *has_state: it holds a training state; *has_optimizer: it
- * holds the Adam state (optimizer.step). A malformed field is an error naming it. */
+ * holds the Adam state (optimizer.step). A malformed field is an error naming it. Prints the
+ * one-line error itself and returns SPX_EXIT_OK or the exit code. */
 int spx_train_state_read(spx_ctx *ctx, const char *path, spx_train_state *s, int *has_state, int *has_optimizer);
 /* Save u (weights + Adam state) with the state s to path, and when d is not NULL the discriminator
  * (+ its Adam state) to disc_path, in one durable transaction of their own (fsync of the files and

@@ -34,30 +34,38 @@ typedef struct group {
   int ncand;
 } group;
 
-/* NULL, or a tunable that must be on (nonzero) for group g to matter: the Winograd variant and its
- * tile packing are not timed while Winograd is off (CONV_WINO_MINC = 0), nor its local-memory
- * tiles while it is off, nor the narrow conv tile while no layer takes it (CONV_NARROW_MAXC = 0,
- * e.g. the GPU class), nor the local-memory conv's channel groups while it is off. */
-static const char *group_needs(const group *g) {
-  if (!strcmp(g->names[0], "CONV_WINO_LDS") || !strcmp(g->names[0], "CONV_WINO_PACK") ||
-      !strcmp(g->names[0], "CONV_WINO_SMALL_HW"))
+/* NULL, or a tunable that must be on (nonzero; *off: must be off) for group g to matter: the
+ * Winograd variant and its tile packing are not timed while Winograd is off (CONV_WINO_MINC = 0),
+ * nor its local-memory tiles while it is off, nor the narrow conv tile while no layer takes it
+ * (CONV_NARROW_MAXC = 0, e.g. the GPU class), nor the local-memory conv's channel groups while it is
+ * off, nor the GEMM engine's tiles while it is off; the local-memory conv is not timed while the
+ * GEMM engine runs every stride-1 convolution (CONV_GEMM = 1). */
+static const char *group_needs(const group *g, int *off) {
+  const char *n = g->names[0];
+  *off = 0;
+  if (!strcmp(n, "CONV_WINO_LDS") || !strcmp(n, "CONV_WINO_PACK") || !strcmp(n, "CONV_WINO_SMALL_HW"))
     return "CONV_WINO_MINC";
-  if (!strcmp(g->names[0], "CONV_NARROW_TM")) return "CONV_NARROW_MAXC";
-  if (!strcmp(g->names[0], "CONV_LDS_CG")) return "CONV_LDS"; /* (it matters only at CONV_LDS = 2) */
-  return strncmp(g->names[0], "CONV_WLDS_", 10) ? NULL : "CONV_WINO_LDS";
+  if (!strcmp(n, "CONV_NARROW_TM")) return "CONV_NARROW_MAXC";
+  if (!strcmp(n, "CONV_LDS_CG")) return "CONV_LDS"; /* (it matters only at CONV_LDS = 2) */
+  if (!strncmp(n, "CONV_GEMM_", 10)) return "CONV_GEMM";
+  if (!strncmp(n, "CONV_LDS", 8)) return *off = 1, "CONV_GEMM";
+  return strncmp(n, "CONV_WLDS_", 10) ? NULL : "CONV_WINO_LDS";
 }
 
 /* The order of the search (the candidates of each tunable are its row's in lib/cl/tuning.c,
  * spx_device_tunable_candidates; a row searched with a partner is one group of two). The
- * eval-forward groups: the Winograd threshold first, then the direct conv's tiles and layout
- * switches, the local-memory conv (GPU class; needs CONV_VW = 1, refused otherwise), the Winograd
+ * eval-forward groups: the Winograd threshold first, then the GEMM engine (GPU class: on or off,
+ * its tiles, the split of small layers' reductions, the 1x1 bandwidth kernel), the direct conv's
+ * tiles and layout switches, the local-memory conv (GPU class; needs CONV_VW = 1, refused otherwise), the Winograd
  * local-memory variant and its tiles (GPU class; refused or falling back to the CPU variant where
  * a group does not fit the device), and the threshold once more with the variant and tiles chosen
  * (the first pass ran with the defaults), so the per-shape choice direct / Winograd sees the
  * faster variant. Then the groups scored on a training step: Winograd in training, the Winograd
  * weight gradient's thresholds (channels, pixels), the weight-gradient register tiles / blocks
  * (direct kernel and Winograd GEMM share them). */
-static const char *const eval_order[] = {"CONV_WINO_MINC", "CONV_TM", "CONV_NARROW_TM", "CONV_NARROW_MAXC",
+static const char *const eval_order[] = {"CONV_WINO_MINC", "CONV_GEMM", "CONV_GEMM_BM", "CONV_GEMM_TM",
+                                         "CONV_GEMM_KS", "CONV_GEMM_SPLIT", "CONV_THIN_MAXC", "CONV_TM",
+                                         "CONV_NARROW_TM", "CONV_NARROW_MAXC",
                                          "CONV_NOPAD", "CONV_WINO_PACK", "CONV_WINO_SMALL_HW", "CONV_VW",
                                          "CONV_CT", "CONV_LWS", "CONV_XCACHE", "CONV_LDS", "CONV_LDS_TX",
                                          "CONV_LDS_CG", "CONV_WINO_LDS", "CONV_WLDS_TM", "CONV_WLDS_WM",
@@ -430,15 +438,16 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
     if ((gs[g].full_only && p->quick) || (g >= ng_eval && !train)) continue;
     int cur[MAXG] = {0}, skip = 0;
     spx_tunable_info on;
-    const char *needs = group_needs(&gs[g]);
+    int need_off = 0;
+    const char *needs = group_needs(&gs[g], &need_off);
     if (p->quick && !strcmp(gs[g].names[0], "CONV_WINO_LDS") && tunable(ctx, "CONV_WINO_LDS", &on) &&
         !on.default_value) { /* the GPU variant on a CPU: 10-40x slower on 2-core PoCL, not worth --quick's time */
       fprintf(out, "  CONV_WINO_LDS: off by default on this device class, tried in the full search only\n");
       continue;
     }
-    if (needs && tunable(ctx, needs, &on) && !on.value) {
-      fprintf(out, "  %s%s%s: not tuned (%s is 0)\n", gs[g].names[0], gs[g].n > 1 ? " " : "",
-              gs[g].n > 1 ? gs[g].names[1] : "", needs);
+    if (needs && tunable(ctx, needs, &on) && (need_off ? on.value != 0 : on.value == 0)) {
+      fprintf(out, "  %s%s%s: not tuned (%s is %d)\n", gs[g].names[0], gs[g].n > 1 ? " " : "",
+              gs[g].n > 1 ? gs[g].names[1] : "", needs, on.value);
       continue;
     }
     for (int j = 0; j < gs[g].n; j++) {
@@ -477,7 +486,12 @@ int spx_tune_search(spx_ctx *ctx, const spx_tune_plan *p, FILE *out) {
   for (int i = 0; i < nsave; i++) np[i] = names[i];
   char comment[200];
   snprintf(comment, sizeof comment, "tuned at %s, %s search", shape, p->quick ? "quick" : "full");
-  if ((st = spx_device_tuning_save_comment(ctx, comment, np, vals, nsave))) goto fail;
+  sigset_t old_mask; /* the file is in place, and the interrupt message says so, or neither */
+  spx_tx_block_signals(&old_mask);
+  st = spx_device_tuning_save_comment(ctx, comment, np, vals, nsave);
+  if (!st) spx_tx_note_written(spx_device_tuning_path(ctx), 1);
+  spx_tx_unblock_signals(&old_mask);
+  if (st) goto fail;
   fprintf(out, "chosen:");
   for (int i = 0; i < nsave; i++) fprintf(out, " %s=%d%s", names[i], vals[i], vals[i] == defs[i] ? " (default)" : "");
   fprintf(out, "\n");

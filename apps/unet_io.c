@@ -26,6 +26,22 @@ static spx_status from_hwc(spx_ctx *ctx, const char *path, const float *src, int
   return SPX_OK;
 }
 
+/* The colour channels (0-2) of the network's inputs and targets lie in 0..1 (depth, channel 3, is
+ * any finite value): float colours in 0..255 would train or render garbage without a word. */
+static spx_status colours_in_range(spx_ctx *ctx, const char *path, const spx_app_batch *b) {
+  size_t hw = (size_t)b->h * (size_t)b->w;
+  for (int n = 0; n < b->n; n++)
+    for (int c = 0; c < 3 && c < b->c; c++) {
+      const float *x = b->data + ((size_t)n * (size_t)b->c + (size_t)c) * hw;
+      for (size_t p = 0; p < hw; p++)
+        if (x[p] < 0 || x[p] > 1)
+          return spx_fail(ctx, SPX_E_FORMAT, "%s: colour %g in channel %d at pixel (%zu, %zu)%s is outside 0..1 (an "
+                          "image in 0..255 must be divided by 255, or saved as uint8)", path, x[p], c, p % (size_t)b->w,
+                          p / (size_t)b->w, b->n > 1 ? " of a batch image" : "");
+    }
+  return SPX_OK;
+}
+
 spx_status spx_app_load(spx_ctx *ctx, const char *path, int channels, spx_app_batch *out) {
   memset(out, 0, sizeof *out);
   char ext[16];
@@ -44,6 +60,7 @@ spx_status spx_app_load(spx_ctx *ctx, const char *path, int channels, spx_app_ba
     }
     st = from_hwc(ctx, path, img.data, img.height, img.width, cin, channels, out);
     spx_image_free(&img);
+    if (!st && (st = colours_in_range(ctx, path, out))) spx_app_batch_free(out);
     return st;
   }
   if (!strcmp(ext, "npy")) {
@@ -69,6 +86,7 @@ spx_status spx_app_load(spx_ctx *ctx, const char *path, int channels, spx_app_ba
     }
     for (size_t i = 0; !st && out->data && i < (size_t)out->n * out->c * out->h * out->w; i++)
       if (!isfinite(out->data[i])) st = spx_fail(ctx, SPX_E_NUMERIC, "%s: NaN or Inf at element %ld", path, (long)i);
+    if (!st && out->data) st = colours_in_range(ctx, path, out);
     if (st) spx_app_batch_free(out);
     free(f);
     spx_array_free(&a);

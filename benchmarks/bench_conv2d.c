@@ -1,11 +1,20 @@
 /* conv2d benchmark: the UNet-64 convolution shapes at 4x308x410 on the open device (forward,
- * backward-data, backward-weights: ms and GFLOP/s), plus the plain-C double reference on one
- * thread on a small shape. Peer: benchmarks/peer_conv_torch.py times the same shapes in PyTorch.
+ * backward-data, backward-weights: ms, GFLOP/s and the share of the device's roofline, measured at
+ * the start as `smplpix devices --peak` does), plus the plain-C double reference on one thread on
+ * a small shape. Peers: benchmarks/peer_conv_torch.py times the same shapes in PyTorch,
+ * bench_clblast in CLBlast (convgemm, im2col + GEMM).
  *
- *   bench_conv2d [reps]          (default 3; the minimum over reps is reported)
- *   bench_conv2d --unet [reps]   also time every conv of a UNet-64 eval forward (sum)
- *   bench_conv2d --w16 [reps]    also time every conv of a UNet-16 eval forward, wall and process
- *                                CPU per layer (SPX_BENCH_UNET filters)
+ *   bench_conv2d [reps] [--div N]  (default 3; the minimum over reps is reported; --div divides
+ *                                  every image side by N, for a quick run)
+ *   bench_conv2d --unet [reps]     also time every conv of a UNet-64 eval forward (sum)
+ *   bench_conv2d --w16 [reps]      also time every conv of a UNet-16 eval forward, wall and process
+ *                                  CPU per layer (SPX_BENCH_UNET filters)
+ * Work model (benchmarks/roofline.h): FLOPs = 2 x multiply-adds; bytes = input, weights and output
+ * once. Each time cell is followed by GF/s and its share of the FMA peak (%pk) or, for a
+ * memory-bound shape (flops per byte below the ridge), GB/s and its share of the bandwidth (%bw).
+ * Every (shape, pass) also prints one machine-readable line (scripts/device/run.sh reads them):
+ *   CONV impl=smplpix mode=fwd|bwd_data|bwd_weights cin= cout= h= w= k= ms= gflop= gbyte= gflops= gbs=
+ *        peak_gflops= peak_gbs= pct_peak= pct_bw= bound=compute|memory pct_roof=
  * SPX_KERNEL_PROFILE=1 (bench_profiles_from_env): every kernel's own device time, summed per
  * kernel name, on stderr at the end (the shapes' pad copies, weight packs and GEMMs apart). */
 #include <stdlib.h>
@@ -15,48 +24,27 @@
 #include "cl/cl_internal.h"
 #include "nn/conv2d.h"
 #include "bench_common.h"
+#include "roofline.h"
 #include "smplpix/smplpix.h"
 
-typedef struct shape {
-  const char *name;
-  int cin, cout, h, w, k, pad;
-} shape;
-
-static const shape shapes[] = {
-    {"inc.conv1 4->64", 4, 64, 308, 410, 3, 1},   {"inc.conv2 64->64", 64, 64, 308, 410, 3, 1},
-    {"down1 128->128", 128, 128, 154, 205, 3, 1}, {"down4 512->512", 512, 512, 19, 25, 3, 1},
-    {"up4.conv1 128->64", 128, 64, 308, 410, 3, 1}, {"outc 1x1 64->3", 64, 3, 308, 410, 1, 0},
-};
-
-/* every conv of the milesial UNet (bilinear, width 64) at 308x410 */
-static const shape unet[] = {
-    {"inc1", 4, 64, 308, 410, 3, 1},     {"inc2", 64, 64, 308, 410, 3, 1},     {"d1a", 64, 128, 154, 205, 3, 1},
-    {"d1b", 128, 128, 154, 205, 3, 1},   {"d2a", 128, 256, 77, 102, 3, 1},     {"d2b", 256, 256, 77, 102, 3, 1},
-    {"d3a", 256, 512, 38, 51, 3, 1},     {"d3b", 512, 512, 38, 51, 3, 1},      {"d4a", 512, 512, 19, 25, 3, 1},
-    {"d4b", 512, 512, 19, 25, 3, 1},     {"u1a", 1024, 512, 38, 51, 3, 1},     {"u1b", 512, 256, 38, 51, 3, 1},
-    {"u2a", 512, 256, 77, 102, 3, 1},    {"u2b", 256, 128, 77, 102, 3, 1},     {"u3a", 256, 128, 154, 205, 3, 1},
-    {"u3b", 128, 64, 154, 205, 3, 1},    {"u4a", 128, 64, 308, 410, 3, 1},     {"u4b", 64, 64, 308, 410, 3, 1},
-    {"outc", 64, 3, 308, 410, 1, 0},
-};
-
-/* every conv of the width-16 UNet at 308x410, in pass order (the algorithm as the defaults pick
- * it: direct below CONV_WINO_MINC channels, Winograd above) */
-static const shape unet16[] = {
-    {"inc1", 4, 16, 308, 410, 3, 1},    {"inc2", 16, 16, 308, 410, 3, 1},   {"d1a", 16, 32, 154, 205, 3, 1},
-    {"d1b", 32, 32, 154, 205, 3, 1},    {"d2a", 32, 64, 77, 102, 3, 1},     {"d2b", 64, 64, 77, 102, 3, 1},
-    {"d3a", 64, 128, 38, 51, 3, 1},     {"d3b", 128, 128, 38, 51, 3, 1},    {"d4a", 128, 128, 19, 25, 3, 1},
-    {"d4b", 128, 128, 19, 25, 3, 1},    {"u1a", 256, 128, 38, 51, 3, 1},    {"u1b", 128, 64, 38, 51, 3, 1},
-    {"u2a", 128, 64, 77, 102, 3, 1},    {"u2b", 64, 32, 77, 102, 3, 1},     {"u3a", 64, 32, 154, 205, 3, 1},
-    {"u3b", 32, 16, 154, 205, 3, 1},    {"u4a", 32, 16, 308, 410, 3, 1},    {"u4b", 16, 16, 308, 410, 3, 1},
-    {"outc", 16, 3, 308, 410, 1, 0},
-};
+typedef bench_conv_shape shape;
+static bench_roof roof;
+static const char *const mode_name[3] = {"fwd", "bwd_data", "bwd_weights"};
 
 static int fail(spx_ctx *ctx, const char *what) {
   fprintf(stderr, "bench_conv2d: %s: %s\n", what, spx_ctx_message(ctx));
   return 1;
 }
 
-static double flops(const shape *s) { return 2.0 * s->cout * s->h * s->w * (double)s->cin * s->k * s->k; }
+static double flops(const shape *s) { return bench_conv_gflop(s) * 1e9; }
+
+/* the machine-readable line of one timed pass */
+static void conv_line(const shape *s, int mode, double ms) {
+  char f[512];
+  bench_roof_fields(&roof, bench_conv_gflop(s), bench_conv_gbyte(s), ms, f, sizeof f);
+  printf("CONV impl=smplpix mode=%s cin=%d cout=%d h=%d w=%d k=%d ms=%.4f %s\n", mode_name[mode], s->cin, s->cout, s->h,
+         s->w, s->k, ms, f);
+}
 
 /* mode 0 forward (with fused affine+relu), 1 backward-data, 2 backward-weights; returns min ms */
 static spx_op_workspace ws;
@@ -81,7 +69,7 @@ static int time_op(spx_ctx *ctx, const shape *s, int mode, int reps, double *ms,
     goto done;
   spx_tensor x = spx_tensor_view(mx, 0, 1, s->cin, s->h, s->w), y = spx_tensor_view(my, 0, 1, s->cout, s->h, s->w);
   spx_tensor w = spx_tensor_view(mw, 0, s->cout, s->cin, s->k, s->k), v = spx_tensor_view(mv, 0, s->cout, 1, 1, 1);
-  spx_conv2d_params p = {s->k, 1, s->pad, &v, &v, 1, &ws};
+  spx_conv2d_params p = {s->k, 1, s->pad, &v, &v, 1, &ws, {0, 0, 0}};
   double best = 1e30, best_cpu = 0;
   for (int r = 0; r < reps + 1; r++) { /* first run warms up (kernel build, page faults) */
     double t0 = spx_now(), c0 = cpu_now();
@@ -102,10 +90,11 @@ done:
 }
 
 int main(int argc, char **argv) {
-  int reps = 3, do_unet = 0;
+  int reps = 3, do_unet = 0, div = 1;
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--unet")) do_unet = 1;
     else if (!strcmp(argv[i], "--w16")) do_unet = 2;
+    else if (!strcmp(argv[i], "--div") && i + 1 < argc) div = atoi(argv[++i]) > 0 ? atoi(argv[i]) : 1;
     else reps = atoi(argv[i]) > 0 ? atoi(argv[i]) : 3;
   }
   spx_ctx *ctx;
@@ -117,42 +106,54 @@ int main(int argc, char **argv) {
   printf("device: %s; tiles TMxTNxVW %dx%dx%d LWS %d; dw %dx%d chunk %d\n", info.name, ctx->dev->tune.conv_tm,
          ctx->dev->tune.conv_tn, ctx->dev->tune.conv_vw, ctx->dev->tune.conv_lws,
          ctx->dev->tune.conv_dw_tm, ctx->dev->tune.conv_dw_tn, ctx->dev->tune.conv_dw_qc);
-  printf("%-22s %9s | %9s %7s | %9s %7s | %9s %7s\n", "shape (1x, HxW)", "GFLOP", "fwd ms", "GF/s", "bwd-x ms",
-         "GF/s", "bwd-w ms", "GF/s");
-  double wall_sum = 0;
+  bench_roof_measure(ctx, &roof);
+  printf("%-18s %7s %7s %7s | %9s %-21s | %9s %-21s | %9s %-21s\n", "shape (1x)", "HxW", "GFLOP", "MB", "fwd ms",
+         " (% of the roof)", "bwd-x ms", "", "bwd-w ms", "");
+  double wall_sum = 0, all_gf = 0, all_gb = 0;
   cpu_ms_sum = 0;
-  for (size_t i = 0; i < sizeof shapes / sizeof shapes[0]; i++) {
-    const shape *s = &shapes[i];
+  for (size_t i = 0; i < sizeof bench_unet64_layers / sizeof bench_unet64_layers[0]; i++) {
+    const shape sh = bench_conv_scaled(&bench_unet64_layers[i], div), *s = &sh;
     const char *only = getenv("SPX_BENCH_ONLY"); /* e.g. "12": shapes 1 and 2 */
     if (only && !strchr(only, '0' + (int)i)) continue;
     double ms[3], cpu[3];
-    for (int m = 0; m < 3; m++)
+    char cell[3][64];
+    for (int m = 0; m < 3; m++) {
       if (time_op(ctx, s, m, reps, &ms[m], &cpu[m])) return fail(ctx, s->name);
-    double gf = flops(s) * 1e-9;
-    printf("%-18s %3dx%-3d %7.2f | %9.1f %7.1f | %9.1f %7.1f | %9.1f %7.1f\n", s->name, s->h, s->w, gf, ms[0],
-           gf / ms[0] * 1e3, ms[1], gf / ms[1] * 1e3, ms[2], gf / ms[2] * 1e3);
+      bench_roof_short(&roof, bench_conv_gflop(s), bench_conv_gbyte(s), ms[m], cell[m], sizeof cell[m]);
+    }
+    printf("%-18s %3dx%-3d %7.2f %7.1f | %9.2f %s | %9.2f %s | %9.2f %s\n", s->name, s->h, s->w, bench_conv_gflop(s),
+           bench_conv_gbyte(s) * 1e3, ms[0], cell[0], ms[1], cell[1], ms[2], cell[2]);
+    for (int m = 0; m < 3; m++) conv_line(s, m, ms[m]);
     wall_sum += ms[0] + ms[1] + ms[2];
+    all_gf += 3 * bench_conv_gflop(s), all_gb += 3 * bench_conv_gbyte(s);
     if (getenv("SPX_BENCH_CPU")) printf("   cpu ms: %.1f %.1f %.1f\n", cpu[0], cpu[1], cpu[2]);
     fflush(stdout);
   }
-  printf("sum of the table: %.1f ms wall, %.1f ms CPU (all threads; wall x cores when the machine is idle)\n", wall_sum,
-         cpu_ms_sum);
+  bench_roof_cell c = bench_roof_eval(&roof, all_gf, all_gb, wall_sum);
+  printf("sum of the table: %.1f ms wall, %.1f ms CPU (all threads; wall x cores when the machine is idle); "
+         "%.2f GFLOP, %.1f MB: %.1f GF/s, %.1f%% of the FMA peak\n",
+         wall_sum, cpu_ms_sum, all_gf, all_gb * 1e3, c.gflops, c.pct_peak);
   if (do_unet) {
-    const shape *tab = do_unet == 2 ? unet16 : unet;
-    size_t nt = do_unet == 2 ? sizeof unet16 / sizeof unet16[0] : sizeof unet / sizeof unet[0];
-    double tot = 0, gtot = 0, ctot = 0;
+    const shape *tab = do_unet == 2 ? bench_unet16_all : bench_unet64_all;
+    size_t nt = do_unet == 2 ? sizeof bench_unet16_all / sizeof bench_unet16_all[0]
+                             : sizeof bench_unet64_all / sizeof bench_unet64_all[0];
+    double tot = 0, gtot = 0, btot = 0, ctot = 0;
     for (size_t i = 0; i < nt; i++) {
       const char *only = getenv("SPX_BENCH_UNET"); /* comma list of layer names */
       if (only && !strstr(only, tab[i].name)) continue;
+      const shape sh = bench_conv_scaled(&tab[i], div);
       double ms, cpu;
-      if (time_op(ctx, &tab[i], 0, reps, &ms, &cpu)) return fail(ctx, tab[i].name);
-      tot += ms, gtot += flops(&tab[i]) * 1e-9, ctot += cpu;
-      if (getenv("SPX_BENCH_CPU") || do_unet == 2)
-        printf("  %-5s %4d->%-4d %3dx%-3d wall %7.2f ms cpu %7.2f ms  %6.1f GFLOP/s (cpu)\n", tab[i].name, tab[i].cin,
-               tab[i].cout, tab[i].h, tab[i].w, ms, cpu, flops(&tab[i]) * 1e-6 / cpu);
+      char cell[64];
+      if (time_op(ctx, &sh, 0, reps, &ms, &cpu)) return fail(ctx, sh.name);
+      tot += ms, gtot += bench_conv_gflop(&sh), btot += bench_conv_gbyte(&sh), ctot += cpu;
+      bench_roof_short(&roof, bench_conv_gflop(&sh), bench_conv_gbyte(&sh), ms, cell, sizeof cell);
+      printf("  %-5s %4d->%-4d %3dx%-3d wall %7.2f ms %s  cpu %7.2f ms  %6.1f GFLOP/s (cpu)\n", sh.name, sh.cin, sh.cout,
+             sh.h, sh.w, ms, cell, cpu, flops(&sh) * 1e-6 / cpu);
+      conv_line(&sh, 0, ms);
     }
-    printf("UNet-%d convs, eval forward: %.1f ms, %.1f GFLOP, %.1f GFLOP/s (CPU %.1f ms)\n", do_unet == 2 ? 16 : 64,
-           tot, gtot, gtot / tot * 1e3, ctot);
+    c = bench_roof_eval(&roof, gtot, btot, tot);
+    printf("UNet-%d convs, eval forward: %.1f ms, %.1f GFLOP, %.1f MB, %.1f GFLOP/s, %.1f%% of the FMA peak (CPU %.1f ms)\n",
+           do_unet == 2 ? 16 : 64, tot, gtot, btot * 1e3, gtot / tot * 1e3, c.pct_peak, ctot);
   }
   /* plain-C double reference, one thread */
   {

@@ -32,7 +32,7 @@ static int run_dw(spx_ctx *ctx, spx_op_workspace *ws, const spx_tensor *x, const
                   const spx_tensor *dy, const spx_tensor *dw, int minc, double *ms, double *cpu) {
   ctx->dev->tune.conv_wino_dw = minc; /* host-side only: no program depends on them */
   ctx->dev->tune.conv_wino_dw_minhw = 0;
-  spx_conv2d_params p = {3, 1, 1, NULL, NULL, 0, ws};
+  spx_conv2d_params p = {3, 1, 1, NULL, NULL, 0, ws, {0, 0, 0}};
   double t0 = spx_now(), c0 = bench_cpu_now();
   if (spx_conv2d_backward(ctx, x, w, dy, NULL, dw, NULL, &p) || clFinish(ctx->dev->queue) != CL_SUCCESS) return 1;
   *ms = 1e3 * (spx_now() - t0), *cpu = 1e3 * (bench_cpu_now() - c0);

@@ -1,26 +1,49 @@
-/* Registration from what one depth camera sees, scored against the complete surface of the body
- * (mean distance from 30,000 noise-free samples of the whole true body to the registered surface).
- * Per body (the shipped body at rest, then random posed / reshaped bodies): a full 50k-point scan
- * (2 mm noise), the same with five 12 cm holes, single-view scans (about 50k points with 2 mm
- * noise, kept where a front / side / back / from-above camera 2.4 m away sees the surface), and a
- * 640x480 depth image (f = 525 px, 2.4 m, the rasterizer's depth channel in whole millimetres as a
- * 16-bit PNG holds it) back-projected by spx_fit_depth_points. Then human_woman.obj (SMPL topology,
- * not the model's) as a full scan. Single views and the depth image are registered with the
- * camera's position (spx_fit_options.view) unless --no-view.
- * usage: bench_register_views [--bodies N] [--first B] [--threads N] [--cases LIST] [--no-view] [--verbose]...
- *        [--pose-steps N] [--inner N] [--free-steps N] [--w-pose W] [--w-shape W]   (override the defaults of spx_fit_options) */
+/* Registration scored against the complete surface of the true body (the mean distance from 30,000
+ * noise-free samples of the whole body to the registered surface), from full scans, single views,
+ * depth images and several depth images fused.
+ *
+ * --set outside (default): bodies outside the shipped model's shape space (register_scenes.h: the
+ * SMPL-topology woman as she is and made larger with bulges, two `smplpix synth` subjects in loose
+ * clothes with hair and shoes, the shipped body at twice the shape range, the shipped body with
+ * bulges and widened), each with --seeds seeds (a seed draws the scan's samples and noise and
+ * jitters the cameras: azimuth +-20 degrees, 0-0.3 m above the centre, 2.2-2.6 m away). Cases:
+ *   full    50,000 samples of the whole surface, 2 mm noise
+ *   front   ~100,000 samples kept where a 640x480 camera in front sees them, 2 mm noise, with the
+ *           camera's position (side / back: the same from the side / behind)
+ *   depth   one 640x480 depth frame from the front (K of a real sensor, f = 525 px): the body in a
+ *           room (floor, walls), flying pixels at its silhouette, 1 mm noise, whole millimetres;
+ *           the person found by spx_fit_depth_person, back-projected by spx_fit_depth_points
+ *   depth4  four such frames from cameras around (azimuths 45, 135, 225, 315 degrees), fused
+ * --set inside: the rows of the earlier benchmark (bodies of the model's own space: 0 at rest, then
+ * random pose and shape), cases full, holes (five 12 cm holes), front, side, back, above, depth
+ * (a clean 640x480 depth image without room or noise), woman (human_woman.obj full, body 0 only).
+ * --full: the whole outside table (6 bodies x 3 seeds); the default is 3 bodies x 1 seed.
+ * usage: bench_register_views [--set outside|inside] [--full] [--bodies LIST] [--seeds N] [--threads N]
+ *          [--cases LIST] [--no-view] [--scene room|none] [--verbose]... [--pose-steps N] [--inner N]
+ *          [--free-steps N] [--points-pose N] [--points-free N] [--w-pose W] [--w-shape W] [--aids BITS]
+ * --aids: spx_fit_options.aids (SPX_FIT_AID_* bits; default: the library's), to measure each aid. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "../tests/fit_view.h"
+#include "bench_common.h"
 #include "core/internal.h" /* spx_now */
+#include "register_scenes.h"
 #include "smplpix/smplpix.h"
 
-#define NCASE 8
-static const char *case_names[NCASE] = {"full", "holes", "front", "side", "back", "above", "depth", "woman"};
-static const double case_dirs[NCASE][3] = {{0, 0, 0},  {0, 0, 0}, {0, 0, 1},     {1, 0, 0},
-                                           {0, 0, -1}, {0, 1.2, 1}, {0, 0.15, 1}, {0, 0, 0}};
+enum { C_FULL, C_HOLES, C_FRONT, C_SIDE, C_BACK, C_ABOVE, C_DEPTH, C_DEPTH4, C_WOMAN, NCASE };
+static const char *case_names[NCASE] = {"full", "holes", "front", "side", "back", "above", "depth", "depth4", "woman"};
+static const double case_az[NCASE] = {0, 0, 0, 90, 180, 0, 0, 45, 0}; /* degrees */
+#define MAXB 8
+#define MAXS 8
+#define NDEPTH4 4
+
+typedef struct cfg {
+  int outside, threads, use_view, room, verbose, pose_steps, inner, free_steps, points_pose, points_free;
+  double w_pose, w_shape;
+  int aids; /* -1: the library's default */
+} cfg;
 
 static void progress(void *user, const spx_fit_progress *p) {
   if (!*(int *)user) return;
@@ -29,137 +52,340 @@ static void progress(void *user, const spx_fit_progress *p) {
     printf("    %-5s energy %.4e  mean %.2f mm  (%.1f s)\n", p->stage, p->energy, p->mean_dist * 1e3, p->seconds);
 }
 
-/* The scan of case c of the body (V, F); cam receives the camera of the view cases. */
-static int make_scan(spx_ctx *ctx, int c, const double *V, int32_t nv, const int32_t *F, int32_t nf, uint64_t seed,
-                     spx_mesh *scan, spx_camera *cam, int *has_cam) {
-  *has_cam = 0;
-  if (c <= 1 || c == 7) {
-    synth_opts so = {50000, c == 7 ? 0.0 : 0.002, 0.0, 0, 1.0, 0};
-    if (synth_scan(V, nv, F, nf, &so, seed, scan, NULL, NULL)) return -1;
-    if (c == 1) view_holes(scan, 5, 0.06, seed);
-    return 0;
+/* The directions of the inside set's cameras (from the body, 2.4 m from its box's centre). */
+static const double inside_dirs[NCASE][3] = {{0, 0, 1}, {0, 0, 1}, {0, 0, 1},    {1, 0, 0}, {0, 0, -1},
+                                             {0, 1.2, 1}, {0, 0.15, 1}, {1, 0, 1}, {0, 0, 1}};
+
+/* A camera of case c for seed s: outside, the case's azimuth (+ 90 k for depth4's camera k),
+ * jittered; inside, the earlier benchmark's camera. */
+static int case_camera(spx_ctx *ctx, const rs_body *b, int c, int k, int s, const cfg *g, spx_camera *cam) {
+  if (!g->outside) return view_camera(ctx, b->V, b->nv, inside_dirs[c], 2.4, 640, 480, 525, cam);
+  uint64_t r = 0x51ed5eedULL + 7919ULL * (uint64_t)s + 104729ULL * (uint64_t)k + 31ULL * (uint64_t)c;
+  double az = case_az[c] + 90.0 * k + 40.0 * (synth_uni(&r) - 0.5), up = 0.3 * synth_uni(&r);
+  double dist = 2.2 + 0.4 * synth_uni(&r);
+  return rs_camera(ctx, b, az * M_PI / 180.0, up, dist, 640, 480, cam);
+}
+
+/* Whether the comma-separated list has this case. */
+static int has_case(const char *list, const char *name) {
+  size_t n = strlen(name);
+  for (const char *p = list; p && *p; p = strchr(p, ',') ? strchr(p, ',') + 1 : NULL)
+    if (!strncmp(p, name, n) && (p[n] == ',' || !p[n])) return 1;
+  return 0;
+}
+
+/* The depth frame of camera cam as the library sees it: the person's points (spx_fit_depth_person,
+ * with the room) appended to *scan with camera index k in *views. */
+static int depth_points(spx_ctx *ctx, const rs_body *b, const spx_camera *cam, int k, uint64_t seed, const cfg *g,
+                        spx_mesh *scan, int32_t **views) {
+  size_t npx = (size_t)cam->width * cam->height;
+  float *d = malloc(npx * sizeof(float));
+  spx_mesh pts = {0};
+  spx_fit_depth_report rep;
+  int rc = -1;
+  /* inside: the earlier rows' clean depth channel in whole millimetres */
+  int made = d && (g->outside ? !rs_depth_frame(ctx, b, cam, g->room, seed, d)
+                              : !view_depth(ctx, b->V, b->nv, b->F, b->nf, cam, d));
+  for (size_t p = 0; made && !g->outside && p < npx; p++) d[p] = roundf(d[p] * 1000.0f) / 1000.0f;
+  if (made) {
+    if ((!g->room || !spx_fit_depth_person(ctx, "bench depth", cam, d, cam->width, cam->height, &rep)) &&
+        !spx_fit_depth_points(ctx, "bench depth", cam, d, cam->width, cam->height, NULL, &pts))
+      rc = 0;
+    if (!rc && g->room && g->verbose)
+      printf("    depth frame %d: %lld px, %lld flying, %d planes %lld, range %lld, other %lld, kept %lld\n", k,
+             (long long)rep.valid, (long long)rep.flying, rep.nplanes, (long long)rep.planes, (long long)rep.range,
+             (long long)rep.other, (long long)rep.kept);
   }
-  if (view_camera(ctx, V, nv, case_dirs[c], 2.4, 640, 480, 525, cam)) return -1;
-  *has_cam = 1;
-  if (c < 6) return view_scan(ctx, V, nv, F, nf, cam, 100000, 0.002, seed, scan);
-  float *depth = malloc(640 * 480 * sizeof(float));
-  if (!depth || view_depth(ctx, V, nv, F, nf, cam, depth)) {
-    free(depth);
-    return -1;
+  free(d);
+  if (rc) return -1;
+  float *pos = realloc(scan->pos, (size_t)(scan->nv + pts.nv) * 3 * sizeof(float));
+  int32_t *v = realloc(*views, (size_t)(scan->nv + pts.nv) * sizeof(int32_t));
+  if (pos) scan->pos = pos;
+  if (v) *views = v;
+  if (!pos || !v) rc = -1;
+  for (int32_t i = 0; !rc && i < pts.nv; i++) {
+    memcpy(scan->pos + (size_t)(scan->nv + i) * 3, pts.pos + (size_t)i * 3, 3 * sizeof(float));
+    (*views)[scan->nv + i] = k;
   }
-  for (int p = 0; p < 640 * 480; p++) depth[p] = roundf(depth[p] * 1000.0f) / 1000.0f; /* 16-bit PNG: mm */
-  int rc = spx_fit_depth_points(ctx, "bench depth", cam, depth, 640, 480, NULL, scan) ? -1 : 0;
-  free(depth);
+  if (!rc) scan->nv += pts.nv;
+  spx_mesh_free(&pts);
   return rc;
 }
 
-int main(int argc, char **argv) {
-  int bodies = 3, first = 0, threads = 2, use_view = 1, verbose = 0, pose_steps = 0, inner = 0, free_steps = 0;
-  double w_pose = 0, w_shape = 0;
-  const char *cases = "full,holes,front,side,back,above,depth,woman";
-  for (int i = 1; i < argc; i++) {
-    if (!strcmp(argv[i], "--bodies") && i + 1 < argc) bodies = atoi(argv[++i]);
-    else if (!strcmp(argv[i], "--first") && i + 1 < argc) first = atoi(argv[++i]);
-    else if (!strcmp(argv[i], "--threads") && i + 1 < argc) threads = atoi(argv[++i]);
-    else if (!strcmp(argv[i], "--cases") && i + 1 < argc) cases = argv[++i];
-    else if (!strcmp(argv[i], "--no-view")) use_view = 0;
-    else if (!strcmp(argv[i], "--pose-steps") && i + 1 < argc) pose_steps = atoi(argv[++i]);
-    else if (!strcmp(argv[i], "--inner") && i + 1 < argc) inner = atoi(argv[++i]);
-    else if (!strcmp(argv[i], "--w-pose") && i + 1 < argc) w_pose = atof(argv[++i]);
-    else if (!strcmp(argv[i], "--w-shape") && i + 1 < argc) w_shape = atof(argv[++i]);
-    else if (!strcmp(argv[i], "--free-steps") && i + 1 < argc) free_steps = atoi(argv[++i]);
-    else if (!strcmp(argv[i], "--verbose")) verbose++;
-    else {
-      fprintf(stderr, "usage: bench_register_views [--bodies N] [--first B] [--threads N] [--cases LIST] [--no-view] [--verbose]...\n"
-                      "       [--pose-steps N] [--inner N] [--free-steps N] [--w-pose W] [--w-shape W]\n");
-      return 2;
+/* The scan of case c of body b, seed s; eyes (up to NDEPTH4 x 3) and *neyes: its cameras; *views:
+ * each point's camera (depth4). */
+static int make_scan(spx_ctx *ctx, int c, const rs_body *b, int s, const cfg *g, spx_mesh *scan, double *eyes,
+                     spx_camera *cams, int *neyes, int32_t **views) {
+  uint64_t seed = 7 + 1000ULL * (uint64_t)s + (uint64_t)(b->nv % 997);
+  memset(scan, 0, sizeof *scan);
+  *neyes = 0;
+  if (c == C_FULL || c == C_HOLES || c == C_WOMAN) {
+    synth_opts so = {50000, c == C_WOMAN ? 0.0 : 0.002, 0.0, 0, 1.0, 0};
+    if (synth_scan(b->V, b->nv, b->F, b->nf, &so, seed, scan, NULL, NULL)) return -1;
+    if (c == C_HOLES) view_holes(scan, 5, 0.06, seed);
+    return 0;
+  }
+  int ncam = c == C_DEPTH4 ? NDEPTH4 : 1;
+  for (int k = 0; k < ncam; k++) {
+    spx_camera *cam = cams + k;
+    if (case_camera(ctx, b, c, k, s, g, cam)) return -1;
+    view_eye(cam, eyes + 3 * k);
+    if (c == C_DEPTH || c == C_DEPTH4) {
+      if (depth_points(ctx, b, cam, k, seed + 13 * (uint64_t)k, g, scan, views)) return -1;
+    } else if (view_scan(ctx, b->V, b->nv, b->F, b->nf, cam, 100000, 0.002, seed, scan)) {
+      return -1;
     }
   }
+  *neyes = ncam;
+  return 0;
+}
+
+typedef struct run_out {
+  double err, secs, cpu, seen_err, hidden_err, hidden_share;
+  int32_t points;
+} run_out;
+
+/* The complete-surface error split into the part some camera saw (facing one and not behind its
+ * depth image by over 1 cm) and the rest (verbose runs). */
+static void split_error(spx_ctx *ctx, const rs_body *b, const spx_fit_result *r, const spx_camera *cams, int ncam,
+                        run_out *ro) {
+  spx_mesh truth;
+  synth_opts so = {30000, 0.0, 0.0, 0, 1.0, 0};
+  float *dist = NULL, *depth = NULL;
+  if (synth_scan(b->V, b->nv, b->F, b->nf, &so, 99, &truth, NULL, NULL)) return;
+  unsigned char *seen = calloc((size_t)truth.nv, 1);
+  dist = malloc((size_t)truth.nv * sizeof(float));
+  depth = malloc((size_t)cams[0].width * cams[0].height * sizeof(float));
+  if (seen && dist && depth &&
+      !spx_fit_surface_distance(ctx, truth.pos, truth.nv, r->verts_scan, r->nv, r->faces, r->nf, dist, NULL, NULL, NULL))
+    for (int k = 0; k < ncam; k++) {
+      const spx_camera *c = cams + k;
+      if (view_depth(ctx, b->V, b->nv, b->F, b->nf, c, depth)) break;
+      for (int32_t i = 0; i < truth.nv; i++) {
+        const float *x = truth.pos + i * 3;
+        double p[3];
+        for (int a = 0; a < 3; a++) p[a] = c->R[a][0] * x[0] + c->R[a][1] * x[1] + c->R[a][2] * x[2] + c->t[a];
+        if (!(p[2] > 0)) continue;
+        double u = (c->K[0][0] * p[0] + c->K[0][1] * p[1]) / p[2] + c->K[0][2], v = c->K[1][1] * p[1] / p[2] + c->K[1][2];
+        if (u < 0 || v < 0 || u >= c->width || v >= c->height) continue;
+        float dz = depth[(size_t)v * c->width + (size_t)u];
+        if (dz > 0 && p[2] < dz + 0.01) seen[i] = 1;
+      }
+    }
+  double se = 0, he = 0;
+  int32_t ns = 0;
+  for (int32_t i = 0; dist && seen && i < truth.nv; i++) {
+    if (seen[i]) se += dist[i], ns++;
+    else he += dist[i];
+  }
+  ro->seen_err = ns ? se / ns : 0, ro->hidden_err = truth.nv > ns ? he / (truth.nv - ns) : 0;
+  ro->hidden_share = 1.0 - (double)ns / truth.nv;
+  free(seen), free(dist), free(depth);
+  spx_mesh_free(&truth);
+}
+
+/* SPX_BENCH_DUMP=DIR (debugging): the true body, the registration and the cameras of every run as
+ * DIR/<body>_<case>_<seed>_{truth,reg}.obj and _cams.json. */
+static void dump(spx_ctx *ctx, const rs_body *b, const char *cname, int s, const spx_fit_result *r,
+                 const spx_camera *cams, int ncam) {
+  const char *dir = getenv("SPX_BENCH_DUMP");
+  if (!dir) return;
+  char path[1024];
+  spx_mesh t = {0}, reg;
+  t.nv = b->nv, t.nf = b->nf, t.faces = b->F;
+  t.pos = malloc((size_t)b->nv * 3 * sizeof(float));
+  for (int32_t i = 0; t.pos && i < b->nv * 3; i++) t.pos[i] = (float)b->V[i];
+  snprintf(path, sizeof path, "%s/%s_%s_%d_truth.obj", dir, b->name, cname, s);
+  if (t.pos) spx_mesh_save(ctx, path, &t, SPX_MESH_OBJ);
+  free(t.pos);
+  snprintf(path, sizeof path, "%s/%s_%s_%d_reg.obj", dir, b->name, cname, s);
+  if (!spx_fit_result_mesh(ctx, r, &reg)) spx_mesh_save(ctx, path, &reg, SPX_MESH_OBJ), spx_mesh_free(&reg);
+  snprintf(path, sizeof path, "%s/%s_%s_%d_reg.json", dir, b->name, cname, s);
+  spx_fit_save_json(ctx, path, r, NULL);
+  snprintf(path, sizeof path, "%s/%s_%s_%d_cams.json", dir, b->name, cname, s);
+  if (ncam) spx_camera_save(ctx, path, cams, ncam);
+}
+
+/* One registration of case c; 0, or -1 when the scan could not be made, 1 when the fit failed. */
+static int run_case(spx_ctx *ctx, const spx_body_model *m, const rs_body *b, int c, int s, const cfg *g,
+                    run_out *ro) {
+  spx_mesh scan;
+  double eyes[NDEPTH4 * 3];
+  spx_camera cams[NDEPTH4];
+  int neyes = 0;
+  int32_t *views = NULL;
+  if (make_scan(ctx, c, b, s, g, &scan, eyes, cams, &neyes, &views)) {
+    spx_mesh_free(&scan);
+    free(views);
+    return -1;
+  }
+  spx_fit_options o;
+  spx_fit_options_default(&o);
+  o.threads = g->threads;
+  if (g->pose_steps) o.pose_steps = g->pose_steps;
+  if (g->inner) o.inner_iterations = g->inner;
+  if (g->free_steps) o.free_steps = g->free_steps;
+  if (g->points_pose) o.max_points_pose = g->points_pose;
+  if (g->points_free) o.max_points_free = g->points_free;
+  if (g->w_pose > 0) o.w_pose = g->w_pose;
+  if (g->w_shape > 0) o.w_shape = g->w_shape;
+  if (g->aids >= 0) o.aids = (unsigned)g->aids;
+  o.progress = progress;
+  o.progress_user = (void *)&g->verbose;
+  if (neyes && g->use_view) o.nviews = neyes, o.view_eyes = eyes, o.point_view = views;
+  spx_fit_result r;
+  double t0 = spx_now(), c0 = bench_cpu_now();
+  int rc = spx_fit_register(ctx, m, &scan, &o, &r) ? 1 : 0;
+  ro->secs = spx_now() - t0, ro->cpu = bench_cpu_now() - c0, ro->points = scan.nv;
+  if (!rc) ro->err = view_complete_error(ctx, b->V, b->nv, b->F, b->nf, r.verts_scan, r.nv, r.faces, r.nf);
+  if (!rc && neyes && g->verbose) split_error(ctx, b, &r, cams, neyes, ro);
+  if (!rc) dump(ctx, b, case_names[c], s, &r, cams, neyes);
+  if (!rc) spx_fit_result_free(&r);
+  spx_mesh_free(&scan);
+  free(views);
+  return rc;
+}
+
+/* "0,2,5" or "0-5" into list (at most MAXB); returns the count. */
+static int parse_list(const char *s, int *list) {
+  int n = 0;
+  while (*s && n < MAXB) {
+    char *end;
+    long a = strtol(s, &end, 10), z = a;
+    if (end == s) break;
+    if (*end == '-') z = strtol(end + 1, &end, 10);
+    for (long v = a; v <= z && n < MAXB; v++) list[n++] = (int)v;
+    s = *end == ',' ? end + 1 : end;
+  }
+  return n;
+}
+
+static int usage(void) {
+  fprintf(stderr, "usage: bench_register_views [--set outside|inside] [--full] [--bodies LIST] [--seeds N] [--threads N]\n"
+                  "         [--cases LIST] [--no-view] [--scene room|none] [--verbose]... [--pose-steps N] [--inner N]\n"
+                  "         [--free-steps N] [--points-pose N] [--points-free N] [--w-pose W] [--w-shape W] [--aids BITS]\n");
+  return 2;
+}
+
+/* Per case: mean and worst over the runs, and the goals of the outside set. */
+static void summary(const double err[NCASE][MAXB][MAXS], const int ok[NCASE][MAXB][MAXS], const double cpu[NCASE],
+                    const int *bodies, int nb, int seeds, const rs_body *names) {
+  double mean[NCASE] = {0}, worst[NCASE] = {0};
+  int cnt[NCASE] = {0}, fails[NCASE] = {0};
+  printf("\ncase     mean mm  worst mm (body, seed)    runs  failed  CPU s/run\n");
+  for (int c = 0; c < NCASE; c++) {
+    int wb = 0, ws = 0;
+    for (int i = 0; i < nb; i++)
+      for (int s = 0; s < seeds; s++) {
+        if (ok[c][i][s] == 2) fails[c]++;
+        if (ok[c][i][s] != 1) continue;
+        mean[c] += err[c][i][s], cnt[c]++;
+        if (err[c][i][s] > worst[c]) worst[c] = err[c][i][s], wb = i, ws = s;
+      }
+    if (!cnt[c] && !fails[c]) continue;
+    if (cnt[c]) mean[c] /= cnt[c];
+    printf("%-7s %7.2f  %7.2f (%s, %d)%*s %4d  %6d  %8.1f\n", case_names[c], mean[c] * 1e3, worst[c] * 1e3,
+           names[wb].name, ws, (int)(14 - strlen(names[wb].name)), "", cnt[c], fails[c],
+           cpu[c] / (cnt[c] + fails[c]));
+  }
+  (void)bodies;
+  if (!cnt[C_FULL]) return;
+  double f = mean[C_FULL] * 1e3, fw = worst[C_FULL] * 1e3;
+  printf("goals: full mean %.2f mm (<= 2: %s)", f, f <= 2 ? "met" : "not met");
+  int single[2] = {C_FRONT, C_DEPTH};
+  for (int k = 0; k < 2; k++)
+    if (cnt[single[k]])
+      printf("; %s mean %.2f <= %.2f: %s, worst %.2f <= %.2f (2 x worst full + 1): %s", case_names[single[k]],
+             mean[single[k]] * 1e3, 2 * f + 1, mean[single[k]] * 1e3 <= 2 * f + 1 ? "met" : "not met",
+             worst[single[k]] * 1e3, 2 * fw + 1, worst[single[k]] * 1e3 <= 2 * fw + 1 ? "met" : "not met");
+  if (cnt[C_DEPTH4])
+    printf("; depth4 mean %.2f <= %.2f (1.2 x full): %s", mean[C_DEPTH4] * 1e3, 1.2 * f,
+           mean[C_DEPTH4] * 1e3 <= 1.2 * f ? "met" : "not met");
+  printf("\n");
+}
+
+int main(int argc, char **argv) {
+  cfg g = {.outside = 1, .threads = 2, .use_view = 1, .room = -1, .aids = -1};
+  int full = 0, seeds = 0, bodies[MAXB], nb = 0;
+  const char *cases = NULL;
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+    if (!strcmp(a, "--full")) full = 1;
+    else if (!strcmp(a, "--no-view")) g.use_view = 0;
+    else if (!strcmp(a, "--verbose")) g.verbose++;
+    else if (!v) return usage();
+    else if (!strcmp(a, "--set") && (!strcmp(v, "outside") || !strcmp(v, "inside"))) g.outside = !strcmp(v, "outside"), i++;
+    else if (!strcmp(a, "--scene") && (!strcmp(v, "room") || !strcmp(v, "none"))) g.room = !strcmp(v, "room"), i++;
+    else if (!strcmp(a, "--bodies")) nb = parse_list(v, bodies), i++;
+    else if (!strcmp(a, "--seeds")) seeds = atoi(v), i++;
+    else if (!strcmp(a, "--threads")) g.threads = atoi(v), i++;
+    else if (!strcmp(a, "--cases")) cases = v, i++;
+    else if (!strcmp(a, "--pose-steps")) g.pose_steps = atoi(v), i++;
+    else if (!strcmp(a, "--inner")) g.inner = atoi(v), i++;
+    else if (!strcmp(a, "--free-steps")) g.free_steps = atoi(v), i++;
+    else if (!strcmp(a, "--points-pose")) g.points_pose = atoi(v), i++;
+    else if (!strcmp(a, "--points-free")) g.points_free = atoi(v), i++;
+    else if (!strcmp(a, "--w-pose")) g.w_pose = atof(v), i++;
+    else if (!strcmp(a, "--w-shape")) g.w_shape = atof(v), i++;
+    else if (!strcmp(a, "--aids")) g.aids = (int)strtol(v, NULL, 0), i++;
+    else return usage();
+  }
+  if (g.room < 0) g.room = g.outside;
+  if (!nb) nb = g.outside ? (full ? parse_list("0-5", bodies) : parse_list("0,2,5", bodies)) : parse_list("0-2", bodies);
+  if (!seeds) seeds = g.outside && full ? 3 : 1;
+  if (!cases) cases = g.outside ? "full,front,depth,depth4" : "full,holes,front,side,back,above,depth,woman";
+  if (seeds < 1 || seeds > MAXS || g.threads < 1) return usage();
   spx_ctx *ctx = NULL;
   spx_body_model m;
   spx_mesh woman;
+  spx_image parts;
   if (spx_ctx_create(&ctx) || spx_body_load(ctx, SPX_REPO_DATA "/body/default_body.npz", &m) ||
-      spx_mesh_load(ctx, SPX_REPO_DATA "/body/human_woman.obj", &woman)) {
-    fprintf(stderr, "bench_register_views: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
-  double *pose = calloc((size_t)m.nj * 3, sizeof(double)), *betas = calloc((size_t)m.nbetas, sizeof(double));
-  double *Vb = malloc((size_t)m.nv * 3 * sizeof(double)), *Vw = malloc((size_t)woman.nv * 3 * sizeof(double));
-  for (int32_t i = 0; i < woman.nv * 3; i++) Vw[i] = woman.pos[i];
-  double sum[NCASE] = {0}, tsum[NCASE] = {0};
-  int cnt[NCASE] = {0};
-  printf("complete-surface error (mm) / mean vertex error (mm) / points / seconds, %d threads, view %s\n", threads,
-         use_view ? "given" : "not given");
-  for (int b = first; b < first + bodies; b++) {
-    double trans[3] = {0, 0, 0};
-    memset(pose, 0, (size_t)m.nj * 3 * sizeof(double));
-    memset(betas, 0, (size_t)m.nbetas * sizeof(double));
-    if (b > 0) synth_body(&m, 40 + (uint64_t)b, 0.3, pose, betas, trans);
-    spx_body_params p = {m.nbetas, betas, pose, trans, NULL};
-    if (spx_body_forward_ref(ctx, &m, &p, Vb, NULL)) break;
-    printf("body %d (%s)\n", b, b ? "random pose and shape" : "the shipped body at rest");
-    for (int c = 0; c < NCASE; c++) {
-      if (!strstr(cases, case_names[c]) || (c == 7 && b > 0)) continue;
-      const double *V = c == 7 ? Vw : Vb;
-      int32_t nv = c == 7 ? woman.nv : m.nv, nf = c == 7 ? woman.nf : m.nf;
-      const int32_t *F = c == 7 ? woman.faces : m.faces;
-      spx_mesh scan;
-      spx_camera cam;
-      int has_cam = 0;
-      if (make_scan(ctx, c, V, nv, F, nf, 7 + (uint64_t)b, &scan, &cam, &has_cam)) {
-        fprintf(stderr, "bench_register_views: scan %s: %s\n", case_names[c], spx_ctx_message(ctx));
-        return 1;
-      }
-      spx_fit_options o;
-      spx_fit_options_default(&o);
-      o.threads = threads;
-      if (pose_steps) o.pose_steps = pose_steps;
-      if (inner) o.inner_iterations = inner;
-      if (free_steps) o.free_steps = free_steps;
-      if (w_pose > 0) o.w_pose = w_pose;
-      if (w_shape > 0) o.w_shape = w_shape;
-      o.progress = progress;
-      o.progress_user = &verbose;
-      if (has_cam && use_view) o.view = 1, spx_fit_camera_eye(&cam, o.view_eye);
-      spx_fit_result r;
-      double t0 = spx_now();
-      if (spx_fit_register(ctx, &m, &scan, &o, &r)) {
-        printf("  %-6s registration failed: %s\n", case_names[c], spx_ctx_message(ctx));
-        spx_mesh_free(&scan);
-        continue;
-      }
-      double secs = spx_now() - t0;
-      double e = view_complete_error(ctx, V, nv, F, nf, r.verts_scan, r.nv, r.faces, r.nf), ev = -1;
-      float *vp = malloc((size_t)r.nv * 3 * sizeof(float));
-      for (int32_t i = 0; vp && i < r.nv; i++)
-        for (int d = 0; d < 3; d++) {
-          const double *x = r.verts_pose + i * 3;
-          vp[i * 3 + d] = (float)((r.sim_scale * (r.sim_R[d * 3] * x[0] + r.sim_R[d * 3 + 1] * x[1] + r.sim_R[d * 3 + 2] * x[2]) +
-                                   r.sim_t[d]) / r.unit_scale);
+      spx_mesh_load(ctx, SPX_REPO_DATA "/body/human_woman.obj", &woman) ||
+      spx_png_read(ctx, SPX_REPO_DATA "/body/body_parts_segmentation.png", &parts))
+    BENCH_DIE("bench_register_views", ctx, "loading the data");
+  static double err[NCASE][MAXB][MAXS];
+  static int ok[NCASE][MAXB][MAXS];
+  double cpu[NCASE] = {0};
+  rs_body names[MAXB];
+  printf("complete-surface error (mm), %s set, %d threads, cameras %s, depth frames %s\n",
+         g.outside ? "outside" : "inside", g.threads, g.use_view ? "given" : "not given",
+         g.room ? "in a room" : "of the body alone");
+  for (int i = 0; i < nb; i++) {
+    rs_body b;
+    if (g.outside ? rs_body_outside(ctx, &m, &woman, &parts, bodies[i], &b) : rs_body_inside(ctx, &m, bodies[i], &b))
+      BENCH_DIE("bench_register_views", ctx, "body %d", bodies[i]);
+    names[i] = b;
+    printf("body %d: %s (%d vertices)\n", bodies[i], b.name, b.nv);
+    for (int s = 0; s < seeds; s++)
+      for (int c = 0; c < NCASE; c++) {
+        if (!has_case(cases, case_names[c])) continue;
+        if (c == C_WOMAN && (g.outside || bodies[i] > 0)) continue;
+        rs_body wb = b;
+        if (c == C_WOMAN) {
+          wb.nv = woman.nv, wb.nf = woman.nf, wb.F = woman.faces;
+          wb.V = malloc((size_t)woman.nv * 3 * sizeof(double));
+          for (int32_t k = 0; wb.V && k < woman.nv * 3; k++) wb.V[k] = woman.pos[k];
         }
-      double ep = vp ? view_complete_error(ctx, V, nv, F, nf, vp, r.nv, r.faces, r.nf) : -1;
-      free(vp);
-      if (c != 7) {
-        ev = 0;
-        for (int32_t i = 0; i < m.nv; i++) {
-          double d2 = 0;
-          for (int d = 0; d < 3; d++) d2 += pow(r.verts_scan[i * 3 + d] - Vb[i * 3 + d], 2);
-          ev += sqrt(d2) / m.nv;
-        }
+        run_out ro;
+        memset(&ro, 0, sizeof ro);
+        int rc = run_case(ctx, &m, &wb, c, s, &g, &ro);
+        if (c == C_WOMAN) free(wb.V);
+        if (rc < 0) BENCH_DIE("bench_register_views", ctx, "scan %s of body %d", case_names[c], bodies[i]);
+        ok[c][i][s] = rc ? 2 : 1, err[c][i][s] = ro.err, cpu[c] += ro.cpu;
+        if (rc) printf("  seed %d %-6s registration failed: %s\n", s, case_names[c], spx_ctx_message(ctx));
+        else
+          printf("  seed %d %-6s %6.2f mm  %6d points  %5.1f s (CPU %5.1f s)\n", s, case_names[c], ro.err * 1e3,
+                 ro.points, ro.secs, ro.cpu);
+        if (!rc && ro.hidden_share > 0)
+          printf("    seen by a camera %.2f mm, hidden %.2f mm (%.0f%% of the surface)\n", ro.seen_err * 1e3,
+                 ro.hidden_err * 1e3, ro.hidden_share * 100);
+        fflush(stdout);
       }
-      printf("  %-6s %6.2f mm (pose+shape %6.2f mm)  vertices %6.2f mm  %6d points  %5.1f s\n", case_names[c], e * 1e3,
-             ep * 1e3, ev * 1e3, scan.nv, secs);
-      fflush(stdout);
-      sum[c] += e, tsum[c] += secs, cnt[c]++;
-      spx_fit_result_free(&r);
-      spx_mesh_free(&scan);
-    }
+    free(b.V), free(b.F);
+    names[i].V = NULL, names[i].F = NULL;
   }
-  printf("mean over bodies:");
-  for (int c = 0; c < NCASE; c++)
-    if (cnt[c]) printf(" %s %.2f mm (%.1f s)", case_names[c], sum[c] / cnt[c] * 1e3, tsum[c] / cnt[c]);
-  printf("\n");
-  free(pose), free(betas), free(Vb), free(Vw);
+  summary((const double(*)[MAXB][MAXS])err, (const int(*)[MAXB][MAXS])ok, cpu, bodies, nb, seeds, names);
+  spx_image_free(&parts);
   spx_mesh_free(&woman);
   spx_body_free(&m);
   spx_ctx_destroy(ctx);

@@ -8,6 +8,10 @@ mkdir -p out/bench
 for b in "$BUILD"/benchmarks/bench_*; do
   [ -x "$b" ] || continue
   name=$(basename "$b")
+  if [ "$name" = bench_clblast ]; then # a GPU baseline (the device kit's first step): hours of PoCL at full size
+    echo "== bench_clblast skipped (CLBlast's convolutions on the UNet shapes: run it alone, e.g. bench_clblast 1 --div 8)"
+    continue
+  fi
   echo "== $name"
   "$b" | tee "out/bench/$name.txt"
 done

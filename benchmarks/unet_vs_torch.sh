@@ -113,7 +113,7 @@ awk '
       ra = (k in theirs && theirs[k] > 0 && ours[k] > 0) ? sprintf("%.2f", ours[k] / theirs[k]) : "-"
       rm = (k in rss) ? sprintf("%.0f", rss[k] / 1048576) : "-"
       printf "| %-14s | %10.1f | %10s | %6s | %11.1f | %14.0f | %16s |\n", k, ours[k], t, ra, gfs[k], mem[k] / 1048576, rm
-      # issue 16 goals (there: best of 3 runs; here: this run)
+      # the goals: width 64 at most 0.6x PyTorch's time in eval, 0.8x in training (this run's times)
       if (k ~ /^w64 / && (k in theirs)) {
         goal = (k ~ / eval /) ? 0.6 : 0.8
         if (!(ours[k] > 0)) verdict[++nv] = sprintf("goal %s: ours did not run (see the raw output): MISSED", k)

@@ -1,5 +1,6 @@
 /* Activations: ReLU, LeakyReLU(slope), sigmoid, tanh (lib/nn/activations.h), one kernel per
- * activation and direction (so each compiles to a branch-free vector loop).
+ * activation and direction (so each compiles to a branch-free vector loop): an SPX_ACT_FWD and an
+ * SPX_ACT_BWD line per row of SPX_ACT_LIST.
  * Forward y = f(x) (in place allowed). Backward dx += dy * f'(.) from the SAVED tensor s:
  *   ReLU, LeakyReLU: the input x (PyTorch: relu uses y > 0, leaky uses x > 0; the same thing for
  *                    slope >= 0; x = 0 gives 0 for ReLU and slope for LeakyReLU, like PyTorch)

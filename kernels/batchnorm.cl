@@ -33,8 +33,8 @@ static inline void spx_fold8(float8 s8, float8 c8, float *s, float *c) {
 
 /* The output gradient the batch norm's backward sums: dy, or with the fused ReLU (relu != 0) dy
  * where the forward's output (x - mean) * a + b (computed as spx_bn_normalize does) is > 0 and 0
- * elsewhere, plus 0.0f: exactly the value the separate ReLU backward used to accumulate into
- * the zeroed gradient (0 + dy; -0 becomes +0), so fused and separate give the same bits. */
+ * elsewhere, plus 0.0f: exactly the value the separate ReLU backward accumulates into the zeroed
+ * gradient (0 + dy; -0 becomes +0), so fused and separate give the same bits. */
 #define SPX_BN_DY(g, xv, mean, a, b, relu) ((relu) ? (((((xv) - (mean)) * (a) + (b)) > 0.0f ? (g) : 0.0f) + 0.0f) : (g))
 
 /* Per-item partial sums over channel ch of an n x c x hw tensor (x at xo; dy at go for mode 2):

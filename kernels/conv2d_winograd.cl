@@ -14,7 +14,8 @@
  * 36 GEMMs of Cout x Cin x T do the work of one direct convolution of Cout x 9Cin x 16T: 4x fewer
  * multiply-adds. The GEMM uses the direct kernel's register tiling and tunables (CONV_TM out
  * channels x CONV_TN vectors of CONV_VW tiles, CONV_LWS work-items with interleaved tiles). The
- * tile count is padded to Tp (a multiple of a work-group's tiles); padding tiles hold zeros.
+ * tile count is padded to Tp (a multiple of a work-group's tiles); padding tiles hold zeros. (On the
+ * GPU class's GEMM engine, stage 3 is kernels/conv2d_gemm.cl's strided-batched GEMM instead.)
  * Reduction orders are fixed: results are bit-identical from run to run (but not equal to the
  * direct convolution's; see the test for the error bound). */
 /* tunable defaults, the CONV_VW vector type vf, the FL_* epilogue flags */

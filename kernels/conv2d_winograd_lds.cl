@@ -65,9 +65,8 @@ __kernel void spx_wino_lds_weights(const __global float *w, ulong w_off, __globa
   const int i = SPX_GID0, red = flip ? Cout : Cin;
   if (i >= red * cols) return;
   const int r = i / cols, c = i - r * cols;
-  float g[9], u[36];
-  wino_filter_of(w + w_off, Cin, flip ? Cin : Cout, c, r, flip, g);
-  wino_filter(g, u);
+  float u[36];
+  wino_u_of(w + w_off, Cin, flip ? Cin : Cout, c, r, flip, u);
   __global float *ub = U + (((size_t)(c / WL_BM) * red + r) * 36) * WL_BM + c % WL_BM;
   for (int e = 0; e < 36; e++) ub[e * WL_BM] = u[e];
 }

@@ -67,7 +67,7 @@ static inline float spx_div_rn(float a, float b) {
   return as_float(sign | bits);
 }
 
-#if defined(SPX_CR_DIV) && SPX_CR_DIV && !defined(SPX_FORCE_DIV_FALLBACK)
+#if defined(SPX_CR_DIV) && SPX_CR_DIV
 #define SPX_DIV(a, b) ((a) / (b))
 #else
 #define SPX_DIV(a, b) spx_div_rn((a), (b))

@@ -73,6 +73,13 @@ static inline void wino_filter_of(const __global float *w, int Cin, int oc, int 
   }
 }
 
+/* u = G g G^T of the filter of GEMM column c and reduction index r (wino_filter_of, wino_filter). */
+static inline void wino_u_of(const __global float *w, int Cin, int oc, int c, int r, int flip, float *u) {
+  float g[9];
+  wino_filter_of(w, Cin, oc, c, r, flip, g);
+  wino_filter(g, u);
+}
+
 /* The epilogue's per-channel values of output channel co (bias, scale, shift; neutral when off). */
 static inline void wino_epi_consts(int flags, const __global float *bias, ulong b_off, const __global float *scale,
                                    ulong sc_off, const __global float *shift, ulong sh_off, int co, float *bv,

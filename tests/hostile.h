@@ -1,4 +1,4 @@
-/* Helpers of the hostile-input suite (tests/test_hostile_*.c, issue 12): each test runs the tool
+/* Helpers of the hostile-input suite (tests/test_hostile_*.c): each test runs the tool
  * in its scratch folder `dir` (cli_test.h) under `timeout`, so a hang is a failure (exit 124), and
  * checks the exit code, the first words of the one-line message and the files on disk before and
  * after. */
@@ -45,10 +45,11 @@ static inline int run_t(int secs, const char *fmt, ...) {
 }
 #define run(...) run_t(60, __VA_ARGS__)
 
-/* Start the tool in dir with args (stdout/stderr to /dev/null); returns its pid. */
-static inline pid_t spawn(const char *args) {
+/* Start the tool in dir with args, stdout and stderr to the files out and err (names in dir, or
+ * /dev/null); returns its pid. */
+static inline pid_t spawn_to(const char *args, const char *out, const char *err) {
   char cmd[2048];
-  snprintf(cmd, sizeof cmd, "cd '%s' && exec '%s' %s >/dev/null 2>&1", dir, spx_t_tool(), args);
+  snprintf(cmd, sizeof cmd, "cd '%s' && exec '%s' %s >%s 2>%s", dir, spx_t_tool(), args, out, err);
   pid_t pid = fork();
   if (pid == 0) {
     execl("/bin/sh", "sh", "-c", cmd, (char *)NULL);
@@ -56,6 +57,9 @@ static inline pid_t spawn(const char *args) {
   }
   return pid;
 }
+
+/* Start the tool in dir with args (stdout/stderr to /dev/null); returns its pid. */
+static inline pid_t spawn(const char *args) { return spawn_to(args, "/dev/null", "/dev/null"); }
 
 static inline void sleep_ms(long ms) {
   struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};

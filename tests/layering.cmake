@@ -22,7 +22,7 @@ set(SPX_LEVELS
 set(SPX_PUBLIC
   core=core files=core comm=core
   device=cl
-  mesh=io camera=io image=io npy=io npz=io safetensors=io bvh=io amass=io
+  mesh=io camera=io image=io depth=io npy=io npz=io safetensors=io bvh=io amass=io
   bake=geom
   render=render raster=render
   unet=nn vgg=nn patchgan=nn

@@ -32,4 +32,15 @@ static inline spx_status spx_t_save_rest_registration(spx_ctx *c, const spx_body
   return st;
 }
 
+/* path: the default body (data/body/default_body.npz) at rest, no colours, with the model path
+ * recorded (as the hostile tests write it). */
+static inline spx_status spx_t_default_rest_registration(spx_ctx *c, const char *path) {
+  spx_body_model body;
+  memset(&body, 0, sizeof body);
+  spx_status st = spx_body_load(c, SPX_REPO_DATA "/body/default_body.npz", &body);
+  if (!st) st = spx_t_save_rest_registration(c, &body, NULL, SPX_REPO_DATA "/body/default_body.npz", path);
+  spx_body_free(&body);
+  return st;
+}
+
 #endif

@@ -165,12 +165,19 @@ static inline int spx_t_no_device(spx_ctx *ctx, spx_status st) {
   return 1;
 }
 /* *ctx: a new context with the device open; 1 (printed) when there is none. */
-/* A context as every test makes it: SPX_TAPE_POISON=1 in the environment (the *_poison ctest
- * variants, tests/extra.cmake) turns on the tapes' NaN poisoning of freed storage. */
+/* A context as every test makes it, with the debug switches of the ctest variants
+ * (tests/extra.cmake) from the environment: SPX_TAPE_POISON=1, the tapes' NaN poisoning of freed
+ * storage (SPX_DEBUG_TAPE_POISON); SPX_FORCE_DIV_FALLBACK=1, the kernels' integer division
+ * (SPX_DEBUG_DIV_FALLBACK). */
+static inline int spx_t_env_on(const char *name) {
+  const char *v = getenv(name);
+  return v && *v && strcmp(v, "0");
+}
 static inline spx_status spx_t_ctx_create(spx_ctx **ctx) {
   spx_status st = spx_ctx_create(ctx);
-  const char *p = getenv("SPX_TAPE_POISON");
-  if (st == SPX_OK && p && *p && strcmp(p, "0")) spx_ctx_set_profile(*ctx, SPX_DEBUG_TAPE_POISON);
+  unsigned flags = (spx_t_env_on("SPX_TAPE_POISON") ? SPX_DEBUG_TAPE_POISON : 0u) |
+                   (spx_t_env_on("SPX_FORCE_DIV_FALLBACK") ? SPX_DEBUG_DIV_FALLBACK : 0u);
+  if (st == SPX_OK && flags) spx_ctx_set_profile(*ctx, flags);
   return st;
 }
 

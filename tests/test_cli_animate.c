@@ -34,7 +34,8 @@ static void write_registration(const char *name) {
   if (!colors) return;
   for (int i = 0; i < body.nv; i++) {
     float y = body.v_template[i * 3 + 1], x = body.v_template[i * 3];
-    for (int c = 0; c < 3; c++) colors[i * 3 + c] = c == 0 ? 0.5f + 0.5f * y : c == 1 ? 0.5f + x : 0.3f;
+    for (int c = 0; c < 3; c++) /* a registration's colours lie in 0..1 (the reader checks) */
+      colors[i * 3 + c] = fminf(1.0f, fmaxf(0.0f, c == 0 ? 0.5f + 0.5f * y : c == 1 ? 0.5f + x : 0.3f));
   }
   char p[700];
   path_of(p, sizeof p, name);
@@ -161,7 +162,7 @@ static void test_bvh(void) {
   CHECK(exists("raw/frame_000000.png") && !exists("raw/frame_000001.png") && !exists("raw/animation.mp4"));
   CHECK(file_has("out.txt", "ffmpeg is not on PATH") && file_has("out.txt", "frames/s"));
   CHECK(file_has("out.txt", "frame 1/1"));
-  { /* issue 24: a killed run's ffmpeg link folder goes with the next run (a live process's stays) */
+  { /* a killed run's ffmpeg link folder goes with the next run (a live process's stays) */
     pid_t gone = fork();
     if (gone == 0) _exit(0);
     waitpid(gone, NULL, 0);

@@ -211,8 +211,8 @@ static int synth_with_hook(const char *args, const char *hook) {
   return spx_t_system(cmd);
 }
 
-/* Issue 24: the output folder is decided at the rename, and replaced only when it is provably
- * synth's own output. */
+/* The output folder is decided at the rename, and replaced only when it is provably synth's own
+ * output. */
 static void test_decide_at_rename(void) {
   char cmd[1200];
   snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf r f g j", dir);

@@ -8,11 +8,13 @@
  *    interrupted (Ctrl-C) in stage 1 or in stage 2 and resumed ends with the same generator and
  *    discriminator files, bit for bit, as the uninterrupted run;
  *  - --loss vgg then vgg+gan with a (small, random) VGG19 file; --loss vgg16, vgg16+gan and
- *    --schedule paper with a (small, random) VGG16 in the cache of `make weights`;
+ *    --schedule paper with a random VGG16 of torchvision's shape in the cache of `make weights` (a narrow
+ *    one there is refused);
  *  - one-line errors: a discriminator file from another run, --loss vgg without --vgg or with a
  *    file that is no VGG19 (exit 1); an unknown --loss, or --resume with flags contradicting the
  *    record (--loss, --schedule, --lr2, --disc-width) (exit 2). */
 #include <fcntl.h>
+#include <math.h>
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
@@ -182,9 +184,38 @@ static int run_interrupted(char *const *argv, const char *trigger) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
-/* VGG16 (the official code's loss) from the cache of `make weights` (here the small random VGG16
- * in ${SPX_CACHE_DIR}/weights): --loss vgg16, vgg16+gan, --schedule paper without --vgg (and its
- * resume); without the cached file, or given a VGG19 file: one line, exit 1, no output. */
+/* A VGG16 of torchvision's shape (width 64, features.0 .. features.21) with deterministic random
+ * weights, at path: what the cache of `make weights` holds, without the download. */
+static int write_vgg16_w64(const char *path) {
+  static const int index[10] = {0, 2, 5, 7, 10, 12, 14, 17, 19, 21}, mult[10] = {1, 1, 2, 2, 4, 4, 4, 8, 8, 8};
+  spx_st_entry e[20];
+  char names[20][40];
+  float *bufs[20] = {0};
+  int cin = 3, ok = 1;
+  unsigned long long s = 7;
+  for (int i = 0; i < 10; i++) {
+    int co = 64 * mult[i];
+    size_t nw = (size_t)co * cin * 9;
+    bufs[2 * i] = malloc(nw * sizeof(float)), bufs[2 * i + 1] = malloc((size_t)co * sizeof(float));
+    if (!bufs[2 * i] || !bufs[2 * i + 1]) ok = 0;
+    for (size_t k = 0; ok && k < nw; k++) bufs[2 * i][k] = (float)((2 * spx_t_uniform(&s) - 1) * sqrt(3.0 / (cin * 9)));
+    for (int k = 0; ok && k < co; k++) bufs[2 * i + 1][k] = 0.01f;
+    snprintf(names[2 * i], sizeof names[0], "features.%d.weight", index[i]);
+    snprintf(names[2 * i + 1], sizeof names[0], "features.%d.bias", index[i]);
+    e[2 * i] = (spx_st_entry){names[2 * i], SPX_F32, 4, {co, cin, 3, 3}, bufs[2 * i]};
+    e[2 * i + 1] = (spx_st_entry){names[2 * i + 1], SPX_F32, 1, {co}, bufs[2 * i + 1]};
+    cin = co;
+  }
+  ok = ok && spx_st_save(ctx, path, e, 20, NULL, NULL, 0) == SPX_OK;
+  for (int i = 0; i < 20; i++) free(bufs[i]);
+  return ok;
+}
+
+/* VGG16 (the official code's loss) from the cache of `make weights` (here a random VGG16 of
+ * torchvision's shape in ${SPX_CACHE_DIR}/weights): --loss vgg16, vgg16+gan, --schedule paper
+ * without --vgg (and its resume); a narrow VGG16 there (a test network) is refused naming the
+ * width, and is taken only through --vgg; without the cached file, or given a VGG19 file: one line,
+ * exit 1, no output. */
 static void test_vgg16(void) {
   char cache[700], cmd[3000];
   const char *old = getenv("SPX_CACHE_DIR");
@@ -194,6 +225,17 @@ static void test_vgg16(void) {
            "'%s/weights/vgg16.safetensors'", cache, cache, cache);
   CHECK(spx_t_system(cmd) == 0);
   setenv("SPX_CACHE_DIR", cache, 1);
+  char g[800];
+  path_of(g, sizeof g, "g.safetensors");
+  unlink(g); /* an earlier run's */
+  CHECK(tool("train " COMMON " --out g.safetensors --epochs 1 --loss vgg16") == 1);
+  CHECK(err_one_line_with("vgg16.safetensors: a VGG16 of width 4") && err_one_line_with("width 64"));
+  CHECK(!exists("g.safetensors"));
+  CHECK(tool("train " COMMON " --out g.safetensors --epochs 1 --loss vgg16 --vgg '" SPX_TEST_DATA
+             "/vgg/vgg16_w4.safetensors'") == 0);
+  char w64[800];
+  snprintf(w64, sizeof w64, "%s/weights/vgg16.safetensors", cache);
+  CHECK(write_vgg16_w64(w64));
   CHECK(tool("train " COMMON " --out g.safetensors --epochs 1 --loss vgg16") == 0);
   CHECK(file_has("out.txt", "(VGG ") && meta_is("g.safetensors", "smplpix.train.loss", "vgg16"));
   CHECK(tool("train " COMMON " --out g2.safetensors --init g.safetensors --epochs 1 --loss vgg16+gan") == 0);

@@ -133,7 +133,7 @@ static void test_fail(void) {
   CHECK(spx_fail(ctx, SPX_E_IO, "outer: %s", spx_ctx_message(ctx)) == SPX_E_IO); /* may quote itself */
   CHECK(!strcmp(spx_ctx_message(ctx), "outer: f.png: line one"));
   CHECK(spx_fail(NULL, SPX_E_ARG, "nothing recorded") == SPX_E_ARG);
-  /* a long path is shortened in the middle; the reason at the end stays (issue 24) */
+  /* a long path is shortened in the middle; the reason at the end stays */
   char longp[3001];
   memset(longp, 'd', 3000);
   longp[0] = 'S', longp[2999] = 'E', longp[3000] = 0;

@@ -61,6 +61,26 @@ static void test_unknown_kernel(void) {
   spx_ctx_destroy(ctx);
 }
 
+/* Argument errors give one code, however many arguments fail and whatever each driver call
+ * returned, so a launcher's OR of them names a real error (SPX_ARG, lib/cl/cl_internal.h). */
+static void test_kernel_args(void) {
+  spx_ctx *ctx;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK_OK(ctx, spx_device_open(ctx, NULL));
+  cl_kernel k = NULL;
+  CHECK_OK(ctx, spx_cl_kernel(ctx, SPX_K_AXPY, &k));
+  cl_int xo = 0;
+  char small = 0;
+  CHECK(SPX_ARG(k, 1, xo) == CL_SUCCESS);
+  cl_int bad_index = SPX_ARG(k, 99, xo), bad_size = SPX_ARG(k, 1, small);
+  CHECK(bad_index == CL_INVALID_KERNEL_ARGS && bad_size == CL_INVALID_KERNEL_ARGS);
+  cl_int e = SPX_ARG(k, 1, xo) | bad_index | bad_size;
+  CHECK(e == CL_INVALID_KERNEL_ARGS);
+  CHECK(spx_cl_check(ctx, e, "spx_axpy") == SPX_E_CL);
+  CHECK(strstr(spx_ctx_message(ctx), "spx_axpy: CL_INVALID_KERNEL_ARGS") != NULL);
+  spx_ctx_destroy(ctx);
+}
+
 static void test_huge_alloc_reports_size(void) {
   spx_ctx *ctx;
   CHECK(spx_ctx_create(&ctx) == SPX_OK);
@@ -174,6 +194,7 @@ int main(void) {
   SPX_RUN(test_open_default);
   SPX_RUN(test_bad_specs);
   SPX_RUN(test_unknown_kernel);
+  SPX_RUN(test_kernel_args);
   SPX_RUN(test_huge_alloc_reports_size);
   SPX_RUN(test_cache_cold_warm);
   SPX_RUN(test_failed_build_and_wg_limit);

@@ -245,7 +245,7 @@ static void test_candidates(void) {
       if (with) CHECK_MSG(v[c * 2 + 1] >= tw.lo && v[c * 2 + 1] <= tw.hi, "%s: candidate %d", with, c);
     }
   }
-  CHECK(searched == 24);
+  CHECK(searched == 30);
   spx_ctx_destroy(ctx);
 }
 

@@ -1,15 +1,14 @@
-/* Hostile inputs and outputs (issue 12) for the commands that came after the transaction:
- * `eval`, `animate`, `synth`, `bake`. For each: a FIFO as an input is a one-line error at once (never a
- * hang), a pre-existing output keeps its bytes when the run fails, an output that cannot be
- * written is refused before the work, and no temporary is left behind. synth's folder-level
- * commit: a run killed at any moment leaves the previous output whole, and the next run removes
- * the dead run's "<DIR>.tmp.<pid>.N" folders (putting back an output moved aside). */
+/* Hostile inputs and outputs of `eval`, `animate`, `synth` and `bake`. For each: a FIFO as an
+ * input is a one-line error at once (never a hang), a pre-existing output keeps its bytes when the
+ * run fails, an output that cannot be written is refused before the work, and no temporary is
+ * left behind. synth's folder-level commit: a run killed at any moment leaves the previous output
+ * whole, and the next run removes the dead run's "<DIR>.tmp.<pid>.N" folders (putting back an
+ * output moved aside). */
 #include <unistd.h>
 
 #include "hostile.h"
 #include "rest_registration.h"
 
-#define BODY SPX_REPO_DATA "/body/default_body.npz"
 #define CLIP SPX_REPO_DATA "/mocap/01_01.bvh"
 #define SYNTH "synth --subjects 1 --views 2 --size 64x48 --texture-size 256 --quiet"
 #define CAM40                                                                                                     \
@@ -65,14 +64,9 @@ static void test_eval(void) {
 
 /* reg.json: the default body at rest, with the model path recorded (as test_cli_animate) */
 static int write_registration(const char *name) {
-  spx_body_model body;
-  memset(&body, 0, sizeof body);
-  if (spx_body_load(ctx, BODY, &body)) return 0;
   char p[700];
   path_of(p, sizeof p, name);
-  int ok = spx_t_save_rest_registration(ctx, &body, NULL, BODY, p) == SPX_OK;
-  spx_body_free(&body);
-  return ok;
+  return spx_t_default_rest_registration(ctx, p) == SPX_OK;
 }
 
 static void test_animate(void) {

@@ -1,4 +1,4 @@
-/* Multi-file commits survive a kill at any point (issue 24): a `train --loss l1+gan` checkpoint is
+/* Multi-file commits survive a kill at any point: a `train --loss l1+gan` checkpoint is
  * two files (W and W.disc). A run killed (SIGKILL, via the SPX_TEST_TX_KILL_AT hook of
  * apps/cli_tx.c) after the commit journal is written, before or between the two renames, is
  * finished by the next run: `--resume` then continues exactly as from an uninterrupted save, and

@@ -1,4 +1,4 @@
-/* Hostile inputs, issue 12 item 1: a FIFO (no writer) given as any kind of input is a one-line
+/* Hostile inputs: a FIFO (no writer) given as any kind of input is a one-line
  * error "<path>: not a regular file (a FIFO)" with exit 1 at once, never a hang (each run is
  * killed after 60 s, which would read as exit 137). Also a folder given as an input. */
 #include "hostile.h"

@@ -1,4 +1,4 @@
-/* Hostile inputs, issue 12 items 6-9: the same strict rules on every path (NaN/Inf, channel
+/* Hostile inputs: the same strict rules on every path (NaN/Inf, channel
  * counts, colour ranges, JSON that ends where the value ends), tunables checked against their
  * ranges, one clean line for a bad SPX_KERNEL_DIR or dataset folder, and a registration that
  * refuses scans it cannot explain and fits it cannot stand behind. */
@@ -172,21 +172,33 @@ static void test_registration(void) {
   float scan[60 * 3], body[6] = {0.1f, 0.5f, 0.1f, 0.1f, 0.5f, 0.1f}, good[6] = {0, 0, 0, 0.3f, 1.7f, 0.2f};
   for (int i = 0; i < 60; i++) /* person-shaped: 1.7 m tall, thin */
     scan[3 * i] = (float)(0.15 + 0.15 * sin(i)), scan[3 * i + 1] = 1.7f * (float)i / 59, scan[3 * i + 2] = (float)(0.1 + 0.1 * cos(i));
-  CHECK(spx_fit_check_result(ctx, scan, 60, body, 2, 0.001) == SPX_E_NUMERIC);
+  float dist[2000];
+  for (int i = 0; i < 2000; i++) dist[i] = 0.001f;
+  CHECK(spx_fit_check_result(ctx, scan, 60, body, 2, dist, SPX_FIT_ALL) == SPX_E_NUMERIC);
   CHECK(strstr(spx_ctx_message(ctx), "the fitted body is 0 m across, the scan 1.7 m") != NULL);
-  CHECK(spx_fit_check_result(ctx, scan, 60, good, 2, 0.2) == SPX_E_NUMERIC);
+  for (int i = 0; i < 60; i++) dist[i] = 0.2f;
+  CHECK(spx_fit_check_result(ctx, scan, 60, good, 2, dist, SPX_FIT_ALL) == SPX_E_NUMERIC);
   CHECK(strstr(spx_ctx_message(ctx), "median scan-to-body distance 200.0 mm") != NULL);
-  CHECK(spx_fit_check_result(ctx, scan, 60, good, 2, 0.004) == SPX_OK);
-  /* issue 24: not a person: 10 random points in a cube, and 2000 (as thick as tall) */
+  for (int i = 0; i < 60; i++) dist[i] = 0.004f;
+  CHECK(spx_fit_check_result(ctx, scan, 60, good, 2, dist, SPX_FIT_ALL) == SPX_OK);
+  /* most of the scan close, but a quarter of it (a floor) 10-30 cm away: refused; 10 points: kept */
+  for (int i = 0; i < 15; i++) dist[i * 4] = 0.1f + 0.2f * (float)i / 15;
+  CHECK(spx_fit_check_result(ctx, scan, 60, good, 2, dist, SPX_FIT_ALL) == SPX_E_NUMERIC);
+  CHECK(strstr(spx_ctx_message(ctx), "25% of the scan's points are more than 5 cm from the fitted body") != NULL);
+  CHECK(spx_fit_check_result(ctx, scan, 60, good, 2, dist, SPX_FIT_RIGID) == SPX_OK); /* the model's own pose */
+  for (int i = 10; i < 15; i++) dist[i * 4] = 0.004f;
+  CHECK(spx_fit_check_result(ctx, scan, 60, good, 2, dist, SPX_FIT_ALL) == SPX_OK);
+  for (int i = 0; i < 2000; i++) dist[i] = 0.001f;
+  /* a scan that is not a person is refused: 10 random points in a cube, and 2000 (as thick as tall) */
   float cube[2000 * 3];
   uint64_t r = 7;
   for (int i = 0; i < 2000 * 3; i++) {
     r = r * 6364136223846793005ULL + 1442695040888963407ULL;
     cube[i] = (float)((r >> 40) & 0xffff) / 65535.0f;
   }
-  CHECK(spx_fit_check_result(ctx, cube, 10, cube, 10, 0.001) == SPX_E_NUMERIC);
+  CHECK(spx_fit_check_result(ctx, cube, 10, cube, 10, dist, SPX_FIT_ALL) == SPX_E_NUMERIC);
   CHECK(strstr(spx_ctx_message(ctx), "the scan has 10 points, too few to be a person") != NULL);
-  CHECK(spx_fit_check_result(ctx, cube, 2000, cube, 2000, 0.001) == SPX_E_NUMERIC);
+  CHECK(spx_fit_check_result(ctx, cube, 2000, cube, 2000, dist, SPX_FIT_ALL) == SPX_E_NUMERIC);
   CHECK(strstr(spx_ctx_message(ctx), "as thick as it is tall") != NULL);
 }
 

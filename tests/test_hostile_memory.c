@@ -1,6 +1,7 @@
-/* Out of memory under an address-space limit (ulimit -v, usual on shared machines), issue 24: an
+/* Out of memory under an address-space limit (ulimit -v, usual on shared machines): an
  * 8192x8192 `project` and a 4000x4000 `demo` on a CPU device stop with one line naming the
- * buffer, exit 1, and write nothing (PoCL asserted in its first use of the buffer before). Not
+ * buffer, exit 1, and write nothing (the buffer is refused before PoCL's first use of it, where
+ * PoCL would assert). Not
  * under AddressSanitizer, whose shadow memory needs more address space than any such limit. */
 #include "hostile.h"
 

@@ -1,80 +1,9 @@
-/* The one typed option table (issue 24), as a property over every command: each option given
+/* The one typed option table, as a property over every command: each option given
  * twice is a usage error; each integer (or size) option at 2^32 + its value is a usage error, not
  * a wrapped number; each output path set to one of the command's inputs is refused (exit 2 or 1)
  * and no input changes. The base command lines are valid (checked for the cheap commands). */
 #include "hostile.h"
-
-typedef struct cmdline {
-  const char *base;     /* a valid command line (files from make_scene) */
-  const char *ints;     /* space-separated integer / WxH options of base */
-  const char *outs;     /* space-separated output options of base */
-  const char *ins;      /* space-separated input options of base */
-  int check_base;       /* run base and expect 0 (cheap commands) */
-} cmdline;
-
-static const cmdline LINES[] = {
-    {"project --mesh quad.obj --camera cam.json --out p.exr --png p.png --npy p.npy --color auto --quiet", "",
-     "--out --png --npy", "--mesh --camera", 1},
-    {"raster --mesh quad.obj --camera cam.json --out r.png --aa 2 --cull back --quiet", "--aa", "--out",
-     "--mesh --camera", 1},
-    {"dataset --mesh quad.obj --out dsx --orbit 3 --size 32x24 --seed 1 --aa 1 --quiet --force", "--orbit --size --seed --aa",
-     "--out", "--mesh", 1},
-    {"render --checkpoint w8.safetensors --mesh quad.obj --camera cam.json --out rr.png --batch 2 --quiet", "--batch",
-     "--out", "--checkpoint --mesh --camera", 1},
-    {"train --data ds --out t.safetensors --width 8 --steps 1 --seed 1 --batch 1 --log-every 5 --save-every 9",
-     "--width --steps --seed --batch --log-every --save-every", "--out", "--data", 1},
-    {"export --checkpoint w8.safetensors --out e.safetensors --meta a=b", "", "--out", "--checkpoint", 1},
-    {"eval --pred p.png --target p.png --json ev.json --per-image", "", "--json", "--pred --target", 1},
-    {"demo --out dm --frame 3 --seed 2 --zoom 2 --size 32x24 --quiet --checkpoint w8.safetensors",
-     "--frame --seed --zoom --size", "--out", "--checkpoint", 0},
-    {"synth --subjects 1 --views 1 --seed 1 --size 32x24 --texture-size 256 --out sy --quiet --parts p.png",
-     "--subjects --views --seed --size --texture-size", "--out", "--parts", 0},
-    {"tune --quick --repeat 2 --size 32x32 --checkpoint w8.safetensors", "--repeat --size", "", "--checkpoint", 0},
-    {"devices --warmup --device cpu", "", "", "", 0},
-    {"register --scan quad.obj --out reg.ply --params reg.json --threads 2 --units m", "--threads", "--out --params",
-     "--scan", 0},
-    {"repose --registration reg.json --bvh m.bvh --frame 2 --subdivide 1 --out v.ply", "--frame --subdivide", "--out",
-     "--registration --bvh", 0},
-    {"reshape --registration reg.json --shape 0:+1 --out v.ply --rest", "", "--out", "--registration", 0},
-    {"animate --registration reg.json --bvh m.bvh --camera cam.json --out an.mp4 --fps 10 --no-network", "", "--out",
-     "--registration --bvh --camera", 0},
-    {"bake --mesh quad.obj --scan quad.obj --out t.png --size 64 --pad 2", "--size --pad", "--out", "--mesh --scan", 0},
-};
-enum { NLINES = (int)(sizeof LINES / sizeof LINES[0]) };
-
-/* Tokens of s (space-separated) into tok (pointers into buf). */
-static int split(const char *s, char *buf, size_t cap, char **tok, int max) {
-  snprintf(buf, cap, "%s", s);
-  int n = 0;
-  for (char *t = strtok(buf, " "); t && n < max; t = strtok(NULL, " ")) tok[n++] = t;
-  return n;
-}
-
-static int listed(const char *list, const char *name) {
-  char buf[512], *tok[32];
-  int n = split(list, buf, sizeof buf, tok, 32);
-  for (int i = 0; i < n; i++)
-    if (!strcmp(tok[i], name)) return 1;
-  return 0;
-}
-
-/* value of option name in tok (NULL: a flag or absent). */
-static const char *value_of(char **tok, int n, const char *name) {
-  for (int i = 0; i + 1 < n; i++)
-    if (!strcmp(tok[i], name) && strncmp(tok[i + 1], "--", 2)) return tok[i + 1];
-  return NULL;
-}
-
-/* The command line tok with option `name`'s value replaced by v. */
-static void with_value(char **tok, int n, const char *name, const char *v, char *out, size_t cap) {
-  out[0] = 0;
-  for (int i = 0; i < n; i++) {
-    const char *t = tok[i];
-    if (i > 0 && !strcmp(tok[i - 1], name) && strncmp(t, "--", 2)) t = v;
-    strncat(out, t, cap - strlen(out) - 2);
-    strncat(out, " ", cap - strlen(out) - 1);
-  }
-}
+#include "hostile_cmds.h"
 
 static const char *INPUTS[] = {"quad.obj", "cam.json", "w8.safetensors", "p.png", "reg.json", "m.bvh", NULL};
 
@@ -157,7 +86,7 @@ static void test_exact_numbers(void) {
   CHECK(run("export --checkpoint W.safetensors --out W.safetensors") == 2 && err_is("export", "--out W.safetensors is also"));
 }
 
-/* Output types and writability are checked before the work (issue 24). */
+/* Output types and writability are checked before the work. */
 static void test_checks_before_work(void) {
   hostile_dir();
   CHECK(make_scene(0));

@@ -1,4 +1,4 @@
-/* Hostile outputs, issue 12 items 2, 3, 9, 10: a failed run leaves every pre-existing file with its
+/* Hostile outputs: a failed run leaves every pre-existing file with its
  * bytes and no temporary behind, for every writing command; outputs that cannot be written are
  * refused before the work starts; a run killed with SIGKILL while writing leaves the target whole,
  * and the next run writing the same target removes the dead run's temporaries (but not those of a
@@ -87,7 +87,7 @@ static void test_dataset(void) {
   CHECK(run("dataset --mesh quad.obj --out nop/a/b --orbit 2 --size 32x24") == 1);
   CHECK(err_is("dataset", "nop/a/b: cannot create the folder"));
   CHECK(!exists("nop"));
-  /* issue 24: --force replaces the data set: after a re-split (and a new input format) every view is
+  /* --force replaces the data set: after a re-split (and a new input format) every view is
    * in one split only, once; a file that is no view is kept */
   CHECK(run("dataset --mesh quad.obj --out re --orbit 10 --size 32x24 --seed 1 --quiet") == 0);
   write_text("re/notes.txt", "mine");
@@ -176,7 +176,7 @@ static void test_kill9(void) {
   CHECK(count_temps("dk") == 0);
 }
 
-/* A write-protected output file (0444) is refused, as cp refuses it, for root too (issue 24). */
+/* A write-protected output file (0444) is refused, as cp refuses it, for root too. */
 static void test_write_protected(void) {
   hostile_dir();
   CHECK(make_scene(0));
@@ -194,8 +194,8 @@ static void test_write_protected(void) {
   CHECK(run("project --mesh quad.obj --camera cam.json --out x.exr --png ro.png") == 0);
 }
 
-/* Ctrl-C in a command without a handler of its own (issue 24): exit 130, one line, and nothing a
- * rerun trips over (dataset left folders that a rerun refused as "not empty"). */
+/* Ctrl-C in a command without a handler of its own: exit 130, one line, and nothing a rerun trips
+ * over (no folder that a rerun refuses as "not empty"). */
 static void test_ctrl_c(void) {
   hostile_dir();
   CHECK(make_scene(0));
@@ -216,8 +216,8 @@ static void test_ctrl_c(void) {
   CHECK(run("dataset --mesh quad.obj --out big --orbit 3 --size 32x24 --quiet") == 0);
 }
 
-/* A failed write names the user's path, never the temporary it went to (issue 24): a file-size limit
- * (ulimit -f, SIGXFSZ ignored) makes the write fail as a full disk would. */
+/* A failed write names the user's path, never the temporary it went to: a file-size limit (ulimit
+ * -f, SIGXFSZ ignored) makes the write fail as a full disk would. */
 static void test_error_names_target(void) {
   hostile_dir();
   CHECK(make_scene(0));

@@ -1,4 +1,4 @@
-/* Resume invariants, issue 12 items 4 and 5: the checkpoint is the whole training state, so
+/* Resume invariants: the checkpoint is the whole training state, so
  * `--steps 2` then `--steps 5 --resume` equals `--steps 5` byte for byte (shuffled and not);
  * flags that contradict the recorded state are refused (exit 2), flags that repeat it are fine;
  * a weights-only checkpoint, one without a recorded state and a changed data set cannot be
@@ -113,8 +113,8 @@ static void test_refusals(void) {
   CHECK(run("train --data ds --out Nostate.safetensors --resume --steps 1") == 1 && err_is("train", "Nostate.safetensors: cannot open"));
 }
 
-/* Every recorded field is range-checked, the message naming the file and the field (issue 24:
- * batch "0" crashed with a double free; an invalid loss was reported as a flag not given). */
+/* Every recorded field is range-checked, the message naming the file and the field (a batch of
+ * "0" is an error, not a double free; an invalid loss is named as the recorded field, not as a flag). */
 static void test_recorded_ranges(void) {
   hostile_dir();
   CHECK(make_scene(1));
@@ -147,7 +147,7 @@ static void test_recorded_ranges(void) {
   }
 }
 
-/* --resume alone continues to the recorded length of the interrupted run (issue 24): a run of 5
+/* --resume alone continues to the recorded length of the interrupted run: a run of 5
  * steps stopped after 2 (its record says target 5) resumes to the same bytes as 5 straight. */
 static void test_resume_length(void) {
   hostile_dir();
@@ -167,7 +167,7 @@ static void test_resume_length(void) {
   CHECK(run("train --data ds --out E.safetensors --resume") == 1 && err_is("train", "E.safetensors: invalid training state: smplpix.train.target is before step"));
 }
 
-/* Checkpoint metadata agrees with the tensors or is an error (issue 24). */
+/* Checkpoint metadata agrees with the tensors or is an error. */
 static void test_metadata_agrees(void) {
   hostile_dir();
   CHECK(make_scene(1));

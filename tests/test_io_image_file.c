@@ -56,7 +56,7 @@ static void test_roundtrip(void) {
   spx_ctx_destroy(ctx);
 }
 
-/* One rule for .npy images (issue 24): uint8 reads as value/255 like an 8-bit PNG, float as it is,
+/* One rule for .npy images: uint8 reads as value/255 like an 8-bit PNG, float as it is,
  * any other integer dtype is refused naming the file; the same for spx_image_read and a PNG. */
 static void test_npy_integer_rule(void) {
   spx_ctx *ctx = NULL;

@@ -1,4 +1,4 @@
-/* The shipped network against PyTorch (issue 10): `smplpix render` without --checkpoint (so the
+/* The shipped network against PyTorch: `smplpix render` without --checkpoint (so the
  * shipped data/models/default.safetensors, found through SPX_DATA_DIR = the repository's data/)
  * on tests/data/models/input_64x48.npy (--any-size: a small input, whatever size the network was
  * trained at) gives the output that PyTorch computes with the same file

@@ -1,10 +1,8 @@
-/* Activations (kernels/activations.cl): FD check of every reference backward; device forward
- * and backward (accumulating, from the documented saved tensor) vs the double reference on an
- * odd shape at an offset; two runs bit-identical. */
+/* Activations (kernels/activations.cl), every kind of SPX_ACT_LIST: FD check of every reference
+ * backward; device forward and backward (accumulating, from the documented saved tensor) vs the
+ * double reference on an odd shape at an offset; two runs bit-identical; in place. */
 #include "nn/activations.h"
 #include "nn_testutil.h"
-
-static const char *names[] = {"relu", "leaky_relu", "sigmoid", "tanh"};
 
 struct act_args {
   spx_act_kind kind;
@@ -29,10 +27,10 @@ static void test_reference_fd(void) {
     x[i] = 6 * spx_t_uniform(&s) - 3;
     if (fabs(x[i]) < 1e-3) x[i] = 0.5; /* keep away from the kink */
   }
-  for (int k = 0; k < 4; k++) {
+  for (int k = 0; k < SPX_ACT_COUNT; k++) {
     struct act_args a = {(spx_act_kind)k, 0.2, 64};
     double e = spx_fd_check(act_f, act_b, &a, x, 64, 64, 1e-6, 7 + k);
-    CHECK_MSG(e < 1e-7, "%s: fd error %.3g", names[k], e);
+    CHECK_MSG(e < 1e-7, "%s: fd error %.3g", spx_act_name((spx_act_kind)k), e);
   }
   /* PyTorch's choices at exactly 0: relu' = 0, leaky' = slope */
   double z = 0, one = 1, d = 0;
@@ -55,7 +53,7 @@ static void test_device(void) {
   spx_nt_rand(x, cnt, -5, 5, &s), spx_nt_rand(g, cnt, -1, 1, &s), spx_nt_rand(pre, cnt, -1, 1, &s);
   x[0] = 0.0f;
   spx_nt_to_double(x, xd, cnt), spx_nt_to_double(g, gd, cnt);
-  for (int k = 0; k < 4; k++) {
+  for (int k = 0; k < SPX_ACT_COUNT; k++) {
     spx_act_kind kind = (spx_act_kind)k;
     float slope = 0.01f;
     spx_tensor tx, ty, tg, tdx;
@@ -67,7 +65,8 @@ static void test_device(void) {
     CHECK_OK(ctx, spx_nt_download(ctx, &ty, yf));
     spx_ref_act_forward(kind, slope, xd, yd, cnt);
     /* exp/tanh are within a few ulp in OpenCL */
-    CHECK_MSG(spx_nt_err(yf, yd, cnt, 1e-7) < 2e-6, "%s forward: %.3g", names[k], spx_nt_err(yf, yd, cnt, 1e-7));
+    CHECK_MSG(spx_nt_err(yf, yd, cnt, 1e-7) < 2e-6, "%s forward: %.3g", spx_act_name(kind),
+              spx_nt_err(yf, yd, cnt, 1e-7));
     /* backward from the saved tensor; the reference uses the device's float y like training would */
     const spx_tensor *saved = spx_act_saves_output(kind) ? &ty : &tx;
     double *sd = malloc(8 * cnt);
@@ -80,7 +79,8 @@ static void test_device(void) {
     CHECK_OK(ctx, spx_act_backward(ctx, kind, slope, saved, &tg, &tdx));
     CHECK_OK(ctx, spx_nt_download(ctx, &tdx, got));
     /* float rounding of (1 - y*y) etc. is absolute (~1e-7), hence the atol */
-    CHECK_MSG(spx_nt_err(got, dx, cnt, 0.1) < 1e-5, "%s backward: %.3g", names[k], spx_nt_err(got, dx, cnt, 0.1));
+    CHECK_MSG(spx_nt_err(got, dx, cnt, 0.1) < 1e-5, "%s backward: %.3g", spx_act_name(kind),
+              spx_nt_err(got, dx, cnt, 0.1));
     /* determinism: a second identical run gives the same bits */
     CHECK_OK(ctx, spx_cl_write(ctx, tdx.mem, tdx.off * 4, 4 * cnt, pre));
     CHECK_OK(ctx, spx_act_backward(ctx, kind, slope, saved, &tg, &tdx));
@@ -98,7 +98,8 @@ static void test_device(void) {
   CHECK_OK(ctx, spx_nt_upload(ctx, NULL, 1, 1, 2, 3, &a));
   CHECK_OK(ctx, spx_nt_upload(ctx, NULL, 1, 1, 3, 2, &b));
   CHECK(spx_act_forward(ctx, SPX_ACT_RELU, 0, &a, &b) == SPX_E_ARG);
-  CHECK(spx_act_forward(ctx, (spx_act_kind)9, 0, &a, &a) == SPX_E_ARG);
+  CHECK(spx_act_forward(ctx, SPX_ACT_COUNT, 0, &a, &a) == SPX_E_ARG);
+  CHECK(!strcmp(spx_act_name(SPX_ACT_COUNT), "?"));
   spx_nt_free(&a), spx_nt_free(&b);
   free(x), free(g), free(pre), free(got), free(got2), free(xd), free(yd), free(gd), free(dx), free(yf);
   spx_ctx_destroy(ctx);

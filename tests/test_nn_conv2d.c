@@ -158,7 +158,7 @@ static void device_case(spx_ctx *ctx, const dev_case *c, int accumulate, spx_op_
   spx_tensor tdx = spx_tensor_view(mdx, off, s->n, s->cin, s->h, s->w);
   spx_tensor tdw = spx_tensor_view(mdw, off, s->cout, s->cin, s->k, s->k);
   spx_tensor tdb = spx_tensor_view(mdb, off, s->cout, 1, 1, 1);
-  spx_conv2d_params p = {s->k, s->stride, s->pad, c->use_affine ? &tsc : NULL, c->use_affine ? &tsh : NULL, c->relu, ws};
+  spx_conv2d_params p = {s->k, s->stride, s->pad, c->use_affine ? &tsc : NULL, c->use_affine ? &tsh : NULL, c->relu, ws, {0, 0, 0}};
   CHECK_OK(ctx, spx_conv2d_forward(ctx, &tx, &tw, c->use_bias ? &tb : NULL, &p, &ty));
   CHECK_OK(ctx, spx_conv2d_backward(ctx, &tx, &tw, &tdy, &tdx, &tdw, &tdb, &p));
 
@@ -366,16 +366,16 @@ static void test_bad_args(void) {
   spx_tensor x = spx_tensor_view(m, 0, 1, 2, 5, 5), w = spx_tensor_view(m, 0, 3, 2, 3, 3);
   spx_tensor y = spx_tensor_view(m, 0, 1, 3, 5, 5), ybad = spx_tensor_view(m, 0, 1, 3, 4, 5);
   spx_tensor wbad = spx_tensor_view(m, 0, 3, 4, 3, 3), b2 = spx_tensor_view(m, 0, 2, 1, 1, 1);
-  spx_conv2d_params p = {3, 1, 1, NULL, NULL, 0, NULL};
+  spx_conv2d_params p = {3, 1, 1, NULL, NULL, 0, NULL, {0, 0, 0}};
   CHECK(spx_conv2d_forward(ctx, &x, &w, NULL, &p, &ybad) == SPX_E_ARG);
   CHECK(strstr(spx_ctx_message(ctx), "y has shape") != NULL);
   CHECK(spx_conv2d_forward(ctx, &x, &wbad, NULL, &p, &y) == SPX_E_ARG);
   CHECK(strstr(spx_ctx_message(ctx), "w has shape") != NULL);
   CHECK(spx_conv2d_forward(ctx, &x, &w, &b2, &p, &y) == SPX_E_ARG);
   CHECK(strstr(spx_ctx_message(ctx), "bias") != NULL);
-  spx_conv2d_params pb = {3, 1, 3, NULL, NULL, 0, NULL};
+  spx_conv2d_params pb = {3, 1, 3, NULL, NULL, 0, NULL, {0, 0, 0}};
   CHECK(spx_conv2d_forward(ctx, &x, &w, NULL, &pb, &y) == SPX_E_ARG);
-  spx_conv2d_params p0 = {3, 0, 1, NULL, NULL, 0, NULL};
+  spx_conv2d_params p0 = {3, 0, 1, NULL, NULL, 0, NULL, {0, 0, 0}};
   CHECK(spx_conv2d_backward(ctx, &x, &w, &y, &x, NULL, NULL, &p0) == SPX_E_ARG);
   CHECK(spx_conv2d_backward(ctx, &x, &w, &ybad, NULL, NULL, NULL, &p) == SPX_E_ARG);
   CHECK(strstr(spx_ctx_message(ctx), "dy") != NULL);

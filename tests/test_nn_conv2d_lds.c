@@ -59,7 +59,7 @@ static void run(const lcase *c, int lds, const double *x, const double *w, const
   spx_tensor tb = spx_tensor_view(mb, 0, c->cout, 1, 1, 1), tsc = spx_tensor_view(msc, 0, c->cout, 1, 1, 1);
   spx_tensor ty = spx_tensor_view(my, 0, c->n, c->cout, c->h, c->w);
   spx_tensor tdy = spx_tensor_view(mdy, 0, c->n, c->cout, c->h, c->w), tdx = spx_tensor_view(mdx, 0, c->n, c->cin, c->h, c->w);
-  spx_conv2d_params p = {3, 1, 1, c->affine ? &tsc : NULL, c->affine ? &tb : NULL, c->affine, NULL};
+  spx_conv2d_params p = {3, 1, 1, c->affine ? &tsc : NULL, c->affine ? &tb : NULL, c->affine, NULL, {0, 0, 0}};
   CHECK_OK(ctx, spx_conv2d_forward(ctx, &tx, &tw, c->affine ? NULL : &tb, &p, &ty));
   CHECK_OK(ctx, spx_conv2d_backward(ctx, &tx, &tw, &tdy, &tdx, NULL, NULL, &p));
   CHECK_OK(ctx, spx_cl_read(ctx, my, 0, ny * 4, fy));

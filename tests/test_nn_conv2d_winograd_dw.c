@@ -96,7 +96,7 @@ static double run_case(spx_ctx *ctx, const dcase *c, spx_op_workspace *ws, float
   CHECK_OK(ctx, spx_nt_upload(ctx, fdy, c->n, c->cout, c->h, c->w, &tdy));
   CHECK_OK(ctx, spx_nt_upload(ctx, fw, c->cout, c->cin, 3, 3, &tw));
   CHECK_OK(ctx, spx_nt_upload(ctx, pre, c->cout, c->cin, 3, 3, &tdw));
-  spx_conv2d_params p = {3, 1, 1, NULL, NULL, 0, ws};
+  spx_conv2d_params p = {3, 1, 1, NULL, NULL, 0, ws, {0, 0, 0}};
   CHECK(spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, c->cin, c->cout, c->h, c->w));
   CHECK_OK(ctx, spx_conv2d_backward(ctx, &tx, &tw, &tdy, NULL, &tdw, NULL, &p));
   CHECK_OK(ctx, spx_nt_download(ctx, &tdw, got));
@@ -186,7 +186,7 @@ static void test_finite_differences(void) {
   CHECK_OK(ctx, spx_nt_upload(ctx, fdy, n, cout, h, wd, &tdy));
   CHECK_OK(ctx, spx_nt_upload(ctx, fw, cout, cin, 3, 3, &tw));
   CHECK_OK(ctx, spx_nt_upload(ctx, NULL, cout, cin, 3, 3, &tdw));
-  spx_conv2d_params p = {3, 1, 1, NULL, NULL, 0, NULL};
+  spx_conv2d_params p = {3, 1, 1, NULL, NULL, 0, NULL, {0, 0, 0}};
   CHECK_OK(ctx, spx_conv2d_backward(ctx, &tx, &tw, &tdy, NULL, &tdw, NULL, &p));
   CHECK_OK(ctx, spx_nt_download(ctx, &tdw, got));
   const double hstep = 1e-3, u = ldexp(1.0, -24);

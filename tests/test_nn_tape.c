@@ -5,7 +5,7 @@
  *    checked against central differences with a tight tolerance;
  *  - accumulation: two backward passes give twice the gradients; zero_grad clears them;
  *  - planning: a second pass of the same shape plans nothing, a new shape plans once;
- *  - inference records nothing (backward after an eval forward is refused);
+ *  - inference: backward after an eval forward is refused;
  *  - the DEVICE backend matches the HOST backend (same init) on outputs, loss and gradients;
  *  - the op table (lib/nn/tape_ops.c) has a complete row for every op kind, names unique. */
 #include <math.h>
@@ -143,7 +143,7 @@ static void test_accumulate_and_plans(void) {
   e = 0;
   for (size_t k = 0; k < n; k++) e = fmax(e, fabs(spx_tape_host_grad(t, id)[k]));
   CHECK(e == 0);
-  /* inference: a new plan for the new mode, nothing recorded, backward refused */
+  /* inference: a new plan for the new mode, no gradients, backward refused */
   size_t nout = (size_t)N * 3 * H * W;
   float *out = malloc(nout * sizeof(float));
   CHECK_OK(ctx, spx_unet_forward(u, in, N, H, W, 0, out));

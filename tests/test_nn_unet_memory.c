@@ -285,11 +285,13 @@ static void test_arena_chunks(void) {
     CHECK_MSG(bad == 0, "%zu of %zu floats differ between one arena buffer and %d MiB chunks", bad, n1, mb);
   }
   free(one), free(split);
-  /* a 1 MiB chunk is smaller than a conv's scratch of this pass: a clear error, no pass */
+  /* a 1 MiB chunk is smaller than a conv's scratch of this pass (Winograd's transformed weights of
+   * the 128-channel layers, 2.4 MB, in either class): a clear error, no pass */
   spx_ctx *ctx = spx_nt_open();
   spx_unet *u = NULL;
   CHECK(ctx != NULL);
   if (ctx) {
+    CHECK_OK(ctx, spx_device_set_tunable(ctx, "CONV_WINO_MINC", 64));
     CHECK_OK(ctx, spx_device_set_tunable(ctx, "TAPE_WS_ARENA", 1));
     CHECK_OK(ctx, spx_device_set_tunable(ctx, "TAPE_CHUNK_MB", 1));
     CHECK_OK(ctx, spx_unet_create(ctx, WD, 0, 3, &u));

@@ -3,7 +3,7 @@
  * for the host) and compared bit for bit with the host's IEEE float division: random bit
  * patterns, quotients that overflow, underflow into subnormals or to zero, subnormal operands,
  * exact quotients, ties. The device-side path is checked through the projection in
- * tests/test_render_project.c (SPX_FORCE_DIV_FALLBACK). */
+ * tests/test_render_project.c (SPX_DEBUG_DIV_FALLBACK). */
 #include <stdint.h>
 
 #include "test.h"

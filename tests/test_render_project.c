@@ -379,11 +379,10 @@ static void test_large_and_fallback_division(void) {
   check_vs_ref(&a, "large", NULL, NULL);
   spx_ctx *main_ctx = ctx;
   spx_projector *main_proj = proj;
-  setenv("SPX_FORCE_DIV_FALLBACK", "1", 1);
   spx_ctx *c2 = NULL;
   CHECK(spx_ctx_create(&c2) == SPX_OK);
+  spx_ctx_set_profile(c2, SPX_DEBUG_DIV_FALLBACK);
   CHECK_OK(c2, spx_device_open(c2, NULL));
-  unsetenv("SPX_FORCE_DIV_FALLBACK");
   if (c2 && c2->dev) {
     ctx = c2;
     CHECK(!c2->dev->cr_div);

@@ -113,7 +113,7 @@ static void run_case(spx_ctx *ctx, const wcase *c, spx_op_workspace *ws, float *
   spx_tensor ty = spx_tensor_view(my, off, c->n, c->cout, c->h, c->w);
   spx_tensor tdy = spx_tensor_view(mdy, off, c->n, c->cout, c->h, c->w);
   spx_tensor tdx = spx_tensor_view(mdx, off, c->n, c->cin, c->h, c->w);
-  spx_conv2d_params p = {3, 1, 1, c->affine ? &tsc : NULL, c->affine ? &tsh : NULL, c->relu, ws};
+  spx_conv2d_params p = {3, 1, 1, c->affine ? &tsc : NULL, c->affine ? &tsh : NULL, c->relu, ws, {0, 0, 0}};
   CHECK(spx_conv2d_winograd_applies(ctx, 3, 1, 1, c->cin, c->cout, c->h * c->w, 0));
   CHECK_OK(ctx, spx_conv2d_forward(ctx, &tx, &tw, c->bias ? &tb : NULL, &p, &ty));
   CHECK_OK(ctx, spx_conv2d_backward(ctx, &tx, &tw, &tdy, &tdx, NULL, NULL, &p));

@@ -1,6 +1,6 @@
 /* Retargeting a BVH frame onto a body model by joint name (conventions in smplpix/body.h), and
- * rotation matrix -> axis-angle (used by the AMASS retargeting too). Moved out of lib/io/bvh.c,
- * which keeps the parsing: io does not depend on the body model. */
+ * rotation matrix -> axis-angle (used by the AMASS retargeting too). The parsing is lib/io/bvh.c's:
+ * io does not depend on the body model. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

@@ -17,7 +17,7 @@ struct spx_cl_program {
   char name[64];
   cl_program prog; /* NULL: the build failed; error says why, and lookups repeat it without rebuilding */
   char *error;
-  uint64_t uses; /* bit i: built with -D of tunable row i */
+  spx_tunable_set uses; /* the tunable rows it was built with (-D) */
 };
 
 /* Live / peak bytes of the device buffers of a context (lib/cl/devmem.c). Reference-counted: the
@@ -44,7 +44,6 @@ struct spx_cl_device {
   char tune_file[4096];                      /* the tuning file read (or looked for) */
   char tune_comment[1024];                   /* its `# ` lines when it was used, joined by newlines */
   int cr_div;       /* the device divides fp32 correctly rounded (set with the tunables) */
-  int div_fallback; /* SPX_FORCE_DIV_FALLBACK: kernels divide in integers (kernels/exact.h) although cr_div exists */
   int tune_cpu; /* 1: kernels are built and launched with the CPU column of lib/cl/tuning.c */
   struct spx_cl_program programs[SPX_MAX_PROGRAMS];
   int nprograms;
@@ -53,6 +52,8 @@ struct spx_cl_device {
   spx_cache_stats cache;
   spx_devmem *devmem; /* created by the first counted buffer */
   struct spx_cl_kprof *kprof; /* SPX_PROFILE_KERNELS: per-command device times (lib/cl/kprof.c); else NULL */
+  spx_device_peak peak; /* the last spx_device_measure_peak (lib/cl/peak.c), when peak_known */
+  int peak_known;
 };
 
 /* Release all device objects and free ctx->dev (spx_ctx_destroy calls it through ctx->dev_close). */
@@ -68,6 +69,13 @@ cl_event *spx_cl_kprof_ev(spx_ctx *ctx, cl_event *ev);
 void spx_cl_kprof_add(spx_ctx *ctx, const char *name, cl_event ev);
 void spx_cl_kprof_report(spx_ctx *ctx);
 void spx_cl_kprof_free(struct spx_cl_device *dev);
+
+/* The roofline kernels of kernels/peak.cl (lib/cl/peak.c): spx_peak_fma writes to out[i], i < n,
+ * the sum of its 16 chains after 4 * quads rounds of x = fma(x, b, c), which spx_ref_peak_fma
+ * computes on the host (the same bits); spx_peak_triad sets a = b + s * c over n4 float4s. */
+spx_status spx_cl_peak_fma(spx_ctx *ctx, cl_mem out, int n, int quads, float b, float c);
+spx_status spx_cl_peak_triad(spx_ctx *ctx, cl_mem a, cl_mem b, cl_mem c, int n4, float s);
+float spx_ref_peak_fma(int i, int quads, float b, float c);
 
 /* Fail with SPX_E_STATE unless a device is open. */
 spx_status spx_cl_require(spx_ctx *ctx, const char *what);
@@ -89,6 +97,11 @@ const char *spx_cl_kernel_name(spx_kernel_id id);
  * many registers); 0 when unknown. */
 size_t spx_cl_kernel_wg_limit(spx_ctx *ctx, cl_kernel k);
 
+/* 1 when a program binary is PTX text (what NVIDIA's CL_PROGRAM_BINARIES holds): trailing NULs
+ * aside, no NUL byte in its first 64 KiB, and lines starting ".version " and ".target " there. SPX_CL_DUMP_DIR writes
+ * such binaries as <stem>.ptx (lib/cl/program.c). */
+int spx_cl_binary_is_ptx(const unsigned char *bin, size_t len);
+
 /* The i-th embedded kernel program's file name ("conv2d.cl"), NULL past the last; and building
  * one program now (or loading it from the cache), as its first kernel lookup would
  * (benchmarks/bench_coldstart.c times them one by one). */
@@ -100,7 +113,7 @@ spx_status spx_cl_program_build(spx_ctx *ctx, const char *program);
 spx_status spx_cl_tunables_resolve(spx_ctx *ctx);
 /* Build options of the program with (prelude + expanded) source src: -cl-std, the device class,
  * -D<NAME>=<value> of every tunable src mentions, the division mode. Part of the cache key. */
-uint64_t spx_cl_program_options(const spx_ctx *ctx, const char *src, char *out, size_t cap);
+void spx_cl_program_options(const spx_ctx *ctx, const char *src, char *out, size_t cap, spx_tunable_set *uses);
 /* Tunable rows (lib/cl/tuning.c), i in [0, SPX_NTUNABLES): the field of row i in t; its name as
  * users write it (CONV_TM for SPX_TUNE_CONV_TM); the row of a name of `len` bytes (-1: none). */
 int *spx_cl_tunable_field(struct spx_tunables *t, int i);
@@ -116,9 +129,9 @@ spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t);
  * and the reason kept in ctx->dev->tune_note. Never fails. */
 void spx_cl_tunefile_apply(spx_ctx *ctx);
 
-/* Release the built programs that use any tunable of the mask `uses` (~0: all) and their kernels
+/* Release the built programs that use any tunable of `uses` (NULL: all programs) and their kernels
  * (the device stays open); their next launch rebuilds them. */
-void spx_cl_programs_release(spx_ctx *ctx, uint64_t uses);
+void spx_cl_programs_release(spx_ctx *ctx, const spx_tunable_set *uses);
 /* The program-binary cache directory (created when missing); 0 when there is none. */
 int spx_cl_cache_dir(char *out, size_t cap);
 
@@ -148,8 +161,15 @@ spx_status spx_cl_copy(spx_ctx *ctx, cl_mem src, cl_mem dst, size_t so, size_t d
 spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *global, const size_t *local,
                       const char *what);
 
-/* Set kernel argument i from an lvalue; OR the results and check once with spx_cl_check. */
-#define SPX_ARG(k, i, v) clSetKernelArg((k), (cl_uint)(i), sizeof(v), &(v))
-#define SPX_ARG_LOCAL(k, i, bytes) clSetKernelArg((k), (cl_uint)(i), (bytes), NULL)
+/* Set kernel argument i: CL_SUCCESS, or CL_INVALID_KERNEL_ARGS whatever the driver returned, so
+ * that a launcher ORs the results of all its arguments into one code and checks it once with
+ * spx_cl_check ("<kernel>: CL_INVALID_KERNEL_ARGS"): the OR of such values is that code exactly
+ * when one failed, where an OR of the drivers' codes would name an unrelated error. SPX_ARG takes
+ * an lvalue (its size and address), SPX_ARG_LOCAL a local-memory size. */
+static inline cl_int spx_cl_arg(cl_kernel k, cl_uint i, size_t size, const void *value) {
+  return clSetKernelArg(k, i, size, value) == CL_SUCCESS ? CL_SUCCESS : CL_INVALID_KERNEL_ARGS;
+}
+#define SPX_ARG(k, i, v) spx_cl_arg((k), (cl_uint)(i), sizeof(v), &(v))
+#define SPX_ARG_LOCAL(k, i, bytes) spx_cl_arg((k), (cl_uint)(i), (bytes), NULL)
 
 #endif

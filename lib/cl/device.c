@@ -249,7 +249,7 @@ void spx_cl_close(spx_ctx *ctx) {
   if (!ctx || !ctx->dev) return;
   spx_cl_kprof_report(ctx);
   spx_cl_kprof_free(ctx->dev);
-  spx_cl_programs_release(ctx, ~0ull);
+  spx_cl_programs_release(ctx, NULL);
   if (ctx->dev->queue) clReleaseCommandQueue(ctx->dev->queue);
   if (ctx->dev->context) clReleaseContext(ctx->dev->context);
   spx_cl_devmem_unref(ctx->dev->devmem); /* buffers still alive keep the account */

@@ -42,6 +42,13 @@
   X(CONV2D_FWD_S1, "conv2d_strided.cl", "spx_conv2d_fwd_s1")           \
   X(CONV2D_FWD_S2, "conv2d_strided.cl", "spx_conv2d_fwd_s2")           \
   X(CONV2D_FWD_SN, "conv2d_strided.cl", "spx_conv2d_fwd_sn")           \
+  X(GEMM_CONV, "conv2d_gemm.cl", "spx_gemm_conv")                      \
+  X(GEMM_DW, "conv2d_gemm.cl", "spx_gemm_dw")                          \
+  X(GEMM_REDUCE, "conv2d_gemm.cl", "spx_gemm_reduce")                  \
+  X(GEMM_PACK, "conv2d_gemm.cl", "spx_gemm_pack")                      \
+  X(GEMM_PAD, "conv2d_gemm.cl", "spx_gemm_pad")                        \
+  X(GEMM_WINO_PACK, "conv2d_gemm.cl", "spx_gemm_wino_pack")            \
+  X(CONV2D_THIN, "conv2d_thin.cl", "spx_conv2d_thin")                  \
   X(WINO_IN, "conv2d_winograd.cl", "spx_wino_in")                      \
   X(WINO_WEIGHTS, "conv2d_winograd.cl", "spx_wino_weights")            \
   X(WINO_GEMM, "conv2d_winograd.cl", "spx_wino_gemm")                  \
@@ -60,6 +67,8 @@
   X(LOSS_BWD, "loss.cl", "spx_loss_bwd")                               \
   X(METRICS_MAXPOOL3S2, "metrics.cl", "spx_metrics_maxpool3s2")        \
   X(ADAM_STEP, "optim.cl", "spx_adam_step")                            \
+  X(PEAK_FMA, "peak.cl", "spx_peak_fma")                              \
+  X(PEAK_TRIAD, "peak.cl", "spx_peak_triad")                          \
   X(SGD_STEP, "optim.cl", "spx_sgd_step")                              \
   X(MAXPOOL_FWD, "pool.cl", "spx_maxpool_fwd")                         \
   X(MAXPOOL_FWD_ROWS, "pool.cl", "spx_maxpool_fwd_rows")               \

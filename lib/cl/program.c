@@ -221,9 +221,12 @@ static void cache_store(spx_ctx *ctx, cl_program prog, const char *path, struct 
   free(bin);
 }
 
-/* SPX_CL_DUMP_DIR: where each program's full source (<name>), build options (<name>.opts) and,
- * when its build fails, the compiler's whole log (<name>.log) are written (for offline compilers
- * such as scripts/device/clang_check.sh, and for the device kit's logs); unset: nothing is written. */
+/* SPX_CL_DUMP_DIR: where each program's full source (<name>), build options (<name>.opts),
+ * when its build fails the compiler's whole log (<name>.log), and, where the program binary is
+ * PTX (NVIDIA's CL_PROGRAM_BINARIES), that PTX as <stem>.ptx (conv2d.cl -> conv2d.ptx) are
+ * written: for offline compilers and PTX analysis (scripts/device/clang_check.sh, gpu_static.sh,
+ * analyse_ptx.sh) and the device kit's logs. Other platforms' binaries are not written (PoCL's
+ * are megabytes of host code). Unset: nothing is written. */
 static void dump_file(const char *name, const char *suffix, const char *text, size_t len) {
   const char *dir = getenv("SPX_CL_DUMP_DIR");
   if (!dir || !*dir) return;
@@ -233,6 +236,38 @@ static void dump_file(const char *name, const char *suffix, const char *text, si
   if (!f) return;
   fwrite(text, 1, len, f);
   fclose(f);
+}
+
+int spx_cl_binary_is_ptx(const unsigned char *bin, size_t len) {
+  while (len > 0 && bin[len - 1] == 0) len--; /* NVIDIA's binary is the PTX string with its NUL */
+  size_t n = len < 65536 ? len : 65536;       /* PTX states .version and .target in its first lines */
+  if (n == 0 || memchr(bin, 0, n)) return 0;
+  int version = 0, target = 0;
+  for (size_t i = 0; i < n; i++) {
+    if (i && bin[i - 1] != '\n') continue;
+    version |= n - i > 9 && !memcmp(bin + i, ".version ", 9);
+    target |= n - i > 8 && !memcmp(bin + i, ".target ", 8);
+  }
+  return version && target;
+}
+
+static void dump_binary(const char *name, cl_program prog) {
+  const char *dir = getenv("SPX_CL_DUMP_DIR");
+  size_t blen = 0;
+  if (!dir || !*dir || clGetProgramInfo(prog, CL_PROGRAM_BINARY_SIZES, sizeof blen, &blen, NULL) != CL_SUCCESS ||
+      blen == 0)
+    return;
+  unsigned char *bin = malloc(blen);
+  if (bin && clGetProgramInfo(prog, CL_PROGRAM_BINARIES, sizeof bin, &bin, NULL) == CL_SUCCESS &&
+      spx_cl_binary_is_ptx(bin, blen)) {
+    char stem[64];
+    size_t sl = strlen(name);
+    if (sl > 3 && !strcmp(name + sl - 3, ".cl")) sl -= 3;
+    snprintf(stem, sizeof stem, "%.*s", (int)sl, name);
+    while (blen > 0 && bin[blen - 1] == 0) blen--;
+    dump_file(stem, ".ptx", (const char *)bin, blen);
+  }
+  free(bin);
 }
 
 /* The first line of a build log that reports an error, whole (compilers start it with
@@ -317,7 +352,8 @@ static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
   char dir[4096], path[4400];
   int use_cache = !cache_disabled() && spx_cl_cache_dir(dir, sizeof dir);
   char opts[4096];
-  uint64_t uses = spx_cl_program_options(ctx, src, opts, sizeof opts);
+  spx_tunable_set uses;
+  spx_cl_program_options(ctx, src, opts, sizeof opts, &uses);
   dump_file(name, "", src, len);
   dump_file(name, ".opts", opts, strlen(opts));
   struct cache_key key = make_key(ctx, src, len, opts);
@@ -339,6 +375,7 @@ static spx_status get_program(spx_ctx *ctx, const char *name, cl_program *out) {
     }
   }
   ctx->dev->cache.build_seconds += spx_now() - t0;
+  if (prog) dump_binary(name, prog);
   struct spx_cl_program *p = &ctx->dev->programs[ctx->dev->nprograms++];
   snprintf(p->name, sizeof p->name, "%s", name);
   p->prog = prog;
@@ -416,11 +453,11 @@ spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out) {
   return SPX_OK;
 }
 
-void spx_cl_programs_release(spx_ctx *ctx, uint64_t uses) {
+void spx_cl_programs_release(spx_ctx *ctx, const spx_tunable_set *uses) {
   if (ctx->dev->queue) clFinish(ctx->dev->queue);
   for (int j = ctx->dev->nprograms - 1; j >= 0; j--) {
     struct spx_cl_program *p = &ctx->dev->programs[j];
-    if (!(p->uses & uses) && uses != ~0ull) continue;
+    if (uses && !spx_tunable_set_meets(&p->uses, uses)) continue;
     for (int i = 0; i < SPX_K_COUNT; i++)
       if (ctx->dev->kernels[i] && !strcmp(kernel_rows[i].program, p->name)) {
         clReleaseKernel(ctx->dev->kernels[i]);

@@ -7,6 +7,8 @@
 #ifndef SPX_CL_TUNABLES_H
 #define SPX_CL_TUNABLES_H
 
+#include <stdint.h>
+
 struct spx_tunables {
   int wg;                 /* generic 1-D work-group size */
   int raster_tile;        /* mesh rasterizer */
@@ -59,6 +61,14 @@ struct spx_tunables {
   int conv_wlds_kb;
   int conv_wino_dw;       /* Winograd weight gradient */
   int conv_wino_dw_minhw;
+  int conv_gemm;          /* the GEMM engine for stride-1 convolutions (GPU; kernels/conv2d_gemm.cl) */
+  int conv_gemm_bm;
+  int conv_gemm_bn;
+  int conv_gemm_tm;
+  int conv_gemm_tn;
+  int conv_gemm_ks;
+  int conv_gemm_split;
+  int conv_thin_maxc;     /* 1x1 forwards with few output channels (kernels/conv2d_thin.cl) */
   int tape_ws_arena;      /* op scratch inside the tape's activation arena */
   int tape_chunk_mb;      /* the tape arena's largest buffer (0: the device's largest allocation) */
   int conv_red_wg;        /* conv2d bias gradient */
@@ -72,6 +82,19 @@ struct spx_tunables {
 };
 
 #define SPX_NTUNABLES ((int)(sizeof(struct spx_tunables) / sizeof(int)))
+
+/* A set of tunable rows (row i: bit i % 64 of bits[i / 64]), as wide as the rows need: a program's
+ * tunables (the -D it was built with), the rows a change affects. Adding rows never runs out of bits. */
+typedef struct spx_tunable_set {
+  uint64_t bits[(SPX_NTUNABLES + 63) / 64];
+} spx_tunable_set;
+static inline void spx_tunable_set_add(spx_tunable_set *s, int i) { s->bits[i / 64] |= (uint64_t)1 << (i % 64); }
+/* 1 when a and b share a row */
+static inline int spx_tunable_set_meets(const spx_tunable_set *a, const spx_tunable_set *b) {
+  for (int w = 0; w < (SPX_NTUNABLES + 63) / 64; w++)
+    if (a->bits[w] & b->bits[w]) return 1;
+  return 0;
+}
 
 /* Where a tunable's value came from. */
 typedef enum spx_tune_source { SPX_TSRC_DEFAULT = 0, SPX_TSRC_FILE = 1, SPX_TSRC_ENV = 2, SPX_TSRC_SET = 3 } spx_tune_source;

@@ -132,7 +132,7 @@ static const struct spx_tunable spx_tunables[] = {
     /* conv2d backward weights: work-group size along the column tiles */
     {ROW("CONV_DW_LWS", conv_dw_lws, 1, 64, 1, 1024, T_WG)},
     /* 3x3 stride-1 pad-1 inference forwards with at least this many in- and out-channels run Winograd (0: never) */
-    {ROW("CONV_WINO_MINC", conv_wino_minc, 64, 32, 0, 1 << 20, 0), .full = VALUES(0, 8, 16, 32, 64, 128),
+    {ROW("CONV_WINO_MINC", conv_wino_minc, 64, 0, 0, 1 << 20, 0), .full = VALUES(0, 8, 16, 32, 64, 128),
      .quick = VALUES(0, 16, 32, 64)},
     /* inference on images of at most this many pixels takes Winograd from half CONV_WINO_MINC (0: never) */
     {ROW("CONV_WINO_SMALL_HW", conv_wino_small_hw, 16384, 0, 0, 1 << 30, 0),
@@ -163,6 +163,24 @@ static const struct spx_tunable spx_tunables[] = {
     /* ... and at least this many pixels (H*W) */
     {ROW("CONV_WINO_DW_MINHW", conv_wino_dw_minhw, 1024, 1024, 0, 1 << 30, T_FULL),
      .full = VALUES(0, 512, 1024, 2048, 4096, 8192)},
+    /* 1: stride-1 convolutions (forward, data and weight gradients) run on the GEMM engine (kernels/conv2d_gemm.cl) */
+    {ROW("CONV_GEMM", conv_gemm, 0, 1, 0, 1, T_FULL), .full = ONOFF},
+    /* GEMM engine: rows of a work-group's tile (output channels; weight gradient: output channels) */
+    {ROW("CONV_GEMM_BM", conv_gemm_bm, 64, 64, 16, 256, T_POW2 | T_FULL), .with = "CONV_GEMM_BN",
+     .full = VALUES(64, 128, 64, 64, 128, 128, 64, 256, 128, 64)},
+    /* GEMM engine: columns of a work-group's tile (pixels; weight gradient: weights of an output channel) */
+    {ROW("CONV_GEMM_BN", conv_gemm_bn, 128, 128, 16, 256, T_POW2)},
+    /* GEMM engine: rows of a work-item's register tile (work-group: BM/TM x BN/TN work-items) */
+    {ROW("CONV_GEMM_TM", conv_gemm_tm, 8, 8, 4, 16, T_POW2 | T_FULL), .with = "CONV_GEMM_TN",
+     .full = VALUES(8, 8, 4, 8, 8, 4, 4, 4)},
+    /* GEMM engine: columns of a work-item's register tile */
+    {ROW("CONV_GEMM_TN", conv_gemm_tn, 8, 8, 4, 16, T_POW2)},
+    /* GEMM engine: reduction steps per slice staged in local memory (two slices, double-buffered) */
+    {ROW("CONV_GEMM_KS", conv_gemm_ks, 8, 8, 4, 64, T_POW2 | T_FULL), .full = VALUES(8, 16, 32)},
+    /* GEMM engine: a forward's reduction is split until its launch has this many work-groups (0: never) */
+    {ROW("CONV_GEMM_SPLIT", conv_gemm_split, 0, 264, 0, 1 << 20, T_FULL), .full = VALUES(0, 132, 264, 528)},
+    /* 1x1 stride-1 forwards with at most this many out-channels take the bandwidth kernel (conv2d_thin.cl; 0: none) */
+    {ROW("CONV_THIN_MAXC", conv_thin_maxc, 0, 8, 0, 8, T_FULL), .full = VALUES(0, 8)},
     /* 1: op scratch as sub-buffers of the tape's activation arena, 0: one separate scratch buffer */
     {ROW("TAPE_WS_ARENA", tape_ws_arena, 1, 0, 0, 1, 0)},
     /* the tape arena's largest buffer in MiB (0: the device's largest allocation) */
@@ -188,7 +206,6 @@ static const struct spx_tunable spx_tunables[] = {
 #define NTUNABLES ((int)(sizeof spx_tunables / sizeof spx_tunables[0]))
 _Static_assert(sizeof spx_tunables / sizeof spx_tunables[0] == SPX_NTUNABLES,
                "one row of lib/cl/tuning.c per field of struct spx_tunables");
-_Static_assert(SPX_NTUNABLES <= 64, "spx_cl_program.uses is a 64-bit mask of tunables");
 
 int *spx_cl_tunable_field(struct spx_tunables *t, int i) { return (int *)((char *)t + spx_tunables[i].off); }
 #define field spx_cl_tunable_field
@@ -259,6 +276,26 @@ static spx_status apply_env(spx_ctx *ctx) {
   return SPX_OK;
 }
 
+/* The GEMM engine's tiles (kernels/conv2d_gemm.cl): whole register tiles per work-group, a
+ * work-group of whole warps laid out as 4 x 8 lanes, slices that the work-group loads in whole
+ * steps, and its local memory (two slices of both operands, rows padded by 4 floats). */
+static spx_status gemm_check(spx_ctx *ctx, const struct spx_tunables *t) {
+  if (!t->conv_gemm) return SPX_OK;
+  long bm = t->conv_gemm_bm, bn = t->conv_gemm_bn, tm = t->conv_gemm_tm, tn = t->conv_gemm_tn, ks = t->conv_gemm_ks;
+  long wm = bm / tm, wn = bn / tn, wg = wm * wn;
+  uint64_t lm = 8ull * (uint64_t)ks * (uint64_t)(bm + bn + 8);
+  const char *why = bm % tm || bn % tn                   ? "the register tile does not divide the work-group tile"
+                    : wm % 4 || wn % 8                    ? "BM / TM must be a multiple of 4 and BN / TN of 8"
+                    : (size_t)wg > ctx->dev->info.max_work_group ? "the work-group exceeds the device's limit"
+                    : (ks * bm / 4) % wg || (ks * bn) % wg || wg % ks ? "a slice is not a whole number of loads per work-item"
+                    : ctx->dev->info.local_mem && lm > ctx->dev->info.local_mem ? "the slices exceed the local memory"
+                                                                                 : NULL;
+  if (why)
+    return spx_fail(ctx, SPX_E_ARG, "tunables CONV_GEMM_BM/BN/TM/TN/KS = %ld/%ld/%ld/%ld/%ld (%ld work-items, %llu "
+                    "bytes of local memory): %s", bm, bn, tm, tn, ks, wg, (unsigned long long)lm, why);
+  return SPX_OK;
+}
+
 /* Combinations: work-groups of two dimensions and the local memory of the kernels that use it. */
 spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t) {
   size_t wg = ctx->dev->info.max_work_group;
@@ -273,6 +310,8 @@ spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t) {
   if (!t->raster_serial && (size_t)(tile * tile) > wg)
     return spx_fail(ctx, SPX_E_ARG, "tunable SPX_RASTER_TILE = %ld: %ld work-items per tile, more than the device's "
                     "work-group limit %zu", tile, tile * tile, wg);
+  spx_status st = gemm_check(ctx, t);
+  if (st) return st;
   uint64_t radix = 1ull << t->sort_bits, swg = (uint64_t)t->sort_wg;
   uint64_t sort_lm = 4 * (radix * swg + swg + 2 * radix);
   if (lm && sort_lm > lm)
@@ -290,27 +329,19 @@ static void division_mode(spx_ctx *ctx) {
   cl_device_fp_config fp = 0;
   ctx->dev->cr_div = clGetDeviceInfo(ctx->dev->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS &&
                 (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT);
-  ctx->dev->div_fallback = 0;
-  if (getenv("SPX_FORCE_DIV_FALLBACK")) {
-    /* testing hook: the integer division of kernels/exact.h on a device that divides correctly */
-    ctx->dev->cr_div = 0;
-    ctx->dev->div_fallback = 1;
-  }
+  if (spx_ctx_profile(ctx) & SPX_DEBUG_DIV_FALLBACK) ctx->dev->cr_div = 0; /* a switch for tests */
 }
 
-uint64_t spx_cl_program_options(const spx_ctx *ctx, const char *src, char *o, size_t cap) {
-  uint64_t uses = 0;
+void spx_cl_program_options(const spx_ctx *ctx, const char *src, char *o, size_t cap, spx_tunable_set *uses) {
+  memset(uses, 0, sizeof *uses);
   size_t n = (size_t)snprintf(o, cap, "-cl-std=CL1.2 -DSPX_DEVICE_%s=1", ctx->dev->tune_cpu ? "CPU" : "GPU");
   for (int i = 0; i < NTUNABLES && n < cap; i++)
     if (strstr(src, spx_tunables[i].name)) {
       n += (size_t)snprintf(o + n, cap - n, " -D%s=%d", spx_tunables[i].name, field_value(&ctx->dev->tune, i));
-      uses |= 1ull << i;
+      spx_tunable_set_add(uses, i);
     }
   if (n < cap)
-    n += (size_t)snprintf(o + n, cap - n,
-                          ctx->dev->cr_div ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
-  if (n < cap && ctx->dev->div_fallback) snprintf(o + n, cap - n, " -DSPX_FORCE_DIV_FALLBACK=1");
-  return uses;
+    snprintf(o + n, cap - n, ctx->dev->cr_div ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
 }
 
 spx_status spx_cl_tunables_resolve(spx_ctx *ctx) {
@@ -370,7 +401,9 @@ spx_status spx_device_set_tunable(spx_ctx *ctx, const char *name, int value) {
     return spx_fail(ctx, SPX_E_ARG, "tunable %s=%s: %s", short_name(i), val, why);
   if ((st = spx_cl_tunables_check(ctx, &t))) return st;
   if (field_value(&ctx->dev->tune, i) != value) {
-    spx_cl_programs_release(ctx, 1ull << i); /* those built with the old -D value */
+    spx_tunable_set one = {{0}};
+    spx_tunable_set_add(&one, i);
+    spx_cl_programs_release(ctx, &one); /* those built with the old -D value */
     ctx->dev->tune = t;
   }
   ctx->dev->tune_src[i] = SPX_TSRC_SET;

@@ -1,6 +1,8 @@
 /* The one way to open an input (non-blocking, regular files only) and the pieces of every atomic
  * write: temporary names that carry the writer's pid, removal of a dead writer's temporaries,
- * writability checks before work starts, and fsync of a file and of its folder. */
+ * the output policy (spx_file_check_writable: what may be replaced, checked by every writer of
+ * the library before it writes and again before its rename), the temporaries of writes in
+ * progress (for a signal handler's clean-up), and fsync of a file and of its folder. */
 #if defined(__linux__) && !defined(_GNU_SOURCE)
 #define _GNU_SOURCE /* syncfs */
 #endif
@@ -8,6 +10,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <signal.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -122,6 +125,24 @@ char *spx_file_temp_name(const char *target) {
   return t;
 }
 
+/* The part of the policy about the target itself (it exists): only a regular file that is not
+ * write-protected is replaced. */
+static spx_status check_existing(spx_ctx *ctx, const char *target) {
+  struct stat sb;
+  if (stat(target, &sb) != 0) return SPX_OK;
+  if (!S_ISREG(sb.st_mode)) return spx_fail(ctx, SPX_E_IO, "%s: cannot write: it is %s", target, kind_of(sb.st_mode));
+  /* a write-protected file is not replaced (as cp refuses it), for root too: the mode bits decide */
+  if (!(sb.st_mode & (S_IWUSR | S_IWGRP | S_IWOTH)) || access(target, W_OK) != 0)
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot write: the file is write-protected (mode %03o)", target,
+                    (unsigned)(sb.st_mode & 0777));
+  return SPX_OK;
+}
+
+spx_status spx_file_check_replace(spx_ctx *ctx, const char *target) {
+  if (!target || !*target) return spx_fail(ctx, SPX_E_ARG, "output path is empty");
+  return check_existing(ctx, target);
+}
+
 spx_status spx_file_check_writable(spx_ctx *ctx, const char *target) {
   char dir[4096];
   const char *base;
@@ -136,13 +157,34 @@ spx_status spx_file_check_writable(spx_ctx *ctx, const char *target) {
   if (!S_ISDIR(sb.st_mode)) return spx_fail(ctx, SPX_E_IO, "%s: cannot write: %s is not a folder", target, dir);
   if (access(dir, W_OK | X_OK) != 0)
     return spx_fail(ctx, SPX_E_IO, "%s: cannot write: folder %s: %s", target, dir, strerror(errno));
-  if (stat(target, &sb) == 0 && !S_ISREG(sb.st_mode))
-    return spx_fail(ctx, SPX_E_IO, "%s: cannot write: it is %s", target, kind_of(sb.st_mode));
-  /* a write-protected file is not replaced (as cp refuses it), for root too: the mode bits decide */
-  if (stat(target, &sb) == 0 && (!(sb.st_mode & (S_IWUSR | S_IWGRP | S_IWOTH)) || access(target, W_OK) != 0))
-    return spx_fail(ctx, SPX_E_IO, "%s: cannot write: the file is write-protected (mode %03o)", target,
-                    (unsigned)(sb.st_mode & 0777));
-  return SPX_OK;
+  return check_existing(ctx, target);
+}
+
+/* The temporaries of the writes in progress in this process (spx_atomic_open / spx_exr_write
+ * until their commit or abort): slots of pointers a signal handler may read at any moment. */
+enum { MAX_IN_FLIGHT = 64 };
+static _Atomic(const char *) in_flight[MAX_IN_FLIGHT];
+
+void spx_file_in_flight_add(const char *tmp) {
+  for (int i = 0; i < MAX_IN_FLIGHT; i++) {
+    const char *none = NULL;
+    if (atomic_compare_exchange_strong(&in_flight[i], &none, tmp)) return;
+  }
+  /* every slot taken (64 writes at once): this one is not tracked; a later run removes it */
+}
+
+void spx_file_in_flight_remove(const char *tmp) {
+  for (int i = 0; i < MAX_IN_FLIGHT; i++) {
+    const char *was = tmp;
+    if (atomic_compare_exchange_strong(&in_flight[i], &was, NULL)) return;
+  }
+}
+
+void spx_file_abort_writes(void) {
+  for (int i = 0; i < MAX_IN_FLIGHT; i++) {
+    const char *t = atomic_exchange(&in_flight[i], NULL);
+    if (t) unlink(t);
+  }
 }
 
 static spx_status sync_fd_path(spx_ctx *ctx, const char *path, int flags, const char *what) {

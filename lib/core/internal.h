@@ -43,8 +43,10 @@ void *spx_alloc_array(spx_ctx *ctx, size_t a, size_t b, const char *what);
 /* Whole file into memory (with a size cap); records SPX_E_IO naming the path on failure. */
 spx_status spx_read_file(spx_ctx *ctx, const char *path, size_t max_bytes, unsigned char **data, size_t *size);
 
-/* Atomic file writing: write to "<path>.tmp.<pid>", then rename over path on commit.
- * On abort (or any failure) the temp file is removed and path is left untouched. */
+/* Atomic file writing: write to "<path>.tmp.<pid>.<n>", then rename over path on commit. Open
+ * checks path against the output policy first (spx_file_check_writable: no device, FIFO, socket
+ * or folder is replaced, nor a write-protected file). On abort (or any failure) the temp file is
+ * removed and path is left untouched. */
 typedef struct spx_atomic_file {
   FILE *fp;
   char *final_path;
@@ -55,7 +57,17 @@ spx_status spx_atomic_commit(spx_ctx *ctx, spx_atomic_file *af);
 void spx_atomic_abort(spx_atomic_file *af);
 /* Temp name for libraries that write by path themselves (OpenEXR, ...): caller frees. */
 char *spx_temp_path_for(const char *path);
+/* rename tmp over path, after checking path against the output policy once more (it may have
+ * become a device or a write-protected file while the bytes were written); tmp is removed on
+ * failure. */
 spx_status spx_rename_over(spx_ctx *ctx, const char *tmp, const char *path);
+/* The policy's part about an existing target (lib/core/files.c): only a regular file that is not
+ * write-protected is replaced. */
+spx_status spx_file_check_replace(spx_ctx *ctx, const char *target);
+/* A write's temporary, from before it is created until it is renamed or removed: the list that
+ * spx_file_abort_writes (smplpix/files.h) unlinks from a signal handler. */
+void spx_file_in_flight_add(const char *tmp);
+void spx_file_in_flight_remove(const char *tmp);
 
 /* Parse text[0..len) as one JSON document (lib/core/json_doc.c): trailing text other than white
  * space is an error naming the byte. *out: a cJSON tree for cJSON_Delete. */

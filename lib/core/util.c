@@ -1,5 +1,6 @@
 /* Small host utilities: checked sizes, whole-file reads, atomic writes, hashing, time. */
 #include <errno.h>
+#include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -63,6 +64,11 @@ done:
 char *spx_temp_path_for(const char *path) { return spx_file_temp_name(path); }
 
 spx_status spx_rename_over(spx_ctx *ctx, const char *tmp, const char *path) {
+  spx_status st = spx_file_check_replace(ctx, path);
+  if (st) {
+    remove(tmp);
+    return st;
+  }
   if (rename(tmp, path) != 0) {
     int e = errno;
     remove(tmp);
@@ -73,15 +79,28 @@ spx_status spx_rename_over(spx_ctx *ctx, const char *tmp, const char *path) {
 
 spx_status spx_atomic_open(spx_ctx *ctx, const char *path, spx_atomic_file *af) {
   memset(af, 0, sizeof *af);
+  if (!path) return spx_fail(ctx, SPX_E_ARG, "output path is NULL");
+  spx_status st = spx_file_check_writable(ctx, path);
+  if (st) return st;
   af->final_path = strdup(path);
   af->tmp_path = spx_temp_path_for(path);
   if (!af->final_path || !af->tmp_path) {
     spx_atomic_abort(af);
     return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", path);
   }
-  af->fp = fopen(af->tmp_path, "wb");
+  spx_file_in_flight_add(af->tmp_path);
+  /* never through a link, never blocking on a FIFO someone put at the temporary's name */
+  int fd = open(af->tmp_path, O_WRONLY | O_CREAT | O_TRUNC | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC, 0666);
+  struct stat sb;
+  if (fd >= 0 && (fstat(fd, &sb) != 0 || !S_ISREG(sb.st_mode))) {
+    close(fd);
+    fd = -1;
+    errno = EEXIST;
+  }
+  af->fp = fd >= 0 ? fdopen(fd, "wb") : NULL;
   if (!af->fp) {
     int e = errno;
+    if (fd >= 0) close(fd);
     spx_atomic_abort(af);
     return spx_fail(ctx, SPX_E_IO, "%s: cannot create: %s", path, strerror(e));
   }
@@ -100,6 +119,7 @@ spx_status spx_atomic_commit(spx_ctx *ctx, spx_atomic_file *af) {
   } else {
     st = spx_rename_over(ctx, af->tmp_path, af->final_path);
   }
+  spx_file_in_flight_remove(af->tmp_path);
   free(af->final_path);
   free(af->tmp_path);
   af->final_path = af->tmp_path = NULL;
@@ -109,6 +129,7 @@ spx_status spx_atomic_commit(spx_ctx *ctx, spx_atomic_file *af) {
 void spx_atomic_abort(spx_atomic_file *af) {
   if (af->fp) fclose(af->fp);
   if (af->tmp_path) remove(af->tmp_path);
+  spx_file_in_flight_remove(af->tmp_path);
   free(af->final_path);
   free(af->tmp_path);
   memset(af, 0, sizeof *af);
@@ -130,6 +151,22 @@ uint64_t spx_splitmix64(uint64_t *s) {
   z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
   z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
   return z ^ (z >> 31);
+}
+
+size_t spx_utf8_char(const char *s) {
+  const unsigned char *p = (const unsigned char *)s;
+  if (!p || !p[0]) return 0;
+  if (p[0] < 0x80) return 1;
+  size_t n = p[0] >= 0xf0 ? 4 : p[0] >= 0xe0 ? 3 : p[0] >= 0xc0 ? 2 : 0;
+  if (!n || p[0] > 0xf4) return 0;
+  uint32_t cp = p[0] & (0x7fu >> n);
+  for (size_t i = 1; i < n; i++) {
+    if ((p[i] & 0xc0) != 0x80) return 0; /* also the terminating NUL */
+    cp = cp << 6 | (p[i] & 0x3fu);
+  }
+  static const uint32_t least[5] = {0, 0, 0x80, 0x800, 0x10000}; /* shorter forms are overlong */
+  if (cp < least[n] || cp > 0x10ffff || (cp >= 0xd800 && cp <= 0xdfff)) return 0;
+  return n;
 }
 
 uint64_t spx_hash64(const void *data, size_t n, uint64_t h) {

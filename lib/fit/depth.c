@@ -1,5 +1,6 @@
-/* A depth image as a scan (smplpix/fit.h): every pixel with depth is back-projected through the
- * pinhole camera at its centre, with its colour when an image registered to the depth is given. */
+/* A depth image as a scan (smplpix/fit.h): every pixel with depth (not 0, NaN or inf) is
+ * back-projected through the pinhole camera at its centre, with its colour when an image
+ * registered to the depth is given. */
 #include <math.h>
 #include <string.h>
 
@@ -20,15 +21,12 @@ spx_status spx_fit_depth_points(spx_ctx *ctx, const char *name, const spx_camera
   size_t npx = (size_t)width * (size_t)height, n = 0;
   for (size_t p = 0; p < npx; p++) {
     float d = depth[p];
-    if (!isfinite(d))
-      return spx_fail(ctx, SPX_E_NUMERIC, "%s: depth at pixel (%d, %d) is not finite", name, (int)(p % (size_t)width),
-                      (int)(p / (size_t)width));
     if (d < 0)
       return spx_fail(ctx, SPX_E_ARG, "%s: depth at pixel (%d, %d) is negative (%g)", name, (int)(p % (size_t)width),
                       (int)(p / (size_t)width), (double)d);
-    n += d > 0;
+    n += d > 0 && isfinite(d);
   }
-  if (n == 0) return spx_fail(ctx, SPX_E_ARG, "%s: no pixel has depth (all zero)", name);
+  if (n == 0) return spx_fail(ctx, SPX_E_ARG, "%s: no pixel has depth (all 0, NaN or inf)", name);
   if (n > INT32_MAX) return spx_fail(ctx, SPX_E_ARG, "%s: too many pixels", name);
   out->pos = spx_alloc_array(ctx, n, 3 * sizeof(float), "depth points");
   if (rgb) out->col = spx_alloc_array(ctx, n, 3 * sizeof(float), "depth points");
@@ -43,7 +41,7 @@ spx_status spx_fit_depth_points(spx_ctx *ctx, const char *name, const spx_camera
     for (int32_t i = 0; i < width; i++) {
       size_t p = (size_t)j * width + i;
       double d = depth[p];
-      if (!(d > 0)) continue;
+      if (!(d > 0) || !isfinite(d)) continue;
       double y = (j + 0.5 - cy) / fy, x = (i + 0.5 - cx - s * y) / fx;
       double c[3] = {d * x - cam->t[0], d * y - cam->t[1], d - cam->t[2]};
       for (int r = 0; r < 3; r++)

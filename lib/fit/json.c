@@ -56,6 +56,11 @@ static int add(cJSON *o, const char *k, cJSON *v) {
 
 spx_status spx_fit_save_json(spx_ctx *ctx, const char *path, const spx_fit_result *r, const char *model_path) {
   if (!path || !r || !r->pose || !r->betas) return spx_fail(ctx, SPX_E_ARG, "registration JSON: nothing to save");
+  for (const char *p = model_path; p && *p;) { /* JSON is UTF-8: a path that is not cannot be recorded */
+    size_t k = spx_utf8_char(p);
+    if (!k) return spx_fail(ctx, SPX_E_ARG, "%s: the model path %s is not UTF-8, which the registration JSON must be", path, model_path);
+    p += k;
+  }
   cJSON *root = cJSON_CreateObject(), *sim = cJSON_CreateObject(), *stats = cJSON_CreateObject();
   int ok = root && sim && stats;
   double R[9];
@@ -146,6 +151,32 @@ spx_status spx_fit_load_json(spx_ctx *ctx, const char *path, spx_fit_result *out
   return st;
 }
 
+/* What the file says is checked, not trusted (it is text a user may have edited): "version", when
+ * present, is 1 (the only one written); similarity.R is a rotation (orthonormal, determinant +1,
+ * to 1e-6: the writer prints every digit); colours lie in 0..1. */
+static spx_status check_values(spx_ctx *ctx, const char *path, const cJSON *root, const spx_fit_result *r) {
+  const cJSON *ver = cJSON_GetObjectItemCaseSensitive(root, "version");
+  if (ver && !cJSON_IsNumber(ver)) return spx_fail(ctx, SPX_E_FORMAT, "%s: \"version\" is not a number", path);
+  if (ver && ver->valuedouble != 1)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: \"version\": %g is not one this smplpix reads (it reads version 1)", path,
+                    ver->valuedouble);
+  const double *R = r->sim_R;
+  double worst = 0;
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++) {
+      double d = R[i] * R[j] + R[3 + i] * R[3 + j] + R[6 + i] * R[6 + j]; /* (R^T R)_ij */
+      worst = fmax(worst, fabs(d - (i == j)));
+    }
+  double det = R[0] * (R[4] * R[8] - R[5] * R[7]) - R[1] * (R[3] * R[8] - R[5] * R[6]) + R[2] * (R[3] * R[7] - R[4] * R[6]);
+  if (worst > 1e-6 || fabs(det - 1) > 1e-6)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: similarity.R is not a rotation (R^T R differs from the identity by %.3g, "
+                    "determinant %.6g)", path, worst, det);
+  for (int32_t i = 0; r->colors && i < r->nv * 3; i++)
+    if (!(r->colors[i] >= 0 && r->colors[i] <= 1))
+      return spx_fail(ctx, SPX_E_FORMAT, "%s: \"colors\"[%d] = %g is outside 0..1", path, (int)i, r->colors[i]);
+  return SPX_OK;
+}
+
 spx_status spx_fit_parse_json(spx_ctx *ctx, const char *path, const char *text, size_t len, spx_fit_result *out,
                               char **model_path) {
   if (!out || !path) return spx_fail(ctx, SPX_E_ARG, "registration JSON: NULL argument");
@@ -210,6 +241,7 @@ spx_status spx_fit_parse_json(spx_ctx *ctx, const char *path, const char *text, 
     st = spx_fail(ctx, SPX_E_FORMAT, "%s: scales must be positive", path);
     goto cleanup;
   }
+  if ((st = check_values(ctx, path, root, out))) goto cleanup;
   if (model_path) {
     const cJSON *mp = cJSON_GetObjectItemCaseSensitive(root, "model");
     if (cJSON_IsString(mp) && mp->valuestring[0]) {

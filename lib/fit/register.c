@@ -16,7 +16,7 @@ void spx_fit_options_default(spx_fit_options *o) {
                          .w_shape = 2e-4, .w_pose = 1e-4, .w_limits = 0.1, .w_scale = 1.0, .w_pose_start = 0.1,
                          .w_m2s = 1.0, .w_lap = 1.0, .w_couple_start = 0.3, .w_couple_end = 0.02,
                          .robust_m = 0.01, .seed = 0x5eed, .progress = NULL, .progress_user = NULL,
-                         .ceres_progress = 0};
+                         .ceres_progress = 0, .aids = SPX_FIT_AID_CONTINUE};
 }
 
 void spx_fit_result_free(spx_fit_result *r) {
@@ -27,9 +27,11 @@ void spx_fit_result_free(spx_fit_result *r) {
 }
 
 static void work_free(spx_fit_work *w) {
-  free(w->Q), free(w->Qf), free(w->Vf), free(w->N), free(w->idx), free(w->d2), free(w->dist), free(w->idx_m);
-  free(w->area), free(w->lim), free(w->msub), free(w->seen);
-  spx_fit_zgrid_free(&w->zg);
+  free(w->Q), free(w->Qf), free(w->Qfv), free(w->Vf), free(w->N), free(w->idx), free(w->d2);
+  free(w->dist), free(w->idx_m), free(w->area), free(w->lim), free(w->msub), free(w->seen), free(w->eyes);
+  free(w->fs_j), free(w->fs_q), free(w->fs_n);
+  for (int32_t k = 0; w->zg && k < w->neye; k++) spx_fit_zgrid_free(&w->zg[k]);
+  free(w->zg);
   free(w->d2_m), free(w->bp), free(w->fp), free(w->lp);
   spx_adj_free(&w->vf);
   spx_adj_free(&w->nb);
@@ -109,10 +111,36 @@ static void to_model(const spx_fit_result *r, const float *p, float *q) {
   for (int d = 0; d < 3; d++) q[d] = (float)(x[d] / r->sim_scale);
 }
 
-/* The pose and free stages' scan samples (model frame), their buffers and the model subsample
- * of the pose stage's model → scan term. */
+/* The cameras of the options (view, or nviews / view_eyes / point_view), checked, in scan metres. */
+static spx_status views_of(spx_ctx *ctx, const spx_fit_options *o, const spx_mesh *scan, double unit,
+                           spx_fit_views *vw) {
+  memset(vw, 0, sizeof *vw);
+  int32_t n = o->nviews > 0 ? o->nviews : o->view ? 1 : 0;
+  if (!n) return SPX_OK;
+  const double *e = o->nviews > 0 ? o->view_eyes : o->view_eye;
+  if (!e) return spx_fail(ctx, SPX_E_ARG, "registration: %d cameras without their centres (view_eyes)", (int)n);
+  if (n > 1 && !o->point_view)
+    return spx_fail(ctx, SPX_E_ARG, "registration: %d cameras without the camera of each point (point_view)", (int)n);
+  if (!(vw->eyes = spx_alloc_array(ctx, (size_t)n, 3 * sizeof(double), "registration"))) return SPX_E_NOMEM;
+  vw->n = n;
+  for (int32_t k = 0; k < n * 3; k++) {
+    if (!isfinite(e[k])) return spx_fail(ctx, SPX_E_ARG, "registration: camera %d's centre is not finite", (int)(k / 3));
+    vw->eyes[k] = e[k] * unit;
+  }
+  if (o->nviews > 0 && o->point_view) {
+    vw->of = o->point_view;
+    for (int32_t i = 0; i < scan->nv; i++)
+      if (vw->of[i] < 0 || vw->of[i] >= n)
+        return spx_fail(ctx, SPX_E_ARG, "registration: point %d's camera %d is not one of the %d", (int)i,
+                        (int)vw->of[i], (int)n);
+  }
+  return SPX_OK;
+}
+
+/* The pose and free stages' scan samples (model frame) with their cameras, their buffers and the
+ * model subsample of the pose stage's model → scan term. */
 static spx_status pose_samples(spx_ctx *ctx, const spx_fit_options *o, const float *Sc, int32_t ns, int32_t nv,
-                               const spx_fit_result *r, spx_fit_work *w) {
+                               const spx_fit_views *vw, const spx_fit_result *r, spx_fit_work *w) {
   int32_t mp = o->max_points_pose, mf = o->max_points_free;
   int32_t nmax = mp > mf ? mp : mf;
   if (nmax <= 0 || nmax > ns) nmax = ns;
@@ -127,15 +155,34 @@ static spx_status pose_samples(spx_ctx *ctx, const spx_fit_options *o, const flo
   w->idx = spx_alloc_array(ctx, (size_t)nbig, sizeof(int32_t), "registration");
   w->d2 = spx_alloc_array(ctx, (size_t)nbig, sizeof(float), "registration");
   w->dist = spx_alloc_array(ctx, (size_t)nbig, sizeof(float), "registration");
-  w->bp = spx_alloc_array(ctx, (size_t)(nbig + nv), sizeof(spx_fit_body_pair), "registration");
-  w->fp = spx_alloc_array(ctx, (size_t)(nbig + 2 * (size_t)nv), sizeof(spx_fit_free_pair), "registration");
+  /* pairs: scan → model, model → scan, free space (and in the free stage the coupling) */
+  w->bp = spx_alloc_array(ctx, (size_t)nbig + 2 * (size_t)nv, sizeof(spx_fit_body_pair), "registration");
+  w->fp = spx_alloc_array(ctx, (size_t)nbig + 3 * (size_t)nv, sizeof(spx_fit_free_pair), "registration");
   if (!w->Q || !w->Qf || !w->idx || !w->d2 || !w->dist || !w->bp || !w->fp) {
     free(sidx);
     return SPX_E_NOMEM;
   }
   for (int32_t i = 0; i < w->nq; i++) to_model(r, Sc + (size_t)sidx[i] * 3, w->Q + i * 3);
   for (int32_t i = 0; i < w->nqf; i++) to_model(r, Sc + (size_t)sidx[i] * 3, w->Qf + i * 3);
+  if (vw->of) {
+    w->Qfv = spx_alloc_array(ctx, (size_t)w->nqf, sizeof(int32_t), "registration");
+    for (int32_t i = 0; w->Qfv && i < w->nqf; i++) w->Qfv[i] = vw->of[sidx[i]];
+  }
   free(sidx);
+  if (vw->of && !w->Qfv) return SPX_E_NOMEM;
+  if (vw->n) {
+    w->eyes = spx_alloc_array(ctx, (size_t)vw->n, 3 * sizeof(double), "registration");
+    w->fs_j = spx_alloc_array(ctx, (size_t)nv, sizeof(int32_t), "registration");
+    w->fs_q = spx_alloc_array(ctx, (size_t)nv, 3 * sizeof(double), "registration");
+    w->fs_n = spx_alloc_array(ctx, (size_t)nv, 3 * sizeof(double), "registration");
+    if (!w->eyes || !w->fs_j || !w->fs_q || !w->fs_n) return SPX_E_NOMEM;
+    w->neye = vw->n, w->cams_given = 1;
+    for (int32_t k = 0; k < vw->n; k++) {
+      float e[3] = {(float)vw->eyes[k * 3], (float)vw->eyes[k * 3 + 1], (float)vw->eyes[k * 3 + 2]}, em[3];
+      to_model(r, e, em);
+      for (int d = 0; d < 3; d++) w->eyes[k * 3 + d] = em[d];
+    }
+  }
   int32_t nms = 0;
   if (!(w->msub = spx_fit_subsample(ctx, nv, mp > 0 ? (mp + 1) / 2 : nv, o->seed ^ 0xabcdefULL, &nms))) return SPX_E_NOMEM;
   w->nms = nms;
@@ -147,7 +194,7 @@ static spx_status pose_samples(spx_ctx *ctx, const spx_fit_options *o, const flo
 
 /* Without a camera: a scan that covers less than 3/4 of the body (by area, within 3 cm of the
  * rigidly placed template), on one side (the covered surface's mean normal is over 0.25 long),
- * is taken as one camera's view from 3 m along that mean normal. Sets w->has_eye and w->eye. */
+ * is taken as one camera's view from 3 m along that mean normal. Sets w->neye and w->eyes. */
 static spx_status infer_view(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
                              const double *V, const char **note) {
   int32_t nv = m->nv;
@@ -167,11 +214,27 @@ static spx_status infer_view(spx_ctx *ctx, const spx_body_model *m, const spx_fi
   }
   double len = cov > 0 ? sqrt(mn[0] * mn[0] + mn[1] * mn[1] + mn[2] * mn[2]) / cov : 0;
   if (cov < 0.75 && len > 0.25) {
-    w->has_eye = 1;
-    for (int d = 0; d < 3; d++) w->eye[d] = c[d] + 3.0 * mn[d] / (len * cov);
+    if (!(w->eyes = spx_alloc_array(ctx, 1, 3 * sizeof(double), "registration"))) return SPX_E_NOMEM;
+    w->neye = 1;
+    for (int d = 0; d < 3; d++) w->eyes[d] = c[d] + 3.0 * mn[d] / (len * cov);
     *note = "the scan covers one side of the body: fitted as seen from that side";
   }
   return SPX_OK;
+}
+
+/* What each camera saw (view.c): its depth grid of the free stage's scan sample (the larger one,
+ * so that each camera of several keeps enough points for a fine grid), used by both stages; with
+ * free space (freespace.c) also its silhouette. */
+static spx_status camera_grids(spx_ctx *ctx, const spx_fit_options *o, spx_fit_work *w) {
+  if (!(w->zg = calloc((size_t)w->neye, sizeof *w->zg)))
+    return spx_fail(ctx, SPX_E_NOMEM, "registration: out of memory");
+  spx_status st = SPX_OK;
+  for (int32_t k = 0; !st && k < w->neye; k++) {
+    st = spx_fit_zgrid_build(ctx, w->eyes + k * 3, w->Qf, w->nqf, w->Qfv, k, &w->zg[k]);
+    if (!st && w->cams_given && (o->aids & SPX_FIT_AID_FREESPACE)) st = spx_fit_zgrid_silhouette(ctx, &w->zg[k]);
+  }
+  w->free_space = !st && w->cams_given && (o->aids & SPX_FIT_AID_FREESPACE);
+  return st;
 }
 
 /* r->verts_scan (input units), the colours of a coloured scan and the unposed template. F: nv*3
@@ -212,36 +275,32 @@ spx_status spx_fit_register(spx_ctx *ctx, const spx_body_model *m, const spx_mes
   memset(&w, 0, sizeof w);
   spx_fit_body b;
   memset(&b, 0, sizeof b);
+  spx_fit_views vw = {0, NULL, NULL};
   float *Sc = NULL;
   spx_fit_result *r = out;
   spx_status st = alloc_all(ctx, m, nb, ncol, ns, r, &Sc, &b, &w);
   if (!st) st = scan_metres(ctx, scan, &o, r, Sc);
+  if (!st) st = views_of(ctx, &o, scan, r->unit_scale, &vw);
   if (st) goto cleanup;
 
   r->sim_scale = 1.0;
   spx_rot3_eye(r->sim_R);
-  if ((st = spx_fit_stage_rigid(ctx, m, &o, Sc, ns, r))) goto cleanup;
+  if ((st = spx_fit_stage_rigid(ctx, m, &o, Sc, ns, &vw, r))) goto cleanup;
   r->stages_done |= SPX_FIT_RIGID;
   b.ctx = ctx, b.m = m, b.nb = nb, b.ncol = ncol, b.pose = r->pose, b.betas = r->betas;
   b.bscale[0] = 1.0 / r->sim_scale; /* the scan is metric after the unit check: start at true size */
   for (int32_t i = 0; i < nv * 3; i++) r->verts_pose[i] = m->v_template[i];
 
   if (o.stages & (SPX_FIT_POSE | SPX_FIT_FREE)) {
-    if ((st = pose_samples(ctx, &o, Sc, ns, nv, r, &w))) goto cleanup;
-    if (o.view) {
-      float e[3] = {(float)(o.view_eye[0] * r->unit_scale), (float)(o.view_eye[1] * r->unit_scale),
-                    (float)(o.view_eye[2] * r->unit_scale)}, em[3];
-      to_model(r, e, em);
-      w.has_eye = 1;
-      for (int d = 0; d < 3; d++) w.eye[d] = em[d];
-    }
+    if ((st = pose_samples(ctx, &o, Sc, ns, nv, &vw, r, &w))) goto cleanup;
     const char *note = NULL;
-    if (!o.view && (st = infer_view(ctx, m, &o, &w, r->verts_pose, &note))) goto cleanup;
+    if (!vw.n && (st = infer_view(ctx, m, &o, &w, r->verts_pose, &note))) goto cleanup;
     if (note) spx_fit_report(&o, "view", 0, 0, 0, 0, spx_now(), note);
-    if (w.has_eye && !(w.seen = spx_alloc_array(ctx, (size_t)nv, 1, "registration"))) {
+    if (w.neye && !(w.seen = spx_alloc_array(ctx, (size_t)nv, 1, "registration"))) {
       st = SPX_E_NOMEM;
       goto cleanup;
     }
+    if (w.neye && (st = camera_grids(ctx, &o, &w))) goto cleanup;
     if ((st = spx_fit_stage_pose(ctx, m, &o, &w, &b, r))) goto cleanup;
     r->stages_done |= SPX_FIT_POSE;
     memcpy(r->trans, b.trans, sizeof r->trans);
@@ -255,7 +314,7 @@ spx_status spx_fit_register(spx_ctx *ctx, const spx_body_model *m, const spx_mes
   }
   st = outputs(ctx, m, scan, Sc, o.threads, b.F, r);
 cleanup:
-  free(Sc), free(b.F), free(b.J);
+  free(Sc), free(b.F), free(b.J), free(vw.eyes);
   work_free(&w);
   if (st) spx_fit_result_free(out);
   return st;

@@ -2,6 +2,8 @@
  * of a person in metres, centimetres or millimetres, and a finished registration is checked
  * against the scan it claims to fit (size of the body, distance of the fit). */
 #include <math.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "fit/fit_internal.h"
 
@@ -32,6 +34,8 @@ spx_status spx_fit_units(spx_ctx *ctx, double ext, double given, double *scale, 
 }
 
 #define SCAN_MIN_POINTS 50        /* fewer points cannot show a person's shape */
+#define FAR_M 0.05                /* a scan point this far from the fitted body is not on it */
+#define MAX_FAR_SHARE 0.2         /* loose clothes, hair and noise stay well under this share */
 #define SCAN_MAX_ROUNDNESS 0.75   /* smallest / largest principal spread: a person ~0.2-0.5, a cube 1 */
 
 static double extent(const float *p, int32_t n) {
@@ -68,8 +72,14 @@ static void spread(const float *p, int32_t n, double *smallest, double *largest)
   *smallest = sqrt(fmax(lo, 0)), *largest = sqrt(fmax(hi, 0));
 }
 
+/* Median of d[0..n) (a sorted copy). */
+static int cmp_f(const void *a, const void *b) {
+  float x = *(const float *)a, y = *(const float *)b;
+  return (x > y) - (x < y);
+}
+
 spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, const float *reg_m, int32_t nv,
-                                double median_m) {
+                                const float *dist, int stages) {
   /* a person's scan is many points and flat across one axis compared with its height (standing,
    * T- or A-pose, one view or all round); a few points, or a blob as thick as it is tall, is not
    * one, and a body fitted to it would be an invention */
@@ -85,8 +95,23 @@ spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, c
   if (!(er > 0.5 * es && er < 2 * es))
     return spx_fail(ctx, SPX_E_NUMERIC, "registration failed: the fitted body is %.4g m across, the scan %.4g m "
                     "(degenerate fit)", er, es);
+  float *d = spx_alloc_array(ctx, (size_t)ns, sizeof(float), "registration check");
+  if (!d) return SPX_E_NOMEM;
+  memcpy(d, dist, (size_t)ns * sizeof(float));
+  qsort(d, (size_t)ns, sizeof(float), cmp_f);
+  double median_m = d[ns / 2];
+  int32_t far = 0;
+  while (far < ns && d[ns - 1 - far] > FAR_M) far++;
+  free(d);
   if (!(median_m <= 0.05 * es))
     return spx_fail(ctx, SPX_E_NUMERIC, "registration failed: median scan-to-body distance %.1f mm is more than 5%% "
                     "of the scan's %.3g m extent", median_m * 1e3, es);
+  /* the body explains the scan: where a fit that posed the body leaves much of it far away, that
+   * part is something else (a floor, a wall, another object) which no body reaches, and the fit was
+   * pulled towards it (a rigid-only fit keeps the model's pose: its distances say nothing of that) */
+  if ((stages & SPX_FIT_POSE) && far > MAX_FAR_SHARE * ns)
+    return spx_fail(ctx, SPX_E_NUMERIC, "registration failed: %.0f%% of the scan's points are more than %.0f cm from "
+                    "the fitted body (at most %.0f%% may be): much of the input is not one person (a floor, walls, "
+                    "other objects?)", 100.0 * far / ns, FAR_M * 100, MAX_FAR_SHARE * 100);
   return SPX_OK;
 }

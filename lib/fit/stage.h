@@ -8,6 +8,8 @@
  *   lib/fit/stage_common.c the tail every stage shares: two-way nearest neighbours, one Ceres
  *                          solve from a stage's residual setup, measure + report of a step
  *   lib/fit/sample.c       the deterministic RNG and subsampling
+ *   lib/fit/extend.c       a per-vertex field continued over a mesh (the free stage's offsets)
+ *   lib/fit/freespace.c    the cameras' silhouettes: no body where a camera saw past it
  * 3x3 math is lib/body/rot3.h. The residual callbacks and their user data are declared here so
  * that tests/test_fit_bridge.c can check every analytic Jacobian against central differences. */
 #ifndef SPX_FIT_STAGE_H
@@ -93,13 +95,32 @@ typedef struct spx_fit_zgrid {
   double a0, b0, px;       /* image-plane origin and pixel size (tangent units) */
   int32_t W, H;
   float *z;                /* W*H nearest camera depth, INFINITY where no scan point fell */
+  int32_t *near;           /* W*H nearest silhouette pixel (spx_fit_zgrid_silhouette), or NULL */
 } spx_fit_zgrid;
-spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q, int32_t nq, spx_fit_zgrid *g);
+/* Of the points of Q that camera `cam` saw (qv[i] == cam; qv NULL: all of them). */
+spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q, int32_t nq, const int32_t *qv,
+                               int32_t cam, spx_fit_zgrid *g);
 void spx_fit_zgrid_free(spx_fit_zgrid *g);
-/* seen[j] = 1 when model vertex j (V, normals N) faces the eye and is not more than tol behind
- * the scanned depth around its pixel (3x3): the camera would have seen it. */
+/* seen[j] |= 1 when model vertex j (V, normals N) faces the grid's eye and is not more than tol
+ * behind the scanned depth around its pixel (3x3): that camera would have seen it. */
 void spx_fit_visibility(const spx_fit_zgrid *g, const float *V, const double *N, int32_t nv, double tol,
                         unsigned char *seen);
+
+/* ---------- free space (freespace.c) ---------- */
+
+/* g->near: for each grid pixel, the nearest pixel of the camera's silhouette (the pixels holding
+ * scan points, closed over the gaps between samples), -1 when there is none. */
+spx_status spx_fit_zgrid_silhouette(spx_ctx *ctx, spx_fit_zgrid *g);
+/* 1 when model point x projects outside g's silhouette; q: x moved, at its depth, onto the ray of
+ * the nearest silhouette pixel. */
+int spx_fit_outside_silhouette(const spx_fit_zgrid *g, const double x[3], double q[3]);
+
+/* ---------- continuing a field over a mesh (extend.c) ---------- */
+
+/* f's entries where known[i] == 0 replaced by the screened-harmonic extension of the known ones
+ * over the vertex graph nb (eps > 0: decay; at most maxit conjugate-gradient steps). */
+spx_status spx_fit_harmonic_fill(spx_ctx *ctx, const spx_adj *nb, const unsigned char *known, double eps, int maxit,
+                                 double *f);
 
 /* ---------- the working set of the pose and free stages (owned by the driver) ---------- */
 
@@ -108,6 +129,7 @@ typedef struct spx_fit_work {
   int32_t nq;
   float *Qf;  /* scan subsample in model frame (free stage) */
   int32_t nqf;
+  int32_t *Qfv; /* the camera of each point of Qf (several cameras; else NULL) */
   float *Vf;  /* current model vertices, float */
   double *N;  /* normals */
   int32_t *idx; /* per scan point: nearest model vertex */
@@ -124,11 +146,32 @@ typedef struct spx_fit_work {
   spx_fit_free_pair *fp;
   spx_fit_lap *lp;
   spx_adj vf, nb;
-  int has_eye;     /* the scan is one camera's view: eye is its centre in the model frame */
-  double eye[3];
-  spx_fit_zgrid zg; /* of the running stage's scan sample (has_eye) */
-  unsigned char *seen; /* nv: spx_fit_visibility at the current step (has_eye) */
+  int32_t neye;     /* cameras that saw the scan (0: not known): their centres, model frame */
+  int cams_given;   /* the cameras came with the scan (not inferred from its shape) */
+  double *eyes;     /* neye*3 */
+  spx_fit_zgrid *zg; /* neye: one per camera, of the free stage's scan sample */
+  int free_space;   /* the grids have silhouettes (SPX_FIT_AID_FREESPACE with cameras given) */
+  unsigned char *seen; /* nv: seen by some camera at the current step (neye > 0) */
+  int32_t nfs;      /* free-space pairs of the current step: vertex fs_j[k] pulled to fs_q (direction fs_n) */
+  int32_t *fs_j;    /* nv */
+  double *fs_q, *fs_n; /* nv*3 */
 } spx_fit_work;
+
+/* Weight of the free-space pairs relative to the model → scan term (both area-weighted). */
+#define W_FREE_SPACE 1.0
+
+/* The free-space pairs of model vertices V (model frame, nv) against the cameras' silhouettes
+ * (none without w->free_space): idx, q, n receive vertex, target and unit direction. Returns their
+ * count. */
+int32_t spx_fit_free_space_pairs(const spx_fit_work *w, const float *V, int32_t nv, int32_t *idx, double *q,
+                                 double *n);
+
+/* The cameras of a scan (spx_fit_options' view / nviews), checked: eyes in scan metres. */
+typedef struct spx_fit_views {
+  int32_t n;          /* 0: none known */
+  double *eyes;       /* n*3, scan coordinates in metres (after the unit scale) */
+  const int32_t *of;  /* scan->nv: each point's camera, NULL: all camera 0 */
+} spx_fit_views;
 
 /* Whether model vertex j (normal w->N) may be pulled to its nearest scan point of Q
  * (w->idx_m[j]), whose own nearest model vertex is w->idx[w->idx_m[j]]: not when that scan point
@@ -188,9 +231,9 @@ spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fi
 
 /* ---------- the stages ---------- */
 
-/* Similarity model → scan into r->sim_*; Sc: the scan in metres (ns points). */
+/* Similarity model → scan into r->sim_*; Sc: the scan in metres (ns points); vw: its cameras. */
 spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, const float *Sc,
-                               int32_t ns, spx_fit_result *r);
+                               int32_t ns, const spx_fit_views *vw, spx_fit_result *r);
 /* Pose + shape: b's parameters, r->verts_pose (model frame, with the body scale). */
 spx_status spx_fit_stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
                               spx_fit_body *b, spx_fit_result *r);

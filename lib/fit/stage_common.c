@@ -2,6 +2,7 @@
  * solve from a stage's residual setup, and the outer loop of the pose and free stages (match,
  * solve, measure, report). */
 #include <stdlib.h>
+#include <string.h>
 
 #include "fit/stage.h"
 
@@ -50,7 +51,7 @@ spx_status spx_fit_solve(spx_ctx *ctx, const spx_fit_options *o, const spx_fit_s
 int spx_fit_m2s_ok(const spx_fit_work *w, int32_t j) {
   const double *n = w->N + (size_t)j * 3, *nk = w->N + (size_t)w->idx[w->idx_m[j]] * 3;
   if (n[0] * nk[0] + n[1] * nk[1] + n[2] * nk[2] < 0.3) return 0;
-  return !w->has_eye || w->seen[j];
+  return !w->neye || w->seen[j];
 }
 
 static double mean_of(const float *d, int32_t n) {
@@ -72,14 +73,15 @@ spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fi
   int32_t nv = m->nv;
   spx_kdtree *qt = NULL, *mt = NULL;
   spx_status st = spx_fit_kd_build(ctx, s->Q, s->nq, &qt);
-  if (!st && w->has_eye) st = spx_fit_zgrid_build(ctx, w->eye, s->Q, s->nq, &w->zg);
   for (int32_t step = 0; !st && step < s->steps; step++) {
     if (s->vertices && (st = s->vertices(ctx, s->solve.user))) break;
     to_float(s->V, nv * 3, w->Vf);
     spx_vertex_normals_d(s->V, nv, m->faces, m->nf, w->N);
     if ((st = spx_fit_match(ctx, o->threads, w->Vf, nv, s->Q, s->nq, qt, &mt, w->idx, w->d2, w->idx_m, w->d2_m)))
       break;
-    if (w->has_eye) spx_fit_visibility(&w->zg, w->Vf, w->N, nv, VIEW_TOL, w->seen);
+    if (w->neye) memset(w->seen, 0, (size_t)nv);
+    for (int32_t k = 0; k < w->neye; k++) spx_fit_visibility(&w->zg[k], w->Vf, w->N, nv, VIEW_TOL, w->seen);
+    w->nfs = 2 * step >= s->steps ? spx_fit_free_space_pairs(w, w->Vf, nv, w->fs_j, w->fs_q, w->fs_n) : 0;
     spx_ceres_summary sum;
     if ((st = spx_fit_solve(ctx, o, &s->solve, step, &sum))) break;
     /* progress: mean scan → surface distance at the new parameters */
@@ -95,6 +97,5 @@ spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fi
   if (!st) r->stage_seconds[s->slot] = spx_now() - t0;
   spx_kdtree_free(qt);
   spx_kdtree_free(mt);
-  spx_fit_zgrid_free(&w->zg);
   return st;
 }

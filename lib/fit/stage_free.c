@@ -1,7 +1,8 @@
 /* Stage 3 of the registration (SPX_FIT_FREE): every vertex free, coupled to the posed model
- * (coupling weight annealed from w_couple_start to w_couple_end), with a uniform-Laplacian
- * regulariser that keeps each vertex's Laplacian close to the posed model's, and the pose stage's
- * data terms (both along the normal). */
+ * (coupling weight annealed from w_couple_start to w_couple_end; where no scan point supports a
+ * vertex, to the posed model moved by the continued offset of the supported ones), with a
+ * uniform-Laplacian regulariser that keeps each vertex's Laplacian close to the posed model's, and
+ * the pose stage's data terms (both along the normal). */
 #include <math.h>
 #include <stdlib.h>
 
@@ -42,15 +43,17 @@ int spx_fit_lap_cost(void *user, const double *const *par, double *res, double *
 
 
 /* Support of vertex j by the scan: 1 within 2 cm of a scan point, falling to 0 at 5 cm; 0 with a
- * view when the camera would not have seen j (w->seen). Unsupported vertices (holes, the side the camera did
- * not see) keep the posed model's surface: their coupling weight is W_UNSUPPORTED instead of the
+ * view when no camera would have seen j (w->seen). */
+static double support(const spx_fit_work *w, int32_t j) {
+  double d = sqrt(w->d2_m[j]), s = !w->neye || w->seen[j] ? (0.05 - d) / 0.03 : 0.0;
+  return s < 0 ? 0 : s > 1 ? 1 : s;
+}
+
+/* Unsupported vertices (holes, the side no camera saw) keep the posed model's surface moved by the
+ * continued offset (continue_offsets): their coupling weight is W_UNSUPPORTED instead of the
  * annealed wc. Returns sqrt(weight / wc), the factor on the coupling residual. */
 #define W_UNSUPPORTED 1.0
-static double support_coupling(const spx_fit_work *w, int32_t j, double wc) {
-  double d = sqrt(w->d2_m[j]), s = !w->has_eye || w->seen[j] ? (0.05 - d) / 0.03 : 0.0;
-  s = s < 0 ? 0 : s > 1 ? 1 : s;
-  return sqrt((s * wc + (1 - s) * W_UNSUPPORTED) / wc);
-}
+static double support_coupling(double s, double wc) { return sqrt((s * wc + (1 - s) * W_UNSUPPORTED) / wc); }
 
 /* One free step's problem over the vertices X (the parameters). */
 typedef struct free_stage {
@@ -58,10 +61,39 @@ typedef struct free_stage {
   spx_fit_work *w;
   int32_t nv, steps;
   double *X;        /* nv*3 vertices: the parameter blocks */
-  const double *Vp; /* the posed model (coupling target) */
+  const double *Vp; /* the posed model */
+  double *Np;       /* nv*3 its normals */
+  double *tgt;      /* nv*3 coupling targets: Vp, moved along Np by the continued offset where unsupported */
+  double *off;      /* nv offsets along Np */
+  unsigned char *known; /* nv */
   int *sizes;       /* maxdeg+1 threes */
   double **blocks;  /* maxdeg+1 */
 } free_stage;
+
+/* The seen side's offsets from the posed model (along its normals, where a vertex is supported)
+ * continued over the unsupported vertices by the screened-harmonic fill (extend.c), clamped to
+ * OFFSET_MAX; the coupling targets move with them. What the scan shows of how this person differs
+ * from the body model (clothes, a fuller figure) carries on around the side no camera saw instead
+ * of stopping at the silhouette. */
+#define OFFSET_MAX 0.05
+#define OFFSET_EPS 1e-4
+static spx_status continue_offsets(spx_ctx *ctx, free_stage *fs) {
+  const spx_fit_work *w = fs->w;
+  for (int32_t j = 0; j < fs->nv; j++) {
+    const double *x = fs->X + j * 3, *v = fs->Vp + j * 3, *n = fs->Np + j * 3;
+    fs->known[j] = support(w, j) >= 0.5;
+    fs->off[j] = fs->known[j] ? n[0] * (x[0] - v[0]) + n[1] * (x[1] - v[1]) + n[2] * (x[2] - v[2]) : 0;
+  }
+  spx_status st = !(fs->o->aids & SPX_FIT_AID_CONTINUE) ? SPX_OK
+                                                     : spx_fit_harmonic_fill(ctx, &w->nb, fs->known, OFFSET_EPS, 400,
+                                                                             fs->off);
+  for (int32_t j = 0; !st && j < fs->nv; j++) {
+    double s = support(w, j), o = (1 - s) * fmax(-OFFSET_MAX, fmin(OFFSET_MAX, fs->off[j]));
+    if (!(fs->o->aids & SPX_FIT_AID_CONTINUE)) o = 0;
+    for (int d = 0; d < 3; d++) fs->tgt[j * 3 + d] = fs->Vp[j * 3 + d] + o * fs->Np[j * 3 + d];
+  }
+  return st;
+}
 
 static spx_status free_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user, int32_t step) {
   free_stage *fs = user;
@@ -75,6 +107,8 @@ static spx_status free_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
   double thr = 0.03;
   double a1 = sqrt(1.0 / w->nqf), ac = sqrt(wc / nv), al = sqrt(o->w_lap / nv);
   int32_t np = 0;
+  spx_status st = continue_offsets(ctx, fs);
+  if (st) return st;
   for (int32_t i = 0; i < w->nqf; i++) {
     if (w->d2[i] > thr * thr) continue;
     spx_fit_free_pair *q = w->fp + np++;
@@ -83,6 +117,14 @@ static spx_status free_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
     for (int d = 0; d < 3; d++) q->q[d] = w->Qf[i * 3 + d], q->n[d] = w->N[j * 3 + d];
     double *blk = X + j * 3;
     if (spx_ceres_add_residual(pb, spx_fit_free_plane_cost, q, 1, 1, sizes, &blk, SPX_LOSS_HUBER, a1 * o->robust_m * 0.5))
+      return spx_fit_ceres_error(ctx, "free");
+  }
+  for (int32_t k = 0; k < w->nfs; k++) { /* free space (freespace.c), as in the pose stage */
+    spx_fit_free_pair *q = w->fp + np++;
+    double *blk = X + w->fs_j[k] * 3;
+    q->a = sqrt(W_FREE_SPACE * w->area[w->fs_j[k]]);
+    for (int d = 0; d < 3; d++) q->q[d] = w->fs_q[k * 3 + d], q->n[d] = w->fs_n[k * 3 + d];
+    if (spx_ceres_add_residual(pb, spx_fit_free_plane_cost, q, 1, 1, sizes, &blk, SPX_LOSS_HUBER, q->a * o->robust_m))
       return spx_fit_ceres_error(ctx, "free");
   }
   for (int32_t j = 0; j < nv; j++) {
@@ -97,8 +139,8 @@ static spx_status free_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
         return spx_fit_ceres_error(ctx, "free");
     }
     spx_fit_free_pair *c = w->fp + np++;
-    c->a = ac * support_coupling(w, j, wc);
-    for (int d = 0; d < 3; d++) c->q[d] = fs->Vp[j * 3 + d];
+    c->a = ac * support_coupling(support(w, j), wc);
+    for (int d = 0; d < 3; d++) c->q[d] = fs->tgt[j * 3 + d];
     if (spx_ceres_add_residual(pb, spx_fit_free_point_cost, c, 3, 1, sizes, &blk, SPX_LOSS_NONE, 0))
       return spx_fit_ceres_error(ctx, "free");
     spx_fit_lap *l = w->lp + j;
@@ -124,11 +166,14 @@ spx_status spx_fit_stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_f
   }
   int *sizes = spx_alloc_array(ctx, (size_t)maxdeg + 1, sizeof(int), "free stage");
   double **blocks = spx_alloc_array(ctx, (size_t)maxdeg + 1, sizeof(double *), "free stage");
+  double *Np = spx_alloc_array(ctx, (size_t)nv, 7 * sizeof(double), "free stage");
+  unsigned char *known = spx_alloc_array(ctx, (size_t)nv, 1, "free stage");
   spx_status st = SPX_OK;
-  if (!sizes || !blocks) {
+  if (!sizes || !blocks || !Np || !known) {
     st = SPX_E_NOMEM;
     goto cleanup;
   }
+  spx_vertex_normals_d(Vp, nv, m->faces, m->nf, Np);
   for (int32_t k = 0; k <= maxdeg; k++) sizes[k] = 3;
   for (int32_t i = 0; i < nv; i++) {
     spx_fit_lap *l = w->lp + i;
@@ -139,13 +184,14 @@ spx_status spx_fit_stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_f
       l->target[d] = l->deg ? Vp[i * 3 + d] - s / l->deg : 0;
     }
   }
-  free_stage fs = {o, w, nv, o->free_steps > 0 ? o->free_steps : 1, X, Vp, sizes, blocks};
+  free_stage fs = {o, w, nv, o->free_steps > 0 ? o->free_steps : 1, X, Vp, Np, Np + 3 * (size_t)nv,
+                   Np + 6 * (size_t)nv, known, sizes, blocks};
   spx_fit_stage s = {"free", 2, fs.steps, w->Qf, w->nqf, X, NULL,
                      {"free", free_residuals, &fs, NULL, NULL, NULL,
                       o->free_inner_iterations > 0 ? o->free_inner_iterations : o->inner_iterations,
                       SPX_LS_SPARSE_NORMAL_CHOLESKY}};
   st = spx_fit_run_stage(ctx, m, o, w, &s, r);
 cleanup:
-  free(sizes), free(blocks);
+  free(sizes), free(blocks), free(Np), free(known);
   return st;
 }

@@ -96,22 +96,32 @@ int spx_fit_scale_prior_cost(void *user, const double *const *par, double *res, 
 }
 
 
-/* Soft joint limits (radians per axis-angle component): trunk, neck, head, clavicle and hip
- * helper joints bend little; limbs, hands and feet up to 1.6. Names of the cmu_mb rig and SMPL. */
+/* Soft joint limits (radians per axis-angle component): trunk, clavicle and hip helper joints bend
+ * little (0.7), limbs, hands and feet up to 1.6; the joints of the neck and head share one budget
+ * of NECK_CHAIN (a head turned ~70 degrees), however many the rig has (SMPL two, the default body's
+ * cmu_mb rig three): with 0.7 each, a head seen from the front could twist round by 70 degrees and
+ * more at no cost, matching a nearly round head about as well. Names of the cmu_mb rig and SMPL. */
+#define NECK_CHAIN 1.2
+static int named(const char *n, const char *part) {
+  size_t L = strlen(part);
+  for (const char *c = n; n && *c; c++)
+    if (!strncasecmp(c, part, L)) return 1;
+  return 0;
+}
 static void joint_limits(const spx_body_model *m, double *lim) {
-  static const char *stiff[] = {"spine", "back", "neck", "head", "collar", "hipjoint", "pelvis", "jaw"};
+  static const char *stiff[] = {"spine", "back", "collar", "hipjoint", "pelvis", "jaw"};
+  int32_t nneck = 0;
+  for (int32_t k = 0; m->joint_names && k < m->nj; k++)
+    nneck += named(m->joint_names[k], "neck") || named(m->joint_names[k], "head");
   for (int32_t k = 0; k < m->nj; k++) {
     double l = 1.6;
     const char *n = m->joint_names ? m->joint_names[k] : NULL;
-    for (size_t q = 0; n && q < sizeof stiff / sizeof stiff[0]; q++) {
-      size_t L = strlen(stiff[q]);
-      for (const char *c = n; *c; c++)
-        if (!strncasecmp(c, stiff[q], L)) l = 0.7;
-    }
+    for (size_t q = 0; n && q < sizeof stiff / sizeof stiff[0]; q++)
+      if (named(n, stiff[q])) l = 0.7;
+    if (n && (named(n, "neck") || named(n, "head"))) l = NECK_CHAIN / nneck;
     for (int d = 0; d < 3; d++) lim[k * 3 + d] = l;
   }
 }
-
 
 /* One pose step's problem: the data pairs matched by the stage loop, then the priors. */
 typedef struct pose_stage {
@@ -167,6 +177,17 @@ static spx_status pose_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
     for (int d = 0; d < 3; d++) q->q[d] = w->Q[w->idx_m[j] * 3 + d], q->n[d] = w->N[j * 3 + d];
     /* point-to-plane (model normal): converges much faster than point-to-point */
     if (spx_ceres_add_residual(pb, spx_fit_body_plane_cost, q, 1, nblk, sizes, blocks, SPX_LOSS_CAUCHY, a2 * 2 * robust))
+      return spx_fit_ceres_error(ctx, "pose");
+  }
+  /* free space: vertices outside a camera's silhouette, towards it (area-weighted like the
+   * model → scan term over the whole model) */
+  for (int32_t k = 0; k < w->nfs; k++) {
+    int32_t j = w->fs_j[k];
+    spx_fit_body_pair *q = w->bp + np++;
+    double a = sqrt(W_FREE_SPACE * w->area[j]);
+    q->b = b, q->j = j, q->a = a;
+    for (int d = 0; d < 3; d++) q->q[d] = w->fs_q[k * 3 + d], q->n[d] = w->fs_n[k * 3 + d];
+    if (spx_ceres_add_residual(pb, spx_fit_body_plane_cost, q, 1, nblk, sizes, blocks, SPX_LOSS_HUBER, a * robust))
       return spx_fit_ceres_error(ctx, "pose");
   }
   /* priors: the pose prior is annealed from 10x down to 1x */

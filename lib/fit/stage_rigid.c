@@ -4,6 +4,7 @@
  * one turned about its up axis) are refined and the best of those (two-way mean nearest-point
  * distance over the pairs that count) is kept. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -88,22 +89,26 @@ static spx_status icp_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user,
 }
 
 /* Which model → scan pairs count (ok_m): not those whose scan point's own nearest model point
- * faces another way (the far side of the body), nor, with a camera (eye, scan frame), model points
- * facing away from it. Xn: the model points' normals in the scan frame. */
+ * faces another way (the far side of the body), nor, with cameras (vw, scan frame), model points
+ * facing away from every one. Xn: the model points' normals in the scan frame. */
 static void pair_filter(const float *X, const double *Xn, int32_t nm, const int32_t *i_s2m, const int32_t *i_m2s,
-                        const double *eye, unsigned char *ok_m) {
+                        const spx_fit_views *vw, unsigned char *ok_m) {
   for (int32_t j = 0; j < nm; j++) {
     const double *n = Xn + j * 3, *nk = Xn + i_s2m[i_m2s[j]] * 3;
     ok_m[j] = n[0] * nk[0] + n[1] * nk[1] + n[2] * nk[2] >= 0.3;
-    if (eye && n[0] * (eye[0] - X[j * 3]) + n[1] * (eye[1] - X[j * 3 + 1]) + n[2] * (eye[2] - X[j * 3 + 2]) <= 0)
-      ok_m[j] = 0;
+    int faces = !vw->n;
+    for (int32_t k = 0; k < vw->n && !faces; k++) {
+      const double *e = vw->eyes + k * 3;
+      faces = n[0] * (e[0] - X[j * 3]) + n[1] * (e[1] - X[j * 3 + 1]) + n[2] * (e[2] - X[j * 3 + 2]) > 0;
+    }
+    ok_m[j] &= faces;
   }
 }
 
 /* ICP from a candidate orientation. Y, Yn: nm centred model points and their normals, S: ns scan
- * points (with kd tree); eye: the camera of a single-view scan (scan frame) or NULL. */
+ * points (with kd tree); vw: the cameras that saw the scan (scan frame). */
 static spx_status rigid_icp(spx_ctx *ctx, const spx_fit_options *o, const double *Y, const double *Yn, int32_t nm,
-                            const float *S, int32_t ns, const spx_kdtree *scan_tree, const double *eye, int rounds,
+                            const float *S, int32_t ns, const spx_kdtree *scan_tree, const spx_fit_views *vw, int rounds,
                             int iters, int free_scale, rigid_state *st_io) {
   spx_status st = SPX_OK;
   double *Z = spx_alloc_array(ctx, (size_t)nm * 3, sizeof(double), "rigid");
@@ -134,7 +139,7 @@ static spx_status rigid_icp(spx_ctx *ctx, const spx_fit_options *o, const double
       spx_rot3_apply(R, Zn + j * 3, Xn + j * 3);
     }
     if ((st = spx_fit_match(ctx, o->threads, X, nm, S, ns, scan_tree, &mt, i_s2m, d_s2m, i_m2s, d_m2s))) goto cleanup;
-    pair_filter(X, Xn, nm, i_s2m, i_m2s, eye, ok_m);
+    pair_filter(X, Xn, nm, i_s2m, i_m2s, vw, ok_m);
     /* score: two-way mean distance over the pairs that count; with fewer than a quarter of the
      * model's points paired, the missing ones count at the worst paired distance */
     double m1 = 0, m2 = 0, worst = 0;
@@ -158,7 +163,7 @@ cleanup:
 #define RIGID_MAXCAND 64
 
 spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, const float *Sc,
-                               int32_t ns, spx_fit_result *r) {
+                               int32_t ns, const spx_fit_views *vw, spx_fit_result *r) {
   double t0 = spx_now();
   spx_status st = SPX_OK;
   int32_t nsub = 0, *sidx = spx_fit_subsample(ctx, ns, o->max_points_rigid, o->seed, &nsub);
@@ -197,11 +202,6 @@ spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_
   spx_vertex_normals_d(Vt, m->nv, m->faces, m->nf, Nt);
   for (int32_t j = 0; j < nm; j++)
     for (int d = 0; d < 3; d++) Y[j * 3 + d] = m->v_template[midx[j] * 3 + d] - cm[d], Yn[j * 3 + d] = Nt[midx[j] * 3 + d];
-  double eye_s[3], *eye = NULL;
-  if (o->view) {
-    for (int d = 0; d < 3; d++) eye_s[d] = o->view_eye[d] * r->unit_scale;
-    eye = eye_s;
-  }
   if ((st = spx_fit_kd_build(ctx, S, nsub, &stree))) goto cleanup;
 
   /* candidate orientations: 6 axis-aligned ups x 8 headings, plus principal axes */
@@ -234,7 +234,7 @@ spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_
     int32_t nq = nsub / 4 > 50 ? nsub / 4 : nsub, mq = nm / 4 > 50 ? nm / 4 : nm;
     spx_kdtree *qt = NULL;
     if ((st = spx_fit_kd_build(ctx, S, nq, &qt))) goto cleanup;
-    st = rigid_icp(ctx, o, Y, Yn, mq, S, nq, qt, eye, 2, 6, 0, &cand[c]);
+    st = rigid_icp(ctx, o, Y, Yn, mq, S, nq, qt, vw, 2, 6, 0, &cand[c]);
     spx_kdtree_free(qt);
     if (st) goto cleanup;
   }
@@ -245,18 +245,22 @@ spx_status spx_fit_stage_rigid(spx_ctx *ctx, const spx_body_model *m, const spx_
       if (cand[c].score < cand[best].score) best = c;
     rigid_state tmp = cand[k];
     cand[k] = cand[best], cand[best] = tmp;
-    if ((st = rigid_icp(ctx, o, Y, Yn, nm, S, nsub, stree, eye, 5, 15, 1, &cand[k]))) goto cleanup;
+    if ((st = rigid_icp(ctx, o, Y, Yn, nm, S, nsub, stree, vw, 5, 15, 1, &cand[k]))) goto cleanup;
   }
   int best = 0;
   for (int k = 1; k < 3 && k < nc; k++)
     if (cand[k].score < cand[best].score) best = k;
   /* one camera's view: the best turned about the model's up axis is refined too (seen from one
    * side, a person's front and back are alike at this coarse level) */
-  if (eye) {
+  if (vw->n == 1) {
     rigid_state *flip = &cand[nc];
     *flip = cand[best];
     for (int i = 0; i < 3; i++) flip->Rc[i * 3] = -cand[best].Rc[i * 3], flip->Rc[i * 3 + 2] = -cand[best].Rc[i * 3 + 2];
-    if ((st = rigid_icp(ctx, o, Y, Yn, nm, S, nsub, stree, eye, 5, 15, 1, flip))) goto cleanup;
+    if ((st = rigid_icp(ctx, o, Y, Yn, nm, S, nsub, stree, vw, 5, 15, 1, flip))) goto cleanup;
+    char note[128];
+    snprintf(note, sizeof note, "seen from one camera: the best orientation scores %.2f mm, turned about its up "
+             "axis %.2f mm", cand[best].score * 1e3, flip->score * 1e3);
+    spx_fit_report(o, "rigid", 0, 0, 0, 0, t0, note);
     if (flip->score < cand[best].score) best = nc;
   }
   double Rw[9], R[9], Rcm[3];

@@ -23,14 +23,21 @@ static int64_t pixel_of(const spx_fit_zgrid *g, const double c[3]) {
   return (int64_t)b * g->W + (int64_t)a;
 }
 
-spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q, int32_t nq, spx_fit_zgrid *g) {
-  free(g->z);
+spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q, int32_t nq, const int32_t *qv,
+                               int32_t cam, spx_fit_zgrid *g) {
+  free(g->z), free(g->near);
   memset(g, 0, sizeof *g);
   memcpy(g->eye, eye, sizeof g->eye);
-  /* optical axis: from the eye to the scan's centroid; x, y any orthonormal completion */
+  /* optical axis: from the eye to the centroid of its points; x, y any orthonormal completion */
   double c[3] = {0, 0, 0}, z[3], x[3], y[3];
+  int32_t nmine = 0;
   for (int32_t i = 0; i < nq; i++)
-    for (int d = 0; d < 3; d++) c[d] += Q[i * 3 + d] / (double)nq;
+    if (!qv || qv[i] == cam) {
+      nmine++;
+      for (int d = 0; d < 3; d++) c[d] += Q[i * 3 + d];
+    }
+  if (!nmine) return spx_fail(ctx, SPX_E_ARG, "registration: camera %d of the scan saw none of its points", (int)cam);
+  for (int d = 0; d < 3; d++) c[d] /= nmine;
   for (int d = 0; d < 3; d++) z[d] = c[d] - eye[d];
   double nz = sqrt(z[0] * z[0] + z[1] * z[1] + z[2] * z[2]);
   if (!(nz > 0)) return spx_fail(ctx, SPX_E_ARG, "registration: the camera of the view is at the scan's centre");
@@ -45,6 +52,7 @@ spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q
   double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
   int32_t nin = 0;
   for (int32_t i = 0; i < nq; i++) {
+    if (qv && qv[i] != cam) continue;
     double p[3] = {Q[i * 3], Q[i * 3 + 1], Q[i * 3 + 2]}, q[3];
     cam_coords(g, p, q);
     if (!(q[2] > 0)) continue;
@@ -62,6 +70,7 @@ spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q
   if (!g->z) return SPX_E_NOMEM;
   for (size_t p = 0; p < (size_t)g->W * g->H; p++) g->z[p] = INFINITY;
   for (int32_t i = 0; i < nq; i++) {
+    if (qv && qv[i] != cam) continue;
     double p[3] = {Q[i * 3], Q[i * 3 + 1], Q[i * 3 + 2]}, q[3];
     cam_coords(g, p, q);
     int64_t k = pixel_of(g, q);
@@ -71,7 +80,7 @@ spx_status spx_fit_zgrid_build(spx_ctx *ctx, const double eye[3], const float *Q
 }
 
 void spx_fit_zgrid_free(spx_fit_zgrid *g) {
-  free(g->z);
+  free(g->z), free(g->near);
   memset(g, 0, sizeof *g);
 }
 
@@ -80,18 +89,19 @@ void spx_fit_visibility(const spx_fit_zgrid *g, const float *V, const double *N,
   for (int32_t j = 0; j < nv; j++) {
     double p[3] = {V[j * 3], V[j * 3 + 1], V[j * 3 + 2]}, c[3];
     const double *n = N + (size_t)j * 3;
-    seen[j] = 0;
-    if (n[0] * (g->eye[0] - p[0]) + n[1] * (g->eye[1] - p[1]) + n[2] * (g->eye[2] - p[2]) <= 0) continue;
+    if (seen[j] || n[0] * (g->eye[0] - p[0]) + n[1] * (g->eye[1] - p[1]) + n[2] * (g->eye[2] - p[2]) <= 0) continue;
     cam_coords(g, p, c);
     int64_t k = pixel_of(g, c);
-    seen[j] = 1;
-    if (k < 0) continue;
+    if (k < 0) {
+      seen[j] = 1;
+      continue;
+    }
     /* nearest scanned depth around the pixel (3x3: the grid has gaps between points) */
     int32_t a = (int32_t)(k % g->W), b = (int32_t)(k / g->W);
     float zmin = INFINITY;
     for (int32_t bb = b - 1; bb <= b + 1; bb++)
       for (int32_t aa = a - 1; aa <= a + 1; aa++)
         if (aa >= 0 && bb >= 0 && aa < g->W && bb < g->H) zmin = fminf(zmin, g->z[(size_t)bb * g->W + aa]);
-    if (c[2] > zmin + tol) seen[j] = 0; /* behind scanned surface */
+    seen[j] = c[2] <= zmin + tol; /* not behind scanned surface */
   }
 }

@@ -23,6 +23,7 @@
 
 #include "core/internal.h"
 #include "io/exr_internal.h"
+#include "smplpix/files.h"
 
 #define EXR_MAX_FILE ((size_t)1 << 34)
 
@@ -65,12 +66,13 @@ static int64_t exr_mem_size(exr_const_context_t c, void *ud) {
   return (int64_t)((const exr_mem_src *)ud)->size;
 }
 
-static int exr_channel_slot(const char *name) {
+/* Slot of a channel: R, G, B, Z -> 0-3; with y_is_z (a depth file without Z), Y -> 3. */
+static int exr_channel_slot(const char *name, int y_is_z) {
   if (!name) return -1;
   if (strcmp(name, "R") == 0) return 0;
   if (strcmp(name, "G") == 0) return 1;
   if (strcmp(name, "B") == 0) return 2;
-  if (strcmp(name, "Z") == 0) return 3;
+  if (strcmp(name, "Z") == 0 || (y_is_z && strcmp(name, "Y") == 0)) return 3;
   return -1;
 }
 
@@ -81,6 +83,7 @@ typedef struct {
   int64_t max_pixels;     /* caller's pixel cap, also bounds per-chunk memory */
   int64_t dw_w, dw_h;     /* data window size */
   int has_z;
+  int y_is_z;             /* depth read: the file's Y channel is its depth */
   exr_attr_box2i_t disp;  /* display window */
   float *buf;             /* one decoded chunk, `stride` floats per pixel */
   size_t bufcap;
@@ -109,7 +112,7 @@ static spx_status exr_decode_chunk(spx_ctx *ctx, exr_read_job *job, exr_context_
   job->first = 0;
   int extra = 0;
   for (int c = 0; c < dec->channel_count; c++) {
-    int slot = exr_channel_slot(dec->channels[c].channel_name);
+    int slot = exr_channel_slot(dec->channels[c].channel_name, job->y_is_z);
     if (slot < 0 || (slot == 3 && !job->has_z)) extra++;
   }
   size_t stride = 4 + (size_t)extra, pixels = (size_t)ci->width * (size_t)ci->height;
@@ -128,7 +131,7 @@ static spx_status exr_decode_chunk(spx_ctx *ctx, exr_read_job *job, exr_context_
   int next_extra = 4;
   for (int c = 0; c < dec->channel_count; c++) {
     exr_coding_channel_info_t *ch = &dec->channels[c];
-    int slot = exr_channel_slot(ch->channel_name);
+    int slot = exr_channel_slot(ch->channel_name, job->y_is_z);
     if (slot < 0 || (slot == 3 && !job->has_z)) slot = next_extra++;
     if (ch->width != ci->width || ch->height != ci->height)
       return spx_fail(ctx, SPX_E_FORMAT, "%s: channel %s has an unexpected size in chunk at y=%lld", name,
@@ -161,8 +164,65 @@ static spx_status exr_decode_chunk(spx_ctx *ctx, exr_read_job *job, exr_context_
 static int64_t exr_box_w(const exr_attr_box2i_t *b) { return (int64_t)b->max.x - (int64_t)b->min.x + 1; }
 static int64_t exr_box_h(const exr_attr_box2i_t *b) { return (int64_t)b->max.y - (int64_t)b->min.y + 1; }
 
-spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
-                            spx_image *out) {
+/* Every chunk of part 0 (scanline blocks or level-0 tiles) in file order. out == NULL: only their
+ * chunk information (their places in the file) is read and checked; else each is decoded into out. */
+static spx_status exr_chunks(spx_ctx *ctx, exr_read_job *job, exr_context_t e, exr_decode_pipeline_t *dec,
+                             exr_storage_t storage, const exr_attr_box2i_t *dw, spx_image *out) {
+  const char *name = job->name;
+  exr_result_t rv;
+  exr_chunk_info_t ci;
+  if (storage == EXR_STORAGE_SCANLINE) {
+    int32_t lpc = 0;
+    if (exr_get_scanlines_per_chunk(e, 0, &lpc) != EXR_ERR_SUCCESS || lpc < 1)
+      return spx_fail(ctx, SPX_E_FORMAT, "%s: invalid scanlines per chunk", name);
+    for (int64_t y = dw->min.y; y <= dw->max.y; y += lpc) {
+      if ((rv = exr_read_scanline_chunk_info(e, 0, (int)y, &ci)) != EXR_ERR_SUCCESS)
+        return spx_fail(ctx, SPX_E_FORMAT, "%s: bad chunk at y=%lld: %s", name, (long long)y, exr_detail(rv));
+      spx_status st = out ? exr_decode_chunk(ctx, job, e, dec, &ci, dw->min.x, y, out) : SPX_OK;
+      if (st) return st;
+    }
+    return SPX_OK;
+  }
+  uint32_t tx_size = 0, ty_size = 0;
+  exr_tile_level_mode_t lm;
+  exr_tile_round_mode_t rm;
+  if (exr_get_tile_descriptor(e, 0, &tx_size, &ty_size, &lm, &rm) != EXR_ERR_SUCCESS || tx_size < 1 || ty_size < 1)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: invalid tile description", name);
+  int64_t ntx = (job->dw_w + (int64_t)tx_size - 1) / (int64_t)tx_size;
+  int64_t nty = (job->dw_h + (int64_t)ty_size - 1) / (int64_t)ty_size;
+  for (int64_t ty = 0; ty < nty; ty++)
+    for (int64_t tx = 0; tx < ntx; tx++) {
+      if ((rv = exr_read_tile_chunk_info(e, 0, (int)tx, (int)ty, 0, 0, &ci)) != EXR_ERR_SUCCESS)
+        return spx_fail(ctx, SPX_E_FORMAT, "%s: bad tile (%lld, %lld): %s", name, (long long)tx, (long long)ty,
+                        exr_detail(rv));
+      spx_status st = out ? exr_decode_chunk(ctx, job, e, dec, &ci, dw->min.x + tx * (int64_t)tx_size,
+                                             dw->min.y + ty * (int64_t)ty_size, out)
+                          : SPX_OK;
+      if (st) return st;
+    }
+  return SPX_OK;
+}
+
+/* Background (1, 1, 1, 1) on the display pixels outside the data window; the chunks write the
+ * rest, so the image's memory is touched only as the file's pixels are decoded. */
+static void exr_fill_background(spx_image *out, const exr_attr_box2i_t *disp, const exr_attr_box2i_t *dw) {
+  for (int64_t y = disp->min.y; y <= disp->max.y; y++) {
+    float *row = out->data + (size_t)(y - disp->min.y) * (size_t)out->width * 4;
+    int inside_y = y >= dw->min.y && y <= dw->max.y;
+    for (int64_t x = disp->min.x; x <= disp->max.x; x++) {
+      if (inside_y && x >= dw->min.x && x <= dw->max.x) {
+        x = dw->max.x; /* the data window's span of this row */
+        continue;
+      }
+      float *px = row + (size_t)(x - disp->min.x) * 4;
+      px[0] = px[1] = px[2] = px[3] = 1.0f;
+    }
+  }
+}
+
+/* depth: the depth read (spx_exr_read_depth_mem), else the RGB(-Z) read. */
+static spx_status exr_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
+                               int depth, spx_image *out) {
   if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_exr_read: out is NULL");
   memset(out, 0, sizeof *out);
   if (!name) name = "<memory>";
@@ -216,13 +276,21 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
   char have[128];
   size_t hl = 0;
   have[0] = 0;
+  if (depth) { /* a depth file without Z: its Y channel (one-channel float images, e.g. OpenCV's) */
+    int z = 0, y = 0;
+    for (int c = 0; c < chl->num_channels; c++) {
+      const char *cn = chl->entries[c].name.str ? chl->entries[c].name.str : "";
+      z |= !strcmp(cn, "Z"), y |= !strcmp(cn, "Y");
+    }
+    job.y_is_z = !z && y;
+  }
   for (int c = 0; c < chl->num_channels; c++) {
     const exr_attr_chlist_entry_t *en = &chl->entries[c];
     const char *cn = en->name.str ? en->name.str : "";
     if (hl < sizeof have - 1)
       hl += (size_t)snprintf(have + hl, sizeof have - hl, "%s%.16s", c ? "," : "", cn);
     if (hl > sizeof have - 1) hl = sizeof have - 1;
-    int slot = exr_channel_slot(cn);
+    int slot = exr_channel_slot(cn, job.y_is_z);
     if (slot < 0) continue;
     if (en->x_sampling != 1 || en->y_sampling != 1) {
       st = spx_fail(ctx, SPX_E_FORMAT, "%s: channel %s is subsampled, which is not supported", name, cn);
@@ -234,8 +302,9 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
     }
     found[slot] = 1;
   }
-  if (!found[0] || !found[1] || !found[2]) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: needs channels R, G, B (file has: %s)", name, have[0] ? have : "none");
+  if (depth ? !found[3] : !found[0] || !found[1] || !found[2]) {
+    st = spx_fail(ctx, SPX_E_FORMAT, "%s: needs %s (file has: %s)", name,
+                  depth ? "a Z (depth) channel, or a Y channel" : "channels R, G, B", have[0] ? have : "none");
     goto done;
   }
   exr_attr_box2i_t disp, dw;
@@ -259,57 +328,24 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
   job.dw_h = DH;
   job.has_z = found[3];
   job.disp = disp;
+  /* every chunk's place in the file first: a header that claims more pixels than the file holds
+   * chunks for is refused before the image is allocated */
+  if ((st = exr_chunks(ctx, &job, e, &dec, storage, &dw, NULL))) goto done;
   st = spx_image_alloc(ctx, (int32_t)W, (int32_t)H, 4, out);
-  if (st != SPX_OK) goto done;
-  for (size_t i = 0, n = (size_t)W * (size_t)H * 4; i < n; i++) out->data[i] = 1.0f;
-  dec_used = 1;
-
-  if (storage == EXR_STORAGE_SCANLINE) {
-    int32_t lpc = 0;
-    if (exr_get_scanlines_per_chunk(e, 0, &lpc) != EXR_ERR_SUCCESS || lpc < 1) {
-      st = spx_fail(ctx, SPX_E_FORMAT, "%s: invalid scanlines per chunk", name);
-      goto done;
-    }
-    for (int64_t y = dw.min.y; y <= dw.max.y; y += lpc) {
-      exr_chunk_info_t ci;
-      rv = exr_read_scanline_chunk_info(e, 0, (int)y, &ci);
-      if (rv != EXR_ERR_SUCCESS) {
-        st = spx_fail(ctx, SPX_E_FORMAT, "%s: bad chunk at y=%lld: %s", name, (long long)y, exr_detail(rv));
-        goto done;
-      }
-      st = exr_decode_chunk(ctx, &job, e, &dec, &ci, dw.min.x, y, out);
-      if (st != SPX_OK) goto done;
-    }
-  } else {
-    uint32_t tx_size = 0, ty_size = 0;
-    exr_tile_level_mode_t lm;
-    exr_tile_round_mode_t rm;
-    if (exr_get_tile_descriptor(e, 0, &tx_size, &ty_size, &lm, &rm) != EXR_ERR_SUCCESS || tx_size < 1 ||
-        ty_size < 1) {
-      st = spx_fail(ctx, SPX_E_FORMAT, "%s: invalid tile description", name);
-      goto done;
-    }
-    int64_t ntx = (DW + (int64_t)tx_size - 1) / (int64_t)tx_size;
-    int64_t nty = (DH + (int64_t)ty_size - 1) / (int64_t)ty_size;
-    for (int64_t ty = 0; ty < nty; ty++)
-      for (int64_t tx = 0; tx < ntx; tx++) {
-        exr_chunk_info_t ci;
-        rv = exr_read_tile_chunk_info(e, 0, (int)tx, (int)ty, 0, 0, &ci);
-        if (rv != EXR_ERR_SUCCESS) {
-          st = spx_fail(ctx, SPX_E_FORMAT, "%s: bad tile (%lld, %lld): %s", name, (long long)tx, (long long)ty,
-                        exr_detail(rv));
-          goto done;
-        }
-        st = exr_decode_chunk(ctx, &job, e, &dec, &ci, dw.min.x + tx * (int64_t)tx_size,
-                              dw.min.y + ty * (int64_t)ty_size, out);
-        if (st != SPX_OK) goto done;
-      }
+  if (st != SPX_OK) {
+    st = spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate the %lldx%lld image (%.0f MB)", name, (long long)W,
+                  (long long)H, (double)W * (double)H * 16.0 / 1e6);
+    goto done;
   }
-  /* the same rule as every other image input: NaN and Inf are refused, never rendered */
+  exr_fill_background(out, &disp, &dw);
+  dec_used = 1;
+  if ((st = exr_chunks(ctx, &job, e, &dec, storage, &dw, out))) goto done;
+  /* the same rule as every other image input: NaN and Inf are refused, never rendered (but in a
+   * depth file's Z, where they are a sensor's "no data") */
   for (size_t i = 0, n = (size_t)out->width * (size_t)out->height * (size_t)out->channels; i < n; i++)
-    if (!isfinite(out->data[i])) {
+    if (!isfinite(out->data[i]) && !(depth && i % 4 == 3)) {
       size_t px = i / (size_t)out->channels;
-      st = spx_fail(ctx, SPX_E_NUMERIC, "%s: %s in channel %d at pixel (%zu, %zu)", name,
+      st = spx_fail(ctx, SPX_E_NUMERIC, "%s: %s in channel %d at pixel (%zu, %zu) (image values must be finite)", name,
                     isnan(out->data[i]) ? "NaN" : "Inf", (int)(i % (size_t)out->channels), px % (size_t)out->width,
                     px / (size_t)out->width);
       goto done;
@@ -323,6 +359,16 @@ done:
   free(job.buf);
   if (st != SPX_OK) spx_image_free(out);
   return st;
+}
+
+spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
+                            spx_image *out) {
+  return exr_read_mem(ctx, name, data, size, max_pixels, 0, out);
+}
+
+spx_status spx_exr_read_depth_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
+                                  spx_image *out) {
+  return exr_read_mem(ctx, name, data, size, max_pixels, 1, out);
 }
 
 spx_status spx_exr_read(spx_ctx *ctx, const char *path, spx_image *out) {
@@ -356,8 +402,11 @@ spx_status spx_exr_write(spx_ctx *ctx, const char *path, const spx_image *img) {
   exr_context_t e = NULL;
   exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
   int enc_used = 0, part = 0, chunks = 0;
+  spx_status chk = spx_file_check_writable(ctx, path);
+  if (chk) return chk;
   char *tmp = spx_temp_path_for(path);
   if (!tmp) return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", path);
+  spx_file_in_flight_add(tmp);
   exr_msg[0] = 0;
   const int C = img->channels, W = img->width, H = img->height;
 
@@ -397,7 +446,7 @@ spx_status spx_exr_write(spx_ctx *ctx, const char *path, const spx_image *img) {
     enc_used = 1;
     for (int c = 0; c < enc.channel_count; c++) {
       exr_coding_channel_info_t *ch = &enc.channels[c];
-      int slot = exr_channel_slot(ch->channel_name);
+      int slot = exr_channel_slot(ch->channel_name, 0);
       if (slot < 0 || slot >= C) {
         st = spx_fail(ctx, SPX_E_IO, "%s: unexpected channel in encoder", path);
         goto done;
@@ -431,6 +480,7 @@ done:
     exr_finish(&e);
   }
   if (st != SPX_OK) remove(tmp);
+  spx_file_in_flight_remove(tmp);
   free(tmp);
   return st;
 }

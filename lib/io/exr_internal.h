@@ -13,6 +13,11 @@
 spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
                             spx_image *out);
 
+/* The same for a depth image (lib/io/depth.c): the file needs a Z channel, or without one a Y
+ * channel (OpenCV writes one-channel images as Y) read as Z (R, G, B optional: 1 when missing); NaN and Inf in Z are kept (a sensor's
+ * "no data"), in R, G, B refused as always. */
+spx_status spx_exr_read_depth_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
+                                  spx_image *out);
 /* Test hook: when >= 0, spx_exr_write fails (SPX_E_IO, "simulated failure") after writing this
  * many chunks, to exercise the interrupted-write path. -1 (default) disables it. Not thread safe. */
 extern int spx_exr_test_fail_after_chunks;

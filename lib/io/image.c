@@ -15,9 +15,11 @@ spx_status spx_image_alloc(spx_ctx *ctx, int32_t width, int32_t height, int32_t 
   if (!spx_mul_size((size_t)width, (size_t)height, &n) || !spx_mul_size(n, (size_t)channels, &n))
     return spx_fail(ctx, SPX_E_ARG, "spx_image_alloc: size %dx%dx%d overflows", (int)width, (int)height,
                     (int)channels);
-  float *d = spx_alloc_array(ctx, n, sizeof(float), "image");
-  if (!d) return SPX_E_NOMEM;
-  memset(d, 0, n * sizeof(float));
+  /* calloc: zeroed, and a large image's pages are not touched before its pixels are written */
+  float *d = n <= SIZE_MAX / sizeof(float) ? calloc(n ? n : 1, sizeof(float)) : NULL;
+  if (!d)
+    return spx_fail(ctx, SPX_E_NOMEM, "image: cannot allocate %dx%dx%d floats (%zu MB)", (int)width, (int)height,
+                    (int)channels, n / (1u << 20) * sizeof(float));
   out->width = width;
   out->height = height;
   out->channels = channels;

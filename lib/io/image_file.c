@@ -1,4 +1,6 @@
 /* Image files by extension: one dispatch for .exr, .png and .npy (smplpix/image.h). */
+#include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "core/internal.h"
@@ -26,12 +28,12 @@ spx_status spx_image_write(spx_ctx *ctx, const char *path, const spx_image *img)
 
 spx_status spx_image_npy_values(spx_ctx *ctx, const char *path, const struct spx_array *a, float **out) {
   *out = NULL;
-  if (a->dtype == SPX_F16 || a->dtype == SPX_F32 || a->dtype == SPX_F64) return spx_array_to_f32(ctx, a, out);
-  if (a->dtype != SPX_U8)
+  if (a->dtype != SPX_U8 && a->dtype != SPX_F16 && a->dtype != SPX_F32 && a->dtype != SPX_F64)
     return spx_fail(ctx, SPX_E_FORMAT, "%s: %s image: integer images must be uint8 (read as value/255, like PNG) or "
                     "floating point", path, spx_dtype_name(a->dtype));
   spx_status st = spx_array_to_f32(ctx, a, out);
-  if (st) return st;
+  if (st) return spx_fail(ctx, st, "%s: %s", path, spx_ctx_message(ctx)); /* out of memory: name the file */
+  if (a->dtype != SPX_U8) return SPX_OK;
   size_t n = 1;
   for (int d = 0; d < a->ndim; d++) n *= (size_t)a->shape[d];
   for (size_t i = 0; i < n; i++) (*out)[i] /= 255.0f;
@@ -52,6 +54,16 @@ static spx_status read_npy(spx_ctx *ctx, const char *path, spx_image *img) {
                   (long long)a.shape[1], a.ndim == 3 ? "xC (C in 1..64)" : "");
   else
     st = spx_image_npy_values(ctx, path, &a, &f);
+  int C = a.ndim == 3 ? (int)a.shape[2] : 1;
+  for (size_t i = 0, n = st ? 0 : (size_t)a.shape[0] * (size_t)a.shape[1] * (size_t)C; i < n; i++)
+    if (!isfinite(f[i])) { /* as in every image input: refused, never used (a NaN mask is no mask) */
+      size_t px = i / (size_t)C;
+      st = spx_fail(ctx, SPX_E_NUMERIC, "%s: %s in channel %d at pixel (%zu, %zu) (image values must be finite)", path, isnan(f[i]) ? "NaN" : "Inf",
+                    (int)(i % (size_t)C), px % (size_t)a.shape[1], px / (size_t)a.shape[1]);
+      free(f);
+      f = NULL;
+      break;
+    }
   if (!st) {
     img->height = (int32_t)a.shape[0], img->width = (int32_t)a.shape[1];
     img->channels = a.ndim == 3 ? (int32_t)a.shape[2] : 1;

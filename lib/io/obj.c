@@ -2,7 +2,8 @@
  *
  * Reader: "v x y z [w]" or "v x y z r g b" (colors 0-1 or 0-255, decided per file: if any color
  * component is > 1 the whole file is taken as 0-255 and every component must then be an integer
- * in 0-255; a fraction beside a value > 1 is an error, as are negative values), "vn", "vt", "f" with v, v/vt, v//vn,
+ * in 0-255; a fraction beside a value > 1 is an error, as are negative values; colors are on every
+ * vertex or on none), "vn", "vt", "f" with v, v/vt, v//vn,
  * v/vt/vn corners and negative (relative) indices; polygons are fan-triangulated. Grouping,
  * material and other non-geometry statements are ignored; an unknown statement is an error
  * (it catches garbage and binary files). Normals: a face corner "v//n" assigns normal n to
@@ -133,6 +134,7 @@ spx_status spx_mesh_parse_obj(spx_ctx *ctx, const char *name, const void *data, 
   int any_vn_ref = 0, uv_mode = -1; /* -1 unknown, 0 faces without vt, 1 with vt */
   double cmax = 0, cfrac = 0;
   long cmax_line = 0, cfrac_line = 0; /* the largest colour, and the first one that is not an integer */
+  long col_line = 0, nocol_line = 0;   /* the first vertex with a colour, and the first without */
   for (char *p = buf; p < buf + size;) {
     char *e = memchr(p, '\n', (size_t)(buf + size - p));
     if (!e) e = buf + size;
@@ -160,11 +162,18 @@ spx_status spx_mesh_parse_obj(spx_ctx *ctx, const char *name, const void *data, 
         goto done;
       }
       for (int k = 0; k < 3; k++) m.pos[nv * 3 + k] = (float)vals[k];
+      if (n != 6 && !nocol_line) nocol_line = s.line;
+      if (n == 6 && !col_line) col_line = s.line;
+      if (col_line && nocol_line) { /* white for the others would be a guess */
+        st = spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: this vertex has %s color, but the vertex on line %ld %s (colors are on "
+                      "every vertex or on none)", name, s.line, n == 6 ? "a" : "no",
+                      n == 6 ? nocol_line : col_line, n == 6 ? "has none" : "has one");
+        goto done;
+      }
       if (n == 6) {
         if (!m.col) {
           m.col = spx_alloc_array(ctx, (size_t)cv, 3 * sizeof(float), name);
           if (!m.col) { st = SPX_E_NOMEM; goto done; }
-          for (int64_t i = 0; i < cv * 3; i++) m.col[i] = -1.0f;
         }
         for (int k = 0; k < 3; k++) {
           if (vals[3 + k] < 0) {
@@ -287,7 +296,7 @@ spx_status spx_mesh_parse_obj(spx_ctx *ctx, const char *name, const void *data, 
       goto done;
     }
     float sc = cmax > 1 ? 255.0f : 1.0f;
-    for (int64_t i = 0; i < nv * 3; i++) m.col[i] = m.col[i] < 0 ? 1.0f : m.col[i] / sc;
+    for (int64_t i = 0; i < nv * 3; i++) m.col[i] /= sc;
   }
   if (uv_mode == 1 && m.nf > 0) {
     m.nuv = (int32_t)nvt;

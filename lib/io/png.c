@@ -58,6 +58,7 @@ typedef struct {
   int channels, bit_depth;
   size_t rowbytes;
   const char *toolarge; /* set when the header is rejected by our own bounds */
+  int oom;              /* the pixels could not be allocated */
 } png_read_state;
 
 /* Everything that can longjmp lives here; resources are kept in *s so the caller frees them. */
@@ -72,6 +73,15 @@ static int png_read_inner(png_read_state *s) {
   png_get_IHDR(s->png, s->info, &w, &h, &depth, &ctype, &interlace, NULL, NULL);
   if ((int64_t)w * (int64_t)h > s->max_pixels) {
     s->toolarge = "image";
+    s->width = w;
+    s->height = h;
+    return 0;
+  }
+  /* the file's own rows (a filter byte each) compressed by deflate, which packs at most ~1032:1:
+   * a header that claims more pixels than the file's bytes can hold is refused before allocating */
+  double raw = ((double)png_get_rowbytes(s->png, s->info) + 1) * (double)h;
+  if (raw / 1032.0 > (double)s->src.size + 1024) {
+    s->toolarge = "file";
     s->width = w;
     s->height = h;
     return 0;
@@ -96,7 +106,10 @@ static int png_read_inner(png_read_state *s) {
   if (!spx_mul_size(s->rowbytes, h, &total)) png_error(s->png, "image too large");
   s->pixels = malloc(total ? total : 1);
   s->rows = malloc(sizeof *s->rows * (h ? h : 1));
-  if (!s->pixels || !s->rows) png_error(s->png, "out of memory");
+  if (!s->pixels || !s->rows) {
+    s->oom = 1;
+    png_error(s->png, "out of memory");
+  }
   for (uint32_t y = 0; y < h; y++) s->rows[y] = s->pixels + (size_t)y * s->rowbytes;
   png_read_image(s->png, s->rows);
   png_read_end(s->png, NULL);
@@ -124,15 +137,24 @@ spx_status spx_png_read_mem(spx_ctx *ctx, const char *name, const void *data, si
     goto done;
   }
   if (!png_read_inner(&s)) {
-    if (s.toolarge)
+    if (s.toolarge && !strcmp(s.toolarge, "file"))
+      st = spx_fail(ctx, SPX_E_FORMAT, "%s: %ux%u pixels cannot be in a file of %zu bytes (truncated or corrupt)", name,
+                    (unsigned)s.width, (unsigned)s.height, size);
+    else if (s.toolarge)
       st = spx_fail(ctx, SPX_E_FORMAT, "%s: %ux%u pixels is more than the %lld allowed", name, (unsigned)s.width,
                     (unsigned)s.height, (long long)max_pixels);
+    else if (s.oom)
+      st = spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate the %ux%u image (out of memory)", name, (unsigned)s.width,
+                    (unsigned)s.height);
     else
       st = spx_fail(ctx, SPX_E_FORMAT, "%s: invalid PNG: %s", name, s.err.msg[0] ? s.err.msg : "decode error");
     goto done;
   }
   st = spx_image_alloc(ctx, (int32_t)s.width, (int32_t)s.height, s.channels, out);
-  if (st != SPX_OK) goto done;
+  if (st != SPX_OK) {
+    st = spx_fail(ctx, st, "%s: %s", name, spx_ctx_message(ctx));
+    goto done;
+  }
   size_t n = (size_t)s.width * s.height * (size_t)s.channels;
   if (s.bit_depth == 8) {
     for (size_t i = 0; i < n; i++) out->data[i] = (float)s.pixels[i] / 255.0f;

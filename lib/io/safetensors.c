@@ -377,6 +377,19 @@ static char *st_raw_array(const uint64_t *v, int n) {
   return s;
 }
 
+/* The header is JSON, which the safetensors and PyTorch readers take only as valid UTF-8: a
+ * string that is not is refused (naming the byte), never written. */
+static spx_status st_utf8(spx_ctx *ctx, const char *path, const char *what, const char *v) {
+  for (const char *p = v; *p;) {
+    size_t k = spx_utf8_char(p);
+    if (!k)
+      return spx_fail(ctx, SPX_E_ARG, "%s: %s is not valid UTF-8 (byte 0x%02x at offset %zu), which a safetensors "
+                      "header must be", path, what, (unsigned)(unsigned char)*p, (size_t)(p - v));
+    p += k;
+  }
+  return SPX_OK;
+}
+
 spx_status spx_st_save(spx_ctx *ctx, const char *path, const spx_st_entry *entries, int count,
                        const char *const *meta_keys, const char *const *meta_values, int nmeta) {
   if (!path) return spx_fail(ctx, SPX_E_ARG, "spx_st_save: path is NULL");
@@ -408,6 +421,9 @@ spx_status spx_st_save(spx_ctx *ctx, const char *path, const spx_st_entry *entri
           st = spx_fail(ctx, SPX_E_ARG, "%s: duplicate metadata key \"%s\"", path, meta_keys[i]);
           goto done;
         }
+      if ((st = st_utf8(ctx, path, "metadata key", meta_keys[i])) ||
+          (st = st_utf8(ctx, path, "metadata value", meta_values[i])))
+        goto done;
       if (!cJSON_AddStringToObject(m, meta_keys[i], meta_values[i])) {
         st = spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", path);
         goto done;
@@ -422,6 +438,7 @@ spx_status spx_st_save(spx_ctx *ctx, const char *path, const spx_st_entry *entri
       st = spx_fail(ctx, SPX_E_ARG, "%s: tensor %d has an invalid name", path, i);
       goto done;
     }
+    if ((st = st_utf8(ctx, path, "tensor name", e->name))) goto done;
     for (int k = 0; k < i; k++)
       if (strcmp(entries[k].name, e->name) == 0) {
         st = spx_fail(ctx, SPX_E_ARG, "%s: duplicate tensor name \"%s\"", path, e->name);

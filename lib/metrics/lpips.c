@@ -288,7 +288,7 @@ spx_status spx_lpips_distance_masked(spx_lpips *lp, const spx_image *pred, const
     spx_tensor wt = spx_tensor_view(lp->wmem, lp->woff[l], layers[l].cout, layers[l].cin, layers[l].k, layers[l].k);
     spx_tensor bt = spx_tensor_view(lp->wmem, lp->boff[l], layers[l].cout, 1, 1, 1);
     spx_tensor y = spx_tensor_view(lp->act.mem, feat_off[l], 2, layers[l].cout, h[l], w[l]);
-    spx_conv2d_params p = {layers[l].k, layers[l].stride, layers[l].pad, NULL, NULL, 1, &lp->ws};
+    spx_conv2d_params p = {layers[l].k, layers[l].stride, layers[l].pad, NULL, NULL, 1, &lp->ws, {0, 0, 0}};
     if ((st = spx_conv2d_forward(ctx, &x, &wt, &bt, &p, &y))) goto done;
     size_t n = spx_tensor_numel(&y);
     if ((st = spx_cl_read(ctx, lp->act.mem, feat_off[l] * sizeof(float), n * sizeof(float), host))) goto done;

@@ -3,11 +3,20 @@
 
 #include "nn/nn_internal.h"
 
-static const spx_kernel_id fwd_kernels[] = {SPX_K_RELU_FWD, SPX_K_LEAKY_RELU_FWD, SPX_K_SIGMOID_FWD, SPX_K_TANH_FWD};
-static const spx_kernel_id bwd_kernels[] = {SPX_K_RELU_BWD, SPX_K_LEAKY_RELU_BWD, SPX_K_SIGMOID_BWD, SPX_K_TANH_BWD};
+#define FWD(ID, name, saves, f, df) SPX_K_##ID##_FWD,
+#define BWD(ID, name, saves, f, df) SPX_K_##ID##_BWD,
+#define NAME(ID, name, saves, f, df) name,
+static const spx_kernel_id fwd_kernels[] = {SPX_ACT_LIST(FWD)};
+static const spx_kernel_id bwd_kernels[] = {SPX_ACT_LIST(BWD)};
+static const char *const names[] = {SPX_ACT_LIST(NAME)};
+#undef FWD
+#undef BWD
+#undef NAME
+
+const char *spx_act_name(spx_act_kind k) { return k >= 0 && k < SPX_ACT_COUNT ? names[k] : "?"; }
 
 static spx_status check_kind(spx_ctx *ctx, spx_act_kind kind, float slope, const char *op) {
-  if (kind < SPX_ACT_RELU || kind > SPX_ACT_TANH) return spx_fail(ctx, SPX_E_ARG, "%s: unknown activation %d", op, (int)kind);
+  if (kind < 0 || kind >= SPX_ACT_COUNT) return spx_fail(ctx, SPX_E_ARG, "%s: unknown activation %d", op, (int)kind);
   if (kind == SPX_ACT_LEAKY_RELU && !isfinite(slope))
     return spx_fail(ctx, SPX_E_ARG, "%s: LeakyReLU slope is not finite", op);
   return SPX_OK;

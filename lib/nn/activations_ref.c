@@ -1,4 +1,5 @@
-/* Plain-C double references for kernels/activations.cl. */
+/* Plain-C double references for kernels/activations.cl: the f and df of each row of
+ * SPX_ACT_LIST (lib/nn/activations.h). */
 #include <math.h>
 
 #include "nn/activations.h"
@@ -7,10 +8,11 @@ void spx_ref_act_forward(spx_act_kind kind, double slope, const double *x, doubl
   for (size_t i = 0; i < n; i++) {
     double v = x[i];
     switch (kind) {
-    case SPX_ACT_RELU: y[i] = v > 0 ? v : 0; break;
-    case SPX_ACT_LEAKY_RELU: y[i] = v > 0 ? v : v * slope; break;
-    case SPX_ACT_SIGMOID: y[i] = 1.0 / (1.0 + exp(-v)); break;
-    default: y[i] = tanh(v); break;
+#define F(ID, name, saves, f, df) \
+  case SPX_ACT_##ID: y[i] = (f); break;
+      SPX_ACT_LIST(F)
+#undef F
+    default: y[i] = NAN; break;
     }
   }
 }
@@ -19,10 +21,11 @@ void spx_ref_act_backward(spx_act_kind kind, double slope, const double *s, cons
   for (size_t i = 0; i < n; i++) {
     double v = s[i], g = dy[i];
     switch (kind) {
-    case SPX_ACT_RELU: dx[i] += v > 0 ? g : 0; break;
-    case SPX_ACT_LEAKY_RELU: dx[i] += v > 0 ? g : g * slope; break;
-    case SPX_ACT_SIGMOID: dx[i] += g * (1 - v) * v; break;
-    default: dx[i] += g * (1 - v * v); break;
+#define DF(ID, name, saves, f, df) \
+  case SPX_ACT_##ID: dx[i] += (df); break;
+      SPX_ACT_LIST(DF)
+#undef DF
+    default: dx[i] = NAN; break;
     }
   }
 }

@@ -147,7 +147,7 @@ static spx_status sync_part(spx_ctx *ctx, const spx_tensor *x, const spx_tensor 
   spx_status st;
   if ((st = spx_cl_kernel(ctx, SPX_K_BN_SYNC_PART, &k))) return st;
   cl_int hw = x->h * x->w, mo = (cl_int)(mean->off + mean_off), md = mode;
-  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, dy) | clSetKernelArg(k, 4, sizeof(cl_mem), &mean->mem) |
+  cl_int e = spx_nn_arg(k, 0, x) | spx_nn_arg(k, 2, dy) | SPX_ARG(k, 4, mean->mem) |
              SPX_ARG(k, 5, mo) | spx_nn_arg(k, 6, scratch) | SPX_ARG(k, 8, x->n) | SPX_ARG(k, 9, x->c) |
              SPX_ARG(k, 10, hw) | SPX_ARG(k, 11, md);
   if ((st = spx_cl_check(ctx, e, "spx_bn_sync_part"))) return st;

@@ -6,7 +6,7 @@
 #include <limits.h>
 #include <string.h>
 
-#include "nn/conv2d.h"
+#include "nn/conv2d_internal.h"
 
 static size_t round_up(size_t a, size_t b) { return (a + b - 1) / b * b; }
 
@@ -81,25 +81,24 @@ typedef struct fwd_tile {
   int tm, tn, narrow;
 } fwd_tile;
 
-static fwd_tile pick_tile(const spx_ctx *ctx, int cols, int k, int s) {
+static fwd_tile pick_tile(const spx_ctx *ctx, int cols, int k, int s, int lds) {
   const struct spx_tunables *t = &ctx->dev->tune;
   fwd_tile r = {t->conv_tm, t->conv_tn, 0};
-  if (s == 1 && (k == 3 || k == 1) && cols <= t->conv_narrow_maxc && !spx_conv2d_lds_applies(ctx, k, s))
+  if (s == 1 && (k == 3 || k == 1) && cols <= t->conv_narrow_maxc && !lds)
     r = (fwd_tile){t->conv_narrow_tm, t->conv_narrow_tn, 1};
   return r;
 }
 
 /* The stride-1 'same' forwards (3x3 pad 1, 1x1 pad 0; a data gradient of such a layer is one too)
  * of the register tiles can read the unpadded input (kernels/conv2d_nopad.h, CONV_NOPAD). */
-static int nopad_applies(const spx_ctx *ctx, int k, int s, int pad) {
-  return ctx->dev->tune.conv_nopad && s == 1 && ((k == 3 && pad == 1) || (k == 1 && pad == 0)) &&
-         !spx_conv2d_lds_applies(ctx, k, s);
+static int nopad_applies(const spx_ctx *ctx, int k, int s, int pad, int lds) {
+  return ctx->dev->tune.conv_nopad && s == 1 && ((k == 3 && pad == 1) || (k == 1 && pad == 0)) && !lds;
 }
 
 /* Padded/dilated copy of src [nc][h][w] into a new scratch buffer (see spx_conv2d_pad). */
-static spx_status pad_copy(spx_ctx *ctx, spx_op_workspace *ws, int slot, cl_mem src, size_t src_off, int nc,
-                           int h, int w, int hp, int wp, int plane, int top, int left, int d, size_t total,
-                           spx_op_scratch *out) {
+spx_status spx_conv2d_pad_copy(spx_ctx *ctx, spx_op_workspace *ws, int slot, cl_mem src, size_t src_off, int nc,
+                               int h, int w, int hp, int wp, int plane, int top, int left, int d, size_t total,
+                               spx_op_scratch *out) {
   cl_kernel k;
   spx_status st = spx_cl_kernel(ctx, SPX_K_CONV2D_PAD, &k);
   if (st) return st;
@@ -194,14 +193,15 @@ typedef struct dlay {
 
 /* Forward (dgrad = 0) or data gradient (dgrad = 1: dy dilated by the stride and padded by k-1-pad
  * on every side, convolved at stride 1 with the flipped, transposed weights). */
-static void direct_layout(const spx_ctx *ctx, const geom *g, int dgrad, dlay *L) {
+static void direct_layout(const spx_ctx *ctx, const geom *g, int dgrad, int lds, dlay *L) {
   int ci = dgrad ? g->cout : g->cin, co = dgrad ? g->cin : g->cout, rows = dgrad ? g->h : g->ho;
-  L->tile = pick_tile(ctx, co, g->k, dgrad ? 1 : g->s);
+  L->tile = pick_tile(ctx, co, g->k, dgrad ? 1 : g->s, lds);
   int tm = L->tile.tm, tn = L->tile.tn, vw = ctx->dev->tune.conv_vw;
   int lws = ctx->dev->tune.conv_lws;
   int grow = dgrad ? g->k - 1 : 2 * g->pad;
   /* a data gradient is a stride-1 convolution padded by k-1-pad */
-  L->nopad = dgrad ? g->s == 1 && nopad_applies(ctx, g->k, 1, g->k - 1 - g->pad) : nopad_applies(ctx, g->k, g->s, g->pad);
+  L->nopad = dgrad ? g->s == 1 && nopad_applies(ctx, g->k, 1, g->k - 1 - g->pad, lds)
+                   : nopad_applies(ctx, g->k, g->s, g->pad, lds);
   if (L->nopad) grow = 0;
   L->hp = g->h + grow, L->wp = g->w + grow, L->plane = L->hp * L->wp;
   size_t qv = round_up((size_t)rows * L->wp, (size_t)lws * tn * vw);
@@ -228,48 +228,13 @@ static void layout_need(const dlay *L, spx_ws_need *need) {
   for (int i = 0; i < SPX_WS_SLOTS; i++) need->slot[i] = i < 3 ? L->total[i] * sizeof(float) : 0;
 }
 
-void spx_conv2d_workspace_need(const spx_ctx *ctx, const spx_conv2d_shape *s, int passes, int inference,
-                               spx_ws_need *need) {
-  memset(need, 0, sizeof *need);
-  geom g = {s->n, s->cin, s->h, s->w, s->cout, s->k, s->stride, s->pad, 0, 0};
-  if (g.n < 1 || g.cin < 1 || g.cout < 1 || g.k < 1 || g.s < 1 || g.pad < 0 || g.pad >= g.k) return;
-  g.ho = spx_conv2d_out_size(g.h, g.k, g.s, g.pad), g.wo = spx_conv2d_out_size(g.w, g.k, g.s, g.pad);
-  if (g.ho < 1 || g.wo < 1) return;
-  spx_ws_need one;
-  dlay L;
-  if (passes & SPX_CONV_PASS_FWD) {
-    if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, g.ho * g.wo, inference))
-      spx_conv2d_winograd_need(ctx, g.n, g.cin, g.h, g.w, g.cout, &one);
-    else
-      direct_layout(ctx, &g, 0, &L), layout_need(&L, &one);
-    spx_ws_need_max(need, &one);
-  }
-  if (passes & SPX_CONV_PASS_BWD_DATA) {
-    if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cout, g.cin, g.h * g.w, 0))
-      spx_conv2d_winograd_need(ctx, g.n, g.cout, g.ho, g.wo, g.cin, &one);
-    else
-      direct_layout(ctx, &g, 1, &L), layout_need(&L, &one);
-    spx_ws_need_max(need, &one);
-  }
-  if (passes & SPX_CONV_PASS_BWD_WEIGHTS) {
-    if (spx_conv2d_winograd_dw_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, g.h, g.w)) {
-      size_t b[3];
-      spx_conv2d_winograd_dw_need(ctx, g.n, g.cin, g.cout, g.h, g.w, b);
-      memset(&one, 0, sizeof one);
-      for (int i = 0; i < 3; i++) one.slot[i] = b[i];
-    } else {
-      bwd_weights_layout(ctx, &g, &L), layout_need(&L, &one);
-    }
-    spx_ws_need_max(need, &one);
-  }
-}
-
 /* The tiled forward kernel on an already padded input xp (planes of hp*wp, rows of wp), or with
  * nopad on the unpadded input xp from float x_off (wp = wo, plane = ho*wo). */
-static spx_status run_fwd(spx_ctx *ctx, fwd_tile tile, int nopad, cl_mem xp, size_t x_off, cl_mem wpk, int n, int cin,
-                          int cout, int coutp, int k, int s, int wp, int plane, int ho, int wo, const spx_tensor *y,
-                          const spx_tensor *bias, const spx_tensor *scale, const spx_tensor *shift, int flags) {
-  const int lds = spx_conv2d_lds_applies(ctx, k, s); /* GPU: local-memory tiles (conv2d_lds.cl) */
+static spx_status run_fwd(spx_ctx *ctx, int lds, fwd_tile tile, int nopad, cl_mem xp, size_t x_off, cl_mem wpk, int n,
+                          int cin, int cout, int coutp, int k, int s, int wp, int plane, int ho, int wo,
+                          const spx_tensor *y, const spx_tensor *bias, const spx_tensor *scale,
+                          const spx_tensor *shift, int flags) {
+  /* lds: the local-memory tiles of conv2d_lds.cl (GPU class) */
   spx_kernel_id kid = nopad ? (k == 3 ? (tile.narrow ? SPX_K_CONV2D_FWD_K3S1_NARROW_NP : SPX_K_CONV2D_FWD_K3S1_NP)
                                       : (tile.narrow ? SPX_K_CONV2D_FWD_K1S1_NARROW_NP : SPX_K_CONV2D_FWD_K1S1_NP))
                       : lds ? spx_conv2d_lds_kernel(ctx) : s == 2 ? SPX_K_CONV2D_FWD_S2 : s > 2 ? SPX_K_CONV2D_FWD_SN
@@ -326,34 +291,59 @@ static spx_status run_fwd(spx_ctx *ctx, fwd_tile tile, int nopad, cl_mem xp, siz
 
 }
 
-spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,
-                              const spx_conv2d_params *p, const spx_tensor *y) {
-  return spx_conv2d_forward_prep(ctx, x, w, bias, p, NULL, y);
+
+static geom geom_of(const spx_conv2d_shape *s) {
+  geom g = {s->n, s->cin, s->h, s->w, s->cout, s->k, s->stride, s->pad, 0, 0};
+  g.ho = spx_conv2d_out_size(g.h, g.k, g.s, g.pad), g.wo = spx_conv2d_out_size(g.w, g.k, g.s, g.pad);
+  return g;
 }
 
-spx_status spx_conv2d_forward_prep(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,
-                                   const spx_conv2d_params *p, spx_conv2d_wprep *prep, const spx_tensor *y) {
-  geom g = {0};
-  spx_status st = check_common(ctx, x, w, p, &g);
-  if (st) return st;
-  if ((st = check_shape(ctx, "y", y, g.n, g.cout, g.ho, g.wo)) || (st = check_vec(ctx, bias, g.cout, "bias")) ||
-      (st = check_vec(ctx, p->scale, g.cout, "scale")) || (st = check_vec(ctx, p->shift, g.cout, "shift")))
-    return st;
-  if (spx_conv2d_winograd_applies(ctx, g.k, g.s, g.pad, g.cin, g.cout, g.ho * g.wo, p->scale || p->relu))
-    return spx_conv2d_winograd(ctx, p->ws, x, w, 0, bias, p->scale, p->scale ? p->shift : NULL, p->relu, 0, y, prep);
+/* ---- the direct rows: register tiles (any shape, every pass) and local-memory tiles ---- */
+
+static int direct_applies(const spx_ctx *ctx, const spx_conv2d_shape *s, int pass, int inference) {
+  (void)ctx, (void)s, (void)pass, (void)inference;
+  return 1;
+}
+
+/* the data gradient is a stride-1 convolution with the same kernel size */
+static int lds_row_applies(const spx_ctx *ctx, const spx_conv2d_shape *s, int pass, int inference) {
+  (void)inference;
+  return pass != SPX_CONV_PASS_BWD_WEIGHTS &&
+         spx_conv2d_lds_applies(ctx, s->k, pass == SPX_CONV_PASS_BWD_DATA ? 1 : s->stride);
+}
+
+static void direct_need_of(const spx_ctx *ctx, const spx_conv2d_shape *s, int pass, int lds, spx_ws_need *need) {
+  geom g = geom_of(s);
   dlay L;
-  direct_layout(ctx, &g, 0, &L);
+  if (pass == SPX_CONV_PASS_BWD_WEIGHTS) bwd_weights_layout(ctx, &g, &L);
+  else direct_layout(ctx, &g, pass == SPX_CONV_PASS_BWD_DATA, lds, &L);
+  memset(need, 0, sizeof *need);
+  layout_need(&L, need);
+}
+static void direct_need(const spx_ctx *ctx, const spx_conv2d_shape *s, int pass, spx_ws_need *need) {
+  direct_need_of(ctx, s, pass, 0, need);
+}
+static void lds_need(const spx_ctx *ctx, const spx_conv2d_shape *s, int pass, spx_ws_need *need) {
+  direct_need_of(ctx, s, pass, 1, need);
+}
+
+/* y = epilogue(conv(x, w)) on the register tiles (lds: the local-memory tiles). */
+static spx_status direct_forward(spx_ctx *ctx, const spx_conv_job *j, int lds) {
+  const geom g = geom_of(j->s);
+  const spx_tensor *x = j->x;
+  dlay L;
+  direct_layout(ctx, &g, 0, lds, &L);
   int wp = L.wp, plane = L.plane, coutp = L.cp;
   const fwd_tile tile = L.tile;
   spx_op_scratch xp = {0}, wpk = {0};
-  if (!L.nopad && (st = pad_copy(ctx, p->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, L.hp, wp, plane, g.pad, g.pad,
-                                 1, L.total[0], &xp)))
+  spx_status st;
+  if (!L.nopad && (st = spx_conv2d_pad_copy(ctx, j->ws, 0, x->mem, x->off, g.n * g.cin, g.h, g.w, L.hp, wp, plane,
+                                            g.pad, g.pad, 1, L.total[0], &xp)))
     goto done;
-  if ((st = pack_weights(ctx, p->ws, 1, w, g.cout, g.cin, g.k, coutp, 0, tile.narrow, prep, &wpk))) goto done;
-  int flags = (bias ? SPX_CONV_FL_BIAS : 0) | (p->scale ? SPX_CONV_FL_SCALE : 0) |
-              (p->scale && p->shift ? SPX_CONV_FL_SHIFT : 0) | (p->relu ? SPX_CONV_FL_RELU : 0);
-  st = run_fwd(ctx, tile, L.nopad, L.nopad ? x->mem : xp.mem, L.nopad ? x->off : 0, wpk.mem, g.n, g.cin, g.cout,
-               coutp, g.k, g.s, wp, plane, g.ho, g.wo, y, bias, p->scale, p->scale ? p->shift : NULL, flags);
+  if ((st = pack_weights(ctx, j->ws, 1, j->w, g.cout, g.cin, g.k, coutp, 0, tile.narrow, j->prep, &wpk))) goto done;
+  st = run_fwd(ctx, lds, tile, L.nopad, L.nopad ? x->mem : xp.mem, L.nopad ? x->off : 0, wpk.mem, g.n, g.cin, g.cout,
+               coutp, g.k, g.s, wp, plane, g.ho, g.wo, j->out, j->bias, j->scale, j->scale ? j->shift : NULL,
+               spx_conv_job_flags(j));
 done:
   spx_op_scratch_put(&xp);
   spx_op_scratch_put(&wpk);
@@ -361,33 +351,31 @@ done:
 }
 
 /* dx += conv(dilate_s(dy) padded by k-1-pad, flipped and transposed w), stride 1. */
-static spx_status backward_data(spx_ctx *ctx, spx_op_workspace *ws, const geom *g, const spx_tensor *w,
-                                const spx_tensor *dy, const spx_tensor *dx) {
-  if (spx_conv2d_winograd_applies(ctx, g->k, g->s, g->pad, g->cout, g->cin, g->h * g->w, 0))
-    return spx_conv2d_winograd(ctx, ws, dy, w, 1, NULL, NULL, NULL, 0, 1, dx, NULL);
+static spx_status direct_data(spx_ctx *ctx, const spx_conv_job *j, int lds) {
+  const geom gg = geom_of(j->s), *g = &gg;
+  const spx_tensor *dy = j->dy, *dx = j->out;
   dlay L;
-  direct_layout(ctx, g, 1, &L);
+  direct_layout(ctx, g, 1, lds, &L);
   int wd = L.wp, plane = L.plane, top = g->k - 1 - g->pad, cinp = L.cp;
   const fwd_tile tile = L.tile;
   spx_op_scratch dyp = {0}, wpk = {0};
   spx_status st;
-  if (!L.nopad && (st = pad_copy(ctx, ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, L.hp, wd, plane, top,
-                                 top, g->s, L.total[0], &dyp)))
+  if (!L.nopad && (st = spx_conv2d_pad_copy(ctx, j->ws, 0, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, L.hp, wd,
+                                            plane, top, top, g->s, L.total[0], &dyp)))
     goto done;
-  if ((st = pack_weights(ctx, ws, 1, w, g->cout, g->cin, g->k, cinp, 1, tile.narrow, NULL, &wpk))) goto done;
-  st = run_fwd(ctx, tile, L.nopad, L.nopad ? dy->mem : dyp.mem, L.nopad ? dy->off : 0, wpk.mem, g->n, g->cout, g->cin,
-               cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL, NULL, SPX_CONV_FL_ACCUM);
+  if ((st = pack_weights(ctx, j->ws, 1, j->w, g->cout, g->cin, g->k, cinp, 1, tile.narrow, NULL, &wpk))) goto done;
+  st = run_fwd(ctx, lds, tile, L.nopad, L.nopad ? dy->mem : dyp.mem, L.nopad ? dy->off : 0, wpk.mem, g->n, g->cout,
+               g->cin, cinp, g->k, 1, wd, plane, g->h, g->w, dx, NULL, NULL, NULL, SPX_CONV_FL_ACCUM);
 done:
   spx_op_scratch_put(&dyp);
   spx_op_scratch_put(&wpk);
   return st;
 }
-
 /* dw += sum over (n, q) of dy x im2col(x): chunked partial sums, then a fixed-order reduction. */
-static spx_status backward_weights(spx_ctx *ctx, spx_op_workspace *ws, const geom *g, const spx_tensor *x,
-                                   const spx_tensor *dy, const spx_tensor *dw) {
-  if (spx_conv2d_winograd_dw_applies(ctx, g->k, g->s, g->pad, g->cin, g->cout, g->h, g->w))
-    return spx_conv2d_winograd_dw(ctx, ws, x, dy, dw);
+static spx_status direct_weights(spx_ctx *ctx, const spx_conv_job *j) {
+  const geom gg = geom_of(j->s), *g = &gg;
+  const spx_tensor *x = j->x, *dy = j->dy, *dw = j->out;
+  spx_op_workspace *ws = j->ws;
   int dtm = ctx->dev->tune.conv_dw_tm, dtn = ctx->dev->tune.conv_dw_tn;
   dlay L;
   bwd_weights_layout(ctx, g, &L);
@@ -397,10 +385,10 @@ static spx_status backward_weights(spx_ctx *ctx, spx_op_workspace *ws, const geo
   size_t count = (size_t)g->cout * kdim;
   spx_op_scratch xs = {0}, dys = {0}, ps = {0};
   spx_status st;
-  if ((st = pad_copy(ctx, ws, 0, x->mem, x->off, g->n * g->cin, g->h, g->w, hp, wp, plane, g->pad, g->pad, 1, xtotal,
+  if ((st = spx_conv2d_pad_copy(ctx, ws, 0, x->mem, x->off, g->n * g->cin, g->h, g->w, hp, wp, plane, g->pad, g->pad, 1, xtotal,
                      &xs)))
     goto done;
-  if ((st = pad_copy(ctx, ws, 1, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, g->ho, wp, qd, 0, 0, 1, dtotal,
+  if ((st = spx_conv2d_pad_copy(ctx, ws, 1, dy->mem, dy->off, g->n * g->cout, g->ho, g->wo, g->ho, wp, qd, 0, 0, 1, dtotal,
                      &dys)))
     goto done;
   if ((st = spx_op_scratch_get(ctx, ws, 2, L.total[2] * sizeof(float), "conv2d weight-gradient partials", &ps)))
@@ -439,6 +427,52 @@ done:
   return st;
 }
 
+
+static spx_status direct_run(spx_ctx *ctx, const spx_conv_job *j) {
+  return j->pass == SPX_CONV_PASS_FWD ? direct_forward(ctx, j, 0)
+         : j->pass == SPX_CONV_PASS_BWD_DATA ? direct_data(ctx, j, 0)
+                                             : direct_weights(ctx, j);
+}
+static spx_status lds_run(spx_ctx *ctx, const spx_conv_job *j) {
+  return j->pass == SPX_CONV_PASS_FWD ? direct_forward(ctx, j, 1) : direct_data(ctx, j, 1);
+}
+
+const spx_conv_algo_row spx_conv_row_direct = {
+    "direct", SPX_CONV_PASS_FWD | SPX_CONV_PASS_BWD_DATA | SPX_CONV_PASS_BWD_WEIGHTS, direct_applies, direct_need,
+    direct_run};
+const spx_conv_algo_row spx_conv_row_lds = {"lds", SPX_CONV_PASS_FWD | SPX_CONV_PASS_BWD_DATA, lds_row_applies,
+                                            lds_need, lds_run};
+
+/* ---- entry points: validate, take the job's row (the caller's choice, else spx_conv2d_choose), run ---- */
+
+static spx_status run_pass(spx_ctx *ctx, const spx_conv_job *j, int algo, int inference) {
+  if (!algo) algo = spx_conv2d_choose(ctx, j->s, j->pass, inference);
+  const spx_conv_algo_row *row = spx_conv2d_row(algo);
+  if (!row || !(row->passes & j->pass) || !row->applies(ctx, j->s, j->pass, inference))
+    return spx_fail(ctx, SPX_E_ARG, "conv2d: algorithm %s does not run this pass of a %dx%d stride-%d convolution",
+                    row ? row->name : "(none)", j->s->k, j->s->k, j->s->stride);
+  return row->run(ctx, j);
+}
+
+spx_status spx_conv2d_forward(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,
+                              const spx_conv2d_params *p, const spx_tensor *y) {
+  return spx_conv2d_forward_prep(ctx, x, w, bias, p, NULL, y);
+}
+
+spx_status spx_conv2d_forward_prep(spx_ctx *ctx, const spx_tensor *x, const spx_tensor *w, const spx_tensor *bias,
+                                   const spx_conv2d_params *p, spx_conv2d_wprep *prep, const spx_tensor *y) {
+  geom g = {0};
+  spx_status st = check_common(ctx, x, w, p, &g);
+  if (st) return st;
+  if ((st = check_shape(ctx, "y", y, g.n, g.cout, g.ho, g.wo)) || (st = check_vec(ctx, bias, g.cout, "bias")) ||
+      (st = check_vec(ctx, p->scale, g.cout, "scale")) || (st = check_vec(ctx, p->shift, g.cout, "shift")))
+    return st;
+  const spx_conv2d_shape s = {g.n, g.cin, g.h, g.w, g.cout, g.k, g.s, g.pad};
+  const spx_conv_job j = {&s, g.ho, g.wo, SPX_CONV_PASS_FWD, x, w, NULL, y, bias, p->scale,
+                          p->scale ? p->shift : NULL, p->relu, p->ws, prep};
+  return run_pass(ctx, &j, p->algo[0], p->scale || p->relu);
+}
+
 static spx_status backward_bias(spx_ctx *ctx, const geom *g, const spx_tensor *dy, const spx_tensor *db) {
   cl_kernel kr;
   spx_status st = spx_cl_kernel(ctx, SPX_K_CONV2D_DB, &kr);
@@ -462,8 +496,11 @@ spx_status spx_conv2d_backward(spx_ctx *ctx, const spx_tensor *x, const spx_tens
   if (dx && (st = check_shape(ctx, "dx", dx, g.n, g.cin, g.h, g.w))) return st;
   if (dw && (st = check_shape(ctx, "dw", dw, g.cout, g.cin, g.k, g.k))) return st;
   if ((st = check_vec(ctx, db, g.cout, "db"))) return st;
-  if (dx && (st = backward_data(ctx, p->ws, &g, w, dy, dx))) return st;
-  if (dw && (st = backward_weights(ctx, p->ws, &g, x, dy, dw))) return st;
+  const spx_conv2d_shape s = {g.n, g.cin, g.h, g.w, g.cout, g.k, g.s, g.pad};
+  spx_conv_job j = {&s, g.ho, g.wo, SPX_CONV_PASS_BWD_DATA, x, w, dy, dx, NULL, NULL, NULL, 0, p->ws, NULL};
+  if (dx && (st = run_pass(ctx, &j, p->algo[1], 0))) return st;
+  j.pass = SPX_CONV_PASS_BWD_WEIGHTS, j.out = dw;
+  if (dw && (st = run_pass(ctx, &j, p->algo[2], 0))) return st;
   if (db && (st = backward_bias(ctx, &g, dy, db))) return st;
   return SPX_OK;
 }

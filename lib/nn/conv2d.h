@@ -33,7 +33,24 @@ typedef struct spx_conv2d_params {
   const spx_tensor *shift; /* [Cout] or NULL (only used together with scale) */
   int relu;                /* nonzero: max(v, 0) after bias/scale/shift */
   spx_op_workspace *ws; /* NULL: scratch is allocated and released per call */
+  /* the algorithm of the forward, data-gradient and weight-gradient pass (spx_conv_algo; 0: the
+   * one spx_conv2d_choose picks now). The tape passes the choices it stored in the node. */
+  int algo[3];
 } spx_conv2d_params;
+
+/* The convolution algorithms: the rows of lib/nn/conv2d_algo.c's table, in the order
+ * spx_conv2d_choose tries them (the first that applies runs). */
+typedef enum spx_conv_algo {
+  SPX_CONV_ALGO_AUTO = 0,
+  SPX_CONV_ALGO_WINO_FUSED, /* Winograd, one local-memory kernel (GPU class, CONV_WINO_LDS); fwd, data */
+  SPX_CONV_ALGO_WINO,       /* Winograd: transforms + 36 GEMMs (kernels/conv2d_winograd.cl); fwd, data */
+  SPX_CONV_ALGO_WINO_DW,    /* Winograd weight gradient (kernels/conv2d_winograd_dw.cl) */
+  SPX_CONV_ALGO_THIN,       /* 1x1 forward with few output channels (kernels/conv2d_thin.cl) */
+  SPX_CONV_ALGO_GEMM,       /* the GEMM engine (kernels/conv2d_gemm.cl, CONV_GEMM); every stride-1 pass */
+  SPX_CONV_ALGO_LDS,        /* 3x3 local-memory tiles (kernels/conv2d_lds.cl, CONV_LDS); fwd, data */
+  SPX_CONV_ALGO_DIRECT,     /* register-tile implicit GEMM (kernels/conv2d.cl); any shape, every pass */
+  SPX_CONV_ALGO_COUNT
+} spx_conv_algo;
 
 /* Algorithm: Winograd F(4x4,3x3) (kernels/conv2d_winograd.cl, lib/nn/conv2d_winograd.c) for
  * 3x3 / stride 1 / pad 1 layers whose input and output channels are both >= the tunable
@@ -97,12 +114,23 @@ typedef struct spx_conv2d_shape {
 
 /* Passes of spx_conv2d_workspace_need (bit mask; backward data and weights run in one op). */
 enum { SPX_CONV_PASS_FWD = 1, SPX_CONV_PASS_BWD_DATA = 2, SPX_CONV_PASS_BWD_WEIGHTS = 4 };
+/* The index of a pass in spx_conv2d_params.algo (0, 1, 2). */
+static inline int spx_conv2d_pass_index(int pass) { return pass == SPX_CONV_PASS_FWD ? 0 : pass == SPX_CONV_PASS_BWD_DATA ? 1 : 2; }
+
+/* The algorithm (spx_conv_algo) that runs pass `pass` of a convolution of shape s with the device's
+ * tunables: the first row of the table that serves the pass and applies (inference: the forward
+ * has the fused epilogue). A pure function of the shape and the tunables; the launchers and the
+ * memory planner both ask it. */
+int spx_conv2d_choose(const spx_ctx *ctx, const spx_conv2d_shape *s, int pass, int inference);
+/* The row's name ("gemm", "direct", ...), NULL for an unknown id. */
+const char *spx_conv2d_algo_name(int algo);
 /* The workspace bytes per slot that the given passes of a convolution of shape s take (the
  * per-slot maximum over them): a pure function of the shape and the device's tunables, computed
  * by the code the launchers size their scratch with. inference: the forward has the fused
- * epilogue (as spx_conv2d_winograd_applies). Shapes the launchers would refuse need nothing. */
+ * epilogue (as spx_conv2d_winograd_applies); algo: the passes' algorithms (spx_conv2d_params.algo;
+ * NULL or 0: spx_conv2d_choose's). Shapes the launchers would refuse need nothing. */
 void spx_conv2d_workspace_need(const spx_ctx *ctx, const spx_conv2d_shape *s, int passes, int inference,
-                               spx_ws_need *need);
+                               const int *algo, spx_ws_need *need);
 
 /* ---- Winograd path (lib/nn/conv2d_winograd.c), called by the two functions above ---- */
 /* Nonzero when a k x k / stride / pad conv of cin -> cout channels on images of hw pixels takes

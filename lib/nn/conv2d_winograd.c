@@ -3,11 +3,13 @@
  * the forward and backward-data convolutions of 3x3 / stride 1 / pad 1 layers. Scratch: the
  * caller's workspace slots 0 (M, the products), 1 (U, transformed weights), 2 (V, transformed
  * input), else buffers allocated per call and released after
- * enqueueing. */
+ * enqueueing. On the GPU class with the GEMM engine (CONV_GEMM) and input channels a whole number
+ * of its slices, a sample's 36 GEMMs are one strided-batched launch of the engine
+ * (spx_conv2d_gemm_batched, kernels/conv2d_gemm.cl) on U packed as [e][ci][Coutp] (spx_gemm_wino_pack). */
 #include <limits.h>
 #include <string.h>
 
-#include "nn/conv2d.h"
+#include "nn/conv2d_internal.h"
 
 int spx_conv2d_winograd_applies(const spx_ctx *ctx, int k, int stride, int pad, int cin, int cout, int hw,
                                 int inference) {
@@ -28,6 +30,7 @@ void spx_conv2d_wino_tiles(const spx_ctx *ctx, int h, int w, int *th, int *twp) 
  * the slots from this alone. */
 typedef struct wlay {
   int th, tw, twp, tws, T, coutp, nb;
+  int engine; /* the 36 GEMMs on the GEMM engine (GPU class, CONV_GEMM; input channels a whole number of slices) */
   size_t quantum, tp, f0, f2;
   spx_ws_need need;
 } wlay;
@@ -44,7 +47,9 @@ static void layout(const spx_ctx *ctx, int n, int cin, int h, int wd, int cout, 
   L->T = L->th * L->tws;
   L->quantum = (size_t)lws * tn * vw;
   L->tp = ((size_t)L->T + L->quantum - 1) / L->quantum * L->quantum;
-  L->coutp = (cout + tm - 1) / tm * tm;
+  L->engine = ctx->dev->tune.conv_gemm && cin % ctx->dev->tune.conv_gemm_ks == 0;
+  const int cm = L->engine ? ctx->dev->tune.conv_gemm_bm : tm; /* the GEMM's column tile */
+  L->coutp = (cout + cm - 1) / cm * cm;
   /* per sample: slot 0 holds the products M, slot 2 V */
   L->f0 = (size_t)36 * L->coutp * L->tp;
   L->f2 = (size_t)36 * cin * L->tp;
@@ -114,15 +119,24 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_op_workspace *ws, const spx_ten
       (st = spx_cl_kernel(ctx, SPX_K_WINO_OUT, &ko)))
     return st;
   if (wp) {
-    const int what[] = {2, Cout, Cin, coutp, tm, flip};
-    if ((st = spx_conv2d_wprep_lookup(ctx, wp, what, 6, w, L.need.slot[1], &have_u, &U.mem))) goto done;
+    const int what[] = {2, Cout, Cin, coutp, tm, flip, L.engine};
+    if ((st = spx_conv2d_wprep_lookup(ctx, wp, what, 7, w, L.need.slot[1], &have_u, &U.mem))) goto done;
   }
   if ((st = spx_op_scratch_get(ctx, ws, 0, L.need.slot[0], "winograd products", &XM)) ||
       (!wp && (st = spx_op_scratch_get(ctx, ws, 1, L.need.slot[1], "winograd weight transform", &U))) ||
       (st = spx_op_scratch_get(ctx, ws, 2, L.need.slot[2], "winograd input transform", &V)))
     goto done;
   const size_t wg = (size_t)ctx->dev->tune.wg;
-  if (!have_u) {
+  if (!have_u && L.engine) { /* U[e][ci][coutp] */
+    if ((st = spx_cl_kernel(ctx, SPX_K_GEMM_WINO_PACK, &kw))) goto done;
+    cl_ulong wo = w->off;
+    cl_int e = SPX_ARG(kw, 0, w->mem) | SPX_ARG(kw, 1, wo) | SPX_ARG(kw, 2, U.mem) | SPX_ARG(kw, 3, Cout) |
+               SPX_ARG(kw, 4, Cin) | SPX_ARG(kw, 5, coutp) | SPX_ARG(kw, 6, flip);
+    size_t gl = (size_t)cin * coutp;
+    if ((st = spx_cl_check(ctx, e, "spx_gemm_wino_pack args")) ||
+        (st = spx_cl_run(ctx, kw, 1, &gl, &wg, "spx_gemm_wino_pack")))
+      goto done;
+  } else if (!have_u) {
     cl_ulong wo = w->off;
     cl_int e = SPX_ARG(kw, 0, w->mem) | SPX_ARG(kw, 1, wo) | SPX_ARG(kw, 2, U.mem) | SPX_ARG(kw, 3, Cout) |
                SPX_ARG(kw, 4, Cin) | SPX_ARG(kw, 5, coutp) | SPX_ARG(kw, 6, flip);
@@ -133,7 +147,12 @@ spx_status spx_conv2d_winograd(spx_ctx *ctx, spx_op_workspace *ws, const spx_ten
   for (int s0 = 0; s0 < n; s0 += nb) {
     const int m = n - s0 < nb ? n - s0 : nb; /* samples in this pass */
     if ((st = spx_conv2d_wino_input(ctx, x, s0, m, tws, Tp, V.mem))) goto done;
-    {
+    for (int i = 0; L.engine && i < m; i++) /* M[i][e] = U[e]^T V[i][.][e]: 36 GEMMs of a sample, one launch */
+      if ((st = spx_conv2d_gemm_batched(ctx, U.mem, V.mem, (size_t)i * cin * 36 * tp, XM.mem, (size_t)i * 36 * coutp * tp,
+                                        cin, cout, coutp, Tp, 36 * Tp, 36, (size_t)cin * coutp, tp,
+                                        (size_t)coutp * tp)))
+        goto done;
+    if (!L.engine) {
       cl_int e = SPX_ARG(kg, 0, V.mem) | SPX_ARG(kg, 1, U.mem) | SPX_ARG(kg, 2, XM.mem) | SPX_ARG(kg, 3, cin) |
                  SPX_ARG(kg, 4, coutp) | SPX_ARG(kg, 5, Tp);
       if ((st = spx_cl_check(ctx, e, "spx_wino_gemm args"))) goto done;

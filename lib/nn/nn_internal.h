@@ -8,10 +8,11 @@
 
 #include "nn/tensor.h"
 
-/* Set kernel arguments i (buffer) and i+1 (int element offset) from a tensor. */
+/* Set kernel arguments i (buffer) and i+1 (int element offset) from a tensor; CL_SUCCESS or
+ * CL_INVALID_KERNEL_ARGS, ORed with the others like SPX_ARG's. */
 static inline cl_int spx_nn_arg(cl_kernel k, cl_uint i, const spx_tensor *t) {
   cl_int off = (cl_int)t->off;
-  return clSetKernelArg(k, i, sizeof(cl_mem), &t->mem) | clSetKernelArg(k, i + 1, sizeof(cl_int), &off);
+  return spx_cl_arg(k, i, sizeof(cl_mem), &t->mem) | spx_cl_arg(k, i + 1, sizeof(cl_int), &off);
 }
 
 /* A tensor is usable by the kernels when it has a buffer, a non-negative shape and

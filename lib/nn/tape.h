@@ -8,9 +8,10 @@
  * Values are small integer ids (SPX_TAPE_NONE: no value). Parameters and state are declared once
  * (spx_tape_param / spx_tape_state, then spx_tape_alloc_params). A forward pass is one call,
  * spx_tape_pass(t, train, plan_key, build, user): the network's build function creates its inputs
- * and calls the ops (spx_tape_conv, ...); every op creates its output value in the arena, runs and,
- * in training mode, appends a node (kind, input/output ids, saved ids, typed arguments) to the
- * tape. In inference mode nothing is recorded.
+ * and calls the ops (spx_tape_conv, ...); every op creates its output value in the arena, appends
+ * a node (kind, input/output ids, saved ids, typed arguments) to the tape and runs. Inference
+ * records the nodes too (the liveness plan and the profile read them), but no value needs a
+ * gradient: no gradient storage is planned and backward is refused (SPX_E_STATE).
  *
  * Build, plan, run: memory is planned once per plan key (the input shape and anything else that
  * changes the graph). When spx_tape_pass sees a key it has not planned, it first runs the build
@@ -161,9 +162,11 @@ spx_status spx_tape_transfer(spx_tape *dst, int did, size_t doff, int dst_grad, 
  * All activations and activation gradients of a pass live in ONE arena, at offsets planned from
  * the graph the measuring run recorded: a value's storage is reused once nothing later in the
  * forward or the backward reads it (see tape_plan.c for the rules). Reading a value or gradient
- * after its storage was given away fails with SPX_E_STATE (spx_tape_keep it). On the device the
- * arena also holds each op's scratch (conv workspace) at that op's step, sized by the op's need
- * function: no scratch is allocated while a planned pass runs. */
+ * after its storage was given away fails with SPX_E_STATE (spx_tape_keep it). On the device each
+ * op's scratch (lib/nn/workspace.h) is planned too, sized by the op's need function: inside the
+ * arena at that op's step (tunable TAPE_WS_ARENA, the CPU column), else in one separate buffer of
+ * the largest op's size; either way no scratch is allocated while a planned pass runs. A value's
+ * data and gradient are valid until the next pass of the tape (the arena is shared). */
 /* Bytes of the arena the current pass's plan needs, and (without_reuse, may be NULL) the sum of all
  * its activations and gradients plus the largest op scratch, i.e. what it would need without
  * reuse. 0 before a planned pass. */

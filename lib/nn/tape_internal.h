@@ -72,13 +72,22 @@ typedef struct tplan {
  *   tape_op_pointwise.c activation, a*x + b*y
  *   tape_op_resample.c  max pool, 3x3 average pool, bilinear upsampling
  *   tape_op_layout.c    pad, concat, upcat (concat(skip, pad(upsample(x))))
- *   tape_op_loss.c      L1, MSE against a constant */
+ *   tape_op_loss.c      L1, MSE against a constant
+ * A new op: its OP_* kind here; its constructor in the file of its group (validate the ids and
+ * shapes, spx_tp_new_value for the output, spx_tp_record with its tp_args, then, when
+ * spx_tp_live, the forward: the host reference or the device launch closed by spx_tp_ran); its
+ * two backwards, which ADD into the gradients of the inputs that spx_tp_wants; when needed its
+ * back_reads and ws_need; its tp_op row beside them, the row's pointer in tape_ops.c, its
+ * declaration in tape.h, and a row in tests/test_nn_tape_ops.c (which fails while a kind has
+ * none). An elementwise function is not a new op: it is an activation kind (lib/nn/activations.h). */
 enum { OP_CONV, OP_BN, OP_ACT, OP_MAXPOOL, OP_UPSAMPLE, OP_PAD, OP_CONCAT, OP_L1, OP_INSTNORM, OP_AVGPOOL3,
        OP_MSE_CONST, OP_AXPBY, OP_UPCAT, NOPS };
 
 /* The arguments of a node, one member per op kind (the others have none). */
 typedef union tp_args {
-  struct { int stride, pad, inference; } conv; /* inference: the fused epilogue (workspace plan) */
+  /* inference: the fused epilogue (workspace plan); algo: the algorithm of the forward, data and
+   * weight gradient (spx_conv2d_choose when recorded; 0 on the host backend) */
+  struct { int stride, pad, inference; signed char algo[3]; } conv;
   struct { int relu; float momentum, eps; } bn;
   struct { spx_act_kind kind; float slope; } act;
   struct { int left, right, top, bottom; } pad;
@@ -108,7 +117,13 @@ typedef struct tp_op {
   /* the device scratch of its forward (need[0]) and backward (need[1]) launchers, for the
    * workspace plan; NULL: none */
   void (*ws_need)(const spx_tape *t, const tnode *nd, spx_ws_need need[2]);
+  unsigned flags; /* TP_* below */
 } tp_op;
+
+/* tp_op.flags. TP_IN0_IN_OUT: the output's first channels are input 0 unchanged and the device
+ * forward leaves out that copy when input 0 already sits there (the same address), so the plan may
+ * place input 0's storage at the start of the output's (lib/nn/tape_plan.c, concat_in_place). */
+enum { TP_IN0_IN_OUT = 1u };
 
 /* tape_ops.c: the row of kind (every kind has one; tests/test_nn_tape.c checks them all) */
 const tp_op *spx_tp_op(int kind);
@@ -145,8 +160,12 @@ struct spx_tape {
   cl_mem ws;                 /* op scratch when not inside act (TAPE_WS_ARENA 0) */
   size_t ws_cap;             /* bytes */
   /* inference convolutions' prepared weights (packed / Winograd-transformed), per weight value
-   * id < npersist, kept between passes while the parameters do not change (CONV_WPREP); every
-   * parameter write, Adam step and broadcast drops them all (spx_tp_wprep_drop) */
+   * id < npersist, kept between passes while the parameters do not change (CONV_WPREP). A kept
+   * entry's key cannot see a write to the weights, so the tape, which owns them, drops them all
+   * (spx_tp_wprep_drop) on every path that writes the parameter slab: spx_tape_write of a
+   * parameter, spx_tape_adam, spx_tape_broadcast, and destroy. A new such path must call it too.
+   * Dropped, not just invalidated, so training memory stays as it is when training steps and
+   * validation renders alternate. */
   spx_conv2d_wprep *wprep;
   /* the current pass (lib/nn/tape_pass.c): measuring = its planning run, err sticky */
   int train, measuring, in_pass;

@@ -35,7 +35,15 @@ static int conv_op(spx_tape *t, int x, int w, int bias, int stride, int pad, int
   int y = spx_tp_new_value(t, SP_ACT, xv->n, wv->n, ho, wo);
   if (y < 0) return -1;
   const int inference = scale >= 0 || relu;
-  spx_tp_record(t, OP_CONV, x, w, bias, y, -1, -1, &(tp_args){.conv = {stride, pad, inference}});
+  tp_args a = {.conv = {stride, pad, inference, {0, 0, 0}}};
+  if (!HOST) { /* the algorithms, chosen once: the planner sizes their workspace, the launchers run them */
+    xv = &t->vals[x], wv = &t->vals[w];
+    const spx_conv2d_shape s = {xv->n, xv->c, xv->h, xv->w, wv->n, k, stride, pad};
+    a.conv.algo[0] = (signed char)spx_conv2d_choose(t->ctx, &s, SPX_CONV_PASS_FWD, inference);
+    a.conv.algo[1] = (signed char)spx_conv2d_choose(t->ctx, &s, SPX_CONV_PASS_BWD_DATA, 0);
+    a.conv.algo[2] = (signed char)spx_conv2d_choose(t->ctx, &s, SPX_CONV_PASS_BWD_WEIGHTS, 0);
+  }
+  spx_tp_record(t, OP_CONV, x, w, bias, y, -1, -1, &a);
   if (!spx_tp_live(t)) return y;
   xv = &t->vals[x], wv = &t->vals[w];
   if (HOST) {
@@ -48,7 +56,7 @@ static int conv_op(spx_tape *t, int x, int w, int bias, int stride, int pad, int
              tsh = shift >= 0 ? TV(shift) : tx, ty = TV(y);
   spx_op_workspace ws;
   spx_conv2d_params p = {k,    stride, pad, scale >= 0 ? &ts : NULL, shift >= 0 ? &tsh : NULL, relu,
-                         spx_tp_ws(t, t->nnodes - 1, 0, &ws)};
+                         spx_tp_ws(t, t->nnodes - 1, 0, &ws), {a.conv.algo[0], 0, 0}};
   spx_tp_prof_conv_note(t, xv->c, wv->n, xv->h * xv->w, k, stride, pad, inference);
   /* an inference forward of a parameter keeps its prepared weights for the next pass */
   spx_conv2d_wprep *prep = NULL;
@@ -104,7 +112,8 @@ static spx_status conv_back_dev(spx_tape *t, const tnode *nd) {
   if (nd->in[2] >= 0) db = spx_tape_grad_tensor(t, nd->in[2]);
   spx_op_workspace ws;
   spx_conv2d_params p = {t->vals[nd->in[1]].h, nd->arg.conv.stride, nd->arg.conv.pad, NULL, NULL, 0,
-                         spx_tp_ws(t, (int)(nd - t->nodes), 1, &ws)};
+                         spx_tp_ws(t, (int)(nd - t->nodes), 1, &ws),
+                         {nd->arg.conv.algo[0], nd->arg.conv.algo[1], nd->arg.conv.algo[2]}};
   return spx_conv2d_backward(t->ctx, &x, &w, &dy, spx_tp_wants(t, nd->in[0]) ? &dx : NULL,
                              spx_tp_wants(t, nd->in[1]) ? &dw : NULL,
                              nd->in[2] >= 0 && spx_tp_wants(t, nd->in[2]) ? &db : NULL, &p);
@@ -121,8 +130,10 @@ static void conv_ws_need(const spx_tape *t, const tnode *nd, spx_ws_need need[2]
   spx_conv2d_shape sh = {x->n, x->c, x->h, x->w, w->n, w->h, nd->arg.conv.stride, nd->arg.conv.pad};
   int passes = (back && spx_tp_wants(t, nd->in[0]) ? SPX_CONV_PASS_BWD_DATA : 0) |
                (back && spx_tp_wants(t, nd->in[1]) ? SPX_CONV_PASS_BWD_WEIGHTS : 0);
-  spx_conv2d_workspace_need(t->ctx, &sh, SPX_CONV_PASS_FWD, nd->arg.conv.inference, &need[0]);
-  if (passes) spx_conv2d_workspace_need(t->ctx, &sh, passes, 0, &need[1]);
+  const int algo[3] = {nd->arg.conv.algo[0], nd->arg.conv.algo[1], nd->arg.conv.algo[2]};
+  spx_conv2d_workspace_need(t->ctx, &sh, SPX_CONV_PASS_FWD, nd->arg.conv.inference, algo, &need[0]);
+  if (passes) spx_conv2d_workspace_need(t->ctx, &sh, passes, 0, algo, &need[1]);
 }
 
-const tp_op spx_tp_op_conv = {"conv", conv_back_host, conv_back_dev, conv_back_reads, conv_ws_need};
+const tp_op spx_tp_op_conv = {.name = "conv", .back_host = conv_back_host, .back_dev = conv_back_dev,
+                   .back_reads = conv_back_reads, .ws_need = conv_ws_need};

@@ -44,7 +44,8 @@ static void act_back_reads(const spx_tape *t, const tnode *nd, int r[3]) {
   if (spx_tp_wants(t, nd->in[0])) r[0] = act_uses_output(nd) ? nd->out : nd->in[0];
 }
 
-const tp_op spx_tp_op_act = {"activation", act_back_host, act_back_dev, act_back_reads, NULL};
+const tp_op spx_tp_op_act = {.name = "activation", .back_host = act_back_host, .back_dev = act_back_dev,
+                   .back_reads = act_back_reads};
 
 int spx_tape_axpby(spx_tape *t, float a, int x, float b, int z) {
   if (spx_tp_bad_id(t, "axpby", x) || (z >= 0 && spx_tp_bad_id(t, "axpby", z))) return -1;
@@ -92,4 +93,4 @@ static spx_status axpby_back_dev(spx_tape *t, const tnode *nd) {
   return st;
 }
 
-const tp_op spx_tp_op_axpby = {"axpby", axpby_back_host, axpby_back_dev, NULL, NULL};
+const tp_op spx_tp_op_axpby = {.name = "axpby", .back_host = axpby_back_host, .back_dev = axpby_back_dev};

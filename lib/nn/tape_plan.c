@@ -9,7 +9,8 @@
  *
  * A storage (a value and the detach / slice aliases of it) holds its data from its birth to its
  * last reader: forward ops reading it, and backward steps that read saved activations (the op
- * table's back_reads). Storage that nothing reads (the outputs of the pass), storage marked with
+ * table's back_reads). Storage that nothing reads after the last op writing it (the outputs of
+ * the pass; an op's input placed in its output is read by the op itself), storage marked with
  * spx_tape_keep and, under spx_tape_set_retain, everything backward reads lives to the end
  * (TP_INF). Its gradient lives from the first backward step that adds to it to the backward step
  * of its producer; gradients that can be seeded or handed in from outside (no producer inside the
@@ -134,18 +135,19 @@ static spx_status ws_items(spx_tape *t, tplan *p, item *it, int *ni) {
 static int imax(int a, int b) { return a > b ? a : b; }
 static int imin(int a, int b) { return a < b ? a : b; }
 
-/* Concatenation in place (device inference, batch 1): the skip input of an up block's fused
- * upcat (spx_tape_upcat) is the first channels of its output, so the skip's storage becomes that
- * output's: the op producing the skip writes it where the concatenation will be, and
- * spx_upcat_forward, seeing skip and output at one address, leaves out the copy (a third of an
- * upcat's bytes; on CPU devices a single-threaded memcpy). The merged storage lives from the
- * skip's birth to the concatenation's last reader. Only a skip that is a storage of its own (not
- * kept, no detach / slice alias of it) is placed so. rt: each value's storage (index - npersist). */
+/* Concatenation in place (device inference, batch 1): input 0 of an op whose row has
+ * TP_IN0_IN_OUT (the up block's fused upcat: its skip input) is the first channels of its output,
+ * so that input's storage becomes the output's: the op producing it writes it where the
+ * concatenation will be, and the op's forward, seeing input and output at one address, leaves out
+ * the copy (a third of an upcat's bytes; on CPU devices a single-threaded memcpy). The merged
+ * storage lives from the input's birth to the output's last reader. Only an input that is a
+ * storage of its own (not kept, no detach / slice alias of it) is placed so. rt: each value's
+ * storage (index - npersist). */
 static void concat_in_place(const spx_tape *t, int *rt) {
   const int np = t->npersist, nv = t->nvals - np;
   for (int k = 0; k < t->nnodes; k++) {
     const tnode *nd = &t->nodes[k];
-    if (nd->kind != OP_UPCAT) continue;
+    if (!(spx_tp_op(nd->kind)->flags & TP_IN0_IN_OUT)) continue;
     const int s = nd->in[0], o = nd->out;
     if (s < np || o < np || t->vals[s].space != SP_ACT || t->vals[o].space != SP_ACT || t->vals[s].n != 1 ||
         (t->vals[s].flags & TV_KEEP) || rt[s - np] != s - np || rt[o - np] != o - np)
@@ -162,8 +164,9 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
   p->nv = nv, p->nnodes = N;
   p->train = t->train, p->retain = t->pl.retain, p->reuse = t->pl.reuse;
   p->v = calloc((size_t)(nv ? nv : 1), sizeof *p->v);
-  /* per root (index id - np): last data use, backward data use, gradient access span, flags */
-  int *last = malloc(sizeof(int) * (size_t)(nv ? nv : 1) * 8);
+  /* per root (index id - np): last data use, backward data use, gradient access span, flags, the
+   * last node writing it */
+  int *last = malloc(sizeof(int) * (size_t)(nv ? nv : 1) * 9);
   item *it = malloc(sizeof *it * (size_t)(2 * nv + 2 * N + 1));
   item **tmp = malloc(sizeof *tmp * (size_t)(2 * nv + 2 * N + 1));
   p->deaths = malloc(sizeof *p->deaths * (size_t)(2 * nv + 1));
@@ -175,7 +178,9 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
   }
   int *bused = last + nv, *gmin = last + 2 * nv, *gmax = last + 3 * nv, *written = last + 4 * nv, *fl = last + 5 * nv;
   int *rt = last + 6 * nv, *b0 = last + 7 * nv; /* the storage each value lives in; a storage's first birth */
-  for (int i = 0; i < nv; i++) last[i] = -1, bused[i] = 0, gmin[i] = TP_INF, gmax[i] = -1, written[i] = 0, fl[i] = 0;
+  int *lastw = last + 8 * nv;
+  for (int i = 0; i < nv; i++)
+    last[i] = lastw[i] = -1, bused[i] = 0, gmin[i] = TP_INF, gmax[i] = -1, written[i] = 0, fl[i] = 0;
 #define ROOT(id) rt[(id) - np]
 #define ACT(id) ((id) >= np && t->vals[id].space == SP_ACT)
   for (int i = 0; i < nv; i++) rt[i] = t->vals[np + i].root - np, b0[i] = TP_INF;
@@ -189,6 +194,7 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
     const tnode *nd = &t->nodes[k];
     for (int j = 0; j < 3; j++)
       if (nd->in[j] >= 0 && ACT(nd->in[j])) last[ROOT(nd->in[j])] = imax(last[ROOT(nd->in[j])], 2 * k + 1);
+    if (ACT(nd->out)) lastw[ROOT(nd->out)] = 2 * k + 1;
     if (!t->train || !t->vals[nd->out].needs_grad) continue;
     int tb = 4 * N - 2 * k + 1, r[3];
     back_reads(t, nd, r);
@@ -207,7 +213,9 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
     const tvalue *v = &t->vals[np + i];
     tpval *e = &p->v[i];
     if (rt[i] != i) continue;
-    int sink = last[i] < 0, keep = (fl[i] & TV_KEEP) != 0;
+    /* nothing reads what was last written into it (an input placed in its concatenation is read
+     * by the op writing the concatenation: that read is not after the write) */
+    int sink = last[i] <= lastw[i], keep = (fl[i] & TV_KEEP) != 0;
     e->d0 = b0[i];
     e->d1 = sink || keep || (t->pl.retain && bused[i]) ? TP_INF : last[i];
     e->g0 = e->g1 = TP_INF;

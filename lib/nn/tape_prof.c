@@ -6,7 +6,13 @@
  * backward of node n is backward instance n, so the passes of one graph add up per layer (a pass
  * whose n-th op has another kind or shape restarts that record). A record's first run is kept
  * apart from the mean of the later ones: it builds programs and plans. At destroy both levels are
- * logged through the context's log callback, never printed. */
+ * logged through the context's log callback, never printed.
+ *
+ * Each level-2 record also carries its op's work in a stated model: the bytes of its inputs and
+ * output once (a backward: its inputs, its output's gradient and the gradients it writes, once),
+ * and for a convolution 2 x its multiply-adds (a backward: once per gradient it computes, data and
+ * weights). With the device's measured roofline (spx_device_measure_peak, kept on the device) a
+ * line also says its share of the FMA peak and of the bandwidth. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -17,8 +23,9 @@ struct tp_prof_inst {
   int kind;
   int32_t shape[4]; /* of the op's output */
   char note[64];
-  double first, s; /* the first run's seconds; the sum of the later runs' */
-  long n;          /* runs, the first included */
+  double first, s;     /* the first run's seconds; the sum of the later runs' */
+  long n;              /* runs, the first included */
+  double gflop, gbyte; /* the op's work (node_cost) */
 };
 
 struct tp_prof_list {
@@ -52,7 +59,27 @@ double spx_tp_prof_begin(spx_tape *t) {
   return spx_now();
 }
 
-static void prof_inst(struct tp_prof_list *l, int i, int kind, const tvalue *y, const char *note, double seconds);
+static void prof_inst(struct tp_prof_list *l, int i, int kind, const tvalue *y, const char *note, double seconds,
+                      const double cost[2]);
+
+/* the node's work in the model above: cost[0] GFLOP, cost[1] GB */
+static void node_cost(const spx_tape *t, const tnode *nd, int backward, double cost[2]) {
+  double in = 0.0, grads = 0.0;
+  for (int i = 0; i < 3; i++)
+    if (nd->in[i] >= 0) {
+      double b = 4.0 * (double)spx_tp_numel(&t->vals[nd->in[i]]);
+      in += b;
+      if (t->vals[nd->in[i]].needs_grad) grads += b;
+    }
+  cost[1] = (in + 4.0 * (double)spx_tp_numel(&t->vals[nd->out]) + (backward ? grads : 0.0)) * 1e-9;
+  cost[0] = 0.0;
+  if (nd->kind == OP_CONV && nd->in[1] >= 0) {
+    const tvalue *w = &t->vals[nd->in[1]];
+    double f = 2.0 * (double)spx_tp_numel(&t->vals[nd->out]) * w->c * w->h * w->w;
+    int passes = backward ? (nd->in[0] >= 0 && t->vals[nd->in[0]].needs_grad) + (w->needs_grad != 0) : 1;
+    cost[0] = f * passes * 1e-9;
+  }
+}
 
 double spx_tp_prof_end(spx_tape *t, int kind, int backward, double t0) {
   struct tp_prof *p = t->prof;
@@ -61,8 +88,10 @@ double spx_tp_prof_end(spx_tape *t, int kind, int backward, double t0) {
   double dt = spx_now() - t0;
   p->s[kind][backward] += dt;
   p->n[kind][backward]++;
-  if (p->level > 1 && !backward) { /* every op creates its output right before it runs */
-    prof_inst(&p->fwd, p->op++, kind, &t->vals[t->nvals - 1], p->note, dt);
+  if (p->level > 1 && !backward) { /* every op records its node and creates its output right before it runs */
+    double cost[2] = {0.0, 0.0};
+    if (t->nnodes > 0 && t->nodes[t->nnodes - 1].kind == kind) node_cost(t, &t->nodes[t->nnodes - 1], 0, cost);
+    prof_inst(&p->fwd, p->op++, kind, &t->vals[t->nvals - 1], p->note, dt, cost);
     p->note[0] = '\0';
   }
   return dt;
@@ -75,7 +104,9 @@ void spx_tp_prof_back_end(spx_tape *t, int node, double t0) {
   double dt = spx_tp_prof_end(t, nd->kind, 1, t0);
   if (p->level < 2) return;
   const char *note = node < p->fwd.n && p->fwd.r[node].kind == nd->kind ? p->fwd.r[node].note : "";
-  prof_inst(&p->bwd, node, nd->kind, &t->vals[nd->out], note, dt);
+  double cost[2];
+  node_cost(t, nd, 1, cost);
+  prof_inst(&p->bwd, node, nd->kind, &t->vals[nd->out], note, dt, cost);
 }
 
 void spx_tp_prof_pass(spx_tape *t) {
@@ -90,7 +121,8 @@ void spx_tp_prof_conv_note(spx_tape *t, int cin, int cout, int hw, int k, int st
   snprintf(t->prof->note, sizeof t->prof->note, "%dx%d s%d %d->%d %s", k, k, stride, cin, cout, alg);
 }
 
-static void prof_inst(struct tp_prof_list *l, int i, int kind, const tvalue *y, const char *note, double seconds) {
+static void prof_inst(struct tp_prof_list *l, int i, int kind, const tvalue *y, const char *note, double seconds,
+                      const double cost[2]) {
   if (i >= l->cap) { /* a failed growth only drops this record */
     int cap = l->cap ? 2 * l->cap : 64;
     while (cap <= i) cap *= 2;
@@ -103,6 +135,7 @@ static void prof_inst(struct tp_prof_list *l, int i, int kind, const tvalue *y, 
   struct tp_prof_inst *r = &l->r[i];
   if (r->n == 0 || r->kind != kind || memcmp(r->shape, shape, sizeof shape) || strcmp(r->note, note)) {
     r->kind = kind, r->s = 0.0, r->n = 0, r->first = seconds;
+    r->gflop = cost[0], r->gbyte = cost[1];
     memcpy(r->shape, shape, sizeof shape);
     snprintf(r->note, sizeof r->note, "%s", note);
   } else {
@@ -114,20 +147,36 @@ static void prof_inst(struct tp_prof_list *l, int i, int kind, const tvalue *y, 
 /* a record's steady time: the mean of the runs after the first (the first alone if it is all) */
 static double inst_ms(const struct tp_prof_inst *r) { return 1e3 * (r->n > 1 ? r->s / (double)(r->n - 1) : r->first); }
 
+/* "  12.3 GF/s  4.5% of peak  67.8 GB/s  9.0% of bw" for work done in ms (the shares when the
+ * device's roofline is known) */
+static void roof_text(spx_ctx *ctx, double gflop, double gbyte, double ms, char *out, size_t cap) {
+  spx_device_peak pk;
+  int known = spx_device_peak_known(ctx, &pk);
+  double s = ms * 1e-3, gf = s > 0 ? gflop / s : 0.0, gb = s > 0 ? gbyte / s : 0.0;
+  if (known && pk.fma_gflops > 0 && pk.triad_gbs > 0)
+    snprintf(out, cap, "%8.1f GF/s %5.1f%% of peak %7.1f GB/s %5.1f%% of bw", gf, 100.0 * gf / pk.fma_gflops, gb,
+             100.0 * gb / pk.triad_gbs);
+  else
+    snprintf(out, cap, "%8.1f GF/s %7.1f GB/s", gf, gb);
+}
+
 static void log_list(spx_tape *t, const struct tp_prof_list *l, const char *what) {
-  double sum = 0.0, first = 0.0;
+  double sum = 0.0, first = 0.0, gflop = 0.0, gbyte = 0.0;
   for (int i = 0; i < l->n; i++)
-    if (l->r[i].n) sum += inst_ms(&l->r[i]), first += 1e3 * l->r[i].first;
+    if (l->r[i].n) sum += inst_ms(&l->r[i]), first += 1e3 * l->r[i].first, gflop += l->r[i].gflop, gbyte += l->r[i].gbyte;
   if (sum <= 0.0) return;
-  spx_log(t->ctx, "tape profile per %s op (mean of the runs after the first; %.3f ms per pass, the first %.3f ms):", what,
-          sum, first);
+  char roof[128];
+  roof_text(t->ctx, gflop, gbyte, sum, roof, sizeof roof);
+  spx_log(t->ctx, "tape profile per %s op (mean of the runs after the first; %.3f ms per pass, the first %.3f ms; "
+          "%.3f GFLOP, %.1f MB: %s):", what, sum, first, gflop, gbyte * 1e3, roof);
   for (int i = 0; i < l->n; i++) {
     const struct tp_prof_inst *r = &l->r[i];
     if (!r->n) continue;
     double ms = inst_ms(r);
-    spx_log(t->ctx, "  #%-3d %-10s %4dx%-4dx%4dx%-5d %8.3f ms %5.1f%%  %ld runs (first %.3f ms)  %s", i,
-            spx_tp_op_name(r->kind), r->shape[0], r->shape[1], r->shape[2], r->shape[3], ms, 100.0 * ms / sum, r->n,
-            1e3 * r->first, r->note);
+    roof_text(t->ctx, r->gflop, r->gbyte, ms, roof, sizeof roof);
+    spx_log(t->ctx, "  #%-3d %-10s %4dx%-4dx%4dx%-5d %8.3f ms %5.1f%%  %ld runs (first %.3f ms)  %7.3f GFLOP %8.1f MB %s  %s",
+            i, spx_tp_op_name(r->kind), r->shape[0], r->shape[1], r->shape[2], r->shape[3], ms, 100.0 * ms / sum, r->n,
+            1e3 * r->first, r->gflop, r->gbyte * 1e3, roof, r->note);
   }
 }
 

@@ -25,6 +25,9 @@ static inline spx_tensor spx_tensor_view(cl_mem mem, size_t off, int32_t n, int3
  *  - spx_<op>_backward(ctx, saved inputs/outputs..., dout, din...) ACCUMULATES (+=) into every
  *    input gradient it is given (NULL = not needed), so a tensor used twice sums its gradients.
  *  - spx_ref_<op>_forward/_backward: plain C in double precision, same semantics; the
- *    finite-difference tests check the reference, and the device kernels are checked against it. */
+ *    finite-difference tests check the reference, and the device kernels are checked against it
+ *    (every tape op at once: tests/test_nn_tape_ops.c).
+ *  - no float atomics: every reduction runs in a fixed order, so a run repeats bit for bit
+ *    (`smplpix train --resume` relies on it). */
 
 #endif

@@ -15,12 +15,14 @@ from ._lib import LIBRARY_PATH
 from .avatar import Avatar
 from .body import BodyModel
 from .camera import Camera
-from .fit import Registration, register
-from .io import Mesh, read_exr, read_mesh, read_npy, read_png, write_exr, write_mesh, write_npy, write_png
+from .fit import Registration, depth_person, depth_points, register
+from .io import (Mesh, read_depth, read_exr, read_mesh, read_npy, read_png, write_exr, write_mesh, write_npy,
+                 write_png)
 from .render import project, project_backward, raster
 from .unet import UNet
 
 __version__ = "0.1.0"
 __all__ = ["Context", "SmplpixError", "list_devices", "version", "LIBRARY_PATH", "Avatar", "BodyModel", "Camera",
-           "Registration", "register", "Mesh", "read_exr", "read_mesh", "read_npy", "read_png", "write_exr",
-           "write_mesh", "write_npy", "write_png", "project", "project_backward", "raster", "UNet"]
+           "Registration", "register", "depth_person", "depth_points", "Mesh", "read_depth", "read_exr", "read_mesh",
+           "read_npy", "read_png", "write_exr", "write_mesh", "write_npy", "write_png", "project", "project_backward",
+           "raster", "UNet"]

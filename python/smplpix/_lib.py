@@ -1,7 +1,16 @@
 """Loading libsmplpix and declaring the C API (ctypes; mirrors lib/include/smplpix/*.h).
 
 Only the public headers are used. Every struct here has the layout of its C declaration; keep
-them in step when a header changes (tests/test_python runs every binding)."""
+them in step when a header changes: a field added to a struct (spx_fit_options, spx_raster_args,
+spx_body_model, spx_fit_result, spx_camera, spx_device_info, ...) goes here in the same place, or
+the binding reads garbage (python/tests compares every binding with the CLI and catches most shifts).
+
+The rules of the package: shapes and dtypes are checked in Python (ValueError / TypeError) before
+any call; every status goes through Context.check, which raises SmplpixError with the context's
+message; an object owning a library handle frees it with weakref.finalize holding its Context
+among the finalizer's arguments, so a context never goes before its UNets and body models; a
+Python exception in a progress callback never unwinds through C: it is kept and raised again
+after the call."""
 from __future__ import annotations
 
 import ctypes
@@ -135,7 +144,17 @@ class spx_fit_options(Structure):
                 ("w_lap", c_double), ("w_couple_start", c_double), ("w_couple_end", c_double),
                 ("robust_m", c_double), ("seed", c_uint64), ("progress", spx_fit_progress_fn),
                 ("progress_user", c_void_p), ("ceres_progress", c_int), ("view", c_int),
-                ("view_eye", c_double * 3)]
+                ("view_eye", c_double * 3), ("aids", c_uint), ("nviews", c_int32), ("view_eyes", POINTER(c_double)),
+                ("point_view", POINTER(c_int32))]
+
+
+class spx_depth(Structure):
+    _fields_ = [("width", c_int32), ("height", c_int32), ("z", POINTER(c_float)), ("nvalid", c_int64)]
+
+
+class spx_fit_depth_report(Structure):
+    _fields_ = [("valid", c_int64), ("flying", c_int64), ("nplanes", c_int), ("planes", c_int64), ("range", c_int64),
+                ("other", c_int64), ("kept", c_int64), ("extent", c_double * 3)]
 
 
 class spx_fit_result(Structure):
@@ -235,6 +254,12 @@ spx_body_forward = _fn("spx_body_forward", _st, _ctx_p, POINTER(spx_body_model),
 spx_body_forward_ref = _fn("spx_body_forward_ref", _st, _ctx_p, POINTER(spx_body_model), POINTER(spx_body_params),
                            _D, _D)
 
+spx_depth_read = _fn("spx_depth_read", _st, _ctx_p, c_char_p, POINTER(spx_camera), c_char_p, POINTER(spx_depth))
+spx_depth_free = _fn("spx_depth_free", None, POINTER(spx_depth))
+spx_fit_depth_person = _fn("spx_fit_depth_person", _st, _ctx_p, c_char_p, POINTER(spx_camera), _F, c_int32, c_int32,
+                           POINTER(spx_fit_depth_report))
+spx_fit_depth_points = _fn("spx_fit_depth_points", _st, _ctx_p, c_char_p, POINTER(spx_camera), _F, c_int32, c_int32,
+                           _F, POINTER(spx_mesh))
 spx_fit_options_default = _fn("spx_fit_options_default", None, POINTER(spx_fit_options))
 spx_fit_register = _fn("spx_fit_register", _st, _ctx_p, POINTER(spx_body_model), POINTER(spx_mesh),
                        POINTER(spx_fit_options), POINTER(spx_fit_result))

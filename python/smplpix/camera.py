@@ -51,6 +51,10 @@ class Camera:
         return Camera(c.width, c.height, [[c.K[r][k] for k in range(3)] for r in range(3)],
                       [[c.R[r][k] for k in range(3)] for r in range(3)], [c.t[r] for r in range(3)])
 
+    def eye(self) -> np.ndarray:
+        """The camera's centre in world coordinates, -R^T t."""
+        return -self.R.T @ self.t
+
     def validate(self) -> None:
         """spx_camera_validate: raise SmplpixError naming the problem for an impossible camera."""
         with Context(device=False) as ctx:

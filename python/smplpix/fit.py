@@ -8,7 +8,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from . import _lib as L
-from ._core import Context, PathLike, _path, carray
+from ._core import Context, PathLike, _path, carray, dptr, f32, fptr, i32, iptr
 from .body import BodyModel
 from .io import _c_mesh
 
@@ -44,9 +44,48 @@ class Registration:
     stages: list
 
 
+def depth_person(depth, camera, name: str = "depth image"):
+    """spx_fit_depth_person: the person in a raw depth frame ((H, W) metres, 0 / NaN = no data, seen
+    by camera, a smplpix.Camera of the same size): flying pixels, the floor and walls, what lies
+    beyond the person's depth range and other objects are set to 0 in a copy. Returns (depth,
+    report) with report a dict of pixel counts (valid, flying, nplanes, planes, range, other,
+    kept) and the person's extent (m). No person near the centre is an error (SmplpixError)."""
+    d = np.array(f32(depth, "depth", None, (2,)), dtype=np.float32, copy=True)
+    c = camera._to_c()
+    rep = L.spx_fit_depth_report()
+    with Context(device=False) as ctx:
+        ctx.check(L.spx_fit_depth_person(ctx.ptr, name.encode(), ctypes.byref(c), fptr(d), d.shape[1], d.shape[0],
+                                         ctypes.byref(rep)))
+    report = {k: getattr(rep, k) for k in ("valid", "flying", "nplanes", "planes", "range", "other", "kept")}
+    report["extent"] = tuple(rep.extent[:])
+    return d, report
+
+
+def depth_points(depth, camera, rgb=None, name: str = "depth image"):
+    """spx_fit_depth_points: every pixel with depth back-projected through camera at its centre into
+    world coordinates. rgb: (H, W, 3) colours in [0, 1] or None. Returns (points (P, 3) float32,
+    colours (P, 3) or None): a scan for register() (seen from camera.eye())."""
+    d = f32(depth, "depth", None, (2,))
+    col = None if rgb is None else f32(rgb, "rgb", (3,), (3,))
+    if col is not None and col.shape[:2] != d.shape:
+        raise ValueError(f"smplpix: rgb: shape {col.shape} does not match the depth image {d.shape}")
+    c = camera._to_c()
+    m = L.spx_mesh()
+    with Context(device=False) as ctx:
+        ctx.check(L.spx_fit_depth_points(ctx.ptr, name.encode(), ctypes.byref(c), fptr(d), d.shape[1], d.shape[0],
+                                         fptr(col), ctypes.byref(m)))
+        try:
+            pts = carray(m.pos, m.nv * 3, np.float32).reshape(m.nv, 3)
+            cols = carray(m.col, m.nv * 3, np.float32)
+            return pts, None if cols is None else cols.reshape(m.nv, 3)
+        finally:
+            L.spx_mesh_free(ctypes.byref(m))
+
+
 def register(ctx: Context, body: BodyModel, scan_points, scan_colors=None, scan_faces=None, *,
              stages=("rigid", "pose", "free"), progress: Optional[Callable[[dict], None]] = None,
-             params_json: Optional[PathLike] = None, **options) -> Registration:
+             params_json: Optional[PathLike] = None, view_eyes=None, point_view=None,
+             **options) -> Registration:
     """spx_fit_register: register `body` to a scan (mesh or point cloud; >= 10 finite points).
 
     scan_points (P, 3) float32 in metres, centimetres or millimetres (detected unless
@@ -57,7 +96,10 @@ def register(ctx: Context, body: BodyModel, scan_points, scan_colors=None, scan_
     free_inner_iterations, w_shape, w_pose, w_limits, w_scale, w_pose_start, w_m2s, w_lap,
     w_couple_start, w_couple_end, robust_m, seed, ceres_progress); defaults from spx_fit_options_default.
     progress: called with a dict (stage, step, nsteps, energy, mean_dist, seconds, note) after
-    every outer step. params_json: also write spx_fit_save_json's parameter file there."""
+    every outer step. params_json: also write spx_fit_save_json's parameter file there.
+    view_eyes: the centres (K, 3) of the K cameras that saw the scan (e.g. the depth images of
+    depth_points, concatenated), point_view (P,) the camera of each point (needed when K > 1):
+    what no camera could see is then no evidence."""
     o = L.spx_fit_options()
     L.spx_fit_options_default(ctypes.byref(o))
     mask = 0
@@ -66,7 +108,8 @@ def register(ctx: Context, body: BodyModel, scan_points, scan_colors=None, scan_
             raise ValueError(f"smplpix: stages: expected rigid, pose or free, got {s!r}")
         mask |= _STAGES[s]
     o.stages = mask
-    names = {f[0] for f in L.spx_fit_options._fields_} - {"stages", "progress", "progress_user"}
+    names = {f[0] for f in L.spx_fit_options._fields_} - {"stages", "progress", "progress_user", "nviews",
+                                                           "view_eyes", "point_view"}
     for k, v in options.items():
         if k not in names:
             raise TypeError(f"smplpix: register: unknown option {k!r} (expected one of {sorted(names)})")
@@ -85,6 +128,14 @@ def register(ctx: Context, body: BodyModel, scan_points, scan_colors=None, scan_
                 errors.append(e)
         o.progress = L.spx_fit_progress_fn(cb)
     mesh, keep = _c_mesh(scan_points, scan_faces, scan_colors)
+    views = None
+    if view_eyes is not None:
+        eyes = np.ascontiguousarray(np.asarray(view_eyes, dtype=np.float64).reshape(-1, 3))
+        pv = None if point_view is None else i32(point_view, "point_view", None, (1,))
+        if pv is not None and pv.shape[0] != mesh.nv:
+            raise ValueError(f"smplpix: point_view: {pv.shape[0]} entries for {mesh.nv} scan points")
+        o.nviews, o.view_eyes, o.point_view = eyes.shape[0], dptr(eyes), iptr(pv)
+        views = (eyes, pv)
     r = L.spx_fit_result()
     ctx.check(L.spx_fit_register(ctx.ptr, ctypes.byref(body.model), ctypes.byref(mesh), ctypes.byref(o),
                                  ctypes.byref(r)))
@@ -108,4 +159,4 @@ def register(ctx: Context, body: BodyModel, scan_points, scan_colors=None, scan_
             [s for s, b in _STAGES.items() if r.stages_done & b])
     finally:
         L.spx_fit_result_free(ctypes.byref(r))
-        del keep
+        del keep, views

@@ -60,6 +60,24 @@ def write_png(path: PathLike, image) -> None:
     _write_image(L.spx_png_write, path, image, (1, 3, 4))
 
 
+def read_depth(path: PathLike, camera=None) -> np.ndarray:
+    """spx_depth_read: a depth image as depth cameras write it, (H, W) float32 metres, 0 = no data.
+    16-bit PNG in millimetres; EXR Z (or Y) channel and float NPY in metres; 0, NaN, +inf (and an
+    EXR's Z = 1, smplpix's background) are no data. Refused with the library's one-line message:
+    negative depth, no depth, one constant depth, the wrong unit (a PNG in metres, an EXR / NPY in
+    millimetres, an 8-bit PNG). camera (a smplpix.Camera, optional): the image must be its size and
+    its K must fit the image."""
+    d = L.spx_depth()
+    c = None if camera is None else camera._to_c()
+    with Context(device=False) as ctx:
+        ctx.check(L.spx_depth_read(ctx.ptr, _path(path), None if c is None else ctypes.byref(c),
+                                   b"the camera" if c is not None else None, ctypes.byref(d)))
+        try:
+            return carray(d.z, d.width * d.height, np.float32).reshape(d.height, d.width)
+        finally:
+            L.spx_depth_free(ctypes.byref(d))
+
+
 def read_npy(path: PathLike) -> np.ndarray:
     """spx_npy_load: f4/f8/u1/i4/i8 (and i1/u4/u8/b1/f2) arrays, C order; big-endian files are
     byte-swapped; Fortran order, object arrays and inconsistent shapes are rejected."""

@@ -62,7 +62,7 @@ def test_corrupted_files_never_crash(tmp_path):
 
 
 def test_binding_as_strict_as_the_cli(tmp_path):
-    """Issue 24: sizes, paths, NaN and dtypes follow the CLI's rules, as exceptions."""
+    """The binding is as strict as the CLI: sizes, paths, NaN and dtypes follow its rules, as exceptions."""
     import pytest
     img = np.zeros((4, 5, 3), np.float32)
     # an embedded NUL would cut the path short in C and name another file
@@ -84,3 +84,44 @@ def test_binding_as_strict_as_the_cli(tmp_path):
         smplpix.Camera(2**32 + 128, 96, np.eye(3))
     with pytest.raises(ValueError, match="height needs a whole number"):
         smplpix.Camera(128, 96.5, np.eye(3))
+
+
+def test_writers_follow_the_output_policy(tmp_path):
+    """One output policy for the tool, the C API and this package: no writer replaces a
+    device node (as root, write_png("/dev/full") must not), a FIFO, a folder or a write-protected
+    file; each raises, naming the path, and the target stays as it was."""
+    import pytest
+    import stat
+    img = np.zeros((4, 5, 3), np.float32)
+    m = smplpix.read_mesh(MESH)
+    cam = smplpix.Camera.load(CAMERA)
+    writers = {"png": lambda p: smplpix.write_png(p, img), "exr": lambda p: smplpix.write_exr(p, img),
+               "npy": lambda p: smplpix.write_npy(p, img), "ply": lambda p: smplpix.write_mesh(p, m),
+               "json": lambda p: smplpix.Camera.save(p, cam)}
+    kinds = {"fifo": lambda p: os.mkfifo(p), "folder": lambda p: os.mkdir(p),
+             "link": lambda p: os.symlink("/dev/null", p)}
+    if os.geteuid() == 0:
+        kinds["device"] = lambda p: os.mknod(p, stat.S_IFCHR | 0o666, os.makedev(1, 3))
+
+    def readonly(p):
+        p.write_bytes(b"precious")
+        p.chmod(0o444)
+    kinds["readonly"] = readonly
+    for ext, write in writers.items():
+        for kind, make in kinds.items():
+            p = tmp_path / f"{kind}.{ext}"
+            make(p)
+            before = os.lstat(p)
+            with pytest.raises(smplpix.SmplpixError, match="cannot write"):
+                write(p)
+            after = os.lstat(p)
+            assert (stat.S_IFMT(after.st_mode), after.st_ino) == (stat.S_IFMT(before.st_mode), before.st_ino), (ext, kind)
+            if kind == "readonly":
+                assert p.read_bytes() == b"precious"
+            assert not [q for q in os.listdir(tmp_path) if ".tmp." in q], (ext, kind)
+            if kind == "readonly":
+                p.chmod(0o644)
+            if kind == "folder":
+                p.rmdir()
+            else:
+                p.unlink()

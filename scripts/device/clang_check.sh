@@ -2,7 +2,8 @@
 # Compile every kernel program offline with clang for NVIDIA (nvptx64-nvidia-nvcl) and AMD
 # (amdgcn-amd-amdhsa, gfx900) as OpenCL C 1.2 without cl_khr_fp64 / cl_khr_fp16, with the exact
 # source and options the library would build for a GPU-class device (SPX_TUNE_CLASS=gpu, dumped
-# through SPX_CL_DUMP_DIR by `smplpix devices --warmup` on the local device), at -O2 and, for
+# through SPX_CL_DUMP_DIR by `smplpix devices --warmup` on the local device: scripts/device/
+# gpu_common.sh, shared with gpu_static.sh), at -O2 and, for
 # NVIDIA, -cl-opt-disable; programs that divide (SPX_DIV) also with the integer division that
 # devices without correctly rounded division take. Fails (exit 1, naming program and target) on:
 #   - a compile error or warning (double, half arithmetic, generic address space, 2.0 built-ins)
@@ -18,11 +19,10 @@ BUILD=${1:-build}
 CLANG=${CLANG:-clang}
 command -v "$CLANG" >/dev/null || { echo "clang_check: $CLANG not found" >&2; exit 1; }
 [ -x "$BUILD/smplpix" ] || { echo "clang_check: $BUILD/smplpix not built" >&2; exit 1; }
+. scripts/device/gpu_common.sh
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-mkdir -p "$tmp/src"
-SPX_TUNE_CLASS=gpu SPX_CACHE_DIR="${SPX_CACHE_DIR:-$BUILD/cl-cache}" SPX_CL_DUMP_DIR="$tmp/src" \
-  "$BUILD/smplpix" devices --warmup --device "${SPX_CLANG_CHECK_DEVICE:-cpu}" >"$tmp/warmup.log" 2>&1 ||
+spx_dump_gpu_programs "$BUILD" "$tmp/src" "$tmp/warmup.log" ||
   { echo "clang_check: smplpix devices --warmup failed:" >&2; cat "$tmp/warmup.log" >&2; exit 1; }
 n=0
 fails=0
@@ -39,13 +39,12 @@ compile() {
     opts=$(printf '%s' "$opts" | sed 's/ -cl-fp32-correctly-rounded-divide-sqrt//; s/-DSPX_CR_DIV=1/-DSPX_CR_DIV=0/')
   fi
   case $target in
-  nvptx) triple="-target nvptx64-nvidia-nvcl" ;;
+  nvptx) triple=$SPX_NVPTX ;;
   amdgcn) triple="-target amdgcn-amd-amdhsa -mcpu=gfx900 -nogpulib" ;;
   esac
   base="$tmp/out/$prog.$variant.$target.$level"
   # shellcheck disable=SC2086 # word splitting of the option strings is intended
-  if ! $CLANG $triple -x cl $opts -Xclang -finclude-default-header -Xclang -cl-ext=-cl_khr_fp64,-cl_khr_fp16 \
-      -Werror $level -S -emit-llvm -o "$base.ll" "$tmp/src/$prog" 2>"$base.err"; then
+  if ! $CLANG $triple $SPX_CL_C12 $opts -Werror $level -S -emit-llvm -o "$base.ll" "$tmp/src/$prog" 2>"$base.err"; then
     fail "$prog ($variant, $target, $level): $(grep -m1 -E 'error' "$base.err" || head -n1 "$base.err")"
     return
   fi
@@ -53,7 +52,7 @@ compile() {
   undef=$(grep -E '^declare' "$base.ll" | grep -oE '@[A-Za-z_.$0-9]+' | grep -vE '^@(_Z|llvm\.)' | tr '\n' ' ' || true)
   [ -z "$undef" ] || fail "$prog ($variant, $target, $level): called but never defined: $undef"
   if [ "$target" = nvptx ] && [ "$level" = -O2 ]; then
-    $CLANG -target nvptx64-nvidia-nvcl -S -o "$base.ptx" "$base.ll" 2>"$base.err" || { fail "$prog: PTX: $(head -n1 "$base.err")"; return; }
+    $CLANG $SPX_NVPTX -S -o "$base.ptx" "$base.ll" 2>"$base.err" || { fail "$prog: PTX: $(head -n1 "$base.err")"; return; }
     # per .entry: static shared bytes and the stack depot
     awk -v prog="$prog" '
       /^\.entry/ { if (k != "") print k, sh, dep; k = $2; sub(/\(.*/, "", k); sh = 0; dep = 0 }

@@ -1,7 +1,7 @@
 #!/bin/sh
 # The GPU-class paths of the kernel tests (SPX_TUNE_CLASS=gpu: local-memory convolution and
-# Winograd, the radix-sort projection, the per-pixel rasterizer, the work-group reductions of the
-# norms and losses; SPX_OCLGRIND_TESTS names others) under
+# Winograd, the GEMM engine, the radix-sort projection, the per-pixel rasterizer, the work-group
+# reductions of the norms and losses; SPX_OCLGRIND_TESTS names others) under
 # Oclgrind, the OpenCL simulator that checks every memory access and barrier: data races
 # (--data-races), reads and writes out of bounds, barrier divergence; with NVIDIA's
 # limits (48 KiB of local memory, work-groups of at most 1024). By default each test runs with
@@ -21,7 +21,7 @@ command -v oclgrind >/dev/null || { echo "oclgrind_check: oclgrind not found (ap
 # the tests of the kernels that share local memory across a work-group (where races live);
 # test_render_project is left out of the default list (over 10 minutes under Oclgrind even with
 # --quick: SPX_OCLGRIND_TESTS=test_render_project runs it); its radix sort is test_render_sort's
-TESTS=${SPX_OCLGRIND_TESTS:-test_nn_conv2d_lds test_nn_conv2d_winograd_lds test_render_sort
+TESTS=${SPX_OCLGRIND_TESTS:-test_nn_conv2d_lds test_nn_conv2d_gemm test_nn_conv2d_winograd_lds test_render_sort
 test_render_raster test_nn_batchnorm test_nn_instnorm test_nn_loss}
 LIMIT=${SPX_OCLGRIND_TIMEOUT:-900}
 quick=--quick

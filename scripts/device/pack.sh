@@ -2,10 +2,13 @@
 # The GPU machine kit (docs/gpu.md): build smplpix here (Release, no MPI, build-kit/), then gather
 # into one git-ignored folder (default .device-kit/) what scripts/device/run.sh needs on a
 # machine that has glibc but none of our Debian packages:
-#   DIR/build/   smplpix, smplpix-test-hooks, libsmplpix, the test and benchmark executables and the
-#                CTestTestfile.cmake files (their build-tree paths rewritten to DIR/build), stripped
+#   DIR/build/   smplpix, smplpix-test-hooks, libsmplpix, the test and benchmark executables (with
+#                probe_cl and, where CLBlast is installed, bench_clblast: the first step's probe and
+#                baseline) and the CTestTestfile.cmake files (their build-tree paths rewritten to
+#                DIR/build), stripped
 #   DIR/lib/     every shared library they load that is not glibc's own (OpenEXR, Ceres and its
-#                BLAS/LAPACK, cJSON, libpng, zlib, the ocl-icd loader libOpenCL.so.1, libstdc++, ...)
+#                BLAS/LAPACK, cJSON, libpng, zlib, the ocl-icd loader libOpenCL.so.1, libstdc++,
+#                libclblast.so.1 for bench_clblast only, ...)
 #   DIR/manifest the source root the executables were built in (tests read tests/data from there:
 #                run.sh links that path to the checkout it runs in), commit, glibc versions needed
 # The kernels are built into libsmplpix; tests/data and data/ travel with the working tree.
@@ -32,7 +35,7 @@ cp -P "$KB"/libsmplpix.so* "$DIR/build/"
 cp "$KB/smplpix" "$DIR/build/"
 cp "$KB/smplpix-test-hooks" "$DIR/build/"
 for f in "$KB"/tests/test_*; do [ -f "$f" ] && [ -x "$f" ] && cp "$f" "$DIR/build/tests/"; done
-for f in "$KB"/benchmarks/bench_*; do [ -f "$f" ] && [ -x "$f" ] && cp "$f" "$DIR/build/benchmarks/"; done
+for f in "$KB"/benchmarks/bench_* "$KB"/benchmarks/probe_cl; do [ -f "$f" ] && [ -x "$f" ] && cp "$f" "$DIR/build/benchmarks/"; done
 # ctest's files, with the build-tree paths pointing into the kit
 for c in CTestTestfile.cmake tests/CTestTestfile.cmake benchmarks/CTestTestfile.cmake; do
   [ -f "$KB/$c" ] && sed "s|$KB|$DIR/build|g" "$KB/$c" >"$DIR/build/$c"
@@ -69,5 +72,5 @@ glibc=$(find "$DIR/build" "$DIR/lib" -type f -exec objdump -T {} + 2>/dev/null |
   echo "libs $(ls "$DIR/lib" | tr '\n' ' ')"
 } >"$DIR/manifest"
 mb=$(du -sm "$DIR" | cut -f1)
-echo "pack.sh: $DIR: $mb MiB ($(ls "$DIR/build/tests" | wc -l) tests, $(ls "$DIR/build/benchmarks" | wc -l) benchmarks, $(ls "$DIR/lib" | wc -l) libraries; needs ${glibc:-?})"
+echo "pack.sh: $DIR: $mb MiB ($(ls "$DIR/build/tests" | wc -l) tests, $(ls "$DIR/build/benchmarks" | wc -l) benchmarks$([ -x "$DIR/build/benchmarks/bench_clblast" ] || echo ', no bench_clblast: libclblast-dev is not installed'), $(ls "$DIR/lib" | wc -l) libraries; needs ${glibc:-?})"
 [ "$mb" -le "$MAX_MB" ] || { echo "pack.sh: $DIR is over $MAX_MB MiB: the tree and the kit must travel in 64 MiB" >&2; exit 1; }

@@ -1,26 +1,31 @@
 #!/bin/bash
 # The GPU machine kit's run (docs/gpu.md): from the repository root, with the kit of
 # scripts/device/pack.sh (SPX_KIT, default .device-kit/) carried along. Writes to $OUT (default
-# out/device/) at most 8 files: summary.txt (steps, times, results table), logs.tgz (every log,
-# the programs' sources, options and failed build logs, the tuning file, the benchmarks' CSV/JSON),
-# bench.txt (the benchmarks' ROW lines) and ctest.txt.
+# out/device/) at most 8 files: summary.txt (steps, times, results tables), first.tgz (the first
+# step's PTX, NVIDIA's -cl-nv-verbose logs and every log of that step: scripts/device/analyse_ptx.sh
+# reads it here), logs.tgz (every log, the programs' sources, options and failed build logs, the
+# tuning file, the benchmarks' CSV/JSON), bench.txt (the benchmarks' ROW lines) and ctest.txt.
 #   SPX_DEVICE=gpu (default): find the NVIDIA OpenCL driver under the driver's folders, register it
 #                 in a private ICD folder (OCL_ICD_VENDORS), and run everything on it
 #   SPX_DEVICE=cpu: the same steps on PoCL (the local smoke test; scripts/device/test_clean_root.sh)
 # Steps, each bounded by its own time limit and logged whatever the previous one did:
-#   env, icd, devices, warmup (every program built, failed builds' logs kept), ctest (the suite on
-#   the device), tune (smplpix tune --quick, its choice reported, not applied), latency (bench_latency), unet (bench_unet and the
-#   PyTorch peer on the same GPU: eval and train, width 64, batch 1 and 10, float32 and TF32),
-#   profile (bench_unet's per-layer device times, SPX_TAPE_PROFILE=2, and per-kernel ones,
-#   SPX_KERNEL_PROFILE=1), conv (bench_conv2d: the layer shapes alone, CONV_LDS 1 and 2), project (bench_project: up
-#   to 10^6 points), raster (bench_raster), then the summary.
+#   env, icd, then the first step (scripts/device/run_first.sh, FIRST_BUDGET seconds, default 90:
+#   devices and the measured roofline, every program built with its PTX kept, the inline-PTX
+#   mma.sync probe, -cl-nv-verbose builds of the convolution programs, the per-kernel and per-layer
+#   profile of a width-64 eval and training step at batch 1, the UNet-64 layer shapes alone, ours
+#   and CLBlast's; first.tgz and its summary written at once), ctest (the suite on the device),
+#   tune (smplpix tune --quick, its choice reported, not applied), latency (bench_latency), unet
+#   (bench_unet and the PyTorch peer on the same GPU: eval and train, width 64, batch 1 and 10,
+#   float32 and TF32), profile (bench_unet's per-layer and per-kernel device times at eval batch 10
+#   and width 16), conv2 (bench_conv2d with CONV_LDS=2), project (bench_project: up to 10^6
+#   points), raster (bench_raster), then the summary.
 # The whole run stays under SPX_RUN_BUDGET seconds (default 450): a step that would start with
 # less than its limit left is skipped and says so.
-# env: SPX_KIT, OUT, SPX_RUN_BUDGET, SPX_CTEST_REGEX (-R for ctest; default all), SPX_CTEST_JOBS,
-#      SPX_CTEST_TIMEOUT (per test, default 150), SPX_RUN_SWEEP (settings to time, see sweep_rows),
-#      PYTHON (default: python3 on PATH), SPX_RUN_SKIP (space-separated step names to skip),
-#      SPX_RUN_QUICK=1 (small benchmark sizes and no tuning, for the CPU smoke test),
-#      SPX_RUN_LIMIT_SCALE (multiplies every step's limit; default 1)
+# env: SPX_KIT, OUT, SPX_RUN_BUDGET, FIRST_BUDGET, SPX_CTEST_REGEX (-R for ctest; default all),
+#      SPX_CTEST_JOBS, SPX_CTEST_TIMEOUT (per test, default 150), SPX_RUN_SWEEP (settings to time,
+#      see sweep_rows), PYTHON (default: python3 on PATH), SPX_RUN_SKIP (space-separated step
+#      names to skip), SPX_RUN_QUICK=1 (small benchmark sizes and no tuning, for the CPU smoke
+#      test), SPX_RUN_LIMIT_SCALE (multiplies every step's limit and FIRST_BUDGET; default 1)
 set -u
 ROOT=$(pwd)
 [ -f "$ROOT/scripts/device/run.sh" ] || { echo "run.sh: run it from the repository root" >&2; exit 2; }
@@ -30,6 +35,8 @@ OUT=${OUT:-$ROOT/out/device}
 case $OUT in /*) ;; *) OUT="$ROOT/$OUT" ;; esac
 DEV=${SPX_DEVICE:-gpu}
 BUDGET=${SPX_RUN_BUDGET:-450}
+FIRST_BUDGET=${FIRST_BUDGET:-90}
+GROUP_END="" # set by run_first: the end of the first step's own budget (epoch seconds)
 PY=${PYTHON:-python3}
 START=$(date +%s)
 W=$(mktemp -d /tmp/spx-device.XXXXXX)
@@ -51,6 +58,14 @@ step() {
   fi
   limit=$((limit * ${SPX_RUN_LIMIT_SCALE:-1}))
   [ "$limit" -le "$left" ] || limit=$left
+  if [ -n "$GROUP_END" ]; then
+    left=$((GROUP_END - $(date +%s)))
+    if [ "$left" -lt 5 ]; then
+      say "step $name: skipped (the first step's ${FIRST_BUDGET}s are spent)"
+      return 0
+    fi
+    [ "$limit" -le "$left" ] || limit=$left
+  fi
   t0=$(date +%s)
   # through bash, so that CMD may be one of the exported functions below
   timeout -k 5 "$limit" bash -c '"$@"' _ "$@" >"$LOG/$name.log" 2>&1
@@ -149,13 +164,18 @@ export icd_lib
 export -f icd_check
 step icd 20 icd_check
 
-# --- devices and every kernel program
-step devices 60 "$SPX" devices
-cat "$LOG/devices.log" >>"$SUM"
-mkdir -p "$LOG/programs"
-step warmup 180 env SPX_CL_DUMP_DIR="$LOG/programs" "$SPX" devices --warmup --device "$DEV"
-tail -n 3 "$LOG/warmup.log" >>"$SUM"
-ls "$LOG/programs"/*.log >/dev/null 2>&1 && say "failed program builds: $(cd "$LOG/programs" && ls *.log | tr '\n' ' ')"
+# --- the first step (scripts/device/run_first.sh): devices, the roofline, every program (its PTX
+# kept), the probes, the width-64 profiles and the layer shapes; first.tgz and its summary at once
+QUICK=${SPX_RUN_QUICK:-0}
+if [ "$QUICK" = 1 ]; then
+  UW=16 USIZE=64x96 UREPS=1 UBATCH="1 2" LFRAMES=3 LWIDTHS=16 PRUNS=3 RFRAMES=3
+  export SPX_BENCH_NO_GL=1
+else
+  UW=64 USIZE=308x410 UREPS=5 UBATCH="1 10" LFRAMES=21 LWIDTHS=64,32,16 PRUNS=20 RFRAMES=21
+fi
+export UW USIZE UREPS UBATCH QUICK
+. "$ROOT/scripts/device/run_first.sh"
+run_first
 
 # --- the test suite on the device (its own program cache, warmed by the step above per test)
 run_ctest() {
@@ -171,18 +191,13 @@ cp "$LOG/ctest.log" "$OUT/ctest.txt" 2>/dev/null
 # --- tuning, in a copy of the program cache: its tuning file is reported (summary, logs), not
 # applied, so the benchmarks below time the defaults (a batch-1 choice applied to them had made
 # the batch-10 eval four times slower on the H200); SPX_RUN_SWEEP times other settings
-QUICK=${SPX_RUN_QUICK:-0}
 if [ "$QUICK" = 1 ]; then
-  UW=16 USIZE=64x96 UREPS=1 UBATCH="1 2" LFRAMES=3 LWIDTHS=16 PRUNS=3 RFRAMES=3
-  export SPX_BENCH_NO_GL=1
   say "step tune: skipped (SPX_RUN_QUICK=1)"
 else
-  UW=64 USIZE=308x410 UREPS=5 UBATCH="1 10" LFRAMES=21 LWIDTHS=64,32,16 PRUNS=20 RFRAMES=21
   cp -r "$W/cache" "$W/tune-cache" 2>/dev/null
   step tune 90 env SPX_CACHE_DIR="$W/tune-cache" "$SPX" tune --quick --width 64 --device "$DEV"
 fi
-export UW USIZE UREPS UBATCH
-tail -n 5 "$LOG/tune.log" >>"$SUM"
+tail -n 5 "$LOG/tune.log" >>"$SUM" 2>/dev/null
 
 # --- benchmarks (bench_latency and bench_unet write out/bench/ under the working directory)
 mkdir -p "$W/run/out" && cd "$W/run" || exit 1
@@ -212,25 +227,20 @@ export -f torch_rows
 if [ $have_torch = 1 ]; then step unet_torch 60 torch_rows; fi
 # the tape's per-layer device times (SPX_TAPE_PROFILE=2: each op finished before the next, so
 # their sum against the unprofiled pass shows the launch overhead) and each OpenCL command's own
-# device time per kernel name (SPX_KERNEL_PROFILE=1): width 64 eval and training step, width 64
-# eval at batch 10, width 16 eval, batch 1
+# device time per kernel name (SPX_KERNEL_PROFILE=1), beyond the first step's batch 1: width 64
+# eval at batch 10, width 16 eval at batch 1
 profile_rows() {
   export SPX_TAPE_PROFILE=2 SPX_KERNEL_PROFILE=1
-  "$B/bench_unet" --width "$UW" --size "$USIZE" --reps 2 --eval-batch 1 --batch 1
   "$B/bench_unet" --width "$UW" --size "$USIZE" --reps 1 --eval-batch "${UBATCH##* }" --no-train
   "$B/bench_unet" --width 16 --size "$USIZE" --reps 2 --eval-batch 1 --no-train
 }
 export -f profile_rows
-step profile 60 profile_rows
-# the convolution shapes alone (bench_conv2d: forward, backward data, backward weights of UNet-64
-# layers at 308x410, the 1x1 64->3 among them), each command's device time beside them
-# (SPX_KERNEL_PROFILE=1), with the local-memory 3x3 kernel of the defaults, then CONV_LDS=2
-conv_rows() {
-  SPX_KERNEL_PROFILE=1 "$B/bench_conv2d" 3
-  SPX_KERNEL_PROFILE=1 SPX_TUNE_CONV_LDS=2 "$B/bench_conv2d" 3
-}
-export -f conv_rows
-if [ "$QUICK" = 1 ]; then say "step conv: skipped (SPX_RUN_QUICK=1)"; else step conv 60 conv_rows; fi
+step profile 45 profile_rows
+# the layer shapes alone again with the register-row local-memory 3x3 kernel (CONV_LDS=2; the first
+# step timed the defaults' CONV_LDS=1)
+conv2_rows() { SPX_KERNEL_PROFILE=1 SPX_TUNE_CONV_LDS=2 "$B/bench_conv2d" 3; }
+export -f conv2_rows
+if [ "$QUICK" = 1 ]; then say "step conv2: skipped (SPX_RUN_QUICK=1)"; else step conv2 40 conv2_rows; fi
 # SPX_RUN_SWEEP: tunable settings to time against the defaults, ';'-separated, each a
 # space-separated list of SPX_TUNE_NAME=value (e.g. "SPX_TUNE_CONV_LDS=0;SPX_TUNE_CONV_LWS=128"):
 # bench_unet eval and training step, width 64, batch 1, per setting (empty: the step is skipped)
@@ -256,15 +266,18 @@ cd "$ROOT" || exit 1
 cp -r "$W/run/out/bench" "$LOG/bench" 2>/dev/null
 grep -h '^ROW' "$LOG"/unet.log "$LOG"/unet_torch.log 2>/dev/null >"$OUT/bench.txt"
 
-# --- summary: the UNet rows side by side, GFLOP/s against the float32 peak
+# --- summary: the UNet rows side by side, GFLOP/s against the measured float32 FMA peak (the first
+# step's `smplpix devices --peak`), the nominal one beside it
 summary() {
-  local cu mhz peak
-  cu=$(sed -n 's/.*| \([0-9]*\) CU |.*/\1/p' "$LOG/devices.log" | head -n 1)
+  local cu mhz nominal peak
+  cu=$(sed -n 's/.*| \([0-9]*\) CU |.*/\1/p' "$LOG/first_devices.log" | head -n 1)
   mhz=$(nvidia-smi --query-gpu=clocks.max.sm --format=csv,noheader,nounits 2>/dev/null | head -n 1 | tr -d ' ')
-  peak=0
+  nominal=0
   # NVIDIA Hopper / Ampere: 128 float32 lanes per multiprocessor, 2 flops per fma
-  [ -n "$cu" ] && [ -n "$mhz" ] && peak=$((cu * 128 * 2 * mhz / 1000))
-  echo "float32 peak: ${peak} GFLOP/s (${cu:-?} CU x 128 lanes x 2 x ${mhz:-?} MHz; 0 = unknown)"
+  [ -n "$cu" ] && [ -n "$mhz" ] && nominal=$((cu * 128 * 2 * mhz / 1000))
+  peak=$(sed -n 's/^peak .*: \([0-9.]*\) GFLOP\/s fp32 FMA.*/\1/p' "$LOG/first_devices.log" | head -n 1)
+  peak=${peak:-$nominal}
+  echo "float32 peak: ${peak} GFLOP/s measured (smplpix devices --peak); nominal ${nominal} GFLOP/s (${cu:-?} CU x 128 lanes x 2 x ${mhz:-?} MHz; 0 = unknown)"
   awk -v peak="$peak" '
     /^ROW/ { delete f; for (i = 2; i <= NF; i++) { split($i, kv, "="); f[kv[1]] = kv[2] }
              k = f["mode"] " b" f["batch"] " w" f["width"]; keys[k] = 1

@@ -7,9 +7,12 @@
 # kit copied to /repo (another path than the one the kit was built in, as on that machine):
 #   1. every kit executable's libraries resolve to the kit or to glibc (ldd, LD_LIBRARY_PATH = kit)
 #   2. scripts/device/run.sh with SPX_DEVICE=cpu and SPX_RUN_QUICK=1 (small benchmark sizes) runs
-#      every step (limits x5: PoCL on 2 cores is slow); devices, warmup, ctest (SPX_CTEST_REGEX,
-#      default the device, sort, raster, LBS and upsampling tests, both columns) and the
-#      benchmarks must end with rc=0, and $OUT must hold summary.txt, logs.tgz, bench.txt, ctest.txt
+#      every step (limits x10: PoCL compiles every program cold on 2 shared cores); the first
+#      step's sub-steps (the roofline, the program dump, the mma probe, the profiles, ours and
+#      CLBlast's layer shapes), ctest
+#      (SPX_CTEST_REGEX, default the device, sort, raster, LBS and upsampling tests, both columns)
+#      and the benchmarks must end with rc=0; $OUT must hold summary.txt, first.tgz (with every
+#      program's source), logs.tgz, bench.txt, ctest.txt; the summary the first step's sections
 # Needs root (chroot, mount). The root is kept in SPX_CLEAN_ROOT (default /var/tmp/spx-clean-root)
 # and reused; --fresh rebuilds it (a few minutes). Not run in CI (debootstrap and the run take
 # ~10 minutes on 2 cores); run it after changing the kit: `make device-kit-test`.
@@ -77,7 +80,7 @@ fi
 
 echo "test_clean_root: 2. scripts/device/run.sh on PoCL (ctest -R '$REGEX')"
 rm -rf "$ROOT/out/clean-root"
-chroot "$CR" sh -c "cd /repo && SPX_DEVICE=cpu SPX_RUN_QUICK=1 SPX_CTEST_JOBS=2 SPX_RUN_BUDGET=${SPX_RUN_BUDGET:-1800} SPX_RUN_LIMIT_SCALE=5 \
+chroot "$CR" sh -c "cd /repo && SPX_DEVICE=cpu SPX_RUN_QUICK=1 SPX_CTEST_JOBS=2 SPX_RUN_BUDGET=${SPX_RUN_BUDGET:-3600} SPX_RUN_LIMIT_SCALE=${SPX_RUN_LIMIT_SCALE:-10} \
   SPX_CTEST_REGEX='$REGEX' OUT=/repo/out/device bash scripts/device/run.sh" >"$CR.run.log" 2>&1 || true
 mkdir -p "$ROOT/out/clean-root"
 cp -r "$CR/repo/out/device/." "$ROOT/out/clean-root/" 2>/dev/null || true
@@ -85,14 +88,21 @@ S=$ROOT/out/clean-root/summary.txt
 [ -f "$S" ] || { tail -n 30 "$CR.run.log" >&2; echo "test_clean_root: FAIL: no summary.txt" >&2; exit 1; }
 cat "$S"
 fail=0
-for s in env icd devices warmup ctest latency unet project raster; do
+for s in env icd first_devices first_dump first_mma first_nvverbose first_eval first_train first_conv first_clblast \
+  ctest latency unet project raster; do
   grep -q "^step $s: rc=0 " "$S" || { echo "test_clean_root: FAIL: step $s did not end with rc=0" >&2; fail=1; }
 done
+for want in '^peak [0-9]*:[0-9]* .* GFLOP/s fp32 FMA' '^-- inline PTX tensor cores: mma.sync tf32: rejected' \
+  '^kernel profile (device time per command' '^roofline eval: ' '^roofline train: ' '^  4->64 3x3 ' '^first step: '; do
+  grep -q "$want" "$S" || { echo "test_clean_root: FAIL: summary.txt has no line matching: $want" >&2; fail=1; }
+done
+tar -tzf "$ROOT/out/clean-root/first.tgz" 2>/dev/null | grep -q 'first/programs/conv2d_lds.cl.opts' ||
+  { echo "test_clean_root: FAIL: first.tgz lacks the programs' sources" >&2; fail=1; }
 grep -q "^100% tests passed" "$S" || { echo "test_clean_root: FAIL: ctest did not pass" >&2; fail=1; }
 grep -q "^icd: .*libpocl" "$S" || { echo "test_clean_root: FAIL: PoCL was not found by run.sh" >&2; fail=1; }
 n=$(ls "$ROOT/out/clean-root" | wc -l)
 [ "$n" -le 8 ] || { echo "test_clean_root: FAIL: $n files in \$OUT (at most 8 come back)" >&2; fail=1; }
-for f in summary.txt logs.tgz bench.txt ctest.txt; do
+for f in summary.txt first.tgz logs.tgz bench.txt ctest.txt; do
   [ -s "$ROOT/out/clean-root/$f" ] || { echo "test_clean_root: FAIL: \$OUT/$f missing or empty" >&2; fail=1; }
 done
 [ $fail = 0 ] && echo "test_clean_root: PASS (results in out/clean-root/)"

@@ -62,6 +62,12 @@ double spx_now(void);
  * weight initialisations, the synthetic generator, the tool's seeded shuffles). */
 uint64_t spx_splitmix64(uint64_t *s);
 
+/* Length in bytes (1-4) of the UTF-8 character string s starts with, or 0 when it does not start
+ * with a valid one (a stray continuation byte, an overlong form, a surrogate, a code point above
+ * U+10FFFF, a sequence cut short, or the string's end). JSON this library and the tool write is
+ * valid UTF-8 by it. */
+size_t spx_utf8_char(const char *s);
+
 /* The library never prints. Diagnostics that are not errors (the profiles below) go, one line
  * at a time without a newline, to a callback the caller installs; with none they are dropped.
  * fn = NULL removes it. */
@@ -85,6 +91,10 @@ void spx_ctx_set_log(spx_ctx *ctx, spx_log_fn fn, void *user);
  * copy, read and write (OpenCL event profiling; each command waited for), summed per kernel or
  * command name and logged when the device closes, largest first. Serialises the queue. */
 #define SPX_PROFILE_KERNELS 16u
+/* DIV_FALLBACK (read when a device opens; for tests): kernels divide with the exact integer
+ * division of kernels/exact.h, as on a device without a correctly rounded fp32 division, although
+ * this device has one. The same bits, only slower. */
+#define SPX_DEBUG_DIV_FALLBACK 32u
 void spx_ctx_set_profile(spx_ctx *ctx, unsigned flags);
 unsigned spx_ctx_profile(const spx_ctx *ctx);
 

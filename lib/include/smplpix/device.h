@@ -46,6 +46,22 @@ spx_status spx_device_list(spx_ctx *ctx, spx_device_info *out, int max, int *cou
 /* Compile (or load from the cache) every embedded kernel program now, instead of lazily. */
 spx_status spx_device_warmup(spx_ctx *ctx);
 
+/* The open device's roofline, measured by short kernels (kernels/peak.cl, a fraction of a second
+ * on a GPU, a few seconds on a CPU): the float32 FMA peak (128 independent fma lanes per
+ * work-item, 4096 work-items per compute unit; 2 flops per fma) and the streaming bandwidth of a
+ * triad a = b + s c over float4 arrays of up to 256 MiB each (12 bytes per float). Each is the
+ * best of twenty timings of at least 2 ms. The last measurement is kept on the device:
+ * spx_device_peak_known returns 1 and copies it (out may be NULL), 0 before any. */
+typedef struct spx_device_peak {
+  double fma_gflops;  /* 10^9 flops per second */
+  double triad_gbs;   /* 10^9 bytes per second */
+  double fma_gflop;   /* work of one timed FMA launch */
+  double triad_gbyte; /* bytes one timed triad launch moves */
+  double seconds;     /* wall time of the whole measurement */
+} spx_device_peak;
+spx_status spx_device_measure_peak(spx_ctx *ctx, spx_device_peak *out);
+int spx_device_peak_known(const spx_ctx *ctx, spx_device_peak *out);
+
 /* Program-binary cache statistics since the device was opened. */
 typedef struct spx_cache_stats {
   int compiled;   /* programs built from source */

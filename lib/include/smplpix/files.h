@@ -32,11 +32,18 @@ char *spx_file_temp_name(const char *target);
  * with ESRCH). Temporaries of running processes, this one included, are kept. Returns the count. */
 int spx_file_clean_stale(const char *target);
 
-/* Can target be written (created or replaced) by rename from its folder? Refuses a missing or
- * non-folder parent, a parent without write permission, and a target that exists but is not a
- * regular file (a folder, a FIFO) or that is write-protected (no write permission bit, as cp
- * refuses it; for root too). Checked before long work starts. */
+/* The output policy: can target be written (created or replaced) by rename from its folder?
+ * Refuses a missing or non-folder parent, a parent without write permission, and a target that
+ * exists but is not a regular file (a folder, FIFO, socket or device) or that is write-protected
+ * (no write permission bit, as cp refuses it; for root too). Every writer of the library checks
+ * it before writing and again just before its rename, so the tool, the C API and the Python
+ * package share one rule; the tool also checks its outputs before long work starts. */
 spx_status spx_file_check_writable(spx_ctx *ctx, const char *target);
+
+/* For a signal handler (async-signal-safe: atomic loads and unlink only): removes the temporary
+ * of every write of the library in progress in this process, so that a program ended by the
+ * signal leaves none behind. The targets are untouched. */
+void spx_file_abort_writes(void);
 
 /* fsync the file at path, and the folder that holds path (its name entries). */
 spx_status spx_file_sync(spx_ctx *ctx, const char *path);

@@ -13,10 +13,11 @@
  *                  uniform-Laplacian regulariser (Laplacian of x kept close to the model's), same
  *                  data terms.
  * A scan seen from one camera (view = 1, view_eye its centre; or, without one, a scan that covers
- * under 3/4 of the body on one side, detected after the rigid stage and reported as a note):
- * model vertices that camera could not have seen (facing away, or hidden behind scanned surface)
- * are not pulled towards the scan, and the free stage keeps the posed model's surface wherever no
- * scan point is near.
+ * under 3/4 of the body on one side, detected after the rigid stage and reported as a note), or
+ * from several (nviews, view_eyes, point_view: the depth images of cameras around the person, one
+ * point cloud): model vertices that no camera could have seen (facing away from each, or hidden
+ * behind what each scanned) are not pulled towards the scan, and the free stage keeps the posed
+ * model's surface wherever no scan point is near.
  * Frames: "model frame" is the body model's space (metres); the scan is first multiplied by
  * unit_scale (1, 0.01 or 0.001), then x_scan_metres = sim_scale * sim_R * x_model + sim_t.
  * Nothing is printed unless ceres_progress is set in the options (debugging: Ceres's
@@ -35,6 +36,12 @@ extern "C" {
 #endif
 
 enum { SPX_FIT_RIGID = 1, SPX_FIT_POSE = 2, SPX_FIT_FREE = 4, SPX_FIT_ALL = 7 };
+/* spx_fit_options.aids: the aids for what no camera saw, each measured by bench_register_views
+ * --aids (benchmarks/RESULTS.md). CONTINUE (default on): the free stage's offsets from the body
+ * model are continued over what no scan point supports, else those vertices keep the posed model.
+ * FREESPACE (default off: it made the benchmark worse): with cameras, vertices no camera saw that
+ * project outside a camera's silhouette are drawn back into it. */
+enum { SPX_FIT_AID_CONTINUE = 1, SPX_FIT_AID_FREESPACE = 2 };
 
 typedef struct spx_fit_progress {
   const char *stage;    /* "rigid", "pose", "free" */
@@ -68,6 +75,10 @@ typedef struct spx_fit_options {
                                      stdout (debugging; default 0: the library prints nothing) */
   int view;                       /* 1: the scan is what one camera at view_eye saw (one side) */
   double view_eye[3];             /* the camera's centre in scan coordinates (input units) */
+  unsigned aids;                  /* SPX_FIT_AID_* bits (default SPX_FIT_AID_CONTINUE) */
+  int32_t nviews;                 /* > 0: the scan is what nviews cameras saw (fused; overrides view) */
+  const double *view_eyes;        /* nviews*3: their centres in scan coordinates (input units) */
+  const int32_t *point_view;      /* scan->nv: the camera (0..nviews-1) that saw each point */
 } spx_fit_options;
 
 void spx_fit_options_default(spx_fit_options *o);
@@ -103,23 +114,45 @@ spx_status spx_fit_result_mesh(spx_ctx *ctx, const spx_fit_result *r, spx_mesh *
  * detected; a size that is not a person's (0.1-3 m) in metres, centimetres or millimetres is an
  * error (SPX_E_ARG) with the figure. *note: what was assumed (NULL when metres or given). */
 /* A depth image as a scan (lib/fit/depth.c): each pixel (i, j) of a width x height depth map
- * (metres, row-major, 0 = no data) seen through cam (of the same size) is back-projected at its
- * centre, x_c = d K^-1 (i + 0.5, j + 0.5, 1), into world coordinates x = R^T (x_c - t). rgb
- * (height*width*3, or NULL) gives the points' colours. A size mismatch with the camera, a
- * negative depth or no pixel with depth is SPX_E_ARG, a depth that is not finite SPX_E_NUMERIC;
- * the messages start with name. out: a point cloud (spx_mesh_free). */
+ * (metres, row-major; 0, NaN and +inf = no data) seen through cam (of the same size) is
+ * back-projected at its centre, x_c = d K^-1 (i + 0.5, j + 0.5, 1), into world coordinates
+ * x = R^T (x_c - t). rgb (height*width*3, or NULL) gives the points' colours. A size mismatch with
+ * the camera, a negative depth or no pixel with depth is SPX_E_ARG; the messages start with name.
+ * out: a point cloud (spx_mesh_free). */
 spx_status spx_fit_depth_points(spx_ctx *ctx, const char *name, const spx_camera *cam, const float *depth,
                                 int32_t width, int32_t height, const float *rgb, spx_mesh *out);
 /* The camera's centre in world coordinates, -R^T t. */
 void spx_fit_camera_eye(const spx_camera *cam, double eye[3]);
 
+/* What spx_fit_depth_person found in a depth frame (pixels). */
+typedef struct spx_fit_depth_report {
+  int64_t valid;    /* with depth */
+  int64_t flying;   /* flying pixels at depth edges */
+  int nplanes;      /* large planes (floor, walls) */
+  int64_t planes;   /* on or beyond them */
+  int64_t range;    /* beyond the person's depth range */
+  int64_t other;    /* other objects beside the person */
+  int64_t kept;     /* the person */
+  double extent[3]; /* the person's extent along the camera's axes (m) */
+} spx_fit_depth_report;
+/* The person in a raw depth frame (lib/fit/depth_person.c, which documents the steps): flying
+ * pixels, the floor and walls (large planes), parts beyond the person's depth range and other
+ * objects are set to 0 in depth (metres, width x height, cam's size; NaN / inf read as no data),
+ * leaving the largest connected part near the image's centre. No person near the centre, or one
+ * over 2.5 m across, is SPX_E_ARG with one line of what was found (rep is filled either way). */
+spx_status spx_fit_depth_person(spx_ctx *ctx, const char *name, const spx_camera *cam, float *depth, int32_t width,
+                                int32_t height, spx_fit_depth_report *rep);
+
 spx_status spx_fit_units(spx_ctx *ctx, double ext, double given, double *scale, const char **note);
-/* A finished registration fits its scan (both in metres): the scan can be a person (at least 50
- * points, its smallest principal spread under 0.75 of its largest: a cube or a ball of points is
- * not), the body's extent within 0.5-2x the scan's, and the median scan-to-surface distance at
- * most 5% of the scan's extent; otherwise SPX_E_NUMERIC with the measured figures. */
+/* A finished registration fits its scan (both in metres; dist: each scan point's distance to the
+ * fitted surface, as spx_fit_surface_distance gives them; stages: spx_fit_result.stages_done): the
+ * scan can be a person (at least 50 points, its smallest principal spread under 0.75 of its
+ * largest: a cube or a ball of points is not), the body's extent within 0.5-2x the scan's, the
+ * median scan-to-surface distance at most 5% of the scan's extent, and, when the pose stage ran,
+ * at most 20% of the scan's points more than 5 cm from the body (else much of the input is not the
+ * body: a floor, walls, other objects); otherwise SPX_E_NUMERIC with the measured figures. */
 spx_status spx_fit_check_result(spx_ctx *ctx, const float *scan_m, int32_t ns, const float *reg_m, int32_t nv,
-                                double median_m);
+                                const float *dist, int stages);
 
 /* Distances from each of n points to a triangle mesh's surface (exact point-to-triangle over the
  * triangles around the k nearest vertices). Any output may be NULL; dist: n values. */

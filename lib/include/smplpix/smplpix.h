@@ -9,6 +9,7 @@
 #include "smplpix/raster.h"
 
 #include "smplpix/camera.h"
+#include "smplpix/depth.h"
 #include "smplpix/image.h"
 #include "smplpix/mesh.h"
 #include "smplpix/npy.h"
