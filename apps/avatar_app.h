@@ -69,11 +69,11 @@ typedef struct av_train_cfg {
   const char *ckpt;            /* OUT/work/net.safetensors */
   const char *vgg16, *lpips;   /* the cached weights */
   int quiet;
-  volatile sig_atomic_t *interrupted;
+  volatile sig_atomic_t *interrupted; /* the signal that interrupted the run, or 0 */
 } av_train_cfg;
 /* Train (or continue from cfg->ckpt) to steps1 + steps2 steps; *u: the network, *cpu: the CPU
- * seconds of the training kept (this and earlier sittings). Exit code; 130 when interrupted (the
- * checkpoint then holds every finished step). */
+ * seconds of the training kept (this and earlier sittings). Exit code; 128 + the signal
+ * (*interrupted) when interrupted (the checkpoint then holds every finished step). */
 int av_train(const char *cmd, spx_ctx *ctx, const av_train_cfg *cfg, const av_set *train, const av_set *val,
              spx_unet **u, double *cpu);
 

@@ -197,7 +197,7 @@ static int loop(av_run *r, const av_set *tr, const av_set *val) {
       bar_clear(r);
       fprintf(stderr, "smplpix %s: interrupted after training step %lld of %lld: saved %s (continue with --resume)\n",
               r->cmd, (long long)r->step, (long long)r->total, c->ckpt);
-      return 130;
+      return 128 + (int)*c->interrupted;
     }
   }
   return SPX_EXIT_OK;

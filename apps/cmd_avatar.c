@@ -88,13 +88,14 @@ typedef struct avatar_job {
   char load0[64];
 } avatar_job;
 
-/* Ctrl-C / SIGTERM: the first lets the run stop at the next safe point with its work saved; a second
- * ends the process at once (every saved file is whole). */
+/* Ctrl-C / SIGTERM: the first lets the run stop at the next safe point with its work saved (exit
+ * 128 + the signal); a second ends the process at once through the tool's handler (a save in
+ * progress is removed; every saved file is whole). */
 static volatile sig_atomic_t interrupted;
 static void on_signal(int sig) {
-  (void)sig;
-  if (interrupted) _exit(130);
-  interrupted = 1;
+  if (spx_cli_signal_elsewhere(sig)) return;
+  if (interrupted) spx_cli_interrupt(sig);
+  interrupted = sig;
   static const char msg[] = "\nsmplpix avatar: interrupted: saving the work done (Ctrl-C again to stop at once)\n";
   ssize_t w = write(STDERR_FILENO, msg, sizeof msg - 1);
   (void)w;
@@ -295,6 +296,31 @@ static int count_entries(const char *dir) {
   return n;
 }
 
+/* The outputs, checked before any input is read: OUT is absent or a folder, and no file the run
+ * writes there is one of its inputs or cannot be written (spx_tx_check). */
+static int check_outputs(const avatar_job *j) {
+  static const char *const names[] = {"avatar.safetensors",         "report.md",
+                                      "report.json",                "report.png",
+                                      AVATAR_WORK "/run.txt",       AVATAR_WORK "/registration.json",
+                                      AVATAR_WORK "/register.cpu",  AVATAR_WORK "/net.safetensors"};
+  const char *out = j->o->out;
+  struct stat sb;
+  if (stat(out, &sb) != 0) return SPX_EXIT_OK; /* made by open_out */
+  if (!S_ISDIR(sb.st_mode)) return spx_cli_errorf(C, "%s: exists and is not a folder", out);
+  char work[4300], p[4400];
+  snprintf(work, sizeof work, "%s/" AVATAR_WORK, out);
+  int has_work = stat(work, &sb) == 0 && S_ISDIR(sb.st_mode), rc = SPX_EXIT_OK;
+  spx_tx tx;
+  spx_tx_begin(&tx, C, 0);
+  for (size_t k = 0; k < sizeof names / sizeof names[0] && !rc; k++) {
+    if (!has_work && !strncmp(names[k], AVATAR_WORK "/", strlen(AVATAR_WORK) + 1)) continue;
+    snprintf(p, sizeof p, "%s/%s", out, names[k]);
+    rc = spx_tx_check(&tx, p);
+  }
+  spx_tx_end(&tx);
+  return rc;
+}
+
 /* OUT must be new or empty (a fresh run: OUT and OUT/work are made, run.txt written), or, with
  * --resume, hold the unfinished run of the same settings. */
 static int open_out(avatar_job *j) {
@@ -468,7 +494,7 @@ static int finish(avatar_job *j, const av_train_cfg *tc, double train_cpu) {
                        j->cpu_register + train_cpu + (av_cpu_now() - j->cpu0 - j->cpu_reg_here - j->cpu_train_here),
                        train_cpu, spx_now() - j->t0, load};
   if (!rc) rc = av_write_report(C, j->ctx, &tx, &ri, &sa, &sr);
-  if (!rc && interrupted) rc = 130;
+  if (!rc && interrupted) rc = 128 + interrupted;
   if (!rc) rc = spx_tx_commit(&tx);
   spx_tx_end(&tx);
   if (rc) return rc;
@@ -486,18 +512,16 @@ static int finish(avatar_job *j, const av_train_cfg *tc, double train_cpu) {
 static int stopped(const avatar_job *j) {
   if (!interrupted) return 0;
   fprintf(stderr, "smplpix %s: interrupted: the work so far is in %s (continue with --resume)\n", C, j->work);
-  return 1;
+  return 128 + interrupted;
 }
 
 static int run(avatar_job *j) {
   const avatar_opts *o = j->o;
   int rc;
-  if ((rc = check_weights(j)) || (rc = load_scan(j)) || (o->reg && (rc = read_registration(j))) || (rc = load_body(j)) ||
-      (rc = open_motion(j)) || (rc = open_out(j)))
+  if ((rc = check_outputs(j)) || (rc = check_weights(j)) || (rc = load_scan(j)) ||
+      (o->reg && (rc = read_registration(j))) || (rc = load_body(j)) || (rc = open_motion(j)) || (rc = open_out(j)))
     return rc;
-  if (stopped(j)) return 130;
-  if ((rc = registration(j))) return rc;
-  if (stopped(j)) return 130;
+  if ((rc = stopped(j)) || (rc = registration(j)) || (rc = stopped(j))) return rc;
   if ((rc = spx_cli_open_device(C, j->ctx, o->device)) || (rc = make_avatar(j))) return rc;
   av_plan plan = {(int)o->views, o->views >= 16 ? 4 : 2, (int)o->heldout, o->size[0], o->size[1], (uint64_t)o->seed};
   double t = spx_now();
@@ -506,7 +530,7 @@ static int run(avatar_job *j) {
     printf("data: %d training, %d validation, %d held-out views of %dx%d in %.1f s\n", j->train.n, j->val.n, j->held.n,
            o->size[0], o->size[1], spx_now() - t);
   fflush(stdout);
-  if (stopped(j)) return 130;
+  if ((rc = stopped(j))) return rc;
   long s1 = o->steps / 4;
   av_train_cfg tc = {(int)o->width, 2, s1, o->steps - s1, 2e-3, 2e-4, 100, o->steps >= 10 ? o->steps / 10 : 1,
                      (uint64_t)o->seed, j->ckpt, j->vgg16, j->lpips, o->quiet, &interrupted};
@@ -517,7 +541,7 @@ static int run(avatar_job *j) {
   if (rc) return rc;
   spx_avatar_set_unet(j->a, u);
   rc = finish(j, &tc, train_cpu);
-  if (rc == 130) stopped(j);
+  if (interrupted && rc == 128 + interrupted) stopped(j);
   return rc;
 }
 
@@ -579,7 +603,7 @@ int spx_cmd_avatar(int argc, char **argv) {
   interrupted = 0;
   int set_int = sigaction(SIGINT, &sa, &old_int) == 0, set_term = sigaction(SIGTERM, &sa, &old_term) == 0;
   rc = run(&j);
-  if (rc && rc != 130 && j.created_out) remove_work(&j, j.created_out == 2); /* nothing partial is left */
+  if (rc && !(interrupted && rc == 128 + interrupted) && j.created_out) remove_work(&j, j.created_out == 2); /* nothing partial is left */
   if (set_int) sigaction(SIGINT, &old_int, NULL);
   if (set_term) sigaction(SIGTERM, &old_term, NULL);
   av_set_free(&j.train), av_set_free(&j.val), av_set_free(&j.held);
