@@ -6,11 +6,13 @@
  *    does in another pose; points off the surface come back where they were in the registered pose;
  *  - scan colours: vertex colours interpolated, a texture sampled at the interpolated UVs;
  *  - the avatar: posing through Loop steps, the file written and read back (tensors, colours,
- *    metadata, the network: renders equal bit for bit), render = projection + network, and a plain
- *    network file refused as an avatar. */
+ *    metadata, the network: renders equal bit for bit), render = projection + network, a plain
+ *    network file refused as an avatar, and the output policy (a write-protected file, a FIFO). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "fit/fit_internal.h"
 #include "test.h"
@@ -246,6 +248,19 @@ static void test_avatar_file(void) {
   spx_unet *u2 = NULL;
   CHECK_OK(ctx, spx_unet_load(ctx, path, &u2));
   spx_unet_destroy(u2);
+  /* the library's output policy: a write-protected file and a FIFO are refused, left as they were */
+  char ro[700], fifo[700];
+  spx_t_path(ro, sizeof ro, "ro_avatar.safetensors");
+  spx_t_path(fifo, sizeof fifo, "fifo_avatar.safetensors");
+  unlink(ro), unlink(fifo);
+  FILE *f = fopen(ro, "w");
+  CHECK(f && fputs("precious", f) >= 0 && fclose(f) == 0 && chmod(ro, 0444) == 0 && mkfifo(fifo, 0666) == 0);
+  struct stat sb;
+  CHECK(spx_avatar_save(a, ro, 1, 48, 64, NULL, NULL, 0) != SPX_OK && strstr(spx_ctx_message(ctx), ro));
+  CHECK(stat(ro, &sb) == 0 && sb.st_size == 8 && (sb.st_mode & 0777) == 0444);
+  CHECK(spx_avatar_save(a, fifo, 1, 48, 64, NULL, NULL, 0) != SPX_OK && strstr(spx_ctx_message(ctx), fifo));
+  CHECK(stat(fifo, &sb) == 0 && S_ISFIFO(sb.st_mode));
+  chmod(ro, 0644), unlink(ro), unlink(fifo);
   spx_avatar_destroy(a), spx_avatar_destroy(b);
   spx_fit_result_free(&r);
   free(col), free(va), free(vb), free(v), free(ra), free(rb), free(in), free(nchw), free(out);
