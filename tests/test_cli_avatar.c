@@ -5,9 +5,9 @@
  * stand-ins in a cache folder of the test's own (a width-4 VGG16, the LPIPS golden's random AlexNet).
  *  - a run with --registration: the avatar file (the network, the vertices, the size), report.md,
  *    report.json with exactly the contract's keys, report.png; OUT/work removed;
- *  - killed at a training step (SIGKILL, the hooked tool) or interrupted (SIGINT: exit 130): the
- *    next run without --resume is refused, --resume finishes with the same tensors, metadata (the
- *    CPU time aside), report.png and scores as the uninterrupted run;
+ *  - killed at a training step (SIGKILL, the hooked tool) or interrupted (SIGINT, SIGTERM: exit
+ *    128 + the signal): the next run without --resume is refused, --resume finishes with the same
+ *    tensors, metadata (the CPU time aside), report.png and scores as the uninterrupted run;
  *  - animate --avatar: a frame equals `render --avatar` of the same motion frame; --raster draws; a
  *    camera of another size than the avatar's: animate warns, render refuses (--any-size runs it);
  *  - an OBJ scan with texture coordinates and a texture;
@@ -180,7 +180,8 @@ static int same_avatar(const char *a, const char *b) {
 }
 
 /* Killed at training step 3 (after stage 1's checkpoint at step 1): --resume ends where an
- * uninterrupted run (U) ends; so does a run interrupted (SIGINT) at step 4. */
+ * uninterrupted run (U) ends; so do runs interrupted by SIGINT at step 4 (exit 130) and by SIGTERM
+ * at step 5 (exit 143). */
 static void test_resume(void) {
   CHECK(run("avatar --scan body.ply --registration reg.json --out U " SMALL " --quiet") == 0);
   const char *args = "avatar --scan body.ply --registration reg.json --out B " SMALL;
@@ -198,6 +199,11 @@ static void test_resume(void) {
   CHECK(file_has("err.txt", "interrupted after training step 4 of 6") && file_has("err.txt", "--resume"));
   snprintf(resume, sizeof resume, "%s --resume", args_c);
   CHECK(run(resume) == 0 && file_has("out.txt", "continuing at step 4 of 6") && same_avatar("U", "C"));
+  const char *args_d = "avatar --scan body.ply --registration reg.json --out D " SMALL;
+  CHECK(run_hooked("SPX_TEST_AVATAR_STOP_STEP=5 SPX_TEST_AVATAR_STOP_SIGNAL=15", args_d) == 143);
+  CHECK(file_has("err.txt", "interrupted after training step 5 of 6"));
+  snprintf(resume, sizeof resume, "%s --resume", args_d);
+  CHECK(run(resume) == 0 && file_has("out.txt", "continuing at step 5 of 6") && same_avatar("U", "D"));
 }
 
 /* A camera CW x CH looking at the body from the front, 3 m away. */
