@@ -52,7 +52,7 @@ static int run_hooked(const char *env, const char *args) {
 static void test_setup(void) {
   char cmd[3000], w[800];
   path_of(cache, sizeof cache, "cache");
-  snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf A B C R T U X an ras big synth", dir); /* an earlier run's */
+  snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf A B C D R T U X an ras big synth", dir); /* an earlier run's */
   CHECK(spx_t_system(cmd) == 0);
   snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s/weights' && cp '" SPX_TEST_DATA "/vgg/vgg16_w4.safetensors' "
            "'%s/weights/vgg16.safetensors'", cache, cache, cache);
