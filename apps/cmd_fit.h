@@ -28,10 +28,10 @@ int spx_cli_pose_registration(const char *cmd, spx_ctx *ctx, const spx_body_mode
 /* apps/cmd_register.c, shared with avatar: a registration's progress line per outer step (or its
  * note) on stdout (an spx_fit_progress_fn; user unused). */
 void spx_cli_fit_progress(void *user, const spx_fit_progress *p);
-/* The scan-to-surface distance of a registration (reg: nv
- * vertices in scan coordinates, faces) in metres, dist = mean, median, 95th percentile, and the
- * check that the fit is a person's (spx_fit_check_result with the fit's stages_done: a scan that
- * is not a person, a fit that failed). Prints the one-line error itself; returns an exit code. */
+/* The scan-to-surface distance of a registration (reg: nv vertices in scan coordinates, faces)
+ * in metres, dist = mean, median, 95th percentile, and the check that the fit is a person's
+ * (spx_fit_check_result with the stages the fit ran: a scan that is not a person, a fit that
+ * failed). Prints the one-line error itself; returns an exit code. */
 int spx_cli_check_fit(const char *cmd, spx_ctx *ctx, const char *scan_path, const spx_mesh *scan, double unit_scale,
                       const float *reg, int32_t nv, const int32_t *faces, int32_t nf, int stages, double dist[3]);
 
