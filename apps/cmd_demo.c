@@ -215,10 +215,11 @@ static void free_scene(demo_scene *s) {
  * (smplpix synth draws the side per subject from the same range). */
 static const spx_synth_light demo_light = {{0.4, 1.0, 0.8}, 0.45, 0.7};
 
-/* photo (RGB HWC), input (projection, RGB-D HWC), raster (RGB + coverage HWC), net (RGB HWC; only
- * with a network u). photo and raster may be NULL (not drawn). */
-static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image *photo, spx_image *input,
-                      spx_image *raster, spx_image *net) {
+/* photo (RGB HWC) and its subject's mask (one channel, 1 = subject), input (projection, RGB-D
+ * HWC), raster (RGB + coverage HWC), net (RGB HWC; only with a network u). photo (with fg) and
+ * raster may be NULL (not drawn). */
+static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image *photo, spx_image *fg,
+                      spx_image *input, spx_image *raster, spx_image *net) {
   int W = s->cam.width, H = s->cam.height, rc = SPX_EXIT_ERROR;
   size_t hw = (size_t)W * H;
   spx_projector *proj = NULL;
@@ -226,7 +227,8 @@ static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image 
   float *nchw = NULL, *out = NULL;
   uint8_t *mask = malloc(hw);
   if (!mask) return spx_cli_errorf("demo", "out of memory");
-  if ((photo && spx_image_alloc(ctx, W, H, 3, photo)) || spx_image_alloc(ctx, W, H, 4, input) ||
+  if ((photo && (spx_image_alloc(ctx, W, H, 3, photo) || spx_image_alloc(ctx, W, H, 1, fg))) ||
+      spx_image_alloc(ctx, W, H, 4, input) ||
       (raster && spx_image_alloc(ctx, W, H, 4, raster)) ||
       (u && spx_image_alloc(ctx, W, H, 3, net)) || spx_projector_create(ctx, &proj) ||
       spx_rasterizer_create(ctx, &rast)) {
@@ -244,6 +246,7 @@ static int render_all(spx_ctx *ctx, const demo_scene *s, spx_unet *u, spx_image 
                          spx_project(ctx, proj, &pa, input->data, NULL) ||
                          (raster && spx_raster(ctx, rast, &ra, raster->data, NULL))))
     goto done;
+  for (size_t i = 0; photo && i < hw; i++) fg->data[i] = mask[i] ? 1.0f : 0.0f;
   if (u) {
     nchw = malloc(hw * 4 * sizeof(float));
     out = malloc(hw * 3 * sizeof(float));
@@ -279,13 +282,46 @@ static int render_motion(spx_ctx *ctx, const demo_opts *o, int subdivide, spx_un
   for (int k = 0; k < n && !rc; k++) {
     long frame = o->frame + (long)k * o->motion_step;
     rc = pose_scene(ctx, o, frame, subdivide, s);
-    if (!rc) rc = render_all(ctx, s, u, NULL, &input[k], NULL, &shown[k]);
+    if (!rc) rc = render_all(ctx, s, u, NULL, NULL, &input[k], NULL, &shown[k]);
     panels[k] = u ? &shown[k] : &input[k];
     snprintf(text[k], sizeof text[k], "F%ld", frame);
     labels[k] = text[k];
   }
   if (!rc && spx_demo_compose(ctx, panels, labels, n, o->zoom, strip)) rc = spx_cli_error("demo", ctx);
   for (int k = 0; k < n; k++) spx_image_free(&shown[k]), spx_image_free(&input[k]);
+  return rc;
+}
+
+/* The frame's scores against the photo, for the network's output (when there is one) and the
+ * per-vertex raster: PSNR (full image / inside the subject's mask), LPIPS (the same; with the
+ * cached weights of `make weights`, else left out) and detail inside the mask (smplpix eval's
+ * numbers, smplpix/metrics.h), as one line in buf. */
+static int score_line(spx_ctx *ctx, const spx_image *photo, const spx_image *fg, const spx_image *net,
+                      const spx_image *raster, char *buf, size_t cap) {
+  char w[4096];
+  spx_lpips *lp = NULL;
+  if (spx_weights_path(SPX_WEIGHTS_LPIPS_ALEX, w, sizeof w) == 1 && spx_lpips_load(ctx, w, &lp))
+    return spx_cli_error("demo", ctx);
+  const spx_image *im[2] = {net, raster};
+  const char *name[2] = {"SMPLpix", "per-vertex raster"};
+  int rc = SPX_EXIT_OK;
+  size_t n = (size_t)snprintf(buf, cap, "frame scores against the photo (PSNR full / mask, %sdetail in the mask):",
+                              lp ? "LPIPS full / mask, " : "");
+  for (int k = 0; k < 2 && !rc && n < cap; k++) {
+    if (!im[k]) continue;
+    spx_metrics m;
+    spx_detail d;
+    double l[2] = {NAN, NAN};
+    if (spx_image_metrics(ctx, im[k], photo, fg, &m) || spx_image_detail(ctx, im[k], photo, fg, &d) ||
+        (lp && spx_lpips_distance_masked(lp, im[k], photo, fg, &l[0], &l[1]))) {
+      rc = spx_cli_error("demo", ctx);
+      break;
+    }
+    n += (size_t)snprintf(buf + n, cap - n, "%s %s %.2f / %.2f dB", k && net ? ";" : "", name[k], m.psnr, m.psnr_fg);
+    if (lp && n < cap) n += (size_t)snprintf(buf + n, cap - n, ", LPIPS %.3f / %.3f", l[0], l[1]);
+    if (n < cap) n += (size_t)snprintf(buf + n, cap - n, ", detail %.2f", d.ratio);
+  }
+  spx_lpips_free(lp);
   return rc;
 }
 
@@ -356,7 +392,7 @@ int spx_cmd_demo(int argc, char **argv) {
   demo_scene s;
   memset(&s, 0, sizeof s);
   spx_unet *u = NULL;
-  spx_image photo = {0}, input = {0}, raster = {0}, net = {0}, motion = {0};
+  spx_image photo = {0}, fg = {0}, input = {0}, raster = {0}, net = {0}, motion = {0};
   int subdivide = 0;
   /* the folder (removed again by a failed run that made it) and the targets, before the work */
   if ((rc = spx_tx_mkdir(&tx, o.out_dir))) goto done;
@@ -370,9 +406,11 @@ int spx_cmd_demo(int argc, char **argv) {
   if (spx_cli_failed(&rc, "demo", ctx, ckpt && spx_unet_load(ctx, ckpt, &u))) goto done;
   if ((rc = network_setup(ctx, ckpt, &o, &subdivide))) goto done;
   if ((rc = load_scene(ctx, &o, &s)) || (rc = pose_scene(ctx, &o, o.frame, subdivide, &s))) goto done;
-  if ((rc = render_all(ctx, &s, u, &photo, &input, &raster, &net))) goto done;
+  if ((rc = render_all(ctx, &s, u, &photo, &fg, &input, &raster, &net))) goto done;
   int nv = s.body.nv; /* (the motion strip poses s again) */
   if (o.motion && (rc = render_motion(ctx, &o, subdivide, u, &s, &motion))) goto done;
+  char scores[512] = "";
+  if (!o.quiet && (rc = score_line(ctx, &photo, &fg, u ? &net : NULL, &raster, scores, sizeof scores))) goto done;
   if ((rc = write_all(ctx, &tx, o.out_dir, o.zoom, &photo, &input, &raster, u ? &net : NULL, o.motion ? &motion : NULL)))
     goto done;
   if (!o.quiet) {
@@ -386,9 +424,10 @@ int spx_cmd_demo(int argc, char **argv) {
     printf("wrote %s/demo.png (%s), demo_photo.png, demo_input.png, %sdemo_raster.png%s in %.2f s\n", o.out_dir,
            u ? "photo | input | SMPLpix | per-vertex raster" : "photo | input | per-vertex raster",
            u ? "demo_smplpix.png, " : "", o.motion ? ", demo_motion.png" : "", spx_now() - t0);
+    printf("%s\n", scores);
   }
 done:
-  spx_image_free(&photo), spx_image_free(&input), spx_image_free(&raster), spx_image_free(&net);
+  spx_image_free(&photo), spx_image_free(&fg), spx_image_free(&input), spx_image_free(&raster), spx_image_free(&net);
   spx_image_free(&motion);
   spx_unet_destroy(u);
   free_scene(&s);

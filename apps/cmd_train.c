@@ -26,13 +26,13 @@ static void train_help(void) {
          "                     [--epochs E | --steps S] [--init W0.safetensors] [--resume] [--seed N]\n"
          "                     [--no-shuffle] [--loss l1|l1+gan|vgg|vgg+gan|vgg16|vgg16+gan] [--vgg VGG.safetensors]\n"
          "                     [--schedule paper] [--lr2 LR] [--disc-width N] [--sigmoid] [--device cpu|gpu|P:D]\n"
-         "                     [--local-bn]\n"
+         "                     [--lr-decay cosine] [--local-bn]\n"
          "Trains on DIR/train/input/NAME.{exr,npy,png} (RGB-D) -> DIR/train/output/NAME.{png,exr,npy} (RGB),\n"
          "matched by NAME; all images of a split must have the same size (>= 16x16). Adam (betas 0.9,\n"
          "0.999, eps 1e-8), mean L1 loss. Defaults: --width 32 --batch 1 --lr 1e-3 --epochs 1 --seed 0.\n"
          "--epochs E / --steps S: train until E epochs / S optimizer steps in total are done.\n"
          "--resume continues from W (weights, optimizer state, step count, data order) bit for bit, taking\n"
-         "the seed, shuffle, batch, lr, loss, schedule, stage, lr2 and disc width recorded in W (flags\n"
+         "the seed, shuffle, batch, lr, lr decay, loss, schedule, stage, lr2 and disc width recorded in W (flags\n"
          "that contradict them: exit 2) and, unless --epochs / --steps give a new one, the run's length;\n"
          "--init starts from the weights of W0 with a fresh optimizer. After every epoch the loss on\n"
          "DIR/validation (when present: mean L1, and PSNR and SSIM of the output clamped to [0,1], as\n"
@@ -54,6 +54,9 @@ static void train_help(void) {
          "for --epochs (default 100) epochs at --lr (default 1e-4), then Adam restarts and stage 2 (+gan)\n"
          "runs as many epochs at --lr2 (default 1e-5); --batch defaults to 10. The stage is recorded in W,\n"
          "so --resume continues the right one.\n"
+         "--lr-decay cosine: each stage's learning rate falls from --lr (--lr2) to 0 along half a cosine,\n"
+         "0.5 (1 + cos(pi t)) at the fraction t of the stage done (a run's stage ends at its last step;\n"
+         "stage 1 of --schedule paper at its switch); recorded in W, so --resume keeps it.\n"
          "Several processes: mpirun -np N smplpix train ... trains one network on N ranks (one OpenCL device\n"
          "each, by local rank; ranks share the CPU when a node has fewer GPUs than ranks); --batch is the\n"
          "global batch and must divide by N; gradients are summed over the ranks in a fixed order; batch\n"
@@ -92,6 +95,8 @@ static void split_free(split *sp) {
   free(sp->s);
   memset(sp, 0, sizeof *sp);
 }
+
+/* Length of path up to its extension's dot. */
 
 /* List DIR/<name>/input and pair each with DIR/<name>/output/<stem>.{png,exr,npy}. Returns an
  * exit code; a missing split directory is an empty split unless `required`. */
@@ -338,11 +343,11 @@ static int net_open(spx_ctx *ctx, const char *from, int init, long width, int si
 
 /* The command line as given (before --resume adopts the checkpoint's record). */
 typedef struct train_args {
-  const char *data, *outp, *init, *spec, *loss_name, *vgg_path, *schedule;
+  const char *data, *outp, *init, *spec, *loss_name, *vgg_path, *schedule, *lr_decay;
   long width, batch, epochs, steps, seed, save_every, log_every, disc_width;
   double lr, lr2;
   int resume, no_shuffle, sigmoid, local_bn;
-  spx_opt opts[24];
+  spx_opt opts[25];
 } train_args;
 
 /* One run: the settings reconciled with the checkpoint, the data, the network and the buffers
@@ -379,6 +384,7 @@ static int train_parse(int argc, char **argv, train_args *a) {
                           SPX_O("--loss", SPX_OPT_STR, &a->loss_name),
                           SPX_O("--vgg", SPX_OPT_IN, &a->vgg_path),
                           SPX_O("--schedule", SPX_OPT_STR, &a->schedule),
+                          SPX_O("--lr-decay", SPX_OPT_STR, &a->lr_decay),
                           SPX_O_RANGE("--disc-width", SPX_OPT_INT, &a->disc_width, 1, 512),
                           SPX_O_RANGE("--lr2", SPX_OPT_REAL, &a->lr2, 1e-300, 1e6),
                           SPX_O_RANGE("--width", SPX_OPT_INT, &a->width, 8, 64),
@@ -399,6 +405,8 @@ static int train_parse(int argc, char **argv, train_args *a) {
   if (!a->data || !a->outp) return spx_cli_usage("train", "--data and --out are required");
   if (a->schedule && strcmp(a->schedule, "paper"))
     return spx_cli_usage("train", "--schedule must be 'paper', not '%s'", a->schedule);
+  if (a->lr_decay && strcmp(a->lr_decay, "cosine"))
+    return spx_cli_usage("train", "--lr-decay must be 'cosine', not '%s'", a->lr_decay);
   if (a->schedule && a->loss_name) return spx_cli_usage("train", "--schedule paper chooses the losses; drop --loss");
   if (a->loss_name && (rc = train_loss_parse(a->loss_name, &use_gan, &use_vgg))) return rc;
   if (a->epochs >= 0 && a->steps >= 0) return spx_cli_usage("train", "give --epochs or --steps, not both");
@@ -435,6 +443,8 @@ static int adopt_record(train_job *j, train_args *a) {
     clash = "--loss", snprintf(rec, sizeof rec, "loss (it was trained with --loss %s, not %s)", ts->loss, a->loss_name);
   else if (a->schedule && strcmp(a->schedule, ts->schedule))
     clash = "--schedule", snprintf(rec, sizeof rec, "single-stage run (loss %s)", ts->loss);
+  else if (a->lr_decay && strcmp(a->lr_decay, ts->lr_decay))
+    clash = "--lr-decay", snprintf(rec, sizeof rec, "constant learning rate");
   else if (spx_cli_given(o, "--lr2") && ts->schedule[0] && a->lr2 != ts->lr2)
     clash = "--lr2", snprintf(rec, sizeof rec, "lr2 %.17g", ts->lr2);
   else if (spx_cli_given(o, "--disc-width") && a->disc_width != ts->disc_width)
@@ -444,7 +454,7 @@ static int adopt_record(train_job *j, train_args *a) {
                          rec, a->outp);
   a->seed = (long)ts->seed, a->batch = (long)ts->batch, j->shuffle = (int)ts->shuffle, a->lr = ts->lr;
   a->schedule = ts->schedule[0] ? "paper" : NULL, a->loss_name = ts->schedule[0] ? NULL : ts->loss;
-  a->lr2 = ts->lr2, a->disc_width = (long)ts->disc_width;
+  a->lr2 = ts->lr2, a->disc_width = (long)ts->disc_width, a->lr_decay = ts->lr_decay[0] ? ts->lr_decay : NULL;
   return SPX_EXIT_OK;
 }
 
@@ -503,6 +513,7 @@ static int train_reconcile(train_job *j, train_args *a, const train_dist *dist) 
   r->vgg_path = a->vgg_path;
   r->vgg_cached = a->vgg_path == j->cached_vgg;
   r->lr1 = a->lr, r->lr2 = a->schedule ? a->lr2 : a->lr;
+  r->cosine = a->lr_decay != NULL;
   r->disc_width = (int)a->disc_width, r->num_d = 3, r->seed = (uint64_t)a->seed;
   return SPX_EXIT_OK;
 }
@@ -570,6 +581,7 @@ static int train_prepare(train_job *j, const train_args *a, train_dist *dist) {
   }
   int64_t now = train_recipe_step_count(r, u);
   ts->target = target > now ? target : now; /* never behind */
+  r->end = ts->target;
   if (dist->on) {
     if ((rc = train_dist_agree(dist, rc, NULL))) {
       j->agreed = 1;

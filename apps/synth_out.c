@@ -302,6 +302,26 @@ static int view_pose(run_state *s, spx_synth_rng *rng, int v, view_rec *vr) {
   return 0;
 }
 
+/* The camera of view v: from azimuth az0 + a jittered share of the circle, an elevation of
+ * -10..35 degrees and 1.6..2.6 times the posed scan's largest side away, framed as a scanner
+ * photo (docs/synth.md): the posed scan's projected box fills a fill drawn from
+ * SPX_FRAME_FILL_MIN..MAX of the height (or width), centred. Records the framing in vr. */
+static spx_status view_camera(run_state *s, spx_synth_rng *rng, const spx_synth_subject *sub, const float *posed,
+                              double az0, int v, view_rec *vr, spx_camera *cam) {
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int32_t k = 0; k < sub->nv; k++)
+    for (int c = 0; c < 3; c++) lo[c] = fmin(lo[c], posed[k * 3 + c]), hi[c] = fmax(hi[c], posed[k * 3 + c]);
+  double extent = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+  double az = az0 + 2 * PI * (v + spx_synth_rng_uniform(rng, -0.3, 0.3)) / s->o->views;
+  double el = spx_synth_rng_uniform(rng, -10, 35) * PI / 180;
+  double dist = extent * SPX_FRAME_DISTANCE * spx_synth_rng_uniform(rng, 0.8, 1.3);
+  vr->fill = spx_synth_rng_uniform(rng, SPX_FRAME_FILL_MIN, SPX_FRAME_FILL_MAX);
+  spx_status st = spx_camera_frame(s->ctx, sub->nv, posed, s->o->width, s->o->height, az, el, dist, vr->fill, cam);
+  if (st || (st = spx_camera_bbox(s->ctx, cam, sub->nv, posed, vr->box))) return st;
+  vr->K[0] = cam->K[0][0], vr->K[1] = cam->K[0][2], vr->K[2] = cam->K[1][2];
+  return SPX_OK;
+}
+
 static int one_subject(run_state *s, int i) {
   const synth_opts *o = s->o;
   int rc = 0, W = o->width, H = o->height, nj = s->body.nj;
@@ -354,27 +374,13 @@ static int one_subject(run_state *s, int i) {
     if (spx_cli_failed(&rc, "synth", s->ctx,
                        spx_synth_pose(s->ctx, &s->body, &sub, vr[v].pose, vr[v].trans, posed)))
       goto done;
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (int32_t k = 0; k < sub.nv; k++)
-      for (int c = 0; c < 3; c++) {
-        lo[c] = fmin(lo[c], posed[k * 3 + c]);
-        hi[c] = fmax(hi[c], posed[k * 3 + c]);
-      }
-    double extent = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
-    double az = az0 + 2 * PI * (v + spx_synth_rng_uniform(&rng, -0.3, 0.3)) / o->views;
-    double el = spx_synth_rng_uniform(&rng, -10, 35) * PI / 180;
-    double dist = extent * SPX_FRAME_DISTANCE * spx_synth_rng_uniform(&rng, 0.8, 1.3);
-    vr[v].fill = spx_synth_rng_uniform(&rng, SPX_FRAME_FILL_MIN, SPX_FRAME_FILL_MAX);
-    /* framed as a scanner photo (docs/synth.md): the posed scan's projected box fills `fill` */
     spx_camera cam;
-    if (spx_camera_frame(s->ctx, sub.nv, posed, W, H, az, el, dist, vr[v].fill, &cam) ||
-        spx_camera_bbox(s->ctx, &cam, sub.nv, posed, vr[v].box) ||
+    if (view_camera(s, &rng, &sub, posed, az0, v, &vr[v], &cam) ||
         spx_synth_photo(s->ctx, s->rast, &s->body, &sub, vr[v].pose, vr[v].trans, &cam, &light, (uint32_t)i + 1, rgb,
                         mask, NULL)) {
       rc = spx_cli_error("synth", s->ctx);
       goto done;
     }
-    vr[v].K[0] = cam.K[0][0], vr[v].K[1] = cam.K[0][2], vr[v].K[2] = cam.K[1][2];
     snprintf(p, sizeof p, "%s/%s/cameras/v%03d.json", s->tmp, name, v);
     if (spx_cli_failed(&rc, "synth", s->ctx, spx_camera_save(s->ctx, p, &cam, 1))) goto done;
     spx_image im = {W, H, 3, rgb};

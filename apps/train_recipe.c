@@ -2,6 +2,7 @@
 #include "train_recipe.h"
 
 #include <inttypes.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -91,7 +92,7 @@ int train_recipe_step(spx_ctx *ctx, train_recipe *r, spx_unet *u, const float *i
     printf("step %" PRId64 ": stage 2 (--loss %s, Adam restarted, lr %g)\n", now, train_loss_name(r), r->lr2);
     fflush(stdout);
   }
-  double lr = r->schedule && r->stage == 2 ? r->lr2 : r->lr1;
+  double lr = train_recipe_lr(r, train_recipe_step_count(r, u));
   spx_gan_losses gl;
   memset(&gl, 0, sizeof gl);
   if (r->gan[r->stage]) {
@@ -126,6 +127,15 @@ int train_recipe_step(spx_ctx *ctx, train_recipe *r, spx_unet *u, const float *i
   return 0;
 }
 
+double train_recipe_lr(const train_recipe *r, int64_t now) {
+  double lr = r->schedule && r->stage == 2 ? r->lr2 : r->lr1;
+  if (!r->cosine) return lr;
+  int64_t start = r->base, end = r->schedule && r->stage == 1 ? r->stage1_steps : r->end;
+  double t = end > start ? (double)(now - start) / (double)(end - start) : 1;
+  t = t < 0 ? 0 : t > 1 ? 1 : t;
+  return lr * 0.5 * (1 + cos(3.14159265358979323846 * t));
+}
+
 void train_recipe_terms(const train_recipe *r, char *buf, size_t cap) {
   buf[0] = 0;
   if ((!r->gan[r->stage] && !r->vgg) || !r->count) return;
@@ -147,6 +157,7 @@ void train_recipe_epoch_reset(train_recipe *r) {
 void train_recipe_record(const train_recipe *r, spx_train_state *s) {
   snprintf(s->loss, sizeof s->loss, "%s", train_loss_name(r));
   snprintf(s->schedule, sizeof s->schedule, "%s", r->schedule ? "paper" : "");
+  snprintf(s->lr_decay, sizeof s->lr_decay, "%s", r->cosine ? "cosine" : "");
   s->stage = r->stage, s->stage_base = r->base, s->stage1_steps = r->schedule ? r->stage1_steps : 0;
   s->lr = r->lr1, s->lr2 = r->lr2, s->disc_width = r->disc_width;
 }

@@ -30,6 +30,8 @@ typedef struct train_recipe {
   int vgg_cached;            /* vgg_path is the cached VGG16 of `make weights`: torchvision's, width 64 */
   int64_t stage1_steps;      /* schedule: steps of stage 1 (stage 2 starts there) */
   double lr1, lr2;
+  int cosine;                /* --lr-decay cosine: each stage's rate falls from lr to 0 along half a cosine */
+  int64_t end;               /* the run's last step (its target), where a single stage's decay reaches 0 */
   int disc_width, num_d;
   uint64_t seed;
   const spx_comm *comm;       /* data-parallel (apps/train_dist.h): rank 0 loads the discriminator,
@@ -66,7 +68,12 @@ int train_recipe_step(spx_ctx *ctx, train_recipe *r, spx_unet *u, const float *i
 /* " (VGG 0.3, L1 0.1234, GAN 0.9, FM 0.2, D 0.25)" for the epoch so far (empty for plain l1). */
 void train_recipe_terms(const train_recipe *r, char *buf, size_t cap);
 void train_recipe_epoch_reset(train_recipe *r);
-/* The recipe's part of the checkpoint's state: loss, schedule, stage, base, lr, lr2, disc width. */
+/* The learning rate of the step after `now` steps: lr1 (lr2 in stage 2 of the schedule), times,
+ * with --lr-decay cosine, 0.5 (1 + cos(pi t)), t the fraction of the stage done (stage 1 of the
+ * schedule ends at stage1_steps, any other stage at the run's end). */
+double train_recipe_lr(const train_recipe *r, int64_t now);
+/* The recipe's part of the checkpoint's state: loss, schedule, stage, base, lr, lr2, lr decay,
+ * disc width. */
 void train_recipe_record(const train_recipe *r, spx_train_state *s);
 /* The discriminator to save beside W (NULL when the current stage has none). */
 spx_patchgan *train_recipe_disc(const train_recipe *r);

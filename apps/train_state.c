@@ -37,6 +37,8 @@ static const struct field {
      "l1|l1+gan|vgg|vgg+gan|vgg16|vgg16+gan"},
     {"smplpix.train.schedule", F_TEXT, offsetof(spx_train_state, schedule), sizeof(((spx_train_state *)0)->schedule),
      0, 0, 0, "|paper"},
+    {"smplpix.train.lr_decay", F_TEXT, offsetof(spx_train_state, lr_decay), sizeof(((spx_train_state *)0)->lr_decay),
+     0, 0, 0, "|cosine"},
     {"smplpix.train.stage", F_INT, offsetof(spx_train_state, stage), 0, 1, 2, 0, NULL},
     {"smplpix.train.stage_base", F_INT, offsetof(spx_train_state, stage_base), 0, 0, I64MAX, 0, NULL},
     {"smplpix.train.stage1_steps", F_INT, offsetof(spx_train_state, stage1_steps), 0, 0, I64MAX, 0, NULL},

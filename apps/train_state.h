@@ -27,6 +27,7 @@ typedef struct spx_train_state {
   double lr;               /* Adam learning rate (stage 1 of --schedule paper) */
   char loss[64];           /* loss of the stage saved in: l1, l1+gan, vgg, vgg+gan, vgg16, vgg16+gan */
   char schedule[16];       /* "paper" for --schedule paper, "" for a single-stage run */
+  char lr_decay[16];       /* "cosine" for --lr-decay cosine, "" for a constant learning rate */
   int64_t stage;           /* 1 or 2 (2: the GAN stage; a plain --loss *+gan run is stage 2 throughout) */
   int64_t stage_base;      /* global step at which the current stage's Adam started (step = base + Adam step) */
   int64_t stage1_steps;    /* --schedule paper: the global step stage 2 begins at */

@@ -371,12 +371,125 @@ static int data_in_box(const plot *p, const frame *f, int bx0, int by0, int bx1,
   return hits;
 }
 
+/* The axes of the data's ranges (log10 on a log axis; unit ranges without usable data). */
+static void data_axes(const plot *p, frame *f) {
+  double xlo = INFINITY, xhi = -INFINITY, ylo = INFINITY, yhi = -INFINITY;
+  for (int i = 0; i < p->ns; i++)
+    for (int j = 0; j < p->s[i].n; j++) {
+      double x = p->s[i].x[j], y = p->s[i].y[j];
+      if (!usable(x, p->logx) || !usable(y, p->logy)) continue;
+      x = p->logx ? log10(x) : x, y = p->logy ? log10(y) : y;
+      xlo = fmin(xlo, x), xhi = fmax(xhi, x), ylo = fmin(ylo, y), yhi = fmax(yhi, y);
+    }
+  if (!(xlo <= xhi)) xlo = p->logx ? 0 : 0, xhi = p->logx ? 1 : 1, ylo = p->logy ? 0 : 0, yhi = p->logy ? 1 : 1;
+  make_axis(&f->ax, xlo, xhi, p->logx);
+  make_axis(&f->ay, ylo, yhi, p->logy);
+}
+
+/* The plot area inside the title, the axis labels and the tick labels; -1 when too small. */
+static int layout(const plot *p, frame *f) {
+  int ylab_w = 0;
+  for (int i = 0; i < f->ay.n; i++)
+    if (f->ay.labeled[i]) {
+      int tw = plot_text_width(f->ay.lab[i], 1);
+      ylab_w = tw > ylab_w ? tw : ylab_w;
+    }
+  int title_h = p->title[0] ? 14 + 14 : 10;
+  f->x0 = 10 + (p->ylabel[0] ? 7 + 10 : 0) + ylab_w + 10;
+  f->y0 = title_h;
+  f->x1 = p->w - 1 - 16;
+  f->y1 = p->h - 1 - (10 + 7 + (p->xlabel[0] ? 10 + 7 : 0) + 10);
+  return f->x1 - f->x0 < 40 || f->y1 - f->y0 < 40 ? -1 : 0;
+}
+
+static const float BLACK[3] = {0, 0, 0};
+
+/* grid, ticks, tick labels, the frame, the title and the axis labels */
+static void draw_axes(canvas *c, const plot *p, const frame *f) {
+  const float grid[3] = {0.88f, 0.88f, 0.88f}, grey[3] = {0.35f, 0.35f, 0.35f};
+  for (int i = 0; i < f->ax.n; i++) {
+    int x = (int)lround(f->x0 + (f->ax.t[i] - f->ax.lo) / (f->ax.hi - f->ax.lo) * (f->x1 - f->x0));
+    if (f->ax.labeled[i]) {
+      fill_rect(c, x, f->y0 + 1, x, f->y1 - 1, grid);
+      int tw = plot_text_width(f->ax.lab[i], 1);
+      text(c, x - tw / 2, f->y1 + 8, f->ax.lab[i], 1, BLACK, 0);
+    }
+    fill_rect(c, x, f->y1 + 1, x, f->y1 + (f->ax.labeled[i] ? 5 : 3), BLACK);
+  }
+  for (int i = 0; i < f->ay.n; i++) {
+    int y = (int)lround(f->y1 - (f->ay.t[i] - f->ay.lo) / (f->ay.hi - f->ay.lo) * (f->y1 - f->y0));
+    if (f->ay.labeled[i]) {
+      fill_rect(c, f->x0 + 1, y, f->x1 - 1, y, grid);
+      int tw = plot_text_width(f->ay.lab[i], 1);
+      text(c, f->x0 - 8 - tw, y - 3, f->ay.lab[i], 1, BLACK, 0);
+    }
+    fill_rect(c, f->x0 - (f->ay.labeled[i] ? 5 : 3), y, f->x0 - 1, y, BLACK);
+  }
+  rect_outline(c, f->x0, f->y0, f->x1, f->y1, BLACK);
+  if (p->title[0]) text(c, (p->w - plot_text_width(p->title, 2)) / 2, 8, p->title, 2, BLACK, 0);
+  if (p->xlabel[0])
+    text(c, (f->x0 + f->x1 - plot_text_width(p->xlabel, 1)) / 2, f->y1 + 8 + 7 + 10, p->xlabel, 1, grey, 0);
+  if (p->ylabel[0]) text(c, 10, (f->y0 + f->y1 - plot_text_width(p->ylabel, 1)) / 2, p->ylabel, 1, grey, 1);
+}
+
+/* the series' lines and markers, clipped to the plot area */
+static void draw_series(canvas *c, const plot *p, const frame *f) {
+  c->cx0 = f->x0 + 1, c->cy0 = f->y0 + 1, c->cx1 = f->x1 - 1, c->cy1 = f->y1 - 1;
+  for (int i = 0; i < p->ns; i++) {
+    const series *s = &p->s[i];
+    const float *col = PALETTE[i % 8];
+    for (int j = 1; j < s->n; j++)
+      if (usable(s->x[j - 1], p->logx) && usable(s->y[j - 1], p->logy) && usable(s->x[j], p->logx) &&
+          usable(s->y[j], p->logy))
+        segment(c, map_x(f, s->x[j - 1]), map_y(f, s->y[j - 1]), map_x(f, s->x[j]), map_y(f, s->y[j]), 0.9, col);
+    for (int j = 0; j < s->n; j++)
+      if (usable(s->x[j], p->logx) && usable(s->y[j], p->logy))
+        marker(c, map_x(f, s->x[j]), map_y(f, s->y[j]), i % MK_COUNT, 3.6, col);
+  }
+}
+
+/* the legend, in the corner with the least data under it */
+static void draw_legend(canvas *c, const plot *p, const frame *f) {
+  if (p->ns <= 0) return;
+  int name_w = 0;
+  for (int i = 0; i < p->ns; i++) {
+    int tw = plot_text_width(p->s[i].name, 1);
+    name_w = tw > name_w ? tw : name_w;
+  }
+  int lw = 8 + 26 + 8 + name_w + 8, lh = 6 + 14 * p->ns;
+  /* the four corners first; if none is empty, any height along the left or right edge */
+  int best_hits = -1, lx = f->x0 + 8, ly = f->y0 + 8;
+  int cand[4][2] = {{f->x0 + 8, f->y0 + 8},
+                    {f->x1 - 8 - lw, f->y0 + 8},
+                    {f->x0 + 8, f->y1 - 8 - lh},
+                    {f->x1 - 8 - lw, f->y1 - 8 - lh}};
+  for (int k = 0; k < 4; k++) {
+    int hits = data_in_box(p, f, cand[k][0], cand[k][1], cand[k][0] + lw, cand[k][1] + lh);
+    if (best_hits < 0 || hits < best_hits) lx = cand[k][0], ly = cand[k][1], best_hits = hits;
+  }
+  for (int y = f->y0 + 8; best_hits > 0 && y <= f->y1 - 8 - lh; y += 4)
+    for (int side = 0; side < 2; side++) {
+      int x = side ? f->x1 - 8 - lw : f->x0 + 8;
+      int hits = data_in_box(p, f, x, y, x + lw, y + lh);
+      if (hits < best_hits) lx = x, ly = y, best_hits = hits;
+    }
+  const float white[3] = {1, 1, 1}, frame_col[3] = {0.6f, 0.6f, 0.6f};
+  fill_rect(c, lx, ly, lx + lw, ly + lh, white);
+  rect_outline(c, lx, ly, lx + lw, ly + lh, frame_col);
+  for (int i = 0; i < p->ns; i++) {
+    const float *col = PALETTE[i % 8];
+    double cy = ly + 10 + 14 * i;
+    segment(c, lx + 8, cy, lx + 8 + 26, cy, 0.9, col);
+    marker(c, lx + 8 + 13, cy, i % MK_COUNT, 3.6, col);
+    text(c, lx + 8 + 26 + 8, (int)cy - 3, p->s[i].name, 1, BLACK, 0);
+  }
+}
+
 int plot_save(const plot *p, const char *path, char *err, size_t cap) {
   if (!p || !path) {
     if (err && cap) snprintf(err, cap, "plot_save: no plot or no path");
     return -1;
   }
-  const float black[3] = {0, 0, 0}, grid[3] = {0.88f, 0.88f, 0.88f}, grey[3] = {0.35f, 0.35f, 0.35f};
   int W = p->w, H = p->h, ret = -1;
   spx_ctx *ctx = NULL;
   spx_image img = {W, H, 3, NULL};
@@ -387,111 +500,15 @@ int plot_save(const plot *p, const char *path, char *err, size_t cap) {
   }
   for (size_t i = 0; i < 3 * (size_t)W * (size_t)H; i++) img.data[i] = 1.0f;
   canvas c = {img.data, W, H, 0, 0, W - 1, H - 1};
-
-  /* data ranges */
   frame f;
-  double xlo = INFINITY, xhi = -INFINITY, ylo = INFINITY, yhi = -INFINITY;
-  for (int i = 0; i < p->ns; i++)
-    for (int j = 0; j < p->s[i].n; j++) {
-      double x = p->s[i].x[j], y = p->s[i].y[j];
-      if (!usable(x, p->logx) || !usable(y, p->logy)) continue;
-      x = p->logx ? log10(x) : x, y = p->logy ? log10(y) : y;
-      xlo = fmin(xlo, x), xhi = fmax(xhi, x), ylo = fmin(ylo, y), yhi = fmax(yhi, y);
-    }
-  if (!(xlo <= xhi)) xlo = p->logx ? 0 : 0, xhi = p->logx ? 1 : 1, ylo = p->logy ? 0 : 0, yhi = p->logy ? 1 : 1;
-  make_axis(&f.ax, xlo, xhi, p->logx);
-  make_axis(&f.ay, ylo, yhi, p->logy);
-
-  /* layout */
-  int ylab_w = 0;
-  for (int i = 0; i < f.ay.n; i++)
-    if (f.ay.labeled[i]) {
-      int tw = plot_text_width(f.ay.lab[i], 1);
-      ylab_w = tw > ylab_w ? tw : ylab_w;
-    }
-  int title_h = p->title[0] ? 14 + 14 : 10;
-  f.x0 = 10 + (p->ylabel[0] ? 7 + 10 : 0) + ylab_w + 10;
-  f.y0 = title_h;
-  f.x1 = W - 1 - 16;
-  f.y1 = H - 1 - (10 + 7 + (p->xlabel[0] ? 10 + 7 : 0) + 10);
-  if (f.x1 - f.x0 < 40 || f.y1 - f.y0 < 40) {
+  data_axes(p, &f);
+  if (layout(p, &f)) {
     if (err && cap) snprintf(err, cap, "plot_save: %dx%d is too small for the labels", W, H);
     goto done;
   }
-
-  /* grid, ticks, labels */
-  for (int i = 0; i < f.ax.n; i++) {
-    int x = (int)lround(f.x0 + (f.ax.t[i] - f.ax.lo) / (f.ax.hi - f.ax.lo) * (f.x1 - f.x0));
-    if (f.ax.labeled[i]) {
-      fill_rect(&c, x, f.y0 + 1, x, f.y1 - 1, grid);
-      int tw = plot_text_width(f.ax.lab[i], 1);
-      text(&c, x - tw / 2, f.y1 + 8, f.ax.lab[i], 1, black, 0);
-    }
-    fill_rect(&c, x, f.y1 + 1, x, f.y1 + (f.ax.labeled[i] ? 5 : 3), black);
-  }
-  for (int i = 0; i < f.ay.n; i++) {
-    int y = (int)lround(f.y1 - (f.ay.t[i] - f.ay.lo) / (f.ay.hi - f.ay.lo) * (f.y1 - f.y0));
-    if (f.ay.labeled[i]) {
-      fill_rect(&c, f.x0 + 1, y, f.x1 - 1, y, grid);
-      int tw = plot_text_width(f.ay.lab[i], 1);
-      text(&c, f.x0 - 8 - tw, y - 3, f.ay.lab[i], 1, black, 0);
-    }
-    fill_rect(&c, f.x0 - (f.ay.labeled[i] ? 5 : 3), y, f.x0 - 1, y, black);
-  }
-  rect_outline(&c, f.x0, f.y0, f.x1, f.y1, black);
-  if (p->title[0]) text(&c, (W - plot_text_width(p->title, 2)) / 2, 8, p->title, 2, black, 0);
-  if (p->xlabel[0])
-    text(&c, (f.x0 + f.x1 - plot_text_width(p->xlabel, 1)) / 2, f.y1 + 8 + 7 + 10, p->xlabel, 1, grey, 0);
-  if (p->ylabel[0])
-    text(&c, 10, (f.y0 + f.y1 - plot_text_width(p->ylabel, 1)) / 2, p->ylabel, 1, grey, 1);
-
-  /* series, clipped to the plot area */
-  c.cx0 = f.x0 + 1, c.cy0 = f.y0 + 1, c.cx1 = f.x1 - 1, c.cy1 = f.y1 - 1;
-  for (int i = 0; i < p->ns; i++) {
-    const series *s = &p->s[i];
-    const float *col = PALETTE[i % 8];
-    for (int j = 1; j < s->n; j++)
-      if (usable(s->x[j - 1], p->logx) && usable(s->y[j - 1], p->logy) && usable(s->x[j], p->logx) &&
-          usable(s->y[j], p->logy))
-        segment(&c, map_x(&f, s->x[j - 1]), map_y(&f, s->y[j - 1]), map_x(&f, s->x[j]), map_y(&f, s->y[j]), 0.9, col);
-    for (int j = 0; j < s->n; j++)
-      if (usable(s->x[j], p->logx) && usable(s->y[j], p->logy))
-        marker(&c, map_x(&f, s->x[j]), map_y(&f, s->y[j]), i % MK_COUNT, 3.6, col);
-  }
-
-  /* legend in the corner with the least data under it */
-  if (p->ns > 0) {
-    int name_w = 0;
-    for (int i = 0; i < p->ns; i++) {
-      int tw = plot_text_width(p->s[i].name, 1);
-      name_w = tw > name_w ? tw : name_w;
-    }
-    int lw = 8 + 26 + 8 + name_w + 8, lh = 6 + 14 * p->ns;
-    /* the four corners first; if none is empty, any height along the left or right edge */
-    int best_hits = -1, lx = f.x0 + 8, ly = f.y0 + 8;
-    int cand[4][2] = {{f.x0 + 8, f.y0 + 8}, {f.x1 - 8 - lw, f.y0 + 8}, {f.x0 + 8, f.y1 - 8 - lh}, {f.x1 - 8 - lw, f.y1 - 8 - lh}};
-    for (int k = 0; k < 4; k++) {
-      int hits = data_in_box(p, &f, cand[k][0], cand[k][1], cand[k][0] + lw, cand[k][1] + lh);
-      if (best_hits < 0 || hits < best_hits) lx = cand[k][0], ly = cand[k][1], best_hits = hits;
-    }
-    for (int y = f.y0 + 8; best_hits > 0 && y <= f.y1 - 8 - lh; y += 4)
-      for (int side = 0; side < 2; side++) {
-        int x = side ? f.x1 - 8 - lw : f.x0 + 8;
-        int hits = data_in_box(p, &f, x, y, x + lw, y + lh);
-        if (hits < best_hits) lx = x, ly = y, best_hits = hits;
-      }
-    const float white[3] = {1, 1, 1}, frame_col[3] = {0.6f, 0.6f, 0.6f};
-    fill_rect(&c, lx, ly, lx + lw, ly + lh, white);
-    rect_outline(&c, lx, ly, lx + lw, ly + lh, frame_col);
-    for (int i = 0; i < p->ns; i++) {
-      const float *col = PALETTE[i % 8];
-      double cy = ly + 10 + 14 * i;
-      segment(&c, lx + 8, cy, lx + 8 + 26, cy, 0.9, col);
-      marker(&c, lx + 8 + 13, cy, i % MK_COUNT, 3.6, col);
-      text(&c, lx + 8 + 26 + 8, (int)cy - 3, p->s[i].name, 1, black, 0);
-    }
-  }
-
+  draw_axes(&c, p, &f);
+  draw_series(&c, p, &f);
+  draw_legend(&c, p, &f);
   if (spx_ctx_create(&ctx)) {
     if (err && cap) snprintf(err, cap, "plot_save: out of memory");
     goto done;

@@ -1,4 +1,4 @@
-/* 2-D convolution as an implicit GEMM (host side: lib/nn/conv2d.c; reference: lib/nn/conv2d_ref.c).
+/* 2-D convolution as an implicit GEMM (host side: lib/nn/conv2d_direct.c; reference: lib/nn/conv2d_ref.c).
  *
  * Programs (split so that a command compiles only what it runs; each forward variant costs ~0.5 s
  * of PoCL compile, the backward kernels ~2 s): this file holds the stride-1 3x3 and 1x1 forwards

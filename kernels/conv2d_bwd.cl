@@ -1,5 +1,5 @@
-/* conv2d gradients (host: lib/nn/conv2d.c backward_weights / backward_bias); backward data runs
- * the forward kernels of conv2d.cl. Layout: see the top of kernels/conv2d.cl. */
+/* conv2d gradients (host: lib/nn/conv2d_direct.c direct_weights, lib/nn/conv2d.c backward_bias);
+ * backward data runs the forward kernels of conv2d.cl. Layout: see the top of kernels/conv2d.cl. */
 #include "conv2d_common.h"
 
 /* Backward weights, partial sums: part[c][co][kk] = sum_n sum_{q in chunk c} dyq[n][co][q] *

@@ -1,5 +1,5 @@
 /* 3x3 stride-1 convolution forward with local-memory tiles, for GPU-class devices (tunable
- * CONV_LDS; host: lib/nn/conv2d_lds.c, called from lib/nn/conv2d.c for every 3x3 stride-1
+ * CONV_LDS; host: lib/nn/conv2d_lds.c, called from lib/nn/conv2d_direct.c for every 3x3 stride-1
  * forward and backward-data convolution that is not on the Winograd path; reference:
  * lib/nn/conv2d_ref.c; test: tests/test_nn_conv2d_lds.c).
  *

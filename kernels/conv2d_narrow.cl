@@ -1,6 +1,6 @@
 /* The stride-1 3x3 / 1x1 forwards and the weight packing of kernels/conv2d.cl, compiled with the
  * narrow register tile: CONV_NARROW_TM output channels x CONV_NARROW_TN vectors of CONV_VW pixels
- * per work-item instead of CONV_TM x CONV_TN. Host: lib/nn/conv2d.c picks these for runs with at
+ * per work-item instead of CONV_TM x CONV_TN. Host: lib/nn/conv2d_direct.c picks these for runs with at
  * most CONV_NARROW_MAXC output channels (lib/cl/tuning.c). Same arguments and the same summation
  * order per output (input channel, then ky, kx, one fma each) as conv2d.cl: bit-identical
  * results, only the work split differs. On 2-core PoCL the full-resolution 16/32-channel layers

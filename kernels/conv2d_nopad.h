@@ -1,6 +1,6 @@
 /* The stride-1 'same' forwards (3x3 pad 1, 1x1 pad 0) read straight from the unpadded input, with
  * no zero-padded copy of it (#included by conv2d.cl and conv2d_narrow.cl after conv2d_common.h,
- * so each register tile gets its own copy; host: lib/nn/conv2d.c, tunable CONV_NOPAD).
+ * so each register tile gets its own copy; host: lib/nn/conv2d_direct.c, tunable CONV_NOPAD).
  *
  * Same register tiling and group order as conv_fwd, on the virtual grid q = oy*W + ox of the
  * input itself (no padding columns: every q is an output). The tap (ky, kx) of output q reads

@@ -98,19 +98,26 @@ mkdir -p "$out/done" "$report" || die "$out or $report: cannot create"
 log=$out/log.txt
 touch "$log"
 t_start=$(date +%s.%N)
-# Seconds spent per stage, kept across sittings (done/time.<stage>).
-addtime() { # addtime NAME SECONDS
-  local f=$out/done/time.$1 prev=0
+# Seconds spent per stage, kept across sittings: wall time (done/time.<stage>) and the CPU time
+# of the commands run (done/cpu.<stage>: user + system of every finished child process, from this
+# shell's /proc stat; on a machine shared with other work the wall time says little).
+hz=$(getconf CLK_TCK)
+cpunow() { awk -v hz="$hz" '{ printf "%.2f", ($16 + $17) / hz }' /proc/$$/stat; }
+addtime() { # addtime NAME SECONDS [CPU-SECONDS]
+  local f=$out/done/time.$1 c=$out/done/cpu.$1 prev=0
   [ -f "$f" ] && prev=$(cat "$f")
   calc "$prev + $2" >"$f.tmp" && mv "$f.tmp" "$f"
+  prev=0
+  [ -f "$c" ] && prev=$(cat "$c")
+  calc "$prev + ${3:-0}" >"$c.tmp" && mv "$c.tmp" "$c"
 }
-stage() { # stage NAME CMD...: run, log, add the wall time to stage NAME
-  local name=$1 t0 t1
+stage() { # stage NAME CMD...: run, log, add the wall and CPU time to stage NAME
+  local name=$1 t0 t1 c0
   shift
-  t0=$(date +%s.%N)
+  t0=$(date +%s.%N) c0=$(cpunow)
   "$@" >>"$log" 2>&1 || die "stage $name: $(tail -n 1 "$log") (log: $log)"
   t1=$(date +%s.%N)
-  addtime "$name" "$(calc "$t1 - $t0")"
+  addtime "$name" "$(calc "$t1 - $t0")" "$(calc "$(cpunow) - $c0")"
 }
 done_mark() { : >"$out/done/$1"; }
 is_done() { [ -f "$out/done/$1" ]; }
@@ -227,7 +234,7 @@ done
 mkdir -p "$out/methods/gt" "$out/methods/mask" "$out/methods/pervertex13k" "$out/methods/pervertex53k" \
   "$out/methods/textured13k" "$out/methods/input13k"
 quiet() { "$@" >>"$log" 2>&1 || die "$1 ${2:-}: $(tail -n 1 "$log") (log: $log)"; }
-t0=$(now)
+t0=$(now) c0=$(cpunow)
 first_test=
 while IFS=$'\t' read -r si vi vname cam img mask src; do
   subj=$(jq -r ".subjects[$si].name" "$man")
@@ -243,16 +250,11 @@ while IFS=$'\t' read -r si vi vname cam img mask src; do
   quiet $tool repose --registration "$d/reg.json" --pose "$man" --view "$vname" --out "$d/$vname.13k.obj"
   quiet $tool repose --registration "$d/reg.json" --pose "$man" --view "$vname" --subdivide 1 --out "$d/$vname.53k.ply"
   for n in 13k 53k; do
-    ext=obj && [ $n = 53k ] && ext=ply
-    # the input folder holds the network's inputs only (a PNG beside an EXR would be a second input
-    # of the view: train refuses it); the test inputs' picture goes to the figure's folder
-    if [ $split = test ] && [ $n = 13k ]; then
-      quiet $tool project --mesh "$d/$vname.$n.$ext" --camera "$out/synth/$cam" --out "$out/data$n/$split/input/$vname.exr" \
-        --png "$out/methods/input13k/$vname.png" --color mesh --quiet
-    else
-      quiet $tool project --mesh "$d/$vname.$n.$ext" --camera "$out/synth/$cam" --out "$out/data$n/$split/input/$vname.exr" \
-        --color mesh --quiet
-    fi
+    # one input per view (the RGB-D EXR); the grid's PNG of a test input goes beside the methods
+    ext=obj png=() && [ $n = 53k ] && ext=ply
+    [ $split = test ] && [ $n = 13k ] && png=(--png "$out/methods/input13k/$vname.png")
+    quiet $tool project --mesh "$d/$vname.$n.$ext" --camera "$out/synth/$cam" --out "$out/data$n/$split/input/$vname.exr" \
+      "${png[@]}" --color mesh --quiet
     cp "$out/synth/$img" "$out/data$n/$split/output/$vname.png"
   done
   if [ $split = test ]; then
@@ -265,7 +267,7 @@ while IFS=$'\t' read -r si vi vname cam img mask src; do
   fi
   done_mark "inputs.$vname"
 done <"$out/views.tsv"
-addtime inputs "$(secs "$t0" "$(now)")"
+addtime inputs "$(secs "$t0" "$(now)")" "$(calc "$(cpunow) - $c0")"
 ntest=$(ls "$out/methods/gt" | wc -l)
 [ "$ntest" -gt 0 ] || die "$manname: no test views (need subjects >= $((NTRAIN + 1)) with views >= $((VTRAIN + 1)))"
 
@@ -292,11 +294,11 @@ lp=()
 [ -n "${TABLE1_LPIPS:-}" ] && lp=(--lpips "$TABLE1_LPIPS")
 score() { # score METHOD_DIR JSON: smplpix eval against the ground truth, full image and mask
   [ $have_eval = 1 ] || return 0
-  local t0
-  t0=$(now)
+  local t0 c0
+  t0=$(now) c0=$(cpunow)
   quiet $tool eval --pred "$1" --target "$out/methods/gt" --mask "$out/methods/mask" --json "$2.tmp.json" "${lp[@]}"
   mv "$2.tmp.json" "$2"
-  addtime eval "$(secs "$t0" "$(now)")"
+  addtime eval "$(secs "$t0" "$(now)")" "$(calc "$(cpunow) - $c0")"
 }
 for m in pervertex13k pervertex53k textured13k; do
   is_done "eval.$m" || { score "$out/methods/$m" "$out/eval_$m.json" && done_mark "eval.$m"; }
@@ -487,7 +489,8 @@ nseeds=$(echo $SEEDS | wc -w)
   fi
   [ $gan = 1 ] && echo "  stage 3 \`--loss $ganloss\` $GANSTEPS steps at lr $GANLR (a tenth of stage 2's, as the paper's stage 2 is of its stage 1) from the previous stage, PatchGAN width $DISCW;"
   echo "  seeds $SEEDS (the data's seed: $SEED). Validation during training: view $VTRAIN of each training subject."
-  echo "- Time per stage (s): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$([ $k = inputs ] && echo 'inputs+rasterizers' || echo $k)" "$(cat "$out/done/time.$k" 2>/dev/null || echo 0)"; done)this sitting $(printf '%.0f' "$total")."
+  echo "- Time per stage (s): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$([ $k = inputs ] && echo 'inputs+rasterizers' || echo $k)" "$(cat "$out/done/time.$k" 2>/dev/null || echo 0)"; done)this sitting $(printf '%.0f' "$total");"
+  echo "  CPU time per stage (s, user + system of the commands, all sittings): $(for k in synth register bake inputs train13k train53k eval; do printf '%s %.0f, ' "$([ $k = inputs ] && echo 'inputs+rasterizers' || echo $k)" "$(cat "$out/done/cpu.$k" 2>/dev/null || echo 0)"; done | sed 's/, $//'); in all $(awk '{ s += $1 } END { printf "%.0f s = %.0f minutes of 2 cores", s, s / 120 }' "$out"/done/cpu.* 2>/dev/null)."
   echo "- Machine: $(uname -srm), $(nproc) CPU cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')), load average at the end $(cut -d' ' -f1-3 /proc/loadavg), OpenCL device: $($tool devices 2>/dev/null | head -n 1 | sed 's/^ *//')."
   echo "- Command: \`$([ $mode = quick ] && echo 'TABLE1_QUICK=1 ')make table1\`, $(date -u '+%Y-%m-%d %H:%M UTC'); grid: table1.png (rows: test views;"
   echo "  columns: ground truth | input projection | per-vertex raster | textured raster | SMPLpix, 13k, final stage)."

@@ -118,3 +118,24 @@ if(NOT SPX_SANITIZE)
   set_tests_properties(gpu_static_tools PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 600
     ENVIRONMENT "SPX_CACHE_DIR=${CMAKE_BINARY_DIR}/cl-cache")
 endif()
+
+# No file circles (tests/file_circles.py): no loop of files of lib/ or apps/ that call each other,
+# read from the objects' symbols; the loops not cut yet are listed there. Skipped without python3.
+find_program(SPX_PYTHON3 python3)
+if(SPX_PYTHON3 AND TARGET smplpix_app)
+  add_test(NAME file_circles COMMAND ${SPX_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/file_circles.py --nm ${CMAKE_NM}
+           --src ${CMAKE_SOURCE_DIR} $<TARGET_OBJECTS:smplpix> $<TARGET_OBJECTS:smplpix_app> $<TARGET_OBJECTS:smplpix_tool>
+           COMMAND_EXPAND_LISTS)
+  set_tests_properties(file_circles PROPERTIES SKIP_RETURN_CODE 77)
+endif()
+# Short functions (tests/function_length.py): none over 120 lines in lib/, apps/ and benchmarks/,
+# the files other work is splitting listed there. Skipped without python3.
+if(SPX_PYTHON3)
+  add_test(NAME function_length COMMAND ${SPX_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/function_length.py ${CMAKE_SOURCE_DIR})
+endif()
+# The documentation is a map (tests/docs_map.py): ARCHITECTURE.md at most 300 lines, its bullets at
+# most 8; every relative link and anchor of README.md and docs/ resolves; no history by issue or
+# session number outside benchmarks/RESULTS.md. Skipped without python3.
+if(SPX_PYTHON3)
+  add_test(NAME docs_map COMMAND ${SPX_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/docs_map.py ${CMAKE_SOURCE_DIR})
+endif()

@@ -80,6 +80,20 @@ static inline int spx_t_main_ctx(spx_ctx **ctx, int device, const spx_t_test *te
   return rc;
 }
 
+/* main() of a test whose functions share one context *ctx and the shipped default body *model
+ * (data/body/default_body.npz): both made first (exit 1 naming the failure), the tests in order,
+ * both freed last. */
+static inline int spx_t_main_body(spx_ctx **ctx, spx_body_model *model, const spx_t_test *tests, int n) {
+  if (spx_t_ctx_create(ctx) != SPX_OK || spx_body_load(*ctx, SPX_REPO_DATA "/body/default_body.npz", model)) {
+    fprintf(stderr, "setup: %s\n", *ctx ? spx_ctx_message(*ctx) : "no context");
+    return 1;
+  }
+  int rc = spx_t_run_all(tests, n);
+  spx_body_free(model);
+  spx_ctx_destroy(*ctx);
+  return rc;
+}
+
 /* Deterministic PRNG for tests (xorshift64*). */
 static inline unsigned long long spx_t_rng_next(unsigned long long *s) {
   *s ^= *s >> 12;

@@ -5,7 +5,8 @@
  *  - a stand-in network written here with the library (spx_unet_save_half, the shipping format)
  *    as <data>/models/default.safetensors: demo.png has 4 panels; the SMPLpix panel is the
  *    network's output (it differs from the photo, the input and the raster), the run is
- *    deterministic, and --checkpoint names one explicitly;
+ *    deterministic, and --checkpoint names one explicitly; the frame's scores against the photo
+ *    (PSNR, LPIPS with cached weights, detail) are printed for SMPLpix and the raster;
  *  - a network whose metadata says it was trained at 48x36 on 53k-vertex inputs: the demo renders
  *    at that size with the body after one Loop step (53,514 vertices); a --size of another size is
  *    refused (one line naming the network and both sizes);
@@ -61,6 +62,8 @@ static void test_without_network(void) {
   write_text("o1/demo_smplpix.png", "stale");
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o1 --size 40x32") == 0);
   CHECK(file_has("out.txt", "no network is shipped yet") && file_has("out.txt", "13380 vertices"));
+  CHECK(file_has("out.txt", "frame scores against the photo") && file_has("out.txt", ": per-vertex raster ") &&
+        file_has("out.txt", ", detail 0.") && !file_has("out.txt", "SMPLpix "));
   int w = 0, h = 0;
   CHECK(png_size("o1/demo.png", &w, &h) && w == 3 * W + 4 && h > H);
   CHECK(png_size("o1/demo_photo.png", &w, &h) && w == W && h == H);
@@ -80,6 +83,7 @@ static void test_with_network(void) {
   spx_unet_destroy(u);
   CHECK(tool_env("SPX_DATA_DIR=./data", "demo --out o2 --size 40x32 --frame 10 --seed 5") == 0);
   CHECK(file_has("out.txt", "demo_smplpix.png") && file_has("out.txt", "network ./data/models/default.safetensors"));
+  CHECK(file_has("out.txt", ": SMPLpix ") && file_has("out.txt", "; per-vertex raster "));
   int w = 0, h = 0;
   CHECK(png_size("o2/demo.png", &w, &h) && w == 4 * W + 6 && h > H);
   CHECK(png_size("o2/demo_smplpix.png", &w, &h) && w == W && h == H);

@@ -490,6 +490,63 @@ static void test_errors(void) {
   CHECK(log_has(log, "empty/train/input") && log_has(log, "no .exr, .npy or .png") && one_line(log));
 }
 
+/* --lr-decay cosine: Adam's update is linear in the learning rate, so from the same weights and
+ * moments a step at half the rate moves every weight half as far. Two steps (the second run a
+ * --resume to 2 steps): with the decay the first step is at the full rate (cos 0: bit-equal to
+ * the constant rate), the second at 0.5 (1 + cos(pi / 2)) = half; and the record refuses a clash. */
+static void read_t(const char *path, const char *name, float *dst, size_t n) {
+  spx_st_file f;
+  memset(&f, 0, sizeof f);
+  CHECK_OK(ctx, spx_st_load(ctx, path, &f));
+  const spx_st_tensor *t = spx_st_find(&f, name);
+  CHECK(t && t->dtype == SPX_F32);
+  if (t && t->dtype == SPX_F32) memcpy(dst, t->data, n * sizeof(float));
+  spx_st_free(&f);
+}
+
+static void test_lr_decay(void) {
+  char data[1024], a[1024], b[1024], log[1024], args[8192], a1[1024], b1[1024];
+  unsigned long long s = 9;
+  path_in(data, sizeof data, "cos");
+  mkdirs(data);
+  make_pair(data, "a", H, W, &s);
+  make_pair(data, "b", H, W, &s);
+  path_in(log, sizeof log, "cos.log");
+  const char *decay[2] = {"", " --lr-decay cosine"};
+  char *outs[2] = {a, b}, *firsts[2] = {a1, b1};
+  for (int k = 0; k < 2; k++) {
+    path_in(outs[k], 1024, k ? "cos_b.safetensors" : "cos_a.safetensors");
+    path_in(firsts[k], 1024, k ? "cos_b1.safetensors" : "cos_a1.safetensors");
+    remove(outs[k]);
+    snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --width 8 --batch 2 --lr 0.01 --steps 1 --seed 4%s",
+             data, outs[k], decay[k]);
+    CHECK(run_err(args, log) == 0);
+    snprintf(args, sizeof args, "cp \"%s\" \"%s\"", outs[k], firsts[k]);
+    CHECK(spx_t_system(args) == 0);
+    snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --resume --steps 2", data, outs[k]);
+    CHECK(run_err(args, log) == 0);
+  }
+  enum { N = 8 * 4 * 9 }; /* inc.double_conv.0.weight of width 8: [8, 4, 3, 3] */
+  static float wa1[N], wa2[N], wb1[N], wb2[N];
+  const char *name = "inc.double_conv.0.weight";
+  read_t(a1, name, wa1, N), read_t(a, name, wa2, N), read_t(b1, name, wb1, N), read_t(b, name, wb2, N);
+  double worst = 0, big = 0;
+  int first_same = 1;
+  for (int i = 0; i < N; i++) {
+    first_same &= wa1[i] == wb1[i];
+    double da = (double)wa2[i] - wa1[i], db = (double)wb2[i] - wb1[i];
+    worst = fmax(worst, fabs(db - 0.5 * da));
+    big = fmax(big, fabs(da));
+  }
+  CHECK(first_same);
+  CHECK_MSG(big > 1e-4 && worst <= 1e-4 * big, "second step: |db - da/2| up to %.3g of steps up to %.3g", worst, big);
+  /* the record: resuming with another decay is a usage error naming the file; a bad name too */
+  snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --resume --steps 3 --lr-decay cosine", data, a);
+  CHECK(run_err(args, log) == 2 && log_has(log, "--lr-decay contradicts") && log_has(log, "cos_a.safetensors"));
+  snprintf(args, sizeof args, "train --data \"%s\" --out \"%s\" --steps 1 --lr-decay linear", data, a);
+  CHECK(run_err(args, log) == 2 && log_has(log, "--lr-decay must be 'cosine'"));
+}
+
 /* A batch that cannot fit: the failing size is reported with the options to change. The pairs
  * are constant 308x410 EXR/PNG files (tiny compressed); their number is chosen from the device's
  * memory (a width-32 training step needs ~440 MB per image; asking for twice the device's memory
@@ -546,6 +603,7 @@ int main(void) {
   SPX_RUN(test_train_interrupt);
   SPX_RUN(test_train_tty);
   SPX_RUN(test_errors);
+  SPX_RUN(test_lr_decay);
   SPX_RUN(test_out_of_memory);
   spx_ctx_destroy(ctx);
   return spx_test_summary();

@@ -214,14 +214,6 @@ static void test_cli(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx) || spx_body_load(ctx, SPX_REPO_DATA "/body/default_body.npz", &model)) {
-    fprintf(stderr, "setup: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
-  SPX_RUN(test_api_bad_inputs);
-  SPX_RUN(test_json_and_colors);
-  SPX_RUN(test_cli);
-  spx_body_free(&model);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_api_bad_inputs), SPX_TEST(test_json_and_colors), SPX_TEST(test_cli)};
+  return spx_t_main_body(&ctx, &model, tests, (int)(sizeof tests / sizeof tests[0]));
 }

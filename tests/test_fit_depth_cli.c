@@ -331,15 +331,6 @@ static void test_rgb_values(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx) || spx_body_load(ctx, SPX_REPO_DATA "/body/default_body.npz", &model)) {
-    fprintf(stderr, "setup: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
-  SPX_RUN(test_depth_cli);
-  SPX_RUN(test_depth_room);
-  SPX_RUN(test_depth_fused);
-  SPX_RUN(test_rgb_values);
-  spx_body_free(&model);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_depth_cli), SPX_TEST(test_depth_room), SPX_TEST(test_depth_fused), SPX_TEST(test_rgb_values)};
+  return spx_t_main_body(&ctx, &model, tests, (int)(sizeof tests / sizeof tests[0]));
 }

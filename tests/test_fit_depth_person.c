@@ -121,14 +121,6 @@ static void test_refused(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx) || spx_body_load(ctx, SPX_REPO_DATA "/body/default_body.npz", &model)) {
-    fprintf(stderr, "%s\n", spx_ctx_message(ctx));
-    return 1;
-  }
-  SPX_RUN(test_room);
-  SPX_RUN(test_second_person);
-  SPX_RUN(test_refused);
-  spx_body_free(&model);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_room), SPX_TEST(test_second_person), SPX_TEST(test_refused)};
+  return spx_t_main_body(&ctx, &model, tests, (int)(sizeof tests / sizeof tests[0]));
 }

@@ -163,15 +163,6 @@ static void test_depth_image(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx) || spx_body_load(ctx, SPX_REPO_DATA "/body/default_body.npz", &model)) {
-    fprintf(stderr, "setup: %s\n", spx_ctx_message(ctx));
-    return 1;
-  }
-  SPX_RUN(test_depth_points_exact);
-  SPX_RUN(test_raster_depth_on_surface);
-  SPX_RUN(test_depth_image);
-  SPX_RUN(test_single_views);
-  spx_body_free(&model);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_depth_points_exact), SPX_TEST(test_raster_depth_on_surface), SPX_TEST(test_depth_image), SPX_TEST(test_single_views)};
+  return spx_t_main_body(&ctx, &model, tests, (int)(sizeof tests / sizeof tests[0]));
 }

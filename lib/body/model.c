@@ -152,9 +152,120 @@ static spx_status read_joint_names(spx_ctx *ctx, const spx_npz *z, spx_body_mode
   return SPX_OK;
 }
 
+/* posedirs N x 3 x 9(K-1), optional; smplx-style (9(K-1)) x 3N is accepted and transposed */
+static spx_status read_posedirs(spx_ctx *ctx, const spx_npz *z, spx_body_model *m, int64_t N, int64_t K) {
+  if (spx_npz_find(z, "posedirs") < 0) return SPX_OK;
+  int64_t P = 9 * (K - 1);
+  spx_array a;
+  spx_status st = spx_npz_read(ctx, z, "posedirs", &a);
+  if (st) return st;
+  int flat = a.ndim == 2 && a.shape[0] == P && a.shape[1] == 3 * N;
+  spx_array_free(&a);
+  if (flat) {
+    int64_t sf[2] = {P, 3 * N};
+    float *t;
+    if ((st = read_f32(ctx, z, "posedirs", 2, sf, &t))) return st;
+    m->posedirs = spx_alloc_array(ctx, (size_t)(3 * N) * (size_t)(P ? P : 1), sizeof(float), "posedirs");
+    if (!m->posedirs) {
+      free(t);
+      return SPX_E_NOMEM;
+    }
+    for (int64_t p = 0; p < P; p++)
+      for (int64_t r = 0; r < 3 * N; r++) m->posedirs[r * P + p] = t[p * 3 * N + r];
+    free(t);
+  } else {
+    int64_t s3[3] = {N, 3, P};
+    if ((st = read_f32(ctx, z, "posedirs", 3, s3, &m->posedirs))) return st;
+  }
+  m->nposedirs = (int32_t)P;
+  if (P == 0) free(m->posedirs), m->posedirs = NULL;
+  return SPX_OK;
+}
+
+/* kintree_table 2 x K: joint 0 the only root, every parent before its child. */
+static spx_status read_parents(spx_ctx *ctx, const spx_npz *z, spx_body_model *m, int64_t K) {
+  spx_array kt;
+  spx_status st = read_int(ctx, z, "kintree_table", 2, &kt);
+  if (st) return st;
+  if (kt.shape[0] != 2 || kt.shape[1] != K) {
+    spx_array_free(&kt);
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: 'kintree_table' is (%lld, %lld), expected (2, %lld)", z->name,
+                    (long long)kt.shape[0], (long long)kt.shape[1], (long long)K);
+  }
+  m->parents = spx_alloc_array(ctx, (size_t)K, sizeof(int32_t), "parents");
+  for (int64_t k = 0; m->parents && !st && k < K; k++) {
+    int64_t par = ielem(&kt, (size_t)k), id = ielem(&kt, (size_t)(K + k));
+    int root = par == -1 || par == 4294967295LL;
+    if (id != k)
+      st = spx_fail(ctx, SPX_E_FORMAT, "%s: 'kintree_table'[1][%lld] is %lld, expected %lld (joints in order)", z->name,
+                    (long long)k, (long long)id, (long long)k);
+    else if (k == 0 ? !root : (root || par < 0 || par >= k))
+      st = spx_fail(ctx, SPX_E_FORMAT,
+                    "%s: 'kintree_table'[0][%lld] (parent) is %lld: joint 0 must be the only root (-1 or 2^32-1) "
+                    "and every parent must precede its child",
+                    z->name, (long long)k, (long long)par);
+    else
+      m->parents[k] = k == 0 ? -1 : (int32_t)par;
+  }
+  spx_array_free(&kt);
+  return m->parents ? st : SPX_E_NOMEM;
+}
+
+/* An F x 3 index table (f, ft) into *out, F == rows unless rows < 0 (then F <= 2^26), every index in
+ * 0..limit-1. */
+static spx_status read_triangles(spx_ctx *ctx, const spx_npz *z, const char *key, int64_t rows, int64_t limit,
+                                 int32_t *nrows, int32_t **out) {
+  spx_array fa;
+  spx_status st = read_int(ctx, z, key, 2, &fa);
+  if (st) return st;
+  if (fa.shape[1] != 3 || (rows < 0 ? fa.shape[0] > (1 << 26) : fa.shape[0] != rows)) {
+    spx_array_free(&fa);
+    if (rows < 0)
+      return spx_fail(ctx, SPX_E_FORMAT, "%s: '%s' is (%lld, %lld), expected (F, 3)", z->name, key,
+                      (long long)fa.shape[0], (long long)fa.shape[1]);
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: '%s' is (%lld, %lld), expected (%lld, 3) like 'f'", z->name, key,
+                    (long long)fa.shape[0], (long long)fa.shape[1], (long long)rows);
+  }
+  size_t n = (size_t)fa.shape[0] * 3;
+  *nrows = (int32_t)fa.shape[0];
+  *out = spx_alloc_array(ctx, n + 1, sizeof(int32_t), key);
+  for (size_t i = 0; *out && !st && i < n; i++) {
+    int64_t v = ielem(&fa, i);
+    if (v < 0 || v >= limit)
+      st = spx_fail(ctx, SPX_E_FORMAT, "%s: '%s' index %lld at face %zu is outside 0..%lld", z->name, key, (long long)v,
+                    i / 3, (long long)limit - 1);
+    else
+      (*out)[i] = (int32_t)v;
+  }
+  spx_array_free(&fa);
+  return *out ? st : SPX_E_NOMEM;
+}
+
+/* The joints' rest positions and their shape directions: J_regressor applied to v_template and
+ * shapedirs, in double. */
+static spx_status regress_joints(spx_ctx *ctx, spx_body_model *m) {
+  const int64_t K = m->nj, N = m->nv;
+  const int32_t S = m->nbetas;
+  m->J_template = spx_alloc_array(ctx, (size_t)K * 3, sizeof(double), "J_template");
+  m->J_shapedirs = spx_alloc_array(ctx, (size_t)K * 3 * (size_t)(S ? S : 1), sizeof(double), "J_shapedirs");
+  if (!m->J_template || !m->J_shapedirs) return SPX_E_NOMEM;
+  memset(m->J_template, 0, sizeof(double) * (size_t)K * 3);
+  memset(m->J_shapedirs, 0, sizeof(double) * (size_t)K * 3 * (size_t)(S ? S : 1));
+  for (int64_t k = 0; k < K; k++)
+    for (int64_t i = 0; i < N; i++) {
+      double w = m->J_regressor[k * N + i];
+      if (w == 0) continue;
+      for (int c = 0; c < 3; c++) {
+        m->J_template[k * 3 + c] += w * m->v_template[i * 3 + c];
+        for (int32_t s = 0; s < S; s++) m->J_shapedirs[(k * 3 + c) * S + s] += w * m->shapedirs[(i * 3 + c) * S + s];
+      }
+    }
+  return SPX_OK;
+}
+
 static spx_status load_from(spx_ctx *ctx, const spx_npz *z, spx_body_model *m) {
   spx_status st;
-  int64_t s2[2] = {-1, 3}, s3[3];
+  int64_t s2[2] = {-1, 3};
   /* v_template N x 3 */
   if ((st = read_f32(ctx, z, "v_template", 2, s2, &m->v_template))) return st;
   if (s2[0] < 1 || s2[0] > (1 << 24)) return spx_fail(ctx, SPX_E_FORMAT, "%s: 'v_template' has %lld vertices", z->name, (long long)s2[0]);
@@ -171,137 +282,24 @@ static spx_status load_from(spx_ctx *ctx, const spx_npz *z, spx_body_model *m) {
   if ((st = read_f32(ctx, z, "weights", 2, sw, &m->weights))) return st;
   /* shapedirs N x 3 x S (absent or S = 0 allowed) */
   if (spx_npz_find(z, "shapedirs") >= 0) {
-    s3[0] = N, s3[1] = 3, s3[2] = -1;
+    int64_t s3[3] = {N, 3, -1};
     if ((st = read_f32(ctx, z, "shapedirs", 3, s3, &m->shapedirs))) return st;
     if (s3[2] > 100000) return spx_fail(ctx, SPX_E_FORMAT, "%s: 'shapedirs' has %lld directions", z->name, (long long)s3[2]);
     m->nbetas = (int32_t)s3[2];
   }
-  /* posedirs N x 3 x 9(K-1), optional; smplx-style (9(K-1)) x 3N is accepted and transposed */
-  if (spx_npz_find(z, "posedirs") >= 0) {
-    int64_t P = 9 * (K - 1);
-    spx_array a;
-    if ((st = spx_npz_read(ctx, z, "posedirs", &a))) return st;
-    int flat = a.ndim == 2 && a.shape[0] == P && a.shape[1] == 3 * N;
-    spx_array_free(&a);
-    if (flat) {
-      int64_t sf[2] = {P, 3 * N};
-      float *t;
-      if ((st = read_f32(ctx, z, "posedirs", 2, sf, &t))) return st;
-      m->posedirs = spx_alloc_array(ctx, (size_t)(3 * N) * (size_t)(P ? P : 1), sizeof(float), "posedirs");
-      if (!m->posedirs) {
-        free(t);
-        return SPX_E_NOMEM;
-      }
-      for (int64_t p = 0; p < P; p++)
-        for (int64_t r = 0; r < 3 * N; r++) m->posedirs[r * P + p] = t[p * 3 * N + r];
-      free(t);
-    } else {
-      s3[0] = N, s3[1] = 3, s3[2] = P;
-      if ((st = read_f32(ctx, z, "posedirs", 3, s3, &m->posedirs))) return st;
-    }
-    m->nposedirs = (int32_t)P;
-    if (P == 0) free(m->posedirs), m->posedirs = NULL;
-  }
-  /* kintree_table 2 x K */
-  spx_array kt;
-  if ((st = read_int(ctx, z, "kintree_table", 2, &kt))) return st;
-  if (kt.shape[0] != 2 || kt.shape[1] != K) {
-    spx_array_free(&kt);
-    return spx_fail(ctx, SPX_E_FORMAT, "%s: 'kintree_table' is (%lld, %lld), expected (2, %lld)", z->name,
-                    (long long)kt.shape[0], (long long)kt.shape[1], (long long)K);
-  }
-  m->parents = spx_alloc_array(ctx, (size_t)K, sizeof(int32_t), "parents");
-  if (!m->parents) {
-    spx_array_free(&kt);
-    return SPX_E_NOMEM;
-  }
-  for (int64_t k = 0; k < K; k++) {
-    int64_t par = ielem(&kt, (size_t)k), id = ielem(&kt, (size_t)(K + k));
-    int root = par == -1 || par == 4294967295LL || (kt.dtype == SPX_I32 && par == -1);
-    if (id != k) {
-      spx_array_free(&kt);
-      return spx_fail(ctx, SPX_E_FORMAT, "%s: 'kintree_table'[1][%lld] is %lld, expected %lld (joints in order)", z->name,
-                      (long long)k, (long long)id, (long long)k);
-    }
-    if (k == 0 ? !root : (root || par < 0 || par >= k)) {
-      spx_array_free(&kt);
-      return spx_fail(ctx, SPX_E_FORMAT,
-                      "%s: 'kintree_table'[0][%lld] (parent) is %lld: joint 0 must be the only root (-1 or 2^32-1) "
-                      "and every parent must precede its child",
-                      z->name, (long long)k, (long long)par);
-    }
-    m->parents[k] = k == 0 ? -1 : (int32_t)par;
-  }
-  spx_array_free(&kt);
-  /* f F x 3 */
-  spx_array fa;
-  if ((st = read_int(ctx, z, "f", 2, &fa))) return st;
-  if (fa.shape[1] != 3 || fa.shape[0] > (1 << 26)) {
-    spx_array_free(&fa);
-    return spx_fail(ctx, SPX_E_FORMAT, "%s: 'f' is (%lld, %lld), expected (F, 3)", z->name, (long long)fa.shape[0],
-                    (long long)fa.shape[1]);
-  }
-  m->nf = (int32_t)fa.shape[0];
-  m->faces = spx_alloc_array(ctx, (size_t)m->nf * 3 + 1, sizeof(int32_t), "f");
-  if (!m->faces) {
-    spx_array_free(&fa);
-    return SPX_E_NOMEM;
-  }
-  for (size_t i = 0; i < (size_t)m->nf * 3; i++) {
-    int64_t v = ielem(&fa, i);
-    if (v < 0 || v >= N) {
-      spx_array_free(&fa);
-      return spx_fail(ctx, SPX_E_FORMAT, "%s: 'f' index %lld at face %zu is outside 0..%lld", z->name, (long long)v,
-                      i / 3, (long long)N - 1);
-    }
-    m->faces[i] = (int32_t)v;
-  }
-  spx_array_free(&fa);
+  if ((st = read_posedirs(ctx, z, m, N, K)) || (st = read_parents(ctx, z, m, K)) ||
+      (st = read_triangles(ctx, z, "f", -1, N, &m->nf, &m->faces)))
+    return st;
   /* optional UVs */
   if (spx_npz_find(z, "vt") >= 0 && spx_npz_find(z, "ft") >= 0) {
     int64_t sv[2] = {-1, 2};
+    int32_t nft;
     if ((st = read_f32(ctx, z, "vt", 2, sv, &m->vt))) return st;
     m->nvt = (int32_t)sv[0];
-    spx_array ft;
-    if ((st = read_int(ctx, z, "ft", 2, &ft))) return st;
-    if (ft.shape[0] != m->nf || ft.shape[1] != 3) {
-      spx_array_free(&ft);
-      return spx_fail(ctx, SPX_E_FORMAT, "%s: 'ft' is (%lld, %lld), expected (%d, 3) like 'f'", z->name,
-                      (long long)ft.shape[0], (long long)ft.shape[1], m->nf);
-    }
-    m->ft = spx_alloc_array(ctx, (size_t)m->nf * 3 + 1, sizeof(int32_t), "ft");
-    if (!m->ft) {
-      spx_array_free(&ft);
-      return SPX_E_NOMEM;
-    }
-    for (size_t i = 0; i < (size_t)m->nf * 3; i++) {
-      int64_t v = ielem(&ft, i);
-      if (v < 0 || v >= m->nvt) {
-        spx_array_free(&ft);
-        return spx_fail(ctx, SPX_E_FORMAT, "%s: 'ft' index %lld outside 0..%d", z->name, (long long)v, m->nvt - 1);
-      }
-      m->ft[i] = (int32_t)v;
-    }
-    spx_array_free(&ft);
+    if ((st = read_triangles(ctx, z, "ft", m->nf, m->nvt, &nft, &m->ft))) return st;
   }
   if ((st = read_joint_names(ctx, z, m))) return st;
-  /* derived joint regression */
-  int32_t S = m->nbetas;
-  m->J_template = spx_alloc_array(ctx, (size_t)K * 3, sizeof(double), "J_template");
-  m->J_shapedirs = spx_alloc_array(ctx, (size_t)K * 3 * (size_t)(S ? S : 1), sizeof(double), "J_shapedirs");
-  if (!m->J_template || !m->J_shapedirs) return SPX_E_NOMEM;
-  memset(m->J_template, 0, sizeof(double) * (size_t)K * 3);
-  memset(m->J_shapedirs, 0, sizeof(double) * (size_t)K * 3 * (size_t)(S ? S : 1));
-  for (int64_t k = 0; k < K; k++)
-    for (int64_t i = 0; i < N; i++) {
-      double w = m->J_regressor[k * N + i];
-      if (w == 0) continue;
-      for (int c = 0; c < 3; c++) {
-        m->J_template[k * 3 + c] += w * m->v_template[i * 3 + c];
-        for (int32_t s = 0; s < S; s++) m->J_shapedirs[(k * 3 + c) * S + s] += w * m->shapedirs[(i * 3 + c) * S + s];
-      }
-    }
-  return SPX_OK;
+  return regress_joints(ctx, m);
 }
 
 spx_status spx_body_load(spx_ctx *ctx, const char *path, spx_body_model *out) {

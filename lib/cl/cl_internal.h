@@ -1,5 +1,9 @@
 /* Private OpenCL runtime: the context struct, kernel lookup, checked buffers and launches.
- * Modules that run kernels include this; public users see only smplpix/device.h. */
+ * Modules that run kernels include this; public users see only smplpix/device.h.
+ * The files of lib/cl call downward only, bottom to top: check.c (error names and checks) and
+ * kprof.c; devmem.c and buffer.c (memory); tuning.c (the tunable rows); program.c (programs,
+ * kernels, launches); tunefile.c (the open device's tunables); device.c (open, close); peak.c and
+ * tensor.c on the open device. tests/file_circles.py fails on a call that closes a loop. */
 #ifndef SPX_CL_INTERNAL_H
 #define SPX_CL_INTERNAL_H
 
@@ -77,12 +81,12 @@ spx_status spx_cl_peak_fma(spx_ctx *ctx, cl_mem out, int n, int quads, float b, 
 spx_status spx_cl_peak_triad(spx_ctx *ctx, cl_mem a, cl_mem b, cl_mem c, int n4, float s);
 float spx_ref_peak_fma(int i, int quads, float b, float c);
 
-/* Fail with SPX_E_STATE unless a device is open. */
+/* lib/cl/check.c: fail with SPX_E_STATE unless a device is open. */
 spx_status spx_cl_require(spx_ctx *ctx, const char *what);
 
-/* Name of an OpenCL error code ("CL_OUT_OF_RESOURCES"). */
+/* lib/cl/check.c: the name of an OpenCL error code ("CL_OUT_OF_RESOURCES"). */
 const char *spx_cl_error_name(cl_int err);
-/* Map a cl_int to a status and record "what: CL_..." on failure. Returns SPX_OK on success. */
+/* lib/cl/check.c: map a cl_int to a status and record "what: CL_..." on failure. Returns SPX_OK on success. */
 spx_status spx_cl_check(spx_ctx *ctx, cl_int err, const char *what);
 
 /* The kernel with handle `id` (lib/cl/kernels.h). The first request of any kernel of a program
@@ -108,9 +112,15 @@ int spx_cl_binary_is_ptx(const unsigned char *bin, size_t len);
 const char *spx_cl_program_name(int i);
 spx_status spx_cl_program_build(spx_ctx *ctx, const char *program);
 
-/* Resolve ctx->dev->tune for the device just opened (defaults, tuning file, SPX_TUNE_* overrides) and
- * check it (lib/cl/tuning.c). */
+/* Resolve ctx->dev->tune for the device just opened: spx_cl_tunables_defaults, the tuning file,
+ * spx_cl_tunables_env, spx_cl_tunables_check (lib/cl/tunefile.c). */
 spx_status spx_cl_tunables_resolve(spx_ctx *ctx);
+/* The rows of lib/cl/tuning.c. Defaults: the column of the device's class (SPX_TUNE_CLASS may
+ * override the class) into ctx->dev->tune, every source SPX_TSRC_DEFAULT, and the division mode
+ * (ctx->dev->cr_div). Env: the SPX_TUNE_<NAME> overrides over ctx->dev->tune, each checked
+ * against its row. */
+spx_status spx_cl_tunables_defaults(spx_ctx *ctx);
+spx_status spx_cl_tunables_env(spx_ctx *ctx);
 /* Build options of the program with (prelude + expanded) source src: -cl-std, the device class,
  * -D<NAME>=<value> of every tunable src mentions, the division mode. Part of the cache key. */
 void spx_cl_program_options(const spx_ctx *ctx, const char *src, char *out, size_t cap, spx_tunable_set *uses);
@@ -124,10 +134,6 @@ int spx_cl_tunable_find(const char *name, size_t len);
 int spx_cl_tunable_parse(const spx_ctx *ctx, int i, const char *val, int *out, char *why, size_t cap);
 /* The combinations of t against the device's limits (work-group sizes, local memory). */
 spx_status spx_cl_tunables_check(spx_ctx *ctx, const struct spx_tunables *t);
-/* Apply the tuning file of the open device (lib/cl/tunefile.c) over the defaults in ctx->dev->tune:
- * a missing file changes nothing; an unreadable, corrupt or mismatched one is ignored as a whole
- * and the reason kept in ctx->dev->tune_note. Never fails. */
-void spx_cl_tunefile_apply(spx_ctx *ctx);
 
 /* Release the built programs that use any tunable of `uses` (NULL: all programs) and their kernels
  * (the device stays open); their next launch rebuilds them. */
@@ -135,10 +141,10 @@ void spx_cl_programs_release(spx_ctx *ctx, const spx_tunable_set *uses);
 /* The program-binary cache directory (created when missing); 0 when there is none. */
 int spx_cl_cache_dir(char *out, size_t cap);
 
-/* Device buffers. Creation checks the device's max allocation and reports the size on failure. */
+/* Device buffers (lib/cl/buffer.c). Creation checks the device's max allocation and reports the size on failure. */
 spx_status spx_cl_alloc(spx_ctx *ctx, size_t bytes, const char *what, cl_mem *out);
 void spx_cl_free(cl_mem *m);
-/* Count a new buffer of `bytes` in ctx's live / peak device bytes until OpenCL deletes it. */
+/* lib/cl/devmem.c: count a new buffer of `bytes` in ctx's live / peak device bytes until OpenCL deletes it. */
 spx_status spx_cl_count_alloc(spx_ctx *ctx, cl_mem mem, size_t bytes, const char *what);
 /* Drop one reference to a device-memory account (spx_cl_close drops the device's). */
 void spx_cl_devmem_unref(spx_devmem *m);
@@ -157,7 +163,7 @@ spx_status spx_cl_fill_f32(spx_ctx *ctx, cl_mem m, size_t offset_elems, size_t c
 /* Enqueue a device-side copy of `bytes` (> 0) from src at byte so to dst at byte dof; errors are "what: CL_...". */
 spx_status spx_cl_copy(spx_ctx *ctx, cl_mem src, cl_mem dst, size_t so, size_t dof, size_t bytes, const char *what);
 
-/* Enqueue an ND-range; global sizes are rounded up to a multiple of local when local != NULL. */
+/* Enqueue an ND-range (lib/cl/program.c); global sizes are rounded up to a multiple of local when local != NULL. */
 spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *global, const size_t *local,
                       const char *what);
 

@@ -218,13 +218,6 @@ spx_status spx_device_open(spx_ctx *ctx, const char *spec) {
 
 int spx_device_is_open(const spx_ctx *ctx) { return ctx && ctx->dev; }
 
-spx_status spx_cl_require(spx_ctx *ctx, const char *what) {
-  if (!ctx) return SPX_E_ARG;
-  if (!ctx->dev)
-    return spx_fail(ctx, SPX_E_STATE, "%s: no OpenCL device is open (call spx_device_open first)", what);
-  return SPX_OK;
-}
-
 spx_status spx_device_get_info(spx_ctx *ctx, spx_device_info *out) {
   spx_status st = spx_cl_require(ctx, "spx_device_get_info");
   if (st) return st;

@@ -1,6 +1,7 @@
-/* Program creation: embedded (or $SPX_KERNEL_DIR) sources, shared prelude, build options with
- * per-device tunables, and an on-disk program-binary cache keyed by source + options + device
- * + driver. Writes are atomic (temp + rename); any cache problem silently falls back to
+/* Programs, kernels and launches: embedded (or $SPX_KERNEL_DIR) sources, shared prelude, build
+ * options with per-device tunables (lib/cl/tuning.c), an on-disk program-binary cache keyed by
+ * source + options + device + driver, the kernel table of lib/cl/kernels.h, and the checked
+ * ND-range launch. Cache writes are atomic (temp + rename); any cache problem silently falls back to
  * compiling from source. */
 #include <errno.h>
 #include <stdio.h>
@@ -451,6 +452,39 @@ spx_status spx_cl_kernel(spx_ctx *ctx, spx_kernel_id id, cl_kernel *out) {
   }
   *out = ctx->dev->kernels[id];
   return SPX_OK;
+}
+
+/* A launch larger than the kernel's work-group limit fails naming the tunable to lower; a
+ * launch the device cannot hold says the kernel's local and private memory. */
+spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *global, const size_t *local,
+                      const char *what) {
+  size_t g[3], group = 1;
+  for (cl_uint i = 0; i < dims; i++) {
+    g[i] = global[i];
+    if (local && local[i]) g[i] = (g[i] + local[i] - 1) / local[i] * local[i];
+    if (local) group *= local[i] ? local[i] : 1;
+    if (g[i] == 0) return SPX_OK; /* nothing to do */
+  }
+  size_t limit = spx_cl_kernel_wg_limit(ctx, k);
+  if (local && limit && group > limit)
+    return spx_fail(ctx, SPX_E_UNSUPPORTED,
+                    "%s: a work-group of %zu work-items is more than this kernel allows on %s (%zu, "
+                    "CL_KERNEL_WORK_GROUP_SIZE); set a smaller work-group tunable (SPX_TUNE_*, `smplpix tune`)",
+                    what, group, ctx->dev->info.name, limit);
+  cl_event ev;
+  cl_int err = clEnqueueNDRangeKernel(ctx->dev->queue, k, dims, NULL, g, local, 0, NULL, spx_cl_kprof_ev(ctx, &ev));
+  spx_cl_kprof_add(ctx, what, ev);
+  if (err == CL_OUT_OF_RESOURCES || err == CL_INVALID_WORK_GROUP_SIZE) {
+    cl_ulong lmem = 0, pmem = 0;
+    clGetKernelWorkGroupInfo(k, ctx->dev->device, CL_KERNEL_LOCAL_MEM_SIZE, sizeof lmem, &lmem, NULL);
+    clGetKernelWorkGroupInfo(k, ctx->dev->device, CL_KERNEL_PRIVATE_MEM_SIZE, sizeof pmem, &pmem, NULL);
+    return spx_fail(ctx, SPX_E_CL,
+                    "%s: %s (%d) launching a work-group of %zu (kernel limit %zu; %llu bytes of local memory per work-group, "
+                    "%llu of private memory per work-item)",
+                    what, spx_cl_error_name(err), (int)err, local ? group : 0, limit, (unsigned long long)lmem,
+                    (unsigned long long)pmem);
+  }
+  return spx_cl_check(ctx, err, what);
 }
 
 void spx_cl_programs_release(spx_ctx *ctx, const spx_tunable_set *uses) {

@@ -1,5 +1,7 @@
-/* The tuning file `smplpix tune` writes: the winners of its measurements for one device, read
- * when that device opens (between the class defaults and the SPX_TUNE_* overrides). It lives
+/* The open device's tunables over the rows of lib/cl/tuning.c: resolved when it opens (the class
+ * column, then the tuning file below, then the SPX_TUNE_* overrides, then their combinations
+ * checked), and set one at a time (spx_device_set_tunable).
+ * The tuning file `smplpix tune` writes: the winners of its measurements for one device. It lives
  * beside the program cache as tuning-<hash>.txt, the hash of its header, which names the device,
  * platform, driver, device version, smplpix version and tunable column; the header is compared
  * again on reading. Text, one `NAME value` line per tunable after the header:
@@ -83,7 +85,10 @@ static int parse_body(const spx_ctx *ctx, const char *p, const char *end, int li
   return 0;
 }
 
-void spx_cl_tunefile_apply(spx_ctx *ctx) {
+/* The tuning file of the open device over the defaults in ctx->dev->tune: a missing file changes
+ * nothing; an unreadable, corrupt or mismatched one is ignored as a whole and the reason kept in
+ * ctx->dev->tune_note. Never fails. */
+static void apply_file(spx_ctx *ctx) {
   ctx->dev->tune_note[0] = 0;
   ctx->dev->tune_file[0] = 0;
   ctx->dev->tune_comment[0] = 0;
@@ -130,6 +135,14 @@ void spx_cl_tunefile_apply(spx_ctx *ctx) {
   free(data);
 }
 
+spx_status spx_cl_tunables_resolve(spx_ctx *ctx) {
+  spx_status st = spx_cl_tunables_defaults(ctx);
+  if (st) return st;
+  apply_file(ctx); /* never fails: a bad file is noted and ignored */
+  if ((st = spx_cl_tunables_env(ctx))) return st;
+  return spx_cl_tunables_check(ctx, &ctx->dev->tune);
+}
+
 const char *spx_device_tuning_path(const spx_ctx *ctx) { return ctx && ctx->dev ? ctx->dev->tune_file : ""; }
 const char *spx_device_tuning_note(const spx_ctx *ctx) { return ctx && ctx->dev ? ctx->dev->tune_note : ""; }
 const char *spx_device_tuning_comment(const spx_ctx *ctx) { return ctx && ctx->dev ? ctx->dev->tune_comment : ""; }
@@ -165,4 +178,26 @@ spx_status spx_device_tuning_save_comment(spx_ctx *ctx, const char *comment, con
   }
   for (int k = 0; k < n; k++) fprintf(af.fp, "%s %d\n", names[k], values[k]);
   return spx_atomic_commit(ctx, &af);
+}
+
+/* Programs built with the old value of the tunable are released (their next launch rebuilds them). */
+spx_status spx_device_set_tunable(spx_ctx *ctx, const char *name, int value) {
+  spx_status st = spx_cl_require(ctx, "spx_device_set_tunable");
+  if (st) return st;
+  int i = name ? spx_cl_tunable_find(name, strlen(name)) : -1;
+  if (i < 0) return spx_fail(ctx, SPX_E_ARG, "spx_device_set_tunable: no tunable named %s", name ? name : "(null)");
+  char why[128], val[32];
+  snprintf(val, sizeof val, "%d", value);
+  struct spx_tunables t = ctx->dev->tune;
+  if (spx_cl_tunable_parse(ctx, i, val, spx_cl_tunable_field(&t, i), why, sizeof why))
+    return spx_fail(ctx, SPX_E_ARG, "tunable %s=%s: %s", spx_cl_tunable_name(i), val, why);
+  if ((st = spx_cl_tunables_check(ctx, &t))) return st;
+  if (*spx_cl_tunable_field(&ctx->dev->tune, i) != value) {
+    spx_tunable_set one = {{0}};
+    spx_tunable_set_add(&one, i);
+    spx_cl_programs_release(ctx, &one); /* those built with the old -D value */
+    ctx->dev->tune = t;
+  }
+  ctx->dev->tune_src[i] = SPX_TSRC_SET;
+  return SPX_OK;
 }

@@ -1,8 +1,8 @@
 /* Per-device-class tunables: one row per field of struct spx_tunables (lib/cl/tunables.h), in
- * the struct's order. When a device opens, spx_cl_tunables_resolve fills ctx->dev->tune from the
- * device class's column, then the tuning file of `smplpix tune` (lib/cl/tunefile.c), then the
- * SPX_TUNE_<NAME> environment overrides (each checked against its row's range and rules), checks
- * the combinations against the device's limits; spx_cl_program_options gives each program
+ * the struct's order. When a device opens, spx_cl_tunables_resolve (lib/cl/tunefile.c) fills
+ * ctx->dev->tune from the device class's column, then the tuning file of `smplpix tune`, then the
+ * SPX_TUNE_<NAME> environment overrides (each checked against its row's range and rules), and
+ * checks the combinations against the device's limits; spx_cl_program_options gives each program
  * -D<NAME>=<value> for the tunables its source mentions (so a change rebuilds only those).
  * Launch paths read the typed fields; nothing here runs per launch.
  * A row says what the tunable is, its CPU and GPU values, its legal range and the values
@@ -258,7 +258,7 @@ extern char **environ;
 
 /* Every SPX_TUNE_* variable names a row (or is SPX_TUNE_CLASS) and holds an integer in the row's
  * range that obeys its rules and the device's limits; set but empty means the default. */
-static spx_status apply_env(spx_ctx *ctx) {
+spx_status spx_cl_tunables_env(spx_ctx *ctx) {
   for (char **e = environ; e && *e; e++) {
     if (strncmp(*e, "SPX_TUNE_", 9)) continue;
     const char *eq = strchr(*e, '=');
@@ -344,15 +344,13 @@ void spx_cl_program_options(const spx_ctx *ctx, const char *src, char *o, size_t
     snprintf(o + n, cap - n, ctx->dev->cr_div ? " -cl-fp32-correctly-rounded-divide-sqrt -DSPX_CR_DIV=1" : " -DSPX_CR_DIV=0");
 }
 
-spx_status spx_cl_tunables_resolve(spx_ctx *ctx) {
+spx_status spx_cl_tunables_defaults(spx_ctx *ctx) {
   spx_status st = tune_column(ctx);
   if (st) return st;
   for (int i = 0; i < NTUNABLES; i++) {
     *field(&ctx->dev->tune, i) = ctx->dev->tune_cpu ? spx_tunables[i].cpu : spx_tunables[i].gpu;
     ctx->dev->tune_src[i] = SPX_TSRC_DEFAULT;
   }
-  spx_cl_tunefile_apply(ctx); /* never fails: a bad file is noted and ignored */
-  if ((st = apply_env(ctx)) || (st = spx_cl_tunables_check(ctx, &ctx->dev->tune))) return st;
   division_mode(ctx);
   return SPX_OK;
 }
@@ -386,26 +384,5 @@ spx_status spx_device_tunable(spx_ctx *ctx, int i, spx_tunable_info *out) {
   out->lo = spx_tunables[i].lo;
   out->hi = spx_tunables[i].hi;
   out->source = source_name(ctx->dev->tune_src[i]);
-  return SPX_OK;
-}
-
-spx_status spx_device_set_tunable(spx_ctx *ctx, const char *name, int value) {
-  spx_status st = spx_cl_require(ctx, "spx_device_set_tunable");
-  if (st) return st;
-  int i = name ? spx_cl_tunable_find(name, strlen(name)) : -1;
-  if (i < 0) return spx_fail(ctx, SPX_E_ARG, "spx_device_set_tunable: no tunable named %s", name ? name : "(null)");
-  char why[128], val[32];
-  snprintf(val, sizeof val, "%d", value);
-  struct spx_tunables t = ctx->dev->tune;
-  if (spx_cl_tunable_parse(ctx, i, val, field(&t, i), why, sizeof why))
-    return spx_fail(ctx, SPX_E_ARG, "tunable %s=%s: %s", short_name(i), val, why);
-  if ((st = spx_cl_tunables_check(ctx, &t))) return st;
-  if (field_value(&ctx->dev->tune, i) != value) {
-    spx_tunable_set one = {{0}};
-    spx_tunable_set_add(&one, i);
-    spx_cl_programs_release(ctx, &one); /* those built with the old -D value */
-    ctx->dev->tune = t;
-  }
-  ctx->dev->tune_src[i] = SPX_TSRC_SET;
   return SPX_OK;
 }

@@ -1,6 +1,7 @@
 /* Private: 2-D convolution (NCHW, square kernel, zero padding) for the network engine.
- * Device kernels: kernels/conv2d.cl; host launchers: lib/nn/conv2d.c; double-precision
- * reference: lib/nn/conv2d_ref.c; tests: tests/test_nn_conv2d.c; bench: benchmarks/bench_conv2d.c.
+ * Device kernels: kernels/conv2d.cl; host: lib/nn/conv2d.c (the entry points) and the algorithm
+ * table's rows (lib/nn/conv2d_internal.h); double-precision reference: lib/nn/conv2d_ref.c;
+ * tests: tests/test_nn_conv2d.c; bench: benchmarks/bench_conv2d.c.
  *
  *   y[n,co,oy,ox] = bias[co] + sum_{ci,ky,kx} w[co,ci,ky,kx] * x[n,ci,oy*s+ky-pad,ox*s+kx-pad]
  *   Ho = (H + 2*pad - k)/s + 1,  Wo = (W + 2*pad - k)/s + 1  (floor)

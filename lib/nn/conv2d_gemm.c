@@ -15,8 +15,6 @@
 
 #include "nn/conv2d_internal.h"
 
-static size_t rup(size_t a, size_t b) { return (a + b - 1) / b * b; }
-
 /* Geometry and scratch of one pass (the launchers and the planner size the slots from this). */
 typedef struct glay {
   int direct;              /* the input (forward, data gradient) or x and dy (weights) read in place */
@@ -45,15 +43,15 @@ static void layout(const spx_ctx *ctx, const spx_conv2d_shape *s, int pass, glay
     return;
   }
   const int dg = pass == SPX_CONV_PASS_BWD_DATA;
-  L->r = dg ? s->cout : s->cin, L->m = dg ? s->cin : s->cout, L->mp = (int)rup((size_t)L->m, (size_t)t->conv_gemm_bm);
-  L->rp = (int)rup((size_t)L->r, (size_t)t->conv_gemm_ks);
+  L->r = dg ? s->cout : s->cin, L->m = dg ? s->cin : s->cout, L->mp = (int)spx_conv_round_up((size_t)L->m, (size_t)t->conv_gemm_bm);
+  L->rp = (int)spx_conv_round_up((size_t)L->r, (size_t)t->conv_gemm_ks);
   L->direct = L->direct && L->rp == L->r; /* (else the copy adds the zero channels) */
   L->rows = dg ? s->h : ho, L->cols = dg ? s->w : wo;
   L->hp = dg ? s->h + s->k - 1 : s->h + 2 * s->pad, L->wp = dg ? s->w + s->k - 1 : s->w + 2 * s->pad;
   L->top = dg ? s->k - 1 - s->pad : s->pad, L->d = dg ? s->stride : 1;
   if (L->direct) L->hp = L->rows, L->wp = L->cols;
   L->plane = L->hp * L->wp;
-  const size_t tiles = (size_t)(L->mp / t->conv_gemm_bm) * rup((size_t)L->rows * L->wp, (size_t)t->conv_gemm_bn) /
+  const size_t tiles = (size_t)(L->mp / t->conv_gemm_bm) * spx_conv_round_up((size_t)L->rows * L->wp, (size_t)t->conv_gemm_bn) /
                        (size_t)t->conv_gemm_bn * (size_t)s->n;
   const int nsl = s->k * s->k * (L->rp / t->conv_gemm_ks);
   int splits = 1;
@@ -123,7 +121,7 @@ static spx_status pad_input(spx_ctx *ctx, const spx_conv_job *j, const glay *L, 
              SPX_ARG(kr, 8, L->plane) | SPX_ARG(kr, 9, L->top) | SPX_ARG(kr, 10, L->top) | SPX_ARG(kr, 11, L->d);
   if ((st = spx_cl_check(ctx, e, "spx_gemm_pad args"))) return st;
   const size_t lx = (size_t)ctx->dev->tune.wg < (size_t)L->wp ? (size_t)ctx->dev->tune.wg : (size_t)L->wp;
-  size_t gl[3] = {rup((size_t)L->wp, lx), (size_t)L->hp, (size_t)j->s->n * L->rp}, lo[3] = {lx, 1, 1};
+  size_t gl[3] = {spx_conv_round_up((size_t)L->wp, lx), (size_t)L->hp, (size_t)j->s->n * L->rp}, lo[3] = {lx, 1, 1};
   if ((st = spx_cl_run(ctx, kr, 3, gl, lo, "spx_gemm_pad"))) return st;
   const size_t used = (size_t)j->s->n * L->rp * L->plane;
   return spx_cl_fill_f32(ctx, out->mem, used, L->total[0] - used, 0.0f);
@@ -183,7 +181,7 @@ static spx_status run_conv(spx_ctx *ctx, const spx_conv_job *j) {
                SPX_ARG(kr, 24, ybs);
     if ((st = spx_cl_check(ctx, e, "spx_gemm_conv args"))) goto done;
     const size_t wgs = group_size(ctx), bn = (size_t)ctx->dev->tune.conv_gemm_bn;
-    size_t gl[3] = {(size_t)(L.mp / ctx->dev->tune.conv_gemm_bm) * (rup((size_t)L.rows * L.wp, bn) / bn) * wgs,
+    size_t gl[3] = {(size_t)(L.mp / ctx->dev->tune.conv_gemm_bm) * (spx_conv_round_up((size_t)L.rows * L.wp, bn) / bn) * wgs,
                     (size_t)s->n, (size_t)L.splits};
     size_t lo[3] = {wgs, 1, 1};
     if ((st = spx_cl_run(ctx, kr, 3, gl, lo, "spx_gemm_conv"))) goto done;
@@ -212,7 +210,7 @@ spx_status spx_conv2d_gemm_batched(spx_ctx *ctx, cl_mem a, cl_mem b, size_t b_of
              SPX_ARG(kr, 23, abs_) | SPX_ARG(kr, 24, cbs);
   if ((st = spx_cl_check(ctx, e, "spx_gemm_conv (batched) args"))) return st;
   const size_t wgs = group_size(ctx), bn = (size_t)t->conv_gemm_bn;
-  size_t gl[3] = {(size_t)(mp / t->conv_gemm_bm) * (rup((size_t)n, bn) / bn) * wgs, (size_t)batch, 1};
+  size_t gl[3] = {(size_t)(mp / t->conv_gemm_bm) * (spx_conv_round_up((size_t)n, bn) / bn) * wgs, (size_t)batch, 1};
   size_t lo[3] = {wgs, 1, 1};
   return spx_cl_run(ctx, kr, 3, gl, lo, "spx_gemm_conv (batched)");
 }
@@ -244,7 +242,7 @@ static spx_status run_dw(spx_ctx *ctx, const spx_conv_job *j) {
                SPX_ARG(kr, 12, L.qc);
     if ((st = spx_cl_check(ctx, e, "spx_gemm_dw args"))) goto done;
     const size_t wgs = group_size(ctx), bm = (size_t)t->conv_gemm_bm, bn = (size_t)t->conv_gemm_bn;
-    size_t gl[2] = {rup((size_t)s->cout, bm) / bm * (rup((size_t)kdim, bn) / bn) * wgs, (size_t)L.nchunks};
+    size_t gl[2] = {spx_conv_round_up((size_t)s->cout, bm) / bm * (spx_conv_round_up((size_t)kdim, bn) / bn) * wgs, (size_t)L.nchunks};
     size_t lo[2] = {wgs, 1};
     if ((st = spx_cl_run(ctx, kr, 2, gl, lo, "spx_gemm_dw"))) goto done;
     st = reduce(ctx, ps.mem, (size_t)s->cout * kdim, L.nchunks, j->out, kdim, s->cout, NULL, SPX_CONV_FL_ACCUM);
@@ -291,7 +289,7 @@ static spx_status thin_run(spx_ctx *ctx, const spx_conv_job *j) {
              SPX_ARG(kr, 12, s->cin) | SPX_ARG(kr, 13, s->cout) | SPX_ARG(kr, 14, hw) | SPX_ARG(kr, 15, flags);
   if ((st = spx_cl_check(ctx, e, "spx_conv2d_thin args"))) return st;
   const size_t lo = (size_t)ctx->dev->tune.wg;
-  size_t gl[2] = {rup((size_t)hw, lo), (size_t)s->n}, l2[2] = {lo, 1};
+  size_t gl[2] = {spx_conv_round_up((size_t)hw, lo), (size_t)s->n}, l2[2] = {lo, 1};
   return spx_cl_run(ctx, kr, 2, gl, l2, "spx_conv2d_thin");
 }
 

@@ -9,6 +9,14 @@
 
 #include "nn/conv2d.h"
 
+/* a rounded up to a multiple of b */
+static inline size_t spx_conv_round_up(size_t a, size_t b) { return (a + b - 1) / b * b; }
+
+/* A convolution's sizes as the launchers index them: spx_conv2d_shape's and the output's ho x wo. */
+typedef struct spx_conv_geom {
+  int n, cin, h, w, cout, k, s, pad, ho, wo;
+} spx_conv_geom;
+
 /* One pass of one validated convolution of shape s (output ho x wo). */
 typedef struct spx_conv_job {
   const spx_conv2d_shape *s;
@@ -32,13 +40,13 @@ typedef struct spx_conv_algo_row {
 } spx_conv_algo_row;
 
 /* The rows of the GEMM engine and of the 1x1 bandwidth kernel (lib/nn/conv2d_gemm.c) and of the
- * direct kernels (lib/nn/conv2d.c: the register tiles and, as a row of its own, the local-memory
- * tiles of kernels/conv2d_lds.cl). */
+ * direct kernels (lib/nn/conv2d_direct.c: the register tiles and, as a row of its own, the
+ * local-memory tiles of kernels/conv2d_lds.cl). */
 extern const spx_conv_algo_row spx_conv_row_gemm, spx_conv_row_thin, spx_conv_row_direct, spx_conv_row_lds;
 /* The row of an algorithm id (NULL: none). */
 const spx_conv_algo_row *spx_conv2d_row(int algo);
 
-/* Padded / dilated copy of src [nc][h][w] (from float src_off) into workspace slot `slot` of
+/* lib/nn/conv2d_prep.c: padded / dilated copy of src [nc][h][w] (from float src_off) into workspace slot `slot` of
  * total floats: planes of hp x wp, element (sy, sx) at row top + sy*d, column left + sx*d, zeros
  * elsewhere and after the nc planes (spx_conv2d_pad). */
 spx_status spx_conv2d_pad_copy(spx_ctx *ctx, spx_op_workspace *ws, int slot, cl_mem src, size_t src_off, int nc, int h,

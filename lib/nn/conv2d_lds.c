@@ -1,5 +1,5 @@
 /* Local-memory tiled 3x3 stride-1 forward (kernels/conv2d_lds.cl) for GPU-class devices: when it
- * applies, which of its two kernels runs and its launch shape. lib/nn/conv2d.c's run_fwd sets the
+ * applies, which of its two kernels runs and its launch shape. lib/nn/conv2d_direct.c's run_fwd sets the
  * arguments (the kernels take the direct kernel's) and launches it in place of
  * spx_conv2d_fwd_k3s1, so the forward and the backward-data convolutions both use it.
  *   CONV_LDS = 1: tiles of CONV_LDS_TX columns x CONV_LWS / CONV_LDS_TX * CONV_TN rows, one

@@ -1,11 +1,11 @@
 /* Winograd F(4x4,3x3) convolution: launchers for kernels/conv2d_winograd.cl (the four stages and
- * the buffer layouts are described at the top of the kernel file). Called by lib/nn/conv2d.c for
- * the forward and backward-data convolutions of 3x3 / stride 1 / pad 1 layers. Scratch: the
- * caller's workspace slots 0 (M, the products), 1 (U, transformed weights), 2 (V, transformed
- * input), else buffers allocated per call and released after
- * enqueueing. On the GPU class with the GEMM engine (CONV_GEMM) and input channels a whole number
- * of its slices, a sample's 36 GEMMs are one strided-batched launch of the engine
- * (spx_conv2d_gemm_batched, kernels/conv2d_gemm.cl) on U packed as [e][ci][Coutp] (spx_gemm_wino_pack). */
+ * the buffer layouts are described at the top of the kernel file). Called by the table
+ * (lib/nn/conv2d_algo.c) for the forward and backward-data convolutions of 3x3 / stride 1 / pad 1
+ * layers. Scratch: the caller's workspace slots 0 (M, the products), 1 (U, transformed weights),
+ * 2 (V, transformed input), else buffers allocated per call and released after enqueueing. On
+ * the GPU class with the GEMM engine (CONV_GEMM) and input channels a whole number of its slices,
+ * a sample's 36 GEMMs are one strided-batched launch of the engine (spx_conv2d_gemm_batched,
+ * kernels/conv2d_gemm.cl) on U packed as [e][ci][Coutp] (spx_gemm_wino_pack). */
 #include <limits.h>
 #include <string.h>
 

@@ -1,6 +1,6 @@
 /* Winograd F(4x4,3x3) weight gradient: launchers for kernels/conv2d_winograd_dw.cl (the stages and
- * layouts are described at the top of the kernel file). Called by lib/nn/conv2d.c for the weight
- * gradient of 3x3 / stride 1 / pad 1 layers when spx_conv2d_winograd_dw_applies. Scratch: the
+ * layouts are described at the top of the kernel file). Called by the table (lib/nn/conv2d_algo.c)
+ * for the weight gradient of 3x3 / stride 1 / pad 1 layers when spx_conv2d_winograd_dw_applies. Scratch: the
  * caller's workspace slots 0 (Q, the transformed output gradients),
  * 1 (P, the 36 gradient GEMMs' sums) and 2 (V, the transformed input), sized by
  * spx_conv2d_winograd_dw_need, else buffers allocated per call and released after enqueueing. */

@@ -158,6 +158,80 @@ static void concat_in_place(const spx_tape *t, int *rt) {
   }
 }
 
+/* The op scratch items added to the storages' items, and every item placed in the arena (p->size,
+ * each value's offsets, p->sum: the floats without reuse). */
+static spx_status place_all(spx_tape *t, tplan *p, item *it, int ni, item **tmp) {
+  const int np = t->npersist;
+  spx_status st = SPX_OK;
+  p->wsalign = ALIGN;
+  if (t->backend == SPX_TAPE_DEVICE) { /* sub-buffers (op scratch) start at the device's alignment */
+    cl_uint bits = 0;
+    st = spx_cl_check(t->ctx, clGetDeviceInfo(t->ctx->dev->device, CL_DEVICE_MEM_BASE_ADDR_ALIGN, sizeof bits, &bits,
+                                              NULL),
+                      "clGetDeviceInfo(CL_DEVICE_MEM_BASE_ADDR_ALIGN)");
+    if (bits / 32 > ALIGN) p->wsalign = bits / 32;
+  }
+  p->chunk = arena_chunk(t, p->wsalign);
+  if (!st) st = ws_items(t, p, it, &ni);
+  for (int i = 0; i < ni && !st; i++)
+    if (it[i].n > p->chunk) {
+      char what[64];
+      if (it[i].grad >= 2)
+        snprintf(what, sizeof what, "the %s scratch of op %d (%s)", it[i].grad == 2 ? "forward" : "backward", it[i].id,
+                 spx_tp_op_name(t->nodes[it[i].id].kind));
+      else snprintf(what, sizeof what, "the %s of value %d", it[i].grad ? "gradient" : "data", np + it[i].id);
+      st = spx_fail(t->ctx, SPX_E_DEVMEM,
+                    "tape: %s needs %.1f MiB in one buffer, more than an arena buffer may hold (%.1f MiB: the device's "
+                    "largest allocation, or TAPE_CHUNK_MB)",
+                    what, (double)it[i].n * sizeof(float) / (1 << 20), (double)p->chunk * sizeof(float) / (1 << 20));
+    }
+  if (st) return st;
+  qsort(it, (size_t)ni, sizeof *it, by_size);
+  p->size = 1, p->sum = 0;
+  size_t wsmax = 0; /* "without reuse" counts the largest op workspace once, as a separate buffer */
+  for (int i = 0; i < ni; i++) {
+    place(it, i, tmp, p->chunk);
+    if (it[i].off + it[i].n > p->size) p->size = it[i].off + it[i].n;
+    if (it[i].grad >= 2) {
+      p->wsoff[2 * it[i].id + it[i].grad - 2] = it[i].off;
+      if (it[i].n > wsmax) wsmax = it[i].n;
+      continue;
+    }
+    p->sum += it[i].n;
+    tpval *e = &p->v[it[i].id];
+    if (it[i].grad) e->goff = it[i].off;
+    else e->off = it[i].off;
+  }
+  p->sum += wsmax + (p->wsmax + sizeof(float) - 1) / sizeof(float); /* one of the two is 0 (TAPE_WS_ARENA) */
+  return SPX_OK;
+}
+
+/* Each value's offsets and times (an alias takes its storage's), and the storages' deaths and
+ * births in time order. */
+static void plan_events(const spx_tape *t, tplan *p, const int *rt) {
+  const int np = t->npersist, nv = p->nv;
+  p->ndeaths = p->nbirths = 0;
+  for (int i = 0; i < nv; i++) {
+    const tvalue *v = &t->vals[np + i];
+    tpval *e = &p->v[i];
+    const tpval *r = &p->v[rt[i]];
+    e->numel = spx_tp_numel(v), e->flags = v->flags, e->needs_grad = v->needs_grad;
+    if (rt[i] != i) { /* (a skip placed in its concatenation sits at its start: delta 0) */
+      const size_t delta = v->root == np + i ? 0 : v->delta;
+      e->off = r->off + delta, e->goff = r->goff + delta;
+      e->d0 = r->d0, e->d1 = r->d1, e->g0 = r->g0, e->g1 = r->g1;
+      continue;
+    }
+    if (e->d1 != TP_INF) p->deaths[p->ndeaths++] = (tpevent){e->d1, e->off, e->numel};
+    if (e->g0 != TP_INF) {
+      if (e->g1 != TP_INF) p->deaths[p->ndeaths++] = (tpevent){e->g1, e->goff, e->numel};
+      p->births[p->nbirths++] = (tpevent){e->g0, e->goff, e->numel};
+    }
+  }
+  qsort(p->deaths, (size_t)p->ndeaths, sizeof *p->deaths, by_time);
+  qsort(p->births, (size_t)p->nbirths, sizeof *p->births, by_time);
+}
+
 spx_status spx_tp_plan(spx_tape *t, tplan *p) {
   const int np = t->npersist, nv = t->nvals - np, N = t->nnodes;
   const int tbegin = 2 * N + 1, tseed = 2 * N + 2;
@@ -232,73 +306,15 @@ spx_status spx_tp_plan(spx_tape *t, tplan *p) {
     it[ni++] = (item){n, 0, ALIGN, e->d0, e->d1, i, 0};
     if (e->g0 != TP_INF) it[ni++] = (item){n, 0, ALIGN, e->g0, e->g1, i, 1};
   }
-  spx_status st = SPX_OK;
-  p->wsalign = ALIGN;
-  if (t->backend == SPX_TAPE_DEVICE) { /* sub-buffers (op scratch) start at the device's alignment */
-    cl_uint bits = 0;
-    st = spx_cl_check(t->ctx, clGetDeviceInfo(t->ctx->dev->device, CL_DEVICE_MEM_BASE_ADDR_ALIGN, sizeof bits, &bits,
-                                              NULL),
-                      "clGetDeviceInfo(CL_DEVICE_MEM_BASE_ADDR_ALIGN)");
-    if (bits / 32 > ALIGN) p->wsalign = bits / 32;
-  }
-  p->chunk = arena_chunk(t, p->wsalign);
-  if (!st) st = ws_items(t, p, it, &ni);
-  for (int i = 0; i < ni && !st; i++)
-    if (it[i].n > p->chunk) {
-      char what[64];
-      if (it[i].grad >= 2)
-        snprintf(what, sizeof what, "the %s scratch of op %d (%s)", it[i].grad == 2 ? "forward" : "backward", it[i].id,
-                 spx_tp_op_name(t->nodes[it[i].id].kind));
-      else snprintf(what, sizeof what, "the %s of value %d", it[i].grad ? "gradient" : "data", np + it[i].id);
-      st = spx_fail(t->ctx, SPX_E_DEVMEM,
-                    "tape: %s needs %.1f MiB in one buffer, more than an arena buffer may hold (%.1f MiB: the device's "
-                    "largest allocation, or TAPE_CHUNK_MB)",
-                    what, (double)it[i].n * sizeof(float) / (1 << 20), (double)p->chunk * sizeof(float) / (1 << 20));
-    }
+  spx_status st = place_all(t, p, it, ni, tmp);
   if (st) {
     free(last), free(it), free(tmp);
     spx_tp_plan_free(p);
     return st;
   }
-  qsort(it, (size_t)ni, sizeof *it, by_size);
-  p->size = 1, p->sum = 0;
-  size_t wsmax = 0; /* "without reuse" counts the largest op workspace once, as a separate buffer */
-  for (int i = 0; i < ni; i++) {
-    place(it, i, tmp, p->chunk);
-    if (it[i].off + it[i].n > p->size) p->size = it[i].off + it[i].n;
-    if (it[i].grad >= 2) {
-      p->wsoff[2 * it[i].id + it[i].grad - 2] = it[i].off;
-      if (it[i].n > wsmax) wsmax = it[i].n;
-      continue;
-    }
-    p->sum += it[i].n;
-    tpval *e = &p->v[it[i].id];
-    if (it[i].grad) e->goff = it[i].off;
-    else e->off = it[i].off;
-  }
-  p->sum += wsmax + (p->wsmax + sizeof(float) - 1) / sizeof(float); /* one of the two is 0 (TAPE_WS_ARENA) */
-  p->ndeaths = p->nbirths = 0;
-  for (int i = 0; i < nv; i++) {
-    const tvalue *v = &t->vals[np + i];
-    tpval *e = &p->v[i];
-    const tpval *r = &p->v[ROOT(np + i)];
-    e->numel = spx_tp_numel(v), e->flags = v->flags, e->needs_grad = v->needs_grad;
-    if (rt[i] != i) { /* (a skip placed in its concatenation sits at its start: delta 0) */
-      const size_t delta = v->root == np + i ? 0 : v->delta;
-      e->off = r->off + delta, e->goff = r->goff + delta;
-      e->d0 = r->d0, e->d1 = r->d1, e->g0 = r->g0, e->g1 = r->g1;
-      continue;
-    }
-    if (e->d1 != TP_INF) p->deaths[p->ndeaths++] = (tpevent){e->d1, e->off, e->numel};
-    if (e->g0 != TP_INF) {
-      if (e->g1 != TP_INF) p->deaths[p->ndeaths++] = (tpevent){e->g1, e->goff, e->numel};
-      p->births[p->nbirths++] = (tpevent){e->g0, e->goff, e->numel};
-    }
-  }
 #undef ROOT
 #undef ACT
-  qsort(p->deaths, (size_t)p->ndeaths, sizeof *p->deaths, by_time);
-  qsort(p->births, (size_t)p->nbirths, sizeof *p->births, by_time);
+  plan_events(t, p, rt);
   free(last), free(it), free(tmp);
   return SPX_OK;
 }

@@ -1,10 +1,20 @@
 /* Appearance of a synthetic subject: random look (skin, hair, clothing, prints), the region of a
- * surface point (part map + skinning chains + rest position), its colour and its displacement. */
+ * surface point (part map + skinning chains + rest position), its colour and its displacement;
+ * the generator's RNG (smplpix/synth.h) that draws the look. */
 #include <math.h>
 #include <string.h>
 
 #include "core/internal.h"
 #include "synth_internal.h"
+
+uint64_t spx_synth_rng_next(spx_synth_rng *r) { return spx_splitmix64(&r->s); }
+double spx_synth_rng_uniform(spx_synth_rng *r, double lo, double hi) {
+  return lo + (hi - lo) * ((double)(spx_synth_rng_next(r) >> 11) * 0x1.0p-53);
+}
+double spx_synth_rng_normal(spx_synth_rng *r) {
+  double u1 = spx_synth_rng_uniform(r, 0, 1), u2 = spx_synth_rng_uniform(r, 0, 1);
+  return sqrt(-2.0 * log(1.0 - u1)) * cos(6.283185307179586 * u2);
+}
 
 uint64_t syn_hash(uint64_t a, uint64_t b) {
   uint64_t z = a * 0x9E3779B97F4A7C15ULL ^ (b + 0x632BE59BD9B4E019ULL + (a << 6) + (a >> 2));

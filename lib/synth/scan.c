@@ -1,6 +1,6 @@
 /* Synthetic subjects: shape, look, texture and the high-resolution "scan" (two Loop subdivisions
  * of the rest body carrying UVs and skinning weights, displaced along the normals by region),
- * posed by linear blend skinning; per-vertex Lambert shading; cameras; the generator's RNG. */
+ * posed by linear blend skinning; per-vertex Lambert shading; cameras. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -12,15 +12,6 @@
 typedef struct syn_priv {
   spx_loop_plan p1, p2; /* body → 1 step → 2 steps (positions) */
 } syn_priv;
-
-uint64_t spx_synth_rng_next(spx_synth_rng *r) { return spx_splitmix64(&r->s); }
-double spx_synth_rng_uniform(spx_synth_rng *r, double lo, double hi) {
-  return lo + (hi - lo) * ((double)(spx_synth_rng_next(r) >> 11) * 0x1.0p-53);
-}
-double spx_synth_rng_normal(spx_synth_rng *r) {
-  double u1 = spx_synth_rng_uniform(r, 0, 1), u2 = spx_synth_rng_uniform(r, 0, 1);
-  return sqrt(-2.0 * log(1.0 - u1)) * cos(6.283185307179586 * u2);
-}
 
 void spx_synth_subject_free(spx_synth_subject *s) {
   if (!s) return;

@@ -1,45 +1,12 @@
-/* Checked buffers, copies and launches; OpenCL error names. */
+/* Device buffers: checked allocation (the device's largest allocation, the address space a CPU
+ * device's buffers take), counted in the device-memory account (lib/cl/devmem.c), blocking reads
+ * and writes, enqueued fills and copies, each timed by the kernel profile (lib/cl/kprof.c) when it is on. */
 #include <sys/mman.h>
 #include <sys/resource.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "cl/cl_internal.h"
-
-const char *spx_cl_error_name(cl_int e) {
-  switch (e) {
-#define C(x) case x: return #x;
-    C(CL_SUCCESS) C(CL_DEVICE_NOT_FOUND) C(CL_DEVICE_NOT_AVAILABLE) C(CL_COMPILER_NOT_AVAILABLE)
-    C(CL_MEM_OBJECT_ALLOCATION_FAILURE) C(CL_OUT_OF_RESOURCES) C(CL_OUT_OF_HOST_MEMORY)
-    C(CL_PROFILING_INFO_NOT_AVAILABLE) C(CL_MEM_COPY_OVERLAP) C(CL_IMAGE_FORMAT_MISMATCH)
-    C(CL_IMAGE_FORMAT_NOT_SUPPORTED) C(CL_BUILD_PROGRAM_FAILURE) C(CL_MAP_FAILURE)
-    C(CL_MISALIGNED_SUB_BUFFER_OFFSET) C(CL_COMPILE_PROGRAM_FAILURE) C(CL_LINKER_NOT_AVAILABLE)
-    C(CL_LINK_PROGRAM_FAILURE) C(CL_INVALID_VALUE) C(CL_INVALID_DEVICE_TYPE) C(CL_INVALID_PLATFORM)
-    C(CL_INVALID_DEVICE) C(CL_INVALID_CONTEXT) C(CL_INVALID_QUEUE_PROPERTIES) C(CL_INVALID_COMMAND_QUEUE)
-    C(CL_INVALID_HOST_PTR) C(CL_INVALID_MEM_OBJECT) C(CL_INVALID_BINARY) C(CL_INVALID_BUILD_OPTIONS)
-    C(CL_INVALID_PROGRAM) C(CL_INVALID_PROGRAM_EXECUTABLE) C(CL_INVALID_KERNEL_NAME)
-    C(CL_INVALID_KERNEL_DEFINITION) C(CL_INVALID_KERNEL) C(CL_INVALID_ARG_INDEX) C(CL_INVALID_ARG_VALUE)
-    C(CL_INVALID_ARG_SIZE) C(CL_INVALID_KERNEL_ARGS) C(CL_INVALID_WORK_DIMENSION)
-    C(CL_INVALID_WORK_GROUP_SIZE) C(CL_INVALID_WORK_ITEM_SIZE) C(CL_INVALID_GLOBAL_OFFSET)
-    C(CL_INVALID_EVENT_WAIT_LIST) C(CL_INVALID_EVENT) C(CL_INVALID_OPERATION) C(CL_INVALID_BUFFER_SIZE)
-    C(CL_INVALID_GLOBAL_WORK_SIZE)
-#undef C
-  default: return "CL_UNKNOWN_ERROR";
-  }
-}
-
-/* CL_OUT_OF_RESOURCES is not out of memory: drivers return it for a launch the device cannot
- * hold (registers or local memory of the work-group) and after a kernel faults, so it is a
- * device error (SPX_E_CL) here, except after a buffer transfer (check_mem below), where drivers
- * that allocate on first use report a failed allocation with it. */
-spx_status spx_cl_check(spx_ctx *ctx, cl_int err, const char *what) {
-  if (err == CL_SUCCESS) return SPX_OK;
-  spx_status st = (err == CL_MEM_OBJECT_ALLOCATION_FAILURE || err == CL_INVALID_BUFFER_SIZE) ? SPX_E_DEVMEM : SPX_E_CL;
-  if (err == CL_OUT_OF_RESOURCES)
-    return spx_fail(ctx, st, "%s: %s (%d): the device lacked a resource for it (registers or local memory of the "
-                    "work-group, or a kernel faulted)", what, spx_cl_error_name(err), (int)err);
-  return spx_fail(ctx, st, "%s: %s (%d)", what, spx_cl_error_name(err), (int)err);
-}
 
 static spx_status check_mem(spx_ctx *ctx, cl_int err, const char *what) {
   if (err == CL_OUT_OF_RESOURCES)
@@ -149,35 +116,4 @@ spx_status spx_cl_copy(spx_ctx *ctx, cl_mem src, cl_mem dst, size_t so, size_t d
   cl_int e = clEnqueueCopyBuffer(ctx->dev->queue, src, dst, so, dof, bytes, 0, NULL, spx_cl_kprof_ev(ctx, &ev));
   spx_cl_kprof_add(ctx, what, ev);
   return spx_cl_check(ctx, e, what);
-}
-
-spx_status spx_cl_run(spx_ctx *ctx, cl_kernel k, cl_uint dims, const size_t *global, const size_t *local,
-                      const char *what) {
-  size_t g[3], group = 1;
-  for (cl_uint i = 0; i < dims; i++) {
-    g[i] = global[i];
-    if (local && local[i]) g[i] = (g[i] + local[i] - 1) / local[i] * local[i];
-    if (local) group *= local[i] ? local[i] : 1;
-    if (g[i] == 0) return SPX_OK; /* nothing to do */
-  }
-  size_t limit = spx_cl_kernel_wg_limit(ctx, k);
-  if (local && limit && group > limit)
-    return spx_fail(ctx, SPX_E_UNSUPPORTED,
-                    "%s: a work-group of %zu work-items is more than this kernel allows on %s (%zu, "
-                    "CL_KERNEL_WORK_GROUP_SIZE); set a smaller work-group tunable (SPX_TUNE_*, `smplpix tune`)",
-                    what, group, ctx->dev->info.name, limit);
-  cl_event ev;
-  cl_int err = clEnqueueNDRangeKernel(ctx->dev->queue, k, dims, NULL, g, local, 0, NULL, spx_cl_kprof_ev(ctx, &ev));
-  spx_cl_kprof_add(ctx, what, ev);
-  if (err == CL_OUT_OF_RESOURCES || err == CL_INVALID_WORK_GROUP_SIZE) {
-    cl_ulong lmem = 0, pmem = 0;
-    clGetKernelWorkGroupInfo(k, ctx->dev->device, CL_KERNEL_LOCAL_MEM_SIZE, sizeof lmem, &lmem, NULL);
-    clGetKernelWorkGroupInfo(k, ctx->dev->device, CL_KERNEL_PRIVATE_MEM_SIZE, sizeof pmem, &pmem, NULL);
-    return spx_fail(ctx, SPX_E_CL,
-                    "%s: %s (%d) launching a work-group of %zu (kernel limit %zu; %llu bytes of local memory per work-group, "
-                    "%llu of private memory per work-item)",
-                    what, spx_cl_error_name(err), (int)err, local ? group : 0, limit, (unsigned long long)lmem,
-                    (unsigned long long)pmem);
-  }
-  return spx_cl_check(ctx, err, what);
 }
