@@ -50,6 +50,9 @@ const char *spx_cli_data_path(const char *rel);
 /* A 64-bit mixing function for seeded shuffles (the value splitmix64 gives for the state z):
  * the data order of `train` and the split of `dataset` depend only on the seed. */
 uint64_t spx_cli_mix64(uint64_t z);
+/* The data order of an epoch (train, avatar): perm = 0..n-1, shuffled (unless !shuffle) by a
+ * function of (seed, epoch) only, so a resumed run continues exactly. */
+void spx_cli_epoch_order(int *perm, int n, uint64_t seed, int64_t epoch, int shuffle);
 /* s as a JSON string, quoted, to f: valid UTF-8 whatever s holds (control characters escaped, a
  * byte that is not part of a UTF-8 character written as the Latin-1 character it would be). */
 void spx_cli_json_string(FILE *f, const char *s);

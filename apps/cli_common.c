@@ -108,6 +108,19 @@ void spx_cli_print_coverage(int c, const spx_image *img, const char *what) {
 
 uint64_t spx_cli_mix64(uint64_t z) { return spx_splitmix64(&z); }
 
+void spx_cli_epoch_order(int *perm, int n, uint64_t seed, int64_t epoch, int shuffle) {
+  for (int i = 0; i < n; i++) perm[i] = i;
+  if (!shuffle) return;
+  uint64_t s = spx_cli_mix64(seed ^ spx_cli_mix64((uint64_t)epoch));
+  for (int i = n - 1; i > 0; i--) {
+    s = spx_cli_mix64(s);
+    int j = (int)(s % (uint64_t)(i + 1));
+    int t = perm[i];
+    perm[i] = perm[j];
+    perm[j] = t;
+  }
+}
+
 void spx_cli_json_string(FILE *f, const char *s) {
   fputc('"', f);
   for (const char *p = s; *p;) {

@@ -13,6 +13,7 @@ int spx_cmd_repose(int argc, char **argv);
 int spx_cmd_reshape(int argc, char **argv);
 int spx_cmd_bake(int argc, char **argv); /* apps/cmd_bake.c */
 int spx_cmd_animate(int argc, char **argv); /* apps/cmd_animate.c */
+int spx_cmd_avatar(int argc, char **argv);  /* apps/cmd_avatar.c */
 
 /* apps/cmd_repose.c, shared with animate. Load a registration (smplpix register --params) and its
  * body model (model_arg, else the path recorded in the JSON, else the default body) and check that
@@ -23,5 +24,15 @@ int spx_cli_load_registration(const char *cmd, spx_ctx *ctx, const char *reg_pat
  * frame, metres: pos = nv*3 floats; work = nv*3 doubles of scratch. Returns an exit code. */
 int spx_cli_pose_registration(const char *cmd, spx_ctx *ctx, const spx_body_model *m, const spx_fit_result *r,
                               const double *betas, const double *pose, const double *trans, double *work, float *pos);
+
+/* apps/cmd_register.c, shared with avatar: a registration's progress line per outer step (or its
+ * note) on stdout (an spx_fit_progress_fn; user unused). */
+void spx_cli_fit_progress(void *user, const spx_fit_progress *p);
+/* The scan-to-surface distance of a registration (reg: nv vertices in scan coordinates, faces)
+ * in metres, dist = mean, median, 95th percentile, and the check that the fit is a person's
+ * (spx_fit_check_result with the stages the fit ran: a scan that is not a person, a fit that
+ * failed). Prints the one-line error itself; returns an exit code. */
+int spx_cli_check_fit(const char *cmd, spx_ctx *ctx, const char *scan_path, const spx_mesh *scan, double unit_scale,
+                      const float *reg, int32_t nv, const int32_t *faces, int32_t nf, int stages, double dist[3]);
 
 #endif

@@ -14,7 +14,7 @@
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
 
-static void print_progress(void *user, const spx_fit_progress *p) {
+void spx_cli_fit_progress(void *user, const spx_fit_progress *p) {
   (void)user;
   if (p->note) {
     printf("%s\n", p->note);
@@ -115,27 +115,34 @@ static int load_scan(spx_ctx *ctx, const reg_args *a, spx_register_depth *d, spx
   return SPX_EXIT_OK;
 }
 
+int spx_cli_check_fit(const char *cmd, spx_ctx *ctx, const char *scan_path, const spx_mesh *scan, double unit_scale,
+                      const float *reg, int32_t nv, const int32_t *faces, int32_t nf, int stages, double dist[3]) {
+  float *pts = malloc((size_t)scan->nv * 3 * sizeof(float)), *rv = malloc((size_t)nv * 3 * sizeof(float));
+  float *d = malloc((size_t)scan->nv * sizeof(float));
+  int rc = SPX_EXIT_OK;
+  if (!pts || !rv || !d) rc = spx_cli_errorf(cmd, "out of memory");
+  for (int32_t i = 0; !rc && i < scan->nv * 3; i++) pts[i] = (float)(scan->pos[i] * unit_scale);
+  for (int32_t i = 0; !rc && i < nv * 3; i++) rv[i] = (float)(reg[i] * unit_scale);
+  spx_status st =
+      rc ? SPX_OK : spx_fit_surface_distance(ctx, pts, scan->nv, rv, nv, faces, nf, d, &dist[0], &dist[1], &dist[2]);
+  if (!rc && !st) st = spx_fit_check_result(ctx, pts, scan->nv, rv, nv, d, stages);
+  if (!rc && st) rc = spx_cli_errorf(cmd, "%s: %s", scan_path, spx_ctx_message(ctx));
+  free(pts), free(rv), free(d);
+  return rc;
+}
+
 /* The registration checked against its scan (input: its file), with the report; exit 1 with the
  * figures, no output. */
 static int check_fit(spx_ctx *ctx, const char *input, const spx_mesh *scan, const spx_fit_result *r) {
-  float *pts = malloc((size_t)scan->nv * 3 * sizeof(float)), *rv = malloc((size_t)r->nv * 3 * sizeof(float));
-  float *dist = malloc((size_t)scan->nv * sizeof(float));
-  double mean = 0, med = 0, p95 = 0;
-  int rc = SPX_EXIT_OK;
-  if (!pts || !rv || !dist) rc = spx_cli_errorf("register", "out of memory");
-  for (int32_t i = 0; !rc && i < scan->nv * 3; i++) pts[i] = (float)(scan->pos[i] * r->unit_scale);
-  for (int32_t i = 0; !rc && i < r->nv * 3; i++) rv[i] = (float)(r->verts_scan[i] * r->unit_scale);
-  spx_status st = rc ? SPX_OK : spx_fit_surface_distance(ctx, pts, scan->nv, rv, r->nv, r->faces, r->nf, dist, &mean,
-                                                         &med, &p95);
-  if (!rc && !st) st = spx_fit_check_result(ctx, pts, scan->nv, rv, r->nv, dist, r->stages_done);
-  if (!rc && st) rc = spx_cli_errorf("register", "%s: %s", input, spx_ctx_message(ctx));
+  double dist[3];
+  int rc = spx_cli_check_fit("register", ctx, input, scan, r->unit_scale, r->verts_scan, r->nv, r->faces, r->nf,
+                             r->stages_done, dist);
   if (!rc) {
     printf("time: rigid %.1f s, pose %.1f s, free %.1f s\n", r->stage_seconds[0], r->stage_seconds[1],
            r->stage_seconds[2]);
-    printf("scan -> surface distance: mean %.2f mm, median %.2f mm, 95th percentile %.2f mm\n", mean * 1e3, med * 1e3,
-           p95 * 1e3);
+    printf("scan -> surface distance: mean %.2f mm, median %.2f mm, 95th percentile %.2f mm\n", dist[0] * 1e3,
+           dist[1] * 1e3, dist[2] * 1e3);
   }
-  free(pts), free(rv), free(dist);
   return rc;
 }
 
@@ -161,7 +168,7 @@ static int run(const reg_args *a) {
   o.stages = a->stages;
   o.threads = a->threads;
   o.unit_scale = a->units;
-  o.progress = print_progress;
+  o.progress = spx_cli_fit_progress;
   o.ceres_progress = getenv("SPX_FIT_CERES_PROGRESS") != NULL; /* debugging: Ceres's per-iteration output */
   char seen[64] = "";
   if (o.nviews > 1) snprintf(seen, sizeof seen, ", seen from %d cameras", (int)o.nviews);

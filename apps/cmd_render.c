@@ -13,12 +13,15 @@
 #include "smplpix/mesh.h"
 #include "smplpix/render.h"
 #include "cli_model.h"
+#include "render_avatar.h"
 #include "unet_io.h"
 
 static void render_help(void) {
   printf("usage: smplpix render [--checkpoint W.safetensors] --input P.exr|P.png|P.npy --out I.png|I.exr|I.npy\n"
          "       smplpix render [--checkpoint W.safetensors] --mesh M.obj|M.ply --camera C.json --out I.png|I.exr|I.npy\n"
          "                      [--color auto|mesh|normal|white] [--batch B]\n"
+         "       smplpix render --avatar A.safetensors --camera C.json --out I.png|I.exr|I.npy\n"
+         "                      [--pose Q.json | --bvh M.bvh [--frame N] | --amass M.npz [--frame N]] [--model M.npz]\n"
          "       common options: [--sigmoid on|off] [--any-size] [--device cpu|gpu|P:D] [--quiet]\n"
          "Runs the UNet of checkpoint W (milesial state_dict names; base width read from the file;\n"
          "default: the shipped network data/models/default.safetensors, when present) on\n"
@@ -31,10 +34,13 @@ static void render_help(void) {
          "cameras going through the network B at a time (--batch, default 4; also for an Nx4xHxW .npy).\n"
          "Nothing is written when any camera fails.\n"
          "--sigmoid overrides the checkpoint's output sigmoid flag (metadata smplpix.sigmoid).\n"
+         "--avatar: the avatar of `smplpix avatar` in its registered pose, the pose of Q.json (its top-level\n"
+         "\"pose\" and \"trans\", the body model's parameters) or frame N (default 0) of a motion, through its own\n"
+         "network, for every camera of C.json.\n"
          "PNG output is clamped to [0, 1]; height and width must be at least 16.\n"
          "A network whose metadata records the image size it was trained at (smplpix.image_size: smplpix\n"
-         "train writes it, export keeps it) refuses inputs of another size, which it would draw worse\n"
-         "than it can; --any-size runs it anyway.\n");
+         "train writes it, export keeps it, an avatar records it) refuses inputs of another size, which it\n"
+         "would draw worse than it can; --any-size runs it anyway.\n");
 }
 
 /* Device memory errors get a hint on what to change. */
@@ -123,19 +129,47 @@ done:
   return rc;
 }
 
+/* --avatar: its own options only. */
+static int render_avatar_cmd(const spx_opt *opts, spx_render_avatar_args *av, const char *cam, const char *outp,
+                             const char *spec, int quiet, int others) {
+  if (!av->avatar) return spx_cli_usage("render", "--pose, --bvh, --amass, --frame and --model go with --avatar");
+  if (others)
+    return spx_cli_usage("render", "--avatar renders with its own network and colours: --checkpoint, --input, --mesh, "
+                         "--color, --batch and --sigmoid do not apply");
+  if (!cam || !outp) return spx_cli_usage("render", "--avatar needs --camera and --out");
+  if (!!av->pose_path + !!av->bvh + !!av->amass > 1) return spx_cli_usage("render", "give one of --pose, --bvh or --amass");
+  if (spx_cli_only_with(opts, "render", "--frame", av->bvh || av->amass, "--bvh or --amass")) return SPX_EXIT_USAGE;
+  if (!spx_image_ext_ok(outp)) return spx_cli_usage("render", "%s: output must end in .exr, .png or .npy", outp);
+  av->camera = cam, av->out = outp, av->device = spec, av->quiet = quiet;
+  spx_ctx *ctx = NULL;
+  if (spx_ctx_create(&ctx)) return spx_cli_errorf("render", "out of memory");
+  int rc = spx_render_avatar(ctx, av);
+  spx_ctx_destroy(ctx);
+  return rc;
+}
+
 int spx_cmd_render(int argc, char **argv) {
   const char *ckpt = NULL, *input = NULL, *outp = NULL, *spec = NULL, *sig = NULL, *mesh = NULL, *cam = NULL;
   const char *color = "auto";
   int quiet = 0, any_size = 0;
   long batch = 4;
+  spx_render_avatar_args av = {0};
   spx_opt opts[] = {SPX_O("--quiet", SPX_OPT_FLAG, &quiet),   SPX_O("--checkpoint", SPX_OPT_IN, &ckpt),
                     SPX_O("--any-size", SPX_OPT_FLAG, &any_size),
                     SPX_O("--input", SPX_OPT_IN, &input),     SPX_O("--mesh", SPX_OPT_IN, &mesh),
                     SPX_O("--camera", SPX_OPT_IN, &cam),      SPX_O("--color", SPX_OPT_STR, &color),
                     SPX_O("--out", SPX_OPT_OUT, &outp),       SPX_O("--device", SPX_OPT_STR, &spec),
-                    SPX_O_RANGE("--batch", SPX_OPT_INT, &batch, 1, 4096), SPX_O("--sigmoid", SPX_OPT_STR, &sig), SPX_O_END};
+                    SPX_O_RANGE("--batch", SPX_OPT_INT, &batch, 1, 4096), SPX_O("--sigmoid", SPX_OPT_STR, &sig),
+                    SPX_O("--avatar", SPX_OPT_IN, &av.avatar),  SPX_O("--pose", SPX_OPT_IN, &av.pose_path),
+                    SPX_O("--bvh", SPX_OPT_IN, &av.bvh),        SPX_O("--amass", SPX_OPT_IN, &av.amass),
+                    SPX_O("--model", SPX_OPT_IN, &av.model),    SPX_O_RANGE("--frame", SPX_OPT_INT, &av.frame, 0, 2147483647),
+                    SPX_O_END};
   int parsed = spx_cli_parse(argc, argv, "render", NULL, render_help, opts);
   if (parsed >= 0) return parsed;
+  if (av.avatar || av.pose_path || av.bvh || av.amass || av.model || spx_cli_given(opts, "--frame"))
+    return av.any_size = any_size,
+           render_avatar_cmd(opts, &av, cam, outp, spec, quiet,
+                             ckpt || input || mesh || sig || spx_cli_given(opts, "--color") || spx_cli_given(opts, "--batch"));
   if (sig && strcmp(sig, "on") && strcmp(sig, "off")) return spx_cli_usage("render", "--sigmoid takes on or off, not '%s'", sig);
   int by_mesh = mesh || cam;
   if (!outp || (by_mesh ? !(mesh && cam) || input : !input))

@@ -210,20 +210,6 @@ static int probe_size(spx_ctx *ctx, split *sp) {
   return SPX_EXIT_OK;
 }
 
-/* Data order of an epoch: a function of (seed, epoch) only, so --resume continues exactly. */
-static void epoch_order(int *perm, int n, uint64_t seed, int64_t epoch, int shuffle) {
-  for (int i = 0; i < n; i++) perm[i] = i;
-  if (!shuffle) return;
-  uint64_t s = spx_cli_mix64(seed ^ spx_cli_mix64((uint64_t)epoch));
-  for (int i = n - 1; i > 0; i--) {
-    s = spx_cli_mix64(s);
-    int j = (int)(s % (uint64_t)(i + 1));
-    int t = perm[i];
-    perm[i] = perm[j];
-    perm[j] = t;
-  }
-}
-
 /* Mean L1 over the validation set, and the mean PSNR (dB) and SSIM of the output clamped to [0, 1]
  * (smplpix/metrics.h, the numbers `smplpix eval` gives). */
 static int validate(spx_ctx *ctx, spx_unet *u, split *val, double *loss, double *psnr, double *ssim) {
@@ -671,7 +657,7 @@ static int train_loop(train_job *j, const train_args *a, train_dist *dist) {
   while (train_recipe_step_count(r, u) < target) {
     int64_t step = train_recipe_step_count(r, u), epoch = step / spe, pos = step % spe;
     if (epoch != cur_epoch) {
-      epoch_order(j->perm, tr->n, (uint64_t)a->seed, epoch, j->shuffle);
+      spx_cli_epoch_order(j->perm, tr->n, (uint64_t)a->seed, epoch, j->shuffle);
       cur_epoch = epoch;
     }
     int first = (int)(pos * batch), count = (int)(tr->n - first < batch ? tr->n - first : batch), off = 0, mine = count;

@@ -23,6 +23,7 @@ static const spx_command commands[] = {
     {"reshape", "change a registered person's shape coefficients", spx_cmd_reshape},
     {"animate", "animate a registered person with BVH / AMASS motion (PNG frames, MP4)", spx_cmd_animate},
     {"bake", "bake a coloured scan onto the registered body's UV texture", spx_cmd_bake},
+    {"avatar", "a person's own SMPLpix avatar from their scan (register, data, train, report)", spx_cmd_avatar},
     {"devices", "list OpenCL devices and warm the kernel cache", spx_cmd_devices},
     {"tune", "time kernel tunables on this device, store the winners (--show: the tunables in effect)", spx_cmd_tune},
 };

@@ -48,6 +48,9 @@ static const cmdline LINES[] = {
      "--checkpoint w8.safetensors", "", "--out", "--registration --bvh --camera --checkpoint", 0,
      "--checkpoint an.mp4/frame_000001.png"},
     {"bake --mesh quad.obj --scan quad.obj --out t.png --size 64 --pad 2", "--size --pad", "--out", "--mesh --scan", 0, NULL},
+    {"avatar --scan quad.obj --texture p.png --out av --registration reg.json --poses m.bvh --views 2 --heldout 1 "
+     "--size 32x32 --width 8 --steps 1 --seed 1 --quiet", "--views --heldout --size --width --steps --seed", "--out",
+     "--scan --texture --registration --poses", 0, "--texture av/report.png"},
 };
 enum { NLINES = (int)(sizeof LINES / sizeof LINES[0]) };
 

@@ -1,7 +1,7 @@
 # The layer rule of lib/, stated here once and enforced by the ctest test `layering`
 # (cmake -DSPX_SOURCE_DIR=<repo> -P tests/layering.cmake). docs/ARCHITECTURE.md explains it.
 #
-#   core <- cl <- io <- geom <- render | nn | body <- metrics | synth <- fit <- (apps)
+#   core <- cl <- io <- geom <- render | nn | body <- metrics | synth <- fit <- avatar <- (apps)
 #
 # A file of module A may include a header of module B only when B is A or B sits on a lower
 # level. Modules on one level are siblings and do not include each other. Every
@@ -17,7 +17,8 @@ set(SPX_LEVELS
   render=4 nn=4 body=4
   metrics=5 synth=5
   fit=6
-  api=7) # the umbrella header smplpix/smplpix.h: for users only, no lib file includes it
+  avatar=7
+  api=8) # the umbrella header smplpix/smplpix.h: for users only, no lib file includes it
 set(SPX_PUBLIC
   core=core files=core comm=core
   device=cl
@@ -29,6 +30,7 @@ set(SPX_PUBLIC
   metrics=metrics
   synth=synth
   fit=fit
+  avatar=avatar
   smplpix=api)
 
 if(NOT SPX_SOURCE_DIR)

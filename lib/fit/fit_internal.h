@@ -16,7 +16,10 @@ spx_status spx_fit_vertex_faces(spx_ctx *ctx, int32_t nv, const int32_t *faces, 
 spx_status spx_fit_vertex_neighbours(spx_ctx *ctx, int32_t nv, const int32_t *faces, int32_t nf, spx_adj *out);
 void spx_adj_free(spx_adj *a);
 
-/* Squared distance from p to triangle (a, b, c). */
+/* Squared distance from p to triangle (a, b, c); _closest also gives the closest point's
+ * barycentric coordinates w (weights of a, b, c). */
+double spx_fit_point_tri_closest(const double p[3], const double a[3], const double b[3], const double c[3],
+                                 double w[3]);
 double spx_fit_point_tri_d2(const double p[3], const double a[3], const double b[3], const double c[3]);
 /* Same as spx_fit_surface_distance, with an already computed vertex → face adjacency. */
 spx_status spx_fit_surface_distance_adj(spx_ctx *ctx, const float *pts, int32_t n, const float *verts, int32_t nv,

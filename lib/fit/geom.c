@@ -77,54 +77,44 @@ spx_status spx_fit_vertex_neighbours(spx_ctx *ctx, int32_t nv, const int32_t *fa
 
 static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
-/* Closest point on a triangle by Voronoi regions (the classic construction). */
-double spx_fit_point_tri_d2(const double p[3], const double a[3], const double b[3], const double c[3]) {
-  double ab[3], ac[3], ap[3], q[3];
-  for (int d = 0; d < 3; d++) ab[d] = b[d] - a[d], ac[d] = c[d] - a[d], ap[d] = p[d] - a[d];
-  double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
+/* Closest point on a triangle by Voronoi regions (the classic construction): the point q (as a
+ * corner, an edge point or a + s ab + t ac) and its barycentric coordinates (1 - s - t, s, t). */
+double spx_fit_point_tri_closest(const double p[3], const double a[3], const double b[3], const double c[3],
+                                 double w[3]) {
+  double ab[3], ac[3], ap[3], bp[3], cp[3], q[3], s = 0, t = 0;
+  for (int d = 0; d < 3; d++)
+    ab[d] = b[d] - a[d], ac[d] = c[d] - a[d], ap[d] = p[d] - a[d], bp[d] = p[d] - b[d], cp[d] = p[d] - c[d];
+  double d1 = dot3(ab, ap), d2 = dot3(ac, ap), d3 = dot3(ab, bp), d4 = dot3(ac, bp), d5 = dot3(ab, cp),
+         d6 = dot3(ac, cp);
+  double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
   if (d1 <= 0 && d2 <= 0) {
-    for (int d = 0; d < 3; d++) q[d] = a[d];
-    goto done;
-  }
-  double bp[3];
-  for (int d = 0; d < 3; d++) bp[d] = p[d] - b[d];
-  double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
-  if (d3 >= 0 && d4 <= d3) {
-    for (int d = 0; d < 3; d++) q[d] = b[d];
-    goto done;
-  }
-  double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-    double t = d1 / (d1 - d3);
-    for (int d = 0; d < 3; d++) q[d] = a[d] + t * ab[d];
-    goto done;
-  }
-  double cp[3];
-  for (int d = 0; d < 3; d++) cp[d] = p[d] - c[d];
-  double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
-  if (d6 >= 0 && d5 <= d6) {
-    for (int d = 0; d < 3; d++) q[d] = c[d];
-    goto done;
-  }
-  double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-    double t = d2 / (d2 - d6);
+    memcpy(q, a, sizeof q);
+  } else if (d3 >= 0 && d4 <= d3) {
+    memcpy(q, b, sizeof q), s = 1;
+  } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    s = d1 / (d1 - d3);
+    for (int d = 0; d < 3; d++) q[d] = a[d] + s * ab[d];
+  } else if (d6 >= 0 && d5 <= d6) {
+    memcpy(q, c, sizeof q), t = 1;
+  } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    t = d2 / (d2 - d6);
     for (int d = 0; d < 3; d++) q[d] = a[d] + t * ac[d];
-    goto done;
-  }
-  double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-    double t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+  } else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    t = (d4 - d3) / ((d4 - d3) + (d5 - d6)), s = 1 - t;
     for (int d = 0; d < 3; d++) q[d] = b[d] + t * (c[d] - b[d]);
-    goto done;
+  } else {
+    double den = 1.0 / (va + vb + vc);
+    s = vb * den, t = vc * den;
+    for (int d = 0; d < 3; d++) q[d] = a[d] + ab[d] * s + ac[d] * t;
   }
-  {
-    double den = 1.0 / (va + vb + vc), v = vb * den, w = vc * den;
-    for (int d = 0; d < 3; d++) q[d] = a[d] + ab[d] * v + ac[d] * w;
-  }
-done:;
+  w[0] = 1 - s - t, w[1] = s, w[2] = t;
   double e[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
   return dot3(e, e);
+}
+
+double spx_fit_point_tri_d2(const double p[3], const double a[3], const double b[3], const double c[3]) {
+  double w[3];
+  return spx_fit_point_tri_closest(p, a, b, c, w);
 }
 
 spx_status spx_fit_kd_build(spx_ctx *ctx, const float *pts, int32_t n, spx_kdtree **out) {
@@ -141,8 +131,11 @@ spx_status spx_fit_kd_query(spx_ctx *ctx, const spx_kdtree *t, const float *q, i
 
 #define SPX_SURF_K 6
 
-spx_status spx_fit_surface_distance_adj(spx_ctx *ctx, const float *pts, int32_t n, const float *verts, int32_t nv,
-                                        const int32_t *faces, const spx_adj *vf, int threads, float *dist) {
+/* Closest surface point of each point over the faces around its k nearest vertices: dist[i] (may
+ * be NULL), and when face is not NULL the face and barycentric coordinates (bary: n*3). */
+static spx_status closest_adj(spx_ctx *ctx, const float *pts, int32_t n, const float *verts, int32_t nv,
+                              const int32_t *faces, const spx_adj *vf, int threads, float *dist, int32_t *face,
+                              float *bary) {
   int k = nv < SPX_SURF_K ? nv : SPX_SURF_K;
   spx_kdtree *t = NULL;
   spx_status st = spx_fit_kd_build(ctx, verts, nv, &t);
@@ -155,23 +148,57 @@ spx_status spx_fit_surface_distance_adj(spx_ctx *ctx, const float *pts, int32_t 
   }
   if ((st = spx_fit_kd_query(ctx, t, pts, n, k, idx, d2, threads))) goto cleanup;
   for (int32_t i = 0; i < n; i++) {
-    double p[3] = {pts[i * 3], pts[i * 3 + 1], pts[i * 3 + 2]}, best = d2[(size_t)i * k];
+    double p[3] = {pts[i * 3], pts[i * 3 + 1], pts[i * 3 + 2]}, best = d2[(size_t)i * k], bt = INFINITY;
+    double bw[3] = {1, 0, 0};
+    int32_t bf = -1;
     for (int j = 0; j < k; j++) {
       int32_t v = idx[(size_t)i * k + j];
       for (int32_t q = vf->start[v]; q < vf->start[v + 1]; q++) {
         const int32_t *F = faces + vf->idx[q] * 3;
-        double a[3], b[3], c[3];
+        double a[3], b[3], c[3], w[3];
         for (int d = 0; d < 3; d++)
           a[d] = verts[F[0] * 3 + d], b[d] = verts[F[1] * 3 + d], c[d] = verts[F[2] * 3 + d];
-        double e = spx_fit_point_tri_d2(p, a, b, c);
+        double e = spx_fit_point_tri_closest(p, a, b, c, w);
         if (e < best) best = e;
+        if (e < bt) bt = e, bf = vf->idx[q], memcpy(bw, w, sizeof w);
       }
     }
-    dist[i] = (float)sqrt(best);
+    if (dist) dist[i] = (float)sqrt(best);
+    if (face) {
+      face[i] = bf;
+      for (int c = 0; c < 3; c++) bary[(size_t)i * 3 + c] = (float)bw[c];
+    }
   }
 cleanup:
   free(idx), free(d2);
   spx_kdtree_free(t);
+  return st;
+}
+
+spx_status spx_fit_surface_distance_adj(spx_ctx *ctx, const float *pts, int32_t n, const float *verts, int32_t nv,
+                                        const int32_t *faces, const spx_adj *vf, int threads, float *dist) {
+  return closest_adj(ctx, pts, n, verts, nv, faces, vf, threads, dist, NULL, NULL);
+}
+
+static spx_status check_mesh_args(spx_ctx *ctx, const char *fn, const float *pts, int32_t n, const float *verts,
+                                  int32_t nv, const int32_t *faces, int32_t nf) {
+  if (!pts || n <= 0 || !verts || nv <= 0 || (nf > 0 && !faces) || nf < 0)
+    return spx_fail(ctx, SPX_E_ARG, "%s: empty points or mesh", fn);
+  for (int32_t f = 0; f < nf * 3; f++)
+    if (faces[f] < 0 || faces[f] >= nv) return spx_fail(ctx, SPX_E_ARG, "%s: face index out of range", fn);
+  return SPX_OK;
+}
+
+spx_status spx_fit_closest_points(spx_ctx *ctx, const float *pts, int32_t n, const float *verts, int32_t nv,
+                                  const int32_t *faces, int32_t nf, int threads, int32_t *face, float *bary,
+                                  float *dist) {
+  spx_status st = check_mesh_args(ctx, "closest points", pts, n, verts, nv, faces, nf);
+  if (st) return st;
+  if (nf < 1 || !face || !bary) return spx_fail(ctx, SPX_E_ARG, "closest points: a mesh with faces and outputs needed");
+  spx_adj vf;
+  if ((st = spx_fit_vertex_faces(ctx, nv, faces, nf, &vf))) return st;
+  st = closest_adj(ctx, pts, n, verts, nv, faces, &vf, threads < 1 ? 1 : threads, dist, face, bary);
+  spx_adj_free(&vf);
   return st;
 }
 
@@ -183,13 +210,10 @@ static int cmp_f(const void *a, const void *b) {
 spx_status spx_fit_surface_distance(spx_ctx *ctx, const float *pts, int32_t n, const float *verts, int32_t nv,
                                     const int32_t *faces, int32_t nf, float *dist, double *mean, double *median,
                                     double *p95) {
-  if (!pts || n <= 0 || !verts || nv <= 0 || (nf > 0 && !faces) || nf < 0)
-    return spx_fail(ctx, SPX_E_ARG, "surface distance: empty points or mesh");
-  for (int32_t f = 0; f < nf * 3; f++)
-    if (faces[f] < 0 || faces[f] >= nv) return spx_fail(ctx, SPX_E_ARG, "surface distance: face index out of range");
-  spx_adj vf;
-  spx_status st = spx_fit_vertex_faces(ctx, nv, faces, nf, &vf);
+  spx_status st = check_mesh_args(ctx, "surface distance", pts, n, verts, nv, faces, nf);
   if (st) return st;
+  spx_adj vf;
+  if ((st = spx_fit_vertex_faces(ctx, nv, faces, nf, &vf))) return st;
   float *d = spx_alloc_array(ctx, (size_t)n, sizeof(float), "surface distance");
   if (!d) {
     spx_adj_free(&vf);

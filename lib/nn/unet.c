@@ -499,25 +499,31 @@ spx_status spx_unet_save(spx_unet *u, const char *path, int with_optimizer) {
   return spx_unet_save_meta(u, path, with_optimizer, NULL, NULL, 0);
 }
 
-static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, int half, const char *const *mkeys,
-                            const char *const *mvalues, int count);
+static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, int half, const spx_st_entry *extra,
+                            int nextra, const char *const *mkeys, const char *const *mvalues, int count);
 
 spx_status spx_unet_save_meta(spx_unet *u, const char *path, int with_optimizer, const char *const *mkeys,
                               const char *const *mvalues, int count) {
-  return save_impl(u, path, with_optimizer, 0, mkeys, mvalues, count);
+  return save_impl(u, path, with_optimizer, 0, NULL, 0, mkeys, mvalues, count);
+}
+
+spx_status spx_unet_save_extra(spx_unet *u, const char *path, const spx_st_entry *extra, int nextra,
+                               const char *const *keys, const char *const *values, int count) {
+  if (nextra < 0 || (nextra && !extra)) return spx_fail(u->ctx, SPX_E_ARG, "unet: %d extra tensors", nextra);
+  return save_impl(u, path, 0, 0, extra, nextra, keys, values, count);
 }
 
 spx_status spx_unet_save_half(spx_unet *u, const char *path, const char *const *keys, const char *const *values,
                               int count) {
-  return save_impl(u, path, 0, 1, keys, values, count);
+  return save_impl(u, path, 0, 1, NULL, 0, keys, values, count);
 }
 
-static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, int half, const char *const *mkeys,
-                            const char *const *mvalues, int count) {
+static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, int half, const spx_st_entry *extra,
+                            int nextra, const char *const *mkeys, const char *const *mvalues, int count) {
   spx_status st = SPX_OK;
   if (count < 0 || count > SPX_UNET_MAX_META || (count && (!mkeys || !mvalues)))
     return spx_fail(u->ctx, SPX_E_ARG, "unet: %d extra metadata entries (at most %d)", count, SPX_UNET_MAX_META);
-  int cap = u->nents * 3 + 1;
+  int cap = u->nents * 3 + 1 + nextra;
   spx_st_entry *es = calloc((size_t)cap, sizeof *es);
   float **bufs = calloc((size_t)cap, sizeof *bufs);
   char(*names)[160] = calloc((size_t)cap, sizeof *names);
@@ -577,6 +583,7 @@ static spx_status save_impl(spx_unet *u, const char *path, int with_optimizer, i
     es[ne].data = &nbt[u->nents];
     ne++;
   }
+  for (int i = 0; i < nextra && !st; i++) es[ne++] = extra[i]; /* spx_st_save refuses a name given twice */
   if (!st) {
     char wbuf[16];
     snprintf(wbuf, sizeof wbuf, "%d", u->width);

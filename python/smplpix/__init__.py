@@ -12,6 +12,7 @@ C-order arrays in and out, errors raised as SmplpixError carrying the library's 
 `smplpix.torch` (needs PyTorch) makes the projection a torch.autograd.Function."""
 from ._core import Context, SmplpixError, list_devices, version
 from ._lib import LIBRARY_PATH
+from .avatar import Avatar
 from .body import BodyModel
 from .camera import Camera
 from .fit import Registration, depth_person, depth_points, register
@@ -21,7 +22,7 @@ from .render import project, project_backward, raster
 from .unet import UNet
 
 __version__ = "0.1.0"
-__all__ = ["Context", "SmplpixError", "list_devices", "version", "LIBRARY_PATH", "BodyModel", "Camera",
+__all__ = ["Context", "SmplpixError", "list_devices", "version", "LIBRARY_PATH", "Avatar", "BodyModel", "Camera",
            "Registration", "register", "depth_person", "depth_points", "Mesh", "read_depth", "read_exr", "read_mesh",
            "read_npy", "read_png", "write_exr", "write_mesh", "write_npy", "write_png", "project", "project_backward",
            "raster", "UNet"]

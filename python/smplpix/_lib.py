@@ -168,6 +168,12 @@ class spx_fit_result(Structure):
                 ("stages_done", c_int)]
 
 
+class spx_avatar_info(Structure):
+    _fields_ = [("vertices", c_int32), ("subdivide", c_int32), ("image_width", c_int32), ("image_height", c_int32),
+                ("net_width", c_int32), ("joints", c_int32), ("train_cpu_seconds", c_double),
+                ("model_path", c_char_p)]
+
+
 # ---- functions -------------------------------------------------------------------------------
 _ctx_p = c_void_p
 _st = c_int
@@ -264,3 +270,12 @@ spx_device_tensor_create = _fn("spx_device_tensor_create", _st, _ctx_p, c_int, c
 spx_device_tensor_free = _fn("spx_device_tensor_free", None, c_void_p)
 spx_project_to_tensor = _fn("spx_project_to_tensor", _st, _ctx_p, c_void_p, POINTER(spx_project_args), c_void_p)
 spx_unet_forward_tensor = _fn("spx_unet_forward_tensor", _st, c_void_p, c_void_p, _F)
+
+spx_avatar_load = _fn("spx_avatar_load", _st, _ctx_p, c_char_p, c_char_p, POINTER(c_void_p))
+spx_avatar_destroy = _fn("spx_avatar_destroy", None, c_void_p)
+spx_avatar_get_info = _fn("spx_avatar_get_info", None, c_void_p, POINTER(spx_avatar_info))
+spx_avatar_registration = _fn("spx_avatar_registration", POINTER(spx_fit_result), c_void_p)
+spx_avatar_colors = _fn("spx_avatar_colors", _F, c_void_p)
+spx_avatar_faces = _fn("spx_avatar_faces", _I, c_void_p, _I)
+spx_avatar_pose = _fn("spx_avatar_pose", _st, c_void_p, _D, _D, _F)
+spx_avatar_render = _fn("spx_avatar_render", _st, c_void_p, _D, _D, POINTER(spx_camera), _F, _F)

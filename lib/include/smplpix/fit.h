@@ -160,6 +160,14 @@ spx_status spx_fit_surface_distance(spx_ctx *ctx, const float *pts, int32_t n, c
                                     const int32_t *faces, int32_t nf, float *dist, double *mean, double *median,
                                     double *p95);
 
+/* The closest point of a triangle mesh's surface to each of n points, searched (as
+ * spx_fit_surface_distance) over the faces around the points' nearest vertices: face[i] and its
+ * barycentric coordinates bary[3i..3i+2] (weights of the face's corners, summing to 1), dist[i]
+ * (may be NULL) the distance. The mesh needs faces. threads: k-d tree query threads (>= 1). */
+spx_status spx_fit_closest_points(spx_ctx *ctx, const float *pts, int32_t n, const float *verts, int32_t nv,
+                                  const int32_t *faces, int32_t nf, int threads, int32_t *face, float *bary,
+                                  float *dist);
+
 /* Registration parameters as JSON: units, similarity, body scale, betas, pose, trans, the
  * unposed personal template, per-vertex colours, the model path (if given) and stage stats. */
 spx_status spx_fit_save_json(spx_ctx *ctx, const char *path, const spx_fit_result *r, const char *model_path);

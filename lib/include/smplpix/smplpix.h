@@ -28,5 +28,6 @@
 #include "smplpix/fit.h"
 #include "smplpix/bake.h"
 #include "smplpix/metrics.h"
+#include "smplpix/avatar.h"
 
 #endif

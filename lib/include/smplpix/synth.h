@@ -99,6 +99,26 @@ spx_status spx_synth_photo(spx_ctx *ctx, spx_rasterizer *r, const spx_body_model
                            const spx_synth_light *light, uint32_t static_id, float *rgb, uint8_t *mask,
                            float *posed);
 
+/* Any coloured surface photographed as spx_synth_photo photographs a subject (the same shading,
+ * 2x supersampling and mask): pos (posed, nv*3), faces; albedo (nv*3, multiplied with the
+ * shading per vertex) or NULL (white); and optionally a texture (nuv, uv, face_uv, tex HWC rows
+ * top to bottom, 3 or 4 channels; NULL for none), sampled bilinearly and clamped. */
+typedef struct spx_synth_surface {
+  int32_t nv;
+  const float *pos;
+  const float *albedo;
+  int32_t nf;
+  const int32_t *faces;
+  int32_t nuv;
+  const float *uv;
+  const int32_t *face_uv;
+  int32_t tex_width, tex_height, tex_channels;
+  const float *tex;
+} spx_synth_surface;
+spx_status spx_synth_photo_surface(spx_ctx *ctx, spx_rasterizer *r, const spx_synth_surface *sf,
+                                   const spx_camera *cam, const spx_synth_light *light, uint32_t static_id, float *rgb,
+                                   uint8_t *mask);
+
 /* A camera around a subject: azimuth az (radians, 0 = in front, +Z), elevation el (radians,
  * positive = above), distance dist, focal length in pixels, looking at `target`, Y up. */
 spx_status spx_synth_camera(spx_ctx *ctx, int32_t width, int32_t height, double az, double el, double dist,

@@ -14,6 +14,7 @@
 #include "smplpix/comm.h"
 #include "smplpix/core.h"
 #include "smplpix/device.h"
+#include "smplpix/safetensors.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -91,6 +92,10 @@ spx_status spx_unet_save(spx_unet *u, const char *path, int with_optimizer);
 /* spx_unet_save with extra "__metadata__" string pairs (e.g. the training stage). */
 spx_status spx_unet_save_meta(spx_unet *u, const char *path, int with_optimizer, const char *const *keys,
                               const char *const *values, int count);
+/* spx_unet_save_meta without the optimizer state, with nextra more tensors (whose names must
+ * differ from the network's) in the same file: spx_unet_load skips them. */
+spx_status spx_unet_save_extra(spx_unet *u, const char *path, const spx_st_entry *extra, int nextra,
+                               const char *const *keys, const char *const *values, int count);
 spx_status spx_unet_load(spx_ctx *ctx, const char *path, spx_unet **out);
 /* The shipping format: the state_dict (weights, batch-norm running statistics and
  * num_batches_tracked; no optimizer state) as float16 (I64 counters), the metadata of
