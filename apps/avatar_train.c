@@ -12,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "avatar_app.h"
@@ -37,6 +38,11 @@ typedef struct av_run {
   double bar_t, start_t;
   int64_t start_step;
 } av_run;
+
+double av_cpu_now(void) {
+  struct timespec ts;
+  return clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts) == 0 ? (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec : 0;
+}
 
 static void bar_clear(av_run *r) {
   if (!r->bar_shown) return;

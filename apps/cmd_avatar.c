@@ -101,11 +101,6 @@ static void on_signal(int sig) {
   (void)w;
 }
 
-double av_cpu_now(void) {
-  struct timespec ts;
-  return clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts) == 0 ? (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec : 0;
-}
-
 static void load_text(char *buf, size_t cap) {
   FILE *f = fopen("/proc/loadavg", "r");
   double a = 0, b = 0, c = 0;
