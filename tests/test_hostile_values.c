@@ -138,6 +138,12 @@ static void test_registration_values(void) {
         err_is("repose", "r.json: similarity.R is not a rotation"));
   CHECK(run("repose --registration col.json --bvh %s/mocap/01_01.bvh --out a.ply", SPX_REPO_DATA) == 1 &&
         err_is("repose", "col.json: \"colors\"[7] = 1.5 is outside 0..1"));
+  /* an edited scale: a person 1e30 m tall is not posed */
+  sh("sed 's/\"body_scale\":[[:space:]]*[^,]*/\"body_scale\": 1e30/' reg.json > bs.json");
+  CHECK(sh("! cmp -s reg.json bs.json") == 0);
+  CHECK(run("repose --registration bs.json --bvh %s/mocap/01_01.bvh --out a.ply", SPX_REPO_DATA) == 1 &&
+        err_is("repose", "bs.json: the registered person is 1.") && !exists("a.ply"));
+  CHECK(run("reshape --registration bs.json --shape 0:0 --out a.ply") == 1 && err_is("reshape", "bs.json: the "));
   CHECK(run("repose --registration reg.json --bvh %s/mocap/01_01.bvh --out a.ply", SPX_REPO_DATA) == 0);
   CHECK(count_temps(".") == 0);
 }
