@@ -10,6 +10,8 @@
 #include "cmd_fit.h"
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
+/* A shape coefficient beyond this many standard deviations is no person the model describes. */
+#define SHAPE_MAX_SD 10.0
 
 int spx_cli_load_registration(const char *cmd, spx_ctx *ctx, const char *reg_path, const char *model_arg,
                              spx_fit_result *r, spx_body_model *m) {
@@ -245,7 +247,15 @@ int spx_cmd_reshape(int argc, char **argv) {
   }
   memcpy(betas, r.betas, (size_t)r.nbetas * sizeof(double));
   if (!rest) memcpy(pose, r.pose, (size_t)m.nj * 3 * sizeof(double));
-  for (int k = 0; k < nsh; k++) betas[sh_idx[k]] = sh_rel[k] ? betas[sh_idx[k]] + sh_val[k] : sh_val[k];
+  for (int k = 0; k < nsh; k++) {
+    double b = sh_rel[k] ? betas[sh_idx[k]] + sh_val[k] : sh_val[k];
+    if (!(fabs(b) <= SHAPE_MAX_SD)) { /* 0:+1e30 would pose a body 1e29 m tall */
+      rc = spx_cli_errorf("reshape", "--shape %d: the coefficient would be %g; shape coefficients are standard "
+                          "deviations of the model's shapes, within -%g..%g", sh_idx[k], b, SHAPE_MAX_SD, SHAPE_MAX_SD);
+      goto done;
+    }
+    betas[sh_idx[k]] = b;
+  }
   rc = pose_and_save("reshape", ctx, &m, &r, betas, pose, rest ? NULL : r.trans, NULL, 0, out_path);
 done:
   spx_tx_end(&tx);

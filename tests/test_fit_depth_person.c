@@ -5,8 +5,8 @@
  *    is not the body; the floor under the feet, the walls, flying pixels gone), with the planes
  *    and pixels counted in the report;
  *  - a second person standing 1.2 m to the side is removed as another object;
- *  - an empty room (no one near the centre) and a body twice a person's size (3.4 m) are refused
- *    with one line saying what was found;
+ *  - an empty room (no one near the centre), a body twice a person's size (3.4 m) and a flat board
+ *    cut to a person's outline are refused with one line saying what was found;
  *  - a clean depth image (the body alone) keeps nearly all of the body. */
 #include "fit_view.h"
 #include "test.h"
@@ -117,6 +117,17 @@ static void test_refused(void) {
   CHECK(spx_fit_depth_person(ctx, "giant.png", &s->cam, s->raw, W, H, &rep) == SPX_E_ARG);
   m = spx_ctx_message(ctx);
   CHECK_MSG(strstr(m, "giant.png: the object near the centre is") && strstr(m, "larger than one person"), "%s", m);
+  free(s->V);
+  /* a cut-out board of a person's outline: the body's pixels on a slanted plane, 1 mm noise */
+  make_scene(s, 1.0, 0);
+  const double nb[3] = {0.3, 0.1, 1.0};
+  for (int p = 0; p < W * H; p++) {
+    double rx = (p % W + 0.5 - s->cam.K[0][2]) / s->cam.K[0][0], ry = (p / W + 0.5 - s->cam.K[1][2]) / s->cam.K[1][1];
+    d[p] = s->body[p] > 0 ? (float)(2.4 / (nb[0] * rx + nb[1] * ry + nb[2]) + 0.001 * (p * 7919 % 3 - 1)) : 0;
+  }
+  CHECK(spx_fit_depth_person(ctx, "board.png", &s->cam, d, W, H, &rep) == SPX_E_ARG);
+  m = spx_ctx_message(ctx);
+  CHECK_MSG(strstr(m, "board.png: the object near the centre is") && strstr(m, "flat"), "%s", m);
   free(d), free(s->V), free(s);
 }
 

@@ -127,6 +127,12 @@ static void test_registration_values(void) {
   free(col);
   spx_body_free(&body);
   CHECK(run("reshape --registration reg.json --shape 0:0 --out ok.ply") == 0 || err_has("shape coefficients"));
+  /* a shape coefficient no person has: refused before a 1e29 m mesh is written */
+  sh("sed 's/\"betas\":[[:space:]]*\\[\\]/\"betas\": [0.5]/' reg.json > b1.json");
+  CHECK(sh("! cmp -s reg.json b1.json") == 0);
+  CHECK(run("reshape --registration b1.json --shape 0:+1e30 --out sh.ply") == 1 &&
+        err_is("reshape", "--shape 0: the coefficient would be 1e+30") && !exists("sh.ply"));
+  CHECK(run("reshape --registration b1.json --shape 0:-10.5 --out sh.ply") == 0);
   /* "version": 2 (the writer prints "version":<tab>1) */
   sh("sed 's/\"version\":[[:space:]]*1/\"version\": 2/' reg.json > v2.json");
   CHECK(run("repose --registration v2.json --bvh %s/mocap/01_01.bvh --out a.ply", SPX_REPO_DATA) == 1 &&
@@ -138,6 +144,12 @@ static void test_registration_values(void) {
         err_is("repose", "r.json: similarity.R is not a rotation"));
   CHECK(run("repose --registration col.json --bvh %s/mocap/01_01.bvh --out a.ply", SPX_REPO_DATA) == 1 &&
         err_is("repose", "col.json: \"colors\"[7] = 1.5 is outside 0..1"));
+  /* an edited scale: a person 1e30 m tall is not posed */
+  sh("sed 's/\"body_scale\":[[:space:]]*[^,]*/\"body_scale\": 1e30/' reg.json > bs.json");
+  CHECK(sh("! cmp -s reg.json bs.json") == 0);
+  CHECK(run("repose --registration bs.json --bvh %s/mocap/01_01.bvh --out a.ply", SPX_REPO_DATA) == 1 &&
+        err_is("repose", "bs.json: the registered person is 1.") && !exists("a.ply"));
+  CHECK(run("reshape --registration bs.json --shape 0:0 --out a.ply") == 1 && err_is("reshape", "bs.json: the "));
   CHECK(run("repose --registration reg.json --bvh %s/mocap/01_01.bvh --out a.ply", SPX_REPO_DATA) == 0);
   CHECK(count_temps(".") == 0);
 }

@@ -143,6 +143,8 @@ spx_status spx_file_check_replace(spx_ctx *ctx, const char *target) {
   return check_existing(ctx, target);
 }
 
+enum { TEMP_SUFFIX_MAX = 64 };
+
 spx_status spx_file_check_writable(spx_ctx *ctx, const char *target) {
   char dir[4096];
   const char *base;
@@ -151,6 +153,15 @@ spx_status spx_file_check_writable(spx_ctx *ctx, const char *target) {
     return spx_fail(ctx, SPX_E_ARG, "%s: path too long", target);
   if (!*base || !strcmp(base, ".") || !strcmp(base, ".."))
     return spx_fail(ctx, SPX_E_ARG, "%s: names a folder, not a file", target);
+  /* the temporaries beside the target add at most TEMP_SUFFIX_MAX characters to its name (a
+   * transaction's ".tmp.<pid>.<n>", the extension again, and a writer's own ".tmp.<pid>.<n>"):
+   * a name the folder takes but its temporary does not is refused now, not after the work */
+  long name_max = pathconf(dir, _PC_NAME_MAX);
+  if (name_max <= 0) name_max = 255;
+  if ((long)strlen(base) + TEMP_SUFFIX_MAX > name_max)
+    return spx_fail(ctx, SPX_E_ARG, "%s: the file name has %zu characters; this folder takes %ld, and the run's "
+                    "temporaries beside it need %d more: use a shorter name", target, strlen(base), name_max,
+                    TEMP_SUFFIX_MAX);
   struct stat sb;
   if (stat(dir, &sb) != 0)
     return spx_fail(ctx, SPX_E_IO, "%s: cannot write: folder %s: %s", target, dir, strerror(errno));

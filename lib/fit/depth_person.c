@@ -19,8 +19,10 @@
  *   4. the depth-range cut: every other part is dropped, as beyond that depth range or as another
  *      object beside the person.
  * A frame is refused (SPX_E_ARG, one line with what was found) when no part of at least 100
- * pixels is left near the centre, or when the person's part is over 2.5 m across (a floor or a wall
- * that is not flat, or people standing together). */
+ * pixels is left near the centre, when the person's part is over 2.5 m across (a floor or a wall
+ * that is not flat, or people standing together), or when it is flat: 90% or more of its pixels
+ * on one plane (RANSAC as in step 2; a board or a door; a person seen from the back, the flattest
+ * view, has about 75%). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -37,6 +39,7 @@
 #define PERSON_MIN_PIXELS 100
 #define PERSON_MAX_M 2.5
 #define RANGE_MARGIN_M 0.3
+#define PERSON_MAX_FLAT 0.9 /* a person seen from the back, the flattest view, has ~75% on one plane */
 
 typedef struct frame {
   const spx_camera *cam;
@@ -141,13 +144,12 @@ static void refit(const frame *f, const int32_t *idx, int32_t m, double n[3], do
   spread[0] = sqrt(fmax(ev[1], 0)), spread[1] = sqrt(fmax(ev[0], 0));
 }
 
-/* Step 2: one background plane; returns the pixels dropped (0: none found, -1: out of memory). */
-static int64_t drop_plane(frame *f, uint64_t *rng, int32_t *idx) {
+/* A uniform sample (reservoir sampling: every one when few) of the pixels with depth into idx (at
+ * most PLANE_SAMPLE); returns its size. */
+static int32_t sample_pixels(const frame *f, uint64_t *rng, int32_t *idx) {
   int32_t m = 0;
-  size_t npx = (size_t)f->W * f->H;
   uint64_t seen = 0;
-  /* a uniform sample of the pixels left (reservoir sampling): every one when few */
-  for (size_t p = 0; p < npx; p++) {
+  for (size_t p = 0; p < (size_t)f->W * f->H; p++) {
     if (!(f->d[p] > 0)) continue;
     seen++;
     if (m < PLANE_SAMPLE) idx[m++] = (int32_t)p;
@@ -156,10 +158,16 @@ static int64_t drop_plane(frame *f, uint64_t *rng, int32_t *idx) {
       if (r < PLANE_SAMPLE) idx[r] = (int32_t)p;
     }
   }
-  if (m < 3) return 0;
-  double best_n[3] = {0, 0, 1}, best_off = 0;
+  return m;
+}
+
+/* RANSAC over the m sampled pixels idx: the plane (n, off) with the most inliers within thr_at;
+ * returns that count. */
+static int32_t ransac_plane(const frame *f, uint64_t *rng, const int32_t *idx, int32_t m, double best_n[3],
+                            double *best_off) {
   int32_t best = 0;
-  for (int t = 0; t < PLANE_TRIES; t++) {
+  best_n[0] = best_n[1] = 0, best_n[2] = 1, *best_off = 0;
+  for (int t = 0; m >= 3 && t < PLANE_TRIES; t++) {
     const float *a = f->X + (size_t)idx[spx_fit_rng_next(rng) % (uint64_t)m] * 3;
     const float *b = f->X + (size_t)idx[spx_fit_rng_next(rng) % (uint64_t)m] * 3;
     const float *c = f->X + (size_t)idx[spx_fit_rng_next(rng) % (uint64_t)m] * 3;
@@ -170,8 +178,18 @@ static int64_t drop_plane(frame *f, uint64_t *rng, int32_t *idx) {
       const float *x = f->X + (size_t)idx[k] * 3;
       in += fabs(n[0] * x[0] + n[1] * x[1] + n[2] * x[2] - off) <= thr_at(x[2]);
     }
-    if (in > best) best = in, memcpy(best_n, n, sizeof n), best_off = off;
+    if (in > best) best = in, memcpy(best_n, n, sizeof n), *best_off = off;
   }
+  return best;
+}
+
+/* Step 2: one background plane; returns the pixels dropped (0: none found, -1: out of memory). */
+static int64_t drop_plane(frame *f, uint64_t *rng, int32_t *idx) {
+  size_t npx = (size_t)f->W * f->H;
+  int32_t m = sample_pixels(f, rng, idx);
+  if (m < 3) return 0;
+  double best_n[3], best_off;
+  int32_t best = ransac_plane(f, rng, idx, m, best_n, &best_off);
   if (best < PLANE_MIN_FRAC * m) return 0;
   double spread[2];
   refit(f, idx, m, best_n, &best_off, spread);
@@ -289,6 +307,14 @@ static void person_extent(const frame *f, spx_fit_depth_report *rep) {
   for (int d = 0; d < 3; d++) rep->extent[d] = rep->kept ? hi[d] - lo[d] : 0;
 }
 
+/* The share of the person's pixels on one plane (RANSAC within thr_at, as the floor and walls): a
+ * board, a door or a flat wall that is person-sized is not a person. */
+static double flat_share(const frame *f, uint64_t *rng, int32_t *idx) {
+  int32_t m = sample_pixels(f, rng, idx);
+  double n[3], off;
+  return m >= 3 ? (double)ransac_plane(f, rng, idx, m, n, &off) / m : 0;
+}
+
 spx_status spx_fit_depth_person(spx_ctx *ctx, const char *name, const spx_camera *cam, float *depth, int32_t width,
                                 int32_t height, spx_fit_depth_report *rep) {
   memset(rep, 0, sizeof *rep);
@@ -338,6 +364,13 @@ spx_status spx_fit_depth_person(spx_ctx *ctx, const char *name, const spx_camera
                   "removing %d planes and %lld other pixels): larger than one person", name, rep->extent[0],
                   rep->extent[1], rep->extent[2], (long long)rep->kept, rep->nplanes,
                   (long long)(rep->planes + rep->range + rep->other + rep->flying));
+  else {
+    double flat = flat_share(&f, &rng, stack);
+    if (flat >= PERSON_MAX_FLAT)
+      st = spx_fail(ctx, SPX_E_ARG, "%s: the object near the centre is %.2f x %.2f x %.2f m and flat (%.0f%% of its "
+                    "%lld pixels on one plane): a board, a door or a wall, not a person", name, rep->extent[0],
+                    rep->extent[1], rep->extent[2], 100 * flat, (long long)rep->kept);
+  }
 done:
   free(f.X), free(lab), free(stack), free(size), free(central);
   return st;

@@ -151,9 +151,29 @@ spx_status spx_fit_load_json(spx_ctx *ctx, const char *path, spx_fit_result *out
   return st;
 }
 
+/* The person the file describes is person-sized: its unposed template's largest side, scaled by
+ * body_scale and the similarity's scale (the metres of the scan it was fitted to), within
+ * REG_MIN_M..REG_MAX_M, the extent register accepts (a 0.1-3 m scan, a body 0.5-2x its extent). An
+ * edited scale of 1e30 or one template vertex at 1e38 m would otherwise pose a mesh of that size. */
+#define REG_MIN_M 0.05
+#define REG_MAX_M 6.0
+static spx_status check_size(spx_ctx *ctx, const char *path, const spx_fit_result *r) {
+  if (!r->template_unposed) return SPX_OK; /* nothing to pose without it */
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int32_t i = 0; i < r->nv; i++)
+    for (int d = 0; d < 3; d++)
+      lo[d] = fmin(lo[d], r->template_unposed[i * 3 + d]), hi[d] = fmax(hi[d], r->template_unposed[i * 3 + d]);
+  double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2])), m = ext * r->body_scale * r->sim_scale;
+  if (!(m >= REG_MIN_M && m <= REG_MAX_M))
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: the registered person is %.3g m across (template %.3g x body_scale %.3g x "
+                    "similarity.scale %.3g); a registration is of one person, %.2f-%.0f m", path, m, ext,
+                    r->body_scale, r->sim_scale, REG_MIN_M, REG_MAX_M);
+  return SPX_OK;
+}
+
 /* What the file says is checked, not trusted (it is text a user may have edited): "version", when
  * present, is 1 (the only one written); similarity.R is a rotation (orthonormal, determinant +1,
- * to 1e-6: the writer prints every digit); colours lie in 0..1. */
+ * to 1e-6: the writer prints every digit); colours lie in 0..1; the person is person-sized. */
 static spx_status check_values(spx_ctx *ctx, const char *path, const cJSON *root, const spx_fit_result *r) {
   const cJSON *ver = cJSON_GetObjectItemCaseSensitive(root, "version");
   if (ver && !cJSON_IsNumber(ver)) return spx_fail(ctx, SPX_E_FORMAT, "%s: \"version\" is not a number", path);
@@ -174,7 +194,7 @@ static spx_status check_values(spx_ctx *ctx, const char *path, const cJSON *root
   for (int32_t i = 0; r->colors && i < r->nv * 3; i++)
     if (!(r->colors[i] >= 0 && r->colors[i] <= 1))
       return spx_fail(ctx, SPX_E_FORMAT, "%s: \"colors\"[%d] = %g is outside 0..1", path, (int)i, r->colors[i]);
-  return SPX_OK;
+  return check_size(ctx, path, r);
 }
 
 spx_status spx_fit_parse_json(spx_ctx *ctx, const char *path, const char *text, size_t len, spx_fit_result *out,

@@ -138,8 +138,9 @@ typedef struct spx_fit_depth_report {
 /* The person in a raw depth frame (lib/fit/depth_person.c, which documents the steps): flying
  * pixels, the floor and walls (large planes), parts beyond the person's depth range and other
  * objects are set to 0 in depth (metres, width x height, cam's size; NaN / inf read as no data),
- * leaving the largest connected part near the image's centre. No person near the centre, or one
- * over 2.5 m across, is SPX_E_ARG with one line of what was found (rep is filled either way). */
+ * leaving the largest connected part near the image's centre. No person near the centre, one over
+ * 2.5 m across, or a flat one (90% of its pixels on one plane: a board, a door) is SPX_E_ARG with
+ * one line of what was found (rep is filled either way). */
 spx_status spx_fit_depth_person(spx_ctx *ctx, const char *name, const spx_camera *cam, float *depth, int32_t width,
                                 int32_t height, spx_fit_depth_report *rep);
 
