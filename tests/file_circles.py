@@ -22,9 +22,6 @@ import sys
 # Loops that are not cut yet. Each: the patterns of its files and why it is here. A loop is known
 # when every file of it matches a pattern of one entry.
 KNOWN = [
-    (["lib/io/mesh.c", "lib/io/obj.c", "lib/io/ply.c"],
-     "mesh.c reads and writes through obj.c / ply.c, which call back spx_mesh_free / spx_mesh_validate; "
-     "to be cut with the parsers' split (other work edits these files now)"),
     (["apps/*"],
      "main.c's error printers are called by every command and main.c calls every command, cli_tx.c and "
      "main.c import each other; to be cut with the option tables (other work edits the apps now)"),
