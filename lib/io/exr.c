@@ -27,8 +27,6 @@
 
 #define EXR_MAX_FILE ((size_t)1 << 34)
 
-int spx_exr_test_fail_after_chunks = -1;
-
 /* The C API reports details through a callback without our context: keep the last message of
  * this thread and add it to our one-line error. */
 static _Thread_local char exr_msg[256];
@@ -418,7 +416,7 @@ spx_status spx_exr_write(spx_ctx *ctx, const char *path, const spx_image *img) {
   exr_result_t rv;
   exr_context_t e = NULL;
   exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
-  int enc_used = 0, part = 0, chunks = 0;
+  int enc_used = 0, part = 0;
   spx_status chk = spx_file_check_writable(ctx, path);
   if (chk) return chk;
   char *tmp = spx_temp_path_for(path);
@@ -449,10 +447,6 @@ spx_status spx_exr_write(spx_ctx *ctx, const char *path, const spx_image *img) {
   }
   for (int y = 0; y < H; y += lpc) {
     exr_chunk_info_t ci;
-    if (spx_exr_test_fail_after_chunks >= 0 && chunks >= spx_exr_test_fail_after_chunks) {
-      st = spx_fail(ctx, SPX_E_IO, "%s: simulated failure after %d chunks", path, chunks);
-      goto done;
-    }
     rv = exr_write_scanline_chunk_info(e, part, y, &ci);
     if (rv == EXR_ERR_SUCCESS) rv = enc_used ? exr_encoding_update(e, part, &ci, &enc) : exr_encoding_initialize(e, part, &ci, &enc);
     if (rv != EXR_ERR_SUCCESS) {
@@ -480,7 +474,6 @@ spx_status spx_exr_write(spx_ctx *ctx, const char *path, const spx_image *img) {
       st = spx_fail(ctx, SPX_E_IO, "%s: cannot write rows from %d: %s", path, y, exr_detail(rv));
       goto done;
     }
-    chunks++;
   }
   if (enc_used) exr_encoding_destroy(e, &enc);
   enc_used = 0;
