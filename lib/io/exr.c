@@ -401,6 +401,73 @@ spx_status spx_exr_read(spx_ctx *ctx, const char *path, spx_image *out) {
 
 /* ---------------- write ---------------- */
 
+/* The header of a one-part scanline file (ZIP) with float channels R, G, B and, for C == 4, Z;
+ * *part the part, *lpc its scanlines per chunk. */
+static spx_status exr_put_header(spx_ctx *ctx, const char *path, exr_context_t e, const spx_image *img, int *part,
+                                   int32_t *lpc) {
+  static const char *const names[4] = {"R", "G", "B", "Z"};
+  exr_result_t rv = exr_add_part(e, "rgbd", EXR_STORAGE_SCANLINE, part);
+  if (rv == EXR_ERR_SUCCESS)
+    rv = exr_initialize_required_attr_simple(e, *part, img->width, img->height, EXR_COMPRESSION_ZIP);
+  for (int c = 0; c < img->channels && rv == EXR_ERR_SUCCESS; c++)
+    rv = exr_add_channel(e, *part, names[c], EXR_PIXEL_FLOAT,
+                         c < 3 ? EXR_PERCEPTUALLY_LOGARITHMIC : EXR_PERCEPTUALLY_LINEAR, 1, 1);
+  if (rv == EXR_ERR_SUCCESS) rv = exr_write_header(e);
+  *lpc = 0;
+  if (rv == EXR_ERR_SUCCESS) rv = exr_get_scanlines_per_chunk(e, *part, lpc);
+  if (rv != EXR_ERR_SUCCESS || *lpc < 1)
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot write the OpenEXR header: %s", path, exr_detail(rv));
+  return SPX_OK;
+}
+
+/* The chunk of rows from y: the encoder pointed at img's rows (set up on the first chunk, *enc_used
+ * then 1) and run. */
+static spx_status exr_put_rows(spx_ctx *ctx, const char *path, exr_context_t e, int part, exr_encode_pipeline_t *enc,
+                                 int *enc_used, const spx_image *img, int y) {
+  const int C = img->channels, W = img->width;
+  exr_chunk_info_t ci;
+  exr_result_t rv = exr_write_scanline_chunk_info(e, part, y, &ci);
+  if (rv == EXR_ERR_SUCCESS)
+    rv = *enc_used ? exr_encoding_update(e, part, &ci, enc) : exr_encoding_initialize(e, part, &ci, enc);
+  if (rv != EXR_ERR_SUCCESS)
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot encode rows from %d: %s", path, y, exr_detail(rv));
+  int first = !*enc_used;
+  *enc_used = 1;
+  for (int c = 0; c < enc->channel_count; c++) {
+    exr_coding_channel_info_t *ch = &enc->channels[c];
+    int slot = exr_channel_slot(ch->channel_name, 0);
+    if (slot < 0 || slot >= C) return spx_fail(ctx, SPX_E_IO, "%s: unexpected channel in encoder", path);
+    ch->encode_from_ptr = (const uint8_t *)(img->data + (size_t)y * (size_t)W * (size_t)C + (size_t)slot);
+    ch->user_pixel_stride = C * (int32_t)sizeof(float);
+    ch->user_line_stride = C * (int32_t)sizeof(float) * W;
+    ch->user_bytes_per_element = (int16_t)sizeof(float);
+    ch->user_data_type = EXR_PIXEL_FLOAT;
+  }
+  rv = first ? exr_encoding_choose_default_routines(e, part, enc) : EXR_ERR_SUCCESS;
+  if (rv == EXR_ERR_SUCCESS) rv = exr_encoding_run(e, part, enc);
+  if (rv != EXR_ERR_SUCCESS)
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot write rows from %d: %s", path, y, exr_detail(rv));
+  return SPX_OK;
+}
+
+/* The whole file through the started write context *e (header, every chunk, finish); *e is
+ * finished (NULL) on success. */
+static spx_status exr_put_file(spx_ctx *ctx, const char *path, exr_context_t *e, exr_encode_pipeline_t *enc,
+                               int *enc_used, const spx_image *img) {
+  int part = 0;
+  int32_t lpc = 0;
+  spx_status st = exr_put_header(ctx, path, *e, img, &part, &lpc);
+  for (int y = 0; y < img->height && !st; y += lpc) st = exr_put_rows(ctx, path, *e, part, enc, enc_used, img, y);
+  if (st) return st;
+  if (*enc_used) exr_encoding_destroy(*e, enc);
+  *enc_used = 0;
+  exr_result_t rv = exr_finish(e);
+  *e = NULL;
+  if (rv != EXR_ERR_SUCCESS)
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot finish the OpenEXR file: %s", path, exr_detail(rv));
+  return SPX_OK;
+}
+
 spx_status spx_exr_write(spx_ctx *ctx, const char *path, const spx_image *img) {
   if (!path) return spx_fail(ctx, SPX_E_ARG, "spx_exr_write: path is NULL");
   if (!img || !img->data || img->width <= 0 || img->height <= 0)
@@ -411,80 +478,24 @@ spx_status spx_exr_write(spx_ctx *ctx, const char *path, const spx_image *img) {
   if (img->width > SPX_EXR_MAX_DIM || img->height > SPX_EXR_MAX_DIM)
     return spx_fail(ctx, SPX_E_ARG, "%s: %dx%d is larger than %d pixels on a side", path, (int)img->width,
                     (int)img->height, SPX_EXR_MAX_DIM);
-  static const char *const names[4] = {"R", "G", "B", "Z"};
-  spx_status st = SPX_OK;
-  exr_result_t rv;
-  exr_context_t e = NULL;
-  exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
-  int enc_used = 0, part = 0;
-  spx_status chk = spx_file_check_writable(ctx, path);
-  if (chk) return chk;
+  spx_status st = spx_file_check_writable(ctx, path);
+  if (st) return st;
   char *tmp = spx_temp_path_for(path);
   if (!tmp) return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", path);
   spx_file_in_flight_add(tmp);
   exr_msg[0] = 0;
-  const int C = img->channels, W = img->width, H = img->height;
-
+  exr_context_t e = NULL;
+  exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+  int enc_used = 0;
   exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
   init.error_handler_fn = exr_error_cb;
-  rv = exr_start_write(&e, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
+  exr_result_t rv = exr_start_write(&e, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
   if (rv != EXR_ERR_SUCCESS) {
     e = NULL;
     st = spx_fail(ctx, SPX_E_IO, "%s: cannot create: %s", path, exr_detail(rv));
-    goto done;
   }
-  rv = exr_add_part(e, "rgbd", EXR_STORAGE_SCANLINE, &part);
-  if (rv == EXR_ERR_SUCCESS) rv = exr_initialize_required_attr_simple(e, part, W, H, EXR_COMPRESSION_ZIP);
-  for (int c = 0; c < C && rv == EXR_ERR_SUCCESS; c++)
-    rv = exr_add_channel(e, part, names[c], EXR_PIXEL_FLOAT, c < 3 ? EXR_PERCEPTUALLY_LOGARITHMIC : EXR_PERCEPTUALLY_LINEAR,
-                         1, 1);
-  if (rv == EXR_ERR_SUCCESS) rv = exr_write_header(e);
-  int32_t lpc = 0;
-  if (rv == EXR_ERR_SUCCESS) rv = exr_get_scanlines_per_chunk(e, part, &lpc);
-  if (rv != EXR_ERR_SUCCESS || lpc < 1) {
-    st = spx_fail(ctx, SPX_E_IO, "%s: cannot write the OpenEXR header: %s", path, exr_detail(rv));
-    goto done;
-  }
-  for (int y = 0; y < H; y += lpc) {
-    exr_chunk_info_t ci;
-    rv = exr_write_scanline_chunk_info(e, part, y, &ci);
-    if (rv == EXR_ERR_SUCCESS) rv = enc_used ? exr_encoding_update(e, part, &ci, &enc) : exr_encoding_initialize(e, part, &ci, &enc);
-    if (rv != EXR_ERR_SUCCESS) {
-      st = spx_fail(ctx, SPX_E_IO, "%s: cannot encode rows from %d: %s", path, y, exr_detail(rv));
-      goto done;
-    }
-    int first = !enc_used;
-    enc_used = 1;
-    for (int c = 0; c < enc.channel_count; c++) {
-      exr_coding_channel_info_t *ch = &enc.channels[c];
-      int slot = exr_channel_slot(ch->channel_name, 0);
-      if (slot < 0 || slot >= C) {
-        st = spx_fail(ctx, SPX_E_IO, "%s: unexpected channel in encoder", path);
-        goto done;
-      }
-      ch->encode_from_ptr = (const uint8_t *)(img->data + (size_t)y * (size_t)W * (size_t)C + (size_t)slot);
-      ch->user_pixel_stride = C * (int32_t)sizeof(float);
-      ch->user_line_stride = C * (int32_t)sizeof(float) * W;
-      ch->user_bytes_per_element = (int16_t)sizeof(float);
-      ch->user_data_type = EXR_PIXEL_FLOAT;
-    }
-    rv = first ? exr_encoding_choose_default_routines(e, part, &enc) : EXR_ERR_SUCCESS;
-    if (rv == EXR_ERR_SUCCESS) rv = exr_encoding_run(e, part, &enc);
-    if (rv != EXR_ERR_SUCCESS) {
-      st = spx_fail(ctx, SPX_E_IO, "%s: cannot write rows from %d: %s", path, y, exr_detail(rv));
-      goto done;
-    }
-  }
-  if (enc_used) exr_encoding_destroy(e, &enc);
-  enc_used = 0;
-  rv = exr_finish(&e);
-  e = NULL;
-  if (rv != EXR_ERR_SUCCESS) {
-    st = spx_fail(ctx, SPX_E_IO, "%s: cannot finish the OpenEXR file: %s", path, exr_detail(rv));
-    goto done;
-  }
-  st = spx_rename_over(ctx, tmp, path);
-done:
+  if (!st) st = exr_put_file(ctx, path, &e, &enc, &enc_used, img);
+  if (!st) st = spx_rename_over(ctx, tmp, path);
   if (e) {
     if (enc_used) exr_encoding_destroy(e, &enc);
     exr_finish(&e);

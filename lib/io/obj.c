@@ -158,7 +158,8 @@ static spx_status obj_vertex(obj_parse *o, char *p) {
   if (st) return st;
   if (n != 3 && n != 4 && n != 6)
     return spx_fail(o->s.ctx, SPX_E_FORMAT,
-                    "%s:%ld: a vertex needs 3, 4 (x y z w) or 6 (x y z r g b) numbers, found %d", o->s.name, o->s.line, n);
+                    "%s:%ld: a vertex needs 3, 4 (x y z w) or 6 (x y z r g b) numbers, found %d", o->s.name,
+                    o->s.line, n);
   float *pos = o->m.pos + o->nv * 3;
   for (int k = 0; k < 3; k++) pos[k] = (float)vals[k];
   if ((st = obj_vertex_color(o, vals, n))) return st;
