@@ -22,9 +22,6 @@ import sys
 # Loops that are not cut yet. Each: the patterns of its files and why it is here. A loop is known
 # when every file of it matches a pattern of one entry.
 KNOWN = [
-    (["lib/io/mesh.c", "lib/io/obj.c", "lib/io/ply.c"],
-     "mesh.c reads and writes through obj.c / ply.c, which call back spx_mesh_free / spx_mesh_validate; "
-     "to be cut with the parsers' split (other work edits these files now)"),
     (["lib/nn/tape.c", "lib/nn/tape_*.c"],
      "the tape's files share one object: the ops record onto tape.c, tape.c runs the planner and the "
      "profile, which read the op table that names the ops; cut by splitting tape.c's value store from "

@@ -27,8 +27,6 @@
 
 #define EXR_MAX_FILE ((size_t)1 << 34)
 
-int spx_exr_test_fail_after_chunks = -1;
-
 /* The C API reports details through a callback without our context: keep the last message of
  * this thread and add it to our one-line error. */
 static _Thread_local char exr_msg[256];
@@ -220,58 +218,45 @@ static void exr_fill_background(spx_image *out, const exr_attr_box2i_t *disp, co
   }
 }
 
-/* depth: the depth read (spx_exr_read_depth_mem), else the RGB(-Z) read. */
-static spx_status exr_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
-                               int depth, spx_image *out) {
-  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_exr_read: out is NULL");
-  memset(out, 0, sizeof *out);
-  if (!name) name = "<memory>";
-  if (!data && size) return spx_fail(ctx, SPX_E_ARG, "%s: data is NULL", name);
-  spx_status st = SPX_OK;
-  exr_result_t rv;
-  exr_context_t e = NULL;
-  exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
-  int dec_used = 0;
-  exr_read_job job;
-  memset(&job, 0, sizeof job);
-  job.name = name;
-  job.max_pixels = max_pixels;
-  job.first = 1;
-  exr_mem_src src = {data, size};
-
-  exr_msg[0] = 0;
-  if (size < 4 || memcmp(data, "\x76\x2f\x31\x01", 4) != 0)
+/* Start reading the file in memory (src) through the C API, with our size limits. */
+static spx_status exr_open(spx_ctx *ctx, const char *name, exr_mem_src *src, exr_context_t *e) {
+  if (src->size < 4 || memcmp(src->data, "\x76\x2f\x31\x01", 4) != 0)
     return spx_fail(ctx, SPX_E_FORMAT, "%s: not an OpenEXR file (bad magic number)", name);
   exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
   init.error_handler_fn = exr_error_cb;
-  init.user_data = &src;
+  init.user_data = src;
   init.read_fn = exr_mem_read;
   init.size_fn = exr_mem_size;
   init.max_image_width = SPX_EXR_MAX_DIM;
   init.max_image_height = SPX_EXR_MAX_DIM;
   init.max_tile_width = SPX_EXR_MAX_DIM;
   init.max_tile_height = SPX_EXR_MAX_DIM;
-  rv = exr_start_read(&e, name, &init);
+  exr_result_t rv = exr_start_read(e, name, &init);
   if (rv != EXR_ERR_SUCCESS) {
-    e = NULL;
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: invalid OpenEXR header: %s", name, exr_detail(rv));
-    goto done;
+    *e = NULL;
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: invalid OpenEXR header: %s", name, exr_detail(rv));
   }
+  return SPX_OK;
+}
+
+/* Part 0: scanline or tiled (not deep), and its channel list. */
+static spx_status exr_part(spx_ctx *ctx, const char *name, exr_context_t e, exr_storage_t *storage,
+                           const exr_attr_chlist_t **chl) {
   int nparts = 0;
-  exr_storage_t storage;
-  if (exr_get_count(e, &nparts) != EXR_ERR_SUCCESS || nparts < 1 || exr_get_storage(e, 0, &storage) != EXR_ERR_SUCCESS) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: no image part", name);
-    goto done;
-  }
-  if (storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: deep OpenEXR images are not supported", name);
-    goto done;
-  }
-  const exr_attr_chlist_t *chl = NULL;
-  if (exr_get_channels(e, 0, &chl) != EXR_ERR_SUCCESS || !chl) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: no channel list", name);
-    goto done;
-  }
+  if (exr_get_count(e, &nparts) != EXR_ERR_SUCCESS || nparts < 1 || exr_get_storage(e, 0, storage) != EXR_ERR_SUCCESS)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: no image part", name);
+  if (*storage != EXR_STORAGE_SCANLINE && *storage != EXR_STORAGE_TILED)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: deep OpenEXR images are not supported", name);
+  *chl = NULL;
+  if (exr_get_channels(e, 0, chl) != EXR_ERR_SUCCESS || !*chl)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: no channel list", name);
+  return SPX_OK;
+}
+
+/* The channels we read (R, G, B, Z; a depth file's Y when it has no Z): full resolution, of a
+ * known type, and the ones the read needs present. Sets job->y_is_z and job->has_z. */
+static spx_status exr_check_channels(spx_ctx *ctx, exr_read_job *job, const exr_attr_chlist_t *chl, int depth) {
+  const char *name = job->name;
   int found[4] = {0, 0, 0, 0};
   char have[128];
   size_t hl = 0;
@@ -282,7 +267,7 @@ static spx_status exr_read_mem(spx_ctx *ctx, const char *name, const void *data,
       const char *cn = chl->entries[c].name.str ? chl->entries[c].name.str : "";
       z |= !strcmp(cn, "Z"), y |= !strcmp(cn, "Y");
     }
-    job.y_is_z = !z && y;
+    job->y_is_z = !z && y;
   }
   for (int c = 0; c < chl->num_channels; c++) {
     const exr_attr_chlist_entry_t *en = &chl->entries[c];
@@ -290,68 +275,98 @@ static spx_status exr_read_mem(spx_ctx *ctx, const char *name, const void *data,
     if (hl < sizeof have - 1)
       hl += (size_t)snprintf(have + hl, sizeof have - hl, "%s%.16s", c ? "," : "", cn);
     if (hl > sizeof have - 1) hl = sizeof have - 1;
-    int slot = exr_channel_slot(cn, job.y_is_z);
+    int slot = exr_channel_slot(cn, job->y_is_z);
     if (slot < 0) continue;
-    if (en->x_sampling != 1 || en->y_sampling != 1) {
-      st = spx_fail(ctx, SPX_E_FORMAT, "%s: channel %s is subsampled, which is not supported", name, cn);
-      goto done;
-    }
-    if (en->pixel_type != EXR_PIXEL_HALF && en->pixel_type != EXR_PIXEL_FLOAT && en->pixel_type != EXR_PIXEL_UINT) {
-      st = spx_fail(ctx, SPX_E_FORMAT, "%s: channel %s has an unknown pixel type", name, cn);
-      goto done;
-    }
+    if (en->x_sampling != 1 || en->y_sampling != 1)
+      return spx_fail(ctx, SPX_E_FORMAT, "%s: channel %s is subsampled, which is not supported", name, cn);
+    if (en->pixel_type != EXR_PIXEL_HALF && en->pixel_type != EXR_PIXEL_FLOAT && en->pixel_type != EXR_PIXEL_UINT)
+      return spx_fail(ctx, SPX_E_FORMAT, "%s: channel %s has an unknown pixel type", name, cn);
     found[slot] = 1;
   }
-  if (depth ? !found[3] : !found[0] || !found[1] || !found[2]) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: needs %s (file has: %s)", name,
-                  depth ? "a Z (depth) channel, or a Y channel" : "channels R, G, B", have[0] ? have : "none");
-    goto done;
-  }
-  exr_attr_box2i_t disp, dw;
-  if (exr_get_display_window(e, 0, &disp) != EXR_ERR_SUCCESS || exr_get_data_window(e, 0, &dw) != EXR_ERR_SUCCESS) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: missing display or data window", name);
-    goto done;
-  }
-  int64_t W = exr_box_w(&disp), H = exr_box_h(&disp), DW = exr_box_w(&dw), DH = exr_box_h(&dw);
+  if (depth ? !found[3] : !found[0] || !found[1] || !found[2])
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: needs %s (file has: %s)", name,
+                    depth ? "a Z (depth) channel, or a Y channel" : "channels R, G, B", have[0] ? have : "none");
+  job->has_z = found[3];
+  return SPX_OK;
+}
+
+/* The display and data windows, each 1..SPX_EXR_MAX_DIM on a side and at most max_pixels;
+ * sets job->disp, dw_w and dw_h. */
+static spx_status exr_windows(spx_ctx *ctx, exr_read_job *job, exr_context_t e, exr_attr_box2i_t *dw) {
+  const char *name = job->name;
+  exr_attr_box2i_t disp;
+  if (exr_get_display_window(e, 0, &disp) != EXR_ERR_SUCCESS || exr_get_data_window(e, 0, dw) != EXR_ERR_SUCCESS)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: missing display or data window", name);
+  int64_t W = exr_box_w(&disp), H = exr_box_h(&disp), DW = exr_box_w(dw), DH = exr_box_h(dw);
   if (W < 1 || H < 1 || W > SPX_EXR_MAX_DIM || H > SPX_EXR_MAX_DIM || DW < 1 || DH < 1 || DW > SPX_EXR_MAX_DIM ||
-      DH > SPX_EXR_MAX_DIM) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: display window %lldx%lld / data window %lldx%lld outside 1..%d", name,
-                  (long long)W, (long long)H, (long long)DW, (long long)DH, SPX_EXR_MAX_DIM);
-    goto done;
-  }
-  if (W * H > max_pixels || DW * DH > max_pixels) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: %lldx%lld pixels is more than the %lld allowed", name,
-                  (long long)(W > DW ? W : DW), (long long)(H > DH ? H : DH), (long long)max_pixels);
-    goto done;
-  }
-  job.dw_w = DW;
-  job.dw_h = DH;
-  job.has_z = found[3];
-  job.disp = disp;
-  /* every chunk's place in the file first: a header that claims more pixels than the file holds
-   * chunks for is refused before the image is allocated */
-  if ((st = exr_chunks(ctx, &job, e, &dec, storage, &dw, NULL))) goto done;
-  st = spx_image_alloc(ctx, (int32_t)W, (int32_t)H, 4, out);
-  if (st != SPX_OK) {
-    st = spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate the %lldx%lld image (%.0f MB)", name, (long long)W,
-                  (long long)H, (double)W * (double)H * 16.0 / 1e6);
-    goto done;
-  }
-  exr_fill_background(out, &disp, &dw);
-  dec_used = 1;
-  if ((st = exr_chunks(ctx, &job, e, &dec, storage, &dw, out))) goto done;
-  /* the same rule as every other image input: NaN and Inf are refused, never rendered (but in a
-   * depth file's Z, where they are a sensor's "no data") */
+      DH > SPX_EXR_MAX_DIM)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: display window %lldx%lld / data window %lldx%lld outside 1..%d", name,
+                    (long long)W, (long long)H, (long long)DW, (long long)DH, SPX_EXR_MAX_DIM);
+  if (W * H > job->max_pixels || DW * DH > job->max_pixels)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: %lldx%lld pixels is more than the %lld allowed", name,
+                    (long long)(W > DW ? W : DW), (long long)(H > DH ? H : DH), (long long)job->max_pixels);
+  job->dw_w = DW;
+  job->dw_h = DH;
+  job->disp = disp;
+  return SPX_OK;
+}
+
+/* The same rule as every other image input: NaN and Inf are refused, never rendered (but in a
+ * depth file's Z, where they are a sensor's "no data"). */
+static spx_status exr_check_finite(spx_ctx *ctx, const char *name, const spx_image *out, int depth) {
   for (size_t i = 0, n = (size_t)out->width * (size_t)out->height * (size_t)out->channels; i < n; i++)
     if (!isfinite(out->data[i]) && !(depth && i % 4 == 3)) {
       size_t px = i / (size_t)out->channels;
-      st = spx_fail(ctx, SPX_E_NUMERIC, "%s: %s in channel %d at pixel (%zu, %zu) (image values must be finite)", name,
-                    isnan(out->data[i]) ? "NaN" : "Inf", (int)(i % (size_t)out->channels), px % (size_t)out->width,
-                    px / (size_t)out->width);
-      goto done;
+      return spx_fail(ctx, SPX_E_NUMERIC, "%s: %s in channel %d at pixel (%zu, %zu) (image values must be finite)",
+                      name, isnan(out->data[i]) ? "NaN" : "Inf", (int)(i % (size_t)out->channels),
+                      px % (size_t)out->width, px / (size_t)out->width);
     }
+  return SPX_OK;
+}
 
-done:
+/* The header checked, every chunk's place in the file, then the image allocated and decoded. */
+static spx_status exr_read_image(spx_ctx *ctx, exr_read_job *job, exr_context_t e, exr_decode_pipeline_t *dec,
+                                 int depth, int *dec_used, spx_image *out) {
+  const char *name = job->name;
+  exr_storage_t storage;
+  const exr_attr_chlist_t *chl;
+  exr_attr_box2i_t dw;
+  spx_status st;
+  if ((st = exr_part(ctx, name, e, &storage, &chl)) || (st = exr_check_channels(ctx, job, chl, depth)) ||
+      (st = exr_windows(ctx, job, e, &dw)))
+    return st;
+  /* every chunk's place in the file first: a header that claims more pixels than the file holds
+   * chunks for is refused before the image is allocated */
+  if ((st = exr_chunks(ctx, job, e, dec, storage, &dw, NULL))) return st;
+  int64_t W = exr_box_w(&job->disp), H = exr_box_h(&job->disp);
+  if (spx_image_alloc(ctx, (int32_t)W, (int32_t)H, 4, out) != SPX_OK)
+    return spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate the %lldx%lld image (%.0f MB)", name, (long long)W,
+                    (long long)H, (double)W * (double)H * 16.0 / 1e6);
+  exr_fill_background(out, &job->disp, &dw);
+  *dec_used = 1;
+  if ((st = exr_chunks(ctx, job, e, dec, storage, &dw, out))) return st;
+  return exr_check_finite(ctx, name, out, depth);
+}
+
+/* depth: the depth read (spx_exr_read_depth_mem), else the RGB(-Z) read. */
+static spx_status exr_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
+                               int depth, spx_image *out) {
+  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_exr_read: out is NULL");
+  memset(out, 0, sizeof *out);
+  if (!name) name = "<memory>";
+  if (!data && size) return spx_fail(ctx, SPX_E_ARG, "%s: data is NULL", name);
+  exr_context_t e = NULL;
+  exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
+  int dec_used = 0;
+  exr_read_job job;
+  memset(&job, 0, sizeof job);
+  job.name = name;
+  job.max_pixels = max_pixels;
+  job.first = 1;
+  exr_mem_src src = {data, size};
+  exr_msg[0] = 0;
+  spx_status st = exr_open(ctx, name, &src, &e);
+  if (!st) st = exr_read_image(ctx, &job, e, &dec, depth, &dec_used, out);
   if (e) {
     if (dec_used && !job.first) exr_decoding_destroy(e, &dec);
     exr_finish(&e);
@@ -386,6 +401,73 @@ spx_status spx_exr_read(spx_ctx *ctx, const char *path, spx_image *out) {
 
 /* ---------------- write ---------------- */
 
+/* The header of a one-part scanline file (ZIP) with float channels R, G, B and, for C == 4, Z;
+ * *part the part, *lpc its scanlines per chunk. */
+static spx_status exr_put_header(spx_ctx *ctx, const char *path, exr_context_t e, const spx_image *img, int *part,
+                                   int32_t *lpc) {
+  static const char *const names[4] = {"R", "G", "B", "Z"};
+  exr_result_t rv = exr_add_part(e, "rgbd", EXR_STORAGE_SCANLINE, part);
+  if (rv == EXR_ERR_SUCCESS)
+    rv = exr_initialize_required_attr_simple(e, *part, img->width, img->height, EXR_COMPRESSION_ZIP);
+  for (int c = 0; c < img->channels && rv == EXR_ERR_SUCCESS; c++)
+    rv = exr_add_channel(e, *part, names[c], EXR_PIXEL_FLOAT,
+                         c < 3 ? EXR_PERCEPTUALLY_LOGARITHMIC : EXR_PERCEPTUALLY_LINEAR, 1, 1);
+  if (rv == EXR_ERR_SUCCESS) rv = exr_write_header(e);
+  *lpc = 0;
+  if (rv == EXR_ERR_SUCCESS) rv = exr_get_scanlines_per_chunk(e, *part, lpc);
+  if (rv != EXR_ERR_SUCCESS || *lpc < 1)
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot write the OpenEXR header: %s", path, exr_detail(rv));
+  return SPX_OK;
+}
+
+/* The chunk of rows from y: the encoder pointed at img's rows (set up on the first chunk, *enc_used
+ * then 1) and run. */
+static spx_status exr_put_rows(spx_ctx *ctx, const char *path, exr_context_t e, int part, exr_encode_pipeline_t *enc,
+                                 int *enc_used, const spx_image *img, int y) {
+  const int C = img->channels, W = img->width;
+  exr_chunk_info_t ci;
+  exr_result_t rv = exr_write_scanline_chunk_info(e, part, y, &ci);
+  if (rv == EXR_ERR_SUCCESS)
+    rv = *enc_used ? exr_encoding_update(e, part, &ci, enc) : exr_encoding_initialize(e, part, &ci, enc);
+  if (rv != EXR_ERR_SUCCESS)
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot encode rows from %d: %s", path, y, exr_detail(rv));
+  int first = !*enc_used;
+  *enc_used = 1;
+  for (int c = 0; c < enc->channel_count; c++) {
+    exr_coding_channel_info_t *ch = &enc->channels[c];
+    int slot = exr_channel_slot(ch->channel_name, 0);
+    if (slot < 0 || slot >= C) return spx_fail(ctx, SPX_E_IO, "%s: unexpected channel in encoder", path);
+    ch->encode_from_ptr = (const uint8_t *)(img->data + (size_t)y * (size_t)W * (size_t)C + (size_t)slot);
+    ch->user_pixel_stride = C * (int32_t)sizeof(float);
+    ch->user_line_stride = C * (int32_t)sizeof(float) * W;
+    ch->user_bytes_per_element = (int16_t)sizeof(float);
+    ch->user_data_type = EXR_PIXEL_FLOAT;
+  }
+  rv = first ? exr_encoding_choose_default_routines(e, part, enc) : EXR_ERR_SUCCESS;
+  if (rv == EXR_ERR_SUCCESS) rv = exr_encoding_run(e, part, enc);
+  if (rv != EXR_ERR_SUCCESS)
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot write rows from %d: %s", path, y, exr_detail(rv));
+  return SPX_OK;
+}
+
+/* The whole file through the started write context *e (header, every chunk, finish); *e is
+ * finished (NULL) on success. */
+static spx_status exr_put_file(spx_ctx *ctx, const char *path, exr_context_t *e, exr_encode_pipeline_t *enc,
+                               int *enc_used, const spx_image *img) {
+  int part = 0;
+  int32_t lpc = 0;
+  spx_status st = exr_put_header(ctx, path, *e, img, &part, &lpc);
+  for (int y = 0; y < img->height && !st; y += lpc) st = exr_put_rows(ctx, path, *e, part, enc, enc_used, img, y);
+  if (st) return st;
+  if (*enc_used) exr_encoding_destroy(*e, enc);
+  *enc_used = 0;
+  exr_result_t rv = exr_finish(e);
+  *e = NULL;
+  if (rv != EXR_ERR_SUCCESS)
+    return spx_fail(ctx, SPX_E_IO, "%s: cannot finish the OpenEXR file: %s", path, exr_detail(rv));
+  return SPX_OK;
+}
+
 spx_status spx_exr_write(spx_ctx *ctx, const char *path, const spx_image *img) {
   if (!path) return spx_fail(ctx, SPX_E_ARG, "spx_exr_write: path is NULL");
   if (!img || !img->data || img->width <= 0 || img->height <= 0)
@@ -396,85 +478,24 @@ spx_status spx_exr_write(spx_ctx *ctx, const char *path, const spx_image *img) {
   if (img->width > SPX_EXR_MAX_DIM || img->height > SPX_EXR_MAX_DIM)
     return spx_fail(ctx, SPX_E_ARG, "%s: %dx%d is larger than %d pixels on a side", path, (int)img->width,
                     (int)img->height, SPX_EXR_MAX_DIM);
-  static const char *const names[4] = {"R", "G", "B", "Z"};
-  spx_status st = SPX_OK;
-  exr_result_t rv;
-  exr_context_t e = NULL;
-  exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
-  int enc_used = 0, part = 0, chunks = 0;
-  spx_status chk = spx_file_check_writable(ctx, path);
-  if (chk) return chk;
+  spx_status st = spx_file_check_writable(ctx, path);
+  if (st) return st;
   char *tmp = spx_temp_path_for(path);
   if (!tmp) return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", path);
   spx_file_in_flight_add(tmp);
   exr_msg[0] = 0;
-  const int C = img->channels, W = img->width, H = img->height;
-
+  exr_context_t e = NULL;
+  exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+  int enc_used = 0;
   exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
   init.error_handler_fn = exr_error_cb;
-  rv = exr_start_write(&e, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
+  exr_result_t rv = exr_start_write(&e, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
   if (rv != EXR_ERR_SUCCESS) {
     e = NULL;
     st = spx_fail(ctx, SPX_E_IO, "%s: cannot create: %s", path, exr_detail(rv));
-    goto done;
   }
-  rv = exr_add_part(e, "rgbd", EXR_STORAGE_SCANLINE, &part);
-  if (rv == EXR_ERR_SUCCESS) rv = exr_initialize_required_attr_simple(e, part, W, H, EXR_COMPRESSION_ZIP);
-  for (int c = 0; c < C && rv == EXR_ERR_SUCCESS; c++)
-    rv = exr_add_channel(e, part, names[c], EXR_PIXEL_FLOAT, c < 3 ? EXR_PERCEPTUALLY_LOGARITHMIC : EXR_PERCEPTUALLY_LINEAR,
-                         1, 1);
-  if (rv == EXR_ERR_SUCCESS) rv = exr_write_header(e);
-  int32_t lpc = 0;
-  if (rv == EXR_ERR_SUCCESS) rv = exr_get_scanlines_per_chunk(e, part, &lpc);
-  if (rv != EXR_ERR_SUCCESS || lpc < 1) {
-    st = spx_fail(ctx, SPX_E_IO, "%s: cannot write the OpenEXR header: %s", path, exr_detail(rv));
-    goto done;
-  }
-  for (int y = 0; y < H; y += lpc) {
-    exr_chunk_info_t ci;
-    if (spx_exr_test_fail_after_chunks >= 0 && chunks >= spx_exr_test_fail_after_chunks) {
-      st = spx_fail(ctx, SPX_E_IO, "%s: simulated failure after %d chunks", path, chunks);
-      goto done;
-    }
-    rv = exr_write_scanline_chunk_info(e, part, y, &ci);
-    if (rv == EXR_ERR_SUCCESS) rv = enc_used ? exr_encoding_update(e, part, &ci, &enc) : exr_encoding_initialize(e, part, &ci, &enc);
-    if (rv != EXR_ERR_SUCCESS) {
-      st = spx_fail(ctx, SPX_E_IO, "%s: cannot encode rows from %d: %s", path, y, exr_detail(rv));
-      goto done;
-    }
-    int first = !enc_used;
-    enc_used = 1;
-    for (int c = 0; c < enc.channel_count; c++) {
-      exr_coding_channel_info_t *ch = &enc.channels[c];
-      int slot = exr_channel_slot(ch->channel_name, 0);
-      if (slot < 0 || slot >= C) {
-        st = spx_fail(ctx, SPX_E_IO, "%s: unexpected channel in encoder", path);
-        goto done;
-      }
-      ch->encode_from_ptr = (const uint8_t *)(img->data + (size_t)y * (size_t)W * (size_t)C + (size_t)slot);
-      ch->user_pixel_stride = C * (int32_t)sizeof(float);
-      ch->user_line_stride = C * (int32_t)sizeof(float) * W;
-      ch->user_bytes_per_element = (int16_t)sizeof(float);
-      ch->user_data_type = EXR_PIXEL_FLOAT;
-    }
-    rv = first ? exr_encoding_choose_default_routines(e, part, &enc) : EXR_ERR_SUCCESS;
-    if (rv == EXR_ERR_SUCCESS) rv = exr_encoding_run(e, part, &enc);
-    if (rv != EXR_ERR_SUCCESS) {
-      st = spx_fail(ctx, SPX_E_IO, "%s: cannot write rows from %d: %s", path, y, exr_detail(rv));
-      goto done;
-    }
-    chunks++;
-  }
-  if (enc_used) exr_encoding_destroy(e, &enc);
-  enc_used = 0;
-  rv = exr_finish(&e);
-  e = NULL;
-  if (rv != EXR_ERR_SUCCESS) {
-    st = spx_fail(ctx, SPX_E_IO, "%s: cannot finish the OpenEXR file: %s", path, exr_detail(rv));
-    goto done;
-  }
-  st = spx_rename_over(ctx, tmp, path);
-done:
+  if (!st) st = exr_put_file(ctx, path, &e, &enc, &enc_used, img);
+  if (!st) st = spx_rename_over(ctx, tmp, path);
   if (e) {
     if (enc_used) exr_encoding_destroy(e, &enc);
     exr_finish(&e);

@@ -18,8 +18,5 @@ spx_status spx_exr_read_mem(spx_ctx *ctx, const char *name, const void *data, si
  * "no data"), in R, G, B refused as always. */
 spx_status spx_exr_read_depth_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
                                   spx_image *out);
-/* Test hook: when >= 0, spx_exr_write fails (SPX_E_IO, "simulated failure") after writing this
- * many chunks, to exercise the interrupted-write path. -1 (default) disables it. Not thread safe. */
-extern int spx_exr_test_fail_after_chunks;
 
 #endif

@@ -176,6 +176,116 @@ static spx_status fvec_push(spx_ctx *ctx, const char *name, fvec *a, const float
 
 static int is_int_type(ply_type t) { return t != T_F32 && t != T_F64; }
 
+/* Header lines, each split into nt tokens tok[] (line: its number, for the messages). */
+typedef struct ply_hline {
+  spx_ctx *ctx;
+  const char *name;
+  long line;
+  char *tok[8];
+  int nt;
+} ply_hline;
+
+/* "format ascii|binary_little_endian 1.0". */
+static spx_status ply_header_format(const ply_hline *h, int *binary) {
+  spx_ctx *ctx = h->ctx;
+  const char *name = h->name;
+  long line = h->line;
+  char *const *tok = h->tok;
+  if (h->nt != 3) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: expected 'format TYPE 1.0'", name, line);
+  if (strcmp(tok[2], "1.0"))
+    return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s:%ld: PLY version '%.20s' (only 1.0 exists)", name, line, tok[2]);
+  if (strcmp(tok[1], "ascii") == 0) *binary = 0;
+  else if (strcmp(tok[1], "binary_little_endian") == 0) *binary = 1;
+  else if (strcmp(tok[1], "binary_big_endian") == 0)
+    return spx_fail(ctx, SPX_E_UNSUPPORTED,
+                    "%s:%ld: binary_big_endian PLY is not supported (convert to little endian or ascii)", name, line);
+  else return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: unknown PLY format '%.40s'", name, line, tok[1]);
+  return SPX_OK;
+}
+
+/* "element NAME COUNT": one more element in el[*nel]. */
+static spx_status ply_header_element(const ply_hline *h, ply_elem *el, int *nel) {
+  if (h->nt != 3) return spx_fail(h->ctx, SPX_E_FORMAT, "%s:%ld: expected 'element NAME COUNT'", h->name, h->line);
+  if (*nel == PLY_MAX_ELEMS)
+    return spx_fail(h->ctx, SPX_E_FORMAT, "%s:%ld: more than %d elements", h->name, h->line, PLY_MAX_ELEMS);
+  ply_elem *e = &el[(*nel)++];
+  memset(e, 0, sizeof *e);
+  snprintf(e->name, sizeof e->name, "%s", h->tok[1]);
+  char *end;
+  errno = 0;
+  long long c = strtoll(h->tok[2], &end, 10);
+  if (*end || end == h->tok[2] || errno == ERANGE || c < 0)
+    return spx_fail(h->ctx, SPX_E_FORMAT, "%s:%ld: bad element count '%.30s'", h->name, h->line, h->tok[2]);
+  e->count = c;
+  for (int i = 0; i < *nel - 1; i++)
+    if (strcmp(el[i].name, e->name) == 0)
+      return spx_fail(h->ctx, SPX_E_FORMAT, "%s:%ld: element '%s' declared twice", h->name, h->line, e->name);
+  return SPX_OK;
+}
+
+/* The type and name of "property TYPE NAME" or "property list COUNT_TYPE TYPE NAME" into *p. */
+static spx_status ply_header_prop_type(const ply_hline *h, ply_prop *p) {
+  spx_ctx *ctx = h->ctx;
+  const char *name = h->name;
+  long line = h->line;
+  char *const *tok = h->tok;
+  if (h->nt >= 2 && strcmp(tok[1], "list") == 0) {
+    if (h->nt != 5)
+      return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: expected 'property list COUNT_TYPE TYPE NAME'", name, line);
+    p->is_list = 1;
+    p->count_type = ply_type_of(tok[2]);
+    p->type = ply_type_of(tok[3]);
+    if (!p->count_type) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: unknown property type '%.30s'", name, line, tok[2]);
+    if (!p->type) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: unknown property type '%.30s'", name, line, tok[3]);
+    if (!is_int_type(p->count_type))
+      return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: list count type '%s' is not an integer type", name, line, tok[2]);
+    snprintf(p->name, sizeof p->name, "%s", tok[4]);
+    return SPX_OK;
+  }
+  if (h->nt != 3) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: expected 'property TYPE NAME'", name, line);
+  p->type = ply_type_of(tok[1]);
+  if (!p->type) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: unknown property type '%.30s'", name, line, tok[1]);
+  snprintf(p->name, sizeof p->name, "%s", tok[2]);
+  return SPX_OK;
+}
+
+/* A "property" line: one more property of the last element, its role checked against its form. */
+static spx_status ply_header_property(const ply_hline *h, ply_elem *el, int nel) {
+  spx_ctx *ctx = h->ctx;
+  const char *name = h->name;
+  long line = h->line;
+  if (nel == 0) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: property before any element", name, line);
+  ply_elem *e = &el[nel - 1];
+  if (e->nprops == PLY_MAX_PROPS)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: more than %d properties in element '%s'", name, line, PLY_MAX_PROPS,
+                    e->name);
+  if (e->nprops == e->cap) {
+    int cap = e->cap ? e->cap * 2 : 8;
+    ply_prop *np = realloc(e->props, (size_t)cap * sizeof *np);
+    if (!np) return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", name);
+    e->props = np;
+    e->cap = cap;
+  }
+  ply_prop *p = &e->props[e->nprops];
+  memset(p, 0, sizeof *p);
+  spx_status st = ply_header_prop_type(h, p);
+  if (st) return st;
+  p->role = role_of(e->name, p->name);
+  if (p->role == R_FACE && !p->is_list)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: face property '%s' must be a list", name, line, p->name);
+  if (p->role == R_FACE && !is_int_type(p->type))
+    return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: face indices must be integers", name, line);
+  if (p->role == R_FTC && !p->is_list)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: face property 'texcoord' must be a list", name, line);
+  if (p->role != R_NONE && p->role != R_FACE && p->role != R_FTC && p->is_list)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: vertex property '%s' must not be a list", name, line, p->name);
+  for (int i = 0; i < e->nprops; i++)
+    if (strcmp(e->props[i].name, p->name) == 0)
+      return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: property '%s' declared twice", name, line, p->name);
+  e->nprops++;
+  return SPX_OK;
+}
+
 /* Parse the header; on success *body points after "end_header\n". */
 static spx_status ply_header(spx_ctx *ctx, const char *name, const unsigned char *data, size_t size, ply_elem *el,
                              int *nel, int *binary, size_t *body) {
@@ -184,341 +294,290 @@ static spx_status ply_header(spx_ctx *ctx, const char *name, const unsigned char
   if (size < 4 || memcmp(d, "ply", 3) != 0 || (d[3] != '\n' && d[3] != '\r'))
     return spx_fail(ctx, SPX_E_FORMAT, "%s: not a PLY file (no 'ply' magic)", name);
   size_t pos = 0;
-  long line = 0;
+  ply_hline h = {ctx, name, 0, {NULL}, 0};
   int have_format = 0;
   for (;;) {
     if (pos >= size) return spx_fail(ctx, SPX_E_FORMAT, "%s: header has no end_header line", name);
     const char *nl = memchr(d + pos, '\n', size - pos);
     if (!nl) return spx_fail(ctx, SPX_E_FORMAT, "%s: header has no end_header line", name);
     size_t len = (size_t)(nl - (d + pos));
-    line++;
+    h.line++;
     char buf[256];
-    if (len >= sizeof buf) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: header line too long", name, line);
+    if (len >= sizeof buf) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: header line too long", name, h.line);
     memcpy(buf, d + pos, len);
     buf[len] = 0;
-    if (memchr(buf, 0, len)) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: NUL byte in the header", name, line);
+    if (memchr(buf, 0, len)) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: NUL byte in the header", name, h.line);
     if (len && buf[len - 1] == '\r') buf[len - 1] = 0;
     pos += len + 1;
-    char *save = NULL, *tok[8];
-    int nt = 0;
-    for (char *t = strtok_r(buf, " \t\r", &save); t && nt < 8; t = strtok_r(NULL, " \t\r", &save)) tok[nt++] = t;
-    if (nt == 0) continue;
-    if (line == 1) continue; /* "ply" */
-    if (strcmp(tok[0], "comment") == 0 || strcmp(tok[0], "obj_info") == 0) continue;
-    if (strcmp(tok[0], "end_header") == 0) break;
-    if (strcmp(tok[0], "format") == 0) {
-      if (nt != 3) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: expected 'format TYPE 1.0'", name, line);
-      if (strcmp(tok[2], "1.0"))
-        return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s:%ld: PLY version '%.20s' (only 1.0 exists)", name, line, tok[2]);
-      if (strcmp(tok[1], "ascii") == 0) *binary = 0;
-      else if (strcmp(tok[1], "binary_little_endian") == 0) *binary = 1;
-      else if (strcmp(tok[1], "binary_big_endian") == 0)
-        return spx_fail(ctx, SPX_E_UNSUPPORTED, "%s:%ld: binary_big_endian PLY is not supported (convert to little endian or ascii)",
-                        name, line);
-      else return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: unknown PLY format '%.40s'", name, line, tok[1]);
-      have_format = 1;
-    } else if (strcmp(tok[0], "element") == 0) {
-      if (nt != 3) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: expected 'element NAME COUNT'", name, line);
-      if (*nel == PLY_MAX_ELEMS) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: more than %d elements", name, line, PLY_MAX_ELEMS);
-      ply_elem *e = &el[(*nel)++];
-      memset(e, 0, sizeof *e);
-      snprintf(e->name, sizeof e->name, "%s", tok[1]);
-      char *end;
-      errno = 0;
-      long long c = strtoll(tok[2], &end, 10);
-      if (*end || end == tok[2] || errno == ERANGE || c < 0)
-        return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: bad element count '%.30s'", name, line, tok[2]);
-      e->count = c;
-      for (int i = 0; i < *nel - 1; i++)
-        if (strcmp(el[i].name, e->name) == 0)
-          return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: element '%s' declared twice", name, line, e->name);
-    } else if (strcmp(tok[0], "property") == 0) {
-      if (*nel == 0) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: property before any element", name, line);
-      ply_elem *e = &el[*nel - 1];
-      if (e->nprops == PLY_MAX_PROPS)
-        return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: more than %d properties in element '%s'", name, line, PLY_MAX_PROPS,
-                        e->name);
-      if (e->nprops == e->cap) {
-        int cap = e->cap ? e->cap * 2 : 8;
-        ply_prop *np = realloc(e->props, (size_t)cap * sizeof *np);
-        if (!np) return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", name);
-        e->props = np;
-        e->cap = cap;
-      }
-      ply_prop *p = &e->props[e->nprops];
-      memset(p, 0, sizeof *p);
-      if (nt >= 2 && strcmp(tok[1], "list") == 0) {
-        if (nt != 5) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: expected 'property list COUNT_TYPE TYPE NAME'", name, line);
-        p->is_list = 1;
-        p->count_type = ply_type_of(tok[2]);
-        p->type = ply_type_of(tok[3]);
-        if (!p->count_type) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: unknown property type '%.30s'", name, line, tok[2]);
-        if (!p->type) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: unknown property type '%.30s'", name, line, tok[3]);
-        if (!is_int_type(p->count_type))
-          return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: list count type '%s' is not an integer type", name, line, tok[2]);
-        snprintf(p->name, sizeof p->name, "%s", tok[4]);
-      } else {
-        if (nt != 3) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: expected 'property TYPE NAME'", name, line);
-        p->type = ply_type_of(tok[1]);
-        if (!p->type) return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: unknown property type '%.30s'", name, line, tok[1]);
-        snprintf(p->name, sizeof p->name, "%s", tok[2]);
-      }
-      p->role = role_of(e->name, p->name);
-      if (p->role == R_FACE && !p->is_list)
-        return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: face property '%s' must be a list", name, line, p->name);
-      if (p->role == R_FACE && !is_int_type(p->type))
-        return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: face indices must be integers", name, line);
-      if (p->role == R_FTC && !p->is_list)
-        return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: face property 'texcoord' must be a list", name, line);
-      if (p->role != R_NONE && p->role != R_FACE && p->role != R_FTC && p->is_list)
-        return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: vertex property '%s' must not be a list", name, line, p->name);
-      for (int i = 0; i < e->nprops; i++)
-        if (strcmp(e->props[i].name, p->name) == 0)
-          return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: property '%s' declared twice", name, line, p->name);
-      e->nprops++;
-    } else {
-      return spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: unknown header line '%.30s'", name, line, tok[0]);
-    }
+    char *save = NULL;
+    h.nt = 0;
+    for (char *t = strtok_r(buf, " \t\r", &save); t && h.nt < 8; t = strtok_r(NULL, " \t\r", &save)) h.tok[h.nt++] = t;
+    if (h.nt == 0) continue;
+    if (h.line == 1) continue; /* "ply" */
+    const char *kw = h.tok[0];
+    if (strcmp(kw, "comment") == 0 || strcmp(kw, "obj_info") == 0) continue;
+    if (strcmp(kw, "end_header") == 0) break;
+    spx_status st;
+    if (strcmp(kw, "format") == 0) st = ply_header_format(&h, binary), have_format = 1;
+    else if (strcmp(kw, "element") == 0) st = ply_header_element(&h, el, nel);
+    else if (strcmp(kw, "property") == 0) st = ply_header_property(&h, el, *nel);
+    else st = spx_fail(ctx, SPX_E_FORMAT, "%s:%ld: unknown header line '%.30s'", name, h.line, kw);
+    if (st) return st;
   }
   if (!have_format) return spx_fail(ctx, SPX_E_FORMAT, "%s: header has no format line", name);
   *body = pos;
   return SPX_OK;
 }
 
-spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, size_t size, spx_mesh *out) {
-  if (!out) return spx_fail(ctx, SPX_E_ARG, "%s: no output mesh", name ? name : "ply");
-  memset(out, 0, sizeof *out);
-  if (!name) name = "ply";
-  if (!data && size) return spx_fail(ctx, SPX_E_ARG, "%s: no data", name);
-  if (size > SPX_MESH_MAX_FILE) return spx_fail(ctx, SPX_E_FORMAT, "%s: file is larger than 2 GiB", name);
-  ply_elem *el = calloc(PLY_MAX_ELEMS, sizeof *el);
-  if (!el) return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", name);
-  spx_mesh m = {0};
-  spx_ivec faces = {0}, poly = {0}, fuv = {0};
-  fvec tc = {0}, uvs = {0}; /* one face's texcoord list; all per-corner texcoords */
-  int nel = 0, binary = 0;
-  size_t body = 0;
-  spx_status st = ply_header(ctx, name, data, size, el, &nel, &binary, &body);
-  if (st) goto done;
+/* One parse: the header's elements, the reader over the body, the mesh being filled and the face
+ * rows' corners and texture coordinates. */
+typedef struct ply_parse {
+  ply_reader r;
+  ply_elem *el;
+  int nel;
+  ply_elem *ve, *fe; /* the vertex and face elements (fe may be NULL) */
+  int has_ftc;       /* faces carry a texcoord list */
+  spx_mesh m;
+  spx_ivec faces, poly, fuv;
+  fvec tc, uvs; /* one face's texcoord list; all per-corner texcoords */
+} ply_parse;
 
-  /* counts against the bytes that are left, before allocating anything */
-  size_t left = size - body;
-  ply_elem *ve = NULL, *fe = NULL;
+/* Every element count against the bytes left after the header, before anything is allocated;
+ * finds the vertex and face elements. */
+static spx_status ply_check_counts(ply_parse *o, size_t left) {
+  spx_ctx *ctx = o->r.ctx;
+  const char *name = o->r.name;
   int64_t need = 0;
-  for (int i = 0; i < nel; i++) {
-    ply_elem *e = &el[i];
-    if (strcmp(e->name, "vertex") == 0) ve = e;
-    if (strcmp(e->name, "face") == 0) fe = e;
+  for (int i = 0; i < o->nel; i++) {
+    ply_elem *e = &o->el[i];
+    if (strcmp(e->name, "vertex") == 0) o->ve = e;
+    if (strcmp(e->name, "face") == 0) o->fe = e;
     if (e->count == 0) continue;
-    if (e->nprops == 0) {
-      st = spx_fail(ctx, SPX_E_FORMAT, "%s: element '%s' has %lld rows but no properties", name, e->name,
-                    (long long)e->count);
-      goto done;
-    }
+    if (e->nprops == 0)
+      return spx_fail(ctx, SPX_E_FORMAT, "%s: element '%s' has %lld rows but no properties", name, e->name,
+                      (long long)e->count);
     int64_t row = 0; /* fewest bytes one row can take */
     for (int k = 0; k < e->nprops; k++)
-      row += binary ? (int64_t)ply_type_size[e->props[k].is_list ? e->props[k].count_type : e->props[k].type] : 2;
-    if (e->count > ((int64_t)left + 1) / row || need + e->count * row > (int64_t)left + 1) {
-      st = spx_fail(ctx, SPX_E_FORMAT, "%s: element '%s' claims %lld rows, more than the %zu bytes after the header can hold",
-                    name, e->name, (long long)e->count, left);
-      goto done;
-    }
+      row += o->r.binary ? (int64_t)ply_type_size[e->props[k].is_list ? e->props[k].count_type : e->props[k].type] : 2;
+    if (e->count > ((int64_t)left + 1) / row || need + e->count * row > (int64_t)left + 1)
+      return spx_fail(ctx, SPX_E_FORMAT,
+                      "%s: element '%s' claims %lld rows, more than the %zu bytes after the header can hold", name,
+                      e->name, (long long)e->count, left);
     need += e->count * row;
   }
-  if (!ve || ve->count == 0) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: no vertices (no 'element vertex' or count 0)", name);
-    goto done;
-  }
-  if (ve->count > INT32_MAX || (fe && fe->count > INT32_MAX)) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: more than 2^31 elements", name);
-    goto done;
-  }
-  int have[R_FTC + 1] = {0};
-  for (int k = 0; k < ve->nprops; k++) have[ve->props[k].role] = 1;
-  for (int r = R_X; r <= R_Z; r++)
-    if (!have[r]) {
-      st = spx_fail(ctx, SPX_E_FORMAT, "%s: vertex element has no '%c' property", name, "xyz"[r - R_X]);
-      goto done;
-    }
-  int has_n = have[R_NX] && have[R_NY] && have[R_NZ];
-  int has_c = have[R_R] && have[R_G] && have[R_B];
-  int has_uv = have[R_U] && have[R_V];
-  int have_face_list = 0, has_ftc = 0;
-  if (fe)
-    for (int k = 0; k < fe->nprops; k++) {
-      have_face_list |= fe->props[k].role == R_FACE;
-      has_ftc |= fe->props[k].role == R_FTC;
-    }
-  if (fe && fe->count > 0 && !have_face_list) {
-    st = spx_fail(ctx, SPX_E_FORMAT, "%s: face element has no vertex_indices list", name);
-    goto done;
-  }
-  size_t nv = (size_t)ve->count;
-  m.nv = (int32_t)nv;
-  m.pos = spx_alloc_array(ctx, nv, 3 * sizeof(float), name);
-  if (!m.pos) { st = SPX_E_NOMEM; goto done; }
-  if (has_n && !(m.nrm = spx_alloc_array(ctx, nv, 3 * sizeof(float), name))) { st = SPX_E_NOMEM; goto done; }
-  if (has_c && !(m.col = spx_alloc_array(ctx, nv, 3 * sizeof(float), name))) { st = SPX_E_NOMEM; goto done; }
-  if (has_uv && !(m.uv = spx_alloc_array(ctx, nv, 2 * sizeof(float), name))) { st = SPX_E_NOMEM; goto done; }
+  if (!o->ve || o->ve->count == 0)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: no vertices (no 'element vertex' or count 0)", name);
+  if (o->ve->count > INT32_MAX || (o->fe && o->fe->count > INT32_MAX))
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: more than 2^31 elements", name);
+  return SPX_OK;
+}
 
-  ply_reader r = {ctx, name, (const unsigned char *)data + body, (const unsigned char *)data + size,
-                  (const unsigned char *)data, binary, 0};
-  /* ascii line numbers: count the header lines */
-  for (size_t i = 0; i < body; i++) r.line += ((const char *)data)[i] == '\n';
-  r.line++;
-  for (int ei = 0; ei < nel; ei++) {
-    ply_elem *e = &el[ei];
-    int is_v = e == ve, is_f = e == fe;
+/* The vertex properties present (x y z required) and the face lists; allocates the mesh's
+ * per-vertex arrays. */
+static spx_status ply_alloc_vertices(ply_parse *o) {
+  spx_ctx *ctx = o->r.ctx;
+  const char *name = o->r.name;
+  int have[R_FTC + 1] = {0};
+  for (int k = 0; k < o->ve->nprops; k++) have[o->ve->props[k].role] = 1;
+  for (int r = R_X; r <= R_Z; r++)
+    if (!have[r]) return spx_fail(ctx, SPX_E_FORMAT, "%s: vertex element has no '%c' property", name, "xyz"[r - R_X]);
+  int have_face_list = 0;
+  if (o->fe)
+    for (int k = 0; k < o->fe->nprops; k++) {
+      have_face_list |= o->fe->props[k].role == R_FACE;
+      o->has_ftc |= o->fe->props[k].role == R_FTC;
+    }
+  if (o->fe && o->fe->count > 0 && !have_face_list)
+    return spx_fail(ctx, SPX_E_FORMAT, "%s: face element has no vertex_indices list", name);
+  size_t nv = (size_t)o->ve->count;
+  spx_mesh *m = &o->m;
+  m->nv = (int32_t)nv;
+  if (!(m->pos = spx_alloc_array(ctx, nv, 3 * sizeof(float), name))) return SPX_E_NOMEM;
+  if (have[R_NX] && have[R_NY] && have[R_NZ] && !(m->nrm = spx_alloc_array(ctx, nv, 3 * sizeof(float), name)))
+    return SPX_E_NOMEM;
+  if (have[R_R] && have[R_G] && have[R_B] && !(m->col = spx_alloc_array(ctx, nv, 3 * sizeof(float), name)))
+    return SPX_E_NOMEM;
+  if (have[R_U] && have[R_V] && !(m->uv = spx_alloc_array(ctx, nv, 2 * sizeof(float), name))) return SPX_E_NOMEM;
+  return SPX_OK;
+}
+
+/* A colour value as 0-1: 8-bit integers / 255, 16-bit / 65535, floats as they are (in 0-1). */
+static spx_status ply_color(ply_reader *r, ply_type t, double v, float *out) {
+  double c = v;
+  if (is_int_type(t)) {
+    c = v / ((t == T_I16 || t == T_U16) ? 65535.0 : 255.0);
+    if (c < 0 || c > 1) return where_fail(r, SPX_E_FORMAT, "integer color outside 0-255");
+  } else if (!(c >= 0 && c <= 1)) { /* floats are 0-1, never scaled by guesswork */
+    return where_fail(r, SPX_E_FORMAT, "float color outside 0-1 (0-255 colors use an integer property)");
+  }
+  *out = (float)c;
+  return SPX_OK;
+}
+
+/* Value v of vertex property p in row i into the mesh. */
+static spx_status ply_vertex_value(ply_parse *o, const ply_prop *p, size_t i, double v) {
+  spx_mesh *m = &o->m;
+  switch (p->role) {
+  case R_X: case R_Y: case R_Z: m->pos[i * 3 + (size_t)(p->role - R_X)] = (float)v; break;
+  case R_NX: case R_NY: case R_NZ:
+    if (m->nrm) m->nrm[i * 3 + (size_t)(p->role - R_NX)] = (float)v;
+    break;
+  case R_R: case R_G: case R_B:
+    if (m->col) return ply_color(&o->r, p->type, v, &m->col[i * 3 + (size_t)(p->role - R_R)]);
+    break;
+  case R_U: case R_V:
+    if (m->uv) m->uv[i * 2 + (size_t)(p->role - R_U)] = (float)v;
+    break;
+  default: break;
+  }
+  return SPX_OK;
+}
+
+/* One list property: its length (bounded by the bytes left), then its values; a face row's
+ * vertex_indices go to poly (range-checked), its texcoord list to tc, other lists are skipped. */
+static spx_status ply_list(ply_parse *o, const ply_prop *p, int is_f) {
+  ply_reader *r = &o->r;
+  double cnt, v;
+  spx_status st = ply_read(r, p->count_type, &cnt);
+  if (st) return st;
+  if (cnt < 0) return where_fail(r, SPX_E_FORMAT, "negative list length");
+  size_t minb = r->binary ? ply_type_size[p->type] : 2;
+  if (cnt > (double)((size_t)(r->end - r->p) + 1) / (double)minb)
+    return where_fail(r, SPX_E_FORMAT, "list length larger than the rest of the file (truncated or lying)");
+  size_t n = (size_t)cnt, nv = (size_t)o->m.nv;
+  int use = is_f && p->role == R_FACE, use_tc = is_f && p->role == R_FTC;
+  if (use && (n < 3 || n > SPX_PLY_MAX_POLY)) {
+    char msg[96];
+    snprintf(msg, sizeof msg, "face with %zu vertices (need 3 to %d)", n, SPX_PLY_MAX_POLY);
+    return where_fail(r, SPX_E_FORMAT, msg);
+  }
+  if (use_tc && n > 2 * (size_t)SPX_PLY_MAX_POLY) return where_fail(r, SPX_E_FORMAT, "texcoord list too long");
+  for (size_t j = 0; j < n; j++) {
+    if ((st = ply_read(r, p->type, &v))) return st;
+    if (use_tc) {
+      float fv = (float)v;
+      if ((st = fvec_push(r->ctx, r->name, &o->tc, &fv, 1))) return st;
+    }
+    if (!use) continue;
+    if (v < 0 || v >= (double)nv) {
+      char msg[96];
+      snprintf(msg, sizeof msg, "vertex index %.0f out of range (%zu vertices)", v, nv);
+      return where_fail(r, SPX_E_FORMAT, msg);
+    }
+    int32_t vi = (int32_t)v;
+    if ((st = spx_ivec_push(r->ctx, r->name, &o->poly, &vi, 1))) return st;
+  }
+  return SPX_OK;
+}
+
+/* The end of a face row: fan-triangulate its corners (and their texcoords). */
+static spx_status ply_face_end(ply_parse *o) {
+  ply_reader *r = &o->r;
+  size_t n = o->poly.n;
+  spx_status st;
+  if (o->has_ftc && o->tc.n != 2 * n) {
+    char msg[128];
+    snprintf(msg, sizeof msg, "texcoord list has %zu values for a face with %zu corners (need %zu)", o->tc.n, n, 2 * n);
+    return where_fail(r, SPX_E_FORMAT, msg);
+  }
+  size_t base = o->uvs.n / 2;
+  if (o->has_ftc && (st = fvec_push(r->ctx, r->name, &o->uvs, o->tc.v, o->tc.n))) return st;
+  if ((st = spx_mesh_fan(r->ctx, r->name, &o->faces, o->poly.v, 0, n))) return st;
+  if (o->has_ftc && (st = spx_mesh_fan(r->ctx, r->name, &o->fuv, NULL, base, n))) return st;
+  if (o->faces.n / 3 > INT32_MAX || o->uvs.n / 2 > INT32_MAX)
+    return where_fail(r, SPX_E_FORMAT, "more than 2^31 triangles or texture coordinates");
+  return SPX_OK;
+}
+
+/* Every row of every element, in the header's order. */
+static spx_status ply_rows(ply_parse *o) {
+  spx_status st;
+  for (int ei = 0; ei < o->nel; ei++) {
+    ply_elem *e = &o->el[ei];
+    int is_v = e == o->ve, is_f = e == o->fe;
     for (int64_t row = 0; row < e->count; row++) {
-      poly.n = 0;
-      tc.n = 0;
+      o->poly.n = 0;
+      o->tc.n = 0;
       for (int k = 0; k < e->nprops; k++) {
         ply_prop *p = &e->props[k];
         double v;
-        if (!p->is_list) {
-          if ((st = ply_read(&r, p->type, &v))) goto done;
-          if (!is_v || p->role == R_NONE) continue;
-          size_t i = (size_t)row;
-          switch (p->role) {
-          case R_X: case R_Y: case R_Z: m.pos[i * 3 + (size_t)(p->role - R_X)] = (float)v; break;
-          case R_NX: case R_NY: case R_NZ:
-            if (m.nrm) m.nrm[i * 3 + (size_t)(p->role - R_NX)] = (float)v;
-            break;
-          case R_R: case R_G: case R_B:
-            if (m.col) {
-              double c = v;
-              if (is_int_type(p->type)) {
-                c = v / ((p->type == T_I16 || p->type == T_U16) ? 65535.0 : 255.0);
-                if (c < 0 || c > 1) {
-                  st = where_fail(&r, SPX_E_FORMAT, "integer color outside 0-255");
-                  goto done;
-                }
-              } else if (!(c >= 0 && c <= 1)) { /* floats are 0-1, never scaled by guesswork */
-                st = where_fail(&r, SPX_E_FORMAT, "float color outside 0-1 (0-255 colors use an integer property)");
-                goto done;
-              }
-              m.col[i * 3 + (size_t)(p->role - R_R)] = (float)c;
-            }
-            break;
-          case R_U: case R_V:
-            if (m.uv) m.uv[i * 2 + (size_t)(p->role - R_U)] = (float)v;
-            break;
-          default: break;
-          }
-          continue;
-        }
-        double cnt;
-        if ((st = ply_read(&r, p->count_type, &cnt))) goto done;
-        if (cnt < 0) {
-          st = where_fail(&r, SPX_E_FORMAT, "negative list length");
-          goto done;
-        }
-        size_t minb = binary ? ply_type_size[p->type] : 2;
-        if (cnt > (double)((size_t)(r.end - r.p) + 1) / (double)minb) {
-          st = where_fail(&r, SPX_E_FORMAT, "list length larger than the rest of the file (truncated or lying)");
-          goto done;
-        }
-        size_t n = (size_t)cnt;
-        int use = is_f && p->role == R_FACE, use_tc = is_f && p->role == R_FTC;
-        if (use) {
-          if (n < 3 || n > SPX_PLY_MAX_POLY) {
-            char msg[96];
-            snprintf(msg, sizeof msg, "face with %zu vertices (need 3 to %d)", n, SPX_PLY_MAX_POLY);
-            st = where_fail(&r, SPX_E_FORMAT, msg);
-            goto done;
-          }
-        }
-        if (use_tc && n > 2 * (size_t)SPX_PLY_MAX_POLY) {
-          st = where_fail(&r, SPX_E_FORMAT, "texcoord list too long");
-          goto done;
-        }
-        for (size_t j = 0; j < n; j++) {
-          if ((st = ply_read(&r, p->type, &v))) goto done;
-          if (use_tc) {
-            float fv = (float)v;
-            if ((st = fvec_push(ctx, name, &tc, &fv, 1))) goto done;
-          }
-          if (!use) continue;
-          if (v < 0 || v >= (double)nv) {
-            char msg[96];
-            snprintf(msg, sizeof msg, "vertex index %.0f out of range (%zu vertices)", v, nv);
-            st = where_fail(&r, SPX_E_FORMAT, msg);
-            goto done;
-          }
-          int32_t vi = (int32_t)v;
-          if ((st = spx_ivec_push(ctx, name, &poly, &vi, 1))) goto done;
-        }
+        if (p->is_list) st = ply_list(o, p, is_f);
+        else if (!(st = ply_read(&o->r, p->type, &v)) && is_v && p->role != R_NONE)
+          st = ply_vertex_value(o, p, (size_t)row, v);
+        if (st) return st;
       }
-      if (!is_f) continue;
-      /* end of a face row: fan-triangulate the corners (and their texcoords) */
-      size_t n = poly.n;
-      if (has_ftc && tc.n != 2 * n) {
-        char msg[128];
-        snprintf(msg, sizeof msg, "texcoord list has %zu values for a face with %zu corners (need %zu)", tc.n, n, 2 * n);
-        st = where_fail(&r, SPX_E_FORMAT, msg);
-        goto done;
-      }
-      size_t base = uvs.n / 2;
-      if (has_ftc && (st = fvec_push(ctx, name, &uvs, tc.v, tc.n))) goto done;
-      for (size_t j = 1; j + 1 < n; j++) {
-        int32_t tri[3] = {poly.v[0], poly.v[j], poly.v[j + 1]};
-        if ((st = spx_ivec_push(ctx, name, &faces, tri, 3))) goto done;
-        if (has_ftc) {
-          int32_t tt[3] = {(int32_t)base, (int32_t)(base + j), (int32_t)(base + j + 1)};
-          if ((st = spx_ivec_push(ctx, name, &fuv, tt, 3))) goto done;
-        }
-      }
-      if (faces.n / 3 > INT32_MAX || uvs.n / 2 > INT32_MAX) {
-        st = where_fail(&r, SPX_E_FORMAT, "more than 2^31 triangles or texture coordinates");
-        goto done;
-      }
+      if (is_f && (st = ply_face_end(o))) return st;
     }
   }
-  /* every byte belongs to a declared element: data after the last one (a wrong count, or two files
-   * joined) is refused, in ascii only white space may follow */
-  if (r.binary && r.p != r.end) {
+  return SPX_OK;
+}
+
+/* Every byte belongs to a declared element: data after the last one (a wrong count, or two files
+ * joined) is refused, in ascii only white space may follow. */
+static spx_status ply_check_end(ply_reader *r) {
+  if (r->binary && r->p != r->end) {
     char msg[96];
-    snprintf(msg, sizeof msg, "%zu bytes after the last element's rows", (size_t)(r.end - r.p));
-    st = where_fail(&r, SPX_E_FORMAT, msg);
-    goto done;
+    snprintf(msg, sizeof msg, "%zu bytes after the last element's rows", (size_t)(r->end - r->p));
+    return where_fail(r, SPX_E_FORMAT, msg);
   }
-  while (!r.binary && r.p < r.end && ws(*r.p)) r.line += *r.p++ == '\n';
-  if (!r.binary && r.p < r.end) {
-    st = where_fail(&r, SPX_E_FORMAT, "data after the last element's rows (more rows than the header declares)");
-    goto done;
+  while (!r->binary && r->p < r->end && ws(*r->p)) r->line += *r->p++ == '\n';
+  if (!r->binary && r->p < r->end)
+    return where_fail(r, SPX_E_FORMAT, "data after the last element's rows (more rows than the header declares)");
+  return SPX_OK;
+}
+
+/* The faces and texture coordinates into the mesh: per-corner texcoords win over per-vertex ones;
+ * per-vertex ones index like the faces. */
+static spx_status ply_assemble(ply_parse *o) {
+  spx_mesh *m = &o->m;
+  m->nf = (int32_t)(o->faces.n / 3);
+  if (m->nf) {
+    m->faces = o->faces.v;
+    o->faces.v = NULL;
   }
-  m.nf = (int32_t)(faces.n / 3);
-  if (m.nf) {
-    m.faces = faces.v;
-    faces.v = NULL;
-  }
-  if (has_ftc && m.nf) { /* per-corner texcoords win over per-vertex ones */
-    free(m.uv);
-    m.uv = uvs.v;
-    uvs.v = NULL;
-    m.nuv = (int32_t)(uvs.n / 2);
-    m.face_uv = fuv.v;
-    fuv.v = NULL;
-  } else if (m.uv) {
-    m.nuv = m.nv;
-    if (m.nf) {
-      m.face_uv = spx_alloc_array(ctx, (size_t)m.nf, 3 * sizeof(int32_t), name);
-      if (!m.face_uv) { st = SPX_E_NOMEM; goto done; }
-      memcpy(m.face_uv, m.faces, (size_t)m.nf * 3 * sizeof(int32_t));
+  if (o->has_ftc && m->nf) {
+    free(m->uv);
+    m->uv = o->uvs.v;
+    o->uvs.v = NULL;
+    m->nuv = (int32_t)(o->uvs.n / 2);
+    m->face_uv = o->fuv.v;
+    o->fuv.v = NULL;
+  } else if (m->uv) {
+    m->nuv = m->nv;
+    if (m->nf) {
+      m->face_uv = spx_alloc_array(o->r.ctx, (size_t)m->nf, 3 * sizeof(int32_t), o->r.name);
+      if (!m->face_uv) return SPX_E_NOMEM;
+      memcpy(m->face_uv, m->faces, (size_t)m->nf * 3 * sizeof(int32_t));
     }
   }
-  if ((st = spx_mesh_validate(ctx, name, &m))) goto done;
-  *out = m;
-  memset(&m, 0, sizeof m);
-done:
-  spx_mesh_free(&m);
-  free(faces.v);
-  free(poly.v);
-  free(fuv.v);
-  free(tc.v);
-  free(uvs.v);
-  for (int i = 0; i < nel; i++) free(el[i].props);
-  free(el);
+  return SPX_OK;
+}
+
+spx_status spx_mesh_parse_ply(spx_ctx *ctx, const char *name, const void *data, size_t size, spx_mesh *out) {
+  spx_status st = spx_mesh_parse_begin(ctx, &name, "ply", data, size, out);
+  if (st) return st;
+  ply_parse o = {.r = {ctx, name, NULL, NULL, data, 0, 0}};
+  o.el = calloc(PLY_MAX_ELEMS, sizeof *o.el);
+  if (!o.el) return spx_fail(ctx, SPX_E_NOMEM, "%s: out of memory", name);
+  size_t body = 0;
+  if (!(st = ply_header(ctx, name, data, size, o.el, &o.nel, &o.r.binary, &body)) &&
+      !(st = ply_check_counts(&o, size - body)) && !(st = ply_alloc_vertices(&o))) {
+    o.r.p = (const unsigned char *)data + body;
+    o.r.end = (const unsigned char *)data + size;
+    /* ascii line numbers: count the header lines */
+    for (size_t i = 0; i < body; i++) o.r.line += ((const char *)data)[i] == '\n';
+    o.r.line++;
+    if (!(st = ply_rows(&o)) && !(st = ply_check_end(&o.r)) && !(st = ply_assemble(&o)))
+      st = spx_mesh_parse_finish(ctx, name, &o.m, out);
+  }
+  spx_mesh_free(&o.m);
+  free(o.faces.v);
+  free(o.poly.v);
+  free(o.fuv.v);
+  free(o.tc.v);
+  free(o.uvs.v);
+  for (int i = 0; i < o.nel; i++) free(o.el[i].props);
+  free(o.el);
   return st;
 }
 
