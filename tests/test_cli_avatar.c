@@ -348,6 +348,7 @@ static void test_bad_input(void) {
   r.sim_R[0] = r.sim_R[4] = r.sim_R[8] = 1;
   r.betas = calloc(1, sizeof(double));
   r.pose = calloc((size_t)small.nj * 3, sizeof(double)), r.template_unposed = calloc((size_t)small.nv * 3, sizeof(double));
+  for (int32_t i = 0; r.template_unposed && i < small.nv * 3; i++) r.template_unposed[i] = small.v_template[i];
   CHECK_OK(ctx, spx_fit_save_json(ctx, sreg, &r, NULL));
   spx_fit_result_free(&r), spx_body_free(&small);
   bad("--scan body.ply --registration small_reg.json --out X " SMALL, 1,
