@@ -24,7 +24,7 @@ spx_test_variant(test_nn_unet_wino_all test_nn_unet
   "SPX_TUNE_CONV_WINO_MINC=1;SPX_TUNE_CONV_WINO_TRAIN=1;SPX_TUNE_CONV_WINO_DW=1;SPX_TUNE_CONV_WINO_DW_MINHW=0")
 
 # The network tests again with every dead tape storage filled with NaN the moment it dies
-# (lib/nn/tape_plan.c): a read past a value's planned last use shows as NaN / wrong results.
+# (lib/nn/tape_live.c): a read past a value's planned last use shows as NaN / wrong results.
 foreach(name test_nn_tape test_nn_tape_multi test_nn_patchgan test_nn_vgg test_nn_unet)
   spx_test_variant(${name}_poison ${name} "SPX_TAPE_POISON=1")
 endforeach()
