@@ -129,7 +129,8 @@ if(SPX_PYTHON3 AND TARGET smplpix_app)
   set_tests_properties(file_circles PROPERTIES SKIP_RETURN_CODE 77)
 endif()
 # Each command's option table is the one source of its options (tests/cli_options_docs.py): all of
-# them in its --help and in its usage in docs/commands.md, none in the docs that the table lacks.
+# them in its --help and in its usage on the docs page docs/commands.md gives it, none in the docs
+# that the table lacks.
 if(SPX_PYTHON3 AND TARGET smplpix_test_hooks)
   add_test(NAME cli_options_docs COMMAND ${SPX_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/cli_options_docs.py
            $<TARGET_FILE:smplpix_test_hooks> ${CMAKE_SOURCE_DIR})
