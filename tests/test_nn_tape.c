@@ -1,4 +1,4 @@
-/* The autodiff tape (lib/nn/tape.c) on a whole tiny UNet.
+/* The autodiff tape (lib/nn/tape.h) on a whole tiny UNet.
  *  - finite differences: the HOST backend runs the double-precision references, so the gradient
  *    of the L1 loss with respect to parameters of every tensor (every op kind: conv, batch norm,
  *    ReLU, max pool, bilinear upsampling, pad, concat, 1x1 conv with bias, sigmoid, L1) is
