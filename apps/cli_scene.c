@@ -1,4 +1,4 @@
-/* Shared steps of the subcommands (project / raster / dataset runs): see cli_scene.h. */
+/* Shared steps of the subcommands (project / raster / render runs): see cli_scene.h. */
 #include "cli_scene.h"
 
 #include <stdio.h>
@@ -17,12 +17,12 @@ int spx_cli_scene_begin(spx_cli_scene *s, const char *cmd, const char *mesh_path
   return spx_cli_check_outputs(&s->tx, outs, nouts, s->ncams); /* before any work */
 }
 
-int spx_cli_scene_prepare(spx_cli_scene *s, const char *mesh_path, const char *color, const char *device) {
+int spx_cli_scene_prepare(spx_cli_scene *s, const char *mesh_path, const char *color, const char *device, int images) {
   int rc = spx_cli_mesh_colors(s->cmd, mesh_path, &s->mesh, color, &s->owned_col, &s->col, &s->used);
   if (rc) return rc;
   s->per = (size_t)s->W * s->H * 4;
-  s->images = malloc(sizeof(float) * s->per * (size_t)s->ncams);
-  if (!s->images) return spx_cli_errorf(s->cmd, "cannot allocate %d images of %dx%d", s->ncams, s->W, s->H);
+  if (images && !(s->images = malloc(sizeof(float) * s->per * (size_t)s->ncams)))
+    return spx_cli_errorf(s->cmd, "cannot allocate %d images of %dx%d", s->ncams, s->W, s->H);
   return spx_cli_open_device(s->cmd, s->ctx, device);
 }
 

@@ -1,6 +1,6 @@
 /* Pieces the subcommands share beyond cli.h: the table rows of the shared options, the one-line
  * error step every command repeats, and the run of the commands that draw a mesh through cameras
- * (apps/cmd_project.c, cmd_raster.c, cmd_dataset.c). */
+ * (apps/cmd_project.c, cmd_raster.c, cmd_render.c; cmd_dataset.c takes the rows). */
 #ifndef SPX_APPS_CLI_SCENE_H
 #define SPX_APPS_CLI_SCENE_H
 
@@ -22,8 +22,8 @@ static inline int spx_cli_failed(int *rc, const char *cmd, spx_ctx *ctx, spx_sta
   return 1;
 }
 
-/* The options project, raster and dataset share, stored by the rows SPX_CLI_SCENE_ROWS puts in
- * a command's table (apps/cli_opts.h). */
+/* The options project, raster, render and dataset share, stored by the rows SPX_CLI_SCENE_ROWS
+ * puts in a command's table (apps/cli_opts.h). */
 typedef struct spx_cli_scene_opts {
   const char *mesh, *cameras, *out, *color, *device;
   int quiet;
@@ -36,9 +36,9 @@ typedef struct spx_cli_scene_opts {
       SPX_O("--out", SPX_OPT_OUT, &(o).out), SPX_O("--color", SPX_OPT_STR, &(o).color),                  \
       SPX_O("--device", SPX_OPT_STR, &(o).device), SPX_O("--quiet", SPX_OPT_FLAG, &(o).quiet)
 
-/* One run drawing a mesh through an array of cameras into W x H RGB-D images (HWC, 4 floats a
- * pixel), its outputs staged in a transaction. Zero it, then spx_cli_scene_begin; always
- * spx_cli_scene_end. */
+/* One run drawing a mesh through an array of cameras (into W x H RGB-D images, HWC, 4 floats a
+ * pixel, or into the caller's buffers), its outputs staged in a transaction. Zero it, then
+ * spx_cli_scene_begin; always spx_cli_scene_end. */
 typedef struct spx_cli_scene {
   const char *cmd;
   spx_ctx *ctx;
@@ -47,7 +47,7 @@ typedef struct spx_cli_scene {
   int ncams, W, H;
   const float *col;   /* vertex colours for --color (NULL: white) */
   const char *used;   /* what col is (printed) */
-  float *images;      /* ncams images of `per` floats */
+  float *images;      /* ncams images of `per` floats (NULL unless prepared with images) */
   size_t per;
   float *owned_col;
   spx_tx tx;
@@ -58,9 +58,9 @@ typedef struct spx_cli_scene {
  * error itself; returns SPX_EXIT_OK or the exit code. */
 int spx_cli_scene_begin(spx_cli_scene *s, const char *cmd, const char *mesh_path, const char *cam_path,
                         const char *const *outs, int nouts);
-/* --color's vertex colours, the image buffer and the device (--device). Returns an exit code
- * (error printed). */
-int spx_cli_scene_prepare(spx_cli_scene *s, const char *mesh_path, const char *color, const char *device);
+/* --color's vertex colours, when `images` the image buffer, and the device (--device). Returns an
+ * exit code (error printed). */
+int spx_cli_scene_prepare(spx_cli_scene *s, const char *mesh_path, const char *color, const char *device, int images);
 /* Writes every image to every output of outs[0..nouts) (indexed per camera) and commits; then,
  * unless quiet, prints each image's coverage ("pixels <what>"), the line `summary` + " on
  * <device>", and the files written. Returns an exit code (error printed). */

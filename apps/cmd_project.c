@@ -41,7 +41,7 @@ int spx_cmd_project(int argc, char **argv) {
   spx_cli_scene s = {0};
   spx_projector *proj = NULL;
   if ((rc = spx_cli_scene_begin(&s, "project", o.mesh, o.cameras, outs, 3))) goto done;
-  if ((rc = spx_cli_scene_prepare(&s, o.mesh, o.color, o.device))) goto done;
+  if ((rc = spx_cli_scene_prepare(&s, o.mesh, o.color, o.device, 1))) goto done;
   if (spx_cli_failed(&rc, "project", s.ctx, spx_projector_create(s.ctx, &proj))) goto done;
   spx_project_args a = {1, s.mesh.nv, s.mesh.pos, s.col, s.ncams, s.cams, SPX_LAYOUT_HWC};
   double t0 = spx_now();

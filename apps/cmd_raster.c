@@ -77,7 +77,7 @@ int spx_cmd_raster(int argc, char **argv) {
       tex = rgb;
     }
   }
-  if ((rc = spx_cli_scene_prepare(&s, o.mesh, color, o.device))) goto done;
+  if ((rc = spx_cli_scene_prepare(&s, o.mesh, color, o.device, 1))) goto done;
   if (spx_cli_failed(&rc, "raster", ctx, spx_rasterizer_create(ctx, &rast))) goto done;
   spx_raster_args a = {0};
   a.nverts = s.mesh.nv;

@@ -51,29 +51,27 @@ static int net_error(spx_ctx *ctx, spx_status st, int n, int h, int w) {
   return spx_cli_error("render", ctx);
 }
 
-/* --mesh/--camera: project, run the network chunk by chunk, write one output per camera. */
-static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *ckpt, int any_size, const char *mesh_path,
-                       const char *cam_path, const char *color, const char *outp, int batch, int quiet) {
-  spx_mesh mesh = {0};
-  spx_camera *cams = NULL;
-  int ncams = 0, rc = SPX_EXIT_ERROR;
-  float *colors = NULL, *out = NULL;
+/* --mesh/--camera on the shared scene steps (apps/cli_scene.h): the mesh, the cameras and the
+ * outputs checked before the device opens, then projection and network chunk by chunk, one output
+ * per camera. */
+static int render_mesh(const spx_cli_scene_opts *o, const char *ckpt, const char *sig, int any_size, int batch) {
+  spx_cli_scene s = {0};
+  spx_unet *u = NULL;
+  float *out = NULL;
   spx_projector *proj = NULL;
   spx_device_tensor *in = NULL;
-  spx_tx tx;
-  spx_tx_begin(&tx, "render", 0);
-  if (spx_cli_failed(&rc, "render", ctx, spx_mesh_load(ctx, mesh_path, &mesh))) goto done;
-  if ((rc = spx_cli_load_cameras("render", ctx, cam_path, &cams, &ncams))) goto done;
-  if ((rc = spx_cli_check_outputs(&tx, &outp, 1, ncams))) goto done; /* before any work */
-  int W = cams[0].width, H = cams[0].height;
+  int rc;
+  if ((rc = spx_cli_scene_begin(&s, "render", o->mesh, o->cameras, &o->out, 1))) goto done;
+  spx_ctx *ctx = s.ctx;
+  int W = s.W, H = s.H, ncams = s.ncams;
   if (H < 16 || W < 16) {
-    rc = spx_cli_errorf("render", "%s: %dx%d is too small (the UNet needs at least 16x16)", cam_path, W, H);
+    rc = spx_cli_errorf("render", "%s: %dx%d is too small (the UNet needs at least 16x16)", o->cameras, W, H);
     goto done;
   }
-  if (!any_size && (rc = spx_cli_net_size_check("render", ctx, ckpt, W, H, cam_path))) goto done;
-  const float *col = NULL;
-  const char *used = NULL;
-  if ((rc = spx_cli_mesh_colors("render", mesh_path, &mesh, color, &colors, &col, &used))) goto done;
+  if (!any_size && (rc = spx_cli_net_size_check("render", ctx, ckpt, W, H, o->cameras))) goto done;
+  if ((rc = spx_cli_scene_prepare(&s, o->mesh, o->color, o->device, 0))) goto done;
+  if (spx_cli_failed(&rc, "render", ctx, spx_unet_load(ctx, ckpt, &u))) goto done;
+  if (sig) spx_unet_set_sigmoid(u, !strcmp(sig, "on"));
   rc = SPX_EXIT_ERROR;
   int chunk = batch < ncams ? batch : ncams;
   size_t hw = (size_t)W * (size_t)H;
@@ -89,43 +87,38 @@ static int render_mesh(spx_ctx *ctx, spx_unet *u, const char *ckpt, int any_size
   double t0 = spx_now();
   for (int c0 = 0; c0 < ncams; c0 += chunk) {
     int n = ncams - c0 < chunk ? ncams - c0 : chunk;
-    spx_project_args a = {1, mesh.nv, mesh.pos, col, n, cams + c0, SPX_LAYOUT_NCHW};
+    spx_project_args a = {1, s.mesh.nv, s.mesh.pos, s.col, n, s.cams + c0, SPX_LAYOUT_NCHW};
     spx_status st;
-    if (spx_project_to_tensor(ctx, proj, &a, in)) { /* projection -> device tensor -> network */
-      rc = spx_cli_error("render", ctx);
-      goto done;
-    }
+    if (spx_cli_failed(&rc, "render", ctx, spx_project_to_tensor(ctx, proj, &a, in))) goto done; /* -> network */
     if ((st = spx_unet_forward_tensor(u, in, out)) || (st = spx_device_finish(ctx))) {
       rc = net_error(ctx, st, n, H, W);
       goto done;
     }
     for (int k = 0; k < n; k++) {
-      char *p = spx_cli_indexed_path(outp, c0 + k, ncams);
-      const char *tmp = spx_tx_stage(&tx, p); /* appears at p when the whole run succeeds */
+      char *p = spx_cli_indexed_path(o->out, c0 + k, ncams);
+      const char *tmp = spx_tx_stage(&s.tx, p); /* appears at p when the whole run succeeds */
       free(p);
       if (!tmp) goto done;
       spx_app_batch b = {1, SPX_UNET_OUT_CHANNELS, H, W, 1, out + (size_t)k * SPX_UNET_OUT_CHANNELS * hw};
       if (spx_app_save(ctx, tmp, &b)) {
-        rc = spx_tx_error(&tx, ctx);
+        rc = spx_tx_error(&s.tx, ctx);
         goto done;
       }
     }
   }
-  if ((rc = spx_tx_commit(&tx))) goto done;
-  if (!quiet) {
-    printf("rendered %d vertices (%s) through %d camera%s at %dx%d, %d per network batch, in %.2f s\n", mesh.nv,
-           used, ncams, ncams > 1 ? "s" : "", W, H, chunk, spx_now() - t0);
-    for (int i = 0; i < spx_tx_count(&tx); i++) printf("wrote %s\n", spx_tx_target(&tx, i));
+  if ((rc = spx_tx_commit(&s.tx))) goto done;
+  if (!o->quiet) {
+    printf("rendered %d vertices (%s) through %d camera%s at %dx%d, %d per network batch, in %.2f s\n", s.mesh.nv,
+           s.used, ncams, ncams > 1 ? "s" : "", W, H, chunk, spx_now() - t0);
+    for (int i = 0; i < spx_tx_count(&s.tx); i++) printf("wrote %s\n", spx_tx_target(&s.tx, i));
   }
   rc = SPX_EXIT_OK;
 done:
-  spx_tx_end(&tx);
   spx_device_tensor_free(in);
   spx_projector_destroy(proj);
   free(out);
-  free(colors);
-  free(cams);
-  spx_mesh_free(&mesh);
+  spx_unet_destroy(u);
+  spx_cli_scene_end(&s);
   return rc;
 }
 
@@ -149,16 +142,14 @@ static int render_avatar_cmd(const spx_opt *opts, spx_render_avatar_args *av, co
 }
 
 int spx_cmd_render(int argc, char **argv) {
-  const char *ckpt = NULL, *input = NULL, *outp = NULL, *spec = NULL, *sig = NULL, *mesh = NULL, *cam = NULL;
-  const char *color = "auto";
-  int quiet = 0, any_size = 0;
+  spx_cli_scene_opts o = {.color = "auto"}; /* --mesh, --camera, --out, --color, --device, --quiet */
+  const char *ckpt = NULL, *input = NULL, *sig = NULL;
+  int any_size = 0;
   long batch = 4;
   spx_render_avatar_args av = {0};
-  spx_opt opts[] = {SPX_O("--quiet", SPX_OPT_FLAG, &quiet),   SPX_O("--checkpoint", SPX_OPT_IN, &ckpt),
-                    SPX_O("--any-size", SPX_OPT_FLAG, &any_size),
-                    SPX_O("--input", SPX_OPT_IN, &input),     SPX_O("--mesh", SPX_OPT_IN, &mesh),
-                    SPX_O("--camera", SPX_OPT_IN, &cam),      SPX_O("--color", SPX_OPT_STR, &color),
-                    SPX_O("--out", SPX_OPT_OUT, &outp),       SPX_O("--device", SPX_OPT_STR, &spec),
+  spx_opt opts[] = {SPX_CLI_SCENE_ROWS(o, "--camera"),
+                    SPX_O("--checkpoint", SPX_OPT_IN, &ckpt),   SPX_O("--any-size", SPX_OPT_FLAG, &any_size),
+                    SPX_O("--input", SPX_OPT_IN, &input),
                     SPX_O_RANGE("--batch", SPX_OPT_INT, &batch, 1, 4096), SPX_O("--sigmoid", SPX_OPT_STR, &sig),
                     SPX_O("--avatar", SPX_OPT_IN, &av.avatar),  SPX_O("--pose", SPX_OPT_IN, &av.pose_path),
                     SPX_O("--bvh", SPX_OPT_IN, &av.bvh),        SPX_O("--amass", SPX_OPT_IN, &av.amass),
@@ -166,18 +157,21 @@ int spx_cmd_render(int argc, char **argv) {
                     SPX_O_END};
   int parsed = spx_cli_parse(argc, argv, "render", NULL, render_help, opts);
   if (parsed >= 0) return parsed;
+  const char *outp = o.out;
   if (av.avatar || av.pose_path || av.bvh || av.amass || av.model || spx_cli_given(opts, "--frame"))
     return av.any_size = any_size,
-           render_avatar_cmd(opts, &av, cam, outp, spec, quiet,
-                             ckpt || input || mesh || sig || spx_cli_given(opts, "--color") || spx_cli_given(opts, "--batch"));
+           render_avatar_cmd(opts, &av, o.cameras, outp, o.device, o.quiet,
+                             ckpt || input || o.mesh || sig || spx_cli_given(opts, "--color") ||
+                                 spx_cli_given(opts, "--batch"));
   if (sig && strcmp(sig, "on") && strcmp(sig, "off")) return spx_cli_usage("render", "--sigmoid takes on or off, not '%s'", sig);
-  int by_mesh = mesh || cam;
-  if (!outp || (by_mesh ? !(mesh && cam) || input : !input))
+  int by_mesh = o.mesh || o.cameras;
+  if (!outp || (by_mesh ? !(o.mesh && o.cameras) || input : !input))
     return spx_cli_usage("render", "--out and either --input or both --mesh and --camera are required");
-  if (!spx_cli_color_ok(color))
-    return spx_cli_usage("render", "--color %s: expected auto, mesh, normal or white", color);
+  if (!spx_cli_color_ok(o.color))
+    return spx_cli_usage("render", "--color %s: expected auto, mesh, normal or white", o.color);
   if (!spx_image_ext_ok(outp)) return spx_cli_usage("render", "%s: output must end in .exr, .png or .npy", outp);
   if (!(ckpt = spx_cli_checkpoint("render", ckpt, NULL))) return SPX_EXIT_ERROR;
+  if (by_mesh) return render_mesh(&o, ckpt, sig, any_size, (int)batch);
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("render", "out of memory");
   spx_unet *u = NULL;
@@ -186,25 +180,19 @@ int spx_cmd_render(int argc, char **argv) {
   int rc = SPX_EXIT_OK;
   spx_tx tx;
   spx_tx_begin(&tx, "render", 0);
-  if (!by_mesh && (rc = spx_tx_check(&tx, outp))) goto done; /* before any work */
-  if (!by_mesh) {
-    if (spx_app_load(ctx, input, SPX_UNET_IN_CHANNELS, &in)) {
-      rc = spx_cli_error("render", ctx);
-      goto done;
-    }
-    if (in.h < 16 || in.w < 16) {
-      rc = spx_cli_errorf("render", "%s: %dx%d is too small (the UNet needs at least 16x16)", input, in.w, in.h);
-      goto done;
-    }
-    if (!any_size && (rc = spx_cli_net_size_check("render", ctx, ckpt, in.w, in.h, input))) goto done;
-  }
-  if ((rc = spx_cli_open_device("render", ctx, spec))) goto done;
-  if (spx_cli_failed(&rc, "render", ctx, spx_unet_load(ctx, ckpt, &u))) goto done;
-  if (sig) spx_unet_set_sigmoid(u, !strcmp(sig, "on"));
-  if (by_mesh) {
-    rc = render_mesh(ctx, u, ckpt, any_size, mesh, cam, color, outp, (int)batch, quiet);
+  if ((rc = spx_tx_check(&tx, outp))) goto done; /* before any work */
+  if (spx_app_load(ctx, input, SPX_UNET_IN_CHANNELS, &in)) {
+    rc = spx_cli_error("render", ctx);
     goto done;
   }
+  if (in.h < 16 || in.w < 16) {
+    rc = spx_cli_errorf("render", "%s: %dx%d is too small (the UNet needs at least 16x16)", input, in.w, in.h);
+    goto done;
+  }
+  if (!any_size && (rc = spx_cli_net_size_check("render", ctx, ckpt, in.w, in.h, input))) goto done;
+  if ((rc = spx_cli_open_device("render", ctx, o.device))) goto done;
+  if (spx_cli_failed(&rc, "render", ctx, spx_unet_load(ctx, ckpt, &u))) goto done;
+  if (sig) spx_unet_set_sigmoid(u, !strcmp(sig, "on"));
   out = in;
   out.c = SPX_UNET_OUT_CHANNELS;
   out.data = malloc((size_t)out.n * out.c * out.h * out.w * sizeof(float));

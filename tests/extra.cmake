@@ -24,7 +24,7 @@ spx_test_variant(test_nn_unet_wino_all test_nn_unet
   "SPX_TUNE_CONV_WINO_MINC=1;SPX_TUNE_CONV_WINO_TRAIN=1;SPX_TUNE_CONV_WINO_DW=1;SPX_TUNE_CONV_WINO_DW_MINHW=0")
 
 # The network tests again with every dead tape storage filled with NaN the moment it dies
-# (lib/nn/tape_plan.c): a read past a value's planned last use shows as NaN / wrong results.
+# (lib/nn/tape_live.c): a read past a value's planned last use shows as NaN / wrong results.
 foreach(name test_nn_tape test_nn_tape_multi test_nn_patchgan test_nn_vgg test_nn_unet)
   spx_test_variant(${name}_poison ${name} "SPX_TAPE_POISON=1")
 endforeach()
@@ -129,7 +129,8 @@ if(SPX_PYTHON3 AND TARGET smplpix_app)
   set_tests_properties(file_circles PROPERTIES SKIP_RETURN_CODE 77)
 endif()
 # Each command's option table is the one source of its options (tests/cli_options_docs.py): all of
-# them in its --help and in its usage in docs/commands.md, none in the docs that the table lacks.
+# them in its --help and in its usage on the docs page docs/commands.md gives it, none in the docs
+# that the table lacks.
 if(SPX_PYTHON3 AND TARGET smplpix_test_hooks)
   add_test(NAME cli_options_docs COMMAND ${SPX_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/cli_options_docs.py
            $<TARGET_FILE:smplpix_test_hooks> ${CMAKE_SOURCE_DIR})

@@ -5,28 +5,15 @@
 
 Builds the file-level call graph of the given object files (the library's and the tool's): file A
 calls file B when A's object leaves undefined an external symbol (a function or a variable) that
-B's object defines (`nm -P`). A loop of files (a strongly connected component of two or more
-files) fails the test, named with one cycle through it and the symbols that close it, unless every
-file of it matches a pattern of KNOWN below: those are reported ("known") and do not fail, and the
-round that cuts them empties the list. A known pattern that matches no loop any more is reported
-too, so that it is deleted. Objects whose source file is gone (a stale build directory) are
-skipped; exit 77 (skipped) without nm output.
+B's object defines (`nm -P`). Any loop of files (a strongly connected component of two or more
+files) fails the test, named with one cycle through it and the symbols that close it. Objects whose
+source file is gone (a stale build directory) are skipped; exit 77 (skipped) without nm output.
 """
 import argparse
 import collections
-import fnmatch
 import os
 import subprocess
 import sys
-
-# Loops that are not cut yet. Each: the patterns of its files and why it is here. A loop is known
-# when every file of it matches a pattern of one entry.
-KNOWN = [
-    (["lib/nn/tape.c", "lib/nn/tape_*.c"],
-     "the tape's files share one object: the ops record onto tape.c, tape.c runs the planner and the "
-     "profile, which read the op table that names the ops; cut by splitting tape.c's value store from "
-     "its pass driver and the op names from the table"),
-]
 
 
 def source_of(obj):
@@ -133,13 +120,6 @@ def one_cycle(graph, comp):
     return " ".join(comp)
 
 
-def known_entry(comp):
-    for i, (patterns, _) in enumerate(KNOWN):
-        if all(any(fnmatch.fnmatchcase(f, p) for p in patterns) for f in comp):
-            return i
-    return -1
-
-
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--nm", default="nm")
@@ -154,26 +134,17 @@ def main():
     if len(graph) < 50:
         print("file_circles: only %d object files of known sources: wrong arguments?" % len(graph), file=sys.stderr)
         return 1
-    bad, used = 0, set()
+    bad = 0
     for comp in loops(graph):
-        k = known_entry(comp)
-        cycle = one_cycle(graph, comp)
-        if k >= 0:
-            used.add(k)
-            print("file_circles: known loop of %d files (%s): %s" % (len(comp), KNOWN[k][1], cycle))
-        else:
-            bad += 1
-            print("file_circles: FAIL: a loop of %d files: %s\n  all of them: %s" % (len(comp), cycle, " ".join(comp)),
-                  file=sys.stderr)
-    for i, (patterns, _) in enumerate(KNOWN):
-        if i not in used:
-            print("file_circles: the known loop %s is cut: delete it from tests/file_circles.py" % " ".join(patterns))
+        bad += 1
+        print("file_circles: FAIL: a loop of %d files: %s\n  all of them: %s" % (len(comp), one_cycle(graph, comp),
+                                                                              " ".join(comp)), file=sys.stderr)
     edges = sum(len(v) for v in graph.values())
     if bad:
         print("file_circles: %d loop(s) of files that call each other (%d files, %d file-to-file calls); call "
               "downward only" % (bad, len(graph), edges), file=sys.stderr)
         return 1
-    print("file_circles: %d files, %d file-to-file calls, no loop outside the known list" % (len(graph), edges))
+    print("file_circles: %d files, %d file-to-file calls, no loop" % (len(graph), edges))
     return 0
 
 

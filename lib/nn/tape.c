@@ -1,7 +1,7 @@
-/* The autodiff tape (lib/nn/tape.h): the value table (parameters, state, activations and their
- * aliases), the slabs and host access, node recording, and transfers between tapes. Passes:
- * lib/nn/tape_pass.c; the ops: lib/nn/tape_op_*.c (table: tape_ops.c); backward and Adam:
- * tape_backward.c; memory plans: tape_plan.c. */
+/* The tape's value store (lib/nn/tape.h): the value table (parameters, state, activations and
+ * their aliases), the slabs and host access, node recording, and transfers between tapes. It
+ * stands on the profile and the current plan (tape_prof.c, tape_live.c) and knows nothing of the
+ * op table or the planner; the layers above it: lib/nn/tape_internal.h. */
 #include "nn/tape.h"
 #include "nn/tape_internal.h"
 
@@ -55,14 +55,6 @@ int spx_tp_new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, in
   return t->err ? -1 : t->nvals - 1;
 }
 
-cl_mem spx_tp_act_mem(const spx_tape *t, size_t off, size_t *local) {
-  size_t i = t->act_chunk ? off / t->act_chunk : 0;
-  *local = off;
-  if (i >= (size_t)t->nact) return NULL;
-  *local = off - i * t->act_chunk;
-  return t->act[i];
-}
-
 /* A value's storage never crosses a chunk's end, so its start's chunk holds all of it. */
 spx_tensor spx_tape_tensor(const spx_tape *t, int id) {
   const tvalue *v = &t->vals[id];
@@ -95,51 +87,11 @@ size_t spx_tape_param_count(const spx_tape *t) { return t->nparam; }
 spx_tape_backend spx_tape_get_backend(const spx_tape *t) { return t->backend; }
 
 
-/* ------------------------------------------------------------------ lifetime */
-
-spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **out) {
-  *out = NULL;
-  if (backend == SPX_TAPE_DEVICE) {
-    spx_status st = spx_cl_require(ctx, "tape");
-    if (st) return st;
-  }
-  spx_tape *t = calloc(1, sizeof *t);
-  if (!t) return spx_fail(ctx, SPX_E_NOMEM, "tape: out of memory");
-  t->ctx = ctx;
-  t->backend = backend;
-  t->pl.poison = (spx_ctx_profile(ctx) & SPX_DEBUG_TAPE_POISON) != 0;
-  t->pl.reuse = 1;
-  spx_status st = spx_tp_dist_create(t);
-  if (!st) st = spx_tp_prof_create(t);
-  if (st) {
-    spx_tape_destroy(t);
-    return st;
-  }
-  *out = t;
-  return SPX_OK;
-}
+/* ------------------------------------------------------------------ slabs */
 
 void spx_tp_wprep_drop(spx_tape *t) {
   if (!t->wprep) return;
   for (int i = 0; i < t->npersist; i++) spx_conv2d_wprep_release(&t->wprep[i]);
-}
-
-
-void spx_tape_destroy(spx_tape *t) {
-  if (!t) return;
-  spx_tp_prof_destroy(t); /* logs the profile when on */
-  spx_tp_wprep_drop(t);
-  free(t->wprep);
-  spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
-  spx_cl_free(&t->state), spx_cl_free(&t->ws);
-  for (int i = 0; i < t->nact; i++) spx_cl_free(&t->act[i]);
-  free(t->act), free(t->act_len);
-  free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact);
-  for (int i = 0; i < t->pl.nplans; i++) spx_tp_plan_free(&t->pl.plans[i]);
-  spx_tp_dist_destroy(t);
-  free(t->vals);
-  free(t->nodes);
-  free(t);
 }
 
 int spx_tape_param(spx_tape *t, int32_t n, int32_t c, int32_t h, int32_t w) {

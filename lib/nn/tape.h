@@ -158,7 +158,7 @@ spx_status spx_tape_keep(spx_tape *t, int id);
 spx_status spx_tape_transfer(spx_tape *dst, int did, size_t doff, int dst_grad, spx_tape *src, int sid, size_t soff,
                              int src_grad, size_t count, int accumulate);
 
-/* ---- memory (lib/nn/tape_plan.c) ----
+/* ---- memory (plans: lib/nn/tape_plan.c; the current one followed: tape_live.c) ----
  * All activations and activation gradients of a pass live in ONE arena, at offsets planned from
  * the graph the measuring run recorded: a value's storage is reused once nothing later in the
  * forward or the backward reads it (see tape_plan.c for the rules). Reading a value or gradient

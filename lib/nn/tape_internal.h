@@ -1,5 +1,21 @@
 /* Private to the tape's implementation files (lib/nn/tape*.c): the value table, the node record
- * and its typed arguments, the op table's row, the tape struct, and the helpers they share. */
+ * and its typed arguments, the op kinds and their names, the op table's row, the tape struct, and
+ * the helpers they share.
+ *
+ * The files call downward only (tests/file_circles.py fails on a loop), bottom first:
+ *   tape_prof.c         the device-time profile (reads the nodes and the op names here)
+ *   tape_live.c         the current plan followed during a pass: placing values, time, liveness
+ *                       checks, the planned op scratch
+ *   tape.c              the value store: values, slabs, host access, node recording, aliases,
+ *                       transfers between tapes
+ *   tape_dist.c         data-parallel state on the store
+ *   tape_op_<group>.c   the ops: constructors, forwards, backwards, their op-table rows
+ *   tape_ops.c          the op table (one row per kind)
+ *   tape_plan.c         the planner: liveness and offsets of a measured graph, from the op table
+ *   tape_backward.c     the reverse walk through the op table, seeds, Adam
+ *   tape_pass.c         lifetime (create / destroy) and the pass driver: measure, plan, run
+ * So the store knows nothing of the op table or the planner, and the op names, which the profile
+ * needs below the ops, sit beside the kinds (spx_tp_op_name), not in the table's rows. */
 #ifndef SPX_NN_TAPE_INTERNAL_H
 #define SPX_NN_TAPE_INTERNAL_H
 
@@ -73,15 +89,28 @@ typedef struct tplan {
  *   tape_op_resample.c  max pool, 3x3 average pool, bilinear upsampling
  *   tape_op_layout.c    pad, concat, upcat (concat(skip, pad(upsample(x))))
  *   tape_op_loss.c      L1, MSE against a constant
- * A new op: its OP_* kind here; its constructor in the file of its group (validate the ids and
- * shapes, spx_tp_new_value for the output, spx_tp_record with its tp_args, then, when
- * spx_tp_live, the forward: the host reference or the device launch closed by spx_tp_ran); its
- * two backwards, which ADD into the gradients of the inputs that spx_tp_wants; when needed its
- * back_reads and ws_need; its tp_op row beside them, the row's pointer in tape_ops.c, its
+ * A new op: its OP_* kind here and its name in spx_tp_op_name; its constructor in the file of its
+ * group (validate the ids and shapes, spx_tp_new_value for the output, spx_tp_record with its
+ * tp_args, then, when spx_tp_live, the forward: the host reference or the device launch closed by
+ * spx_tp_ran); its two backwards, which ADD into the gradients of the inputs that spx_tp_wants;
+ * when needed its back_reads and ws_need; its tp_op row beside them, the row's pointer in tape_ops.c, its
  * declaration in tape.h, and a row in tests/test_nn_tape_ops.c (which fails while a kind has
  * none). An elementwise function is not a new op: it is an activation kind (lib/nn/activations.h). */
 enum { OP_CONV, OP_BN, OP_ACT, OP_MAXPOOL, OP_UPSAMPLE, OP_PAD, OP_CONCAT, OP_L1, OP_INSTNORM, OP_AVGPOOL3,
        OP_MSE_CONST, OP_AXPBY, OP_UPCAT, NOPS };
+
+/* The name of kind (profile and error lines; tests/test_nn_tape.c checks each kind has its own);
+ * "?" for no kind. */
+static inline const char *spx_tp_op_name(int kind) {
+  static const char *const names[] = {
+      [OP_CONV] = "conv",         [OP_BN] = "batchnorm",     [OP_ACT] = "activation", [OP_MAXPOOL] = "maxpool",
+      [OP_UPSAMPLE] = "upsample", [OP_PAD] = "pad",          [OP_CONCAT] = "concat",  [OP_L1] = "l1",
+      [OP_INSTNORM] = "instnorm", [OP_AVGPOOL3] = "avgpool3", [OP_MSE_CONST] = "mse", [OP_AXPBY] = "axpby",
+      [OP_UPCAT] = "upcat",
+  };
+  _Static_assert(sizeof names / sizeof names[0] == NOPS, "one name per OP_* kind");
+  return kind >= 0 && kind < NOPS && names[kind] ? names[kind] : "?";
+}
 
 /* The arguments of a node, one member per op kind (the others have none). */
 typedef union tp_args {
@@ -107,7 +136,6 @@ typedef struct tnode {
 
 /* One row of the op table: everything the tape does with a node of one kind after recording it. */
 typedef struct tp_op {
-  const char *name; /* profile and error lines */
   /* the node's backward, ADDING into its inputs' gradients: host (double references) / device */
   spx_status (*back_host)(spx_tape *t, const tnode *nd);
   spx_status (*back_dev)(spx_tape *t, const tnode *nd);
@@ -127,7 +155,6 @@ enum { TP_IN0_IN_OUT = 1u };
 
 /* tape_ops.c: the row of kind (every kind has one; tests/test_nn_tape.c checks them all) */
 const tp_op *spx_tp_op(int kind);
-const char *spx_tp_op_name(int kind);
 extern const tp_op spx_tp_op_conv, spx_tp_op_bn, spx_tp_op_act, spx_tp_op_maxpool, spx_tp_op_upsample,
     spx_tp_op_pad, spx_tp_op_concat, spx_tp_op_l1, spx_tp_op_instnorm, spx_tp_op_avgpool3, spx_tp_op_mse_const,
     spx_tp_op_axpby, spx_tp_op_upcat;
@@ -170,9 +197,9 @@ struct spx_tape {
   /* the current pass (lib/nn/tape_pass.c): measuring = its planning run, err sticky */
   int train, measuring, in_pass;
   spx_status err;
-  /* liveness (lib/nn/tape_plan.c): the plan of this pass (NULL while measuring), where the pass
-   * is (0 forward, 1 ended, 2 backward begun, 3 backward done), event cursors, options, and the
-   * plans, one per measured key (oldest dropped first) */
+  /* liveness (plans made by lib/nn/tape_plan.c, followed by tape_live.c): the plan of this pass
+   * (NULL while measuring), where the pass is (0 forward, 1 ended, 2 backward begun, 3 backward
+   * done), event cursors, options, and the plans, one per measured key (oldest dropped first) */
   struct {
     tplan *cur;
     int phase, backward_runs, dcur, bcur;
@@ -185,17 +212,27 @@ struct spx_tape {
   struct tp_prof *prof; /* device-time profile; NULL: off */
 };
 
-/* tape.c: the arena chunk holding arena float offset off, and off's offset inside it (device;
- * NULL before the arena exists) */
-cl_mem spx_tp_act_mem(const spx_tape *t, size_t off, size_t *local);
-
-/* tape.c: release every prepared weight (the parameters change, or the tape goes) */
-void spx_tp_wprep_drop(spx_tape *t);
+/* The arena chunk holding arena float offset off, and off's offset inside it (device; NULL
+ * before the arena exists). */
+static inline cl_mem spx_tp_act_mem(const spx_tape *t, size_t off, size_t *local) {
+  size_t i = t->act_chunk ? off / t->act_chunk : 0;
+  *local = off;
+  if (i >= (size_t)t->nact) return NULL;
+  *local = off - i * t->act_chunk;
+  return t->act[i];
+}
+static inline int spx_tp_valid(const spx_tape *t, int id) { return id >= 0 && id < t->nvals; }
+/* An op runs (past recording) when no error is pending and the pass is not a measuring one. */
+static inline int spx_tp_live(const spx_tape *t) { return !t->err && !t->measuring; }
+static inline int spx_tp_wants(const spx_tape *t, int id) { return id >= 0 && t->vals[id].needs_grad; }
+static inline size_t spx_tp_numel(const tvalue *v) {
+  return (size_t)v->n * (size_t)v->c * (size_t)v->h * (size_t)v->w;
+}
 
 /* tape_prof.c: the profile (SPX_PROFILE_TAPE / _OPS on the context). create: NULL t->prof when
  * off. begin/end bracket one op's device work (finishing the queue; begin returns 0 and end does
  * nothing when off); conv_note: what the next op's per-instance line adds; pass: a new pass starts
- * (the instance count restarts); report: log it (when on) and free it. */
+ * (the instance count restarts); destroy: log it (when on) and free it. */
 spx_status spx_tp_prof_create(spx_tape *t);
 double spx_tp_prof_begin(spx_tape *t);
 double spx_tp_prof_end(spx_tape *t, int kind, int backward, double t0); /* the op's seconds (0: off) */
@@ -204,23 +241,7 @@ void spx_tp_prof_conv_note(spx_tape *t, int cin, int cout, int hw, int k, int st
 void spx_tp_prof_pass(spx_tape *t);
 void spx_tp_prof_destroy(spx_tape *t);
 
-/* tape.c: values and nodes */
-int spx_tp_new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, int32_t w);
-void spx_tp_record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, int s1, const tp_args *args);
-int spx_tp_bad_id(spx_tape *t, const char *op, int id);
-spx_status spx_tp_train_slabs(spx_tape *t); /* the gradient / Adam slabs, made on first need */
-static inline int spx_tp_valid(const spx_tape *t, int id) { return id >= 0 && id < t->nvals; }
-/* An op runs (past recording) when no error is pending and the pass is not a measuring one. */
-static inline int spx_tp_live(const spx_tape *t) { return !t->err && !t->measuring; }
-static inline int spx_tp_wants(const spx_tape *t, int id) { return id >= 0 && t->vals[id].needs_grad; }
-static inline size_t spx_tp_numel(const tvalue *v) {
-  return (size_t)v->n * (size_t)v->c * (size_t)v->h * (size_t)v->w;
-}
-/* After a forward op's device work: st recorded as the pass's error (sticky) and -1 returned, or
- * the op's profile closed (t0: spx_tp_prof_begin) and its output y returned. */
-int spx_tp_ran(spx_tape *t, int kind, double t0, spx_status st, int y);
-/* tape_plan.c: liveness plans */
-spx_status spx_tp_plan(spx_tape *t, tplan *p);       /* at the end of a measuring pass */
+/* tape_live.c: the current plan (t->pl.cur; none while measuring) followed during a pass */
 void spx_tp_plan_free(tplan *p);
 void spx_tp_place(spx_tape *t, int id);              /* a new activation's offsets from the plan */
 spx_status spx_tp_advance(spx_tape *t, int time);    /* poison deaths before `time`, zero births up to it */
@@ -230,15 +251,25 @@ spx_status spx_tp_check_live(spx_tape *t, int id, int grad, const char *what);
 /* The planned workspace of node `node`'s forward (bwd = 0) or backward (1) in ws, returned; NULL
  * (scratch allocated per call) when the plan has none. */
 spx_op_workspace *spx_tp_ws(const spx_tape *t, int node, int bwd, spx_op_workspace *ws);
-/* Grows the separate op-scratch buffer (TAPE_WS_ARENA 0) to plan p's largest op; grow-only. */
-spx_status spx_tp_ws_reserve(spx_tape *t, const tplan *p);
-/* tape_pass.c: the arena for plan p (grow-only) */
-spx_status spx_tp_grow_arena(spx_tape *t, const tplan *p);
+
+/* tape.c: values, nodes and slabs */
+int spx_tp_new_value(spx_tape *t, int space, int32_t n, int32_t c, int32_t h, int32_t w);
+void spx_tp_record(spx_tape *t, int kind, int a, int b, int c, int out, int s0, int s1, const tp_args *args);
+int spx_tp_bad_id(spx_tape *t, const char *op, int id);
+spx_status spx_tp_train_slabs(spx_tape *t); /* the gradient / Adam slabs, made on first need */
+void spx_tp_wprep_drop(spx_tape *t); /* release every prepared weight (the parameters change, or the tape goes) */
+/* After a forward op's device work: st recorded as the pass's error (sticky) and -1 returned, or
+ * the op's profile closed (t0: spx_tp_prof_begin) and its output y returned. */
+int spx_tp_ran(spx_tape *t, int kind, double t0, spx_status st, int y);
+
 /* tape_dist.c: the data-parallel state (create: zeroed; destroy frees its staging) and the
  * synchronised batch norm's view of the ranks for input value x */
 spx_status spx_tp_dist_create(spx_tape *t);
 void spx_tp_dist_destroy(spx_tape *t);
 spx_status spx_tape_bn_sync(spx_tape *t, int x, spx_bn_sync *out);
+
+/* tape_plan.c: the plan of the graph a measuring pass recorded (called at its end) */
+spx_status spx_tp_plan(spx_tape *t, tplan *p);
 
 #define HOST (t->backend == SPX_TAPE_HOST)
 #define TV(id) spx_tape_tensor(t, (id))

@@ -135,5 +135,5 @@ static void conv_ws_need(const spx_tape *t, const tnode *nd, spx_ws_need need[2]
   if (passes) spx_conv2d_workspace_need(t->ctx, &sh, passes, 0, algo, &need[1]);
 }
 
-const tp_op spx_tp_op_conv = {.name = "conv", .back_host = conv_back_host, .back_dev = conv_back_dev,
+const tp_op spx_tp_op_conv = {.back_host = conv_back_host, .back_dev = conv_back_dev,
                    .back_reads = conv_back_reads, .ws_need = conv_ws_need};

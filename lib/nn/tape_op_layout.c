@@ -41,7 +41,7 @@ static spx_status pad_back_dev(spx_tape *t, const tnode *nd) {
   return spx_pad_backward(t->ctx, &dy, nd->arg.pad.left, nd->arg.pad.right, nd->arg.pad.top, nd->arg.pad.bottom, &dx);
 }
 
-const tp_op spx_tp_op_pad = {.name = "pad", .back_host = pad_back_host, .back_dev = pad_back_dev};
+const tp_op spx_tp_op_pad = {.back_host = pad_back_host, .back_dev = pad_back_dev};
 
 int spx_tape_concat(spx_tape *t, int a, int b) {
   if (spx_tp_bad_id(t, "concat", a) || spx_tp_bad_id(t, "concat", b)) return -1;
@@ -79,7 +79,7 @@ static spx_status concat_back_dev(spx_tape *t, const tnode *nd) {
                              spx_tp_wants(t, nd->in[1]) ? &db : NULL);
 }
 
-const tp_op spx_tp_op_concat = {.name = "concat", .back_host = concat_back_host, .back_dev = concat_back_dev};
+const tp_op spx_tp_op_concat = {.back_host = concat_back_host, .back_dev = concat_back_dev};
 
 int spx_tape_upcat(spx_tape *t, int skip, int x) {
   if (spx_tp_bad_id(t, "upcat", skip) || spx_tp_bad_id(t, "upcat", x)) return -1;
@@ -127,5 +127,5 @@ static void upcat_ws_need(const spx_tape *t, const tnode *nd, spx_ws_need need[2
     spx_upsample2x_backward_need(u->n, u->c, u->h, u->w, &need[1]);
 }
 
-const tp_op spx_tp_op_upcat = {.name = "upcat", .back_host = upcat_back_host, .back_dev = upcat_back_dev,
+const tp_op spx_tp_op_upcat = {.back_host = upcat_back_host, .back_dev = upcat_back_dev,
                    .ws_need = upcat_ws_need, .flags = TP_IN0_IN_OUT};

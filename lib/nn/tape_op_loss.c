@@ -80,7 +80,7 @@ static spx_status l1_back_dev(spx_tape *t, const tnode *nd) { return loss_back_d
 static spx_status mse_back_host(spx_tape *t, const tnode *nd) { return loss_back_host(t, nd, SPX_LOSS_MSE); }
 static spx_status mse_back_dev(spx_tape *t, const tnode *nd) { return loss_back_dev(t, nd, SPX_LOSS_MSE); }
 
-const tp_op spx_tp_op_l1 = {.name = "l1", .back_host = l1_back_host, .back_dev = l1_back_dev,
+const tp_op spx_tp_op_l1 = {.back_host = l1_back_host, .back_dev = l1_back_dev,
                    .back_reads = loss_back_reads, .ws_need = loss_ws_need};
-const tp_op spx_tp_op_mse_const = {.name = "mse", .back_host = mse_back_host, .back_dev = mse_back_dev,
+const tp_op spx_tp_op_mse_const = {.back_host = mse_back_host, .back_dev = mse_back_dev,
                    .back_reads = loss_back_reads, .ws_need = loss_ws_need};

@@ -96,7 +96,7 @@ static void bn_back_reads(const spx_tape *t, const tnode *nd, int r[3]) {
   r[0] = nd->in[0], r[1] = nd->saved[0], r[2] = nd->saved[1];
 }
 
-const tp_op spx_tp_op_bn = {.name = "batchnorm", .back_host = bn_back_host, .back_dev = bn_back_dev,
+const tp_op spx_tp_op_bn = {.back_host = bn_back_host, .back_dev = bn_back_dev,
                    .back_reads = bn_back_reads};
 
 int spx_tape_instnorm(spx_tape *t, int x, float eps) {
@@ -136,5 +136,5 @@ static void instnorm_back_reads(const spx_tape *t, const tnode *nd, int r[3]) {
   if (spx_tp_wants(t, nd->in[0])) r[0] = nd->in[0], r[1] = nd->saved[0];
 }
 
-const tp_op spx_tp_op_instnorm = {.name = "instnorm", .back_host = instnorm_back_host, .back_dev = instnorm_back_dev,
+const tp_op spx_tp_op_instnorm = {.back_host = instnorm_back_host, .back_dev = instnorm_back_dev,
                    .back_reads = instnorm_back_reads};

@@ -44,7 +44,7 @@ static void act_back_reads(const spx_tape *t, const tnode *nd, int r[3]) {
   if (spx_tp_wants(t, nd->in[0])) r[0] = act_uses_output(nd) ? nd->out : nd->in[0];
 }
 
-const tp_op spx_tp_op_act = {.name = "activation", .back_host = act_back_host, .back_dev = act_back_dev,
+const tp_op spx_tp_op_act = {.back_host = act_back_host, .back_dev = act_back_dev,
                    .back_reads = act_back_reads};
 
 int spx_tape_axpby(spx_tape *t, float a, int x, float b, int z) {
@@ -93,4 +93,4 @@ static spx_status axpby_back_dev(spx_tape *t, const tnode *nd) {
   return st;
 }
 
-const tp_op spx_tp_op_axpby = {.name = "axpby", .back_host = axpby_back_host, .back_dev = axpby_back_dev};
+const tp_op spx_tp_op_axpby = {.back_host = axpby_back_host, .back_dev = axpby_back_dev};

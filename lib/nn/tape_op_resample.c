@@ -52,7 +52,7 @@ static void maxpool_back_reads(const spx_tape *t, const tnode *nd, int r[3]) {
   if (spx_tp_wants(t, nd->in[0])) r[0] = nd->in[0];
 }
 
-const tp_op spx_tp_op_maxpool = {.name = "maxpool", .back_host = maxpool_back_host, .back_dev = maxpool_back_dev,
+const tp_op spx_tp_op_maxpool = {.back_host = maxpool_back_host, .back_dev = maxpool_back_dev,
                    .back_reads = maxpool_back_reads};
 
 static spx_status avgpool3_back_host(spx_tape *t, const tnode *nd) {
@@ -69,7 +69,7 @@ static spx_status avgpool3_back_dev(spx_tape *t, const tnode *nd) {
   return spx_avgpool3_backward(t->ctx, &dy, &dx);
 }
 
-const tp_op spx_tp_op_avgpool3 = {.name = "avgpool3", .back_host = avgpool3_back_host, .back_dev = avgpool3_back_dev};
+const tp_op spx_tp_op_avgpool3 = {.back_host = avgpool3_back_host, .back_dev = avgpool3_back_dev};
 
 static spx_status upsample_back_host(spx_tape *t, const tnode *nd) {
   const tvalue *xv = &t->vals[nd->in[0]];
@@ -92,5 +92,5 @@ static void upsample_ws_need(const spx_tape *t, const tnode *nd, spx_ws_need nee
     spx_upsample2x_backward_need(x->n, x->c, x->h, x->w, &need[1]);
 }
 
-const tp_op spx_tp_op_upsample = {.name = "upsample", .back_host = upsample_back_host, .back_dev = upsample_back_dev,
+const tp_op spx_tp_op_upsample = {.back_host = upsample_back_host, .back_dev = upsample_back_dev,
                    .ws_need = upsample_ws_need};

@@ -14,8 +14,3 @@ static const tp_op *const ops[] = {
 _Static_assert(sizeof ops / sizeof ops[0] == NOPS, "the op table needs one row per OP_* kind");
 
 const tp_op *spx_tp_op(int kind) { return kind >= 0 && kind < NOPS ? ops[kind] : NULL; }
-
-const char *spx_tp_op_name(int kind) {
-  const tp_op *op = spx_tp_op(kind);
-  return op && op->name ? op->name : "?";
-}

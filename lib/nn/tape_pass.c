@@ -1,12 +1,53 @@
-/* Passes of the tape (lib/nn/tape.h): spx_tape_pass runs a network's build function under a plan
- * key, planning the key's memory first when it is new (a measuring run of the build, then
- * lib/nn/tape_plan.c and the arena), and the inputs a build creates. */
+/* The tape's top (lib/nn/tape.h): its lifetime, and its passes: spx_tape_pass runs a network's
+ * build function under a plan key, planning the key's memory first when it is new (a measuring
+ * run of the build, then lib/nn/tape_plan.c, the arena and the op scratch), and the inputs a
+ * build creates. Every other tape file lies below this one (lib/nn/tape_internal.h). */
 #include "nn/tape.h"
 #include "nn/tape_internal.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+spx_status spx_tape_create(spx_ctx *ctx, spx_tape_backend backend, spx_tape **out) {
+  *out = NULL;
+  if (backend == SPX_TAPE_DEVICE) {
+    spx_status st = spx_cl_require(ctx, "tape");
+    if (st) return st;
+  }
+  spx_tape *t = calloc(1, sizeof *t);
+  if (!t) return spx_fail(ctx, SPX_E_NOMEM, "tape: out of memory");
+  t->ctx = ctx;
+  t->backend = backend;
+  t->pl.poison = (spx_ctx_profile(ctx) & SPX_DEBUG_TAPE_POISON) != 0;
+  t->pl.reuse = 1;
+  spx_status st = spx_tp_dist_create(t);
+  if (!st) st = spx_tp_prof_create(t);
+  if (st) {
+    spx_tape_destroy(t);
+    return st;
+  }
+  *out = t;
+  return SPX_OK;
+}
+
+void spx_tape_destroy(spx_tape *t) {
+  if (!t) return;
+  spx_tp_prof_destroy(t); /* logs the profile when on */
+  spx_tp_wprep_drop(t);
+  free(t->wprep);
+  spx_cl_free(&t->param), spx_cl_free(&t->grad), spx_cl_free(&t->m), spx_cl_free(&t->v);
+  spx_cl_free(&t->state), spx_cl_free(&t->ws);
+  for (int i = 0; i < t->nact; i++) spx_cl_free(&t->act[i]);
+  free(t->act), free(t->act_len);
+  free(t->hparam), free(t->hgrad), free(t->hm), free(t->hv), free(t->hstate), free(t->hact);
+  for (int i = 0; i < t->pl.nplans; i++) spx_tp_plan_free(&t->pl.plans[i]);
+  spx_tp_dist_destroy(t);
+  free(t->vals);
+  free(t->nodes);
+  free(t);
+}
+
 
 /* A pass starts: the values of the last one go, and the plan of the key is looked up (measuring
  * when there is none). */
@@ -38,43 +79,9 @@ static void pass_begin(spx_tape *t, int train, uint64_t plan_key) {
   if (t->measuring) t->pl.plans[t->pl.nplans].key = plan_key; /* pass_end makes the plan */
 }
 
-/* The pass ends: a measuring one plans the recorded graph and sizes the arena (*again: run it
- * now), a planned one reaches the end of its forward. */
-static spx_status pass_end(spx_tape *t, int *again) {
-  *again = 0;
-  t->in_pass = 0;
-  t->pl.phase = 1;
-  if (t->err) return t->err;
-  if (!t->measuring) return t->err = spx_tp_advance(t, 2 * t->nnodes);
-  tplan *p = &t->pl.plans[t->pl.nplans];
-  uint64_t key = p->key;
-  spx_status st = spx_tp_plan(t, p);
-  if (st) return st;
-  p->key = key;
-  t->pl.nplans++;
-  if ((st = spx_tp_grow_arena(t, p)) || (st = spx_tp_ws_reserve(t, p))) return st;
-  t->pl.nmeasured++;
-  *again = 1;
-  return SPX_OK;
-}
-
-spx_status spx_tape_pass(spx_tape *t, int train, uint64_t plan_key, spx_tape_build_fn build, void *user) {
-  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
-  for (;;) {
-    pass_begin(t, train, plan_key);
-    spx_status bst = build(t, user);
-    int again = 0;
-    spx_status st = pass_end(t, &again);
-    if (bst) return bst;
-    if (st || !again) return st;
-  }
-}
-
-int spx_tape_plan_count(const spx_tape *t) { return t->pl.nmeasured; }
-
 /* The arena for plan p: host, one block; device, chunks of p->chunk floats covering p->size
  * (grow-only per chunk; all of it anew when the chunk size changes). */
-spx_status spx_tp_grow_arena(spx_tape *t, const tplan *p) {
+static spx_status grow_arena(spx_tape *t, const tplan *p) {
   size_t need = p->size;
   if (t->backend != SPX_TAPE_DEVICE) {
     if (need <= t->act_cap) return SPX_OK;
@@ -131,6 +138,50 @@ spx_status spx_tp_grow_arena(spx_tape *t, const tplan *p) {
   }
   return SPX_OK;
 }
+
+/* Grows the separate op-scratch buffer (TAPE_WS_ARENA 0) to plan p's largest op; grow-only. */
+static spx_status ws_reserve(spx_tape *t, const tplan *p) {
+  if (p->wsmax <= t->ws_cap) return SPX_OK;
+  spx_cl_free(&t->ws);
+  t->ws_cap = 0;
+  spx_status st = spx_cl_alloc(t->ctx, p->wsmax, "op scratch", &t->ws);
+  if (!st) t->ws_cap = p->wsmax;
+  return st;
+}
+
+/* The pass ends: a measuring one plans the recorded graph and sizes the arena (*again: run it
+ * now), a planned one reaches the end of its forward. */
+static spx_status pass_end(spx_tape *t, int *again) {
+  *again = 0;
+  t->in_pass = 0;
+  t->pl.phase = 1;
+  if (t->err) return t->err;
+  if (!t->measuring) return t->err = spx_tp_advance(t, 2 * t->nnodes);
+  tplan *p = &t->pl.plans[t->pl.nplans];
+  uint64_t key = p->key;
+  spx_status st = spx_tp_plan(t, p);
+  if (st) return st;
+  p->key = key;
+  t->pl.nplans++;
+  if ((st = grow_arena(t, p)) || (st = ws_reserve(t, p))) return st;
+  t->pl.nmeasured++;
+  *again = 1;
+  return SPX_OK;
+}
+
+spx_status spx_tape_pass(spx_tape *t, int train, uint64_t plan_key, spx_tape_build_fn build, void *user) {
+  if (!t->allocated) return spx_fail(t->ctx, SPX_E_STATE, "tape: parameters not allocated");
+  for (;;) {
+    pass_begin(t, train, plan_key);
+    spx_status bst = build(t, user);
+    int again = 0;
+    spx_status st = pass_end(t, &again);
+    if (bst) return bst;
+    if (st || !again) return st;
+  }
+}
+
+int spx_tape_plan_count(const spx_tape *t) { return t->pl.nmeasured; }
 
 /* A new input value (born between nodes); what died before now may be poisoned before the input
  * is written. 1: it runs now (planned pass, no error). */
