@@ -138,6 +138,16 @@ static inline void spx_t_path(char *out, size_t cap, const char *name) {
   snprintf(out, cap, "%s/%s", spx_t_tmpdir(), name);
 }
 
+/* out = <test tmp>/<name>, made empty (read-only leftovers of an earlier run made writable and
+ * removed too). Returns the shell's exit status: 0 when the folder is there and empty. */
+static inline int spx_t_system(const char *cmd);
+static inline int spx_t_fresh_dir(char *out, size_t cap, const char *name) {
+  spx_t_path(out, cap, name);
+  char cmd[3 * 4096 + 64];
+  snprintf(cmd, sizeof cmd, "chmod -R u+w '%s' 2>/dev/null; rm -rf '%s' && mkdir -p '%s'", out, out, out);
+  return spx_t_system(cmd);
+}
+
 /* Path of the smplpix tool ($SPX_TOOL, set by ctest). */
 static inline const char *spx_t_tool(void) {
   const char *t = getenv("SPX_TOOL");

@@ -260,12 +260,8 @@ static void test_out_of_memory_names_the_file(void) {
 }
 
 int main(void) {
-  snprintf(base, sizeof base, "%s/io_bounds", spx_t_tmpdir());
-  char cmd[1400];
-  snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s'", base, base);
-  if (spx_t_system(cmd) != 0 || spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_forged_claims_refused_before_allocating);
-  SPX_RUN(test_out_of_memory_names_the_file);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_forged_claims_refused_before_allocating),
+                                     SPX_TEST(test_out_of_memory_names_the_file)};
+  if (spx_t_fresh_dir(base, sizeof base, "io_bounds") != 0) return 1;
+  return spx_t_main_ctx(&ctx, 0, tests, 2);
 }

@@ -161,11 +161,8 @@ static float *read_all(spx_ctx *ctx, spx_unet *u, const char *name, spx_unet_fie
 }
 
 static void test_golden(void) {
-  spx_ctx *ctx = spx_nt_open();
-  if (!ctx) {
-    CHECK(0);
-    return;
-  }
+  spx_ctx *ctx = spx_nt_require();
+  if (!ctx) return;
   int wdw = 0; /* a weight gradient on Winograd: the levels have 8 << i channels at (GH x GW) >> i */
   for (int i = 0; i < 4; i++) wdw |= spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 8 << i, 8 << i, GH >> i, GW >> i);
   if (spx_conv2d_winograd_applies(ctx, 3, 1, 1, 64, 64, 1 << 30, 0) || wdw) { /* see the top of the file */
@@ -289,11 +286,8 @@ done:
 
 /* Errors name the tensor and the expected shape; an interrupted save keeps the old file. */
 static void test_checkpoint_errors(void) {
-  spx_ctx *ctx = spx_nt_open();
-  if (!ctx) {
-    CHECK(0);
-    return;
-  }
+  spx_ctx *ctx = spx_nt_require();
+  if (!ctx) return;
   spx_unet *u = NULL;
   CHECK_OK(ctx, spx_unet_create(ctx, 16, 1, 42, &u));
   CHECK(spx_unet_create(ctx, 12, 0, 1, &(spx_unet *){NULL}) == SPX_E_ARG);
