@@ -151,9 +151,7 @@ static inline int snap_same(snapshot *s) {
 
 /* Number of entries under dir/sub (recursively) whose name holds ".tmp." (temporaries). */
 static inline int count_temps(const char *sub) {
-  char p[2048];
-  if (snprintf(p, sizeof p, "%s/%s", dir, sub) >= (int)sizeof p) return 0;
-  DIR *d = opendir(p);
+  DIR *d = open_dir_in(sub);
   if (!d) return 0;
   int n = 0;
   struct dirent *e;

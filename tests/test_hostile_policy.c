@@ -66,17 +66,11 @@ static int refused(int rc, const char *cmd, const char *want) {
   return ok;
 }
 
-static int write_registration(const char *name) {
-  char p[700];
-  path_of(p, sizeof p, name);
-  return spx_t_default_rest_registration(ctx, p) == SPX_OK;
-}
-
 static void scene(void) {
   hostile_dir();
   CHECK(make_scene(1));
   sh("cp '%s/mocap/01_01.bvh' m.bvh && cp '%s/body/body_parts_segmentation.png' p.png", SPX_REPO_DATA, SPX_REPO_DATA);
-  CHECK(write_registration("reg.json"));
+  CHECK(spx_t_default_rest_registration_in(ctx, dir, "reg.json"));
 }
 
 static void test_every_output_of_every_command(void) {
