@@ -182,11 +182,7 @@ static void test_bake(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_eval);
-  SPX_RUN(test_animate);
-  SPX_RUN(test_synth);
-  SPX_RUN(test_bake);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_eval), SPX_TEST(test_animate), SPX_TEST(test_synth),
+                                     SPX_TEST(test_bake)};
+  return spx_t_main_ctx(&ctx, 0, tests, 4);
 }

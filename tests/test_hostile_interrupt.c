@@ -160,8 +160,6 @@ static void test_interrupt_every_command(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_interrupt_every_command);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_interrupt_every_command)};
+  return spx_t_main_ctx(&ctx, 0, tests, 1);
 }

@@ -131,9 +131,7 @@ static void test_synth_force_input_inside(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_every_output_of_every_command);
-  SPX_RUN(test_synth_force_input_inside);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_every_output_of_every_command),
+                                     SPX_TEST(test_synth_force_input_inside)};
+  return spx_t_main_ctx(&ctx, 0, tests, 2);
 }
