@@ -134,14 +134,12 @@ int main(int argc, char **argv) {
          "%.2f GFLOP, %.1f MB: %.1f GF/s, %.1f%% of the FMA peak\n",
          wall_sum, cpu_ms_sum, all_gf, all_gb * 1e3, c.gflops, c.pct_peak);
   if (do_unet) {
-    const shape *tab = do_unet == 2 ? bench_unet16_all : bench_unet64_all;
-    size_t nt = do_unet == 2 ? sizeof bench_unet16_all / sizeof bench_unet16_all[0]
-                             : sizeof bench_unet64_all / sizeof bench_unet64_all[0];
     double tot = 0, gtot = 0, btot = 0, ctot = 0;
-    for (size_t i = 0; i < nt; i++) {
+    for (int i = 0; i < BENCH_UNET_CONVS; i++) {
+      const shape layer = bench_unet_conv(i, do_unet == 2 ? 16 : 64);
       const char *only = getenv("SPX_BENCH_UNET"); /* comma list of layer names */
-      if (only && !strstr(only, tab[i].name)) continue;
-      const shape sh = bench_conv_scaled(&tab[i], div);
+      if (only && !strstr(only, layer.name)) continue;
+      const shape sh = bench_conv_scaled(&layer, div);
       double ms, cpu;
       char cell[64];
       if (time_op(ctx, &sh, 0, reps, &ms, &cpu)) return fail(ctx, sh.name);

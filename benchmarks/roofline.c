@@ -53,7 +53,7 @@ const bench_conv_shape bench_unet64_layers[6] = {
     {"up4.conv1 128->64", 128, 64, 308, 410, 3, 1}, {"outc 1x1 64->3", 64, 3, 308, 410, 1, 0},
 };
 
-const bench_conv_shape bench_unet64_all[19] = {
+const bench_conv_shape bench_unet64_all[BENCH_UNET_CONVS] = {
     {"inc1", 4, 64, 308, 410, 3, 1},     {"inc2", 64, 64, 308, 410, 3, 1},     {"d1a", 64, 128, 154, 205, 3, 1},
     {"d1b", 128, 128, 154, 205, 3, 1},   {"d2a", 128, 256, 77, 102, 3, 1},     {"d2b", 256, 256, 77, 102, 3, 1},
     {"d3a", 256, 512, 38, 51, 3, 1},     {"d3b", 512, 512, 38, 51, 3, 1},      {"d4a", 512, 512, 19, 25, 3, 1},
@@ -63,15 +63,12 @@ const bench_conv_shape bench_unet64_all[19] = {
     {"outc", 64, 3, 308, 410, 1, 0},
 };
 
-const bench_conv_shape bench_unet16_all[19] = {
-    {"inc1", 4, 16, 308, 410, 3, 1},    {"inc2", 16, 16, 308, 410, 3, 1},   {"d1a", 16, 32, 154, 205, 3, 1},
-    {"d1b", 32, 32, 154, 205, 3, 1},    {"d2a", 32, 64, 77, 102, 3, 1},     {"d2b", 64, 64, 77, 102, 3, 1},
-    {"d3a", 64, 128, 38, 51, 3, 1},     {"d3b", 128, 128, 38, 51, 3, 1},    {"d4a", 128, 128, 19, 25, 3, 1},
-    {"d4b", 128, 128, 19, 25, 3, 1},    {"u1a", 256, 128, 38, 51, 3, 1},    {"u1b", 128, 64, 38, 51, 3, 1},
-    {"u2a", 128, 64, 77, 102, 3, 1},    {"u2b", 64, 32, 77, 102, 3, 1},     {"u3a", 64, 32, 154, 205, 3, 1},
-    {"u3b", 32, 16, 154, 205, 3, 1},    {"u4a", 32, 16, 308, 410, 3, 1},    {"u4b", 16, 16, 308, 410, 3, 1},
-    {"outc", 16, 3, 308, 410, 1, 0},
-};
+bench_conv_shape bench_unet_conv(int i, int width) {
+  bench_conv_shape o = bench_unet64_all[i];
+  if (i > 0) o.cin = o.cin * width / 64;                      /* inc1 reads the 4 input channels */
+  if (i < BENCH_UNET_CONVS - 1) o.cout = o.cout * width / 64; /* outc writes the 3 colours */
+  return o;
+}
 
 bench_conv_shape bench_conv_scaled(const bench_conv_shape *s, int div) {
   bench_conv_shape o = *s;

@@ -43,8 +43,12 @@ typedef struct bench_conv_shape {
 } bench_conv_shape;
 /* six UNet-64 layers at 308x410 (full resolution, half, the bottleneck, the 1x1 output layer) */
 extern const bench_conv_shape bench_unet64_layers[6];
-/* every convolution of the milesial UNet (bilinear) at 308x410, width 64 and width 16 */
-extern const bench_conv_shape bench_unet64_all[19], bench_unet16_all[19];
+/* every convolution of the milesial UNet (bilinear) at 308x410, width 64 */
+#define BENCH_UNET_CONVS 19
+extern const bench_conv_shape bench_unet64_all[BENCH_UNET_CONVS];
+/* convolution i of that UNet at width `width` (a divisor of 64): its channels scaled by width/64,
+ * but for the 4 input channels of the first and the 3 output channels of the last */
+bench_conv_shape bench_unet_conv(int i, int width);
 /* s with its image divided by div (at least 1x1) */
 bench_conv_shape bench_conv_scaled(const bench_conv_shape *s, int div);
 double bench_conv_gflop(const bench_conv_shape *s);

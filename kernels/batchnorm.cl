@@ -16,26 +16,24 @@
 
 #include "norm_reduce.h"
 
-#define SPX_KAHAN8(s, c, v)                                                                         \
-  do {                                                                                              \
-    float8 y8_ = (v) - (c);                                                                         \
-    float8 t8_ = (s) + y8_;                                                                         \
-    (c) = (t8_ - (s)) - y8_;                                                                        \
-    (s) = t8_;                                                                                      \
-  } while (0)
-
-/* fold 8 compensated lanes into a compensated scalar (s, c) */
-static inline void spx_fold8(float8 s8, float8 c8, float *s, float *c) {
-  float l[8];
-  vstore8(s8 - c8, 0, l);
-  for (int j = 0; j < 8; j++) SPX_KAHAN_ADD(*s, *c, l[j]);
-}
-
 /* The output gradient the batch norm's backward sums: dy, or with the fused ReLU (relu != 0) dy
  * where the forward's output (x - mean) * a + b (computed as spx_bn_normalize does) is > 0 and 0
  * elsewhere, plus 0.0f: exactly the value the separate ReLU backward accumulates into the zeroed
  * gradient (0 + dy; -0 becomes +0), so fused and separate give the same bits. */
 #define SPX_BN_DY(g, xv, mean, a, b, relu) ((relu) ? (((((xv) - (mean)) * (a) + (b)) > 0.0f ? (g) : 0.0f) + 0.0f) : (g))
+
+/* Element i of a plane (x at p, dy at g) into an item's sums: (s, comp) and, in mode 2, (s2, comp2)
+ * (the terms of spx_bn_partial below). */
+static inline void spx_bn_term(__global const float *p, __global const float *g, int i, int mode, float mean, float ra,
+                               float rb, int relu, float *s, float *comp, float *s2, float *comp2) {
+  if (mode == 0) SPX_KAHAN_ADD(*s, *comp, p[i]);
+  else if (mode == 1) SPX_KAHAN_ADD(*s, *comp, (p[i] - mean) * (p[i] - mean));
+  else {
+    float gi = SPX_BN_DY(g[i], p[i], mean, ra, rb, relu);
+    SPX_KAHAN_ADD(*s, *comp, gi);
+    SPX_KAHAN_ADD(*s2, *comp2, gi * (p[i] - mean));
+  }
+}
 
 /* Per-item partial sums over channel ch of an n x c x hw tensor (x at xo; dy at go for mode 2):
  *   mode 0: sum x            mode 1: sum (x - mean)^2
@@ -71,15 +69,7 @@ static inline float spx_bn_partial(__global const float *x, int xo, __global con
         SPX_KAHAN8(a8, c8, gv);
         SPX_KAHAN8(b8, d8, gv * (xv - m8));
       }
-    for (; i < hw; i++) {
-      if (mode == 0) SPX_KAHAN_ADD(s, comp, p[i]);
-      else if (mode == 1) SPX_KAHAN_ADD(s, comp, (p[i] - mean) * (p[i] - mean));
-      else {
-        float gi = SPX_BN_DY(g[i], p[i], mean, ra, rb, relu);
-        SPX_KAHAN_ADD(s, comp, gi);
-        SPX_KAHAN_ADD(s2, comp2, gi * (p[i] - mean));
-      }
-    }
+    for (; i < hw; i++) spx_bn_term(p, g, i, mode, mean, ra, rb, relu, &s, &comp, &s2, &comp2);
   }
   spx_fold8(a8, c8, &s, &comp);
   spx_fold8(b8, d8, &s2, &comp2);
@@ -88,15 +78,7 @@ static inline float spx_bn_partial(__global const float *x, int xo, __global con
   for (int k = 0; k < n; k++) {
     __global const float *p = x + xo + (k * c + ch) * hw;
     __global const float *g = dy + go + (k * c + ch) * hw;
-    for (int i = lid; i < hw; i += SPX_BN_WG) {
-      if (mode == 0) SPX_KAHAN_ADD(s, comp, p[i]);
-      else if (mode == 1) SPX_KAHAN_ADD(s, comp, (p[i] - mean) * (p[i] - mean));
-      else {
-        float gi = SPX_BN_DY(g[i], p[i], mean, ra, rb, relu);
-        SPX_KAHAN_ADD(s, comp, gi);
-        SPX_KAHAN_ADD(s2, comp2, gi * (p[i] - mean));
-      }
-    }
+    for (int i = lid; i < hw; i += SPX_BN_WG) spx_bn_term(p, g, i, mode, mean, ra, rb, relu, &s, &comp, &s2, &comp2);
   }
 #endif
   *r2 = s2 - comp2;

@@ -44,6 +44,17 @@
 #define DW_TILE_COPY(dst, src)                                  \
   _Pragma("unroll") for (int m_ = 0; m_ < CONV_DW_TM; m_++)     \
       _Pragma("unroll") for (int j_ = 0; j_ < CONV_DW_TN; j_++) (dst)[m_][j_] = (src)[m_][j_]
+/* The forwards' CONV_TM x CONV_TN register tile: acc[m][j] += wr[m] * xv[j] (m outer, each weight
+ * made a T once), and a tile copy. */
+#define CONV_TILE_FMA(T, acc, wr, xv)                                                              \
+  _Pragma("unroll") for (int m_ = 0; m_ < CONV_TM; m_++) {                                        \
+    T wm_ = (T)((wr)[m_]); /* not (T)(wr)[m_]: OpenCL reads that as a vector literal */           \
+    _Pragma("unroll") for (int j_ = 0; j_ < CONV_TN; j_++)                                         \
+        (acc)[m_][j_] = fma(wm_, (xv)[j_], (acc)[m_][j_]);                                         \
+  }
+#define CONV_TILE_COPY(dst, src)                                \
+  _Pragma("unroll") for (int m_ = 0; m_ < CONV_TM; m_++)        \
+      _Pragma("unroll") for (int j_ = 0; j_ < CONV_TN; j_++) (dst)[m_][j_] = (src)[m_][j_]
 
 #if CONV_VW == 16
 typedef float16 vf;
@@ -226,10 +237,7 @@ static inline __attribute__((always_inline)) void conv_fwd(
     for (int t = 0; t < ntl; t++) {
       const __global float *wb = wpk + (size_t)(cst * CONV_CT + t) * Cin * K * K * CONV_TM;
       vf acc[CONV_TM][CONV_TN];
-#pragma unroll
-      for (int m = 0; m < CONV_TM; m++)
-#pragma unroll
-        for (int j = 0; j < CONV_TN; j++) acc[m][j] = accs[t][m][j];
+      CONV_TILE_COPY(acc, accs[t]);
       for (int ci = cb; ci < ce; ci++) {
         const __global float *xc = xb + (size_t)ci * plane;
         const __global float *wc = wb + ci * K * K * CONV_TM;
@@ -240,19 +248,11 @@ static inline __attribute__((always_inline)) void conv_fwd(
             vf xv[CONV_TN];
 #pragma unroll
             for (int j = 0; j < CONV_TN; j++) xv[j] = vload_s(xr + S * j * (CONV_LWS * CONV_VW), S);
-#pragma unroll
-            for (int m = 0; m < CONV_TM; m++) {
-              vf wm = (vf)wr[m];
-#pragma unroll
-              for (int j = 0; j < CONV_TN; j++) acc[m][j] = fma(wm, xv[j], acc[m][j]);
-            }
+            CONV_TILE_FMA(vf, acc, wr, xv);
           }
         }
       }
-#pragma unroll
-      for (int m = 0; m < CONV_TM; m++)
-#pragma unroll
-        for (int j = 0; j < CONV_TN; j++) accs[t][m][j] = acc[m][j];
+      CONV_TILE_COPY(accs[t], acc);
     }
   }
 

@@ -107,12 +107,7 @@ __kernel __attribute__((reqd_work_group_size(CONV_LWS, 1, 1))) void spx_conv2d_f
           float xv[CONV_TN];
 #pragma unroll
           for (int j = 0; j < CONV_TN; j++) xv[j] = xr[j * LDS_WY * LDS_HX];
-#pragma unroll
-          for (int m = 0; m < CONV_TM; m++) {
-            float wm = wr[m];
-#pragma unroll
-            for (int j = 0; j < CONV_TN; j++) acc[m][j] = fma(wm, xv[j], acc[m][j]);
-          }
+          CONV_TILE_FMA(float, acc, wr, xv);
         }
   }
 

@@ -84,10 +84,7 @@ static inline __attribute__((always_inline)) void conv_fwd_np_body(
     for (int t = 0; t < ntl; t++) {
       const __global float *wb = wpk + (size_t)(cst * CONV_CT + t) * Cin * K * K * CONV_TM;
       vf acc[CONV_TM][CONV_TN];
-#pragma unroll
-      for (int m = 0; m < CONV_TM; m++)
-#pragma unroll
-        for (int j = 0; j < CONV_TN; j++) acc[m][j] = accs[t][m][j];
+      CONV_TILE_COPY(acc, accs[t]);
       for (int ci = cb; ci < ce; ci++) {
         const __global float *xc = xn + (size_t)ci * HW;
         const __global float *wc = wb + ci * K * K * CONV_TM;
@@ -109,19 +106,11 @@ static inline __attribute__((always_inline)) void conv_fwd_np_body(
                 if (MODE != NP_PLAIN && P > 0 && kx == K - 1) xv[j] = select(xv[j], zero, mR[j]);
               }
             }
-#pragma unroll
-            for (int m = 0; m < CONV_TM; m++) {
-              vf wm = (vf)wr[m];
-#pragma unroll
-              for (int j = 0; j < CONV_TN; j++) acc[m][j] = fma(wm, xv[j], acc[m][j]);
-            }
+            CONV_TILE_FMA(vf, acc, wr, xv);
           }
         }
       }
-#pragma unroll
-      for (int m = 0; m < CONV_TM; m++)
-#pragma unroll
-        for (int j = 0; j < CONV_TN; j++) accs[t][m][j] = acc[m][j];
+      CONV_TILE_COPY(accs[t], acc);
     }
   }
   for (int t = 0; t < ntl; t++)

@@ -195,12 +195,7 @@ __kernel void spx_wino_gemm(const __global float *V, const __global float *U, __
     vf xv[CONV_TN];
 #pragma unroll
     for (int j = 0; j < CONV_TN; j++) xv[j] = VLOAD(vr + j * (CONV_LWS * CONV_VW));
-#pragma unroll
-    for (int m = 0; m < CONV_TM; m++) {
-      vf wm = (vf)ur[m];
-#pragma unroll
-      for (int j = 0; j < CONV_TN; j++) acc[m][j] = fma(wm, xv[j], acc[m][j]);
-    }
+    CONV_TILE_FMA(vf, acc, ur, xv);
   }
   __global float *mb = M + ((size_t)ne * CoutP + cot * CONV_TM) * Tp + t0;
 #pragma unroll

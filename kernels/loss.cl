@@ -13,20 +13,11 @@
 #define SPX_RED_WG 64
 #endif
 
+#include "norm_reduce.h"
+
 #define SPX_TERM_VALUE 0
 #define SPX_TERM_L1 1
 #define SPX_TERM_MSE 2
-
-static inline float spx_red_tree(__local float *buf, float v) {
-  int lid = get_local_id(0);
-  buf[lid] = v;
-  barrier(CLK_LOCAL_MEM_FENCE);
-  for (int s = SPX_RED_WG / 2; s > 0; s >>= 1) {
-    if (lid < s) buf[lid] += buf[lid + s];
-    barrier(CLK_LOCAL_MEM_FENCE);
-  }
-  return buf[0];
-}
 
 static inline float spx_red_term(float v, float t, int kind) {
   if (kind == SPX_TERM_L1) return fabs(v - t);
@@ -49,32 +40,14 @@ __kernel __attribute__((reqd_work_group_size(SPX_RED_WG, 1, 1))) void spx_reduce
   int i = min(n, g * chunk), end = min(n, i + chunk);
   __global const float *pa = a + ao, *pb = b + bo;
   float8 s8 = 0.0f, c8 = 0.0f;
-  for (; i + 8 <= end; i += 8) {
-    float8 v = spx_red_term8(vload8(0, pa + i), vload8(0, pb + i), kind);
-    float8 y = v - c8, t = s8 + y;
-    c8 = (t - s8) - y;
-    s8 = t;
-  }
-  for (; i < end; i++) {
-    float y = spx_red_term(pa[i], pb[i], kind) - c, t = s + y;
-    c = (t - s) - y;
-    s = t;
-  }
-  float l[8];
-  vstore8(s8 - c8, 0, l);
-  for (int j = 0; j < 8; j++) {
-    float y = l[j] - c, t = s + y;
-    c = (t - s) - y;
-    s = t;
-  }
+  for (; i + 8 <= end; i += 8) SPX_KAHAN8(s8, c8, spx_red_term8(vload8(0, pa + i), vload8(0, pb + i), kind));
+  for (; i < end; i++) SPX_KAHAN_ADD(s, c, spx_red_term(pa[i], pb[i], kind));
+  spx_fold8(s8, c8, &s, &c);
 #else
-  for (int i = g * SPX_RED_WG + lid; i < n; i += ng * SPX_RED_WG) {
-    float y = spx_red_term(a[ao + i], b[bo + i], kind) - c, t = s + y;
-    c = (t - s) - y;
-    s = t;
-  }
+  for (int i = g * SPX_RED_WG + lid; i < n; i += ng * SPX_RED_WG)
+    SPX_KAHAN_ADD(s, c, spx_red_term(a[ao + i], b[bo + i], kind));
 #endif
-  float total = spx_red_tree(buf, s - c);
+  float total = spx_tree_sum(buf, s - c, SPX_RED_WG);
   if (lid == 0) partial[g] = total;
 }
 
@@ -83,12 +56,8 @@ __kernel __attribute__((reqd_work_group_size(SPX_RED_WG, 1, 1))) void spx_reduce
   __local float buf[SPX_RED_WG];
   int lid = get_local_id(0);
   float s = 0.0f, c = 0.0f;
-  for (int i = lid; i < np; i += SPX_RED_WG) {
-    float y = partial[i] - c, t = s + y;
-    c = (t - s) - y;
-    s = t;
-  }
-  float total = spx_red_tree(buf, s - c);
+  for (int i = lid; i < np; i += SPX_RED_WG) SPX_KAHAN_ADD(s, c, partial[i]);
+  float total = spx_tree_sum(buf, s - c, SPX_RED_WG);
   if (lid == 0) out[oo] = total / div;
 }
 

@@ -331,6 +331,19 @@ static inline float3 sample_tex(__global const float *tex, int tw, int th, int t
   return r;
 }
 
+/* Pixel p of a W x H image at out + out_off = v: four planes (planar, NCHW) or one float4 (HWC). */
+static inline void store_px(__global float *out, long out_off, size_t p, int W, int H, int planar, float4 v) {
+  if (planar) {
+    size_t hw = (size_t)W * H;
+    out[out_off + p] = v.x;
+    out[out_off + hw + p] = v.y;
+    out[out_off + 2 * hw + p] = v.z;
+    out[out_off + 3 * hw + p] = v.w;
+  } else {
+    vstore4(v, 0, out + out_off + 4 * p);
+  }
+}
+
 /* Shade pixel (x, y) with its winning record bid (or background when bid < 0) and write it.
  * mode: 0 = HWC, 1 = NCHW (at out + out_off), 2 = the supersampled float4 image for
  * spx_raster_down. win (when has_win): the face per pixel, -1 for background. */
@@ -382,30 +395,14 @@ static inline void shade_write(int x, int y, int bid, __global const int8 *rab, 
     o.w = SPX_DIV(1.0f, z);
   }
   size_t p = (size_t)y * W + x;
-  if (mode == 1) {
-    size_t hw = (size_t)W * H;
-    out[out_off + p] = o.x;
-    out[out_off + hw + p] = o.y;
-    out[out_off + 2 * hw + p] = o.z;
-    out[out_off + 3 * hw + p] = o.w;
-  } else {
-    vstore4(o, 0, out + out_off + 4 * p);
-  }
+  store_px(out, out_off, p, W, H, mode == 1, o);
   if (has_win) win[win_off + p] = f;
 }
 
 /* Write the background (1,1,1,1) at pixel p (and face -1). */
 static inline void write_bg(size_t p, int W, int H, __global float *out, long out_off, int mode, __global int *win,
                      long win_off, int has_win) {
-  if (mode == 1) {
-    size_t hw = (size_t)W * H;
-    out[out_off + p] = 1.0f;
-    out[out_off + hw + p] = 1.0f;
-    out[out_off + 2 * hw + p] = 1.0f;
-    out[out_off + 3 * hw + p] = 1.0f;
-  } else {
-    vstore4((float4)(1.0f, 1.0f, 1.0f, 1.0f), 0, out + out_off + 4 * p);
-  }
+  store_px(out, out_off, p, W, H, mode == 1, (float4)(1.0f, 1.0f, 1.0f, 1.0f));
   if (has_win) win[win_off + p] = -1;
 }
 
@@ -530,13 +527,5 @@ __kernel void spx_raster_down(__global const float4 *hi, int W, int H, __global 
   int x = i % W, y = i / W;
   size_t r0 = (size_t)(2 * y) * (2 * W) + 2 * x, r1 = r0 + 2 * W;
   float4 v = (((hi[r0] + hi[r0 + 1]) + hi[r1]) + hi[r1 + 1]) * 0.25f;
-  if (nchw) {
-    size_t hw = (size_t)W * H;
-    out[out_off + i] = v.x;
-    out[out_off + hw + i] = v.y;
-    out[out_off + 2 * hw + i] = v.z;
-    out[out_off + 3 * hw + i] = v.w;
-  } else {
-    vstore4(v, 0, out + out_off + 4 * (size_t)i);
-  }
+  store_px(out, out_off, (size_t)i, W, H, nchw, v);
 }

@@ -4,6 +4,7 @@
 #ifndef SPX_CLI_TEST_H
 #define SPX_CLI_TEST_H
 
+#include <dirent.h>
 #include <sys/stat.h>
 
 #include "test.h"
@@ -11,6 +12,13 @@
 static char dir[512];
 
 static inline void path_of(char *p, size_t cap, const char *name) { snprintf(p, cap, "%s/%s", dir, name); }
+
+/* The folder dir/sub opened for reading; NULL when it cannot be (or its path is too long). */
+static inline DIR *open_dir_in(const char *sub) {
+  char p[2048];
+  if (snprintf(p, sizeof p, "%s/%s", dir, sub) >= (int)sizeof p) return NULL;
+  return opendir(p);
+}
 
 /* main() of a CLI test: dir = the test's scratch folder, then the tests in order. */
 static inline int cli_test_main(const spx_t_test *tests, int n) {

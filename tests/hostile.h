@@ -151,9 +151,7 @@ static inline int snap_same(snapshot *s) {
 
 /* Number of entries under dir/sub (recursively) whose name holds ".tmp." (temporaries). */
 static inline int count_temps(const char *sub) {
-  char p[2048];
-  if (snprintf(p, sizeof p, "%s/%s", dir, sub) >= (int)sizeof p) return 0;
-  DIR *d = opendir(p);
+  DIR *d = open_dir_in(sub);
   if (!d) return 0;
   int n = 0;
   struct dirent *e;
@@ -169,12 +167,7 @@ static inline int count_temps(const char *sub) {
 }
 
 /* dir = <test tmp>/hostile, emptied: every run starts from nothing. */
-static inline void hostile_dir(void) {
-  snprintf(dir, sizeof dir, "%s/hostile", spx_t_tmpdir());
-  char cmd[1200];
-  snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s'", dir, dir);
-  spx_t_system(cmd);
-}
+static inline void hostile_dir(void) { spx_t_fresh_dir(dir, sizeof dir, "hostile"); }
 
 /* Scene: cam.json, quad.obj; with_data: a 5-view dataset ds/ and a width-8 checkpoint w8.safetensors. */
 static inline int make_scene(int with_data) {

@@ -96,4 +96,19 @@ static inline void t_grid_mesh(spx_mesh *m, int with_attrs) {
   memcpy(m->face_uv, m->faces, 24 * sizeof(int32_t));
 }
 
+/* The start of a mesh format's failed-save test (ext "obj" or "ply"): *m the grid mesh (with_attrs),
+ * a save of it into a missing folder fails naming the path and leaves no file; then p (cap bytes)
+ * = <test tmp>/keep.<ext>, a file holding "previous" that the refused saves to follow must keep. */
+static inline void t_failed_save_start(spx_ctx *ctx, const char *ext, int with_attrs, spx_mesh *m, char *p,
+                                       size_t cap) {
+  t_grid_mesh(m, with_attrs);
+  char missing[64], keep[16];
+  snprintf(missing, sizeof missing, "/nonexistent-dir/m.%s", ext);
+  CHECK_ERR(ctx, spx_mesh_save(ctx, missing, m, SPX_MESH_AUTO), SPX_E_IO, missing, NULL);
+  CHECK(!spx_t_file_exists(missing));
+  snprintf(keep, sizeof keep, "keep.%s", ext);
+  spx_t_path(p, cap, keep);
+  CHECK(t_write_file(p, "previous", 8));
+}
+
 #endif

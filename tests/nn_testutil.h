@@ -137,6 +137,24 @@ static inline spx_ctx *spx_nt_open(void) {
   return ctx;
 }
 
+/* spx_nt_open for a test that needs the device: its absence is a failed check (NULL returned). */
+static inline spx_ctx *spx_nt_require(void) {
+  spx_ctx *ctx = spx_nt_open();
+  CHECK(ctx != NULL);
+  return ctx;
+}
+
+/* main() of a test with host tests host[0..nhost) run first, then device tests dev[0..ndev)
+ * sharing *ctx (the device open: its absence fails the test, the device tests not run). */
+static inline int spx_nt_main(spx_ctx **ctx, const spx_t_test *host, int nhost, const spx_t_test *dev, int ndev) {
+  for (int i = 0; i < nhost; i++) spx_t_run(host[i].name, host[i].fn);
+  *ctx = spx_nt_require();
+  if (!*ctx) return spx_test_summary();
+  int rc = spx_t_run_all(dev, ndev);
+  spx_ctx_destroy(*ctx);
+  return rc;
+}
+
 /* The value in effect of the tunable `name` (as `smplpix tune --show` names it), -1 if unknown. */
 static inline int spx_nt_tunable(spx_ctx *ctx, const char *name) {
   spx_tunable_info t;

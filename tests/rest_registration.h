@@ -1,9 +1,10 @@
 /* A registration file of a body model at rest, for the tests that animate one
- * (test_cli_animate.c, test_hostile_commands.c): zero pose and betas, unit scales, the template as
+ * (test_cli_animate.c, test_hostile_*.c): zero pose and betas, unit scales, the template as
  * the unposed vertices, optional per-vertex colours, the model path recorded. */
 #ifndef SPX_TESTS_REST_REGISTRATION_H
 #define SPX_TESTS_REST_REGISTRATION_H
 
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -41,6 +42,13 @@ static inline spx_status spx_t_default_rest_registration(spx_ctx *c, const char 
   if (!st) st = spx_t_save_rest_registration(c, &body, NULL, SPX_REPO_DATA "/body/default_body.npz", path);
   spx_body_free(&body);
   return st;
+}
+
+/* spx_t_default_rest_registration into folder/name; 1 when written. */
+static inline int spx_t_default_rest_registration_in(spx_ctx *c, const char *folder, const char *name) {
+  char p[2048];
+  snprintf(p, sizeof p, "%s/%s", folder, name);
+  return spx_t_default_rest_registration(c, p) == SPX_OK;
 }
 
 #endif

@@ -105,6 +105,17 @@ static inline double spx_t_uniform(unsigned long long *s) {
   return (double)(spx_t_rng_next(s) >> 11) * (1.0 / 9007199254740992.0);
 }
 
+/* Random parameters of the small test model (tests/data/body/small_model.npz: 4 betas, 5 joints)
+ * from the generator seeded with seed: betas in [-1, 1), each axis-angle component in [-amp, amp),
+ * trans in [0, 1), drawn in that order. Returns the generator's state after. */
+static inline unsigned long long spx_t_small_params(unsigned long long seed, double amp, double betas[4],
+                                                    double pose[15], double trans[3]) {
+  for (int i = 0; i < 4; i++) betas[i] = spx_t_uniform(&seed) * 2 - 1;
+  for (int i = 0; i < 15; i++) pose[i] = (spx_t_uniform(&seed) * 2 - 1) * amp;
+  for (int i = 0; i < 3; i++) trans[i] = spx_t_uniform(&seed);
+  return seed;
+}
+
 /* An AMASS-like archive for the motion tests: arr[0..4) under the names poses, trans, betas,
  * mocap_framerate, without the one named drop (NULL: all), compressed, to path. */
 static inline spx_status spx_t_save_amass(spx_ctx *ctx, const char *path, const spx_array *arr, const char *drop) {
@@ -136,6 +147,16 @@ static inline const char *spx_t_tmpdir(void) {
 }
 static inline void spx_t_path(char *out, size_t cap, const char *name) {
   snprintf(out, cap, "%s/%s", spx_t_tmpdir(), name);
+}
+
+/* out = <test tmp>/<name>, made empty (read-only leftovers of an earlier run made writable and
+ * removed too). Returns the shell's exit status: 0 when the folder is there and empty. */
+static inline int spx_t_system(const char *cmd);
+static inline int spx_t_fresh_dir(char *out, size_t cap, const char *name) {
+  spx_t_path(out, cap, name);
+  char cmd[3 * 4096 + 64];
+  snprintf(cmd, sizeof cmd, "chmod -R u+w '%s' 2>/dev/null; rm -rf '%s' && mkdir -p '%s'", out, out, out);
+  return spx_t_system(cmd);
 }
 
 /* Path of the smplpix tool ($SPX_TOOL, set by ctest). */

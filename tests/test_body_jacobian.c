@@ -92,11 +92,8 @@ static void test_small_model(void) {
   spx_body_model m;
   CHECK_OK(ctx, spx_body_load(ctx, SPX_TEST_DATA "/body/small_model.npz", &m));
   if (m.nv != 50) return;
-  unsigned long long rng = 7;
   double betas[4], pose[15], trans[3];
-  for (int i = 0; i < 4; i++) betas[i] = spx_t_uniform(&rng) * 2 - 1;
-  for (int i = 0; i < 15; i++) pose[i] = (spx_t_uniform(&rng) * 2 - 1) * 1.2;
-  for (int i = 0; i < 3; i++) trans[i] = spx_t_uniform(&rng);
+  spx_t_small_params(7, 1.2, betas, pose, trans);
   check_jac(&m, betas, 4, pose, trans, "random pose");
   check_joint_jac(&m, betas, 4, pose, trans, "random pose");
   /* rest pose (zero axis-angles: the series branch of the Rodrigues derivative) and fewer betas */

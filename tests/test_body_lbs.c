@@ -189,11 +189,8 @@ static void test_unpose(void) {
   spx_body_model m;
   CHECK_OK(ctx, spx_body_load(ctx, SPX_TEST_DATA "/body/small_model.npz", &m));
   if (m.nv != 50) return;
-  unsigned long long rng = 99;
   double betas[4], pose[15], trans[3], base[150], posed[150], back[150], again[150];
-  for (int i = 0; i < 4; i++) betas[i] = spx_t_uniform(&rng) * 2 - 1;
-  for (int i = 0; i < 15; i++) pose[i] = (spx_t_uniform(&rng) * 2 - 1) * 0.8;
-  for (int i = 0; i < 3; i++) trans[i] = spx_t_uniform(&rng);
+  unsigned long long rng = spx_t_small_params(99, 0.8, betas, pose, trans);
   /* a personal template: model template + per-vertex displacements */
   for (int i = 0; i < 150; i++) base[i] = m.v_template[i] + 0.05 * (spx_t_uniform(&rng) - 0.5);
   spx_body_params p = {4, betas, pose, trans, base};

@@ -21,9 +21,7 @@ static void rm_rf(const char *name) {
 
 /* Sorted file names in dir/sub with their extension cut off; returns the count (-1: no dir). */
 static int list_stems(const char *sub, const char *ext, char names[][32], int cap) {
-  char p[700];
-  path_of(p, sizeof p, sub);
-  DIR *d = opendir(p);
+  DIR *d = open_dir_in(sub);
   if (!d) return -1;
   int n = 0;
   struct dirent *e;

@@ -36,9 +36,7 @@ static int png_size(const char *name, int *w, int *h) {
 
 /* number of entries in dir/name (-1 when it cannot be read) */
 static int entries(const char *name) {
-  char p[700];
-  path_of(p, sizeof p, name);
-  DIR *d = opendir(p);
+  DIR *d = open_dir_in(name);
   if (!d) return -1;
   int n = 0;
   struct dirent *e;

@@ -38,6 +38,15 @@ static void put(const char *name, const char *rel) {
   CHECK(spx_t_system(cmd) == 0);
 }
 
+/* The one-channel image *m written as an [height, width] .npy mask dir/rel, then freed. */
+static void put_mask(spx_image *m, const char *rel) {
+  char p[700];
+  path_of(p, sizeof p, rel);
+  int64_t shape[2] = {m->height, m->width};
+  CHECK_OK(ctx, spx_npy_save_f32(ctx, p, m->data, 2, shape));
+  spx_image_free(m);
+}
+
 static char *slurp(const char *name) {
   char p[700];
   path_of(p, sizeof p, name);
@@ -133,11 +142,7 @@ static void test_files(void) {
   spx_image bm = {0};
   CHECK_OK(ctx, spx_image_alloc(ctx, 19, 16, 1, &bm));
   bm.data[0] = 1;
-  char p[700];
-  path_of(p, sizeof p, "corner.npy");
-  int64_t shape[2] = {16, 19};
-  CHECK_OK(ctx, spx_npy_save_f32(ctx, p, bm.data, 2, shape));
-  spx_image_free(&bm);
+  put_mask(&bm, "corner.npy");
   CHECK(tool("eval --pred cp.npy --target ct.npy --mask corner.npy --json rc.json") == 0);
   CHECK(out_has("; masked: PSNR 7.959 dB, SSIM n/a; detail "));
   j = json("rc.json");
@@ -225,11 +230,7 @@ static void test_lpips(void) {
   CHECK_OK(ctx, spx_image_alloc(ctx, 40, 48, 1, &rect));
   for (int y = 0; y < 48; y++)
     for (int x = 0; x < 40; x++) rect.data[y * 40 + x] = x >= 10 && x < 30 && y >= 9 && y < 38;
-  char mp[700];
-  path_of(mp, sizeof mp, "lprect.npy");
-  int64_t rshape[2] = {48, 40};
-  CHECK_OK(ctx, spx_npy_save_f32(ctx, mp, rect.data, 2, rshape));
-  spx_image_free(&rect);
+  put_mask(&rect, "lprect.npy");
   CHECK(tool("eval --pred lpp.npy --target lpt.npy --mask lprect.npy --lpips lp.safetensors --json lm.json") == 0);
   CHECK(out_has(", LPIPS 0.1852; masked: PSNR ") && out_has(", LPIPS 0.1842; detail "));
   j = json("lm.json");

@@ -109,13 +109,8 @@ static void test_writable_and_sync(void) {
 }
 
 int main(void) {
-  snprintf(base, sizeof base, "%s/core_files", spx_t_tmpdir());
-  char cmd[1400];
-  snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s'", base, base);
-  if (spx_t_system(cmd) != 0 || spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_open_input);
-  SPX_RUN(test_temporaries);
-  SPX_RUN(test_writable_and_sync);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_open_input), SPX_TEST(test_temporaries),
+                                     SPX_TEST(test_writable_and_sync)};
+  if (spx_t_fresh_dir(base, sizeof base, "core_files") != 0) return 1;
+  return spx_t_main_ctx(&ctx, 0, tests, 3);
 }

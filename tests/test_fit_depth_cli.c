@@ -196,18 +196,26 @@ static void cameras_around(const double *V, const double *az, int n, int32_t w, 
   }
 }
 
+/* The body posed by synth_posed(seed) (returned, model.nv x 3 doubles, for the caller to free) and
+ * *c, a w x h camera at azimuth az (cameras_around), saved to cam = <test tmp>/cam_name. */
+static double *posed_view(int seed, double az, int32_t w, int32_t h, spx_camera *c, const char *cam_name, char *cam,
+                          size_t cap) {
+  double *V = malloc((size_t)model.nv * 3 * sizeof(double));
+  CHECK_OK(ctx, synth_posed(ctx, &model, seed, 0.25, V));
+  cameras_around(V, &az, 1, w, h, c);
+  spx_t_path(cam, cap, cam_name);
+  CHECK_OK(ctx, spx_camera_save(ctx, cam, c, 1));
+  return V;
+}
+
 /* A raw frame (floor, walls, flying pixels, 1 mm noise) as a 16-bit PNG: registers like the clean
  * image, with the person found and reported; a 1280x720 sensor's K for it is refused. An RGB-D
  * EXR with a coloured background at Z = 1 registers onto the body, not onto that wall. */
 static void test_depth_room(void) {
   enum { W = 200, H = 150 };
   char err[8192], args[8192], cam[512], wide[512], dpng[512], dexr[512], out[512];
-  double *V = malloc((size_t)model.nv * 3 * sizeof(double)), az = 15;
-  CHECK_OK(ctx, synth_posed(ctx, &model, 46, 0.25, V));
   spx_camera c;
-  cameras_around(V, &az, 1, W, H, &c);
-  spx_t_path(cam, sizeof cam, "room_cam.json");
-  CHECK_OK(ctx, spx_camera_save(ctx, cam, &c, 1));
+  double *V = posed_view(46, 15, W, H, &c, "room_cam.json", cam, sizeof cam);
   float *depth = malloc(W * H * sizeof(float));
   CHECK(view_room_depth(ctx, V, model.nv, model.faces, model.nf, &c, 1, 0.001, 5, depth) == 0);
   spx_t_path(dpng, sizeof dpng, "room.png");
@@ -295,12 +303,8 @@ static void test_depth_fused(void) {
 static void test_rgb_values(void) {
   enum { W = 160, H = 120 };
   char err[8192], args[8192], cam[512], dnpy[512], rgb[512], out[512];
-  double *V = malloc((size_t)model.nv * 3 * sizeof(double)), az = 0;
-  CHECK_OK(ctx, synth_posed(ctx, &model, 48, 0.25, V));
   spx_camera c;
-  cameras_around(V, &az, 1, W, H, &c);
-  spx_t_path(cam, sizeof cam, "rgb_cam.json");
-  CHECK_OK(ctx, spx_camera_save(ctx, cam, &c, 1));
+  double *V = posed_view(48, 0, W, H, &c, "rgb_cam.json", cam, sizeof cam);
   float *depth = malloc(W * H * sizeof(float)), *col = malloc(W * H * 3 * sizeof(float));
   CHECK(view_depth(ctx, V, model.nv, model.faces, model.nf, &c, depth) == 0);
   spx_t_path(dnpy, sizeof dnpy, "rgbv_depth.npy");

@@ -62,17 +62,10 @@ static void test_eval(void) {
   CHECK(!exists(stale) && count_temps(".") == 0);
 }
 
-/* reg.json: the default body at rest, with the model path recorded (as test_cli_animate) */
-static int write_registration(const char *name) {
-  char p[700];
-  path_of(p, sizeof p, name);
-  return spx_t_default_rest_registration(ctx, p) == SPX_OK;
-}
-
 static void test_animate(void) {
   hostile_dir();
   CHECK(make_scene(0));
-  CHECK(write_registration("reg.json"));
+  CHECK(spx_t_default_rest_registration_in(ctx, dir, "reg.json"));
   fifo("f.json");
   fifo("f.bvh");
   fifo("f.npz");
@@ -189,11 +182,7 @@ static void test_bake(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_eval);
-  SPX_RUN(test_animate);
-  SPX_RUN(test_synth);
-  SPX_RUN(test_bake);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_eval), SPX_TEST(test_animate), SPX_TEST(test_synth),
+                                     SPX_TEST(test_bake)};
+  return spx_t_main_ctx(&ctx, 0, tests, 4);
 }

@@ -203,11 +203,7 @@ static void test_registration(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_images);
-  SPX_RUN(test_colours_and_json);
-  SPX_RUN(test_tunables_and_messages);
-  SPX_RUN(test_registration);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_images), SPX_TEST(test_colours_and_json),
+                                     SPX_TEST(test_tunables_and_messages), SPX_TEST(test_registration)};
+  return spx_t_main_ctx(&ctx, 0, tests, 4);
 }

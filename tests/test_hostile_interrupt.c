@@ -67,12 +67,6 @@ static void last_line(char *line, size_t cap) {
   free(b);
 }
 
-static int write_registration(const char *name) {
-  char p[700];
-  path_of(p, sizeof p, name);
-  return spx_t_default_rest_registration(ctx, p) == SPX_OK;
-}
-
 /* One interrupted run of c at ms; checks the property. */
 static void interrupt_once(const interrupted_cmd *c, long ms, int sig) {
   unsigned long long before[4];
@@ -141,7 +135,7 @@ static void test_interrupt_every_command(void) {
   write_text("cams.json", "[" CAM256 ", " CAM256 ", " CAM256 ", " CAM256 "]");
   sh("cp '%s/mocap/01_01.bvh' m.bvh && mkdir ev && for i in $(seq 10 49); do cp \"$(ls ds/train/output/*.png | head -1)\" "
      "ev/i$i.png; done", SPX_REPO_DATA);
-  CHECK(write_registration("reg.json"));
+  CHECK(spx_t_default_rest_registration_in(ctx, dir, "reg.json"));
   sh("sed 's/\"betas\":[[:space:]]*\\[\\]/\"betas\": [0.5, -0.25]/' reg.json > reg2.json"); /* two shape coefficients */
   CHECK(run("train --data ds --out T.safetensors --width 8 --steps 1 --seed 1") == 0);
   const char *env = getenv("SPX_TEST_SEED");
@@ -166,8 +160,6 @@ static void test_interrupt_every_command(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_interrupt_every_command);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_interrupt_every_command)};
+  return spx_t_main_ctx(&ctx, 0, tests, 1);
 }

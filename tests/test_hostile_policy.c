@@ -66,17 +66,11 @@ static int refused(int rc, const char *cmd, const char *want) {
   return ok;
 }
 
-static int write_registration(const char *name) {
-  char p[700];
-  path_of(p, sizeof p, name);
-  return spx_t_default_rest_registration(ctx, p) == SPX_OK;
-}
-
 static void scene(void) {
   hostile_dir();
   CHECK(make_scene(1));
   sh("cp '%s/mocap/01_01.bvh' m.bvh && cp '%s/body/body_parts_segmentation.png' p.png", SPX_REPO_DATA, SPX_REPO_DATA);
-  CHECK(write_registration("reg.json"));
+  CHECK(spx_t_default_rest_registration_in(ctx, dir, "reg.json"));
 }
 
 static void test_every_output_of_every_command(void) {
@@ -137,9 +131,7 @@ static void test_synth_force_input_inside(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_every_output_of_every_command);
-  SPX_RUN(test_synth_force_input_inside);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_every_output_of_every_command),
+                                     SPX_TEST(test_synth_force_input_inside)};
+  return spx_t_main_ctx(&ctx, 0, tests, 2);
 }

@@ -155,12 +155,7 @@ static void test_registration_values(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_eval);
-  SPX_RUN(test_obj_colours);
-  SPX_RUN(test_data_sets);
-  SPX_RUN(test_export_meta);
-  SPX_RUN(test_registration_values);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_eval), SPX_TEST(test_obj_colours), SPX_TEST(test_data_sets),
+                                     SPX_TEST(test_export_meta), SPX_TEST(test_registration_values)};
+  return spx_t_main_ctx(&ctx, 0, tests, 5);
 }

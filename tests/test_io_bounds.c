@@ -141,58 +141,51 @@ static void forge_bvh(const char *name) {
 
 /* ---------------- the readers ---------------- */
 
-static spx_status r_image(const char *p) {
-  spx_image im;
-  spx_status st = spx_image_read(ctx, p, &im);
-  spx_image_free(&im);
-  return st;
-}
-static spx_status r_safetensors(const char *p) {
-  spx_st_file f;
-  spx_status st = spx_st_load(ctx, p, &f);
-  if (!st) spx_st_free(&f);
-  return st;
-}
-static spx_status r_npz(const char *p) {
-  spx_npz z;
-  spx_status st = spx_npz_open(ctx, p, &z);
-  if (st) return st;
-  spx_array a;
-  st = spx_npz_read(ctx, &z, "x", &a);
-  if (!st) spx_array_free(&a);
-  spx_npz_close(&z);
-  return st;
-}
-static spx_status r_mesh(const char *p) {
-  spx_mesh m;
-  spx_status st = spx_mesh_load(ctx, p, &m);
-  if (!st) spx_mesh_free(&m);
-  return st;
-}
-static spx_status r_bvh(const char *p) {
-  spx_bvh b;
-  spx_status st = spx_bvh_load(ctx, p, &b);
-  if (!st) spx_bvh_free(&b);
+/* Reads the file at p with the reader its extension names (.png .exr .npy: the image reader) and
+ * frees what was read. */
+static spx_status read_back(const char *p) {
+  char ext[16];
+  spx_path_ext(p, ext, sizeof ext);
+  spx_status st;
+  if (!strcmp(ext, "safetensors")) {
+    spx_st_file f;
+    if (!(st = spx_st_load(ctx, p, &f))) spx_st_free(&f);
+  } else if (!strcmp(ext, "npz")) {
+    spx_npz z;
+    if (!(st = spx_npz_open(ctx, p, &z))) {
+      spx_array a;
+      if (!(st = spx_npz_read(ctx, &z, "x", &a))) spx_array_free(&a);
+      spx_npz_close(&z);
+    }
+  } else if (!strcmp(ext, "ply")) {
+    spx_mesh m;
+    if (!(st = spx_mesh_load(ctx, p, &m))) spx_mesh_free(&m);
+  } else if (!strcmp(ext, "bvh")) {
+    spx_bvh b;
+    if (!(st = spx_bvh_load(ctx, p, &b))) spx_bvh_free(&b);
+  } else {
+    spx_image im;
+    st = spx_image_read(ctx, p, &im);
+    spx_image_free(&im);
+  }
   return st;
 }
 
 typedef struct forged {
   const char *name;
   void (*forge)(const char *name);
-  spx_status (*read)(const char *path);
 } forged;
 
 static const forged FORGED[] = {
-    {"claim.png", forge_png, r_image},  {"claim.exr", forge_exr, r_image},
-    {"claim.npy", forge_npy, r_image},  {"claim.safetensors", forge_safetensors, r_safetensors},
-    {"claim.npz", forge_npz, r_npz},    {"claim.ply", forge_ply, r_mesh},
-    {"claim.bvh", forge_bvh, r_bvh},
+    {"claim.png", forge_png}, {"claim.exr", forge_exr}, {"claim.npy", forge_npy},
+    {"claim.safetensors", forge_safetensors}, {"claim.npz", forge_npz}, {"claim.ply", forge_ply},
+    {"claim.bvh", forge_bvh},
 };
 
-/* Run read(path) in a child limited to `extra` bytes of address space beyond what it uses now (not
+/* Run read_back(path) in a child limited to `extra` bytes of address space beyond what it uses now (not
  * under AddressSanitizer, whose shadow memory needs more); returns 0 (read), 1 (refused), 2
  * (SPX_E_NOMEM) or 99 when the child died, and the message in msg. */
-static int limited_read(spx_status (*reader)(const char *), const char *path, size_t extra, char *msg, size_t cap) {
+static int limited_read(const char *path, size_t extra, char *msg, size_t cap) {
   int fd[2];
   if (pipe(fd) != 0) return 99;
   pid_t pid = fork();
@@ -208,7 +201,7 @@ static int limited_read(spx_status (*reader)(const char *), const char *path, si
 #else
     (void)extra;
 #endif
-    spx_status st = reader(path);
+    spx_status st = read_back(path);
     const char *m = spx_ctx_message(ctx);
     if (write(fd[1], m, strlen(m)) < 0) _exit(97);
     _exit(st == SPX_OK ? 0 : st == SPX_E_NOMEM ? 2 : 1);
@@ -228,7 +221,7 @@ static void test_forged_claims_refused_before_allocating(void) {
     char p[800], msg[1024];
     f->forge(f->name);
     at(p, sizeof p, f->name);
-    int rc = limited_read(f->read, p, (size_t)256 << 20, msg, sizeof msg);
+    int rc = limited_read(p, (size_t)256 << 20, msg, sizeof msg);
     /* 1: refused by the format's own check; 2 (SPX_E_NOMEM) would mean it tried to allocate the claim */
     CHECK_MSG(rc == 1 && strstr(msg, f->name), "%s: child exit %d, \"%s\"", f->name, rc, msg);
   }
@@ -247,25 +240,21 @@ static void test_out_of_memory_names_the_file(void) {
   CHECK_OK(ctx, px ? spx_png_write(ctx, p, &im) : SPX_E_NOMEM);
   free(px);
   /* 256 MB more: the 108 MB of 8-bit rows fit, the 432 MB of floats do not */
-  int rc = limited_read(r_image, p, (size_t)256 << 20, msg, sizeof msg);
+  int rc = limited_read(p, (size_t)256 << 20, msg, sizeof msg);
   CHECK_MSG(rc == 2 && strstr(msg, "big.png") && strstr(msg, "6000x6000"), "child exit %d, \"%s\"", rc, msg);
   at(p, sizeof p, "big.exr");
   px = calloc((size_t)3000 * 3000 * 4, sizeof(float));
   spx_image ie = {3000, 3000, 4, px};
   CHECK_OK(ctx, px ? spx_exr_write(ctx, p, &ie) : SPX_E_NOMEM);
   free(px);
-  rc = limited_read(r_image, p, (size_t)96 << 20, msg, sizeof msg); /* the file fits, its 144 MB image not */
+  rc = limited_read(p, (size_t)96 << 20, msg, sizeof msg); /* the file fits, its 144 MB image not */
   CHECK_MSG(rc == 2 && strstr(msg, "big.exr") && strstr(msg, "3000x3000"), "child exit %d, \"%s\"", rc, msg);
 #endif
 }
 
 int main(void) {
-  snprintf(base, sizeof base, "%s/io_bounds", spx_t_tmpdir());
-  char cmd[1400];
-  snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s'", base, base);
-  if (spx_t_system(cmd) != 0 || spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_forged_claims_refused_before_allocating);
-  SPX_RUN(test_out_of_memory_names_the_file);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_forged_claims_refused_before_allocating),
+                                     SPX_TEST(test_out_of_memory_names_the_file)};
+  if (spx_t_fresh_dir(base, sizeof base, "io_bounds") != 0) return 1;
+  return spx_t_main_ctx(&ctx, 0, tests, 2);
 }

@@ -245,13 +245,8 @@ static void test_abort_writes(void) {
 }
 
 int main(void) {
-  snprintf(base, sizeof base, "%s/io_policy", spx_t_tmpdir());
-  char cmd[2400];
-  snprintf(cmd, sizeof cmd, "chmod -R u+w '%s' 2>/dev/null; rm -rf '%s' && mkdir -p '%s'", base, base, base);
-  if (spx_t_system(cmd) != 0 || spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_every_writer_refuses);
-  SPX_RUN(test_every_writer_writes);
-  SPX_RUN(test_abort_writes);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_every_writer_refuses), SPX_TEST(test_every_writer_writes),
+                                     SPX_TEST(test_abort_writes)};
+  if (spx_t_fresh_dir(base, sizeof base, "io_policy") != 0) return 1;
+  return spx_t_main_ctx(&ctx, 0, tests, 3);
 }

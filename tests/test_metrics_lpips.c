@@ -41,8 +41,7 @@ static void pool_case(spx_ctx *ctx, int n, int c, int h, int w, int ties) {
 }
 
 static void test_pool(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   pool_case(ctx, 2, 3, 37, 53, 0);
   pool_case(ctx, 2, 3, 15, 16, 1);
@@ -98,8 +97,7 @@ typedef void (*golden_check)(spx_ctx *ctx, spx_lpips *lp, const char *name, doub
                              const spx_image *a, const spx_image *b);
 static void golden_cases(const char *weights, const char *expected, golden_check check,
                          void (*after)(spx_ctx *, spx_lpips *)) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   FILE *f = NULL;
   spx_lpips *lp = golden_open(ctx, weights, expected, &f);
@@ -187,8 +185,7 @@ static void bad_file(spx_ctx *ctx, const char *skip, const char *bad, const char
 }
 
 static void test_bad_weights(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   bad_file(ctx, "net.slice3.6.weight", NULL, "net.slice3.6.weight is missing");
   bad_file(ctx, "lin4.model.1.weight", NULL, "lin4.model.1.weight is missing");

@@ -125,10 +125,6 @@ static void test_errors(void) {
 }
 
 int main(void) {
-  if (spx_ctx_create(&ctx)) return 1;
-  SPX_RUN(test_goldens);
-  SPX_RUN(test_channels);
-  SPX_RUN(test_errors);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test tests[] = {SPX_TEST(test_goldens), SPX_TEST(test_channels), SPX_TEST(test_errors)};
+  return spx_t_main_ctx(&ctx, 0, tests, 3);
 }

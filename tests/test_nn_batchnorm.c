@@ -268,8 +268,7 @@ done:
 }
 
 static void test_device_relu(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   relu_case(ctx, 2, 3, 37, 53); /* vector body and scalar tail per plane */
   relu_case(ctx, 3, 5, 1, 3);   /* tail only */
@@ -278,8 +277,7 @@ static void test_device_relu(void) {
 }
 
 static void test_device(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   device_case(ctx, 2, 3, 37, 53, 0.3f, 2.0f, 2e-6);
   device_case(ctx, 3, 5, 1, 1, 0.0f, 1.0f, 2e-6); /* 3 values per channel */

@@ -111,8 +111,7 @@ static void loss_case(spx_ctx *ctx, size_t n) {
 }
 
 static void test_device(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   test_reduce(ctx);
   loss_case(ctx, 1);

@@ -41,8 +41,7 @@ static double rel(const double *a, const double *b, int n) {
 }
 
 static void test_golden(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   double *p0 = G("p0"), *g[3] = {G("g1"), G("g2"), G("g3")};
   if (!p0 || !g[0] || !g[1] || !g[2]) goto done;
@@ -109,8 +108,7 @@ done:
 
 /* a big slab: 3 device steps vs the reference */
 static void test_slab(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   size_t n = 100003;
   float *pf = malloc(4 * n), *gf = malloc(4 * 3 * n), *out = malloc(4 * n);

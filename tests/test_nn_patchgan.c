@@ -69,8 +69,7 @@ static double compare(const char *tag, const char *name, const float *ours, size
 /* with_vgg: the paper's stage 2 (L_VGG instead of L1, step_vgg.safetensors); checkpoint checks
  * run once (without). */
 static void run_step(int with_vgg) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   spx_unet *g = NULL;
   spx_patchgan *d = NULL;

@@ -36,7 +36,8 @@ static spx_ctx *open_ctx(spx_tape_backend be) {
   return spx_ctx_create(&ctx) == SPX_OK ? ctx : NULL;
 }
 
-/* A context and a tape without parameters (NULL and a failed check when either cannot be made). */
+/* A context and a tape without parameters (NULL, *ctx NULL and a failed check when either cannot
+ * be made). */
 static spx_tape *bare_tape(spx_tape_backend be, spx_ctx **ctx) {
   spx_tape *t = NULL;
   *ctx = open_ctx(be);
@@ -44,6 +45,7 @@ static spx_tape *bare_tape(spx_tape_backend be, spx_ctx **ctx) {
   if (!*ctx) return NULL;
   CHECK_OK(*ctx, spx_tape_create(*ctx, be, &t));
   if (t) CHECK_OK(*ctx, spx_tape_alloc_params(t));
+  else spx_ctx_destroy(*ctx), *ctx = NULL;
   return t;
 }
 
@@ -65,10 +67,7 @@ static spx_status eval_chain(spx_tape *t, void *user) {
 static void test_exact_eval(spx_tape_backend be) {
   spx_ctx *ctx = NULL;
   spx_tape *t = bare_tape(be, &ctx);
-  if (!t) {
-    spx_ctx_destroy(ctx);
-    return;
-  }
+  if (!t) return;
   float x[15];
   for (int i = 0; i < 15; i++) x[i] = (float)i - 7.0f;
   chain ch = {x, -1, -1, -1};
@@ -105,10 +104,7 @@ static spx_status train_chain(spx_tape *t, void *user) {
 static void test_exact_train(spx_tape_backend be) {
   spx_ctx *ctx = NULL;
   spx_tape *t = bare_tape(be, &ctx);
-  if (!t) {
-    spx_ctx_destroy(ctx);
-    return;
-  }
+  if (!t) return;
   float x[15], g[15];
   for (int i = 0; i < 15; i++) x[i] = 0.1f * (float)i - 0.6f;
   chain ch = {x, -1, -1, -1};

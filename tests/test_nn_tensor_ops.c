@@ -187,13 +187,7 @@ static void test_elementwise(void) {
 }
 
 int main(void) {
-  SPX_RUN(test_pad_reference_fd);
-  ctx = spx_nt_open();
-  CHECK(ctx != NULL);
-  if (!ctx) return spx_test_summary();
-  SPX_RUN(test_pad_device);
-  SPX_RUN(test_concat);
-  SPX_RUN(test_elementwise);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test host[] = {SPX_TEST(test_pad_reference_fd)};
+  static const spx_t_test dev[] = {SPX_TEST(test_pad_device), SPX_TEST(test_concat), SPX_TEST(test_elementwise)};
+  return spx_nt_main(&ctx, host, 1, dev, 3);
 }

@@ -160,12 +160,17 @@ static float *read_all(spx_ctx *ctx, spx_unet *u, const char *name, spx_unet_fie
   return NULL;
 }
 
+/* u saved to path (with_optimizer: its Adam state too) and loaded back; NULL when either fails. */
+static spx_unet *save_and_load(spx_ctx *ctx, spx_unet *u, const char *path, int with_optimizer) {
+  spx_unet *r = NULL;
+  CHECK_OK(ctx, spx_unet_save(u, path, with_optimizer));
+  CHECK_OK(ctx, spx_unet_load(ctx, path, &r));
+  return r;
+}
+
 static void test_golden(void) {
-  spx_ctx *ctx = spx_nt_open();
-  if (!ctx) {
-    CHECK(0);
-    return;
-  }
+  spx_ctx *ctx = spx_nt_require();
+  if (!ctx) return;
   int wdw = 0; /* a weight gradient on Winograd: the levels have 8 << i channels at (GH x GW) >> i */
   for (int i = 0; i < 4; i++) wdw |= spx_conv2d_winograd_dw_applies(ctx, 3, 1, 1, 8 << i, 8 << i, GH >> i, GW >> i);
   if (spx_conv2d_winograd_applies(ctx, 3, 1, 1, 64, 64, 1 << 30, 0) || wdw) { /* see the top of the file */
@@ -230,9 +235,7 @@ static void test_golden(void) {
   char ck[512], io[512], cmd[2048];
   spx_t_path(ck, sizeof ck, "ours_ckpt.safetensors");
   spx_t_path(io, sizeof io, "ours_io.safetensors");
-  CHECK_OK(ctx, spx_unet_save(u, ck, 1));
-  spx_unet *r = NULL;
-  CHECK_OK(ctx, spx_unet_load(ctx, ck, &r));
+  spx_unet *r = save_and_load(ctx, u, ck, 1);
   if (r) {
     CHECK(spx_unet_step(r) == 3 && spx_unet_width(r) == 8);
     int same = 1;
@@ -289,11 +292,8 @@ done:
 
 /* Errors name the tensor and the expected shape; an interrupted save keeps the old file. */
 static void test_checkpoint_errors(void) {
-  spx_ctx *ctx = spx_nt_open();
-  if (!ctx) {
-    CHECK(0);
-    return;
-  }
+  spx_ctx *ctx = spx_nt_require();
+  if (!ctx) return;
   spx_unet *u = NULL;
   CHECK_OK(ctx, spx_unet_create(ctx, 16, 1, 42, &u));
   CHECK(spx_unet_create(ctx, 12, 0, 1, &(spx_unet *){NULL}) == SPX_E_ARG);
@@ -304,9 +304,7 @@ static void test_checkpoint_errors(void) {
   char ck[512], bad[512];
   spx_t_path(ck, sizeof ck, "w16.safetensors");
   spx_t_path(bad, sizeof bad, "bad.safetensors");
-  CHECK_OK(ctx, spx_unet_save(u, ck, 0));
-  spx_unet *r = NULL;
-  CHECK_OK(ctx, spx_unet_load(ctx, ck, &r));
+  spx_unet *r = save_and_load(ctx, u, ck, 0);
   if (r) {
     CHECK(spx_unet_width(r) == 16 && spx_unet_sigmoid(r) == 1 && spx_unet_step(r) == 0);
     spx_unet_destroy(r);

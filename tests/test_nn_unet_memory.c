@@ -76,8 +76,7 @@ static int make_batch(unsigned long long seed, float **in, float **tg) {
 }
 
 static void test_device_bytes(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   spx_unet *u = NULL, *hu = NULL;
   size_t nout = (size_t)2 * 3 * H * W;
@@ -166,8 +165,7 @@ static void train_step(spx_ctx *ctx, spx_unet *u, const float *in, const float *
  * separate buffer sized by the plan (the GPU default), so the bytes are larger than slabs +
  * arena but still reached before the pass, never grown during it. */
 static void peak_is_plan(int in_arena) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   spx_unet *u = NULL;
   float *in = NULL, *tg = NULL;

@@ -87,11 +87,8 @@ static void check_stats(spx_unet *u, const spx_st_file *g) {
 }
 
 static void test_train300(void) {
-  spx_ctx *ctx = spx_nt_open();
-  if (!ctx) {
-    CHECK(0);
-    return;
-  }
+  spx_ctx *ctx = spx_nt_require();
+  if (!ctx) return;
   spx_st_file g = {0};
   spx_unet *u = NULL;
   CHECK_OK(ctx, spx_st_load(ctx, GOLDEN, &g));

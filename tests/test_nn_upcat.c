@@ -256,12 +256,7 @@ static void test_tape(void) {
 }
 
 int main(void) {
-  SPX_RUN(test_reference);
-  ctx = spx_nt_open();
-  CHECK(ctx != NULL);
-  if (!ctx) return spx_test_summary();
-  SPX_RUN(test_device);
-  SPX_RUN(test_tape);
-  spx_ctx_destroy(ctx);
-  return spx_test_summary();
+  static const spx_t_test host[] = {SPX_TEST(test_reference)};
+  static const spx_t_test dev[] = {SPX_TEST(test_device), SPX_TEST(test_tape)};
+  return spx_nt_main(&ctx, host, 1, dev, 2);
 }

@@ -126,8 +126,7 @@ static spx_status upcat_bwd_run(spx_ctx *ctx, void *user) {
 }
 
 static void test_device_rows(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   const int shapes[][4] = {{1, 1, 3, 7}, {1, 2, 5, 15}, {1, 3, 4, 16}, {2, 19, 9, 17}, {1, 35, 11, 53},
                            {1, 1, 1, 40}, {1, 16, 38, 51}, {1, 2, 154, 205}};

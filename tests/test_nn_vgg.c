@@ -90,8 +90,7 @@ done:
 }
 
 static void test_golden(void) {
-  spx_ctx *ctx = spx_nt_open();
-  CHECK(ctx != NULL);
+  spx_ctx *ctx = spx_nt_require();
   if (!ctx) return;
   for (int kind = 0; kind < 2; kind++) {
     CHECK_OK(ctx, spx_st_load(ctx, gfile[kind], &G));

@@ -115,11 +115,6 @@ static void test_direct(void) { run(g_ctx, 0); }
 static void test_winograd(void) { run(g_ctx, 1); }
 
 int main(void) {
-  g_ctx = spx_nt_open();
-  CHECK(g_ctx != NULL);
-  if (!g_ctx) return spx_test_summary();
-  SPX_RUN(test_direct);
-  SPX_RUN(test_winograd);
-  spx_ctx_destroy(g_ctx);
-  return spx_test_summary();
+  static const spx_t_test dev[] = {SPX_TEST(test_direct), SPX_TEST(test_winograd)};
+  return spx_nt_main(&g_ctx, NULL, 0, dev, 2);
 }

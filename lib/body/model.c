@@ -5,6 +5,7 @@
 
 #include "body/body_internal.h"
 #include "core/internal.h"
+#include "io/npz_internal.h"
 #include "smplpix/npz.h"
 
 /* element i of any numeric array as double */
@@ -263,7 +264,9 @@ static spx_status regress_joints(spx_ctx *ctx, spx_body_model *m) {
   return SPX_OK;
 }
 
-static spx_status load_from(spx_ctx *ctx, const spx_npz *z, spx_body_model *m) {
+/* The model from an open archive (an spx_npz_read_fn: m is the spx_body_model). */
+static spx_status load_from(spx_ctx *ctx, const spx_npz *z, void *out) {
+  spx_body_model *m = out;
   spx_status st;
   int64_t s2[2] = {-1, 3};
   /* v_template N x 3 */
@@ -304,11 +307,7 @@ static spx_status load_from(spx_ctx *ctx, const spx_npz *z, spx_body_model *m) {
 
 spx_status spx_body_load(spx_ctx *ctx, const char *path, spx_body_model *out) {
   memset(out, 0, sizeof *out);
-  spx_npz z;
-  spx_status st = spx_npz_open(ctx, path, &z);
-  if (st) return st;
-  st = load_from(ctx, &z, out);
-  spx_npz_close(&z);
+  spx_status st = spx_npz_load_with(ctx, path, load_from, out);
   if (st) spx_body_free(out);
   return st;
 }

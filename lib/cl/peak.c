@@ -6,6 +6,7 @@
  * shares of it (spx_device_peak_known). Times are wall time around launch + clFinish, so no
  * profiling queue is needed. */
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "cl/cl_internal.h"
@@ -38,24 +39,34 @@ static size_t peak_wg(spx_ctx *ctx, cl_kernel k) {
   return lim && wg > lim ? lim : wg;
 }
 
+/* One launch of a peak kernel k over n items, its arguments' status e checked first (`what`
+ * names the kernel in the messages). */
+static spx_status peak_launch(spx_ctx *ctx, cl_kernel k, cl_int e, int n, const char *what) {
+  char msg[64];
+  snprintf(msg, sizeof msg, "%s args", what);
+  spx_status st = spx_cl_check(ctx, e, msg);
+  if (st) return st;
+  size_t gl = (size_t)n, lo = peak_wg(ctx, k);
+  return spx_cl_run(ctx, k, 1, &gl, &lo, what);
+}
+
 spx_status spx_cl_peak_fma(spx_ctx *ctx, cl_mem out, int n, int quads, float b, float c) {
   cl_kernel k;
   spx_status st = spx_cl_kernel(ctx, SPX_K_PEAK_FMA, &k);
-  if (st) return st;
-  cl_int e = SPX_ARG(k, 0, out) | SPX_ARG(k, 1, n) | SPX_ARG(k, 2, quads) | SPX_ARG(k, 3, b) | SPX_ARG(k, 4, c);
-  if ((st = spx_cl_check(ctx, e, "spx_peak_fma args"))) return st;
-  size_t gl = (size_t)n, lo = peak_wg(ctx, k);
-  return spx_cl_run(ctx, k, 1, &gl, &lo, "spx_peak_fma");
+  if (!st)
+    st = peak_launch(ctx, k,
+                     SPX_ARG(k, 0, out) | SPX_ARG(k, 1, n) | SPX_ARG(k, 2, quads) | SPX_ARG(k, 3, b) | SPX_ARG(k, 4, c), n,
+                     "spx_peak_fma");
+  return st;
 }
 
 spx_status spx_cl_peak_triad(spx_ctx *ctx, cl_mem a, cl_mem b, cl_mem c, int n4, float s) {
   cl_kernel k;
   spx_status st = spx_cl_kernel(ctx, SPX_K_PEAK_TRIAD, &k);
-  if (st) return st;
-  cl_int e = SPX_ARG(k, 0, a) | SPX_ARG(k, 1, b) | SPX_ARG(k, 2, c) | SPX_ARG(k, 3, n4) | SPX_ARG(k, 4, s);
-  if ((st = spx_cl_check(ctx, e, "spx_peak_triad args"))) return st;
-  size_t gl = (size_t)n4, lo = peak_wg(ctx, k);
-  return spx_cl_run(ctx, k, 1, &gl, &lo, "spx_peak_triad");
+  if (!st)
+    st = peak_launch(ctx, k, SPX_ARG(k, 0, a) | SPX_ARG(k, 1, b) | SPX_ARG(k, 2, c) | SPX_ARG(k, 3, n4) | SPX_ARG(k, 4, s),
+                     n4, "spx_peak_triad");
+  return st;
 }
 
 /* Seconds of `reps` back-to-back launches of one kind (0: FMA with quads, 1: triad), finished. */

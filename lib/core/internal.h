@@ -43,6 +43,14 @@ void *spx_alloc_array(spx_ctx *ctx, size_t a, size_t b, const char *what);
 /* Whole file into memory (with a size cap); records SPX_E_IO naming the path on failure. */
 spx_status spx_read_file(spx_ctx *ctx, const char *path, size_t max_bytes, unsigned char **data, size_t *size);
 
+/* The argument checks that open a reader fn(ctx, path, ..., out) (`fn` names it in the messages):
+ * out not NULL, then out zeroed (out_size bytes), then path not NULL. */
+spx_status spx_read_args(spx_ctx *ctx, const char *fn, void *out, size_t out_size, const char *path);
+/* The same for a reader from memory fn(ctx, name, data, size, ..., out): out not NULL, then
+ * zeroed, *name "<memory>" when NULL, data not NULL unless size is 0. */
+spx_status spx_read_mem_args(spx_ctx *ctx, const char *fn, void *out, size_t out_size, const char **name,
+                             const void *data, size_t size);
+
 /* Atomic file writing: write to "<path>.tmp.<pid>.<n>", then rename over path on commit. Open
  * checks path against the output policy first (spx_file_check_writable: no device, FIFO, socket
  * or folder is replaced, nor a write-protected file). On abort (or any failure) the temp file is

@@ -61,6 +61,22 @@ done:
   return st;
 }
 
+spx_status spx_read_args(spx_ctx *ctx, const char *fn, void *out, size_t out_size, const char *path) {
+  if (!out) return spx_fail(ctx, SPX_E_ARG, "%s: out is NULL", fn);
+  memset(out, 0, out_size);
+  if (!path) return spx_fail(ctx, SPX_E_ARG, "%s: path is NULL", fn);
+  return SPX_OK;
+}
+
+spx_status spx_read_mem_args(spx_ctx *ctx, const char *fn, void *out, size_t out_size, const char **name,
+                             const void *data, size_t size) {
+  if (!out) return spx_fail(ctx, SPX_E_ARG, "%s: out is NULL", fn);
+  memset(out, 0, out_size);
+  if (!*name) *name = "<memory>";
+  if (!data && size) return spx_fail(ctx, SPX_E_ARG, "%s: data is NULL", *name);
+  return SPX_OK;
+}
+
 char *spx_temp_path_for(const char *path) { return spx_file_temp_name(path); }
 
 spx_status spx_rename_over(spx_ctx *ctx, const char *tmp, const char *path) {

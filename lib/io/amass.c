@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "core/internal.h"
+#include "io/npz_internal.h"
 #include "smplpix/amass.h"
 
 static const char *const smpl_names[SPX_AMASS_SMPL_JOINTS] = {
@@ -127,12 +128,9 @@ fail:
   return st;
 }
 
+static spx_status amass_read(spx_ctx *ctx, const spx_npz *z, void *out) { return spx_amass_read(ctx, z, out); }
+
 spx_status spx_amass_load(spx_ctx *ctx, const char *path, spx_amass *out) {
   memset(out, 0, sizeof *out);
-  spx_npz z;
-  spx_status st = spx_npz_open(ctx, path, &z);
-  if (st) return st;
-  st = spx_amass_read(ctx, &z, out);
-  spx_npz_close(&z);
-  return st;
+  return spx_npz_load_with(ctx, path, amass_read, out);
 }

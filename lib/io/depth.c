@@ -174,14 +174,11 @@ spx_status spx_depth_check_camera(spx_ctx *ctx, const char *name, int32_t width,
 
 spx_status spx_depth_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
                               spx_depth *out) {
-  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_depth_read: out is NULL");
-  memset(out, 0, sizeof *out);
-  if (!name) name = "<memory>";
-  if (!data && size) return spx_fail(ctx, SPX_E_ARG, "%s: data is NULL", name);
+  spx_status st = spx_read_mem_args(ctx, "spx_depth_read", out, sizeof *out, &name, data, size);
+  if (st != SPX_OK) return st;
   char ext[16];
   spx_path_ext(name, ext, sizeof ext);
   int png = !strcmp(ext, "png");
-  spx_status st;
   if (png) st = png_depth(ctx, name, data, size, max_pixels, out);
   else if (!strcmp(ext, "exr")) st = exr_depth(ctx, name, data, size, max_pixels, out);
   else if (!strcmp(ext, "npy")) st = npy_depth(ctx, name, data, size, max_pixels, out);
@@ -193,14 +190,13 @@ spx_status spx_depth_read_mem(spx_ctx *ctx, const char *name, const void *data, 
 
 spx_status spx_depth_read(spx_ctx *ctx, const char *path, const spx_camera *cam, const char *cam_name,
                           spx_depth *out) {
-  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_depth_read: out is NULL");
-  memset(out, 0, sizeof *out);
-  if (!path) return spx_fail(ctx, SPX_E_ARG, "spx_depth_read: path is NULL");
+  spx_status st = spx_read_args(ctx, "spx_depth_read", out, sizeof *out, path);
+  if (st != SPX_OK) return st;
   if (!spx_image_ext_ok(path))
     return spx_fail(ctx, SPX_E_ARG, "%s: not a depth image (expected .png, .exr or .npy)", path);
   unsigned char *buf = NULL;
   size_t n = 0;
-  spx_status st = spx_read_file(ctx, path, DEPTH_MAX_FILE, &buf, &n);
+  st = spx_read_file(ctx, path, DEPTH_MAX_FILE, &buf, &n);
   if (st) return st;
   st = spx_depth_read_mem(ctx, path, buf, n, (int64_t)DEPTH_MAX_DIM * DEPTH_MAX_DIM, out);
   free(buf);

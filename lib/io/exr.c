@@ -23,6 +23,7 @@
 
 #include "core/internal.h"
 #include "io/exr_internal.h"
+#include "io/image_internal.h"
 #include "smplpix/files.h"
 
 #define EXR_MAX_FILE ((size_t)1 << 34)
@@ -351,10 +352,8 @@ static spx_status exr_read_image(spx_ctx *ctx, exr_read_job *job, exr_context_t 
 /* depth: the depth read (spx_exr_read_depth_mem), else the RGB(-Z) read. */
 static spx_status exr_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
                                int depth, spx_image *out) {
-  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_exr_read: out is NULL");
-  memset(out, 0, sizeof *out);
-  if (!name) name = "<memory>";
-  if (!data && size) return spx_fail(ctx, SPX_E_ARG, "%s: data is NULL", name);
+  spx_status st = spx_read_mem_args(ctx, "spx_exr_read", out, sizeof *out, &name, data, size);
+  if (st != SPX_OK) return st;
   exr_context_t e = NULL;
   exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
   int dec_used = 0;
@@ -365,7 +364,7 @@ static spx_status exr_read_mem(spx_ctx *ctx, const char *name, const void *data,
   job.first = 1;
   exr_mem_src src = {data, size};
   exr_msg[0] = 0;
-  spx_status st = exr_open(ctx, name, &src, &e);
+  st = exr_open(ctx, name, &src, &e);
   if (!st) st = exr_read_image(ctx, &job, e, &dec, depth, &dec_used, out);
   if (e) {
     if (dec_used && !job.first) exr_decoding_destroy(e, &dec);
@@ -387,16 +386,7 @@ spx_status spx_exr_read_depth_mem(spx_ctx *ctx, const char *name, const void *da
 }
 
 spx_status spx_exr_read(spx_ctx *ctx, const char *path, spx_image *out) {
-  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_exr_read: out is NULL");
-  memset(out, 0, sizeof *out);
-  if (!path) return spx_fail(ctx, SPX_E_ARG, "spx_exr_read: path is NULL");
-  unsigned char *buf = NULL;
-  size_t n = 0;
-  spx_status st = spx_read_file(ctx, path, EXR_MAX_FILE, &buf, &n);
-  if (st != SPX_OK) return st;
-  st = spx_exr_read_mem(ctx, path, buf, n, (int64_t)SPX_EXR_MAX_DIM * SPX_EXR_MAX_DIM, out);
-  free(buf);
-  return st;
+  return spx_image_read_file(ctx, "spx_exr_read", path, EXR_MAX_FILE, (int64_t)SPX_EXR_MAX_DIM * SPX_EXR_MAX_DIM, spx_exr_read_mem, out);
 }
 
 /* ---------------- write ---------------- */

@@ -1,8 +1,10 @@
-/* In-memory HWC float images: allocation and release. */
+/* In-memory HWC float images: allocation and release; the whole-file read of the PNG and EXR
+ * readers (io/image_internal.h). */
 #include <stdlib.h>
 #include <string.h>
 
 #include "core/internal.h"
+#include "io/image_internal.h"
 #include "smplpix/image.h"
 
 spx_status spx_image_alloc(spx_ctx *ctx, int32_t width, int32_t height, int32_t channels, spx_image *out) {
@@ -31,4 +33,17 @@ void spx_image_free(spx_image *img) {
   if (!img) return;
   free(img->data);
   memset(img, 0, sizeof *img);
+}
+
+spx_status spx_image_read_file(spx_ctx *ctx, const char *fn, const char *path, size_t max_file, int64_t max_pixels,
+                               spx_image_decode_fn dec, spx_image *out) {
+  spx_status st = spx_read_args(ctx, fn, out, sizeof *out, path);
+  if (st != SPX_OK) return st;
+  unsigned char *buf = NULL;
+  size_t n = 0;
+  st = spx_read_file(ctx, path, max_file, &buf, &n);
+  if (st != SPX_OK) return st;
+  st = dec(ctx, path, buf, n, max_pixels, out);
+  free(buf);
+  return st;
 }

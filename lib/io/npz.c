@@ -6,6 +6,7 @@
 #include <zlib.h>
 
 #include "core/internal.h"
+#include "io/npz_internal.h"
 #include "smplpix/npz.h"
 
 #define SIG_LOCAL 0x04034b50u
@@ -414,4 +415,13 @@ spx_status spx_npz_save(spx_ctx *ctx, const char *path, int32_t count, const cha
     return st;
   }
   return spx_atomic_commit(ctx, &af);
+}
+
+spx_status spx_npz_load_with(spx_ctx *ctx, const char *path, spx_npz_read_fn read, void *out) {
+  spx_npz z;
+  spx_status st = spx_npz_open(ctx, path, &z);
+  if (st) return st;
+  st = read(ctx, &z, out);
+  spx_npz_close(&z);
+  return st;
 }

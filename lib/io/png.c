@@ -14,6 +14,7 @@
 
 #include "core/internal.h"
 #include "io/png_internal.h"
+#include "io/image_internal.h"
 
 #define PNG_MAX_FILE ((size_t)1 << 31)
 
@@ -118,13 +119,10 @@ static int png_read_inner(png_read_state *s) {
 
 spx_status spx_png_read_mem(spx_ctx *ctx, const char *name, const void *data, size_t size, int64_t max_pixels,
                             spx_image *out) {
-  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_png_read: out is NULL");
-  memset(out, 0, sizeof *out);
-  if (!name) name = "<memory>";
-  if (!data && size) return spx_fail(ctx, SPX_E_ARG, "%s: data is NULL", name);
+  spx_status st = spx_read_mem_args(ctx, "spx_png_read", out, sizeof *out, &name, data, size);
+  if (st != SPX_OK) return st;
   if (size < 8 || png_sig_cmp((png_const_bytep)data, 0, 8) != 0)
     return spx_fail(ctx, SPX_E_FORMAT, "%s: not a PNG file (bad signature)", name);
-  spx_status st = SPX_OK;
   png_read_state s;
   memset(&s, 0, sizeof s);
   s.src.data = data;
@@ -170,16 +168,7 @@ done:
 }
 
 spx_status spx_png_read(spx_ctx *ctx, const char *path, spx_image *out) {
-  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_png_read: out is NULL");
-  memset(out, 0, sizeof *out);
-  if (!path) return spx_fail(ctx, SPX_E_ARG, "spx_png_read: path is NULL");
-  unsigned char *buf = NULL;
-  size_t n = 0;
-  spx_status st = spx_read_file(ctx, path, PNG_MAX_FILE, &buf, &n);
-  if (st != SPX_OK) return st;
-  st = spx_png_read_mem(ctx, path, buf, n, (int64_t)SPX_PNG_MAX_DIM * SPX_PNG_MAX_DIM, out);
-  free(buf);
-  return st;
+  return spx_image_read_file(ctx, "spx_png_read", path, PNG_MAX_FILE, (int64_t)SPX_PNG_MAX_DIM * SPX_PNG_MAX_DIM, spx_png_read_mem, out);
 }
 
 /* ---------------- write ---------------- */

@@ -313,10 +313,8 @@ static spx_status st_parse_owned(spx_ctx *ctx, const char *name, unsigned char *
 }
 
 spx_status spx_st_parse(spx_ctx *ctx, const char *name, const void *data, size_t size, spx_st_file *out) {
-  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_st_parse: out is NULL");
-  memset(out, 0, sizeof *out);
-  if (!name) name = "<memory>";
-  if (!data && size) return spx_fail(ctx, SPX_E_ARG, "%s: data is NULL", name);
+  spx_status st = spx_read_mem_args(ctx, "spx_st_parse", out, sizeof *out, &name, data, size);
+  if (st != SPX_OK) return st;
   unsigned char *copy = malloc(size ? size : 1);
   if (!copy) return spx_fail(ctx, SPX_E_NOMEM, "%s: cannot allocate %zu bytes", name, size);
   if (size) memcpy(copy, data, size);
@@ -324,12 +322,11 @@ spx_status spx_st_parse(spx_ctx *ctx, const char *name, const void *data, size_t
 }
 
 spx_status spx_st_load(spx_ctx *ctx, const char *path, spx_st_file *out) {
-  if (!out) return spx_fail(ctx, SPX_E_ARG, "spx_st_load: out is NULL");
-  memset(out, 0, sizeof *out);
-  if (!path) return spx_fail(ctx, SPX_E_ARG, "spx_st_load: path is NULL");
+  spx_status st = spx_read_args(ctx, "spx_st_load", out, sizeof *out, path);
+  if (st != SPX_OK) return st;
   unsigned char *buf = NULL;
   size_t n = 0;
-  spx_status st = spx_read_file(ctx, path, ST_MAX_FILE, &buf, &n);
+  st = spx_read_file(ctx, path, ST_MAX_FILE, &buf, &n);
   if (st != SPX_OK) return st;
   return st_parse_owned(ctx, path, buf, n, out);
 }
