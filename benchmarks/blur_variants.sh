@@ -18,6 +18,7 @@
 #               weights (bench_bn_stats recalibrate, over the training inputs)
 #     bnbatch   base's network rendering with each test image's own batch statistics
 #     v53k      base on the 53,514-vertex inputs
+#     v53k3x    v53k, its vgg16 stage continued to 3 x BV_VGG steps (--resume)
 #     oldframe  base on the earlier framing (landscape 256x192, the subject at 0.72..0.9 of the
 #               height): BV_OLD_SYNTH = a synth output of the same seed made by the earlier
 #               `smplpix synth` (same subjects, poses, view directions and light; only the cameras
@@ -96,13 +97,15 @@ two_stage() {
 }
 
 v_base() { two_stage base "$work/data13k"; }
-v_vgg3x() {
-  v_base
-  [ -f "$out/vgg3x.safetensors" ] || [ -f "$out/done/train.vgg3x" ] || cp "$out/base.vgg.safetensors" "$out/vgg3x.safetensors"
-  [ -f "$out/vgg3x.cpu" ] || cpu_of base.vgg >"$out/vgg3x.cpu"
-  train vgg3x "$work/data13k" $((3 * VGG))
-  score vgg3x "$work/data13k" "$work/methods/gt" "$work/methods/mask"
+# vgg_longer NAME FROM DATA: FROM's vgg16 stage continued to 3 x VGG steps (--resume), as NAME
+vgg_longer() {
+  local name=$1 from=$2 data=$3
+  [ -f "$out/$name.safetensors" ] || [ -f "$out/done/train.$name" ] || cp "$out/$from.safetensors" "$out/$name.safetensors"
+  [ -f "$out/$name.cpu" ] || cpu_of "$from" >"$out/$name.cpu"
+  train "$name" "$data" $((3 * VGG))
+  score "$name" "$data" "$work/methods/gt" "$work/methods/mask"
 }
+v_vgg3x() { v_base; vgg_longer vgg3x base.vgg "$work/data13k"; }
 v_vggonly() {
   train vggonly "$work/data13k" "$VGGONLY" --loss vgg16 --lr 1e-3 --width "$WIDTH"
   score vggonly "$work/data13k" "$work/methods/gt" "$work/methods/mask"
@@ -127,6 +130,7 @@ v_bnbatch() {
   scoredir bnbatch "$out/r.bnbatch" "$work/methods/gt" "$work/methods/mask"
 }
 v_v53k() { two_stage v53k "$work/data53k"; }
+v_v53k3x() { v_v53k; vgg_longer v53k3x v53k.vgg "$work/data53k"; }
 
 # The earlier framing: WORK's reposed registrations through the old synth output's cameras, the
 # same splits; its own ground truth, masks and per-vertex raster.
@@ -187,7 +191,7 @@ report() {
     echo "| variant | PSNR full | LPIPS full | detail full | PSNR mask | LPIPS mask | detail mask | training CPU (s) |"
     echo "|---|---|---|---|---|---|---|---|"
     for k in pervertex13k pervertex53k textured13k base.l1 base.vgg vgg3x vggonly w32.l1 w32.vgg cosine.l1 cosine.vgg \
-      bnrecal bnbatch v53k.l1 v53k.vgg oldframe.pervertex13k oldframe.l1 oldframe.vgg; do
+      bnrecal bnbatch v53k.l1 v53k.vgg v53k3x oldframe.pervertex13k oldframe.l1 oldframe.vgg; do
       [ -f "$out/eval.$k.json" ] || continue
       jq -r --arg k "$k" --arg c "$(cpu_of "$k")" '
         def r(x): if x == null then "—" else (x * 1000 | round) / 1000 | tostring end;
@@ -198,7 +202,7 @@ report() {
   say "wrote $md"
 }
 
-[ $# -gt 0 ] || set -- base vgg3x vggonly w32 cosine bnrecal bnbatch v53k oldframe
+[ $# -gt 0 ] || set -- base vgg3x vggonly w32 cosine bnrecal bnbatch v53k v53k3x oldframe
 refs
 for v in "$@"; do
   type "v_$v" >/dev/null 2>&1 || die "unknown variant $v"
