@@ -189,7 +189,8 @@ static void test_far_shape_second_start(void) {
 }
 
 int main(void) {
-  static const spx_t_test tests[] = {SPX_TEST(test_depth_points_exact), SPX_TEST(test_raster_depth_on_surface), SPX_TEST(test_depth_image), SPX_TEST(test_single_views),
+  static const spx_t_test tests[] = {SPX_TEST(test_depth_points_exact), SPX_TEST(test_raster_depth_on_surface),
+                                     SPX_TEST(test_depth_image), SPX_TEST(test_single_views),
                                      SPX_TEST(test_far_shape_second_start)};
   return spx_t_main_body(&ctx, &model, tests, (int)(sizeof tests / sizeof tests[0]));
 }

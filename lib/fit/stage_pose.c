@@ -2,7 +2,9 @@
  * terms both ways (scan point → plane of its nearest model vertex, Huber; model vertex → its
  * nearest scan point along the model normal, Cauchy, area-weighted), an annealed pose prior, soft
  * joint limits, a shape prior and a scale prior. The body model and its Jacobian are evaluated
- * once per point in spx_fit_body_prepare; the residuals read them. */
+ * once per point in spx_fit_body_prepare; the residuals read them. With SPX_FIT_AID_RESTART, a fit
+ * that leaves over 1% of the scan more than 3 cm from the body is run again from its own shape
+ * with straight joints, and the start that explains the scan better is kept (second_start). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -264,7 +266,8 @@ static void pose_copy(int to_keep, pose_keep *k, spx_fit_body *b, spx_fit_result
 static spx_status second_start(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
                                spx_fit_body *b, spx_fit_result *r, const spx_fit_stage *s, double s1, double f1) {
   int32_t K3 = 3 * m->nj, nv = m->nv;
-  pose_keep k = {.pose = malloc((size_t)K3 * sizeof(double)), .betas = malloc((size_t)(b->nb ? b->nb : 1) * sizeof(double)),
+  pose_keep k = {.pose = malloc((size_t)K3 * sizeof(double)),
+                 .betas = malloc((size_t)(b->nb ? b->nb : 1) * sizeof(double)),
                  .verts = malloc((size_t)nv * 3 * sizeof(double))};
   spx_status st = SPX_OK;
   if (!k.pose || !k.betas || !k.verts) st = spx_fail(ctx, SPX_E_NOMEM, "registration (pose): out of memory");
