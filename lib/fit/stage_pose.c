@@ -4,13 +4,15 @@
  * joint limits, a shape prior and a scale prior. The body model and its Jacobian are evaluated
  * once per point in spx_fit_body_prepare; the residuals read them. With SPX_FIT_AID_RESTART, a fit
  * that leaves over 1% of the scan more than 3 cm from the body is run again from its own shape
- * with straight joints, and the start that explains the scan better is kept (second_start). */
+ * with straight joints (and, with one camera, turned round), and the start that explains the scan
+ * best is kept (second_start). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 
+#include "body/rot3.h"
 #include "fit/stage.h"
 
 int spx_fit_body_prepare(void *user, int want_jac, int new_point) {
@@ -258,11 +260,39 @@ static void pose_copy(int to_keep, pose_keep *k, spx_fit_body *b, spx_fit_result
   for (int a = 0; a < 7; a++) *(to_keep ? kd[a] : bd[a]) = *(to_keep ? bd[a] : kd[a]);
 }
 
-/* The second start (SPX_FIT_AID_RESTART): a pose stage from the first one's shape, translation and
- * root orientation with every other joint straight. A limb (or the head) drawn away from its
- * scan points early, while the shape is still far from the person's, ends beyond the pairs'
- * reach and stays there; from the shape the first start found, it is fitted again from the
- * straight pose. The start whose body explains the scan better (pose_score) is kept. */
+/* The axis-angle vector of rotation R (angle in [0, pi]). */
+static void rot_to_aa(const double R[9], double w[3]) {
+  double c = fmax(-1.0, fmin(1.0, 0.5 * (R[0] + R[4] + R[8] - 1))), th = acos(c);
+  double v[3] = {R[7] - R[5], R[2] - R[6], R[3] - R[1]}, sn = sin(th);
+  if (sn > 1e-6) {
+    for (int d = 0; d < 3; d++) w[d] = th * v[d] / (2 * sn);
+    return;
+  }
+  if (th < 1.0) {
+    for (int d = 0; d < 3; d++) w[d] = 0.5 * v[d];
+    return;
+  }
+  /* about pi: the axis is the largest column of (R + I) / 2 */
+  int a = R[0] >= R[4] && R[0] >= R[8] ? 0 : R[4] >= R[8] ? 1 : 2;
+  double col[3] = {R[a] + (a == 0), R[3 + a] + (a == 1), R[6 + a] + (a == 2)};
+  double n = sqrt(col[0] * col[0] + col[1] * col[1] + col[2] * col[2]);
+  for (int d = 0; d < 3; d++) w[d] = th * col[d] / n;
+}
+
+/* The root turned half a turn about the model's up axis (y): the person seen from the other side. */
+static void turn_root(double *root) {
+  double R[9], T[9], Y[9] = {-1, 0, 0, 0, 1, 0, 0, 0, -1};
+  spx_body_rodrigues(root, R, NULL);
+  spx_rot3_mul(Y, R, T);
+  rot_to_aa(T, root);
+}
+
+/* The second starts (SPX_FIT_AID_RESTART): pose stages from the best fit so far's shape,
+ * translation and root orientation with every other joint straight, then (one camera) the same
+ * with the root turned about the up axis. A limb (or the head) drawn away from its scan points
+ * early, while the shape is still far from the person's, ends beyond the pairs' reach and stays
+ * there; from the shape the first start found, it is fitted again from the straight pose. The
+ * start whose body explains the scan best (pose_score) is kept. */
 static spx_status second_start(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
                                spx_fit_body *b, spx_fit_result *r, const spx_fit_stage *s, double s1, double f1) {
   int32_t K3 = 3 * m->nj, nv = m->nv;
@@ -271,23 +301,25 @@ static spx_status second_start(spx_ctx *ctx, const spx_body_model *m, const spx_
                  .verts = malloc((size_t)nv * 3 * sizeof(double))};
   spx_status st = SPX_OK;
   if (!k.pose || !k.betas || !k.verts) st = spx_fail(ctx, SPX_E_NOMEM, "registration (pose): out of memory");
-  double t0 = spx_now(), s2 = 0, f2 = 0;
-  if (!st) {
+  double best = s1, secs = r->stage_seconds[1];
+  for (int t = 0; !st && t < (w->neye == 1 ? 2 : 1); t++) {
+    double t0 = spx_now(), s2 = 0, f2 = 0;
     pose_copy(1, &k, b, r, K3, nv);
     for (int32_t i = 3; i < K3; i++) b->pose[i] = 0;
+    if (t) turn_root(b->pose);
     st = spx_fit_run_stage(ctx, m, o, w, s, r);
-  }
-  if (!st) st = pose_score(ctx, m, o, w, r->verts_pose, r->sim_scale, &s2, &f2);
-  if (!st) {
-    char note[200];
-    snprintf(note, sizeof note, "%.1f%% of the scan over %.0f mm from the posed body: a second start from straight "
-             "joints scores %.2f mm (%.1f%% far) against %.2f mm: %s", f1 * 100, POSE_FAR * 1e3, s2 * 1e3, f2 * 100,
-             s1 * 1e3, s2 < s1 ? "kept" : "dropped");
+    if (!st) st = pose_score(ctx, m, o, w, r->verts_pose, r->sim_scale, &s2, &f2);
+    if (st) break;
+    char note[220];
+    snprintf(note, sizeof note, "%.1f%% of the scan over %.0f mm from the posed body: a start from straight joints%s "
+             "scores %.2f mm (%.1f%% far) against %.2f mm: %s", f1 * 100, POSE_FAR * 1e3, t ? ", turned round" : "",
+             s2 * 1e3, f2 * 100, best * 1e3, s2 < best ? "kept" : "dropped");
     spx_fit_report(o, "pose", 0, 0, 0, 0, t0, note);
-    double secs = r->stage_seconds[1] + k.seconds;
-    if (s2 >= s1) pose_copy(0, &k, b, r, K3, nv);
-    r->stage_seconds[1] = secs;
+    secs += r->stage_seconds[1];
+    if (s2 < best) best = s2;
+    else pose_copy(0, &k, b, r, K3, nv);
   }
+  r->stage_seconds[1] = secs;
   free(k.pose), free(k.betas), free(k.verts);
   return st;
 }

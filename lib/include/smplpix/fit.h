@@ -41,9 +41,10 @@ enum { SPX_FIT_RIGID = 1, SPX_FIT_POSE = 2, SPX_FIT_FREE = 4, SPX_FIT_ALL = 7 };
  * continued over what no scan point supports, else those vertices keep the posed model.
  * FREESPACE (default off: it made the benchmark worse): with cameras, vertices no camera saw that
  * project outside a camera's silhouette are drawn back into it. RESTART (default on): when over 1%
- * of the scan lies more than 3 cm from the posed body, the pose stage runs a second time from its
- * own shape with every joint but the root straight, and the start whose body explains the scan
- * better (lib/fit/stage_pose.c) is kept. */
+ * of the scan lies more than 3 cm from the posed body, the pose stage runs again from its own
+ * shape with every joint but the root straight and, with one camera, once more with the root
+ * turned round about the up axis; the start whose body explains the scan best
+ * (lib/fit/stage_pose.c) is kept. */
 enum { SPX_FIT_AID_CONTINUE = 1, SPX_FIT_AID_FREESPACE = 2, SPX_FIT_AID_RESTART = 4 };
 
 typedef struct spx_fit_progress {
