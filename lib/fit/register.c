@@ -16,7 +16,7 @@ void spx_fit_options_default(spx_fit_options *o) {
                          .w_shape = 2e-4, .w_pose = 1e-4, .w_limits = 0.1, .w_scale = 1.0, .w_pose_start = 0.1,
                          .w_m2s = 1.0, .w_lap = 1.0, .w_couple_start = 0.3, .w_couple_end = 0.02,
                          .robust_m = 0.01, .seed = 0x5eed, .progress = NULL, .progress_user = NULL,
-                         .ceres_progress = 0, .aids = SPX_FIT_AID_CONTINUE};
+                         .ceres_progress = 0, .aids = SPX_FIT_AID_CONTINUE | SPX_FIT_AID_RESTART};
 }
 
 void spx_fit_result_free(spx_fit_result *r) {

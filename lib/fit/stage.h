@@ -157,6 +157,9 @@ typedef struct spx_fit_work {
   double *fs_q, *fs_n; /* nv*3 */
 } spx_fit_work;
 
+/* How far (model units, metres) behind the scanned depth a vertex counts as hidden. */
+#define SPX_FIT_VIEW_TOL 0.03
+
 /* Weight of the free-space pairs relative to the model → scan term (both area-weighted). */
 #define W_FREE_SPACE 1.0
 

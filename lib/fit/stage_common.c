@@ -64,9 +64,6 @@ static void to_float(const double *V, int32_t n, float *out) {
   for (int32_t i = 0; i < n; i++) out[i] = (float)V[i];
 }
 
-/* How far (model units, metres) behind the scanned depth a vertex counts as hidden. */
-#define VIEW_TOL 0.03
-
 spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
                              const spx_fit_stage *s, spx_fit_result *r) {
   double t0 = spx_now();
@@ -80,7 +77,7 @@ spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fi
     if ((st = spx_fit_match(ctx, o->threads, w->Vf, nv, s->Q, s->nq, qt, &mt, w->idx, w->d2, w->idx_m, w->d2_m)))
       break;
     if (w->neye) memset(w->seen, 0, (size_t)nv);
-    for (int32_t k = 0; k < w->neye; k++) spx_fit_visibility(&w->zg[k], w->Vf, w->N, nv, VIEW_TOL, w->seen);
+    for (int32_t k = 0; k < w->neye; k++) spx_fit_visibility(&w->zg[k], w->Vf, w->N, nv, SPX_FIT_VIEW_TOL, w->seen);
     w->nfs = 2 * step >= s->steps ? spx_fit_free_space_pairs(w, w->Vf, nv, w->fs_j, w->fs_q, w->fs_n) : 0;
     spx_ceres_summary sum;
     if ((st = spx_fit_solve(ctx, o, &s->solve, step, &sum))) break;

@@ -2,11 +2,17 @@
  * terms both ways (scan point → plane of its nearest model vertex, Huber; model vertex → its
  * nearest scan point along the model normal, Cauchy, area-weighted), an annealed pose prior, soft
  * joint limits, a shape prior and a scale prior. The body model and its Jacobian are evaluated
- * once per point in spx_fit_body_prepare; the residuals read them. */
+ * once per point in spx_fit_body_prepare; the residuals read them. With SPX_FIT_AID_RESTART, a fit
+ * that leaves over 1% of the scan more than 3 cm from the body is run again from its own shape
+ * with straight joints (and, with one camera, turned round), and the start that explains the scan
+ * best is kept (second_start). */
 #include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 
+#include "body/rot3.h"
 #include "fit/stage.h"
 
 int spx_fit_body_prepare(void *user, int want_jac, int new_point) {
@@ -203,6 +209,124 @@ static spx_status pose_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
   return SPX_OK;
 }
 
+/* Beyond this distance (metres) from the posed body a scan point is unexplained, and a seen
+ * vertex unsupported; both distances are cut there in the score, so that clutter cannot decide. */
+#define POSE_FAR 0.03
+
+/* How well the posed body V (model frame) explains the scan sample Q, from the scan and its
+ * cameras alone: the mean scan → surface distance plus the area-weighted mean distance from each
+ * vertex a camera would have seen (every vertex without cameras) to its nearest scan point, both
+ * cut at POSE_FAR, in metres. *far: the share of scan points farther than POSE_FAR. Uses w's
+ * scratch (Vf, N, dist, idx_m, d2_m, seen). */
+static spx_status pose_score(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
+                             const double *V, double scale, double *score, double *far) {
+  int32_t nv = m->nv;
+  for (int32_t i = 0; i < nv * 3; i++) w->Vf[i] = (float)V[i];
+  spx_vertex_normals_d(V, nv, m->faces, m->nf, w->N);
+  spx_kdtree *qt = NULL;
+  spx_status st = spx_fit_surface_distance_adj(ctx, w->Q, w->nq, w->Vf, nv, m->faces, &w->vf, o->threads, w->dist);
+  if (!st) st = spx_fit_kd_build(ctx, w->Q, w->nq, &qt);
+  if (!st) st = spx_fit_kd_query(ctx, qt, w->Vf, nv, 1, w->idx_m, w->d2_m, o->threads);
+  spx_kdtree_free(qt);
+  if (st) return st;
+  if (w->neye) memset(w->seen, 0, (size_t)nv);
+  for (int32_t k = 0; k < w->neye; k++) spx_fit_visibility(&w->zg[k], w->Vf, w->N, nv, SPX_FIT_VIEW_TOL, w->seen);
+  double s1 = 0, s2 = 0, a2 = 0;
+  int32_t nfar = 0;
+  for (int32_t i = 0; i < w->nq; i++) {
+    double d = w->dist[i] * scale;
+    nfar += d > POSE_FAR;
+    s1 += fmin(d, POSE_FAR);
+  }
+  for (int32_t j = 0; j < nv; j++)
+    if (!w->neye || w->seen[j]) s2 += w->area[j] * fmin(sqrt(w->d2_m[j]) * scale, POSE_FAR), a2 += w->area[j];
+  *score = s1 / (w->nq ? w->nq : 1) + (a2 > 0 ? s2 / a2 : 0);
+  *far = (double)nfar / (w->nq ? w->nq : 1);
+  return SPX_OK;
+}
+
+/* The pose stage's result (parameters, posed vertices, figures), kept while a second start runs. */
+typedef struct pose_keep {
+  double *pose, *betas, *verts, trans[3], bscale, seconds, energy, mean;
+} pose_keep;
+
+static void pose_copy(int to_keep, pose_keep *k, spx_fit_body *b, spx_fit_result *r, int32_t K3, int32_t nv) {
+  double *dst[3] = {k->pose, k->betas, k->verts}, *src[3] = {b->pose, b->betas, r->verts_pose};
+  size_t n[3] = {(size_t)K3, (size_t)b->nb, (size_t)nv * 3};
+  for (int a = 0; a < 3; a++) memcpy(to_keep ? dst[a] : src[a], to_keep ? src[a] : dst[a], n[a] * sizeof(double));
+  double *kd[7] = {&k->trans[0], &k->trans[1], &k->trans[2], &k->bscale, &k->seconds, &k->energy, &k->mean};
+  double *bd[7] = {&b->trans[0], &b->trans[1], &b->trans[2], &b->bscale[0], &r->stage_seconds[1], &r->stage_energy[1],
+                   &r->stage_mean[1]};
+  for (int a = 0; a < 7; a++) *(to_keep ? kd[a] : bd[a]) = *(to_keep ? bd[a] : kd[a]);
+}
+
+/* The axis-angle vector of rotation R (angle in [0, pi]). */
+static void rot_to_aa(const double R[9], double w[3]) {
+  double c = fmax(-1.0, fmin(1.0, 0.5 * (R[0] + R[4] + R[8] - 1))), th = acos(c);
+  double v[3] = {R[7] - R[5], R[2] - R[6], R[3] - R[1]}, sn = sin(th);
+  if (sn > 1e-6) {
+    for (int d = 0; d < 3; d++) w[d] = th * v[d] / (2 * sn);
+    return;
+  }
+  if (th < 1.0) {
+    for (int d = 0; d < 3; d++) w[d] = 0.5 * v[d];
+    return;
+  }
+  /* about pi: the axis is the largest column of (R + I) / 2 */
+  int a = R[0] >= R[4] && R[0] >= R[8] ? 0 : R[4] >= R[8] ? 1 : 2;
+  double col[3] = {R[a] + (a == 0), R[3 + a] + (a == 1), R[6 + a] + (a == 2)};
+  double n = sqrt(col[0] * col[0] + col[1] * col[1] + col[2] * col[2]);
+  for (int d = 0; d < 3; d++) w[d] = th * col[d] / n;
+}
+
+/* The root turned half a turn about the model's up axis (y): the person seen from the other side. */
+static void turn_root(double *root) {
+  double R[9], T[9], Y[9] = {-1, 0, 0, 0, 1, 0, 0, 0, -1};
+  spx_body_rodrigues(root, R, NULL);
+  spx_rot3_mul(Y, R, T);
+  rot_to_aa(T, root);
+}
+
+/* The second starts (SPX_FIT_AID_RESTART): pose stages from the best fit so far's shape,
+ * translation and root orientation with every other joint straight, then (one camera) the same
+ * with the root turned about the up axis. A limb (or the head) drawn away from its scan points
+ * early, while the shape is still far from the person's, ends beyond the pairs' reach and stays
+ * there; from the shape the first start found, it is fitted again from the straight pose. The
+ * start whose body explains the scan best (pose_score) is kept. */
+static spx_status second_start(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
+                               spx_fit_body *b, spx_fit_result *r, const spx_fit_stage *s, double s1, double f1) {
+  int32_t K3 = 3 * m->nj, nv = m->nv;
+  pose_keep k = {.pose = malloc((size_t)K3 * sizeof(double)),
+                 .betas = malloc((size_t)(b->nb ? b->nb : 1) * sizeof(double)),
+                 .verts = malloc((size_t)nv * 3 * sizeof(double))};
+  spx_status st = SPX_OK;
+  if (!k.pose || !k.betas || !k.verts) st = spx_fail(ctx, SPX_E_NOMEM, "registration (pose): out of memory");
+  double best = s1, secs = r->stage_seconds[1];
+  for (int t = 0; !st && t < (w->neye == 1 ? 2 : 1); t++) {
+    double t0 = spx_now(), s2 = 0, f2 = 0;
+    pose_copy(1, &k, b, r, K3, nv);
+    for (int32_t i = 3; i < K3; i++) b->pose[i] = 0;
+    if (t) turn_root(b->pose);
+    st = spx_fit_run_stage(ctx, m, o, w, s, r);
+    if (!st) st = pose_score(ctx, m, o, w, r->verts_pose, r->sim_scale, &s2, &f2);
+    if (st) break;
+    char note[220];
+    snprintf(note, sizeof note, "%.1f%% of the scan over %.0f mm from the posed body: a start from straight joints%s "
+             "scores %.2f mm (%.1f%% far) against %.2f mm: %s", f1 * 100, POSE_FAR * 1e3, t ? ", turned round" : "",
+             s2 * 1e3, f2 * 100, best * 1e3, s2 < best ? "kept" : "dropped");
+    spx_fit_report(o, "pose", 0, 0, 0, 0, t0, note);
+    secs += r->stage_seconds[1];
+    if (s2 < best) best = s2;
+    else pose_copy(0, &k, b, r, K3, nv);
+  }
+  r->stage_seconds[1] = secs;
+  free(k.pose), free(k.betas), free(k.verts);
+  return st;
+}
+
+/* Share of the scan sample (over POSE_FAR from the posed body) above which the second start runs. */
+#define POSE_FAR_SHARE 0.01
+
 spx_status spx_fit_stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_fit_options *o, spx_fit_work *w,
                               spx_fit_body *b, spx_fit_result *r) {
   int32_t K3 = 3 * m->nj, nb = b->nb;
@@ -213,5 +337,9 @@ spx_status spx_fit_stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_f
   spx_fit_stage s = {"pose", 1, ps.steps, w->Q, w->nq, r->verts_pose, pose_vertices,
                      {"pose", pose_residuals, &ps, spx_fit_body_prepare, b, &b->st, o->inner_iterations,
                       SPX_LS_DENSE_NORMAL_CHOLESKY}};
-  return spx_fit_run_stage(ctx, m, o, w, &s, r);
+  spx_status st = spx_fit_run_stage(ctx, m, o, w, &s, r);
+  if (st || !(o->aids & SPX_FIT_AID_RESTART)) return st;
+  double s1, f1;
+  if ((st = pose_score(ctx, m, o, w, r->verts_pose, r->sim_scale, &s1, &f1))) return st;
+  return f1 > POSE_FAR_SHARE ? second_start(ctx, m, o, w, b, r, &s, s1, f1) : SPX_OK;
 }

@@ -36,12 +36,16 @@ extern "C" {
 #endif
 
 enum { SPX_FIT_RIGID = 1, SPX_FIT_POSE = 2, SPX_FIT_FREE = 4, SPX_FIT_ALL = 7 };
-/* spx_fit_options.aids: the aids for what no camera saw, each measured by bench_register_views
- * --aids (benchmarks/RESULTS.md). CONTINUE (default on): the free stage's offsets from the body
- * model are continued over what no scan point supports, else those vertices keep the posed model.
+/* spx_fit_options.aids: the fit's aids, each measured by bench_register_views --aids
+ * (benchmarks/RESULTS.md). CONTINUE (default on): the free stage's offsets from the body model are
+ * continued over what no scan point supports, else those vertices keep the posed model.
  * FREESPACE (default off: it made the benchmark worse): with cameras, vertices no camera saw that
- * project outside a camera's silhouette are drawn back into it. */
-enum { SPX_FIT_AID_CONTINUE = 1, SPX_FIT_AID_FREESPACE = 2 };
+ * project outside a camera's silhouette are drawn back into it. RESTART (default on): when over 1%
+ * of the scan lies more than 3 cm from the posed body, the pose stage runs again from its own
+ * shape with every joint but the root straight and, with one camera, once more with the root
+ * turned round about the up axis; the start whose body explains the scan best
+ * (lib/fit/stage_pose.c) is kept. */
+enum { SPX_FIT_AID_CONTINUE = 1, SPX_FIT_AID_FREESPACE = 2, SPX_FIT_AID_RESTART = 4 };
 
 typedef struct spx_fit_progress {
   const char *stage;    /* "rigid", "pose", "free" */
@@ -75,7 +79,7 @@ typedef struct spx_fit_options {
                                      stdout (debugging; default 0: the library prints nothing) */
   int view;                       /* 1: the scan is what one camera at view_eye saw (one side) */
   double view_eye[3];             /* the camera's centre in scan coordinates (input units) */
-  unsigned aids;                  /* SPX_FIT_AID_* bits (default SPX_FIT_AID_CONTINUE) */
+  unsigned aids;                  /* SPX_FIT_AID_* bits (default CONTINUE | RESTART) */
   int32_t nviews;                 /* > 0: the scan is what nviews cameras saw (fused; overrides view) */
   const double *view_eyes;        /* nviews*3: their centres in scan coordinates (input units) */
   const int32_t *point_view;      /* scan->nv: the camera (0..nviews-1) that saw each point */
