@@ -3,7 +3,7 @@ BUILD    ?= build
 JOBS     ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build weights demo docs-demo docs-avatar model-card train-demo test asan fuzz bench bench-unet bench-memory bench-latency install clean bench-python table1 \
+.PHONY: all deps build weights demo docs-demo docs-avatar docs-usage model-card train-demo test asan fuzz bench bench-unet bench-memory bench-latency install clean bench-python table1 \
   clang-check gpu-static oclgrind device-kit device-kit-test
 
 all: build
@@ -38,6 +38,11 @@ docs-demo: build
 # one) in 8 frames of the shipped motion, above the per-vertex raster of the same vertices.
 docs-avatar: build weights
 	sh scripts/avatar_demo.sh
+
+# The usage lines of the docs (scripts/docs_usage.py): each command's synopsis, as `smplpix CMD --usage`
+# prints it from the command's option table, written into the first ```sh block of its section.
+docs-usage: build
+	python3 scripts/docs_usage.py ./$(BUILD)/smplpix .
 
 # The model card data/models/README.md from the shipped network's metadata and benchmarks/TABLE1.md.
 model-card:

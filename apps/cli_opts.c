@@ -8,7 +8,6 @@
 
 #include "cli.h"
 #include "cli_opts.h"
-#include "test_hooks.h"
 
 /* v is a whole decimal number: an optional '-' then digits only, fitting a long long. */
 static int whole(const char *v, long long *out) {
@@ -92,17 +91,17 @@ int spx_cli_not_input(const char *cmd, const char *what, const char *out, const 
   return SPX_EXIT_OK;
 }
 
-int spx_cli_parse(int argc, char **argv, const char *cmd, const char *usage, void (*help)(void), spx_opt *opts) {
+int spx_cli_parse(int argc, char **argv, const char *cmd, const char *about, spx_opt *opts) {
   for (spx_opt *o = opts; o->name; o++) o->given = 0;
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      if (help) help();
-      else fputs(usage, stdout);
-      if (spx_test_hook_int("SPX_TEST_LIST_OPTIONS") > 0) { /* the table, for tests/cli_options_docs.py */
-        fputs("table options:", stdout);
-        for (const spx_opt *t = opts; t->name; t++) printf(" %s", t->name);
-        fputc('\n', stdout);
-      }
+      spx_cli_print_help(stdout, cmd, about, opts);
+      return SPX_EXIT_OK;
+    }
+    if (!strcmp(argv[i], "--usage")) { /* the synopsis as the docs show it (scripts/docs_usage.py) */
+      char prefix[64];
+      snprintf(prefix, sizeof prefix, "smplpix %s ", cmd);
+      spx_cli_print_synopsis(stdout, prefix, opts);
       return SPX_EXIT_OK;
     }
     spx_opt *o = opts;
@@ -122,12 +121,14 @@ int spx_cli_parse(int argc, char **argv, const char *cmd, const char *usage, voi
       return spx_cli_usage(cmd, "%s needs %s, not '%s'", o->name, want, v);
     }
   }
+  int rc = spx_cli_check_required(cmd, opts);
+  if (rc) return rc;
   /* the run's inputs, for every output it checks or stages (apps/cli_tx.h); no output path
    * holds a control character */
   for (spx_opt *o = opts; o->name; o++) {
     if (o->type == SPX_OPT_IN && o->given && spx_tx_input(o->name, *(const char **)o->dst)) return SPX_EXIT_ERROR;
     if (o->type == SPX_OPT_OUT && o->given) {
-      int rc = spx_tx_check_name(cmd, o->name, *(const char **)o->dst);
+      rc = spx_tx_check_name(cmd, o->name, *(const char **)o->dst);
       if (rc) return rc;
     }
   }
@@ -137,7 +138,7 @@ int spx_cli_parse(int argc, char **argv, const char *cmd, const char *usage, voi
     for (spx_opt *in = opts; in->name; in++) {
       if (in->type != SPX_OPT_IN || !in->given) continue;
       const char *ip = *(const char **)in->dst;
-      int rc = spx_cli_not_input(cmd, o->name, *(const char **)o->dst, &ip, 1);
+      rc = spx_cli_not_input(cmd, o->name, *(const char **)o->dst, &ip, 1);
       if (rc) return rc;
     }
   }

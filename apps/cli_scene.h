@@ -10,10 +10,6 @@
 #include "smplpix/image.h"
 #include "smplpix/mesh.h"
 
-/* The --color line of the usage of the commands that colour a mesh (project, raster). */
-#define SPX_CLI_COLOR_USAGE \
-  "--color: mesh = the file's vertex colors; normal = 0.5+0.5*vertex normal; white; auto (default)\n"
-
 /* st is not SPX_OK: prints cmd's one-line error from ctx (spx_cli_error), sets *rc to its exit
  * code and returns 1; else returns 0. Use: if (spx_cli_failed(&rc, "cmd", ctx, call)) goto done; */
 static inline int spx_cli_failed(int *rc, const char *cmd, spx_ctx *ctx, spx_status st) {
@@ -22,19 +18,33 @@ static inline int spx_cli_failed(int *rc, const char *cmd, spx_ctx *ctx, spx_sta
   return 1;
 }
 
-/* The options project, raster, render and dataset share, stored by the rows SPX_CLI_SCENE_ROWS
- * puts in a command's table (apps/cli_opts.h). */
+/* The options project, raster, render and dataset share, stored by the rows SPX_CLI_SCENE_ROWS and
+ * SPX_CLI_SCENE_TAIL_ROWS put in a command's table (apps/cli_opts.h). */
 typedef struct spx_cli_scene_opts {
   const char *mesh, *cameras, *out, *color, *device;
   int quiet;
 } spx_cli_scene_opts;
 
-/* The shared rows of a table: --mesh, camera_opt (--camera or --cameras), --out, --color,
- * --device and --quiet, stored in o (a spx_cli_scene_opts). */
-#define SPX_CLI_SCENE_ROWS(o, camera_opt)                                                                  \
-  SPX_O("--mesh", SPX_OPT_IN, &(o).mesh), SPX_O(camera_opt, SPX_OPT_IN, &(o).cameras),                    \
-      SPX_O("--out", SPX_OPT_OUT, &(o).out), SPX_O("--color", SPX_OPT_STR, &(o).color),                  \
-      SPX_O("--device", SPX_OPT_STR, &(o).device), SPX_O("--quiet", SPX_OPT_FLAG, &(o).quiet)
+/* Rows the tables of the commands that draw a mesh share (apps/cli_opts.h), each with its help once. */
+#define SPX_CLI_MESH_ROW(how, dst) \
+  SPX_O(how, "--mesh", SPX_OPT_IN, dst, "M.obj|M.ply", "the mesh, or a point cloud (a PLY or OBJ without faces)")
+#define SPX_CLI_COLOR_ROW(dst)                                                                             \
+  SPX_O(0, "--color", SPX_OPT_STR, dst, "auto|mesh|normal|white",                                        \
+        "vertex colours: the file's (mesh), 0.5+0.5*vertex normal (normal), white, or auto (default): the " \
+        "file's when it has them, else normals")
+
+#define SPX_CLI_CAMERA_ROW(how, dst)                      \
+  SPX_O(how, "--camera", SPX_OPT_IN, dst, "C.json",      \
+        "one camera, or an array of N: N images, --out's name numbered (I.png: I_000.png ... I_<N-1>.png)")
+
+/* The first rows of the tables of project and raster: --mesh, --camera and --out (how: required or
+ * not; out_meta: --out's placeholder), stored in o (a spx_cli_scene_opts). */
+#define SPX_CLI_SCENE_ROWS(o, how, out_meta)                                  \
+  SPX_CLI_MESH_ROW(how, &(o).mesh), SPX_CLI_CAMERA_ROW(how, &(o).cameras), \
+      SPX_O(how, "--out", SPX_OPT_OUT, &(o).out, out_meta, "the image written (.exr/.npy: R,G,B,depth; .png: R,G,B)")
+/* The last rows of those tables: --color, --device and --quiet. */
+#define SPX_CLI_SCENE_TAIL_ROWS(o) \
+  SPX_CLI_COLOR_ROW(&(o).color), SPX_CLI_DEVICE_ROW(&(o).device), SPX_CLI_QUIET_ROW(&(o).quiet)
 
 /* One run drawing a mesh through an array of cameras (into W x H RGB-D images, HWC, 4 floats a
  * pixel, or into the caller's buffers), its outputs staged in a transaction. Zero it, then

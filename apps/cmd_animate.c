@@ -17,31 +17,22 @@
 #include "cli_model.h"
 #include "cmd_fit.h"
 
-static void animate_help(void) {
-  printf(
-      "usage: smplpix animate (--registration P.json | --avatar A.safetensors) (--bvh M.bvh | --amass M.npz)\n"
-      "                       --camera C.json --out DIR [--frames A:B]\n"
-      "                       [--checkpoint W.safetensors | --no-network | --raster] [--orbit DEG]\n"
-      "                       [--fps N] [--no-mp4] [--model M.npz] [--device cpu|gpu|P:D] [--quiet]\n"
-      "Poses the registered person (smplpix register --params), or the avatar of `smplpix avatar` (its body,\n"
-      "vertices, colours and network), with frames A..B-1 of the motion (default: all; A: or :B leave an end\n"
-      "open), retargeted by joint name: a BVH clip as `smplpix repose` does, or an AMASS .npz (poses, trans,\n"
-      "mocap_framerate; SMPL's 24 or SMPL-H's 52 joints, hands dropped).\n"
-      "Each frame is projected through the one camera of C.json straight into the network on the device\n"
-      "and written as DIR/frame_NNNNNN.png (NNNNNN = the motion frame). The network is the avatar's, else W,\n"
-      "else the shipped data/models/default.safetensors; --no-network writes the raw projection (the network's\n"
-      "input) instead, --raster the per-vertex raster of the same vertices (their mesh, 2x2 supersampled).\n"
-      "An avatar through a camera of another size than it was trained at (its smplpix.image_size) draws\n"
-      "worse than it can: a warning says so (render --avatar refuses it without --any-size).\n"
-      "--orbit DEG turns the camera DEG degrees per frame about the vertical axis through the body's centre\n"
-      "in the first frame. With ffmpeg on PATH, DIR/animation.mp4 is made at --fps (default: the clip's\n"
-      "frame rate); --no-mp4 skips it. Colours: the avatar's or the registration's, else the surface normals.\n"
-      "Progress: a bar on stderr when it is a terminal, else a line per tenth of the frames on stdout;\n"
-      "frames per second are reported at the end. Frames and video are written to temporaries and renamed\n"
-      "into place together at the end: on failure nothing new is left (a folder it made is removed) and\n"
-      "files that were in DIR before are untouched; Ctrl-C stops after the current frame, does the same\n"
-      "and exits with status 130.\n");
-}
+static const char *ABOUT =
+    "Poses the registered person (smplpix register --params), or the avatar of `smplpix avatar` (its\n"
+    "body, vertices, colours and network), with frames of the motion, retargeted by joint name: a BVH\n"
+    "clip as `smplpix repose` does, or an AMASS .npz (poses, trans, mocap_framerate; SMPL's 24 or\n"
+    "SMPL-H's 52 joints, hands dropped). Each frame is projected through the one camera of C.json\n"
+    "straight into the network on the device and written as DIR/frame_NNNNNN.png (NNNNNN = the motion\n"
+    "frame). The network is the avatar's, else --checkpoint's, else the shipped\n"
+    "data/models/default.safetensors. An avatar through a camera of another size than it was trained at\n"
+    "(its smplpix.image_size) draws worse than it can: a warning says so. With ffmpeg on PATH,\n"
+    "DIR/animation.mp4 is made too. Colours: the avatar's or the registration's, else the surface\n"
+    "normals.\n"
+    "Progress: a bar on stderr when it is a terminal, else a line per tenth of the frames on stdout;\n"
+    "frames per second are reported at the end. Frames and video are written to temporaries and renamed\n"
+    "into place together at the end: on failure nothing new is left (a folder it made is removed) and\n"
+    "files that were in DIR before are untouched; Ctrl-C stops after the current frame, does the same and\n"
+    "exits with status 130.\n";
 
 /* Ctrl-C: the loop stops after the current frame and removes what it wrote (exit 130). */
 static volatile sig_atomic_t interrupted;
@@ -294,16 +285,27 @@ done:
 int spx_cmd_animate(int argc, char **argv) {
   opts o;
   memset(&o, 0, sizeof o);
-  spx_opt optv[] = {SPX_O("--no-network", SPX_OPT_FLAG, &o.no_net), SPX_O("--no-mp4", SPX_OPT_FLAG, &o.no_mp4),
-                    SPX_O("--quiet", SPX_OPT_FLAG, &o.quiet),       SPX_O("--registration", SPX_OPT_IN, &o.reg),
-                    SPX_O("--avatar", SPX_OPT_IN, &o.avatar),       SPX_O("--raster", SPX_OPT_FLAG, &o.raster),
-                    SPX_O("--bvh", SPX_OPT_IN, &o.bvh),             SPX_O("--amass", SPX_OPT_IN, &o.amass),
-                    SPX_O("--camera", SPX_OPT_IN, &o.cam),          SPX_O("--out", SPX_OPT_OUT, &o.out),
-                    SPX_O("--checkpoint", SPX_OPT_IN, &o.ckpt),     SPX_O("--model", SPX_OPT_IN, &o.model),
-                    SPX_O("--device", SPX_OPT_STR, &o.spec),        SPX_O("--frames", SPX_OPT_STR, &o.frames),
-                    SPX_O_RANGE("--orbit", SPX_OPT_REAL, &o.orbit, -360, 360), SPX_O_RANGE("--fps", SPX_OPT_REAL, &o.fps, 0.01, 1000),
-                    SPX_O_END};
-  int parsed = spx_cli_parse(argc, argv, "animate", NULL, animate_help, optv);
+  spx_opt optv[] = {
+      SPX_O(SPX_REQ | SPX_ALT(1), "--registration", SPX_OPT_IN, &o.reg, "P.json", "the registered person"),
+      SPX_O(SPX_REQ | SPX_ALT(1), "--avatar", SPX_OPT_IN, &o.avatar, "A.safetensors", "the avatar of `smplpix avatar`"),
+      SPX_O(SPX_REQ | SPX_ALT(2), "--bvh", SPX_OPT_IN, &o.bvh, "M.bvh", "the motion, a BVH clip"),
+      SPX_O(SPX_REQ | SPX_ALT(2), "--amass", SPX_OPT_IN, &o.amass, "M.npz", "the motion, an AMASS .npz"),
+      SPX_O(SPX_REQ, "--camera", SPX_OPT_IN, &o.cam, "C.json", "the one camera"),
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &o.out, "DIR", "the folder of the frames"),
+      SPX_O(0, "--frames", SPX_OPT_STR, &o.frames, "A:B", "frames A..B-1 of the motion (default: all; A: or :B leave an end open)"),
+      SPX_O(SPX_ALT(3), "--checkpoint", SPX_OPT_IN, &o.ckpt, "W.safetensors", "the network of a registered person"),
+      SPX_O(SPX_ALT(3), "--no-network", SPX_OPT_FLAG, &o.no_net, NULL, "write the raw projection (the network's input) instead"),
+      SPX_O(SPX_ALT(3), "--raster", SPX_OPT_FLAG, &o.raster, NULL,
+            "write the per-vertex raster of the same vertices instead (their mesh, 2x2 supersampled)"),
+      SPX_O_RANGE(0, "--orbit", SPX_OPT_REAL, &o.orbit, -360, 360, "DEG",
+                  "turn the camera DEG degrees per frame about the vertical axis through the body's centre in the first frame"),
+      SPX_O_RANGE(0, "--fps", SPX_OPT_REAL, &o.fps, 0.01, 1000, "N", "the video's frame rate (default: the clip's)"),
+      SPX_O(0, "--no-mp4", SPX_OPT_FLAG, &o.no_mp4, NULL, "no video"),
+      SPX_O(0, "--model", SPX_OPT_IN, &o.model, "M.npz", "the body model (default: the registration's or the avatar's)"),
+      SPX_CLI_DEVICE_ROW(&o.spec),
+      SPX_CLI_QUIET_ROW(&o.quiet),
+      SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "animate", ABOUT, optv);
   if (parsed >= 0) return parsed;
   long fs, fe;
   if (o.frames && !spx_anim_parse_frames(o.frames, &fs, &fe))

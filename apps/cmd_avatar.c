@@ -34,29 +34,20 @@
 
 static const char *const C = "avatar";
 
-static void avatar_help(void) {
-  printf(
-      "usage: smplpix avatar --scan S.ply|S.obj [--texture T.png] --out A/ [--registration P.json]\n"
-      "                      [--vertices 7k|13k|53k] [--views N] [--heldout N] [--poses M.bvh|M.npz]\n"
-      "                      [--size WxH] [--width 16|32] [--steps K] [--seed N] [--model M.npz]\n"
-      "                      [--device cpu|gpu|P:D] [--resume] [--quiet]\n"
-      "Makes the person of a coloured scan (PLY / OBJ with vertex colours, or OBJ + --texture) into their own\n"
-      "SMPLpix avatar: registers the scan (as `smplpix register`; --registration P.json is taken instead),\n"
-      "binds every scan vertex to its closest point on the registered body (its skinning weights), poses the\n"
-      "scan with frames of the motion (--poses, default data/mocap/01_01.bvh; AMASS .npz too) and photographs\n"
-      "it from cameras all round framed on the person (lit as `smplpix synth` lights its photos, 2x2\n"
-      "supersampled): N training views (default 48), 4 validation views (2 under 16) and --heldout held-out views\n"
-      "(default 8; poses from the end of the clip and cameras never used in training). The inputs are the\n"
-      "projection of the posed registration at --vertices (default 13k; the body's count, or after one or two\n"
-      "Loop steps), coloured from the scan. Trains a UNet of --width (default 16) at --size (default 192x256),\n"
-      "2 views a step, for K steps (default 3000; the first quarter with the L1 loss, the rest with the VGG16 loss\n"
-      "of `make weights`), printing the validation PSNR and LPIPS, and writes A/avatar.safetensors (network,\n"
-      "registration, vertex colours, metadata), A/report.md, A/report.json and A/report.png (held-out PSNR,\n"
-      "LPIPS and detail of the avatar and of the per-vertex raster of the same vertices).\n"
-      "A/ must be new or empty; an interrupted run (Ctrl-C, or killed) keeps A/work and continues with\n"
-      "--resume (same settings) to the same result. Drive the avatar with\n"
-      "`smplpix animate --avatar A/avatar.safetensors --bvh M.bvh --camera C.json --out DIR`.\n");
-}
+static const char *ABOUT =
+    "Makes the person of a coloured scan (PLY / OBJ with vertex colours, or OBJ + --texture) into their\n"
+    "own SMPLpix avatar: registers the scan (as `smplpix register`), binds every scan vertex to its\n"
+    "closest point on the registered body (its skinning weights), poses the scan with frames of the\n"
+    "motion and photographs it from cameras all round framed on the person (lit as `smplpix synth` lights\n"
+    "its photos, 2x2 supersampled): the training views, 4 validation views (2 under 16) and the held-out\n"
+    "views (poses from the end of the clip and cameras never used in training). The inputs are the\n"
+    "projection of the posed registration, coloured from the scan. Trains a UNet, 2 views a step (the\n"
+    "first quarter of the steps with the L1 loss, the rest with the VGG16 loss of `make weights`),\n"
+    "printing the validation PSNR and LPIPS, and writes A/avatar.safetensors (network, registration,\n"
+    "vertex colours, metadata), A/report.md, A/report.json and A/report.png (held-out PSNR, LPIPS and\n"
+    "detail of the avatar and of the per-vertex raster of the same vertices). A/ must be new or empty; an\n"
+    "interrupted run (Ctrl-C, or killed) keeps A/work. Drive the avatar with `smplpix animate --avatar\n"
+    "A/avatar.safetensors --bvh M.bvh --camera C.json --out DIR`.\n";
 
 typedef struct avatar_opts {
   const char *scan, *texture, *out, *reg, *poses, *model, *vertices, *device;
@@ -543,26 +534,28 @@ static int run(avatar_job *j) {
 static int parse(int argc, char **argv, avatar_opts *o) {
   memset(o, 0, sizeof *o);
   o->views = 48, o->heldout = 8, o->width = 16, o->steps = 3000, o->size[0] = 192, o->size[1] = 256;
-  spx_opt opts[] = {SPX_O("--scan", SPX_OPT_IN, &o->scan),
-                    SPX_O("--texture", SPX_OPT_IN, &o->texture),
-                    SPX_O("--out", SPX_OPT_OUT, &o->out),
-                    SPX_O("--registration", SPX_OPT_IN, &o->reg),
-                    SPX_O("--poses", SPX_OPT_IN, &o->poses),
-                    SPX_O("--model", SPX_OPT_IN, &o->model),
-                    SPX_O("--vertices", SPX_OPT_STR, &o->vertices),
-                    SPX_O("--device", SPX_OPT_STR, &o->device),
-                    SPX_O_RANGE("--views", SPX_OPT_INT, &o->views, 2, 4096),
-                    SPX_O_RANGE("--heldout", SPX_OPT_INT, &o->heldout, 1, 256),
-                    SPX_O_RANGE("--width", SPX_OPT_INT, &o->width, 8, 64),
-                    SPX_O_RANGE("--steps", SPX_OPT_INT, &o->steps, 1, 100000000),
-                    SPX_O_RANGE("--seed", SPX_OPT_INT, &o->seed, 0, 2147483647),
-                    SPX_O_RANGE("--size", SPX_OPT_SIZE, o->size, 32, 4096),
-                    SPX_O("--resume", SPX_OPT_FLAG, &o->resume),
-                    SPX_O("--quiet", SPX_OPT_FLAG, &o->quiet),
-                    SPX_O_END};
-  int rc = spx_cli_parse(argc, argv, C, NULL, avatar_help, opts);
+  spx_opt opts[] = {
+      SPX_O(SPX_REQ, "--scan", SPX_OPT_IN, &o->scan, "S.ply|S.obj", "the person's coloured scan"),
+      SPX_O(0, "--texture", SPX_OPT_IN, &o->texture, "T.png", "the texture of an OBJ scan"),
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &o->out, "A/", "the avatar's folder"),
+      SPX_O(0, "--registration", SPX_OPT_IN, &o->reg, "P.json", "take this registration of the scan instead of registering it"),
+      SPX_O(0, "--vertices", SPX_OPT_STR, &o->vertices, "7k|13k|53k",
+            "the inputs' vertex count: the body's, or after one or two Loop steps (default 13k)"),
+      SPX_O_RANGE(0, "--views", SPX_OPT_INT, &o->views, 2, 4096, "N", "training views (default 48)"),
+      SPX_O_RANGE(0, "--heldout", SPX_OPT_INT, &o->heldout, 1, 256, "N", "held-out views (default 8)"),
+      SPX_O(0, "--poses", SPX_OPT_IN, &o->poses, "M.bvh|M.npz", "the motion (default data/mocap/01_01.bvh; AMASS .npz too)"),
+      SPX_O_RANGE(0, "--size", SPX_OPT_SIZE, o->size, 32, 4096, "WxH", "the image size (default 192x256)"),
+      SPX_O_RANGE(0, "--width", SPX_OPT_INT, &o->width, 8, 64, "16|32", "the UNet's base width (default 16)"),
+      SPX_O_RANGE(0, "--steps", SPX_OPT_INT, &o->steps, 1, 100000000, "K", "training steps (default 3000)"),
+      SPX_O_RANGE(0, "--seed", SPX_OPT_INT, &o->seed, 0, 2147483647, "N", "the seed everything random is drawn from (default 0)"),
+      SPX_O(0, "--model", SPX_OPT_IN, &o->model, "M.npz", "the body model (default data/body/default_body.npz)"),
+      SPX_CLI_DEVICE_ROW(&o->device),
+      SPX_O(0, "--resume", SPX_OPT_FLAG, &o->resume, NULL,
+            "continue an interrupted run from A/work (same settings) to the same result"),
+      SPX_CLI_QUIET_ROW(&o->quiet),
+      SPX_O_END};
+  int rc = spx_cli_parse(argc, argv, C, ABOUT, opts);
   if (rc >= 0) return rc;
-  if (!o->scan || !o->out) return spx_cli_usage(C, "--scan and --out are required");
   if (o->width != 8 && o->width != 16 && o->width != 32 && o->width != 64)
     return spx_cli_usage(C, "--width must be 8, 16, 32 or 64, not %ld", o->width);
   const char *v = o->vertices;

@@ -9,32 +9,28 @@
 
 #define DEFAULT_MODEL spx_cli_data_path("body/default_body.npz")
 
-static void bake_help(void) {
-  printf("usage: smplpix bake --mesh R.ply|R.obj --scan S.ply|S.obj --out T.png|T.exr\n"
-         "                    [--size N] [--pad N] [--model M.npz]\n"
-         "Bakes the scan's vertex colours into an NxN texture (default 1024) on the texture\n"
-         "coordinates of the registered mesh R (registered to the scan, in its frame, e.g. from\n"
-         "`smplpix register`): every texel covered in UV space takes the colour of the scan vertex\n"
-         "nearest to its surface point; --pad rounds of dilation (default 8) fill the seams. When R\n"
-         "has no texture coordinates they come from the body model (default %s),\n"
-         "whose faces must match R's. Use with `smplpix raster --texture T.png` on a mesh with the\n"
-         "same texture coordinates (e.g. from `smplpix repose`).\n",
-         DEFAULT_MODEL);
-}
+static const char *ABOUT =
+    "Bakes the scan's vertex colours into a texture on the texture coordinates of the registered mesh R\n"
+    "(registered to the scan, in its frame, e.g. from `smplpix register`): every texel covered in UV\n"
+    "space takes the colour of the scan vertex nearest to its surface point; rounds of dilation fill the\n"
+    "seams. When R has no texture coordinates they come from the body model, whose faces must match R's.\n"
+    "Use with `smplpix raster --texture T.png` on a mesh with the same texture coordinates (e.g. from\n"
+    "`smplpix repose`).\n";
 
 int spx_cmd_bake(int argc, char **argv) {
   const char *mesh_path = NULL, *scan_path = NULL, *out = NULL, *model_path = NULL;
   long size = 1024, pad = 8;
-  spx_opt opts[] = {SPX_O("--mesh", SPX_OPT_IN, &mesh_path),
-                    SPX_O("--scan", SPX_OPT_IN, &scan_path),
-                    SPX_O("--out", SPX_OPT_OUT, &out),
-                    SPX_O("--model", SPX_OPT_IN, &model_path),
-                    SPX_O_RANGE("--size", SPX_OPT_INT, &size, 1, 16384),
-                    SPX_O_RANGE("--pad", SPX_OPT_INT, &pad, 0, 4096),
-                    SPX_O_END};
-  int parsed = spx_cli_parse(argc, argv, "bake", NULL, bake_help, opts);
+  spx_opt opts[] = {
+      SPX_O(SPX_REQ, "--mesh", SPX_OPT_IN, &mesh_path, "R.ply|R.obj", "the registered mesh R"),
+      SPX_O(SPX_REQ, "--scan", SPX_OPT_IN, &scan_path, "S.ply|S.obj", "the coloured scan"),
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &out, "T.png|T.exr", "the texture written"),
+      SPX_O_RANGE(0, "--size", SPX_OPT_INT, &size, 1, 16384, "N", "the texture is NxN (default 1024)"),
+      SPX_O_RANGE(0, "--pad", SPX_OPT_INT, &pad, 0, 4096, "N", "rounds of dilation (default 8)"),
+      SPX_O(0, "--model", SPX_OPT_IN, &model_path, "M.npz",
+            "the body model whose texture coordinates R takes when it has none (default data/body/default_body.npz)"),
+      SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "bake", ABOUT, opts);
   if (parsed >= 0) return parsed;
-  if (!mesh_path || !scan_path || !out) return spx_cli_usage("bake", "--mesh, --scan and --out are required");
   char ext[16];
   spx_path_ext(out, ext, sizeof ext);
   if (strcmp(ext, "png") && strcmp(ext, "exr")) return spx_cli_usage("bake", "--out %s: expected a .png or .exr file", out);

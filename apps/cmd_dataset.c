@@ -18,27 +18,16 @@
 #include "smplpix/raster.h"
 #include "smplpix/render.h"
 
-static const char *USAGE =
-    "usage: smplpix dataset --mesh M.obj|M.ply --out DIR\n"
-    "                       (--cameras C.json | --orbit N [--elevations E1,E2,..] [--distance D]\n"
-    "                                           [--size WxH] [--focal F])\n"
-    "                       [--split 0.8,0.1,0.1] [--seed S] [--input-format exr|npy] [--aa 1|2]\n"
-    "                       [--color auto|mesh|normal|white] [--force] [--device cpu|gpu|P:D] [--quiet]\n"
+static const char *ABOUT =
     "Writes DIR/{train,validation,test}/{input,output}/NAME.{exr|npy,png}: for each camera the input\n"
     "is the vertex projection (RGB-D, as `smplpix project`) and the output the triangle rasterization\n"
     "(RGB, as `smplpix raster`) of the same mesh and colors; NAME = view_0000, view_0001, ... in camera\n"
     "order, and DIR/cameras.json holds the cameras. Views go to the splits in a random order drawn from\n"
-    "--seed (default 0), in the proportions of --split (train,validation,test; they must sum to 1).\n"
-    "--orbit N: N cameras looking at the mesh's bounding-box centre from azimuths 360*i/N degrees around\n"
-    "the +y axis, view i at elevation E[i % count] degrees (default 0), --size WxH (default 308x410,\n"
-    "portrait), framed as a scanner photo: the mesh's projected bounding box fills 90% of the image\n"
-    "height (or width, when wider), centred (docs/synth.md), seen from --distance (default: twice the\n"
-    "mesh's largest side). --focal F (pixels) fixes the focal length instead, the principal point at\n"
-    "the centre and the distance, unless given, the nearest at which every view holds the whole mesh\n"
-    "with a 5% margin. DIR must be empty or absent unless --force, which\n"
-    "replaces the data set (images of an earlier run that this one did not write are removed). The files\n"
-    "appear together when all are written and flushed to disk: on failure nothing this run wrote is left\n"
-    "behind and files that were there before keep their contents.\n";
+    "the seed. An orbit's views look at the mesh's bounding-box centre from azimuths 360*i/N degrees\n"
+    "around the +y axis, framed as a scanner photo: the mesh's projected bounding box fills 90% of the\n"
+    "image height (or width, when wider), centred (docs/synth.md). DIR must be empty or absent unless\n"
+    "--force. The files appear together when all are written and flushed to disk: on failure nothing\n"
+    "this run wrote is left behind and files that were there before keep their contents.\n";
 
 /* --force replaces a data set: the images of DIR/<split>/{input,output} that this run did not
  * write (an earlier run's views, in another split or format) are removed, so no view is in two
@@ -96,7 +85,7 @@ static int dir_nonempty(const char *dir) {
   return any;
 }
 
-/* Cameras on an orbit around the mesh (see USAGE): framed as a scanner photo (spx_camera_frame:
+/* Cameras on an orbit around the mesh (see ABOUT and the --orbit rows): framed as a scanner photo (spx_camera_frame:
  * the mesh's projected box fills SPX_FRAME_FILL of the height, or of the width, centred), or with
  * a fixed focal length at the image centre (--focal: at --distance, or the nearest distance at
  * which every vertex lands inside 95% of every view). */
@@ -155,21 +144,33 @@ typedef struct dataset_opts {
 
 static int parse_options(int argc, char **argv, dataset_opts *o) {
   const char *split_s = "0.8,0.1,0.1", *elev_s = "0";
-  spx_opt opts[] = {SPX_CLI_SCENE_ROWS(o->io, "--cameras"),
-                    SPX_O("--split", SPX_OPT_STR, &split_s),
-                    SPX_O_RANGE("--seed", SPX_OPT_INT, &o->seed, 0, 2147483647),
-                    SPX_O("--input-format", SPX_OPT_STR, &o->fmt),
-                    SPX_O_RANGE("--aa", SPX_OPT_INT, &o->aa, 1, 2),
-                    SPX_O_RANGE("--orbit", SPX_OPT_INT, &o->norbit, 1, 100000),
-                    SPX_O("--elevations", SPX_OPT_STR, &elev_s),
-                    SPX_O_RANGE("--distance", SPX_OPT_REAL, &o->dist, 1e-300, 1e30),
-                    SPX_O_RANGE("--size", SPX_OPT_SIZE, o->size, 16, SPX_CAMERA_MAX_SIZE),
-                    SPX_O_RANGE("--focal", SPX_OPT_REAL, &o->focal, 1e-300, 1e30),
-                    SPX_O("--force", SPX_OPT_FLAG, &o->force),
-                    SPX_O_END};
-  int rc = spx_cli_parse(argc, argv, "dataset", USAGE, NULL, opts);
+  spx_opt opts[] = {
+      SPX_CLI_MESH_ROW(SPX_REQ, &o->io.mesh),
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &o->io.out, "DIR", "the data set's folder"),
+      SPX_O(SPX_REQ | SPX_ALT(1), "--cameras", SPX_OPT_IN, &o->io.cameras, "C.json", "the views' cameras (an array)"),
+      SPX_O_RANGE(SPX_REQ | SPX_ALT(1), "--orbit", SPX_OPT_INT, &o->norbit, 1, 100000, "N", "N cameras all round the mesh"),
+      SPX_O(0, "--elevations", SPX_OPT_STR, &elev_s, "E1,E2,..",
+            "orbit: view i at elevation E[i % count] degrees, each in (-90, 90) (default 0)"),
+      SPX_O_RANGE(0, "--distance", SPX_OPT_REAL, &o->dist, 1e-300, 1e30, "D",
+                  "orbit: seen from D (default: twice the mesh's largest side; with --focal the nearest at which "
+                  "every view holds the whole mesh with a 5% margin)"),
+      SPX_O_RANGE(0, "--size", SPX_OPT_SIZE, o->size, 16, SPX_CAMERA_MAX_SIZE, "WxH",
+                  "orbit: the image size (default 308x410, portrait)"),
+      SPX_O_RANGE(0, "--focal", SPX_OPT_REAL, &o->focal, 1e-300, 1e30, "F",
+                  "orbit: the focal length in pixels, the principal point at the centre (default: framed)"),
+      SPX_O(0, "--split", SPX_OPT_STR, &split_s, "0.8,0.1,0.1",
+            "the fractions of the views in train, validation, test (each >= 0, summing to 1; default 0.8,0.1,0.1)"),
+      SPX_O_RANGE(0, "--seed", SPX_OPT_INT, &o->seed, 0, 2147483647, "S", "the seed of the split's random order (default 0)"),
+      SPX_O(0, "--input-format", SPX_OPT_STR, &o->fmt, "exr|npy", "the inputs' file format (default exr)"),
+      SPX_O_RANGE(0, "--aa", SPX_OPT_INT, &o->aa, 1, 2, "1|2", "2: the outputs rasterized with 2x2 supersampling (default 1)"),
+      SPX_CLI_COLOR_ROW(&o->io.color),
+      SPX_O(0, "--force", SPX_OPT_FLAG, &o->force, NULL,
+            "replace the data set in DIR (images of an earlier run that this one did not write are removed)"),
+      SPX_CLI_DEVICE_ROW(&o->io.device),
+      SPX_CLI_QUIET_ROW(&o->io.quiet),
+      SPX_O_END};
+  int rc = spx_cli_parse(argc, argv, "dataset", ABOUT, opts);
   if (rc >= 0) return rc;
-  if (!o->io.mesh || !o->io.out) return spx_cli_usage("dataset", "--mesh and --out are required");
   if (!o->io.cameras == !spx_cli_given(opts, "--orbit"))
     return spx_cli_usage("dataset", "give --cameras C.json or --orbit N (one of them)");
   const double *f = o->split;

@@ -21,29 +21,23 @@
 
 #define PI 3.14159265358979323846
 
-static void demo_help(void) {
-  printf("usage: smplpix demo [--out DIR] [--checkpoint W.safetensors] [--frame N] [--seed S] [--size WxH]\n"
-         "                    [--zoom Z] [--motion K [--motion-step T]] [--device cpu|gpu|P:D] [--quiet]\n"
-         "Renders the shipped body (data/body/default_body.npz) with the appearance of synthetic subject S\n"
-         "(smplpix synth's texture sampled at the body's UVs; its shape too), reposed to frame N (default 600)\n"
-         "of the shipped motion (data/mocap/01_01.bvh), seen from the front and framed as smplpix synth\n"
-         "frames its photos, at WxH: the size the network was trained at (its metadata smplpix.image_size;\n"
-         "--size must agree with it), else --size, else 96x128; with as many vertices as the network was\n"
-         "trained on (smplpix.source ending in 53k: one Loop step, 53,514; else 13,380).\n"
-         "Writes to DIR (default out; made if missing, its parent must exist), all files at once or none:\n"
-         "  demo_photo.png    the ground truth: the subject's textured scan in that pose, lit, as smplpix\n"
-         "                    synth draws the photos the network learns from\n"
-         "  demo_input.png    the SMPLpix input: the projected coloured vertices (RGB of the RGB-D image)\n"
-         "  demo_smplpix.png  the network's output on that input\n"
-         "  demo_raster.png   the classic baseline: the same coloured mesh rasterized (per-vertex colours)\n"
-         "  demo.png          photo | input | SMPLpix | per-vertex raster side by side, labelled, each panel\n"
-         "                    enlarged Z times (nearest pixel; --zoom 1..8, default 1)\n"
-         "  demo_motion.png   with --motion K (2..16): the network's output (the input without one) for K\n"
-         "                    frames of the motion, N, N+T, ... (--motion-step T, default 30 = 1/4 s), side by\n"
-         "                    side, each framed like the first image\n"
-         "The network is --checkpoint, else the shipped data/models/default.safetensors. Without either,\n"
-         "a note says so and demo.png is photo | input | per-vertex raster (no demo_smplpix.png).\n");
-}
+static const char *ABOUT =
+    "Renders the shipped body (data/body/default_body.npz) with the appearance of a synthetic subject\n"
+    "(smplpix synth's texture sampled at the body's UVs; its shape too), reposed to a frame of the\n"
+    "shipped motion (data/mocap/01_01.bvh), seen from the front and framed as smplpix synth frames its\n"
+    "photos, at the size the network was trained at (its metadata smplpix.image_size), else --size, else\n"
+    "96x128; with as many vertices as the network was trained on (smplpix.source ending in 53k: one Loop\n"
+    "step, 53,514; else 13,380). Writes to DIR, all files at once or none:\n"
+    "  demo_photo.png    the ground truth: the subject's textured scan in that pose, lit, as smplpix\n"
+    "                    synth draws the photos the network learns from\n"
+    "  demo_input.png    the SMPLpix input: the projected coloured vertices (RGB of the RGB-D image)\n"
+    "  demo_smplpix.png  the network's output on that input\n"
+    "  demo_raster.png   the classic baseline: the same coloured mesh rasterized (per-vertex colours)\n"
+    "  demo.png          photo | input | SMPLpix | per-vertex raster side by side, labelled\n"
+    "  demo_motion.png   with --motion: the network's output (the input without one) for K frames of the\n"
+    "                    motion, N, N+T, ..., side by side, each framed like the first image\n"
+    "Without a network a note says so and demo.png is photo | input | per-vertex raster (no\n"
+    "demo_smplpix.png).\n";
 
 typedef struct demo_opts {
   const char *out_dir, *ckpt, *device;
@@ -56,19 +50,21 @@ static int parse(int argc, char **argv, demo_opts *o) {
   o->out_dir = "out", o->frame = 600, o->seed = 3, o->W = 96, o->H = 128, o->zoom = 1;
   long zoom = 1, seed = 3;
   int wh[2] = {96, 128};
-  spx_opt opts[] = {SPX_O("--quiet", SPX_OPT_FLAG, &o->quiet),
-                    SPX_O("--out", SPX_OPT_OUT, &o->out_dir),
-                    SPX_O("--checkpoint", SPX_OPT_IN, &o->ckpt),
-                    SPX_O("--device", SPX_OPT_STR, &o->device),
-                    SPX_O_RANGE("--frame", SPX_OPT_INT, &o->frame, 0, 2147483647),
-                    SPX_O_RANGE("--seed", SPX_OPT_INT, &seed, 0, 2147483647),
-                    SPX_O_RANGE("--zoom", SPX_OPT_INT, &zoom, 1, 8),
-                    SPX_O_RANGE("--size", SPX_OPT_SIZE, wh, 16, 4096),
-                    SPX_O_RANGE("--motion", SPX_OPT_INT, &o->motion, 2, 16),
-                    SPX_O_RANGE("--motion-step", SPX_OPT_INT, &o->motion_step, 1, 100000),
-                    SPX_O_END};
+  spx_opt opts[] = {
+      SPX_O(0, "--out", SPX_OPT_OUT, &o->out_dir, "DIR", "the folder written (default out; made if missing, its parent must exist)"),
+      SPX_O(0, "--checkpoint", SPX_OPT_IN, &o->ckpt, "W.safetensors", "the network (default: the shipped data/models/default.safetensors)"),
+      SPX_O_RANGE(0, "--frame", SPX_OPT_INT, &o->frame, 0, 2147483647, "N", "the motion's frame (default 600)"),
+      SPX_O_RANGE(0, "--seed", SPX_OPT_INT, &seed, 0, 2147483647, "S", "the synthetic subject (default 3)"),
+      SPX_O_RANGE(0, "--size", SPX_OPT_SIZE, wh, 16, 4096, "WxH", "the image size (must agree with the network's, when it records one)"),
+      SPX_O_RANGE(0, "--zoom", SPX_OPT_INT, &zoom, 1, 8, "Z", "demo.png's panels enlarged Z times, nearest pixel (default 1)"),
+      SPX_O_RANGE(0, "--motion", SPX_OPT_INT, &o->motion, 2, 16, "K", "also demo_motion.png, of K frames"),
+      SPX_O_RANGE(0, "--motion-step", SPX_OPT_INT, &o->motion_step, 1, 100000, "T",
+                  "with --motion: frames T apart (default 30 = 1/4 s)"),
+      SPX_CLI_DEVICE_ROW(&o->device),
+      SPX_CLI_QUIET_ROW(&o->quiet),
+      SPX_O_END};
   o->motion_step = 30;
-  int rc = spx_cli_parse(argc, argv, "demo", NULL, demo_help, opts);
+  int rc = spx_cli_parse(argc, argv, "demo", ABOUT, opts);
   if (rc >= 0) return rc;
   if (spx_cli_only_with(opts, "demo", "--motion-step", o->motion > 0, "--motion K")) return SPX_EXIT_USAGE;
   if (strlen(o->out_dir) > 4000) return spx_cli_usage("demo", "--out: path too long (%zu characters)", strlen(o->out_dir));

@@ -11,12 +11,7 @@ static const char *kind_name(spx_device_kind k) {
   return k == SPX_DEVICE_GPU ? "gpu" : k == SPX_DEVICE_CPU ? "cpu" : "other";
 }
 
-static const char DEVICES_USAGE[] =
-    "usage: smplpix devices [--warmup] [--peak] [--device cpu|gpu|P:D]\n"
-    "Lists OpenCL devices; --warmup builds every kernel on the chosen device (filling the\n"
-    "program-binary cache) and prints how long that took and how much came from the cache;\n"
-    "--peak measures the float32 FMA peak and the memory bandwidth (a streaming triad) of every\n"
-    "listed device, or of the --device one, with short kernels (seconds on a CPU).\n";
+static const char ABOUT[] = "Lists OpenCL devices: index P:D, kind, name, platform, driver, compute units, memory.\n";
 
 /* --peak on the device `spec` (its own context: a failure leaves the other devices' lines) */
 static int peak_line(const char *spec) {
@@ -38,9 +33,15 @@ static int peak_line(const char *spec) {
 int spx_cmd_devices(int argc, char **argv) {
   const char *spec = NULL;
   int warm = 0, peak = 0;
-  spx_opt opts[] = {SPX_O("--warmup", SPX_OPT_FLAG, &warm), SPX_O("--peak", SPX_OPT_FLAG, &peak),
-                    SPX_O("--device", SPX_OPT_STR, &spec), SPX_O_END};
-  int parsed = spx_cli_parse(argc, argv, "devices", DEVICES_USAGE, NULL, opts);
+  spx_opt opts[] = {
+      SPX_O(0, "--warmup", SPX_OPT_FLAG, &warm, NULL,
+            "build every kernel on the chosen device (filling the program-binary cache) and print how long that "
+            "took and how much came from the cache"),
+      SPX_O(0, "--peak", SPX_OPT_FLAG, &peak, NULL,
+            "measure the float32 FMA peak and the memory bandwidth (a streaming triad) of every listed device, or "
+            "of the --device one, with short kernels (seconds on a CPU)"),
+      SPX_CLI_DEVICE_ROW(&spec), SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "devices", ABOUT, opts);
   if (parsed >= 0) return parsed;
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("devices", "out of memory");

@@ -12,34 +12,21 @@
 
 #include "cli_scene.h"
 
-static void eval_help(void) {
-  printf("usage: smplpix eval --pred P --target T [--mask M] [--per-image] [--json F]\n"
-         "                    [--lpips W.safetensors | --no-lpips] [--device cpu|gpu|P:D]\n"
-         "P and T are two image files, or two folders whose files are matched by name (the extension may\n"
-         "differ: .png, .exr, .npy as HxWxC or HxW). Only the first three channels (RGB in [0,1]) are\n"
-         "compared: the alpha of an RGBA PNG, the depth of an RGB-D EXR are ignored.\n"
-         "PSNR = 10 log10(1/MSE) per image (inf for identical images); SSIM as scikit-image's\n"
-         "structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False,\n"
-         "data_range=1.0, channel_axis=-1) (images of at least 11x11); both are averaged over the images.\n"
-         "--mask M: a mask file (used for every image) or a folder of masks matched by name; the first\n"
-         "channel nonzero = foreground. Adds the masked values: PSNR of the foreground pixels' MSE, and\n"
-         "the SSIM map averaged over the foreground, and with LPIPS the lpips package's spatial LPIPS map\n"
-         "averaged over the foreground (see smplpix/metrics.h).\n"
-         "LPIPS (v0.1, AlexNet, as the lpips package computes it) runs on the OpenCL device, for images\n"
-         "of at least 31x31, with the weights `make weights` puts in ${SPX_CACHE_DIR:-~/.cache/smplpix}/\n"
-         "weights/lpips_alex.safetensors when that file exists (smaller images: n/a); --lpips W uses W\n"
-         "instead (tools/lpips_to_safetensors.py converts the lpips package's; smaller images: an error);\n"
-         "--no-lpips leaves LPIPS out.\n"
-         "Detail: the mean absolute image gradient of the prediction over that of the target (1 = as\n"
-         "much edge and print detail, below 1 = blurred), inside the mask, or without --mask inside the\n"
-         "target's non-background (not white) pixels; also over the full image (smplpix/metrics.h).\n"
-         "--per-image: one line per image before the mean. --json F: {\"count\", \"psnr\", \"ssim\",\n"
-         "\"detail_full\", \"detail\", \"lpips\", \"images\": [{\"name\", \"psnr\", ..., \"lpips\"}]}\n"
-         "(+ \"psnr_masked\", \"ssim_masked\", \"lpips_masked\" with --mask), null where a value is\n"
-         "infinite, undefined or not asked for.\n"
-         "A size mismatch, an unreadable file or a name present on one side only: one line, exit 1,\n"
-         "no JSON written.\n");
-}
+static const char *ABOUT =
+    "P and T are two image files, or two folders whose files are matched by name (the extension may\n"
+    "differ: .png, .exr, .npy as HxWxC or HxW). Only the first three channels (RGB in [0,1]) are\n"
+    "compared: the alpha of an RGBA PNG, the depth of an RGB-D EXR are ignored.\n"
+    "PSNR = 10 log10(1/MSE) per image (inf for identical images); SSIM as scikit-image's\n"
+    "structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False,\n"
+    "data_range=1.0, channel_axis=-1) (images of at least 11x11); both are averaged over the images.\n"
+    "LPIPS (v0.1, AlexNet, as the lpips package computes it) runs on the OpenCL device, for images\n"
+    "of at least 31x31, with the weights `make weights` puts in ${SPX_CACHE_DIR:-~/.cache/smplpix}/\n"
+    "weights/lpips_alex.safetensors when that file exists (smaller images: n/a).\n"
+    "Detail: the mean absolute image gradient of the prediction over that of the target (1 = as\n"
+    "much edge and print detail, below 1 = blurred), inside the mask, or without --mask inside the\n"
+    "target's non-background (not white) pixels; also over the full image (smplpix/metrics.h).\n"
+    "A size mismatch, an unreadable file or a name present on one side only: one line, exit 1,\n"
+    "no JSON written.\n";
 
 typedef struct item {
   char *name, *pred, *target, *mask;
@@ -325,14 +312,26 @@ int spx_cmd_eval(int argc, char **argv) {
   const char *pred = NULL, *target = NULL, *mask = NULL, *json = NULL, *lpw = NULL, *device = NULL;
   int per_image = 0, no_lpips = 0;
   char cached[4096];
-  spx_opt opts[] = {SPX_O("--pred", SPX_OPT_IN, &pred),     SPX_O("--target", SPX_OPT_IN, &target),
-                    SPX_O("--mask", SPX_OPT_IN, &mask),     SPX_O("--json", SPX_OPT_OUT, &json),
-                    SPX_O("--lpips", SPX_OPT_IN, &lpw),     SPX_O("--device", SPX_OPT_STR, &device),
-                    SPX_O("--per-image", SPX_OPT_FLAG, &per_image), SPX_O("--no-lpips", SPX_OPT_FLAG, &no_lpips),
-                    SPX_O_END};
-  int parsed = spx_cli_parse(argc, argv, "eval", NULL, eval_help, opts);
+  spx_opt opts[] = {
+      SPX_O(SPX_REQ, "--pred", SPX_OPT_IN, &pred, "P", "the predicted image, or a folder of them"),
+      SPX_O(SPX_REQ, "--target", SPX_OPT_IN, &target, "T", "the target image, or a folder of them"),
+      SPX_O(0, "--mask", SPX_OPT_IN, &mask, "M",
+            "a mask file (for every image) or a folder of masks matched by name, the first channel nonzero = "
+            "foreground: adds PSNR of the foreground pixels' MSE, the SSIM map and the lpips package's spatial "
+            "LPIPS map averaged over the foreground"),
+      SPX_O(0, "--per-image", SPX_OPT_FLAG, &per_image, NULL, "one line per image before the mean"),
+      SPX_O(0, "--json", SPX_OPT_OUT, &json, "F",
+            "write {\"count\", \"psnr\", \"ssim\", \"detail_full\", \"detail\", \"lpips\", \"images\": "
+            "[{\"name\", \"psnr\", ..., \"lpips\"}]} (+ \"psnr_masked\", \"ssim_masked\", \"lpips_masked\" with "
+            "--mask), null where a value is infinite, undefined or not asked for"),
+      SPX_O(SPX_ALT(1), "--lpips", SPX_OPT_IN, &lpw, "W.safetensors",
+            "LPIPS weights instead of the cached ones (tools/lpips_to_safetensors.py converts the lpips "
+            "package's; images under 31x31: an error)"),
+      SPX_O(SPX_ALT(1), "--no-lpips", SPX_OPT_FLAG, &no_lpips, NULL, "leave LPIPS out"),
+      SPX_CLI_DEVICE_ROW(&device),
+      SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "eval", ABOUT, opts);
   if (parsed >= 0) return parsed;
-  if (!pred || !target) return spx_cli_usage("eval", "--pred and --target are required");
   if (lpw && no_lpips) return spx_cli_usage("eval", "give --lpips W or --no-lpips, not both");
   int lp_opt = !lpw && !no_lpips && spx_weights_path(SPX_WEIGHTS_LPIPS_ALEX, cached, sizeof cached) == 1;
   if (lp_opt) lpw = cached;

@@ -12,20 +12,18 @@
 
 #define MAX_META 12
 
-static void export_help(void) {
-  printf("usage: smplpix export --checkpoint W.safetensors --out M.safetensors [--half] [--meta KEY=VALUE ...]\n"
-         "Writes the network of checkpoint W without its optimizer state: the state_dict (milesial\n"
-         "names: weights, batch-norm running statistics, num_batches_tracked) as float32, or as\n"
-         "float16 with --half (the shipping format of data/models/default.safetensors: PyTorch loads\n"
-         "it with load_state_dict(strict=True) after .float(); smplpix render reads it directly).\n"
-         "Metadata: format, smplpix.width, smplpix.sigmoid; smplpix.loss, smplpix.stage and\n"
-         "smplpix.image_size (the size it was trained at) when W has them; smplpix.steps (W's Adam step count: of its last run, a stage started with --init counts\n"
-         "from 0); smplpix.dtype (F16 or F32); and each --meta pair\n"
-         "(at most %d; e.g. --meta smplpix.image_size=128x96; UTF-8; format, smplpix.width, sigmoid, dtype,\n"
-         "steps and smplpix.train.* are the file's own). A value that does not fit in float16\n"
-         "is an error naming the tensor.\n",
-         MAX_META);
-}
+#define STR_(x) #x
+#define STR(x) STR_(x)
+
+static const char *ABOUT =
+    "Writes the network of checkpoint W without its optimizer state: the state_dict (milesial names:\n"
+    "weights, batch-norm running statistics, num_batches_tracked) as float32, or as float16 (the\n"
+    "shipping format of data/models/default.safetensors: PyTorch loads it with\n"
+    "load_state_dict(strict=True) after .float(); smplpix render reads it directly). Metadata: format,\n"
+    "smplpix.width, smplpix.sigmoid; smplpix.loss, smplpix.stage and smplpix.image_size (the size it was\n"
+    "trained at) when W has them; smplpix.steps (W's Adam step count: of its last run, a stage started\n"
+    "with --init counts from 0); smplpix.dtype (F16 or F32); and the --meta pairs. A value that does not\n"
+    "fit in float16 is an error naming the tensor.\n";
 
 static int export_run(int argc, char **argv, const char **user);
 
@@ -57,9 +55,15 @@ static int export_run(int argc, char **argv, const char **user) {
   const char *in = NULL, *out = NULL, *mk[MAX_META + 6], *mv[MAX_META + 6];
   char kbuf[MAX_META][128];
   int half = 0, nm = 0, nuser = 0;
-  spx_opt opts[] = {SPX_O("--half", SPX_OPT_FLAG, &half), SPX_O("--checkpoint", SPX_OPT_IN, &in), SPX_O("--out", SPX_OPT_OUT, &out),
-                    SPX_O("--meta", SPX_OPT_LIST, user), SPX_O_END};
-  int parsed = spx_cli_parse(argc, argv, "export", NULL, export_help, opts);
+  spx_opt opts[] = {
+      SPX_O(SPX_REQ, "--checkpoint", SPX_OPT_IN, &in, "W.safetensors", "the checkpoint of `smplpix train`"),
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &out, "M.safetensors", "the network written"),
+      SPX_O(0, "--half", SPX_OPT_FLAG, &half, NULL, "float16 weights"),
+      SPX_O(0, "--meta", SPX_OPT_LIST, user, "KEY=VALUE",
+            "a metadata pair to add (at most " STR(MAX_META) "; UTF-8; e.g. smplpix.image_size=128x96; format, "
+            "smplpix.width, sigmoid, dtype, steps and smplpix.train.* are the file's own)"),
+      SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "export", ABOUT, opts);
   for (const char **m = user; parsed < 0 && *m; m++, nuser++) {
     const char *v = *m, *eq = strchr(v, '=');
     if (!eq || eq == v || (size_t)(eq - v) >= sizeof kbuf[0])
@@ -74,7 +78,6 @@ static int export_run(int argc, char **argv, const char **user) {
       if (!strncmp(*o, v, (size_t)(eq - v) + 1)) parsed = spx_cli_usage("export", "--meta %.*s is given twice", (int)(eq - v), v);
   }
   if (parsed >= 0) return parsed;
-  if (!in || !out) return spx_cli_usage("export", "--checkpoint and --out are required");
   char ext[16];
   spx_path_ext(out, ext, sizeof ext);
   if (strcmp(ext, "safetensors")) return spx_cli_usage("export", "%s: output must end in .safetensors", out);

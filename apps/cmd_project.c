@@ -11,24 +11,20 @@
 #include "smplpix/npy.h"
 #include "smplpix/render.h"
 
-static const char *USAGE =
-    "usage: smplpix project --mesh M.obj|M.ply --camera C.json --out P.exr|P.npy|P.png\n"
-    "                       [--png P.png] [--npy P.npy] [--color auto|mesh|normal|white]\n"
-    "                       [--device cpu|gpu|P:D] [--quiet]\n"
+static const char *ABOUT =
     "Projects every vertex of the mesh (or point cloud) through the camera(s) into an RGB-D image\n"
-    "(R,G,B,depth; background 1,1,1,1; nearest vertex wins). A camera file holding an array of N\n"
-    "cameras writes N images, named P_000.exr ... P_<N-1>.exr.\n"
-    SPX_CLI_COLOR_USAGE
-    "= mesh colors when present, else normals (gray for point clouds).\n";
+    "(R,G,B,depth; background 1,1,1,1; nearest vertex wins). A point cloud without colours is gray\n"
+    "under --color auto.\n";
 
 int spx_cmd_project(int argc, char **argv) {
   spx_cli_scene_opts o = {.color = "auto"};
   const char *png = NULL, *npy = NULL;
-  spx_opt opts[] = {SPX_CLI_SCENE_ROWS(o, "--camera"), SPX_O("--png", SPX_OPT_OUT, &png), SPX_O("--npy", SPX_OPT_OUT, &npy),
-                    SPX_O_END};
-  int rc = spx_cli_parse(argc, argv, "project", USAGE, NULL, opts);
+  spx_opt opts[] = {SPX_CLI_SCENE_ROWS(o, SPX_REQ, "P.exr|P.npy|P.png"),
+                    SPX_O(0, "--png", SPX_OPT_OUT, &png, "P.png", "the same image, also as a PNG (R,G,B)"),
+                    SPX_O(0, "--npy", SPX_OPT_OUT, &npy, "P.npy", "the same image, also as a NumPy .npy (R,G,B,depth)"),
+                    SPX_CLI_SCENE_TAIL_ROWS(o), SPX_O_END};
+  int rc = spx_cli_parse(argc, argv, "project", ABOUT, opts);
   if (rc >= 0) return rc;
-  if (!o.mesh || !o.cameras || !o.out) return spx_cli_usage("project", "--mesh, --camera and --out are required");
   const char *outs[3] = {o.out, png, npy};
   for (int k = 0; k < 3; k++) {
     if (!outs[k]) continue;

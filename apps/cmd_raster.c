@@ -11,28 +11,25 @@
 #include "smplpix/mesh.h"
 #include "smplpix/raster.h"
 
-static const char *USAGE =
-    "usage: smplpix raster --mesh M.obj|M.ply --camera C.json --out I.png|I.exr|I.npy\n"
-    "                      [--texture T.png|T.exr] [--aa 1|2] [--cull none|back|front]\n"
-    "                      [--color auto|mesh|normal|white] [--device cpu|gpu|P:D] [--quiet]\n"
+static const char *ABOUT =
     "Rasterizes the mesh's triangles through the camera(s) (nearest surface wins, perspective-correct\n"
-    "interpolation): .exr/.npy hold R,G,B,depth (background 1,1,1,1), .png holds R,G,B. A camera file\n"
-    "holding an array of N cameras writes N images, named I_000.png ... I_<N-1>.png.\n"
-    "--texture: multiply by the bilinear texture sample (needs a mesh with texture coordinates).\n"
-    "--aa 2: 2x2 supersampling. --cull: drop back- or front-facing triangles (default none).\n"
-    SPX_CLI_COLOR_USAGE
-    "= white when textured, else mesh colors when present, else normals.\n";
+    "interpolation): the classic baseline SMPLpix is compared against. With --texture, --color auto is\n"
+    "white.\n";
 
 int spx_cmd_raster(int argc, char **argv) {
   spx_cli_scene_opts o = {.color = "auto"};
   const char *tex_path = NULL, *cull_s = "none";
   long aa = 1;
-  spx_opt opts[] = {SPX_CLI_SCENE_ROWS(o, "--camera"), SPX_O("--texture", SPX_OPT_IN, &tex_path),
-                    SPX_O_RANGE("--aa", SPX_OPT_INT, &aa, 1, 2), SPX_O("--cull", SPX_OPT_STR, &cull_s), SPX_O_END};
-  int rc = spx_cli_parse(argc, argv, "raster", USAGE, NULL, opts);
+  spx_opt opts[] = {
+      SPX_CLI_SCENE_ROWS(o, SPX_REQ, "I.png|I.exr|I.npy"),
+      SPX_O(0, "--texture", SPX_OPT_IN, &tex_path, "T.png|T.exr",
+            "multiply by the bilinear texture sample (needs a mesh with texture coordinates)"),
+      SPX_O_RANGE(0, "--aa", SPX_OPT_INT, &aa, 1, 2, "1|2", "2: 2x2 supersampling (default 1)"),
+      SPX_O(0, "--cull", SPX_OPT_STR, &cull_s, "none|back|front", "drop back- or front-facing triangles (default none)"),
+      SPX_CLI_SCENE_TAIL_ROWS(o), SPX_O_END};
+  int rc = spx_cli_parse(argc, argv, "raster", ABOUT, opts);
   if (rc >= 0) return rc;
   const char *out = o.out, *color = o.color;
-  if (!o.mesh || !o.cameras || !out) return spx_cli_usage("raster", "--mesh, --camera and --out are required");
   if (!spx_image_ext_ok(out)) return spx_cli_usage("raster", "%s: output must end in .exr, .png or .npy", out);
   if (!spx_cli_color_ok(color))
     return spx_cli_usage("raster", "--color %s: expected auto, mesh, normal or white", color);

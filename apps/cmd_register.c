@@ -39,27 +39,18 @@ static int parse_stages(const char *s, int *mask) {
   return *mask ? 0 : -1;
 }
 
-static void register_help(void) {
-  printf("usage: smplpix register --scan S.ply|S.obj [--view C.json] [--model M.npz] --out R.ply [--params P.json]\n"
-         "                        [--stages rigid,pose,free] [--threads N] [--units m|cm|mm]\n"
-         "       smplpix register --depth D.png|D.exr|D.npy --camera C.json [--rgb I.png] [--depth D2 --camera C2\n"
-         "                        [--rgb I2] ...] --out R.ply ...\n"
-         "Registers the body model (default: %s) to a scan or point cloud in stages:\n"
-         "rigid (scale, rotation, translation; any up axis), pose (pose + shape with priors),\n"
-         "free (free vertices with a Laplacian regulariser). Units are detected from the bounding\n"
-         "box unless --units is given. Writes the registered mesh (with colours transferred from a\n"
-         "coloured scan) and, with --params, the parameters + unposed template for `smplpix repose`\n"
-         "and `smplpix reshape`. Reports mean / median / 95th-percentile scan-to-surface distance.\n"
-         "--view C.json: the scan is what the depth camera of C.json saw (one side of the person);\n"
-         "the fit then takes no evidence from what that camera could not see.\n"
-         "--depth: a depth image (16-bit PNG in millimetres, EXR Z channel or NPY in metres; 0, NaN =\n"
-         "no data) seen through the camera of --camera (of the same size); the person is found in it\n"
-         "(floor, walls, flying pixels and other objects removed, reported on a line), back-projected\n"
-         "into a point cloud, coloured by --rgb (an image registered to the depth), and registered\n"
-         "seen from that camera. Several --depth/--camera pairs (cameras around the person, in one\n"
-         "world frame) fuse into one registration; --rgb is then given for every one or for none.\n",
-         DEFAULT_MODEL);
-}
+static const char *ABOUT =
+    "Registers the body model to a scan or point cloud, or to the person in depth images, in stages:\n"
+    "rigid (scale, rotation, translation; any up axis), pose (pose + shape with priors), free (free\n"
+    "vertices with a Laplacian regulariser). Writes the registered mesh (with colours transferred from a\n"
+    "coloured scan) and, with --params, the parameters + unposed template for `smplpix repose` and\n"
+    "`smplpix reshape`. Reports mean / median / 95th-percentile scan-to-surface distance.\n"
+    "A depth image (16-bit PNG in millimetres, EXR Z channel or NPY in metres; 0, NaN = no data) is seen\n"
+    "through the camera given after it (of the same size); the person is found in it (floor, walls,\n"
+    "flying pixels and other objects removed, reported on a line), back-projected into a point cloud,\n"
+    "coloured by --rgb, and registered seen from that camera. Several --depth/--camera pairs (cameras\n"
+    "around the person, in one world frame) fuse into one registration; --rgb is then given for every one\n"
+    "or for none.\n";
 
 /* The options of --depth mode: as many --camera as --depth, --rgb for each or none, no --view;
  * no output names one of the lists' inputs. Returns -1 to go on, else the exit code. */
@@ -209,14 +200,23 @@ int spx_cmd_register(int argc, char **argv) {
   const char **rgbs = calloc((size_t)argc + 1, sizeof *rgbs);
   const char *stages_s = NULL, *units_s = NULL;
   long nthreads = 1;
-  spx_opt opts[] = {SPX_O("--scan", SPX_OPT_IN, &a.scan_path),       SPX_O("--model", SPX_OPT_IN, &a.model_path),
-                    SPX_O("--out", SPX_OPT_OUT, &a.out_path),        SPX_O("--params", SPX_OPT_OUT, &a.params_path),
-                    SPX_O("--depth", SPX_OPT_LIST, depths),          SPX_O("--camera", SPX_OPT_LIST, cams),
-                    SPX_O("--rgb", SPX_OPT_LIST, rgbs),              SPX_O("--view", SPX_OPT_IN, &a.view_path),
-                    SPX_O("--stages", SPX_OPT_STR, &stages_s),       SPX_O_RANGE("--threads", SPX_OPT_INT, &nthreads, 1, 256),
-                    SPX_O("--units", SPX_OPT_STR, &units_s),         SPX_O_END};
+  spx_opt opts[] = {
+      SPX_O(SPX_REQ | SPX_ALT(1), "--scan", SPX_OPT_IN, &a.scan_path, "S.ply|S.obj", "the scan or point cloud"),
+      SPX_O(SPX_REQ | SPX_ALT(1), "--depth", SPX_OPT_LIST, depths, "D.png|D.exr|D.npy", "a depth image (repeatable)"),
+      SPX_O(0, "--camera", SPX_OPT_LIST, cams, "C.json", "the camera of each --depth, in the same order"),
+      SPX_O(0, "--rgb", SPX_OPT_LIST, rgbs, "I.png", "an image registered to each --depth, colouring it"),
+      SPX_O(0, "--view", SPX_OPT_IN, &a.view_path, "C.json",
+            "the scan is what the depth camera of C.json saw (one side of the person): the fit takes no evidence "
+            "from what that camera could not see"),
+      SPX_O(0, "--model", SPX_OPT_IN, &a.model_path, "M.npz", "the body model (default data/body/default_body.npz)"),
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &a.out_path, "R.ply", "the registered mesh written"),
+      SPX_O(0, "--params", SPX_OPT_OUT, &a.params_path, "P.json", "also write the parameters and the unposed template"),
+      SPX_O(0, "--stages", SPX_OPT_STR, &stages_s, "rigid,pose,free", "the stages to run (default all three)"),
+      SPX_O_RANGE(0, "--threads", SPX_OPT_INT, &nthreads, 1, 256, "N", "CPU threads of the fit (default 1)"),
+      SPX_O(0, "--units", SPX_OPT_STR, &units_s, "m|cm|mm", "the scan's units (default: detected from its bounding box)"),
+      SPX_O_END};
   int rc = !depths || !cams || !rgbs ? spx_cli_errorf("register", "out of memory")
-                                     : spx_cli_parse(argc, argv, "register", NULL, register_help, opts);
+                                     : spx_cli_parse(argc, argv, "register", ABOUT, opts);
   if (rc < 0) rc = check_depth_lists(depths, cams, rgbs, a.view_path, a.out_path, a.params_path, &a.ndepth);
   a.threads = (int)nthreads, a.depths = depths, a.cams = cams, a.rgbs = rgbs;
   if (rc < 0 && stages_s && parse_stages(stages_s, &a.stages))
@@ -229,8 +229,7 @@ int spx_cmd_register(int argc, char **argv) {
   }
   if (rc < 0 && a.out_path && a.params_path && !strcmp(a.out_path, a.params_path))
     rc = spx_cli_usage("register", "--out and --params name one file");
-  if (rc < 0 && (!a.out_path || !a.scan_path == !a.ndepth))
-    rc = spx_cli_usage("register", "--out and one of --scan or --depth are required");
+  if (rc < 0 && a.scan_path && a.ndepth) rc = spx_cli_usage("register", "give --scan or --depth, not both");
   if (rc < 0) rc = run(&a);
   free(depths), free(cams), free(rgbs);
   return rc;

@@ -16,32 +16,16 @@
 #include "render_avatar.h"
 #include "unet_io.h"
 
-static void render_help(void) {
-  printf("usage: smplpix render [--checkpoint W.safetensors] --input P.exr|P.png|P.npy --out I.png|I.exr|I.npy\n"
-         "       smplpix render [--checkpoint W.safetensors] --mesh M.obj|M.ply --camera C.json --out I.png|I.exr|I.npy\n"
-         "                      [--color auto|mesh|normal|white] [--batch B]\n"
-         "       smplpix render --avatar A.safetensors --camera C.json --out I.png|I.exr|I.npy\n"
-         "                      [--pose Q.json | --bvh M.bvh [--frame N] | --amass M.npz [--frame N]] [--model M.npz]\n"
-         "       common options: [--sigmoid on|off] [--any-size] [--device cpu|gpu|P:D] [--quiet]\n"
-         "Runs the UNet of checkpoint W (milesial state_dict names; base width read from the file;\n"
-         "default: the shipped network data/models/default.safetensors, when present) on\n"
-         "the RGB-D image P (EXR channels R,G,B,Z; a PNG or a 3-channel image gets depth 1; .npy is\n"
-         "HxWx4, or Nx4xHxW for a batch, which then needs a .npy output) and writes the RGB result.\n"
-         "A 3-channel input (RGB PNG or EXR, HxWx3 .npy) gets depth 1 (the background); fewer is an error.\n"
-         "With --mesh/--camera the RGB-D input is the projection of the mesh's vertices (as `smplpix\n"
-         "project`, --color as there; a PLY/OBJ point cloud without faces works the same), made on the\n"
-         "device straight into the network's input (no host round trip); a camera array of N cameras writes I_000.png ... I_<N-1>.png, the\n"
-         "cameras going through the network B at a time (--batch, default 4; also for an Nx4xHxW .npy).\n"
-         "Nothing is written when any camera fails.\n"
-         "--sigmoid overrides the checkpoint's output sigmoid flag (metadata smplpix.sigmoid).\n"
-         "--avatar: the avatar of `smplpix avatar` in its registered pose, the pose of Q.json (its top-level\n"
-         "\"pose\" and \"trans\", the body model's parameters) or frame N (default 0) of a motion, through its own\n"
-         "network, for every camera of C.json.\n"
-         "PNG output is clamped to [0, 1]; height and width must be at least 16.\n"
-         "A network whose metadata records the image size it was trained at (smplpix.image_size: smplpix\n"
-         "train writes it, export keeps it, an avatar records it) refuses inputs of another size, which it\n"
-         "would draw worse than it can; --any-size runs it anyway.\n");
-}
+static const char *ABOUT =
+    "Runs a trained UNet on an RGB-D image (--input), on the projection of a mesh's vertices through\n"
+    "camera(s) (--mesh, --camera: as `smplpix project`, made on the device straight into the network's\n"
+    "input) or on an avatar of `smplpix avatar` (--avatar, --camera: its own network and colours, in its\n"
+    "registered pose, a pose or a motion frame), and writes the RGB result (PNG clamped to [0, 1]).\n"
+    "Inputs: EXR channels R,G,B,Z; a PNG or a 3-channel image gets depth 1 (the background), fewer is an\n"
+    "error; .npy is HxWx4, or Nx4xHxW for a batch, which then needs a .npy output; height and width at\n"
+    "least 16. Nothing is written when any camera fails. A network whose metadata records the image size\n"
+    "it was trained at (smplpix.image_size: smplpix train writes it, export keeps it, an avatar records\n"
+    "it) refuses inputs of another size, which it would draw worse than it can.\n";
 
 /* Device memory errors get a hint on what to change. */
 static int net_error(spx_ctx *ctx, spx_status st, int n, int h, int w) {
@@ -147,15 +131,30 @@ int spx_cmd_render(int argc, char **argv) {
   int any_size = 0;
   long batch = 4;
   spx_render_avatar_args av = {0};
-  spx_opt opts[] = {SPX_CLI_SCENE_ROWS(o, "--camera"),
-                    SPX_O("--checkpoint", SPX_OPT_IN, &ckpt),   SPX_O("--any-size", SPX_OPT_FLAG, &any_size),
-                    SPX_O("--input", SPX_OPT_IN, &input),
-                    SPX_O_RANGE("--batch", SPX_OPT_INT, &batch, 1, 4096), SPX_O("--sigmoid", SPX_OPT_STR, &sig),
-                    SPX_O("--avatar", SPX_OPT_IN, &av.avatar),  SPX_O("--pose", SPX_OPT_IN, &av.pose_path),
-                    SPX_O("--bvh", SPX_OPT_IN, &av.bvh),        SPX_O("--amass", SPX_OPT_IN, &av.amass),
-                    SPX_O("--model", SPX_OPT_IN, &av.model),    SPX_O_RANGE("--frame", SPX_OPT_INT, &av.frame, 0, 2147483647),
-                    SPX_O_END};
-  int parsed = spx_cli_parse(argc, argv, "render", NULL, render_help, opts);
+  spx_opt opts[] = {
+      SPX_O(SPX_REQ | SPX_ALT(1), "--input", SPX_OPT_IN, &input, "P.exr|P.png|P.npy", "the RGB-D image(s) to render"),
+      SPX_CLI_MESH_ROW(SPX_REQ | SPX_ALT(1), &o.mesh),
+      SPX_O(SPX_REQ | SPX_ALT(1), "--avatar", SPX_OPT_IN, &av.avatar, "A.safetensors", "the avatar of `smplpix avatar`"),
+      SPX_CLI_CAMERA_ROW(0, &o.cameras),
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &o.out, "I.png|I.exr|I.npy", "the image(s) written"),
+      SPX_O(0, "--checkpoint", SPX_OPT_IN, &ckpt, "W.safetensors",
+            "the network (milesial state_dict names, base width read from the file; default: the shipped "
+            "data/models/default.safetensors)"),
+      SPX_CLI_COLOR_ROW(&o.color),
+      SPX_O_RANGE(0, "--batch", SPX_OPT_INT, &batch, 1, 4096, "B",
+                  "images through the network at a time, of a camera array or an Nx4xHxW .npy (default 4)"),
+      SPX_O(SPX_ALT(2), "--pose", SPX_OPT_IN, &av.pose_path, "Q.json",
+            "avatar: the pose of Q.json's top-level \"pose\" and \"trans\" (the body model's parameters)"),
+      SPX_O(SPX_ALT(2), "--bvh", SPX_OPT_IN, &av.bvh, "M.bvh", "avatar: a frame of this BVH motion"),
+      SPX_O(SPX_ALT(2), "--amass", SPX_OPT_IN, &av.amass, "M.npz", "avatar: a frame of this AMASS motion"),
+      SPX_O_RANGE(0, "--frame", SPX_OPT_INT, &av.frame, 0, 2147483647, "N", "the motion's frame (default 0)"),
+      SPX_O(0, "--model", SPX_OPT_IN, &av.model, "M.npz", "avatar: the body model (default: the one the avatar file names)"),
+      SPX_O(0, "--sigmoid", SPX_OPT_STR, &sig, "on|off", "override the network's output sigmoid (metadata smplpix.sigmoid)"),
+      SPX_O(0, "--any-size", SPX_OPT_FLAG, &any_size, NULL, "run a network on images of another size than it was trained at"),
+      SPX_CLI_DEVICE_ROW(&o.device),
+      SPX_CLI_QUIET_ROW(&o.quiet),
+      SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "render", ABOUT, opts);
   if (parsed >= 0) return parsed;
   const char *outp = o.out;
   if (av.avatar || av.pose_path || av.bvh || av.amass || av.model || spx_cli_given(opts, "--frame"))

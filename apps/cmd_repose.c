@@ -104,35 +104,39 @@ done:
   return rc;
 }
 
-static void repose_help(void) {
-  printf("usage: smplpix repose --registration P.json (--bvh M.bvh [--frame N] | --pose Q.json [--view NAME])\n"
-         "                      --out V.ply|V.obj [--model M.npz] [--subdivide N]\n"
-         "Poses the registered person (its unposed template and shape) with frame N of a BVH clip,\n"
-         "retargeted by joint name, or with the model's own pose parameters from Q.json: its\n"
-         "top-level \"pose\" and \"trans\" (e.g. a registration JSON), or with --view the \"pose\"\n"
-         "object of that view of a `smplpix synth` manifest. Writes the mesh (with the registration's\n"
-         "colours and the model's texture coordinates) in metres, in the model frame; with --view in\n"
-         "the scan's frame (the registration's similarity applied, the translation taken relative to\n"
-         "the subject's \"scan_pose\"), where the synth cameras look. --subdivide N adds N Loop steps\n"
-         "(4^N times the faces; texture coordinates are then dropped).\n");
-}
+/* The --model row of repose and reshape. */
+#define MODEL_ROW(dst) \
+  SPX_O(0, "--model", SPX_OPT_IN, dst, "M.npz", "the body model (default: the registration's, else data/body/default_body.npz)")
+
+static const char *REPOSE_ABOUT =
+    "Poses the registered person (its unposed template and shape) with a frame of a BVH clip, retargeted\n"
+    "by joint name, or with the model's own pose parameters from a JSON file. Writes the mesh (with the\n"
+    "registration's colours and the model's texture coordinates) in metres, in the model frame; with\n"
+    "--view in the scan's frame (the registration's similarity applied, the translation taken relative to\n"
+    "the subject's \"scan_pose\"), where the synth cameras look.\n";
 
 int spx_cmd_repose(int argc, char **argv) {
   const char *reg_path = NULL, *bvh_path = NULL, *out_path = NULL, *model_arg = NULL, *pose_path = NULL,
              *view = NULL;
   long frame = 0, subdivide = 0;
-  spx_opt opts[] = {SPX_O("--registration", SPX_OPT_IN, &reg_path), SPX_O("--bvh", SPX_OPT_IN, &bvh_path),
-                    SPX_O("--pose", SPX_OPT_IN, &pose_path),        SPX_O("--view", SPX_OPT_STR, &view),
-                    SPX_O("--out", SPX_OPT_OUT, &out_path),         SPX_O("--model", SPX_OPT_IN, &model_arg),
-                    SPX_O_RANGE("--subdivide", SPX_OPT_INT, &subdivide, 0, 3), SPX_O_RANGE("--frame", SPX_OPT_INT, &frame, 0, 2147483647),
-                    SPX_O_END};
-  int parsed = spx_cli_parse(argc, argv, "repose", NULL, repose_help, opts);
+  spx_opt opts[] = {
+      SPX_O(SPX_REQ, "--registration", SPX_OPT_IN, &reg_path, "P.json", "the registration (smplpix register --params)"),
+      SPX_O(SPX_REQ | SPX_ALT(1), "--bvh", SPX_OPT_IN, &bvh_path, "M.bvh", "pose with a frame of this BVH clip"),
+      SPX_O(SPX_REQ | SPX_ALT(1), "--pose", SPX_OPT_IN, &pose_path, "Q.json",
+            "pose with Q.json's top-level \"pose\" and \"trans\" (e.g. a registration JSON)"),
+      SPX_O_RANGE(0, "--frame", SPX_OPT_INT, &frame, 0, 2147483647, "N", "with --bvh: the clip's frame (default 0)"),
+      SPX_O(0, "--view", SPX_OPT_STR, &view, "NAME", "with --pose: the \"pose\" object of that view of a `smplpix synth` manifest"),
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &out_path, "V.ply|V.obj", "the mesh written"),
+      MODEL_ROW(&model_arg),
+      SPX_O_RANGE(0, "--subdivide", SPX_OPT_INT, &subdivide, 0, 3, "N",
+                  "N Loop steps (4^N times the faces; texture coordinates are then dropped)"),
+      SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "repose", REPOSE_ABOUT, opts);
   if (parsed >= 0) return parsed;
   if (spx_cli_only_with(opts, "repose", "--frame", bvh_path != NULL, "--bvh") ||
       spx_cli_only_with(opts, "repose", "--view", pose_path != NULL, "--pose"))
     return SPX_EXIT_USAGE;
-  if (!reg_path || !out_path || !bvh_path == !pose_path)
-    return spx_cli_usage("repose", "--registration, --out and one of --bvh or --pose are required");
+  if (bvh_path && pose_path) return spx_cli_usage("repose", "give --bvh or --pose, not both");
   if (view && !pose_path) return spx_cli_usage("repose", "--view needs --pose (a synth manifest)");
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("repose", "out of memory");
@@ -178,13 +182,9 @@ done:
   return rc;
 }
 
-static void reshape_help(void) {
-  printf("usage: smplpix reshape --registration P.json --shape I:V [--shape I:V ...] --out V.ply\n"
-         "                       [--model M.npz] [--rest]\n"
-         "Changes shape coefficient I of the registered person: V with a sign (+2.0, -1) is added to\n"
-         "the fitted value, V without a sign replaces it. The personal detail (the unposed template)\n"
-         "is kept; the registered pose is kept unless --rest. Writes the mesh in metres.\n");
-}
+static const char *RESHAPE_ABOUT =
+    "Changes shape coefficients of the registered person. The personal detail (the unposed template) is\n"
+    "kept; the registered pose is kept unless --rest. Writes the mesh in metres.\n";
 
 int spx_cmd_reshape(int argc, char **argv) {
   const char *reg_path = NULL, *out_path = NULL, *model_arg = NULL;
@@ -193,10 +193,15 @@ int spx_cmd_reshape(int argc, char **argv) {
   double sh_val[MAXSH];
   const char **shapes = calloc((size_t)argc + 1, sizeof *shapes); /* every --shape value */
   if (!shapes) return spx_cli_errorf("reshape", "out of memory");
-  spx_opt opts[] = {SPX_O("--registration", SPX_OPT_IN, &reg_path), SPX_O("--out", SPX_OPT_OUT, &out_path),
-                    SPX_O("--model", SPX_OPT_IN, &model_arg),       SPX_O("--rest", SPX_OPT_FLAG, &rest),
-                    SPX_O("--shape", SPX_OPT_LIST, shapes),         SPX_O_END};
-  int parsed = spx_cli_parse(argc, argv, "reshape", NULL, reshape_help, opts);
+  spx_opt opts[] = {
+      SPX_O(SPX_REQ, "--registration", SPX_OPT_IN, &reg_path, "P.json", "the registration (smplpix register --params)"),
+      SPX_O(SPX_REQ, "--shape", SPX_OPT_LIST, shapes, "I:V",
+            "shape coefficient I: V with a sign (+2.0, -1) is added to the fitted value, V without a sign replaces it"),
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &out_path, "V.ply", "the mesh written"),
+      MODEL_ROW(&model_arg),
+      SPX_O(0, "--rest", SPX_OPT_FLAG, &rest, NULL, "the rest pose instead of the registered one"),
+      SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "reshape", RESHAPE_ABOUT, opts);
   for (const char **sv = shapes; parsed < 0 && *sv; sv++) {
     const char *v = *sv;
     char *end;
@@ -222,7 +227,6 @@ int spx_cmd_reshape(int argc, char **argv) {
   }
   free(shapes);
   if (parsed >= 0) return parsed;
-  if (!reg_path || !out_path || !nsh) return spx_cli_usage("reshape", "--registration, --shape and --out are required");
   spx_ctx *ctx = NULL;
   if (spx_ctx_create(&ctx)) return spx_cli_errorf("reshape", "out of memory");
   spx_fit_result r;

@@ -11,44 +11,36 @@
 #include "smplpix/synth.h"
 #include "synth_out.h"
 
-static const char *USAGE =
-    "usage: smplpix synth --subjects N --views V --seed S --out DIR [--size WxH] [--body M.npz]\n"
-    "                     [--bvh M.bvh] [--parts P.png] [--texture-size T] [--device D] [--force] [--quiet]\n"
-    "  Synthetic scanned people: N subjects (random shape, skin, hair, clothing with printed\n"
-    "  patterns; a high-resolution scan = 2 Loop subdivisions + clothing/hair displacement,\n"
-    "  textured at TxT) and V photos each (view 0 at rest, the others in poses spread over the\n"
-    "  BVH clip; cameras all round, elevation -10..35 degrees, distance and focal jittered;\n"
-    "  Lambert + ambient light fixed in the world; 2x anti-aliased). Writes DIR/synth.json,\n"
-    "  DIR/sNNN/{scan.ply,texture.png,cameras/vNNN.json,images/vNNN.png,masks/vNNN.png}.\n"
-    "  --size WxH       photo size (default 308x410, portrait: a standing person)\n"
-    "  --body M.npz     body model with UVs (default data/body/default_body.npz)\n"
-    "  --bvh M.bvh      motion for the poses (default data/mocap/01_01.bvh)\n"
-    "  --parts P.png    part map in the body's UV layout (default data/body/body_parts_segmentation.png)\n"
-    "  --texture-size T texture resolution (default 2048, 256..8192)\n"
-    "  --force          replace DIR when it holds a previous synth output\n"
-    "  --quiet          no progress\n";
+static const char *ABOUT =
+    "Synthetic scanned people: N subjects (random shape, skin, hair, clothing with printed patterns; a\n"
+    "high-resolution scan = 2 Loop subdivisions + clothing/hair displacement, textured at TxT) and V\n"
+    "photos each (view 0 at rest, the others in poses spread over the BVH clip; cameras all round,\n"
+    "elevation -10..35 degrees, distance and focal jittered; Lambert + ambient light fixed in the world;\n"
+    "2x anti-aliased). Writes DIR/synth.json,\n"
+    "DIR/sNNN/{scan.ply,texture.png,cameras/vNNN.json,images/vNNN.png,masks/vNNN.png}.\n";
 
 int spx_cmd_synth(int argc, char **argv) {
   const char *out = NULL, *body_path = NULL, *bvh_path = NULL, *parts_path = NULL, *dev = NULL;
   long subjects = 0, views = 0, seed = 0, tex_size = 2048;
   int force = 0, quiet = 0, size[2] = {308, 410};
-  spx_opt opts[] = {SPX_O("--force", SPX_OPT_FLAG, &force),
-                    SPX_O("--quiet", SPX_OPT_FLAG, &quiet),
-                    SPX_O_RANGE("--subjects", SPX_OPT_INT, &subjects, 1, 9999),
-                    SPX_O_RANGE("--views", SPX_OPT_INT, &views, 1, 999),
-                    SPX_O_RANGE("--seed", SPX_OPT_INT, &seed, 0, 2147483647),
-                    SPX_O("--out", SPX_OPT_OUT, &out),
-                    SPX_O_RANGE("--size", SPX_OPT_SIZE, size, 16, 4096),
-                    SPX_O("--body", SPX_OPT_IN, &body_path),
-                    SPX_O("--bvh", SPX_OPT_IN, &bvh_path),
-                    SPX_O("--parts", SPX_OPT_IN, &parts_path),
-                    SPX_O_RANGE("--texture-size", SPX_OPT_INT, &tex_size, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX),
-                    SPX_O("--device", SPX_OPT_STR, &dev),
-                    SPX_O_END};
-  int parsed = spx_cli_parse(argc, argv, "synth", USAGE, NULL, opts);
+  spx_opt opts[] = {
+      SPX_O_RANGE(SPX_REQ, "--subjects", SPX_OPT_INT, &subjects, 1, 9999, "N", "the number of people"),
+      SPX_O_RANGE(SPX_REQ, "--views", SPX_OPT_INT, &views, 1, 999, "V", "photos of each person"),
+      SPX_O_RANGE(SPX_REQ, "--seed", SPX_OPT_INT, &seed, 0, 2147483647, "S", "the seed everything random is drawn from"),
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &out, "DIR", "the folder written"),
+      SPX_O_RANGE(0, "--size", SPX_OPT_SIZE, size, 16, 4096, "WxH", "photo size (default 308x410, portrait: a standing person)"),
+      SPX_O_RANGE(0, "--texture-size", SPX_OPT_INT, &tex_size, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX, "T",
+                  "texture resolution (default 2048)"),
+      SPX_O(0, "--body", SPX_OPT_IN, &body_path, "M.npz", "body model with UVs (default data/body/default_body.npz)"),
+      SPX_O(0, "--bvh", SPX_OPT_IN, &bvh_path, "M.bvh", "motion for the poses (default data/mocap/01_01.bvh)"),
+      SPX_O(0, "--parts", SPX_OPT_IN, &parts_path, "P.png",
+            "part map in the body's UV layout (default data/body/body_parts_segmentation.png)"),
+      SPX_CLI_DEVICE_ROW(&dev),
+      SPX_O(0, "--force", SPX_OPT_FLAG, &force, NULL, "replace DIR when it holds a previous synth output"),
+      SPX_CLI_QUIET_ROW(&quiet),
+      SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "synth", ABOUT, opts);
   if (parsed >= 0) return parsed;
-  if (!spx_cli_given(opts, "--subjects") || !spx_cli_given(opts, "--views") || !spx_cli_given(opts, "--seed") || !out)
-    return spx_cli_usage("synth", "--subjects, --views, --seed and --out are required");
   synth_opts o = {.subjects = (int)subjects, .views = (int)views, .seed = (uint64_t)seed, .width = size[0],
                   .height = size[1], .tex_size = (int32_t)tex_size};
   /* DIR without trailing slashes (the temporary folder is its sibling); not ".", ".." or "/" */

@@ -21,48 +21,27 @@
 #include "train_state.h"
 #include "unet_io.h"
 
-static void train_help(void) {
-  printf("usage: smplpix train --data DIR --out W.safetensors [--width 8|16|32|64] [--batch B] [--lr LR]\n"
-         "                     [--epochs E | --steps S] [--init W0.safetensors] [--resume] [--seed N]\n"
-         "                     [--no-shuffle] [--loss l1|l1+gan|vgg|vgg+gan|vgg16|vgg16+gan] [--vgg VGG.safetensors]\n"
-         "                     [--schedule paper] [--lr2 LR] [--disc-width N] [--sigmoid] [--device cpu|gpu|P:D]\n"
-         "                     [--lr-decay cosine] [--local-bn]\n"
-         "Trains on DIR/train/input/NAME.{exr,npy,png} (RGB-D) -> DIR/train/output/NAME.{png,exr,npy} (RGB),\n"
-         "matched by NAME; all images of a split must have the same size (>= 16x16). Adam (betas 0.9,\n"
-         "0.999, eps 1e-8), mean L1 loss. Defaults: --width 32 --batch 1 --lr 1e-3 --epochs 1 --seed 0.\n"
-         "--epochs E / --steps S: train until E epochs / S optimizer steps in total are done.\n"
-         "--resume continues from W (weights, optimizer state, step count, data order) bit for bit, taking\n"
-         "the seed, shuffle, batch, lr, lr decay, loss, schedule, stage, lr2 and disc width recorded in W (flags\n"
-         "that contradict them: exit 2) and, unless --epochs / --steps give a new one, the run's length;\n"
-         "--init starts from the weights of W0 with a fresh optimizer. After every epoch the loss on\n"
-         "DIR/validation (when present: mean L1, and PSNR and SSIM of the output clamped to [0,1], as\n"
-         "`smplpix eval` computes them) is printed,\n"
-         "also once before the first step. W (and W.disc) is rewritten atomically (and fsync'ed) after every\n"
-         "epoch, or every N steps\n"
-         "with --save-every N, and at the end. --batch larger than the number of pairs uses them all.\n"
-         "Progress goes to stderr: a bar updated in place on a terminal, else a line every --log-every\n"
-         "steps (default 10): step, loss (mean over the epoch so far), images/s, ETA.\n"
-         "Ctrl-C or SIGTERM: the current step finishes, W is saved (exit status 130 / 143; continue with\n"
-         "--resume); a second one stops at once, leaving the last saved W as it was.\n"
-         "Losses (the paper, §3.3): l1 = mean L1; l1+gan adds pix2pixHD's multi-scale PatchGAN (3 scales,\n"
-         "conditional on the RGB-D input, LSGAN) and 0.1 x feature matching, the discriminator (width\n"
-         "--disc-width, default 64) trained beside the generator with the same lr and kept with its Adam\n"
-         "state in W.disc.safetensors; vgg / vgg+gan use the VGG19 perceptual loss of eq. 5 and need --vgg\n"
-         "VGG19.safetensors; vgg16 / vgg16+gan the official SMPLpix code's VGG16 loss, with the weights of\n"
-         "`make weights` (${SPX_CACHE_DIR:-~/.cache/smplpix}/weights/vgg16.safetensors) or --vgg VGG16 file.\n"
-         "--schedule paper: stage 1 (vgg16 with the cached VGG16, vgg with --vgg, else l1: the offline recipe)\n"
-         "for --epochs (default 100) epochs at --lr (default 1e-4), then Adam restarts and stage 2 (+gan)\n"
-         "runs as many epochs at --lr2 (default 1e-5); --batch defaults to 10. The stage is recorded in W,\n"
-         "so --resume continues the right one.\n"
-         "--lr-decay cosine: each stage's learning rate falls from --lr (--lr2) to 0 along half a cosine,\n"
-         "0.5 (1 + cos(pi t)) at the fraction t of the stage done (a run's stage ends at its last step;\n"
-         "stage 1 of --schedule paper at its switch); recorded in W, so --resume keeps it.\n"
-         "Several processes: mpirun -np N smplpix train ... trains one network on N ranks (one OpenCL device\n"
-         "each, by local rank; ranks share the CPU when a node has fewer GPUs than ranks); --batch is the\n"
-         "global batch and must divide by N; gradients are summed over the ranks in a fixed order; batch\n"
-         "norm uses the global batch's statistics (--local-bn: each rank's own, like PyTorch DDP); rank 0\n"
-         "prints and writes W; SIGINT/SIGTERM stop every rank after the current step with W saved.\n");
-}
+static const char *ABOUT =
+    "Trains on DIR/train/input/NAME.{exr,npy,png} (RGB-D) -> DIR/train/output/NAME.{png,exr,npy} (RGB),\n"
+    "matched by NAME; all images of a split must have the same size (>= 16x16). Adam (betas 0.9, 0.999,\n"
+    "eps 1e-8). After every epoch, and once before the first step, the loss on DIR/validation (when\n"
+    "present: mean L1, and PSNR and SSIM of the output clamped to [0,1], as `smplpix eval` computes them)\n"
+    "is printed. W (and W.disc) is rewritten atomically (and fsync'ed) after every epoch or --save-every\n"
+    "steps, and at the end. Progress goes to stderr: a bar updated in place on a terminal, else a line\n"
+    "every --log-every steps: step, loss (mean over the epoch so far), images/s, ETA.\n"
+    "Ctrl-C or SIGTERM: the current step finishes, W is saved (exit status 130 / 143; continue with\n"
+    "--resume); a second one stops at once, leaving the last saved W as it was.\n"
+    "Losses (the paper, §3.3): l1 = mean L1; l1+gan adds pix2pixHD's multi-scale PatchGAN (3 scales,\n"
+    "conditional on the RGB-D input, LSGAN) and 0.1 x feature matching, the discriminator trained beside\n"
+    "the generator with the same lr and kept with its Adam state in W.disc.safetensors; vgg / vgg+gan use\n"
+    "the VGG19 perceptual loss of eq. 5 (weights: --vgg); vgg16 / vgg16+gan the official SMPLpix code's\n"
+    "VGG16 loss, with the weights of `make weights` (${SPX_CACHE_DIR:-~/.cache/smplpix}/weights/\n"
+    "vgg16.safetensors) or --vgg.\n"
+    "Several processes: mpirun -np N smplpix train ... trains one network on N ranks (one OpenCL device\n"
+    "each, by local rank; ranks share the CPU when a node has fewer GPUs than ranks); --batch is the\n"
+    "global batch and must divide by N; gradients are summed over the ranks in a fixed order; batch norm\n"
+    "uses the global batch's statistics; rank 0 prints and writes W; SIGINT/SIGTERM stop every rank after\n"
+    "the current step with W saved.\n";
 
 typedef struct sample {
   char *in, *out;
@@ -373,36 +352,47 @@ typedef struct train_job {
 static int train_parse(int argc, char **argv, train_args *a) {
   a->width = 0, a->batch = -1, a->epochs = -1, a->steps = -1, a->seed = 0, a->save_every = 0, a->log_every = 10;
   a->disc_width = 64, a->lr = -1, a->lr2 = 1e-5;
-  const spx_opt opts[] = {SPX_O("--resume", SPX_OPT_FLAG, &a->resume),
-                          SPX_O("--no-shuffle", SPX_OPT_FLAG, &a->no_shuffle),
-                          SPX_O("--sigmoid", SPX_OPT_FLAG, &a->sigmoid),
-                          SPX_O("--local-bn", SPX_OPT_FLAG, &a->local_bn),
-                          SPX_O("--data", SPX_OPT_IN, &a->data),
-                          SPX_O("--out", SPX_OPT_OUT, &a->outp),
-                          SPX_O("--init", SPX_OPT_IN, &a->init),
-                          SPX_O("--device", SPX_OPT_STR, &a->spec),
-                          SPX_O("--loss", SPX_OPT_STR, &a->loss_name),
-                          SPX_O("--vgg", SPX_OPT_IN, &a->vgg_path),
-                          SPX_O("--schedule", SPX_OPT_STR, &a->schedule),
-                          SPX_O("--lr-decay", SPX_OPT_STR, &a->lr_decay),
-                          SPX_O_RANGE("--disc-width", SPX_OPT_INT, &a->disc_width, 1, 512),
-                          SPX_O_RANGE("--lr2", SPX_OPT_REAL, &a->lr2, 1e-300, 1e6),
-                          SPX_O_RANGE("--width", SPX_OPT_INT, &a->width, 8, 64),
-                          SPX_O_RANGE("--batch", SPX_OPT_INT, &a->batch, 1, 1000000000),
-                          SPX_O_RANGE("--epochs", SPX_OPT_INT, &a->epochs, 0, 100000000),
-                          SPX_O_RANGE("--steps", SPX_OPT_INT, &a->steps, 0, 2000000000),
-                          SPX_O_RANGE("--seed", SPX_OPT_INT, &a->seed, 0, 2147483647),
-                          SPX_O_RANGE("--save-every", SPX_OPT_INT, &a->save_every, 1, 2000000000),
-                          SPX_O_RANGE("--log-every", SPX_OPT_INT, &a->log_every, 1, 2000000000),
-                          SPX_O_RANGE("--lr", SPX_OPT_REAL, &a->lr, 1e-300, 1e6),
-                          SPX_O_END};
+  const spx_opt opts[] = {
+      SPX_O(SPX_REQ, "--data", SPX_OPT_IN, &a->data, "DIR", "the training data (DIR/{train,validation}/{input,output})"),
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &a->outp, "W.safetensors", "the checkpoint written: weights and optimizer state"),
+      SPX_O_RANGE(0, "--width", SPX_OPT_INT, &a->width, 8, 64, "8|16|32|64", "the UNet's base width (default 32)"),
+      SPX_O_RANGE(0, "--batch", SPX_OPT_INT, &a->batch, 1, 1000000000, "B",
+                  "pairs a step (default 1, 10 with --schedule paper; more than the pairs uses them all)"),
+      SPX_O_RANGE(0, "--lr", SPX_OPT_REAL, &a->lr, 1e-300, 1e6, "LR", "the learning rate (default 1e-3, 1e-4 with --schedule paper)"),
+      SPX_O_RANGE(SPX_ALT(1), "--epochs", SPX_OPT_INT, &a->epochs, 0, 100000000, "E",
+                  "train until E epochs in total are done (default 1, 100 a stage with --schedule paper)"),
+      SPX_O_RANGE(SPX_ALT(1), "--steps", SPX_OPT_INT, &a->steps, 0, 2000000000, "S", "train until S optimizer steps in total are done"),
+      SPX_O(SPX_ALT(2), "--resume", SPX_OPT_FLAG, &a->resume, NULL,
+            "continue from W bit for bit (weights, optimizer state, step count, data order), taking the settings "
+            "recorded in W (flags that contradict them: exit 2) and, unless --epochs / --steps give a new one, its length"),
+      SPX_O(SPX_ALT(2), "--init", SPX_OPT_IN, &a->init, "W0.safetensors", "start from the weights of W0 with a fresh optimizer"),
+      SPX_O_RANGE(0, "--save-every", SPX_OPT_INT, &a->save_every, 1, 2000000000, "N", "also save W every N steps"),
+      SPX_O_RANGE(0, "--log-every", SPX_OPT_INT, &a->log_every, 1, 2000000000, "N",
+                  "a progress line every N steps when stderr is not a terminal (default 10)"),
+      SPX_O_RANGE(0, "--seed", SPX_OPT_INT, &a->seed, 0, 2147483647, "N", "the seed of the weights and the data order (default 0)"),
+      SPX_O(0, "--no-shuffle", SPX_OPT_FLAG, &a->no_shuffle, NULL, "the pairs in name order every epoch"),
+      SPX_O(0, "--sigmoid", SPX_OPT_FLAG, &a->sigmoid, NULL, "a sigmoid on the network's output"),
+      SPX_O(0, "--lr-decay", SPX_OPT_STR, &a->lr_decay, "cosine",
+            "each stage's learning rate falls from --lr (--lr2) to 0 along half a cosine, 0.5 (1 + cos(pi t)) at "
+            "the fraction t of the stage done (stage 1 of --schedule paper ends at its switch)"),
+      SPX_CLI_DEVICE_ROW(&a->spec),
+      SPX_O(0, "--loss", SPX_OPT_STR, &a->loss_name, "l1|l1+gan|vgg|vgg+gan|vgg16|vgg16+gan", "the loss (default l1; above)"),
+      SPX_O(0, "--vgg", SPX_OPT_IN, &a->vgg_path, "VGG.safetensors",
+            "the VGG19 weights of vgg / vgg+gan, or VGG16 weights for vgg16 instead of the cached ones"),
+      SPX_O_RANGE(0, "--disc-width", SPX_OPT_INT, &a->disc_width, 1, 512, "N", "the discriminator's base width (default 64)"),
+      SPX_O(0, "--schedule", SPX_OPT_STR, &a->schedule, "paper",
+            "the paper's recipe: stage 1 (vgg16 with the cached VGG16, vgg with --vgg, else l1) for --epochs at "
+            "--lr, then Adam restarts and stage 2 (+gan) runs as many epochs at --lr2; the stage is recorded in W"),
+      SPX_O_RANGE(0, "--lr2", SPX_OPT_REAL, &a->lr2, 1e-300, 1e6, "LR", "stage 2's learning rate (default 1e-5)"),
+      SPX_O(0, "--local-bn", SPX_OPT_FLAG, &a->local_bn, NULL,
+            "under mpirun: batch norm on each rank's own statistics (like PyTorch DDP)"),
+      SPX_O_END};
   _Static_assert(sizeof opts <= sizeof a->opts, "train_args.opts holds the option table");
   memcpy(a->opts, opts, sizeof opts);
   int rc, use_gan, use_vgg;
-  if ((rc = spx_cli_parse(argc, argv, "train", NULL, train_help, a->opts)) >= 0) return rc;
+  if ((rc = spx_cli_parse(argc, argv, "train", ABOUT, a->opts)) >= 0) return rc;
   if (a->width && a->width != 8 && a->width != 16 && a->width != 32 && a->width != 64)
     return spx_cli_usage("train", "--width must be 8, 16, 32 or 64, not %ld", a->width);
-  if (!a->data || !a->outp) return spx_cli_usage("train", "--data and --out are required");
   if (a->schedule && strcmp(a->schedule, "paper"))
     return spx_cli_usage("train", "--schedule must be 'paper', not '%s'", a->schedule);
   if (a->lr_decay && strcmp(a->lr_decay, "cosine"))

@@ -69,36 +69,27 @@ static int int_list(const char **list, const char *opt, long lo, long hi, int po
   return -1;
 }
 
-static const char usage[] =
-    "usage: smplpix tune [--quick] [--width W]... [--batch N]... [--camera C.json | --size HxW]\n"
-    "                    [--checkpoint W.safetensors] [--repeat N] [--clock wall|cpu] [--device cpu|gpu|P:D]\n"
-    "       smplpix tune --show [--device cpu|gpu|P:D]\n"
+static const char ABOUT[] =
     "Times candidate values of the convolution tunables (Winograd threshold CONV_WINO_MINC, register\n"
     "tiles CONV_TM x CONV_TN, vector width CONV_VW, channel tiles CONV_CT, work-group CONV_LWS, input\n"
     "cache CONV_XCACHE, local-memory conv CONV_LDS (1, 2) and its tile CONV_LDS_TX x CONV_LDS_CB and\n"
     "channel groups CONV_LDS_CG, local-memory Winograd CONV_WINO_LDS and its tiles CONV_WLDS_TM x\n"
     "CONV_WLDS_TN, CONV_WLDS_WM x CONV_WLDS_WN, CONV_WLDS_KB, then CONV_WINO_MINC once more) on the\n"
-    "UNet's eval forward at the camera's image size (default data/cameras/default.json) for each base\n"
-    "width (--width, repeatable; default: the width of the shipped network or --checkpoint) and each\n"
-    "batch (--batch, 1 to 64, repeatable; default 1: give the batches you render or train at, e.g.\n"
-    "--batch 1 --batch 10, since the fastest choice depends on the batch), on the chosen device. One\n"
-    "tunable (group) at a time, the others at their best so far, scored by the mean over every (width,\n"
-    "batch) of its time / the best so far; a candidate whose output differs from the defaults' by more\n"
-    "than 1e-3 of its largest value, at any (width, batch), is rejected. Then the training side on a\n"
-    "training step at the same batches (skipped, with the reason, where the image is too small to train\n"
-    "at one of them): Winograd in training CONV_WINO_TRAIN, the Winograd weight gradient's thresholds\n"
-    "CONV_WINO_DW (channels) and CONV_WINO_DW_MINHW (pixels), the weight-gradient tiles CONV_DW_TM x\n"
-    "CONV_DW_TN, CONV_DW_G x CONV_DW_QB and CONV_DW_QC, the gradients checked like the outputs. Prints\n"
-    "candidate, ms per (width, batch) and the choice, then the defaults against the winners per (width,\n"
-    "batch), and writes the winners to the device's tuning file beside the program cache (atomically;\n"
-    "keyed by device, driver and smplpix version; a comment line records the batches, widths and image\n"
-    "size), which every later device open applies; SPX_TUNE_<NAME> variables still win (and those\n"
-    "tunables are not tuned). --quick: a few candidates (of the training side only CONV_WINO_DW on or\n"
-    "off: 1 + 2 x repeat training steps per width and batch); --repeat: timed runs per candidate (min\n"
-    "taken); --clock cpu: time by this process's CPU time (a CPU device shared with other work; it does\n"
-    "not see lost parallelism), default wall.\n"
-    "--show prints every tunable in effect, its default and its source (default, tuned, env), and\n"
-    "the tuning file's comment (what it was tuned at).\n";
+    "UNet's eval forward at the image size for each base width and each batch, on the chosen device (the\n"
+    "fastest choice depends on the batch: give the batches you render or train at). One tunable (group)\n"
+    "at a time, the others at their best so far, scored by the mean over every (width, batch) of its time\n"
+    "/ the best so far; a candidate whose output differs from the defaults' by more than 1e-3 of its\n"
+    "largest value, at any (width, batch), is rejected. Then the training side on a training step at the\n"
+    "same batches (skipped, with the reason, where the image is too small to train at one of them):\n"
+    "Winograd in training CONV_WINO_TRAIN, the Winograd weight gradient's thresholds CONV_WINO_DW\n"
+    "(channels) and CONV_WINO_DW_MINHW (pixels), the weight-gradient tiles CONV_DW_TM x CONV_DW_TN,\n"
+    "CONV_DW_G x CONV_DW_QB and CONV_DW_QC, the gradients checked like the outputs. Prints candidate, ms\n"
+    "per (width, batch) and the choice, then the defaults against the winners per (width, batch), and\n"
+    "writes the winners to the device's tuning file beside the program cache (atomically; keyed by\n"
+    "device, driver and smplpix version; a comment line records the batches, widths and image size),\n"
+    "which every later device open applies; SPX_TUNE_<NAME> variables still win (and those tunables are\n"
+    "not tuned). `smplpix tune --show` prints every tunable in effect, its default and its source\n"
+    "(default, tuned, env), and the tuning file's comment (what it was tuned at).\n";
 
 int spx_cmd_tune(int argc, char **argv) {
   const char *spec = NULL, *camera = NULL, *ckpt = NULL;
@@ -113,13 +104,24 @@ int spx_cmd_tune(int argc, char **argv) {
     free(blist);
     return spx_cli_errorf("tune", "out of memory");
   }
-  spx_opt opts[] = {SPX_O("--quick", SPX_OPT_FLAG, &quick),      SPX_O("--show", SPX_OPT_FLAG, &do_show),
-                    SPX_O("--device", SPX_OPT_STR, &spec),       SPX_O("--clock", SPX_OPT_STR, &clock_s),
-                    SPX_O("--camera", SPX_OPT_IN, &camera),      SPX_O("--checkpoint", SPX_OPT_IN, &ckpt),
-                    SPX_O_RANGE("--size", SPX_OPT_SIZE, hw, 16, 8192), SPX_O_RANGE("--repeat", SPX_OPT_INT, &rep, 1, 100),
-                    SPX_O("--width", SPX_OPT_LIST, wlist),       SPX_O("--batch", SPX_OPT_LIST, blist),
-                    SPX_O_END};
-  int parsed = spx_cli_parse(argc, argv, "tune", usage, NULL, opts);
+  spx_opt opts[] = {
+      SPX_O(0, "--show", SPX_OPT_FLAG, &do_show, NULL, "print the tunables in effect instead (takes only --device)"),
+      SPX_O(0, "--quick", SPX_OPT_FLAG, &quick, NULL,
+            "a few candidates (of the training side only CONV_WINO_DW on or off: 1 + 2 x repeat training steps "
+            "per width and batch)"),
+      SPX_O(0, "--width", SPX_OPT_LIST, wlist, "W",
+            "a base width, 8, 16, 32 or 64 (repeatable; default: the width of the shipped network or --checkpoint)"),
+      SPX_O(0, "--batch", SPX_OPT_LIST, blist, "N", "a batch, 1 to 64 (repeatable; default 1)"),
+      SPX_O(SPX_ALT(1), "--camera", SPX_OPT_IN, &camera, "C.json", "time at this camera's image size (default data/cameras/default.json)"),
+      SPX_O_RANGE(SPX_ALT(1), "--size", SPX_OPT_SIZE, hw, 16, 8192, "HxW", "time at this image size"),
+      SPX_O(0, "--checkpoint", SPX_OPT_IN, &ckpt, "W.safetensors", "the network whose width is the default"),
+      SPX_O_RANGE(0, "--repeat", SPX_OPT_INT, &rep, 1, 100, "N", "timed runs per candidate, the minimum taken (default 5, 3 with --quick)"),
+      SPX_O(0, "--clock", SPX_OPT_STR, &clock_s, "wall|cpu",
+            "time by wall clock (default) or by this process's CPU time (a CPU device shared with other work; it "
+            "does not see lost parallelism)"),
+      SPX_CLI_DEVICE_ROW(&spec),
+      SPX_O_END};
+  int parsed = spx_cli_parse(argc, argv, "tune", ABOUT, opts);
   if (parsed < 0) parsed = int_list(wlist, "--width", 8, 64, 1, "8, 16, 32 or 64", widths, MAX_WIDTHS, &nw);
   if (parsed < 0) {
     char want[48];

@@ -128,12 +128,12 @@ if(SPX_PYTHON3 AND TARGET smplpix_app)
            COMMAND_EXPAND_LISTS)
   set_tests_properties(file_circles PROPERTIES SKIP_RETURN_CODE 77)
 endif()
-# Each command's option table is the one source of its options (tests/cli_options_docs.py): all of
-# them in its --help and in its usage on the docs page docs/commands.md gives it, none in the docs
-# that the table lacks.
-if(SPX_PYTHON3 AND TARGET smplpix_test_hooks)
+# Each command's option table is the one source of its options (tests/cli_options_docs.py): its
+# usage on the docs page docs/commands.md gives it is what `smplpix CMD --usage` prints (else: run
+# make docs-usage), all of them in its --help, none in the docs that the table lacks.
+if(SPX_PYTHON3 AND TARGET smplpix_tool)
   add_test(NAME cli_options_docs COMMAND ${SPX_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/cli_options_docs.py
-           $<TARGET_FILE:smplpix_test_hooks> ${CMAKE_SOURCE_DIR})
+           $<TARGET_FILE:smplpix_tool> ${CMAKE_SOURCE_DIR})
 endif()
 # Short functions (tests/function_length.py): none over 120 lines in lib/, apps/ and benchmarks/,
 # the files other work is splitting listed there. Skipped without python3.
