@@ -98,6 +98,46 @@ static void test_exact_numbers(void) {
   CHECK(run("export --checkpoint W.safetensors --out W.safetensors") == 2 && err_is("export", "--out W.safetensors is also"));
 }
 
+/* The last run's stdout is exactly want. */
+static int out_is(const char *want) {
+  size_t n;
+  char *b = slurp("out.txt", &n);
+  int ok = b && n == strlen(want) && !memcmp(b, want, n);
+  if (!ok) fprintf(stderr, "  expected stdout \"%s\", was: %.*s\n", want, b ? (int)n : 6, b ? b : "(none)");
+  free(b);
+  return ok;
+}
+
+/* The rows are the usage: required rows and groups are enforced (one line naming them all, exit 2,
+ * after the options themselves are checked); --help and --usage need none of them and print what
+ * the rows say. */
+static void test_usage_from_rows(void) {
+  hostile_dir();
+  CHECK(make_scene(0));
+  CHECK(run("raster --mesh quad.obj") == 2 && err_is("raster", "--mesh, --camera and --out are required"));
+  CHECK(run("raster --mesh quad.obj --aa 3") == 2 && err_has("--aa needs a whole number in [1, 2]"));
+  CHECK(run("animate --camera cam.json --out d --avatar a") == 2 &&
+        err_is("animate", "one of --registration / --avatar, one of --bvh / --amass, --camera and --out are required"));
+  CHECK(run("dataset --mesh quad.obj --out d") == 2 &&
+        err_is("dataset", "--mesh, --out and one of --cameras / --orbit are required"));
+  CHECK(run("export --out x.safetensors") == 2 && err_is("export", "--checkpoint and --out are required"));
+  CHECK(run("register --out r.ply") == 2 && err_is("register", "one of --scan / --depth and --out are required"));
+  CHECK(!exists("d"));
+  CHECK(run("raster --usage") == 0 &&
+        out_is("smplpix raster --mesh M.obj|M.ply --camera C.json --out I.png|I.exr|I.npy [--texture T.png|T.exr]\n"
+               "               [--aa 1|2] [--cull none|back|front] [--color auto|mesh|normal|white]\n"
+               "               [--device cpu|gpu|P:D] [--quiet]\n"));
+  CHECK(run("tune --usage") == 0 && out_is("smplpix tune [--show] [--quick] [--width W]... [--batch N]... "
+                                           "[--camera C.json | --size HxW]\n             [--checkpoint W.safetensors] "
+                                           "[--repeat N] [--clock wall|cpu] [--device cpu|gpu|P:D]\n"));
+  size_t n;
+  CHECK(run("raster --help") == 0);
+  char *h = slurp("out.txt", &n);
+  CHECK(h && !strncmp(h, "usage: smplpix raster --mesh M.obj|M.ply", 40) && strstr(h, "\noptions:\n") &&
+        strstr(h, "\n  --aa 1|2                      2: 2x2 supersampling (default 1; 1 to 2)\n"));
+  free(h);
+}
+
 /* Output types and writability are checked before the work. */
 static void test_checks_before_work(void) {
   hostile_dir();
@@ -113,6 +153,7 @@ static void test_checks_before_work(void) {
 }
 
 int main(void) {
-  const spx_t_test tests[] = {SPX_TEST(test_exact_numbers), SPX_TEST(test_every_command), SPX_TEST(test_checks_before_work)};
-  return cli_test_main(tests, 3);
+  const spx_t_test tests[] = {SPX_TEST(test_exact_numbers), SPX_TEST(test_every_command), SPX_TEST(test_checks_before_work),
+                              SPX_TEST(test_usage_from_rows)};
+  return cli_test_main(tests, 4);
 }
