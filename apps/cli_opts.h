@@ -60,11 +60,13 @@ typedef struct spx_opt {
 #define SPX_O_END {NULL, 0, NULL, 0, 0, NULL, NULL, 0, 0}
 
 /* Rows many tables share, each with its help once. */
-#define SPX_CLI_DEVICE_ROW(dst)                                 \
-  SPX_O(0, "--device", SPX_OPT_STR, dst, "cpu|gpu|P:D",       \
+#define SPX_CLI_DEVICE_ROW(dst)                                                                   \
+  SPX_O(0, "--device", SPX_OPT_STR, dst, "cpu|gpu|P:D",                                                         \
         "the OpenCL device: the first CPU or GPU, or device D of platform P (default: $SPX_DEVICE, else gpu, " \
         "else cpu)")
-#define SPX_CLI_QUIET_ROW(dst) SPX_O(0, "--quiet", SPX_OPT_FLAG, dst, NULL, "no progress or report lines (warnings and errors still print)")
+#define SPX_CLI_QUIET_ROW(dst) \
+  SPX_O(0, "--quiet", SPX_OPT_FLAG, dst, NULL, "no progress or report lines (warnings and errors still print)")
+
 /* Parse argv[1..argc) against opts (ended by SPX_O_END); about: the command's paragraph of --help
  * (what it does and makes; the options explain themselves in their rows). Returns -1 when the
  * command goes on, else the exit code to return: SPX_EXIT_OK after --help or --usage, SPX_EXIT_USAGE

@@ -32,16 +32,16 @@ typedef struct spx_cli_scene_opts {
   SPX_O(0, "--color", SPX_OPT_STR, dst, "auto|mesh|normal|white",                                        \
         "vertex colours: the file's (mesh), 0.5+0.5*vertex normal (normal), white, or auto (default): the " \
         "file's when it has them, else normals")
-
 #define SPX_CLI_CAMERA_ROW(how, dst)                      \
   SPX_O(how, "--camera", SPX_OPT_IN, dst, "C.json",      \
         "one camera, or an array of N: N images, --out's name numbered (I.png: I_000.png ... I_<N-1>.png)")
 
-/* The first rows of the tables of project and raster: --mesh, --camera and --out (how: required or
- * not; out_meta: --out's placeholder), stored in o (a spx_cli_scene_opts). */
-#define SPX_CLI_SCENE_ROWS(o, how, out_meta)                                  \
-  SPX_CLI_MESH_ROW(how, &(o).mesh), SPX_CLI_CAMERA_ROW(how, &(o).cameras), \
-      SPX_O(how, "--out", SPX_OPT_OUT, &(o).out, out_meta, "the image written (.exr/.npy: R,G,B,depth; .png: R,G,B)")
+/* The first rows of the tables of project and raster: --mesh, --camera and --out, all required
+ * (out_meta: --out's placeholder), stored in o (a spx_cli_scene_opts). */
+#define SPX_CLI_SCENE_ROWS(o, out_meta)                                                \
+  SPX_CLI_MESH_ROW(SPX_REQ, &(o).mesh), SPX_CLI_CAMERA_ROW(SPX_REQ, &(o).cameras), \
+      SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &(o).out, out_meta,                     \
+            "the image written (.exr/.npy: R,G,B,depth; .png: R,G,B)")
 /* The last rows of those tables: --color, --device and --quiet. */
 #define SPX_CLI_SCENE_TAIL_ROWS(o) \
   SPX_CLI_COLOR_ROW(&(o).color), SPX_CLI_DEVICE_ROW(&(o).device), SPX_CLI_QUIET_ROW(&(o).quiet)

@@ -14,7 +14,8 @@ static int group_of(const spx_opt *o) { return o->how >> 1; }
 
 /* "--name META" (and "..." for a repeatable option) into buf. */
 static void one(char *buf, size_t cap, const spx_opt *o) {
-  snprintf(buf, cap, "%s%s%s%s", o->name, o->type == SPX_OPT_FLAG ? "" : " ", o->type == SPX_OPT_FLAG ? "" : o->meta ? o->meta : "V",
+  int flag = o->type == SPX_OPT_FLAG;
+  snprintf(buf, cap, "%s%s%s%s", o->name, flag ? "" : " ", flag ? "" : o->meta ? o->meta : "V",
            o->type == SPX_OPT_LIST ? "..." : "");
 }
 

@@ -51,12 +51,16 @@ static int parse(int argc, char **argv, demo_opts *o) {
   long zoom = 1, seed = 3;
   int wh[2] = {96, 128};
   spx_opt opts[] = {
-      SPX_O(0, "--out", SPX_OPT_OUT, &o->out_dir, "DIR", "the folder written (default out; made if missing, its parent must exist)"),
-      SPX_O(0, "--checkpoint", SPX_OPT_IN, &o->ckpt, "W.safetensors", "the network (default: the shipped data/models/default.safetensors)"),
+      SPX_O(0, "--out", SPX_OPT_OUT, &o->out_dir, "DIR",
+            "the folder written (default out; made if missing, its parent must exist)"),
+      SPX_O(0, "--checkpoint", SPX_OPT_IN, &o->ckpt, "W.safetensors",
+            "the network (default: the shipped data/models/default.safetensors)"),
       SPX_O_RANGE(0, "--frame", SPX_OPT_INT, &o->frame, 0, 2147483647, "N", "the motion's frame (default 600)"),
       SPX_O_RANGE(0, "--seed", SPX_OPT_INT, &seed, 0, 2147483647, "S", "the synthetic subject (default 3)"),
-      SPX_O_RANGE(0, "--size", SPX_OPT_SIZE, wh, 16, 4096, "WxH", "the image size (must agree with the network's, when it records one)"),
-      SPX_O_RANGE(0, "--zoom", SPX_OPT_INT, &zoom, 1, 8, "Z", "demo.png's panels enlarged Z times, nearest pixel (default 1)"),
+      SPX_O_RANGE(0, "--size", SPX_OPT_SIZE, wh, 16, 4096, "WxH",
+                  "the image size (must agree with the network's, when it records one)"),
+      SPX_O_RANGE(0, "--zoom", SPX_OPT_INT, &zoom, 1, 8, "Z",
+                  "demo.png's panels enlarged Z times, nearest pixel (default 1)"),
       SPX_O_RANGE(0, "--motion", SPX_OPT_INT, &o->motion, 2, 16, "K", "also demo_motion.png, of K frames"),
       SPX_O_RANGE(0, "--motion-step", SPX_OPT_INT, &o->motion_step, 1, 100000, "T",
                   "with --motion: frames T apart (default 30 = 1/4 s)"),

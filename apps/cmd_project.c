@@ -19,7 +19,7 @@ static const char *ABOUT =
 int spx_cmd_project(int argc, char **argv) {
   spx_cli_scene_opts o = {.color = "auto"};
   const char *png = NULL, *npy = NULL;
-  spx_opt opts[] = {SPX_CLI_SCENE_ROWS(o, SPX_REQ, "P.exr|P.npy|P.png"),
+  spx_opt opts[] = {SPX_CLI_SCENE_ROWS(o, "P.exr|P.npy|P.png"),
                     SPX_O(0, "--png", SPX_OPT_OUT, &png, "P.png", "the same image, also as a PNG (R,G,B)"),
                     SPX_O(0, "--npy", SPX_OPT_OUT, &npy, "P.npy", "the same image, also as a NumPy .npy (R,G,B,depth)"),
                     SPX_CLI_SCENE_TAIL_ROWS(o), SPX_O_END};

@@ -21,11 +21,12 @@ int spx_cmd_raster(int argc, char **argv) {
   const char *tex_path = NULL, *cull_s = "none";
   long aa = 1;
   spx_opt opts[] = {
-      SPX_CLI_SCENE_ROWS(o, SPX_REQ, "I.png|I.exr|I.npy"),
+      SPX_CLI_SCENE_ROWS(o, "I.png|I.exr|I.npy"),
       SPX_O(0, "--texture", SPX_OPT_IN, &tex_path, "T.png|T.exr",
             "multiply by the bilinear texture sample (needs a mesh with texture coordinates)"),
       SPX_O_RANGE(0, "--aa", SPX_OPT_INT, &aa, 1, 2, "1|2", "2: 2x2 supersampling (default 1)"),
-      SPX_O(0, "--cull", SPX_OPT_STR, &cull_s, "none|back|front", "drop back- or front-facing triangles (default none)"),
+      SPX_O(0, "--cull", SPX_OPT_STR, &cull_s, "none|back|front",
+            "drop back- or front-facing triangles (default none)"),
       SPX_CLI_SCENE_TAIL_ROWS(o), SPX_O_END};
   int rc = spx_cli_parse(argc, argv, "raster", ABOUT, opts);
   if (rc >= 0) return rc;

@@ -213,7 +213,8 @@ int spx_cmd_register(int argc, char **argv) {
       SPX_O(0, "--params", SPX_OPT_OUT, &a.params_path, "P.json", "also write the parameters and the unposed template"),
       SPX_O(0, "--stages", SPX_OPT_STR, &stages_s, "rigid,pose,free", "the stages to run (default all three)"),
       SPX_O_RANGE(0, "--threads", SPX_OPT_INT, &nthreads, 1, 256, "N", "CPU threads of the fit (default 1)"),
-      SPX_O(0, "--units", SPX_OPT_STR, &units_s, "m|cm|mm", "the scan's units (default: detected from its bounding box)"),
+      SPX_O(0, "--units", SPX_OPT_STR, &units_s, "m|cm|mm",
+            "the scan's units (default: detected from its bounding box)"),
       SPX_O_END};
   int rc = !depths || !cams || !rgbs ? spx_cli_errorf("register", "out of memory")
                                      : spx_cli_parse(argc, argv, "register", ABOUT, opts);

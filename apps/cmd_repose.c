@@ -105,8 +105,9 @@ done:
 }
 
 /* The --model row of repose and reshape. */
-#define MODEL_ROW(dst) \
-  SPX_O(0, "--model", SPX_OPT_IN, dst, "M.npz", "the body model (default: the registration's, else data/body/default_body.npz)")
+#define MODEL_ROW(dst)                        \
+  SPX_O(0, "--model", SPX_OPT_IN, dst, "M.npz", \
+        "the body model (default: the registration's, else data/body/default_body.npz)")
 
 static const char *REPOSE_ABOUT =
     "Poses the registered person (its unposed template and shape) with a frame of a BVH clip, retargeted\n"
@@ -125,7 +126,8 @@ int spx_cmd_repose(int argc, char **argv) {
       SPX_O(SPX_REQ | SPX_ALT(1), "--pose", SPX_OPT_IN, &pose_path, "Q.json",
             "pose with Q.json's top-level \"pose\" and \"trans\" (e.g. a registration JSON)"),
       SPX_O_RANGE(0, "--frame", SPX_OPT_INT, &frame, 0, 2147483647, "N", "with --bvh: the clip's frame (default 0)"),
-      SPX_O(0, "--view", SPX_OPT_STR, &view, "NAME", "with --pose: the \"pose\" object of that view of a `smplpix synth` manifest"),
+      SPX_O(0, "--view", SPX_OPT_STR, &view, "NAME",
+            "with --pose: the \"pose\" object of that view of a `smplpix synth` manifest"),
       SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &out_path, "V.ply|V.obj", "the mesh written"),
       MODEL_ROW(&model_arg),
       SPX_O_RANGE(0, "--subdivide", SPX_OPT_INT, &subdivide, 0, 3, "N",

@@ -26,9 +26,11 @@ int spx_cmd_synth(int argc, char **argv) {
   spx_opt opts[] = {
       SPX_O_RANGE(SPX_REQ, "--subjects", SPX_OPT_INT, &subjects, 1, 9999, "N", "the number of people"),
       SPX_O_RANGE(SPX_REQ, "--views", SPX_OPT_INT, &views, 1, 999, "V", "photos of each person"),
-      SPX_O_RANGE(SPX_REQ, "--seed", SPX_OPT_INT, &seed, 0, 2147483647, "S", "the seed everything random is drawn from"),
+      SPX_O_RANGE(SPX_REQ, "--seed", SPX_OPT_INT, &seed, 0, 2147483647, "S",
+                  "the seed everything random is drawn from"),
       SPX_O(SPX_REQ, "--out", SPX_OPT_OUT, &out, "DIR", "the folder written"),
-      SPX_O_RANGE(0, "--size", SPX_OPT_SIZE, size, 16, 4096, "WxH", "photo size (default 308x410, portrait: a standing person)"),
+      SPX_O_RANGE(0, "--size", SPX_OPT_SIZE, size, 16, 4096, "WxH",
+                  "photo size (default 308x410, portrait: a standing person)"),
       SPX_O_RANGE(0, "--texture-size", SPX_OPT_INT, &tex_size, SPX_SYNTH_TEX_MIN, SPX_SYNTH_TEX_MAX, "T",
                   "texture resolution (default 2048)"),
       SPX_O(0, "--body", SPX_OPT_IN, &body_path, "M.npz", "body model with UVs (default data/body/default_body.npz)"),
