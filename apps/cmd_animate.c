@@ -314,9 +314,8 @@ int spx_cmd_animate(int argc, char **argv) {
   long fs, fe;
   if (o.frames && !spx_anim_parse_frames(o.frames, &fs, &fe))
     return spx_cli_usage("animate", "--frames: expected A:B (frames A..B-1), A: or :B, got '%s'", o.frames);
-  if (!o.reg == !o.avatar || !o.cam || !o.out || !o.bvh == !o.amass)
-    return spx_cli_usage("animate", "one of --registration / --avatar, --camera, --out and one of --bvh / --amass are "
-                         "required");
+  if (o.reg && o.avatar) return spx_cli_usage("animate", "give --registration or --avatar, not both");
+  if (o.bvh && o.amass) return spx_cli_usage("animate", "give --bvh or --amass, not both");
   if (o.no_net && o.ckpt) return spx_cli_usage("animate", "--no-network and --checkpoint exclude each other");
   if (o.raster && (o.no_net || o.ckpt))
     return spx_cli_usage("animate", "--raster draws without a network: it excludes --no-network and --checkpoint");

@@ -123,6 +123,8 @@ static void test_usage_from_rows(void) {
   CHECK(run("raster --mesh quad.obj --aa 3") == 2 && err_has("--aa needs a whole number in [1, 2]"));
   CHECK(run("animate --camera cam.json --out d --avatar a") == 2 &&
         err_is("animate", "one of --registration / --avatar, one of --bvh / --amass, --camera and --out are required"));
+  CHECK(run("animate --registration r.json --avatar a --bvh m.bvh --camera cam.json --out d") == 2 &&
+        err_is("animate", "give --registration or --avatar, not both"));
   CHECK(run("dataset --mesh quad.obj --out d") == 2 &&
         err_is("dataset", "--mesh, --out and one of --cameras / --orbit are required"));
   CHECK(run("export --out x.safetensors") == 2 && err_is("export", "--checkpoint and --out are required"));
