@@ -3,7 +3,9 @@
  * (make_vgg16_golden.py: its Vgg16Features + L1Loss, batch 2), both with torchvision's layer order
  * and names at 1/16 width and random weights: the loss value and its gradient w.r.t. the
  * prediction, on the HOST backend (double references: vs PyTorch's float64 run) and the DEVICE
- * backend (vs PyTorch float32, within max(1e-4, 10 x its float32-vs-float64 spread)); the frozen
+ * backend (vs PyTorch float32, within max(1e-4, 10 x its float32-vs-float64 spread)), also with an
+ * image L1 weight w (spx_vgg_set_image_l1: reference + w mean |pred - gt|, gradient + w sign / n;
+ * a weight outside [0, 1000] or NaN is refused); the frozen
  * weights have no gradient or optimizer slabs; a file without a tensor or with a misshapen one
  * fails with one line naming both, and so does the other network's file. (The real VGG16 of
  * `make weights`: tests/test_weights_golden.c.) */
@@ -42,10 +44,11 @@ static double at(const void *p, size_t i, int f64) {
   return f;
 }
 
-static void run(spx_ctx *ctx, spx_vgg_kind kind, spx_tape_backend be) {
+static void run(spx_ctx *ctx, spx_vgg_kind kind, spx_tape_backend be, double w) {
   spx_vgg *v = NULL;
   CHECK_OK(ctx, spx_vgg_open_ex(ctx, wfile[kind], kind, be, &v));
   if (!v) return;
+  CHECK_OK(ctx, spx_vgg_set_image_l1(v, w));
   CHECK(spx_vgg_get_kind(v) == kind);
   const spx_st_tensor *pt = spx_st_find(&G, "pred");
   CHECK(pt && pt->ndim == 4 && pt->shape[1] == 3);
@@ -66,10 +69,11 @@ static void run(spx_ctx *ctx, spx_vgg_kind kind, spx_tape_backend be) {
   CHECK_OK(ctx, spx_t_vgg_loss_grad(t, &p, &lv, grad));
   const int xi = p.xi, loss = p.loss;
   double ref_l = at(gl, 0, be == SPX_TAPE_HOST);
+  for (size_t i = 0; i < np; i++) ref_l += w * fabs((double)pred[i] - gt[i]) / (double)np;
   double l_ours = be == SPX_TAPE_HOST ? spx_tape_host(t, loss)[0] : lv;
   double num = 0, den = 1e-30;
   for (size_t i = 0; i < np; i++) {
-    double r = at(gg, i, be == SPX_TAPE_HOST);
+    double r = at(gg, i, be == SPX_TAPE_HOST) + w * (pred[i] > gt[i] ? 1.0 : -1.0) / (double)np;
     double o = be == SPX_TAPE_HOST ? spx_tape_host_grad(t, xi)[i] : grad[i];
     num = fmax(num, fabs(o - r)), den = fmax(den, fabs(r));
   }
@@ -80,8 +84,8 @@ static void run(spx_ctx *ctx, spx_vgg_kind kind, spx_tape_backend be) {
    * float32 in the tape (as on the device): ~1e-8 from PyTorch's float64 */
   double tl = be == SPX_TAPE_HOST ? 1e-6 : fmax(1e-4, 10.0 * sl[0]);
   double tg = be == SPX_TAPE_HOST ? 1e-6 : fmax(1e-4, 10.0 * sg[0]);
-  printf("  %s %s vs PyTorch %s: loss %.3g, gradient w.r.t. the prediction %.3g (tolerances %.3g, %.3g)\n",
-         kind ? "VGG16" : "VGG19", be == SPX_TAPE_HOST ? "host (double)" : "device (float32)",
+  printf("  %s%s %s vs PyTorch %s: loss %.3g, gradient w.r.t. the prediction %.3g (tolerances %.3g, %.3g)\n",
+         kind ? "VGG16" : "VGG19", w > 0 ? " + image L1" : "", be == SPX_TAPE_HOST ? "host (double)" : "device (float32)",
          be == SPX_TAPE_HOST ? "float64" : "float32", el, eg, tl, tg);
   CHECK_MSG(el <= tl && eg <= tg, "loss %.3g gradient %.3g", el, eg);
   free(x), free(grad);
@@ -94,8 +98,10 @@ static void test_golden(void) {
   if (!ctx) return;
   for (int kind = 0; kind < 2; kind++) {
     CHECK_OK(ctx, spx_st_load(ctx, gfile[kind], &G));
-    run(ctx, (spx_vgg_kind)kind, SPX_TAPE_HOST);
-    run(ctx, (spx_vgg_kind)kind, SPX_TAPE_DEVICE);
+    for (int k = 0; k < 2; k++) {
+      run(ctx, (spx_vgg_kind)kind, SPX_TAPE_HOST, 0.5 * k);
+      run(ctx, (spx_vgg_kind)kind, SPX_TAPE_DEVICE, 0.5 * k);
+    }
     spx_st_free(&G);
   }
   spx_ctx_destroy(ctx);
@@ -142,6 +148,14 @@ static void test_bad_files(void) {
     CHECK(strstr(m, path) && strstr(m, pass ? "features.17.weight" : "missing tensor features.21.bias") && !strchr(m, '\n'));
   }
   spx_st_free(&f);
+  /* an image L1 weight outside [0, 1000] */
+  CHECK_OK(ctx, spx_vgg16_open(ctx, DIR "vgg16_w4.safetensors", &v));
+  const double bad[3] = {-0.1, 1001, NAN};
+  for (int i = 0; i < 3 && v; i++) {
+    CHECK(spx_vgg_set_image_l1(v, bad[i]) == SPX_E_ARG);
+    CHECK(strstr(spx_ctx_message(ctx), "image L1 weight") != NULL);
+  }
+  spx_vgg_destroy(v);
   spx_ctx_destroy(ctx);
 }
 

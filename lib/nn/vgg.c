@@ -39,11 +39,19 @@ struct spx_vgg {
   spx_vgg_kind kind;
   int width;
   int w[SPX_VGG_NCONV], b[SPX_VGG_NCONV];
-  int nw, nb; /* VGG19: the normalisation 1x1 conv */
+  int nw, nb;   /* VGG19: the normalisation 1x1 conv */
+  float img_l1; /* spx_vgg_set_image_l1 */
 };
 
 spx_tape *spx_vgg_tape(spx_vgg *v) { return v->tape; }
 int spx_vgg_width(const spx_vgg *v) { return v->width; }
+
+spx_status spx_vgg_set_image_l1(spx_vgg *v, double w) {
+  if (!v) return SPX_E_ARG;
+  if (!(w >= 0 && w <= 1e3)) return spx_fail(v->ctx, SPX_E_ARG, "vgg: image L1 weight %g is not in [0, 1000]", w);
+  v->img_l1 = (float)w;
+  return SPX_OK;
+}
 spx_vgg_kind spx_vgg_get_kind(const spx_vgg *v) { return v->kind; }
 
 void spx_vgg_destroy(spx_vgg *v) {
@@ -170,8 +178,7 @@ static int loss16(spx_vgg *v, int pred, int gt) {
   return loss;
 }
 
-int spx_vgg_loss(spx_vgg *v, int pred, int gt) {
-  if (v->kind == SPX_VGG16_SMPLPIX) return loss16(v, pred, gt);
+static int loss19(spx_vgg *v, int pred, int gt) {
   spx_tape *t = v->tape;
   int fp[5], fg[5];
   features(v, gt, fg);
@@ -180,4 +187,10 @@ int spx_vgg_loss(spx_vgg *v, int pred, int gt) {
   for (int k = 1; k <= 5; k++)
     loss = spx_tape_axpby(t, 1.0f, loss, 1.0f / (float)(1 << (5 - k)), spx_tape_l1(t, fp[k - 1], fg[k - 1]));
   return loss;
+}
+
+int spx_vgg_loss(spx_vgg *v, int pred, int gt) {
+  int loss = v->kind == SPX_VGG16_SMPLPIX ? loss16(v, pred, gt) : loss19(v, pred, gt);
+  if (loss < 0 || v->img_l1 <= 0) return loss;
+  return spx_tape_axpby(v->tape, 1.0f, loss, v->img_l1, spx_tape_l1(v->tape, pred, gt));
 }
