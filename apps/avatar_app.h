@@ -64,6 +64,7 @@ typedef struct av_train_cfg {
   int width, batch;
   long steps1, steps2;         /* L1 steps, then VGG16 steps */
   double lr1, lr2;
+  double image_l1;             /* the VGG16 stage's extra image L1 weight (spx_vgg_set_image_l1) */
   long save_every, val_every;  /* checkpoint / validation period (steps) */
   uint64_t seed;
   const char *ckpt;            /* OUT/work/net.safetensors */
@@ -90,6 +91,7 @@ typedef struct av_report_info {
   const char *scan, *out, *vertices_name;
   int vertices, W, H, width, ntrain, nheld;
   long steps1, steps2;
+  double image_l1;
   double cpu_seconds, train_cpu_seconds, wall_seconds;
   const char *load;            /* the load average at the start and the end */
 } av_report_info;

@@ -155,9 +155,11 @@ static void report_md(FILE *f, const av_report_info *ri, const av_scores *a, con
           a->detail / r->detail);
   fprintf(f, "Goals: PSNR >= raster + 3 dB: %s; LPIPS <= 0.6x the raster's: %s; detail >= 0.9: %s.\n\n",
           met(a->psnr >= r->psnr + 3), met(a->lpips <= 0.6 * r->lpips), met(a->detail >= 0.9));
-  fprintf(f, "Network: width %d, %ld L1 steps then %ld VGG16 steps. CPU time: %.0f s in all (training %.0f s); "
+  char extra[64] = "";
+  if (ri->image_l1 > 0) snprintf(extra, sizeof extra, " (+ %g x the image's L1)", ri->image_l1);
+  fprintf(f, "Network: width %d, %ld L1 steps then %ld VGG16 steps%s. CPU time: %.0f s in all (training %.0f s); "
              "wall time of the last sitting %.0f s; load average %s.\n\n",
-          ri->width, ri->steps1, ri->steps2, ri->cpu_seconds, ri->train_cpu_seconds, ri->wall_seconds, ri->load);
+          ri->width, ri->steps1, ri->steps2, extra, ri->cpu_seconds, ri->train_cpu_seconds, ri->wall_seconds, ri->load);
   fprintf(f, "![posed scan | raster | avatar](report.png)\n\n*Held-out views: the posed scan (the target) | the "
              "per-vertex raster | the avatar.*\n");
 }

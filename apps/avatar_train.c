@@ -1,6 +1,7 @@
 /* The per-subject network of `smplpix avatar` (apps/avatar_app.h): steps1 Adam steps on the mean
  * L1 loss (lr1), then Adam restarted and steps2 steps on the VGG16 perceptual loss (lr2, the
- * official SMPLpix loss, smplpix/vgg.h), batches in a seeded order per epoch
+ * official SMPLpix loss, smplpix/vgg.h) plus image_l1 x the image's mean L1 (the colour the
+ * perceptual loss alone lets drift), batches in a seeded order per epoch
  * (spx_cli_epoch_order). The checkpoint OUT/work/net.safetensors (weights, Adam state, and the
  * metadata smplpix.avatar.train.{step,stage,cpu}) is rewritten durably every save_every steps,
  * at the end of stage 1 and on Ctrl-C, so a run continues from it bit for bit: the data set is
@@ -224,11 +225,14 @@ int av_train(const char *cmd, spx_ctx *ctx, const av_train_cfg *cfg, const av_se
   int rc = SPX_EXIT_OK;
   if (!r.in || !r.tg || !r.out || !r.hwc_a || !r.hwc_b || !r.perm) rc = spx_cli_errorf(cmd, "out of memory for training");
   if (!rc) rc = open_net(&r);
-  if (!rc && (spx_vgg16_open(ctx, cfg->vgg16, &r.vgg) || spx_lpips_load(ctx, cfg->lpips, &r.lp)))
+  if (!rc && (spx_vgg16_open(ctx, cfg->vgg16, &r.vgg) || spx_vgg_set_image_l1(r.vgg, cfg->image_l1) ||
+              spx_lpips_load(ctx, cfg->lpips, &r.lp)))
     rc = spx_cli_error(cmd, ctx);
+  char extra[64] = "";
+  if (cfg->image_l1 > 0) snprintf(extra, sizeof extra, " + %g x L1", cfg->image_l1);
   if (!rc && !cfg->quiet)
-    printf("training: %d views (%dx%d), width %d, batch %zu: %lld steps L1 (lr %g), then %lld VGG16 (lr %g)\n",
-           train->n, train->W, train->H, cfg->width, b, (long long)cfg->steps1, cfg->lr1, (long long)cfg->steps2,
+    printf("training: %d views (%dx%d), width %d, batch %zu: %lld steps L1 (lr %g), then %lld VGG16%s (lr %g)\n",
+           train->n, train->W, train->H, cfg->width, b, (long long)cfg->steps1, cfg->lr1, (long long)cfg->steps2, extra,
            cfg->lr2);
   if (!rc && r.step && !cfg->quiet) printf("continuing at step %lld of %lld\n", (long long)r.step, (long long)r.total);
   fflush(stdout);

@@ -5,6 +5,8 @@
  * stand-ins in a cache folder of the test's own (a width-4 VGG16, the LPIPS golden's random AlexNet).
  *  - a run with --registration: the avatar file (the network, the vertices, the size), report.md,
  *    report.json with exactly the contract's keys, report.png; OUT/work removed;
+ *  - --image-l1 0.25 (the VGG16 steps' extra image L1) trains another network and says so in the
+ *    file's metadata;
  *  - killed at a training step (SIGKILL, the hooked tool) or interrupted (SIGINT, SIGTERM: exit
  *    128 + the signal): the next run without --resume is refused, --resume finishes with the same
  *    tensors, metadata (the CPU time aside), report.png and scores as the uninterrupted run;
@@ -15,7 +17,8 @@
  *  - bad input: one line naming the file and the problem, exit 1 (2 for usage), OUT not left
  *    behind: a scan that is not a person, too few points, a point cloud, no colours and no texture,
  *    texture coordinates that do not fit the texture, a motion the body cannot take, an OUT holding
- *    an avatar or other files, --resume without a run or with other settings, missing weights,
+ *    an avatar or other files, --resume without a run or with other settings (--image-l1 too),
+ *    missing weights,
  *    --vertices the body has not, a registration of another body (found after OUT was made). */
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -52,7 +55,7 @@ static int run_hooked(const char *env, const char *args) {
 static void test_setup(void) {
   char cmd[3000], w[800];
   path_of(cache, sizeof cache, "cache");
-  snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf A B C D R T U X an ras big synth", dir); /* an earlier run's */
+  snprintf(cmd, sizeof cmd, "cd '%s' && rm -rf A B C D R T U X Y Z an ras big synth", dir); /* an earlier run's */
   CHECK(spx_t_system(cmd) == 0);
   snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s/weights' && cp '" SPX_TEST_DATA "/vgg/vgg16_w4.safetensors' "
            "'%s/weights/vgg16.safetensors'", cache, cache, cache);
@@ -190,6 +193,8 @@ static void test_resume(void) {
   CHECK(run(args) == 1 && err_one_line_with("holds an unfinished avatar run; continue it with --resume"));
   CHECK(run("avatar --scan body.ply --registration reg.json --out B --views 4 --heldout 2 --size 32x48 "
             "--steps 7 --resume") == 1 && err_one_line_with("other settings"));
+  CHECK(run("avatar --scan body.ply --registration reg.json --out B " SMALL " --image-l1 0.5 --resume") == 1 &&
+        err_one_line_with("other settings"));
   char resume[600];
   snprintf(resume, sizeof resume, "%s --resume", args);
   CHECK(run(resume) == 0 && file_has("out.txt", "continuing at step 1 of 6"));
@@ -204,6 +209,29 @@ static void test_resume(void) {
   CHECK(file_has("err.txt", "interrupted after training step 5 of 6"));
   snprintf(resume, sizeof resume, "%s --resume", args_d);
   CHECK(run(resume) == 0 && file_has("out.txt", "continuing at step 5 of 6") && same_avatar("U", "D"));
+}
+
+/* The metadata value of key in OUT/avatar.safetensors equals want. */
+static int meta_is(const char *out, const char *key, const char *want) {
+  char p[700], n[64];
+  snprintf(n, sizeof n, "%s/avatar.safetensors", out);
+  path_of(p, sizeof p, n);
+  spx_st_file f;
+  if (spx_st_load(ctx, p, &f)) return 0;
+  const char *v = spx_st_meta(&f, key);
+  int ok = v && !strcmp(v, want);
+  if (!ok) fprintf(stderr, "  %s %s: %s, want %s\n", n, key, v ? v : "(none)", want);
+  spx_st_free(&f);
+  return ok;
+}
+
+/* The VGG16 steps use the VGG16 loss alone by default; --image-l1 0.25 adds 0.25 x the image's L1,
+ * trains another network, and says so in the file. */
+static void test_image_l1(void) {
+  CHECK(meta_is("U", "smplpix.avatar.loss", "l1,vgg16"));
+  CHECK(run("avatar --scan body.ply --registration reg.json --out Z " SMALL " --image-l1 0.25 --quiet") == 0);
+  CHECK(meta_is("Z", "smplpix.avatar.loss", "l1,vgg16+0.25*l1") && !same_avatar("U", "Z"));
+  CHECK(run("avatar --scan body.ply --registration reg.json --out Y " SMALL " --image-l1 -1") == 2 && !exists("Y"));
 }
 
 /* A camera CW x CH looking at the body from the front, 3 m away. */
@@ -369,6 +397,7 @@ int main(void) {
   SPX_RUN(test_setup);
   SPX_RUN(test_run);
   SPX_RUN(test_resume);
+  SPX_RUN(test_image_l1);
   SPX_RUN(test_animate);
   SPX_RUN(test_bad_input);
   SPX_RUN(test_textured);
