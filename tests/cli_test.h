@@ -7,6 +7,7 @@
 #include <dirent.h>
 #include <sys/stat.h>
 
+#include "smplpix/safetensors.h"
 #include "test.h"
 
 static char dir[512];
@@ -105,6 +106,20 @@ static inline int exists(const char *name) {
   struct stat sb;
   path_of(p, sizeof p, name);
   return stat(p, &sb) == 0;
+}
+
+/* The metadata value of key in the safetensors file `name` (in dir) is want; says what it is when not. */
+static inline int meta_is(spx_ctx *c, const char *name, const char *key, const char *want) {
+  char p[800];
+  path_of(p, sizeof p, name);
+  spx_st_file f;
+  memset(&f, 0, sizeof f);
+  if (spx_st_load(c, p, &f)) return 0;
+  const char *v = spx_st_meta(&f, key);
+  int ok = v && !strcmp(v, want);
+  if (!ok) fprintf(stderr, "  %s: %s = %s, expected %s\n", name, key, v ? v : "(none)", want);
+  spx_st_free(&f);
+  return ok;
 }
 
 #endif

@@ -211,26 +211,12 @@ static void test_resume(void) {
   CHECK(run(resume) == 0 && file_has("out.txt", "continuing at step 5 of 6") && same_avatar("U", "D"));
 }
 
-/* The metadata value of key in OUT/avatar.safetensors equals want. */
-static int meta_is(const char *out, const char *key, const char *want) {
-  char p[700], n[64];
-  snprintf(n, sizeof n, "%s/avatar.safetensors", out);
-  path_of(p, sizeof p, n);
-  spx_st_file f;
-  if (spx_st_load(ctx, p, &f)) return 0;
-  const char *v = spx_st_meta(&f, key);
-  int ok = v && !strcmp(v, want);
-  if (!ok) fprintf(stderr, "  %s %s: %s, want %s\n", n, key, v ? v : "(none)", want);
-  spx_st_free(&f);
-  return ok;
-}
-
 /* The VGG16 steps use the VGG16 loss alone by default; --image-l1 0.25 adds 0.25 x the image's L1,
  * trains another network, and says so in the file. */
 static void test_image_l1(void) {
-  CHECK(meta_is("U", "smplpix.avatar.loss", "l1,vgg16"));
+  CHECK(meta_is(ctx, "U/avatar.safetensors", "smplpix.avatar.loss", "l1,vgg16"));
   CHECK(run("avatar --scan body.ply --registration reg.json --out Z " SMALL " --image-l1 0.25 --quiet") == 0);
-  CHECK(meta_is("Z", "smplpix.avatar.loss", "l1,vgg16+0.25*l1") && !same_avatar("U", "Z"));
+  CHECK(meta_is(ctx, "Z/avatar.safetensors", "smplpix.avatar.loss", "l1,vgg16+0.25*l1") && !same_avatar("U", "Z"));
   CHECK(run("avatar --scan body.ply --registration reg.json --out Y " SMALL " --image-l1 -1") == 2 && !exists("Y"));
 }
 

@@ -57,19 +57,6 @@ static void make_data(void) {
   free(in), free(tg);
 }
 
-static int meta_is(const char *name, const char *key, const char *want) {
-  char p[800];
-  path_of(p, sizeof p, name);
-  spx_st_file f;
-  memset(&f, 0, sizeof f);
-  if (spx_st_load(ctx, p, &f)) return 0;
-  const char *v = spx_st_meta(&f, key);
-  int ok = v && !strcmp(v, want);
-  if (!ok) fprintf(stderr, "  %s: %s = %s, expected %s\n", name, key, v ? v : "(none)", want);
-  spx_st_free(&f);
-  return ok;
-}
-
 static int same(const char *a, const char *b) {
   char pa[800], pb[800];
   path_of(pa, sizeof pa, a), path_of(pb, sizeof pb, b);
@@ -81,11 +68,13 @@ static int same(const char *a, const char *b) {
 
 static void test_offline_recipe(void) {
   CHECK(tool("train " COMMON " --out a.safetensors --epochs 1 --loss l1") == 0);
-  CHECK(meta_is("a.safetensors", "smplpix.train.loss", "l1") && meta_is("a.safetensors", "smplpix.train.stage", "1"));
+  CHECK(meta_is(ctx, "a.safetensors", "smplpix.train.loss", "l1") &&
+        meta_is(ctx, "a.safetensors", "smplpix.train.stage", "1"));
   CHECK(!exists("a.disc.safetensors"));
   CHECK(tool("train " COMMON DW " --out b.safetensors --init a.safetensors --epochs 2 --loss l1+gan") == 0);
   CHECK(exists("b.disc.safetensors"));
-  CHECK(meta_is("b.safetensors", "smplpix.train.loss", "l1+gan") && meta_is("b.safetensors", "smplpix.train.stage", "2"));
+  CHECK(meta_is(ctx, "b.safetensors", "smplpix.train.loss", "l1+gan") &&
+        meta_is(ctx, "b.safetensors", "smplpix.train.stage", "2"));
   CHECK_MSG(file_has("err.txt", "GAN") && file_has("err.txt", "FM") && file_has("err.txt", "D "),
             "progress lines without the loss terms");
   CHECK_MSG(file_has("out.txt", "epoch 2 step 4: train loss") && file_has("out.txt", "(L1 "), "no epoch line with terms");
@@ -122,7 +111,7 @@ static void test_offline_recipe(void) {
 static void test_vgg(void) {
   CHECK(tool("train " COMMON " --out v.safetensors --epochs 1 --loss vgg --vgg '" SPX_TEST_DATA
              "/vgg/vgg_w4.safetensors'") == 0);
-  CHECK(file_has("out.txt", "(VGG ") && meta_is("v.safetensors", "smplpix.train.loss", "vgg"));
+  CHECK(file_has("out.txt", "(VGG ") && meta_is(ctx, "v.safetensors", "smplpix.train.loss", "vgg"));
   CHECK(tool("train " COMMON DW " --out v2.safetensors --init v.safetensors --epochs 1 --loss vgg+gan --vgg '" SPX_TEST_DATA
              "/vgg/vgg_w4.safetensors'") == 0);
   CHECK(file_has("out.txt", "(VGG ") && file_has("out.txt", "GAN ") && exists("v2.disc.safetensors"));
@@ -135,8 +124,9 @@ static void test_vgg(void) {
 static void test_schedule(void) {
   CHECK(tool("train " COMMON DW " --out s.safetensors --schedule paper --epochs 1 --lr 1e-3 --lr2 1e-4") == 0);
   CHECK(file_has("out.txt", "stage 1 of --schedule paper") && file_has("out.txt", "step 2: stage 2 (--loss l1+gan"));
-  CHECK(meta_is("s.safetensors", "smplpix.train.stage", "2") && meta_is("s.safetensors", "smplpix.train.stage_base", "2"));
-  CHECK(meta_is("s.safetensors", "smplpix.train.loss", "l1+gan") && exists("s.disc.safetensors"));
+  CHECK(meta_is(ctx, "s.safetensors", "smplpix.train.stage", "2") &&
+        meta_is(ctx, "s.safetensors", "smplpix.train.stage_base", "2"));
+  CHECK(meta_is(ctx, "s.safetensors", "smplpix.train.loss", "l1+gan") && exists("s.disc.safetensors"));
   /* stage 2 restarted Adam: 2 generator steps since, 2 discriminator steps */
   char p[800];
   path_of(p, sizeof p, "s.safetensors");
@@ -237,16 +227,16 @@ static void test_vgg16(void) {
   snprintf(w64, sizeof w64, "%s/weights/vgg16.safetensors", cache);
   CHECK(write_vgg16_w64(w64));
   CHECK(tool("train " COMMON " --out g.safetensors --epochs 1 --loss vgg16") == 0);
-  CHECK(file_has("out.txt", "(VGG ") && meta_is("g.safetensors", "smplpix.train.loss", "vgg16"));
+  CHECK(file_has("out.txt", "(VGG ") && meta_is(ctx, "g.safetensors", "smplpix.train.loss", "vgg16"));
   CHECK(tool("train " COMMON " --out g2.safetensors --init g.safetensors --epochs 1 --loss vgg16+gan") == 0);
-  CHECK(file_has("out.txt", "GAN ") && meta_is("g2.safetensors", "smplpix.train.loss", "vgg16+gan"));
+  CHECK(file_has("out.txt", "GAN ") && meta_is(ctx, "g2.safetensors", "smplpix.train.loss", "vgg16+gan"));
   CHECK(tool("train " COMMON " --out gs.safetensors --schedule paper --steps 2 --lr 1e-3 --lr2 1e-4") == 0);
   CHECK(file_has("out.txt", "loss vgg16 (stage 1 of --schedule paper)") && file_has("out.txt", "--loss vgg16+gan"));
-  CHECK(meta_is("gs.safetensors", "smplpix.train.loss", "vgg16+gan"));
-  CHECK(meta_is("gs.safetensors", "smplpix.train.stage", "2"));
+  CHECK(meta_is(ctx, "gs.safetensors", "smplpix.train.loss", "vgg16+gan"));
+  CHECK(meta_is(ctx, "gs.safetensors", "smplpix.train.stage", "2"));
   CHECK(tool("train " COMMON " --out gs.safetensors --schedule paper --steps 3 --resume") == 0);
-  CHECK(meta_is("gs.safetensors", "smplpix.train.loss", "vgg16+gan"));
-  CHECK(meta_is("gs.safetensors", "smplpix.train.step", "5")); /* stage 1's 2 steps, then stage 2 runs the 3 asked */
+  CHECK(meta_is(ctx, "gs.safetensors", "smplpix.train.loss", "vgg16+gan"));
+  CHECK(meta_is(ctx, "gs.safetensors", "smplpix.train.step", "5")); /* stage 1's 2 steps, then stage 2 runs the 3 asked */
   CHECK(tool("train " COMMON " --out g3.safetensors --epochs 1 --loss vgg16 --vgg '" SPX_TEST_DATA
              "/vgg/vgg_w4.safetensors'") == 1);
   CHECK(err_one_line_with("vgg_w4.safetensors: holds a VGG19"));
@@ -260,7 +250,7 @@ static void test_vgg16(void) {
   CHECK(err_one_line_with("--loss vgg16+gan needs the VGG16 weights"));
   CHECK(tool("train " COMMON " --out gl.safetensors --schedule paper --steps 1") == 0); /* the offline recipe */
   CHECK(file_has("err.txt", "no VGG16 at ") && file_has("err.txt", "stage 1 is l1"));
-  CHECK(meta_is("gl.safetensors", "smplpix.train.loss", "l1+gan"));
+  CHECK(meta_is(ctx, "gl.safetensors", "smplpix.train.loss", "l1+gan"));
   if (keep) setenv("SPX_CACHE_DIR", keep, 1);
   else unsetenv("SPX_CACHE_DIR");
   free(keep);
@@ -278,7 +268,7 @@ static void test_schedule_resume(void) {
                     "4", "--log-every", "1", "--out", out, "--schedule", "paper", "--epochs", "2", "--lr", "1e-3",
                     "--lr2", "1e-4", NULL};
     CHECK_MSG(run_interrupted(argv, trig[k]) == 130, "interrupt after '%s'", trig[k]);
-    CHECK(meta_is(o2, "smplpix.train.stage", k ? "2" : "1"));
+    CHECK(meta_is(ctx, o2, "smplpix.train.stage", k ? "2" : "1"));
     char args[1024], d2[64];
     snprintf(args, sizeof args, "train " COMMON DW " --out %s --schedule paper --epochs 2 --lr 1e-3 --lr2 1e-4 --resume", o2);
     CHECK(tool(args) == 0);
