@@ -69,12 +69,16 @@ case $GANLR in '' | *[!0-9.e-]* | *e | e*) die "TABLE1_GANLR=$GANLR: expected a 
 # The perceptual stage needs VGG16 (make weights); LPIPS needs AlexNet's (the eval default).
 weights=${SPX_CACHE_DIR:-${HOME:-/nonexistent}/.cache/smplpix}/weights
 vgg16=$weights/vgg16.safetensors
+# (the help is read whole first: `--help | grep -q` under pipefail fails whenever grep stops
+# reading before the tool has written its last block, and would drop a stage at random)
+trainhelp=$($tool train --help 2>&1) || trainhelp=
+trains() { case $trainhelp in *"$1"*) return 0 ;; esac; return 1; }
 vggstage=1
-{ [ "$VGGSTEPS" -gt 0 ] && [ -f "$vgg16" ] && $tool train --help 2>&1 | grep -q vgg16; } || vggstage=0
+{ [ "$VGGSTEPS" -gt 0 ] && [ -f "$vgg16" ] && trains vgg16; } || vggstage=0
 gan=0
-[ "$GANSTEPS" -gt 0 ] && $tool train --help 2>&1 | grep -q 'l1+gan' && gan=1
+[ "$GANSTEPS" -gt 0 ] && trains 'l1+gan' && gan=1
 ganloss=l1+gan
-[ $vggstage = 1 ] && $tool train --help 2>&1 | grep -q 'vgg16+gan' && ganloss=vgg16+gan
+[ $vggstage = 1 ] && trains 'vgg16+gan' && ganloss=vgg16+gan
 
 # The work directory: continued when it holds a run of the same settings; a table1 work directory
 # (its log.txt) of other settings is replaced when it holds no finished unit or TABLE1_FRESH=1 is
