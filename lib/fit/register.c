@@ -11,7 +11,7 @@
 
 void spx_fit_options_default(spx_fit_options *o) {
   *o = (spx_fit_options){.stages = SPX_FIT_ALL, .threads = 1, .nbetas = -1, .unit_scale = 0,
-                         .max_points_rigid = 2000, .max_points_pose = 6000, .max_points_free = 20000,
+                         .max_points_rigid = 2000, .max_points_pose = 6000, .max_points_free = 100000,
                          .pose_steps = 20, .free_steps = 4, .inner_iterations = 4, .free_inner_iterations = 2,
                          .w_shape = 2e-4, .w_pose = 1e-4, .w_limits = 0.1, .w_scale = 1.0, .w_pose_start = 0.1,
                          .w_m2s = 1.0, .w_lap = 1.0, .w_couple_start = 0.3, .w_couple_end = 0.02,
