@@ -155,9 +155,10 @@ static spx_status pose_samples(spx_ctx *ctx, const spx_fit_options *o, const flo
   w->idx = spx_alloc_array(ctx, (size_t)nbig, sizeof(int32_t), "registration");
   w->d2 = spx_alloc_array(ctx, (size_t)nbig, sizeof(float), "registration");
   w->dist = spx_alloc_array(ctx, (size_t)nbig, sizeof(float), "registration");
-  /* pairs: scan → model, model → scan, free space (and in the free stage the coupling) */
-  w->bp = spx_alloc_array(ctx, (size_t)nbig + 2 * (size_t)nv, sizeof(spx_fit_body_pair), "registration");
-  w->fp = spx_alloc_array(ctx, (size_t)nbig + 3 * (size_t)nv, sizeof(spx_fit_free_pair), "registration");
+  /* pairs: scan → model (in the free stage one per vertex, spx_fit_gather_scan), model → scan, free
+   * space, and in the free stage the coupling */
+  w->bp = spx_alloc_array(ctx, (size_t)w->nq + 2 * (size_t)nv, sizeof(spx_fit_body_pair), "registration");
+  w->fp = spx_alloc_array(ctx, 4 * (size_t)nv, sizeof(spx_fit_free_pair), "registration");
   if (!w->Q || !w->Qf || !w->idx || !w->d2 || !w->dist || !w->bp || !w->fp) {
     free(sidx);
     return SPX_E_NOMEM;
