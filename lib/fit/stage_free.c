@@ -53,10 +53,14 @@ static double support(const spx_fit_work *w, int32_t j) {
   return s < 0 ? 0 : s > 1 ? 1 : s;
 }
 
-/* Unsupported vertices (holes, the side no camera saw) keep the posed model's surface moved by the
- * continued offset (continue_offsets): their coupling weight is W_UNSUPPORTED instead of the
- * annealed wc. Returns sqrt(weight / wc), the factor on the coupling residual. */
-#define W_UNSUPPORTED 1.0
+/* Unsupported vertices (holes, the side no camera saw) are drawn to the posed model's surface moved
+ * by the continued offset (continue_offsets): their coupling weight is W_UNSUPPORTED instead of the
+ * annealed wc. It is about the annealed weight's end (w_couple_end, 0.02), not a stiff hold: the
+ * Laplacian term then carries the seen surface's shape on over the unseen part, and the seen
+ * vertices next to it are not held back by a model surface that is wrong there (on the bodies the
+ * model cannot reproduce, 30 times this weight left both the seen and the unseen part farther off;
+ * benchmarks/RESULTS.md). Returns sqrt(weight / wc), the factor on the coupling residual. */
+#define W_UNSUPPORTED 0.03
 static double support_coupling(double s, double wc) { return sqrt((s * wc + (1 - s) * W_UNSUPPORTED) / wc); }
 
 /* One free step's problem over the vertices X (the parameters). */
