@@ -82,8 +82,10 @@ int spx_fit_free_point_cost(void *user, const double *const *par, double *res, d
  * model vertex idx[i] is within thr (d2: squared distances), those of vertex j become one plane
  * pair at their mean q, normal N_j, weight a1 sqrt(cnt_j). Along a fixed normal the squares of the
  * points' own residuals a1 n.(x - q_i) sum to the pair's square plus a constant, so the term is the
- * same least squares whatever the number of points, at one residual per vertex. out (nv) gets the
- * pairs, vert their vertices; cnt (nv), qsum (nv*3): scratch. Returns the number of pairs. */
+ * same least squares whatever the number of points, at one residual per vertex; the stage's Huber
+ * loss (its scale grows with the weight) then acts on a vertex's mean offset, not on each point's.
+ * out (nv) gets the pairs, vert their vertices; cnt (nv), qsum (nv*3): scratch. Returns the number
+ * of pairs. */
 int32_t spx_fit_gather_scan(const float *Q, int32_t nq, const int32_t *idx, const float *d2, double thr,
                             const double *N, int32_t nv, double a1, int32_t *cnt, double *qsum, int32_t *vert,
                             spx_fit_free_pair *out);

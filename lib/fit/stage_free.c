@@ -3,9 +3,10 @@
  * vertex, to the posed model moved by the continued offset of the supported ones), with a
  * uniform-Laplacian regulariser that keeps each vertex's Laplacian close to the posed model's, and
  * the pose stage's data terms (both along the normal). The scan → model term is gathered into one
- * residual per vertex (spx_fit_gather_scan), so its cost does not grow with the scan sample: the stage
- * takes up to max_points_free (100,000) points, every point of a 50k scan or of four fused depth
- * frames, where a sample of 20,000 left the registration noisier (benchmarks/RESULTS.md). */
+ * residual per vertex (spx_fit_gather_scan), so its cost does not grow with the scan sample: the
+ * stage takes up to max_points_free (100,000) points, every point of a 50k scan and all or most of
+ * four fused depth frames, where a sample of 20,000 left the registration noisier
+ * (benchmarks/RESULTS.md). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
