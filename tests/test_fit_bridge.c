@@ -1,7 +1,8 @@
 /* The Ceres bridge (lib/fit/ceres_bridge.cpp) and the registration's building blocks: robust curve
  * fitting through C callbacks, solver options and summary, failures reported (never thrown),
  * the evaluation callback, k-d tree queries against brute force, point-to-triangle distance, and a
- * finite-difference check of every registration residual's analytic Jacobian. */
+ * finite-difference check of every registration residual's analytic Jacobian, and the free stage's
+ * scan → model term gathered per vertex against one residual per scan point. */
 #include "fit/stage.h"
 #include "test.h"
 
@@ -279,6 +280,56 @@ static void test_gradients(void) {
   spx_ctx_destroy(ctx);
 }
 
+/* The free stage's scan → model term gathered per vertex (spx_fit_gather_scan): at any vertex
+ * positions its sum of squares and its gradient are those of one plane residual per scan point
+ * (points beyond thr dropped), up to a constant; one pair per vertex with points. */
+static void test_gather_scan(void) {
+  enum { NQ = 300, NV = 12 };
+  uint64_t s = 0x9a7e;
+#define U() ((double)(spx_fit_rng_next(&s) >> 11) * (1.0 / 9007199254740992.0) - 0.5)
+  static float Q[NQ * 3], d2[NQ];
+  static int32_t idx[NQ], cnt[NV], vert[NV];
+  static double N[NV * 3], qsum[NV * 3], X[NV * 3];
+  static spx_fit_free_pair out[NV];
+  double thr = 0.03, a1 = 0.37;
+  for (int32_t j = 0; j < NV; j++) {
+    double n[3] = {U(), U(), U()}, l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (int d = 0; d < 3; d++) N[j * 3 + d] = n[d] / l;
+  }
+  for (int32_t i = 0; i < NQ; i++) {
+    idx[i] = (int32_t)(spx_fit_rng_next(&s) % (NV - 1)); /* the last vertex has no point */
+    d2[i] = (float)(i % 5 == 0 ? 0.04 * 0.04 : 0.02 * 0.02 * (U() + 0.5));
+    for (int d = 0; d < 3; d++) Q[i * 3 + d] = (float)(0.1 * U());
+  }
+  int32_t np = spx_fit_gather_scan(Q, NQ, idx, d2, thr, N, NV, a1, cnt, qsum, vert, out);
+  CHECK(np == NV - 1);
+  for (int32_t k = 0; k < np; k++) CHECK(vert[k] == k);
+  double diff0 = 0, worst = 0;
+  for (int trial = 0; trial < 4; trial++) {
+    for (int32_t k = 0; k < NV * 3; k++) X[k] = 0.2 * U();
+    double sp = 0, sg = 0, gp[NV * 3] = {0}, gg[NV * 3] = {0};
+    for (int32_t i = 0; i < NQ; i++) {
+      if (d2[i] > thr * thr) continue;
+      const double *n = N + idx[i] * 3, *x = X + idx[i] * 3;
+      double r = a1 * (n[0] * (x[0] - Q[i * 3]) + n[1] * (x[1] - Q[i * 3 + 1]) + n[2] * (x[2] - Q[i * 3 + 2]));
+      sp += r * r;
+      for (int d = 0; d < 3; d++) gp[idx[i] * 3 + d] += 2 * r * a1 * n[d];
+    }
+    for (int32_t k = 0; k < np; k++) {
+      double r, J[3], *par[1] = {X + vert[k] * 3}, *jac[1] = {J};
+      CHECK(spx_fit_free_plane_cost(&out[k], (const double *const *)par, &r, jac));
+      sg += r * r;
+      for (int d = 0; d < 3; d++) gg[vert[k] * 3 + d] += 2 * r * J[d];
+    }
+    if (trial == 0) diff0 = sp - sg;
+    CHECK(sp - sg >= -1e-12);
+    worst = fmax(worst, fabs((sp - sg) - diff0) / sp);
+    for (int32_t k = 0; k < NV * 3; k++) worst = fmax(worst, fabs(gp[k] - gg[k]) / (fabs(gp[k]) + 1e-9));
+  }
+#undef U
+  CHECK_MSG(worst < 1e-9, "gathered term differs from the per-point one by %g (relative)", worst);
+}
+
 int main(void) {
   SPX_RUN(test_robust_fit);
   SPX_RUN(test_options_and_prepare);
@@ -286,5 +337,6 @@ int main(void) {
   SPX_RUN(test_kdtree);
   SPX_RUN(test_point_triangle);
   SPX_RUN(test_gradients);
+  SPX_RUN(test_gather_scan);
   return spx_test_summary();
 }

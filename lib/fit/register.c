@@ -11,7 +11,7 @@
 
 void spx_fit_options_default(spx_fit_options *o) {
   *o = (spx_fit_options){.stages = SPX_FIT_ALL, .threads = 1, .nbetas = -1, .unit_scale = 0,
-                         .max_points_rigid = 2000, .max_points_pose = 6000, .max_points_free = 20000,
+                         .max_points_rigid = 2000, .max_points_pose = 6000, .max_points_free = 100000,
                          .pose_steps = 20, .free_steps = 4, .inner_iterations = 4, .free_inner_iterations = 2,
                          .w_shape = 2e-4, .w_pose = 1e-4, .w_limits = 0.1, .w_scale = 1.0, .w_pose_start = 0.1,
                          .w_m2s = 1.0, .w_lap = 1.0, .w_couple_start = 0.3, .w_couple_end = 0.02,
@@ -155,9 +155,10 @@ static spx_status pose_samples(spx_ctx *ctx, const spx_fit_options *o, const flo
   w->idx = spx_alloc_array(ctx, (size_t)nbig, sizeof(int32_t), "registration");
   w->d2 = spx_alloc_array(ctx, (size_t)nbig, sizeof(float), "registration");
   w->dist = spx_alloc_array(ctx, (size_t)nbig, sizeof(float), "registration");
-  /* pairs: scan → model, model → scan, free space (and in the free stage the coupling) */
-  w->bp = spx_alloc_array(ctx, (size_t)nbig + 2 * (size_t)nv, sizeof(spx_fit_body_pair), "registration");
-  w->fp = spx_alloc_array(ctx, (size_t)nbig + 3 * (size_t)nv, sizeof(spx_fit_free_pair), "registration");
+  /* pairs: scan → model (in the free stage one per vertex, spx_fit_gather_scan), model → scan, free
+   * space, and in the free stage the coupling */
+  w->bp = spx_alloc_array(ctx, (size_t)w->nq + 2 * (size_t)nv, sizeof(spx_fit_body_pair), "registration");
+  w->fp = spx_alloc_array(ctx, 4 * (size_t)nv, sizeof(spx_fit_free_pair), "registration");
   if (!w->Q || !w->Qf || !w->idx || !w->d2 || !w->dist || !w->bp || !w->fp) {
     free(sidx);
     return SPX_E_NOMEM;

@@ -78,6 +78,18 @@ typedef struct spx_fit_free_pair {
 int spx_fit_free_plane_cost(void *user, const double *const *par, double *res, double **jac);
 int spx_fit_free_point_cost(void *user, const double *const *par, double *res, double **jac);
 
+/* The free stage's scan → model term gathered per vertex: of the nq scan points Q whose nearest
+ * model vertex idx[i] is within thr (d2: squared distances), those of vertex j become one plane
+ * pair at their mean q, normal N_j, weight a1 sqrt(cnt_j). Along a fixed normal the squares of the
+ * points' own residuals a1 n.(x - q_i) sum to the pair's square plus a constant, so the term is the
+ * same least squares whatever the number of points, at one residual per vertex; the stage's Huber
+ * loss (its scale grows with the weight) then acts on a vertex's mean offset, not on each point's.
+ * out (nv) gets the pairs, vert their vertices; cnt (nv), qsum (nv*3): scratch. Returns the number
+ * of pairs. */
+int32_t spx_fit_gather_scan(const float *Q, int32_t nq, const int32_t *idx, const float *d2, double thr,
+                            const double *N, int32_t nv, double a1, int32_t *cnt, double *qsum, int32_t *vert,
+                            spx_fit_free_pair *out);
+
 /* r = a ((x_i - mean_j x_j) - target); blocks x_i, x_j... */
 typedef struct spx_fit_lap {
   int32_t deg;
@@ -217,8 +229,10 @@ spx_status spx_fit_solve(spx_ctx *ctx, const spx_fit_options *o, const spx_fit_s
 
 /* The outer loop of the pose and free stages. Per step: `vertices` (if any) updates V, then the
  * model normals and the two-way matches against the scan sample Q go into w (N, Vf, idx, d2,
- * idx_m, d2_m), one solve, `vertices` again, and the mean scan → surface distance (metres) is
- * recorded in r's slot and reported. */
+ * idx_m, d2_m), one solve, `vertices` again, and the mean scan → surface distance (metres) of the
+ * first SPX_FIT_MEASURE_POINTS points of Q (a random subsample: Q is in random order) is recorded
+ * in r's slot and reported. */
+#define SPX_FIT_MEASURE_POINTS 20000
 typedef struct spx_fit_stage {
   const char *name; /* "pose", "free" */
   int slot;         /* index into r->stage_* */

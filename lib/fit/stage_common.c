@@ -69,6 +69,7 @@ spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fi
   double t0 = spx_now();
   int32_t nv = m->nv;
   spx_kdtree *qt = NULL, *mt = NULL;
+  int32_t nmeas = s->nq < SPX_FIT_MEASURE_POINTS ? s->nq : SPX_FIT_MEASURE_POINTS;
   spx_status st = spx_fit_kd_build(ctx, s->Q, s->nq, &qt);
   for (int32_t step = 0; !st && step < s->steps; step++) {
     if (s->vertices && (st = s->vertices(ctx, s->solve.user))) break;
@@ -84,9 +85,9 @@ spx_status spx_fit_run_stage(spx_ctx *ctx, const spx_body_model *m, const spx_fi
     /* progress: mean scan → surface distance at the new parameters */
     if (s->vertices && (st = s->vertices(ctx, s->solve.user))) break;
     to_float(s->V, nv * 3, w->Vf);
-    if ((st = spx_fit_surface_distance_adj(ctx, s->Q, s->nq, w->Vf, nv, m->faces, &w->vf, o->threads, w->dist)))
+    if ((st = spx_fit_surface_distance_adj(ctx, s->Q, nmeas, w->Vf, nv, m->faces, &w->vf, o->threads, w->dist)))
       break;
-    double md = mean_of(w->dist, s->nq) * r->sim_scale;
+    double md = mean_of(w->dist, nmeas) * r->sim_scale;
     r->stage_energy[s->slot] = sum.final_cost;
     r->stage_mean[s->slot] = md;
     spx_fit_report(o, s->name, step + 1, s->steps, sum.final_cost, md, t0, NULL);

@@ -2,9 +2,14 @@
  * (coupling weight annealed from w_couple_start to w_couple_end; where no scan point supports a
  * vertex, to the posed model moved by the continued offset of the supported ones), with a
  * uniform-Laplacian regulariser that keeps each vertex's Laplacian close to the posed model's, and
- * the pose stage's data terms (both along the normal). */
+ * the pose stage's data terms (both along the normal). The scan → model term is gathered into one
+ * residual per vertex (spx_fit_gather_scan), so its cost does not grow with the scan sample: the
+ * stage takes up to max_points_free (100,000) points, every point of a 50k scan and all or most of
+ * four fused depth frames, where a sample of 20,000 left the registration noisier
+ * (benchmarks/RESULTS.md). */
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "fit/stage.h"
 
@@ -49,10 +54,14 @@ static double support(const spx_fit_work *w, int32_t j) {
   return s < 0 ? 0 : s > 1 ? 1 : s;
 }
 
-/* Unsupported vertices (holes, the side no camera saw) keep the posed model's surface moved by the
- * continued offset (continue_offsets): their coupling weight is W_UNSUPPORTED instead of the
- * annealed wc. Returns sqrt(weight / wc), the factor on the coupling residual. */
-#define W_UNSUPPORTED 1.0
+/* Unsupported vertices (holes, the side no camera saw) are drawn to the posed model's surface moved
+ * by the continued offset (continue_offsets): their coupling weight is W_UNSUPPORTED instead of the
+ * annealed wc. It is about the annealed weight's end (w_couple_end, 0.02), not a stiff hold: the
+ * Laplacian term then carries the seen surface's shape on over the unseen part, and the seen
+ * vertices next to it are not held back by a model surface that is wrong there (on the bodies the
+ * model cannot reproduce, 30 times this weight left both the seen and the unseen part farther off;
+ * benchmarks/RESULTS.md). Returns sqrt(weight / wc), the factor on the coupling residual. */
+#define W_UNSUPPORTED 0.03
 static double support_coupling(double s, double wc) { return sqrt((s * wc + (1 - s) * W_UNSUPPORTED) / wc); }
 
 /* One free step's problem over the vertices X (the parameters). */
@@ -66,6 +75,9 @@ typedef struct free_stage {
   double *tgt;      /* nv*3 coupling targets: Vp, moved along Np by the continued offset where unsupported */
   double *off;      /* nv offsets along Np */
   unsigned char *known; /* nv */
+  int32_t *cnt;     /* nv, nv*3, nv: spx_fit_gather_scan's scratch and the vertex of each pair */
+  double *qsum;
+  int32_t *vert;
   int *sizes;       /* maxdeg+1 threes */
   double **blocks;  /* maxdeg+1 */
 } free_stage;
@@ -95,6 +107,28 @@ static spx_status continue_offsets(spx_ctx *ctx, free_stage *fs) {
   return st;
 }
 
+int32_t spx_fit_gather_scan(const float *Q, int32_t nq, const int32_t *idx, const float *d2, double thr,
+                            const double *N, int32_t nv, double a1, int32_t *cnt, double *qsum, int32_t *vert,
+                            spx_fit_free_pair *out) {
+  memset(cnt, 0, (size_t)nv * sizeof *cnt);
+  memset(qsum, 0, (size_t)nv * 3 * sizeof *qsum);
+  for (int32_t i = 0; i < nq; i++) {
+    if (d2[i] > thr * thr) continue;
+    int32_t j = idx[i];
+    cnt[j]++;
+    for (int d = 0; d < 3; d++) qsum[j * 3 + d] += Q[i * 3 + d];
+  }
+  int32_t np = 0;
+  for (int32_t j = 0; j < nv; j++) {
+    if (!cnt[j]) continue;
+    spx_fit_free_pair *q = out + np;
+    q->a = a1 * sqrt((double)cnt[j]);
+    for (int d = 0; d < 3; d++) q->q[d] = qsum[j * 3 + d] / cnt[j], q->n[d] = N[j * 3 + d];
+    vert[np++] = j;
+  }
+  return np;
+}
+
 static spx_status free_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user, int32_t step) {
   free_stage *fs = user;
   const spx_fit_options *o = fs->o;
@@ -106,17 +140,13 @@ static spx_status free_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
   double wc = o->w_couple_start * pow(o->w_couple_end / o->w_couple_start, frac);
   double thr = 0.03;
   double a1 = sqrt(1.0 / w->nqf), ac = sqrt(wc / nv), al = sqrt(o->w_lap / nv);
-  int32_t np = 0;
   spx_status st = continue_offsets(ctx, fs);
   if (st) return st;
-  for (int32_t i = 0; i < w->nqf; i++) {
-    if (w->d2[i] > thr * thr) continue;
-    spx_fit_free_pair *q = w->fp + np++;
-    int32_t j = w->idx[i];
-    q->a = a1;
-    for (int d = 0; d < 3; d++) q->q[d] = w->Qf[i * 3 + d], q->n[d] = w->N[j * 3 + d];
-    double *blk = X + j * 3;
-    if (spx_ceres_add_residual(pb, spx_fit_free_plane_cost, q, 1, 1, sizes, &blk, SPX_LOSS_HUBER, a1 * o->robust_m * 0.5))
+  int32_t np = spx_fit_gather_scan(w->Qf, w->nqf, w->idx, w->d2, thr, w->N, nv, a1, fs->cnt, fs->qsum, fs->vert, w->fp);
+  for (int32_t k = 0; k < np; k++) {
+    double *blk = X + fs->vert[k] * 3;
+    if (spx_ceres_add_residual(pb, spx_fit_free_plane_cost, w->fp + k, 1, 1, sizes, &blk, SPX_LOSS_HUBER,
+                               w->fp[k].a * o->robust_m * 0.5))
       return spx_fit_ceres_error(ctx, "free");
   }
   for (int32_t k = 0; k < w->nfs; k++) { /* free space (freespace.c), as in the pose stage */
@@ -168,8 +198,10 @@ spx_status spx_fit_stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_f
   double **blocks = spx_alloc_array(ctx, (size_t)maxdeg + 1, sizeof(double *), "free stage");
   double *Np = spx_alloc_array(ctx, (size_t)nv, 7 * sizeof(double), "free stage");
   unsigned char *known = spx_alloc_array(ctx, (size_t)nv, 1, "free stage");
+  int32_t *cnt = spx_alloc_array(ctx, (size_t)nv, 2 * sizeof(int32_t), "free stage");
+  double *qsum = spx_alloc_array(ctx, (size_t)nv, 3 * sizeof(double), "free stage");
   spx_status st = SPX_OK;
-  if (!sizes || !blocks || !Np || !known) {
+  if (!sizes || !blocks || !Np || !known || !cnt || !qsum) {
     st = SPX_E_NOMEM;
     goto cleanup;
   }
@@ -185,13 +217,13 @@ spx_status spx_fit_stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_f
     }
   }
   free_stage fs = {o, w, nv, o->free_steps > 0 ? o->free_steps : 1, X, Vp, Np, Np + 3 * (size_t)nv,
-                   Np + 6 * (size_t)nv, known, sizes, blocks};
+                   Np + 6 * (size_t)nv, known, cnt, qsum, cnt + nv, sizes, blocks};
   spx_fit_stage s = {"free", 2, fs.steps, w->Qf, w->nqf, X, NULL,
                      {"free", free_residuals, &fs, NULL, NULL, NULL,
                       o->free_inner_iterations > 0 ? o->free_inner_iterations : o->inner_iterations,
                       SPX_LS_SPARSE_NORMAL_CHOLESKY}};
   st = spx_fit_run_stage(ctx, m, o, w, &s, r);
 cleanup:
-  free(sizes), free(blocks), free(Np), free(known);
+  free(sizes), free(blocks), free(Np), free(known), free(cnt), free(qsum);
   return st;
 }

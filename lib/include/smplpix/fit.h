@@ -51,8 +51,9 @@ typedef struct spx_fit_progress {
   const char *stage;    /* "rigid", "pose", "free" */
   int32_t step, nsteps; /* outer iteration (1-based) of this stage */
   double energy;        /* final Ceres cost of this step (1/2 sum of robustified squares) */
-  double mean_dist;     /* mean scan → registration surface distance over the stage's scan sample
-                           (metres, after units); rigid: mean two-way nearest-point distance */
+  double mean_dist;     /* mean scan → registration surface distance over (up to 20,000 points of)
+                           the stage's scan sample (metres, after units); rigid: mean two-way
+                           nearest-point distance */
   double seconds;       /* since the stage started */
   const char *note;     /* a remark ("scan looks like millimetres, scaling by 0.001"), or NULL */
 } spx_fit_progress;
