@@ -182,8 +182,41 @@ done:
 static void test_step(void) { run_step(0); }
 static void test_step_vgg(void) { run_step(1); }
 
+/* A perceptual step after the image L1 weight changed runs the new loss, not the graph planned for
+ * the old one: two equal generators take a step at weight 0, then one more, one at 0.5 and one at
+ * 0; the second steps' losses differ by 0.5 x the L1 both report (their forwards see equal weights). */
+static void test_vgg_image_l1_change(void) {
+  spx_ctx *ctx = spx_nt_require();
+  if (!ctx) return;
+  spx_unet *g[2] = {NULL, NULL};
+  spx_vgg *v[2] = {NULL, NULL};
+  spx_gan_losses l[2][2];
+  CHECK_OK(ctx, spx_st_load(ctx, DIR "step_vgg.safetensors", &G));
+  float *in = spx_t_st_floats(&G, "input", NULL), *tg = spx_t_st_floats(&G, "target", NULL);
+  for (int k = 0; k < 2 && in && tg; k++) {
+    CHECK_OK(ctx, spx_unet_load(ctx, DIR "G.safetensors", &g[k]));
+    CHECK_OK(ctx, spx_vgg_open(ctx, SPX_TEST_DATA "/vgg/vgg_w4.safetensors", &v[k]));
+    if (!g[k] || !v[k]) break;
+    CHECK_OK(ctx, spx_unet_vgg_step(g[k], v[k], in, tg, 1, 37, 53, 1e-3, &l[k][0]));
+    CHECK_OK(ctx, spx_vgg_set_image_l1(v[k], k ? 0.0 : 0.5));
+    CHECK_OK(ctx, spx_unet_vgg_step(g[k], v[k], in, tg, 1, 37, 53, 1e-3, &l[k][1]));
+  }
+  if (g[1] && v[1]) {
+    double extra = l[0][1].vgg - l[1][1].vgg, want = 0.5 * l[1][1].rec;
+    printf("  second step: loss %.7g at weight 0.5, %.7g at 0 (difference %.4g, 0.5 x L1 %.4g)\n", l[0][1].vgg,
+           l[1][1].vgg, extra, want);
+    CHECK(l[0][0].vgg == l[1][0].vgg && l[0][1].rec == l[1][1].rec);
+    CHECK_MSG(fabs(extra - want) <= 1e-4 * l[1][1].vgg + 1e-6, "difference %.7g, want %.7g", extra, want);
+  }
+  for (int k = 0; k < 2; k++) spx_unet_destroy(g[k]), spx_vgg_destroy(v[k]);
+  free(in), free(tg);
+  spx_st_free(&G);
+  spx_ctx_destroy(ctx);
+}
+
 int main(void) {
   SPX_RUN(test_step);
   SPX_RUN(test_step_vgg);
+  SPX_RUN(test_vgg_image_l1_change);
   return spx_test_summary();
 }

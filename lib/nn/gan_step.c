@@ -90,6 +90,8 @@ static spx_status vgg_forward(vpass *p) {
   uint64_t key = spx_hash64(&p->n, sizeof p->n, SPX_FNV_SEED ^ 0x7667ULL);
   key = spx_hash64(&p->h, sizeof p->h, key);
   key = spx_hash64(&p->w, sizeof p->w, key);
+  float wl1 = spx_vgg_image_l1(p->v); /* the loss's image L1 weight is a constant of the graph */
+  key = spx_hash64(&wl1, sizeof wl1, key);
   return spx_tape_pass(spx_vgg_tape(p->v), 1, key, vgg_build, p);
 }
 

@@ -46,6 +46,8 @@ struct spx_vgg {
 spx_tape *spx_vgg_tape(spx_vgg *v) { return v->tape; }
 int spx_vgg_width(const spx_vgg *v) { return v->width; }
 
+float spx_vgg_image_l1(const spx_vgg *v) { return v->img_l1; }
+
 spx_status spx_vgg_set_image_l1(spx_vgg *v, double w) {
   if (!v) return SPX_E_ARG;
   if (!(w >= 0 && w <= 1e3)) return spx_fail(v->ctx, SPX_E_ARG, "vgg: image L1 weight %g is not in [0, 1000]", w);

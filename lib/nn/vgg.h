@@ -18,5 +18,7 @@ spx_tape *spx_vgg_tape(spx_vgg *v);
  * it was marked with spx_tape_requires_grad; the gt branch needs no gradient (its values are only
  * L1 targets, the weights are state), so backward skips all of its nodes. */
 int spx_vgg_loss(spx_vgg *v, int pred, int gt);
+/* The weight spx_vgg_set_image_l1 set: part of the graph, so a pass's key holds it. */
+float spx_vgg_image_l1(const spx_vgg *v);
 
 #endif

@@ -43,7 +43,7 @@ int spx_vgg_width(const spx_vgg *v);
 /* Adds w * mean |pred - gt| (the image's own L1, on top of its share inside the loss above) to
  * every later loss of v: the colour term the perceptual loss leaves small (VGG16: the image is 3
  * of ~123 channel-pixels per pixel of the one mean). w in [0, 1e3]; 0 (the default): the loss
- * exactly as above. Set it before v's first loss: a pass already planned keeps its weight. */
+ * exactly as above. It may change between training steps. */
 spx_status spx_vgg_set_image_l1(spx_vgg *v, double w);
 
 #ifdef __cplusplus
