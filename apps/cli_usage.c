@@ -12,6 +12,13 @@ enum { WRAP = 100, LIST_COL = 28 };
 
 static int group_of(const spx_opt *o) { return o->how >> 1; }
 
+/* Row o is alone or the first row of its group (the synopsis and the check name a group there). */
+static int starts_item(const spx_opt *opts, const spx_opt *o) {
+  for (const spx_opt *p = opts; group_of(o) && p != o; p++)
+    if (group_of(p) == group_of(o)) return 0;
+  return 1;
+}
+
 /* "--name META" (and "..." for a repeatable option) into buf. */
 static void one(char *buf, size_t cap, const spx_opt *o) {
   int flag = o->type == SPX_OPT_FLAG;
@@ -31,8 +38,7 @@ static void item(char *buf, size_t cap, const spx_opt *opts, const spx_opt *o) {
     else snprintf(buf, cap, "[%s]", part);
     return;
   }
-  for (const spx_opt *p = opts; p != o; p++)
-    if (group_of(p) == g) return;
+  if (!starts_item(opts, o)) return;
   int req = 0;
   size_t n = 1;
   for (const spx_opt *p = o; p->name; p++) {
@@ -125,9 +131,8 @@ void spx_cli_print_help(FILE *f, const char *cmd, const char *about, const spx_o
 /* Whether row o starts a group (or is alone); of a group, whether one of its rows is required
  * (*req) and given (*given), and "one of --a / --b" (or the name alone) into buf. */
 static int required_item(char *buf, size_t cap, const spx_opt *opts, const spx_opt *o, int *req, int *given) {
+  if (!starts_item(opts, o)) return 0;
   int g = group_of(o);
-  for (const spx_opt *p = opts; g && p != o; p++)
-    if (group_of(p) == g) return 0;
   *req = *given = 0;
   size_t n = (size_t)snprintf(buf, cap, "%s", g ? "one of " : "");
   for (const spx_opt *p = o; p->name; p++) {
