@@ -25,7 +25,7 @@ spx_test_variant(test_nn_unet_wino_all test_nn_unet
 
 # The network tests again with every dead tape storage filled with NaN the moment it dies
 # (lib/nn/tape_live.c): a read past a value's planned last use shows as NaN / wrong results.
-foreach(name test_nn_tape test_nn_tape_multi test_nn_patchgan test_nn_vgg test_nn_unet)
+foreach(name test_nn_tape test_nn_tape_multi test_nn_patchgan test_nn_vgg test_nn_vgg_cache test_nn_unet)
   spx_test_variant(${name}_poison ${name} "SPX_TAPE_POISON=1")
 endforeach()
 

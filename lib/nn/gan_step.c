@@ -71,7 +71,8 @@ typedef struct vpass {
   int gy;
   const float *target;
   int n, h, w;
-  int x, loss; /* ids the build leaves behind */
+  spx_vgg_batch b; /* the target-feature cache's lookup */
+  int x, loss;     /* ids the build leaves behind */
 } vpass;
 
 static spx_status vgg_build(spx_tape *t, void *user) {
@@ -82,7 +83,7 @@ static spx_status vgg_build(spx_tape *t, void *user) {
   if (!st && p->x >= 0)
     st = spx_tape_transfer(t, p->x, 0, 0, p->gt, p->gy, 0, 0, (size_t)p->n * 3 * p->h * p->w, 0);
   if (st) return st;
-  p->loss = spx_vgg_loss(p->v, p->x, tg);
+  p->loss = spx_vgg_loss_batch(p->v, p->x, tg, &p->b);
   return SPX_OK;
 }
 
@@ -92,7 +93,11 @@ static spx_status vgg_forward(vpass *p) {
   key = spx_hash64(&p->w, sizeof p->w, key);
   float wl1 = spx_vgg_image_l1(p->v); /* the loss's image L1 weight is a constant of the graph */
   key = spx_hash64(&wl1, sizeof wl1, key);
-  return spx_tape_pass(spx_vgg_tape(p->v), 1, key, vgg_build, p);
+  spx_status st = spx_vgg_batch_begin(p->v, p->target, p->n, p->h, p->w, &p->b);
+  if (st) return st;
+  st = spx_tape_pass(spx_vgg_tape(p->v), 1, spx_vgg_batch_key(&p->b, key), vgg_build, p);
+  spx_status end = spx_vgg_batch_end(p->v, &p->b, st == SPX_OK);
+  return st ? st : end;
 }
 
 spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, spx_vgg *vgg, const float *in,
@@ -117,7 +122,7 @@ spx_status spx_gan_step(spx_ctx *ctx, spx_unet *g, spx_patchgan *d, spx_vgg *vgg
   if ((st = spx_unet_zero_grad(g)) || (st = spx_unet_forward_loss(g, in, target, n, h, w, NULL, &rec))) goto done;
   int gy = spx_unet_output_id(g);
   dpass p = {d, gt, gy, xh, n, h, w, o->lambda_fm, -1, -1, -1, -1, -1, -1, -1};
-  vpass vp = {vgg, gt, gy, target, n, h, w, -1, -1};
+  vpass vp = {vgg, gt, gy, target, n, h, w, {0}, -1, -1};
   if (d && (st = d_forward(&p))) goto done;
   if (vgg && (st = vgg_forward(&vp))) goto done;
   /* G: through D (its input gradient, fake half, image channels), through VGG, plus its own L1 */

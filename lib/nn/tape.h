@@ -158,6 +158,22 @@ spx_status spx_tape_keep(spx_tape *t, int id);
 spx_status spx_tape_transfer(spx_tape *dst, int did, size_t doff, int dst_grad, spx_tape *src, int sid, size_t soff,
                              int src_grad, size_t count, int accumulate);
 
+/* ---- kept copies (lib/nn/tape_buf.c) ----
+ * A buffer outside the arena, on the tape's backend (float32 device memory, or host doubles), for
+ * a value's data to outlive its pass: spx_tape_save copies `count` floats of a live value at
+ * offset off into b at boff (after the value's forward, like a read); spx_tape_restore copies them
+ * back into a value of a later pass (in its build, like spx_tape_input's data: nothing while the
+ * pass measures; errors are recorded on the tape). The bits are kept exactly. */
+typedef struct spx_tape_buf {
+  cl_mem mem;   /* DEVICE */
+  double *host; /* HOST */
+  size_t count; /* floats */
+} spx_tape_buf;
+spx_status spx_tape_buf_alloc(spx_tape *t, size_t count, const char *what, spx_tape_buf *b);
+void spx_tape_buf_free(spx_tape_buf *b);
+spx_status spx_tape_save(spx_tape *t, int id, size_t off, spx_tape_buf *b, size_t boff, size_t count);
+spx_status spx_tape_restore(spx_tape *t, int id, size_t off, const spx_tape_buf *b, size_t boff, size_t count);
+
 /* ---- memory (plans: lib/nn/tape_plan.c; the current one followed: tape_live.c) ----
  * All activations and activation gradients of a pass live in ONE arena, at offsets planned from
  * the graph the measuring run recorded: a value's storage is reused once nothing later in the

@@ -40,7 +40,8 @@ struct spx_vgg {
   int width;
   int w[SPX_VGG_NCONV], b[SPX_VGG_NCONV];
   int nw, nb;   /* VGG19: the normalisation 1x1 conv */
-  float img_l1; /* spx_vgg_set_image_l1 */
+  float img_l1;          /* spx_vgg_set_image_l1 */
+  spx_vgg_cache *cache;  /* spx_vgg_set_target_cache; NULL: none */
 };
 
 spx_tape *spx_vgg_tape(spx_vgg *v) { return v->tape; }
@@ -56,8 +57,28 @@ spx_status spx_vgg_set_image_l1(spx_vgg *v, double w) {
 }
 spx_vgg_kind spx_vgg_get_kind(const spx_vgg *v) { return v->kind; }
 
+spx_status spx_vgg_set_target_cache(spx_vgg *v, size_t max_bytes) {
+  if (!v) return SPX_E_ARG;
+  return spx_vgg_cache_set(v->ctx, &v->cache, max_bytes);
+}
+
+size_t spx_vgg_target_cache_bytes(const spx_vgg *v) { return v ? spx_vgg_cache_bytes(v->cache) : 0; }
+
+size_t spx_vgg_target_bytes(const spx_vgg *v, int h, int w) {
+  if (!v || h < 1 || w < 1) return 0;
+  const vgg_arch *a = &arch[v->kind];
+  size_t floats = (size_t)3 * (size_t)h * (size_t)w; /* the image copy */
+  int fh = h, fw = w;
+  for (int i = 0; i < a->nconv; i++) {
+    if (a->feat_after[i]) floats += (size_t)a->mult[i] * (size_t)v->width * (size_t)fh * (size_t)fw;
+    if (a->pool_after[i]) fh /= 2, fw /= 2;
+  }
+  return floats * sizeof(float);
+}
+
 void spx_vgg_destroy(spx_vgg *v) {
   if (!v) return;
+  spx_vgg_cache_free(v->cache);
   spx_tape_destroy(v->tape);
   free(v);
 }
@@ -157,14 +178,32 @@ static void features(spx_vgg *v, int x, int *feat) {
   }
 }
 
+static int nfeat(const spx_vgg *v) { return v->kind == SPX_VGG16_SMPLPIX ? 4 : 5; }
+
+/* pred's features into fp and gt's into fg: gt run through the network (then kept for the cache
+ * when b has one), or, when b found every target, restored from the cache in pred's shapes.
+ * -1 after a tape error. */
+static int both_features(spx_vgg *v, int pred, int gt, spx_vgg_batch *b, int *fp, int *fg) {
+  if (b && b->hit) {
+    features(v, pred, fp);
+    return spx_vgg_cache_restore(v->cache, v->tape, b->slot, b->n, fp, nfeat(v), fg);
+  }
+  features(v, gt, fg);
+  features(v, pred, fp);
+  for (int k = 0; b && b->on && k < nfeat(v); k++) {
+    if (fg[k] < 0 || spx_tape_keep(v->tape, fg[k])) return -1;
+    b->feat[k] = fg[k];
+  }
+  return 0;
+}
+
 /* VGG16: pieces x, relu1_2, relu2_2, relu3_3, relu4_3 weighted 1, 1/16, 1/8, 1/4, 1 and one mean
  * over all their elements, i.e. sum_k w_k (count_k / total) mean_k |f_k(pred) - f_k(gt)|. */
-static int loss16(spx_vgg *v, int pred, int gt) {
+static int loss16(spx_vgg *v, int pred, int gt, spx_vgg_batch *b) {
   spx_tape *t = v->tape;
   static const double wk[5] = {1.0, 1.0 / 16, 1.0 / 8, 1.0 / 4, 1.0};
   int fp[5] = {pred, -1, -1, -1, -1}, fg[5] = {gt, -1, -1, -1, -1};
-  features(v, gt, fg + 1);
-  features(v, pred, fp + 1);
+  if (both_features(v, pred, gt, b, fp + 1, fg + 1)) return -1;
   double cnt[5], total = 0;
   for (int k = 0; k < 5; k++) {
     if (fp[k] < 0 || fg[k] < 0) return -1; /* the tape's error is recorded */
@@ -180,19 +219,45 @@ static int loss16(spx_vgg *v, int pred, int gt) {
   return loss;
 }
 
-static int loss19(spx_vgg *v, int pred, int gt) {
+static int loss19(spx_vgg *v, int pred, int gt, spx_vgg_batch *b) {
   spx_tape *t = v->tape;
   int fp[5], fg[5];
-  features(v, gt, fg);
-  features(v, pred, fp);
+  if (both_features(v, pred, gt, b, fp, fg)) return -1;
   int loss = spx_tape_axpby(t, 1.0f / 32.0f, spx_tape_l1(t, pred, gt), 0.0f, -1);
   for (int k = 1; k <= 5; k++)
     loss = spx_tape_axpby(t, 1.0f, loss, 1.0f / (float)(1 << (5 - k)), spx_tape_l1(t, fp[k - 1], fg[k - 1]));
   return loss;
 }
 
-int spx_vgg_loss(spx_vgg *v, int pred, int gt) {
-  int loss = v->kind == SPX_VGG16_SMPLPIX ? loss16(v, pred, gt) : loss19(v, pred, gt);
+int spx_vgg_loss_batch(spx_vgg *v, int pred, int gt, spx_vgg_batch *b) {
+  int loss = v->kind == SPX_VGG16_SMPLPIX ? loss16(v, pred, gt, b) : loss19(v, pred, gt, b);
   if (loss < 0 || v->img_l1 <= 0) return loss;
   return spx_tape_axpby(v->tape, 1.0f, loss, v->img_l1, spx_tape_l1(v->tape, pred, gt));
+}
+
+int spx_vgg_loss(spx_vgg *v, int pred, int gt) { return spx_vgg_loss_batch(v, pred, gt, NULL); }
+
+spx_status spx_vgg_batch_begin(spx_vgg *v, const float *target, int n, int h, int w, spx_vgg_batch *b) {
+  memset(b, 0, sizeof *b);
+  b->target = target, b->n = n, b->h = h, b->w = w;
+  for (int k = 0; k < 5; k++) b->feat[k] = -1;
+  if (!spx_vgg_cache_on(v->cache)) return SPX_OK;
+  if (!(b->slot = malloc((size_t)n * sizeof *b->slot))) return spx_fail(v->ctx, SPX_E_NOMEM, "vgg: out of memory");
+  b->on = 1;
+  b->hit = spx_vgg_cache_find(v->cache, target, n, h, w, b->slot);
+  return SPX_OK;
+}
+
+uint64_t spx_vgg_batch_key(const spx_vgg_batch *b, uint64_t key) {
+  int mode = b->on + 2 * b->hit;
+  return spx_hash64(&mode, sizeof mode, key);
+}
+
+spx_status spx_vgg_batch_end(spx_vgg *v, spx_vgg_batch *b, int forward_ran) {
+  spx_status st = SPX_OK;
+  if (forward_ran && b->on && !b->hit)
+    st = spx_vgg_cache_put(v->ctx, v->cache, v->tape, b->target, b->n, b->h, b->w, b->feat, nfeat(v));
+  free(b->slot);
+  b->slot = NULL;
+  return st;
 }

@@ -45,6 +45,18 @@ int spx_vgg_width(const spx_vgg *v);
  * of ~123 channel-pixels per pixel of the one mean). w in [0, 1e3]; 0 (the default): the loss
  * exactly as above. It may change between training steps. */
 spx_status spx_vgg_set_image_l1(spx_vgg *v, double w);
+/* Keeps the network's features of the target images of later training steps (spx_unet_vgg_step,
+ * spx_unet_gan_step), up to max_bytes (device memory, plus a host copy of each image), and reuses
+ * them when the same target image comes again in a batch of the same size: on a fixed training
+ * set each target's features are computed once instead of every step (the frozen network's
+ * forward of the target is about a third of its work in a step). A target is found by its whole
+ * image, bit for bit, and its features are the bits its first step computed, so losses, gradients
+ * and weights are exactly those without the cache. Entries are kept in the order they come, never
+ * evicted; 0 (the default) turns the cache off, and a smaller budget drops every entry. */
+spx_status spx_vgg_set_target_cache(spx_vgg *v, size_t max_bytes);
+/* Bytes the cache holds now; the bytes one h x w target takes in it. */
+size_t spx_vgg_target_cache_bytes(const spx_vgg *v);
+size_t spx_vgg_target_bytes(const spx_vgg *v, int h, int w);
 
 #ifdef __cplusplus
 }
