@@ -211,16 +211,6 @@ static int loop(av_run *r, const av_set *tr, const av_set *val) {
   return SPX_EXIT_OK;
 }
 
-/* The VGG16 target-feature cache's budget: every training view's features (the targets are
- * fixed, so each is computed once instead of every step), up to a quarter of the device's memory. */
-static size_t cache_budget(spx_ctx *ctx, const spx_vgg *vgg, const av_set *train) {
-  spx_device_info info;
-  size_t want = (size_t)train->n * spx_vgg_target_bytes(vgg, train->H, train->W);
-  if (spx_device_get_info(ctx, &info)) return 0;
-  size_t cap = (size_t)(info.global_mem / 4);
-  return want < cap ? want : cap;
-}
-
 int av_train(const char *cmd, spx_ctx *ctx, const av_train_cfg *cfg, const av_set *train, const av_set *val,
              spx_unet **u, double *cpu) {
   av_run r;
@@ -237,7 +227,7 @@ int av_train(const char *cmd, spx_ctx *ctx, const av_train_cfg *cfg, const av_se
   if (!r.in || !r.tg || !r.out || !r.hwc_a || !r.hwc_b || !r.perm) rc = spx_cli_errorf(cmd, "out of memory for training");
   if (!rc) rc = open_net(&r);
   if (!rc && (spx_vgg16_open(ctx, cfg->vgg16, &r.vgg) || spx_vgg_set_image_l1(r.vgg, cfg->image_l1) ||
-              spx_vgg_set_target_cache(r.vgg, cache_budget(ctx, r.vgg, train)) || spx_lpips_load(ctx, cfg->lpips, &r.lp)))
+              spx_vgg_set_target_cache(r.vgg, spx_vgg_target_cache_fit(r.vgg, train->n, train->H, train->W)) || spx_lpips_load(ctx, cfg->lpips, &r.lp)))
     rc = spx_cli_error(cmd, ctx);
   char extra[64] = "";
   if (cfg->image_l1 > 0) snprintf(extra, sizeof extra, " + %g x L1", cfg->image_l1);

@@ -572,6 +572,9 @@ static int train_prepare(train_job *j, const train_args *a, train_dist *dist) {
   /* resuming: the stage (and the schedule's stage-2 start) come from the record */
   r->comm = dist->on ? &dist->comm : NULL; /* rank 0 loads the discriminator, the others take it */
   if ((rc = train_recipe_start(ctx, r, u, a->outp, from, resume ? ts : NULL))) return rc;
+  /* the pairs are fixed: the frozen VGG computes each target's features once (the same bits) */
+  if (r->net_vgg && spx_vgg_set_target_cache(r->net_vgg, spx_vgg_target_cache_fit(r->net_vgg, tr->n, tr->h, tr->w)))
+    return spx_cli_error("train", ctx);
   if (resume) { /* the run's length: the recorded target unless --epochs / --steps give a new one */
     int64_t stage1 = a->steps >= 0 ? a->steps : a->epochs * spe;
     if (!j->length_given && ts->target >= 0) target = ts->target;

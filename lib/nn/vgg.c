@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "nn/st_take.h"
+#include "smplpix/device.h"
 #include "smplpix/safetensors.h"
 
 /* The convolutions each loss uses (torchvision's features.N), their output channels (x the base
@@ -74,6 +75,13 @@ size_t spx_vgg_target_bytes(const spx_vgg *v, int h, int w) {
     if (a->pool_after[i]) fh /= 2, fw /= 2;
   }
   return floats * sizeof(float);
+}
+
+size_t spx_vgg_target_cache_fit(spx_vgg *v, int count, int h, int w) {
+  spx_device_info info;
+  if (!v || count < 1 || spx_device_get_info(v->ctx, &info)) return 0;
+  size_t want = (size_t)count * spx_vgg_target_bytes(v, h, w), cap = (size_t)(info.global_mem / 4);
+  return want < cap ? want : cap;
 }
 
 void spx_vgg_destroy(spx_vgg *v) {

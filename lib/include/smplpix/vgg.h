@@ -57,6 +57,9 @@ spx_status spx_vgg_set_target_cache(spx_vgg *v, size_t max_bytes);
 /* Bytes the cache holds now; the bytes one h x w target takes in it. */
 size_t spx_vgg_target_cache_bytes(const spx_vgg *v);
 size_t spx_vgg_target_bytes(const spx_vgg *v, int h, int w);
+/* A budget for a training set of count targets of h x w: all of them, up to a quarter of the
+ * device's memory (0 without a device). */
+size_t spx_vgg_target_cache_fit(spx_vgg *v, int count, int h, int w);
 
 #ifdef __cplusplus
 }
