@@ -18,6 +18,11 @@
  * random pose and shape), cases full, holes (five 12 cm holes), front, side, back, above, depth
  * (a clean 640x480 depth image without room or noise), woman (human_woman.obj full, body 0 only).
  * --full: the whole outside table (6 bodies x 3 seeds); the default is 3 bodies x 1 seed.
+ * --verbose: each stage's progress, and of every run the complete-surface error split into the part
+ * a camera saw and the rest (a full scan: all seen), each with its mean signed distance (+: the
+ * registration lies inside the true surface there) and per body region (head, torso, arms, legs:
+ * the nearest registered face's most weighted joint), of the registration and of the posed model
+ * before the free stage.
  * usage: bench_register_views [--set outside|inside] [--full] [--bodies LIST] [--seeds N] [--threads N]
  *          [--cases LIST] [--no-view] [--scene room|none] [--verbose]... [--pose-steps N] [--inner N]
  *          [--free-steps N] [--points-pose N] [--points-free N] [--w-pose W] [--w-shape W] [--aids BITS]
@@ -25,9 +30,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "../tests/fit_view.h"
 #include "bench_common.h"
+#include "body/rot3.h"
 #include "core/internal.h" /* spx_now */
 #include "register_scenes.h"
 #include "smplpix/smplpix.h"
@@ -140,48 +147,124 @@ static int make_scan(spx_ctx *ctx, int c, const rs_body *b, int s, const cfg *g,
   return 0;
 }
 
+enum { R_HEAD, R_TORSO, R_ARMS, R_LEGS, NREGION };
+static const char *region_names[NREGION] = {"head", "torso", "arms", "legs"};
+
+/* Of one surface against the true one, over the true samples some camera saw (k = 0) and the rest
+ * (k = 1): the mean distance, the mean signed distance along the registered surface's normal (+:
+ * the true surface lies outside the registration, which is too thin there), and per body region. */
+typedef struct split {
+  double err[2], sgn[2], reg_err[NREGION][2];
+  int32_t n[2], reg_n[NREGION][2];
+} split;
+
 typedef struct run_out {
-  double err, secs, cpu, seen_err, hidden_err, hidden_share;
+  double err, secs, cpu;
+  split fin, posed; /* the registration; the posed model before the free stage (verbose runs) */
   int32_t points;
 } run_out;
 
+/* Whether name n holds one of the parts (case-insensitive). */
+static int name_has(const char *n, const char *const *parts) {
+  for (; *parts; parts++)
+    for (const char *c = n; *c; c++)
+      if (!strncasecmp(c, *parts, strlen(*parts))) return 1;
+  return 0;
+}
+
+/* The region of model vertex j: its most weighted joint's name (head and neck, arms and hands,
+ * legs and feet, else torso; names of the default body's rig and SMPL). */
+static int vertex_region(const spx_body_model *m, int32_t j) {
+  static const char *const head[] = {"head", "neck", NULL}, *const arms[] = {"arm", "hand", "thumb", "finger",
+                                                                           "elbow", "wrist", NULL},
+                           *const legs[] = {"leg", "foot", "toe", "knee", "ankle", NULL};
+  int32_t best = 0;
+  for (int32_t k = 1; k < m->nj; k++)
+    if (m->weights[(size_t)j * m->nj + k] > m->weights[(size_t)j * m->nj + best]) best = k;
+  const char *nm = m->joint_names ? m->joint_names[best] : "";
+  return name_has(nm, head) ? R_HEAD : name_has(nm, arms) ? R_ARMS : name_has(nm, legs) ? R_LEGS : R_TORSO;
+}
+
+/* The split of surface (verts, the model's faces) against the true samples (seen: per sample). */
+static void split_surface(spx_ctx *ctx, const spx_body_model *m, const spx_mesh *truth, const unsigned char *seen,
+                          const float *verts, split *out) {
+  int32_t n = truth->nv, *face = malloc((size_t)n * sizeof(int32_t));
+  float *bary = malloc((size_t)n * 3 * sizeof(float)), *dist = malloc((size_t)n * sizeof(float));
+  memset(out, 0, sizeof *out);
+  if (face && bary && dist &&
+      !spx_fit_closest_points(ctx, truth->pos, n, verts, m->nv, m->faces, m->nf, 2, face, bary, dist))
+    for (int32_t i = 0; i < n; i++) {
+      const int32_t *f = m->faces + (size_t)face[i] * 3;
+      const float *a = verts + f[0] * 3, *b = verts + f[1] * 3, *c = verts + f[2] * 3, *x = truth->pos + i * 3;
+      double e1[3], e2[3], nn[3], q[3], len = 0, sg = 0;
+      for (int d = 0; d < 3; d++) {
+        e1[d] = b[d] - a[d], e2[d] = c[d] - a[d];
+        q[d] = bary[i * 3] * a[d] + bary[i * 3 + 1] * b[d] + bary[i * 3 + 2] * c[d];
+      }
+      for (int d = 0; d < 3; d++) nn[d] = e1[(d + 1) % 3] * e2[(d + 2) % 3] - e1[(d + 2) % 3] * e2[(d + 1) % 3];
+      for (int d = 0; d < 3; d++) len += nn[d] * nn[d];
+      for (int d = 0; d < 3; d++) sg += (x[d] - q[d]) * nn[d];
+      int k = seen[i] ? 0 : 1, rg = vertex_region(m, f[0]);
+      out->err[k] += dist[i], out->sgn[k] += len > 0 ? sg / sqrt(len) : 0, out->n[k]++;
+      out->reg_err[rg][k] += dist[i], out->reg_n[rg][k]++;
+    }
+  for (int k = 0; k < 2; k++) {
+    double c = out->n[k] ? out->n[k] : 1;
+    out->err[k] /= c, out->sgn[k] /= c;
+    for (int r = 0; r < NREGION; r++) out->reg_err[r][k] /= out->reg_n[r][k] ? out->reg_n[r][k] : 1;
+  }
+  free(face), free(bary), free(dist);
+}
+
 /* The complete-surface error split into the part some camera saw (facing one and not behind its
- * depth image by over 1 cm) and the rest (verbose runs). */
-static void split_error(spx_ctx *ctx, const rs_body *b, const spx_fit_result *r, const spx_camera *cams, int ncam,
-                        run_out *ro) {
+ * depth image by over 1 cm) and the rest, of the registration and of its posed model (verbose
+ * runs). */
+static void split_error(spx_ctx *ctx, const spx_body_model *m, const rs_body *b, const spx_fit_result *r,
+                        const spx_camera *cams, int ncam, run_out *ro) {
   spx_mesh truth;
   synth_opts so = {30000, 0.0, 0.0, 0, 1.0, 0};
-  float *dist = NULL, *depth = NULL;
-  if (synth_scan(b->V, b->nv, b->F, b->nf, &so, 99, &truth, NULL, NULL)) return;
+  float *depth = NULL, *posed = NULL;
+  if (r->nv != m->nv || synth_scan(b->V, b->nv, b->F, b->nf, &so, 99, &truth, NULL, NULL)) return;
   unsigned char *seen = calloc((size_t)truth.nv, 1);
-  dist = malloc((size_t)truth.nv * sizeof(float));
-  depth = malloc((size_t)cams[0].width * cams[0].height * sizeof(float));
-  if (seen && dist && depth &&
-      !spx_fit_surface_distance(ctx, truth.pos, truth.nv, r->verts_scan, r->nv, r->faces, r->nf, dist, NULL, NULL, NULL))
-    for (int k = 0; k < ncam; k++) {
-      const spx_camera *c = cams + k;
-      if (view_depth(ctx, b->V, b->nv, b->F, b->nf, c, depth)) break;
-      for (int32_t i = 0; i < truth.nv; i++) {
-        const float *x = truth.pos + i * 3;
-        double p[3];
-        for (int a = 0; a < 3; a++) p[a] = c->R[a][0] * x[0] + c->R[a][1] * x[1] + c->R[a][2] * x[2] + c->t[a];
-        if (!(p[2] > 0)) continue;
-        double u = (c->K[0][0] * p[0] + c->K[0][1] * p[1]) / p[2] + c->K[0][2], v = c->K[1][1] * p[1] / p[2] + c->K[1][2];
-        if (u < 0 || v < 0 || u >= c->width || v >= c->height) continue;
-        float dz = depth[(size_t)v * c->width + (size_t)u];
-        if (dz > 0 && p[2] < dz + 0.01) seen[i] = 1;
-      }
+  for (int32_t i = 0; seen && !ncam && i < truth.nv; i++) seen[i] = 1; /* a full scan: all of it */
+  depth = malloc(ncam ? (size_t)cams[0].width * cams[0].height * sizeof(float) : 1);
+  posed = malloc((size_t)r->nv * 3 * sizeof(float));
+  for (int k = 0; seen && depth && k < ncam; k++) {
+    const spx_camera *c = cams + k;
+    if (view_depth(ctx, b->V, b->nv, b->F, b->nf, c, depth)) break;
+    for (int32_t i = 0; i < truth.nv; i++) {
+      const float *x = truth.pos + i * 3;
+      double p[3];
+      for (int a = 0; a < 3; a++) p[a] = c->R[a][0] * x[0] + c->R[a][1] * x[1] + c->R[a][2] * x[2] + c->t[a];
+      if (!(p[2] > 0)) continue;
+      double u = (c->K[0][0] * p[0] + c->K[0][1] * p[1]) / p[2] + c->K[0][2], v = c->K[1][1] * p[1] / p[2] + c->K[1][2];
+      if (u < 0 || v < 0 || u >= c->width || v >= c->height) continue;
+      float dz = depth[(size_t)v * c->width + (size_t)u];
+      if (dz > 0 && p[2] < dz + 0.01) seen[i] = 1;
     }
-  double se = 0, he = 0;
-  int32_t ns = 0;
-  for (int32_t i = 0; dist && seen && i < truth.nv; i++) {
-    if (seen[i]) se += dist[i], ns++;
-    else he += dist[i];
   }
-  ro->seen_err = ns ? se / ns : 0, ro->hidden_err = truth.nv > ns ? he / (truth.nv - ns) : 0;
-  ro->hidden_share = 1.0 - (double)ns / truth.nv;
-  free(seen), free(dist), free(depth);
+  for (int32_t i = 0; posed && i < r->nv; i++) {
+    double x[3];
+    spx_rot3_apply(r->sim_R, r->verts_pose + i * 3, x);
+    for (int d = 0; d < 3; d++) posed[i * 3 + d] = (float)((r->sim_scale * x[d] + r->sim_t[d]) / r->unit_scale);
+  }
+  if (seen && depth) split_surface(ctx, m, &truth, seen, r->verts_scan, &ro->fin);
+  if (seen && depth && posed) split_surface(ctx, m, &truth, seen, posed, &ro->posed);
+  free(seen), free(depth), free(posed);
   spx_mesh_free(&truth);
+}
+
+/* The verbose lines of a split. */
+static void print_split(const char *what, const split *s) {
+  int32_t n = s->n[0] + s->n[1];
+  if (!n) return;
+  printf("    %-6s seen %.2f mm (signed %+.2f), hidden %.2f mm (signed %+.2f; %.0f%% of the surface)\n", what,
+         s->err[0] * 1e3, s->sgn[0] * 1e3, s->err[1] * 1e3, s->sgn[1] * 1e3, 100.0 * s->n[1] / n);
+  printf("           by region, seen / hidden mm (hidden share of all):");
+  for (int r = 0; r < NREGION; r++)
+    printf(" %s %.2f / %.2f (%.0f%%)", region_names[r], s->reg_err[r][0] * 1e3, s->reg_err[r][1] * 1e3,
+           100.0 * s->reg_n[r][1] / n);
+  printf("\n");
 }
 
 /* SPX_BENCH_DUMP=DIR (debugging): the true body, the registration and the cameras of every run as
@@ -238,7 +321,7 @@ static int run_case(spx_ctx *ctx, const spx_body_model *m, const rs_body *b, int
   int rc = spx_fit_register(ctx, m, &scan, &o, &r) ? 1 : 0;
   ro->secs = spx_now() - t0, ro->cpu = bench_cpu_now() - c0, ro->points = scan.nv;
   if (!rc) ro->err = view_complete_error(ctx, b->V, b->nv, b->F, b->nf, r.verts_scan, r.nv, r.faces, r.nf);
-  if (!rc && neyes && g->verbose) split_error(ctx, b, &r, cams, neyes, ro);
+  if (!rc && g->verbose) split_error(ctx, m, b, &r, cams, neyes, ro);
   if (!rc) dump(ctx, b, case_names[c], s, &r, cams, neyes);
   if (!rc) spx_fit_result_free(&r);
   spx_mesh_free(&scan);
@@ -376,9 +459,7 @@ int main(int argc, char **argv) {
         else
           printf("  seed %d %-6s %6.2f mm  %6d points  %5.1f s (CPU %5.1f s)\n", s, case_names[c], ro.err * 1e3,
                  ro.points, ro.secs, ro.cpu);
-        if (!rc && ro.hidden_share > 0)
-          printf("    seen by a camera %.2f mm, hidden %.2f mm (%.0f%% of the surface)\n", ro.seen_err * 1e3,
-                 ro.hidden_err * 1e3, ro.hidden_share * 100);
+        if (!rc) print_split("final", &ro.fin), print_split("posed", &ro.posed);
         fflush(stdout);
       }
     free(b.V), free(b.F);

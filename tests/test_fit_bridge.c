@@ -2,7 +2,8 @@
  * fitting through C callbacks, solver options and summary, failures reported (never thrown),
  * the evaluation callback, k-d tree queries against brute force, point-to-triangle distance, and a
  * finite-difference check of every registration residual's analytic Jacobian, and the free stage's
- * scan → model term gathered per vertex against one residual per scan point. */
+ * scan → model term gathered per vertex against one residual per scan point, and the ring gap that
+ * makes that term fit the triangles, not the vertices' planes, and the scan points' area weights. */
 #include "fit/stage.h"
 #include "test.h"
 
@@ -282,14 +283,15 @@ static void test_gradients(void) {
 
 /* The free stage's scan → model term gathered per vertex (spx_fit_gather_scan): at any vertex
  * positions its sum of squares and its gradient are those of one plane residual per scan point
- * (points beyond thr dropped), up to a constant; one pair per vertex with points. */
+ * (points beyond thr dropped; with weights, each point's residual times sqrt(its weight)), up to a
+ * constant; one pair per vertex with points. */
 static void test_gather_scan(void) {
   enum { NQ = 300, NV = 12 };
   uint64_t s = 0x9a7e;
 #define U() ((double)(spx_fit_rng_next(&s) >> 11) * (1.0 / 9007199254740992.0) - 0.5)
-  static float Q[NQ * 3], d2[NQ];
-  static int32_t idx[NQ], cnt[NV], vert[NV];
-  static double N[NV * 3], qsum[NV * 3], X[NV * 3];
+  static float Q[NQ * 3], d2[NQ], wt[NQ];
+  static int32_t idx[NQ], vert[NV];
+  static double N[NV * 3], qsum[NV * 3], X[NV * 3], wsum[NV];
   static spx_fit_free_pair out[NV];
   double thr = 0.03, a1 = 0.37;
   for (int32_t j = 0; j < NV; j++) {
@@ -299,35 +301,168 @@ static void test_gather_scan(void) {
   for (int32_t i = 0; i < NQ; i++) {
     idx[i] = (int32_t)(spx_fit_rng_next(&s) % (NV - 1)); /* the last vertex has no point */
     d2[i] = (float)(i % 5 == 0 ? 0.04 * 0.04 : 0.02 * 0.02 * (U() + 0.5));
+    wt[i] = (float)(2 * U() + 1.25);
     for (int d = 0; d < 3; d++) Q[i * 3 + d] = (float)(0.1 * U());
   }
-  int32_t np = spx_fit_gather_scan(Q, NQ, idx, d2, thr, N, NV, a1, cnt, qsum, vert, out);
-  CHECK(np == NV - 1);
-  for (int32_t k = 0; k < np; k++) CHECK(vert[k] == k);
-  double diff0 = 0, worst = 0;
-  for (int trial = 0; trial < 4; trial++) {
-    for (int32_t k = 0; k < NV * 3; k++) X[k] = 0.2 * U();
-    double sp = 0, sg = 0, gp[NV * 3] = {0}, gg[NV * 3] = {0};
-    for (int32_t i = 0; i < NQ; i++) {
-      if (d2[i] > thr * thr) continue;
-      const double *n = N + idx[i] * 3, *x = X + idx[i] * 3;
-      double r = a1 * (n[0] * (x[0] - Q[i * 3]) + n[1] * (x[1] - Q[i * 3 + 1]) + n[2] * (x[2] - Q[i * 3 + 2]));
-      sp += r * r;
-      for (int d = 0; d < 3; d++) gp[idx[i] * 3 + d] += 2 * r * a1 * n[d];
+  double worst = 0;
+  for (int weighted = 0; weighted < 2; weighted++) {
+    const float *w = weighted ? wt : NULL;
+    int32_t np = spx_fit_gather_scan(Q, NQ, idx, d2, thr, N, NV, a1, NULL, w, wsum, qsum, vert, out);
+    CHECK(np == NV - 1);
+    for (int32_t k = 0; k < np; k++) CHECK(vert[k] == k);
+    double diff0 = 0;
+    for (int trial = 0; trial < 4; trial++) {
+      for (int32_t k = 0; k < NV * 3; k++) X[k] = 0.2 * U();
+      double sp = 0, sg = 0, gp[NV * 3] = {0}, gg[NV * 3] = {0};
+      for (int32_t i = 0; i < NQ; i++) {
+        if (d2[i] > thr * thr) continue;
+        const double *n = N + idx[i] * 3, *x = X + idx[i] * 3;
+        double a = a1 * (w ? sqrt(w[i]) : 1.0);
+        double r = a * (n[0] * (x[0] - Q[i * 3]) + n[1] * (x[1] - Q[i * 3 + 1]) + n[2] * (x[2] - Q[i * 3 + 2]));
+        sp += r * r;
+        for (int d = 0; d < 3; d++) gp[idx[i] * 3 + d] += 2 * r * a * n[d];
+      }
+      for (int32_t k = 0; k < np; k++) {
+        double r, J[3], *par[1] = {X + vert[k] * 3}, *jac[1] = {J};
+        CHECK(spx_fit_free_plane_cost(&out[k], (const double *const *)par, &r, jac));
+        sg += r * r;
+        for (int d = 0; d < 3; d++) gg[vert[k] * 3 + d] += 2 * r * J[d];
+      }
+      if (trial == 0) diff0 = sp - sg;
+      CHECK(sp - sg >= -1e-12);
+      worst = fmax(worst, fabs((sp - sg) - diff0) / sp);
+      for (int32_t k = 0; k < NV * 3; k++) worst = fmax(worst, fabs(gp[k] - gg[k]) / (fabs(gp[k]) + 1e-9));
     }
-    for (int32_t k = 0; k < np; k++) {
-      double r, J[3], *par[1] = {X + vert[k] * 3}, *jac[1] = {J};
-      CHECK(spx_fit_free_plane_cost(&out[k], (const double *const *)par, &r, jac));
-      sg += r * r;
-      for (int d = 0; d < 3; d++) gg[vert[k] * 3 + d] += 2 * r * J[d];
-    }
-    if (trial == 0) diff0 = sp - sg;
-    CHECK(sp - sg >= -1e-12);
-    worst = fmax(worst, fabs((sp - sg) - diff0) / sp);
-    for (int32_t k = 0; k < NV * 3; k++) worst = fmax(worst, fabs(gp[k] - gg[k]) / (fabs(gp[k]) + 1e-9));
   }
 #undef U
   CHECK_MSG(worst < 1e-9, "gathered term differs from the per-point one by %g (relative)", worst);
+}
+
+/* Area weights (spx_fit_area_weights) of a plane sampled on a jittered grid four times as densely
+ * on its left half as on its right: a right point weighs ~4x a left one (the area it stands for),
+ * the weights average 1, and an isolated point far off is held to SPX_FIT_AREA_W_MAX left ones. */
+static void test_area_weights(void) {
+  enum { NMAX = 6000 };
+  static float Q[NMAX * 3], wt[NMAX];
+  unsigned long long s = 0xa4ea;
+  int32_t n = 0;
+  for (int half = 0; half < 2; half++) {
+    double h = half ? 0.01 : 0.005; /* grid step: 4x the density on the left */
+    for (double x = 0; x < 0.2 - 1e-9; x += h)
+      for (double y = 0; y < 0.2 - 1e-9 && n < NMAX - 1; y += h, n++) {
+        Q[n * 3] = (float)(x + half * 0.2 + 0.2 * h * (spx_t_uniform(&s) - 0.5));
+        Q[n * 3 + 1] = (float)(y + 0.2 * h * (spx_t_uniform(&s) - 0.5)), Q[n * 3 + 2] = 0;
+      }
+  }
+  Q[n * 3] = 5, Q[n * 3 + 1] = 5, Q[n * 3 + 2] = 5, n++;
+  spx_ctx *ctx = NULL;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  CHECK_OK(ctx, spx_fit_area_weights(ctx, Q, n, 16, 2, wt));
+  double left = 0, right = 0, all = 0;
+  int32_t nl = 0, nr = 0;
+  for (int32_t i = 0; i + 1 < n; i++) {
+    double x = Q[i * 3];
+    all += wt[i];
+    if (x > 0.03 && x < 0.17 && Q[i * 3 + 1] > 0.03 && Q[i * 3 + 1] < 0.17) left += wt[i], nl++;
+    if (x > 0.23 && x < 0.37 && Q[i * 3 + 1] > 0.03 && Q[i * 3 + 1] < 0.17) right += wt[i], nr++;
+  }
+  CHECK(nl > 100 && nr > 50);
+  double ratio = (right / nr) / (left / nl);
+  CHECK_MSG(ratio > 3.3 && ratio < 4.7, "right / left weight %g (the area ratio is 4)", ratio);
+  CHECK_MSG(fabs((all + wt[n - 1]) / n - 1) < 1e-4, "mean weight %g", (all + wt[n - 1]) / n);
+  double held = wt[n - 1] / (left / nl); /* the far point against a left one */
+  CHECK_MSG(fabs(held - SPX_FIT_AREA_W_MAX) < 0.2, "the isolated point weighs %g left points", held);
+  spx_ctx_destroy(ctx);
+}
+
+/* The ring gap (spx_fit_ring_gap) on a convex sphere mesh: a scan point on a triangle around its
+ * nearest vertex j is exactly where the surface is, so with the gap the gathered plane residual at
+ * the mesh is 0 for every vertex (the triangles pass through the points), while without it the
+ * plane of j lies outside the points (the bias the gap removes: residual > 0). The gap is >= 0
+ * here (convex), 0 beyond thr, and bounded by SPX_FIT_GAP_MAX. */
+static void test_ring_gap(void) {
+  enum { NLAT = 7, NLON = 10, NV = 2 + NLAT * NLON, NF = 2 * NLON * NLAT, NQ = 4000 };
+  static double X[NV * 3], N[NV * 3], qsum[NV * 3], wsum[NV], gap[NQ];
+  static int32_t F[NF * 3], idx[NQ], vert[NV];
+  static float Q[NQ * 3], d2[NQ];
+  static spx_fit_free_pair out[NV];
+  double R = 0.06; /* an arm's radius: vertices ~2 cm apart */
+  X[2] = R, X[(NV - 1) * 3 + 2] = -R;
+  for (int a = 0; a < NLAT; a++)
+    for (int b = 0; b < NLON; b++) {
+      double th = M_PI * (a + 1) / (NLAT + 1), ph = 2 * M_PI * b / NLON;
+      double *x = X + (1 + a * NLON + b) * 3;
+      x[0] = R * sin(th) * cos(ph), x[1] = R * sin(th) * sin(ph), x[2] = R * cos(th);
+    }
+  int32_t nf = 0;
+#define V_(a, b) (1 + (a) * NLON + ((b) % NLON))
+  for (int b = 0; b < NLON; b++) {
+    int32_t *f = F + 3 * nf++;
+    f[0] = 0, f[1] = V_(0, b), f[2] = V_(0, b + 1);
+    f = F + 3 * nf++;
+    f[0] = NV - 1, f[1] = V_(NLAT - 1, b + 1), f[2] = V_(NLAT - 1, b);
+    for (int a = 0; a + 1 < NLAT; a++) {
+      f = F + 3 * nf++;
+      f[0] = V_(a, b), f[1] = V_(a + 1, b), f[2] = V_(a + 1, b + 1);
+      f = F + 3 * nf++;
+      f[0] = V_(a, b), f[1] = V_(a + 1, b + 1), f[2] = V_(a, b + 1);
+    }
+  }
+#undef V_
+  CHECK(nf == NF);
+  spx_vertex_normals_d(X, NV, F, NF, N);
+  for (int32_t j = 0; j < NV; j++) /* outward */
+    CHECK(N[j * 3] * X[j * 3] + N[j * 3 + 1] * X[j * 3 + 1] + N[j * 3 + 2] * X[j * 3 + 2] > 0);
+  spx_ctx *ctx = NULL;
+  CHECK(spx_ctx_create(&ctx) == SPX_OK);
+  spx_adj vf = {0};
+  CHECK_OK(ctx, spx_fit_vertex_faces(ctx, NV, F, NF, &vf));
+  /* points on random triangles, each kept only if its triangle is around its nearest vertex (then
+   * its closest point on that vertex's triangles is the point itself) */
+  unsigned long long s = 0x51a9;
+  int32_t nq = 0;
+  for (int tries = 0; nq < NQ - 1 && tries < 20 * NQ; tries++) {
+    const int32_t *f = F + 3 * (int32_t)(spx_t_uniform(&s) * NF);
+    double u = spx_t_uniform(&s), v = spx_t_uniform(&s), p[3], best = INFINITY;
+    if (u + v > 1) u = 1 - u, v = 1 - v;
+    int32_t j = -1;
+    for (int d = 0; d < 3; d++) p[d] = (1 - u - v) * X[f[0] * 3 + d] + u * X[f[1] * 3 + d] + v * X[f[2] * 3 + d];
+    for (int32_t k = 0; k < NV; k++) {
+      double e = 0;
+      for (int d = 0; d < 3; d++) e += (p[d] - X[k * 3 + d]) * (p[d] - X[k * 3 + d]);
+      if (e < best) best = e, j = k;
+    }
+    if (j != f[0] && j != f[1] && j != f[2]) continue;
+    for (int d = 0; d < 3; d++) Q[nq * 3 + d] = (float)p[d];
+    idx[nq] = j, d2[nq++] = (float)best;
+  }
+  CHECK(nq > NQ / 2);
+  Q[nq * 3] = (float)(2 * R), Q[nq * 3 + 1] = Q[nq * 3 + 2] = 0; /* beyond thr: no gap */
+  idx[nq] = 1, d2[nq++] = (float)(R * R);
+  double thr = 0.03;
+  spx_fit_ring_gap(Q, nq, idx, d2, thr, X, N, F, &vf, gap);
+  double gmax = 0, with = 0, without = 0;
+  for (int32_t i = 0; i + 1 < nq; i++) {
+    CHECK_MSG(gap[i] >= -1e-6 && gap[i] <= SPX_FIT_GAP_MAX, "gap %g", gap[i]);
+    gmax = fmax(gmax, gap[i]);
+  }
+  CHECK(gap[nq - 1] == 0);
+  CHECK_MSG(gmax > 1e-4, "largest gap %g m: the points should lie inside the planes", gmax);
+  for (int pass = 0; pass < 2; pass++) {
+    int32_t np = spx_fit_gather_scan(Q, nq, idx, d2, thr, N, NV, 1.0, pass ? gap : NULL, NULL, wsum, qsum, vert, out);
+    CHECK(np > NV / 2);
+    for (int32_t k = 0; k < np; k++) {
+      double r, *par[1] = {X + vert[k] * 3};
+      CHECK(spx_fit_free_plane_cost(&out[k], (const double *const *)par, &r, NULL));
+      r /= out[k].a; /* the mean offset of the vertex's points from its plane */
+      if (pass) with = fmax(with, fabs(r));
+      else without += r / np;
+    }
+  }
+  CHECK_MSG(with < 1e-6, "with the gap a vertex's points are %g m off the triangles", with);
+  CHECK_MSG(without > 2e-4, "without the gap the planes lie %g m outside the points on average", without);
+  spx_adj_free(&vf);
+  spx_ctx_destroy(ctx);
 }
 
 int main(void) {
@@ -338,5 +473,7 @@ int main(void) {
   SPX_RUN(test_point_triangle);
   SPX_RUN(test_gradients);
   SPX_RUN(test_gather_scan);
+  SPX_RUN(test_ring_gap);
+  SPX_RUN(test_area_weights);
   return spx_test_summary();
 }

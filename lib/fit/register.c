@@ -16,7 +16,7 @@ void spx_fit_options_default(spx_fit_options *o) {
                          .w_shape = 2e-4, .w_pose = 1e-4, .w_limits = 0.1, .w_scale = 1.0, .w_pose_start = 0.1,
                          .w_m2s = 1.0, .w_lap = 1.0, .w_couple_start = 0.3, .w_couple_end = 0.02,
                          .robust_m = 0.01, .seed = 0x5eed, .progress = NULL, .progress_user = NULL,
-                         .ceres_progress = 0, .aids = SPX_FIT_AID_CONTINUE | SPX_FIT_AID_RESTART};
+                         .ceres_progress = 0, .aids = SPX_FIT_AID_CONTINUE | SPX_FIT_AID_RESTART | SPX_FIT_AID_SURFACE};
 }
 
 void spx_fit_result_free(spx_fit_result *r) {
@@ -27,7 +27,7 @@ void spx_fit_result_free(spx_fit_result *r) {
 }
 
 static void work_free(spx_fit_work *w) {
-  free(w->Q), free(w->Qf), free(w->Qfv), free(w->Vf), free(w->N), free(w->idx), free(w->d2);
+  free(w->Q), free(w->Qf), free(w->Qfv), free(w->wq), free(w->Vf), free(w->N), free(w->idx), free(w->d2);
   free(w->dist), free(w->idx_m), free(w->area), free(w->lim), free(w->msub), free(w->seen), free(w->eyes);
   free(w->fs_j), free(w->fs_q), free(w->fs_n);
   for (int32_t k = 0; w->zg && k < w->neye; k++) spx_fit_zgrid_free(&w->zg[k]);
@@ -193,6 +193,13 @@ static spx_status pose_samples(spx_ctx *ctx, const spx_fit_options *o, const flo
   return SPX_OK;
 }
 
+/* w->wq: the area weights of the free stage's sample (AREA_K neighbours). */
+#define AREA_K 16
+static spx_status area_weights(spx_ctx *ctx, const spx_fit_options *o, spx_fit_work *w) {
+  if (!(w->wq = spx_alloc_array(ctx, (size_t)w->nqf, sizeof(float), "registration"))) return SPX_E_NOMEM;
+  return spx_fit_area_weights(ctx, w->Qf, w->nqf, AREA_K, o->threads, w->wq);
+}
+
 /* Without a camera: a scan that covers less than 3/4 of the body (by area, within 3 cm of the
  * rigidly placed template), on one side (the covered surface's mean normal is over 0.25 long),
  * is taken as one camera's view from 3 m along that mean normal. Sets w->neye and w->eyes. */
@@ -302,6 +309,7 @@ spx_status spx_fit_register(spx_ctx *ctx, const spx_body_model *m, const spx_mes
       goto cleanup;
     }
     if (w.neye && (st = camera_grids(ctx, &o, &w))) goto cleanup;
+    if (w.neye && (o.aids & SPX_FIT_AID_DENSITY) && (st = area_weights(ctx, &o, &w))) goto cleanup;
     if ((st = spx_fit_stage_pose(ctx, m, &o, &w, &b, r))) goto cleanup;
     r->stages_done |= SPX_FIT_POSE;
     memcpy(r->trans, b.trans, sizeof r->trans);

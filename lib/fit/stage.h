@@ -26,6 +26,15 @@ uint64_t spx_fit_rng_next(uint64_t *s);
  * random order (also when all are taken), so that any prefix of them is a random subsample. */
 int32_t *spx_fit_subsample(spx_ctx *ctx, int32_t n, int32_t k, uint64_t seed, int32_t *out_k);
 
+/* Surface-area weights of scan points (SPX_FIT_AID_DENSITY). A depth camera samples the surface
+ * per pixel, so what it sees at a grazing angle (the sides of a body in one view) holds fewer
+ * points per square metre than what faces it, and a data term summed over points under-weights
+ * it. wt[i] (n): the area around point i, its squared distance to its k-th nearest neighbour over
+ * the median of those, clamped to [1/SPX_FIT_AREA_W_MAX, SPX_FIT_AREA_W_MAX] (an isolated point,
+ * clutter, cannot dominate; 6 is a surface seen at 80 degrees), then scaled to average 1. */
+#define SPX_FIT_AREA_W_MAX 6.0
+spx_status spx_fit_area_weights(spx_ctx *ctx, const float *Q, int32_t n, int k, int threads, float *wt);
+
 /* ---------- residuals (Ceres cost callbacks, see fit/ceres_bridge.h) ---------- */
 
 /* rigid: x = s R(w) z + t; r = a (x - p). Blocks: w(3), s(1), t(3). */
@@ -84,11 +93,25 @@ int spx_fit_free_point_cost(void *user, const double *const *par, double *res, d
  * points' own residuals a1 n.(x - q_i) sum to the pair's square plus a constant, so the term is the
  * same least squares whatever the number of points, at one residual per vertex; the stage's Huber
  * loss (its scale grows with the weight) then acts on a vertex's mean offset, not on each point's.
- * out (nv) gets the pairs, vert their vertices; cnt (nv), qsum (nv*3): scratch. Returns the number
- * of pairs. */
+ * gap (nq, or NULL: none): each point moved out along N_j by gap[i] (spx_fit_ring_gap); wt (nq, or
+ * NULL: all 1): each point's weight (the pair is then at the weighted mean, weight a1 sqrt(sum)).
+ * out (nv) gets the pairs, vert their vertices; wsum (nv), qsum (nv*3): scratch. Returns the
+ * number of pairs. */
 int32_t spx_fit_gather_scan(const float *Q, int32_t nq, const int32_t *idx, const float *d2, double thr,
-                            const double *N, int32_t nv, double a1, int32_t *cnt, double *qsum, int32_t *vert,
-                            spx_fit_free_pair *out);
+                            const double *N, int32_t nv, double a1, const double *gap, const float *wt,
+                            double *wsum, double *qsum, int32_t *vert, spx_fit_free_pair *out);
+
+/* A vertex's tangent plane is not the surface the registration ends as: between the vertices it
+ * is the triangles, which lie inside the plane where the body is convex (outside where concave),
+ * so vertices fitted to their planes leave the whole surface inside the scan (by ~0.5 mm on a
+ * body, benchmarks/RESULTS.md). gap[i] (nq): for scan point i within thr of its nearest vertex
+ * j = idx[i] (vertices X, normals N), how far the triangles around j lie inside j's plane at the
+ * point's closest point c on them, n_j.(x_j - c), clamped to +-SPX_FIT_GAP_MAX; 0 for points
+ * beyond thr. spx_fit_gather_scan moves each point out along n_j by its gap, so that the
+ * triangles, not the planes, pass through the points on average. */
+#define SPX_FIT_GAP_MAX 0.01
+void spx_fit_ring_gap(const float *Q, int32_t nq, const int32_t *idx, const float *d2, double thr, const double *X,
+                      const double *N, const int32_t *faces, const spx_adj *vf, double *gap);
 
 /* r = a ((x_i - mean_j x_j) - target); blocks x_i, x_j... */
 typedef struct spx_fit_lap {
@@ -142,6 +165,7 @@ typedef struct spx_fit_work {
   float *Qf;  /* scan subsample in model frame (free stage) */
   int32_t nqf;
   int32_t *Qfv; /* the camera of each point of Qf (several cameras; else NULL) */
+  float *wq;    /* nqf: area weights of Qf and of Q, its prefix (spx_fit_area_weights), or NULL: all 1 */
   float *Vf;  /* current model vertices, float */
   double *N;  /* normals */
   int32_t *idx; /* per scan point: nearest model vertex */

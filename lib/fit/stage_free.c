@@ -6,7 +6,9 @@
  * residual per vertex (spx_fit_gather_scan), so its cost does not grow with the scan sample: the
  * stage takes up to max_points_free (100,000) points, every point of a 50k scan and all or most of
  * four fused depth frames, where a sample of 20,000 left the registration noisier
- * (benchmarks/RESULTS.md). */
+ * (benchmarks/RESULTS.md). With SPX_FIT_AID_SURFACE the gathered points are first moved out by
+ * their ring gap (spx_fit_ring_gap): fitted to its vertices' tangent planes, the surface between
+ * the vertices ended ~0.5 mm inside the scan on every body. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -75,9 +77,10 @@ typedef struct free_stage {
   double *tgt;      /* nv*3 coupling targets: Vp, moved along Np by the continued offset where unsupported */
   double *off;      /* nv offsets along Np */
   unsigned char *known; /* nv */
-  int32_t *cnt;     /* nv, nv*3, nv: spx_fit_gather_scan's scratch and the vertex of each pair */
-  double *qsum;
-  int32_t *vert;
+  double *wsum, *qsum; /* nv, nv*3: spx_fit_gather_scan's scratch */
+  int32_t *vert;    /* nv: the vertex of each gathered pair */
+  const int32_t *faces; /* the model's */
+  double *gap;      /* nqf: spx_fit_ring_gap of each scan point (SPX_FIT_AID_SURFACE), or NULL */
   int *sizes;       /* maxdeg+1 threes */
   double **blocks;  /* maxdeg+1 */
 } free_stage;
@@ -107,23 +110,44 @@ static spx_status continue_offsets(spx_ctx *ctx, free_stage *fs) {
   return st;
 }
 
+void spx_fit_ring_gap(const float *Q, int32_t nq, const int32_t *idx, const float *d2, double thr, const double *X,
+                      const double *N, const int32_t *faces, const spx_adj *vf, double *gap) {
+  for (int32_t i = 0; i < nq; i++) {
+    int32_t j = idx[i];
+    gap[i] = 0;
+    if (d2[i] > thr * thr || vf->start[j] == vf->start[j + 1]) continue;
+    double p[3] = {Q[i * 3], Q[i * 3 + 1], Q[i * 3 + 2]}, best = INFINITY, c[3] = {0, 0, 0};
+    for (int32_t k = vf->start[j]; k < vf->start[j + 1]; k++) {
+      const int32_t *F = faces + (size_t)vf->idx[k] * 3;
+      double w[3], e = spx_fit_point_tri_closest(p, X + F[0] * 3, X + F[1] * 3, X + F[2] * 3, w);
+      if (e >= best) continue;
+      best = e;
+      for (int d = 0; d < 3; d++) c[d] = w[0] * X[F[0] * 3 + d] + w[1] * X[F[1] * 3 + d] + w[2] * X[F[2] * 3 + d];
+    }
+    const double *x = X + (size_t)j * 3, *n = N + (size_t)j * 3;
+    double g = n[0] * (x[0] - c[0]) + n[1] * (x[1] - c[1]) + n[2] * (x[2] - c[2]);
+    gap[i] = fmax(-SPX_FIT_GAP_MAX, fmin(SPX_FIT_GAP_MAX, g));
+  }
+}
+
 int32_t spx_fit_gather_scan(const float *Q, int32_t nq, const int32_t *idx, const float *d2, double thr,
-                            const double *N, int32_t nv, double a1, int32_t *cnt, double *qsum, int32_t *vert,
-                            spx_fit_free_pair *out) {
-  memset(cnt, 0, (size_t)nv * sizeof *cnt);
+                            const double *N, int32_t nv, double a1, const double *gap, const float *wt,
+                            double *wsum, double *qsum, int32_t *vert, spx_fit_free_pair *out) {
+  memset(wsum, 0, (size_t)nv * sizeof *wsum);
   memset(qsum, 0, (size_t)nv * 3 * sizeof *qsum);
   for (int32_t i = 0; i < nq; i++) {
     if (d2[i] > thr * thr) continue;
     int32_t j = idx[i];
-    cnt[j]++;
-    for (int d = 0; d < 3; d++) qsum[j * 3 + d] += Q[i * 3 + d];
+    double g = gap ? gap[i] : 0, v = wt ? wt[i] : 1;
+    wsum[j] += v;
+    for (int d = 0; d < 3; d++) qsum[j * 3 + d] += v * (Q[i * 3 + d] + g * N[j * 3 + d]);
   }
   int32_t np = 0;
   for (int32_t j = 0; j < nv; j++) {
-    if (!cnt[j]) continue;
+    if (!(wsum[j] > 0)) continue;
     spx_fit_free_pair *q = out + np;
-    q->a = a1 * sqrt((double)cnt[j]);
-    for (int d = 0; d < 3; d++) q->q[d] = qsum[j * 3 + d] / cnt[j], q->n[d] = N[j * 3 + d];
+    q->a = a1 * sqrt(wsum[j]);
+    for (int d = 0; d < 3; d++) q->q[d] = qsum[j * 3 + d] / wsum[j], q->n[d] = N[j * 3 + d];
     vert[np++] = j;
   }
   return np;
@@ -142,7 +166,9 @@ static spx_status free_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
   double a1 = sqrt(1.0 / w->nqf), ac = sqrt(wc / nv), al = sqrt(o->w_lap / nv);
   spx_status st = continue_offsets(ctx, fs);
   if (st) return st;
-  int32_t np = spx_fit_gather_scan(w->Qf, w->nqf, w->idx, w->d2, thr, w->N, nv, a1, fs->cnt, fs->qsum, fs->vert, w->fp);
+  if (fs->gap) spx_fit_ring_gap(w->Qf, w->nqf, w->idx, w->d2, thr, X, w->N, fs->faces, &w->vf, fs->gap);
+  int32_t np = spx_fit_gather_scan(w->Qf, w->nqf, w->idx, w->d2, thr, w->N, nv, a1, fs->gap, w->wq, fs->wsum,
+                                   fs->qsum, fs->vert, w->fp);
   for (int32_t k = 0; k < np; k++) {
     double *blk = X + fs->vert[k] * 3;
     if (spx_ceres_add_residual(pb, spx_fit_free_plane_cost, w->fp + k, 1, 1, sizes, &blk, SPX_LOSS_HUBER,
@@ -198,10 +224,12 @@ spx_status spx_fit_stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_f
   double **blocks = spx_alloc_array(ctx, (size_t)maxdeg + 1, sizeof(double *), "free stage");
   double *Np = spx_alloc_array(ctx, (size_t)nv, 7 * sizeof(double), "free stage");
   unsigned char *known = spx_alloc_array(ctx, (size_t)nv, 1, "free stage");
-  int32_t *cnt = spx_alloc_array(ctx, (size_t)nv, 2 * sizeof(int32_t), "free stage");
-  double *qsum = spx_alloc_array(ctx, (size_t)nv, 3 * sizeof(double), "free stage");
+  int32_t *vert = spx_alloc_array(ctx, (size_t)nv, sizeof(int32_t), "free stage");
+  double *qsum = spx_alloc_array(ctx, (size_t)nv, 4 * sizeof(double), "free stage");
+  int surf = (o->aids & SPX_FIT_AID_SURFACE) != 0;
+  double *gap = surf ? spx_alloc_array(ctx, (size_t)w->nqf + 1, sizeof(double), "free stage") : NULL;
   spx_status st = SPX_OK;
-  if (!sizes || !blocks || !Np || !known || !cnt || !qsum) {
+  if (!sizes || !blocks || !Np || !known || !vert || !qsum || (surf && !gap)) {
     st = SPX_E_NOMEM;
     goto cleanup;
   }
@@ -217,13 +245,13 @@ spx_status spx_fit_stage_free(spx_ctx *ctx, const spx_body_model *m, const spx_f
     }
   }
   free_stage fs = {o, w, nv, o->free_steps > 0 ? o->free_steps : 1, X, Vp, Np, Np + 3 * (size_t)nv,
-                   Np + 6 * (size_t)nv, known, cnt, qsum, cnt + nv, sizes, blocks};
+                   Np + 6 * (size_t)nv, known, qsum + 3 * (size_t)nv, qsum, vert, m->faces, gap, sizes, blocks};
   spx_fit_stage s = {"free", 2, fs.steps, w->Qf, w->nqf, X, NULL,
                      {"free", free_residuals, &fs, NULL, NULL, NULL,
                       o->free_inner_iterations > 0 ? o->free_inner_iterations : o->inner_iterations,
                       SPX_LS_SPARSE_NORMAL_CHOLESKY}};
   st = spx_fit_run_stage(ctx, m, o, w, &s, r);
 cleanup:
-  free(sizes), free(blocks), free(Np), free(known), free(cnt), free(qsum);
+  free(sizes), free(blocks), free(Np), free(known), free(vert), free(qsum), free(gap);
   return st;
 }

@@ -5,7 +5,9 @@
  * once per point in spx_fit_body_prepare; the residuals read them. With SPX_FIT_AID_RESTART, a fit
  * that leaves over 1% of the scan more than 3 cm from the body is run again from its own shape
  * with straight joints (and, with one camera, turned round), and the start that explains the scan
- * best is kept (second_start). */
+ * best is kept (second_start). With SPX_FIT_AID_SURFACE each scan point's plane target is moved
+ * out by the ring gap (spx_fit_ring_gap), so the body's triangles, not its vertices' planes, are
+ * fitted to the scan. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -138,6 +140,7 @@ typedef struct pose_stage {
   spx_fit_result *r;
   int32_t steps;
   spx_fit_prior pr_pose, pr_lim, pr_shape, pr_scale;
+  double *gap; /* nq: spx_fit_ring_gap of each scan point (SPX_FIT_AID_SURFACE), or NULL */
 } pose_stage;
 
 /* verts_pose: the body at the current parameters, with the body scale */
@@ -166,12 +169,15 @@ static spx_status pose_residuals(spx_ctx *ctx, spx_ceres_problem *pb, void *user
   if (!nb) sizes[1] = 3, sizes[2] = 1, blocks[1] = b->trans, blocks[2] = b->bscale, nblk = 3;
   double a1 = sqrt(1.0 / w->nq);
   int32_t np = 0;
+  if (ps->gap) spx_fit_ring_gap(w->Q, w->nq, w->idx, w->d2, thr, ps->r->verts_pose, w->N, ps->m->faces, &w->vf,
+                                ps->gap);
   for (int32_t i = 0; i < w->nq; i++) {
     if (w->d2[i] > thr * thr) continue;
     spx_fit_body_pair *q = w->bp + np++;
-    q->b = b, q->j = w->idx[i], q->a = a1;
-    for (int d = 0; d < 3; d++) q->q[d] = w->Q[i * 3 + d], q->n[d] = w->N[q->j * 3 + d];
-    if (spx_ceres_add_residual(pb, spx_fit_body_plane_cost, q, 1, nblk, sizes, blocks, SPX_LOSS_HUBER, a1 * robust))
+    double g = ps->gap ? ps->gap[i] : 0;
+    q->b = b, q->j = w->idx[i], q->a = a1 * (w->wq && i < w->nqf ? sqrt(w->wq[i]) : 1.0);
+    for (int d = 0; d < 3; d++) q->n[d] = w->N[q->j * 3 + d], q->q[d] = w->Q[i * 3 + d] + g * q->n[d];
+    if (spx_ceres_add_residual(pb, spx_fit_body_plane_cost, q, 1, nblk, sizes, blocks, SPX_LOSS_HUBER, q->a * robust))
       return spx_fit_ceres_error(ctx, "pose");
   }
   for (int32_t jj = 0; jj < w->nms; jj++) {
@@ -333,13 +339,17 @@ spx_status spx_fit_stage_pose(spx_ctx *ctx, const spx_body_model *m, const spx_f
   joint_limits(m, w->lim);
   pose_stage ps = {m, o, w, b, r, o->pose_steps > 0 ? o->pose_steps : 1,
                    {.n = K3 - 3, .offset = 3}, {.n = K3 - 3, .w = o->w_limits, .offset = 3, .lims = w->lim + 3},
-                   {.n = nb, .w = o->w_shape}, {.n = 1, .w = o->w_scale, .target = r->sim_scale}};
+                   {.n = nb, .w = o->w_shape}, {.n = 1, .w = o->w_scale, .target = r->sim_scale}, NULL};
+  if (o->aids & SPX_FIT_AID_SURFACE)
+    if (!(ps.gap = spx_alloc_array(ctx, (size_t)w->nq + 1, sizeof(double), "pose stage"))) return SPX_E_NOMEM;
   spx_fit_stage s = {"pose", 1, ps.steps, w->Q, w->nq, r->verts_pose, pose_vertices,
                      {"pose", pose_residuals, &ps, spx_fit_body_prepare, b, &b->st, o->inner_iterations,
                       SPX_LS_DENSE_NORMAL_CHOLESKY}};
   spx_status st = spx_fit_run_stage(ctx, m, o, w, &s, r);
-  if (st || !(o->aids & SPX_FIT_AID_RESTART)) return st;
-  double s1, f1;
-  if ((st = pose_score(ctx, m, o, w, r->verts_pose, r->sim_scale, &s1, &f1))) return st;
-  return f1 > POSE_FAR_SHARE ? second_start(ctx, m, o, w, b, r, &s, s1, f1) : SPX_OK;
+  double s1 = 0, f1 = 0;
+  int restart = !st && (o->aids & SPX_FIT_AID_RESTART);
+  if (restart) st = pose_score(ctx, m, o, w, r->verts_pose, r->sim_scale, &s1, &f1);
+  if (restart && !st && f1 > POSE_FAR_SHARE) st = second_start(ctx, m, o, w, b, r, &s, s1, f1);
+  free(ps.gap);
+  return st;
 }

@@ -44,8 +44,19 @@ enum { SPX_FIT_RIGID = 1, SPX_FIT_POSE = 2, SPX_FIT_FREE = 4, SPX_FIT_ALL = 7 };
  * of the scan lies more than 3 cm from the posed body, the pose stage runs again from its own
  * shape with every joint but the root straight and, with one camera, once more with the root
  * turned round about the up axis; the start whose body explains the scan best
- * (lib/fit/stage_pose.c) is kept. */
-enum { SPX_FIT_AID_CONTINUE = 1, SPX_FIT_AID_FREESPACE = 2, SPX_FIT_AID_RESTART = 4 };
+ * (lib/fit/stage_pose.c) is kept. SURFACE (default on): the scan → model terms of the pose and
+ * free stages fit the triangles around each scan point's nearest vertex, not the vertex's tangent
+ * plane (which left the whole registration ~0.5 mm inside the scan; spx_fit_ring_gap). DENSITY:
+ * with cameras, each scan point of the pose and free stages' data terms weighs the surface area
+ * around it (spx_fit_area_weights), so what a depth camera saw at a grazing angle, with fewer
+ * points per area, is not under-weighted. */
+enum {
+  SPX_FIT_AID_CONTINUE = 1,
+  SPX_FIT_AID_FREESPACE = 2,
+  SPX_FIT_AID_RESTART = 4,
+  SPX_FIT_AID_SURFACE = 8,
+  SPX_FIT_AID_DENSITY = 16
+};
 
 typedef struct spx_fit_progress {
   const char *stage;    /* "rigid", "pose", "free" */
@@ -80,7 +91,7 @@ typedef struct spx_fit_options {
                                      stdout (debugging; default 0: the library prints nothing) */
   int view;                       /* 1: the scan is what one camera at view_eye saw (one side) */
   double view_eye[3];             /* the camera's centre in scan coordinates (input units) */
-  unsigned aids;                  /* SPX_FIT_AID_* bits (default CONTINUE | RESTART) */
+  unsigned aids;                  /* SPX_FIT_AID_* bits (default CONTINUE | RESTART | SURFACE) */
   int32_t nviews;                 /* > 0: the scan is what nviews cameras saw (fused; overrides view) */
   const double *view_eyes;        /* nviews*3: their centres in scan coordinates (input units) */
   const int32_t *point_view;      /* scan->nv: the camera (0..nviews-1) that saw each point */
