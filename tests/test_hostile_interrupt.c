@@ -6,7 +6,9 @@
  *    (the same file, by inode and status-change time, or still absent); "what this run wrote
  *    before is kept (last X)" and train's "saved X" name a file this run replaced;
  *  - no temporary is left anywhere (the writers' own, a transaction's, synth's folder, animate's
- *    links), and train's checkpoint still loads.
+ *    links), and train's checkpoint still loads;
+ *  - it exits within 120 s of the signal (else the check fails naming the wait channels of its
+ *    threads, and the run is killed: a hang fails, it does not stall the suite).
  * A command added to the table inherits every check. The seed is printed; SPX_TEST_SEED replays. */
 #include "hostile.h"
 #include "rest_registration.h"
@@ -67,6 +69,24 @@ static void last_line(char *line, size_t cap) {
   free(b);
 }
 
+/* waitpid, but at most limit_s seconds: a run still going then is a failure of its own (a hang
+ * in a signal path must not hang the suite), told by its threads' wait channels, and killed. 1:
+ * it exited, status in *st. */
+static int wait_bounded(pid_t pid, int *st, int limit_s, const char *what) {
+  for (long t = 0; t < 50L * limit_s; t++) {
+    pid_t r = waitpid(pid, st, WNOHANG);
+    if (r == pid) return 1;
+    if (r < 0) return 0;
+    sleep_ms(20);
+  }
+  fprintf(stderr, "  %s: still running %d s after the signal; its threads wait in:", what, limit_s);
+  fflush(stderr);
+  sh("for f in /proc/%d/task/*/wchan; do printf ' %%s' \"$(cat $f)\"; done >&2; echo >&2", (int)pid);
+  kill(pid, SIGKILL);
+  waitpid(pid, st, 0);
+  return 0;
+}
+
 /* One interrupted run of c at ms; checks the property. */
 static void interrupt_once(const interrupted_cmd *c, long ms, int sig) {
   unsigned long long before[4];
@@ -75,10 +95,13 @@ static void interrupt_once(const interrupted_cmd *c, long ms, int sig) {
   sleep_ms(ms);
   kill(pid, sig);
   int st = 0;
-  waitpid(pid, &st, 0);
+  const char *name = sig == SIGINT ? "SIGINT" : "SIGTERM";
+  if (!wait_bounded(pid, &st, 120, c->args)) {
+    CHECK_MSG(0, "%s after %ld ms: `%s` did not exit within 120 s", name, ms, c->args);
+    return;
+  }
   char line[1024];
   last_line(line, sizeof line);
-  const char *name = sig == SIGINT ? "SIGINT" : "SIGTERM";
   int code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
   int early = WIFSIGNALED(st) && WTERMSIG(st) == sig; /* before the tool set its handler: nothing begun */
   CHECK_MSG(code == 0 || code == 128 + sig || early, "%s after %ld ms: status %d (%s)", name, ms, st, line);
@@ -118,10 +141,10 @@ static int saved_after_step(int sig) {
   }
   kill(pid, sig);
   int st = 0;
-  waitpid(pid, &st, 0);
+  int exited = wait_bounded(pid, &st, 120, "train after a step");
   char line[1024];
   last_line(line, sizeof line);
-  int ok = seen && WIFEXITED(st) && WEXITSTATUS(st) == 128 + sig && strstr(line, "saved T.safetensors") &&
+  int ok = exited && seen && WIFEXITED(st) && WEXITSTATUS(st) == 128 + sig && strstr(line, "saved T.safetensors") &&
            file_id("T.safetensors") != before && count_temps(".") == 0;
   if (!ok)
     fprintf(stderr, "  progress seen %d, status %d, checkpoint %s, %d temporaries, last line: %s\n", seen, st,
