@@ -8,7 +8,7 @@
  * rebuilt identically, the order depends on (seed, epoch) only, and the stage and step come from
  * the file. Validation PSNR and LPIPS are printed every val_every steps and at the end of each
  * stage. The frozen VGG16 keeps the training targets' features (spx_vgg_set_target_cache): the
- * same bits, a quarter less work in a VGG16 step. */
+ * same bits, with only the prediction through the VGG16 after the first epoch. */
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
